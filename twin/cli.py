@@ -1,0 +1,177 @@
+"""The `twin` command: a thin layer over the Python API."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from .errors import TwinError
+
+app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
+                  help="MuJoCo digital twin of twin-thruster surface vessels.")
+console = Console()
+VESSEL_HELP = "vessel name (model/NAME.json)"
+MODEL_HELP = "vessel description file (e.g. written by identification); overrides --vessel"
+
+
+def _vessel(vessel: Optional[str], model: Optional[Path], case: str):
+    from . import vessel as vessel_mod
+
+    if model is not None:
+        return vessel_mod.load(str(model), case)
+    if vessel is None:
+        raise TwinError("give --vessel NAME or --model FILE")
+    return vessel_mod.load(vessel, case)
+
+
+def _pair(text: Optional[str], what: str) -> Optional[tuple[float, float]]:
+    if text is None:
+        return None
+    try:
+        a, b = (float(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"--{what} expects SPEED,DIR_DEG, got '{text}'") from None
+    if a < 0:
+        raise TwinError(f"--{what}: speed must be ≥ 0")
+    return a, b
+
+
+@app.command()
+def simulate(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    scenario: str = typer.Option("zigzag", help="step | turn | zigzag | spin | random"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
+    duration: float = typer.Option(120.0, help="simulated time, s"),
+    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap or .rrd (repeatable)"),
+    current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
+    wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
+    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    seed: int = typer.Option(0, help="random seed (scenario 'random')"),
+    sample_dt: float = typer.Option(0.1, help="output sample period, s"),
+):
+    """Run the twin headless and write the run."""
+    from dataclasses import replace
+
+    from . import scenarios
+    from .engine.mjcf import compile_vessel
+    from .engine.sim import simulate as run_sim
+    from .inputs import read_inputs_csv
+    from .outputs import check_paths, write
+
+    check_paths(out)
+    v = _vessel(vessel, model, case)
+    env = v.environment
+    if (c := _pair(current, "current")) is not None:
+        env = replace(env, current_speed_m_s=c[0], current_dir_deg=c[1])
+    if (w := _pair(wind, "wind")) is not None:
+        env = replace(env, wind_speed_m_s=w[0], wind_dir_deg=w[1])
+    v = v.with_environment(env)
+    drive = read_inputs_csv(inputs) if inputs else scenarios.get(scenario, seed)
+    if inputs and drive.kind == "pwm" and v.thrusters.kind != "t200":
+        raise TwinError(f"vessel '{v.name}' has no PWM model: give thrust_left,thrust_right in N")
+    cv = compile_vessel(v)
+    run = run_sim(cv, drive, duration, sample_dt_s=sample_dt)
+    run.meta["scenario"] = "inputs:" + inputs.name if inputs else scenario
+    for path in out:
+        write({"twin": run}, path, geometry=cv.geometry, vessel_name=v.name)
+        console.print(f"wrote {path}")
+    console.print(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
+                  f"heading {run.eta[-1, 2] * 57.29578:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
+
+
+@app.command()
+def crosscheck(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    duration: float = typer.Option(120.0, help="zig-zag duration, s"),
+    case: str = typer.Option("nominal", help="mass case"),
+    rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
+):
+    """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
+    from . import crosscheck as cc
+    from .outputs import check_paths, write
+    from .vessel import write_text_atomic
+
+    if rrd is not None:
+        check_paths([rrd])
+    v = _vessel(vessel, model, case)
+    results = cc.crosscheck(v, duration)
+    table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
+    for col in ("case", "position err [m]", "heading err [deg]", "term effect [m]", "result"):
+        table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")
+    for r in results:
+        effect = "-" if r.effect_m is None else f"{r.effect_m:.3g}"
+        table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
+                      "[green]pass[/]" if r.passed else "[red]FAIL[/]")
+    console.print(table)
+    console.print(f"tolerance: position < {cc.POSITION_TOL_M} m, heading < {cc.HEADING_TOL_DEG}°")
+    if json_out is not None:
+        rows = [{"case": r.case, "position_err_m": r.position_err_m, "heading_err_deg": r.heading_err_deg,
+                 "effect_m": r.effect_m, "passed": r.passed} for r in results]
+        write_text_atomic(json_out, json.dumps({"vessel": v.name, "duration_s": duration, "cases": rows},
+                                               indent=2) + "\n")
+    if rrd is not None:
+        full = results[0]
+        from .engine.mjcf import compile_vessel
+
+        write({"engine": full.engine, "analytic": full.analytic}, rrd,
+              geometry=compile_vessel(v).geometry, vessel_name=v.name)
+        console.print(f"wrote {rrd}")
+    if not all(r.passed for r in results):
+        raise typer.Exit(1)
+
+
+@app.command()
+def params(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: str = typer.Option("nominal", help="mass case"),
+    as_json: bool = typer.Option(False, "--json", help="print JSON"),
+):
+    """Print the effective 3-DOF parameters of a vessel."""
+    from .params import effective_parameters
+
+    p = effective_parameters(_vessel(vessel, model, case))
+    if as_json:
+        typer.echo(json.dumps(p, indent=2))
+        return
+    console.print(f"[bold]{p['vessel']}[/] ({p['case']}): m = {p['rigid_body']['mass_kg']:.3f} kg, "
+                  f"xg = {p['rigid_body']['xg_m'] * 1e3:.1f} mm, Iz = {p['rigid_body']['Iz_kgm2']:.3f} kg·m²")
+    for key in ("M", "M_RB", "M_A"):
+        console.print(f"{key:5s} = " + "  ".join("[" + ", ".join(f"{x:9.4f}" for x in row) + "]" for row in p[key]))
+    console.print("damping: " + ", ".join(f"{k}={val:g}" for k, val in p["damping"].items() if val))
+
+
+def main() -> None:
+    try:
+        app(standalone_mode=False)
+    except TwinError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    except typer.Exit as exc:
+        sys.exit(exc.exit_code)
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo("aborted", err=True)
+        sys.exit(130)
+    except Exception as exc:  # click usage errors and anything unexpected: one line, never a traceback
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            typer.echo(f"error: {exc.format_message()}", err=True)
+            sys.exit(2)
+        if os.environ.get("TWIN_DEBUG"):
+            raise
+        typer.echo(f"error: {type(exc).__name__}: {exc}".splitlines()[0], err=True)
+        sys.exit(3)
+
+
+if __name__ == "__main__":
+    main()

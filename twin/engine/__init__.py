@@ -1,0 +1,1 @@
+"""Everything MuJoCo-specific: building the model, the callbacks, running it."""

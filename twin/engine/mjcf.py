@@ -1,0 +1,140 @@
+"""Build the MuJoCo model of a vessel from its MJCF and vessel file.
+
+The vessel file's mass case, thrust range, thruster gains and lag are applied
+to the MJCF through mjSpec, so the MJCF never repeats a parameter of the JSON.
+The rigid-body inertia the callbacks and the analytic model use is read back
+from the compiled model, so the engine's mass distribution is the only one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..errors import TwinError
+from ..physics.added_mass import RigidBody, is_symmetric_positive_definite
+from ..physics.hydrodynamics import HydroModel, Terms
+from ..vessel import Vessel
+
+JOINTS = ("north", "east", "yaw")
+THRUSTERS = ("thruster_left", "thruster_right")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """What the compiled MJCF says about the vessel, in the body frame (m, kg)."""
+
+    rigid: RigidBody
+    thruster_pos_m: np.ndarray  # (2, 3): left, right
+    gnss_pos_m: np.ndarray  # (3,)
+    imu_pos_m: np.ndarray  # (3,)
+
+    @property
+    def thruster_y_m(self) -> tuple[float, float]:
+        return float(self.thruster_pos_m[0, 1]), float(self.thruster_pos_m[1, 1])
+
+
+@dataclass
+class CompiledVessel:
+    vessel: Vessel
+    model: mujoco.MjModel
+    geometry: Geometry
+
+    def hydro(self, terms: Terms | None = None) -> HydroModel:
+        return hydro_model(self.vessel, self.geometry, terms)
+
+
+def _spec(vessel: Vessel) -> mujoco.MjSpec:
+    try:
+        return mujoco.MjSpec.from_file(str(vessel.mjcf))
+    except Exception as exc:  # MuJoCo raises ValueError with the parser message
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise TwinError(f"{vessel.mjcf.name}: malformed MJCF ({msg})") from None
+
+
+def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    if vessel.case == "nominal":
+        return
+    case = vessel.cases[vessel.case]
+    for name, mass in case.geom_mass_kg.items():
+        geom = spec.geom(name)
+        if geom is None:
+            raise TwinError(f"{vessel.mjcf.name}: case '{vessel.case}' names unknown geom '{name}'")
+        geom.mass = mass
+    for name, x in case.body_x_m.items():
+        body = spec.body(name)
+        if body is None:
+            raise TwinError(f"{vessel.mjcf.name}: case '{vessel.case}' names unknown body '{name}'")
+        body.pos[0] = x
+
+
+def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    t = vessel.thrusters
+    t_min, t_max = t.bounds()
+    for name, gain in zip(THRUSTERS, t.gains()):
+        act = spec.actuator(name)
+        if act is None:
+            raise TwinError(f"{vessel.mjcf.name}: no actuator '{name}'")
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = [t_min, t_max]
+        act.gainprm[0] = gain
+        if t.lag_s > 0:
+            # MuJoCo integrates the first-order thrust lag (seed 004 eq. 15) as actuator state.
+            # "filter", not "filterexact": under RK4 the latter lags by about half a step
+            act.dyntype = mujoco.mjtDyn.mjDYN_FILTER
+            act.dynprm[0] = t.lag_s
+
+
+def compile_vessel(vessel: Vessel) -> CompiledVessel:
+    spec = _spec(vessel)
+    _apply_case(vessel, spec)
+    _apply_thrusters(vessel, spec)
+    try:
+        model = spec.compile()
+    except Exception as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise TwinError(f"{vessel.mjcf.name}: cannot compile ({msg})") from None
+    for j in JOINTS:
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) < 0:
+            raise TwinError(f"{vessel.mjcf.name}: missing planar joint '{j}' (north, east, yaw)")
+    if model.nv != 3:
+        raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
+    geometry = read_geometry(model, vessel)
+    compiled = CompiledVessel(vessel, model, geometry)
+    M = compiled.hydro().M
+    if not is_symmetric_positive_definite(M):
+        raise TwinError(f"vessel '{vessel.name}': M = M_RB + M_A is not symmetric positive-definite")
+    return compiled
+
+
+def _site(model: mujoco.MjModel, data: mujoco.MjData, name: str, vessel: Vessel) -> np.ndarray:
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+    if sid < 0:
+        raise TwinError(f"{vessel.mjcf.name}: missing site '{name}'")
+    return data.site_xpos[sid].copy()  # at q = 0 the world frame is the body frame
+
+
+def read_geometry(model: mujoco.MjModel, vessel: Vessel) -> Geometry:
+    """Rigid M_RB about CO and the site positions, from the model at q = 0."""
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    M = np.zeros((3, 3))
+    mujoco.mj_fullM(model, data, M)
+    m = M[0, 0]
+    if not m > 0:
+        raise TwinError(f"{vessel.mjcf.name}: the vessel has no mass")
+    rigid = RigidBody(mass_kg=float(m), xg_m=float(M[1, 2] / m), yg_m=float(-M[0, 2] / m), Iz_kgm2=float(M[2, 2]))
+    thrusters = np.array([_site(model, data, n, vessel) for n in THRUSTERS])
+    return Geometry(rigid, thrusters, _site(model, data, "gnss", vessel), _site(model, data, "imu", vessel))
+
+
+def hydro_model(vessel: Vessel, geometry: Geometry, terms: Terms | None = None) -> HydroModel:
+    return HydroModel(
+        M_RB=geometry.rigid.matrix(),
+        M_A=vessel.added_mass.matrix(),
+        damping=vessel.damping,
+        wind_load=vessel.wind_load,
+        environment=vessel.environment,
+        terms=terms or Terms(),
+    )

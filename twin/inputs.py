@@ -1,0 +1,77 @@
+"""Thruster input series: PWM (µs) or thrust (N) per thruster, zero-order hold."""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import TwinError
+from .physics.thrusters import ThrusterModel
+
+PWM_COLUMNS = ("pwm_left", "pwm_right")
+THRUST_COLUMNS = ("thrust_left", "thrust_right")
+
+
+@dataclass(frozen=True)
+class InputSeries:
+    """values[i] holds from t[i] until t[i+1] (zero-order hold); kind 'pwm' or 'thrust'."""
+
+    t: np.ndarray
+    values: np.ndarray  # (n, 2): left, right
+    kind: str
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
+        return self.values[np.clip(idx, 0, len(self.t) - 1)]
+
+    def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray) -> np.ndarray:
+        """Thrust command (N) per thruster at `times`, before gains and lag."""
+        held = self.at(times)
+        if self.kind == "thrust":
+            return held.astype(float)
+        return thrusters.thrust_from_pwm(held)
+
+    def pwm_at(self, times: np.ndarray) -> np.ndarray:
+        if self.kind == "pwm":
+            return self.at(times).astype(float)
+        return np.full((len(np.atleast_1d(times)), 2), np.nan)
+
+
+def read_inputs_csv(path: str | Path) -> InputSeries:
+    """CSV with a `t` column (s) and pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)."""
+    path = Path(path)
+    if not path.is_file():
+        raise TwinError(f"inputs file '{path}' not found")
+    try:
+        rows = list(csv.reader(path.read_text().splitlines()))
+    except UnicodeDecodeError:
+        raise TwinError(f"{path.name}: not a text CSV file") from None
+    if len(rows) < 2:
+        raise TwinError(f"{path.name}: needs a header and at least one row")
+    header = [h.strip() for h in rows[0]]
+    if "t" not in header:
+        raise TwinError(f"{path.name}: missing column 't'")
+    if set(PWM_COLUMNS) <= set(header):
+        kind, cols = "pwm", PWM_COLUMNS
+    elif set(THRUST_COLUMNS) <= set(header):
+        kind, cols = "thrust", THRUST_COLUMNS
+    else:
+        raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right or thrust_left,thrust_right")
+    idx = [header.index(c) for c in ("t", *cols)]
+    data = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        try:
+            data.append([float(row[i]) for i in idx])
+        except (ValueError, IndexError):
+            raise TwinError(f"{path.name}: line {line}: not a number in t/{cols[0]}/{cols[1]}") from None
+    a = np.array(data)
+    if not np.all(np.isfinite(a)):
+        raise TwinError(f"{path.name}: NaN or infinite values")
+    if np.any(np.diff(a[:, 0]) <= 0):
+        line = int(np.argmax(np.diff(a[:, 0]) <= 0)) + 3
+        raise TwinError(f"{path.name}: time goes backwards or repeats at line {line}")
+    return InputSeries(a[:, 0], a[:, 1:], kind)

@@ -1,0 +1,78 @@
+"""Environment: an earth-fixed water current acting through the relative
+velocity ν_r = ν − ν_c (Fossen 2011 §10.3), and a simple wind load
+(Fossen 2011 §10.1, the cosine/sine coefficient form). Both off by default.
+
+Direction conventions, as in each field: the current's direction is where the
+water flows *to* (oceanographic); the wind's is where it blows *from*
+(meteorological). Both in degrees clockwise from north.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+RHO_AIR_KG_M3 = 1.225
+
+
+@dataclass(frozen=True)
+class Environment:
+    current_speed_m_s: float = 0.0
+    current_dir_deg: float = 0.0
+    wind_speed_m_s: float = 0.0
+    wind_dir_deg: float = 0.0
+
+    @property
+    def current_ned(self) -> np.ndarray:
+        a = np.deg2rad(self.current_dir_deg)
+        return self.current_speed_m_s * np.array([np.cos(a), np.sin(a)])
+
+    @property
+    def wind_ned(self) -> np.ndarray:
+        """Wind velocity (where the air goes) in NED, m/s."""
+        a = np.deg2rad(self.wind_dir_deg)
+        return -self.wind_speed_m_s * np.array([np.cos(a), np.sin(a)])
+
+
+@dataclass(frozen=True)
+class WindLoad:
+    """Projected areas (m²), length (m) and load coefficients of the superstructure."""
+
+    frontal_area_m2: float = 0.0
+    lateral_area_m2: float = 0.0
+    length_m: float = 0.0
+    cx: float = 0.0
+    cy: float = 0.0
+    cn: float = 0.0
+
+
+def current_body(psi_rad: float, current_ned: np.ndarray) -> np.ndarray:
+    """ν_c = [u_c, v_c, 0]: the current seen in the body frame."""
+    c, s = np.cos(psi_rad), np.sin(psi_rad)
+    return np.array([c * current_ned[0] + s * current_ned[1], -s * current_ned[0] + c * current_ned[1], 0.0])
+
+
+def current_body_rate(nu_c: np.ndarray, r: float) -> np.ndarray:
+    """ν̇_c for an earth-fixed, irrotational current: [r·v_c, −r·u_c, 0]."""
+    return np.array([r * nu_c[1], -r * nu_c[0], 0.0])
+
+
+def wind_force(load: WindLoad, psi_rad: float, nu: np.ndarray, wind_ned: np.ndarray) -> np.ndarray:
+    """τ_wind = ½ρ_a V_rw² [−c_x cos γ A_F, c_y sin γ A_L, c_n sin 2γ A_L L].
+
+    γ = −atan2(v_rw, u_rw) is the angle of the relative wind seen from the bow
+    (0 = head wind), with the relative wind u_rw = u − u_w, v_rw = v − v_w.
+    """
+    c, s = np.cos(psi_rad), np.sin(psi_rad)
+    u_w = c * wind_ned[0] + s * wind_ned[1]
+    v_w = -s * wind_ned[0] + c * wind_ned[1]
+    u_rw, v_rw = nu[0] - u_w, nu[1] - v_w
+    q = 0.5 * RHO_AIR_KG_M3 * (u_rw * u_rw + v_rw * v_rw)
+    gamma = -np.arctan2(v_rw, u_rw)
+    return q * np.array(
+        [
+            -load.cx * np.cos(gamma) * load.frontal_area_m2,
+            load.cy * np.sin(gamma) * load.lateral_area_m2,
+            load.cn * np.sin(2.0 * gamma) * load.lateral_area_m2 * load.length_m,
+        ]
+    )

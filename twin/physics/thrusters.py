@@ -1,0 +1,100 @@
+"""Twin-thruster actuation: the T200 PWM→thrust map with its dead zone
+(seed 000 eq. 27, Table VII), the allocation (seed 000 eq. 26), the force and
+torque bounds (Table VIII), and the first-order thrust lag (seed 004 eq. 15).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ThrusterModel:
+    """Static map from a PWM pulse (µs) to one thruster's thrust (N).
+
+    `kind = "t200"`: seed 000 eq. 27 with δ̃ = δ/400 − 3.75 and separate forward and
+    reverse quadratics in δ̃ (coefficients [a, b, c] of a·δ̃² + b·δ̃ + c), zero
+    thrust inside the dead zone (deadzone_rev, deadzone_fwd).
+    `kind = "direct"`: inputs are thrusts in N; no PWM map is known.
+    Thrust bounds (N) are the map's values at full PWM, or given for "direct".
+    """
+
+    kind: str = "t200"
+    pwm_scale_us: float = 400.0
+    pwm_offset: float = 3.75
+    forward: tuple[float, float, float] = (14.35, 14.97, -0.6218)
+    reverse: tuple[float, float, float] = (-12.8, 9.5, -0.3595)
+    deadzone_fwd: float = 0.0775
+    deadzone_rev: float = -0.0925
+    pwm_min_us: float = 1100.0
+    pwm_max_us: float = 1900.0
+    thrust_min_n: float | None = None
+    thrust_max_n: float | None = None
+    lag_s: float = 0.0
+    gain_left: float = 1.0
+    gain_right: float = 1.0
+    reversed_channels: tuple[str, ...] = field(default_factory=tuple)
+
+    def normalised(self, pwm_us):
+        """δ̃ = δ/400 − 3.75 (seed 000 §V-B), clipped to the PWM range."""
+        pwm = np.clip(np.asarray(pwm_us, dtype=float), self.pwm_min_us, self.pwm_max_us)
+        return pwm / self.pwm_scale_us - self.pwm_offset
+
+    def thrust_from_pwm(self, pwm_us):
+        """Commanded thrust T(δ) in N (seed 000 eq. 27), before gains and lag."""
+        if self.kind != "t200":
+            raise ValueError("this vessel has no PWM model: give thrust in N")
+        x = self.normalised(pwm_us)
+        fwd = np.polyval(self.forward, x)
+        rev = np.polyval(self.reverse, x)
+        return np.where(x >= self.deadzone_fwd, fwd, np.where(x <= self.deadzone_rev, rev, 0.0))
+
+    def bounds(self) -> tuple[float, float]:
+        """(T_min, T_max) of one thruster in N."""
+        if self.kind == "t200":
+            ends = self.thrust_from_pwm(np.array([self.pwm_min_us, self.pwm_max_us]))
+            return float(ends[0]), float(ends[1])
+        if self.thrust_min_n is None or self.thrust_max_n is None:
+            raise ValueError("a direct-thrust model needs thrust_min_n and thrust_max_n")
+        return float(self.thrust_min_n), float(self.thrust_max_n)
+
+    def gains(self) -> np.ndarray:
+        return np.array([self.gain_left, self.gain_right])
+
+
+def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:
+    """B mapping [T_L, T_R] to τ = [Fu, Fv, τr] (seed 000 eq. 26; seed 002 B).
+
+    Thrusters push along body x at lateral positions y_L (port, < 0 in FRD) and
+    y_R; the yaw moment of a force F_x at y is −y·F_x, so for y = ∓d/2 this is
+    τr = d/2·T_L − d/2·T_R as in eq. 26c.
+    """
+    y_left, y_right = thruster_y_m
+    return np.array([[1.0, 1.0], [0.0, 0.0], [-y_left, -y_right]])
+
+
+def force_torque_bounds(model: ThrusterModel, thruster_y_m) -> dict[str, float]:
+    """Fu and τr bounds for both thrusters saturated (seed 000 Table VIII)."""
+    t_min, t_max = model.bounds()
+    B = allocation_matrix(thruster_y_m)
+    corners = np.array([[a, b] for a in (t_min, t_max) for b in (t_min, t_max)]) * model.gains()
+    tau = corners @ B.T
+    return {
+        "Fu_min_n": float(tau[:, 0].min()),
+        "Fu_max_n": float(tau[:, 0].max()),
+        "tau_r_min_nm": float(tau[:, 2].min()),
+        "tau_r_max_nm": float(tau[:, 2].max()),
+    }
+
+
+def lag_time_constant_s(alpha: float, sample_s: float) -> float:
+    """Continuous time constant of seed 004 eq. 15, T(k) = αT(k−1) + βT_st(k−1)."""
+    if not 0.0 < alpha < 1.0:
+        raise ValueError("alpha must lie in (0, 1) for a stable first-order lag")
+    return -sample_s / np.log(alpha)
+
+
+def lag_alpha(time_constant_s: float, sample_s: float) -> float:
+    """Inverse of `lag_time_constant_s`: the discrete pole α = exp(−h/τ)."""
+    return float(np.exp(-sample_s / time_constant_s))

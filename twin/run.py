@@ -1,0 +1,64 @@
+"""A simulated or replayed run: time series of state and inputs, SI units, NED."""
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import TwinError
+
+CSV_COLUMNS = ("t", "x", "y", "psi", "u", "v", "r", "pwm_left", "pwm_right", "thrust_left", "thrust_right")
+
+
+@dataclass
+class Run:
+    """States at the sample times t (s): η = (x, y, ψ) in m, m, rad (NED); ν = (u, v, r)
+    in m/s, m/s, rad/s; inputs held over each sample: PWM (µs, NaN when the run
+    was driven by thrust) and the thrust each thruster delivers (N)."""
+
+    t: np.ndarray
+    eta: np.ndarray  # (n, 3)
+    nu: np.ndarray  # (n, 3)
+    pwm_us: np.ndarray  # (n, 2)
+    thrust_n: np.ndarray  # (n, 2)
+    meta: dict = field(default_factory=dict)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        return {
+            "t": self.t, "x": self.eta[:, 0], "y": self.eta[:, 1], "psi": self.eta[:, 2],
+            "u": self.nu[:, 0], "v": self.nu[:, 1], "r": self.nu[:, 2],
+            "pwm_left": self.pwm_us[:, 0], "pwm_right": self.pwm_us[:, 1],
+            "thrust_left": self.thrust_n[:, 0], "thrust_right": self.thrust_n[:, 1],
+        }
+
+    def to_csv_text(self) -> str:
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(CSV_COLUMNS)
+        cols = self.columns()
+        for i in range(len(self.t)):
+            w.writerow([_fmt(cols[c][i]) for c in CSV_COLUMNS])
+        return buf.getvalue()
+
+
+def _fmt(x: float) -> str:
+    return "" if not np.isfinite(x) else f"{x:.9g}"
+
+
+def read_csv(path: str | Path) -> Run:
+    """Read a run written by `Run.to_csv_text` (empty cells are NaN)."""
+    path = Path(path)
+    try:
+        rows = list(csv.DictReader(path.read_text().splitlines()))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TwinError(f"{path.name}: cannot read ({exc})") from None
+    if not rows or set(CSV_COLUMNS) - set(rows[0]):
+        raise TwinError(f"{path.name}: not a run CSV (needs columns {', '.join(CSV_COLUMNS)})")
+    a = {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows]) for c in CSV_COLUMNS}
+    return Run(
+        a["t"], np.column_stack([a["x"], a["y"], a["psi"]]), np.column_stack([a["u"], a["v"], a["r"]]),
+        np.column_stack([a["pwm_left"], a["pwm_right"]]), np.column_stack([a["thrust_left"], a["thrust_right"]]),
+    )

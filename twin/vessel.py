@@ -1,0 +1,182 @@
+"""The one vessel description: a JSON parameter file next to the MJCF.
+
+The MJCF carries geometry, mass distribution and sites (thrusters, IMU, GNSS
+antenna); the JSON carries everything hydrodynamic and actuation-related and
+names its MJCF. Identification writes this file, the engine callbacks and the
+analytic model read it, diagnosis amends it. Nothing else defines parameters.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+from .errors import TwinError
+from .physics.added_mass import AddedMass
+from .physics.damping import Damping, is_dissipative
+from .physics.environment import Environment, WindLoad
+from .physics.thrusters import ThrusterModel
+
+MODEL_DIR = Path(__file__).resolve().parent.parent / "model"
+CASES = ("min", "nominal", "max")
+
+
+@dataclass(frozen=True)
+class MassCase:
+    """Changes to the MJCF for one mass case (seed 000 Tables III-IV)."""
+
+    geom_mass_kg: dict[str, float] = field(default_factory=dict)
+    body_x_m: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Vessel:
+    name: str
+    mjcf: Path
+    added_mass: AddedMass
+    damping: Damping
+    thrusters: ThrusterModel
+    wind_load: WindLoad = field(default_factory=WindLoad)
+    environment: Environment = field(default_factory=Environment)
+    cases: dict[str, MassCase] = field(default_factory=dict)
+    case: str = "nominal"
+    sources: dict[str, str] = field(default_factory=dict)
+    path: Path | None = None
+
+    def with_case(self, case: str) -> "Vessel":
+        if case != "nominal" and case not in self.cases:
+            known = ", ".join(sorted({"nominal", *self.cases}))
+            raise TwinError(f"vessel '{self.name}' has no mass case '{case}' (known: {known})")
+        return replace(self, case=case)
+
+    def with_environment(self, environment: Environment) -> "Vessel":
+        return replace(self, environment=environment)
+
+    def to_dict(self) -> dict[str, Any]:
+        mjcf = self.mjcf
+        if self.path is not None:
+            try:
+                mjcf = Path(os.path.relpath(self.mjcf, self.path.parent))
+            except ValueError:
+                pass
+        return {
+            "name": self.name,
+            "mjcf": str(mjcf),
+            "added_mass": asdict(self.added_mass),
+            "damping": asdict(self.damping),
+            "thrusters": _thrusters_to_dict(self.thrusters),
+            "wind_load": asdict(self.wind_load),
+            "environment": asdict(self.environment),
+            "cases": {k: asdict(v) for k, v in self.cases.items()},
+            "sources": dict(self.sources),
+        }
+
+
+def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
+    d = asdict(t)
+    d["forward"], d["reverse"] = list(t.forward), list(t.reverse)
+    d["reversed_channels"] = list(t.reversed_channels)
+    return d
+
+
+def _build(cls, data: dict | None, what: str, path: Path):
+    data = dict(data or {})
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise TwinError(f"{path.name}: unknown {what} field(s) {', '.join(unknown)}")
+    for k, v in data.items():
+        if isinstance(v, list):
+            data[k] = tuple(v)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isfinite(v):
+            raise TwinError(f"{path.name}: {what}.{k} is not a finite number")
+    try:
+        return cls(**data)
+    except TypeError as exc:
+        raise TwinError(f"{path.name}: bad {what}: {exc}") from None
+
+
+def from_dict(data: dict[str, Any], path: Path) -> Vessel:
+    if not isinstance(data, dict) or "mjcf" not in data or "name" not in data:
+        raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
+    mjcf = (path.parent / data["mjcf"]).resolve()
+    if not mjcf.is_file():
+        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+    cases = {}
+    for name, c in (data.get("cases") or {}).items():
+        cases[name] = _build(MassCase, c, f"case '{name}'", path)
+    vessel = Vessel(
+        name=str(data["name"]),
+        mjcf=mjcf,
+        added_mass=_build(AddedMass, data.get("added_mass"), "added_mass", path),
+        damping=_build(Damping, data.get("damping"), "damping", path),
+        thrusters=_build(ThrusterModel, data.get("thrusters"), "thrusters", path),
+        wind_load=_build(WindLoad, data.get("wind_load"), "wind_load", path),
+        environment=_build(Environment, data.get("environment"), "environment", path),
+        cases=cases,
+        sources=dict(data.get("sources") or {}),
+        path=path,
+    )
+    check(vessel)
+    return vessel
+
+
+def check(vessel: Vessel) -> None:
+    """Physical consistency that does not need the MJCF (the engine checks M)."""
+    if not is_dissipative(vessel.damping):
+        raise TwinError(f"vessel '{vessel.name}': damping is not dissipative (νᵀD(ν)ν < 0 somewhere)")
+    am = vessel.added_mass
+    if abs(am.Yrdot - am.Nvdot) > 1e-9 * max(1.0, abs(am.Yrdot)):
+        raise TwinError(f"vessel '{vessel.name}': added mass must be symmetric (Yrdot = Nvdot)")
+    t = vessel.thrusters
+    if t.lag_s < 0 or t.gain_left <= 0 or t.gain_right <= 0:
+        raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
+    for case in vessel.cases.values():
+        for geom, mass in case.geom_mass_kg.items():
+            if not mass > 0:
+                raise TwinError(f"vessel '{vessel.name}': mass of '{geom}' must be positive, got {mass}")
+
+
+def available() -> list[str]:
+    return sorted(p.stem for p in MODEL_DIR.glob("*.json"))
+
+
+def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
+    """Load a vessel by name (model/NAME.json) or from a parameter file path."""
+    text = str(name_or_path)
+    path = Path(text)
+    if not (text.endswith(".json") or path.is_file()):
+        path = MODEL_DIR / f"{text}.json"
+        if not path.is_file():
+            raise TwinError(f"unknown vessel '{text}' (known: {', '.join(available())})")
+    if not path.is_file():
+        raise TwinError(f"vessel file '{text}' not found")
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise TwinError(f"{path.name}: not valid JSON ({exc})") from None
+    return from_dict(data, path.resolve()).with_case(case)
+
+
+def save(vessel: Vessel, path: str | os.PathLike) -> Path:
+    """Write the vessel description atomically (temporary name, then rename)."""
+    path = Path(path).resolve()
+    data = replace(vessel, path=path).to_dict()
+    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
+    return path
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
