@@ -80,7 +80,7 @@ def simulate(
     run = run_sim(cv, drive, duration, sample_dt_s=sample_dt)
     run.meta["scenario"] = "inputs:" + inputs.name if inputs else scenario
     for path in out:
-        write({"twin": run}, path, geometry=cv.geometry, vessel_name=v.name)
+        write({"twin": run}, path, geometry=cv.geometry, vessel_name=v.name, mjcf=v.mjcf)
         console.print(f"wrote {path}")
     console.print(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
                   f"heading {run.eta[-1, 2] * 57.29578:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
@@ -96,23 +96,24 @@ def crosscheck(
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
 ):
     """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
-    from . import crosscheck as cc
+    from .crosscheck import HEADING_TOL_DEG, POSITION_TOL_M
+    from .crosscheck import crosscheck as run_crosscheck
     from .outputs import check_paths, write
     from .vessel import write_text_atomic
 
     if rrd is not None:
         check_paths([rrd])
     v = _vessel(vessel, model, case)
-    results = cc.crosscheck(v, duration)
+    results = run_crosscheck(v, duration)
     table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
-    for col in ("case", "position err [m]", "heading err [deg]", "term effect [m]", "result"):
+    for col in ("case", "position err (m)", "heading err (deg)", "term effect (m)", "result"):
         table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")
     for r in results:
         effect = "-" if r.effect_m is None else f"{r.effect_m:.3g}"
         table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
                       "[green]pass[/]" if r.passed else "[red]FAIL[/]")
     console.print(table)
-    console.print(f"tolerance: position < {cc.POSITION_TOL_M} m, heading < {cc.HEADING_TOL_DEG}°")
+    console.print(f"tolerance: position < {POSITION_TOL_M} m, heading < {HEADING_TOL_DEG}°")
     if json_out is not None:
         rows = [{"case": r.case, "position_err_m": r.position_err_m, "heading_err_deg": r.heading_err_deg,
                  "effect_m": r.effect_m, "passed": r.passed} for r in results]
@@ -123,7 +124,7 @@ def crosscheck(
         from .engine.mjcf import compile_vessel
 
         write({"engine": full.engine, "analytic": full.analytic}, rrd,
-              geometry=compile_vessel(v).geometry, vessel_name=v.name)
+              geometry=compile_vessel(v).geometry, vessel_name=v.name, mjcf=v.mjcf)
         console.print(f"wrote {rrd}")
     if not all(r.passed for r in results):
         raise typer.Exit(1)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from .errors import TwinError
 from .run import Run
-from .vessel import MODEL_DIR, write_text_atomic
+from .vessel import write_text_atomic
 
 FORMATS = (".csv", ".mcap", ".rrd")
 
@@ -19,12 +19,23 @@ def check_paths(paths: list[Path]) -> None:
             raise TwinError(f"output '{p}': folder '{p.parent}' does not exist")
 
 
-def hull_meshes(vessel_name: str) -> list[Path] | None:
-    paths = [MODEL_DIR.parent / "assets" / f"hull_{s}.stl" for s in ("port", "starboard")]
-    return paths if vessel_name == "yellowfish" and all(p.is_file() for p in paths) else None
+def mesh_placements(mjcf: Path) -> dict[Path, tuple[float, float, float]]:
+    """Each mesh file of the MJCF with the body-frame offset of the geom that uses it."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(mjcf))
+    meshdir = mjcf.parent / (spec.meshdir or "")
+    files = {m.name: meshdir / m.file for m in spec.meshes}
+    out = {}
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH and geom.meshname in files:
+            body = geom.parent
+            out[files[geom.meshname]] = tuple(float(a + b) for a, b in zip(body.pos, geom.pos))
+    return out
 
 
-def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str = "") -> None:
+def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str = "",
+          mjcf: Path | None = None) -> None:
     """The first run goes to .csv/.mcap; every run goes to .rrd on one timeline."""
     suffix = path.suffix.lower()
     first = next(iter(runs.values()))
@@ -37,6 +48,6 @@ def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str =
     elif suffix == ".rrd":
         from .viz.rerun_log import write_runs_rrd
 
-        write_runs_rrd(runs, path, geometry=geometry, hull_mesh_paths=hull_meshes(vessel_name))
+        write_runs_rrd(runs, path, geometry=geometry, hull_mesh_paths=mesh_placements(mjcf) if mjcf else None)
     else:
         raise TwinError(f"output '{path}': unknown format")

@@ -1,0 +1,125 @@
+"""Runs as one rerun recording (.rrd): hull poses on the water and time-series plots.
+
+Entity paths, for each run name:
+  world                          NED view coordinates (x north, y east, z down), static
+  world/<name>/path              LineStrips3D of (x, y, 0) in m, static
+  world/<name>/vessel            Transform3D over "time": translation (x, y, 0) m, yaw ψ about z
+  world/<name>/vessel/<hull>     Mesh3D per hull mesh (body FRD, m), or a Boxes3D "hull", static
+  world/<name>/vessel/sites      Points3D of thrusters, GNSS, IMU (when a Geometry is given), static
+  plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs)
+All runs share the timeline "time" (duration, s), so runs line up in plots and in 3D.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from ..errors import TwinError
+from ..run import Run
+from .mcap_io import check_run, temp_path
+
+TIMELINE = "time"
+# hull body positions in model/yellowfish.xml (m, body FRD); other meshes sit at the body origin
+BOX_SIZE_M = (1.28, 0.98, 0.3)
+BOX_CENTER_M = (0.0, 0.0, -0.10)  # the hull meshes span z = -0.25 .. 0.05 m (z down)
+PLOTS = ("u", "v", "r", "thrust_left", "thrust_right", "pwm_left", "pwm_right")
+PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
+
+HullMeshes = Sequence[str | Path] | Mapping[str | Path, Sequence[float]]
+
+
+def write_runs_rrd(runs: dict[str, Run], path: str | Path, *, geometry=None,
+                   hull_mesh_paths: HullMeshes | None = None, application_id: str = "twin") -> None:
+    """Write `runs` (name → Run) to the rerun file `path` atomically (temporary name, then rename).
+
+    geometry: a `twin.engine.mjcf.Geometry`; its sites (m, body FRD) are drawn on each hull.
+    hull_mesh_paths: mapping mesh file → offset in the body frame (m), or a list of
+    mesh files already in the body frame. Without meshes a 1.28 × 0.98 × 0.3 m box is drawn.
+    """
+    path = Path(path)
+    for name, run in runs.items():
+        check_run(run, name)
+    meshes = _load_meshes(hull_mesh_paths)  # fail on a bad mesh before touching the disk
+    tmp = temp_path(path)
+    # a private stream: never the global recording, never a viewer
+    rec = rr.RecordingStream(application_id)
+    try:
+        rec.save(str(tmp), default_blueprint=_blueprint())
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
+        for i, (name, run) in enumerate(runs.items()):
+            _log_run(rec, name, run, PALETTE[i % len(PALETTE)], geometry, meshes)
+        rec.disconnect()  # flushes and closes the file sink
+        if not tmp.is_file() or tmp.stat().st_size == 0:  # the sink writes on its own thread
+            raise TwinError(f"{path.name}: rerun did not write the recording")
+        os.replace(tmp, path)
+    except BaseException:
+        rec.disconnect()
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _blueprint() -> rrb.Blueprint:
+    # one plot per quantity, so the same quantity from every run shares axes
+    plots = [rrb.TimeSeriesView(origin=f"plots/{q}", name=q) for q in PLOTS]
+    return rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="water"), rrb.Grid(*plots)))
+
+
+def _load_meshes(hull_mesh_paths: HullMeshes | None) -> list[tuple[str, np.ndarray, rr.Mesh3D]]:
+    """(entity name, body offset in m, mesh) for each mesh file."""
+    if not hull_mesh_paths:
+        return []
+    import trimesh  # only needed when meshes are drawn
+
+    if isinstance(hull_mesh_paths, Mapping):
+        items = [(Path(p), np.asarray(off, dtype=float)) for p, off in hull_mesh_paths.items()]
+    else:
+        items = [(Path(p), np.zeros(3)) for p in hull_mesh_paths]
+    out = []
+    for p, offset in items:
+        try:
+            m = trimesh.load(p, force="mesh")
+        except Exception as exc:  # trimesh raises many types for missing or malformed files
+            raise TwinError(f"{p.name}: cannot load hull mesh ({exc})") from None
+        if len(m.faces) == 0:
+            raise TwinError(f"{p.name}: hull mesh has no triangles")
+        mesh = rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
+                         vertex_normals=m.vertex_normals, albedo_factor=(242, 204, 26, 255))
+        out.append((rr.escape_entity_path_part(p.stem), offset, mesh))
+    return out
+
+
+def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, meshes) -> None:
+    key = rr.escape_entity_path_part(name)
+    times = [rr.TimeColumn(TIMELINE, duration=np.asarray(run.t, dtype=float))]
+    xyz = np.column_stack([run.eta[:, 0], run.eta[:, 1], np.zeros(len(run.t))])
+    rec.log(f"world/{key}/path", rr.LineStrips3D([xyz], colors=[color], radii=[0.03]), static=True)
+    half = run.eta[:, 2] / 2
+    quat = np.column_stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)])  # xyzw, yaw about z
+    rec.send_columns(f"world/{key}/vessel", indexes=times,
+                     columns=rr.Transform3D.columns(translation=xyz, quaternion=quat))
+    _log_hull(rec, f"world/{key}/vessel", color, geometry, meshes)
+    cols = run.columns()
+    for q in PLOTS:
+        if np.all(np.isnan(cols[q])):
+            continue  # e.g. PWM of a thrust-driven run
+        entity = f"plots/{q}/{key}"
+        rec.log(entity, rr.SeriesLines(colors=[color], names=[name]), static=True)
+        rec.send_columns(entity, indexes=times, columns=rr.Scalars.columns(scalars=cols[q]))
+
+
+def _log_hull(rec: rr.RecordingStream, vessel: str, color, geometry, meshes) -> None:
+    """Static children of the moving vessel frame, all in body FRD (m)."""
+    for hull, offset, mesh in meshes:
+        rec.log(f"{vessel}/{hull}", rr.Transform3D(translation=offset), mesh, static=True)
+    if not meshes:
+        rec.log(f"{vessel}/hull", rr.Boxes3D(sizes=[BOX_SIZE_M], centers=[BOX_CENTER_M], colors=[color]),
+                static=True)
+    if geometry is not None:
+        sites = np.vstack([geometry.thruster_pos_m, geometry.gnss_pos_m, geometry.imu_pos_m])
+        rec.log(f"{vessel}/sites", rr.Points3D(sites, radii=[0.03], colors=[color],
+                                               labels=["thruster L", "thruster R", "GNSS", "IMU"]), static=True)
