@@ -151,6 +151,58 @@ def params(
     console.print("damping: " + ", ".join(f"{k}={val:g}" for k, val in p["damping"].items() if val))
 
 
+@app.command()
+def validate(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
+    report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
+):
+    """Analytic formulas, seed tables, engine, meshes and independent values, side by side."""
+    import textwrap
+
+    from .validate import validate as run_validation
+    from .vessel import write_text_atomic
+    from .viz.report import top_view_png, write_report
+
+    for p in (json_out, report):
+        if p is not None and not p.parent.exists():
+            raise TwinError(f"output '{p}': folder '{p.parent}' does not exist")
+    if report is not None and report.suffix.lower() not in (".md", ".html", ".htm"):
+        raise TwinError(f"report '{report}': use .md or .html")
+    result = run_validation(_vessel(vessel, model, case))
+    rows = [q.to_dict() for q in result.quantities]
+    typer.echo(validation_table(result.vessel, result.case, rows))
+    flagged = [r for r in rows if r["flag"]]
+    if flagged:
+        typer.echo("\nDifferences over 5 %:")
+        for r in flagged:
+            typer.echo(textwrap.fill(f"* {r['name']}: {r['explanation']}", 100, subsequent_indent="  "))
+    title = f"twin validate: {result.vessel} ({result.case})"
+    if json_out is not None:
+        write_text_atomic(json_out, json.dumps({"vessel": result.vessel, "case": result.case,
+                                                "quantities": rows}, indent=2) + "\n")
+    if report is not None:
+        write_report(report, title, rows, top_view_png(result.drawing, title))
+        typer.echo(f"wrote {report}")
+
+
+def validation_table(name: str, case: str, rows: list[dict]) -> str:
+    """Plain-text table that fits 100 columns."""
+    def cell(x):
+        return f"{'-':>9s}" if x is None else f"{x:9.4g}"
+
+    head = f"{'quantity':30s} {'unit':5s} {'analytic':>9s} {'table':>9s} {'engine':>9s} {'mesh':>9s} " \
+           f"{'indep.':>9s} {'diff':>7s}"
+    lines = [f"validate {name} ({case})", head, "-" * len(head)]
+    for r in rows:
+        rel = f"{'-':>7s}" if r["rel_diff"] is None else f"{100 * r['rel_diff']:6.1f}%"
+        lines.append(f"{r['name'][:30]:30s} {r['unit'][:5]:5s} " + " ".join(cell(r[c]) for c in (
+            "analytic", "table", "engine", "mesh", "independent")) + f" {rel}" + (" !" if r["flag"] else ""))
+    return "\n".join(lines)
+
+
 def main() -> None:
     try:
         app(standalone_mode=False)

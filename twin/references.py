@@ -1,0 +1,52 @@
+"""Published figures the twin is checked against, each with its source.
+
+These are reference data for validation, not parameters: the twin's
+parameters live in model/*.json and model/*.xml only.
+"""
+from __future__ import annotations
+
+# Seed 000 (Yellowfish technical report), by mass case.
+SEED000 = {
+    # Table III: mass distribution (kg)
+    "metal_bars_kg": {"min": 2.31, "nominal": 2.31, "max": 2.31},
+    "hulls_kg": {"min": 16.12, "nominal": 16.12, "max": 16.12},
+    "electronics_box_kg": {"min": 3.10, "nominal": 3.56, "max": 4.30},
+    "sensors_kg": {"min": 0.20, "nominal": 0.40, "max": 1.00},
+    "battery_kg": {"min": 2.00, "nominal": 2.00, "max": 2.00},
+    "m_kg": {"min": 23.73, "nominal": 24.39, "max": 25.73},
+    # Table IV: centre of gravity (mm, kg)
+    "x_hull_mm": {"min": -22.0, "nominal": -22.0, "max": -22.0},
+    "m_hull_kg": {"min": 8.06, "nominal": 8.06, "max": 8.06},
+    "x_box_mm": {"min": -12.0, "nominal": -15.0, "max": -18.0},
+    "m_box_kg": {"min": 7.61, "nominal": 8.27, "max": 9.61},
+    "xg_mm": {"min": -18.7, "nominal": -19.6, "max": -20.5},
+    # Table V: yaw inertia (m, kg m²); Ibox is printed for the nominal column only
+    "a_box_m": 0.50,
+    "b_box_m": 0.52,
+    "I_box_kgm2": 0.3586,
+    "d_g_m": {"min": 0.21, "nominal": 0.30, "max": 0.39},
+    "Iz_kgm2": {"min": 1.07, "nominal": 1.81, "max": 2.81},
+    # Table VI: ellipsoid added mass (semi-axes in m)
+    "a_m": {"min": 0.511, "nominal": 0.560, "max": 0.590},
+    "b_m": {"min": 0.105, "nominal": 0.1275, "max": 0.135},
+    "c_m": {"min": 0.030, "nominal": 0.050, "max": 0.070},
+    "alpha0": {"min": 0.0345, "nominal": 0.0827, "max": 0.1011},
+    "beta0": {"min": 0.3433, "nominal": 0.6454, "max": 0.7668},
+    "y_m_m": 0.675,
+    "Xudot_kg": {"min": -2.15, "nominal": -1.00, "max": -0.27},
+    "Yvdot_kg": {"min": -22.59, "nominal": -10.92, "max": -3.59},
+    "Nrdot_kgm2": {"min": -4.35, "nominal": -3.95, "max": -3.74},
+    # §V-B and Table VIII: actuation
+    "d_thrusters_m": 0.68,
+    "Fu_min_n": -45.32,
+    "Fu_max_n": 57.40,
+    "tau_r_max_nm": 17.46,
+    "rho_water_kg_m3": 1000.0,  # reproduces Table VI's nominal Xu̇ and Yv̇
+}
+
+# Seed 002 (CyberShip I): total inertia and linear damping.
+SEED002 = {
+    "M": [[26.4272, 0.0, 0.0], [0.0, 51.3671, -0.7372], [0.0, -0.7372, 1.2645]],
+    "D": [[4.3411, 0.0, 0.0], [0.0, 6.2983, 0.0], [0.0, 0.0, 1.2577]],
+    "d_thrusters_m": 0.4,
+}
