@@ -108,7 +108,7 @@ def test_no_geometry_is_a_clear_error(tmp_path):
 def test_zero_mass_is_a_clear_error(tmp_path):
     path = _vessel_with_mjcf(tmp_path, '<geom type="box" size="0.5 0.2 0.1" mass="0"/>')
     p, report = _run_validate(path, tmp_path)
-    assert p.returncode == 2 and "mass" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert p.returncode == 2 and "zero mass in body vessel" in p.stderr and len(p.stderr.strip().splitlines()) == 1
     assert not report.exists() and not (tmp_path / "r.json").exists()
 
 

@@ -94,6 +94,10 @@ def compile_vessel(vessel: Vessel) -> CompiledVessel:
         model = spec.compile()
     except Exception as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if "mass and inertia" in msg:
+            massless = [b.name or "(unnamed)" for b in spec.bodies[1:] if _geom_mass(b) <= 0 and not b.explicitinertial]
+            raise TwinError(f"{vessel.mjcf.name}: zero mass in body {', '.join(massless) or '?'} "
+                            "(every moving body needs a positive mass)") from None
         raise TwinError(f"{vessel.mjcf.name}: cannot compile ({msg})") from None
     for j in JOINTS:
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) < 0:
@@ -106,6 +110,14 @@ def compile_vessel(vessel: Vessel) -> CompiledVessel:
     if not is_symmetric_positive_definite(M):
         raise TwinError(f"vessel '{vessel.name}': M = M_RB + M_A is not symmetric positive-definite")
     return compiled
+
+
+def _geom_mass(body) -> float:
+    """Total mass the body's own geoms declare (densities not resolved: NaN counts as unknown > 0)."""
+    total = 0.0
+    for g in body.geoms:
+        total += 1.0 if not np.isfinite(g.mass) or g.mass < 0 else g.mass
+    return total
 
 
 def _site(model: mujoco.MjModel, data: mujoco.MjData, name: str, vessel: Vessel) -> np.ndarray:
