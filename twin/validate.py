@@ -318,7 +318,9 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
                      explanation="at its flotation draft the assumed hull shape (raked bow, transom) has a "
                                  "shorter waterline than Table VI's 2a; the seed does not give the hull lines."),
             Quantity("waterline half-breadth b", "mm", table=1e3 * S["b_m"][case],
-                     mesh=0.5e3 * fl["waterline_breadth_m"], reference="table"),
+                     mesh=0.5e3 * fl["waterline_breadth_m"], reference="table",
+                     explanation="Table VI's b for this case is a chosen ellipsoid semi-axis; the hull mesh's "
+                                 "waterplane breadth at flotation follows from the 25.5 cm hull (seed 000 §II-A)."),
         ]
     return out, fl
 
