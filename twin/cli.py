@@ -49,7 +49,7 @@ def simulate(
     scenario: str = typer.Option("zigzag", help="step | turn | zigzag | spin | random"),
     inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
-    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap or .rrd (repeatable)"),
+    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd or .tlog (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
