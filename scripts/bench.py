@@ -1,16 +1,19 @@
 #!/usr/bin/env python3
-"""Speed of the twin, one run on this machine, medians of repeated timings.
+"""Speed of the twin: one run on this machine, medians of repeated timings.
 
-Reports µs per simulated step for the bare engine (same MJCF, no callbacks),
-the twin with the Python callbacks, and one evaluation of the analytic
-model's right-hand side; and simulated seconds per wall second.
+µs per simulated step of the bare engine (same MJCF, no callbacks), the twin
+with the Python callbacks and with the native (numba) callbacks, one
+evaluation of the analytic model's right-hand side; simulated seconds per
+wall second for one twin and for a batch of twins on all cores; each as a
+ratio to the bare engine. Default integrator and time step of the vessel's MJCF.
 
-    python scripts/bench.py [--vessel yellowfish] [--steps 2000] [--json out.json]
+    python scripts/bench.py [--vessel yellowfish] [--batch 256] [--json out.json]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
@@ -20,67 +23,99 @@ import mujoco
 import numpy as np
 
 import twin.vessel as vessel_mod
-from twin.engine import callbacks
+from twin.engine import batch, callbacks, native
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import initial_state
 from twin.physics.hydrodynamics import acceleration
 from twin.physics.thrusters import allocation_matrix
 
 
-def _time_steps(model, data, steps: int, repeats: int) -> float:
-    """Median µs per mj_step over `repeats` runs of `steps` steps."""
+def _us_per_step(model, steps: int, repeats: int) -> float:
+    """Median µs per step, stepping inside the engine (mj_step with nstep) from a moving state."""
+    data = mujoco.MjData(model)
     out = []
     for _ in range(repeats):
         initial_state(model, data, None, (1.0, 0.1, 0.1))
         data.ctrl[:2] = (10.0, 8.0)
         t0 = time.perf_counter()
-        for _ in range(steps):
-            mujoco.mj_step(model, data)
+        mujoco.mj_step(model, data, nstep=steps)
         out.append((time.perf_counter() - t0) / steps * 1e6)
     return statistics.median(out)
+
+
+def _analytic_us(cv, repeats: int) -> float:
+    hydro, B = cv.hydro(), allocation_matrix(cv.geometry.thruster_y_m)
+    nu, tau = np.array([1.0, 0.1, 0.1]), B @ [10.0, 8.0]
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(2000):
+            acceleration(hydro, 0.3, nu, tau)
+        out.append((time.perf_counter() - t0) / 2000 * 1e6)
+    return statistics.median(out)
+
+
+def _batch_simsec_per_s(model, n_twins: int, duration_s: float, nthread: int, repeats: int) -> float:
+    """Simulated seconds per wall second for n_twins twins of duration_s on nthread threads."""
+    h = model.opt.timestep
+    nstep = int(round(duration_s / h))
+    rng = np.random.default_rng(0)
+    states = np.array([batch.initial_state(model, nu0=(rng.uniform(0, 1.5), 0.0, 0.0)) for _ in range(n_twins)])
+    controls = np.repeat(rng.uniform(-10, 20, size=(n_twins, 1, 2)), nstep, axis=1)
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        _, diverged = batch.rollout(model, states, controls, nthread=nthread)
+        walls.append(time.perf_counter() - t0)
+        if diverged:
+            raise SystemExit(f"benchmark twins diverged: {diverged[:3]}")
+    return n_twins * duration_s / statistics.median(walls)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--vessel", default="yellowfish")
-    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--batch", type=int, default=256)
+    ap.add_argument("--batch-duration", type=float, default=60.0)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
 
     cv = compile_vessel(vessel_mod.load(args.vessel))
-    model, data = cv.model, mujoco.MjData(cv.model)
-    h = model.opt.timestep
-    bare = _time_steps(model, data, args.steps, args.repeats)
-    with callbacks.installed(model, cv.hydro()):
-        python = _time_steps(model, data, max(200, args.steps // 4), args.repeats)
-
-    hydro, B = cv.hydro(), allocation_matrix(cv.geometry.thruster_y_m)
-    nu, tau = np.array([1.0, 0.1, 0.1]), B @ [10.0, 8.0]
-    evals = []
-    for _ in range(args.repeats):
-        t0 = time.perf_counter()
-        for _ in range(2000):
-            acceleration(hydro, 0.3, nu, tau)
-        evals.append((time.perf_counter() - t0) / 2000 * 1e6)
-    analytic = statistics.median(evals)
+    h = cv.model.opt.timestep
+    bare = _us_per_step(cv.model, args.steps, args.repeats)
+    with callbacks.installed(cv.model, cv.hydro()):
+        python = _us_per_step(cv.model, max(300, args.steps // 10), args.repeats)
+    model = native.with_native_params(cv)
+    with native.installed_native():
+        _us_per_step(model, 10, 1)  # compile the callback outside the timing
+        native_us = _us_per_step(model, args.steps, args.repeats)
+    analytic = _analytic_us(cv, args.repeats)
+    cores = os.cpu_count() or 1
+    batch_all = _batch_simsec_per_s(model, args.batch, args.batch_duration, cores, max(1, args.repeats // 2))
+    single = h / (native_us * 1e-6)
 
     result = {
-        "vessel": args.vessel,
-        "integrator": mujoco.mjtIntegrator(model.opt.integrator).name,
-        "timestep_s": h,
-        "bare_us": bare,
-        "python_us": python,
-        "analytic_us": analytic,
-        "python_over_bare": python / bare,
-        "bare_simsec_per_s": h / (bare * 1e-6),
-        "single_simsec_per_s": h / (python * 1e-6),
+        "vessel": args.vessel, "integrator": mujoco.mjtIntegrator(cv.model.opt.integrator).name, "timestep_s": h,
+        "cores": cores, "batch_twins": args.batch, "batch_duration_s": args.batch_duration,
+        "bare_us": bare, "python_us": python, "native_us": native_us, "analytic_us": analytic,
+        "single_simsec_per_s": single, "batch_simsec_per_s": batch_all,
+        "native_over_bare": native_us / bare, "python_over_bare": python / bare,
+        "batch_speedup": batch_all / single,
     }
-    print(f"{'vessel':28s} {args.vessel} ({result['integrator']}, dt = {h * 1e3:g} ms)")
-    print(f"{'bare engine':28s} {bare:9.2f} µs/step  {result['bare_simsec_per_s']:10.0f} sim-s per s")
-    print(f"{'twin, Python callbacks':28s} {python:9.2f} µs/step  {result['single_simsec_per_s']:10.0f} sim-s per s"
-          f"  ({python / bare:.1f} × bare)")
-    print(f"{'analytic model (one RHS)':28s} {analytic:9.2f} µs/eval")
+    rows = [
+        ("bare engine (no callbacks)", f"{bare:8.2f} µs/step", f"{h / (bare * 1e-6):9.0f} sim-s/s", "1.00"),
+        ("twin, Python callbacks", f"{python:8.2f} µs/step", f"{h / (python * 1e-6):9.0f} sim-s/s", f"{python / bare:.2f}"),
+        ("twin, native callbacks", f"{native_us:8.2f} µs/step", f"{single:9.0f} sim-s/s", f"{native_us / bare:.2f}"),
+        ("analytic model, one RHS", f"{analytic:8.2f} µs/eval", "", ""),
+        (f"batch {args.batch} twins, {cores} threads", "", f"{batch_all:9.0f} sim-s/s",
+         f"speed-up {batch_all / single:.2f} x one twin"),
+    ]
+    print(f"{args.vessel}: {result['integrator']}, dt = {h * 1e3:g} ms, {cores} cores")
+    print(f"{'':34s} {'per step':>16s} {'throughput':>15s}  ratio to bare")
+    for name, a, b, c in rows:
+        print(f"{name:34s} {a:>16s} {b:>15s}  {c}")
     if args.json:
         vessel_mod.write_text_atomic(args.json, json.dumps(result, indent=2) + "\n")
     return 0

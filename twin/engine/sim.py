@@ -36,6 +36,39 @@ def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0) -> None
         data.act[:] = 0.0
 
 
+def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
+    """η = (x, y, ψ) and ν = (u, v, r) from the joint state."""
+    eta = data.qpos[list(qpos)].copy()
+    c, s = np.cos(eta[2]), np.sin(eta[2])
+    w = data.qvel[list(dof)]
+    return eta, np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
+
+
+def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps) -> np.ndarray:
+    """Steps at which the loop must act: samples, controller ticks, command changes, the end.
+
+    Between them the engine runs `mj_step(nstep=...)` without returning to Python.
+    """
+    marks = [np.arange(0, n_steps + 1, n_sample), [n_steps]]
+    if n_control is not None:
+        marks.append(np.arange(0, n_steps + 1, n_control))
+    if cmd_steps is not None:
+        changed = np.flatnonzero(np.any(np.diff(cmd_steps, axis=0) != 0, axis=1)) + 1
+        marks += [[0], changed[changed <= n_steps]]
+    return np.unique(np.concatenate(marks)).astype(int)
+
+
+def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
+    """The model to step and the context that installs its hydrodynamic callback."""
+    if backend == "native":
+        from . import native
+
+        return native.with_native_params(compiled, terms), native.installed_native()
+    if backend == "python":
+        return compiled.model, callbacks.installed(compiled.model, compiled.hydro(terms))
+    raise TwinError(f"unknown backend '{backend}' (native or python)")
+
+
 def simulate(
     compiled: CompiledVessel,
     drive: InputSeries | Controller,
@@ -46,6 +79,7 @@ def simulate(
     eta0=None,
     nu0=None,
     terms: Terms | None = None,
+    backend: str = "native",
 ) -> Run:
     """Run the engine twin for `duration_s` and return samples every `sample_dt_s`.
 
@@ -53,11 +87,14 @@ def simulate(
     or a controller (t, η, ν) → (surge, yaw) in [−1, 1], evaluated every
     `control_dt_s` (the autopilot's PWM rate). The inputs actually applied are
     returned in `run.meta["inputs"]`, so that any run can be replayed.
+    `backend`: "native" (compiled callback, the default) or "python" (the
+    readable reference callback); both give the same forces to 1e-9.
     """
     if not duration_s > 0:
         raise TwinError("duration must be positive")
-    model, vessel = compiled.model, compiled.vessel
+    vessel = compiled.vessel
     terms = terms or Terms()
+    model, hydrodynamics = _backend(compiled, terms, backend)
     h = model.opt.timestep
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
@@ -79,14 +116,12 @@ def simulate(
     rows_t, rows_eta, rows_nu, rows_in, rows_thrust = [], [], [], [], []
     held = np.zeros(2)
     cmd = np.zeros(2)
-    with callbacks.installed(model, compiled.hydro(terms)):
-        for k in range(n_steps + 1):
+    events = _event_steps(n_steps, n_sample, n_control if series is None else None,
+                          cmd_steps if series is not None else None)
+    with hydrodynamics:
+        for i, k in enumerate(events):
             t = k * h
-            eta = data.qpos[list(qpos)].copy()
-            psi = eta[2]
-            c, s = np.cos(psi), np.sin(psi)
-            w = data.qvel[list(dof)]
-            nu = np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
+            eta, nu = _state(data, qpos, dof)
             if series is not None:
                 held, cmd = held_steps[k], cmd_steps[k]
             elif k % n_control == 0:
@@ -106,14 +141,15 @@ def simulate(
                 rows_thrust.append(gains * delivered)
             if k == n_steps:
                 break
-            mujoco.mj_step(model, data)
+            mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
             if not np.all(np.isfinite(data.qvel)):
-                raise TwinError(f"simulation diverged at t = {t:.2f} s")
+                raise TwinError(f"simulation diverged between t = {t:.2f} s and {events[i + 1] * h:.2f} s")
     if series is None:
         series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
     return Run(
         np.array(rows_t), np.array(rows_eta), np.array(rows_nu), np.array(rows_in, dtype=float),
         np.array(rows_thrust),
         meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
-              "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "inputs": series},
+              "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
+              "inputs": series},
     )

@@ -1,0 +1,155 @@
+"""The native (numba cfunc) passive callback against the Python reference."""
+import ctypes
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.crosscheck import TERM_ENV, cases
+from twin.engine import callbacks, native
+from twin.engine.mjcf import CompiledVessel, compile_vessel
+from twin.errors import TwinError
+from twin.physics.environment import Environment
+from twin.physics.hydrodynamics import Terms
+
+VESSELS = ("yellowfish", "cybership1")
+CASES = {c.name: c for c in cases()}
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    return {name: compile_vessel(vessel_mod.load(name)) for name in VESSELS}
+
+
+def _with_env(cv: CompiledVessel, env: Environment) -> CompiledVessel:
+    return CompiledVessel(replace(cv.vessel, environment=env), cv.model, cv.geometry)
+
+
+def _random_state(rng, data):
+    data.qpos[:] = rng.uniform(-5.0, 5.0, 3)
+    data.qvel[:] = rng.uniform(-2.0, 2.0, 3)
+    data.ctrl[:] = rng.uniform(-30.0, 60.0, 2)
+
+
+def _passive(model, data, install) -> np.ndarray:
+    with install():
+        mujoco.mj_forward(model, data)
+    return data.qfrc_passive.copy()
+
+
+def test_offsets_point_at_the_fields_of_a_vessel_model(compiled):
+    model = native.with_native_params(compiled["yellowfish"])
+    data = mujoco.MjData(model)
+    off = native.offsets()
+
+    def word(obj, key):
+        return ctypes.c_int64.from_address(obj._address + off[key]).value
+
+    assert word(model, "m.nq") == model.nq and word(model, "m.nv") == model.nv
+    assert word(model, "m.nnumeric") == model.nnumeric == 1
+    for name in ("numeric_adr", "numeric_size", "numeric_data"):
+        assert word(model, f"m.{name}") == getattr(model, name).ctypes.data
+    for name in ("qpos", "qvel", "qfrc_passive", "qfrc_actuator"):
+        assert word(data, f"d.{name}") == getattr(data, name).ctypes.data
+
+
+def test_pack_params_layout(compiled):
+    cv = _with_env(compiled["cybership1"], TERM_ENV)
+    hydro = cv.hydro(Terms(wind=False))
+    p = native.pack_params(hydro, cv.model)
+    L = native.LAYOUT
+    assert p.shape == (native.NPARAM,) and tuple(p[L["magic"]]) == native.MAGIC and p[2] == native.NPARAM
+    assert list(p[L["switches"]]) == [1, 1, 1, 1, 1, 0]
+    np.testing.assert_array_equal(p[L["M_inv"]].reshape(3, 3), hydro.M_inv)
+    np.testing.assert_array_equal(p[L["current_ned"]], TERM_ENV.current_ned)
+    no_current = native.pack_params(compiled["cybership1"].hydro(), cv.model)  # speed 0: switch off
+    assert no_current[L["switches"]][4] == 0
+
+
+@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("name", VESSELS)
+def test_native_passive_force_equals_python(compiled, name, case):
+    c = CASES[case]
+    cv = _with_env(compiled[name], c.environment)
+    model, hydro = native.with_native_params(cv, c.terms), cv.hydro(c.terms)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(1234)
+    for _ in range(25):
+        _random_state(rng, data)
+        reference = _passive(model, data, lambda: callbacks.installed(model, hydro))
+        fast = _passive(model, data, native.installed_native)
+        np.testing.assert_allclose(fast, reference, rtol=0, atol=1e-9)
+    if case in ("full", "damping", "full_environment"):
+        assert np.abs(reference).max() > 1.0  # the comparison is not between zeros
+
+
+@pytest.mark.parametrize("case", ["full", "added_mass", "current", "wind", "full_environment"])
+@pytest.mark.parametrize("name", VESSELS)
+def test_native_trajectory_equals_python(compiled, name, case):
+    c = CASES[case]
+    cv = _with_env(compiled[name], c.environment)
+    model, hydro = native.with_native_params(cv, c.terms), cv.hydro(c.terms)
+    rng = np.random.default_rng(7)
+    controls = np.repeat(rng.uniform(-30.0, 60.0, (10, 2)), 50, axis=0)  # 500 steps, held 50 each
+    runs = []
+    for install in (lambda: callbacks.installed(model, hydro), native.installed_native):
+        data = mujoco.MjData(model)
+        data.qvel[:] = c.nu0
+        out = []
+        with install():
+            for u in controls:
+                data.ctrl[:] = u
+                mujoco.mj_step(model, data)
+                out.append(np.concatenate([data.qpos, data.qvel]))
+        runs.append(np.array(out))
+    np.testing.assert_allclose(runs[1], runs[0], rtol=0, atol=1e-9)
+    assert np.ptp(runs[0][:, 0]) > 0.1  # the vessel did move
+
+
+def test_set_params_changes_the_physics_without_recompiling(compiled):
+    cv = _with_env(compiled["yellowfish"], TERM_ENV)
+    model = native.with_native_params(cv, Terms().only("thrust"))
+    terms = Terms()
+    native.set_params(model, cv.hydro(terms))
+    data = mujoco.MjData(model)
+    _random_state(np.random.default_rng(3), data)
+    reference = _passive(model, data, lambda: callbacks.installed(model, cv.hydro(terms)))
+    np.testing.assert_allclose(_passive(model, data, native.installed_native), reference, atol=1e-9)
+    assert np.abs(reference).max() > 1.0
+
+
+def test_models_without_params_are_left_alone(compiled):
+    model = compiled["yellowfish"].model  # no custom numeric at all
+    data = mujoco.MjData(model)
+    _random_state(np.random.default_rng(5), data)
+    assert not native.has_params(model)
+    np.testing.assert_array_equal(_passive(model, data, native.installed_native), np.zeros(3))
+    with pytest.raises(TwinError):
+        native.set_params(model, compiled["yellowfish"].hydro())
+
+
+def test_foreign_first_numeric_is_ignored():
+    xml = """<mujoco><custom><numeric name="other" data="1 2 3"/></custom><worldbody><body>
+    <joint name="north" type="slide" axis="1 0 0"/><joint name="east" type="slide" axis="0 1 0"/>
+    <joint name="yaw" type="hinge" axis="0 0 1"/><geom size=".1" mass="1"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[:] = 1.0
+    assert not native.has_params(model)
+    np.testing.assert_array_equal(_passive(model, data, native.installed_native), np.zeros(3))
+
+
+def test_installed_native_restores_the_previous_callback(compiled):
+    assert mujoco.get_mjcb_passive() is None
+    with native.installed_native():
+        assert mujoco.get_mjcb_passive() is not None
+    assert mujoco.get_mjcb_passive() is None
+    cv = compiled["cybership1"]
+    with callbacks.installed(cv.model, cv.hydro()):
+        python_cb = mujoco.get_mjcb_passive()
+        with native.installed_native():
+            pass
+        assert mujoco.get_mjcb_passive() is python_cb
+    assert mujoco.get_mjcb_passive() is None

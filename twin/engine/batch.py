@@ -1,0 +1,162 @@
+"""Many twins at once: `mujoco.rollout` on native threads with the native callback.
+
+Each twin is one model carrying its own parameters (`native.with_native_params`,
+or a copy re-parameterised with `native.set_params`), an initial full-physics
+state and an open-loop sequence of thrust commands. Because the hydrodynamics
+run as a C function pointer, rollout's threads never take the GIL, and the
+results are bit-identical to stepping each twin alone with `mj_step`.
+
+A twin that blows up does not spoil the batch: MuJoCo flags it (non-finite or
+larger than mjMAXVAL), resets it and stops stepping it; here it is reported as
+(index, time) and its samples from then on are NaN.
+"""
+from __future__ import annotations
+
+import copy
+import os
+from typing import Sequence, Union
+
+import mujoco
+import numpy as np
+from mujoco import rollout as mj_rollout
+
+from ..errors import TwinError
+from ..inputs import InputSeries
+from ..physics.hydrodynamics import HydroModel
+from ..vessel import Vessel
+from . import native
+from .mjcf import CompiledVessel
+from .sim import initial_state as _set_initial_state
+
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+Twin = Union[CompiledVessel, mujoco.MjModel]
+
+
+def state_size(model: mujoco.MjModel) -> int:
+    """Length of a full-physics state vector: [time, qpos, qvel, act, ...]."""
+    return mujoco.mj_stateSize(model, FULL)
+
+
+def initial_state(model: mujoco.MjModel, eta0=None, nu0=None, time_s: float = 0.0) -> np.ndarray:
+    """Full-physics state at η0 = (N m, E m, ψ rad) moving with ν0 = (u, v m/s, r rad/s); thrust lag at rest."""
+    data = mujoco.MjData(model)
+    data.time = time_s
+    _set_initial_state(model, data, eta0, nu0)
+    state = np.empty(state_size(model))
+    mujoco.mj_getState(model, data, state, FULL)
+    return state
+
+
+def models_for(compiled: CompiledVessel, hydros: Sequence[HydroModel]) -> list[mujoco.MjModel]:
+    """One model per parameter set: compiled once, then copied and re-parameterised (no recompilation)."""
+    base = native.with_native_params(compiled)
+    out = []
+    for hydro in hydros:
+        m = copy.copy(base)
+        native.set_params(m, hydro)
+        out.append(m)
+    return out
+
+
+def thrust_controls_from_inputs(vessel: Vessel, inputs: InputSeries, nstep: int, timestep: float) -> np.ndarray:
+    """(nstep, 2) thrust commands (N) held over each step, as `sim.simulate` applies them.
+
+    Step k runs from k·timestep with the command the zero-order-hold series
+    gives at that instant (PWM converted through the thruster map).
+    """
+    return inputs.commanded_thrust(vessel.thrusters, np.arange(nstep) * timestep)
+
+
+def _as_models(twins: Twin | Sequence[Twin], n: int) -> list[mujoco.MjModel]:
+    """One native-parameterised model per twin (a single model or vessel is shared by all)."""
+    if isinstance(twins, (CompiledVessel, mujoco.MjModel)):
+        twins = [twins] * n
+    built: dict[int, mujoco.MjModel] = {}
+    models = []
+    for t in twins:
+        if isinstance(t, CompiledVessel):
+            t = built.setdefault(id(t), native.with_native_params(t))
+        if not native.has_params(t):
+            raise TwinError("batch: a model without twin parameters (build it with native.with_native_params)")
+        models.append(t)
+    if len(models) != n:
+        raise TwinError(f"batch: {len(models)} models for {n} initial states")
+    return models
+
+
+def _signature(model: mujoco.MjModel) -> tuple:
+    """The integer sizes that fix an MjData's layout: twins sharing them can share MjData."""
+    return tuple(int(getattr(model, k)) for k in native.size_fields() if hasattr(model, k))
+
+
+def _groups(models: list[mujoco.MjModel]) -> list[list[int]]:
+    """Indices of the twins that rollout may run together (same size signature)."""
+    groups: dict[tuple, list[int]] = {}
+    for i, m in enumerate(models):
+        groups.setdefault(_signature(m), []).append(i)
+    return list(groups.values())
+
+
+def _check_inputs(models, states: np.ndarray, controls: np.ndarray) -> None:
+    n = len(models)
+    if states.ndim != 2 or states.shape[0] != n:
+        raise TwinError(f"batch: initial states must be (N, nstate), got {states.shape}")
+    if controls.ndim != 3 or controls.shape[0] != n or controls.shape[2] != 2:
+        raise TwinError(f"batch: controls must be (N, nstep, 2) thrust commands, got {controls.shape}")
+    for m in models:
+        if m.nu != 2 or state_size(m) != states.shape[1]:
+            raise TwinError("batch: every model needs 2 thrusters and the initial states' nstate")
+
+
+def _first_bad(traj: np.ndarray, t0: float) -> int | None:
+    """First sample index MuJoCo would call diverged: non-finite, beyond mjMAXVAL, or time reset."""
+    time = traj[:, 0]
+    previous = np.concatenate(([t0], time[:-1]))
+    bad = ~np.all(np.isfinite(traj), axis=1) | np.any(np.abs(traj) > mujoco.mjMAXVAL, axis=1) | (time <= previous)
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def _divergence(models, initial: np.ndarray, states: np.ndarray) -> list[tuple[int, float]]:
+    """Report diverged twins as (index, time s of the first bad sample) and blank their samples to NaN."""
+    diverged = []
+    for i, m in enumerate(models):
+        k = _first_bad(states[i], initial[i, 0])
+        if k is None:
+            continue
+        t_prev = states[i, k - 1, 0] if k > 0 else initial[i, 0]
+        diverged.append((i, float(t_prev + m.opt.timestep)))
+        states[i, k:] = np.nan
+    return diverged
+
+
+def _run_group(models, initial, controls, nthread: int) -> np.ndarray:
+    """One mujoco.rollout call over twins with a common size signature (GIL released)."""
+    datas = [mujoco.MjData(models[0]) for _ in range(max(1, min(nthread, len(models))))]
+    with mj_rollout.Rollout(nthread=len(datas) if len(datas) > 1 else 0) as pool:
+        states, _ = pool.rollout(models, datas, initial, controls)
+    return states
+
+
+def rollout(twins: Twin | Sequence[Twin], initial_states, controls, nthread: int | None = None
+            ) -> tuple[np.ndarray, list[tuple[int, float]]]:
+    """Step N twins open-loop with the native hydrodynamics on `nthread` threads (default: all CPUs).
+
+    twins: one CompiledVessel/MjModel for all, or one per twin; models must come
+    from `native.with_native_params` (or `models_for`), vessels are converted
+    with their default terms. initial_states: (N, nstate) full-physics states
+    (`initial_state`). controls: (N, nstep, 2) thrust commands (N) per step.
+
+    Returns states (N, nstep, nstate), the state after each step (time first),
+    and the diverged twins as (index, time in s of the first bad sample); their
+    samples from there on are NaN, the other twins' are kept.
+    """
+    initial = np.ascontiguousarray(initial_states, dtype=float)
+    controls = np.ascontiguousarray(controls, dtype=float)
+    models = _as_models(twins, len(initial))
+    _check_inputs(models, initial, controls)
+    nthread = nthread or os.cpu_count() or 1
+    states = np.empty((len(models), controls.shape[1], initial.shape[1]))
+    with native.installed_native():
+        for idx in _groups(models):
+            states[idx] = _run_group([models[i] for i in idx], initial[idx], controls[idx], nthread)
+    return states, _divergence(models, initial, states)

@@ -1,0 +1,460 @@
+"""The hydrodynamic passive callback compiled to native code (numba `cfunc`).
+
+Same physics as the Python reference `callbacks.passive_force` +
+`physics.hydrodynamics.hydrodynamic_force`, but installed in MuJoCo as a C
+function pointer, so the bindings call it without taking the GIL: stepping is
+as fast as MuJoCo's own pipeline allows and `mujoco.rollout` can run many
+twins on several threads.
+
+One compiled function serves every vessel and parameter set because it reads
+the vessel parameters FROM THE MODEL: `with_native_params` stores them as the
+model's first custom numeric `twin_params` (layout `LAYOUT`). A model whose
+first numeric does not start with the two magic numbers is left alone, so the
+callback can stay installed while other models are simulated.
+
+The callback reads mjModel/mjData fields through byte offsets into the C
+structs. They are found once, at import, from the shipped headers (field order)
+and the live structs (one anchor address found by scanning), and every
+offset is verified against the addresses and values the bindings expose.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import re
+from functools import lru_cache
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from numba import carray, cfunc, njit, types
+from numba.extending import intrinsic
+
+from ..errors import TwinError
+from ..physics.environment import RHO_AIR_KG_M3
+from ..physics.hydrodynamics import HydroModel, Terms
+from . import callbacks
+from .mjcf import CompiledVessel, _apply_case, _apply_thrusters, _spec
+
+PARAMS_NAME = "twin_params"
+MAGIC = (7.0710678118654752e11, -2.7182818284590452e-13)  # unlikely to be anyone else's first numeric
+
+_FIELDS = (  # (name, number of doubles), in storage order
+    ("magic", 2), ("size", 1), ("qpos_adr", 3), ("dof_adr", 3),
+    ("switches", 6),  # added_mass, added_mass_coriolis, damping, thrust, current, wind (0/1, effective)
+    ("M_RB", 9), ("M_A", 9), ("M_inv", 9),  # row-major, kg / kg m / kg m²
+    ("damping", 14),  # Damping.names() order, Fossen's signs
+    ("wind_load", 6),  # A_F m², A_L m², L m, c_x, c_y, c_n
+    ("current_ned", 2), ("wind_ned", 2),  # m/s; wind as the air's velocity
+)
+
+
+def _layout() -> dict[str, slice]:
+    out, start = {}, 0
+    for name, n in _FIELDS:
+        out[name] = slice(start, start + n)
+        start += n
+    return out
+
+
+LAYOUT = _layout()
+NPARAM = max(s.stop for s in LAYOUT.values())
+
+
+# ---------------------------------------------------------------- parameters
+
+def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
+    """The float64 vector the native callback reads (see `LAYOUT`).
+
+    The current and wind switches are stored *effective* (term on AND speed
+    non-zero), exactly the conditions under which the Python reference applies
+    them. M_inv is the inverse of M_RB + M_A (M_RB alone without added mass).
+    """
+    qpos, dof = callbacks._joint_indices(model)
+    t, env = hydro.terms, hydro.environment
+    switches = (t.added_mass, t.added_mass_coriolis, t.damping, t.thrust,
+                t.current and env.current_speed_m_s != 0.0, t.wind and env.wind_speed_m_s != 0.0)
+    w = hydro.wind_load
+    values = {
+        "magic": MAGIC, "size": (NPARAM,), "qpos_adr": qpos, "dof_adr": dof,
+        "switches": [float(s) for s in switches],
+        "M_RB": np.ravel(hydro.M_RB), "M_A": np.ravel(hydro.M_A), "M_inv": np.ravel(hydro.M_inv),
+        "damping": [getattr(hydro.damping, n) for n in type(hydro.damping).names()],
+        "wind_load": (w.frontal_area_m2, w.lateral_area_m2, w.length_m, w.cx, w.cy, w.cn),
+        "current_ned": env.current_ned, "wind_ned": env.wind_ned,
+    }
+    p = np.zeros(NPARAM)
+    for name, sl in LAYOUT.items():
+        p[sl] = values[name]
+    return p
+
+
+def _params_view(model: mujoco.MjModel) -> np.ndarray:
+    """The model's `twin_params` slice of numeric_data (a writable view)."""
+    if (model.nnumeric < 1 or mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_NUMERIC, 0) != PARAMS_NAME
+            or model.numeric_size[0] != NPARAM):
+        raise TwinError(f"model has no '{PARAMS_NAME}' numeric of size {NPARAM} first: "
+                        "build it with with_native_params")
+    adr = int(model.numeric_adr[0])
+    return model.numeric_data[adr:adr + NPARAM]
+
+
+def set_params(model: mujoco.MjModel, hydro: HydroModel) -> None:
+    """Overwrite the model's parameters in place: a parameter change needs no recompilation."""
+    _params_view(model)[:] = pack_params(hydro, model)
+
+
+def has_params(model: mujoco.MjModel) -> bool:
+    """True when the native callback will act on this model."""
+    try:
+        p = _params_view(model)
+    except TwinError:
+        return False
+    return bool(p[0] == MAGIC[0] and p[1] == MAGIC[1])
+
+
+def with_native_params(compiled: CompiledVessel, terms: Terms | None = None) -> mujoco.MjModel:
+    """The vessel's model recompiled with `twin_params` as its first custom numeric.
+
+    Built from the vessel's spec with the same edits as `compile_vessel`, so the
+    dynamics are identical to `compiled.model`; parameters from `compiled.hydro(terms)`.
+    """
+    spec = _spec(compiled.vessel)
+    _apply_case(compiled.vessel, spec)
+    _apply_thrusters(compiled.vessel, spec)
+    others = [(n.name, list(n.data), n.size) for n in spec.numerics]
+    for n in list(spec.numerics):
+        spec.delete(n)
+    spec.add_numeric(name=PARAMS_NAME, data=np.zeros(NPARAM), size=NPARAM)
+    for name, data, size in others:
+        spec.add_numeric(name=name, data=data, size=size)
+    model = spec.compile()
+    set_params(model, compiled.hydro(terms))
+    return model
+
+
+# ---------------------------------------------------------------- struct offsets
+
+_INCLUDE = Path(mujoco.__file__).resolve().parent / "include" / "mujoco"
+_SIZE_DECL = re.compile(r"^\s*mjtSize\s+(\w+)\s*;")
+_POINTER_DECL = re.compile(r"^\s*(?:const\s+)?[A-Za-z_]\w*\s*\*\s*(\w+)\s*;")
+_PROBE_XML = """<mujoco><custom><numeric name="a" data="1 2 3"/><numeric name="b" data="4"/></custom>
+<worldbody><body><joint name="j" type="slide"/><geom size=".1"/></body>
+<body><freejoint/><geom size=".1"/></body></worldbody>
+<actuator><motor joint="j"/></actuator></mujoco>"""
+
+
+def _struct_lines(header: str, struct: str) -> list[str]:
+    """Declaration lines of `typedef struct <struct>_ { ... } <struct>;`, comments stripped."""
+    text = (_INCLUDE / header).read_text()
+    body = text.split(f"typedef struct {struct}_ {{", 1)[1].split(f"}} {struct};", 1)[0]
+    return [line.split("//", 1)[0] for line in body.splitlines()]
+
+
+def _leading_sizes(lines: list[str]) -> list[str]:
+    """Names of the mjtSize (int64) fields the struct starts with."""
+    names = []
+    for line in filter(str.strip, lines):
+        m = _SIZE_DECL.match(line)
+        if not m:
+            break
+        names.append(m.group(1))
+    return names
+
+
+def _pointer_run(lines: list[str], first: str) -> list[str]:
+    """Names of the consecutive pointer fields from `first` on (8 bytes each, no padding)."""
+    names: list[str] = []
+    for line in filter(str.strip, lines):
+        m = _POINTER_DECL.match(line)
+        if names and not m:
+            break
+        if m and (names or m.group(1) == first):
+            names.append(m.group(1))
+    return names
+
+
+def _word(address: int) -> int:
+    return ctypes.c_int64.from_address(address).value
+
+
+def _scan(base: int, value: int, start: int = 0, limit: int = 1 << 21) -> int:
+    """Byte offset of the first 8-byte word equal to `value` at or after `base + start`.
+
+    Word by word, stopping at the first hit: every word read lies inside the
+    struct when the value is one of its own fields.
+    """
+    for off in range(start, limit, 8):
+        if _word(base + off) == value:
+            return off
+    raise TwinError("native callback: struct field not found in memory")
+
+
+def _array_address(obj, name: str) -> int | None:
+    a = getattr(obj, name, None)
+    return a.ctypes.data if isinstance(a, np.ndarray) and a.size > 0 else None
+
+
+def _pointer_offsets(obj, header: str, struct: str, first: str, anchor: str) -> dict[str, int]:
+    """Offsets of the pointer fields of one struct, anchored where `anchor`'s address sits.
+
+    The anchor's address can also be held by an earlier field (`buffer` points
+    at the first array, an empty array at the next one), so each hit is tried
+    until the whole layout verifies. Hits after the first are only looked for
+    within one pointer run of it, which stays inside the struct.
+    """
+    names = _pointer_run(_struct_lines(header, struct), first)
+    value = _array_address(obj, anchor)
+    first_hit = _scan(obj._address, value)
+    wrong: list[str] = []
+    for hit in range(first_hit, first_hit + 8 * len(names), 8):
+        if _word(obj._address + hit) != value:
+            continue
+        offsets = {n: hit + 8 * (i - names.index(anchor)) for i, n in enumerate(names)}
+        wrong = _mismatches(obj, offsets)
+        if not wrong:
+            return offsets
+    raise TwinError(f"native callback: {struct} layout does not match {header} ({wrong})")
+
+
+def _mismatches(obj, offsets: dict[str, int]) -> list[str]:
+    """Fields whose pointer is not where `offsets` says.
+
+    Every non-empty array the bindings expose is checked, except NULL struct
+    pointers (arena arrays not allocated yet, for which the bindings show a
+    placeholder).
+    """
+    checked, wrong = 0, []
+    for name, off in offsets.items():
+        addr = _array_address(obj, name)
+        word = _word(obj._address + off) if off >= 0 else -1
+        if addr is None or word == 0:
+            continue
+        checked += 1
+        if word != addr:
+            wrong.append(name)
+    return wrong if checked >= 8 else wrong + ["(fewer than 8 fields checked)"]
+
+
+@lru_cache(maxsize=1)
+def size_fields() -> tuple[str, ...]:
+    """Names of mjModel's leading integer size fields (nq, nv, nu, ...), from the shipped header."""
+    return tuple(_leading_sizes(_struct_lines("mjmodel.h", "mjModel")))
+
+
+def _size_offsets(model: mujoco.MjModel) -> dict[str, int]:
+    """Offsets of the leading int64 size fields of mjModel, each checked against the bindings."""
+    offsets = {n: 8 * i for i, n in enumerate(size_fields())}
+    checked = [n for n in offsets if hasattr(model, n)]
+    for n in checked:
+        if _word(model._address + offsets[n]) != int(getattr(model, n)):
+            raise TwinError(f"native callback: mjModel.{n} is not at byte {offsets[n]}")
+    if not {"nq", "nv", "nnumeric"} <= set(checked):
+        raise TwinError("native callback: mjModel sizes nq, nv, nnumeric not found in mjmodel.h")
+    return offsets
+
+
+@lru_cache(maxsize=1)
+def offsets() -> dict[str, int]:
+    """Byte offsets of the struct fields the callback reads, keyed 'm.<field>' / 'd.<field>'."""
+    model = mujoco.MjModel.from_xml_string(_PROBE_XML)
+    data = mujoco.MjData(model)
+    sizes = _size_offsets(model)
+    m_ptr = _pointer_offsets(model, "mjmodel.h", "mjModel", "buffer", "numeric_data")
+    d_ptr = _pointer_offsets(data, "mjdata.h", "mjData", "buffer", "qpos")
+    out = {f"m.{n}": sizes[n] for n in ("nq", "nv", "nnumeric")}
+    out.update({f"m.{n}": m_ptr[n] for n in ("numeric_adr", "numeric_size", "numeric_data")})
+    out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "qfrc_passive", "qfrc_actuator")})
+    return out
+
+
+# ---------------------------------------------------------------- native code
+
+@intrinsic
+def _address(typingctx, ptr):
+    """void* → integer address."""
+    def codegen(context, builder, signature, args):
+        return builder.ptrtoint(args[0], context.get_value_type(types.intp))
+    return types.intp(types.voidptr), codegen
+
+
+def _pointer_intrinsic(dtype):
+    @intrinsic
+    def to_pointer(typingctx, addr):
+        """integer address → typed pointer, for numba.carray."""
+        sig = types.CPointer(dtype)(types.intp)
+
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+        return sig, codegen
+    return to_pointer
+
+
+_f64_ptr = _pointer_intrinsic(types.float64)
+_i64_ptr = _pointer_intrinsic(types.int64)
+_i32_ptr = _pointer_intrinsic(types.int32)
+
+
+@njit(inline="always")
+def _field(base, offset):
+    """The 8-byte word (size or pointer) at `offset` bytes into a struct."""
+    return carray(_i64_ptr(base + offset), 1)[0]
+
+
+@njit(inline="always")
+def _coriolis(M, o, u, v, r):
+    """C(ν)ν for the 3×3 row-major matrix M[o:o+9] (coriolis.py's p_u/p_v form)."""
+    p_u = M[o] * u + M[o + 1] * v + M[o + 2] * r
+    p_v = M[o + 3] * u + M[o + 4] * v + M[o + 5] * r
+    return -r * p_v, r * p_u, u * p_v - v * p_u
+
+
+@njit(inline="always")
+def _damping(p, o, u, v, r):
+    """D(ν)ν of seed 004 eq. 7, coefficients p[o:o+14] in Damping.names() order."""
+    au, av, ar = abs(u), abs(v), abs(r)
+    d00 = -(p[o] + p[o + 1] * au)
+    d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar)
+    d12 = -(p[o + 5] + p[o + 6] * av + p[o + 7] * ar)
+    d21 = -(p[o + 8] + p[o + 9] * av + p[o + 10] * ar)
+    d22 = -(p[o + 11] + p[o + 12] * av + p[o + 13] * ar)
+    return d00 * u, d11 * v + d12 * r, d21 * v + d22 * r
+
+
+@njit(inline="always")
+def _wind(p, o, wo, c, s, u, v):
+    """τ_wind (environment.wind_force) with the load p[o:o+6] and wind NED p[wo:wo+2]."""
+    u_w = c * p[wo] + s * p[wo + 1]
+    v_w = -s * p[wo] + c * p[wo + 1]
+    u_rw, v_rw = u - u_w, v - v_w
+    q = 0.5 * RHO_AIR_KG_M3 * (u_rw * u_rw + v_rw * v_rw)
+    g = -np.arctan2(v_rw, u_rw)
+    return (q * (-p[o + 3] * np.cos(g) * p[o]), q * (p[o + 4] * np.sin(g) * p[o + 1]),
+            q * (p[o + 5] * np.sin(2.0 * g) * p[o + 1] * p[o + 2]))
+
+
+_SW = LAYOUT["switches"].start
+_O_MRB, _O_MA, _O_MINV = LAYOUT["M_RB"].start, LAYOUT["M_A"].start, LAYOUT["M_inv"].start
+_O_DAMP, _O_WL = LAYOUT["damping"].start, LAYOUT["wind_load"].start
+_O_CUR, _O_WIND = LAYOUT["current_ned"].start, LAYOUT["wind_ned"].start
+
+
+@njit
+def hydro_force_body(p, psi, u, v, r, t0, t1, t2):
+    """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`.
+
+    ν = (u, v, r) in m/s, rad/s; τ = (t0, t1, t2) the actuator force the engine
+    applies by itself (it enters only through the exact ν̇_r of added mass).
+    """
+    c, s = np.cos(psi), np.sin(psi)
+    ur, vr, rr = u, v, r
+    if p[_SW + 4] != 0.0:  # current: ν_r = ν − ν_c
+        ur = u - (c * p[_O_CUR] + s * p[_O_CUR + 1])
+        vr = v - (-s * p[_O_CUR] + c * p[_O_CUR + 1])
+    th = p[_SW + 3] != 0.0
+    e0, e1, e2 = (t0, t1, t2) if th else (0.0, 0.0, 0.0)
+    if p[_SW + 5] != 0.0:  # wind sees the true velocity ν
+        w0, w1, w2 = _wind(p, _O_WL, _O_WIND, c, s, u, v)
+        e0, e1, e2 = e0 + w0, e1 + w1, e2 + w2
+    if p[_SW + 2] != 0.0:
+        d0, d1, d2 = _damping(p, _O_DAMP, ur, vr, rr)
+        e0, e1, e2 = e0 - d0, e1 - d1, e2 - d2
+    if p[_SW + 1] != 0.0:
+        k0, k1, k2 = _coriolis(p, _O_MA, ur, vr, rr)
+        e0, e1, e2 = e0 - k0, e1 - k1, e2 - k2
+    f0, f1, f2 = (e0 - t0, e1 - t1, e2 - t2) if th else (e0, e1, e2)
+    if p[_SW] != 0.0:  # added mass with the exact ν̇_r = M⁻¹(external − C_RB(ν_r)ν_r)
+        k0, k1, k2 = _coriolis(p, _O_MRB, ur, vr, rr)
+        b0, b1, b2 = e0 - k0, e1 - k1, e2 - k2
+        m = _O_MINV
+        a0 = p[m] * b0 + p[m + 1] * b1 + p[m + 2] * b2
+        a1 = p[m + 3] * b0 + p[m + 4] * b1 + p[m + 5] * b2
+        a2 = p[m + 6] * b0 + p[m + 7] * b1 + p[m + 8] * b2
+        m = _O_MA
+        f0 = f0 - (p[m] * a0 + p[m + 1] * a1 + p[m + 2] * a2)
+        f1 = f1 - (p[m + 3] * a0 + p[m + 4] * a1 + p[m + 5] * a2)
+        f2 = f2 - (p[m + 6] * a0 + p[m + 7] * a1 + p[m + 8] * a2)
+    return f0, f1, f2
+
+
+def _libmujoco() -> ctypes.CDLL:
+    """The libmujoco the bindings already loaded (dlopen of the same path returns the same handle)."""
+    pkg = Path(mujoco.__file__).resolve().parent
+    path = pkg / f"libmujoco.so.{mujoco.__version__}"
+    if not path.is_file():
+        path = sorted(pkg.glob("libmujoco.so*"))[0]
+    lib = ctypes.CDLL(str(path))
+    if lib.mj_version() != mujoco.mj_version():
+        raise TwinError(f"native callback: {path.name} is not the library the bindings use")
+    return lib
+
+
+def _build_callback():
+    """Compile the cfunc with the struct offsets baked in as constants."""
+    off = offsets()
+    fwd_actuation = _libmujoco().mj_fwdActuation
+    fwd_actuation.argtypes = (ctypes.c_void_p, ctypes.c_void_p)
+    fwd_actuation.restype = None
+    o_nq, o_nv, o_nnum = off["m.nq"], off["m.nv"], off["m.nnumeric"]
+    o_nadr, o_nsize, o_ndata = off["m.numeric_adr"], off["m.numeric_size"], off["m.numeric_data"]
+    o_qpos, o_qvel, o_pas, o_act = off["d.qpos"], off["d.qvel"], off["d.qfrc_passive"], off["d.qfrc_actuator"]
+    o_q, o_d, n, magic0, magic1 = LAYOUT["qpos_adr"].start, LAYOUT["dof_adr"].start, NPARAM, *MAGIC
+
+    @njit(inline="always")
+    def params(mb):
+        """(is a twin model, its parameters): checks count, size and magic before trusting the data."""
+        if _field(mb, o_nnum) < 1 or carray(_i32_ptr(_field(mb, o_nsize)), 1)[0] < n:
+            return False, carray(_f64_ptr(_field(mb, o_ndata)), 0)
+        p = carray(_f64_ptr(_field(mb, o_ndata) + 8 * carray(_i32_ptr(_field(mb, o_nadr)), 1)[0]), n)
+        return p[0] == magic0 and p[1] == magic1 and p[2] == n, p
+
+    @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
+    def passive(m, d):
+        mb, db = _address(m), _address(d)
+        ok, p = params(mb)
+        if not ok:
+            return
+        nq, nv = _field(mb, o_nq), _field(mb, o_nv)
+        qx, qy, qpsi = int(p[o_q]), int(p[o_q + 1]), int(p[o_q + 2])
+        dx, dy, dpsi = int(p[o_d]), int(p[o_d + 1]), int(p[o_d + 2])
+        if max(qx, qy, qpsi) >= nq or max(dx, dy, dpsi) >= nv or min(qx, qy, qpsi, dx, dy, dpsi) < 0:
+            return
+        qpos, qvel = carray(_f64_ptr(_field(db, o_qpos)), nq), carray(_f64_ptr(_field(db, o_qvel)), nv)
+        psi = qpos[qpsi]
+        c, s = np.cos(psi), np.sin(psi)
+        u, v = c * qvel[dx] + s * qvel[dy], -s * qvel[dx] + c * qvel[dy]
+        fwd_actuation(m, d)  # actuation comes after passive forces in MuJoCo's pipeline
+        fa = carray(_f64_ptr(_field(db, o_act)), nv)
+        t0, t1 = c * fa[dx] + s * fa[dy], -s * fa[dx] + c * fa[dy]
+        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi])
+        qfrc = carray(_f64_ptr(_field(db, o_pas)), nv)
+        qfrc[dx] += c * x0 - s * x1
+        qfrc[dy] += s * x0 + c * x1
+        qfrc[dpsi] += x2
+
+    return passive
+
+
+@lru_cache(maxsize=1)
+def passive_cfunc():
+    """The compiled callback (numba CFunc; `.ctypes` is the function pointer MuJoCo takes).
+
+    Compiled on first use (about a second), then cached for the process.
+    """
+    return _build_callback()
+
+
+def install() -> None:
+    """Install the native callback as MuJoCo's global mjcb_passive (no-op for non-twin models)."""
+    mujoco.set_mjcb_passive(passive_cfunc().ctypes)
+
+
+@contextlib.contextmanager
+def installed_native():
+    """Install the native callback for the block, restoring the previous callback after."""
+    previous = mujoco.get_mjcb_passive()
+    install()
+    try:
+        yield
+    finally:
+        mujoco.set_mjcb_passive(previous)
