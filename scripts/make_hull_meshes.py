@@ -1,15 +1,17 @@
 #!/usr/bin/env python3
-"""Generate the Yellowfish hull meshes in assets/ reproducibly (trimesh).
+"""Generate the hull meshes in assets/ reproducibly (trimesh).
 
-Each fibreglass hull is 128 × 25.5 × 30 cm (seed 000 §II-A). The shape is a
+Yellowfish: each fibreglass hull is 128 × 25.5 × 30 cm (seed 000 §II-A).
+BlueBoat: 120 × 23 × 25 cm per hull, an approximation of Blue Robotics'
+published 1.2 m length (the hull lines are not published). The shape is a
 simple catamaran demihull: superelliptic sections (exponent 4: flat deck, full
 bilge), constant breadth aft of midships with a transom stern, breadth and
 depth tapering to a raked bow. Body frame FRD (x forward, y starboard, z down);
 the mesh origin is the bounding-box centre in x and y and the design
-waterline in z (deck at z = −0.25 m, keel at z = +0.05 m).
+waterline in z (Yellowfish: deck at z = −0.25 m, keel at z = +0.05 m).
 
-Run:  python scripts/make_hull_meshes.py   (writes assets/hull_port.stl and
-assets/hull_starboard.stl; identical output on every run)
+Run:  python scripts/make_hull_meshes.py   (writes assets/<vessel>_hull_port.stl
+and assets/<vessel>_hull_starboard.stl; identical output on every run)
 """
 from __future__ import annotations
 
@@ -19,34 +21,37 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-LENGTH_M, BREADTH_M, HEIGHT_M = 1.28, 0.255, 0.30
-DECK_Z_M, KEEL_Z_M = -0.25, 0.05
+HULLS = {  # length, breadth, deck z, keel z (m)
+    "yellowfish": (1.28, 0.255, -0.25, 0.05),
+    "blueboat": (1.20, 0.23, -0.18, 0.07),
+}
 STATIONS, RING_POINTS, EXPONENT = 65, 48, 4.0
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
 
 
-def _section_scale(x_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _section_scale(x_m: np.ndarray, length_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Relative half-breadth and keel depth along the hull (1 amidships)."""
-    s = (x_m + LENGTH_M / 2) / LENGTH_M  # 0 at transom, 1 at bow
+    s = (x_m + length_m / 2) / length_m  # 0 at transom, 1 at bow
     taper = np.clip((s - 0.45) / 0.55, 0.0, 1.0)
     breadth = np.sqrt(np.clip(1.0 - taper**2, 0.0, 1.0)) * 0.96 + 0.04
     depth = 1.0 - 0.55 * taper**2  # keel rises towards the raked bow
     return breadth, depth
 
 
-def hull_mesh() -> trimesh.Trimesh:
-    xs = np.linspace(-LENGTH_M / 2, LENGTH_M / 2, STATIONS)
-    breadth, depth = _section_scale(xs)
+def hull_mesh(vessel: str = "yellowfish") -> trimesh.Trimesh:
+    length_m, breadth_m, deck_z_m, keel_z_m = HULLS[vessel]
+    xs = np.linspace(-length_m / 2, length_m / 2, STATIONS)
+    breadth, depth = _section_scale(xs, length_m)
     theta = np.linspace(0.0, 2 * np.pi, RING_POINTS, endpoint=False)
     c, s = np.cos(theta), np.sin(theta)
     ring_y = np.sign(c) * np.abs(c) ** (2 / EXPONENT)
     ring_z = np.sign(s) * np.abs(s) ** (2 / EXPONENT)
     vertices, faces = [], []
     for i, x in enumerate(xs):
-        keel = DECK_Z_M + (KEEL_Z_M - DECK_Z_M) * depth[i]
-        zc, half_h = 0.5 * (DECK_Z_M + keel), 0.5 * (keel - DECK_Z_M)
+        keel = deck_z_m + (keel_z_m - deck_z_m) * depth[i]
+        zc, half_h = 0.5 * (deck_z_m + keel), 0.5 * (keel - deck_z_m)
         for y, z in zip(ring_y, ring_z):
-            vertices.append((x, 0.5 * BREADTH_M * breadth[i] * y, zc + half_h * z))
+            vertices.append((x, 0.5 * breadth_m * breadth[i] * y, zc + half_h * z))
     n = RING_POINTS
     for i in range(STATIONS - 1):
         for j in range(n):
@@ -68,15 +73,16 @@ def hull_mesh() -> trimesh.Trimesh:
 
 def main() -> int:
     ASSETS.mkdir(exist_ok=True)
-    mesh = hull_mesh()
-    for side in ("port", "starboard"):
-        out = ASSETS / f"hull_{side}.stl"
-        tmp = out.with_suffix(".stl.tmp")
-        tmp.write_bytes(trimesh.exchange.stl.export_stl(mesh))
-        tmp.replace(out)
-    ext = mesh.bounds[1] - mesh.bounds[0]
-    print(f"hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, volume {mesh.volume * 1e3:.2f} L, "
-          f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}")
+    for vessel in HULLS:
+        mesh = hull_mesh(vessel)
+        for side in ("port", "starboard"):
+            out = ASSETS / f"{vessel}_hull_{side}.stl"
+            tmp = out.with_suffix(".stl.tmp")
+            tmp.write_bytes(trimesh.exchange.stl.export_stl(mesh))
+            tmp.replace(out)
+        ext = mesh.bounds[1] - mesh.bounds[0]
+        print(f"{vessel} hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, volume {mesh.volume * 1e3:.2f} L, "
+              f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}")
     return 0
 
 

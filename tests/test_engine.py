@@ -39,7 +39,7 @@ def test_hull_meshes_are_watertight_and_reproducible():
     spec.loader.exec_module(mk)
     fresh = trimesh.exchange.stl.export_stl(mk.hull_mesh())
     for side in ("port", "starboard"):
-        path = ROOT / "assets" / f"hull_{side}.stl"
+        path = ROOT / "assets" / f"yellowfish_hull_{side}.stl"
         assert path.read_bytes() == fresh
         mesh = trimesh.load(path)
         assert mesh.is_watertight
