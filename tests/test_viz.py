@@ -156,7 +156,7 @@ def test_rrd_with_meshes_and_geometry(tmp_path):
         gnss_pos_m = np.array([0.0, 0.0, -0.5])
         imu_pos_m = np.array([0.1, 0.0, -0.3])
 
-    meshes = [ASSETS / "hull_port.stl", ASSETS / "hull_starboard.stl"]
+    meshes = [ASSETS / "yellowfish_hull_port.stl", ASSETS / "yellowfish_hull_starboard.stl"]
     out = tmp_path / "sub" / "real_twin.rrd"
     write_runs_rrd({"real": synthetic_run(9, n=300), "twin": synthetic_run(10, n=300)}, out,
                    geometry=Geometry(), hull_mesh_paths=meshes, application_id="twin_test")
