@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -201,6 +202,119 @@ def validation_table(name: str, case: str, rows: list[dict]) -> str:
         lines.append(f"{r['name'][:30]:30s} {r['unit'][:5]:5s} " + " ".join(cell(r[c]) for c in (
             "analytic", "table", "engine", "mesh", "independent")) + f" {rel}" + (" !" if r["flag"] else ""))
     return "\n".join(lines)
+
+
+def _lever_arm(vessel_obj) -> tuple[float, float] | None:
+    """OP = (dx, dy) from the antenna to CO (seed 000 eq. 28) from the vessel's GNSS site."""
+    if vessel_obj is None:
+        return None
+    from .engine.mjcf import compile_vessel
+
+    g = compile_vessel(vessel_obj).geometry
+    return float(-g.gnss_pos_m[0]), float(-g.gnss_pos_m[1])
+
+
+def _channels(text: Optional[str]) -> Optional[dict]:
+    if text is None:
+        return None
+    try:
+        left, right = (int(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"--channels expects LEFT,RIGHT servo numbers, got '{text}'") from None
+    return {"left": left, "right": right}
+
+
+@app.command()
+def info(
+    files: list[Path] = typer.Argument(..., help="recordings: .bin, .tlog, .csv, .mcap"),
+    channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT (else from the log)"),
+):
+    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
+    from .recordings import format_summary, read_recording
+
+    for path in files:
+        rec = read_recording(path, channels=_channels(channels))
+        typer.echo(f"== {path}")
+        typer.echo(format_summary(rec.summary()))
+
+
+@app.command()
+def convert(
+    src: Path = typer.Argument(..., help="input recording: .bin, .tlog, .csv, .mcap"),
+    dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap or .tlog"),
+    channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
+    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised output, s"),
+):
+    """Convert a recording, synchronised on one grid (seed 004 §5.1), to another format."""
+    from .recordings import prepare, read_recording
+    from .replay import measured_run
+    from .vessel import write_text_atomic
+
+    suffix = dst.suffix.lower()
+    if suffix == ".bin":
+        raise TwinError("writing DataFlash .bin is not supported: convert to .tlog, .mcap or .csv")
+    if suffix not in (".csv", ".mcap", ".tlog"):
+        raise TwinError(f"output '{dst}': unknown format (use .csv, .mcap or .tlog)")
+    if not dst.parent.exists():
+        raise TwinError(f"output '{dst}': folder '{dst.parent}' does not exist")
+    rec = read_recording(src, channels=_channels(channels))
+    prep = prepare(rec, grid_dt=grid_dt)
+    run = measured_run(prep)
+    if suffix == ".csv":
+        lines = ["t,north,east,psi,pwm_left,pwm_right"]
+        for i in range(len(run.t)):
+            lines.append(",".join(f"{x:.9g}" if np.isfinite(x) else "" for x in (
+                run.t[i], run.eta[i, 0], run.eta[i, 1], run.eta[i, 2], run.pwm_us[i, 0], run.pwm_us[i, 1])))
+        write_text_atomic(dst, "\n".join(lines) + "\n")
+    elif suffix == ".mcap":
+        from .viz.mcap_io import write_run_mcap
+
+        write_run_mcap(run, dst, rec.meta.get("vessel", "") if isinstance(rec.meta, dict) else "")
+    else:
+        from .viz.tlog_io import write_run_tlog
+
+        origin = prep.origin or {}
+        kwargs = {"origin": (origin["lat0_deg"], origin["lon0_deg"])} if "lat0_deg" in origin else {}
+        write_run_tlog(run, dst, **kwargs)
+    typer.echo(f"wrote {dst}: {len(run.t)} samples, {run.t[-1] - run.t[0]:.1f} s")
+
+
+@app.command()
+def view(
+    files: list[Path] = typer.Argument(..., help="recordings to show"),
+    sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (for --sim and the GNSS lever arm)"),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: FILE.rrd beside the first input)"),
+    png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
+    channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
+):
+    """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
+    from .outputs import check_paths, write
+    from .recordings import prepare, read_recording
+    from .replay import measured_run, replay
+    from .viz.report import comparison_png
+
+    v = _vessel(vessel, model, "nominal") if (vessel or model) else None
+    if sim and v is None:
+        raise TwinError("--sim needs --vessel NAME or --model FILE")
+    out = out or files[0].with_suffix(".rrd")
+    check_paths([out])
+    runs = {}
+    for path in files:
+        prep = prepare(read_recording(path, channels=_channels(channels)), lever_arm_OP_m=_lever_arm(v))
+        label = path.stem if len(files) > 1 else "real"
+        runs[label] = measured_run(prep)
+        if sim:
+            runs[f"twin {path.stem}" if len(files) > 1 else "twin"] = replay(v, prep)
+    write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
+    typer.echo(f"wrote {out} (open with: rerun {out})")
+    if png is not None:
+        data = comparison_png(runs, f"{', '.join(p.name for p in files)}" + (f": real vs twin ({v.name})" if sim else ""))
+        tmp = png.with_name("." + png.name + ".tmp")
+        tmp.write_bytes(data)
+        tmp.replace(png)
+        typer.echo(f"wrote {png}")
 
 
 def main() -> None:

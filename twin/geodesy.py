@@ -23,7 +23,8 @@ def ned_from_geodetic(lat_deg, lon_deg, lat0_deg: float, lon0_deg: float, h0_m: 
     """(north, east) in m of points relative to (lat0, lon0)."""
     r_m, r_n = radii_m(lat0_deg)
     north = np.deg2rad(np.asarray(lat_deg) - lat0_deg) * (r_m + h0_m)
-    east = np.deg2rad(np.asarray(lon_deg) - lon0_deg) * (r_n + h0_m) * np.cos(np.deg2rad(lat0_deg))
+    dlon = (np.asarray(lon_deg, float) - lon0_deg + 180.0) % 360.0 - 180.0  # across the antimeridian
+    east = np.deg2rad(dlon) * (r_n + h0_m) * np.cos(np.deg2rad(lat0_deg))
     return north, east
 
 

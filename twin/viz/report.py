@@ -86,3 +86,41 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
     lines += ["| " + " | ".join(row) + " |" for row in _rows(rows)]
     lines += ["", "## Differences over 5 %", ""] + [f"- **{r['name']}**: {r['explanation']}" for r in flagged]
     write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def comparison_png(runs: dict, title: str) -> bytes:
+    """Track on the water (east vs north) and u, r against time, one colour per run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig = plt.figure(figsize=(11, 6), dpi=100)
+    grid = fig.add_gridspec(3, 2, width_ratios=(1.1, 1.4))
+    track = fig.add_subplot(grid[:, 0])
+    axes = [fig.add_subplot(grid[i, 1]) for i in range(3)]
+    for (name, run), colour in zip(runs.items(), ("k", "tab:orange", "tab:blue", "tab:green")):
+        track.plot(run.eta[:, 1], run.eta[:, 0], color=colour, lw=1.2, label=name)
+        track.plot(run.eta[0, 1], run.eta[0, 0], "o", color=colour, ms=4)
+        for ax, (k, label) in zip(axes, ((0, "u (m/s)"), (2, "r (rad/s)"))):
+            ax.plot(run.t, run.nu[:, k], color=colour, lw=1, label=name)
+            ax.set_ylabel(label)
+        if np.any(np.isfinite(run.pwm_us)):
+            axes[2].plot(run.t, run.pwm_us[:, 0], color=colour, lw=0.8, ls="-")
+            axes[2].plot(run.t, run.pwm_us[:, 1], color=colour, lw=0.8, ls="--")
+    axes[2].set_ylabel("PWM (µs)\nleft — right --")
+    axes[2].set_xlabel("t (s)")
+    track.set_xlabel("east (m)")
+    track.set_ylabel("north (m)")
+    track.set_aspect("equal", adjustable="datalim")
+    track.legend(fontsize=8)
+    axes[0].legend(fontsize=8, loc="upper right")
+    for ax in (track, *axes):
+        ax.grid(alpha=0.3)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    return buf.getvalue()
