@@ -288,6 +288,7 @@ def view(
     out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: FILE.rrd beside the first input)"),
     png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
+    smoother: str = typer.Option("savgol", help="velocities: savgol (seed 004) or model (EKF+RTS on the vessel model)"),
 ):
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from .outputs import check_paths, write
@@ -296,13 +297,20 @@ def view(
     from .viz.report import comparison_png
 
     v = _vessel(vessel, model, "nominal") if (vessel or model) else None
-    if sim and v is None:
-        raise TwinError("--sim needs --vessel NAME or --model FILE")
+    if (sim or smoother == "model") and v is None:
+        raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
+    if smoother not in ("savgol", "model"):
+        raise TwinError(f"unknown smoother '{smoother}' (savgol or model)")
     out = out or files[0].with_suffix(".rrd")
     check_paths([out])
     runs = {}
     for path in files:
         prep = prepare(read_recording(path, channels=_channels(channels)), lever_arm_OP_m=_lever_arm(v))
+        if smoother == "model":
+            from .engine.mjcf import compile_vessel
+            from .smoother import model_smoothed
+
+            prep = model_smoothed(compile_vessel(v), prep)
         label = path.stem if len(files) > 1 else "real"
         runs[label] = measured_run(prep)
         if sim:
