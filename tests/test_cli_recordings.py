@@ -62,8 +62,18 @@ def test_bad_recordings_exit_2(tmp_path):
     p = twin("info", junk)
     assert p.returncode == 2 and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
     p = twin("convert", junk, tmp_path / "x.bin")
-    assert p.returncode == 2 and ".bin" in p.stderr
+    assert p.returncode == 2 and "junk.tlog" in p.stderr
     assert not (tmp_path / "x.bin").exists()
+
+
+def test_convert_tlog_to_dataflash_and_back(sim_tlog, tmp_path):
+    p = twin("convert", sim_tlog / "z.tlog", tmp_path / "z.bin")
+    assert p.returncode == 0, p.stderr
+    a = prepare(read_recording(sim_tlog / "z.tlog"))
+    b = prepare(read_recording(tmp_path / "z.bin"))
+    n = min(len(a.t), len(b.t)) - 5
+    np.testing.assert_allclose(b.pwm[:n], a.pwm[:n], atol=1.0)
+    assert np.corrcoef(a.r[5:n], b.r[5:n])[0, 1] > 0.99
 
 
 def test_model_smoother_beats_savitzky_golay_on_noisy_gnss():

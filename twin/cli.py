@@ -50,7 +50,7 @@ def simulate(
     scenario: str = typer.Option("zigzag", help="step | turn | zigzag | spin | random"),
     inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
-    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd or .tlog (repeatable)"),
+    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
@@ -241,7 +241,7 @@ def info(
 @app.command()
 def convert(
     src: Path = typer.Argument(..., help="input recording: .bin, .tlog, .csv, .mcap"),
-    dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap or .tlog"),
+    dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised output, s"),
 ):
@@ -251,10 +251,8 @@ def convert(
     from .vessel import write_text_atomic
 
     suffix = dst.suffix.lower()
-    if suffix == ".bin":
-        raise TwinError("writing DataFlash .bin is not supported: convert to .tlog, .mcap or .csv")
-    if suffix not in (".csv", ".mcap", ".tlog"):
-        raise TwinError(f"output '{dst}': unknown format (use .csv, .mcap or .tlog)")
+    if suffix not in (".csv", ".mcap", ".tlog", ".bin"):
+        raise TwinError(f"output '{dst}': unknown format (use .csv, .mcap, .tlog or .bin)")
     if not dst.parent.exists():
         raise TwinError(f"output '{dst}': folder '{dst.parent}' does not exist")
     rec = read_recording(src, channels=_channels(channels))
@@ -271,11 +269,12 @@ def convert(
 
         write_run_mcap(run, dst, rec.meta.get("vessel", "") if isinstance(rec.meta, dict) else "")
     else:
+        from .viz.dataflash_io import write_run_bin
         from .viz.tlog_io import write_run_tlog
 
         origin = prep.origin or {}
-        kwargs = {"origin": (origin["lat0_deg"], origin["lon0_deg"])} if "lat0_deg" in origin else {}
-        write_run_tlog(run, dst, **kwargs)
+        kwargs = {"origin": (origin["lat_deg"], origin["lon_deg"])} if "lat_deg" in origin else {}
+        (write_run_tlog if suffix == ".tlog" else write_run_bin)(run, dst, **kwargs)
     typer.echo(f"wrote {dst}: {len(run.t)} samples, {run.t[-1] - run.t[0]:.1f} s")
 
 

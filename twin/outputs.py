@@ -7,7 +7,7 @@ from .errors import TwinError
 from .run import Run
 from .vessel import write_text_atomic
 
-FORMATS = (".csv", ".mcap", ".rrd", ".tlog")
+FORMATS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 
 
 def check_paths(paths: list[Path]) -> None:
@@ -36,7 +36,7 @@ def mesh_placements(mjcf: Path) -> dict[Path, tuple[float, float, float]]:
 
 def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str = "",
           mjcf: Path | None = None) -> None:
-    """The first run goes to .csv/.mcap/.tlog; every run goes to .rrd on one timeline."""
+    """The first run goes to .csv/.mcap/.tlog/.bin; every run goes to .rrd on one timeline."""
     suffix = path.suffix.lower()
     first = next(iter(runs.values()))
     if suffix == ".csv":
@@ -50,6 +50,11 @@ def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str =
 
         antenna = (0.0, 0.0) if geometry is None else tuple(geometry.gnss_pos_m[:2])
         write_run_tlog(first, path, antenna_body_m=antenna)
+    elif suffix == ".bin":
+        from .viz.dataflash_io import write_run_bin
+
+        antenna = (0.0, 0.0) if geometry is None else tuple(geometry.gnss_pos_m[:2])
+        write_run_bin(first, path, antenna_body_m=antenna)
     elif suffix == ".rrd":
         from .viz.rerun_log import write_runs_rrd
 
