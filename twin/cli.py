@@ -16,7 +16,7 @@ from .errors import TwinError
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
                   help="MuJoCo digital twin of twin-thruster surface vessels.")
-console = Console()
+console = Console(width=None if sys.stdout.isatty() else 100)
 VESSEL_HELP = "vessel name (model/NAME.json)"
 MODEL_HELP = "vessel description file (e.g. written by identification); overrides --vessel"
 
