@@ -15,18 +15,23 @@ from scipy.integrate import solve_ivp
 from .inputs import InputSeries
 from .physics.hydrodynamics import HydroModel, acceleration
 from .physics.kinematics import eta_dot
-from .physics.thrusters import ThrusterModel, allocation_matrix
+from .physics.thrusters import ThrusterModel, advance_factor, allocation_matrix
 from .run import Run
 
 
-def _rhs(hydro: HydroModel, thrusters: ThrusterModel, B: np.ndarray, cmd: np.ndarray):
+def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndarray, start_s: float):
+    """Right-hand side with the input `raw` (N, before decay) held; the thrust decays in
+    continuous time and loses with the advance speed (physics/thrusters.py)."""
+    B = allocation_matrix(thruster_y_m)
     gains = thrusters.gains()
     lag = thrusters.lag_s
+    t_min, t_max = thrusters.bounds()
 
-    def f(_t, x):
+    def f(t, x):
         psi, nu = x[2], x[3:6]
+        cmd = np.clip(raw * thrusters.decay_factor(t + start_s), t_min, t_max)
         delivered = x[6:8] if lag > 0 else cmd
-        tau = B @ (gains * delivered)
+        tau = B @ (gains * delivered * advance_factor(thrusters, nu, thruster_y_m))
         dx = np.empty_like(x)
         dx[0:3] = eta_dot(psi, nu)
         dx[3:6] = acceleration(hydro, psi, nu, tau)
@@ -45,38 +50,45 @@ def simulate(
     t_samples: np.ndarray,
     eta0=None,
     nu0=None,
+    start_s: float = 0.0,
     rtol: float = 1e-11,
     atol: float = 1e-11,
 ) -> Run:
-    """Integrate from t_samples[0] and return the state at every sample time."""
-    B = allocation_matrix(thruster_y_m)
-    t_min, t_max = thrusters.bounds()
+    """Integrate from t_samples[0] and return the state at every sample time.
+
+    The inputs' clock starts at the run's start, as in the engine; `start_s` is the
+    recording time of t = 0 for the thrust decay. The input changes reach the
+    thrusters delay_s later."""
     lag = thrusters.lag_s > 0
     x = np.concatenate([np.zeros(3) if eta0 is None else eta0, np.zeros(3) if nu0 is None else nu0,
                         np.zeros(2)])[: 8 if lag else 6].astype(float)
     t0, t_end = float(t_samples[0]), float(t_samples[-1])
-    inside_run = (inputs.t > t0) & (inputs.t < t_end)
+    changes = inputs.t + thrusters.delay_s
+    inside_run = (changes > t0) & (changes < t_end)
     changed = np.r_[True, np.any(np.diff(inputs.values, axis=0) != 0, axis=1)]
-    breaks = np.unique(np.concatenate([[t0, t_end], inputs.t[inside_run & changed]]))
+    breaks = np.unique(np.concatenate([[t0, t_end], changes[inside_run & changed]]))
     out = np.full((len(t_samples), len(x)), np.nan)
     out[0] = x
     for a, b in zip(breaks[:-1], breaks[1:]):
-        cmd = np.clip(inputs.commanded_thrust(thrusters, np.array([a]))[0], t_min, t_max)
+        held = inputs.at(np.array([a - thrusters.delay_s]))
+        raw = held[0] if inputs.kind == "thrust" else thrusters.thrust_from_pwm(held)[0]
         if not hydro.terms.thrust:
-            cmd = np.zeros(2)
+            raw = np.zeros(2)
         inside = (t_samples > a) & (t_samples <= b)
         t_eval = np.unique(np.concatenate([t_samples[inside], [b]]))
-        sol = solve_ivp(_rhs(hydro, thrusters, B, cmd), (a, b), x, method="DOP853", rtol=rtol, atol=atol,
-                        t_eval=t_eval)
+        sol = solve_ivp(_rhs(hydro, thrusters, thruster_y_m, np.asarray(raw, float), start_s), (a, b), x,
+                        method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
         if not sol.success:
             raise FloatingPointError(f"analytic integration failed at t = {a:.2f} s: {sol.message}")
         out[inside] = sol.y.T[np.searchsorted(t_eval, t_samples[inside])]
         x = sol.y[:, -1]
     gains = thrusters.gains()
+    t_min, t_max = thrusters.bounds()
     if lag:
-        delivered = out[:, 6:8] * gains
+        cmd = out[:, 6:8]
     else:
-        cmds = np.clip(inputs.commanded_thrust(thrusters, t_samples), t_min, t_max)
-        delivered = cmds * gains if hydro.terms.thrust else np.zeros_like(cmds)
-    return Run(t_samples.copy(), out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), delivered,
+        cmd = np.clip(inputs.commanded_thrust(thrusters, t_samples, start_s), t_min, t_max)
+        cmd = cmd if hydro.terms.thrust else np.zeros_like(cmd)
+    factor = np.array([advance_factor(thrusters, nu, thruster_y_m) for nu in out[:, 3:6]])
+    return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), cmd * gains * factor,
                meta={"engine": "analytic", "integrator": "DOP853"})

@@ -26,12 +26,11 @@ class InputSeries:
         idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
         return self.values[np.clip(idx, 0, len(self.t) - 1)]
 
-    def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray) -> np.ndarray:
-        """Thrust command (N) per thruster at `times`, before gains and lag."""
-        held = self.at(times)
-        if self.kind == "thrust":
-            return held.astype(float)
-        return thrusters.thrust_from_pwm(held)
+    def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray, start_s: float = 0.0) -> np.ndarray:
+        """Thrust command (N) per thruster at `times` (s, this series' clock), before gains, lag and
+        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t."""
+        times = np.asarray(times, float)
+        return thrusters.command(self.kind, self.at(times - thrusters.delay_s), times + start_s)
 
     def pwm_at(self, times: np.ndarray) -> np.ndarray:
         if self.kind == "pwm":

@@ -37,9 +37,8 @@ def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
     inputs = InputSeries(t - t[0], prep.pwm[sl].astype(float), "pwm")
     eta0 = (prep.north[sl][0], prep.east[sl][0], prep.psi[sl][0])
     nu0 = (prep.u[sl][0], prep.v[sl][0], prep.r[sl][0])
-    run = simulate(compiled, inputs, float(t[-1] - t[0]), sample_dt_s=dt, control_dt_s=dt, eta0=eta0, nu0=nu0)
-    run.t = run.t + t[0]
-    return run
+    return simulate(compiled, inputs, float(t[-1] - t[0]), sample_dt_s=dt, control_dt_s=dt, eta0=eta0, nu0=nu0,
+                    start_s=float(t[0]))
 
 
 def replay(vessel: Vessel, prep: Prepared) -> Run:

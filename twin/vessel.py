@@ -19,6 +19,7 @@ from .errors import TwinError
 from .physics.added_mass import AddedMass
 from .physics.damping import Damping, is_dissipative
 from .physics.environment import Environment, WindLoad
+from .physics.sensors import Sensors
 from .physics.thrusters import ThrusterModel
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "model"
@@ -42,6 +43,8 @@ class Vessel:
     thrusters: ThrusterModel
     wind_load: WindLoad = field(default_factory=WindLoad)
     environment: Environment = field(default_factory=Environment)
+    sensors: Sensors = field(default_factory=Sensors)
+    cg_offset_m: tuple[float, float] = (0.0, 0.0)  # the whole mass distribution moved by (x, y) from the MJCF
     cases: dict[str, MassCase] = field(default_factory=dict)
     case: str = "nominal"
     sources: dict[str, str] = field(default_factory=dict)
@@ -71,6 +74,8 @@ class Vessel:
             "thrusters": _thrusters_to_dict(self.thrusters),
             "wind_load": asdict(self.wind_load),
             "environment": asdict(self.environment),
+            "sensors": _sensors_to_dict(self.sensors),
+            "cg_offset_m": list(self.cg_offset_m),
             "cases": {k: asdict(v) for k, v in self.cases.items()},
             "sources": dict(self.sources),
         }
@@ -81,6 +86,11 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     d["forward"], d["reverse"] = list(t.forward), list(t.reverse)
     d["reversed_channels"] = list(t.reversed_channels)
     return d
+
+
+def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
+    d = asdict(s)
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 
 def _build(cls, data: dict | None, what: str, path: Path):
@@ -100,6 +110,16 @@ def _build(cls, data: dict | None, what: str, path: Path):
         raise TwinError(f"{path.name}: bad {what}: {exc}") from None
 
 
+def _pair(value, what: str, path: Path) -> tuple[float, float]:
+    try:
+        a, b = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise TwinError(f"{path.name}: {what} must be two numbers [x, y]") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise TwinError(f"{path.name}: {what} is not finite")
+    return a, b
+
+
 def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if not isinstance(data, dict) or "mjcf" not in data or "name" not in data:
         raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
@@ -117,6 +137,8 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         thrusters=_build(ThrusterModel, data.get("thrusters"), "thrusters", path),
         wind_load=_build(WindLoad, data.get("wind_load"), "wind_load", path),
         environment=_build(Environment, data.get("environment"), "environment", path),
+        sensors=_build(Sensors, data.get("sensors"), "sensors", path),
+        cg_offset_m=_pair(data.get("cg_offset_m", (0.0, 0.0)), "cg_offset_m", path),
         cases=cases,
         sources=dict(data.get("sources") or {}),
         path=path,
@@ -135,6 +157,8 @@ def check(vessel: Vessel) -> None:
     t = vessel.thrusters
     if t.lag_s < 0 or t.gain_left <= 0 or t.gain_right <= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
+    if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not 0 <= t.speed_loss_per_m_s < 1:
+        raise TwinError(f"vessel '{vessel.name}': thruster delay must be ≥ 0, decay and speed loss in [0, 1)")
     for case in vessel.cases.values():
         for geom, mass in case.geom_mass_kg.items():
             if not mass > 0:

@@ -58,13 +58,15 @@ def models_for(compiled: CompiledVessel, hydros: Sequence[HydroModel]) -> list[m
     return out
 
 
-def thrust_controls_from_inputs(vessel: Vessel, inputs: InputSeries, nstep: int, timestep: float) -> np.ndarray:
+def thrust_controls_from_inputs(vessel: Vessel, inputs: InputSeries, nstep: int, timestep: float,
+                                start_s: float = 0.0) -> np.ndarray:
     """(nstep, 2) thrust commands (N) held over each step, as `sim.simulate` applies them.
 
     Step k runs from k·timestep with the command the zero-order-hold series
-    gives at that instant (PWM converted through the thruster map).
+    gives at that instant less the thrusters' delay (PWM converted through the
+    thruster map), decayed by the recording time start_s + k·timestep.
     """
-    return inputs.commanded_thrust(vessel.thrusters, np.arange(nstep) * timestep)
+    return inputs.commanded_thrust(vessel.thrusters, np.arange(nstep) * timestep, start_s)
 
 
 def _as_models(twins: Twin | Sequence[Twin], n: int) -> list[mujoco.MjModel]:

@@ -79,6 +79,11 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.ctrlrange = [t_min, t_max]
         act.gainprm[0] = gain
+        if t.speed_loss_per_m_s != 0.0:
+            # force = gain·(1 − k·actuator velocity)·ctrl; for a site transmission along body x
+            # the actuator velocity is the thruster's own advance speed u − r·y_i
+            act.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+            act.gainprm[2] = -gain * t.speed_loss_per_m_s
         if t.lag_s > 0:
             # MuJoCo integrates the first-order thrust lag (seed 004 eq. 15) as actuator state.
             # "filter", not "filterexact": under RK4 the latter lags by about half a step
@@ -86,10 +91,30 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
             act.dynprm[0] = t.lag_s
 
 
-def compile_vessel(vessel: Vessel) -> CompiledVessel:
+def _apply_cg_offset(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    """Move every mass of the vessel body by cg_offset_m (x, y); its sites stay where they are."""
+    dx, dy = vessel.cg_offset_m
+    if dx == 0.0 and dy == 0.0:
+        return
+    hull = next((j.parent for j in spec.joints if j.name == JOINTS[0]), None)
+    if hull is None:
+        raise TwinError(f"{vessel.mjcf.name}: missing planar joint '{JOINTS[0]}'")
+    for item in [*hull.bodies, *hull.geoms]:
+        item.pos[0] += dx
+        item.pos[1] += dy
+
+
+def edited_spec(vessel: Vessel) -> mujoco.MjSpec:
+    """The vessel's MJCF with the vessel file's mass case, CG offset and thruster settings applied."""
     spec = _spec(vessel)
     _apply_case(vessel, spec)
+    _apply_cg_offset(vessel, spec)
     _apply_thrusters(vessel, spec)
+    return spec
+
+
+def compile_vessel(vessel: Vessel) -> CompiledVessel:
+    spec = edited_spec(vessel)
     try:
         model = spec.compile()
     except Exception as exc:

@@ -34,7 +34,7 @@ from ..errors import TwinError
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
-from .mjcf import CompiledVessel, _apply_case, _apply_thrusters, _spec
+from .mjcf import CompiledVessel, edited_spec
 
 PARAMS_NAME = "twin_params"
 MAGIC = (7.0710678118654752e11, -2.7182818284590452e-13)  # unlikely to be anyone else's first numeric
@@ -119,9 +119,7 @@ def with_native_params(compiled: CompiledVessel, terms: Terms | None = None) -> 
     Built from the vessel's spec with the same edits as `compile_vessel`, so the
     dynamics are identical to `compiled.model`; parameters from `compiled.hydro(terms)`.
     """
-    spec = _spec(compiled.vessel)
-    _apply_case(compiled.vessel, spec)
-    _apply_thrusters(compiled.vessel, spec)
+    spec = edited_spec(compiled.vessel)
     others = [(n.name, list(n.data), n.size) for n in spec.numerics]
     for n in list(spec.numerics):
         spec.delete(n)

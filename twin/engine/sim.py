@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import TwinError
 from ..inputs import InputSeries
 from ..physics.hydrodynamics import Terms
+from ..physics.thrusters import advance_factor
 from ..run import Run
 from ..scenarios import to_thruster_inputs
 from . import callbacks
@@ -44,7 +45,7 @@ def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
     return eta, np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
 
 
-def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps) -> np.ndarray:
+def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps, extra=None) -> np.ndarray:
     """Steps at which the loop must act: samples, controller ticks, command changes, the end.
 
     Between them the engine runs `mj_step(nstep=...)` without returning to Python.
@@ -52,6 +53,8 @@ def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps) 
     marks = [np.arange(0, n_steps + 1, n_sample), [n_steps]]
     if n_control is not None:
         marks.append(np.arange(0, n_steps + 1, n_control))
+    if extra is not None:
+        marks.append(extra)
     if cmd_steps is not None:
         changed = np.flatnonzero(np.any(np.diff(cmd_steps, axis=0) != 0, axis=1)) + 1
         marks += [[0], changed[changed <= n_steps]]
@@ -69,6 +72,15 @@ def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
     raise TwinError(f"unknown backend '{backend}' (native or python)")
 
 
+def _controller_output(vessel, controller, t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[str, np.ndarray]:
+    """(kind, held input) from a controller: normalised (surge, yaw) → PWM or thrust by
+    `scenarios.to_thruster_inputs`, or thrusts in N when the controller says `output = "thrust"`."""
+    out = controller(t, eta, nu)
+    if getattr(controller, "output", "normalised") == "thrust":
+        return "thrust", np.asarray(out, float)
+    return to_thruster_inputs(vessel.thrusters, *out)
+
+
 def simulate(
     compiled: CompiledVessel,
     drive: InputSeries | Controller,
@@ -78,67 +90,76 @@ def simulate(
     sample_dt_s: float = 0.1,
     eta0=None,
     nu0=None,
+    start_s: float = 0.0,
     terms: Terms | None = None,
     backend: str = "native",
 ) -> Run:
     """Run the engine twin for `duration_s` and return samples every `sample_dt_s`.
 
-    `drive` is an InputSeries (zero-order hold, looked up at every engine step)
-    or a controller (t, η, ν) → (surge, yaw) in [−1, 1], evaluated every
-    `control_dt_s` (the autopilot's PWM rate). The inputs actually applied are
-    returned in `run.meta["inputs"]`, so that any run can be replayed.
+    `drive` is an InputSeries (zero-order hold on its own clock, which starts
+    with the run) or a controller (t, η, ν) → (surge, yaw) in [−1, 1] (or thrusts
+    in N if it has `output = "thrust"`), evaluated every `control_dt_s` (the
+    autopilot's PWM rate). The thrusters act on the input of `delay_s` before
+    (vessel.thrusters). `start_s` is the recording time at which the run starts:
+    sample times are start_s + k·sample_dt_s and the thrust decay counts from 0.
+    The inputs actually applied are returned in `run.meta["inputs"]` (times from
+    the run's start), so that any run can be replayed.
     `backend`: "native" (compiled callback, the default) or "python" (the
     readable reference callback); both give the same forces to 1e-9.
     """
     if not duration_s > 0:
         raise TwinError("duration must be positive")
     vessel = compiled.vessel
+    thrusters = vessel.thrusters
     terms = terms or Terms()
     model, hydrodynamics = _backend(compiled, terms, backend)
     h = model.opt.timestep
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
     n_sample = _steps(sample_dt_s, h, "sample period")
+    n_delay = int(round(thrusters.delay_s / h))
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
     qpos, dof = callbacks._joint_indices(model)
-    gains = vessel.thrusters.gains()
-    t_min, t_max = vessel.thrusters.bounds()
-    lagged = vessel.thrusters.lag_s > 0
+    step_times = np.arange(n_steps + 1) * h
 
     series = drive if isinstance(drive, InputSeries) else None
     if series is not None:
-        step_times = np.arange(n_steps + 1) * h
-        cmd_steps = series.commanded_thrust(vessel.thrusters, step_times)
+        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
         held_steps = series.at(step_times)
-    applied_t, applied_v, kind = [], [], series.kind if series else None
-
-    rows_t, rows_eta, rows_nu, rows_in, rows_thrust = [], [], [], [], []
-    held = np.zeros(2)
-    cmd = np.zeros(2)
-    events = _event_steps(n_steps, n_sample, n_control if series is None else None,
-                          cmd_steps if series is not None else None)
+        kind = series.kind
+    else:
+        # closed loop: the controller's output at step k reaches the thrusters at step k + n_delay
+        cmd_steps = np.zeros((n_steps + 1, 2))
+        held_steps = np.zeros((n_steps + 1, 2))
+        kind = None
+    applied_t, applied_v = [], []
+    marks = np.arange(0, n_steps + 1, n_control) if series is None else None
+    if series is None and n_delay:
+        marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
+    events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
+    if not terms.thrust:
+        cmd_steps = np.zeros_like(cmd_steps)
+    rows = {"t": [], "eta": [], "nu": [], "held": [], "cmd": []}
     with hydrodynamics:
         for i, k in enumerate(events):
             t = k * h
             eta, nu = _state(data, qpos, dof)
-            if series is not None:
-                held, cmd = held_steps[k], cmd_steps[k]
-            elif k % n_control == 0:
-                kind, held = to_thruster_inputs(vessel.thrusters, *drive(t, eta, nu))
-                cmd = vessel.thrusters.thrust_from_pwm(held) if kind == "pwm" else held
+            if series is None and k % n_control == 0:
+                kind, held = _controller_output(vessel, drive, t, eta, nu)
                 applied_t.append(t)
                 applied_v.append(held)
-            if not terms.thrust:
-                cmd = np.zeros(2)
-            data.ctrl[:2] = cmd
+                held_steps[k:] = held
+                act_at = min(k + n_delay, n_steps)
+                cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
+                cmd_steps[act_at:] = cmd if terms.thrust else 0.0
+            data.ctrl[:2] = cmd_steps[k]
             if k % n_sample == 0:
-                delivered = data.act[:2] if lagged else np.clip(cmd, t_min, t_max)
-                rows_t.append(t)
-                rows_eta.append(eta)
-                rows_nu.append(nu)
-                rows_in.append(held if kind == "pwm" else (np.nan, np.nan))
-                rows_thrust.append(gains * delivered)
+                rows["t"].append(start_s + t)
+                rows["eta"].append(eta)
+                rows["nu"].append(nu)
+                rows["held"].append(held_steps[k] if kind == "pwm" else (np.nan, np.nan))
+                rows["cmd"].append(data.act[:2].copy() if model.na else data.ctrl[:2].copy())
             if k == n_steps:
                 break
             mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
@@ -146,10 +167,19 @@ def simulate(
                 raise TwinError(f"simulation diverged between t = {t:.2f} s and {events[i + 1] * h:.2f} s")
     if series is None:
         series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
+    nu = np.array(rows["nu"])
     return Run(
-        np.array(rows_t), np.array(rows_eta), np.array(rows_nu), np.array(rows_in, dtype=float),
-        np.array(rows_thrust),
+        np.array(rows["t"]), np.array(rows["eta"]), nu, np.array(rows["held"], dtype=float),
+        delivered_thrust(vessel, compiled.geometry.thruster_y_m, np.array(rows["cmd"]), nu),
         meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
               "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
-              "inputs": series},
+              "inputs": series, "start_s": start_s},
     )
+
+
+def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain
+    and the advance-speed factor."""
+    t_min, t_max = vessel.thrusters.bounds()
+    factor = np.array([advance_factor(vessel.thrusters, n, thruster_y_m) for n in nu]) if len(nu) else 1.0
+    return np.clip(command_n, t_min, t_max) * vessel.thrusters.gains() * factor

@@ -1,6 +1,19 @@
 """Twin-thruster actuation: the T200 PWM→thrust map with its dead zone
 (seed 000 eq. 27, Table VII), the allocation (seed 000 eq. 26), the force and
-torque bounds (Table VIII), and the first-order thrust lag (seed 004 eq. 15).
+torque bounds (Table VIII), the first-order thrust lag (seed 004 eq. 15), and
+what real thrusters add to a datasheet curve:
+
+- a transport delay between the logged PWM and the thrust (ESC and autopilot
+  latency): the thrusters act on the PWM of `delay_s` earlier;
+- thrust decay over a run (battery sag): the command is scaled by
+  1 − decay_per_min·t/60 s, t from the start of the recording;
+- thrust loss with advance speed: a propeller advancing through the water at
+  u_a delivers T(1 − k·u_a) (the linear part of K_T(J) = K_T0(1 − J/J_0)),
+  with u_a the thruster's own forward speed u − r·y_i. It is symmetric: a
+  reversed propeller on a boat moving ahead pushes harder, as K_T does for
+  negative advance ratios. MuJoCo applies it as an affine actuator gain, whose
+  velocity is exactly u − r·y_i for a site transmission along body x; the
+  speed is over ground (the actuator does not see a current).
 """
 from __future__ import annotations
 
@@ -32,6 +45,9 @@ class ThrusterModel:
     thrust_min_n: float | None = None
     thrust_max_n: float | None = None
     lag_s: float = 0.0
+    delay_s: float = 0.0
+    decay_per_min: float = 0.0
+    speed_loss_per_m_s: float = 0.0
     gain_left: float = 1.0
     gain_right: float = 1.0
     reversed_channels: tuple[str, ...] = field(default_factory=tuple)
@@ -61,6 +77,26 @@ class ThrusterModel:
 
     def gains(self) -> np.ndarray:
         return np.array([self.gain_left, self.gain_right])
+
+    def decay_factor(self, t_s):
+        """Fraction of the commanded thrust left t_s seconds into the recording (floored at 0)."""
+        return np.maximum(0.0, 1.0 - self.decay_per_min * np.asarray(t_s, float) / 60.0)
+
+    def command(self, kind: str, held, t_s):
+        """Thrust command (N) per thruster, (n, 2), from inputs held at times t_s (s, recording clock).
+
+        `held` are the inputs in force at t_s − delay_s (the caller looks them up):
+        PWM in µs through eq. 27 (kind "pwm") or thrust in N (kind "thrust"), then
+        the decay. Gains, lag and the advance-speed loss act later, in the engine.
+        """
+        raw = self.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
+        return raw * np.asarray(self.decay_factor(t_s))[..., None]
+
+
+def advance_factor(model: ThrusterModel, nu: np.ndarray, thruster_y_m) -> np.ndarray:
+    """1 − k·(u − r·y_i) per thruster: the advance-speed loss (see the module docstring)."""
+    u, r = nu[0], nu[2]
+    return 1.0 - model.speed_loss_per_m_s * (u - r * np.asarray(thruster_y_m, float))
 
 
 def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:

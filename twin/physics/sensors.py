@@ -1,0 +1,67 @@
+"""What the sensors report of the true state: the GNSS antenna position (seed 000
+appendix eqs. 28-32, read backwards) and the AHRS heading with its errors, and the
+timing of the PWM log against the other streams.
+
+Heading error (deg) at true heading ψ: a constant bias plus the classic one- and
+two-cycle compass deviation (Bowditch): δψ = A + B sin ψ + C cos ψ + D sin 2ψ + E cos 2ψ
+(ψ stands in for the magnetic heading; the variation between them is a constant
+that the bias absorbs).
+
+The antenna sits at the vessel's MJCF `gnss` site plus `antenna_offset_m` (body
+FRD), so a wrongly surveyed lever arm is a sensor parameter, not a new MJCF.
+`pwm_clock_offset_s` > 0: the PWM log's stamps are late against GNSS and heading
+(the thrust seems to answer before the logged command).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Sensors:
+    heading_bias_deg: float = 0.0
+    compass_deviation_deg: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # B, C, D, E
+    antenna_offset_m: tuple[float, float] = (0.0, 0.0)
+    pwm_clock_offset_s: float = 0.0
+
+    def heading_error_rad(self, psi_rad) -> np.ndarray:
+        """δψ (rad) the AHRS adds to the true heading ψ (rad)."""
+        psi = np.asarray(psi_rad, float)
+        b, c, d, e = self.compass_deviation_deg
+        deg = self.heading_bias_deg + b * np.sin(psi) + c * np.cos(psi) + d * np.sin(2 * psi) + e * np.cos(2 * psi)
+        return np.radians(deg)
+
+    @property
+    def has_heading_error(self) -> bool:
+        return self.heading_bias_deg != 0.0 or any(x != 0.0 for x in self.compass_deviation_deg)
+
+
+def measured_heading(sensors: Sensors, psi_rad) -> np.ndarray:
+    """ψ_m = ψ + δψ(ψ)."""
+    return np.asarray(psi_rad, float) + sensors.heading_error_rad(psi_rad)
+
+
+def true_heading(sensors: Sensors, psi_measured_rad, iterations: int = 4) -> np.ndarray:
+    """ψ from ψ_m by fixed-point iteration ψ ← ψ_m − δψ(ψ) (converges for |dδψ/dψ| < 1)."""
+    psi_m = np.asarray(psi_measured_rad, float)
+    psi = psi_m.copy()
+    if not sensors.has_heading_error:
+        return psi
+    for _ in range(iterations):
+        psi = psi_m - sensors.heading_error_rad(psi)
+    return psi
+
+
+def antenna_body_m(gnss_site_m, sensors: Sensors) -> np.ndarray:
+    """Antenna position in the body frame (x, y), m: the MJCF site plus the sensor's offset."""
+    return np.asarray(gnss_site_m, float)[:2] + np.asarray(sensors.antenna_offset_m, float)
+
+
+def antenna_ned(north_m, east_m, psi_rad, antenna_xy_m) -> tuple[np.ndarray, np.ndarray]:
+    """Antenna north, east (m) of the vessel at CO (north, east) heading ψ: CO + R2(ψ)·r_a
+    (seed 000 eq. 32 solved for the antenna)."""
+    c, s = np.cos(psi_rad), np.sin(psi_rad)
+    ax, ay = antenna_xy_m
+    return np.asarray(north_m) + c * ax - s * ay, np.asarray(east_m) + s * ax + c * ay
