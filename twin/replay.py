@@ -8,13 +8,54 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import replace
+
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate
 from .errors import TwinError
 from .inputs import InputSeries
-from .recordings import Prepared
+from .physics.sensors import antenna_body_m, true_heading
+from .recordings import Prepared, Recording, prepare
+from .recordings.prepare import Segment
+from .recordings.recording import Stream
 from .run import Run
 from .vessel import Vessel
+
+
+def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
+    """OP = (dx, dy) from the real antenna to CO (seed 000 eq. 28): minus the antenna's
+    body position, the MJCF gnss site plus the vessel's surveyed offset."""
+    a = antenna_body_m(compiled.geometry.gnss_pos_m, compiled.vessel.sensors)
+    return float(-a[0]), float(-a[1])
+
+
+def calibrated(rec: Recording, vessel: Vessel) -> Recording:
+    """The recording with the vessel's heading-sensor error taken out (physics/sensors.py)."""
+    if not vessel.sensors.has_heading_error or not len(rec.heading):
+        return rec
+    psi = true_heading(vessel.sensors, np.unwrap(rec.heading["psi_rad"]))
+    return replace(rec, heading=Stream(rec.heading.t, {**rec.heading.columns, "psi_rad": psi}))
+
+
+def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
+    """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
+    corrected, lever arm from its antenna. (The PWM clock offset acts where the
+    PWM drives the twin: twin.ident.windows.)"""
+    return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled), **kwargs)
+
+
+def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:
+    """A run's true states as a one-segment Prepared recording (for tests and truth)."""
+    n = len(run.t)
+    offset = run.pwm_us - np.asarray(neutral_us)
+    letters = np.where(offset >= 0, "f", "r")
+    region = np.char.add(letters[:, 0], letters[:, 1]).astype("<U2")
+    dt = float(np.median(np.diff(run.t))) if n > 1 else 0.1
+    return Prepared(run.t.copy(), run.eta[:, 0].copy(), run.eta[:, 1].copy(), run.eta[:, 2].copy(),
+                    run.nu[:, 0].copy(), run.nu[:, 1].copy(), run.nu[:, 2].copy(), run.pwm_us.astype(float),
+                    np.zeros(n, int), region, np.zeros((n, 2), bool), [Segment(0, 0, n, float(run.t[0]),
+                                                                                 float(run.t[-1]))],
+                    tuple(neutral_us), settings={"grid_dt": round(dt, 9), "source": "run"})
 
 
 def measured_run(prep: Prepared, sl: slice | None = None) -> Run:

@@ -40,11 +40,14 @@ class ZigZag:
     switch_deg: float = 20.0
     at_s: float = 5.0
     _sign: float = 1.0
+    _psi0: float | None = None
 
     def __call__(self, t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[float, float]:
+        if self._psi0 is None:
+            self._psi0 = float(eta[2])
         if t < self.at_s:
             return self.surge, 0.0
-        heading_deg = np.rad2deg(eta[2])
+        heading_deg = np.rad2deg(eta[2] - self._psi0)
         if self._sign > 0 and heading_deg >= self.switch_deg:
             self._sign = -1.0
         elif self._sign < 0 and heading_deg <= -self.switch_deg:

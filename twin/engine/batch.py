@@ -162,3 +162,52 @@ def rollout(twins: Twin | Sequence[Twin], initial_states, controls, nthread: int
         for idx in _groups(models):
             states[idx] = _run_group([models[i] for i in idx], initial[idx], controls[idx], nthread)
     return states, _divergence(models, initial, states)
+
+
+def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durations_s: Sequence[float], *,
+                  eta0=None, nu0=None, start_s: Sequence[float] | None = None, sample_dt_s: float | None = None,
+                  nthread: int | None = None) -> list:
+    """Open-loop runs of one vessel in one rollout, as `twin.run.Run`s like `sim.simulate` returns.
+
+    inputs[i] drives run i for durations_s[i] from η0[i], ν0[i] (default: at rest at the
+    origin), its clock starting at recording time start_s[i] (thrust decay). Samples
+    every sample_dt_s (default: every engine step). A run that diverges raises
+    TwinError naming it and the time."""
+    from ..run import Run
+    from .sim import delivered_thrust
+
+    n = len(inputs)
+    model = native.with_native_params(compiled)
+    h = model.opt.timestep
+    steps = [int(round(d / h)) for d in durations_s]
+    every = 1 if sample_dt_s is None else int(round(sample_dt_s / h))
+    starts = list(start_s) if start_s is not None else [0.0] * n
+    eta0 = [None] * n if eta0 is None else eta0
+    nu0 = [None] * n if nu0 is None else nu0
+    controls = np.zeros((n, max(steps), 2))
+    for i, series in enumerate(inputs):
+        controls[i, : steps[i]] = thrust_controls_from_inputs(compiled.vessel, series, steps[i], h, starts[i])
+    states0 = np.array([initial_state(model, eta0[i], nu0[i]) for i in range(n)])
+    traj, diverged = rollout(model, states0, controls, nthread=nthread)
+    if diverged:
+        i, t = diverged[0]
+        raise TwinError(f"run {i} diverged at t = {t:.2f} s")
+    from .callbacks import _joint_indices
+
+    qpos, dof = _joint_indices(model)
+    runs = []
+    for i, series in enumerate(inputs):
+        full = np.vstack([states0[i], traj[i, : steps[i]]])[::every]
+        eta = full[:, [1 + q for q in qpos]]
+        w = full[:, [1 + model.nq + d for d in dof]]
+        c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
+        nu = np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
+        t_rel = np.arange(len(full)) * every * h
+        act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
+        cmd_rows = np.vstack([controls[i, : steps[i]], controls[i, steps[i] - 1]])[::every]
+        cmd = act if act is not None else cmd_rows
+        runs.append(Run(starts[i] + t_rel, eta, nu, series.pwm_at(t_rel),
+                        delivered_thrust(compiled.vessel, compiled.geometry.thruster_y_m, cmd, nu),
+                        meta={"vessel": compiled.vessel.name, "engine": "mujoco-rollout", "timestep_s": h,
+                              "inputs": series, "start_s": starts[i]}))
+    return runs

@@ -137,6 +137,8 @@ def simulate(
     marks = np.arange(0, n_steps + 1, n_control) if series is None else None
     if series is None and n_delay:
         marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
+    if series is None and thrusters.decay_per_min:
+        marks = np.arange(n_steps + 1)  # the decaying command changes at every step
     events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
     if not terms.thrust:
         cmd_steps = np.zeros_like(cmd_steps)

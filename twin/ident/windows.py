@@ -1,0 +1,245 @@
+"""Multi-step predictions: the twin started from measured states and driven by the
+recorded PWM over short windows, many windows and many candidate vessels at once
+on the batch engine (`engine.batch.rollout`, native callbacks, all cores).
+
+A window starts at a grid sample of a prepared recording and predicts `n` grid
+steps ahead without looking at the measurements again: the free run that
+identification by simulation, `twin evaluate` and `twin diagnose` judge a model by.
+A whole segment is one long window.
+
+What the recording's clock means for the thrusters (vessel.thrusters, vessel.sensors):
+the thrust at recording time t answers the PWM logged at t − delay_s + pwm_clock_offset_s
+(a late-stamped PWM log makes the thrust seem to come first), decayed by t.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..engine import batch, native
+from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..errors import TwinError
+from ..recordings import Prepared
+from ..recordings.prepare import hold
+from ..vessel import Vessel
+
+
+@dataclass(frozen=True)
+class Window:
+    """Grid samples start..start+n of prepared recording `rec`, inside one segment."""
+
+    rec: int
+    start: int
+    n: int
+
+
+def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float | None = None,
+                 min_length_s: float = 2.0) -> list[Window]:
+    """Windows of length_s every stride_s (default: length_s) inside every segment;
+    length_s None = each whole segment. The last, shorter stretch of a segment is
+    kept when it is at least min_length_s long."""
+    out = []
+    for i, prep in enumerate(preps):
+        h = float(prep.settings.get("grid_dt", 0.1))
+        for seg in prep.segments:
+            last = seg.stop - 1
+            if length_s is None:
+                if (last - seg.start) * h >= min_length_s:
+                    out.append(Window(i, seg.start, last - seg.start))
+                continue
+            n = int(round(length_s / h))
+            stride = max(1, int(round((stride_s or length_s) / h)))
+            for start in range(seg.start, last, stride):
+                steps = min(n, last - start)
+                if steps * h >= min(min_length_s, length_s) - 1e-9:
+                    out.append(Window(i, start, steps))
+    return out
+
+
+# ---------------------------------------------------------------- models
+
+def _structure_key(vessel: Vessel) -> tuple:
+    """What needs a recompilation: everything else is set on a copy of a compiled model."""
+    t = vessel.thrusters
+    return (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0)
+
+
+class ModelCache:
+    """Compiled native models by structure; per vessel a cheap copy with its own
+    hydrodynamic parameters, thruster gains, advance loss, lag and range."""
+
+    def __init__(self) -> None:
+        self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
+
+    def compiled(self, vessel: Vessel) -> CompiledVessel:
+        return self._base(vessel)[0]
+
+    def _base(self, vessel: Vessel) -> tuple[CompiledVessel, mujoco.MjModel]:
+        key = _structure_key(vessel)
+        if key not in self._compiled:
+            cv = compile_vessel(vessel)
+            self._compiled[key] = (cv, native.with_native_params(cv))
+        return self._compiled[key]
+
+    def model(self, vessel: Vessel) -> mujoco.MjModel:
+        """A native-parameterised model of `vessel` (same dynamics as compiling it afresh)."""
+        cv, base = self._base(vessel)
+        m = copy.copy(base)
+        native.set_params(m, CompiledVessel(vessel, cv.model, cv.geometry).hydro())
+        t = vessel.thrusters
+        m.actuator_ctrlrange[:2] = t.bounds()
+        for i, gain in enumerate(t.gains()):
+            m.actuator_gainprm[i, 0] = gain
+            m.actuator_gainprm[i, 2] = -gain * t.speed_loss_per_m_s if t.speed_loss_per_m_s else 0.0
+            if t.lag_s > 0:
+                m.actuator_dynprm[i, 0] = t.lag_s
+        return m
+
+
+# ---------------------------------------------------------------- inputs
+
+def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
+    """(steps, 2) thrust commands (N) for the engine steps of one window."""
+    h = float(prep.settings.get("grid_dt", 0.1))
+    sub = _substeps(h, timestep_s)
+    t0 = prep.t[window.start]
+    times = t0 + timestep_s * np.arange(window.n * sub)
+    seg = prep.segments[int(prep.segment[window.start])]
+    look = times - vessel.thrusters.delay_s + vessel.sensors.pwm_clock_offset_s
+    look = np.clip(look, prep.t[seg.start], prep.t[seg.stop - 1])  # nothing is known outside the segment
+    sl = seg.slice
+    pwm = np.column_stack([hold(prep.t[sl], prep.pwm[sl, j], look) for j in range(2)])
+    return vessel.thrusters.command("pwm", pwm, times)
+
+
+def _substeps(grid_dt: float, timestep_s: float) -> int:
+    sub = int(round(grid_dt / timestep_s))
+    if sub < 1 or abs(sub * timestep_s - grid_dt) > 1e-9:
+        raise TwinError(f"the recording's grid {grid_dt} s is not a multiple of the model time step {timestep_s} s")
+    return sub
+
+
+def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
+    """The first-order lag's state (N) at the window start: the recorded commands since
+    the segment began, filtered (exact discretisation), so a window does not start from
+    a thrust the thrusters never had."""
+    seg = prep.segments[int(prep.segment[window.start])]
+    history = Window(window.rec, seg.start, window.start - seg.start)
+    if history.n == 0:
+        return np.clip(thrust_commands(vessel, prep, Window(window.rec, window.start, 1), timestep_s)[0],
+                       *vessel.thrusters.bounds())
+    cmd = np.clip(thrust_commands(vessel, prep, history, timestep_s), *vessel.thrusters.bounds())
+    a = np.exp(-timestep_s / vessel.thrusters.lag_s)
+    state = cmd[0].copy()
+    for c in cmd:
+        state = a * state + (1 - a) * c
+    return state
+
+
+def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,
+                   act0: np.ndarray | None) -> np.ndarray:
+    k = w.start
+    batch._set_initial_state(model, data, (prep.north[k], prep.east[k], prep.psi[k]), (prep.u[k], prep.v[k], prep.r[k]))
+    data.time = prep.t[k]
+    if model.na:
+        data.act[:2] = act0
+    state = np.empty(batch.state_size(model))
+    mujoco.mj_getState(model, data, state, batch.FULL)
+    return state
+
+
+# ---------------------------------------------------------------- prediction
+
+@dataclass
+class Prediction:
+    """States at each window's grid samples: index 0 is the measured start, NaN past
+    the window's end or after a divergence. eta (W, n+1, 3) = north, east (m), ψ (rad);
+    nu (W, n+1, 3) = u, v (m/s), r (rad/s)."""
+
+    windows: list[Window]
+    eta: np.ndarray
+    nu: np.ndarray
+    diverged: list[tuple[int, float]]
+
+
+def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list[Window],
+            cache: ModelCache | None = None, nthread: int | None = None) -> list[Prediction]:
+    """Free runs of every vessel over every window in one batch; one Prediction per vessel.
+
+    `preps` are the recordings as each vessel's sensors see them: either one list
+    shared by all vessels or, for candidates with different sensor calibrations,
+    a list of lists (one per vessel)."""
+    vessels = [vessels] if isinstance(vessels, Vessel) else list(vessels)
+    per_vessel = preps if preps and isinstance(preps[0], list) else [preps] * len(vessels)
+    if not windows:
+        raise TwinError("no window to predict: the recording has no segment long enough")
+    cache = cache or ModelCache()
+    n_max = max(w.n for w in windows)
+    models, states, controls, owners = [], [], [], []
+    for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
+        if vessel.thrusters.kind != "t200":
+            raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a recording cannot drive it")
+        model = cache.model(vessel)
+        h = model.opt.timestep
+        data = mujoco.MjData(model)
+        for w in windows:
+            prep = vpreps[w.rec]
+            cmd = thrust_commands(vessel, prep, w, h)
+            steps = _substeps(float(prep.settings.get("grid_dt", 0.1)), h) * n_max
+            padded = np.zeros((steps, 2))
+            padded[: len(cmd)] = cmd
+            models.append(model)
+            act0 = lagged_thrust_at_start(vessel, prep, w, h) if model.na else None
+            states.append(_initial_state(model, data, prep, w, act0))
+            controls.append(padded)
+            owners.append(iv)
+    traj, diverged = batch.rollout(models, np.array(states), np.array(controls), nthread=nthread)
+    return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
+                     per_vessel[iv])
+            for iv in range(len(vessels))]
+
+
+def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction:
+    model = models[rows[0]]
+    nq = model.nq
+    qpos, dof = _joint_columns(model)
+    n_max = max(w.n for w in windows)
+    eta = np.full((len(windows), n_max + 1, 3), np.nan)
+    nu = np.full_like(eta, np.nan)
+    bad = {i: t for i, t in diverged}
+    lost = []
+    for j, (row, w) in enumerate(zip(rows, windows)):
+        prep = preps[w.rec]
+        sub = _substeps(float(prep.settings.get("grid_dt", 0.1)), model.opt.timestep)
+        picks = traj[row, sub - 1: w.n * sub: sub]
+        eta[j, 0] = (prep.north[w.start], prep.east[w.start], prep.psi[w.start])
+        nu[j, 0] = (prep.u[w.start], prep.v[w.start], prep.r[w.start])
+        e = picks[:, [1 + q for q in qpos]]
+        qv = picks[:, [1 + nq + d for d in dof]]
+        c, s = np.cos(e[:, 2]), np.sin(e[:, 2])
+        eta[j, 1: w.n + 1] = e
+        nu[j, 1: w.n + 1] = np.column_stack([c * qv[:, 0] + s * qv[:, 1], -s * qv[:, 0] + c * qv[:, 1], qv[:, 2]])
+        if row in bad:
+            lost.append((j, bad[row]))
+    return Prediction(list(windows), eta, nu, lost)
+
+
+def _joint_columns(model: mujoco.MjModel) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    from ..engine.callbacks import _joint_indices
+
+    return _joint_indices(model)
+
+
+def measured(preps: list[Prepared], windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
+    """The measurements on the windows' samples, shaped like a Prediction's eta and nu."""
+    n_max = max(w.n for w in windows)
+    eta = np.full((len(windows), n_max + 1, 3), np.nan)
+    nu = np.full_like(eta, np.nan)
+    for j, w in enumerate(windows):
+        p, sl = preps[w.rec], slice(w.start, w.start + w.n + 1)
+        eta[j, : w.n + 1] = np.column_stack([p.north[sl], p.east[sl], p.psi[sl]])
+        nu[j, : w.n + 1] = np.column_stack([p.u[sl], p.v[sl], p.r[sl]])
+    return eta, nu
