@@ -324,6 +324,10 @@ def view(
         typer.echo(f"wrote {png}")
 
 
+# commands that live in their own modules register themselves on `app`
+from . import cli_iso  # noqa: E402,F401
+
+
 def main() -> None:
     try:
         app(standalone_mode=False)
@@ -348,4 +352,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    # run the imported twin.cli, whose app the command modules registered on, not this __main__ copy
+    from twin.cli import main as _main
+
+    _main()

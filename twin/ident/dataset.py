@@ -120,20 +120,37 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
 
 
+LEAD_IN_S = 5.0  # unlogged seconds before each segment: a logged segment starts under way, as real ones do
+
+
 def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float) -> list[Run]:
     runs: list[Run | None] = [None] * len(plan)
     open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)]
     if open_idx:
-        batch = simulate_many(compiled, [plan[i].drive for i in open_idx], [plan[i].duration_s for i in open_idx],
-                              eta0=[eta0[i] for i in open_idx], start_s=[starts[i] for i in open_idx],
-                              sample_dt_s=sample_dt_s)
+        batch = simulate_many(compiled, [_led_in(plan[i].drive) for i in open_idx],
+                              [plan[i].duration_s + LEAD_IN_S for i in open_idx], eta0=[eta0[i] for i in open_idx],
+                              start_s=[starts[i] - LEAD_IN_S for i in open_idx], sample_dt_s=sample_dt_s)
         for i, run in zip(open_idx, batch):
             runs[i] = run
     for i, m in enumerate(plan):
         if runs[i] is None:
-            runs[i] = simulate(compiled, m.drive, m.duration_s, control_dt_s=man.PWM_DT_S, sample_dt_s=sample_dt_s,
-                               eta0=eta0[i], start_s=float(starts[i]))
-    return runs
+            runs[i] = simulate(compiled, m.drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
+                               sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S)
+    return [_logged_part(r, float(t0)) for r, t0 in zip(runs, starts)]
+
+
+def _led_in(series: InputSeries) -> InputSeries:
+    """The series delayed by the lead-in, its first input held meanwhile."""
+    return InputSeries(np.concatenate([[0.0], series.t + LEAD_IN_S]), np.vstack([series.values[:1], series.values]),
+                       series.kind)
+
+
+def _logged_part(run: Run, t0: float) -> Run:
+    keep = run.t >= t0 - 1e-9
+    inputs = run.meta["inputs"]
+    shifted = InputSeries(inputs.t - LEAD_IN_S, inputs.values, inputs.kind)  # on the logged segment's clock
+    return Run(run.t[keep], run.eta[keep], run.nu[keep], run.pwm_us[keep], run.thrust_n[keep],
+               meta={**run.meta, "inputs": shifted, "start_s": t0})
 
 
 # ---------------------------------------------------------------- sensors

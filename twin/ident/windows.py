@@ -132,11 +132,11 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
         return np.clip(thrust_commands(vessel, prep, Window(window.rec, window.start, 1), timestep_s)[0],
                        *vessel.thrusters.bounds())
     cmd = np.clip(thrust_commands(vessel, prep, history, timestep_s), *vessel.thrusters.bounds())
+    from scipy.signal import lfilter
+
     a = np.exp(-timestep_s / vessel.thrusters.lag_s)
-    state = cmd[0].copy()
-    for c in cmd:
-        state = a * state + (1 - a) * c
-    return state
+    filtered, _ = lfilter([1 - a], [1, -a], cmd, axis=0, zi=(a * cmd[0])[None, :])
+    return filtered[-1]
 
 
 def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,

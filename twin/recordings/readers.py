@@ -1,7 +1,8 @@
 """read_recording(path): any supported recording → Recording.
 
 The format is decided by content first, then by extension:
-  MCAP (magic "\\x89MCAP")        a run written by this project (twin.viz.mcap_io)
+  MCAP (magic "\\x89MCAP")        /sensors/* topics (a recording) or a run written by this
+                                 project (twin.viz.mcap_io)
   DataFlash (bytes A3 95)        ArduPilot .bin log            → ardupilot.read_dataflash
   tlog (MAVLink marker at byte 8, or extension .tlog)           → ardupilot.read_tlog
   CSV text                       the BlueBoat layout or the generic layout below
@@ -157,6 +158,8 @@ def _blueboat(path: Path, c: dict[str, np.ndarray], channels: dict | None) -> Re
 
 
 def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict | None) -> Recording:
+    """Multi-rate streams share the rows: a row whose cells of one stream are all empty
+    is simply not a sample of it (only partly filled rows count as dropped)."""
     rec = Recording(source=str(path), kind="csv")
     t = c["t"]
     if {"lat", "lon"} <= set(header):
@@ -167,19 +170,27 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         gnss = None
         rec.notes.append("no GNSS: no lat/lon or north/east columns")
     if gnss is not None:
-        rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
+        rec.gnss = _stream("gnss", t, gnss, rec.dropped)
     psi = np.radians(c["heading_deg"]) if "heading_deg" in c else c.get("psi")
     if psi is not None:
-        rec.heading = clean_stream("heading", t, {"psi_rad": psi}, rec.dropped)
+        rec.heading = _stream("heading", t, {"psi_rad": psi}, rec.dropped)
     else:
         rec.notes.append("no heading: no heading_deg or psi column")
     if {"pwm_left", "pwm_right"} <= set(header):
         _csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], (1500.0, 1500.0), {"left": False, "right": False}, channels)
     if "yaw_rate" in c:
-        rec.imu = clean_stream("imu", t, {"yaw_rate_rads": c["yaw_rate"]}, rec.dropped)
+        rec.imu = _stream("imu", t, {"yaw_rate_rads": c["yaw_rate"]}, rec.dropped)
     if "voltage" in c:
-        rec.battery = clean_stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
+        rec.battery = _stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
     return rec
+
+
+def _stream(name: str, t: np.ndarray, cols: dict, dropped: list):
+    """clean_stream on the rows that hold at least one cell of this stream."""
+    present = np.zeros(len(t), bool)
+    for v in cols.values():
+        present |= np.isfinite(v)
+    return clean_stream(name, t[present], {k: v[present] for k, v in cols.items()}, dropped)
 
 
 def _neutral(col, default: float) -> float:
@@ -199,7 +210,7 @@ def _csv_pwm(rec: Recording, t, left, right, neutral, reversed_: dict, channels:
     cols = {}
     for side, pwm, n in (("left", left, neutral[0]), ("right", right, neutral[1])):
         cols[f"{side}_us"] = 2 * n - pwm if reversed_.get(side) else pwm
-    rec.pwm = clean_stream("pwm", t, cols, rec.dropped)
+    rec.pwm = _stream("pwm", t, cols, rec.dropped)
     rec.pwm_neutral_us = (float(neutral[0]), float(neutral[1]))
     rec.channels = {"reversed": {k: bool(reversed_.get(k)) for k in ("left", "right")},
                     "trim": {"left": neutral[0], "right": neutral[1]}, "from": rec.kind}
@@ -208,9 +219,31 @@ def _csv_pwm(rec: Recording, t, left, right, neutral, reversed_: dict, channels:
 # ---------------------------------------------------------------- MCAP
 
 def read_mcap(path: Path) -> Recording:
-    """A run written by this project (twin.viz.mcap_io): /vessel/state gives the
+    """An MCAP file of this project (twin.viz.mcap_io). With /sensors/* topics (a
+    sensor recording, written by twin.recordings.writers) each topic is a stream at
+    its messages' log times. Otherwise a simulated run: /vessel/state gives the
     positions (north/east of the body origin: no lever arm) and heading,
     /vessel/inputs the PWM (absent when the run was driven by thrust)."""
+    from ..viz.mcap_io import read_sensor_mcap
+
+    sensors = read_sensor_mcap(path)
+    if sensors is not None:
+        return _mcap_sensors(path, *sensors)
+    return _mcap_run(path)
+
+
+def _mcap_sensors(path: Path, streams: dict, meta: dict) -> Recording:
+    rec = Recording(source=str(path), kind="mcap", origin_s=meta.get("origin_s", 0.0),
+                    pwm_neutral_us=meta.get("pwm_neutral_us", (1500.0, 1500.0)))
+    for name, (t, cols) in streams.items():
+        setattr(rec, name, clean_stream(name, t, cols, rec.dropped))
+    rec.meta.update(meta.get("meta", {}))
+    if not any(len(s) for s in rec.streams().values()):
+        raise TwinError(f"{path.name}: the MCAP /sensors/ topics hold no usable samples")
+    return with_common_origin(rec)
+
+
+def _mcap_run(path: Path) -> Recording:
     from ..viz.mcap_io import read_run_mcap
 
     run = read_run_mcap(path)

@@ -1,19 +1,32 @@
-"""A run as an MCAP file (JSON messages, jsonschema schemas) that Foxglove can open.
+"""Runs and sensor recordings as MCAP files (JSON messages, jsonschema schemas) that
+Foxglove can open.
 
-Topics, all logged at the run time t (s → ns):
+A simulated run (true states), all topics logged at the run time t (s → ns):
   /vessel/pose    foxglove.PoseInFrame  pose in frame "ned": x north, y east (m), yaw ψ about z (down)
   /vessel/state   twin.VesselState      t (s), x, y (m), psi (rad), u, v (m/s), r (rad/s)
   /vessel/inputs  twin.ThrusterInputs   pwm_left/right (µs), thrust_left/right (N); null where NaN
 Metadata record "twin": {"vessel": name, "meta": JSON of the plain str/int/float run.meta entries}.
+
+A sensor recording, each message logged at its own stream's sample time (s → ns ≥ 0):
+  /sensors/gnss     foxglove.LocationFix  latitude, longitude (deg), altitude (m) of the antenna,
+                                          frame_id "gnss", position_covariance 9 zeros, type 0 (unknown)
+  /sensors/heading  twin.Heading          psi_rad (rad, (−π, π], north to east), heading_deg ([0, 360))
+  /sensors/pwm      twin.ThrusterPwm      left_us, right_us (µs, forward thrust = higher)
+  /sensors/imu      twin.YawRate          yaw_rate_rads (rad/s, gyro z, body FRD)      (if recorded)
+  /sensors/battery  twin.Battery          voltage_v (V)                                (if recorded)
+Metadata record "twin.recording": origin_s (the recording's origin, s, repr), pwm_neutral_us
+(JSON [left, right]), source, kind (of the recording written), meta (JSON, plain entries).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import struct
 import uuid
 from pathlib import Path
+from typing import IO, TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 from mcap.exceptions import McapError
@@ -23,12 +36,18 @@ from mcap.writer import Writer
 from ..errors import TwinError
 from ..run import Run
 
+if TYPE_CHECKING:
+    from ..recordings.recording import Recording, Stream
+
 FRAME_ID = "ned"
 TOPIC_POSE, TOPIC_STATE, TOPIC_INPUTS = "/vessel/pose", "/vessel/state", "/vessel/inputs"
 STATE_FIELDS = ("t", "x", "y", "psi", "u", "v", "r")
 INPUT_FIELDS = ("pwm_left", "pwm_right", "thrust_left", "thrust_right")
 
 _NUM = {"type": "number"}
+_TIME = {"type": "object", "title": "time", "properties": {
+    "sec": {"type": "integer", "minimum": 0},
+    "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}}
 _VEC3 = {"title": "foxglove.Vector3", "type": "object", "properties": {k: _NUM for k in "xyz"}}
 _QUAT = {"title": "foxglove.Quaternion", "type": "object", "properties": {k: _NUM for k in "xyzw"}}
 # Foxglove's published jsonschema for PoseInFrame (github.com/foxglove/foxglove-sdk, schemas/jsonschema)
@@ -37,9 +56,7 @@ POSE_SCHEMA = {
     "description": "A timestamped pose for an object or reference frame in 3D space",
     "type": "object",
     "properties": {
-        "timestamp": {"type": "object", "title": "time", "properties": {
-            "sec": {"type": "integer", "minimum": 0},
-            "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
+        "timestamp": _TIME,
         "frame_id": {"type": "string"},
         "pose": {"title": "foxglove.Pose", "type": "object",
                  "properties": {"position": _VEC3, "orientation": _QUAT}},
@@ -74,14 +91,19 @@ def check_run(run: Run, name: str = "run") -> int:
 
 def write_run_mcap(run: Run, path: str | Path, vessel_name: str = "") -> None:
     """Write `run` to the MCAP file `path` atomically (temporary file, then rename)."""
-    path = Path(path)
     check_run(run)
     if len(run.t) and np.min(run.t) < 0:
         raise TwinError("MCAP log times cannot be negative: the run starts at t < 0")
+    # a lambda, so that _write is looked up at call time (tests replace it)
+    write_atomic(Path(path), lambda fh: _write(fh, run, vessel_name))
+
+
+def write_atomic(path: Path, fill: Callable[[IO[bytes]], None]) -> None:
+    """fill(file) into a temporary file next to `path`, then rename it to `path`."""
     tmp = temp_path(path)
     try:
         with open(tmp, "xb") as fh:
-            _write(fh, run, vessel_name)
+            fill(fh)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -142,26 +164,33 @@ def _plain(meta: dict) -> dict:
 def read_run_mcap(path: str | Path) -> Run:
     """Read a run written by `write_run_mcap`; JSON null becomes NaN."""
     path = Path(path)
+    with _mcap_reader(path) as reader:
+        if TOPIC_STATE not in _topics(reader):
+            raise TwinError(f"{path.name}: MCAP file has no {TOPIC_STATE} topic")
+        msgs = {TOPIC_STATE: [], TOPIC_INPUTS: []}
+        for _, channel, message in reader.iter_messages(topics=list(msgs)):
+            msgs[channel.topic].append(json.loads(message.data))
+        meta = {}
+        for record in reader.iter_metadata():
+            if record.name == "twin":
+                meta = _meta_from(record.metadata)
+    return _run_from(msgs[TOPIC_STATE], msgs[TOPIC_INPUTS], meta, path.name)
+
+
+@contextlib.contextmanager
+def _mcap_reader(path: Path) -> Iterator:
+    """An mcap reader on `path`; what a truncated or foreign file raises becomes a TwinError."""
     try:
         with open(path, "rb") as fh:
-            reader = make_reader(fh)
-            summary = reader.get_summary()
-            topics = {c.topic for c in summary.channels.values()} if summary else set()
-            if TOPIC_STATE not in topics:
-                raise TwinError(f"{path.name}: MCAP file has no {TOPIC_STATE} topic")
-            msgs = {TOPIC_STATE: [], TOPIC_INPUTS: []}
-            for _, channel, message in reader.iter_messages(topics=list(msgs)):
-                msgs[channel.topic].append(json.loads(message.data))
-            meta = {}
-            for record in reader.iter_metadata():
-                if record.name == "twin":
-                    meta = _meta_from(record.metadata)
-    except TwinError:
-        raise
+            yield make_reader(fh)
     # the mcap reader raises any of these on a truncated or foreign file
     except (McapError, OSError, EOFError, ValueError, KeyError, TypeError, struct.error) as exc:
         raise TwinError(f"{path.name}: not a readable MCAP file ({type(exc).__name__}: {exc})") from None
-    return _run_from(msgs[TOPIC_STATE], msgs[TOPIC_INPUTS], meta, path.name)
+
+
+def _topics(reader) -> set[str]:
+    summary = reader.get_summary()
+    return {c.topic for c in summary.channels.values()} if summary else set()
 
 
 def _meta_from(record: dict[str, str]) -> dict:
@@ -181,3 +210,152 @@ def _run_from(states: list[dict], inputs: list[dict], meta: dict, name: str) -> 
     s = table(states, STATE_FIELDS)
     u = table(inputs, INPUT_FIELDS) if inputs else np.full((len(states), 4), np.nan)
     return Run(s[:, 0], s[:, 1:4], s[:, 4:7], u[:, 0:2], u[:, 2:4], meta=meta)
+
+
+# ---------------------------------------------------------------- sensor recordings
+
+SENSOR_PREFIX = "/sensors/"
+GNSS_FRAME_ID = "gnss"
+RECORDING_METADATA = "twin.recording"
+# Foxglove's published jsonschema for LocationFix (github.com/foxglove/foxglove-sdk, schemas/jsonschema),
+# the fields it requires; its optional heading, velocity, color and metadata are not written
+LOCATION_FIX_SCHEMA = {
+    "title": "foxglove.LocationFix",
+    "description": "A navigation satellite fix for any Global Navigation Satellite System",
+    "type": "object",
+    "properties": {
+        "timestamp": _TIME,
+        "frame_id": {"type": "string"},
+        "latitude": _NUM,
+        "longitude": _NUM,
+        "altitude": _NUM,
+        "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9},
+        "position_covariance_type": {"title": "foxglove.PositionCovarianceType", "oneOf": [
+            {"title": name, "const": i} for i, name in enumerate(("UNKNOWN", "APPROXIMATED", "DIAGONAL_KNOWN",
+                                                                  "KNOWN"))]},
+    },
+    "required": ["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
+                 "position_covariance_type"],
+}
+
+
+def _project_schema(title: str, description: str, fields: tuple[str, ...]) -> dict:
+    return {"title": title, "description": description, "type": "object",
+            "properties": {k: _NUM for k in fields}, "required": list(fields)}
+
+
+# stream → (topic, schema, {Recording column: message field})
+SENSORS = {
+    "gnss": ("/sensors/gnss", LOCATION_FIX_SCHEMA,
+             {"lat_deg": "latitude", "lon_deg": "longitude", "alt_m": "altitude"}),
+    "heading": ("/sensors/heading", _project_schema(
+        "twin.Heading", "Heading from north towards east: psi_rad in (-pi, pi], heading_deg in [0, 360)",
+        ("psi_rad", "heading_deg")), {"psi_rad": "psi_rad"}),
+    "pwm": ("/sensors/pwm", _project_schema(
+        "twin.ThrusterPwm", "Thruster PWM (us), forward thrust = higher", ("left_us", "right_us")),
+        {"left_us": "left_us", "right_us": "right_us"}),
+    "imu": ("/sensors/imu", _project_schema(
+        "twin.YawRate", "Gyro z, body FRD (rad/s)", ("yaw_rate_rads",)), {"yaw_rate_rads": "yaw_rate_rads"}),
+    "battery": ("/sensors/battery", _project_schema(
+        "twin.Battery", "Battery voltage (V)", ("voltage_v",)), {"voltage_v": "voltage_v"}),
+}
+
+
+def write_recording_mcap(rec: Recording, path: str | Path) -> None:
+    """Write a recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg
+    and whose psi_rad is wrapped (twin.recordings.writers prepares it) atomically."""
+    write_atomic(Path(path), lambda fh: _write_sensors(fh, rec))
+
+
+def _write_sensors(fh, rec: Recording) -> None:
+    w = Writer(fh)
+    w.start(profile="", library="twin")
+    timed = []
+    for name, stream in rec.streams().items():
+        if not len(stream):
+            continue
+        topic, schema, _ = SENSORS[name]
+        sid = w.register_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
+        cid = w.register_channel(topic, "json", sid)
+        timed += [(ns, cid, seq, data) for seq, (ns, data) in enumerate(_sensor_messages(name, stream))]
+    # time order across topics, so that a streaming reader replays the sensors as they came
+    timed.sort(key=lambda m: m[0])
+    for ns, cid, seq, data in timed:
+        w.add_message(cid, log_time=ns, data=data, publish_time=ns, sequence=seq)
+    w.add_metadata(RECORDING_METADATA, {
+        "origin_s": repr(float(rec.origin_s)), "pwm_neutral_us": json.dumps([float(x) for x in rec.pwm_neutral_us]),
+        "source": str(rec.source), "kind": str(rec.kind), "meta": json.dumps(_plain(rec.meta), sort_keys=True)})
+    w.finish()
+
+
+def _sensor_messages(name: str, stream: Stream) -> Iterator[tuple[int, bytes]]:
+    """(log time ns, JSON message) of every sample of one stream."""
+    fields = SENSORS[name][2]
+    cols = {col: stream[col].tolist() for col in fields if col in stream.columns}  # Python floats: exact JSON
+    for i, ns in enumerate(np.round(stream.t * 1e9).astype(np.int64).tolist()):
+        row = {col: values[i] for col, values in cols.items()}
+        if name == "gnss":
+            msg = _location_fix(ns, row["lat_deg"], row["lon_deg"], row.get("alt_m", 0.0))
+        elif name == "heading":
+            msg = {"psi_rad": row["psi_rad"], "heading_deg": _compass_deg(row["psi_rad"])}
+        else:
+            msg = {fields[col]: v for col, v in row.items()}
+        yield ns, json.dumps(msg, allow_nan=False).encode()
+
+
+def _compass_deg(psi_rad: float) -> float:
+    deg = math.degrees(psi_rad) % 360.0
+    return deg if deg < 360.0 else 0.0  # −1e-17 rad % 360 rounds to 360.0
+
+
+def _location_fix(ns: int, lat_deg: float, lon_deg: float, alt_m: float) -> dict:
+    return {"timestamp": {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}, "frame_id": GNSS_FRAME_ID,
+            "latitude": lat_deg, "longitude": lon_deg, "altitude": alt_m,
+            "position_covariance": [0.0] * 9, "position_covariance_type": 0}
+
+
+def read_sensor_mcap(path: str | Path) -> tuple[dict[str, tuple[np.ndarray, dict[str, np.ndarray]]], dict] | None:
+    """The /sensors/* topics of an MCAP file as {stream: (t s, {column: values})} at
+    the messages' log times, and the "twin.recording" metadata parsed (origin_s,
+    pwm_neutral_us, meta; empty when absent); None when there is no /sensors/ topic.
+    A missing or null field is NaN; an altitude that is never given is left out."""
+    path = Path(path)
+    with _mcap_reader(path) as reader:
+        wanted = {SENSORS[name][0]: name for name in SENSORS}
+        present = _topics(reader)
+        topics = [topic for topic in wanted if topic in present]  # the Recording's stream order
+        if not topics:
+            return None
+        rows: dict[str, list] = {wanted[topic]: [] for topic in topics}
+        for _, channel, message in reader.iter_messages(topics=topics):
+            rows[wanted[channel.topic]].append((message.log_time, json.loads(message.data)))
+        meta = {}
+        for record in reader.iter_metadata():
+            if record.name == RECORDING_METADATA:
+                meta = _recording_meta(record.metadata)
+    return {name: _columns(name, msgs) for name, msgs in rows.items()}, meta
+
+
+def _columns(name: str, msgs: list[tuple[int, dict]]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    t = np.array([ns for ns, _ in msgs], dtype=np.int64) / 1e9
+    cols = {col: np.array([_float(m.get(field)) for _, m in msgs], dtype=float)
+            for col, field in SENSORS[name][2].items()}
+    if "alt_m" in cols and not np.any(np.isfinite(cols["alt_m"])):
+        del cols["alt_m"]  # a fix without altitude must not cost the whole sample
+    return t, cols
+
+
+def _float(x) -> float:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else np.nan
+
+
+def _recording_meta(record: dict[str, str]) -> dict:
+    out: dict = {}
+    if "origin_s" in record:
+        out["origin_s"] = float(record["origin_s"])
+    if "pwm_neutral_us" in record:
+        left, right = json.loads(record["pwm_neutral_us"])
+        out["pwm_neutral_us"] = (float(left), float(right))
+    meta = json.loads(record.get("meta", "{}"))
+    out["meta"] = meta if isinstance(meta, dict) else {}
+    return out

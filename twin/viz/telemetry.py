@@ -5,7 +5,7 @@ DataFlash .bin writers."""
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -19,17 +19,26 @@ LEFT_CHANNEL, RIGHT_CHANNEL = 1, 3  # SERVO1_FUNCTION = 73, SERVO3_FUNCTION = 74
 THRUSTER_PARAMS = {"SERVO1_FUNCTION": 73, "SERVO3_FUNCTION": 74, "SERVO1_REVERSED": 0, "SERVO3_REVERSED": 0}
 
 
+def _empty() -> np.ndarray:
+    return np.zeros(0)
+
+
 @dataclass
 class Telemetry:
+    """Sensor samples as a log stores them, times in s from the log's start (≥ 0)."""
+
     gnss_t: np.ndarray
     lat_deg: np.ndarray
     lon_deg: np.ndarray
-    speed_m_s: np.ndarray
+    speed_m_s: np.ndarray  # NaN: unknown
     heading_t: np.ndarray
     psi_rad: np.ndarray  # wrapped to (−π, π]
     r_rad_s: np.ndarray
     pwm_t: np.ndarray  # empty when the run was driven by thrust
     pwm_us: np.ndarray  # (n, 2) left, right
+    alt_m: np.ndarray | None = None  # None: altitude 0
+    battery_t: np.ndarray = field(default_factory=_empty)
+    voltage_v: np.ndarray = field(default_factory=_empty)
 
 
 def antenna_ned(run: Run, antenna_body_m) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,237 @@
+"""write_recording: synthetic sensor recordings → .csv / .tlog / .mcap → read_recording
+gives back the same streams (times, values, gaps) to each format's resolution."""
+import json
+from collections import Counter
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from twin.errors import TwinError
+from twin.geodesy import geodetic_from_ned, ned_from_geodetic
+from twin.recordings import Recording, Stream, prepare, read_recording, write_recording
+from twin.recordings.ardupilot import iter_tlog
+
+ORIGIN = (37.4136, -5.9786)
+SEGMENTS_S = ((0.0, 30.0), (38.0, 60.0))  # two trajectory segments, an 8 s silence between them
+GAP_S = 8.0
+PWM_OFFSET_S = 0.0371234  # the PWM clock runs late against the others, off the ms grid
+
+
+class Resolution(NamedTuple):
+    t_s: float  # GNSS, PWM, IMU times
+    heading_t_s: float
+    latlon_deg: float
+    psi_rad: float
+    alt_m: float
+
+
+RESOLUTION = {
+    ".csv": Resolution(1e-6, 1e-6, 1e-9, 1e-8, 1e-4),
+    ".tlog": Resolution(1e-6, 5e-4 + 1e-9, 1e-7, 3e-7, 1e-3),  # ATTITUDE ms, float32 yaw, 1e-7 deg ints
+    ".mcap": Resolution(1e-9, 1e-9, 1e-12, 1e-12, 1e-12),
+}
+
+
+def times(rate_hz: float, offset_s: float = 0.0) -> np.ndarray:
+    return np.concatenate([a + offset_s + np.arange(round((b - a) * rate_hz)) / rate_hz for a, b in SEGMENTS_S])
+
+
+def synthetic(seed: int = 7, *, pwm_offset_s: float = PWM_OFFSET_S, north_east: bool = False,
+              extras: bool = False) -> Recording:
+    """A boat circling at 0.2 rad/s (ψ crosses ±180° several times): GNSS 5 Hz with
+    0.3 m noise, heading 50 Hz with 0.5° noise and a 2° bias, integer PWM 10 Hz."""
+    rng = np.random.default_rng(seed)
+    psi = lambda t: 2.5 + 0.2 * t  # noqa: E731
+    tg = times(5)
+    north = 5 * np.sin(psi(tg)) + rng.normal(0, 0.3, len(tg))
+    east = 5 * (1 - np.cos(psi(tg))) + rng.normal(0, 0.3, len(tg))
+    if north_east:
+        gnss = Stream(tg, {"north_m": north, "east_m": east})
+    else:
+        lat, lon = geodetic_from_ned(north, east, *ORIGIN)
+        gnss = Stream(tg, {"lat_deg": lat, "lon_deg": lon, "alt_m": rng.normal(0, 0.5, len(tg))})
+    th = times(50)
+    heading = Stream(th, {"psi_rad": np.angle(np.exp(1j * (psi(th) + np.radians(2 + rng.normal(0, 0.5, len(th))))))})
+    tp = times(10, pwm_offset_s)
+    pwm = Stream(tp, {"left_us": rng.integers(1100, 1901, len(tp)).astype(float),
+                      "right_us": rng.integers(1100, 1901, len(tp)).astype(float)})
+    rec = Recording(source="synthetic", kind="synthetic", gnss=gnss, heading=heading, pwm=pwm, origin_s=1000.0)
+    if extras:
+        rec.imu = Stream(th, {"yaw_rate_rads": 0.2 + rng.normal(0, 0.01, len(th))})
+        tb = times(1)
+        rec.battery = Stream(tb, {"voltage_v": np.round(16.4 - 0.01 * tb, 3)})
+    return rec
+
+
+def listing(d: Path) -> list[str]:
+    return sorted(p.name for p in d.iterdir())
+
+
+def wrapped(a: np.ndarray) -> np.ndarray:
+    return np.angle(np.exp(1j * a))
+
+
+@pytest.fixture(scope="module")
+def rec() -> Recording:
+    return synthetic()
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".tlog", ".mcap"])
+def test_round_trip(rec, tmp_path, suffix):
+    res = RESOLUTION[suffix]
+    out = tmp_path / f"synthetic{suffix}"
+    write_recording(rec, out)
+    assert listing(tmp_path) == [out.name]  # no temporary file left
+    back = read_recording(out)
+
+    for name, t_res in (("gnss", res.t_s), ("heading", res.heading_t_s), ("pwm", res.t_s)):
+        assert len(getattr(back, name)) == len(getattr(rec, name)), name
+        np.testing.assert_allclose(getattr(back, name).t, getattr(rec, name).t, rtol=0, atol=t_res, err_msg=name)
+    for col in ("lat_deg", "lon_deg"):
+        np.testing.assert_allclose(back.gnss[col], rec.gnss[col], rtol=0, atol=res.latlon_deg)
+    np.testing.assert_allclose(back.gnss["alt_m"], rec.gnss["alt_m"], rtol=0, atol=res.alt_m)
+    assert np.max(np.abs(wrapped(back.heading["psi_rad"] - rec.heading["psi_rad"]))) <= res.psi_rad
+    np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"])
+    np.testing.assert_array_equal(back.pwm["right_us"], rec.pwm["right_us"])
+    assert tuple(back.pwm_neutral_us) == (1500.0, 1500.0)
+
+    for name, dt in (("gnss", 0.2), ("heading", 0.02), ("pwm", 0.1)):
+        np.testing.assert_allclose(getattr(back, name).gaps(), [GAP_S + dt], atol=1e-3, err_msg=name)
+    if suffix != ".csv":  # the CSV reader counts a row's empty cells as missing samples
+        assert all("dropouts" in reason for reason, _ in back.dropped), back.dropped
+    prep = prepare(back)
+    assert len(prep.segments) == 2
+    assert prep.segments[0].t1 < SEGMENTS_S[0][1] <= SEGMENTS_S[1][0] <= prep.segments[1].t0
+
+
+def test_tlog_maps_the_thrusters_back(rec, tmp_path):
+    write_recording(rec, tmp_path / "r.tlog")
+    back = read_recording(tmp_path / "r.tlog")
+    assert (back.channels["left"], back.channels["right"]) == (1, 3)
+    assert back.channels["from"] == "SERVOn_FUNCTION"
+    counts: Counter = Counter()
+    msgs = list(iter_tlog((tmp_path / "r.tlog").read_bytes(), ("HEARTBEAT", "GPS_RAW_INT"), counts))
+    beats = [t for t, m in msgs if m.get_type() == "HEARTBEAT"]
+    assert all(m.type == 11 for _, m in msgs if m.get_type() == "HEARTBEAT")  # MAV_TYPE_SURFACE_BOAT
+    np.testing.assert_allclose(np.diff(beats), 1.0)
+    assert len(beats) == int(rec.pwm.t[-1]) + 1
+    assert {m.fix_type for _, m in msgs if m.get_type() == "GPS_RAW_INT"} == {3}
+    assert counts["bad_crc"] == counts["skipped_bytes"] == counts["truncated"] == 0
+
+
+def test_mcap_topics_are_foxglove_readable(rec, tmp_path):
+    out = tmp_path / "r.mcap"
+    write_recording(rec, out)
+    with open(out, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        schemas = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+        log_times = [m.log_time for _, _, m in reader.iter_messages(log_time_order=False)]
+        fixes = [(m.log_time, json.loads(m.data)) for _, _, m in reader.iter_messages(topics=["/sensors/gnss"])]
+        heading = [json.loads(m.data) for _, _, m in reader.iter_messages(topics=["/sensors/heading"])]
+    assert {t: s.name for t, s in schemas.items()} == {
+        "/sensors/gnss": "foxglove.LocationFix", "/sensors/heading": "twin.Heading", "/sensors/pwm": "twin.ThrusterPwm"}
+    assert all(s.encoding == "jsonschema" for s in schemas.values())
+    assert log_times == sorted(log_times)  # written in time order across topics
+    required = json.loads(schemas["/sensors/gnss"].data)["required"]
+    log_time, fix = fixes[3]
+    assert set(required) <= set(fix) and fix["position_covariance_type"] == 0
+    assert fix["timestamp"]["sec"] * 10**9 + fix["timestamp"]["nsec"] == log_time == round(rec.gnss.t[3] * 1e9)
+    assert 0 <= min(h["heading_deg"] for h in heading) and max(h["heading_deg"] for h in heading) < 360
+
+
+def test_optional_streams(tmp_path):
+    rec = synthetic(3, extras=True)
+    for suffix in (".csv", ".tlog", ".mcap"):
+        write_recording(rec, tmp_path / f"r{suffix}")
+        back = read_recording(tmp_path / f"r{suffix}")
+        np.testing.assert_allclose(back.imu.t, rec.imu.t, atol=RESOLUTION[suffix].heading_t_s)
+        np.testing.assert_allclose(back.imu["yaw_rate_rads"], rec.imu["yaw_rate_rads"], atol=1e-7)
+        np.testing.assert_allclose(back.battery["voltage_v"], rec.battery["voltage_v"], atol=1e-9)
+        # SYS_STATUS has no time of its own: the reader maps its receive time through ATTITUDE's ms clock
+        np.testing.assert_allclose(back.battery.t, rec.battery.t, atol=1e-3 if suffix == ".tlog" else 1e-6)
+
+
+def test_csv_header_and_empty_cells(rec, tmp_path):
+    write_recording(rec, tmp_path / "r.csv")
+    lines = (tmp_path / "r.csv").read_text().splitlines()
+    assert lines[0] == "t,lat,lon,alt,heading_deg,pwm_left,pwm_right"
+    assert lines[1].startswith("0.000000,37.")  # t = 0: GNSS and heading together, PWM comes later
+    assert lines[1].endswith(",,")
+    assert len(lines) - 1 == len(np.unique(np.round(np.concatenate([rec.gnss.t, rec.heading.t, rec.pwm.t]) * 1e6)))
+
+
+def test_north_east(tmp_path):
+    rec = synthetic(5, north_east=True)
+    write_recording(rec, tmp_path / "r.csv")
+    assert (tmp_path / "r.csv").read_text().startswith("t,north,east,heading_deg,")
+    back = read_recording(tmp_path / "r.csv")
+    np.testing.assert_allclose(back.gnss["north_m"], rec.gnss["north_m"], atol=1e-6)
+    # .tlog stores latitude/longitude: the local frame is placed at `origin`
+    write_recording(rec, tmp_path / "r.tlog", origin=ORIGIN)
+    back = read_recording(tmp_path / "r.tlog")
+    north, east = ned_from_geodetic(back.gnss["lat_deg"], back.gnss["lon_deg"], *ORIGIN)
+    np.testing.assert_allclose(north, rec.gnss["north_m"], atol=0.01)
+    np.testing.assert_allclose(east, rec.gnss["east_m"], atol=0.01)
+
+
+def test_samples_before_the_origin_shift_every_stream_together(tmp_path):
+    rec = synthetic(9, pwm_offset_s=-0.05)  # the first PWM sample is 50 ms before the origin
+    write_recording(rec, tmp_path / "r.mcap")
+    back = read_recording(tmp_path / "r.mcap")
+    assert back.pwm.t[0] == 0.0
+    for name in ("gnss", "heading", "pwm"):  # absolute times (origin + t) are kept
+        np.testing.assert_allclose(getattr(back, name).t + back.origin_s, getattr(rec, name).t + rec.origin_s,
+                                   rtol=0, atol=1e-9)
+
+
+def test_bad_paths_raise_and_leave_nothing(rec, tmp_path):
+    with pytest.raises(TwinError, match="unknown recording format"):
+        write_recording(rec, tmp_path / "r.txt")
+    with pytest.raises(TwinError, match="does not exist"):
+        write_recording(rec, tmp_path / "missing" / "r.tlog")
+    assert listing(tmp_path) == []
+
+
+def test_bad_recordings_raise_and_keep_the_old_file(rec, tmp_path):
+    out = tmp_path / "r.mcap"
+    out.write_bytes(b"old")
+    bad = synthetic(1)
+    bad.heading.columns["psi_rad"][5] = np.nan
+    with pytest.raises(TwinError, match="heading.psi_rad"):
+        write_recording(bad, out)
+    with pytest.raises(TwinError, match="no samples"):
+        write_recording(Recording(source="empty", kind="synthetic"), out)
+    odd = synthetic(1)
+    odd.pwm_neutral_us = (1511.0, 1511.0)
+    with pytest.raises(TwinError, match="neutral"):
+        write_recording(odd, tmp_path / "r.csv")
+    assert listing(tmp_path) == ["r.mcap"] and out.read_bytes() == b"old"
+
+
+def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):
+    import twin.viz.telemetry as telemetry
+
+    def refuse(src, dst):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(telemetry.os, "replace", refuse)
+    with pytest.raises(TwinError, match="cannot write"):
+        write_recording(rec, tmp_path / "r.tlog")
+    assert listing(tmp_path) == []
+
+
+def test_run_mcap_still_reads_as_states(tmp_path):
+    from twin.run import Run
+    from twin.viz.mcap_io import write_run_mcap
+
+    t = np.arange(50) * 0.1
+    run = Run(t, np.column_stack([t, 2 * t, 0.1 * t]), np.zeros((50, 3)), np.full((50, 2), 1600.0),
+              np.zeros((50, 2)))
+    write_run_mcap(run, tmp_path / "run.mcap")
+    back = read_recording(tmp_path / "run.mcap")
+    assert back.gnss.has("north_m", "east_m") and not back.gnss.has("lat_deg")
+    np.testing.assert_allclose(back.gnss["east_m"], 2 * t)
