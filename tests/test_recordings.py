@@ -166,8 +166,9 @@ BLUEBOAT_HEADER = ["", "original_timestamp", "lat", "lon", "alt", "x_ned", "y_ne
 
 
 def write_blueboat_csv(path: Path) -> Path:
-    """BlueBoat layout: ms timestamps, yaw in degrees, the left channel reversed
-    around 1511 µs; one row with empty GNSS cells, one backwards timestamp."""
+    """BlueBoat layout: ms timestamps, yaw in degrees, the column thr_left driving the
+    starboard thruster and reversed around 1511 µs, thr_right the port one; one row with
+    empty GNSS cells, one backwards timestamp."""
     t = grid_times()
     n, e, psi = antenna(t)
     lat, lon = ned_to_geodetic(n, e)
@@ -179,8 +180,8 @@ def write_blueboat_csv(path: Path) -> Path:
             ms = 1_444_000.0 + ti * 1000 if i != 200 else 1_444_000.0 + (ti - 3) * 1000
             row = {"": i, "original_timestamp": f"{ms:.3f}", "lat": f"{lat[i]:.9f}", "lon": f"{lon[i]:.9f}",
                    "alt": "220.0", "x_ned": n[i], "y_ned": e[i], "yaw": math.degrees(psi[i]) % 360,
-                   "surge": "", "sway": "", "yaw_rate": 0.0, "thr_left": 2 * 1511 - (left[i] + 11),
-                   "thr_right": right[i] + 11, "thr_left_pwm_zero_point": 1511.0, "thr_right_pwm_zero_point": 1511.0}
+                   "surge": "", "sway": "", "yaw_rate": 0.0, "thr_left": 2 * 1511 - (right[i] + 11),
+                   "thr_right": left[i] + 11, "thr_left_pwm_zero_point": 1511.0, "thr_right_pwm_zero_point": 1511.0}
             if i == 80:
                 row["lat"] = row["lon"] = ""
             w.writerow([row.get(c, 0.0) for c in BLUEBOAT_HEADER])
@@ -336,6 +337,7 @@ def test_blueboat_like_csv(tmp_path):
     p = prepare(rec, lever_arm_OP_m=OP)
     assert_recovers_circle(p, skip=(8.0, 20.0))
     assert set(p.region[p.t < 19.9]) == {"ff"} and set(p.region[p.t > 20.1]) == {"rf"}
+    assert any("swapped" in n for n in rec.notes)
 
 
 def test_mcap_run_roundtrip(tmp_path):

@@ -243,3 +243,46 @@ def measured(preps: list[Prepared], windows: list[Window]) -> tuple[np.ndarray, 
         eta[j, : w.n + 1] = np.column_stack([p.north[sl], p.east[sl], p.psi[sl]])
         nu[j, : w.n + 1] = np.column_stack([p.u[sl], p.v[sl], p.r[sl]])
     return eta, nu
+
+
+def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window]) -> np.ndarray:
+    """Predicted velocities seen through the measurement's own velocity estimator.
+
+    A Savitzky-Golay slope over ±L = window_s/2 (any polyorder ≤ 2: the quadratic term
+    does not move the centre slope) of a position is the velocity averaged with the
+    Epanechnikov kernel 3(L² − s²)/(4L³). So the measured ν is a smoothed ν, and a
+    fit that compares it with the raw prediction mistakes the smoothing for physics
+    (more lag, less added mass). Smoothing the prediction the same way removes that
+    bias; before the window's start the measured velocities stand in for the prediction,
+    past its end the kernel is truncated and renormalised. u, v use the GNSS window,
+    r the heading window of the preparation."""
+    settings = preps[0].settings
+    if settings.get("smoother") != "savgol":
+        return nu_pred
+    window_s = float(settings.get("window_s", 1.0))
+    heading_s = float(settings.get("heading_window_s") or window_s)
+    return np.concatenate([_smoothed(nu_pred, preps, windows, window_s)[..., :2],
+                           _smoothed(nu_pred, preps, windows, heading_s)[..., 2:]], axis=-1)
+
+
+def _smoothed(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window], window_s: float) -> np.ndarray:
+    h = float(preps[0].settings.get("grid_dt", 0.1))
+    half = int(np.floor(window_s / 2 / h + 1e-9))
+    if half < 1:
+        return nu_pred
+    s = np.arange(-half, half + 1) * h
+    kernel = np.maximum(0.0, (window_s / 2) ** 2 - s ** 2)
+    out = np.full_like(nu_pred, np.nan)
+    for j, w in enumerate(windows):
+        p = preps[w.rec]
+        seg = p.segments[int(p.segment[w.start])]
+        before = np.arange(max(seg.start, w.start - half), w.start)
+        past = np.column_stack([p.u[before], p.v[before], p.r[before]])
+        series = np.vstack([past, nu_pred[j, : w.n + 1]])
+        padded = np.vstack([np.full((half - len(before), 3), np.nan), series, np.full((half, 3), np.nan)])
+        ok = np.isfinite(padded)
+        num = np.stack([np.convolve(np.where(ok[:, k], padded[:, k], 0.0), kernel, "valid") for k in range(3)], 1)
+        den = np.stack([np.convolve(ok[:, k].astype(float), kernel, "valid") for k in range(3)], 1)
+        smooth = num / np.where(den > 0, den, np.nan)
+        out[j, : w.n + 1] = smooth  # "valid" leaves one value per predicted sample, centred on it
+    return out

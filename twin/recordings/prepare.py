@@ -11,8 +11,11 @@
    V_CO = V_O + r·S·R2(ψ)·OP (eqs. 33-34), (u, v) = R2(ψ)ᵀ·V_CO (eqs. 35-36).
 4. Velocities: V_O and r = dψ/dt by Savitzky-Golay derivatives (seed 004 §5.1,
    scipy.signal.savgol_filter, ψ unwrapped first), or plain central differences
-   (smoother="none"). Savitzky-Golay is a centred window: the smoothing looks
-   ahead by window/2, like the seed's offline filtering; only step 1 is causal.
+   (smoother="none"). Each is taken on the stream's own samples (GNSS at its rate,
+   a fix repeated by a faster logger counted once; heading at its rate) and read
+   at the grid times, not on the held grid values, whose steps would add ripple and
+   half a GNSS period of lag. Savitzky-Golay is a centred window: the smoothing
+   looks ahead by window/2, like the seed's offline filtering; only step 1 is causal.
 5. Segments: the grid is cut wherever a needed stream (GNSS, heading, PWM if any)
    falls silent for more than max_gap_s; no hold bridges such a dropout and
    derivatives never cross a cut. Segments shorter than min_segment_s are dropped.
@@ -83,12 +86,15 @@ class Prepared:
 
 def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None, grid_dt: float = 0.1,
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
+            heading_window_s: float | None = None,
             min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US) -> Prepared:
     """Seed 004 §5.1 data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
-    body origin's. window_s: Savitzky-Golay window (s), polyorder its degree."""
+    body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
+    its degree; heading_window_s: the yaw rate's window (default window_s), which a
+    fast AHRS can afford shorter."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
     name = Path(rec.source).name
     if not len(rec.gnss) or not len(rec.heading):
@@ -114,9 +120,13 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     psi = hold(hdg.t, hdg["psi"], t)
     seg_id = np.concatenate([np.full(b - a, k) for k, (a, b) in enumerate(runs)])
     segments = _segments(runs, t)
-    north, east, u, v, r = _kinematics(n_o, e_o, psi, segments, lever_arm_OP_m, grid_dt, smoother, window_s, polyorder)
+    heading_window_s = window_s if heading_window_s is None else heading_window_s
+    _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
+    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder)
+    north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
     pwm, region, dead = _inputs(rec, t, deadband_us)
-    settings = {"grid_dt": grid_dt, "smoother": smoother, "window_s": window_s, "polyorder": polyorder,
+    settings = {"grid_dt": grid_dt, "smoother": smoother, "window_s": window_s,
+                "heading_window_s": heading_window_s, "polyorder": polyorder,
                 "max_gap_s": max_gap_s, "min_segment_s": min_segment_s, "deadband_us": tuple(deadband_us),
                 "lever_arm_OP_m": None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
                 "source": rec.source}
@@ -209,18 +219,46 @@ def _segments(runs: list[tuple[int, int]], t: np.ndarray) -> list[Segment]:
 
 # ---------------------------------------------------------------- kinematics
 
-def _kinematics(n_o, e_o, psi, segments, lever_arm, dt, smoother, window_s, polyorder):
-    """CO position (eq. 32), body velocities (eqs. 33-36) and yaw rate per segment."""
+def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segment], smoother: str,
+                  windows_s: tuple[float, float], polyorder: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Antenna velocity north, east (m/s) and yaw rate (rad/s) at the grid times t, each
+    differentiated on its own stream inside each segment (windows: GNSS, heading)."""
+    vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
+    for seg in segments:
+        tg = t[seg.slice]
+        vn[seg.slice], ve[seg.slice] = (_rate_at(pos.t, pos[k], tg, smoother, windows_s[0], polyorder, True)
+                                        for k in ("north", "east"))
+        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False)
+    return vn, ve, r
+
+
+def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
+             drop_repeats: bool) -> np.ndarray:
+    """dx/dt at the grid times tg from the samples (ts, x) of one stream over tg's span
+    (the sample held at tg[0] included): resampled at the stream's own median period,
+    differentiated, interpolated at tg."""
+    lo = max(int(np.searchsorted(ts, tg[0] + _EPS_S, side="right")) - 1, 0)
+    hi = int(np.searchsorted(ts, tg[-1] + _EPS_S, side="right"))
+    ts, x = ts[lo:hi], x[lo:hi]
+    if drop_repeats and len(x) > 2:  # a fix logged again by a faster logger carries no new time
+        new = np.r_[True, np.diff(x) != 0]
+        new[-1] = True
+        ts, x = ts[new], x[new]
+    if len(ts) < 2:
+        return np.zeros(len(tg))
+    dt = float(np.median(np.diff(ts)))
+    tu = ts[0] + dt * np.arange(int(np.floor((ts[-1] - ts[0]) / dt + 1e-9)) + 1)
+    rate = derivative(np.interp(tu, ts, x), dt, smoother, window_s, polyorder)
+    return np.interp(tg, tu, rate)
+
+
+def _kinematics(n_o, e_o, psi, rates, lever_arm):
+    """CO position (eq. 32), body velocities (eqs. 33-36) and yaw rate."""
     c, s = np.cos(psi), np.sin(psi)
     dx, dy = (0.0, 0.0) if lever_arm is None else map(float, lever_arm)
     arm_n, arm_e = c * dx - s * dy, s * dx + c * dy  # R2(ψ)·OP, eq. 31
     north, east = n_o + arm_n, e_o + arm_e  # eq. 32
-    vn, ve, r = (np.empty_like(n_o) for _ in range(3))
-    for seg in segments:
-        sl = seg.slice
-        vn[sl] = derivative(n_o[sl], dt, smoother, window_s, polyorder)
-        ve[sl] = derivative(e_o[sl], dt, smoother, window_s, polyorder)
-        r[sl] = derivative(psi[sl], dt, smoother, window_s, polyorder)
+    vn, ve, r = rates
     vn, ve = vn - r * arm_e, ve + r * arm_n  # eqs. 33-34: V_CO = V_O + r·S·R2·OP, S = [[0, −1], [1, 0]]
     u, v = c * vn + s * ve, -s * vn + c * ve  # eqs. 35-36: (u, v) = R2ᵀ·V_CO
     return north, east, u, v, r

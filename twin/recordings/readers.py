@@ -146,9 +146,14 @@ def _blueboat(path: Path, c: dict[str, np.ndarray], channels: dict | None) -> Re
         gnss["alt_m"] = c["alt"]
     rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
     rec.heading = clean_stream("heading", t, {"psi_rad": np.radians(c["yaw"])}, rec.dropped)
-    neutral = tuple(_neutral(c.get(f"thr_{s}_pwm_zero_point"), BLUEBOAT_NEUTRAL_US) for s in ("left", "right"))
-    # 1100 µs drives the BlueBoat's left thruster forward (README): mirror it by default
-    _csv_pwm(rec, t, c["thr_left"], c["thr_right"], neutral, {"left": True, "right": False}, channels)
+    neutral = tuple(_neutral(c.get(f"thr_{s}_pwm_zero_point"), BLUEBOAT_NEUTRAL_US) for s in ("right", "left"))
+    # The column the dataset calls thr_left is reversed (1100 µs drives its thruster forward) and drives
+    # the STARBOARD thruster: with it as port, every run turns the wrong way (more "left" thrust yaws
+    # to port in all ten files, while the tracks follow the heading on straight runs). So thr_right is
+    # the port (left) thruster and thr_left, mirrored, the starboard (right) one.
+    _csv_pwm(rec, t, c["thr_right"], c["thr_left"], neutral, {"left": False, "right": True}, channels)
+    rec.notes.append("thrusters: port = column thr_right, starboard = column thr_left mirrored (the dataset's "
+                     "labels are swapped: see readers.py)")
     g = rec.gnss
     if len(g) > 1:  # rows at 10 Hz from a slower receiver repeat the fix: say how many
         same = np.mean((np.diff(g["lat_deg"]) == 0) & (np.diff(g["lon_deg"]) == 0))

@@ -1,0 +1,337 @@
+"""Identification by simulation: the physical parameters of the vessel description
+fitted so that free runs of the twin over short windows (from measured states,
+driven by the recorded PWM) match the measured velocities.
+
+The one-step fit of seed 004 is its starting point, not its end: a model that
+predicts one step well can still drift in a free run. Here the cost is the free
+run itself, the parameters are the physical ones the engine uses (added mass,
+damping of seed 004 eq. 7, thrust curve, lag, asymmetry, dead zone, current),
+and the constraints are physical: damping coefficients keep Fossen's negative
+sign (D(ν) dissipative), added-mass derivatives stay ≤ 0 with M_A symmetric
+(M = M_RB + M_A symmetric positive-definite), lag and dead zone ≥ 0.
+
+Scale: GNSS, heading and PWM determine M⁻¹τ and M⁻¹D (seed 004 identifies only
+the input gain G = M⁻¹τ, eq. 4): scaling the inertia, the damping and the thrust
+together changes no trajectory. One absolute anchor is needed. By default it is
+M11 = m − Xu̇: the mass is weighed and a slender hull's surge added mass is a few
+per cent of it, so Xu̇ stays at its prior and the thrust curve is identified
+(`anchor="mass"`); `anchor="thrust"` keeps the thrust curve and fits Xu̇ instead.
+
+Jacobians are finite differences computed in one batch rollout (all perturbed
+twins at once); least squares by scipy's trust-region reflective method within
+the bounds; uncertainties from the cluster-robust (sandwich) covariance with the
+windows as clusters, because the errors of one free run are correlated.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import TwinError
+from ..recordings import Prepared
+from ..vessel import Vessel, check
+from .windows import ModelCache, Window, as_measured, make_windows, measured, predict
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One identifiable number of the vessel description: name, unit, how to read and
+    write it, bounds, and a typical size that scales the optimiser's variable."""
+
+    name: str
+    unit: str
+    get: Callable[[Vessel], float]
+    put: Callable[[Vessel, float], Vessel]
+    lo: float
+    hi: float
+    typical: float
+
+
+def _damping(name: str) -> Parameter:
+    unit = {"X": "N s/m", "Y": "N s/m", "N": "N m s"}[name[0]]
+    quad = len(name) > 2
+    return Parameter(name, unit + ("/m" if quad else ""), lambda v: getattr(v.damping, name),
+                     lambda v, x: replace(v, damping=replace(v.damping, **{name: x})), -1e4, 0.0, 10.0)
+
+
+def _added(name: str) -> Parameter:
+    pair = {"Yrdot": ("Yrdot", "Nvdot")}.get(name, (name,))
+    unit = {"Xudot": "kg", "Yvdot": "kg", "Nrdot": "kg m2", "Yrdot": "kg m"}[name]
+    lo = -1e3 if name != "Yrdot" else -1e2
+    hi = 0.0 if name != "Yrdot" else 1e2
+    return Parameter(name, unit, lambda v: getattr(v.added_mass, name),
+                     lambda v, x: replace(v, added_mass=replace(v.added_mass, **{k: x for k in pair})), lo, hi, 1.0)
+
+
+def _thr(field_name: str, unit: str, lo: float, hi: float, typical: float) -> Parameter:
+    return Parameter(field_name, unit, lambda v: getattr(v.thrusters, field_name),
+                     lambda v, x: replace(v, thrusters=replace(v.thrusters, **{field_name: x})), lo, hi, typical)
+
+
+def _asymmetry() -> Parameter:
+    def get(v: Vessel) -> float:
+        return v.thrusters.gain_right / v.thrusters.gain_left
+
+    def put(v: Vessel, ratio: float) -> Vessel:
+        t = v.thrusters
+        mean = 0.5 * (t.gain_left + t.gain_right)
+        left = 2 * mean / (1 + ratio)
+        return replace(v, thrusters=replace(t, gain_left=left, gain_right=ratio * left))
+
+    return Parameter("asymmetry", "right/left", get, put, 0.2, 5.0, 1.0)
+
+
+def _current(axis: int) -> Parameter:
+    def get(v: Vessel) -> float:
+        return float(v.environment.current_ned[axis])
+
+    def put(v: Vessel, x: float) -> Vessel:
+        ned = v.environment.current_ned.copy()
+        ned[axis] = x
+        env = replace(v.environment, current_speed_m_s=float(np.hypot(*ned)),
+                      current_dir_deg=float(np.degrees(np.arctan2(ned[1], ned[0]))))
+        return replace(v, environment=env)
+
+    return Parameter(("current_north", "current_east")[axis], "m/s", get, put, -3.0, 3.0, 0.1)
+
+
+def _gain() -> Parameter:
+    """Both thruster gains scaled together (the mean gain), their ratio kept."""
+    def get(v: Vessel) -> float:
+        return 0.5 * (v.thrusters.gain_left + v.thrusters.gain_right)
+
+    def put(v: Vessel, g: float) -> Vessel:
+        t = v.thrusters
+        k = g / get(v)
+        return replace(v, thrusters=replace(t, gain_left=t.gain_left * k, gain_right=t.gain_right * k))
+
+    return Parameter("thrust_gain", "×", get, put, 0.05, 20.0, 1.0)
+
+
+def _reverse_scale(prior: Vessel) -> Parameter:
+    """The reverse quadratic of eq. 27 scaled against the prior's (on top of the gains, which
+    act on both directions): stored back as coefficients."""
+    ref = np.asarray(prior.thrusters.reverse, float)
+
+    def get(v: Vessel) -> float:
+        return float(v.thrusters.reverse[0] / ref[0]) if ref[0] else 1.0
+
+    def put(v: Vessel, s: float) -> Vessel:
+        return replace(v, thrusters=replace(v.thrusters, reverse=tuple(float(c) for c in ref * s)))
+
+    return Parameter("reverse_scale", "×", get, put, 0.05, 20.0, 1.0)
+
+
+def parameters(prior: Vessel) -> dict[str, Parameter]:
+    """Every parameter `fit` can identify, by name (curve scales relative to `prior`)."""
+    out = {n: _damping(n) for n in ("Xu", "Xuu", "Yv", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr",
+                                    "Nr", "Nrr")}
+    out.update({n: _coupling(n) for n in ("Yr", "Nv")})
+    out.update({n: _added(n) for n in ("Xudot", "Yvdot", "Yrdot", "Nrdot")})
+    out.update({"thrust_gain": _gain(), "reverse_scale": _reverse_scale(prior), "asymmetry": _asymmetry(),
+                "lag_s": _thr("lag_s", "s", 0.01, 3.0, 0.2), "delay_s": _thr("delay_s", "s", 0.0, 2.0, 0.1),
+                "deadzone_fwd": _thr("deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
+                "current_north": _current(0), "current_east": _current(1)})
+    return out
+
+
+def _coupling(name: str) -> Parameter:
+    """Linear sway-yaw coupling (either sign is dissipative while Yv·Nr dominates)."""
+    unit = "N s" if name[0] == "Y" else "N s"
+    return Parameter(name, unit, lambda v: getattr(v.damping, name),
+                     lambda v, x: replace(v, damping=replace(v.damping, **{name: x})), -1e3, 1e3, 1.0)
+
+
+DEFAULT = ("Xu", "Xuu", "Yv", "Yvv", "Nr", "Nrr", "Yvdot", "Nrdot", "thrust_gain", "reverse_scale", "lag_s")
+
+
+# ---------------------------------------------------------------- the fit
+
+@dataclass
+class Estimate:
+    name: str
+    unit: str
+    prior: float
+    value: float
+    sigma: float | None  # 1-σ from the cluster-robust covariance; None when not identifiable
+    identifiable: bool
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
+                "identifiable": self.identifiable, "note": self.note}
+
+
+@dataclass
+class FitResult:
+    vessel: Vessel
+    estimates: list[Estimate]
+    cost_before: float
+    cost_after: float
+    n_windows: int
+    n_evaluations: int
+    seconds: float
+    message: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"estimates": [e.to_dict() for e in self.estimates], "cost_before": self.cost_before,
+                "cost_after": self.cost_after, "windows": self.n_windows, "evaluations": self.n_evaluations,
+                "seconds": round(self.seconds, 2), "message": self.message, **self.meta}
+
+
+class Objective:
+    """Free-run residuals of the windows, (ν̂ − ν)/σ_dof for u, v, r (σ_dof the spread of
+    the measured ν), as a function of the scaled parameter vector x (value = x·scale);
+    Jacobians by forward differences in one batch.
+
+    Velocities, not positions or heading: a free run's position and heading errors are
+    mostly the integral of its initial velocity error (the start is a smoothed
+    measurement), which would outweigh the dynamics being fitted."""
+
+    def __init__(self, prior: Vessel, params: list[Parameter], preps: list[Prepared], windows: list[Window],
+                 cache: ModelCache | None = None):
+        self.prior, self.params, self.preps, self.windows = prior, params, preps, windows
+        self.cache = cache or ModelCache()
+        self.scale = np.array([max(abs(p.get(prior)), p.typical) for p in params])
+        _, nu = measured(preps, windows)
+        self.meas = nu[:, 1:]
+        self.valid = np.isfinite(self.meas)
+        sd = np.array([np.nanstd(self.meas[..., k]) for k in range(3)])
+        self.sigma = np.where(sd > 1e-6, sd, 1.0)
+        self.evaluations = 0
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _seen(self, nu: np.ndarray) -> np.ndarray:
+        """The prediction as the measurement would show it (see windows.as_measured)."""
+        return as_measured(nu, self.preps, self.windows)
+
+    @property
+    def x_prior(self) -> np.ndarray:
+        return np.array([p.get(self.prior) for p in self.params]) / self.scale
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array([p.lo for p in self.params]) / self.scale, np.array([p.hi for p in self.params]) / self.scale)
+
+    def vessel(self, x: np.ndarray) -> Vessel:
+        v = self.prior
+        for p, xi, s in zip(self.params, x, self.scale):
+            v = p.put(v, float(xi * s))
+        return v
+
+    def _residuals(self, vessels: list[Vessel]) -> list[np.ndarray]:
+        ok = []
+        for v in vessels:
+            try:
+                check(v)
+                ok.append(True)
+            except TwinError:
+                ok.append(False)
+        good = [v for v, g in zip(vessels, ok) if g]
+        preds = iter(predict(good, self.preps, self.windows, self.cache) if good else [])
+        self.evaluations += len(vessels)
+        out = []
+        for g in ok:
+            if not g:
+                out.append(np.full(self.meas.size, 10.0)[self.valid.ravel()])
+                continue
+            pred = self._seen(next(preds).nu)[:, 1:]
+            r = (pred - self.meas) / self.sigma
+            r = np.where(np.isfinite(pred), r, 10.0)  # a diverged twin costs a lot, smoothly enough
+            out.append(r[self.valid])
+        return out
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        if self._last is not None and np.array_equal(self._last[0], x):
+            return self._last[1]
+        r = self._residuals([self.vessel(x)])[0]
+        self._last = (x.copy(), r)
+        return r
+
+    def jacobian(self, x: np.ndarray, step: float = 1e-4) -> np.ndarray:
+        lo, hi = self.bounds()
+        steps = np.where(x + step <= hi, step, -step)  # stay inside the bounds
+        trial = [x.copy() for _ in x]
+        for i in range(len(x)):
+            trial[i][i] += steps[i]
+        rs = self._residuals([self.vessel(x)] + [self.vessel(t) for t in trial])
+        self._last = (x.copy(), rs[0])
+        return np.column_stack([(r - rs[0]) / h for r, h in zip(rs[1:], steps)])
+
+    def window_index(self) -> np.ndarray:
+        """Window number of each residual (the clusters of the sandwich covariance)."""
+        idx = np.broadcast_to(np.arange(len(self.windows))[:, None, None], self.meas.shape)
+        return idx[self.valid]
+
+
+def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
+        window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
+        cache: ModelCache | None = None) -> FitResult:
+    """Identify `names` (see `parameters`) by free-run windows of window_s every stride_s s."""
+    started = time.time()
+    table = parameters(prior)
+    names = list(dict.fromkeys(names))
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        raise TwinError(f"unknown parameter(s) {', '.join(unknown)} (known: {', '.join(table)})")
+    if anchor == "mass" and "Xudot" in names and "thrust_gain" in names:
+        raise TwinError("Xudot and thrust_gain together are not identifiable (the scale needs an anchor): "
+                        "drop one, or use --anchor thrust")
+    if anchor == "thrust":
+        names = [n for n in names if n != "thrust_gain"] + (["Xudot"] if "Xudot" not in names else [])
+    if prior.thrusters.kind != "t200":
+        raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
+    windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
+    if not windows:
+        raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
+    if "lag_s" in names and prior.thrusters.lag_s <= 0:
+        prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.05))  # the lag state needs a start
+    obj = Objective(prior, [table[n] for n in names], preps, windows, cache)
+    x0 = np.clip(obj.x_prior, *obj.bounds())
+    cost0 = 0.5 * float(np.sum(obj.residuals(x0) ** 2))
+    sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
+                        max_nfev=max_evaluations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    J = obj.jacobian(sol.x)
+    r = obj.residuals(sol.x)
+    estimates = _estimates(obj, sol.x, J, r)
+    fitted = obj.vessel(np.array([e.value if e.identifiable else e.prior for e in estimates]) / obj.scale)
+    return FitResult(fitted, estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), obj.evaluations,
+                     time.time() - started, sol.message,
+                     {"anchor": anchor, "window_s": window_s, "stride_s": stride_s,
+                      "residual_rms": float(np.sqrt(np.mean(r ** 2)))})
+
+
+def _estimates(obj: Objective, x: np.ndarray, J: np.ndarray, r: np.ndarray) -> list[Estimate]:
+    """Values, cluster-robust 1-σ, and whether the data pins each parameter down."""
+    norms = np.linalg.norm(J, axis=0)
+    cov = _sandwich(J, r, obj.window_index())
+    out = []
+    for i, p in enumerate(obj.params):
+        value, prior = float(x[i] * obj.scale[i]), float(p.get(obj.prior))
+        sigma = float(np.sqrt(cov[i, i]) * obj.scale[i]) if cov is not None and cov[i, i] >= 0 else None
+        note = ""
+        if norms[i] < 1e-6 * max(norms.max(), 1e-12):
+            ok, note = False, "no effect on these recordings (the motion that excites it is missing)"
+        elif sigma is None or not np.isfinite(sigma):
+            ok, note = False, "not separable from the other parameters on these recordings"
+        elif sigma > max(abs(value), obj.scale[i] * 0.05):
+            ok, note = False, f"uncertainty ±{sigma:.3g} exceeds the value: not pinned down by these recordings"
+        else:
+            ok = True
+        out.append(Estimate(p.name, p.unit, prior, value, sigma if ok else None, ok, note))
+    return out
+
+
+def _sandwich(J: np.ndarray, r: np.ndarray, clusters: np.ndarray) -> np.ndarray | None:
+    """(JᵀJ)⁻¹ (Σ_w g_w g_wᵀ) (JᵀJ)⁻¹ with g_w = J_wᵀ r_w summed over the residuals of window w."""
+    JtJ = J.T @ J
+    if np.linalg.cond(JtJ) > 1e14:
+        return None
+    A = np.linalg.inv(JtJ)
+    g = np.zeros((clusters.max() + 1, J.shape[1]))
+    np.add.at(g, clusters, J * r[:, None])
+    return A @ (g.T @ g) @ A
