@@ -19,6 +19,7 @@ import numpy as np
 
 from ..recordings import Prepared
 from ..vessel import Vessel
+from .splits import scores
 from .windows import ModelCache, Window, make_windows, measured, predict
 
 DOFS = ("u", "v", "r")
@@ -42,7 +43,11 @@ class TwinPredictor:
         keep = [i for i, w in enumerate(wins) if w.n > 0]
         if keep:
             pred = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache)[0]
-            out[keep, : pred.nu.shape[1]] = pred.nu
+            nu = pred.nu.copy()
+            for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
+                w = wins[keep[j]]
+                nu[j, : w.n + 1] = np.where(np.isnan(nu[j, : w.n + 1]), np.inf, nu[j, : w.n + 1])
+            out[keep, : nu.shape[1]] = nu
         return out
 
 
@@ -52,19 +57,15 @@ def _steps_in_segment(prep: Prepared, start: int, n_steps: int) -> int:
 
 
 def r2_mae(pred: np.ndarray, meas: np.ndarray) -> dict:
-    """{u, v, r} → {r2, mae} over every finite pair (eqs. 40-41); R² against the measured
-    mean of the same samples."""
-    out = {}
+    """{u, v, r} → {r2, mae, n} over every pair with a measurement (eqs. 40-41, seed 004's
+    own definitions in splits.scores). A diverged prediction (inf) makes R² and MAE
+    unbounded: they are reported as None, with `diverged` counting such samples."""
+    p, m = pred.reshape(-1, 3), meas.reshape(-1, 3)
+    out = scores(m, p)
     for k, dof in enumerate(DOFS):
-        p, m = pred[..., k].ravel(), meas[..., k].ravel()
-        ok = np.isfinite(p) & np.isfinite(m)
-        if not ok.any():
-            out[dof] = {"r2": None, "mae": None, "n": 0}
-            continue
-        e = p[ok] - m[ok]
-        ss = float(np.sum((m[ok] - m[ok].mean()) ** 2))
-        out[dof] = {"r2": 1.0 - float(np.sum(e * e)) / ss if ss > 0 else None, "mae": float(np.mean(np.abs(e))),
-                    "n": int(ok.sum())}
+        out[dof] = {key: (float(val) if isinstance(val, float) and np.isfinite(val) else
+                          (val if isinstance(val, int) else None)) for key, val in out[dof].items()}
+        out[dof]["diverged"] = int(np.sum(np.isinf(p[:, k]) & np.isfinite(m[:, k])))
     return out
 
 
@@ -89,7 +90,7 @@ def evaluate(model: Predictor | Vessel, preps: list[Prepared], stride_s: float =
     for name, horizon in (horizons or HORIZONS).items():
         wins = horizon_windows(preps, horizon, stride_s)
         if not wins:
-            out[name] = {d: {"r2": None, "mae": None, "n": 0} for d in DOFS}
+            out[name] = {d: {"r2": None, "mae": None, "n": 0, "diverged": 0} for d in DOFS}
             continue
         pred, meas = _predictions(model, preps, wins)
         out[name] = r2_mae(pred[:, 1:], meas[:, 1:])

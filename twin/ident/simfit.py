@@ -51,10 +51,13 @@ class Parameter:
     typical: float
 
 
+DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2", "Yrv": "N s2/m", "Yr": "N s",
+                 "Yvr": "N s2/m", "Yrr": "N s2", "Nv": "N s", "Nvv": "N s2", "Nrv": "N s2", "Nr": "N m s",
+                 "Nvr": "N s2", "Nrr": "N m s2"}
+
+
 def _damping(name: str) -> Parameter:
-    unit = {"X": "N s/m", "Y": "N s/m", "N": "N m s"}[name[0]]
-    quad = len(name) > 2
-    return Parameter(name, unit + ("/m" if quad else ""), lambda v: getattr(v.damping, name),
+    return Parameter(name, DAMPING_UNITS[name], lambda v: getattr(v.damping, name),
                      lambda v, x: replace(v, damping=replace(v.damping, **{name: x})), -1e4, 0.0, 10.0)
 
 
@@ -141,11 +144,11 @@ def parameters(prior: Vessel) -> dict[str, Parameter]:
 
 def _coupling(name: str) -> Parameter:
     """Linear sway-yaw coupling (either sign is dissipative while Yv·Nr dominates)."""
-    unit = "N s" if name[0] == "Y" else "N s"
-    return Parameter(name, unit, lambda v: getattr(v.damping, name),
+    return Parameter(name, DAMPING_UNITS[name], lambda v: getattr(v.damping, name),
                      lambda v, x: replace(v, damping=replace(v.damping, **{name: x})), -1e3, 1e3, 1.0)
 
 
+SETTLE_S = 1.0
 DEFAULT = ("Xu", "Xuu", "Yv", "Yvv", "Nr", "Nrr", "Yvdot", "Nrdot", "thrust_gain", "reverse_scale", "lag_s")
 
 
@@ -191,16 +194,20 @@ class Objective:
 
     Velocities, not positions or heading: a free run's position and heading errors are
     mostly the integral of its initial velocity error (the start is a smoothed
-    measurement), which would outweigh the dynamics being fitted."""
+    measurement), which would outweigh the dynamics being fitted. For the same reason
+    the first settle_s of each window is not compared: a fit that followed the decay of
+    a noisy initial state would bend the fast dynamics (yaw and sway inertia) to do it."""
 
     def __init__(self, prior: Vessel, params: list[Parameter], preps: list[Prepared], windows: list[Window],
-                 cache: ModelCache | None = None):
+                 cache: ModelCache | None = None, settle_s: float = SETTLE_S):
         self.prior, self.params, self.preps, self.windows = prior, params, preps, windows
         self.cache = cache or ModelCache()
         self.scale = np.array([max(abs(p.get(prior)), p.typical) for p in params])
         _, nu = measured(preps, windows)
         self.meas = nu[:, 1:]
         self.valid = np.isfinite(self.meas)
+        h = float(preps[0].settings.get("grid_dt", 0.1))
+        self.valid[:, : int(round(settle_s / h))] = False
         sd = np.array([np.nanstd(self.meas[..., k]) for k in range(3)])
         self.sigma = np.where(sd > 1e-6, sd, 1.0)
         self.evaluations = 0
@@ -270,7 +277,7 @@ class Objective:
 
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
-        cache: ModelCache | None = None) -> FitResult:
+        cache: ModelCache | None = None, settle_s: float = SETTLE_S) -> FitResult:
     """Identify `names` (see `parameters`) by free-run windows of window_s every stride_s s."""
     started = time.time()
     table = parameters(prior)
@@ -290,7 +297,7 @@ def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, 
         raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
     if "lag_s" in names and prior.thrusters.lag_s <= 0:
         prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.05))  # the lag state needs a start
-    obj = Objective(prior, [table[n] for n in names], preps, windows, cache)
+    obj = Objective(prior, [table[n] for n in names], preps, windows, cache, min(settle_s, window_s / 2))
     x0 = np.clip(obj.x_prior, *obj.bounds())
     cost0 = 0.5 * float(np.sum(obj.residuals(x0) ** 2))
     sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",

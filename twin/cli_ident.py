@@ -1,0 +1,157 @@
+"""`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from .cli import MODEL_HELP, VESSEL_HELP, _channels, _vessel, app, console
+from .errors import TwinError
+from .vessel import write_text_atomic
+
+RECORDING_FORMATS = (".tlog", ".mcap", ".csv")
+
+
+def _check_outputs(paths: list[Path], formats: tuple[str, ...]) -> None:
+    for p in paths:
+        if p.suffix.lower() not in formats:
+            raise TwinError(f"output '{p}': use {', '.join(formats)}")
+        if not p.parent.exists():
+            raise TwinError(f"output '{p}': folder '{p.parent}' does not exist")
+
+
+def _write_json(path: Optional[Path], data: dict) -> None:
+    if path is not None:
+        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False, default=_plain) + "\n")
+        console.print(f"wrote {path}")
+
+
+def _plain(x):
+    import numpy as np
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+@app.command("dataset")
+def dataset_command(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    out: list[Path] = typer.Option(..., help="recording(s) to write: .tlog, .mcap, .csv (repeatable)"),
+    truth: Optional[Path] = typer.Option(None, help="truth file (JSON; default: OUT.truth.json beside the first output)"),
+    segments: int = typer.Option(8, help="number of trajectory segments"),
+    manoeuvres: str = typer.Option(",".join(("rc", "forward_constant", "forward_varying", "zigzag", "circle_constant",
+                                             "circle_varying")),
+                                   help="manoeuvres to cycle through: rc, forward_constant, forward_varying, zigzag, "
+                                        "circle_constant, circle_varying, autopilot"),
+    effect: list[str] = typer.Option([], help="effect injected in the truth, NAME=V1,V2 (repeatable; "
+                                              "`twin effects` lists them)"),
+    noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
+    seed: int = typer.Option(0, help="random seed (manoeuvres, start states, noise)"),
+    case: str = typer.Option("nominal", help="mass case"),
+):
+    """Synthetic identification dataset from the twin, with its truth in a separate file."""
+    from .ident.dataset import generate, noise_profile
+    from .recordings import write_recording
+
+    _check_outputs(out, RECORDING_FORMATS)
+    truth = truth or out[0].with_name(out[0].stem + ".truth.json")
+    _check_outputs([truth], (".json",))
+    names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
+    ds = generate(_vessel(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names, seed=seed,
+                  noise=noise_profile(noise))
+    for path in out:
+        write_recording(ds.recording, path)
+        console.print(f"wrote {path}")
+    _write_json(truth, ds.truth())
+    total = sum(r.t[-1] - r.t[0] for r in ds.runs)
+    console.print(f"{len(ds.runs)} segments, {total:.0f} s logged ({', '.join(m.name for m in ds.manoeuvres)}); "
+                  f"effects: {', '.join(e.text for e in ds.effects) or 'none'}")
+
+
+@app.command("effects")
+def effects_command():
+    """The effects a dataset can inject and a diagnosis can name."""
+    from .ident.effects import describe
+
+    typer.echo(describe())
+
+
+@app.command("identify")
+def identify_command(
+    recordings: list[Path] = typer.Argument(..., help="recordings: .tlog, .bin, .csv, .mcap"),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
+    thruster: str = typer.Option("static", help="seed 004 thruster model: static | dynamic"),
+    split: str = typer.Option("segments", help="seed 004 tables: split by segments | points"),
+    train: float = typer.Option(0.7, help="training share of the seed 004 splits"),
+    repeats: int = typer.Option(20, help="random splits for the seed 004 tables"),
+    params: Optional[str] = typer.Option(None, help="parameters of the simulation fit, comma separated "
+                                                   "(default: " + ",".join(__import__("twin.ident.simfit",
+                                                                                      fromlist=["DEFAULT"]).DEFAULT)
+                                                   + ")"),
+    anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
+    window: float = typer.Option(10.0, help="free-run window of the simulation fit, s"),
+    no_simulation: bool = typer.Option(False, "--no-simulation", help="only the seed 004 least squares"),
+    channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT (logs without them)"),
+    seed: int = typer.Option(0, help="random seed of the splits"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
+):
+    """Identify a vessel from recordings: seed 004 grey-box, then simulation fit."""
+    from .ident import identify as ident
+    from .vessel import save
+
+    _check_outputs([out], (".json",))
+    if json_out is not None:
+        _check_outputs([json_out], (".json",))
+    if anchor not in ("mass", "thrust"):
+        raise TwinError(f"--anchor must be mass or thrust, got '{anchor}'")
+    prior = _vessel(vessel, model, "nominal")
+    names = tuple(p.strip() for p in params.split(",")) if params else ident.simfit.DEFAULT
+    preps = ident.load(recordings, prior, _channels(channels))
+    report = ident.identify(preps, prior, thruster=thruster, split=split, train=train, repeats=repeats, seed=seed,
+                            params=names, anchor=anchor, simulate=not no_simulation, window_s=window,
+                            sources=[str(r) for r in recordings])
+    text = ident.format_greybox(report.greybox)
+    if text:
+        console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")
+        typer.echo(text)
+    if report.simfit is not None:
+        console.print("[bold]identification by simulation[/]")
+        typer.echo(ident.format_estimates(report.simfit))
+    for note in report.notes:
+        typer.echo(f"note: {note}")
+    if report.simfit is None:
+        raise TwinError("no vessel written: the simulation fit was switched off (--no-simulation)")
+    save(report.vessel, out)
+    console.print(f"wrote {out} (use: twin simulate --model {out}, twin evaluate --model {out} ...)")
+    _write_json(json_out, report.to_dict())
+
+
+@app.command("evaluate")
+def evaluate_command(
+    recordings: list[Path] = typer.Argument(..., help="recordings to evaluate on"),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
+    stride: float = typer.Option(2.0, help="free-run windows start every STRIDE s"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write the metrics as JSON"),
+):
+    """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments."""
+    from .ident.evaluate import evaluate, format_metrics
+    from .ident.identify import load
+
+    if json_out is not None:
+        _check_outputs([json_out], (".json",))
+    v = _vessel(vessel, model, "nominal")
+    preps = load(recordings, v, _channels(channels))
+    metrics = evaluate(v, preps, stride_s=stride)
+    typer.echo(format_metrics(metrics, f"{v.name} on {', '.join(p.name for p in recordings)}"))
+    _write_json(json_out, {"vessel": v.name, "model": str(model) if model else None,
+                           "recordings": [str(p) for p in recordings], "metrics": metrics})
