@@ -325,7 +325,7 @@ def view(
 
 
 # commands that live in their own modules register themselves on `app`
-from . import cli_ident, cli_iso  # noqa: E402,F401
+from . import cli_diagnose, cli_ident, cli_iso  # noqa: E402,F401
 
 
 def main() -> None:

@@ -74,12 +74,15 @@ def _as_models(twins: Twin | Sequence[Twin], n: int) -> list[mujoco.MjModel]:
     if isinstance(twins, (CompiledVessel, mujoco.MjModel)):
         twins = [twins] * n
     built: dict[int, mujoco.MjModel] = {}
+    checked: set[int] = set()
     models = []
     for t in twins:
         if isinstance(t, CompiledVessel):
             t = built.setdefault(id(t), native.with_native_params(t))
-        if not native.has_params(t):
-            raise TwinError("batch: a model without twin parameters (build it with native.with_native_params)")
+        if id(t) not in checked:
+            if not native.has_params(t):
+                raise TwinError("batch: a model without twin parameters (build it with native.with_native_params)")
+            checked.add(id(t))
         models.append(t)
     if len(models) != n:
         raise TwinError(f"batch: {len(models)} models for {n} initial states")
@@ -94,8 +97,12 @@ def _signature(model: mujoco.MjModel) -> tuple:
 def _groups(models: list[mujoco.MjModel]) -> list[list[int]]:
     """Indices of the twins that rollout may run together (same size signature)."""
     groups: dict[tuple, list[int]] = {}
+    known: dict[int, tuple] = {}  # the same model object repeats for many twins: sign it once
     for i, m in enumerate(models):
-        groups.setdefault(_signature(m), []).append(i)
+        sig = known.get(id(m))
+        if sig is None:
+            sig = known[id(m)] = _signature(m)
+        groups.setdefault(sig, []).append(i)
     return list(groups.values())
 
 
@@ -105,7 +112,7 @@ def _check_inputs(models, states: np.ndarray, controls: np.ndarray) -> None:
         raise TwinError(f"batch: initial states must be (N, nstate), got {states.shape}")
     if controls.ndim != 3 or controls.shape[0] != n or controls.shape[2] != 2:
         raise TwinError(f"batch: controls must be (N, nstep, 2) thrust commands, got {controls.shape}")
-    for m in models:
+    for m in {id(m): m for m in models}.values():
         if m.nu != 2 or state_size(m) != states.shape[1]:
             raise TwinError("batch: every model needs 2 thrusters and the initial states' nstate")
 

@@ -49,6 +49,7 @@ class Parameter:
     lo: float
     hi: float
     typical: float
+    fd_abs: float | None = None  # an absolute finite-difference step (value units) where the cost is stepwise
 
 
 DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2", "Yrv": "N s2/m", "Yr": "N s",
@@ -187,6 +188,42 @@ class FitResult:
                 "seconds": round(self.seconds, 2), "message": self.message, **self.meta}
 
 
+class Measurements:
+    """The recordings as a candidate vessel's sensors see them.
+
+    Fixed prepared recordings (identification), or raw recordings re-prepared for each
+    heading-sensor and antenna calibration a candidate carries (diagnosis of sensor
+    effects: what is measured changes with the calibration, not only what is predicted).
+    The grid does not change with the calibration, so windows stay valid."""
+
+    def __init__(self, preps: list[Prepared], recordings: list | None = None, compiled=None,
+                 prepare_kwargs: dict | None = None):
+        """preps: the recordings prepared for `compiled.vessel` (or fixed, without recordings)."""
+        self.preps, self.recordings, self.compiled = preps, recordings, compiled
+        self.kwargs = prepare_kwargs or {}
+        self._cache: dict[tuple, list[Prepared]] = {}
+        self._key0 = self._key(compiled.vessel) if compiled is not None else None
+
+    @staticmethod
+    def _key(vessel: Vessel) -> tuple:
+        s = vessel.sensors
+        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.antenna_offset_m))
+
+    def for_vessel(self, vessel: Vessel) -> list[Prepared]:
+        if self.recordings is None or self._key(vessel) == self._key0:
+            return self.preps
+        key = self._key(vessel)
+        if key not in self._cache:
+            from ..engine.mjcf import CompiledVessel
+            from ..replay import prepare_for
+
+            cv = CompiledVessel(vessel, self.compiled.model, self.compiled.geometry)
+            self._cache[key] = [prepare_for(r, cv, **self.kwargs) for r in self.recordings]
+            if len(self._cache) > 64:
+                self._cache.pop(next(iter(self._cache)))
+        return self._cache[key]
+
+
 class Objective:
     """Free-run residuals of the windows, (ν̂ − ν)/σ_dof for u, v, r (σ_dof the spread of
     the measured ν), as a function of the scaled parameter vector x (value = x·scale);
@@ -198,24 +235,28 @@ class Objective:
     the first settle_s of each window is not compared: a fit that followed the decay of
     a noisy initial state would bend the fast dynamics (yaw and sway inertia) to do it."""
 
-    def __init__(self, prior: Vessel, params: list[Parameter], preps: list[Prepared], windows: list[Window],
-                 cache: ModelCache | None = None, settle_s: float = SETTLE_S):
-        self.prior, self.params, self.preps, self.windows = prior, params, preps, windows
+    def __init__(self, prior: Vessel, params: list[Parameter], preps: list[Prepared] | Measurements,
+                 windows: list[Window], cache: ModelCache | None = None, settle_s: float = SETTLE_S):
+        self.data = preps if isinstance(preps, Measurements) else Measurements(preps)
+        self.prior, self.params, self.preps, self.windows = prior, params, self.data.preps, windows
         self.cache = cache or ModelCache()
         self.scale = np.array([max(abs(p.get(prior)), p.typical) for p in params])
-        _, nu = measured(preps, windows)
-        self.meas = nu[:, 1:]
+        self.steps = np.array([1e-4 if p.fd_abs is None else p.fd_abs / s for p, s in zip(params, self.scale)])
+        self.meas = self._measured(self.preps)
         self.valid = np.isfinite(self.meas)
-        h = float(preps[0].settings.get("grid_dt", 0.1))
+        h = float(self.preps[0].settings.get("grid_dt", 0.1))
         self.valid[:, : int(round(settle_s / h))] = False
         sd = np.array([np.nanstd(self.meas[..., k]) for k in range(3)])
         self.sigma = np.where(sd > 1e-6, sd, 1.0)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
 
-    def _seen(self, nu: np.ndarray) -> np.ndarray:
+    def _measured(self, preps: list[Prepared]) -> np.ndarray:
+        return measured(preps, self.windows)[1][:, 1:]
+
+    def _seen(self, nu: np.ndarray, preps: list[Prepared]) -> np.ndarray:
         """The prediction as the measurement would show it (see windows.as_measured)."""
-        return as_measured(nu, self.preps, self.windows)
+        return as_measured(nu, preps, self.windows)
 
     @property
     def x_prior(self) -> np.ndarray:
@@ -239,15 +280,18 @@ class Objective:
             except TwinError:
                 ok.append(False)
         good = [v for v, g in zip(vessels, ok) if g]
-        preds = iter(predict(good, self.preps, self.windows, self.cache) if good else [])
+        seen = [self.data.for_vessel(v) for v in good]
+        preds = iter(zip(predict(good, seen, self.windows, self.cache), seen) if good else [])
         self.evaluations += len(vessels)
         out = []
         for g in ok:
             if not g:
-                out.append(np.full(self.meas.size, 10.0)[self.valid.ravel()])
+                out.append(np.full(int(self.valid.sum()), 10.0))
                 continue
-            pred = self._seen(next(preds).nu)[:, 1:]
-            r = (pred - self.meas) / self.sigma
+            prediction, preps = next(preds)
+            meas = self.meas if preps is self.preps else self._measured(preps)
+            pred = self._seen(prediction.nu, preps)[:, 1:]
+            r = (pred - meas) / self.sigma
             r = np.where(np.isfinite(pred), r, 10.0)  # a diverged twin costs a lot, smoothly enough
             out.append(r[self.valid])
         return out
@@ -259,9 +303,9 @@ class Objective:
         self._last = (x.copy(), r)
         return r
 
-    def jacobian(self, x: np.ndarray, step: float = 1e-4) -> np.ndarray:
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
         lo, hi = self.bounds()
-        steps = np.where(x + step <= hi, step, -step)  # stay inside the bounds
+        steps = np.where(x + self.steps <= hi, self.steps, -self.steps)  # stay inside the bounds
         trial = [x.copy() for _ in x]
         for i in range(len(x)):
             trial[i][i] += steps[i]

@@ -69,10 +69,14 @@ def _structure_key(vessel: Vessel) -> tuple:
 
 class ModelCache:
     """Compiled native models by structure; per vessel a cheap copy with its own
-    hydrodynamic parameters, thruster gains, advance loss, lag and range."""
+    hydrodynamic parameters, thruster gains, advance loss, lag and range.
 
-    def __init__(self) -> None:
+    timestep_s overrides the MJCF's time step (a coarser RK4 step for the many
+    candidate runs of a diagnosis; it must divide the recordings' grid)."""
+
+    def __init__(self, timestep_s: float | None = None) -> None:
         self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
+        self.timestep_s = timestep_s
 
     def compiled(self, vessel: Vessel) -> CompiledVessel:
         return self._base(vessel)[0]
@@ -81,7 +85,10 @@ class ModelCache:
         key = _structure_key(vessel)
         if key not in self._compiled:
             cv = compile_vessel(vessel)
-            self._compiled[key] = (cv, native.with_native_params(cv))
+            model = native.with_native_params(cv)
+            if self.timestep_s is not None:
+                model.opt.timestep = self.timestep_s
+            self._compiled[key] = (cv, model)
         return self._compiled[key]
 
     def model(self, vessel: Vessel) -> mujoco.MjModel:
@@ -196,10 +203,26 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             states.append(_initial_state(model, data, prep, w, act0))
             controls.append(padded)
             owners.append(iv)
-    traj, diverged = batch.rollout(models, np.array(states), np.array(controls), nthread=nthread)
+    traj, diverged = _rollout(models, states, controls, nthread)
     return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
                      per_vessel[iv])
             for iv in range(len(vessels))]
+
+
+def _rollout(models, states, controls, nthread) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
+    """One rollout per state size (a lagged twin carries actuator states, a plain one does not)."""
+    sizes: dict[int, list[int]] = {}
+    for i, s in enumerate(states):
+        sizes.setdefault(len(s), []).append(i)
+    traj: list[np.ndarray | None] = [None] * len(models)
+    diverged = []
+    for rows in sizes.values():
+        out, bad = batch.rollout([models[i] for i in rows], np.array([states[i] for i in rows]),
+                                 np.array([controls[i] for i in rows]), nthread=nthread)
+        for j, i in enumerate(rows):
+            traj[i] = out[j]
+        diverged += [(rows[j], t) for j, t in bad]
+    return traj, diverged
 
 
 def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction:
@@ -214,7 +237,7 @@ def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction
     for j, (row, w) in enumerate(zip(rows, windows)):
         prep = preps[w.rec]
         sub = _substeps(float(prep.settings.get("grid_dt", 0.1)), model.opt.timestep)
-        picks = traj[row, sub - 1: w.n * sub: sub]
+        picks = traj[row][sub - 1: w.n * sub: sub]
         eta[j, 0] = (prep.north[w.start], prep.east[w.start], prep.psi[w.start])
         nu[j, 0] = (prep.u[w.start], prep.v[w.start], prep.r[w.start])
         e = picks[:, [1 + q for q in qpos]]

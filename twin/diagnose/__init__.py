@@ -1,0 +1,1 @@
+"""Diagnosis: where twin and recording disagree, which physics is missing, and the amended twin."""

@@ -1,0 +1,223 @@
+"""Which effects explain the mismatch: candidates fitted on training windows, judged on
+held-out windows, added one at a time while one still earns its place.
+
+Round by round, from the current twin (the prior plus the effects kept so far):
+1. screen every candidate cheaply: from each of its starts, one Gauss-Newton step on
+   the training windows (a scan for time shifts) and the training cost there;
+2. fit the most promising few fully (bounded least squares);
+3. judge each fitted candidate on the held-out windows: the per-window log cost ratio
+   d_w = ln(c_w(current)/c_w(candidate)) must be significantly positive (z = mean/SE >
+   Z_MIN, the windows as independent samples; logs, because windows differ in misfit by
+   orders of magnitude and a plain difference would let a few dominate) and the total
+   misfit must drop by more than REL_MIN;
+4. keep the best, refit all kept effects jointly, repeat.
+
+A candidate that does nearly as well on held-out data as the one kept (paired z of
+their held-out costs < Z_SEPARABLE) is reported as not separable from it by this
+recording. Uncertainty: the cluster-robust (sandwich) covariance of the joint fit,
+windows as clusters, as in identification.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import TwinError
+from ..ident.simfit import Measurements, Objective, _sandwich
+from ..ident.windows import ModelCache, Window
+from ..vessel import Vessel
+from .candidates import Candidate
+
+Z_MIN = 3.0  # one-sided p ≈ 0.001 per test: with ~20 candidates a round, about 2 % false alarms
+REL_MIN = 0.02  # an effect that removes less than 2 % of the held-out misfit is not worth a parameter
+Z_SEPARABLE = 2.0
+FULL_FITS = 4  # candidates fitted fully per round, after screening
+MAX_EFFECTS = 5
+
+
+@dataclass
+class Fitted:
+    """A candidate fitted on the training windows, from the vessel `base`."""
+
+    candidate: Candidate
+    values: dict[str, float]
+    vessel: Vessel
+    train_cost: float
+    held: np.ndarray | None = None  # per held-out window cost
+    z: float = 0.0
+    rel: float = 0.0
+    dof_rel: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class Kept:
+    fitted: Fitted
+    rivals: list[dict]
+    improvement: dict[str, float]
+
+
+class Search:
+    def __init__(self, prior: Vessel, data: Measurements, train: list[Window], held: list[Window],
+                 cache: ModelCache, library: dict[str, Candidate], log=None):
+        self.prior, self.data, self.train, self.held, self.cache = prior, data, train, held, cache
+        self.library = library
+        self.log = log or (lambda msg: None)
+        self.evaluations = 0
+        self.values: dict[str, float] = {}
+        self.sigma: dict[str, float | None] = {}
+        self.cov: np.ndarray | None = None
+        self.cov_names: list[str] = []
+
+    # ------------------------------------------------------------ costs
+
+    def _objective(self, base: Vessel, params, windows) -> Objective:
+        return Objective(base, list(params), self.data, windows, self.cache)
+
+    def held_costs(self, vessels: list[Vessel]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per held-out window cost and per-DOF squared residual sums, for each vessel."""
+        obj = self._objective(self.prior, [], self.held)
+        res = obj._residuals(vessels)
+        self.evaluations += obj.evaluations * len(self.held)
+        idx = obj.window_index()
+        dof = np.broadcast_to(np.arange(3), obj.meas.shape)[obj.valid]
+        out = []
+        for r in res:
+            out.append((np.bincount(idx, r * r, minlength=len(self.held)), np.bincount(dof, r * r, minlength=3)))
+        return out
+
+    # ------------------------------------------------------------ one candidate
+
+    def screen(self, base: Vessel, cand: Candidate) -> list[Fitted]:
+        """Cheap look: a scan, or one Gauss-Newton step from each start."""
+        obj = self._objective(base, cand.params, self.train)
+        out = []
+        if cand.scan:
+            xs = [np.array([v]) / obj.scale for v in cand.scan]
+            costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in xs])]
+            x = xs[int(np.argmin(costs))]
+            out.append(self._fitted(cand, obj, x, min(costs)))
+        else:
+            for start in cand.starts:
+                x0 = np.clip(np.array(start, float) / obj.scale, *obj.bounds())
+                J = obj.jacobian(x0)
+                r0 = obj.residuals(x0)
+                step = np.linalg.lstsq(J, -r0, rcond=None)[0]
+                x1 = np.clip(x0 + step, *obj.bounds())
+                c1 = float(np.sum(obj.residuals(x1) ** 2))
+                c0 = float(np.sum(r0 ** 2))
+                out.append(self._fitted(cand, obj, x1 if c1 < c0 else x0, min(c0, c1)))
+        self.evaluations += obj.evaluations * len(self.train)
+        return out
+
+    def refine(self, base: Vessel, fitted: Fitted) -> Fitted:
+        """Bounded least squares from the screened point (a scanned time shift: a finer scan)."""
+        cand = fitted.candidate
+        obj = self._objective(base, cand.params, self.train)
+        x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
+        if cand.scan:
+            grid = x0[0] * obj.scale[0] + np.arange(-0.04, 0.0401, 0.01)
+            xs = [np.array([v]) / obj.scale for v in grid if cand.params[0].lo <= v <= cand.params[0].hi]
+            costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in xs])]
+            best = self._fitted(cand, obj, xs[int(np.argmin(costs))], min(costs))
+        else:
+            sol = least_squares(obj.residuals, np.clip(x0, *obj.bounds()), jac=obj.jacobian, bounds=obj.bounds(),
+                                method="trf", x_scale="jac", max_nfev=12, xtol=1e-6, ftol=1e-6)
+            best = self._fitted(cand, obj, sol.x, float(np.sum(sol.fun ** 2)))
+        self.evaluations += obj.evaluations * len(self.train)
+        return best
+
+    @staticmethod
+    def _fitted(cand: Candidate, obj: Objective, x: np.ndarray, cost: float) -> Fitted:
+        values = {p.name: float(xi * s) for p, xi, s in zip(cand.params, x, obj.scale)}
+        return Fitted(cand, values, obj.vessel(x), cost)
+
+    # ------------------------------------------------------------ rounds
+
+    def round(self, base: Vessel, base_held: tuple[np.ndarray, np.ndarray], skip: set[str]) -> list[Fitted]:
+        """Every remaining candidate screened, the best few fitted and judged on held-out data,
+        best first."""
+        screened = []
+        for name, cand in self.library.items():
+            if name in skip:
+                continue
+            try:
+                screened.append(min(self.screen(base, cand), key=lambda f: f.train_cost))
+            except TwinError as exc:
+                self.log(f"candidate {name} skipped: {exc}")
+        screened.sort(key=lambda f: f.train_cost)
+        best = [self.refine(base, f) for f in screened[:FULL_FITS]]
+        judged = self.held_costs([f.vessel for f in best])
+        for f, (per_window, per_dof) in zip(best, judged):
+            f.held = per_window
+            f.z = _paired_z(base_held[0], per_window)
+            f.rel = float(np.sum(base_held[0] - per_window) / max(np.sum(base_held[0]), 1e-12))
+            f.dof_rel = {k: float((base_held[1][i] - per_dof[i]) / max(base_held[1][i], 1e-12))
+                         for i, k in enumerate("uvr")}
+        return sorted(best, key=lambda f: f.rel, reverse=True)
+
+    def joint(self, kept: list[Fitted]) -> tuple[Vessel, dict, dict]:
+        """All kept effects refitted together from their values: the vessel, values and 1-σ."""
+        params = [p for f in kept for p in f.candidate.params]
+        base = self.prior
+        obj = self._objective(base, params, self.train)
+        x0 = np.clip(np.array([f.values[p.name] for f in kept for p in f.candidate.params]) / obj.scale,
+                     *obj.bounds())
+        sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
+                            max_nfev=20, xtol=1e-7, ftol=1e-7)
+        J = obj.jacobian(sol.x)
+        cov = _sandwich(J, obj.residuals(sol.x), obj.window_index())
+        self.evaluations += obj.evaluations * len(self.train)
+        names = [f"{f.candidate.name}.{p.name}" for f in kept for p in f.candidate.params]
+        values = {n: float(x * s) for n, x, s in zip(names, sol.x, obj.scale)}
+        self.cov = None if cov is None else cov * np.outer(obj.scale, obj.scale)  # value units
+        self.cov_names = names
+        sigma = {n: (float(np.sqrt(self.cov[i, i])) if self.cov is not None and self.cov[i, i] >= 0 else None)
+                 for i, n in enumerate(names)}
+        return obj.vessel(sol.x), values, sigma
+
+    def run(self) -> tuple[Vessel, list[Kept], list[dict]]:
+        """Forward selection (module docstring). Returns the amended vessel, the kept effects
+        and the record of every round."""
+        current = self.prior
+        base_held = self.held_costs([current])[0]
+        kept: list[Kept] = []
+        rounds: list[dict] = []
+        for _ in range(MAX_EFFECTS):
+            tried = self.round(current, base_held, {k.fitted.candidate.name for k in kept})
+            rounds.append({"candidates": [{"name": f.candidate.name, "z": round(f.z, 2), "rel": round(f.rel, 4),
+                                           "values": f.values} for f in tried]})
+            winner = next((f for f in tried if f.z > Z_MIN and f.rel > REL_MIN), None)
+            if winner is None:
+                break
+            self.log(f"kept {winner.candidate.name}: held-out misfit −{100 * winner.rel:.1f} % (z = {winner.z:.1f})")
+            kept.append(Kept(winner, self._rivals(winner, tried), winner.dof_rel))
+            current, self.values, self.sigma = self.joint([k.fitted for k in kept])
+            for k, f in zip(kept, self._split_values(kept, current)):
+                k.fitted.values = f
+            base_held = self.held_costs([current])[0]
+        return current, kept, rounds
+
+    def _rivals(self, winner: Fitted, tried: list[Fitted]) -> list[dict]:
+        out = []
+        for f in tried:
+            if f is winner or f.held is None or f.rel < 0.5 * winner.rel:
+                continue
+            z = _paired_z(f.held, winner.held)
+            out.append({"name": f.candidate.name, "z": round(z, 2), "separable": bool(z > Z_SEPARABLE),
+                        "held_out_gain": round(f.rel, 4), "values": f.values})
+        return out
+
+    @staticmethod
+    def _split_values(kept: list[Kept], vessel: Vessel) -> list[dict]:
+        return [{p.name: float(p.get(vessel)) for p in k.fitted.candidate.params} for k in kept]
+
+
+def _paired_z(worse: np.ndarray, better: np.ndarray) -> float:
+    """z of the mean per-window log cost ratio ln(worse/better) (> 0: `better` is better)."""
+    d = np.log(np.maximum(worse, 1e-12) / np.maximum(better, 1e-12))
+    if len(d) < 2:
+        return 0.0
+    se = float(np.std(d, ddof=1) / np.sqrt(len(d)))
+    return float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
