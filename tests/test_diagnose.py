@@ -1,0 +1,128 @@
+"""`twin diagnose`: every library effect recovered by its candidate on data it was
+injected in, the whole diagnosis on a concealed effect and on the twin's own data,
+and the command's outputs."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.diagnose.candidates import candidates
+from twin.diagnose.doctor import diagnose, split_windows
+from twin.diagnose.search import Search
+from twin.engine.mjcf import compile_vessel
+from twin.errors import TwinError
+from twin.ident.dataset import PROFILES, generate
+from twin.ident.effects import EFFECTS, as_effect
+from twin.ident.simfit import Measurements
+from twin.ident.windows import ModelCache
+from twin.recordings import write_recording
+from twin.replay import prepare_for
+
+PREP = {"window_s": 1.0, "heading_window_s": 0.5}
+MIXED = ["rc", "circle_varying", "forward_varying", "zigzag"]
+
+# effect injected → (candidate, tolerance on each effect parameter: relative, or absolute for angles/offsets)
+CASES = {
+    "current=0.3,60": ("current", {"speed_m_s": 0.05, "dir_deg": 5.0}),
+    "wind=8,30": ("wind", {"speed_m_s": 0.15, "dir_deg": 10.0}),
+    "thruster_lag=0.5": ("thruster_lag", {"tau_s": 0.1}),
+    "input_delay=0.4": ("input_delay", {"delay_s": 0.021}),
+    "clock_offset=0.3": ("clock_offset", {"offset_s": 0.021}),
+    "dead_zone=0.2,0.2": ("dead_zone", {"fwd": 0.15, "rev": 0.15}),
+    "thruster_asymmetry=0.85": ("thruster_asymmetry", {"ratio": 0.03}),
+    "thrust_gain=1.2": ("thrust_gain", {"scale": 0.03}),
+    "thrust_decay=0.1": ("thrust_decay", {"per_min": 0.15}),
+    "thrust_speed_loss=0.2": ("thrust_speed_loss", {"per_m_s": 0.15}),
+    "heading_bias=5": ("heading_bias", {"bias_deg": 0.5}),
+    "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
+    "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
+    "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
+    "linear_damping=Nr:0.6": ("linear_damping", {"Nr": 0.1}),
+    "coupling_damping=-6,-4": ("coupling_damping", {"Yr": 2.0, "Nv": 2.0}),
+    "added_mass=Yvdot:1.6": ("added_mass", {"Yvdot": 0.15}),
+    "cg_offset=0.2,0": ("cg_offset", {"dx_m": 0.05, "dy_m": 0.05}),
+}
+ABSOLUTE = {"dir_deg", "delay_s", "offset_s", "bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev"}
+
+
+@pytest.fixture(scope="module")
+def prior():
+    return vessel_mod.load("yellowfish")
+
+
+def test_every_library_effect_has_a_case():
+    assert {as_effect(text).name for text in CASES} | {"thruster_asymmetry"} >= set(EFFECTS)
+
+
+@pytest.mark.parametrize("text", list(CASES))
+def test_candidate_recovers_its_effect(prior, text):
+    name, tolerance = CASES[text]
+    ds = generate(prior, effects=[text], n_segments=3, seed=2, noise=PROFILES["none"], segment_s=(35, 40),
+                  manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    preps = [prepare_for(ds.recording, cv, **PREP)]
+    train, held = split_windows(preps)
+    search = Search(prior, Measurements(preps, [ds.recording], cv, PREP), train + held, held, ModelCache(0.05),
+                    candidates(prior))
+    cand = search.library[name]
+    fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
+    got = cand.to_effect(fitted.values).params
+    injected = as_effect(text).params
+    for key, tol in tolerance.items():
+        want = injected[key]
+        if key == "dir_deg":
+            assert abs((got[key] - want + 180) % 360 - 180) < tol, (key, got[key], want)
+        elif key in ABSOLUTE:
+            assert got[key] == pytest.approx(want, abs=tol), (key, got[key], want)
+        else:
+            assert got[key] == pytest.approx(want, rel=tol), (key, got[key], want)
+
+
+def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):
+    ds = generate(prior, effects=["current=0.2,120"], n_segments=6, seed=5, noise=PROFILES["realistic"])
+    d = diagnose([ds.recording], prior)
+    assert [e["name"] for e in d.effects] == ["current"]
+    e = d.effects[0]
+    lo, hi = e["ci"]["speed_m_s"]
+    assert lo - 0.01 <= 0.2 <= hi + 0.01 and abs(e["parameters"]["dir_deg"] - 120) < 5
+    assert d.fit_after["v"]["r2"] > d.fit_before["v"]["r2"] + 0.3
+    assert d.amended.environment.current_speed_m_s == pytest.approx(e["parameters"]["speed_m_s"], rel=1e-6)
+    null = diagnose([generate(prior, n_segments=6, seed=6, noise=PROFILES["realistic"]).recording], prior)
+    assert null.effects == [] and null.notes
+    json.dumps(null.to_dict(), allow_nan=True)
+
+
+def test_diagnose_command_writes_everything(tmp_path, prior):
+    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=5, seed=3, noise=PROFILES["realistic"],
+                  manoeuvres=MIXED)
+    rec = tmp_path / "run.tlog"
+    write_recording(ds.recording, rec)
+    out = {k: tmp_path / f"d.{k}" for k in ("json", "html", "rrd")}
+    amended = tmp_path / "amended.json"
+    cmd = [sys.executable, "-m", "twin.cli", "diagnose", str(rec), "--vessel", "yellowfish", "--json",
+           str(out["json"]), "--report", str(out["html"]), "--rrd", str(out["rrd"]), "--write-model", str(amended)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    d = json.loads(out["json"].read_text())
+    assert set(d) >= {"effects", "located", "fit_before", "fit_after", "unexplained", "noise"}
+    assert d["effects"][0]["name"] == "thruster_asymmetry"
+    assert d["effects"][0]["parameters"]["ratio"] == pytest.approx(0.85, abs=0.03)
+    assert set(d["fit_after"]["r"]) >= {"r2", "mae"} and d["fit_after"]["r"]["r2"] > d["fit_before"]["r"]["r2"]
+    assert out["html"].read_text().count("<img") == 1 and out["rrd"].stat().st_size > 1000
+    v = vessel_mod.load(str(amended))
+    assert v.thrusters.gain_right / v.thrusters.gain_left == pytest.approx(0.85, abs=0.03)
+
+
+def test_bad_recordings_get_one_line_errors(tmp_path, prior):
+    short = generate(prior, n_segments=1, seed=1, segment_s=(30, 31))
+    with pytest.raises(TwinError, match="too short"):
+        diagnose([short.recording], prior)
+    rec = tmp_path / "nopwm.csv"
+    rec.write_text("t,lat,lon,heading_deg\n" + "".join(f"{i * 0.2:.1f},37.4,-5.97,10\n" for i in range(900)))
+    done = subprocess.run([sys.executable, "-m", "twin.cli", "diagnose", str(rec), "--vessel", "yellowfish"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.startswith("error:") and len(done.stderr.strip().splitlines()) == 1
+    assert "PWM" in done.stderr
