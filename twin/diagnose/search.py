@@ -37,6 +37,7 @@ REL_MIN = 0.02  # an effect that removes less than 2 % of the held-out misfit is
 Z_LARGE, REL_LARGE = 2.0, 0.15
 Z_SEPARABLE = 2.0
 FULL_FITS = 4  # candidates fitted fully per round, after screening
+SCREEN_WINDOWS = 48  # screening sees at most this many training windows, spread over the recording
 MAX_EFFECTS = 5
 
 
@@ -65,6 +66,8 @@ class Search:
     def __init__(self, prior: Vessel, data: Measurements, train: list[Window], held: list[Window],
                  cache: ModelCache, library: dict[str, Candidate], log=None):
         self.prior, self.data, self.train, self.held, self.cache = prior, data, train, held, cache
+        every = max(1, int(np.ceil(len(train) / SCREEN_WINDOWS)))
+        self.screening = train[::every]
         self.library = library
         self.log = log or (lambda msg: None)
         self.evaluations = 0
@@ -93,8 +96,9 @@ class Search:
     # ------------------------------------------------------------ one candidate
 
     def screen(self, base: Vessel, cand: Candidate) -> list[Fitted]:
-        """Cheap look: a scan, or one Gauss-Newton step from each start."""
-        obj = self._objective(base, cand.params, self.train)
+        """Cheap look on a spread subset of the training windows: a scan, or one Gauss-Newton
+        step from each start."""
+        obj = self._objective(base, cand.params, self.screening)
         out = []
         if cand.scan:
             xs = [np.array([v]) / obj.scale for v in cand.scan]
@@ -110,7 +114,7 @@ class Search:
                 c1 = float(np.sum(obj.residuals(x1) ** 2))
                 c0 = float(np.sum(r0 ** 2))
                 out.append(self._fitted(cand, obj, x1 if c1 < c0 else x0, min(c0, c1)))
-        self.evaluations += obj.evaluations * len(self.train)
+        self.evaluations += obj.evaluations * len(self.screening)
         return out
 
     def refine(self, base: Vessel, fitted: Fitted) -> Fitted:
@@ -119,13 +123,13 @@ class Search:
         obj = self._objective(base, cand.params, self.train)
         x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
         if cand.scan:
-            grid = x0[0] * obj.scale[0] + np.arange(-0.04, 0.0401, 0.01)
+            grid = x0[0] * obj.scale[0] + np.arange(-0.06, 0.0601, 0.01)
             xs = [np.array([v]) / obj.scale for v in grid if cand.params[0].lo <= v <= cand.params[0].hi]
             costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in xs])]
             best = self._fitted(cand, obj, xs[_plateau_middle(costs)], min(costs))
         else:
             sol = least_squares(obj.residuals, np.clip(x0, *obj.bounds()), jac=obj.jacobian, bounds=obj.bounds(),
-                                method="trf", x_scale="jac", max_nfev=12, xtol=1e-6, ftol=1e-6)
+                                method="trf", x_scale="jac", max_nfev=6, xtol=1e-5, ftol=1e-5)
             best = self._fitted(cand, obj, sol.x, float(np.sum(sol.fun ** 2)))
         self.evaluations += obj.evaluations * len(self.train)
         return best
