@@ -110,10 +110,9 @@ def identify_command(
     _check_outputs([out], (".json",))
     if json_out is not None:
         _check_outputs([json_out], (".json",))
-    if anchor not in ("mass", "thrust"):
-        raise TwinError(f"--anchor must be mass or thrust, got '{anchor}'")
     prior = _vessel(vessel, model, "nominal")
     names = tuple(p.strip() for p in params.split(",")) if params else ident.simfit.DEFAULT
+    ident.simfit.check_names(prior, names, anchor)  # before any work
     preps = ident.load(recordings, prior, _channels(channels))
     report = ident.identify(preps, prior, thruster=thruster, split=split, train=train, repeats=repeats, seed=seed,
                             params=names, anchor=anchor, simulate=not no_simulation, window_s=window,

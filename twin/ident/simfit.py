@@ -319,21 +319,30 @@ class Objective:
         return idx[self.valid]
 
 
+def check_names(prior: Vessel, names, anchor: str) -> list[str]:
+    """The parameters to fit, checked: known, and with one absolute anchor (module docstring)."""
+    table = parameters(prior)
+    names = list(dict.fromkeys(names))
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        raise TwinError(f"unknown parameter(s) {', '.join(unknown)} (known: {', '.join(table)})")
+    if anchor not in ("mass", "thrust"):
+        raise TwinError(f"anchor must be mass or thrust, got '{anchor}'")
+    if anchor == "mass" and "Xudot" in names and "thrust_gain" in names:
+        raise TwinError("Xudot and thrust_gain together are not identifiable (the scale needs an anchor): "
+                        "drop one, or use --anchor thrust")
+    if anchor == "thrust":
+        names = [n for n in names if n != "thrust_gain"] + (["Xudot"] if "Xudot" not in names else [])
+    return names
+
+
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
         cache: ModelCache | None = None, settle_s: float = SETTLE_S) -> FitResult:
     """Identify `names` (see `parameters`) by free-run windows of window_s every stride_s s."""
     started = time.time()
     table = parameters(prior)
-    names = list(dict.fromkeys(names))
-    unknown = [n for n in names if n not in table]
-    if unknown:
-        raise TwinError(f"unknown parameter(s) {', '.join(unknown)} (known: {', '.join(table)})")
-    if anchor == "mass" and "Xudot" in names and "thrust_gain" in names:
-        raise TwinError("Xudot and thrust_gain together are not identifiable (the scale needs an anchor): "
-                        "drop one, or use --anchor thrust")
-    if anchor == "thrust":
-        names = [n for n in names if n != "thrust_gain"] + (["Xudot"] if "Xudot" not in names else [])
+    names = check_names(prior, names, anchor)
     if prior.thrusters.kind != "t200":
         raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
     windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))

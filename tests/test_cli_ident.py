@@ -1,0 +1,74 @@
+"""The identification commands end to end: dataset → identify → evaluate, and their errors."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+import twin.vessel as vessel_mod
+
+
+def twin(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "twin.cli", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ident")
+    done = twin("dataset", "--vessel", "yellowfish", "--segments", "3", "--seed", "4", "--noise", "none",
+                "--manoeuvres", "rc,circle_varying,forward_varying", "--effect", "thrust_gain=1.15",
+                "--out", d / "train.tlog", "--out", d / "train.csv")
+    assert done.returncode == 0, done.stderr
+    return d
+
+
+def test_dataset_writes_recordings_and_a_separate_truth(dataset):
+    truth = json.loads((dataset / "train.truth.json").read_text())
+    assert truth["effects"][0]["text"] == "thrust_gain=1.15" and len(truth["segments"]) == 3
+    assert truth["vessel"]["thrusters"]["gain_left"] == pytest.approx(1.15)
+    assert (dataset / "train.csv").stat().st_size > 10_000
+
+
+def test_identify_then_evaluate(dataset):
+    model = dataset / "model.json"
+    done = twin("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", model, "--repeats", "2",
+                "--params", "Xuu,thrust_gain", "--window", "5", "--json", dataset / "report.json")
+    assert done.returncode == 0, done.stderr
+    assert "seed 004 grey-box" in done.stdout and "identification by simulation" in done.stdout
+    v = vessel_mod.load(str(model))
+    assert v.thrusters.gain_left == pytest.approx(1.15, rel=0.03)
+    assert "identification" in v.sources
+    report = json.loads((dataset / "report.json").read_text())
+    assert {e["name"] for e in report["simfit"]["estimates"]} == {"Xuu", "thrust_gain"}
+    done = twin("evaluate", "--model", model, dataset / "train.csv", "--json", dataset / "eval.json")
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((dataset / "eval.json").read_text())["metrics"]
+    assert set(metrics) == {"one_step", "free_run_10s", "free_run_30s", "full"}
+    assert metrics["free_run_10s"]["u"]["r2"] > 0.95 and set(metrics["full"]["r"]) >= {"r2", "mae"}
+
+
+def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:
+    from twin.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["twin", *map(str, args)])
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    return exit_info.value.code, capsys.readouterr().err
+
+
+def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys):
+    cases = [
+        ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.tlog", "--effect", "current=fast"),
+        ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.txt"),
+        ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.tlog", "--manoeuvres", "loop"),
+        ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json", "--params", "Xq"),
+        ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json",
+         "--params", "Xudot,thrust_gain"),
+        ("evaluate", "--vessel", "yellowfish", tmp_path / "missing.tlog"),
+    ]
+    for args in cases:
+        code, err = run_in_process(monkeypatch, capsys, args)
+        assert code == 2, (args, err)
+        assert err.startswith("error:") and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x.tlog").exists() and not (tmp_path / "m.json").exists()
