@@ -15,7 +15,7 @@ from twin import vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.ident import ipd, iso
-from twin.vessel import write_text_atomic
+from twin.files import write_bytes_atomic, write_text_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 TARGET_NE_M = (10.0, 10.0)
@@ -25,7 +25,7 @@ def write_sweep(out: Path, result: iso.IsoSweep) -> None:
     stem = out / f"iso_{result.dof}"
     write_text_atomic(stem.with_suffix(".json"), json.dumps(result.to_dict(), indent=2) + "\n")
     write_text_atomic(stem.with_suffix(".md"), f"# IS-O {result.vessel} {result.dof}\n\n{iso.table_markdown(result)}\n")
-    ipd.write_bytes_atomic(stem.with_suffix(".png"), iso.sweep_png(result))
+    write_bytes_atomic(stem.with_suffix(".png"), iso.sweep_png(result))
 
 
 def sway_message(name: str) -> str:
@@ -129,7 +129,7 @@ def main() -> None:
     limits = {dof: iso.relay_limit(cv.geometry.thruster_y_m, cv.vessel.thrusters.bounds(), dof) for dof in sweeps}
     runs = dp_runs(cv, models["yaw"], models["surge"])
     for key, dp in runs.items():
-        ipd.write_bytes_atomic(args.out / f"dp_{key}.png",
+        write_bytes_atomic(args.out / f"dp_{key}.png",
                                ipd.response_png(dp, f"{cv.vessel.name}: {dp.name}, I-PD tuned from IS-O"))
     tune = tuning(models, limits)
     summary = {"vessel": cv.vessel.name, "sway": sway_message(cv.vessel.name), "tuning": tune,

@@ -13,7 +13,7 @@ from twin.ident import simfit
 from twin.ident.dataset import PROFILES, SensorNoise, generate
 from twin.ident.evaluate import evaluate
 from twin.ident.windows import ModelCache, make_windows, measured, predict
-from twin.physics.sensors import antenna_body_m, antenna_ned
+from twin.physics.sensors import antenna_body_m
 from twin.recordings import read_recording, write_recording
 from twin.replay import prepare_for, prepared_from_run
 from twin.run import Run

@@ -317,10 +317,10 @@ def view(
     write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
     typer.echo(f"wrote {out} (open with: rerun {out})")
     if png is not None:
-        data = comparison_png(runs, f"{', '.join(p.name for p in files)}" + (f": real vs twin ({v.name})" if sim else ""))
-        tmp = png.with_name("." + png.name + ".tmp")
-        tmp.write_bytes(data)
-        tmp.replace(png)
+        from .files import write_bytes_atomic
+
+        write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
+                                                     + (f": real vs twin ({v.name})" if sim else "")))
         typer.echo(f"wrote {png}")
 
 

@@ -43,7 +43,7 @@ def _write_json(path: Optional[Path], data: dict) -> None:
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
-    from .ident.ipd import write_bytes_atomic
+    from .files import write_bytes_atomic
 
     if path is not None:
         write_bytes_atomic(path, data_fn())

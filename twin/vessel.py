@@ -10,12 +10,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 from .errors import TwinError
+from .files import write_text_atomic  # noqa: F401 (callers import it from here)
 from .physics.added_mass import AddedMass
 from .physics.damping import Damping, is_dissipative
 from .physics.environment import Environment, WindLoad
@@ -192,22 +192,3 @@ def save(vessel: Vessel, path: str | os.PathLike) -> Path:
     data = replace(vessel, path=path).to_dict()
     write_text_atomic(path, json.dumps(data, indent=2) + "\n")
     return path
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

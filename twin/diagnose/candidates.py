@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ..ident.effects import ADDED_MASS, LINEAR_DAMPING, QUADRATIC_DAMPING, Effect, effect
-from ..ident.simfit import DAMPING_UNITS, Parameter
+from ..ident.simfit import DAMPING_UNITS, Parameter, asymmetry_param, current_param, gain_param
 from ..vessel import Vessel
 
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
@@ -43,20 +43,6 @@ class Candidate:
     @property
     def names(self) -> list[str]:
         return [p.name for p in self.params]
-
-
-def _env_current(axis: int) -> Parameter:
-    def get(v: Vessel) -> float:
-        return float(v.environment.current_ned[axis])
-
-    def put(v: Vessel, x: float) -> Vessel:
-        ned = v.environment.current_ned.copy()
-        ned[axis] = x
-        env = replace(v.environment, current_speed_m_s=float(np.hypot(*ned)),
-                      current_dir_deg=float(np.degrees(np.arctan2(ned[1], ned[0]))))
-        return replace(v, environment=env)
-
-    return Parameter(("current_north", "current_east")[axis], "m/s", get, put, -2.0, 2.0, 0.1)
 
 
 def _env_wind(axis: int) -> Parameter:
@@ -110,31 +96,6 @@ def _scale(prior: Vessel, group: str, key: str, unit: str, pair: str | None = No
     return Parameter(f"{key}_scale", f"× {unit}", get, put, 0.05, 20.0, 1.0)
 
 
-def _asymmetry() -> Parameter:
-    def get(v: Vessel) -> float:
-        return v.thrusters.gain_right / v.thrusters.gain_left
-
-    def put(v: Vessel, ratio: float) -> Vessel:
-        t = v.thrusters
-        mean = 0.5 * (t.gain_left + t.gain_right)
-        left = 2 * mean / (1 + ratio)
-        return replace(v, thrusters=replace(t, gain_left=left, gain_right=ratio * left))
-
-    return Parameter("ratio", "right/left", get, put, 0.3, 3.0, 1.0)
-
-
-def _gain() -> Parameter:
-    def get(v: Vessel) -> float:
-        return 0.5 * (v.thrusters.gain_left + v.thrusters.gain_right)
-
-    def put(v: Vessel, g: float) -> Vessel:
-        t = v.thrusters
-        k = g / get(v)
-        return replace(v, thrusters=replace(t, gain_left=t.gain_left * k, gain_right=t.gain_right * k))
-
-    return Parameter("scale", "×", get, put, 0.2, 5.0, 1.0)
-
-
 def _dead_zone(which: str) -> Parameter:
     key = "deadzone_fwd" if which == "fwd" else "deadzone_rev"
     sign = 1.0 if which == "fwd" else -1.0
@@ -165,7 +126,7 @@ def _scales_effect(name: str) -> Callable[[dict], Effect]:
 def candidates(prior: Vessel) -> dict[str, Candidate]:
     """The library, for this prior (see the module docstring)."""
     out: list[Candidate] = [
-        Candidate("current", (_env_current(0), _env_current(1)), ((0.0, 0.0),), _current_effect, "drift"),
+        Candidate("current", (current_param(0), current_param(1)), ((0.0, 0.0),), _current_effect, "drift"),
         Candidate("thruster_lag", (_field("thrusters", "tau_s", "s", 0.02, 3.0, 0.2, key="lag_s"),),
                   ((0.15,), (0.6,)), lambda p: effect("thruster_lag", tau_s=p["tau_s"]), "timing"),
         Candidate("input_delay", (_field("thrusters", "delay_s", "s", 0.0, 1.5, 0.1),), ((0.0,),),
@@ -177,9 +138,9 @@ def candidates(prior: Vessel) -> dict[str, Candidate]:
         Candidate("dead_zone", (_dead_zone("fwd"), _dead_zone("rev")),
                   ((prior.thrusters.deadzone_fwd, -prior.thrusters.deadzone_rev),),
                   lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust"),
-        Candidate("thruster_asymmetry", (_asymmetry(),), ((1.0,),),
+        Candidate("thruster_asymmetry", (replace(asymmetry_param(), name="ratio", lo=0.3, hi=3.0),), ((1.0,),),
                   lambda p: effect("thruster_asymmetry", ratio=p["ratio"]), "turning"),
-        Candidate("thrust_gain", (_gain(),), ((1.0,),), lambda p: effect("thrust_gain", scale=p["scale"]), "thrust"),
+        Candidate("thrust_gain", (replace(gain_param(), name="scale", lo=0.2, hi=5.0),), ((1.0,),), lambda p: effect("thrust_gain", scale=p["scale"]), "thrust"),
         Candidate("thrust_decay", (_field("thrusters", "per_min", "1/min", 0.0, 0.6, 0.05, key="decay_per_min"),),
                   ((0.02,),), lambda p: effect("thrust_decay", per_min=p["per_min"]), "thrust"),
         Candidate("thrust_speed_loss", (_field("thrusters", "per_m_s", "s/m", 0.0, 0.8, 0.1,

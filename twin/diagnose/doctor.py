@@ -18,7 +18,7 @@ how much of it, and the amended twin, judged on data it did not fit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 

@@ -37,7 +37,6 @@ import math
 from dataclasses import dataclass, replace
 from typing import Callable
 
-import numpy as np
 
 from ..errors import TwinError
 from ..vessel import Vessel, check

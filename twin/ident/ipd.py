@@ -30,10 +30,8 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import textwrap
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -368,15 +366,3 @@ def _path_axes(fig, column, dp: DpRun) -> None:
     ax.set_aspect("equal")
     ax.legend(fontsize=8)
     ax.set_title("path (seed 003 Fig. 10)")
-
-
-def write_bytes_atomic(path: Path, data: bytes) -> None:
-    """Temporary name in the same folder, then rename: a reader never sees half a file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise

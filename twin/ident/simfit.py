@@ -76,7 +76,7 @@ def _thr(field_name: str, unit: str, lo: float, hi: float, typical: float) -> Pa
                      lambda v, x: replace(v, thrusters=replace(v.thrusters, **{field_name: x})), lo, hi, typical)
 
 
-def _asymmetry() -> Parameter:
+def asymmetry_param() -> Parameter:
     def get(v: Vessel) -> float:
         return v.thrusters.gain_right / v.thrusters.gain_left
 
@@ -89,7 +89,7 @@ def _asymmetry() -> Parameter:
     return Parameter("asymmetry", "right/left", get, put, 0.2, 5.0, 1.0)
 
 
-def _current(axis: int) -> Parameter:
+def current_param(axis: int) -> Parameter:
     def get(v: Vessel) -> float:
         return float(v.environment.current_ned[axis])
 
@@ -103,7 +103,7 @@ def _current(axis: int) -> Parameter:
     return Parameter(("current_north", "current_east")[axis], "m/s", get, put, -3.0, 3.0, 0.1)
 
 
-def _gain() -> Parameter:
+def gain_param() -> Parameter:
     """Both thruster gains scaled together (the mean gain), their ratio kept."""
     def get(v: Vessel) -> float:
         return 0.5 * (v.thrusters.gain_left + v.thrusters.gain_right)
@@ -136,10 +136,10 @@ def parameters(prior: Vessel) -> dict[str, Parameter]:
                                     "Nr", "Nrr")}
     out.update({n: _coupling(n) for n in ("Yr", "Nv")})
     out.update({n: _added(n) for n in ("Xudot", "Yvdot", "Yrdot", "Nrdot")})
-    out.update({"thrust_gain": _gain(), "reverse_scale": _reverse_scale(prior), "asymmetry": _asymmetry(),
+    out.update({"thrust_gain": gain_param(), "reverse_scale": _reverse_scale(prior), "asymmetry": asymmetry_param(),
                 "lag_s": _thr("lag_s", "s", 0.01, 3.0, 0.2), "delay_s": _thr("delay_s", "s", 0.0, 2.0, 0.1),
                 "deadzone_fwd": _thr("deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
-                "current_north": _current(0), "current_east": _current(1)})
+                "current_north": current_param(0), "current_east": current_param(1)})
     return out
 
 

@@ -4,13 +4,12 @@ AHRS heading every 20 ms, thruster PWM every 100 ms. Shared by the .tlog and
 DataFlash .bin writers."""
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import TwinError
+from ..files import write_bytes_atomic  # noqa: F401 (the log writers import it from here)
 from ..geodesy import geodetic_from_ned
 from ..run import Run
 
@@ -64,15 +63,3 @@ def sample(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, gnss_dt: 
     tp = np.arange(0.0, t_end + 1e-9, pwm_dt) if np.all(np.isfinite(run.pwm_us)) else np.zeros(0)
     idx = np.clip(np.searchsorted(run.t, tp + 1e-9, side="right") - 1, 0, len(run.t) - 1)
     return Telemetry(tg, lat, lon, speed, th, psi, r, tp, run.pwm_us[idx] if len(tp) else np.zeros((0, 2)))
-
-
-def write_bytes_atomic(path, data: bytes) -> None:
-    """Temporary name in the same folder, then rename: a failed write leaves nothing behind."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
