@@ -213,12 +213,12 @@ def test_bad_recordings_raise_and_keep_the_old_file(rec, tmp_path):
 
 
 def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):
-    import twin.viz.telemetry as telemetry
+    import twin.files as files
 
     def refuse(src, dst):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(telemetry.os, "replace", refuse)
+    monkeypatch.setattr(files.os, "replace", refuse)
     with pytest.raises(TwinError, match="cannot write"):
         write_recording(rec, tmp_path / "r.tlog")
     assert listing(tmp_path) == []
