@@ -35,7 +35,7 @@ REL_MIN = 0.02  # an effect that removes less than 2 % of the held-out misfit is
 # A large effect judged on few held-out windows: noise alone does not remove a sixth of the
 # held-out misfit (null recordings: under 3 %), so a smaller z suffices there.
 Z_LARGE, REL_LARGE = 2.0, 0.15
-Z_SEPARABLE = 2.0
+Z_SEPARABLE = 3.0  # a rival is told apart only when held-out data prefer the winner clearly
 FULL_FITS = 4  # candidates fitted fully per round, after screening
 SCREEN_WINDOWS = 48  # screening sees at most this many training windows, spread over the recording
 MAX_EFFECTS = 5
@@ -110,10 +110,11 @@ class Search:
                 J = obj.jacobian(x0)
                 r0 = obj.residuals(x0)
                 step = np.linalg.lstsq(J, -r0, rcond=None)[0]
-                x1 = np.clip(x0 + step, *obj.bounds())
-                c1 = float(np.sum(obj.residuals(x1) ** 2))
+                trials = [np.clip(x0 + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
+                costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in trials])]
+                best = int(np.argmin(costs))  # a short line search: one linearised step can overshoot
                 c0 = float(np.sum(r0 ** 2))
-                out.append(self._fitted(cand, obj, x1 if c1 < c0 else x0, min(c0, c1)))
+                out.append(self._fitted(cand, obj, trials[best] if costs[best] < c0 else x0, min(c0, costs[best])))
         self.evaluations += obj.evaluations * len(self.screening)
         return out
 
@@ -212,7 +213,8 @@ class Search:
                 continue
             z = _paired_z(f.held, winner.held)
             out.append({"name": f.candidate.name, "z": round(z, 2), "separable": bool(z > Z_SEPARABLE),
-                        "held_out_gain": round(f.rel, 4), "values": f.values})
+                        "held_out_gain": round(f.rel, 4), "values": f.values,
+                        "parameters": dict(f.candidate.to_effect(f.values).params)})
         return out
 
     @staticmethod

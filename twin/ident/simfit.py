@@ -238,6 +238,7 @@ class Objective:
     def __init__(self, prior: Vessel, params: list[Parameter], preps: list[Prepared] | Measurements,
                  windows: list[Window], cache: ModelCache | None = None, settle_s: float = SETTLE_S):
         self.data = preps if isinstance(preps, Measurements) else Measurements(preps)
+        self.settle_s = settle_s
         self.prior, self.params, self.preps, self.windows = prior, params, self.data.preps, windows
         self.cache = cache or ModelCache()
         self.scale = np.array([max(abs(p.get(prior)), p.typical) for p in params])
@@ -358,8 +359,26 @@ def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, 
     J = obj.jacobian(sol.x)
     r = obj.residuals(sol.x)
     estimates = _estimates(obj, sol.x, J, r)
-    fitted = obj.vessel(np.array([e.value if e.identifiable else e.prior for e in estimates]) / obj.scale)
-    return FitResult(fitted, estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), obj.evaluations,
+    fitted, evaluations = obj.vessel(sol.x), obj.evaluations
+    pinned = [i for i, e in enumerate(estimates) if e.identifiable]
+    if len(pinned) < len(estimates):
+        # the data cannot say what the others are: they go back to the prior and the rest is fitted
+        # again around them, so the returned twin is one that was fitted, not a mix of two
+        sub = Objective(prior, [obj.params[i] for i in pinned], preps, windows, obj.cache, obj.settle_s)
+        x1 = np.clip(np.array([estimates[i].value for i in pinned]) / sub.scale, *sub.bounds())
+        if pinned:
+            sol = least_squares(sub.residuals, x1, jac=sub.jacobian, bounds=sub.bounds(), method="trf",
+                                x_scale="jac", max_nfev=max(5, max_evaluations // 2), xtol=1e-8, ftol=1e-8)
+            x1 = sol.x
+        r = sub.residuals(x1)
+        again = _estimates(sub, x1, sub.jacobian(x1), r) if pinned else []
+        for i, e in zip(pinned, again):
+            estimates[i] = e
+        for i, e in enumerate(estimates):
+            if i not in pinned:
+                e.value = e.prior
+        fitted, evaluations = sub.vessel(x1), evaluations + sub.evaluations
+    return FitResult(fitted, estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
                      time.time() - started, sol.message,
                      {"anchor": anchor, "window_s": window_s, "stride_s": stride_s,
                       "residual_rms": float(np.sqrt(np.mean(r ** 2)))})
