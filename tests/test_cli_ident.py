@@ -41,8 +41,10 @@ def test_identify_then_evaluate(dataset):
     assert "identification" in v.sources
     report = json.loads((dataset / "report.json").read_text())
     assert {e["name"] for e in report["simfit"]["estimates"]} == {"Xuu", "thrust_gain"}
-    done = twin("evaluate", "--model", model, dataset / "train.csv", "--json", dataset / "eval.json")
+    done = twin("evaluate", "--model", model, dataset / "train.csv", "--json", dataset / "eval.json",
+                "--rrd", dataset / "eval.rrd")
     assert done.returncode == 0, done.stderr
+    assert (dataset / "eval.rrd").stat().st_size > 1000
     metrics = json.loads((dataset / "eval.json").read_text())["metrics"]
     assert set(metrics) == {"one_step", "free_run_10s", "free_run_30s", "full"}
     assert metrics["free_run_10s"]["u"]["r2"] > 0.95 and set(metrics["full"]["r"]) >= {"r2", "mae"}

@@ -141,6 +141,7 @@ def evaluate_command(
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
     stride: float = typer.Option(2.0, help="free-run windows start every STRIDE s"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the metrics as JSON"),
+    rrd: Optional[Path] = typer.Option(None, help="write the recording and the twin's 10-s free runs to rerun"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments."""
     from .ident.evaluate import evaluate, format_metrics
@@ -148,9 +149,28 @@ def evaluate_command(
 
     if json_out is not None:
         _check_outputs([json_out], (".json",))
+    if rrd is not None:
+        _check_outputs([rrd], (".rrd",))
     v = _vessel(vessel, model, "nominal")
     preps = load(recordings, v, _channels(channels))
     metrics = evaluate(v, preps, stride_s=stride)
+    if rrd is not None:
+        _write_free_runs(v, preps, rrd)
     typer.echo(format_metrics(metrics, f"{v.name} on {', '.join(p.name for p in recordings)}"))
     _write_json(json_out, {"vessel": v.name, "model": str(model) if model else None,
                            "recordings": [str(p) for p in recordings], "metrics": metrics})
+
+
+def _write_free_runs(vessel, preps, path: Path) -> None:
+    """The recording and the twin's back-to-back 10-s free runs on one rerun timeline."""
+    from .diagnose.report import stitched_runs
+    from .engine.mjcf import compile_vessel
+    from .ident.windows import make_windows, measured, predict
+    from .outputs import write
+
+    wins = make_windows(preps, 10.0, 10.0)
+    pred = predict(vessel, preps, wins)[0]
+    eta, nu = measured(preps, wins)
+    runs = stitched_runs(wins, {"real": (preps, eta, nu), "twin": (preps, pred.eta, pred.nu)})
+    write(runs, path, geometry=compile_vessel(vessel).geometry, vessel_name=vessel.name, mjcf=vessel.mjcf)
+    console.print(f"wrote {path} (open with: rerun {path})")

@@ -24,16 +24,22 @@ DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
 def runs(d) -> dict[str, Run]:
     """Real, twin before and twin after on the windows' samples, in time order."""
     rp = d.replay
-    wins, before, after = rp["windows"], rp["before"], rp["after"]
+    before, after = rp["before"], rp["after"]
+    return stitched_runs(rp["windows"], {"real": (rp["preps"], before.meas_eta, before.meas_nu),
+                                         "twin before": (rp["preps"], before.pred_eta, before.pred_nu),
+                                         "twin after": (rp["amended_preps"], after.pred_eta, after.pred_nu)})
+
+
+def stitched_runs(windows, series: dict) -> dict[str, Run]:
+    """{label: (preps, eta (W, n+1, 3), nu (W, n+1, 3))} → one Run per label over the windows' samples,
+    in time order (recordings one after another on one clock)."""
     out = {}
-    for label, preps, eta, nu in (("real", rp["preps"], before.meas_eta, before.meas_nu),
-                                  ("twin before", rp["preps"], before.pred_eta, before.pred_nu),
-                                  ("twin after", rp["amended_preps"], after.pred_eta, after.pred_nu)):
+    for label, (preps, eta, nu) in series.items():
         t, e, v, pwm = [], [], [], []
-        for j, w in enumerate(wins):
+        for j, w in enumerate(windows):
             p = preps[w.rec]
             sl = slice(w.start, w.start + w.n + 1)
-            t.append(p.t[sl] + 1e5 * w.rec)  # recordings one after another on one clock
+            t.append(p.t[sl] + 1e5 * w.rec)
             e.append(eta[j, : w.n + 1])
             v.append(nu[j, : w.n + 1])
             pwm.append(p.pwm[sl])
