@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -31,6 +30,9 @@ from twin.ident.evaluate import DOFS, TwinPredictor, evaluate, horizon_windows  
 from twin.ident.identify import load  # noqa: E402
 from twin.ident.windows import ModelCache, measured  # noqa: E402
 from twin.recordings import read_recording  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from identify_blueboat import wrap  # noqa: E402  (one markdown folder for both reports)
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 TRAIN_RUNS = (216, 218, 220, 221, 222, 223, 224)
@@ -163,20 +165,6 @@ def drift_rows(drift: dict) -> list[str]:
                                       for n, x in drift.items()]
 
 
-
-def wrap(text: str, width: int = 100) -> str:
-    """Prose lines of a markdown text folded to `width` columns; fenced blocks left as they are."""
-    out, fenced = [], False
-    for line in text.split("\n"):
-        if line.startswith("```"):
-            fenced = not fenced
-        if fenced or len(line) <= width or line.startswith("```"):
-            out.append(line)
-            continue
-        indent = "  " if line.startswith("- ") else ""
-        out.append(textwrap.fill(line, width, subsequent_indent=indent, break_long_words=False,
-                                 break_on_hyphens=False))
-    return "\n".join(out)
 
 def markdown(d, scores: dict, extra: dict, seconds: float) -> str:
     fence = "```"

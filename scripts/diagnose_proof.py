@@ -55,6 +55,7 @@ CASES = [
     ("linear_damping-small", ["linear_damping=Nr:0.85"], MIXED, "small"),
     ("coupling_damping", ["coupling_damping=-6,-4"], MIXED, "realistic"),
     ("added_mass", ["added_mass=Yvdot:1.6"], MIXED, "realistic"),
+    ("speed_damping", ["speed_damping=-20,-15"], MIXED, "realistic"),
     ("cg_offset", ["cg_offset=0.15,0"], MIXED, "realistic"),
     ("gnss_lever_arm", ["gnss_lever_arm=0.4,-0.3"], MIXED, "realistic"),
     ("gnss_lever_arm-small", ["gnss_lever_arm=0.15,-0.1"], MIXED, "small"),
@@ -81,7 +82,7 @@ def _param_error(injected, found) -> float | None:
             continue
         if "dir" in k:
             errs.append(abs((got - true + 180.0) % 360.0 - 180.0) / 360.0)
-        elif k in ("b_deg", "c_deg", "bias_deg", "dx_m", "dy_m", "Yr", "Nv", "offset_s"):
+        elif k in ("b_deg", "c_deg", "bias_deg", "dx_m", "dy_m", "Yr", "Nv", "offset_s", "Yuv", "Nur"):
             scale = max(abs(x) for x in _truth_values(injected).values())
             errs.append(abs(got - true) / scale)
         else:

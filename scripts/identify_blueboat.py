@@ -65,6 +65,8 @@ CANDIDATES = [
     ("+asym+Yr,Nv", ASYM + ("Yr", "Nv"), 10.0, "linear sway-yaw coupling damping"),
     ("+asym+current", ASYM + ("current_north", "current_east"), 10.0,
      "one current for all seven runs (a real current differs per run)"),
+    ("+asym+Nur,Yuv", ASYM + ("Nur", "Yuv"), 10.0,
+     "speed-proportional yaw and sway damping N_|u|r, Y_|u|v (manoeuvring derivatives grow with U)"),
     ("+asym+Yrdot", ASYM + ("Yrdot",), 10.0,
      "M23 = -Yrdot puts M23·u·r in yaw: yaw damping growing with forward speed"),
     ("yaw+surge", ("Xu", "Xuu", "Nr", "Nrr", "Nrdot", "thrust_gain", "reverse_scale", "asymmetry", "Yrdot"), 10.0,

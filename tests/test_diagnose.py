@@ -42,9 +42,11 @@ CASES = {
     "linear_damping=Nr:0.6": ("linear_damping", {"Nr": 0.1}),
     "coupling_damping=-6,-4": ("coupling_damping", {"Yr": 2.0, "Nv": 2.0}),
     "added_mass=Yvdot:1.6": ("added_mass", {"Yvdot": 0.15}),
+    "speed_damping=-20,-15": ("speed_damping", {"Yuv": 8.0, "Nur": 3.0}),
     "cg_offset=0.2,0": ("cg_offset", {"dx_m": 0.05, "dy_m": 0.05}),
 }
-ABSOLUTE = {"dir_deg", "delay_s", "offset_s", "bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev"}
+ABSOLUTE = {"dir_deg", "delay_s", "offset_s", "bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
+            "Yuv", "Nur"}
 
 
 @pytest.fixture(scope="module")

@@ -153,3 +153,22 @@ def test_installed_native_restores_the_previous_callback(compiled):
             pass
         assert mujoco.get_mjcb_passive() is python_cb
     assert mujoco.get_mjcb_passive() is None
+
+
+def test_every_damping_coefficient_reaches_the_native_callback(compiled):
+    from twin.physics.damping import Damping
+
+    coefficients = {n: -(1.0 + i) for i, n in enumerate(Damping.names())}  # all on, none equal
+    cv = compiled["yellowfish"]
+    vessel = replace(cv.vessel, damping=Damping(**coefficients))
+    cv = CompiledVessel(vessel, cv.model, cv.geometry)
+    model, hydro = native.with_native_params(cv), cv.hydro()
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(99)
+    for _ in range(10):
+        _random_state(rng, data)
+        reference = _passive(model, data, lambda: callbacks.installed(model, hydro))
+        np.testing.assert_allclose(_passive(model, data, native.installed_native), reference, rtol=0, atol=1e-9)
+    # the speed terms act: yaw damping with |u| differs from without
+    nu = np.array([1.5, 0.2, 0.3])
+    assert abs(Damping(Nur=-4.0).matrix(nu)[2, 2] - 6.0) < 1e-12 and abs(Damping(Yuv=-2.0).matrix(nu)[1, 1] - 3.0) < 1e-12

@@ -43,7 +43,7 @@ _FIELDS = (  # (name, number of doubles), in storage order
     ("magic", 2), ("size", 1), ("qpos_adr", 3), ("dof_adr", 3),
     ("switches", 6),  # added_mass, added_mass_coriolis, damping, thrust, current, wind (0/1, effective)
     ("M_RB", 9), ("M_A", 9), ("M_inv", 9),  # row-major, kg / kg m / kg m²
-    ("damping", 14),  # Damping.names() order, Fossen's signs
+    ("damping", 16),  # Damping.names() order, Fossen's signs
     ("wind_load", 6),  # A_F m², A_L m², L m, c_x, c_y, c_n
     ("current_ned", 2), ("wind_ned", 2),  # m/s; wind as the air's velocity
 )
@@ -309,13 +309,13 @@ def _coriolis(M, o, u, v, r):
 
 @njit(inline="always")
 def _damping(p, o, u, v, r):
-    """D(ν)ν of seed 004 eq. 7, coefficients p[o:o+14] in Damping.names() order."""
+    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+16] in Damping.names() order."""
     au, av, ar = abs(u), abs(v), abs(r)
     d00 = -(p[o] + p[o + 1] * au)
-    d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar)
+    d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar + p[o + 14] * au)
     d12 = -(p[o + 5] + p[o + 6] * av + p[o + 7] * ar)
     d21 = -(p[o + 8] + p[o + 9] * av + p[o + 10] * ar)
-    d22 = -(p[o + 11] + p[o + 12] * av + p[o + 13] * ar)
+    d22 = -(p[o + 11] + p[o + 12] * av + p[o + 13] * ar + p[o + 15] * au)
     return d00 * u, d11 * v + d12 * r, d21 * v + d22 * r
 
 

@@ -18,6 +18,7 @@ and an amended vessel file carries it. Where each lives:
   quadratic_damping   S or KEY:S,...  (×)              damping Xuu Yvv Yrv Yvr Yrr Nvv Nrv Nvr Nrr scaled
   linear_damping      S or KEY:S,...  (×)              damping Xu Yv Yr Nv Nr scaled
   coupling_damping    Yr, Nv (N s, N s)                damping Yr, Nv set (sway-yaw coupling)
+  speed_damping       Yuv, Nur (N s²/m², N m s²/m)     damping Y_|u|v, N_|u|r set (derivatives growing with speed)
   added_mass          S or KEY:S,...  (×)              added_mass Xudot Yvdot Yrdot (with Nvdot) Nrdot scaled
   cg_offset           dx_m, dy_m                       cg_offset_m (mass distribution moved)
   clock_offset        offset_s                         sensors.pwm_clock_offset_s (PWM stamps late)
@@ -177,6 +178,11 @@ def coupling_damping(vessel: Vessel, Yr: float, Nv: float) -> Vessel:
     return replace(vessel, damping=replace(vessel.damping, Yr=Yr, Nv=Nv))
 
 
+def speed_damping(vessel: Vessel, Yuv: float, Nur: float) -> Vessel:
+    """Sway and yaw damping proportional to the forward speed, Y_|u|v and N_|u|r (Fossen's signs), set."""
+    return replace(vessel, damping=replace(vessel.damping, Yuv=Yuv, Nur=Nur))
+
+
 def cg_offset(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
     """The whole mass distribution moved by (dx, dy) m, body FRD, from where the MJCF puts it."""
     return replace(vessel, cg_offset_m=(dx_m, dy_m))
@@ -251,6 +257,8 @@ _SPECS = [
     Spec("linear_damping", "hull", (), linear_damping, "linear damping scales", LINEAR_DAMPING),
     Spec("coupling_damping", "hull", (_p("Yr", "N s"), _p("Nv", "N s")), coupling_damping,
          "sway-yaw linear coupling damping"),
+    Spec("speed_damping", "hull", (_p("Yuv", "N s2/m2", -500, 0), _p("Nur", "N m s2/m", -500, 0)), speed_damping,
+         "sway and yaw damping growing with forward speed"),
     Spec("added_mass", "hull", (), added_mass, "added-mass scales", ADDED_MASS),
     Spec("cg_offset", "hull", (_p("dx_m", "m", -1, 1), _p("dy_m", "m", -1, 1)), cg_offset,
          "mass distribution moved from the MJCF"),

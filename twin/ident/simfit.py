@@ -54,7 +54,7 @@ class Parameter:
 
 DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2", "Yrv": "N s2/m", "Yr": "N s",
                  "Yvr": "N s2/m", "Yrr": "N s2", "Nv": "N s", "Nvv": "N s2", "Nrv": "N s2", "Nr": "N m s",
-                 "Nvr": "N s2", "Nrr": "N m s2"}
+                 "Nvr": "N s2", "Nrr": "N m s2", "Yuv": "N s2/m2", "Nur": "N m s2/m"}
 
 
 def _damping(name: str) -> Parameter:
@@ -135,6 +135,7 @@ def parameters(prior: Vessel) -> dict[str, Parameter]:
     out = {n: _damping(n) for n in ("Xu", "Xuu", "Yv", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr",
                                     "Nr", "Nrr")}
     out.update({n: _coupling(n) for n in ("Yr", "Nv")})
+    out.update({n: _damping(n) for n in ("Yuv", "Nur")})
     out.update({n: _added(n) for n in ("Xudot", "Yvdot", "Yrdot", "Nrdot")})
     out.update({"thrust_gain": gain_param(), "reverse_scale": _reverse_scale(prior), "asymmetry": asymmetry_param(),
                 "lag_s": _thr("lag_s", "s", 0.01, 3.0, 0.2), "delay_s": _thr("delay_s", "s", 0.0, 2.0, 0.1),

@@ -1,8 +1,15 @@
-"""Hydrodynamic damping D(ν)ν with linear and quadratic terms (seed 004 eq. 7).
+"""Hydrodynamic damping D(ν)ν with linear and quadratic terms (seed 004 eq. 7),
+plus the speed-proportional sway and yaw terms of manoeuvring theory.
 
 Fossen's sign convention: the coefficients of a dissipative hull are negative
 (Xu < 0, Xuu < 0, ...), and D(ν) = -[...] is positive.
 Names: `Xuu` is X_{|u|u}, `Yrv` is Y_{|r|v}, `Yvr` is Y_{|v|r}, and so on.
+
+`Yuv` (Y_{|u|v}) and `Nur` (N_{|u|r}): a hull moving ahead at u meets sway and yaw
+with lift-like forces, so its linear sway and yaw derivatives grow with the speed
+(Y_v = Y_v'·½ρL²U, N_r = N_r'·½ρL⁴U in non-dimensional manoeuvring form; Fossen
+2011 §6.4). Seed 004 eq. 7 has no such term: it is zero in every vessel file unless
+identification asks for it.
 """
 from __future__ import annotations
 
@@ -27,6 +34,8 @@ class Damping:
     Nr: float = 0.0
     Nvr: float = 0.0
     Nrr: float = 0.0
+    Yuv: float = 0.0
+    Nur: float = 0.0
 
     @classmethod
     def names(cls) -> list[str]:
@@ -38,8 +47,10 @@ class Damping:
         return -np.array(
             [
                 [self.Xu + self.Xuu * au, 0.0, 0.0],
-                [0.0, self.Yv + self.Yvv * av + self.Yrv * ar, self.Yr + self.Yvr * av + self.Yrr * ar],
-                [0.0, self.Nv + self.Nvv * av + self.Nrv * ar, self.Nr + self.Nvr * av + self.Nrr * ar],
+                [0.0, self.Yv + self.Yvv * av + self.Yrv * ar + self.Yuv * au,
+                 self.Yr + self.Yvr * av + self.Yrr * ar],
+                [0.0, self.Nv + self.Nvv * av + self.Nrv * ar,
+                 self.Nr + self.Nvr * av + self.Nrr * ar + self.Nur * au],
             ]
         )
 
