@@ -7,6 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import twin.vessel as vessel_mod
+from twin.engine.mjcf import compile_vessel
+from twin.errors import TwinError
+from twin.inputs import read_inputs_csv
 from twin.run import read_csv
 
 MODEL = Path(__file__).resolve().parent.parent / "model"
@@ -75,6 +79,9 @@ def _vessel_file(tmp_path, **changes):
     (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left,pwm_right\n0,1500,1500\n"
                                                               "2,1600,1600\n1,1500,1500\n")], "backwards"),
     (lambda tmp: ["--vessel", "yellowfish", "--current", "fast"], "SPEED,DIR_DEG"),
+    (lambda tmp: ["--model", _vessel_file(tmp, damping={"Xu": "abc"})], 'damping.Xu must be a number, got "abc"'),
+    (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left,pwm_right\n5,1600,1600\n"
+                                                              "10,1500,1500\n")], "first row is at t = 5 s"),
 ])
 def test_bad_input_one_line_exit_2_no_output(tmp_path, make_args, message):
     out = tmp_path / "out.csv"
@@ -86,8 +93,85 @@ def test_bad_input_one_line_exit_2_no_output(tmp_path, make_args, message):
     assert not out.exists()
 
 
-def _bad_mjcf(tmp):
-    (tmp / "bad.xml").write_text("<mujoco><worldbody><body></mujoco>")
+@pytest.mark.parametrize("changes,message", [
+    ({"thrusters": {"forward": [14.35, "14.97", -0.6218]}}, "thrusters.forward[1] must be a number"),
+    ({"thrusters": {"forward": [14.35, 14.97]}}, "thrusters.forward must be a list of 3 values, got 2"),
+    ({"cases": {"min": {"geom_mass_kg": {"battery": "2"}}}}, "cases.min.geom_mass_kg.battery must be a number"),
+    ({"cg_offset_m": [0.01, None]}, "cg_offset_m[1] must be a number, got null"),
+    ({"wind_load": {"cx": True}}, "wind_load.cx must be a number, got true"),
+    ({"thrusters": {"kind": 200}}, "thrusters.kind must be a string"),
+    ({"cases": [1]}, "cases must be an object"),
+])
+def test_vessel_file_fields_are_type_checked(tmp_path, changes, message):
+    with pytest.raises(TwinError) as exc:
+        vessel_mod.load(_vessel_file(tmp_path, **changes))
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("xml,where", [
+    ("<mujoco>\n  <worldbody>\n    <body>\n</mujoco>\n",
+     "bad.xml, line 3: malformed MJCF (XML_ERROR_MISMATCHED_ELEMENT: XMLElement name=body)"),
+    ('<mujoco>\n  <worldbody>\n    <body>\n      <geom type="box" size="1 a 1"/>\n    </body>\n  </worldbody>\n'
+     "</mujoco>\n", "bad.xml, line 4, element 'geom': malformed MJCF (bad format in attribute 'size')"),
+])
+def test_malformed_mjcf_says_where_and_why(tmp_path, xml, where):
+    with pytest.raises(TwinError) as exc:
+        compile_vessel(vessel_mod.load(_bad_mjcf(tmp_path, xml)))
+    assert str(exc.value) == where
+
+
+@pytest.mark.parametrize("text,message", [
+    ("t,pwm_left,pwm_right,thrust_left,thrust_right\n0,1600,1600,10,10\n", "both PWM and thrust"),
+    ("t,pwm_left,pwm_right,thrust_left\n0,1600,1600,10\n", "both PWM and thrust"),
+    ("t,pwm_left,pwm_right\n0.5,1600,1600\n", "first row is at t = 0.5 s"),
+    ("t,pwm_left,pwm_right\n\n", "at least one row"),
+])
+def test_inputs_csv_refuses_what_it_would_apply_silently(tmp_path, text, message):
+    with pytest.raises(TwinError, match=message):
+        read_inputs_csv(_inputs(tmp_path, text))
+
+
+def test_inputs_csv_with_byte_order_mark(tmp_path):
+    """Spreadsheets save UTF-8 CSV with a BOM in front of the first header; a first row before t = 0 is fine."""
+    inputs = tmp_path / "in.csv"
+    inputs.write_bytes("t,thrust_left,thrust_right\n-1,10,12\n3,0,0\n".encode("utf-8-sig"))
+    series = read_inputs_csv(inputs)
+    assert series.kind == "thrust"
+    np.testing.assert_allclose(series.at(np.array([0.0, 2.9, 3.0])), [[10, 12], [10, 12], [0, 0]])
+
+
+def test_crosscheck_over_tolerance_exits_1(monkeypatch, capsys):
+    """main() must pass on a command's exit code: without standalone mode Click returns it instead of exiting."""
+    import importlib
+
+    from twin import cli
+
+    crosscheck_module = importlib.import_module("twin.crosscheck")  # twin.crosscheck is also the API function
+    monkeypatch.setattr(sys, "argv", ["twin", "crosscheck", "--vessel", "cybership1", "--duration", "1"])
+    cli.main()  # within tolerance: returns, exit status 0
+    assert "FAIL" not in capsys.readouterr().out
+    monkeypatch.setattr(crosscheck_module, "POSITION_TOL_M", 0.0)
+    with pytest.raises(SystemExit) as exc:
+        cli.main()
+    assert exc.value.code == 1
+    assert "FAIL" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv,message", [(["nosuch"], "No such command 'nosuch'"),
+                                          (["params", "--bogus"], "No such option: --bogus")])
+def test_usage_error_is_bad_input(monkeypatch, capsys, argv, message):
+    """Typer raises its own copy of click's usage errors: still one line and exit 2, not an internal error."""
+    from twin import cli
+
+    monkeypatch.setattr(sys, "argv", ["twin", *argv])
+    with pytest.raises(SystemExit) as exc:
+        cli.main()
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.startswith(f"error: {message}") and len(err.strip().splitlines()) == 1
+
+
+def _bad_mjcf(tmp, xml="<mujoco><worldbody><body></mujoco>"):
+    (tmp / "bad.xml").write_text(xml)
     data = json.loads((MODEL / "yellowfish.json").read_text())
     data["mjcf"] = "bad.xml"
     (tmp / "bad.json").write_text(json.dumps(data))

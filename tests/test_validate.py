@@ -8,6 +8,7 @@ import pytest
 import trimesh
 
 import twin.vessel as vessel_mod
+from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.physics import added_mass as am
 from twin.physics.hydrostatics import submerged_volume, waterline_for_mass
@@ -49,7 +50,15 @@ def test_engine_values_follow_the_mjcf(nominal):
     assert nominal["xg (eq. 17)"].engine == pytest.approx(-19.63, abs=0.01)
     assert nominal["x_hull"].engine == pytest.approx(-22.0, abs=0.01)
     assert nominal["Iz (eq. 18)"].engine == pytest.approx(nominal["Iz (eq. 18)"].mesh, rel=1e-6)
-    assert nominal["hull Izz about centroid"].engine == pytest.approx(nominal["hull Izz about centroid"].mesh, rel=1e-6)
+    for side, y_mm in (("port", -337.5), ("starboard", 337.5)):
+        hull = f"hull_{side}"
+        assert nominal[f"{hull} centroid x"].engine == pytest.approx(-22.0, abs=0.01)  # Table IV's x_hull
+        assert nominal[f"{hull} centroid y"].mesh == pytest.approx(y_mm, abs=0.01)
+        for row in ("volume", "centroid z", "Ixx (centroid)", "Iyy (centroid)", "Izz (centroid)"):
+            q = nominal[f"{hull} {row}"]
+            assert q.engine == pytest.approx(q.mesh, rel=1e-6), row
+    # a slender hull: yaw and pitch inertia about ten times the roll inertia
+    assert nominal["hull_port Izz (centroid)"].mesh > 8 * nominal["hull_port Ixx (centroid)"].mesh
     # MuJoCo's ellipsoid fluid model agrees with eq. 21-22 (independent column)
     assert nominal["Xu_dot (2 hulls)"].independent == pytest.approx(nominal["Xu_dot (2 hulls)"].analytic, rel=1e-3)
     assert nominal["alpha0 (eq. 22)"].independent == pytest.approx(nominal["alpha0 (eq. 22)"].analytic, rel=1e-3)
@@ -132,3 +141,87 @@ def test_cli_writes_json_and_report(tmp_path):
                             "explanation"}
     assert (tmp_path / "v_topview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert max(len(line) for line in p.stdout.splitlines()) <= 100
+
+
+@pytest.fixture(scope="module")
+def minimum():
+    return {q.name: q for q in validate(vessel_mod.load("yellowfish", "min")).quantities}
+
+
+def test_min_case_iz_follows_the_seed_chain_and_names_its_d_g(minimum):
+    """eq. 19 with this case's m_box feeds eq. 18; Table V's single printed I_box stays in the table column."""
+    i_box, iz = minimum["I_box (eq. 19)"], minimum["Iz (eq. 18)"]
+    assert i_box.analytic == pytest.approx(7.61 * (0.50**2 + 0.52**2) / 12, rel=1e-9)
+    assert i_box.table == pytest.approx(0.3586) and iz.table == pytest.approx(1.07)
+    assert iz.analytic == pytest.approx(i_box.analytic + 2 * 8.06 * 0.21**2, rel=1e-9)
+    assert iz.analytic == pytest.approx(1.041, abs=0.001)
+    assert "d_g = 0.21 m" in iz.explanation and "0.30 m" not in iz.explanation
+    assert "one I_box" in i_box.explanation and "0.330" in i_box.explanation
+
+
+def test_table_vi_min_max_columns_reported_swapped(minimum, nominal):
+    for name in ("Xu_dot (2 hulls)", "Yv_dot (2 hulls)", "Nr_dot (2 hulls, eq. 25)"):
+        assert "appear swapped" in minimum[name].explanation, name
+        assert "appear swapped" not in nominal[name].explanation, name
+    assert "-2.15 kg, is near eq. 21 with the max case's semi-axes (-2.01 kg)" in minimum["Xu_dot (2 hulls)"].explanation
+
+
+def test_vessel_without_seed_table_has_no_seed_sentence():
+    q = {x.name: x for x in validate(vessel_mod.load("blueboat")).quantities}
+    volume = q["displaced volume"]
+    assert volume.table is None and volume.mesh == pytest.approx(23.15, abs=0.05)  # below z = 0
+    for x in q.values():
+        assert "Table VI" not in x.explanation and "nan" not in x.explanation, x.name
+
+
+def test_mesh_rows_against_a_placed_and_turned_box(tmp_path):
+    """A 1.0 x 0.2 x 0.3 m box whose file origin is 0.2 m off its centre, turned 90° about z and moved:
+    volume, centroid and inertia in the vessel frame follow in closed form, from MuJoCo and from trimesh."""
+    box = trimesh.creation.box(extents=(1.0, 0.2, 0.3))
+    box.apply_translation((0.2, 0.0, 0.0))
+    box.export(tmp_path / "box.stl")
+    path = _vessel_with_mjcf(tmp_path, '<geom name="hull" type="mesh" mesh="box" mass="10" pos="0 0.3 0.05" '
+                                       'quat="0.70710678 0 0 0.70710678"/>',
+                             '<mesh name="box" file="box.stl" inertia="exact"/>')
+    q = {x.name: x for x in validate(vessel_mod.load(path)).quantities}
+    expected = {"hull volume": 60.0, "hull centroid x": 0.0, "hull centroid y": 500.0, "hull centroid z": 50.0,
+                "hull Ixx (centroid)": 10 * (1.0**2 + 0.3**2) / 12, "hull Iyy (centroid)": 10 * (0.2**2 + 0.3**2) / 12,
+                "hull Izz (centroid)": 10 * (1.0**2 + 0.2**2) / 12}
+    for name, value in expected.items():
+        close = pytest.approx(value, rel=1e-6, abs=1e-3 if "centroid" in name else 0.0)  # STL stores float32
+        assert q[name].engine == close and q[name].mesh == close, name
+
+
+def test_api_exports_validate():
+    import twin
+
+    result = twin.validate("yellowfish", case="max")
+    assert isinstance(result, twin.Validation) and result.case == "max"
+    assert {q.name for q in result.flagged()} >= {"Iz (eq. 18)", "Xu_dot (2 hulls)"}
+
+
+@pytest.mark.parametrize("body_xml,part", [
+    ('<geom type="box" size="0.1 0.1 0.1" mass="5"/><body name="hull_port"><geom name="hull_port" type="box" '
+     'size="0.5 0.2 0.1" mass="0"/></body>', "zero mass in body hull_port: geom 'hull_port' has mass 0"),
+    ('<geom type="box" size="0.1 0.1 0.1" mass="5"/><body name="box"><inertial pos="0 0 0" mass="0" '
+     'diaginertia="1 1 1"/></body>', "zero mass in body box: its <inertial> has mass 0"),
+    ('<inertial pos="0 0 0" mass="0" diaginertia="1 1 1"/>', "zero mass in body vessel: its <inertial> has mass 0"),
+    ('<geom type="box" size="0.1 0.1 0.1" mass="5"/><geom name="float" type="box" size="0.1 0.1 0.1" density="0"/>',
+     "zero mass in body vessel: geom 'float' has density 0"),
+])
+def test_massless_part_is_named(tmp_path, body_xml, part):
+    """MuJoCo accepts a massless part welded to a heavier body; the twin must not (validate and simulate
+    both start from compile_vessel)."""
+    with pytest.raises(TwinError) as exc:
+        compile_vessel(vessel_mod.load(_vessel_with_mjcf(tmp_path, body_xml)))
+    assert part in str(exc.value)
+
+
+def test_simulate_refuses_a_massless_hull(tmp_path):
+    path = _vessel_with_mjcf(tmp_path, '<geom type="box" size="0.1 0.1 0.1" mass="5"/><body name="hull_port">'
+                                       '<geom name="hull_port" type="box" size="0.5 0.2 0.1" mass="0"/></body>')
+    out = tmp_path / "run.csv"
+    p = subprocess.run([sys.executable, "-m", "twin.cli", "simulate", "--model", str(path), "--duration", "1",
+                        "--out", str(out)], capture_output=True, text=True)
+    assert p.returncode == 2 and "geom 'hull_port' has mass 0" in p.stderr and not out.exists(), p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1

@@ -8,10 +8,11 @@ from .inputs import InputSeries
 from .params import effective_parameters
 from .run import Run
 from .scenarios import get as scenario
+from .validate import Validation, validate as _validate
 from .vessel import Vessel, load as load_vessel, save as save_vessel
 
-__all__ = ["Run", "Vessel", "InputSeries", "load_vessel", "save_vessel", "simulate", "crosscheck",
-           "effective_parameters", "compile_vessel"]
+__all__ = ["Run", "Vessel", "InputSeries", "Validation", "load_vessel", "save_vessel", "simulate", "crosscheck",
+           "effective_parameters", "compile_vessel", "validate"]
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
@@ -21,3 +22,10 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
     if isinstance(drive, str):
         drive = scenario(drive, kwargs.pop("seed", 0))
     return _simulate(compile_vessel(vessel), drive, duration_s, **kwargs)
+
+
+def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
+    """`twin validate`: every quantity of one vessel and mass case side by side (`.quantities`, `.flagged()`)."""
+    if isinstance(vessel, str):
+        vessel = load_vessel(vessel)
+    return _validate(vessel if case is None else vessel.with_case(case))

@@ -330,7 +330,8 @@ from . import cli_diagnose, cli_ident, cli_iso  # noqa: E402,F401
 
 def main() -> None:
     try:
-        app(standalone_mode=False)
+        # without standalone mode Click returns the code of typer.Exit(code) instead of raising it
+        code = app(standalone_mode=False)
     except TwinError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
@@ -342,13 +343,18 @@ def main() -> None:
     except Exception as exc:  # click usage errors and anything unexpected: one line, never a traceback
         import click
 
-        if isinstance(exc, click.exceptions.ClickException):
-            typer.echo(f"error: {exc.format_message()}", err=True)
+        # recent typer raises its own copy of click's exceptions, whose base is TyperException
+        usage = (click.exceptions.ClickException, getattr(typer.exceptions, "TyperException", click.ClickException))
+        if isinstance(exc, usage):
+            if exc.format_message():  # `twin` alone has printed the help and has nothing to add
+                typer.echo(f"error: {exc.format_message()}", err=True)
             sys.exit(2)
         if os.environ.get("TWIN_DEBUG"):
             raise
         typer.echo(f"error: {type(exc).__name__}: {exc}".splitlines()[0], err=True)
         sys.exit(3)
+    if isinstance(code, int) and not isinstance(code, bool) and code != 0:
+        sys.exit(code)
 
 
 if __name__ == "__main__":

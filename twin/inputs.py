@@ -39,12 +39,15 @@ class InputSeries:
 
 
 def read_inputs_csv(path: str | Path) -> InputSeries:
-    """CSV with a `t` column (s) and pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)."""
+    """CSV with a `t` column (s) and pwm_left,pwm_right (µs) or thrust_left,thrust_right (N).
+
+    The first row must be at t ≤ 0: the run starts at t = 0 and nothing says what the
+    thrusters did before a later first row. Spreadsheets may prefix a UTF-8 byte-order mark."""
     path = Path(path)
     if not path.is_file():
         raise TwinError(f"inputs file '{path}' not found")
     try:
-        rows = list(csv.reader(path.read_text().splitlines()))
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
     except UnicodeDecodeError:
         raise TwinError(f"{path.name}: not a text CSV file") from None
     if len(rows) < 2:
@@ -52,12 +55,7 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     header = [h.strip() for h in rows[0]]
     if "t" not in header:
         raise TwinError(f"{path.name}: missing column 't'")
-    if set(PWM_COLUMNS) <= set(header):
-        kind, cols = "pwm", PWM_COLUMNS
-    elif set(THRUST_COLUMNS) <= set(header):
-        kind, cols = "thrust", THRUST_COLUMNS
-    else:
-        raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right or thrust_left,thrust_right")
+    kind, cols = _input_columns(header, path)
     idx = [header.index(c) for c in ("t", *cols)]
     data = []
     for line, row in enumerate(rows[1:], start=2):
@@ -67,10 +65,29 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
             data.append([float(row[i]) for i in idx])
         except (ValueError, IndexError):
             raise TwinError(f"{path.name}: line {line}: not a number in t/{cols[0]}/{cols[1]}") from None
+    if not data:
+        raise TwinError(f"{path.name}: needs a header and at least one row")
     a = np.array(data)
     if not np.all(np.isfinite(a)):
         raise TwinError(f"{path.name}: NaN or infinite values")
     if np.any(np.diff(a[:, 0]) <= 0):
         line = int(np.argmax(np.diff(a[:, 0]) <= 0)) + 3
         raise TwinError(f"{path.name}: time goes backwards or repeats at line {line}")
+    if a[0, 0] > 0:
+        raise TwinError(f"{path.name}: the first row is at t = {a[0, 0]:g} s; the run starts at t = 0, so the "
+                        "first row must be at t ≤ 0 (add a row at t = 0 with the inputs to hold until then)")
     return InputSeries(a[:, 0], a[:, 1:], kind)
+
+
+def _input_columns(header: list[str], path: Path) -> tuple[str, tuple[str, str]]:
+    """'pwm' or 'thrust' and its two columns; both kinds at once would leave one silently unused."""
+    has_pwm = any(c in header for c in PWM_COLUMNS)
+    has_thrust = any(c in header for c in THRUST_COLUMNS)
+    if has_pwm and has_thrust:
+        raise TwinError(f"{path.name}: both PWM and thrust columns: give pwm_left,pwm_right (µs) or "
+                        "thrust_left,thrust_right (N), not both")
+    if set(PWM_COLUMNS) <= set(header):
+        return "pwm", PWM_COLUMNS
+    if set(THRUST_COLUMNS) <= set(header):
+        return "thrust", THRUST_COLUMNS
+    raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right or thrust_left,thrust_right")

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import types
+import typing
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -94,41 +96,78 @@ def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
 
 
 def _build(cls, data: dict | None, what: str, path: Path):
-    data = dict(data or {})
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise TwinError(f"{path.name}: {what} must be an object of named fields")
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(data) - known)
     if unknown:
         raise TwinError(f"{path.name}: unknown {what} field(s) {', '.join(unknown)}")
-    for k, v in data.items():
-        if isinstance(v, list):
-            data[k] = tuple(v)
-        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isfinite(v):
-            raise TwinError(f"{path.name}: {what}.{k} is not a finite number")
+    hints = typing.get_type_hints(cls)
+    # a string where a number belongs would otherwise surface as a TypeError deep in the physics
+    data = {k: _typed(v, hints[k], f"{what}.{k}", path) for k, v in data.items()}
     try:
         return cls(**data)
     except TypeError as exc:
         raise TwinError(f"{path.name}: bad {what}: {exc}") from None
 
 
+def _typed(value, hint, where: str, path: Path):
+    """`value` checked against the field's annotation (float, str, X | None, tuple[...], dict[str, X]);
+    JSON lists become tuples."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise TwinError(f"{path.name}: {where} must be a number, got {_shown(value)}")
+        if not math.isfinite(value):
+            raise TwinError(f"{path.name}: {where} is not a finite number")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise TwinError(f"{path.name}: {where} must be a string, got {_shown(value)}")
+        return value
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        return _typed(value, next(a for a in args if a is not type(None)), where, path)
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise TwinError(f"{path.name}: {where} must be a list, got {_shown(value)}")
+        if args and args[-1] is not Ellipsis and len(value) != len(args):
+            raise TwinError(f"{path.name}: {where} must be a list of {len(args)} values, got {len(value)}")
+        item_hints = [args[0]] * len(value) if args[-1:] == (Ellipsis,) else list(args)
+        return tuple(_typed(x, h, f"{where}[{i}]", path) for i, (x, h) in enumerate(zip(value, item_hints)))
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise TwinError(f"{path.name}: {where} must be an object, got {_shown(value)}")
+        return {k: _typed(x, args[1], f"{where}.{k}", path) for k, x in value.items()}
+    return value
+
+
+def _shown(value) -> str:
+    text = json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _pair(value, what: str, path: Path) -> tuple[float, float]:
-    try:
-        a, b = (float(x) for x in value)
-    except (TypeError, ValueError):
-        raise TwinError(f"{path.name}: {what} must be two numbers [x, y]") from None
-    if not (math.isfinite(a) and math.isfinite(b)):
-        raise TwinError(f"{path.name}: {what} is not finite")
-    return a, b
+    return _typed(value, tuple[float, float], what, path)
 
 
 def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if not isinstance(data, dict) or "mjcf" not in data or "name" not in data:
         raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
+    _typed(data["name"], str, "name", path)
+    _typed(data["mjcf"], str, "mjcf", path)
     mjcf = (path.parent / data["mjcf"]).resolve()
     if not mjcf.is_file():
         raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+    for key in ("cases", "sources"):
+        if not isinstance(data.get(key) or {}, dict):
+            raise TwinError(f"{path.name}: {key} must be an object, got {_shown(data[key])}")
     cases = {}
     for name, c in (data.get("cases") or {}).items():
-        cases[name] = _build(MassCase, c, f"case '{name}'", path)
+        cases[name] = _build(MassCase, c, f"cases.{name}", path)
     vessel = Vessel(
         name=str(data["name"]),
         mjcf=mjcf,

@@ -7,6 +7,7 @@ from the compiled model, so the engine's mass distribution is the only one.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import mujoco
@@ -49,8 +50,25 @@ def _spec(vessel: Vessel) -> mujoco.MjSpec:
     try:
         return mujoco.MjSpec.from_file(str(vessel.mjcf))
     except Exception as exc:  # MuJoCo raises ValueError with the parser message
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise TwinError(f"{vessel.mjcf.name}: malformed MJCF ({msg})") from None
+        raise TwinError(f"{vessel.mjcf.name}{mujoco_message(exc, 'malformed MJCF')}") from None
+
+
+def mujoco_message(exc: Exception, what: str) -> str:
+    """MuJoCo's multi-line parser or compiler message on one line: ', line N: WHAT (reason)'.
+
+    tinyxml2 says 'XML parse error 14:' then 'Error=XML_ERROR_MISMATCHED_ELEMENT ... Line number=2:
+    XMLElement name=body'; the schema and compiler say 'XML Error: reason' or 'Error: reason' then
+    "Element 'geom', line 5" or "Element name 'hull', id 1, line 5"."""
+    text = str(exc).strip() or type(exc).__name__
+    line = re.search(r"[Ll]ine(?: number)?[ =](\d+)", text)
+    element = re.search(r"Element (?:name )?'([^']+)'", text)
+    xml = re.search(r"Error=(XML_\w+).*?Line number=\d+:?\s*(.*)", text)
+    if xml:
+        reason = xml.group(1) + (f": {xml.group(2).strip()}" if xml.group(2).strip() else "")
+    else:
+        reason = re.sub(r"^(XML )?Error:\s*", "", text.splitlines()[0].strip())
+    where = (f", line {line.group(1)}" if line else "") + (f", element '{element.group(1)}'" if element else "")
+    return f"{where}: {what} ({reason})"
 
 
 def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
@@ -115,15 +133,15 @@ def edited_spec(vessel: Vessel) -> mujoco.MjSpec:
 
 def compile_vessel(vessel: Vessel) -> CompiledVessel:
     spec = edited_spec(vessel)
+    _check_masses(vessel, spec)
     try:
         model = spec.compile()
     except Exception as exc:
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        if "mass and inertia" in msg:
-            massless = [b.name or "(unnamed)" for b in spec.bodies[1:] if _geom_mass(b) <= 0 and not b.explicitinertial]
-            raise TwinError(f"{vessel.mjcf.name}: zero mass in body {', '.join(massless) or '?'} "
-                            "(every moving body needs a positive mass)") from None
-        raise TwinError(f"{vessel.mjcf.name}: cannot compile ({msg})") from None
+        if "mass and inertia" in str(exc):
+            body = re.search(r"Element name '([^']+)'", str(exc))
+            raise TwinError(f"{vessel.mjcf.name}: zero mass or inertia in body {body.group(1) if body else '?'} "
+                            "(every moving body needs a positive mass and inertia)") from None
+        raise TwinError(f"{vessel.mjcf.name}{mujoco_message(exc, 'cannot compile')}") from None
     for j in JOINTS:
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) < 0:
             raise TwinError(f"{vessel.mjcf.name}: missing planar joint '{j}' (north, east, yaw)")
@@ -137,12 +155,32 @@ def compile_vessel(vessel: Vessel) -> CompiledVessel:
     return compiled
 
 
-def _geom_mass(body) -> float:
-    """Total mass the body's own geoms declare (densities not resolved: NaN counts as unknown > 0)."""
-    total = 0.0
-    for g in body.geoms:
-        total += 1.0 if not np.isfinite(g.mass) or g.mass < 0 else g.mass
-    return total
+def _check_masses(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    """Every part must weigh something. MuJoCo accepts a massless geom (or <inertial>) on a body welded
+    to a heavier one, so a hull with mass="0" would silently drop out of M_RB and of the validation."""
+    for body in spec.bodies[1:]:
+        name = body.name or "(unnamed)"
+        if body.explicitinertial:
+            if not body.mass > 0:
+                raise TwinError(f"{vessel.mjcf.name}: {_sign(body.mass)} mass in body {name}: its <inertial> "
+                                f"has mass {body.mass:g} kg (every part of the vessel needs a positive mass)")
+            continue
+        for geom in body.geoms:
+            part = f"geom '{geom.name}'" if geom.name else f"its unnamed {_geom_type(geom)} geom"
+            if np.isfinite(geom.mass) and not geom.mass > 0:
+                raise TwinError(f"{vessel.mjcf.name}: {_sign(geom.mass)} mass in body {name}: {part} has mass "
+                                f"{geom.mass:g} kg (every part of the vessel needs a positive mass)")
+            if not np.isfinite(geom.mass) and not geom.density > 0:
+                raise TwinError(f"{vessel.mjcf.name}: {_sign(geom.density)} mass in body {name}: {part} has "
+                                f"density {geom.density:g} kg/m³ (every part of the vessel needs a positive mass)")
+
+
+def _sign(x: float) -> str:
+    return "zero" if x == 0 else "negative" if x < 0 else "undefined"
+
+
+def _geom_type(geom) -> str:
+    return str(geom.type).rsplit("mjGEOM_", 1)[-1].lower()
 
 
 def _site(model: mujoco.MjModel, data: mujoco.MjData, name: str, vessel: Vessel) -> np.ndarray:
