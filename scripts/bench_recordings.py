@@ -1,8 +1,12 @@
 #!/usr/bin/env python3
-"""Time to read and prepare the shared recordings, and the velocities
-recomputed from position and heading against the BlueBoat files' own columns.
+"""Time to read and prepare the shared recordings, and the velocities (surge u,
+sway v, yaw rate r) recomputed from position and heading against the BlueBoat
+files' own columns (surge, sway, yaw_rate).
 
     python scripts/bench_recordings.py [--shared ../shared] [--json out.json]
+
+The figures in docs/: python scripts/bench_recordings.py --json docs/bench_recordings.json
+> docs/bench_recordings.txt
 
 Needs ../shared (not part of the project; never copied into it).
 """
@@ -31,7 +35,8 @@ def _own_columns(path: Path) -> dict[str, np.ndarray]:
     with open(path) as fh:
         rows = list(csv.DictReader(fh))
     t = np.array([float(r["original_timestamp"]) for r in rows]) / 1000.0
-    col = {k: np.array([float(r[k]) if r[k] not in ("", "nan") else np.nan for r in rows]) for k in ("surge", "yaw_rate")}
+    col = {k: np.array([float(r[k]) if r[k] not in ("", "nan") else np.nan for r in rows])
+           for k in ("surge", "sway", "yaw_rate")}
     return {"t": t - t[0], **col}
 
 
@@ -58,12 +63,13 @@ def main(argv=None) -> int:
         total += t_read + t_prep
         own = _own_columns(path)
         corr = {}
-        for ours, theirs in (("u", "surge"), ("r", "yaw_rate")):
+        for ours, theirs in (("u", "surge"), ("v", "sway"), ("r", "yaw_rate")):
             ref = np.interp(prep.t, own["t"], own[theirs])
             ok = np.isfinite(ref) & np.isfinite(getattr(prep, ours))
             corr[ours] = float(np.corrcoef(getattr(prep, ours)[ok], ref[ok])[0, 1])
-        result["blueboat"][path.name] = {"read_prepare_s": t_read + t_prep, "corr_u": corr["u"], "corr_r": corr["r"]}
-        print(f"{path.name}: {t_read + t_prep:.3f} s, corr u {corr['u']:.3f}, r {corr['r']:.3f}")
+        result["blueboat"][path.name] = {"read_prepare_s": t_read + t_prep,
+                                         **{f"corr_{dof}": corr[dof] for dof in ("u", "v", "r")}}
+        print(f"{path.name}: {t_read + t_prep:.3f} s, corr u {corr['u']:.3f}, v {corr['v']:.3f}, r {corr['r']:.3f}")
     result["blueboat_total_s"] = total
     print(f"all ten BlueBoat files: {total:.2f} s")
     if args.json:

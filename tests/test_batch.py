@@ -7,7 +7,7 @@ import pytest
 
 import twin.vessel as vessel_mod
 from twin.crosscheck import TERM_ENV
-from twin.engine import batch, native
+from twin.engine import batch, divergence, native
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.engine.sim import simulate
 from twin.errors import TwinError
@@ -24,9 +24,12 @@ def compiled():
 
 
 @pytest.fixture(autouse=True)
-def _log_in_tmp(tmp_path, monkeypatch):
-    """MuJoCo appends divergence warnings to MUJOCO_LOG.TXT in the working directory."""
+def _no_log_litter(tmp_path, monkeypatch):
+    """MuJoCo appends divergence warnings to MUJOCO_LOG.TXT in the working directory unless the
+    twin switches its log off while stepping (engine/divergence.py): none may appear."""
     monkeypatch.chdir(tmp_path)
+    yield
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
 
 
 def _one_by_one(model, state0, controls) -> np.ndarray:
@@ -34,7 +37,7 @@ def _one_by_one(model, state0, controls) -> np.ndarray:
     data = mujoco.MjData(model)
     mujoco.mj_setState(model, data, state0, batch.FULL)
     out = np.empty((len(controls), len(state0)))
-    with native.installed_native():
+    with native.installed_native(), divergence.quiet_log():  # as the twin steps: no MUJOCO_LOG.TXT
         for k, u in enumerate(controls):
             data.ctrl[:] = u
             mujoco.mj_step(model, data)
@@ -119,3 +122,28 @@ def test_models_without_params_are_rejected(compiled):
     good = native.with_native_params(compiled["yellowfish"])
     with pytest.raises(TwinError):
         batch.rollout([good], np.zeros((1, batch.state_size(good))), np.zeros((1, 5, 3)))
+
+
+def test_simulate_many_keeps_the_runs_that_did_not_diverge(compiled):
+    """Issue 5: a run that blows up is reported by index and time; the others come back whole.
+    Quadratic damping this stiff is stable at rest and explodes at 1 m/s (explicit damping
+    force, 2 ms steps)."""
+    yf = compiled["yellowfish"]
+    stiff = CompiledVessel(replace(yf.vessel, damping=replace(yf.vessel.damping, Xuu=-1e5, Nrr=-1e5)),
+                           yf.model, yf.geometry)
+    idle = InputSeries(np.array([0.0]), np.array([[1500.0, 1500.0]]), "pwm")
+    gentle = InputSeries(np.array([0.0, 1.0]), np.array([[1500.0, 1500.0], [1700.0, 1650.0]]), "pwm")
+    runs = batch.simulate_many(stiff, [gentle, idle, gentle], [5.0, 5.0, 3.0], nu0=[None, (1.0, 0.0, 0.0), None],
+                               start_s=[0.0, 10.0, 20.0], sample_dt_s=0.1)
+    assert len(runs) == 3 and runs[1] is None
+    [(index, t_s)] = runs.diverged
+    assert index == 1 and 10.0 < t_s < 10.1  # on the run's own clock (start_s = 10 s)
+    assert "run 1 at t = 10.02 s" in runs.describe_divergence()
+    with pytest.raises(TwinError, match="diverged at t = 10.02 s"):  # alone, it fails at the same time
+        simulate(stiff, idle, 5.0, nu0=(1.0, 0.0, 0.0), start_s=10.0)
+    for run, start, duration in ((runs[0], 0.0, 5.0), (runs[2], 20.0, 3.0)):
+        alone = simulate(stiff, gentle, duration, start_s=start)
+        np.testing.assert_allclose(run.t, alone.t, atol=1e-9)
+        np.testing.assert_allclose(run.eta, alone.eta, atol=1e-9)
+        assert np.ptp(run.eta[:, 0]) > 0.01  # it did move
+    assert batch.simulate_many(yf, [idle], [2.0]).diverged == []

@@ -181,3 +181,24 @@ def _bad_mjcf(tmp, xml="<mujoco><worldbody><body></mujoco>"):
 def _inputs(tmp, text):
     (tmp / "in.csv").write_text(text)
     return tmp / "in.csv"
+
+
+def test_a_diverging_twin_is_one_line_exit_2_and_no_litter(tmp_path):
+    """Quadratic damping this stiff passes every check (it is dissipative) but explodes under the
+    explicit 2 ms step once the boat moves: MuJoCo resets the state and logs to MUJOCO_LOG.TXT;
+    the twin must say when it diverged instead, and write nothing."""
+    stiff = _vessel_file(tmp_path, damping={"Xu": -2.0, "Xuu": -1e5, "Yv": -45.0, "Nr": -40.0, "Nrr": -1e5})
+    out = tmp_path / "run.csv"
+    p = twin("simulate", "--model", stiff, "--scenario", "zigzag", "--duration", "20", "--out", out, cwd=tmp_path)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert p.stderr.startswith("error: the twin diverged at t = 5.04 s")
+    assert not out.exists() and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    p = twin("crosscheck", "--model", stiff, "--duration", "20", cwd=tmp_path)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert "crosscheck case 'full': the twin diverged at t = 5.04 s" in p.stderr
+    log = tmp_path / "z.tlog"
+    assert twin("simulate", "--vessel", "yellowfish", "--duration", "20", "--out", log).returncode == 0
+    p = twin("view", log, "--sim", "--model", stiff, "--out", tmp_path / "v.rrd", cwd=tmp_path)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert p.stderr.startswith("error: z.tlog: replay: the twin diverged at t = ")
+    assert not (tmp_path / "v.rrd").exists() and not (tmp_path / "MUJOCO_LOG.TXT").exists()

@@ -17,7 +17,7 @@ def twin(*args):
 def sim_tlog(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec")
     p = twin("simulate", "--vessel", "yellowfish", "--scenario", "zigzag", "--duration", "40", "--out", d / "z.tlog",
-             "--out", d / "z.csv")
+             "--out", d / "z.csv", "--out", d / "z.bin", "--out", d / "z.mcap")
     assert p.returncode == 0, p.stderr
     return d
 
@@ -89,3 +89,141 @@ def test_model_smoother_beats_savitzky_golay_on_noisy_gnss():
     for k in "uvr":
         assert row[f"{k}_rmse_model"] < 0.6 * row[f"{k}_rmse_savgol"], k
     assert row["u_rmse_model"] < 0.06
+
+
+def test_the_twins_own_csv_is_a_recording(sim_tlog, tmp_path):
+    """`twin simulate --out z.csv` (t,x,y,psi,u,v,r,...) used to be refused by info/view/convert: "no GNSS"."""
+    p = twin("info", sim_tlog / "z.csv")
+    assert p.returncode == 0, p.stderr
+    assert "gnss         401 samples at 10.00 Hz" in p.stdout and "body origin" in p.stdout
+    p = twin("convert", sim_tlog / "z.csv", tmp_path / "z.mcap")
+    assert p.returncode == 0, p.stderr
+    p = twin("view", sim_tlog / "z.csv", "--out", tmp_path / "z.rrd")
+    assert p.returncode == 0 and (tmp_path / "z.rrd").stat().st_size > 1000, p.stderr
+
+
+def _no_gnss_recording():
+    """Heading 20 Hz, PWM 10 Hz, gyro 20 Hz, battery 1 Hz and parameters, no GNSS: an ROV or bench log."""
+    from twin.recordings import Recording, Stream
+
+    th, tp, tb = np.arange(400) * 0.05, 0.013 + np.arange(200) * 0.1, np.arange(20) * 1.0
+    rec = Recording(source="bench", kind="synthetic")
+    rec.heading = Stream(th, {"psi_rad": np.angle(np.exp(1j * (2.5 + 0.2 * th)))})
+    rec.imu = Stream(th, {"yaw_rate_rads": 0.2 + 0.01 * np.sin(th)})
+    rec.pwm = Stream(tp, {"left_us": 1500.0 + np.round(200 * np.sin(tp)), "right_us": np.full(200, 1650.0)})
+    rec.battery = Stream(tb, {"voltage_v": 16.2 - 0.01 * tb})
+    rec.parameters = {"FRAME_CLASS": 2.0, "CRUISE_SPEED": 1.5}
+    return rec
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".mcap", ".tlog", ".bin"])
+def test_convert_a_log_without_gnss(tmp_path, suffix):
+    """Issue 4: convert needed GNSS and heading, so 3 of the 5 shared ArduPilot logs could not be
+    converted; a log without GNSS is now written with its streams at their own times."""
+    from twin.recordings import write_recording
+
+    rec = _no_gnss_recording()
+    write_recording(rec, tmp_path / "in.bin")
+    p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}")
+    assert p.returncode == 0, p.stderr
+    assert "streams at their own times (not synchronised: cannot prepare without GNSS samples)" in p.stdout
+    back = read_recording(tmp_path / f"out{suffix}")
+    assert len(back.gnss) == 0 and len(back.heading) == len(rec.heading) and len(back.pwm) == len(rec.pwm)
+    np.testing.assert_allclose(back.pwm.t - back.pwm.t[0], rec.pwm.t - rec.pwm.t[0], atol=2e-6)
+    np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"])
+    np.testing.assert_allclose(back.battery["voltage_v"], rec.battery["voltage_v"], atol=1e-5)
+    if suffix != ".tlog":  # a tlog's yaw rate rides in ATTITUDE, at the heading times: the same here
+        np.testing.assert_allclose(back.imu["yaw_rate_rads"], rec.imu["yaw_rate_rads"], atol=1e-6)
+    if suffix == ".csv":
+        assert back.parameters == {} and "the CSV layout has no place for the 8 parameters" in p.stdout  # 2 + mapping
+    else:
+        assert back.parameters["CRUISE_SPEED"] == 1.5 and back.parameters["FRAME_CLASS"] == 2.0
+
+
+def test_a_converted_real_recording_is_not_called_simulated(sim_tlog, tmp_path):
+    """A tlog converted to MCAP read back with "positions are the body origin (simulated)"."""
+    p = twin("convert", sim_tlog / "z.tlog", tmp_path / "real.mcap")
+    assert p.returncode == 0, p.stderr
+    assert "gnss, heading, pwm synchronised on a 0.1 s grid" in p.stdout
+    real = read_recording(tmp_path / "real.mcap")
+    assert not any("body origin" in n or "simulated" in n for n in real.notes), real.notes
+    assert real.gnss.has("lat_deg", "lon_deg") and "positions" not in real.meta
+    simulated = read_recording(sim_tlog / "z.mcap")
+    assert any("body origin (simulated)" in n for n in simulated.notes)
+    # the antenna track of the conversion is the tlog's own, sample for sample on the grid
+    src = prepare(read_recording(sim_tlog / "z.tlog"))
+    again = prepare(real)
+    n = min(len(src.t), len(again.t))
+    np.testing.assert_allclose(again.north[:n], src.north[:n], atol=0.02)
+
+
+def test_a_truncated_dataflash_log_says_so(sim_tlog, tmp_path):
+    data = (sim_tlog / "z.bin").read_bytes()
+    (tmp_path / "half.bin").write_bytes(data[: len(data) // 2 + 7])
+    p = twin("info", tmp_path / "half.bin")
+    assert p.returncode == 0, p.stderr
+    assert "last message cut short (the log is truncated): 1" in p.stdout
+    assert "truncated" not in twin("info", sim_tlog / "z.bin").stdout
+
+
+def test_info_reports_every_file_and_exits_2_if_any_failed(sim_tlog, tmp_path):
+    (tmp_path / "one.csv").write_text("t,lat,lon,heading_deg\n0,37.1,-5.9,10\n")
+    (tmp_path / "folder").mkdir()
+    p = twin("info", sim_tlog / "z.tlog", tmp_path / "one.csv", tmp_path / "folder", sim_tlog / "z.csv")
+    assert p.returncode == 2
+    assert p.stdout.count("== ") == 2 and "z.csv (csv)" in p.stdout  # the good file after the bad ones too
+    errors = p.stderr.strip().splitlines()
+    assert len(errors) == 2 and all(e.startswith("error: ") for e in errors) and "Traceback" not in p.stderr
+    assert "one.csv: nothing usable" in errors[0] and "is a directory" in errors[1]
+
+
+def test_view_writes_into_the_working_folder_not_beside_the_input(sim_tlog, tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "z.tlog").write_bytes((sim_tlog / "z.tlog").read_bytes())
+    work = tmp_path / "work"
+    work.mkdir()
+    p = subprocess.run([sys.executable, "-m", "twin.cli", "view", str(data / "z.tlog")], capture_output=True,
+                       text=True, timeout=600, cwd=work)
+    assert p.returncode == 0, p.stderr
+    assert sorted(x.name for x in data.iterdir()) == ["z.tlog"] and (work / "z.rrd").stat().st_size > 1000
+
+
+def test_view_replay_without_pwm_names_the_file(tmp_path):
+    (tmp_path / "nopwm.csv").write_text("t,north,east,psi\n" + "".join(f"{0.1 * k:.1f},{0.1 * k:.2f},0,0\n"
+                                                                      for k in range(50)))
+    p = twin("view", tmp_path / "nopwm.csv", "--sim", "--vessel", "yellowfish", "--out", tmp_path / "v.rrd")
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
+    assert p.stderr.startswith("error: nopwm.csv: the recording has no thruster PWM to replay")
+
+
+def test_view_sim_plots_the_real_thrust_from_the_recorded_pwm(sim_tlog, tmp_path, monkeypatch):
+    """Thrust is "sim against real" like u, v, r: the recording's thrust is the twin's thruster map
+    on its PWM, labelled so; replaying a twin's own log, the two agree."""
+    import twin.outputs
+    import twin.viz.rerun_log as rerun_log
+    from twin import cli
+
+    written, labels = {}, []
+    real_write, real_series = twin.outputs.write, rerun_log.rr.SeriesLines
+
+    def spy_write(runs, path, **kwargs):
+        written.update(runs)
+        real_write(runs, path, **kwargs)
+
+    def spy_series(*args, names=None, **kwargs):
+        labels.extend(names or [])
+        return real_series(*args, names=names, **kwargs)
+
+    monkeypatch.setattr(twin.outputs, "write", spy_write)
+    monkeypatch.setattr(rerun_log.rr, "SeriesLines", spy_series)
+    monkeypatch.setattr(sys, "argv", ["twin", "view", str(sim_tlog / "z.tlog"), "--sim", "--vessel", "yellowfish",
+                                      "--out", str(tmp_path / "v.rrd")])
+    cli.main()
+    real, sim = written["real"], written["twin"]
+    assert np.all(np.isfinite(real.thrust_n)) and np.ptp(real.thrust_n[:, 0]) > 10.0  # the zig-zag's steps
+    k = np.searchsorted(sim.t, real.t - 1e-6)
+    ok = k < len(sim.t)
+    # the recorded PWM is the twin's at 10 Hz: the thrust agrees but where a step falls between samples
+    assert np.median(np.abs(real.thrust_n[ok] - sim.thrust_n[k[ok]])) < 0.5
+    assert "real (yellowfish thrust map on the recorded PWM)" in labels

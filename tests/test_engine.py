@@ -119,3 +119,34 @@ def test_asymmetric_gain_turns_the_vessel():
     run = simulate(compile_vessel(weak_right), scenarios.step(surge=0.6, at_s=0.0), 10.0)
     assert run.eta[-1, 2] > np.deg2rad(5)  # left pushes harder: turns to starboard
     np.testing.assert_allclose(run.thrust_n[-1, 1] / run.thrust_n[-1, 0], 0.8)
+
+
+def _anti_damped(yellowfish) -> CompiledVessel:
+    """Positive (anti-)damping: energy is pumped in and the twin blows up within a second."""
+    from dataclasses import replace
+
+    from twin.physics.damping import Damping
+
+    return CompiledVessel(replace(yellowfish.vessel, damping=Damping(Xu=200.0, Yv=200.0, Nr=200.0)),
+                          yellowfish.model, yellowfish.geometry)
+
+
+@pytest.mark.parametrize("backend", ["native", "python"])
+def test_a_diverging_twin_raises_naming_the_time(yellowfish, backend, tmp_path, monkeypatch, capfd):
+    """MuJoCo resets a diverged state and carries on; the twin must notice, say when, and leave
+    neither MUJOCO_LOG.TXT in the working directory nor MuJoCo's own warning on the console."""
+    from twin.errors import TwinError
+    from twin.inputs import InputSeries
+
+    monkeypatch.chdir(tmp_path)
+    series = InputSeries(np.array([0.0]), np.array([[1700.0, 1600.0]]), "pwm")
+    with pytest.raises(TwinError) as exc:
+        simulate(_anti_damped(yellowfish), series, 30.0, start_s=100.0, backend=backend)
+    # the step MuJoCo flags (its own message said "Time = 0.3000"), on the recording clock
+    assert "diverged at t = 100.30 s" in str(exc.value) and "position" in str(exc.value)
+    assert "\n" not in str(exc.value)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert "WARNING" not in capfd.readouterr().err
+    assert mujoco.MjLogConfig.get().logto_file  # MuJoCo's log is only silenced while the twin steps
+    run = simulate(yellowfish, series, 2.0, backend=backend)
+    assert np.all(np.isfinite(run.nu)) and run.nu[-1, 0] > 0.3

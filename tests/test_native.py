@@ -14,7 +14,7 @@ from twin.errors import TwinError
 from twin.physics.environment import Environment
 from twin.physics.hydrodynamics import Terms
 
-VESSELS = ("yellowfish", "cybership1")
+VESSELS = ("yellowfish", "cybership1", "blueboat")
 CASES = {c.name: c for c in cases()}
 
 

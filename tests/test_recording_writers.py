@@ -32,6 +32,7 @@ RESOLUTION = {
     ".csv": Resolution(1e-6, 1e-6, 1e-9, 1e-8, 1e-4),
     ".tlog": Resolution(1e-6, 5e-4 + 1e-9, 1e-7, 3e-7, 1e-3),  # ATTITUDE ms, float32 yaw, 1e-7 deg ints
     ".mcap": Resolution(1e-9, 1e-9, 1e-12, 1e-12, 1e-12),
+    ".bin": Resolution(1e-6, 1e-6, 1e-7, np.radians(0.005) + 1e-9, 0.005 + 1e-9),  # ATT centidegrees, alt cm
 }
 
 
@@ -79,7 +80,7 @@ def rec() -> Recording:
     return synthetic()
 
 
-@pytest.mark.parametrize("suffix", [".csv", ".tlog", ".mcap"])
+@pytest.mark.parametrize("suffix", [".csv", ".tlog", ".mcap", ".bin"])
 def test_round_trip(rec, tmp_path, suffix):
     res = RESOLUTION[suffix]
     out = tmp_path / f"synthetic{suffix}"
@@ -145,14 +146,35 @@ def test_mcap_topics_are_foxglove_readable(rec, tmp_path):
 
 def test_optional_streams(tmp_path):
     rec = synthetic(3, extras=True)
-    for suffix in (".csv", ".tlog", ".mcap"):
+    for suffix in (".csv", ".tlog", ".mcap", ".bin"):
         write_recording(rec, tmp_path / f"r{suffix}")
         back = read_recording(tmp_path / f"r{suffix}")
         np.testing.assert_allclose(back.imu.t, rec.imu.t, atol=RESOLUTION[suffix].heading_t_s)
         np.testing.assert_allclose(back.imu["yaw_rate_rads"], rec.imu["yaw_rate_rads"], atol=1e-7)
-        np.testing.assert_allclose(back.battery["voltage_v"], rec.battery["voltage_v"], atol=1e-9)
+        volt_res = 1e-6 if suffix == ".bin" else 1e-9  # DataFlash float32
+        np.testing.assert_allclose(back.battery["voltage_v"], rec.battery["voltage_v"], atol=volt_res)
         # SYS_STATUS has no time of its own: the reader maps its receive time through ATTITUDE's ms clock
         np.testing.assert_allclose(back.battery.t, rec.battery.t, atol=1e-3 if suffix == ".tlog" else 1e-6)
+
+
+@pytest.mark.parametrize("suffix", [".tlog", ".mcap", ".bin"])
+def test_parameters_are_kept_where_the_format_has_room(tmp_path, suffix):
+    """A log's parameters survive conversion; in an autopilot log the source's own throttle channels
+    give way to the mapping the file's PWM is written with, or the reader would pick the wrong
+    channels (MCAP stores left/right PWM by name and keeps every parameter as it was)."""
+    rec = synthetic(4)
+    rec.parameters = {"FRAME_CLASS": 2.0, "CRUISE_SPEED": 1.25, "SERVO5_FUNCTION": 74.0, "SERVO7_FUNCTION": 33.0}
+    rec.pwm_neutral_us = (1511.0, 1490.0)
+    write_recording(rec, tmp_path / f"r{suffix}")
+    back = read_recording(tmp_path / f"r{suffix}")
+    assert back.parameters["FRAME_CLASS"] == 2.0 and back.parameters["SERVO7_FUNCTION"] == 33.0
+    assert back.parameters["CRUISE_SPEED"] == pytest.approx(1.25, rel=1e-7)  # float32 in the logs
+    if suffix == ".mcap":
+        assert back.parameters == rec.parameters
+    else:
+        assert back.parameters.get("SERVO5_FUNCTION") != 74.0
+    assert tuple(back.pwm_neutral_us) == (1511.0, 1490.0)
+    np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"])
 
 
 def test_csv_header_and_empty_cells(rec, tmp_path):
@@ -205,11 +227,18 @@ def test_bad_recordings_raise_and_keep_the_old_file(rec, tmp_path):
         write_recording(bad, out)
     with pytest.raises(TwinError, match="no samples"):
         write_recording(Recording(source="empty", kind="synthetic"), out)
-    odd = synthetic(1)
-    odd.pwm_neutral_us = (1511.0, 1511.0)
-    with pytest.raises(TwinError, match="neutral"):
-        write_recording(odd, tmp_path / "r.csv")
     assert listing(tmp_path) == ["r.mcap"] and out.read_bytes() == b"old"
+
+
+def test_csv_keeps_a_pwm_neutral_other_than_1500(tmp_path):
+    """The BlueBoat's thrusters stop at 1511 µs: the generic CSV says so in two columns."""
+    odd = synthetic(1)
+    odd.pwm_neutral_us = (1511.0, 1509.0)
+    write_recording(odd, tmp_path / "r.csv")
+    assert (tmp_path / "r.csv").read_text().splitlines()[0].endswith("pwm_right,pwm_neutral_left,pwm_neutral_right")
+    back = read_recording(tmp_path / "r.csv")
+    assert tuple(back.pwm_neutral_us) == (1511.0, 1509.0)
+    np.testing.assert_array_equal(back.pwm["right_us"], odd.pwm["right_us"])
 
 
 def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):
@@ -235,3 +264,21 @@ def test_run_mcap_still_reads_as_states(tmp_path):
     back = read_recording(tmp_path / "run.mcap")
     assert back.gnss.has("north_m", "east_m") and not back.gnss.has("lat_deg")
     np.testing.assert_allclose(back.gnss["east_m"], 2 * t)
+
+
+def test_mcap_cut_short_reads_its_complete_part(tmp_path):
+    """A recording MCAP cut in half (full disk, killed logger) gives every sample of its complete
+    chunks, with its origin and neutral (the metadata comes first) and a note of the loss."""
+    rec = synthetic(6, extras=True)
+    rec.pwm_neutral_us = (1511.0, 1511.0)
+    write_recording(rec, tmp_path / "r.mcap")
+    data = (tmp_path / "r.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    back = read_recording(tmp_path / "cut.mcap")
+    assert any("truncated" in n and "the rest is lost" in n for n in back.notes), back.notes
+    assert tuple(back.pwm_neutral_us) == (1511.0, 1511.0)
+    for name in ("gnss", "heading", "pwm", "imu"):
+        whole, part = getattr(rec, name), getattr(back, name)
+        assert 0.2 * len(whole) < len(part) < 0.6 * len(whole), name
+        np.testing.assert_allclose(part.t + back.origin_s, whole.t[: len(part)] + rec.origin_s, atol=1e-9)
+    np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"][: len(back.pwm)])

@@ -355,6 +355,63 @@ def test_mcap_run_roundtrip(tmp_path):
     assert_recovers_circle(prepare(rec, lever_arm_OP_m=None))
 
 
+def test_twin_run_csv_reads_as_a_recording(tmp_path):
+    """`twin simulate --out run.csv` writes t,x,y,psi,u,v,r,...: x, y are north, east of the
+    body origin, so the track comes back exactly and without a lever arm; r is the yaw rate."""
+    from twin.run import Run
+
+    t = grid_times()
+    n, e, psi = truth(t)
+    left, right = pwm_truth(t)
+    run = Run(t, np.column_stack([n, e, psi]), np.column_stack([np.full_like(t, U), 0 * t, np.full_like(t, R)]),
+              np.column_stack([left, right]), np.zeros((len(t), 2)))
+    (tmp_path / "run.csv").write_text(run.to_csv_text())
+    rec = read_recording(tmp_path / "run.csv")
+    assert rec.kind == "csv" and rec.meta["positions"] == "body origin"
+    assert len(rec.gnss) == len(rec.heading) == len(rec.pwm) == len(rec.imu) == len(t)
+    np.testing.assert_allclose(rec.imu["yaw_rate_rads"], R)
+    assert_recovers_circle(prepare(rec, lever_arm_OP_m=None))
+
+
+@pytest.mark.parametrize("text", [
+    "t,lat,lon,heading_deg\n3,37.1,-5.9,10\n2,37.1,-5.9,11\n1,37.1,-5.9,12\n0,37.1,-5.9,13\n",  # time reversed
+    "t,lat,lon,heading_deg,pwm_left,pwm_right\n0,37.1,-5.9,10,1500,1500\n",  # one row
+])
+def test_nothing_usable_is_an_error_not_an_empty_summary(tmp_path, text):
+    """One sample per stream has no duration, rate or motion: `twin info` used to print 0.0 s at 0.00 Hz."""
+    (tmp_path / "bad.csv").write_text(text)
+    with pytest.raises(TwinError, match="bad.csv: nothing usable") as info:
+        read_recording(tmp_path / "bad.csv")
+    assert "\n" not in str(info.value)
+
+
+def test_out_of_range_samples_are_dropped_and_counted(tmp_path):
+    path = write_generic_csv(tmp_path / "run.csv")
+    rows = path.read_text().splitlines()
+    cells = rows[31].split(",")
+    cells[1] = "1000.0"  # latitude 1000°
+    rows[31] = ",".join(cells)
+    cells = rows[61].split(",")
+    cells[5] = "50000"  # PWM 50000 µs
+    rows[61] = ",".join(cells)
+    cells = rows[91].split(",")
+    cells[2] = "-190.0"  # longitude −190°
+    rows[91] = ",".join(cells)
+    path.write_text("\n".join(rows) + "\n")
+    rec = read_recording(path)
+    dropped = dict(rec.dropped)
+    assert dropped["gnss: latitude outside ±90°"] == 1 and dropped["gnss: longitude outside ±180°"] == 1
+    assert dropped["pwm: PWM outside 500-2500 µs"] == 1
+    assert len(rec.gnss) == len(grid_times()) - 4  # the NaN row, the backwards one and the two out of range
+    assert np.all(np.abs(rec.gnss["lat_deg"]) <= 90) and rec.pwm["right_us"].max() < 2500
+    assert "latitude outside ±90°: 1" in format_summary(rec.summary())
+
+
+def test_a_directory_is_not_a_missing_file(tmp_path):
+    with pytest.raises(TwinError, match="is a directory"):
+        read_recording(tmp_path)
+
+
 def test_hold_is_causal():
     ts = np.array([0.0, 1.0, 2.0])
     got = hold(ts, np.array([10.0, 20.0, 30.0]), np.array([-0.5, 0.0, 0.5, 0.999, 1.0, 1.5, 2.5]))
@@ -426,3 +483,21 @@ def test_shared_blueboat_velocities_match_the_authors():
     assert min(cu for cu, _ in corr.values()) > 0.99, corr
     assert min(cr for _, cr in corr.values()) > 0.7, corr  # fixed_00000221 barely turns: 0.75
     assert np.median([cr for _, cr in corr.values()]) > 0.97, corr
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".csv", ".bin"])
+def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
+    """Issue 4: three of the five shared logs have no GNSS and could not be converted. Every one
+    converts now, and reads back with its heading, IMU, battery (and parameters where kept)."""
+    from twin.recordings import write_recording
+    from twin.recordings.convert import for_conversion
+
+    for path in _shared("ardupilot"):
+        rec = read_recording(path)
+        conversion = for_conversion(rec)
+        assert conversion.synchronised == (len(rec.gnss) > 0), path.name
+        write_recording(conversion.recording, tmp_path / f"{path.stem}{suffix}")
+        back = read_recording(tmp_path / f"{path.stem}{suffix}")
+        for name in ("heading", "imu", "battery") if not conversion.synchronised else ("imu", "battery"):
+            assert len(getattr(back, name)) == len(getattr(rec, name)), (path.name, name)
+        assert len(back.parameters) == (0 if suffix == ".csv" else len(rec.parameters)), path.name

@@ -93,13 +93,23 @@ def test_read_mcap_rejects_garbage(tmp_path):
         read_run_mcap(tmp_path / "missing.mcap")
 
 
-def test_read_mcap_rejects_truncated_file(tmp_path):
+def test_read_mcap_truncated_file_gives_its_complete_part(tmp_path):
+    """A file cut short (full disk, killed writer) keeps its metadata and all but its last chunk."""
+    run = synthetic_run(4, n=1200)
     good = tmp_path / "good.mcap"
-    write_run_mcap(synthetic_run(4, n=200), good)
+    write_run_mcap(run, good, vessel_name="yellowfish")
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    with pytest.raises(TwinError):
-        read_run_mcap(cut)
+    notes = []
+    back = read_run_mcap(cut, notes)
+    assert 0.3 * len(run.t) < len(back.t) < 0.55 * len(run.t)
+    np.testing.assert_array_equal(back.eta, run.eta[: len(back.t)])
+    np.testing.assert_array_equal(back.pwm_us, run.pwm_us[: len(back.t)])
+    assert back.meta["vessel"] == "yellowfish"  # the metadata comes first
+    assert len(notes) == 1 and "truncated" in notes[0] and "the rest is lost" in notes[0]
+    with pytest.raises(TwinError, match="not a readable MCAP"):  # nothing complete left
+        (tmp_path / "stub.mcap").write_bytes(good.read_bytes()[:12])
+        read_run_mcap(tmp_path / "stub.mcap")
 
 
 def test_read_mcap_without_state_topic(tmp_path):

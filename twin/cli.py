@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -232,10 +231,19 @@ def info(
     """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
     from .recordings import format_summary, read_recording
 
-    for path in files:
-        rec = read_recording(path, channels=_channels(channels))
+    mapping = _channels(channels)
+    failed = 0
+    for path in files:  # one bad file must not hide the others' summaries
+        try:
+            rec = read_recording(path, channels=mapping)
+        except TwinError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            failed += 1
+            continue
         typer.echo(f"== {path}")
         typer.echo(format_summary(rec.summary()))
+    if failed:
+        raise typer.Exit(2)
 
 
 @app.command()
@@ -243,12 +251,12 @@ def convert(
     src: Path = typer.Argument(..., help="input recording: .bin, .tlog, .csv, .mcap"),
     dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
-    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised output, s"),
+    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
 ):
-    """Convert a recording, synchronised on one grid (seed 004 §5.1), to another format."""
-    from .recordings import prepare, read_recording
-    from .replay import measured_run
-    from .vessel import write_text_atomic
+    """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
+    (seed 004 §5.1) when it has GNSS and heading, else every stream at its own times."""
+    from .recordings import read_recording, write_recording
+    from .recordings.convert import for_conversion, not_kept
 
     suffix = dst.suffix.lower()
     if suffix not in (".csv", ".mcap", ".tlog", ".bin"):
@@ -256,26 +264,11 @@ def convert(
     if not dst.parent.exists():
         raise TwinError(f"output '{dst}': folder '{dst.parent}' does not exist")
     rec = read_recording(src, channels=_channels(channels))
-    prep = prepare(rec, grid_dt=grid_dt)
-    run = measured_run(prep)
-    if suffix == ".csv":
-        lines = ["t,north,east,psi,pwm_left,pwm_right"]
-        for i in range(len(run.t)):
-            lines.append(",".join(f"{x:.9g}" if np.isfinite(x) else "" for x in (
-                run.t[i], run.eta[i, 0], run.eta[i, 1], run.eta[i, 2], run.pwm_us[i, 0], run.pwm_us[i, 1])))
-        write_text_atomic(dst, "\n".join(lines) + "\n")
-    elif suffix == ".mcap":
-        from .viz.mcap_io import write_run_mcap
-
-        write_run_mcap(run, dst, rec.meta.get("vessel", "") if isinstance(rec.meta, dict) else "")
-    else:
-        from .viz.dataflash_io import write_run_bin
-        from .viz.tlog_io import write_run_tlog
-
-        origin = prep.origin or {}
-        kwargs = {"origin": (origin["lat_deg"], origin["lon_deg"])} if "lat_deg" in origin else {}
-        (write_run_tlog if suffix == ".tlog" else write_run_bin)(run, dst, **kwargs)
-    typer.echo(f"wrote {dst}: {len(run.t)} samples, {run.t[-1] - run.t[0]:.1f} s")
+    conversion = for_conversion(rec, grid_dt)
+    write_recording(conversion.recording, dst)
+    typer.echo(f"wrote {dst}: {conversion.recording.duration_s():.1f} s, {conversion.timing}")
+    for line in not_kept(conversion.recording, suffix):
+        typer.echo(f"note: {line}")
 
 
 @app.command()
@@ -284,7 +277,8 @@ def view(
     sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (for --sim and the GNSS lever arm)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: FILE.rrd beside the first input)"),
+    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: ./STEM.rrd, STEM of the first "
+                                                  "input, in the current folder)"),
     png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT"),
     smoother: str = typer.Option("savgol", help="velocities: savgol (seed 004) or model (EKF+RTS on the vessel model)"),
@@ -292,7 +286,7 @@ def view(
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from .outputs import check_paths, write
     from .recordings import prepare, read_recording
-    from .replay import measured_run, replay
+    from .replay import measured_run, replay, thrust_from_recorded_pwm
     from .viz.report import comparison_png
 
     v = _vessel(vessel, model, "nominal") if (vessel or model) else None
@@ -300,18 +294,28 @@ def view(
         raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
     if smoother not in ("savgol", "model"):
         raise TwinError(f"unknown smoother '{smoother}' (savgol or model)")
-    out = out or files[0].with_suffix(".rrd")
+    out = out or Path(files[0].stem + ".rrd")  # the working folder: never beside the input (a shared data folder)
     check_paths([out])
+    compiled = None
+    if v is not None:
+        from .engine.mjcf import compile_vessel
+
+        compiled = compile_vessel(v)
     runs = {}
     for path in files:
-        prep = prepare(read_recording(path, channels=_channels(channels)), lever_arm_OP_m=_lever_arm(v))
+        rec = read_recording(path, channels=_channels(channels))
+        at_body_origin = rec.meta.get("positions") == "body origin"  # a twin's run: no antenna to correct
+        prep = prepare(rec, lever_arm_OP_m=None if at_body_origin else _lever_arm(v))
         if smoother == "model":
-            from .engine.mjcf import compile_vessel
             from .smoother import model_smoothed
 
-            prep = model_smoothed(compile_vessel(v), prep)
+            prep = model_smoothed(compiled, prep)
         label = path.stem if len(files) > 1 else "real"
         runs[label] = measured_run(prep)
+        if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r
+            runs[label].thrust_n = thrust_from_recorded_pwm(compiled, prep)
+            runs[label].meta["series_labels"] = {q: f"{label} ({v.name} thrust map on the recorded PWM)"
+                                                 for q in ("thrust_left", "thrust_right")}
         if sim:
             runs[f"twin {path.stem}" if len(files) > 1 else "twin"] = replay(v, prep)
     write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)

@@ -12,6 +12,7 @@ import numpy as np
 from . import analytic, scenarios
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate
+from .errors import TwinError
 from .physics.environment import Environment
 from .physics.hydrodynamics import Terms
 from .physics.kinematics import wrap_angle
@@ -74,7 +75,10 @@ def run_case(compiled: CompiledVessel, case: Case, duration_s: float, inputs=Non
     vessel = replace(compiled.vessel, environment=case.environment)
     cv = CompiledVessel(vessel, compiled.model, compiled.geometry)
     drive = inputs if inputs is not None else scenarios.get("zigzag")
-    eng = simulate(cv, drive, duration_s, nu0=case.nu0, terms=case.terms)
+    try:
+        eng = simulate(cv, drive, duration_s, nu0=case.nu0, terms=case.terms)
+    except TwinError as exc:  # say which term case blew up: the full model may be fine
+        raise TwinError(f"crosscheck case '{case.name}': {exc}") from None
     ana = analytic.simulate(cv.hydro(case.terms), vessel.thrusters, cv.geometry.thruster_y_m,
                             eng.meta["inputs"], eng.t, nu0=np.array(case.nu0))
     pos, head = _compare(eng, ana)

@@ -8,7 +8,9 @@ results are bit-identical to stepping each twin alone with `mj_step`.
 
 A twin that blows up does not spoil the batch: MuJoCo flags it (non-finite or
 larger than mjMAXVAL), resets it and stops stepping it; here it is reported as
-(index, time) and its samples from then on are NaN.
+(index, time) and its samples from then on are NaN (`rollout`), or its run is
+left out (`simulate_many`). MuJoCo's own warning log stays off meanwhile
+(engine/divergence.py).
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from ..inputs import InputSeries
 from ..physics.hydrodynamics import HydroModel
 from ..vessel import Vessel
 from . import native
+from .divergence import quiet_log
 from .mjcf import CompiledVessel
 from .sim import initial_state as _set_initial_state
 
@@ -165,23 +168,40 @@ def rollout(twins: Twin | Sequence[Twin], initial_states, controls, nthread: int
     _check_inputs(models, initial, controls)
     nthread = nthread or os.cpu_count() or 1
     states = np.empty((len(models), controls.shape[1], initial.shape[1]))
-    with native.installed_native():
+    with native.installed_native(), quiet_log():
         for idx in _groups(models):
             states[idx] = _run_group([models[i] for i in idx], initial[idx], controls[idx], nthread)
     return states, _divergence(models, initial, states)
 
 
+class Runs(list):
+    """The runs of `simulate_many` in input order, None in place of a run that diverged;
+    `diverged` lists those as (index, time s on that run's clock, start_s included)."""
+
+    def __init__(self, runs, diverged: list[tuple[int, float]]):
+        super().__init__(runs)
+        self.diverged = diverged
+
+    def describe_divergence(self) -> str:
+        """One line naming the diverged runs and when, e.g. for an error message ("" if none)."""
+        if not self.diverged:
+            return ""
+        shown = ", ".join(f"run {i} at t = {t:.2f} s" for i, t in self.diverged[:5])
+        more = f" and {len(self.diverged) - 5} more" if len(self.diverged) > 5 else ""
+        return f"{len(self.diverged)} of {len(self)} twins diverged: {shown}{more}"
+
+
 def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durations_s: Sequence[float], *,
                   eta0=None, nu0=None, start_s: Sequence[float] | None = None, sample_dt_s: float | None = None,
-                  nthread: int | None = None) -> list:
+                  nthread: int | None = None) -> Runs:
     """Open-loop runs of one vessel in one rollout, as `twin.run.Run`s like `sim.simulate` returns.
 
     inputs[i] drives run i for durations_s[i] from η0[i], ν0[i] (default: at rest at the
     origin), its clock starting at recording time start_s[i] (thrust decay). Samples
-    every sample_dt_s (default: every engine step). A run that diverges raises
-    TwinError naming it and the time."""
-    from ..run import Run
-    from .sim import delivered_thrust
+    every sample_dt_s (default: every engine step). A run that diverges does not cost
+    the others: it is None in the returned list and reported in `.diverged` as
+    (index, time s) on its own clock (see `Runs`)."""
+    from .callbacks import _joint_indices
 
     n = len(inputs)
     model = native.with_native_params(compiled)
@@ -196,25 +216,32 @@ def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durat
         controls[i, : steps[i]] = thrust_controls_from_inputs(compiled.vessel, series, steps[i], h, starts[i])
     states0 = np.array([initial_state(model, eta0[i], nu0[i]) for i in range(n)])
     traj, diverged = rollout(model, states0, controls, nthread=nthread)
-    if diverged:
-        i, t = diverged[0]
-        raise TwinError(f"run {i} diverged at t = {t:.2f} s")
-    from .callbacks import _joint_indices
-
+    # a run counts as diverged only if it blew up within its own duration (the rest is padding)
+    diverged = [(i, starts[i] + t) for i, t in diverged if t <= steps[i] * h + 1e-9]
+    bad = {i for i, _ in diverged}
     qpos, dof = _joint_indices(model)
-    runs = []
-    for i, series in enumerate(inputs):
-        full = np.vstack([states0[i], traj[i, : steps[i]]])[::every]
-        eta = full[:, [1 + q for q in qpos]]
-        w = full[:, [1 + model.nq + d for d in dof]]
-        c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
-        nu = np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
-        t_rel = np.arange(len(full)) * every * h
-        act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
-        cmd_rows = np.vstack([controls[i, : steps[i]], controls[i, steps[i] - 1]])[::every]
-        cmd = act if act is not None else cmd_rows
-        runs.append(Run(starts[i] + t_rel, eta, nu, series.pwm_at(t_rel),
-                        delivered_thrust(compiled.vessel, compiled.geometry.thruster_y_m, cmd, nu),
-                        meta={"vessel": compiled.vessel.name, "engine": "mujoco-rollout", "timestep_s": h,
-                              "inputs": series, "start_s": starts[i]}))
-    return runs
+    runs = [None if i in bad else _run(compiled, model, series, states0[i], traj[i, : steps[i]],
+                                       controls[i, : steps[i]], every, starts[i], qpos, dof)
+            for i, series in enumerate(inputs)]
+    return Runs(runs, diverged)
+
+
+def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, state0: np.ndarray,
+         traj: np.ndarray, controls: np.ndarray, every: int, start_s: float, qpos, dof):
+    """One rollout trajectory (full-physics states after each step) as a Run sampled every `every` steps."""
+    from ..run import Run
+    from .sim import delivered_thrust
+
+    h = model.opt.timestep
+    full = np.vstack([state0, traj])[::every]
+    eta = full[:, [1 + q for q in qpos]]
+    w = full[:, [1 + model.nq + d for d in dof]]
+    c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
+    nu = np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
+    t_rel = np.arange(len(full)) * every * h
+    act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
+    cmd = act if act is not None else np.vstack([controls, controls[-1]])[::every]
+    return Run(start_s + t_rel, eta, nu, series.pwm_at(t_rel),
+               delivered_thrust(compiled.vessel, compiled.geometry.thruster_y_m, cmd, nu),
+               meta={"vessel": compiled.vessel.name, "engine": "mujoco-rollout", "timestep_s": h,
+                     "inputs": series, "start_s": start_s})

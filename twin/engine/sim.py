@@ -14,9 +14,11 @@ from ..physics.thrusters import advance_factor
 from ..run import Run
 from ..scenarios import to_thruster_inputs
 from . import callbacks
+from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 def _steps(interval_s: float, timestep_s: float, what: str) -> int:
@@ -143,7 +145,8 @@ def simulate(
     if not terms.thrust:
         cmd_steps = np.zeros_like(cmd_steps)
     rows = {"t": [], "eta": [], "nu": [], "held": [], "cmd": []}
-    with hydrodynamics:
+    chunk_start = np.empty(mujoco.mj_stateSize(model, FULL))
+    with hydrodynamics, quiet_log():
         for i, k in enumerate(events):
             t = k * h
             eta, nu = _state(data, qpos, dof)
@@ -164,9 +167,10 @@ def simulate(
                 rows["cmd"].append(data.act[:2].copy() if model.na else data.ctrl[:2].copy())
             if k == n_steps:
                 break
+            mujoco.mj_getState(model, data, chunk_start, FULL)
             mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
-            if not np.all(np.isfinite(data.qvel)):
-                raise TwinError(f"simulation diverged between t = {t:.2f} s and {events[i + 1] * h:.2f} s")
+            if flagged(data) or not np.all(np.isfinite(data.qvel)):
+                raise TwinError(_divergence(model, data, chunk_start, cmd_steps[k], int(events[i + 1] - k), start_s))
     if series is None:
         series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
     nu = np.array(rows["nu"])
@@ -177,6 +181,24 @@ def simulate(
               "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
               "inputs": series, "start_s": start_s},
     )
+
+
+def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndarray, command_n: np.ndarray,
+                nstep: int, start_s: float) -> str:
+    """One line naming when the run diverged: the chunk of nstep steps under the thrust command
+    (N) replayed one step at a time from its saved start (MuJoCo reset the diverged state, so
+    only the replay knows the step), and what MuJoCo found bad."""
+    mujoco.mj_setState(model, data, chunk_start, FULL)
+    data.ctrl[:2] = command_n  # the reset zeroed the controls
+    clear(data)
+    t_s = float(data.time)
+    for _ in range(nstep):
+        t_s = float(data.time)
+        mujoco.mj_step(model, data)
+        if flagged(data) or not np.all(np.isfinite(data.qvel)):
+            break
+    return (f"the twin diverged at t = {start_s + t_s:.2f} s: MuJoCo found its {what_diverged(data)} "
+            f"non-finite or beyond {mujoco.mjMAXVAL:g} (unstable parameters, inputs or time step)")
 
 
 def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:

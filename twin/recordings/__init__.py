@@ -1,6 +1,6 @@
 """Real recordings: read ArduPilot logs, CSV and MCAP into a Recording, prepare them
 as in seed 004 §5.1 (synchronise, NED, lever arm, velocities, segments, regions),
-and write a Recording (synthetic sensor logs) as .csv, .tlog or .mcap.
+and write a Recording (synthetic sensor logs, conversions) as .csv, .tlog, .bin or .mcap.
 
 This package does not know the twin exists: it only produces data for the layers above.
 """

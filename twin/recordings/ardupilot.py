@@ -295,8 +295,21 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
     dropped = [(reason, n) for reason, n in (
         ("dataflash: bad message headers skipped", text.count("bad header")),
         ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
-        ("dataflash: unreadable rest of the log", stopped)) if n]
+        ("dataflash: unreadable rest of the log", stopped),
+        ("dataflash: last message cut short (the log is truncated)", int(_ends_inside_a_message(log)))) if n]
     return rows, dropped
+
+
+def _ends_inside_a_message(log) -> bool:
+    """True when the file ends before the last message it starts (a log cut short: copied
+    while written, a full card, a half download). DFReader drops that message silently;
+    its index still holds where the message started."""
+    starts = [(offsets[-1], mtype) for mtype, offsets in enumerate(getattr(log, "offsets", None) or []) if offsets]
+    if not starts:
+        return False
+    start, mtype = max(starts)
+    fmt = log.formats.get(mtype)
+    return fmt is not None and start + fmt.len > log.data_len
 
 
 @contextlib.contextmanager
@@ -445,7 +458,7 @@ def _text(x) -> str:
 
 
 def _finish(rec: Recording) -> Recording:
-    """Common origin; raise if nothing usable is left."""
+    """Common origin; raise if no sample at all is left (read_recording then asks for two in a stream)."""
     if not any(len(s) for s in rec.streams().values()):
         why = "; ".join(f"{reason}: {n}" for reason, n in rec.dropped[:3])
         raise TwinError(f"{Path(rec.source).name}: no usable samples (no GNSS fix, heading, PWM, IMU or battery)"

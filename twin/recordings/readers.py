@@ -16,11 +16,16 @@ around its neutral. The author's surge/sway/yaw_rate estimates are not read.
 Generic CSV (one header line, comma separated, empty or "nan" cells are missing):
   t                  s, any origin, increasing
   lat, lon           deg (WGS-84, antenna)     -- or --   north, east   m (local NED)
+                                               -- or --   x, y          m, north, east of the body
+                                                          origin (`twin simulate --out run.csv`)
   alt                m (optional, with lat/lon)
   heading_deg        deg from north to east    -- or --   psi           rad
-  pwm_left, pwm_right   µs, forward thrust = higher PWM, neutral 1500 µs (optional)
-  yaw_rate           rad/s, gyro (optional)
+  pwm_left, pwm_right   µs, forward thrust = higher PWM (optional)
+  pwm_neutral_left, pwm_neutral_right   µs, the PWM of zero thrust (optional, default 1500)
+  yaw_rate           rad/s, gyro (optional; a twin run's r is read as one)
   voltage            V, battery (optional)
+A twin run's u, v (its true velocities) and thrust_left/right are not read: a
+Recording holds what sensors log.
 `channels={"reversed": {"left": True}, "trim": {"left": 1500, "right": 1500}}` mirrors
 a reversed channel and sets the neutral for either CSV layout.
 """
@@ -34,7 +39,7 @@ import numpy as np
 
 from ..errors import TwinError
 from .ardupilot import read_dataflash, read_tlog
-from .recording import Recording, clean_stream, with_common_origin
+from .recording import Recording, check_usable, clean_stream, with_common_origin
 
 MCAP_MAGIC = b"\x89MCAP"
 DATAFLASH_MAGIC = b"\xa3\x95"
@@ -49,21 +54,19 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
     channels: thruster output mapping for logs (see twin.recordings.ardupilot), or
     reversal/trim overrides for CSV files."""
     path = Path(path)
+    if path.is_dir():
+        raise TwinError(f"{path}: is a directory, not a recording file")
     if not path.is_file():
         raise TwinError(f"{path}: no such file")
     head = _head(path)
     if not head:
         raise TwinError(f"{path.name}: empty file")
-    kind = sniff(head, path.suffix.lower())
-    if kind == "mcap":
-        return read_mcap(path)
-    if kind == "dataflash":
-        return read_dataflash(path, channels)
-    if kind == "tlog":
-        return read_tlog(path, channels)
-    if kind == "csv":
-        return read_csv(path, channels)
-    raise TwinError(f"{path.name}: not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
+    reader = READERS.get(sniff(head, path.suffix.lower()))
+    if reader is None:
+        raise TwinError(f"{path.name}: not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
+    rec = reader(path, channels)
+    check_usable(rec, path.name)
+    return rec
 
 
 def sniff(head: bytes, suffix: str) -> str:
@@ -171,9 +174,13 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         gnss = {"lat_deg": c["lat"], "lon_deg": c["lon"]} | ({"alt_m": c["alt"]} if "alt" in c else {})
     elif {"north", "east"} <= set(header):
         gnss = {"north_m": c["north"], "east_m": c["east"]}
+    elif {"x", "y"} <= set(header):
+        gnss = {"north_m": c["x"], "east_m": c["y"]}
+        rec.meta["positions"] = "body origin"
+        rec.notes.append("positions x, y are north, east of the body origin (a twin run): no lever arm to apply")
     else:
         gnss = None
-        rec.notes.append("no GNSS: no lat/lon or north/east columns")
+        rec.notes.append("no GNSS: no lat/lon, north/east or x/y columns")
     if gnss is not None:
         rec.gnss = _stream("gnss", t, gnss, rec.dropped)
     psi = np.radians(c["heading_deg"]) if "heading_deg" in c else c.get("psi")
@@ -182,9 +189,11 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
     else:
         rec.notes.append("no heading: no heading_deg or psi column")
     if {"pwm_left", "pwm_right"} <= set(header):
-        _csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], (1500.0, 1500.0), {"left": False, "right": False}, channels)
-    if "yaw_rate" in c:
-        rec.imu = _stream("imu", t, {"yaw_rate_rads": c["yaw_rate"]}, rec.dropped)
+        neutral = tuple(_neutral(c.get(f"pwm_neutral_{side}"), 1500.0) for side in ("left", "right"))
+        _csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], neutral, {"left": False, "right": False}, channels)
+    yaw_rate = c.get("yaw_rate", c.get("r"))
+    if yaw_rate is not None:
+        rec.imu = _stream("imu", t, {"yaw_rate_rads": yaw_rate}, rec.dropped)
     if "voltage" in c:
         rec.battery = _stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
     return rec
@@ -226,9 +235,11 @@ def _csv_pwm(rec: Recording, t, left, right, neutral, reversed_: dict, channels:
 def read_mcap(path: Path) -> Recording:
     """An MCAP file of this project (twin.viz.mcap_io). With /sensors/* topics (a
     sensor recording, written by twin.recordings.writers) each topic is a stream at
-    its messages' log times. Otherwise a simulated run: /vessel/state gives the
-    positions (north/east of the body origin: no lever arm) and heading,
-    /vessel/inputs the PWM (absent when the run was driven by thrust)."""
+    its messages' log times. Otherwise a run: /vessel/state gives the positions
+    (north/east: of the body origin for a simulated run, no lever arm; as measured for
+    a run written from a recording) and heading, /vessel/inputs the PWM (absent when
+    the run was driven by thrust). A file cut short gives its complete messages, with
+    a note."""
     from ..viz.mcap_io import read_sensor_mcap
 
     sensors = read_sensor_mcap(path)
@@ -243,6 +254,9 @@ def _mcap_sensors(path: Path, streams: dict, meta: dict) -> Recording:
     for name, (t, cols) in streams.items():
         setattr(rec, name, clean_stream(name, t, cols, rec.dropped))
     rec.meta.update(meta.get("meta", {}))
+    rec.parameters = meta.get("parameters", {})
+    if meta.get("damaged"):
+        rec.notes.append(meta["damaged"])
     if not any(len(s) for s in rec.streams().values()):
         raise TwinError(f"{path.name}: the MCAP /sensors/ topics hold no usable samples")
     return with_common_origin(rec)
@@ -251,8 +265,8 @@ def _mcap_sensors(path: Path, streams: dict, meta: dict) -> Recording:
 def _mcap_run(path: Path) -> Recording:
     from ..viz.mcap_io import read_run_mcap
 
-    run = read_run_mcap(path)
     rec = Recording(source=str(path), kind="mcap")
+    run = read_run_mcap(path, rec.notes)
     t = run.t
     rec.gnss = clean_stream("gnss", t, {"north_m": run.eta[:, 0], "east_m": run.eta[:, 1]}, rec.dropped)
     rec.heading = clean_stream("heading", t, {"psi_rad": run.eta[:, 2]}, rec.dropped)
@@ -261,8 +275,16 @@ def _mcap_run(path: Path) -> Recording:
         rec.pwm = clean_stream("pwm", t, {"left_us": run.pwm_us[:, 0], "right_us": run.pwm_us[:, 1]}, rec.dropped)
     else:
         rec.notes.append("no PWM: the run was driven by thrust")
-    rec.notes.append("positions are the body origin (simulated): prepare with lever_arm_OP_m=None")
     rec.meta.update(run.meta)
+    if run.meta.get("engine") == "recording":  # prepared measurements (an older `twin convert`)
+        rec.notes.append("positions are as measured (the GNSS antenna unless a lever arm was applied)")
+    else:
+        rec.meta["positions"] = "body origin"
+        rec.notes.append("positions are the body origin (simulated): prepare with lever_arm_OP_m=None")
     if not len(rec.gnss) and not len(rec.heading):
         raise TwinError(f"{path.name}: the MCAP run has no finite states")
     return with_common_origin(rec)
+
+
+READERS = {"mcap": lambda path, channels: read_mcap(path), "dataflash": read_dataflash, "tlog": read_tlog,
+           "csv": read_csv}

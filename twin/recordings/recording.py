@@ -19,8 +19,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import TwinError
+
 GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
 STREAMS = ("gnss", "heading", "pwm", "imu", "battery")
+# values no sensor can report: a sample holding one is corrupt, dropped and counted
+PLAUSIBLE = {
+    "lat_deg": (-90.0, 90.0, "latitude outside ±90°"),
+    "lon_deg": (-180.0, 180.0, "longitude outside ±180°"),
+    "left_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),  # servo outputs span about 800-2200 µs
+    "right_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),
+}
 
 
 @dataclass
@@ -139,8 +148,8 @@ def format_summary(summary: dict) -> str:
 
 def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
     """A Stream from raw samples, dropping (and recording in `dropped`) samples with
-    non-finite time or values, samples repeating the previous time and samples
-    whose time goes backwards.
+    non-finite time or values, values no sensor can report (PLAUSIBLE), samples
+    repeating the previous time and samples whose time goes backwards.
 
     For the time order the longest strictly increasing run of samples is kept, so
     one wild timestamp (forwards or backwards) costs one sample, not the rest of
@@ -151,6 +160,8 @@ def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
     for v in cols.values():
         ok &= np.isfinite(v)
     _note(dropped, f"{name}: samples with NaN or missing values", int(np.sum(~ok)))
+    t, cols = t[ok], {k: v[ok] for k, v in cols.items()}
+    ok = _plausible(name, len(t), cols, dropped)
     t, cols = t[ok], {k: v[ok] for k, v in cols.items()}
     again = np.zeros(len(t), bool)
     again[1:] = np.diff(t) == 0  # the same sample sent twice (e.g. a 5 Hz fix at 10 Hz)
@@ -163,6 +174,21 @@ def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
     if name in ("gnss", "heading", "pwm"):
         _note(dropped, f"{name}: dropouts > {GAP_S:g} s", len(stream.gaps()))
     return stream
+
+
+def _plausible(name: str, n: int, cols: dict[str, np.ndarray], dropped: list) -> np.ndarray:
+    """Mask of the n samples whose values are all within PLAUSIBLE; the others counted by reason."""
+    ok = np.ones(n, bool)
+    reasons: dict[str, np.ndarray] = {}
+    for col, v in cols.items():
+        if col in PLAUSIBLE:
+            lo, hi, reason = PLAUSIBLE[col]
+            out = (v < lo) | (v > hi)
+            reasons[reason] = reasons.get(reason, np.zeros(len(v), bool)) | out
+            ok &= ~out
+    for reason, out in reasons.items():
+        _note(dropped, f"{name}: {reason}", int(np.sum(out)))
+    return ok
 
 
 def increasing_subsequence(t: np.ndarray) -> np.ndarray:
@@ -191,6 +217,17 @@ def increasing_subsequence(t: np.ndarray) -> np.ndarray:
 def _note(dropped: list, reason: str, count: int) -> None:
     if count:
         dropped.append((reason, int(count)))
+
+
+def check_usable(rec: Recording, name: str) -> None:
+    """TwinError (one line) unless some stream has two samples or more: one sample has no
+    duration, rate or motion, so a file reduced to that (reversed time, one row) is not a
+    recording."""
+    if any(len(s) >= 2 for s in rec.streams().values()):
+        return
+    why = "; ".join(f"{reason}: {n}" for reason, n in rec.dropped[:3])
+    raise TwinError(f"{name}: nothing usable: no stream has two samples with increasing time"
+                    + (f" (dropped {why})" if why else ""))
 
 
 def with_common_origin(rec: Recording) -> Recording:

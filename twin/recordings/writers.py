@@ -4,24 +4,30 @@ clock offsets, gaps) go through exactly the path real logs take.
 
 The format follows the extension:
   .csv   the generic CSV layout of readers.py: header
-           t[,lat,lon[,alt] | ,north,east][,heading_deg][,pwm_left,pwm_right][,yaw_rate][,voltage]
+           t[,lat,lon[,alt] | ,north,east][,heading_deg][,pwm_left,pwm_right[,pwm_neutral_left,
+           pwm_neutral_right]][,yaw_rate][,voltage]
          with the columns of the streams that have samples, one row per distinct sample
          time (µs) of any stream, an empty cell where a stream has no sample at that time.
          t %.6f s, lat/lon %.10f deg, alt %.4f m, north/east %.6f m, heading_deg %.7f
          in [0, 360), pwm %.10g µs (integers stay integers), yaw_rate %.9f rad/s, voltage %.4f V.
-         Its PWM neutral is 1500 µs by definition: another neutral is a TwinError.
-  .tlog  MAVLink telemetry (twin.viz.tlog_io): GPS_RAW_INT, ATTITUDE, SERVO_OUTPUT_RAW
-         on the channels of SERVO1/3_FUNCTION = 73/74 with SERVOn_TRIM = the PWM neutral,
-         SYS_STATUS for the battery, HEARTBEAT every second.
+         The PWM neutral columns are written on the PWM rows only when it is not 1500 µs.
+  .tlog  MAVLink telemetry (twin.viz.tlog_io): the recording's parameters, GPS_RAW_INT,
+         ATTITUDE, SERVO_OUTPUT_RAW on the channels of SERVO1/3_FUNCTION = 73/74 with
+         SERVOn_TRIM = the PWM neutral, SYS_STATUS for the battery, HEARTBEAT every second.
+  .bin   ArduPilot DataFlash (twin.viz.dataflash_io): PARM (the recording's parameters and
+         the same thruster mapping), GPS, ATT, RCOU, IMU (GyrZ), BAT.
   .mcap  /sensors/gnss (foxglove.LocationFix), /sensors/heading, /sensors/pwm,
-         /sensors/imu, /sensors/battery (twin.viz.mcap_io).
+         /sensors/imu, /sensors/battery (twin.viz.mcap_io), the parameters in its metadata.
 
 What a round trip keeps (sample times / values):
-  .csv   1 µs / lat, lon 1e-10 deg, heading 1e-7 deg, PWM as written
+  .csv   1 µs / lat, lon 1e-10 deg, heading 1e-7 deg, PWM as written; no parameters
   .tlog  GNSS and PWM 1 µs, heading 1 ms / lat, lon 1e-7 deg, alt 1 mm, heading float32
-         (~1e-7 rad), PWM integer µs (rounded), voltage 1 mV; the imu stream comes
-         back at the heading times (ATTITUDE carries both) and, without one, as zeros
-  .mcap  1 ns / every value exactly (JSON), plus the origin and PWM neutral
+         (~1e-7 rad), PWM integer µs (rounded), voltage 1 mV, parameters float32; the imu
+         stream comes back at the heading times (ATTITUDE carries both) and, without one,
+         as zeros
+  .bin   1 µs / lat, lon 1e-7 deg, alt 1 cm, heading 0.01 deg, PWM integer µs (rounded),
+         yaw rate and voltage float32, parameters float32
+  .mcap  1 ns / every value exactly (JSON), plus the origin, PWM neutral and parameters
 
 Times: a stream's t (s from the recording's origin) is written as it is, unless some
 sample is before the origin: then every stream is shifted by the same amount so that
@@ -54,13 +60,13 @@ COLUMNS = {"heading": ("psi_rad",), "pwm": ("left_us", "right_us"), "imu": ("yaw
 
 
 def write_recording(rec: Recording, path, *, origin: tuple[float, float] | None = None) -> None:
-    """Write `rec` as .csv, .tlog or .mcap (by the extension of `path`); see the
+    """Write `rec` as .csv, .tlog, .bin or .mcap (by the extension of `path`); see the
     module docstring for the layouts. origin: (lat, lon) deg of the local frame of
     a gnss stream in north_m/east_m, for the formats that store latitude/longitude."""
     path = Path(path)
     writer = WRITERS.get(path.suffix.lower())
     if writer is None:
-        raise TwinError(f"output '{path}': unknown recording format '{path.suffix}' (use .csv, .tlog or .mcap)")
+        raise TwinError(f"output '{path}': unknown recording format '{path.suffix}' (use .csv, .tlog, .bin or .mcap)")
     if not path.parent.is_dir():
         raise TwinError(f"output '{path}': folder '{path.parent}' does not exist")
     check_recording(rec)
@@ -141,9 +147,6 @@ def _origin(origin: tuple[float, float] | None) -> tuple[float, float]:
 def _write_csv(rec: Recording, path: Path, origin) -> None:
     from ..viz.telemetry import write_bytes_atomic
 
-    if len(rec.pwm) and any(n != CSV_NEUTRAL_US for n in rec.pwm_neutral_us):
-        raise TwinError(f"csv: the generic layout has a {CSV_NEUTRAL_US:g} µs PWM neutral, this recording "
-                        f"{tuple(rec.pwm_neutral_us)}: write .tlog or .mcap")
     write_bytes_atomic(path, csv_text(file_ready(rec, origin, geodetic=False)).encode())
 
 
@@ -153,6 +156,12 @@ def _write_tlog(rec: Recording, path: Path, origin) -> None:
     write_recording_tlog(file_ready(rec, origin, geodetic=True), path)
 
 
+def _write_bin(rec: Recording, path: Path, origin) -> None:
+    from ..viz.dataflash_io import write_recording_bin
+
+    write_recording_bin(file_ready(rec, origin, geodetic=True), path)
+
+
 def _write_mcap(rec: Recording, path: Path, origin) -> None:
     from ..viz.mcap_io import write_recording_mcap
 
@@ -160,7 +169,7 @@ def _write_mcap(rec: Recording, path: Path, origin) -> None:
 
 
 WRITERS: dict[str, Callable[[Recording, Path, tuple[float, float] | None], None]] = {
-    ".csv": _write_csv, ".tlog": _write_tlog, ".mcap": _write_mcap}
+    ".csv": _write_csv, ".tlog": _write_tlog, ".bin": _write_bin, ".mcap": _write_mcap}
 
 
 # ---------------------------------------------------------------- CSV
@@ -200,6 +209,9 @@ def _csv_cells(rec: Recording) -> list[tuple[str, str, np.ndarray]]:
         out.append(("heading_deg", "heading", _fmt("%.7f", np.degrees(h["psi_rad"]) % 360.0)))
     if len(p):
         out += [("pwm_left", "pwm", _fmt("%.10g", p["left_us"])), ("pwm_right", "pwm", _fmt("%.10g", p["right_us"]))]
+        if any(n != CSV_NEUTRAL_US for n in rec.pwm_neutral_us):  # the layout's default neutral needs no column
+            out += [(f"pwm_neutral_{side}", "pwm", _fmt("%.10g", np.full(len(p), n)))
+                    for side, n in zip(("left", "right"), rec.pwm_neutral_us)]
     if len(imu):
         out.append(("yaw_rate", "imu", _fmt("%.9f", imu["yaw_rate_rads"])))
     if len(bat):

@@ -3,17 +3,26 @@ vehicle writes, so that log viewers and this project's readers open them.
 
 A DataFlash log is a sequence of messages [0xA3 0x95 type][payload]; the
 first messages are FMT records that describe every type, FMT included.
-Written here: PARM (thruster functions 73/74, as ArduRover), GPS at the
-antenna (5 Hz, with the lever arm), ATT (heading, 50 Hz), RCOU (10 Hz).
+Written here: PARM (a recording's own parameters, then the thruster functions
+73/74 on channels 1/3 as ArduRover, and their trims), GPS (lat/lon 1e-7 deg,
+alt cm), ATT (heading, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s) and
+BAT (Volt), each message at its own sample time (TimeUS, µs).
+A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
+the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (twin.viz.telemetry.sample).
 """
 from __future__ import annotations
 
 import struct
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..run import Run
-from .telemetry import DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, sample, write_bytes_atomic
+from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, log_parameters, sample,
+                        write_bytes_atomic)
+
+if TYPE_CHECKING:
+    from ..recordings.recording import Recording
 
 HEAD = b"\xa3\x95"
 SIZES = {"B": 1, "H": 2, "I": 4, "Q": 8, "c": 2, "C": 2, "L": 4, "e": 4, "f": 4, "n": 4, "N": 16, "Z": 64}
@@ -25,6 +34,8 @@ FORMATS = {  # type id, name, format, columns (ArduPilot's layouts, trimmed to w
     "GPS": (65, "QBBIHBcLLeff", "TimeUS,I,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs"),
     "ATT": (66, "QccccCCCC", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw"),
     "RCOU": (67, "Q" + "H" * 14, "TimeUS," + ",".join(f"C{i}" for i in range(1, 15))),
+    "IMU": (68, "QBfff", "TimeUS,I,GyrX,GyrY,GyrZ"),
+    "BAT": (69, "QBf", "TimeUS,Inst,Volt"),
 }
 GPS_EPOCH_UNIX_S = 315964800.0
 LEAP_S = 18.0
@@ -44,24 +55,89 @@ def _fmt_record(name: str) -> bytes:
 def dataflash_bytes(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, start_unix_s: float = 1.7e9,
                     **rates) -> bytes:
     tel = sample(run, antenna_body_m, origin, **rates)
-    timed = [(0, _message("PARM", 0, name.encode(), float(value))) for name, value in THRUSTER_PARAMS.items()]
-    for t, la, lo, v in zip(tel.gnss_t, tel.lat_deg, tel.lon_deg, tel.speed_m_s):
-        gps_s = start_unix_s + t - GPS_EPOCH_UNIX_S + LEAP_S
-        us = int(round(t * 1e6))
-        timed.append((us, _message("GPS", us, 0, 3, int(round((gps_s % 604800) * 1000)), int(gps_s // 604800), 12,
-                                   80, int(round(la * 1e7)), int(round(lo * 1e7)), 0, float(v), 0.0)))
-    for t, psi in zip(tel.heading_t, tel.psi_rad):
-        us = int(round(t * 1e6))
-        timed.append((us, _message("ATT", us, 0, 0, 0, 0, 0, int(round(np.degrees(psi) % 360.0 * 100)) % 36000, 0, 0)))
-    for t, (left, right) in zip(tel.pwm_t, tel.pwm_us):
-        ch = [0] * 14
-        ch[LEFT_CHANNEL - 1], ch[RIGHT_CHANNEL - 1] = int(round(left)), int(round(right))
-        us = int(round(t * 1e6))
-        timed.append((us, _message("RCOU", us, *ch)))
-    timed.sort(key=lambda item: item[0])
-    return b"".join([_fmt_record(n) for n in FORMATS] + [m for _, m in timed])
+    timed = _parameters(THRUSTER_PARAMS)
+    timed += _gps(tel.gnss_t, tel.lat_deg, tel.lon_deg, np.zeros(len(tel.gnss_t)), tel.speed_m_s, start_unix_s)
+    timed += _attitude(tel.heading_t, tel.psi_rad) + _imu(tel.heading_t, tel.r_rad_s) + _rcou(tel.pwm_t, tel.pwm_us)
+    return _log_bytes(timed)
 
 
 def write_run_bin(run: Run, path, **kwargs) -> None:
     """Write the run as a DataFlash .bin atomically (temporary name, then rename)."""
     write_bytes_atomic(path, dataflash_bytes(run, **kwargs))
+
+
+def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
+    """A recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg and whose psi_rad
+    is wrapped (twin.recordings.writers prepares it) as a DataFlash log; TwinError where a value
+    does not fit its field."""
+    g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
+    pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
+    _check_range("PWM (µs)", np.round(pwm), 1, 65535)
+    timed = _parameters(log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(p) > 0))
+    if len(g):
+        alt = g["alt_m"] if g.has("alt_m") else np.zeros(len(g))
+        timed += _gps(g.t, g["lat_deg"], g["lon_deg"], alt, np.zeros(len(g)), start_unix_s)
+    if len(h):
+        timed += _attitude(h.t, h["psi_rad"])
+    if len(imu):
+        timed += _imu(imu.t, imu["yaw_rate_rads"])
+    if len(bat):
+        timed += [(_us(t), _message("BAT", _us(t), 0, float(v))) for t, v in zip(bat.t, bat["voltage_v"])]
+    return _log_bytes(timed + _rcou(p.t, pwm))
+
+
+def write_recording_bin(rec: Recording, path) -> None:
+    """Write the recording as a DataFlash .bin atomically (see recording_bytes)."""
+    write_bytes_atomic(path, recording_bytes(rec))
+
+
+# ---------------------------------------------------------------- messages: (TimeUS, bytes)
+
+def _us(t_s: float) -> int:
+    return int(round(t_s * 1e6))
+
+
+def _parameters(params: dict[str, float]) -> list[tuple[int, bytes]]:
+    return [(0, _message("PARM", 0, name.encode()[:16], float(value))) for name, value in params.items()]
+
+
+def _gps(t_s, lat_deg, lon_deg, alt_m, speed_m_s, start_unix_s: float) -> list[tuple[int, bytes]]:
+    out = []
+    for t, la, lo, h, v in zip(t_s, lat_deg, lon_deg, alt_m, speed_m_s):
+        gps_s = start_unix_s + t - GPS_EPOCH_UNIX_S + LEAP_S
+        us = _us(t)
+        out.append((us, _message("GPS", us, 0, 3, int(round((gps_s % 604800) * 1000)), int(gps_s // 604800), 12, 80,
+                                 int(round(la * 1e7)), int(round(lo * 1e7)), int(round(h * 100)),
+                                 float(v) if np.isfinite(v) else 0.0, 0.0)))
+    return out
+
+
+def _attitude(t_s, psi_rad) -> list[tuple[int, bytes]]:
+    return [(_us(t), _message("ATT", _us(t), 0, 0, 0, 0, 0, int(round(np.degrees(psi) % 360.0 * 100)) % 36000, 0, 0))
+            for t, psi in zip(t_s, psi_rad)]
+
+
+def _imu(t_s, yaw_rate_rads) -> list[tuple[int, bytes]]:
+    return [(_us(t), _message("IMU", _us(t), 0, 0.0, 0.0, float(r))) for t, r in zip(t_s, yaw_rate_rads)]
+
+
+def _rcou(t_s, pwm_us) -> list[tuple[int, bytes]]:
+    out = []
+    for t, (left, right) in zip(t_s, pwm_us):
+        ch = [0] * 14
+        ch[LEFT_CHANNEL - 1], ch[RIGHT_CHANNEL - 1] = int(round(left)), int(round(right))
+        out.append((_us(t), _message("RCOU", _us(t), *ch)))
+    return out
+
+
+def _log_bytes(timed: list[tuple[int, bytes]]) -> bytes:
+    timed.sort(key=lambda item: item[0])  # stable: parameters first at 0
+    return b"".join([_fmt_record(n) for n in FORMATS] + [m for _, m in timed])
+
+
+def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
+    from ..errors import TwinError
+
+    bad = (values < lo) | (values > hi)
+    if np.any(bad):
+        raise TwinError(f"bin: {what} {values[bad][0]:g} does not fit DataFlash's range {lo:g}..{hi:g}")

@@ -15,22 +15,29 @@ A sensor recording, each message logged at its own stream's sample time (s → n
   /sensors/imu      twin.YawRate          yaw_rate_rads (rad/s, gyro z, body FRD)      (if recorded)
   /sensors/battery  twin.Battery          voltage_v (V)                                (if recorded)
 Metadata record "twin.recording": origin_s (the recording's origin, s, repr), pwm_neutral_us
-(JSON [left, right]), source, kind (of the recording written), meta (JSON, plain entries).
+(JSON [left, right]), source, kind (of the recording written), meta (JSON, plain entries),
+parameters (JSON {name: value}, the autopilot's parameters when the source had them).
+
+Both are written with the metadata first and in small chunks, so that a file cut short
+(a full disk, a killed logger) still holds its metadata and all but its last chunk:
+the readers fall back to streaming the complete records and say what was lost.
 """
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
 import struct
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Channel, Message, Metadata
+from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from ..errors import TwinError
@@ -43,6 +50,7 @@ FRAME_ID = "ned"
 TOPIC_POSE, TOPIC_STATE, TOPIC_INPUTS = "/vessel/pose", "/vessel/state", "/vessel/inputs"
 STATE_FIELDS = ("t", "x", "y", "psi", "u", "v", "r")
 INPUT_FIELDS = ("pwm_left", "pwm_right", "thrust_left", "thrust_right")
+CHUNK_BYTES = 32 * 1024  # uncompressed: a file cut short loses at most this much of its messages
 
 _NUM = {"type": "number"}
 _TIME = {"type": "object", "title": "time", "properties": {
@@ -119,8 +127,9 @@ def temp_path(path: Path) -> Path:
 
 
 def _write(fh, run: Run, vessel_name: str) -> None:
-    w = Writer(fh)
+    w = Writer(fh, chunk_size=CHUNK_BYTES)
     w.start(profile="", library="twin")
+    w.add_metadata("twin", {"vessel": vessel_name, "meta": json.dumps(_plain(run.meta), sort_keys=True)})
     channels = {}
     for topic, schema in ((TOPIC_POSE, POSE_SCHEMA), (TOPIC_STATE, STATE_SCHEMA), (TOPIC_INPUTS, INPUTS_SCHEMA)):
         sid = w.register_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
@@ -137,7 +146,6 @@ def _write(fh, run: Run, vessel_name: str) -> None:
         for topic, msg in msgs.items():
             data = json.dumps(msg, allow_nan=False).encode()
             w.add_message(channels[topic], log_time=ns, data=data, publish_time=ns, sequence=i)
-    w.add_metadata("twin", {"vessel": vessel_name, "meta": json.dumps(_plain(run.meta), sort_keys=True)})
     w.finish()
 
 
@@ -161,36 +169,83 @@ def _plain(meta: dict) -> dict:
             if isinstance(v, (str, int)) or (isinstance(v, float) and math.isfinite(v))}
 
 
-def read_run_mcap(path: str | Path) -> Run:
-    """Read a run written by `write_run_mcap`; JSON null becomes NaN."""
+def read_run_mcap(path: str | Path, notes: list[str] | None = None) -> Run:
+    """Read a run written by `write_run_mcap`; JSON null becomes NaN. What a damaged file
+    lost is appended to `notes` (TwinError when nothing complete is left)."""
     path = Path(path)
-    with _mcap_reader(path) as reader:
-        if TOPIC_STATE not in _topics(reader):
-            raise TwinError(f"{path.name}: MCAP file has no {TOPIC_STATE} topic")
-        msgs = {TOPIC_STATE: [], TOPIC_INPUTS: []}
-        for _, channel, message in reader.iter_messages(topics=list(msgs)):
-            msgs[channel.topic].append(json.loads(message.data))
-        meta = {}
-        for record in reader.iter_metadata():
-            if record.name == "twin":
-                meta = _meta_from(record.metadata)
-    return _run_from(msgs[TOPIC_STATE], msgs[TOPIC_INPUTS], meta, path.name)
+    contents = read_contents(path)
+    if not contents.messages.get(TOPIC_STATE):
+        raise TwinError(f"{path.name}: MCAP file has no {TOPIC_STATE} messages" + contents.lost_clause())
+    states = [json.loads(data) for _, data in contents.messages[TOPIC_STATE]]
+    inputs = [json.loads(data) for _, data in contents.messages.get(TOPIC_INPUTS, [])]
+    if contents.damaged:
+        inputs = inputs[: len(states)]  # the last sample's topics may straddle the cut
+        states = states[: len(inputs)] if inputs else states
+        if notes is not None:
+            notes.append(contents.damaged)
+    meta = _meta_from(contents.metadata["twin"]) if "twin" in contents.metadata else {}
+    return _run_from(states, inputs, meta, path.name)
 
 
-@contextlib.contextmanager
-def _mcap_reader(path: Path) -> Iterator:
-    """An mcap reader on `path`; what a truncated or foreign file raises becomes a TwinError."""
+@dataclass
+class Contents:
+    """The messages of an MCAP file by topic as (log time ns, data) in log-time order (file
+    order for a damaged file), its metadata records by name, and `damaged`: "" or one line
+    saying what was lost."""
+
+    messages: dict[str, list[tuple[int, bytes]]]
+    metadata: dict[str, dict[str, str]]
+    damaged: str = ""
+
+    def lost_clause(self) -> str:
+        return f" ({self.damaged})" if self.damaged else ""
+
+
+# what the mcap reader raises on a truncated or foreign file
+_MCAP_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, struct.error)
+
+
+def read_contents(path: Path) -> Contents:
+    """Every message and metadata record of an MCAP file: through its index when the file is
+    whole, else streamed record by record up to where it breaks (TwinError if not MCAP)."""
     try:
         with open(path, "rb") as fh:
-            yield make_reader(fh)
-    # the mcap reader raises any of these on a truncated or foreign file
-    except (McapError, OSError, EOFError, ValueError, KeyError, TypeError, struct.error) as exc:
-        raise TwinError(f"{path.name}: not a readable MCAP file ({type(exc).__name__}: {exc})") from None
+            reader = make_reader(fh)
+            if reader.get_summary() is None:
+                raise McapError("no summary")
+            messages: dict[str, list] = {}
+            for _, channel, message in reader.iter_messages():
+                messages.setdefault(channel.topic, []).append((message.log_time, message.data))
+            metadata = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
+        return Contents(messages, metadata)
+    except _MCAP_ERRORS as exc:
+        return _salvage(path, exc)
 
 
-def _topics(reader) -> set[str]:
-    summary = reader.get_summary()
-    return {c.topic for c in summary.channels.values()} if summary else set()
+def _salvage(path: Path, first_error: Exception) -> Contents:
+    """The complete records of a damaged MCAP file, streamed from its start."""
+    messages: dict[str, list] = {}
+    metadata: dict[str, dict[str, str]] = {}
+    topics: dict[int, str] = {}
+    complete = True
+    try:
+        with open(path, "rb") as fh:
+            for record in StreamReader(fh).records:
+                if isinstance(record, Channel):
+                    topics[record.id] = record.topic
+                elif isinstance(record, Message) and record.channel_id in topics:
+                    messages.setdefault(topics[record.channel_id], []).append((record.log_time, record.data))
+                elif isinstance(record, Metadata):
+                    metadata[record.name] = dict(record.metadata)
+    except _MCAP_ERRORS:
+        complete = False
+    n = sum(len(m) for m in messages.values())
+    if not n and not metadata:
+        raise TwinError(f"{path.name}: not a readable MCAP file ({type(first_error).__name__}: {first_error})")
+    last_s = max((t for m in messages.values() for t, _ in m), default=0) / 1e9
+    how = "truncated or damaged" if not complete else "without its index (not closed)"
+    return Contents(messages, metadata, f"MCAP file {how}: read the {n} complete messages up to "
+                                        f"t = {last_s:.1f} s, the rest is lost")
 
 
 def _meta_from(record: dict[str, str]) -> dict:
@@ -268,8 +323,12 @@ def write_recording_mcap(rec: Recording, path: str | Path) -> None:
 
 
 def _write_sensors(fh, rec: Recording) -> None:
-    w = Writer(fh)
+    w = Writer(fh, chunk_size=CHUNK_BYTES)
     w.start(profile="", library="twin")
+    w.add_metadata(RECORDING_METADATA, {
+        "origin_s": repr(float(rec.origin_s)), "pwm_neutral_us": json.dumps([float(x) for x in rec.pwm_neutral_us]),
+        "source": str(rec.source), "kind": str(rec.kind), "meta": json.dumps(_plain(rec.meta), sort_keys=True),
+        "parameters": json.dumps({str(k): float(v) for k, v in rec.parameters.items()}, sort_keys=True)})
     timed = []
     for name, stream in rec.streams().items():
         if not len(stream):
@@ -282,9 +341,6 @@ def _write_sensors(fh, rec: Recording) -> None:
     timed.sort(key=lambda m: m[0])
     for ns, cid, seq, data in timed:
         w.add_message(cid, log_time=ns, data=data, publish_time=ns, sequence=seq)
-    w.add_metadata(RECORDING_METADATA, {
-        "origin_s": repr(float(rec.origin_s)), "pwm_neutral_us": json.dumps([float(x) for x in rec.pwm_neutral_us]),
-        "source": str(rec.source), "kind": str(rec.kind), "meta": json.dumps(_plain(rec.meta), sort_keys=True)})
     w.finish()
 
 
@@ -317,22 +373,19 @@ def _location_fix(ns: int, lat_deg: float, lon_deg: float, alt_m: float) -> dict
 def read_sensor_mcap(path: str | Path) -> tuple[dict[str, tuple[np.ndarray, dict[str, np.ndarray]]], dict] | None:
     """The /sensors/* topics of an MCAP file as {stream: (t s, {column: values})} at
     the messages' log times, and the "twin.recording" metadata parsed (origin_s,
-    pwm_neutral_us, meta; empty when absent); None when there is no /sensors/ topic.
+    pwm_neutral_us, meta, parameters; empty when absent) with "damaged" (what a cut-short
+    file lost, "" if whole); None when there is no /sensors/ topic.
     A missing or null field is NaN; an altitude that is never given is left out."""
-    path = Path(path)
-    with _mcap_reader(path) as reader:
-        wanted = {SENSORS[name][0]: name for name in SENSORS}
-        present = _topics(reader)
-        topics = [topic for topic in wanted if topic in present]  # the Recording's stream order
-        if not topics:
-            return None
-        rows: dict[str, list] = {wanted[topic]: [] for topic in topics}
-        for _, channel, message in reader.iter_messages(topics=topics):
-            rows[wanted[channel.topic]].append((message.log_time, json.loads(message.data)))
-        meta = {}
-        for record in reader.iter_metadata():
-            if record.name == RECORDING_METADATA:
-                meta = _recording_meta(record.metadata)
+    contents = read_contents(Path(path))
+    wanted = {SENSORS[name][0]: name for name in SENSORS}
+    topics = [topic for topic in wanted if contents.messages.get(topic)]  # the Recording's stream order
+    if not topics:
+        if contents.damaged and RECORDING_METADATA in contents.metadata:  # a recording cut before its first sample
+            raise TwinError(f"{Path(path).name}: no complete sensor message{contents.lost_clause()}")
+        return None
+    rows = {wanted[topic]: [(ns, json.loads(data)) for ns, data in contents.messages[topic]] for topic in topics}
+    meta = _recording_meta(contents.metadata.get(RECORDING_METADATA, {}))
+    meta["damaged"] = contents.damaged
     return {name: _columns(name, msgs) for name, msgs in rows.items()}, meta
 
 
@@ -358,4 +411,6 @@ def _recording_meta(record: dict[str, str]) -> dict:
         out["pwm_neutral_us"] = (float(left), float(right))
     meta = json.loads(record.get("meta", "{}"))
     out["meta"] = meta if isinstance(meta, dict) else {}
+    params = json.loads(record.get("parameters", "{}"))
+    out["parameters"] = {str(k): float(v) for k, v in params.items()} if isinstance(params, dict) else {}
     return out

@@ -6,7 +6,8 @@ Entity paths, for each run name:
   world/<name>/vessel            Transform3D over "time": translation (x, y, 0) m, yaw ψ about z
   world/<name>/vessel/<hull>     Mesh3D per hull mesh (body FRD, m), or a Boxes3D "hull", static
   world/<name>/vessel/sites      Points3D of thrusters, GNSS, IMU (when a Geometry is given), static
-  plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs)
+  plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs),
+                                 the series named after the run or run.meta["series_labels"][quantity]
 All runs share the timeline "time" (duration, s), so runs line up in plots and in 3D.
 """
 from __future__ import annotations
@@ -108,7 +109,8 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
         if np.all(np.isnan(cols[q])):
             continue  # e.g. PWM of a thrust-driven run
         entity = f"plots/{q}/{key}"
-        rec.log(entity, rr.SeriesLines(colors=[color], names=[name]), static=True)
+        label = run.meta.get("series_labels", {}).get(q, name)  # e.g. a thrust that was derived, not measured
+        rec.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
         rec.send_columns(entity, indexes=times, columns=rr.Scalars.columns(scalars=cols[q]))
 
 

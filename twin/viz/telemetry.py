@@ -4,6 +4,7 @@ AHRS heading every 20 ms, thruster PWM every 100 ms. Shared by the .tlog and
 DataFlash .bin writers."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +17,19 @@ from ..run import Run
 DEFAULT_ORIGIN = (37.4136, -5.9786)  # any origin works; this one is Seville, the Yellowfish's home
 LEFT_CHANNEL, RIGHT_CHANNEL = 1, 3  # SERVO1_FUNCTION = 73, SERVO3_FUNCTION = 74 (ArduRover skid steering)
 THRUSTER_PARAMS = {"SERVO1_FUNCTION": 73, "SERVO3_FUNCTION": 74, "SERVO1_REVERSED": 0, "SERVO3_REVERSED": 0}
+
+
+def log_parameters(params: dict[str, float], neutral_us=(1500.0, 1500.0), with_pwm: bool = True) -> dict[str, float]:
+    """The parameters a log of a recording carries: the recording's own, then, when the log
+    holds PWM, the thruster mapping it is written with (THRUSTER_PARAMS, trims = the PWM
+    neutral). The source's own throttle-left/right functions on other channels are then left
+    out: the reader would map those channels instead."""
+    if not with_pwm:
+        return {k: float(v) for k, v in params.items()}
+    own = {k: float(v) for k, v in params.items()
+           if not (re.fullmatch(r"SERVO\d+_FUNCTION", k) and v in (73, 74))}
+    return own | THRUSTER_PARAMS | {f"SERVO{LEFT_CHANNEL}_TRIM": float(neutral_us[0]),
+                                    f"SERVO{RIGHT_CHANNEL}_TRIM": float(neutral_us[1])}
 
 
 def _empty() -> np.ndarray:

@@ -7,7 +7,8 @@ One packet builder (`telemetry_packets`) serves both sources:
   HEARTBEAT          every second from 0 to the last sample, MAV_TYPE_SURFACE_BOAT
   PARAM_VALUE        at 0: SERVO1_FUNCTION = 73 (throttle left), SERVO3_FUNCTION = 74
                      (throttle right), SERVOn_REVERSED = 0, as an ArduRover skid-steer
-                     boat; a recording adds SERVOn_TRIM = its PWM neutral
+                     boat; a recording adds its own parameters and SERVOn_TRIM = its PWM
+                     neutral (telemetry.log_parameters)
   GPS_RAW_INT        3-D fix, lat/lon 1e-7 deg, alt mm, time_usec = log time (µs)
   ATTITUDE           yaw (rad, float32), yawspeed, time_boot_ms = log time (ms)
   SERVO_OUTPUT_RAW   port 0, PWM (integer µs) on channels 1 and 3, time_usec (32-bit µs)
@@ -28,8 +29,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from ..errors import TwinError
 from ..run import Run
-from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, Telemetry, sample,
-                        write_bytes_atomic)
+from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, Telemetry, log_parameters,
+                        sample, write_bytes_atomic)
 
 if TYPE_CHECKING:
     from ..recordings.recording import Recording
@@ -58,8 +59,7 @@ def write_recording_tlog(rec: Recording, path, start_unix_s: float = START_UNIX_
     and whose psi_rad is wrapped (twin.recordings.writers prepares it) atomically."""
     tel = recording_telemetry(rec)
     ends = [s.t[-1] for s in rec.streams().values() if len(s)]
-    params = THRUSTER_PARAMS | {f"SERVO{LEFT_CHANNEL}_TRIM": float(rec.pwm_neutral_us[0]),
-                                f"SERVO{RIGHT_CHANNEL}_TRIM": float(rec.pwm_neutral_us[1])}
+    params = log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(rec.pwm) > 0)
     write_bytes_atomic(path, tlog_bytes(telemetry_packets(tel, float(max(ends)), params, start_unix_s)))
 
 
