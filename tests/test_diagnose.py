@@ -17,6 +17,7 @@ from twin.ident.dataset import PROFILES, generate
 from twin.ident.effects import EFFECTS, as_effect
 from twin.ident.simfit import Measurements
 from twin.ident.windows import ModelCache
+from twin.physics.sensors import log_name
 from twin.recordings import write_recording
 from twin.replay import prepare_for
 
@@ -55,7 +56,27 @@ def prior():
 
 
 def test_every_library_effect_has_a_case():
-    assert {as_effect(text).name for text in CASES} | {"thruster_asymmetry"} >= set(EFFECTS)
+    covered = {as_effect(text).name for text in CASES} | {"thruster_asymmetry", "heading_bias_per_log"}
+    assert covered >= set(EFFECTS)
+
+
+def test_heading_bias_of_each_log_recovered(prior):
+    """Two logs, each with its own compass bias: one parameter per log, by the log's file name."""
+    recs = [generate(prior, effects=[f"heading_bias={b}"], n_segments=3, seed=20 + i, noise=PROFILES["none"],
+                     segment_s=(35, 40), manoeuvres=MIXED).recording for i, b in enumerate((4.0, -3.0))]
+    cv = compile_vessel(prior)
+    preps = [prepare_for(r, cv, **PREP) for r in recs]
+    train, held = split_windows(preps)
+    logs = [log_name(r.source) for r in recs]
+    library = candidates(prior, logs)
+    assert "heading_bias_per_log" not in candidates(prior, logs[:1])  # one log: that is heading_bias
+    search = Search(prior, Measurements(preps, recs, cv, PREP), train + held, held, ModelCache(0.05), library)
+    cand = library["heading_bias_per_log"]
+    fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
+    got = cand.to_effect(fitted.values).params
+    assert got[logs[0]] == pytest.approx(4.0, abs=0.3) and got[logs[1]] == pytest.approx(-3.0, abs=0.3)
+    amended = as_effect(cand.to_effect(fitted.values).text).spec.apply(prior, **got)
+    assert amended.sensors.for_log("/any/folder/" + logs[1]).heading_bias_deg == pytest.approx(got[logs[1]])
 
 
 @pytest.mark.parametrize("text", list(CASES))

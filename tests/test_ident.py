@@ -11,6 +11,7 @@ from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.ident import simfit
 from twin.ident.dataset import PROFILES, SensorNoise, generate
+from twin.ident.effects import parse_effect
 from twin.ident.evaluate import evaluate
 from twin.ident.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
@@ -57,6 +58,22 @@ def test_dataset_is_reproducible_and_logs_what_the_sensors_see(yellowfish_vessel
     truth = a.truth()
     assert truth["effects"][0]["name"] == "heading_bias" and len(truth["states"]) == 2
     json.dumps(truth, allow_nan=False)
+
+
+def test_heading_bias_per_log_acts_on_the_log_of_that_name_only(yellowfish_vessel):
+    text = "heading_bias_per_log=synthetic:yellowfish:seed4:-2.5,other.bin:7"
+    effect = parse_effect(text)
+    assert effect.params == {"synthetic:yellowfish:seed4": -2.5, "other.bin": 7.0} and parse_effect(effect.text) == effect
+    for bad in ("heading_bias_per_log=run.bin", "heading_bias_per_log=run.bin:200", "heading_bias_per_log=:3"):
+        with pytest.raises(TwinError, match="heading_bias_per_log"):
+            parse_effect(bad)
+    ds = generate(yellowfish_vessel, effects=[text, "heading_bias=1"], n_segments=1, seed=4, noise=QUIET,
+                  segment_s=(20, 25))
+    run, rec = ds.runs[0], ds.recording
+    psi_true = np.interp(rec.heading.t[:200], run.t, run.eta[:, 2])
+    err = np.angle(np.exp(1j * (rec.heading["psi_rad"][:200] - psi_true)))
+    np.testing.assert_allclose(np.degrees(err), 1.0 - 2.5, atol=1e-9)  # common bias plus this log's own
+    assert ds.truth_vessel.sensors.for_log("/elsewhere/other.bin").heading_bias_deg == pytest.approx(8.0)
 
 
 def test_dataset_round_trips_through_a_tlog(tmp_path, yellowfish_vessel):
@@ -132,3 +149,16 @@ def test_scale_needs_an_anchor(yellowfish_vessel):
 def test_sensor_noise_profiles_are_what_they_say():
     assert PROFILES["none"] == SensorNoise(0.0, 0.0, 60.0, 0.0)
     assert PROFILES["realistic"].gnss_dt_s == 0.2 and PROFILES["realistic"].heading_dt_s == 0.02
+
+
+def test_a_diverging_segment_is_named(monkeypatch, yellowfish_vessel):
+    """A batch twin that diverges stops the dataset with the segment and manoeuvre named."""
+    import twin.ident.dataset as dataset
+    from twin.engine.batch import Runs
+
+    def diverging(compiled, inputs, durations_s, **kwargs):
+        return Runs([None] * len(inputs), [(0, kwargs["start_s"][0] + 12.5)])
+
+    monkeypatch.setattr(dataset, "simulate_many", diverging)
+    with pytest.raises(TwinError, match=r"segment 1 \(rc\) at 7\.50 s after its logged start"):
+        generate(yellowfish_vessel, n_segments=1, seed=4, noise=QUIET, manoeuvres=["rc"], segment_s=(20, 25))

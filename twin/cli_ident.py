@@ -11,7 +11,7 @@ from .cli import MODEL_HELP, VESSEL_HELP, _channels, _vessel, app, console
 from .errors import TwinError
 from .vessel import write_text_atomic
 
-RECORDING_FORMATS = (".tlog", ".mcap", ".csv")
+RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
 
 def _check_outputs(paths: list[Path], formats: tuple[str, ...]) -> None:
@@ -42,7 +42,7 @@ def _plain(x):
 def dataset_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    out: list[Path] = typer.Option(..., help="recording(s) to write: .tlog, .mcap, .csv (repeatable)"),
+    out: list[Path] = typer.Option(..., help="recording(s) to write: .tlog, .bin, .mcap, .csv (repeatable)"),
     truth: Optional[Path] = typer.Option(None, help="truth file (JSON; default: OUT.truth.json beside the first output)"),
     segments: int = typer.Option(8, help="number of trajectory segments"),
     manoeuvres: str = typer.Option(",".join(("rc", "forward_constant", "forward_varying", "zigzag", "circle_constant",

@@ -7,8 +7,11 @@ heading bias starts at zero, a damping or added-mass coefficient as a scale of t
 prior's own value (a coefficient the prior does not have cannot be scaled, and is not
 offered), a thrust lag at a typical value. Time shifts (input delay, clock offset)
 change which logged PWM sample drives each engine step, so their cost is a staircase
-in the shift: they are scanned on a grid, not followed down a gradient. A dead zone
-moves in PWM steps of 1 µs (0.0025 in δ̃): its finite-difference step is coarser.
+in the shift: they are scanned on a grid, not followed down a gradient. A dead zone is
+a staircase too, and a flat one near the prior: widening it changes the thrust only
+where the PWM sits between the old and the new edge, so the gradient at the prior
+says nothing about a dead zone twice as wide. It is scanned along equal widths, then
+each edge on its own.
 
 Families group effects that can imitate each other in a recording: the diagnosis
 checks them against each other before it names one (search.py).
@@ -30,7 +33,8 @@ ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg 
 @dataclass(frozen=True)
 class Candidate:
     """One effect as parameters to fit. `starts`: starting values (one tuple per start);
-    `scan`: a grid of values for a staircase cost (one parameter); `to_effect` turns
+    `scan`: points (one value per parameter) for a staircase cost, and `scan_step` the
+    step of the finer scan around the best point, per parameter; `to_effect` turns
     fitted values into the effect's own parameters (for the report and the CLI text)."""
 
     name: str
@@ -38,7 +42,8 @@ class Candidate:
     starts: tuple[tuple[float, ...], ...]
     to_effect: Callable[[dict[str, float]], Effect]
     family: str
-    scan: tuple[float, ...] = ()
+    scan: tuple[tuple[float, ...], ...] = ()
+    scan_step: tuple[float, ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -109,6 +114,23 @@ def _dead_zone(which: str) -> Parameter:
     return Parameter(which, "δ̃", get, put, 0.0, 0.3, 0.05, fd_abs=0.005)
 
 
+def _grid(lo: float, hi: float, step: float) -> tuple[tuple[float], ...]:
+    """One-parameter scan points lo, lo + step, ..., hi."""
+    return tuple((float(x),) for x in np.round(np.arange(lo, hi + step / 2, step), 4))
+
+
+def _log_bias(log: str) -> Parameter:
+    """One log's own heading bias (deg), in sensors.heading_bias_by_log_deg."""
+    def get(v: Vessel) -> float:
+        return float(dict(v.sensors.heading_bias_by_log_deg).get(log, 0.0))
+
+    def put(v: Vessel, x: float) -> Vessel:
+        table = dict(v.sensors.heading_bias_by_log_deg) | {log: x}
+        return replace(v, sensors=replace(v.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))
+
+    return Parameter(log, "deg", get, put, -30.0, 30.0, 1.0)
+
+
 def _current_effect(p: dict) -> Effect:
     return effect("current", speed_m_s=float(np.hypot(p["current_north"], p["current_east"])),
                   dir_deg=float(np.degrees(np.arctan2(p["current_east"], p["current_north"]))))
@@ -123,21 +145,25 @@ def _scales_effect(name: str) -> Callable[[dict], Effect]:
     return lambda p: effect(name, **{k[: -len("_scale")]: v for k, v in p.items()})
 
 
-def candidates(prior: Vessel) -> dict[str, Candidate]:
-    """The library, for this prior (see the module docstring)."""
+def candidates(prior: Vessel, logs: list[str] = ()) -> dict[str, Candidate]:
+    """The library, for this prior and the names of the logs diagnosed together (see the
+    module docstring); a heading bias per log needs two logs at least."""
     out: list[Candidate] = [
         Candidate("current", (current_param(0), current_param(1)), ((0.0, 0.0),), _current_effect, "drift"),
         Candidate("thruster_lag", (_field("thrusters", "tau_s", "s", 0.02, 3.0, 0.2, key="lag_s"),),
                   ((0.15,), (0.6,)), lambda p: effect("thruster_lag", tau_s=p["tau_s"]), "timing"),
         Candidate("input_delay", (_field("thrusters", "delay_s", "s", 0.0, 1.5, 0.1),), ((0.0,),),
                   lambda p: effect("input_delay", delay_s=p["delay_s"]), "timing",
-                  scan=tuple(np.round(np.arange(0.0, 1.21, 0.06), 3))),
+                  scan=_grid(0.0, 1.2, 0.06), scan_step=(0.01,)),
         Candidate("clock_offset", (_field("sensors", "offset_s", "s", -1.5, 1.5, 0.1, key="pwm_clock_offset_s"),),
                   ((0.0,),), lambda p: effect("clock_offset", offset_s=p["offset_s"]), "timing",
-                  scan=tuple(np.round(np.arange(-1.2, 1.21, 0.06), 3))),
+                  scan=_grid(-1.2, 1.2, 0.06), scan_step=(0.01,)),
         Candidate("dead_zone", (_dead_zone("fwd"), _dead_zone("rev")),
                   ((prior.thrusters.deadzone_fwd, -prior.thrusters.deadzone_rev),),
-                  lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust"),
+                  lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust",
+                  scan=((prior.thrusters.deadzone_fwd, -prior.thrusters.deadzone_rev),)
+                  + tuple((w, w) for w, in _grid(0.0, 0.3, 0.025)),
+                  scan_step=(0.0125, 0.0125)),
         Candidate("thruster_asymmetry", (replace(asymmetry_param(), name="ratio", lo=0.3, hi=3.0),), ((1.0,),),
                   lambda p: effect("thruster_asymmetry", ratio=p["ratio"]), "turning"),
         Candidate("thrust_gain", (replace(gain_param(), name="scale", lo=0.2, hi=5.0),), ((1.0,),), lambda p: effect("thrust_gain", scale=p["scale"]), "thrust"),
@@ -166,6 +192,10 @@ def candidates(prior: Vessel) -> dict[str, Candidate]:
                                 _field("vessel", "dy_m", "m", -0.4, 0.4, 0.05, index=1, key="cg_offset_m")),
                   ((0.0, 0.0),), lambda p: effect("cg_offset", dx_m=p["dx_m"], dy_m=p["dy_m"]), "inertia"),
     ]
+    logs = list(dict.fromkeys(logs))
+    if len(logs) >= 2:
+        out.append(Candidate("heading_bias_per_log", tuple(_log_bias(n) for n in logs), (tuple(0.0 for _ in logs),),
+                             lambda p: effect("heading_bias_per_log", **p), "drift"))
     if prior.wind_load.frontal_area_m2 > 0 or prior.wind_load.lateral_area_m2 > 0:
         starts = tuple((5 * np.cos(a), 5 * np.sin(a)) for a in np.radians([0, 90, 180, 270]))
         out.append(Candidate("wind", (_env_wind(0), _env_wind(1)), starts, _wind_effect, "drift"))

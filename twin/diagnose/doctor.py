@@ -25,6 +25,7 @@ import numpy as np
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..ident.evaluate import r2_mae
+from ..physics.sensors import log_name
 from ..ident.simfit import Measurements
 from ..ident.windows import ModelCache, Window, make_windows, measured, predict
 from ..recordings import Prepared, Recording
@@ -69,14 +70,23 @@ class Diagnosis:
 
 def split_windows(preps: list[Prepared], window_s: float = WINDOW_S) -> tuple[list[Window], list[Window]]:
     """Non-overlapping windows; every third block of BLOCK_WINDOWS windows is held out."""
+    return folds(preps, window_s)[0]
+
+
+def folds(preps: list[Prepared], window_s: float = WINDOW_S) -> list[tuple[list[Window], list[Window]]]:
+    """Non-overlapping windows in blocks of BLOCK_WINDOWS, dealt to three folds in turn;
+    (training, held-out) for each fold, the fold of the second block of every three first."""
     wins = make_windows(preps, window_s, window_s, min_length_s=window_s)
-    train, held = [], []
-    for k, w in enumerate(wins):
-        (held if (k // BLOCK_WINDOWS) % 3 == 1 else train).append(w)
-    if len(held) < 3 or len(train) < 3:
+    out = []
+    for fold in (1, 0, 2):
+        train, held = [], []
+        for k, w in enumerate(wins):
+            (held if (k // BLOCK_WINDOWS) % 3 == fold else train).append(w)
+        out.append((train, held))
+    if len(out[0][1]) < 3 or len(out[0][0]) < 3:
         raise TwinError(f"the recording gives {len(wins)} windows of {window_s:g} s: too short to fit on one part "
                         "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
-    return train, held
+    return [(t, h) for t, h in out if len(h) >= 3 and len(t) >= 3]
 
 
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
@@ -91,7 +101,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
             raise TwinError(f"{rec.source}: no thruster PWM: the twin cannot be replayed without its inputs")
     preps = [prepare_for(r, compiled, **kwargs) for r in recordings]
     data = Measurements(preps, recordings, compiled, kwargs)
-    train, held = split_windows(preps, window_s)
+    (train, held), *other_folds = folds(preps, window_s)
     noise = _noise(recordings, preps)
     exact = ModelCache()
     every = train + held  # locating fits nothing: every window may speak
@@ -99,13 +109,13 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     located, growth, corr, overall = _locate(before, preps, every, noise)
     log(f"replayed {len(train) + len(held)} windows of {window_s:g} s ({len(held)} held out); "
         f"{len(located)} significant residual regions")
-    lib = candidates(prior)
+    lib = candidates(prior, [log_name(r.source) for r in recordings])
     if library:
         unknown = set(library) - set(lib)
         if unknown:
             raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
-    search = Search(prior, data, train, held, ModelCache(SEARCH_TIMESTEP_S), lib, log)
+    search = Search(prior, data, train, held, ModelCache(SEARCH_TIMESTEP_S), lib, log, other_folds)
     amended, kept, rounds = search.run()
     amended_preps = data.for_vessel(amended)
     after = _residuals(amended, amended_preps, every, exact)

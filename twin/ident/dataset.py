@@ -130,6 +130,12 @@ def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float) 
         batch = simulate_many(compiled, [_led_in(plan[i].drive) for i in open_idx],
                               [plan[i].duration_s + LEAD_IN_S for i in open_idx], eta0=[eta0[i] for i in open_idx],
                               start_s=[starts[i] - LEAD_IN_S for i in open_idx], sample_dt_s=sample_dt_s)
+        if batch.diverged:
+            (k, t), *_ = batch.diverged
+            i = open_idx[k]
+            raise TwinError(f"the twin diverged in segment {i + 1} ({plan[i].name}) at {t - starts[i]:.2f} s "
+                            f"after its logged start: the vessel's parameters do not give a stable twin "
+                            f"({batch.describe_divergence()})")
         for i, run in zip(open_idx, batch):
             runs[i] = run
     for i, m in enumerate(plan):
@@ -186,7 +192,7 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
         th = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
         psi = np.interp(th, run.t, run.eta[:, 2])
         h_t.append(th)
-        h_psi.append(wrap_angle(measured_heading(vessel.sensors, psi)
+        h_psi.append(wrap_angle(measured_heading(vessel.sensors.for_log(source), psi)
                                 + np.radians(rng.normal(0.0, noise.heading_deg, len(th)))))
         tp = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.pwm_dt_s)
         p_t.append(tp + vessel.sensors.pwm_clock_offset_s)

@@ -23,6 +23,7 @@ and an amended vessel file carries it. Where each lives:
   cg_offset           dx_m, dy_m                       cg_offset_m (mass distribution moved)
   clock_offset        offset_s                         sensors.pwm_clock_offset_s (PWM stamps late)
   heading_bias        bias_deg                         sensors.heading_bias_deg
+  heading_bias_per_log LOG:bias_deg,...                sensors.heading_bias_by_log_deg (each log its own)
   compass_deviation   b_deg, c_deg[, d_deg, e_deg]     sensors.compass_deviation_deg
   gnss_lever_arm      dx_m, dy_m                       sensors.antenna_offset_m (antenna off the MJCF site)
 
@@ -80,6 +81,7 @@ class Spec:
     apply: Callable
     doc: str
     keys: tuple[str, ...] = ()
+    per_key: str = ""  # a free key (e.g. LOG): params maps key → value, each checked against params[0]
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ class Effect:
     @property
     def text(self) -> str:
         """Canonical CLI text; parse_effect(effect.text) == effect."""
-        if self.spec.keys:
+        if self.spec.keys or self.spec.per_key:
             p = self.params
             if set(p) == {ALL}:
                 return f"{self.name}={p[ALL]:.12g}"
@@ -220,6 +222,11 @@ def heading_bias(vessel: Vessel, bias_deg: float) -> Vessel:
     return _sensors(vessel, heading_bias_deg=bias_deg)
 
 
+def heading_bias_per_log(vessel: Vessel, **bias_deg_by_log: float) -> Vessel:
+    """Each named log's own heading bias (deg), on top of the common one; set."""
+    return _sensors(vessel, heading_bias_by_log_deg=tuple(sorted(bias_deg_by_log.items())))
+
+
 def compass_deviation(vessel: Vessel, b_deg: float, c_deg: float, d_deg: float = 0.0, e_deg: float = 0.0) -> Vessel:
     """Heading error B sin ψ + C cos ψ + D sin 2ψ + E cos 2ψ (deg)."""
     return _sensors(vessel, compass_deviation_deg=(b_deg, c_deg, d_deg, e_deg))
@@ -264,6 +271,9 @@ _SPECS = [
          "mass distribution moved from the MJCF"),
     Spec("clock_offset", "sensors", (_p("offset_s", "s", -5, 5),), clock_offset, "PWM log stamps late"),
     Spec("heading_bias", "sensors", (_p("bias_deg", *_DEG),), heading_bias, "constant heading error"),
+    Spec("heading_bias_per_log", "sensors", (_p("bias_deg", *_DEG),), heading_bias_per_log,
+         "constant heading error of each log (file name), e.g. a compass calibrated before every outing",
+         per_key="LOG"),
     Spec("compass_deviation", "sensors",
          (_p("b_deg", "deg", -45, 45), _p("c_deg", "deg", -45, 45),
           _p("d_deg", "deg", -45, 45, default=0.0), _p("e_deg", "deg", -45, 45, default=0.0)),
@@ -285,6 +295,8 @@ def describe() -> str:
     lines = []
     for s in _SPECS:
         vals = ",".join(f"{p.name}" + ("?" if p.default is not None else "") for p in s.params)
+        if s.per_key:
+            vals = f"{s.per_key}:{s.params[0].name},..."
         vals = vals or f"S|KEY:S,... (KEY in {' '.join(s.keys)})"
         lines.append(f"{s.name}={vals}  [{s.level}] {s.doc}")
     return "\n".join(lines)
@@ -297,6 +309,8 @@ def effect(name: str, **params) -> Effect:
     s = spec(name)
     if s.keys:
         return Effect(name, _check_scales(s, params))
+    if s.per_key:
+        return Effect(name, _check_per_key(s, params))
     known = [p.name for p in s.params]
     unknown = sorted(set(params) - set(known))
     if unknown:
@@ -327,6 +341,20 @@ def _check_scales(s: Spec, params: dict) -> dict:
     return out
 
 
+def _check_per_key(s: Spec, params: dict) -> dict:
+    if not params:
+        raise TwinError(f"effect '{s.name}': give {s.per_key}:{s.params[0].name} pairs")
+    out = {}
+    for key, value in params.items():
+        if not str(key).strip():
+            raise TwinError(f"effect '{s.name}': empty {s.per_key} name")
+        value = _number(s.name, value)
+        if (msg := s.params[0].check(s.name, value)) is not None:
+            raise TwinError(msg)
+        out[str(key)] = value
+    return out
+
+
 def _number(name: str, value) -> float:
     try:
         out = float(value)
@@ -348,6 +376,8 @@ def parse_effect(text: str) -> Effect:
     items = [v.strip() for v in values.split(",")]
     if s.keys:
         return effect(name, **_scale_items(name, items))
+    if s.per_key:
+        return effect(name, **_key_items(name, items, s.per_key))
     required = sum(p.default is None for p in s.params)
     if not required <= len(items) <= len(s.params):
         count = f"{required}" if required == len(s.params) else f"{required} to {len(s.params)}"
@@ -364,6 +394,17 @@ def _scale_items(name: str, items: list[str]) -> dict:
         key, sep, value = item.partition(":")
         if not sep or not key.strip():
             raise TwinError(f"effect '{name}': expected KEY:SCALE, got '{item}'")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _key_items(name: str, items: list[str], what: str) -> dict:
+    """KEY:VALUE items whose key may itself hold colons (a log's name): split at the last one."""
+    out = {}
+    for item in items:
+        key, sep, value = item.rpartition(":")
+        if not sep or not key.strip():
+            raise TwinError(f"effect '{name}': expected {what}:VALUE, got '{item}'")
         out[key.strip()] = value.strip()
     return out
 

@@ -208,7 +208,8 @@ class Measurements:
     @staticmethod
     def _key(vessel: Vessel) -> tuple:
         s = vessel.sensors
-        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.antenna_offset_m))
+        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.antenna_offset_m),
+                s.heading_bias_by_log_deg)
 
     def for_vessel(self, vessel: Vessel) -> list[Prepared]:
         if self.recordings is None or self._key(vessel) == self._key0:

@@ -7,6 +7,10 @@ two-cycle compass deviation (Bowditch): δψ = A + B sin ψ + C cos ψ + D sin 2
 (ψ stands in for the magnetic heading; the variation between them is a constant
 that the bias absorbs).
 
+A compass calibrated afresh before every outing, or disturbed by what was loaded
+that day, has a bias of its own in each log: `heading_bias_by_log_deg` holds
+(log name, deg) pairs added to the common bias for the recording of that name.
+
 The antenna sits at the vessel's MJCF `gnss` site plus `antenna_offset_m` (body
 FRD), so a wrongly surveyed lever arm is a sensor parameter, not a new MJCF.
 `pwm_clock_offset_s` > 0: the PWM log's stamps are late against GNSS and heading
@@ -14,7 +18,8 @@ FRD), so a wrongly surveyed lever arm is a sensor parameter, not a new MJCF.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import PurePath
 
 import numpy as np
 
@@ -25,6 +30,13 @@ class Sensors:
     compass_deviation_deg: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # B, C, D, E
     antenna_offset_m: tuple[float, float] = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
+    heading_bias_by_log_deg: tuple[tuple[str, float], ...] = ()
+
+    def for_log(self, source: str) -> "Sensors":
+        """The sensors of the recording from `source` (a path or name): its own heading bias
+        added to the common one."""
+        extra = dict(self.heading_bias_by_log_deg).get(log_name(source), 0.0)
+        return replace(self, heading_bias_deg=self.heading_bias_deg + extra, heading_bias_by_log_deg=())
 
     def heading_error_rad(self, psi_rad) -> np.ndarray:
         """δψ (rad) the AHRS adds to the true heading ψ (rad)."""
@@ -36,6 +48,11 @@ class Sensors:
     @property
     def has_heading_error(self) -> bool:
         return self.heading_bias_deg != 0.0 or any(x != 0.0 for x in self.compass_deviation_deg)
+
+
+def log_name(source: str) -> str:
+    """The name a recording goes by in `heading_bias_by_log_deg`: its file name."""
+    return PurePath(str(source)).name
 
 
 def measured_heading(sensors: Sensors, psi_rad) -> np.ndarray:
