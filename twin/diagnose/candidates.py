@@ -44,6 +44,7 @@ class Candidate:
     family: str
     scan: tuple[tuple[float, ...], ...] = ()
     scan_step: tuple[float, ...] = ()
+    time_shift: bool = False  # the engine's step sets its resolution: never screened at a coarse step
 
     @property
     def names(self) -> list[str]:
@@ -154,10 +155,10 @@ def candidates(prior: Vessel, logs: list[str] = ()) -> dict[str, Candidate]:
                   ((0.15,), (0.6,)), lambda p: effect("thruster_lag", tau_s=p["tau_s"]), "timing"),
         Candidate("input_delay", (_field("thrusters", "delay_s", "s", 0.0, 1.5, 0.1),), ((0.0,),),
                   lambda p: effect("input_delay", delay_s=p["delay_s"]), "timing",
-                  scan=_grid(0.0, 1.2, 0.06), scan_step=(0.01,)),
+                  scan=_grid(0.0, 1.2, 0.12), scan_step=(0.01,), time_shift=True),
         Candidate("clock_offset", (_field("sensors", "offset_s", "s", -1.5, 1.5, 0.1, key="pwm_clock_offset_s"),),
                   ((0.0,),), lambda p: effect("clock_offset", offset_s=p["offset_s"]), "timing",
-                  scan=_grid(-1.2, 1.2, 0.06), scan_step=(0.01,)),
+                  scan=_grid(-0.96, 0.96, 0.12), scan_step=(0.01,), time_shift=True),
         Candidate("dead_zone", (_dead_zone("fwd"), _dead_zone("rev")),
                   ((prior.thrusters.deadzone_fwd, -prior.thrusters.deadzone_rev),),
                   lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust",

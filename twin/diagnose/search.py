@@ -48,8 +48,11 @@ REL_MIN = 0.02  # an effect that removes less than 2 % of the held-out misfit is
 Z_LARGE, REL_LARGE = 2.0, 0.15
 Z_PROMISING = 1.0  # worth the other folds' evidence
 Z_SEPARABLE = 3.0  # a rival is told apart only when held-out data prefer the winner clearly
-FULL_FITS = 4  # candidates fitted fully per round, after screening
-SCREEN_WINDOWS = 48  # screening sees at most this many training windows, spread over the recording
+FULL_FITS = 3  # candidates fitted fully per round, after screening
+SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread over the recording
+# a candidate's own fit sees at most this many (spread): enough to fit two or three numbers; the
+# kept effects' joint fit and every held-out judgement use all windows
+REFINE_WINDOWS = 48
 MAX_EFFECTS = 5
 
 
@@ -78,14 +81,16 @@ class Kept:
 class Search:
     def __init__(self, prior: Vessel, data: Measurements, train: list[Window], held: list[Window],
                  cache: ModelCache, library: dict[str, Candidate], log=None,
-                 other_folds: list[tuple[list[Window], list[Window]]] = ()):
+                 other_folds: list[tuple[list[Window], list[Window]]] = (), screen_cache: ModelCache | None = None):
         """train, held: the first fold, which fits every effect kept; other_folds: more
-        (train, held) splits of the same windows, for the pooled judgement."""
+        (train, held) splits of the same windows, for the pooled judgement; screen_cache:
+        models at a coarser step for screening the candidates that are not scanned."""
         self.prior, self.data, self.train, self.held, self.cache = prior, data, train, held, cache
+        self.screen_cache = screen_cache or cache
+        self._screen_costs: dict = {}  # "base": the round's base twin; id(cache): its screening cost
         self.other_folds = list(other_folds)
-        self._fold_base: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-        every = max(1, int(np.ceil(len(train) / SCREEN_WINDOWS)))
-        self.screening = train[::every]
+        self._fold_base: dict = {}  # "base": the round's base twin; fold: its held-out costs there
+        self.screening = _spread(train, SCREEN_WINDOWS)
         self.library = library
         self.log = log or (lambda msg: None)
         self.evaluations = 0
@@ -96,8 +101,8 @@ class Search:
 
     # ------------------------------------------------------------ costs
 
-    def _objective(self, base: Vessel, params, windows) -> Objective:
-        return Objective(base, list(params), self.data, windows, self.cache)
+    def _objective(self, base: Vessel, params, windows, cache: ModelCache | None = None) -> Objective:
+        return Objective(base, list(params), self.data, windows, cache or self.cache)
 
     def held_costs(self, vessels: list[Vessel], held: list[Window] | None = None
                    ) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -119,16 +124,20 @@ class Search:
     def screen(self, base: Vessel, cand: Candidate) -> list[Fitted]:
         """Cheap look on a spread subset of the training windows: a scan, or one Gauss-Newton
         step from each start."""
-        obj = self._objective(base, cand.params, self.screening)
+        obj = self._objective(base, cand.params, self.screening, self.cache if cand.time_shift else self.screen_cache)
         out = []
+        base_cost = self._screen_base(base, obj.cache)
         if cand.scan:
             lo, hi = obj.bounds()
             xs = [np.clip(np.array(v, float) / obj.scale, lo, hi) for v in cand.scan]
             costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in xs])]
             out.append(self._fitted(cand, obj, xs[_plateau_middle(costs)], min(costs)))
         else:
-            for start in cand.starts:
-                x0 = np.clip(np.array(start, float) / obj.scale, *obj.bounds())
+            starts = [np.clip(np.array(start, float) / obj.scale, *obj.bounds()) for start in cand.starts]
+            if len(starts) > 1:  # one step, from the start the data like best
+                costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in starts])]
+                starts = [starts[int(np.argmin(costs))]]
+            for x0 in starts:
                 J = obj.jacobian(x0)
                 r0 = obj.residuals(x0)
                 step = np.linalg.lstsq(J, -r0, rcond=None)[0]
@@ -138,13 +147,24 @@ class Search:
                 c0 = float(np.sum(r0 ** 2))
                 out.append(self._fitted(cand, obj, trials[best] if costs[best] < c0 else x0, min(c0, costs[best])))
         self.evaluations += obj.evaluations * len(self.screening)
+        for f in out:  # relative to the base twin at the same step, so both steps rank together
+            f.train_cost /= base_cost
         return out
+
+    def _screen_base(self, base: Vessel, cache: ModelCache) -> float:
+        """The base twin's cost on the screening windows at this cache's step (kept per round)."""
+        if self._screen_costs.get("base") is not base:  # a new round: its base twin
+            self._screen_costs = {"base": base}
+        if id(cache) not in self._screen_costs:
+            r = self._objective(base, [], self.screening, cache)._residuals([base])[0]
+            self._screen_costs[id(cache)] = max(float(np.sum(r * r)), 1e-300)
+        return self._screen_costs[id(cache)]
 
     def refine(self, base: Vessel, fitted: Fitted, train: list[Window] | None = None) -> Fitted:
         """Bounded least squares from the screened point (a scanned candidate: finer scans),
         on the first fold's training windows unless `train` is given."""
         cand = fitted.candidate
-        train = self.train if train is None else train
+        train = _spread(self.train if train is None else train, REFINE_WINDOWS)
         obj = self._objective(base, cand.params, train)
         x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
         if cand.scan:
@@ -206,13 +226,13 @@ class Search:
     def _pool(self, base: Vessel, base_held, f: Fitted, per_dof: np.ndarray) -> None:
         """z, rel and dof_rel of `f` over the held-out windows of every fold (module docstring)."""
         bases, cands = [base_held], [(f.held, per_dof)]
+        if self._fold_base.get("base") is not base:
+            self._fold_base = {"base": base}
         for k, (train, held) in enumerate(self.other_folds):
-            key = (id(base), k)
-            if key not in self._fold_base:
-                self._fold_base = {q: c for q, c in self._fold_base.items() if q[0] == id(base)}
-                self._fold_base[key] = self.held_costs([base], held)[0]
+            if k not in self._fold_base:
+                self._fold_base[k] = self.held_costs([base], held)[0]
             refit = self.refine(base, f, train)
-            bases.append(self._fold_base[key])
+            bases.append(self._fold_base[k])
             cands.append(self.held_costs([refit.vessel], held)[0])
         _judge(f, bases, cands)
         f.folds = len(bases)
@@ -275,6 +295,11 @@ class Search:
     @staticmethod
     def _split_values(kept: list[Kept], vessel: Vessel) -> list[dict]:
         return [{p.name: float(p.get(vessel)) for p in k.fitted.candidate.params} for k in kept]
+
+
+def _spread(windows: list[Window], most: int) -> list[Window]:
+    """At most `most` of the windows, evenly spread over the recording."""
+    return windows[::max(1, int(np.ceil(len(windows) / most)))]
 
 
 def _judge(f: Fitted, bases: list[tuple[np.ndarray, np.ndarray]],

@@ -232,11 +232,25 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
     return vn, ve, r
 
 
+_RATES: dict[tuple, np.ndarray] = {}  # _rate_at by content: a diagnosis re-prepares a recording for
+# every heading or antenna calibration it tries, and those leave the GNSS velocities as they were
+
+
 def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
              drop_repeats: bool) -> np.ndarray:
     """dx/dt at the grid times tg from the samples (ts, x) of one stream over tg's span
     (the sample held at tg[0] included): resampled at the stream's own median period,
     differentiated, interpolated at tg."""
+    key = (hash(ts.tobytes()), hash(x.tobytes()), hash(tg.tobytes()), smoother, window_s, polyorder, drop_repeats)
+    if key not in _RATES:
+        if len(_RATES) >= 512:
+            _RATES.pop(next(iter(_RATES)))
+        _RATES[key] = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
+    return _RATES[key].copy()
+
+
+def _rate_uncached(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
+                   drop_repeats: bool) -> np.ndarray:
     lo = max(int(np.searchsorted(ts, tg[0] + _EPS_S, side="right")) - 1, 0)
     hi = int(np.searchsorted(ts, tg[-1] + _EPS_S, side="right"))
     ts, x = ts[lo:hi], x[lo:hi]
