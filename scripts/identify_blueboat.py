@@ -58,11 +58,15 @@ FIT_TIMESTEP_S = 0.05
 MAX_EVALUATIONS = 25
 
 ASYM = simfit.DEFAULT + ("asymmetry",)
-# (name, parameters, window_s, why it is worth trying)
+# (name, parameters, window_s, why it is worth trying[, start]): start "measured" (the free runs
+# from the recorded initial velocities, as the twin is judged) unless "free" (estimated with the fit)
 CANDIDATES = [
     ("default", simfit.DEFAULT, 10.0, "simfit.DEFAULT: damping, added mass, thrust curve, lag"),
+    ("default/free", simfit.DEFAULT, 10.0, "the same with each window's initial velocities estimated "
+     "(`twin identify`'s default: unbiased by noisy starts when the model is right)", "free"),
     ("+asym", ASYM, 10.0, "the real boat turns under equal PWM: right/left thrust ratio"),
     ("+asym+Yr,Nv", ASYM + ("Yr", "Nv"), 10.0, "linear sway-yaw coupling damping"),
+    ("+asym+Yr,Nv/free", ASYM + ("Yr", "Nv"), 10.0, "the same with free starts", "free"),
     ("+asym+current", ASYM + ("current_north", "current_east"), 10.0,
      "one current for all seven runs (a real current differs per run)"),
     ("+asym+Nur,Yuv", ASYM + ("Nur", "Yuv"), 10.0,
@@ -131,16 +135,18 @@ def reference_models(train, prior) -> tuple[dict, dict]:
     return models, failed
 
 
-def fit_candidate(prior, train, held, name, params, window_s, warnings) -> dict:
+def fit_candidate(prior, train, held, name, params, window_s, warnings, start: str = "measured") -> dict:
     started = time.time()
     with engine_warnings(warnings):
         res = simfit.fit(prior, train, params, anchor="mass", window_s=window_s, stride_s=window_s,
-                         max_evaluations=MAX_EVALUATIONS, cache=ModelCache(FIT_TIMESTEP_S))
+                         max_evaluations=MAX_EVALUATIONS, cache=ModelCache(FIT_TIMESTEP_S),
+                         free_start=start == "free")
         optimum = at_optimum(prior, res)
         scores = {label: {"train": evaluate(v, train, horizons=FREE_RUN_10S)["free_run_10s"],
                           "held_out": evaluate(v, held, horizons=FREE_RUN_10S)["free_run_10s"]}
                   for label, v in (("optimum", optimum), ("reverted", res.vessel))}
-    return {"name": name, "params": list(params), "window_s": window_s, "result": res, "vessel": optimum,
+    return {"name": name, "params": list(params), "window_s": window_s, "start": start, "result": res,
+            "vessel": optimum,
             **scores["optimum"], "reverted": scores["reverted"], "score": selection_score(scores["optimum"]["train"]),
             "seconds": round(time.time() - started, 1)}
 
@@ -155,6 +161,26 @@ def at_optimum(prior, res: simfit.FitResult) -> vessel_mod.Vessel:
     for e in res.estimates:
         vessel = table[e.name].put(vessel, e.value)
     return vessel
+
+
+def implausible(c: dict, prior, train) -> str | None:
+    """Why a fitted twin cannot be a hull model, or None. Two a-priori rules: (1) positive yaw
+    damping (linearised steady turn) at every surge speed of the training runs: a twin that is
+    unstable in yaw at speeds it was fitted on has traded physics for the score; (2) no value
+    pinned at an optimiser bound other than zero (zero is a physical bound: no such term)."""
+    u = np.concatenate([p.u for p in train])
+    lo, hi = np.nanpercentile(u, [1, 99])
+    for speed in np.linspace(lo, hi, 9):
+        damping = yaw_damping_n_m_s(c["vessel"], float(speed))[0]
+        if damping <= 0:
+            return f"yaw damping {damping:.0f} N m s at u = {speed:.1f} m/s (unstable in yaw)"
+    table = simfit.parameters(prior)
+    for e in c["result"].estimates:
+        p = table[e.name]
+        for bound in (p.lo, p.hi):
+            if e.identifiable and bound != 0 and abs(e.value - bound) <= 1e-6 * max(1.0, abs(bound)):
+                return f"{e.name} at its bound {bound:g}"
+    return None
 
 
 def selection_score(fit: dict) -> float:
@@ -229,19 +255,27 @@ METRIC_HEAD = (f"{'model':18s} {'horizon':12s} " + " ".join(f"{'R2 ' + d:>7s}" f
 def candidate_rows(cands: list[dict], best: dict, variant: str = "optimum") -> list[str]:
     """One row per fit: the twin at the optimum (variant "optimum", the one selected) or with
     simfit's prior values put back for what it could not pin down alone ("reverted")."""
-    head = (f"{'set':15s} {'win':>4s} {'train u':>7s} {'v':>6s} {'r':>6s} {'score':>6s} | "
+    head = (f"{'set':16s} {'win':>4s} {'train u':>7s} {'v':>6s} {'r':>6s} {'score':>6s} | "
             f"{'held u':>7s} {'v':>6s} {'r':>6s} {'s':>5s}")
     rows = [head, "-" * len(head)]
     for c in cands:
         if "error" in c:
-            rows.append(f"{c['name']:15s} {c['window_s']:4.0f}  failed: {c['error'][:60]}")
+            rows.append(f"{c['name']:16s} {c['window_s']:4.0f}  failed: {c['error'][:60]}")
             continue
         t, h = (c["train"], c["held_out"]) if variant == "optimum" else (c[variant]["train"], c[variant]["held_out"])
         mark = " <- kept" if c is best and variant == "optimum" else ""
-        rows.append(f"{c['name']:15s} {c['window_s']:4.0f} {fmt(t['u']['r2']):>7s} {fmt(t['v']['r2']):>6s} "
+        rows.append(f"{c['name']:16s} {c['window_s']:4.0f} {fmt(t['u']['r2']):>7s} {fmt(t['v']['r2']):>6s} "
                     f"{fmt(t['r']['r2']):>6s} {selection_score(t):6.3f} | {fmt(h['u']['r2']):>7s} "
                     f"{fmt(h['v']['r2']):>6s} {fmt(h['r']['r2']):>6s} {c['seconds']:5.0f}{mark}")
     return rows
+
+
+def rejected_lines(cands: list[dict]) -> list[str]:
+    bad = [c for c in cands if c.get("implausible")]
+    if not bad:
+        return []
+    return ["Not eligible, whatever their score (a-priori rules, `implausible` in the script):", "",
+            *[f"- {c['name']}: {c['implausible']}" for c in bad], ""]
 
 
 def estimate_rows(res: simfit.FitResult) -> list[str]:
@@ -321,13 +355,14 @@ def markdown(ctx: dict) -> str:
         "",
         "## Simulation fits tried (kept: best score on the TRAINING runs)",
         "",
-        "score = mean 10-s free-run R² of u and r on the training runs; the held-out columns were "
-        "not used for the choice. Windows tile the data (stride = window); candidate runs use RK4 "
+        "score = mean 10-s free-run R² of u and r on the training runs; kept: the best score among the "
+        "physically plausible fits; the held-out columns were not used for the choice. Windows tile the data (stride = window); candidate runs use RK4 "
         f"at {FIT_TIMESTEP_S} s and each fit stops after {MAX_EVALUATIONS} cost evaluations "
         f"({ctx['engine_warnings']} engine warnings from diverging candidates were suppressed).",
         "",
         fence, *candidate_rows(ctx["candidates"], best), fence,
         "",
+        *rejected_lines(ctx["candidates"]),
         "Each row scores the twin at the optimum of its fit (every fitted value). `simfit.fit` itself "
         "returns a twin with the prior put back for each value it cannot pin down alone; those twins "
         "score as follows (not used for the choice; see the discussion):",
@@ -422,6 +457,8 @@ def discussion(ctx: dict) -> list[str]:
     yaw = dict(zip(SPEEDS_M_S, phys["yaw"]["kept"]))
     untuned = dict(zip(SPEEDS_M_S, phys["yaw"]["untuned"]))
     current_r2 = fmt(by["+asym+current"]["held_out"]["r"]["r2"]) if "+asym+current" in by else "-"
+    gains = [e.value for c in cands if "error" not in c and not c.get("implausible")
+             for e in c["result"].estimates if e.name == "thrust_gain"] or [float("nan")]
     worst = min(phys["train_per_run"].items(),
                 key=lambda kv: kv[1]["r"]["r2"] if kv[1]["r"]["r2"] is not None else -1e9)
     out = [
@@ -431,18 +468,22 @@ def discussion(ctx: dict) -> list[str]:
         "thruster mapping was corrected, not re-run here). On the samples every model predicts it has R² u "
         f"{fmt(common['identified twin']['u']['r2'])}, r {fmt(common['identified twin']['r']['r2'])} against the "
         f"static grey-box's {fmt(common['static grey-box']['u']['r2'])}, {fmt(common['static grey-box']['r']['r2'])}, "
-        "and unlike the grey-box it predicts the spins at all. The target r ≥ 0.6 is met; v is not "
-        f"predicted (R² {fmt(h['v']['r2'])}).",
+        "and unlike the grey-box it predicts the spins at all. The target r ≥ 0.6 is "
+        f"{'met' if (h['r']['r2'] or -1) >= 0.6 else 'NOT met'}; v is not predicted (R² {fmt(h['v']['r2'])}).",
         "",
+        *start_paragraph(by),
         "What generalises. Surge under way: run 225's u has R² "
         f"{fmt(ctx['per_run']['identified twin']['225']['u']['r2'])} (untuned "
         f"{fmt(ctx['per_run']['untuned twin']['225']['u']['r2'])}); the thrust curve needs a gain of "
-        f"{est['thrust_gain'].value:.2f} over the 10 V T200 curve (a 4S battery), found by every fit. The "
-        f"asymmetry (right/left thrust {est['asymmetry'].value:.3f}) is the port turn under equal PWM. Yaw under "
+        f"{est['thrust_gain'].value:.2f} over the 10 V T200 curve (a 4S battery; plausible fits: "
+        f"{min(gains):.2f}-{max(gains):.2f}). The "
+        f"asymmetry (right/left thrust {est['asymmetry'].value:.3f}) is what the runs ask for under equal PWM. Yaw under "
         "way and in spins: the kept twin gets both (runs "
         f"{', '.join(map(str, HELD_OUT_RUNS))}: r R² "
-        f"{', '.join(fmt(ctx['per_run']['identified twin'][str(n)]['r']['r2']) for n in HELD_OUT_RUNS)}) because "
-        f"its yaw damping grows with speed. The untuned twin's falls with speed (Munk moment: "
+        f"{', '.join(fmt(ctx['per_run']['identified twin'][str(n)]['r']['r2']) for n in HELD_OUT_RUNS)})"
+        + (" because its yaw damping grows with speed. " if yaw[2.0][0] > yaw[0.0][0] else
+           " although its yaw damping does not grow with speed. ")
+        + "The untuned twin's falls with speed (Munk moment: "
         f"{untuned[0.0][0]:.0f} N m s at rest, {untuned[2.0][0]:.0f} at 2 m/s; kept twin: {yaw[0.0][0]:.0f} and "
         f"{yaw[2.0][0]:.0f}, table below), so it spins far too slowly; its yaw time constant M33/|Nr| ≈ 0.07 s is "
         "also why its one-step r is poor. Fitting constant Nr, Nrr (sets default, +asym) can only "
@@ -455,9 +496,9 @@ def discussion(ctx: dict) -> list[str]:
         "(run 218: heading 75° → 56°, track 77° → 64° in 3 s, drift angle then 5-8° while coasting straight), "
         "so the measured v grows and decays with u. No hull parameter lets a coasting hull keep a drift angle; "
         "a heading error that grows with thrust (a compass disturbed by the motor currents, followed slowly by the "
-        "AHRS) would, and that is a sensor, not hull, effect. Sway damping fitted to it goes to implausible values "
-        + (f"(Yv {est['Yv'].value:.0f} N s/m, {'pinned' if est['Yv'].identifiable else 'unpinned'}). "
-           if "Yv" in est else ". ")
+        "AHRS) would, and that is a sensor, not hull, effect"
+        + (f" (the kept fit cannot pin the sway damping down: Yv {est['Yv'].value:.0f} N s/m, "
+           f"{'pinned' if est['Yv'].identifiable else 'left at its prior'}). " if "Yv" in est else ". ")
         + "(2) Surge in spins: the boat barely moves (226, 228) while the twins back away (kept twin: u R² "
         f"{fmt(ctx['per_run']['identified twin']['226']['u']['r2'])}, "
         f"{fmt(ctx['per_run']['identified twin']['228']['u']['r2'])}): at the spin PWMs the real forward and "
@@ -473,10 +514,39 @@ def discussion(ctx: dict) -> list[str]:
         "Caveats. Fits stop after a capped number of evaluations on a rough cost, and different sets land in "
         "different minima: differences of a few hundredths in the scores mean little. The held-out runs contain "
         "two spins and the training runs one, so held-out r can exceed training r. simfit's own result (second "
-        "table) puts the prior back for every value it cannot pin down alone, which breaks pairs like Nr/Nrr "
-        "and Yr/Nv that are pinned down only together: those twins score clearly worse.",
+        "table) puts the prior back for every value it cannot pin down alone and refits the rest around it, so "
+        "the twin it returns is one that was fitted.",
     ]
     return out
+
+
+def start_paragraph(by: dict) -> list[str]:
+    """What estimating each window's initial velocities does on these recordings."""
+    pairs = [(m, by[m + "/free"]) for m in by if m + "/free" in by]
+    pairs = [(by[m], f) for m, f in pairs]
+    if not pairs:
+        return []
+    def nrdot(c):
+        return next((e.value for e in c["result"].estimates if e.name == "Nrdot"), float("nan"))
+
+    text = "; ".join(f"{m['name']}: train score {m['score']:.3f} measured, {f['score']:.3f} free; held-out r "
+                     f"{fmt(m['held_out']['r']['r2'])}, {fmt(f['held_out']['r']['r2'])}; Nrdot {nrdot(m):.3g}, "
+                     f"{nrdot(f):.3g} kg m2" for m, f in pairs)
+    better = "measured" if all(m["score"] > f["score"] for m, f in pairs) else (
+        "free" if all(f["score"] > m["score"] for m, f in pairs) else None)
+    verdict = {"measured": "the fits from the measured starts score better, as they are judged from measured "
+                           "starts: the BlueBoat's measured sway carries a heading artefact that a free start absorbs "
+                           "at each window's start and a free run from the recorded state does not",
+               "free": "the fits with free starts score better, even judged from measured starts",
+               None: "neither start is better on every set"}[better]
+    return [
+        "Initial velocities. `twin identify` estimates each window's initial velocities with the parameters "
+        "(on synthetic data with GNSS jitter this removes a 13-60 % bias in yaw inertia: synthetic.md); "
+        f"`--start measured` fits from the recorded ones. Here {verdict} ({text}). From measured starts the "
+        "yaw added mass grows large, the errors-in-variables signature seen on synthetic data (a heavier hull "
+        "in yaw follows a wrong initial yaw rate less). Both are tried; the training score decides.",
+        "",
+    ]
 
 
 def coupling_paragraph(ctx: dict, yaw: dict, worst) -> list[str]:
@@ -492,10 +562,10 @@ def coupling_paragraph(ctx: dict, yaw: dict, worst) -> list[str]:
         f"(2) the damping falls with reverse speed ({yaw[-2.0][0]:.0f} N m s at −2 m/s), so on the long reverse "
         f"leg of run {worst[0]} the twin's yaw wanders (r R² {fmt(worst[1]['r']['r2'])}, MAE "
         f"{fmt(worst[1]['r']['mae'], 3)} rad/s; run 221 barely turns, so any wander gives a large negative R²). "
-        "Yrdot (M23·u·r) does the same more directly and fails in reverse the same way. Every coupling value is "
-        "unpinned on its own (no ±): the data fix the combination, not the coefficients. A speed-proportional "
-        "yaw damping N_|u|r (and Y_|u|v), as in linear manoeuvring models, would say the same without the false "
-        "sway; the vessel description has no such term.",
+        "Yrdot (M23·u·r) does the same more directly and fails in reverse the same way. Coupling values "
+        "without ± are not pinned down on their own. A speed-proportional yaw damping N_|u|r (and Y_|u|v), as in "
+        "linear manoeuvring models, would say the same without the false sway: the set +asym+Nur,Yuv fits it, "
+        "but on these runs it ran to a twin that is unstable in yaw in reverse (not eligible, above).",
         "",
     ]
 
@@ -504,9 +574,10 @@ def to_json(ctx: dict) -> dict:
     def cand(c):
         if "error" in c:
             return {k: c[k] for k in ("name", "params", "window_s", "error")}
-        return {"name": c["name"], "params": c["params"], "window_s": c["window_s"], "why": c["why"],
+        return {"name": c["name"], "params": c["params"], "window_s": c["window_s"], "start": c["start"],
+                "why": c["why"],
                 "train_free_run_10s": c["train"], "held_out_free_run_10s": c["held_out"], "score": c["score"],
-                "reverted_to_prior": c["reverted"],
+                "reverted_to_prior": c["reverted"], "implausible": c.get("implausible"),
                 "seconds": c["seconds"], "simfit": c["result"].to_dict()}
 
     return {"train_runs": TRAIN_RUNS, "held_out_runs": HELD_OUT_RUNS, "held_out": ctx["metrics"],
@@ -516,7 +587,8 @@ def to_json(ctx: dict) -> dict:
                             "spin_v_per_r_measured": ctx["physics"]["spin_v_per_r_measured"]},
             "kept_train_per_run_free_run_10s": ctx["physics"]["train_per_run"],
             "candidates": [cand(c) for c in ctx["candidates"]],
-            "kept": ctx["best"]["name"], "selection": "max mean(R2 u, R2 r) of 10-s free runs on the training runs",
+            "kept": ctx["best"]["name"],
+            "selection": "max mean(R2 u, R2 r) of 10-s free runs on the training runs among the plausible fits",
             "fit_settings": {"timestep_s": FIT_TIMESTEP_S, "max_evaluations": MAX_EVALUATIONS, "anchor": "mass",
                              "stride": "= window"},
             "seconds": round(ctx["seconds"], 1)}
@@ -540,26 +612,29 @@ def main() -> int:
     models, failed = reference_models(train, prior)
     only = {s.strip() for s in args.sets.split(",") if s.strip()}
     warnings, cands = [0], []
-    for name, params, window_s, why in CANDIDATES:
+    for name, params, window_s, why, *start in CANDIDATES:
         if only and name not in only:
             continue
         try:
-            c = fit_candidate(prior, train, held, name, params, window_s, warnings)
+            c = fit_candidate(prior, train, held, name, params, window_s, warnings, *start)
         except TwinError as exc:
             c = {"name": name, "params": list(params), "window_s": window_s, "error": str(exc), "score": -np.inf}
         c["why"] = why
         cands.append(c)
         if "error" not in c:
-            print(f"{name:15s} {window_s:4.0f} s  train u {fmt(c['train']['u']['r2'])} r {fmt(c['train']['r']['r2'])}"
+            print(f"{name:16s} {window_s:4.0f} s  train u {fmt(c['train']['u']['r2'])} r {fmt(c['train']['r']['r2'])}"
                   f"  held-out u {fmt(c['held_out']['u']['r2'])} r {fmt(c['held_out']['r']['r2'])}  "
                   f"{c['seconds']:.0f} s", flush=True)
         else:
-            print(f"{name:15s} failed: {c['error']}", flush=True)
+            print(f"{name:16s} failed: {c['error']}", flush=True)
     fitted = [c for c in cands if "error" not in c]
     if not fitted:
         print("error: no simulation fit succeeded", file=sys.stderr)
         return 1
-    best = max(fitted, key=lambda c: c["score"])
+    for c in fitted:
+        c["implausible"] = implausible(c, prior, train)
+    eligible = [c for c in fitted if not c["implausible"]] or fitted
+    best = max(eligible, key=lambda c: c["score"])
     vessel = identified_vessel(best, prior)
     path = vessel_mod.save(vessel, args.out / "blueboat_identified.json")
     vessel_mod.load(str(path))  # the file must stand on its own (its MJCF found relative to it)

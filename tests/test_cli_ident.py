@@ -67,6 +67,7 @@ def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys
         ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json", "--params", "Xq"),
         ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json",
          "--params", "Xudot,thrust_gain"),
+        ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json", "--start", "now"),
         ("evaluate", "--vessel", "yellowfish", tmp_path / "missing.tlog"),
     ]
     for args in cases:

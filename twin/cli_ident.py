@@ -98,6 +98,8 @@ def identify_command(
                                                    + ")"),
     anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
     window: float = typer.Option(10.0, help="free-run window of the simulation fit, s"),
+    start: str = typer.Option("free", help="initial velocities of each free run: free (estimated with the "
+                                            "parameters) | measured (as the recording gives them)"),
     no_simulation: bool = typer.Option(False, "--no-simulation", help="only the seed 004 least squares"),
     channels: Optional[str] = typer.Option(None, help="thruster servo channels LEFT,RIGHT (logs without them)"),
     seed: int = typer.Option(0, help="random seed of the splits"),
@@ -113,10 +115,12 @@ def identify_command(
     prior = _vessel(vessel, model, "nominal")
     names = tuple(p.strip() for p in params.split(",")) if params else ident.simfit.DEFAULT
     ident.simfit.check_names(prior, names, anchor)  # before any work
+    if start not in ("free", "measured"):
+        raise TwinError(f"--start must be free or measured, got '{start}'")
     preps = ident.load(recordings, prior, _channels(channels))
     report = ident.identify(preps, prior, thruster=thruster, split=split, train=train, repeats=repeats, seed=seed,
                             params=names, anchor=anchor, simulate=not no_simulation, window_s=window,
-                            sources=[str(r) for r in recordings])
+                            start=start, sources=[str(r) for r in recordings])
     text = ident.format_greybox(report.greybox)
     if text:
         console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")

@@ -120,8 +120,12 @@ def vessel_from_guesses(prior: Vessel, guesses: dict) -> Vessel | None:
 def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", split: str = "segments",
              train: float = 0.7, repeats: int = 20, seed: int = 0, params: tuple[str, ...] = simfit.DEFAULT,
              anchor: str = "mass", simulate: bool = True, window_s: float = 10.0, stride_s: float = 5.0,
-             sources: list[str] | None = None) -> Report:
-    """The whole identification (module docstring)."""
+             start: str = "free", sources: list[str] | None = None) -> Report:
+    """The whole identification (module docstring). start: each free run's initial velocities
+    "free" (estimated with the parameters: unbiased physics from noisy starts) or "measured"
+    (the twin that predicts best from the starts as recorded, which is how it is judged)."""
+    if start not in ("free", "measured"):
+        raise TwinError(f"--start must be free or measured, got '{start}'")
     if thruster not in ("static", "dynamic"):
         raise TwinError(f"--thruster must be static or dynamic, got '{thruster}'")
     if split not in ("segments", "points"):
@@ -132,16 +136,17 @@ def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", 
     report = Report(prior, table, notes=notes)
     if not simulate:
         return report
-    start, cache = prior, simfit.ModelCache()
+    first, cache = prior, simfit.ModelCache()
     guessed = vessel_from_guesses(prior, guesses) if guesses else None
     if guessed is not None:
         costs = {name: _free_run_cost(v, preps, params, anchor, window_s, stride_s, cache)
                  for name, v in (("prior", prior), ("grey-box", guessed))}
         report.start = min(costs, key=costs.get)
-        start = guessed if report.start == "grey-box" else prior
+        first = guessed if report.start == "grey-box" else prior
         notes.append("simulation fit started from the " + report.start + " (free-run cost " +
                      ", ".join(f"{k} {c:.4g}" for k, c in costs.items()) + ")")
-    result = simfit.fit(start, preps, params, anchor=anchor, window_s=window_s, stride_s=stride_s, cache=cache)
+    result = simfit.fit(first, preps, params, anchor=anchor, window_s=window_s, stride_s=stride_s, cache=cache,
+                        free_start=start == "free")
     report.simfit = result
     report.vessel = _with_sources(result, sources or [])
     for e in result.estimates:
@@ -164,7 +169,8 @@ def _with_sources(result: simfit.FitResult, sources: list[str]) -> Vessel:
     when = _dt.date.today().isoformat()
     files = ", ".join(Path(s).name for s in sources) or "recordings"
     text = (f"identified by `twin identify` on {when} from {files}: {names} by free-run windows of "
-            f"{result.meta.get('window_s')} s (anchor: {result.meta.get('anchor')}, residual RMS "
+            f"{result.meta.get('window_s')} s (anchor: {result.meta.get('anchor')}, initial velocities "
+            f"{'estimated' if result.meta.get('free_start') else 'as measured'}, residual RMS "
             f"{result.meta.get('residual_rms', float('nan')):.3f} σ)" + (f"; kept at the prior: {kept}" if kept else ""))
     return replace(v, sources={**v.sources, "identification": text})
 

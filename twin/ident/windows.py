@@ -165,9 +165,11 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
 
 
 def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,
-                   act0: np.ndarray | None) -> np.ndarray:
+                   act0: np.ndarray | None, nu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
     k = w.start
-    batch._set_initial_state(model, data, (prep.north[k], prep.east[k], prep.psi[k]), (prep.u[k], prep.v[k], prep.r[k]))
+    du, dv, dr = nu_offset
+    batch._set_initial_state(model, data, (prep.north[k], prep.east[k], prep.psi[k]),
+                             (prep.u[k] + du, prep.v[k] + dv, prep.r[k] + dr))
     data.time = prep.t[k]
     if model.na:
         data.act[:2] = act0
@@ -191,12 +193,14 @@ class Prediction:
 
 
 def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list[Window],
-            cache: ModelCache | None = None, nthread: int | None = None) -> list[Prediction]:
+            cache: ModelCache | None = None, nthread: int | None = None,
+            nu_offsets: list | None = None) -> list[Prediction]:
     """Free runs of every vessel over every window in one batch; one Prediction per vessel.
 
     `preps` are the recordings as each vessel's sensors see them: either one list
     shared by all vessels or, for candidates with different sensor calibrations,
-    a list of lists (one per vessel)."""
+    a list of lists (one per vessel). nu_offsets: per vessel, None or a (u, v, r)
+    added to every window's measured initial velocities (initial-state sensitivities)."""
     vessels = [vessels] if isinstance(vessels, Vessel) else list(vessels)
     per_vessel = preps if preps and isinstance(preps[0], list) else [preps] * len(vessels)
     if not windows:
@@ -204,7 +208,9 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
     cache = cache or ModelCache()
     n_max = max(w.n for w in windows)
     models, states, controls, owners = [], [], [], []
+    offsets = nu_offsets or [None] * len(vessels)
     for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
+        offset = (0.0, 0.0, 0.0) if offsets[iv] is None else tuple(offsets[iv])
         if vessel.thrusters.kind != "t200":
             raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a recording cannot drive it")
         model = cache.model(vessel)
@@ -217,7 +223,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             padded = np.zeros((steps, 2))
             padded[: len(cmd)] = cmd
             models.append(model)
-            states.append(_initial_state(model, data, prep, w, act0))
+            states.append(_initial_state(model, data, prep, w, act0, offset))
             controls.append(padded)
             owners.append(iv)
     traj, diverged = _rollout(models, states, controls, nthread)
