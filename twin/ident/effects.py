@@ -389,22 +389,16 @@ def parse_effect(text: str) -> Effect:
 def _scale_items(name: str, items: list[str]) -> dict:
     if len(items) == 1 and ":" not in items[0]:
         return {ALL: items[0]}
-    out = {}
-    for item in items:
-        key, sep, value = item.partition(":")
-        if not sep or not key.strip():
-            raise TwinError(f"effect '{name}': expected KEY:SCALE, got '{item}'")
-        out[key.strip()] = value.strip()
-    return out
+    return _key_items(name, items, "KEY", "SCALE")
 
 
-def _key_items(name: str, items: list[str], what: str) -> dict:
+def _key_items(name: str, items: list[str], what: str, value_name: str = "VALUE") -> dict:
     """KEY:VALUE items whose key may itself hold colons (a log's name): split at the last one."""
     out = {}
     for item in items:
         key, sep, value = item.rpartition(":")
         if not sep or not key.strip():
-            raise TwinError(f"effect '{name}': expected {what}:VALUE, got '{item}'")
+            raise TwinError(f"effect '{name}': expected {what}:{value_name}, got '{item}'")
         out[key.strip()] = value.strip()
     return out
 
