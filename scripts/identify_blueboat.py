@@ -141,26 +141,11 @@ def fit_candidate(prior, train, held, name, params, window_s, warnings, start: s
         res = simfit.fit(prior, train, params, anchor="mass", window_s=window_s, stride_s=window_s,
                          max_evaluations=MAX_EVALUATIONS, cache=ModelCache(FIT_TIMESTEP_S),
                          free_start=start == "free")
-        optimum = at_optimum(prior, res)
-        scores = {label: {"train": evaluate(v, train, horizons=FREE_RUN_10S)["free_run_10s"],
-                          "held_out": evaluate(v, held, horizons=FREE_RUN_10S)["free_run_10s"]}
-                  for label, v in (("optimum", optimum), ("reverted", res.vessel))}
+        scores = {"train": evaluate(res.vessel, train, horizons=FREE_RUN_10S)["free_run_10s"],
+                  "held_out": evaluate(res.vessel, held, horizons=FREE_RUN_10S)["free_run_10s"]}
     return {"name": name, "params": list(params), "window_s": window_s, "start": start, "result": res,
-            "vessel": optimum,
-            **scores["optimum"], "reverted": scores["reverted"], "score": selection_score(scores["optimum"]["train"]),
+            "vessel": res.vessel, **scores, "score": selection_score(scores["train"]),
             "seconds": round(time.time() - started, 1)}
-
-
-def at_optimum(prior, res: simfit.FitResult) -> vessel_mod.Vessel:
-    """The twin the free-run cost was minimised for: every fitted value, pinned down or not.
-    simfit's own result puts the prior back for a value it cannot pin down alone, but Nr and
-    Nrr (or Yv and Yvv) are often only pinned down together: reverting one of a pair gives a
-    twin nobody fitted (the 'reverted' scores show what that costs)."""
-    table = simfit.parameters(prior)  # the curve scales are relative to this prior, as in the fit
-    vessel = prior
-    for e in res.estimates:
-        vessel = table[e.name].put(vessel, e.value)
-    return vessel
 
 
 def implausible(c: dict, prior, train) -> str | None:
@@ -252,9 +237,9 @@ METRIC_HEAD = (f"{'model':18s} {'horizon':12s} " + " ".join(f"{'R2 ' + d:>7s}" f
                + " ".join(f"{'MAE ' + d:>7s}" for d in DOFS) + f" {'n':>6s}")
 
 
-def candidate_rows(cands: list[dict], best: dict, variant: str = "optimum") -> list[str]:
-    """One row per fit: the twin at the optimum (variant "optimum", the one selected) or with
-    simfit's prior values put back for what it could not pin down alone ("reverted")."""
+def candidate_rows(cands: list[dict], best: dict) -> list[str]:
+    """One row per fit: the twin simfit returned (values it cannot pin down at the prior, the
+    rest refitted around them)."""
     head = (f"{'set':16s} {'win':>4s} {'train u':>7s} {'v':>6s} {'r':>6s} {'score':>6s} | "
             f"{'held u':>7s} {'v':>6s} {'r':>6s} {'s':>5s}")
     rows = [head, "-" * len(head)]
@@ -262,8 +247,8 @@ def candidate_rows(cands: list[dict], best: dict, variant: str = "optimum") -> l
         if "error" in c:
             rows.append(f"{c['name']:16s} {c['window_s']:4.0f}  failed: {c['error'][:60]}")
             continue
-        t, h = (c["train"], c["held_out"]) if variant == "optimum" else (c[variant]["train"], c[variant]["held_out"])
-        mark = " <- kept" if c is best and variant == "optimum" else ""
+        t, h = c["train"], c["held_out"]
+        mark = " <- kept" if c is best else ""
         rows.append(f"{c['name']:16s} {c['window_s']:4.0f} {fmt(t['u']['r2']):>7s} {fmt(t['v']['r2']):>6s} "
                     f"{fmt(t['r']['r2']):>6s} {selection_score(t):6.3f} | {fmt(h['u']['r2']):>7s} "
                     f"{fmt(h['v']['r2']):>6s} {fmt(h['r']['r2']):>6s} {c['seconds']:5.0f}{mark}")
@@ -363,11 +348,8 @@ def markdown(ctx: dict) -> str:
         fence, *candidate_rows(ctx["candidates"], best), fence,
         "",
         *rejected_lines(ctx["candidates"]),
-        "Each row scores the twin at the optimum of its fit (every fitted value). `simfit.fit` itself "
-        "returns a twin with the prior put back for each value it cannot pin down alone; those twins "
-        "score as follows (not used for the choice; see the discussion):",
-        "",
-        fence, *candidate_rows(ctx["candidates"], best, "reverted"), fence,
+        "Each row scores the twin `simfit.fit` returns: a value it cannot pin down stays at the prior "
+        "and the rest is refitted around it.",
         "",
         *[f"- {c['name']}: {c['why']}" for c in ctx["candidates"]],
         "",
@@ -454,6 +436,9 @@ def discussion(ctx: dict) -> list[str]:
     plain = m["plain baseline"]["free_run_10s"]
     by = {c["name"]: c for c in cands if "error" not in c}
     est = {e.name: e for e in best["result"].estimates}
+
+    def val(name: str, spec: str) -> str:
+        return format(est[name].value, spec) if name in est else "(not fitted)"
     yaw = dict(zip(SPEEDS_M_S, phys["yaw"]["kept"]))
     untuned = dict(zip(SPEEDS_M_S, phys["yaw"]["untuned"]))
     current_r2 = fmt(by["+asym+current"]["held_out"]["r"]["r2"]) if "+asym+current" in by else "-"
@@ -475,9 +460,9 @@ def discussion(ctx: dict) -> list[str]:
         "What generalises. Surge under way: run 225's u has R² "
         f"{fmt(ctx['per_run']['identified twin']['225']['u']['r2'])} (untuned "
         f"{fmt(ctx['per_run']['untuned twin']['225']['u']['r2'])}); the thrust curve needs a gain of "
-        f"{est['thrust_gain'].value:.2f} over the 10 V T200 curve (a 4S battery; plausible fits: "
+        f"{val('thrust_gain', '.2f')} over the 10 V T200 curve (a 4S battery; plausible fits: "
         f"{min(gains):.2f}-{max(gains):.2f}). The "
-        f"asymmetry (right/left thrust {est['asymmetry'].value:.3f}) is what the runs ask for under equal PWM. Yaw under "
+        f"asymmetry (right/left thrust {val('asymmetry', '.3f')}) is what the runs ask for under equal PWM. Yaw under "
         "way and in spins: the kept twin gets both (runs "
         f"{', '.join(map(str, HELD_OUT_RUNS))}: r R² "
         f"{', '.join(fmt(ctx['per_run']['identified twin'][str(n)]['r']['r2']) for n in HELD_OUT_RUNS)})"
@@ -497,14 +482,15 @@ def discussion(ctx: dict) -> list[str]:
         "so the measured v grows and decays with u. No hull parameter lets a coasting hull keep a drift angle; "
         "a heading error that grows with thrust (a compass disturbed by the motor currents, followed slowly by the "
         "AHRS) would, and that is a sensor, not hull, effect"
-        + (f" (the kept fit cannot pin the sway damping down: Yv {est['Yv'].value:.0f} N s/m, "
-           f"{'pinned' if est['Yv'].identifiable else 'left at its prior'}). " if "Yv" in est else ". ")
+        + ((f" (the kept fit puts Yv at {est['Yv'].value:.0f} N s/m). " if est["Yv"].identifiable else
+            f" (the kept fit cannot pin the sway damping down: Yv {est['Yv'].value:.0f} N s/m, left at its "
+            "prior). ") if "Yv" in est else ". ")
         + "(2) Surge in spins: the boat barely moves (226, 228) while the twins back away (kept twin: u R² "
         f"{fmt(ctx['per_run']['identified twin']['226']['u']['r2'])}, "
         f"{fmt(ctx['per_run']['identified twin']['228']['u']['r2'])}): at the spin PWMs the real forward and "
         "reverse thrusts nearly cancel where the T200 curve makes reverse the stronger. A smaller reverse_scale "
         "would fix that but takes yaw moment out of the spins, which the twins already under-turn; the fits keep "
-        f"it near 1 (kept: {est['reverse_scale'].value:.2f}). (3) Currents: one current over seven runs "
+        f"it near 1 (kept: {val('reverse_scale', '.2f')}). (3) Currents: one current over seven runs "
         f"(+asym+current: held-out r {current_r2}) "
         "does not help; each run drifts its own way (idle drift of a few cm/s in a direction that changes from run "
         "to run: ../diagnose/blueboat.md). (4) Window length: 5-s windows (the cost then sits in the "
@@ -513,9 +499,7 @@ def discussion(ctx: dict) -> list[str]:
         "",
         "Caveats. Fits stop after a capped number of evaluations on a rough cost, and different sets land in "
         "different minima: differences of a few hundredths in the scores mean little. The held-out runs contain "
-        "two spins and the training runs one, so held-out r can exceed training r. simfit's own result (second "
-        "table) puts the prior back for every value it cannot pin down alone and refits the rest around it, so "
-        "the twin it returns is one that was fitted.",
+        "two spins and the training runs one, so held-out r can exceed training r.",
     ]
     return out
 
@@ -577,7 +561,7 @@ def to_json(ctx: dict) -> dict:
         return {"name": c["name"], "params": c["params"], "window_s": c["window_s"], "start": c["start"],
                 "why": c["why"],
                 "train_free_run_10s": c["train"], "held_out_free_run_10s": c["held_out"], "score": c["score"],
-                "reverted_to_prior": c["reverted"], "implausible": c.get("implausible"),
+                "implausible": c.get("implausible"),
                 "seconds": c["seconds"], "simfit": c["result"].to_dict()}
 
     return {"train_runs": TRAIN_RUNS, "held_out_runs": HELD_OUT_RUNS, "held_out": ctx["metrics"],
