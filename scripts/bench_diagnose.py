@@ -20,8 +20,8 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.ident.dataset import PROFILES, generate  # noqa: E402
-from twin.recordings import read_recording, write_recording  # noqa: E402
+from twin.synth.dataset import PROFILES, generate  # noqa: E402
+from twin.formats import read_recording, write_recording  # noqa: E402
 from twin.vessel import write_text_atomic  # noqa: E402
 
 EFFECTS = ["current=0.2,100", "thruster_lag=0.3"]

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twin.recordings import prepare, read_recording
+from twin.prepare import prepare
+from twin.formats import read_recording
 from twin.vessel import write_text_atomic
 
 

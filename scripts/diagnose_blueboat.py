@@ -26,10 +26,11 @@ from twin.diagnose import search  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
 from twin.diagnose.report import write_html  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
-from twin.ident.evaluate import DOFS, TwinPredictor, evaluate, horizon_windows  # noqa: E402
+from twin.fit.metrics import DOFS
+from twin.fit.evaluate import TwinPredictor, evaluate, horizon_windows  # noqa: E402
 from twin.ident.identify import load  # noqa: E402
-from twin.ident.windows import ModelCache, measured  # noqa: E402
-from twin.recordings import read_recording  # noqa: E402
+from twin.fit.windows import ModelCache, measured  # noqa: E402
+from twin.formats import read_recording  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from identify_blueboat import wrap  # noqa: E402  (one markdown folder for both reports)
@@ -71,14 +72,14 @@ def idle_drift(preps, runs) -> dict:
         active = np.any(np.abs(p.pwm - np.asarray(p.pwm_neutral_us, float)) > 20.0, axis=1)
         idx = np.arange(len(active))
         last = np.maximum.accumulate(np.where(active, idx, -10**9))
-        quiet = (idx - last) * float(p.settings.get("grid_dt", 0.1)) > QUIET_AFTER_S
+        quiet = (idx - last) * p.settings.grid_dt > QUIET_AFTER_S
         if quiet.sum() < 50:
             continue
         c, s_ = np.cos(p.psi[quiet]), np.sin(p.psi[quiet])
         north = p.u[quiet] * c - p.v[quiet] * s_
         east = p.u[quiet] * s_ + p.v[quiet] * c
         out[str(n)] = {"north_m_s": float(np.mean(north)), "east_m_s": float(np.mean(east)),
-                       "seconds": float(quiet.sum() * float(p.settings.get("grid_dt", 0.1)))}
+                       "seconds": float(quiet.sum() * p.settings.grid_dt)}
     return out
 
 

@@ -23,8 +23,8 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.ident.dataset import PROFILES, generate  # noqa: E402
-from twin.ident.effects import as_effect, effect  # noqa: E402
+from twin.synth.dataset import PROFILES, generate  # noqa: E402
+from twin.effects import as_effect, effect  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.vessel import write_text_atomic  # noqa: E402
 
@@ -87,7 +87,7 @@ def _param_error(injected, found) -> float | None:
             continue
         if "dir" in k:
             errs.append(abs((got - true + 180.0) % 360.0 - 180.0) / 360.0)
-        elif k in ("b_deg", "c_deg", "bias_deg", "dx_m", "dy_m", "Yr", "Nv", "offset_s", "Yuv", "Nur") \
+        elif k in ("b_deg", "c_deg", "bias_deg", "heading_bias_deg", "dx_m", "dy_m", "Yr", "Nv", "pwm_clock_offset_s", "Yuv", "Nur") \
                 or injected.name == "heading_bias_per_log":
             scale = max(abs(x) for x in _truth_values(injected).values())
             errs.append(abs(got - true) / scale)

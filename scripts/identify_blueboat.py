@@ -35,13 +35,13 @@ import twin  # noqa: E402
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
-from twin.ident import simfit  # noqa: E402
-from twin.ident.baseline import fit_plain  # noqa: E402
-from twin.ident.evaluate import (DOFS, TwinPredictor, evaluate, horizon_windows,  # noqa: E402
+from twin.fit import simfit  # noqa: E402
+from twin.ident.seed004.baseline import fit_plain  # noqa: E402
+from twin.fit.evaluate import (DOFS, TwinPredictor, evaluate, horizon_windows,  # noqa: E402
                                  r2_mae)
-from twin.ident.greybox import fit_dynamic, fit_static  # noqa: E402
+from twin.ident.seed004.greybox import fit_dynamic, fit_static  # noqa: E402
 from twin.ident.identify import load  # noqa: E402
-from twin.ident.windows import ModelCache, measured  # noqa: E402
+from twin.fit.windows import ModelCache, measured  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 TRAIN_RUNS = (216, 218, 220, 221, 222, 223, 224)

@@ -21,10 +21,10 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
-from twin.ident.dataset import PROFILES, generate  # noqa: E402
-from twin.ident.evaluate import evaluate  # noqa: E402
+from twin.synth.dataset import PROFILES, generate  # noqa: E402
+from twin.fit.evaluate import evaluate  # noqa: E402
 from twin.ident.identify import identify  # noqa: E402
-from twin.replay import prepare_for  # noqa: E402
+from twin.fit.calibrate import prepare_for  # noqa: E402
 from twin.vessel import write_text_atomic  # noqa: E402
 
 TRUTH = ["linear_damping=Xu:1.4,Nr:0.7", "quadratic_damping=Xuu:0.8,Nrr:1.3,Yvv:1.2",

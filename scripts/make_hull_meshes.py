@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate the hull meshes in assets/ reproducibly (trimesh).
+"""Generate the hull meshes in twin/assets/ reproducibly (trimesh).
 
 Yellowfish: each fibreglass hull is 128 × 25.5 × 30 cm (seed 000 §II-A).
 BlueBoat: 120 × 23 × 25 cm per hull, an approximation of Blue Robotics'
@@ -10,8 +10,8 @@ depth tapering to a raked bow. Body frame FRD (x forward, y starboard, z down);
 the mesh origin is the bounding-box centre in x and y and the design
 waterline in z (Yellowfish: deck at z = −0.25 m, keel at z = +0.05 m).
 
-Run:  python scripts/make_hull_meshes.py   (writes assets/<vessel>_hull_port.stl
-and assets/<vessel>_hull_starboard.stl; identical output on every run)
+Run:  python scripts/make_hull_meshes.py   (writes twin/assets/<vessel>_hull_port.stl
+and twin/assets/<vessel>_hull_starboard.stl; identical output on every run)
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ HULLS = {  # length, breadth, deck z, keel z (m)
     "blueboat": (1.20, 0.23, -0.18, 0.07),
 }
 STATIONS, RING_POINTS, EXPONENT = 65, 48, 4.0
-ASSETS = Path(__file__).resolve().parent.parent / "assets"
+ASSETS = Path(__file__).resolve().parent.parent / "twin" / "assets"
 
 
 def _section_scale(x_m: np.ndarray, length_m: float) -> tuple[np.ndarray, np.ndarray]:

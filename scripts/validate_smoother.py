@@ -16,8 +16,9 @@ import numpy as np
 
 import twin
 from twin.engine.mjcf import compile_vessel
-from twin.recordings import Recording, Stream, prepare
-from twin.smoother import model_smoothed
+from twin.recording import Recording, Stream
+from twin.prepare import prepare
+from twin.prepare.smoother import model_smoothed
 from twin.vessel import write_text_atomic
 
 

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.crosscheck import TERM_ENV
+from twin.verify.crosscheck import TERM_ENV
 from twin.engine import batch, divergence, native
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.engine.sim import simulate
 from twin.errors import TwinError
-from twin.inputs import InputSeries
+from twin.drive import InputSeries
 from twin.physics.damping import Damping
 from twin.physics.hydrodynamics import Terms
 

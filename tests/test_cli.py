@@ -10,14 +10,14 @@ import pytest
 import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
-from twin.inputs import read_inputs_csv
+from twin.drive import read_inputs_csv
 from twin.run import read_csv
 
-MODEL = Path(__file__).resolve().parent.parent / "model"
+MODEL = vessel_mod.MODEL_DIR
 
 
 def twin(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "twin.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd, timeout=600)
 
 
@@ -144,9 +144,9 @@ def test_crosscheck_over_tolerance_exits_1(monkeypatch, capsys):
     """main() must pass on a command's exit code: without standalone mode Click returns it instead of exiting."""
     import importlib
 
-    from twin import cli
+    import twin.cli as cli
 
-    crosscheck_module = importlib.import_module("twin.crosscheck")  # twin.crosscheck is also the API function
+    crosscheck_module = importlib.import_module("twin.verify.crosscheck")
     monkeypatch.setattr(sys, "argv", ["twin", "crosscheck", "--vessel", "cybership1", "--duration", "1"])
     cli.main()  # within tolerance: returns, exit status 0
     assert "FAIL" not in capsys.readouterr().out
@@ -161,7 +161,7 @@ def test_crosscheck_over_tolerance_exits_1(monkeypatch, capsys):
                                           (["params", "--bogus"], "No such option: --bogus")])
 def test_usage_error_is_bad_input(monkeypatch, capsys, argv, message):
     """Typer raises its own copy of click's usage errors: still one line and exit 2, not an internal error."""
-    from twin import cli
+    import twin.cli as cli
 
     monkeypatch.setattr(sys, "argv", ["twin", *argv])
     with pytest.raises(SystemExit) as exc:

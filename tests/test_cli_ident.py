@@ -9,7 +9,7 @@ import twin.vessel as vessel_mod
 
 
 def twin(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "twin.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
                           timeout=timeout)
 
 
@@ -51,7 +51,7 @@ def test_identify_then_evaluate(dataset):
 
 
 def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:
-    from twin.cli import main
+    from twin.cli.app import main
 
     monkeypatch.setattr(sys, "argv", ["twin", *map(str, args)])
     with pytest.raises(SystemExit) as exit_info:

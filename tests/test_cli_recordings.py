@@ -5,11 +5,12 @@ import sys
 import numpy as np
 import pytest
 
-from twin.recordings import prepare, read_recording
+from twin.prepare import prepare
+from twin.formats import read_recording
 
 
 def twin(*args):
-    return subprocess.run([sys.executable, "-m", "twin.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
                           timeout=600)
 
 
@@ -104,7 +105,7 @@ def test_the_twins_own_csv_is_a_recording(sim_tlog, tmp_path):
 
 def _no_gnss_recording():
     """Heading 20 Hz, PWM 10 Hz, gyro 20 Hz, battery 1 Hz and parameters, no GNSS: an ROV or bench log."""
-    from twin.recordings import Recording, Stream
+    from twin.recording import Recording, Stream
 
     th, tp, tb = np.arange(400) * 0.05, 0.013 + np.arange(200) * 0.1, np.arange(20) * 1.0
     rec = Recording(source="bench", kind="synthetic")
@@ -120,7 +121,7 @@ def _no_gnss_recording():
 def test_convert_a_log_without_gnss(tmp_path, suffix):
     """Issue 4: convert needed GNSS and heading, so 3 of the 5 shared ArduPilot logs could not be
     converted; a log without GNSS is now written with its streams at their own times."""
-    from twin.recordings import write_recording
+    from twin.formats import write_recording
 
     rec = _no_gnss_recording()
     write_recording(rec, tmp_path / "in.bin")
@@ -149,7 +150,7 @@ def test_a_converted_real_recording_is_not_called_simulated(sim_tlog, tmp_path):
     assert not any("body origin" in n or "simulated" in n for n in real.notes), real.notes
     assert real.gnss.has("lat_deg", "lon_deg") and "positions" not in real.meta
     simulated = read_recording(sim_tlog / "z.mcap")
-    assert any("body origin (simulated)" in n for n in simulated.notes)
+    assert any("body origin (a simulated run)" in n for n in simulated.notes)
     # the antenna track of the conversion is the tlog's own, sample for sample on the grid
     src = prepare(read_recording(sim_tlog / "z.tlog"))
     again = prepare(real)
@@ -183,7 +184,7 @@ def test_view_writes_into_the_working_folder_not_beside_the_input(sim_tlog, tmp_
     (data / "z.tlog").write_bytes((sim_tlog / "z.tlog").read_bytes())
     work = tmp_path / "work"
     work.mkdir()
-    p = subprocess.run([sys.executable, "-m", "twin.cli", "view", str(data / "z.tlog")], capture_output=True,
+    p = subprocess.run([sys.executable, "-m", "twin", "view", str(data / "z.tlog")], capture_output=True,
                        text=True, timeout=600, cwd=work)
     assert p.returncode == 0, p.stderr
     assert sorted(x.name for x in data.iterdir()) == ["z.tlog"] and (work / "z.rrd").stat().st_size > 1000
@@ -202,7 +203,7 @@ def test_view_sim_plots_the_real_thrust_from_the_recorded_pwm(sim_tlog, tmp_path
     on its PWM, labelled so; replaying a twin's own log, the two agree."""
     import twin.outputs
     import twin.viz.rerun_log as rerun_log
-    from twin import cli
+    import twin.cli as cli
 
     written, labels = {}, []
     real_write, real_series = twin.outputs.write, rerun_log.rr.SeriesLines

@@ -2,7 +2,7 @@
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.crosscheck import HEADING_TOL_DEG, POSITION_TOL_M, crosscheck
+from twin.verify.crosscheck import HEADING_TOL_DEG, POSITION_TOL_M, crosscheck
 
 
 @pytest.mark.parametrize("name", ["yellowfish", "cybership1"])

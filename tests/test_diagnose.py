@@ -8,18 +8,18 @@ import sys
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.diagnose.candidates import candidates
+from twin.effects import candidates
 from twin.diagnose.doctor import diagnose, split_windows
 from twin.diagnose.search import Search
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
-from twin.ident.dataset import PROFILES, generate
-from twin.ident.effects import EFFECTS, as_effect
-from twin.ident.simfit import Measurements
-from twin.ident.windows import ModelCache
+from twin.synth.dataset import PROFILES, generate
+from twin.effects import EFFECTS, as_effect
+from twin.fit.objective import Measurements
+from twin.fit.windows import ModelCache
 from twin.physics.sensors import log_name
-from twin.recordings import write_recording
-from twin.replay import prepare_for
+from twin.formats import write_recording
+from twin.fit.calibrate import prepare_for
 
 PREP = {"window_s": 1.0, "heading_window_s": 0.5}
 MIXED = ["rc", "circle_varying", "forward_varying", "zigzag"]
@@ -28,15 +28,15 @@ MIXED = ["rc", "circle_varying", "forward_varying", "zigzag"]
 CASES = {
     "current=0.3,60": ("current", {"speed_m_s": 0.05, "dir_deg": 5.0}),
     "wind=8,30": ("wind", {"speed_m_s": 0.15, "dir_deg": 10.0}),
-    "thruster_lag=0.5": ("thruster_lag", {"tau_s": 0.1}),
+    "thruster_lag=0.5": ("thruster_lag", {"lag_s": 0.1}),
     "input_delay=0.4": ("input_delay", {"delay_s": 0.021}),
-    "clock_offset=0.3": ("clock_offset", {"offset_s": 0.021}),
+    "clock_offset=0.3": ("clock_offset", {"pwm_clock_offset_s": 0.021}),
     "dead_zone=0.2,0.2": ("dead_zone", {"fwd": 0.15, "rev": 0.15}),
     "thruster_asymmetry=0.85": ("thruster_asymmetry", {"ratio": 0.03}),
     "thrust_gain=1.2": ("thrust_gain", {"scale": 0.03}),
-    "thrust_decay=0.1": ("thrust_decay", {"per_min": 0.15}),
-    "thrust_speed_loss=0.2": ("thrust_speed_loss", {"per_m_s": 0.15}),
-    "heading_bias=5": ("heading_bias", {"bias_deg": 0.5}),
+    "thrust_decay=0.1": ("thrust_decay", {"decay_per_min": 0.15}),
+    "thrust_speed_loss=0.2": ("thrust_speed_loss", {"speed_loss_per_m_s": 0.15}),
+    "heading_bias=5": ("heading_bias", {"heading_bias_deg": 0.5}),
     "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
     "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
@@ -46,7 +46,7 @@ CASES = {
     "speed_damping=-20,-15": ("speed_damping", {"Yuv": 8.0, "Nur": 3.0}),
     "cg_offset=0.2,0": ("cg_offset", {"dx_m": 0.05, "dy_m": 0.05}),
 }
-ABSOLUTE = {"dir_deg", "delay_s", "offset_s", "bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
+ABSOLUTE = {"dir_deg", "delay_s", "pwm_clock_offset_s", "heading_bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
             "Yuv", "Nur"}
 
 
@@ -124,7 +124,7 @@ def test_diagnose_command_writes_everything(tmp_path, prior):
     write_recording(ds.recording, rec)
     out = {k: tmp_path / f"d.{k}" for k in ("json", "html", "rrd")}
     amended = tmp_path / "amended.json"
-    cmd = [sys.executable, "-m", "twin.cli", "diagnose", str(rec), "--vessel", "yellowfish", "--json",
+    cmd = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish", "--json",
            str(out["json"]), "--report", str(out["html"]), "--rrd", str(out["rrd"]), "--write-model", str(amended)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -144,7 +144,7 @@ def test_bad_recordings_get_one_line_errors(tmp_path, prior):
         diagnose([short.recording], prior)
     rec = tmp_path / "nopwm.csv"
     rec.write_text("t,lat,lon,heading_deg\n" + "".join(f"{i * 0.2:.1f},37.4,-5.97,10\n" for i in range(900)))
-    done = subprocess.run([sys.executable, "-m", "twin.cli", "diagnose", str(rec), "--vessel", "yellowfish"],
+    done = subprocess.run([sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.startswith("error:") and len(done.stderr.strip().splitlines()) == 1
     assert "PWM" in done.stderr

@@ -7,8 +7,8 @@ from scipy.signal import lfilter
 from twin.diagnose.locate import correlations, format_located, growth, locate, overall
 from twin.diagnose.noise import estimate_noise, rate_sigma, white_noise
 from twin.geodesy import geodetic_from_ned
-from twin.recordings import prepare
-from twin.recordings.recording import Recording, Stream
+from twin.prepare import prepare
+from twin.recording import Recording, Stream
 
 # ---------------------------------------------------------------- noise
 

@@ -1,18 +1,21 @@
 """The MJCF models and the MuJoCo callbacks."""
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
 import trimesh
 
 import twin.vessel as vessel_mod
-from twin import analytic, scenarios
+from twin import analytic
+from twin import drive as scenarios
 from twin.engine import callbacks
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.engine.sim import initial_state, simulate
 from twin.physics.hydrodynamics import Terms, acceleration, kinetic_energy
 from twin.physics.thrusters import allocation_matrix
 
-ROOT = vessel_mod.MODEL_DIR.parent
+ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.parametrize("case,mass,xg_mm", [("min", 23.73, -18.7), ("nominal", 24.39, -19.6), ("max", 25.73, -20.5)])
@@ -39,7 +42,7 @@ def test_hull_meshes_are_watertight_and_reproducible():
     spec.loader.exec_module(mk)
     fresh = trimesh.exchange.stl.export_stl(mk.hull_mesh())
     for side in ("port", "starboard"):
-        path = ROOT / "assets" / f"yellowfish_hull_{side}.stl"
+        path = vessel_mod.MODEL_DIR.parent / "assets" / f"yellowfish_hull_{side}.stl"
         assert path.read_bytes() == fresh
         mesh = trimesh.load(path)
         assert mesh.is_watertight
@@ -136,7 +139,7 @@ def test_a_diverging_twin_raises_naming_the_time(yellowfish, backend, tmp_path, 
     """MuJoCo resets a diverged state and carries on; the twin must notice, say when, and leave
     neither MUJOCO_LOG.TXT in the working directory nor MuJoCo's own warning on the console."""
     from twin.errors import TwinError
-    from twin.inputs import InputSeries
+    from twin.drive import InputSeries
 
     monkeypatch.chdir(tmp_path)
     series = InputSeries(np.array([0.0]), np.array([[1700.0, 1600.0]]), "pwm")

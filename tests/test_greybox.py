@@ -8,19 +8,19 @@ import json
 import numpy as np
 import pytest
 
-import twin.scenarios as S
+import twin.drive as S
 import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import simulate
 from twin.errors import TwinError
-from twin.ident import splits as SP
-from twin.ident.baseline import fit_plain, persistence_one_step
-from twin.ident.greybox import GreyboxOptions, fit_dynamic, fit_static, shared_alpha
-from twin.ident.lsq import fit_linear
-from twin.ident.physical import first_guesses
-from twin.ident.regressors import normalised_inputs
+from twin.ident.seed004 import splits as SP
+from twin.ident.seed004.baseline import fit_plain, persistence_one_step
+from twin.ident.seed004.greybox import GreyboxOptions, fit_dynamic, fit_static, shared_alpha
+from twin.ident.seed004.lsq import fit_linear
+from twin.ident.seed004.physical import first_guesses
+from twin.ident.seed004.regressors import normalised_inputs
 from twin.physics.thrusters import lag_alpha, lag_time_constant_s
-from twin.recordings.prepare import DEADBAND_US, Prepared, Segment
+from twin.prepare.prepared import DEADBAND_US, Preparation, Prepared, Segment
 
 BLUEBOAT_TRAIN = (216, 218, 220, 221, 222, 223, 224)
 BLUEBOAT_VALIDATION = (225, 226, 228)
@@ -41,7 +41,7 @@ def prepared_from_run(run, *, neutral_us: float = 1500.0, n_segments: int = 1, d
     seg_id = np.repeat(np.arange(n_segments), np.diff(edges))
     h = float(run.t[1] - run.t[0])
     return Prepared(run.t, run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], run.nu[:, 0], run.nu[:, 1], run.nu[:, 2],
-                    pwm, seg_id, region, dead, segments, (neutral_us, neutral_us), {}, {"grid_dt": h})
+                    pwm, seg_id, region, dead, segments, (neutral_us, neutral_us), {}, Preparation(grid_dt=h, smoother="none"))
 
 
 def exact_quadratic(vessel, lag_s: float = 0.0):
@@ -93,7 +93,7 @@ def test_static_recovers_surge_input_gain(exact_fine):
     vessel, prep = exact_fine
     model = fit_static(prep)
     assert min(one_step_r2(model, prep).values()) >= 0.99
-    h = prep.settings["grid_dt"]
+    h = prep.settings.grid_dt
     M_inv = np.linalg.inv(compile_vessel(vessel).hydro().M)
     a_f, b_f = vessel.thrusters.forward[:2]
     X = model.X("u")  # eq. 20: X(6) = 2h·M⁻¹(1,1)·a_f, X(7) = 2h·M⁻¹(1,1)·b_f
@@ -128,7 +128,7 @@ def test_static_sign_structure_of_eq28(datasheet):
 def test_eq35_recovers_thruster_lag(lagged):
     vessel, prep = lagged
     model = fit_dynamic(prep)
-    h = prep.settings["grid_dt"]
+    h = prep.settings.grid_dt
     assert model.alpha == pytest.approx(lag_alpha(vessel.thrusters.lag_s, h), abs=0.01)
     assert lag_time_constant_s(model.alpha, h) == pytest.approx(vessel.thrusters.lag_s, rel=0.12)
     runs = SP.free_run_scores(model, [prep], horizon_s=10.0, every_s=5.0)
@@ -228,9 +228,11 @@ def test_tables_are_json_and_narrow(datasheet):
 
 def test_metrics():
     y = np.array([0.0, 1.0, 2.0, 3.0])
-    assert SP.r2_score(y, y) == 1.0 and SP.mae(y, y + 0.5) == 0.5
-    assert SP.r2_score(y, np.array([0.0, 1.0, np.nan, 3.0])) == 1.0  # gaps are not scored
-    assert SP.r2_score(y, np.array([0.0, 1.0, np.inf, 3.0])) == -np.inf  # divergence is
+    from twin.fit.metrics import mae, r2_score
+
+    assert r2_score(y, y) == 1.0 and mae(y, y + 0.5) == 0.5
+    assert r2_score(y, np.array([0.0, 1.0, np.nan, 3.0])) == 1.0  # gaps are not scored
+    assert r2_score(y, np.array([0.0, 1.0, np.inf, 3.0])) == -np.inf  # divergence is
 
 
 # ---------------------------------------------------------------- bad input
@@ -295,7 +297,8 @@ def test_bad_options(datasheet):
 # ---------------------------------------------------------------- real BlueBoat recordings
 
 def test_blueboat_seven_to_three(shared_dir):
-    from twin.recordings import prepare, read_recording
+    from twin.prepare import prepare
+    from twin.formats import read_recording
 
     def load(ids):
         return [prepare(read_recording(shared_dir / "data" / "blueboat" / f"fixed_{i:08d}.csv")) for i in ids]

@@ -9,14 +9,15 @@ import pytest
 import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
-from twin.ident import simfit
-from twin.ident.dataset import PROFILES, SensorNoise, generate
-from twin.ident.effects import parse_effect
-from twin.ident.evaluate import evaluate
-from twin.ident.windows import ModelCache, make_windows, measured, predict
+from twin.fit import simfit
+from twin.synth.dataset import PROFILES, SensorNoise, generate
+from twin.effects import parse_effect
+from twin.fit.evaluate import evaluate
+from twin.fit.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
-from twin.recordings import read_recording, write_recording
-from twin.replay import prepare_for, prepared_from_run
+from twin.formats import read_recording, write_recording
+from twin.fit.calibrate import prepare_for
+from twin.prepare.prepared import prepared_from_run
 from twin.run import Run
 
 QUIET = PROFILES["none"]
@@ -177,7 +178,7 @@ def test_sensor_noise_profiles_are_what_they_say():
 
 def test_a_diverging_segment_is_named(monkeypatch, yellowfish_vessel):
     """A batch twin that diverges stops the dataset with the segment and manoeuvre named."""
-    import twin.ident.dataset as dataset
+    import twin.synth.dataset as dataset
     from twin.engine.batch import Runs
 
     def diverging(compiled, inputs, durations_s, **kwargs):

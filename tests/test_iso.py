@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError
-from twin.ident import ipd, iso
+from twin.ident.seed003 import ipd, iso
 
 
 def _osc(xm=0.5, w=2.0, x0=0.0, th=1.0, tl=1.0):
@@ -79,7 +79,7 @@ def test_twin_surge_alpha_and_better_model(yellowfish):
 def test_sway_is_a_clear_error(yellowfish):
     with pytest.raises(TwinError, match="no sway actuator"):
         iso.sweep(yellowfish, "sway")
-    p = subprocess.run([sys.executable, "-m", "twin.cli", "iso", "--vessel", "yellowfish", "--dof", "sway"],
+    p = subprocess.run([sys.executable, "-m", "twin", "iso", "--vessel", "yellowfish", "--dof", "sway"],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     assert p.stderr.startswith("error: sway:") and p.stderr.count("\n") == 1

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.crosscheck import TERM_ENV, cases
+from twin.verify.crosscheck import TERM_ENV, cases
 from twin.engine import callbacks, native
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.errors import TwinError

@@ -11,8 +11,10 @@ from mcap.reader import make_reader
 
 from twin.errors import TwinError
 from twin.geodesy import geodetic_from_ned, ned_from_geodetic
-from twin.recordings import Recording, Stream, prepare, read_recording, write_recording
-from twin.recordings.ardupilot import iter_tlog
+from twin.recording import Recording, Stream
+from twin.prepare import prepare
+from twin.formats import read_recording, write_recording
+from twin.formats.tlog import iter_tlog
 
 ORIGIN = (37.4136, -5.9786)
 SEGMENTS_S = ((0.0, 30.0), (38.0, 60.0))  # two trajectory segments, an 8 s silence between them
@@ -255,7 +257,7 @@ def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):
 
 def test_run_mcap_still_reads_as_states(tmp_path):
     from twin.run import Run
-    from twin.viz.mcap_io import write_run_mcap
+    from twin.formats.mcap import write_run_mcap
 
     t = np.arange(50) * 0.1
     run = Run(t, np.column_stack([t, 2 * t, 0.1 * t]), np.zeros((50, 3)), np.full((50, 2), 1600.0),

@@ -16,9 +16,11 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError
-from twin.recordings import format_summary, geodetic_to_ned, prepare, read_recording
-from twin.recordings.prepare import hold
-from twin.recordings.recording import increasing_subsequence
+from twin.recording import format_summary
+from twin.prepare import geodetic_to_ned, prepare
+from twin.formats import read_recording
+from twin.prepare.prepared import hold
+from twin.recording import increasing_subsequence
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 OP = (0.275, -0.2625)  # Yellowfish lever arm, seed 000 eq. 29: antenna O → body origin CO
@@ -342,7 +344,7 @@ def test_blueboat_like_csv(tmp_path):
 
 def test_mcap_run_roundtrip(tmp_path):
     from twin.run import Run
-    from twin.viz.mcap_io import write_run_mcap
+    from twin.formats.mcap import write_run_mcap
 
     t = grid_times()
     n, e, psi = truth(t)
@@ -489,8 +491,8 @@ def test_shared_blueboat_velocities_match_the_authors():
 def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
     """Issue 4: three of the five shared logs have no GNSS and could not be converted. Every one
     converts now, and reads back with its heading, IMU, battery (and parameters where kept)."""
-    from twin.recordings import write_recording
-    from twin.recordings.convert import for_conversion
+    from twin.formats import write_recording
+    from twin.prepare.convert import for_conversion
 
     for path in _shared("ardupilot"):
         rec = read_recording(path)

@@ -7,10 +7,10 @@ import pytest
 
 import twin.vessel as vessel_mod
 from twin import analytic
-from twin.crosscheck import _compare
+from twin.verify.crosscheck import _compare
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import simulate
-from twin.inputs import InputSeries
+from twin.drive import InputSeries
 from twin.physics.sensors import Sensors, measured_heading, true_heading
 
 PWM = InputSeries(np.array([0.0, 4.0, 9.0, 14.0]), np.array([[1750, 1750], [1800, 1600], [1500, 1700],

@@ -12,7 +12,7 @@ from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.physics import added_mass as am
 from twin.physics.hydrostatics import submerged_volume, waterline_for_mass
-from twin.validate import validate
+from twin.verify.validate import validate
 
 MODEL = vessel_mod.MODEL_DIR
 
@@ -103,7 +103,7 @@ def _vessel_with_mjcf(tmp_path, body_xml, asset_xml=""):
 
 def _run_validate(path, tmp_path):
     report = tmp_path / "r.html"
-    p = subprocess.run([sys.executable, "-m", "twin.cli", "validate", "--model", str(path), "--report", str(report),
+    p = subprocess.run([sys.executable, "-m", "twin", "validate", "--model", str(path), "--report", str(report),
                         "--json", str(tmp_path / "r.json")], capture_output=True, text=True)
     return p, report
 
@@ -133,7 +133,7 @@ def test_open_mesh_is_named(tmp_path):
 
 
 def test_cli_writes_json_and_report(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "twin.cli", "validate", "--vessel", "yellowfish", "--json",
+    p = subprocess.run([sys.executable, "-m", "twin", "validate", "--vessel", "yellowfish", "--json",
                         str(tmp_path / "v.json"), "--report", str(tmp_path / "v.md")], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     rows = json.loads((tmp_path / "v.json").read_text())["quantities"]
@@ -221,7 +221,7 @@ def test_simulate_refuses_a_massless_hull(tmp_path):
     path = _vessel_with_mjcf(tmp_path, '<geom type="box" size="0.1 0.1 0.1" mass="5"/><body name="hull_port">'
                                        '<geom name="hull_port" type="box" size="0.5 0.2 0.1" mass="0"/></body>')
     out = tmp_path / "run.csv"
-    p = subprocess.run([sys.executable, "-m", "twin.cli", "simulate", "--model", str(path), "--duration", "1",
+    p = subprocess.run([sys.executable, "-m", "twin", "simulate", "--model", str(path), "--duration", "1",
                         "--out", str(out)], capture_output=True, text=True)
     assert p.returncode == 2 and "geom 'hull_port' has mass 0" in p.stderr and not out.exists(), p.stderr
     assert len(p.stderr.strip().splitlines()) == 1

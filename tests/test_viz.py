@@ -9,9 +9,12 @@ from mcap.reader import make_reader
 
 from twin.errors import TwinError
 from twin.run import Run
-from twin.viz import mcap_io, read_run_mcap, rerun_log, write_run_mcap, write_runs_rrd
+from twin.formats import mcap as mcap_io
+from twin.formats.mcap import read_run_mcap, write_run_mcap
+from twin.viz import rerun_log
+from twin.viz.rerun_log import write_runs_rrd
 
-ASSETS = Path(__file__).resolve().parent.parent / "assets"
+ASSETS = Path(__file__).resolve().parent.parent / "twin" / "assets"
 RRD_MAGIC = b"RRF2"  # what rerun 0.41 writes first in every .rrd
 
 
@@ -64,6 +67,7 @@ def test_mcap_topics_schemas_and_metadata(tmp_path):
             "/vessel/pose": "foxglove.PoseInFrame",
             "/vessel/state": "twin.VesselState",
             "/vessel/inputs": "twin.ThrusterInputs",
+            "/vessel/fix": "foxglove.LocationFix",
         }
         assert all(s.encoding == "jsonschema" for s in schemas.values())
         assert {c.message_encoding for c in summary.channels.values()} == {"json"}

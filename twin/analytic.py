@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .inputs import InputSeries
+from .drive import InputSeries
 from .physics.hydrodynamics import HydroModel, acceleration
 from .physics.kinematics import eta_dot
 from .physics.thrusters import ThrusterModel, advance_factor, allocation_matrix

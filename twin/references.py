@@ -1,9 +1,44 @@
-"""Published figures the twin is checked against, each with its source.
+"""The seeds this project is built from (the bibliography its docstrings cite as "seed NNN"),
+and the published figures the twin is checked against, each with its source.
 
-These are reference data for validation, not parameters: the twin's
-parameters live in model/*.json and model/*.xml only.
+The figures are reference data for validation, not parameters: the twin's parameters live in
+twin/model/*.json and twin/model/*.xml only.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Source:
+    """A document the code cites: who wrote it, what, where, when (None where the document
+    does not say and no public record was found)."""
+
+    key: str
+    title: str
+    authors: str | None
+    published: str
+    year: int | None
+
+    def citation(self) -> str:
+        who = self.authors or "authors not named in the document"
+        return f"{who}: {self.title}. {self.published}" + (f", {self.year}" if self.year else "") + "."
+
+
+SEEDS = {
+    "000": Source("000", "The Yellowfish ASV: technical description, modelling and identification (technical report)",
+                  None, "Universidad Loyola Andalucía, research line ASV4Sustainability (Optimization and Control of "
+                  "Distributed Systems group)", None),
+    "002": Source("002", "Autonomous Marine Surface Vessel Model (Simulink model with CyberShip I parameters)",
+                  "Simone Bertoni", "Simone Bertoni Control Lab, github.com/simorxb/autonomous-marine-surface-vessel-"
+                  "model", 2024),
+    "003": Source("003", "Identification by self-oscillations (IS-O) of a small-scale tanker model in surge, sway and "
+                  "yaw, and I-PD dynamic-positioning controllers tuned from it", None,
+                  "University of Zagreb (experiments on lake Jarun)", None),
+    "004": Source("004", "Practical identification approach for the actuation dynamics of autonomous surface vehicles "
+                  "with minimal instrumentation", "Thalia Morel, Luis Orihuela, Christophe Combastel, Guillermo "
+                  "Bejarano", "Ocean Engineering; extended version arXiv:2410.00631", 2024),
+}
 
 # Seed 000 (Yellowfish technical report), by mass case.
 SEED000 = {

@@ -6,58 +6,24 @@ twin's free run and the real track share one timeline.
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from .drive import InputSeries
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import delivered_thrust, simulate
 from .errors import TwinError
-from .inputs import InputSeries
-from .physics.sensors import antenna_body_m, true_heading
-from .recordings import Prepared, Recording, prepare
-from .recordings.prepare import Segment
-from .recordings.recording import Stream
+from .prepare import Prepared
 from .run import Run
 from .vessel import Vessel
 
 
-def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
-    """OP = (dx, dy) from the real antenna to CO (seed 000 eq. 28): minus the antenna's
-    body position, the MJCF gnss site plus the vessel's surveyed offset."""
-    a = antenna_body_m(compiled.geometry.gnss_pos_m, compiled.vessel.sensors)
-    return float(-a[0]), float(-a[1])
-
-
-def calibrated(rec: Recording, vessel: Vessel) -> Recording:
-    """The recording with the vessel's heading-sensor error, for this log, taken out (physics/sensors.py)."""
-    sensors = vessel.sensors.for_log(rec.source)
-    if not sensors.has_heading_error or not len(rec.heading):
-        return rec
-    psi = true_heading(sensors, np.unwrap(rec.heading["psi_rad"]))
-    return replace(rec, heading=Stream(rec.heading.t, {**rec.heading.columns, "psi_rad": psi}))
-
-
-def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
-    """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
-    corrected, lever arm from its antenna. (The PWM clock offset acts where the
-    PWM drives the twin: twin.ident.windows.)"""
-    return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled), **kwargs)
-
-
-def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:
-    """A run's true states as a one-segment Prepared recording (for tests and truth)."""
-    n = len(run.t)
-    offset = run.pwm_us - np.asarray(neutral_us)
-    letters = np.where(offset >= 0, "f", "r")
-    region = np.char.add(letters[:, 0], letters[:, 1]).astype("<U2")
-    dt = float(np.median(np.diff(run.t))) if n > 1 else 0.1
-    return Prepared(run.t.copy(), run.eta[:, 0].copy(), run.eta[:, 1].copy(), run.eta[:, 2].copy(),
-                    run.nu[:, 0].copy(), run.nu[:, 1].copy(), run.nu[:, 2].copy(), run.pwm_us.astype(float),
-                    np.zeros(n, int), region, np.zeros((n, 2), bool), [Segment(0, 0, n, float(run.t[0]),
-                                                                                 float(run.t[-1]))],
-                    tuple(neutral_us), settings={"grid_dt": round(dt, 9), "source": "run"})
+def logged_pwm(vessel: Vessel, prep: Prepared, sl: slice) -> InputSeries:
+    """The segment's logged PWM on the segment's clock, moved by the vessel's PWM clock offset
+    (sensors.pwm_clock_offset_s > 0: the stamps are late), as the fit windows apply it."""
+    t = prep.t[sl]
+    return InputSeries(t - t[0] - vessel.sensors.pwm_clock_offset_s, prep.pwm[sl].astype(float), "pwm")
 
 
 def measured_run(prep: Prepared, sl: slice | None = None) -> Run:
@@ -83,7 +49,7 @@ def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.nda
         t = prep.t[sl]
         if not np.all(np.isfinite(prep.pwm[sl])):
             continue
-        command = InputSeries(t - t[0], prep.pwm[sl].astype(float), "pwm").commanded_thrust(
+        command = logged_pwm(vessel, prep, sl).commanded_thrust(
             vessel.thrusters, t - t[0], float(t[0]))
         nu = np.column_stack([prep.u[sl], prep.v[sl], prep.r[sl]])
         out[sl] = delivered_thrust(vessel, compiled.geometry.thruster_y_m, command, nu)
@@ -91,7 +57,7 @@ def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.nda
 
 
 def _source_name(prep: Prepared) -> str:
-    return Path(str(prep.settings.get("source", "the recording"))).name
+    return Path(str(prep.settings.source or "the recording")).name
 
 
 def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
@@ -103,7 +69,7 @@ def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
         raise TwinError(f"{_source_name(prep)}: the recording has no thruster PWM to replay "
                         "(`twin info` says why; --channels LEFT,RIGHT maps a log's servo outputs)")
     dt = float(np.median(np.diff(t)))
-    inputs = InputSeries(t - t[0], prep.pwm[sl].astype(float), "pwm")
+    inputs = logged_pwm(compiled.vessel, prep, sl)
     eta0 = (prep.north[sl][0], prep.east[sl][0], prep.psi[sl][0])
     nu0 = (prep.u[sl][0], prep.v[sl][0], prep.r[sl][0])
     try:
@@ -122,3 +88,39 @@ def replay(vessel: Vessel, prep: Prepared) -> Run:
     return Run(np.concatenate([r.t for r in runs]), np.concatenate([r.eta for r in runs]),
                np.concatenate([r.nu for r in runs]), np.concatenate([r.pwm_us for r in runs]),
                np.concatenate([r.thrust_n for r in runs]), meta={"engine": "twin", "vessel": vessel.name})
+
+
+def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = False,
+              smoother: str = "savgol") -> dict[str, Run]:
+    """What `twin view` shows: each recording prepared as the vessel's sensors see it (the same
+    calibration identify, evaluate and diagnose use: heading corrections, antenna position), its
+    thrust through the vessel's thruster map, and with `sim` the twin's replay of each segment.
+    Without a vessel the positions are the antenna's (no lever arm is known)."""
+    from .fit.calibrate import prepare_for
+    from .prepare import prepare
+
+    if (sim or smoother == "model") and vessel is None:
+        raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
+    if smoother not in ("savgol", "model"):
+        raise TwinError(f"unknown smoother '{smoother}' (savgol or model)")
+    compiled = compile_vessel(vessel) if vessel is not None else None
+    runs: dict[str, Run] = {}
+    for rec in recordings:
+        name = Path(rec.source).stem
+        if compiled is None or rec.meta.get("positions") == "body origin":  # a twin's run: no antenna
+            prep = prepare(rec)
+        else:
+            prep = prepare_for(rec, compiled)
+        if smoother == "model":
+            from .prepare.smoother import model_smoothed
+
+            prep = model_smoothed(compiled, prep)
+        label = name if len(recordings) > 1 else "real"
+        runs[label] = measured_run(prep)
+        if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r
+            runs[label].thrust_n = thrust_from_recorded_pwm(compiled, prep)
+            runs[label].meta["series_labels"] = {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
+                                                 for q in ("thrust_left", "thrust_right")}
+        if sim:
+            runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep)
+    return runs

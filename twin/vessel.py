@@ -12,19 +12,21 @@ import math
 import os
 import types
 import typing
+from importlib import resources
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 from .errors import TwinError
-from .files import write_text_atomic  # noqa: F401 (callers import it from here)
+from .files import write_text_atomic
 from .physics.added_mass import AddedMass
 from .physics.damping import Damping, is_dissipative
 from .physics.environment import Environment, WindLoad
 from .physics.sensors import Sensors
 from .physics.thrusters import ThrusterModel
 
-MODEL_DIR = Path(__file__).resolve().parent.parent / "model"
+# the vessels ship inside the package (package data), so an installed `twin` finds them from any folder
+MODEL_DIR = Path(str(resources.files("twin") / "model"))
 CASES = ("min", "nominal", "max")
 
 
@@ -209,7 +211,8 @@ def available() -> list[str]:
 
 
 def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
-    """Load a vessel by name (model/NAME.json) or from a parameter file path."""
+    """Load a vessel by name (one shipped with the package: twin/model/NAME.json) or from a
+    parameter file path."""
     text = str(name_or_path)
     path = Path(text)
     if not (text.endswith(".json") or path.is_file()):

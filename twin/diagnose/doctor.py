@@ -22,18 +22,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
-from ..ident.evaluate import r2_mae
+from ..fit.metrics import r2_mae
 from ..physics.hydrodynamics import acceleration
 from ..physics.sensors import log_name
-from ..ident.simfit import Measurements
-from ..ident.windows import ModelCache, Window, make_windows, measured, predict
-from ..recordings import Prepared, Recording
-from ..replay import prepare_for
+from ..fit.objective import Measurements
+from ..fit.windows import ModelCache, Window, make_windows, measured, predict
+from ..prepare import Prepared
+from ..recording import Recording
+from ..fit.calibrate import prepare_for
 from ..vessel import Vessel
 from . import locate as loc
-from .candidates import candidates
 from .noise import estimate_noise
 from .search import Search
 
@@ -144,8 +145,8 @@ def _screen_timestep(compiled, preps: list[Prepared]) -> float:
     """The recording's grid step if RK4 is comfortable at it for this vessel (SCREEN_H_LAMBDA),
     else SEARCH_TIMESTEP_S. The fastest rate: the largest eigenvalue of ∂ν̇/∂ν at a brisk
     state (2 m/s, 0.5 m/s, 1 rad/s, where quadratic damping is strong) or 1/lag."""
-    grid = float(preps[0].settings.get("grid_dt", 0.1))
-    if any(abs(float(p.settings.get("grid_dt", 0.1)) - grid) > 1e-9 for p in preps) or grid <= SEARCH_TIMESTEP_S:
+    grid = preps[0].settings.grid_dt
+    if any(abs(p.settings.grid_dt - grid) > 1e-9 for p in preps) or grid <= SEARCH_TIMESTEP_S:
         return SEARCH_TIMESTEP_S
     hydro, nu, h = compiled.hydro(), np.array([2.0, 0.5, 1.0]), 1e-5
     base = acceleration(hydro, 0.0, nu, np.zeros(3))
@@ -193,7 +194,7 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
     win, tiw = [], []
     for j, w in enumerate(windows):
         p = preps[w.rec]
-        h = float(p.settings.get("grid_dt", 0.1))
+        h = p.settings.grid_dt
         idx = np.arange(w.start + 1, w.start + n + 1)
         idx = np.minimum(idx, len(p.t) - 1)
         neutral = np.asarray(p.pwm_neutral_us, float)

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_coeffs
 
-from ..recordings.prepare import Prepared, local_ned
-from ..recordings.recording import Recording
+from ..prepare.prepared import Prepared, local_ned
+from ..recording import Recording
 
 FIT_SPAN_S = 1.0  # over this the motion of a small boat is a quadratic to well below GNSS noise
 MAD_TO_SIGMA = 1.4826  # σ / median|x| of a normal distribution
@@ -123,9 +123,8 @@ def estimate_noise(rec: Recording, prep: Prepared) -> dict:
     rotates the velocity (δv = −u·δψ, δu = v·δψ), counted at the recording's mean
     square speeds. `gnss_rate_m_s` is the GNSS part alone."""
     s = prep.settings
-    smoother, polyorder = s.get("smoother", "savgol"), int(s.get("polyorder", 2))
-    window_s = float(s.get("window_s", 1.0))
-    heading_window_s = float(s.get("heading_window_s") or window_s)
+    smoother, polyorder = s.smoother, s.polyorder
+    window_s, heading_window_s = s.window_s, s.yaw_rate_window_s
     north, east, _ = local_ned(rec.gnss) if len(rec.gnss) else (np.zeros(0), np.zeros(0), {})
     tg, pos = distinct(np.asarray(rec.gnss.t, float), np.column_stack([north, east]))
     th, psi = distinct(np.asarray(rec.heading.t, float),
@@ -133,7 +132,7 @@ def estimate_noise(rec: Recording, prep: Prepared) -> dict:
     g, h = white_noise(tg, pos), white_noise(th, psi)
     sg = rate_sigma(g.sigma, g.dt_s, smoother, window_s, polyorder, _fractions(tg, prep.t))
     sr = rate_sigma(h.sigma, h.dt_s, smoother, heading_window_s, polyorder, _fractions(th, prep.t))
-    dx, dy = s.get("lever_arm_OP_m") or (0.0, 0.0)
+    dx, dy = s.lever_arm_OP_m or (0.0, 0.0)
     ms_u = float(np.nanmean(prep.u ** 2)) if len(prep.u) else 0.0
     ms_v = float(np.nanmean(prep.v ** 2)) if len(prep.v) else 0.0
     su = np.sqrt(sg ** 2 + (sr * dy) ** 2 + h.sigma ** 2 * ms_v)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..run import Run
-from ..vessel import write_text_atomic
+from ..files import write_text_atomic
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
 

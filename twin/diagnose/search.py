@@ -36,10 +36,10 @@ from scipy.optimize import least_squares
 from scipy.stats import wilcoxon
 
 from ..errors import TwinError
-from ..ident.simfit import Measurements, Objective, _sandwich
-from ..ident.windows import ModelCache, Window
+from ..effects import Candidate
+from ..fit.objective import Measurements, Objective, cluster_covariance
+from ..fit.windows import ModelCache, Window
 from ..vessel import Vessel
-from .candidates import Candidate
 
 Z_MIN = 3.0  # one-sided p ≈ 0.001 per test: with ~20 candidates a round, about 2 % false alarms
 REL_MIN = 0.02  # an effect that removes less than 2 % of the held-out misfit is not worth a parameter
@@ -110,7 +110,7 @@ class Search:
         (on the first fold's held-out windows unless `held` is given)."""
         held = self.held if held is None else held
         obj = self._objective(self.prior, [], held)
-        res = obj._residuals(vessels)
+        res = obj.residuals_of(vessels)
         self.evaluations += obj.evaluations * len(held)
         idx = obj.window_index()
         dof = np.broadcast_to(np.arange(3), obj.meas.shape)[obj.valid]
@@ -130,19 +130,19 @@ class Search:
         if cand.scan:
             lo, hi = obj.bounds()
             xs = [np.clip(np.array(v, float) / obj.scale, lo, hi) for v in cand.scan]
-            costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in xs])]
+            costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in xs])]
             out.append(self._fitted(cand, obj, xs[_plateau_middle(costs)], min(costs)))
         else:
             starts = [np.clip(np.array(start, float) / obj.scale, *obj.bounds()) for start in cand.starts]
             if len(starts) > 1:  # one step, from the start the data like best
-                costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in starts])]
+                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in starts])]
                 starts = [starts[int(np.argmin(costs))]]
             for x0 in starts:
                 J = obj.jacobian(x0)
                 r0 = obj.residuals(x0)
                 step = np.linalg.lstsq(J, -r0, rcond=None)[0]
                 trials = [np.clip(x0 + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
-                costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(x) for x in trials])]
+                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in trials])]
                 best = int(np.argmin(costs))  # a short line search: one linearised step can overshoot
                 c0 = float(np.sum(r0 ** 2))
                 out.append(self._fitted(cand, obj, trials[best] if costs[best] < c0 else x0, min(c0, costs[best])))
@@ -156,7 +156,7 @@ class Search:
         if self._screen_costs.get("base") is not base:  # a new round: its base twin
             self._screen_costs = {"base": base}
         if id(cache) not in self._screen_costs:
-            r = self._objective(base, [], self.screening, cache)._residuals([base])[0]
+            r = self._objective(base, [], self.screening, cache).residuals_of([base])[0]
             self._screen_costs[id(cache)] = max(float(np.sum(r * r)), 1e-300)
         return self._screen_costs[id(cache)]
 
@@ -190,7 +190,7 @@ class Search:
                 values = x[i] + np.arange(-half, half + 1) * step / obj.scale[i]
                 values = values[(values >= lo[i] - 1e-12) & (values <= hi[i] + 1e-12)]
                 trials = [np.where(np.arange(len(x)) == i, v, x) for v in values]
-                costs = [float(np.sum(r * r)) for r in obj._residuals([obj.vessel(t) for t in trials])]
+                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(t) for t in trials])]
                 k = _plateau_middle(costs)
                 x, cost = trials[k], costs[k]
         return x, cost
@@ -249,7 +249,7 @@ class Search:
         sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
                             max_nfev=20, xtol=1e-7, ftol=1e-7)
         J = obj.jacobian(sol.x)
-        cov = _sandwich(J, obj.residuals(sol.x), obj.window_index())
+        cov = cluster_covariance(J, obj.residuals(sol.x), obj.window_index())
         self.evaluations += obj.evaluations * len(self.train)
         names = [f"{f.candidate.name}.{p.name}" for f in kept for p in f.candidate.params]
         values = {n: float(x * s) for n, x, s in zip(names, sol.x, obj.scale)}

@@ -23,7 +23,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from ..errors import TwinError
-from ..inputs import InputSeries
+from ..drive import InputSeries
 from ..physics.hydrodynamics import HydroModel
 from ..vessel import Vessel
 from . import native

@@ -18,15 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import coefficients
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
-from ..recordings import Prepared, read_recording
-from ..replay import prepare_for
+from ..prepare import Prepared
+from ..formats import read_recording
+from ..fit.calibrate import prepare_for
 from ..vessel import Vessel, check
-from . import simfit
-from .greybox import fit_dynamic, fit_static
-from .physical import first_guesses
-from .splits import render_split_table, render_training_table, split_method_table, training_size_table
+from ..fit import simfit
+from ..fit.objective import Objective
+from ..fit.windows import ModelCache, make_windows
+from .seed004.greybox import fit_dynamic, fit_static
+from .seed004.physical import first_guesses
+from .seed004.splits import render_split_table, render_training_table, split_method_table, training_size_table
 
 GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities (seed 004 §5.1)
 HEADING_WINDOW_S = 0.5  # the AHRS at 50 Hz affords a shorter one for the yaw rate
@@ -136,7 +140,7 @@ def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", 
     report = Report(prior, table, notes=notes)
     if not simulate:
         return report
-    first, cache = prior, simfit.ModelCache()
+    first, cache = prior, ModelCache()
     guessed = vessel_from_guesses(prior, guesses) if guesses else None
     if guessed is not None:
         costs = {name: _free_run_cost(v, preps, params, anchor, window_s, stride_s, cache)
@@ -156,9 +160,9 @@ def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", 
 
 
 def _free_run_cost(vessel: Vessel, preps, params, anchor, window_s, stride_s, cache) -> float:
-    windows = simfit.make_windows(preps, window_s, stride_s * 2, min_length_s=min(window_s, 3.0))
-    table = simfit.parameters(vessel)
-    obj = simfit.Objective(vessel, [table[n] for n in params if n in table], preps, windows, cache)
+    windows = make_windows(preps, window_s, stride_s * 2, min_length_s=min(window_s, 3.0))
+    table = coefficients(vessel)
+    obj = Objective(vessel, [table[n] for n in params if n in table], preps, windows, cache)
     return 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
 
 

@@ -6,7 +6,7 @@ import html
 import io
 from pathlib import Path
 
-from ..vessel import write_text_atomic
+from ..files import write_text_atomic
 
 
 def top_view_png(drawing: dict, title: str) -> bytes:

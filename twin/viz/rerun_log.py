@@ -22,7 +22,7 @@ import rerun.blueprint as rrb
 
 from ..errors import TwinError
 from ..run import Run
-from .mcap_io import check_run, temp_path
+from ..formats.mcap import check_run, temp_path
 
 TIMELINE = "time"
 # hull body positions in model/yellowfish.xml (m, body FRD); other meshes sit at the body origin

@@ -1,0 +1,126 @@
+"""The package's shape: imports run one way, from the ground floor up, with no cycle, and every
+third-party module the code imports is a declared dependency (a fresh install has nothing else)."""
+import ast
+import re
+import sys
+import tomllib
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "twin"
+
+# the README's layout section, floor by floor: a module may import from its own floor or below
+FLOORS = {
+    0: ("errors", "files", "geodesy", "references", "progress"),
+    1: ("physics",),
+    2: ("vessel", "recording", "run", "drive", "effects"),
+    3: ("formats",),
+    4: ("engine", "analytic", "prepare"),
+    5: ("fit", "verify", "replay", "viz", "outputs"),
+    6: ("ident", "synth", "sitl"),
+    7: ("diagnose",),
+    8: ("api", "__init__"),
+    9: ("cli", "__main__"),
+}
+FLOOR_OF = {name: floor for floor, names in FLOORS.items() for name in names}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path, modules=frozenset()) -> list[str]:
+    """Every module a file imports, at the top or inside a function, as absolute names; for
+    `from pkg import x` the submodule pkg.x where `modules` knows it, else pkg."""
+    tree = ast.parse(path.read_text())
+    here = _module_name(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package[: len(package) - node.level + 1] if node.level else []
+            module = ".".join(base + ([node.module] if node.module else []))
+            subs = [f"{module}.{a.name}" for a in node.names if f"{module}.{a.name}" in modules]
+            out += subs if len(subs) == len(node.names) else [module] + subs
+    return out
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    return {name: {m for m in _imports(path, frozenset(modules)) if m in modules and m != name}
+            for name, path in modules.items()}
+
+
+def _floor(module: str) -> int:
+    parts = module.split(".")
+    key = parts[1] if len(parts) > 1 else "__init__"
+    if key not in FLOOR_OF:
+        pytest.fail(f"{module}: its folder or file '{key}' is not on a floor of the README's layout")
+    return FLOOR_OF[key]
+
+
+def test_no_module_imports_from_a_floor_above():
+    wrong = [f"{m} (floor {_floor(m)}) imports {d} (floor {_floor(d)})"
+             for m, deps in _graph().items() for d in deps if _floor(d) > _floor(m)]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_cycle():
+    graph = _graph()
+    # a package's __init__ imports its own modules by design; a cycle through it is still a cycle
+    state, stack, cycles = {}, [], []
+
+    def visit(m):
+        state[m] = "open"
+        stack.append(m)
+        for d in sorted(graph[m]):
+            if state.get(d) == "open":
+                cycles.append(" -> ".join(stack[stack.index(d):] + [d]))
+            elif d not in state:
+                visit(d)
+        stack.pop()
+        state[m] = "done"
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    cycles = [c for c in cycles if not _parent_init_only(c)]
+    assert not cycles, "\n".join(cycles)
+
+
+def _parent_init_only(cycle: str) -> bool:
+    """`pkg` (its __init__) importing `pkg.mod` that imports `pkg` by a relative `from . import x`:
+    Python resolves the submodule, not the package body, so only a cycle between modules counts."""
+    names = cycle.split(" -> ")
+    return any(b.startswith(a + ".") for a, b in zip(names, names[1:])) and len(set(names)) == 2
+
+
+def _declared() -> set[str]:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    requirements = project["dependencies"] + sum(project.get("optional-dependencies", {}).values(), [])
+    dists = {re.split(r"[<>=!~\[; ]", r, maxsplit=1)[0].strip().lower().replace("_", "-") for r in requirements}
+    modules = set()
+    for module, owners in metadata.packages_distributions().items():
+        if any(o.lower().replace("_", "-") in dists for o in owners):
+            modules.add(module)
+    return modules
+
+
+@pytest.mark.parametrize("folder", ["twin", "tests", "scripts"])
+def test_every_imported_module_is_declared(folder):
+    declared = _declared()
+    missing = {}
+    for path in (ROOT / folder).rglob("*.py"):
+        for name in _imports(path):
+            top = name.split(".")[0]
+            if not top or top in sys.stdlib_module_names or top in ("twin", "tests", "__future__"):
+                continue
+            if top not in declared and top not in {p.stem for p in (ROOT / folder).glob("*.py")}:
+                missing.setdefault(top, str(path.relative_to(ROOT)))
+    assert not missing, f"imported but not declared in pyproject.toml: {missing}"

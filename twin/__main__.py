@@ -1,0 +1,4 @@
+"""`python -m twin` runs the `twin` command."""
+from .cli import main
+
+main()

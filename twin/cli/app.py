@@ -1,0 +1,201 @@
+"""The `twin` command's app: the typer app the command modules register on, the one place
+errors become one line and an exit code, the checks every output path goes through before
+any work is done, and the progress bar long commands show.
+
+Exit codes: 0 done; 1 a check failed (crosscheck over tolerance); 2 bad input (usage, an
+unreadable or unwritable path, a bad file, an inconsistent vessel); 3 an unexpected error
+(one line; TWIN_DEBUG=1 shows the traceback); 130 interrupted.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Iterator, Optional
+
+import typer
+from rich.console import Console
+
+from ..errors import TwinError
+from ..files import write_text_atomic
+from ..progress import Progress
+
+app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
+                  help="MuJoCo digital twin of twin-thruster surface vessels.")
+console = Console(width=None if sys.stdout.isatty() else 100)
+VESSEL_HELP = "vessel name (one shipped with twin: yellowfish, blueboat, cybership1)"
+MODEL_HELP = "vessel description file (e.g. written by `twin identify`); replaces --vessel"
+CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"
+_settings = {"quiet": False}
+
+
+@app.callback()
+def _options(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or notes on stderr")) -> None:
+    """MuJoCo digital twin of twin-thruster surface vessels."""
+    _settings["quiet"] = quiet
+
+
+# ---------------------------------------------------------------- arguments
+
+def vessel_from(vessel: Optional[str], model: Optional[Path], case: str = "nominal"):
+    """The vessel of --vessel NAME or --model FILE (FILE wins)."""
+    from ..vessel import load
+
+    if model is not None:
+        return load(str(model), case)
+    if vessel is None:
+        raise TwinError("give --vessel NAME (yellowfish, blueboat, cybership1) or --model FILE")
+    return load(vessel, case)
+
+
+def speed_direction(text: Optional[str], option: str) -> Optional[tuple[float, float]]:
+    """SPEED,DIR_DEG of --current / --wind."""
+    if text is None:
+        return None
+    try:
+        speed, direction = (float(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"--{option} expects SPEED,DIR_DEG (m/s, degrees), got '{text}'") from None
+    if not (math.isfinite(speed) and math.isfinite(direction)) or speed < 0:
+        raise TwinError(f"--{option}: the speed must be a number ≥ 0 and the direction a number of degrees")
+    return speed, direction
+
+
+def channels_from(text: Optional[str]) -> Optional[dict]:
+    """--channels LEFT,RIGHT as the readers' mapping."""
+    if text is None:
+        return None
+    try:
+        left, right = (int(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"--channels expects two servo output numbers LEFT,RIGHT (e.g. 1,3), got '{text}'") from None
+    return {"left": left, "right": right}
+
+
+def floats(text: Optional[str], option: str) -> Optional[list[float]]:
+    """A comma-separated list of finite numbers."""
+    if text is None:
+        return None
+    try:
+        values = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise TwinError(f"--{option} expects comma-separated numbers, got '{text}'") from None
+    if not values or not all(math.isfinite(x) for x in values):
+        raise TwinError(f"--{option} expects comma-separated finite numbers, got '{text}'")
+    return values
+
+
+# ---------------------------------------------------------------- outputs
+
+def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> None:
+    """Refuse, before any work is done, an output whose extension is not one of `formats`, whose
+    folder does not exist or cannot be written, or that is a folder itself."""
+    for p in paths:
+        if p is None:
+            continue
+        p = Path(p)
+        if p.suffix.lower() not in formats:
+            raise TwinError(f"{option} '{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
+        folder = p.parent
+        if not folder.is_dir():
+            raise TwinError(f"{option} '{p}': folder '{folder}' does not exist (create it first)")
+        if p.is_dir():
+            raise TwinError(f"{option} '{p}' is a folder: give a file name")
+        if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+            raise TwinError(f"{option} '{p}': no permission to write there (choose another folder)")
+
+
+def write_json(path: Optional[Path], data: dict) -> None:
+    """`data` as JSON, atomically; numpy numbers and arrays become plain JSON."""
+    if path is not None:
+        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False, default=_plain) + "\n")
+        say(f"wrote {path}")
+
+
+def _plain(x):
+    import numpy as np
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if hasattr(x, "to_dict"):
+        return x.to_dict()
+    return str(x)
+
+
+def say(text: str) -> None:
+    """A line for the user (what was written, what was found): always shown."""
+    console.print(text, highlight=False, soft_wrap=True)
+
+
+def note(text: str) -> None:
+    """A side remark on stderr: hidden by --quiet."""
+    if not _settings["quiet"]:
+        typer.echo(text, err=True)
+
+
+@contextlib.contextmanager
+def progress_bar(title: str) -> Iterator[Progress]:
+    """A progress callable for package functions: a rich bar on stderr when it is a terminal
+    and --quiet is off; otherwise nothing (logs and pipes stay clean)."""
+    if _settings["quiet"] or not sys.stderr.isatty():
+        yield lambda what, done=None, total=None: None
+        return
+    from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+
+    with Bar(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[what]}"),
+             TimeElapsedColumn(), console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task(title, total=None, what="")
+
+        def update(what: str, done: int | None = None, total: int | None = None) -> None:
+            bar.update(task, what=what, completed=done if done is not None else 0, total=total)
+
+        yield update
+
+
+# ---------------------------------------------------------------- errors
+
+def _is_usage_error(exc: Exception) -> bool:
+    """A bad command line. Typer ≥ 0.29 raises its own copy of Click's exceptions (TyperException
+    subclasses); older ones raise Click's. Both carry format_message and exit_code, so the test is
+    by shape: importing click here would add a dependency newer Typer no longer brings."""
+    return callable(getattr(exc, "format_message", None)) and isinstance(getattr(exc, "exit_code", None), int)
+
+
+def _os_error(exc: OSError) -> str:
+    """One line for a file the command could not read or write."""
+    where = f" '{exc.filename}'" if exc.filename else ""
+    return f"cannot use{where}: {exc.strerror or exc}"
+
+
+def main() -> None:
+    """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
+    try:
+        # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
+        code = app(standalone_mode=False)
+    except TwinError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    except typer.Exit as exc:
+        sys.exit(exc.exit_code)
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo("aborted", err=True)
+        sys.exit(130)
+    except OSError as exc:
+        typer.echo(f"error: {_os_error(exc)}", err=True)
+        sys.exit(2)
+    except Exception as exc:  # usage errors and anything unexpected: one line, never a traceback
+        if _is_usage_error(exc):
+            if exc.format_message():  # `twin` alone has printed the help and has nothing to add
+                typer.echo(f"error: {exc.format_message()}", err=True)
+            sys.exit(2)
+        if os.environ.get("TWIN_DEBUG"):
+            raise
+        typer.echo(f"error: {type(exc).__name__}: {exc}".splitlines()[0], err=True)
+        sys.exit(3)
+    if isinstance(code, int) and not isinstance(code, bool) and code != 0:
+        sys.exit(code)

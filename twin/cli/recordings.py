@@ -1,0 +1,90 @@
+"""`twin info`, `twin convert`, `twin view`: recordings read, converted and shown."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..errors import TwinError
+from .app import CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, say, vessel_from
+
+RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
+
+
+@app.command()
+def info(
+    files: list[Path] = typer.Argument(..., help=RECORDING_HELP),
+    channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
+):
+    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
+    from ..formats import read_recording
+    from ..recording import format_summary
+
+    mapping = channels_from(channels)
+    failed = 0
+    for path in files:  # one bad file must not hide the others' summaries
+        try:
+            rec = read_recording(path, channels=mapping)
+        except TwinError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            failed += 1
+            continue
+        typer.echo(f"== {path}")
+        typer.echo(format_summary(rec.summary()))
+    if failed:
+        raise typer.Exit(2)
+
+
+@app.command()
+def convert(
+    src: Path = typer.Argument(..., help="input recording: .bin, .tlog, .csv, .mcap"),
+    dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
+    channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
+    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
+):
+    """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
+    (seed 004 §5.1) when it has GNSS and heading, else every stream at its own times."""
+    from ..formats import read_recording, write_recording
+    from ..prepare.convert import for_conversion, not_kept
+
+    check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
+    rec = read_recording(src, channels=channels_from(channels))
+    conversion = for_conversion(rec, grid_dt)
+    write_recording(conversion.recording, dst)
+    say(f"wrote {dst}: {conversion.recording.duration_s():.1f} s, {conversion.timing}")
+    for line in not_kept(conversion.recording, dst.suffix.lower()):
+        say(f"note: {line}")
+
+
+@app.command()
+def view(
+    files: list[Path] = typer.Argument(..., help="recordings to show"),
+    sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (for --sim and the sensors' calibration)"),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: ./STEM.rrd, STEM of the first "
+                                                  "input, in the current folder)"),
+    png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
+    channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
+    smoother: str = typer.Option("savgol", help="velocities: savgol (seed 004) or model (EKF+RTS on the vessel model)"),
+):
+    """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
+    from ..files import write_bytes_atomic
+    from ..formats import read_recording
+    from ..outputs import write
+    from ..replay import view_runs
+    from ..viz.report import comparison_png
+
+    out = out or Path(files[0].stem + ".rrd")  # the working folder: never beside the input (a shared data folder)
+    check_outputs([out], (".rrd",), "--out")
+    check_outputs([png], (".png",), "--png")
+    v = vessel_from(vessel, model) if (vessel or model) else None
+    recordings = [read_recording(path, channels=channels_from(channels)) for path in files]
+    runs = view_runs(recordings, v, sim=sim, smoother=smoother)
+    write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
+    say(f"wrote {out} (open with: rerun {out})")
+    if png is not None:
+        write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
+                                                     + (f": real vs twin ({v.name})" if sim else "")))
+        say(f"wrote {png}")

@@ -1,0 +1,156 @@
+"""`twin simulate`, `twin crosscheck`, `twin params`, `twin validate`: the twin itself."""
+from __future__ import annotations
+
+import json
+import textwrap
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.table import Table
+
+from ..errors import TwinError
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_outputs, console, note, progress_bar, say, speed_direction,
+                  vessel_from, write_json)
+
+RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
+
+
+def origin_from(text: Optional[str]) -> Optional[tuple[float, float]]:
+    """--origin LAT,LON (degrees) of the local frame, for the formats that store latitude/longitude."""
+    if text is None:
+        return None
+    try:
+        lat, lon = (float(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"--origin expects LAT,LON in degrees, got '{text}'") from None
+    if not (abs(lat) < 90 and abs(lon) <= 180):
+        raise TwinError(f"--origin {text}: the latitude must lie in (−90, 90) and the longitude in [−180, 180]")
+    return lat, lon
+
+
+@app.command()
+def simulate(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    scenario: str = typer.Option("zigzag", help="step | turn | zigzag | spin | random"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
+    duration: float = typer.Option(120.0, help="simulated time, s"),
+    out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
+    current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
+    wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
+    origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the start, for the map positions of .mcap, "
+                                                   ".tlog and .bin (default 37.4136,-5.9786, Seville)"),
+    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    seed: int = typer.Option(0, help="random seed (scenario 'random')"),
+    sample_dt: float = typer.Option(0.1, help="output sample period, s"),
+):
+    """Run the twin headless and write the run."""
+    from ..api import simulate_run
+
+    check_outputs(out, RUN_OUTPUTS, "--out")
+    start = origin_from(origin)
+    v = vessel_from(vessel, model, case)
+    result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed, sample_dt_s=sample_dt,
+                          current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"))
+    for limit in result.limits:
+        note(f"note: {limit.text()}")
+    for path in out:
+        result.write(path, origin=start)
+        say(f"wrote {path}")
+    run = result.run
+    say(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
+        f"heading {run.eta[-1, 2] * 57.29578:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
+
+
+@app.command()
+def crosscheck(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    duration: float = typer.Option(120.0, help="zig-zag duration, s"),
+    case: str = typer.Option("nominal", help="mass case"),
+    rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
+):
+    """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
+    from ..engine.mjcf import compile_vessel
+    from ..outputs import write
+    from ..verify.crosscheck import HEADING_TOL_DEG, POSITION_TOL_M
+    from ..verify.crosscheck import crosscheck as run_crosscheck
+
+    check_outputs([rrd], (".rrd",), "--rrd")
+    check_outputs([json_out], (".json",), "--json")
+    v = vessel_from(vessel, model, case)
+    with progress_bar("crosscheck") as progress:
+        results = run_crosscheck(v, duration, progress=progress)
+    table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
+    for col in ("case", "position err (m)", "heading err (deg)", "term effect (m)", "result"):
+        table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")
+    for r in results:
+        effect = "-" if r.effect_m is None else f"{r.effect_m:.3g}"
+        table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
+                      "[green]pass[/]" if r.passed else "[red]FAIL[/]")
+    console.print(table)
+    say(f"tolerance: position < {POSITION_TOL_M} m, heading < {HEADING_TOL_DEG}°")
+    write_json(json_out, {"vessel": v.name, "duration_s": duration, "cases": [r.to_dict() for r in results]})
+    if rrd is not None:
+        full = results[0]
+        write({"engine": full.engine, "analytic": full.analytic}, rrd,
+              geometry=compile_vessel(v).geometry, vessel_name=v.name, mjcf=v.mjcf)
+        say(f"wrote {rrd}")
+    if not all(r.passed for r in results):
+        raise typer.Exit(1)
+
+
+@app.command()
+def params(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: str = typer.Option("nominal", help="mass case"),
+    as_json: bool = typer.Option(False, "--json", help="print JSON"),
+):
+    """Print the effective 3-DOF parameters of a vessel."""
+    from ..engine.parameters import effective_parameters
+
+    p = effective_parameters(vessel_from(vessel, model, case))
+    if as_json:
+        typer.echo(json.dumps(p, indent=2))
+        return
+    say(f"[bold]{p['vessel']}[/] ({p['case']}): m = {p['rigid_body']['mass_kg']:.3f} kg, "
+        f"xg = {p['rigid_body']['xg_m'] * 1e3:.1f} mm, Iz = {p['rigid_body']['Iz_kgm2']:.3f} kg·m²")
+    for key in ("M", "M_RB", "M_A"):
+        say(f"{key:5s} = " + "  ".join("[" + ", ".join(f"{x:9.4f}" for x in row) + "]" for row in p[key]))
+    say("damping: " + ", ".join(f"{k}={val:g}" for k, val in p["damping"].items() if val))
+
+
+@app.command()
+def validate(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
+    report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
+):
+    """Analytic formulas, seed tables, engine, meshes and independent values, side by side."""
+    from ..files import write_text_atomic
+    from ..verify.validate import format_table
+    from ..verify.validate import validate as run_validation
+    from ..viz.report import top_view_png, write_report
+
+    check_outputs([json_out], (".json",), "--json")
+    check_outputs([report], (".md", ".html", ".htm"), "--report")
+    result = run_validation(vessel_from(vessel, model, case))
+    rows = [q.to_dict() for q in result.quantities]
+    typer.echo(format_table(result.vessel, result.case, rows))
+    flagged = [r for r in rows if r["flag"]]
+    if flagged:
+        typer.echo("\nDifferences over 5 %:")
+        for r in flagged:
+            typer.echo(textwrap.fill(f"* {r['name']}: {r['explanation']}", 100, subsequent_indent="  "))
+    title = f"twin validate: {result.vessel} ({result.case})"
+    if json_out is not None:
+        write_text_atomic(json_out, json.dumps({"vessel": result.vessel, "case": result.case,
+                                                "quantities": rows}, indent=2) + "\n")
+    if report is not None:
+        write_report(report, title, rows, top_view_png(result.drawing, title))
+        typer.echo(f"wrote {report}")

@@ -1,0 +1,151 @@
+"""`twin iso` (identification by self-oscillations) and `twin dp` (the I-PD controller tuned
+from it), seed 003 — registered on the main CLI app."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.table import Table
+
+from ..errors import TwinError
+from ..ident.seed003.ipd import HEADING_OMEGA_RAD_S, SURGE_OMEGA_RAD_S  # why these values: that module
+from .app import MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, say, vessel_from, write_json
+
+
+def _write_png(path: Optional[Path], data_fn) -> None:
+    from ..files import write_bytes_atomic
+
+    if path is not None:
+        write_bytes_atomic(path, data_fn())
+        say(f"wrote {path}")
+
+
+def _sweep_table(result) -> Table:
+    from ..ident.seed003.iso import UNITS
+
+    u = UNITS[result.dof]
+    table = Table(title=f"IS-O {result.vessel} {result.dof} (seed 003 Table I; Table II layout)")
+    for col in (f"C [{u['C']}]", f"Xm [{u['x']}]", "ω [rad/s]", f"x0 [{u['x']}]", f"α [{u['alpha']}]",
+                f"β_ν [{u['beta_lin']}]", f"β_νν [{u['beta_quad']}]", f"Δ [{u['C']}]"):
+        table.add_column(col, justify="right")
+    for r in result.rows:
+        o, e = r.oscillation, r.estimate
+        table.add_row(f"{r.relay_c:.2f}", f"{o.amplitude_xm:.4f}", f"{o.frequency_rad_s:.3f}", f"{o.bias_x0:+.1e}",
+                      f"{e.alpha:.3f}", f"{e.beta_lin:.3f}", f"{e.beta_quad:.3f}", f"{e.disturbance:+.3f}")
+    s, t = result.spreads(), result.twin
+    table.add_row("σ/mean", "", "", "", f"{s['alpha'].cv_percent:.1f} %", f"{s['beta_lin'].cv_percent:.1f} %",
+                  f"{s['beta_quad'].cv_percent:.1f} %", "")
+    table.add_row("twin", "", "", "", f"{t.alpha:.3f}", f"{t.drag_lin:.3f}", f"{t.drag_quad:.3f}", "0")
+    return table
+
+
+def iso_command(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    dof: str = typer.Option("yaw", help="yaw (heading feedback, seed 003 Fig. 4) | surge (integrator of u, "
+                                        "Fig. 5) | sway (an error: no sway thruster)"),
+    xa: Optional[float] = typer.Option(None, help="relay hysteresis: switches at e = ±xa; degrees for yaw, metres "
+                                                  "for surge (default 1° / 0.25 m)"),
+    amplitudes: Optional[str] = typer.Option(None, help="relay outputs C, comma-separated, N·m for yaw, N for surge "
+                                                        "(default: 7 from 20 % to 100 % of what the thrusters give)"),
+    duration: Optional[float] = typer.Option(None, help="length of each relay experiment, s "
+                                                        "(default 30 yaw, 150 surge)"),
+    case: str = typer.Option("nominal", help="mass case"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write the table, CVs and the twin's values as JSON"),
+    png: Optional[Path] = typer.Option(None, help="write α, β_ν, β_νν against C as PNG"),
+):
+    """Identification by self-oscillations in the twin: a relay with hysteresis, Table I for the
+    constant-drag and linear-drag models at several relay outputs, compared with the twin's own
+    uncoupled inertia and drag. The controller tuned from it runs with `twin dp`."""
+    from ..engine.mjcf import compile_vessel
+    from ..ident.seed003 import iso
+
+    check_outputs([json_out], (".json",), "--json")
+    check_outputs([png], (".png",), "--png")
+    v = vessel_from(vessel, model, case)
+    iso.check_dof(v.name, dof)
+    if duration is not None and not duration > 0:
+        raise TwinError("--duration must be positive")
+    xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)
+    result = iso.sweep(compile_vessel(v), dof, floats(amplitudes, "amplitudes"), xa_si, duration)
+    console.print(_sweep_table(result))
+    s = result.spreads()
+    console.print(f"α: {s['alpha'].mean:.4g} vs the twin's {result.twin.alpha:.4g} "
+                  f"({result.alpha_error_percent():+.1f} %), "
+                  f"CV {s['alpha'].cv_percent:.1f} % (seed 003: ~10 %); drag CV {s['beta_lin'].cv_percent:.1f} % "
+                  f"(constant) / {s['beta_quad'].cv_percent:.1f} % (linear): {result.better_drag_model()} fits better.")
+    console.print("The twin's drag has a linear and a quadratic term, so neither one-term model is exact: "
+                  "each β is the describing-function equivalent at the experiment's speed amplitude.")
+    write_json(json_out, result.to_dict())
+    _write_png(png, lambda: iso.sweep_png(result))
+
+
+def _target(text: str) -> tuple[float, float]:
+    values = floats(text, "target")
+    if len(values) != 2 or math.hypot(*values) < 0.5:
+        raise TwinError(f"--target expects NORTH,EAST in m, at least 0.5 m away, got '{text}'")
+    return values[0], values[1]
+
+
+def tuned_models(compiled, omega_heading: float, omega_surge: float | None):
+    """IS-O sweeps with the default settings → (yaw, surge) DofModels for the I-PD (surge None if not asked)."""
+    from ..ident import ipd, iso
+
+    for w in (omega_heading, omega_surge):
+        if w is not None and not w > 0:
+            raise TwinError("model-function frequencies must be positive")
+    yaw = ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "yaw")), ipd.binomial(omega_heading))
+    if omega_surge is None:
+        return yaw, None
+    return yaw, ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "surge")), ipd.binomial(omega_surge))
+
+
+def dp_command(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    run: str = typer.Option("heading", help="heading (a heading step, seed 003 Figs. 8-9) | point (move to --target)"),
+    step: float = typer.Option(45.0, help="heading step, degrees (45 stays inside the thrusters, 90 saturates)"),
+    target: str = typer.Option("10,10", help="point to reach, NORTH,EAST in m from the start (heading 0)"),
+    omega_heading: float = typer.Option(HEADING_OMEGA_RAD_S, help="ω_n of the binomial heading model function, rad/s"),
+    omega_surge: float = typer.Option(SURGE_OMEGA_RAD_S, help="ω_n of the binomial surge model function, rad/s"),
+    no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
+    case: str = typer.Option("nominal", help="mass case"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
+    png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
+):
+    """I-PD control (seed 003 eqs. 9-11) tuned from IS-O run in the twin first (`twin iso` defaults,
+    constant-drag model), with anti-windup on the saturated thrust, run in the twin against the
+    binomial model function; prints the IAE ratio (twin / model function). Point moves turn to the
+    bearing first, then surge along the line (the vessel has no sway thruster)."""
+    from ..engine.mjcf import compile_vessel
+    from ..ident.seed003 import ipd
+
+    if run not in ("heading", "point"):
+        raise TwinError(f"unknown run '{run}' (heading or point)")
+    if not math.isfinite(step) or step == 0 or abs(step) > 180:
+        raise TwinError("--step must be a non-zero angle within ±180°")
+    goal = _target(target) if run == "point" else None
+    check_outputs([json_out], (".json",), "--json")
+    check_outputs([png], (".png",), "--png")
+    cv = compile_vessel(vessel_from(vessel, model, case))
+    yaw, surge = tuned_models(cv, omega_heading, omega_surge if run == "point" else None)
+    dp = ipd.heading_step(cv, yaw, step, anti_windup=not no_anti_windup) if run == "heading" \
+        else ipd.point_move(cv, yaw, surge, goal)
+    summary = dp.summary()
+    for lp in summary["loops"]:
+        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} (seed 003: ~1.02 for 45°), "
+                      f"max |twin − model| {lp['max_deviation_from_model']:.3g} {lp['unit']}, "
+                      f"saturated {lp['saturated_percent_of_time']:.0f} % of the time")
+    if goal is not None:
+        console.print(f"final distance to the target {summary['final_distance_to_target_m']:.3f} m")
+    models = {"yaw": yaw, "surge": surge}
+    write_json(json_out, {"vessel": cv.vessel.name, **summary, "tuning": {
+        k: {"alpha": m.alpha, "beta": m.beta, "omega_n_rad_s": m.model.omega_n_rad_s,
+            "ki": m.gains.ki, "kp": m.gains.kp, "kd": m.gains.kd} for k, m in models.items() if m is not None}})
+    _write_png(png, lambda: ipd.response_png(dp, f"{cv.vessel.name}: {dp.name}, I-PD tuned from IS-O"))
+
+
+app.command("iso")(iso_command)
+app.command("dp")(dp_command)

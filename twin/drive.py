@@ -1,0 +1,180 @@
+"""What drives a run: thruster input series (open loop, zero-order hold) and controllers
+(closed loop: the scenarios step, turn, zig-zag, spin, random RC driving).
+
+An input series holds PWM (µs) or thrust (N) per thruster. A controller is a function
+(t, η, ν) → (surge command, yaw command), both normalised to [−1, 1], evaluated at the
+autopilot rate; a positive yaw command speeds the left thruster up and the right one
+down, which turns the vessel to starboard (r > 0, seed 000 eq. 26c).
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .errors import TwinError
+from .physics.thrusters import ThrusterModel
+
+PWM_COLUMNS = ("pwm_left", "pwm_right")
+THRUST_COLUMNS = ("thrust_left", "thrust_right")
+
+
+@dataclass(frozen=True)
+class InputSeries:
+    """values[i] holds from t[i] until t[i+1] (zero-order hold); kind 'pwm' or 'thrust'."""
+
+    t: np.ndarray
+    values: np.ndarray  # (n, 2): left, right
+    kind: str
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
+        return self.values[np.clip(idx, 0, len(self.t) - 1)]
+
+    def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray, start_s: float = 0.0) -> np.ndarray:
+        """Thrust command (N) per thruster at `times` (s, this series' clock), before gains, lag and
+        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t."""
+        times = np.asarray(times, float)
+        return thrusters.command(self.kind, self.at(times - thrusters.delay_s), times + start_s)
+
+    def pwm_at(self, times: np.ndarray) -> np.ndarray:
+        if self.kind == "pwm":
+            return self.at(times).astype(float)
+        return np.full((len(np.atleast_1d(times)), 2), np.nan)
+
+
+def read_inputs_csv(path: str | Path) -> InputSeries:
+    """CSV with a `t` column (s) and pwm_left,pwm_right (µs) or thrust_left,thrust_right (N).
+
+    The first row must be at t ≤ 0: the run starts at t = 0 and nothing says what the
+    thrusters did before a later first row. Spreadsheets may prefix a UTF-8 byte-order mark."""
+    path = Path(path)
+    if not path.is_file():
+        raise TwinError(f"inputs file '{path}' not found")
+    try:
+        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
+    except UnicodeDecodeError:
+        raise TwinError(f"{path.name}: not a text CSV file") from None
+    if len(rows) < 2:
+        raise TwinError(f"{path.name}: needs a header and at least one row")
+    header = [h.strip() for h in rows[0]]
+    if "t" not in header:
+        raise TwinError(f"{path.name}: missing column 't'")
+    kind, cols = _input_columns(header, path)
+    idx = [header.index(c) for c in ("t", *cols)]
+    data = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        try:
+            data.append([float(row[i]) for i in idx])
+        except (ValueError, IndexError):
+            raise TwinError(f"{path.name}: line {line}: not a number in t/{cols[0]}/{cols[1]}") from None
+    if not data:
+        raise TwinError(f"{path.name}: needs a header and at least one row")
+    a = np.array(data)
+    if not np.all(np.isfinite(a)):
+        raise TwinError(f"{path.name}: NaN or infinite values")
+    if np.any(np.diff(a[:, 0]) <= 0):
+        line = int(np.argmax(np.diff(a[:, 0]) <= 0)) + 3
+        raise TwinError(f"{path.name}: time goes backwards or repeats at line {line}")
+    if a[0, 0] > 0:
+        raise TwinError(f"{path.name}: the first row is at t = {a[0, 0]:g} s; the run starts at t = 0, so the "
+                        "first row must be at t ≤ 0 (add a row at t = 0 with the inputs to hold until then)")
+    return InputSeries(a[:, 0], a[:, 1:], kind)
+
+
+def _input_columns(header: list[str], path: Path) -> tuple[str, tuple[str, str]]:
+    """'pwm' or 'thrust' and its two columns; both kinds at once would leave one silently unused."""
+    has_pwm = any(c in header for c in PWM_COLUMNS)
+    has_thrust = any(c in header for c in THRUST_COLUMNS)
+    if has_pwm and has_thrust:
+        raise TwinError(f"{path.name}: both PWM and thrust columns: give pwm_left,pwm_right (µs) or "
+                        "thrust_left,thrust_right (N), not both")
+    if set(PWM_COLUMNS) <= set(header):
+        return "pwm", PWM_COLUMNS
+    if set(THRUST_COLUMNS) <= set(header):
+        return "thrust", THRUST_COLUMNS
+    raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right or thrust_left,thrust_right")
+
+
+# ---------------------------------------------------------------- closed loop
+
+Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
+
+
+def step(surge: float = 0.6, at_s: float = 1.0) -> Controller:
+    return lambda t, eta, nu: (surge if t >= at_s else 0.0, 0.0)
+
+
+def turn(surge: float = 0.6, yaw: float = 0.3, at_s: float = 10.0) -> Controller:
+    return lambda t, eta, nu: (surge, yaw if t >= at_s else 0.0)
+
+
+def spin(yaw: float = 0.5, at_s: float = 1.0) -> Controller:
+    return lambda t, eta, nu: (0.0, yaw if t >= at_s else 0.0)
+
+
+@dataclass
+class ZigZag:
+    """The classic zig-zag: rudder-equivalent yaw command ±yaw, switched each
+    time the heading passes ±switch_deg from the initial heading."""
+
+    surge: float = 0.3
+    yaw: float = 0.6
+    switch_deg: float = 20.0
+    at_s: float = 5.0
+    _sign: float = 1.0
+    _psi0: float | None = None
+
+    def __call__(self, t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[float, float]:
+        if self._psi0 is None:
+            self._psi0 = float(eta[2])
+        if t < self.at_s:
+            return self.surge, 0.0
+        heading_deg = np.rad2deg(eta[2] - self._psi0)
+        if self._sign > 0 and heading_deg >= self.switch_deg:
+            self._sign = -1.0
+        elif self._sign < 0 and heading_deg <= -self.switch_deg:
+            self._sign = 1.0
+        return self.surge, self._sign * self.yaw
+
+
+def random_rc(seed: int = 0, hold_s: tuple[float, float] = (2.0, 6.0)) -> Controller:
+    """RC-like driving: two joysticks (surge, yaw) held at random levels for
+    random intervals, as a pilot drives for identification (seed 004 §6.1)."""
+    rng = np.random.default_rng(seed)
+    state = {"until": -1.0, "cmd": (0.0, 0.0)}
+
+    def controller(t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[float, float]:
+        if t >= state["until"]:
+            state["until"] = t + rng.uniform(*hold_s)
+            state["cmd"] = (float(rng.uniform(0.0, 0.8)), float(rng.uniform(-0.5, 0.5)))
+        return state["cmd"]
+
+    return controller
+
+
+SCENARIOS: dict[str, Callable[..., Controller]] = {
+    "step": step, "turn": turn, "zigzag": ZigZag, "spin": spin, "random": random_rc,
+}
+
+
+def get(name: str, seed: int = 0) -> Controller:
+    if name not in SCENARIOS:
+        raise TwinError(f"unknown scenario '{name}' (known: {', '.join(SCENARIOS)})")
+    return SCENARIOS[name](seed=seed) if name == "random" else SCENARIOS[name]()
+
+
+def to_thruster_inputs(thrusters: ThrusterModel, surge: float, yaw: float) -> tuple[str, np.ndarray]:
+    """Normalised (surge, yaw) → per-thruster PWM (µs) or thrust (N) command."""
+    cmd = np.clip(np.array([surge + yaw, surge - yaw]), -1.0, 1.0)
+    if thrusters.kind == "t200":
+        mid = 0.5 * (thrusters.pwm_min_us + thrusters.pwm_max_us)
+        half = 0.5 * (thrusters.pwm_max_us - thrusters.pwm_min_us)
+        return "pwm", mid + half * cmd
+    t_min, t_max = thrusters.bounds()
+    return "thrust", np.where(cmd >= 0, cmd * t_max, -cmd * t_min)

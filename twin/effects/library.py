@@ -1,0 +1,359 @@
+"""The effect library: each physical effect declared once, by the name datasets inject it with
+and a diagnosis names it by, with its values (units, ranges), what it does to the vessel
+description (apply) and how a diagnosis fits it (fit: Quantities, starts, scans).
+
+Every apply is a pure function `apply(vessel, **values) -> Vessel` on the one vessel
+description, so the engine simulates it, the analytic model can check it and an amended vessel
+file carries it. Set effects replace a value; scale effects (the KEY:S ones, thrust_gain,
+thruster_asymmetry) multiply what is there, so effects compose in the given order.
+
+Every fit is relative to the twin being diagnosed (the prior): a current or a heading bias
+starts at zero, a damping or added-mass coefficient as a scale of the prior's own value (a
+coefficient the prior does not have cannot be scaled, and is not offered), a thrust lag at a
+typical value. Time shifts (input delay, clock offset) change which logged PWM sample drives
+each engine step, so their cost is a staircase in the shift: they are scanned on a grid, not
+followed down a gradient. A dead zone is a staircase too, and a flat one near the prior:
+widening it changes the thrust only where the PWM sits between the old and the new edge, so the
+gradient at the prior says nothing about a dead zone twice as wide. It is scanned along equal
+widths, then each edge on its own. Families group effects that can imitate each other in a
+recording: the diagnosis checks them against each other before it names one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import TwinError
+from ..vessel import Vessel
+from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING)
+from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, member, ned_component, scale_of)
+from .spec import ALL, Candidate, Effect, EffectSpec, Value, checked
+
+_SCALE = ("scale", "×", 0.0, 100.0, True)
+_DEG = ("deg", -180.0, 180.0)
+
+
+def _v(name, unit, lo=-math.inf, hi=math.inf, lo_open=False, default=None) -> Value:
+    return Value(name, unit, lo, hi, lo_open, default)
+
+
+def _grid(lo: float, hi: float, step: float) -> tuple[tuple[float], ...]:
+    """One-value scan points lo, lo + step, ..., hi."""
+    return tuple((float(x),) for x in np.round(np.arange(lo, hi + step / 2, step), 4))
+
+
+def _thrusters(vessel: Vessel, **values) -> Vessel:
+    return replace(vessel, thrusters=replace(vessel.thrusters, **values))
+
+
+def _sensors(vessel: Vessel, **values) -> Vessel:
+    return replace(vessel, sensors=replace(vessel.sensors, **values))
+
+
+def _scaled(obj, keys: tuple[str, ...], scales: dict, pairs: dict | None = None):
+    values = {k: getattr(obj, k) * scales.get(k, scales.get(ALL, 1.0)) for k in keys}
+    for k, twin_key in (pairs or {}).items():
+        values[twin_key] = values[k]  # a symmetric pair is scaled together
+    return replace(obj, **values)
+
+
+def _single(name: str, quantity, starts, family: str, **scan) -> "callable":
+    """The fit of an effect whose one value is one field of the description (same name)."""
+    def fit(prior: Vessel, logs) -> Candidate:
+        return Candidate(name, (quantity,), starts, lambda p: effect(name, **p), family, **scan)
+    return fit
+
+
+# ---------------------------------------------------------------- environment
+
+def current(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
+    """Earth-fixed water current (m/s) flowing towards dir_deg (cw from north)."""
+    env = replace(vessel.environment, current_speed_m_s=speed_m_s, current_dir_deg=dir_deg)
+    return replace(vessel, environment=env)
+
+
+def _current_fit(prior: Vessel, logs) -> Candidate:
+    def to_effect(p: dict) -> Effect:
+        return effect("current", speed_m_s=float(np.hypot(p["current_north"], p["current_east"])),
+                      dir_deg=float(np.degrees(np.arctan2(p["current_east"], p["current_north"]))))
+    return Candidate("current", (ned_component("current", 0, -3.0, 3.0, 0.1), ned_component("current", 1, -3.0, 3.0, 0.1)),
+                     ((0.0, 0.0),), to_effect, "drift")
+
+
+def wind(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
+    """Wind (m/s) blowing from dir_deg (cw from north) on the vessel's wind_load areas."""
+    load = vessel.wind_load
+    if speed_m_s > 0 and not (load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0):
+        raise TwinError(f"effect 'wind': vessel '{vessel.name}' has no wind_load areas, so wind would do nothing")
+    env = replace(vessel.environment, wind_speed_m_s=speed_m_s, wind_dir_deg=dir_deg)
+    return replace(vessel, environment=env)
+
+
+def _wind_fit(prior: Vessel, logs) -> Candidate | None:
+    if not (prior.wind_load.frontal_area_m2 > 0 or prior.wind_load.lateral_area_m2 > 0):
+        return None
+
+    def to_effect(p: dict) -> Effect:
+        return effect("wind", speed_m_s=float(np.hypot(p["wind_north"], p["wind_east"])),
+                      dir_deg=float(np.degrees(np.arctan2(-p["wind_east"], -p["wind_north"]))))
+    starts = tuple((5 * np.cos(a), 5 * np.sin(a)) for a in np.radians([0, 90, 180, 270]))
+    return Candidate("wind", (ned_component("wind", 0, -25.0, 25.0, 1.0), ned_component("wind", 1, -25.0, 25.0, 1.0)),
+                     starts, to_effect, "drift")
+
+
+# ---------------------------------------------------------------- thrusters
+
+def thruster_lag(vessel: Vessel, lag_s: float) -> Vessel:
+    """First-order thrust lag time constant (s), seed 004 eq. 15; 0 = none."""
+    return _thrusters(vessel, lag_s=lag_s)
+
+
+def input_delay(vessel: Vessel, delay_s: float) -> Vessel:
+    """The thrusters act on the PWM logged delay_s (s) earlier."""
+    return _thrusters(vessel, delay_s=delay_s)
+
+
+def thruster_asymmetry(vessel: Vessel, ratio: float) -> Vessel:
+    """Right gain / left gain multiplied by `ratio`, the mean of both gains kept,
+    so the surge thrust at equal PWM stays and the vessel turns."""
+    t = vessel.thrusters
+    mean = 0.5 * (t.gain_left + t.gain_right)
+    right_over_left = ratio * t.gain_right / t.gain_left
+    left = 2 * mean / (1 + right_over_left)
+    return _thrusters(vessel, gain_left=left, gain_right=right_over_left * left)
+
+
+def thrust_gain(vessel: Vessel, scale: float) -> Vessel:
+    """Both thruster gains multiplied by `scale` (e.g. a higher supply voltage than the map's 10 V)."""
+    t = vessel.thrusters
+    return _thrusters(vessel, gain_left=t.gain_left * scale, gain_right=t.gain_right * scale)
+
+
+def dead_zone(vessel: Vessel, fwd: float, rev: float) -> Vessel:
+    """Dead-zone widths (≥ 0) in normalised PWM δ̃ = PWM/400 − offset (seed 000 eq. 27):
+    no thrust for −rev < δ̃ < fwd. 0.0775 = 31 µs."""
+    return _thrusters(vessel, deadzone_fwd=fwd, deadzone_rev=-rev)
+
+
+def _dead_zone_fit(prior: Vessel, logs) -> Candidate:
+    t = prior.thrusters
+    now = (t.deadzone_fwd, -t.deadzone_rev)
+    return Candidate("dead_zone", (dead_zone_edge("fwd"), dead_zone_edge("rev")), (now,),
+                     lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust",
+                     scan=(now,) + tuple((w, w) for w, in _grid(0.0, 0.3, 0.025)), scan_step=(0.0125, 0.0125))
+
+
+def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
+    """Thrust × (1 − decay_per_min·t/60 s), t from the start of the recording (battery sag)."""
+    return _thrusters(vessel, decay_per_min=decay_per_min)
+
+
+def thrust_speed_loss(vessel: Vessel, speed_loss_per_m_s: float) -> Vessel:
+    """Thrust × (1 − speed_loss_per_m_s·advance speed of the thruster)."""
+    return _thrusters(vessel, speed_loss_per_m_s=speed_loss_per_m_s)
+
+
+# ---------------------------------------------------------------- hull
+
+def quadratic_damping(vessel: Vessel, **scales: float) -> Vessel:
+    """Quadratic damping coefficients multiplied by scales ({"Xuu": 1.3}, or all=S)."""
+    return replace(vessel, damping=_scaled(vessel.damping, QUADRATIC_DAMPING, scales))
+
+
+def linear_damping(vessel: Vessel, **scales: float) -> Vessel:
+    """Linear damping coefficients multiplied by scales ({"Xu": 0.8}, or all=S)."""
+    return replace(vessel, damping=_scaled(vessel.damping, LINEAR_DAMPING, scales))
+
+
+def added_mass(vessel: Vessel, **scales: float) -> Vessel:
+    """Added-mass derivatives multiplied by scales; Yrdot scales Nvdot too (M_A stays symmetric)."""
+    return replace(vessel, added_mass=_scaled(vessel.added_mass, ADDED_MASS, scales, {"Yrdot": "Nvdot"}))
+
+
+def _scales_fit(name: str, group: str, keys: tuple[str, ...]):
+    """A scale effect fitted as scales of the prior's non-zero coefficients (none: not offered)."""
+    def fit(prior: Vessel, logs) -> Candidate | None:
+        present = [k for k in keys if getattr(getattr(prior, group), k) != 0.0]
+        if name == "linear_damping":
+            present = [k for k in present if k not in ("Yr", "Nv")]  # coupling_damping's
+        if not present:
+            return None
+        units = {k: DAMPING_UNITS.get(k) or ADDED_MASS_UNITS[k] for k in present}
+        params = tuple(scale_of(prior, group, k, units[k], ("Nvdot",) if k == "Yrdot" else ()) for k in present)
+        family = "inertia" if group == "added_mass" else "drag"
+        return Candidate(name, params, (tuple(1.0 for _ in present),),
+                         lambda p: effect(name, **{k[: -len("_scale")]: v for k, v in p.items()}), family)
+    return fit
+
+
+def coupling_damping(vessel: Vessel, Yr: float, Nv: float) -> Vessel:
+    """Linear sway-yaw coupling damping Yr (N s), Nv (N s), Fossen's signs, set."""
+    return replace(vessel, damping=replace(vessel.damping, Yr=Yr, Nv=Nv))
+
+
+def speed_damping(vessel: Vessel, Yuv: float, Nur: float) -> Vessel:
+    """Sway and yaw damping proportional to the forward speed, Y_|u|v and N_|u|r (Fossen's signs), set."""
+    return replace(vessel, damping=replace(vessel.damping, Yuv=Yuv, Nur=Nur))
+
+
+def cg_offset(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
+    """The whole mass distribution moved by (dx, dy) m, body FRD, from where the MJCF puts it."""
+    return replace(vessel, cg_offset_m=(dx_m, dy_m))
+
+
+def _pair_fit(name: str, group: str, attrs: tuple[str, str], unit: str, lo: float, hi: float, typical: float,
+              family: str, index: bool = False, start_from_prior: bool = False):
+    """An effect of two set values: two fields (or the two items of one tuple field) of a group."""
+    def fit(prior: Vessel, logs) -> Candidate:
+        spec_values = [v.name for v in spec(name).values]
+        if index:
+            qs = tuple(member(group, attrs[0], unit, lo, hi, typical, name=spec_values[i], index=i) for i in range(2))
+        else:
+            qs = tuple(member(group, a, unit, lo, hi, typical, name=n) for a, n in zip(attrs, spec_values))
+        start = tuple(q.get(prior) for q in qs) if start_from_prior else (0.0, 0.0)
+        return Candidate(name, qs, (start,), lambda p: effect(name, **p), family)
+    return fit
+
+
+# ---------------------------------------------------------------- sensors
+
+def clock_offset(vessel: Vessel, pwm_clock_offset_s: float) -> Vessel:
+    """The PWM log's stamps are pwm_clock_offset_s late against GNSS and heading (either sign)."""
+    return _sensors(vessel, pwm_clock_offset_s=pwm_clock_offset_s)
+
+
+def heading_bias(vessel: Vessel, heading_bias_deg: float) -> Vessel:
+    """A constant heading error (deg) of every log."""
+    return _sensors(vessel, heading_bias_deg=heading_bias_deg)
+
+
+def heading_bias_per_log(vessel: Vessel, **bias_deg_by_log: float) -> Vessel:
+    """Each named log's own heading bias (deg), on top of the common one; set."""
+    return _sensors(vessel, heading_bias_by_log_deg=tuple(sorted(bias_deg_by_log.items())))
+
+
+def _per_log_fit(prior: Vessel, logs) -> Candidate | None:
+    logs = list(dict.fromkeys(logs))
+    if len(logs) < 2:  # one log's bias is heading_bias
+        return None
+    return Candidate("heading_bias_per_log", tuple(log_heading_bias(n) for n in logs), (tuple(0.0 for _ in logs),),
+                     lambda p: effect("heading_bias_per_log", **p), "drift")
+
+
+def compass_deviation(vessel: Vessel, b_deg: float, c_deg: float, d_deg: float = 0.0, e_deg: float = 0.0) -> Vessel:
+    """Heading error B sin ψ + C cos ψ + D sin 2ψ + E cos 2ψ (deg)."""
+    return _sensors(vessel, compass_deviation_deg=(b_deg, c_deg, d_deg, e_deg))
+
+
+def _compass_fit(prior: Vessel, logs) -> Candidate:
+    qs = tuple(member("sensors", "compass_deviation_deg", "deg", -30.0, 30.0, 1.0, name=n, index=i)
+               for i, n in enumerate(("b_deg", "c_deg")))
+    return Candidate("compass_deviation", qs, ((0.0, 0.0),),
+                     lambda p: effect("compass_deviation", b_deg=p["b_deg"], c_deg=p["c_deg"]), "drift")
+
+
+def gnss_lever_arm(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
+    """The antenna sits (dx, dy) m, body FRD, off the MJCF gnss site."""
+    return _sensors(vessel, antenna_offset_m=(dx_m, dy_m))
+
+
+# ---------------------------------------------------------------- the registry
+
+_SPECS = [
+    EffectSpec("current", "environment", (_v("speed_m_s", "m/s", 0, 10), _v("dir_deg", "deg", -360, 360)), current,
+               "water current towards dir_deg", _current_fit),
+    EffectSpec("wind", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)), wind,
+               "wind from dir_deg", _wind_fit),
+    EffectSpec("thruster_lag", "thrusters", (_v("lag_s", "s", 0, 10),), thruster_lag, "first-order thrust lag",
+               _single("thruster_lag", member("thrusters", "lag_s", "s", 0.02, 3.0, 0.2), ((0.15,), (0.6,)),
+                       "timing")),
+    EffectSpec("input_delay", "thrusters", (_v("delay_s", "s", 0, 5),), input_delay, "thrust acts on older PWM",
+               _single("input_delay", member("thrusters", "delay_s", "s", 0.0, 1.5, 0.1), ((0.0,),), "timing",
+                       scan=_grid(0.0, 1.2, 0.12), scan_step=(0.01,), time_shift=True)),
+    EffectSpec("thruster_asymmetry", "thrusters", (_v("ratio", "×", 0, 10, True),), thruster_asymmetry,
+               "right/left thrust gain ratio, their mean kept",
+               _single("thruster_asymmetry", gain_ratio("ratio", 0.3, 3.0), ((1.0,),), "turning")),
+    EffectSpec("thrust_gain", "thrusters", (_v(*_SCALE),), thrust_gain, "overall thrust scale",
+               _single("thrust_gain", gain_mean("scale", 0.2, 5.0), ((1.0,),), "thrust")),
+    EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
+               "dead-zone widths in normalised PWM", _dead_zone_fit),
+    EffectSpec("thrust_decay", "thrusters", (_v("decay_per_min", "1/min", 0, 0.99),), thrust_decay,
+               "thrust sag over time",
+               _single("thrust_decay", member("thrusters", "decay_per_min", "1/min", 0.0, 0.6, 0.05), ((0.02,),),
+                       "thrust")),
+    EffectSpec("thrust_speed_loss", "thrusters", (_v("speed_loss_per_m_s", "s/m", 0, 0.99),), thrust_speed_loss,
+               "thrust loss with advance speed",
+               _single("thrust_speed_loss", member("thrusters", "speed_loss_per_m_s", "s/m", 0.0, 0.8, 0.1),
+                       ((0.05,),), "drag")),
+    EffectSpec("quadratic_damping", "hull", (), quadratic_damping, "quadratic damping scales",
+               _scales_fit("quadratic_damping", "damping", QUADRATIC_DAMPING), keys=QUADRATIC_DAMPING),
+    EffectSpec("linear_damping", "hull", (), linear_damping, "linear damping scales",
+               _scales_fit("linear_damping", "damping", LINEAR_DAMPING), keys=LINEAR_DAMPING),
+    EffectSpec("coupling_damping", "hull", (_v("Yr", "N s"), _v("Nv", "N s")), coupling_damping,
+               "sway-yaw linear coupling damping",
+               _pair_fit("coupling_damping", "damping", ("Yr", "Nv"), "N s", -60.0, 60.0, 1.0, "turning",
+                         start_from_prior=True)),
+    EffectSpec("speed_damping", "hull", (_v("Yuv", "N s2/m2", -500, 0), _v("Nur", "N m s2/m", -500, 0)),
+               speed_damping, "sway and yaw damping growing with forward speed",
+               _pair_fit("speed_damping", "damping", ("Yuv", "Nur"), "N s2/m2", -300.0, 0.0, 5.0, "drag",
+                         start_from_prior=True)),
+    EffectSpec("added_mass", "hull", (), added_mass, "added-mass scales",
+               _scales_fit("added_mass", "added_mass", ADDED_MASS), keys=ADDED_MASS),
+    EffectSpec("cg_offset", "hull", (_v("dx_m", "m", -1, 1), _v("dy_m", "m", -1, 1)), cg_offset,
+               "mass distribution moved from the MJCF",
+               _pair_fit("cg_offset", "vessel", ("cg_offset_m",), "m", -0.4, 0.4, 0.05, "inertia", index=True)),
+    EffectSpec("clock_offset", "sensors", (_v("pwm_clock_offset_s", "s", -5, 5),), clock_offset,
+               "PWM log stamps late",
+               _single("clock_offset", member("sensors", "pwm_clock_offset_s", "s", -1.5, 1.5, 0.1), ((0.0,),),
+                       "timing", scan=_grid(-0.96, 0.96, 0.12), scan_step=(0.01,), time_shift=True)),
+    EffectSpec("heading_bias", "sensors", (_v("heading_bias_deg", *_DEG),), heading_bias, "constant heading error",
+               _single("heading_bias", member("sensors", "heading_bias_deg", "deg", -30.0, 30.0, 1.0), ((0.0,),),
+                       "drift")),
+    EffectSpec("heading_bias_per_log", "sensors", (_v("bias_deg", *_DEG),), heading_bias_per_log,
+               "constant heading error of each log (file name), e.g. a compass calibrated before every outing",
+               _per_log_fit, per_key="LOG"),
+    EffectSpec("compass_deviation", "sensors",
+               (_v("b_deg", "deg", -45, 45), _v("c_deg", "deg", -45, 45),
+                _v("d_deg", "deg", -45, 45, default=0.0), _v("e_deg", "deg", -45, 45, default=0.0)),
+               compass_deviation, "heading error varying with heading", _compass_fit),
+    EffectSpec("gnss_lever_arm", "sensors", (_v("dx_m", "m", -5, 5), _v("dy_m", "m", -5, 5)), gnss_lever_arm,
+               "antenna displaced from the MJCF site",
+               _pair_fit("gnss_lever_arm", "sensors", ("antenna_offset_m",), "m", -2.0, 2.0, 0.1, "turning",
+                         index=True)),
+]
+EFFECTS: dict[str, EffectSpec] = {s.name: s for s in _SPECS}
+
+
+def spec(name: str) -> EffectSpec:
+    if name not in EFFECTS:
+        raise TwinError(f"unknown effect '{name}' (known: {', '.join(EFFECTS)})")
+    return EFFECTS[name]
+
+
+def effect(name: str, **params) -> Effect:
+    """A checked Effect: values as floats in range, defaults filled in; TwinError (one line) if not."""
+    return checked(spec(name), params)
+
+
+def candidates(prior: Vessel, logs: list[str] = ()) -> dict[str, Candidate]:
+    """What a diagnosis can fit for this prior and the names of the logs diagnosed together."""
+    out = {}
+    for s in _SPECS:
+        cand = s.fit(prior, tuple(logs)) if s.fit is not None else None
+        if cand is not None:
+            out[s.name] = cand
+    return out
+
+
+def describe() -> str:
+    """One line per effect: NAME=values (units) and what it does (for CLI help)."""
+    lines = []
+    for s in _SPECS:
+        vals = ",".join(f"{p.name}" + ("?" if p.default is not None else "") for p in s.values)
+        if s.per_key:
+            vals = f"{s.per_key}:{s.values[0].name},..."
+        vals = vals or f"S|KEY:S,... (KEY in {' '.join(s.keys)})"
+        lines.append(f"{s.name}={vals}  [{s.acts_on}] {s.doc}")
+    return "\n".join(lines)

@@ -1,0 +1,199 @@
+"""The single-run loop as it was before `sim.simulate` was made fast (issue 13), kept as the
+slow, readable reference the fast loop is tested against (tests/test_sim_speed.py).
+
+Every control tick recomputes the thrust command of the whole remaining run through the
+thruster map, so a run costs O(n²) in its length: use it for short runs only. Not used by
+the twin itself.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import mujoco
+import numpy as np
+
+from ..drive import InputSeries, to_thruster_inputs
+from ..errors import TwinError
+from ..physics.hydrodynamics import Terms
+from ..physics.thrusters import advance_factor
+from ..run import Run
+from . import callbacks
+from .divergence import clear, flagged, quiet_log, what_diverged
+from .mjcf import CompiledVessel
+
+Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def _steps(interval_s: float, timestep_s: float, what: str) -> int:
+    n = int(round(interval_s / timestep_s))
+    if n < 1 or abs(n * timestep_s - interval_s) > 1e-9:
+        raise TwinError(f"{what} {interval_s} s is not a multiple of the time step {timestep_s} s")
+    return n
+
+
+def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0) -> None:
+    eta0 = np.zeros(3) if eta0 is None else np.asarray(eta0, float)
+    nu0 = np.zeros(3) if nu0 is None else np.asarray(nu0, float)
+    qpos, dof = callbacks._joint_indices(model)
+    data.qpos[list(qpos)] = eta0
+    c, s = np.cos(eta0[2]), np.sin(eta0[2])
+    data.qvel[list(dof)] = [c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2]]
+    if model.na:
+        data.act[:] = 0.0
+
+
+def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
+    """η = (x, y, ψ) and ν = (u, v, r) from the joint state."""
+    eta = data.qpos[list(qpos)].copy()
+    c, s = np.cos(eta[2]), np.sin(eta[2])
+    w = data.qvel[list(dof)]
+    return eta, np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
+
+
+def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps, extra=None) -> np.ndarray:
+    """Steps at which the loop must act: samples, controller ticks, command changes, the end.
+
+    Between them the engine runs `mj_step(nstep=...)` without returning to Python.
+    """
+    marks = [np.arange(0, n_steps + 1, n_sample), [n_steps]]
+    if n_control is not None:
+        marks.append(np.arange(0, n_steps + 1, n_control))
+    if extra is not None:
+        marks.append(extra)
+    if cmd_steps is not None:
+        changed = np.flatnonzero(np.any(np.diff(cmd_steps, axis=0) != 0, axis=1)) + 1
+        marks += [[0], changed[changed <= n_steps]]
+    return np.unique(np.concatenate(marks)).astype(int)
+
+
+def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
+    """The model to step and the context that installs its hydrodynamic callback."""
+    if backend == "native":
+        from . import native
+
+        return native.with_native_params(compiled, terms), native.installed_native()
+    if backend == "python":
+        return compiled.model, callbacks.installed(compiled.model, compiled.hydro(terms))
+    raise TwinError(f"unknown backend '{backend}' (native or python)")
+
+
+def _controller_output(vessel, controller, t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[str, np.ndarray]:
+    """(kind, held input) from a controller: normalised (surge, yaw) → PWM or thrust by
+    `drive.to_thruster_inputs`, or thrusts in N when the controller says `output = "thrust"`."""
+    out = controller(t, eta, nu)
+    if getattr(controller, "output", "normalised") == "thrust":
+        return "thrust", np.asarray(out, float)
+    return to_thruster_inputs(vessel.thrusters, *out)
+
+
+def simulate_reference(
+    compiled: CompiledVessel,
+    drive: InputSeries | Controller,
+    duration_s: float,
+    *,
+    control_dt_s: float = 0.1,
+    sample_dt_s: float = 0.1,
+    eta0=None,
+    nu0=None,
+    start_s: float = 0.0,
+    terms: Terms | None = None,
+    backend: str = "native",
+) -> Run:
+    """`sim.simulate` as it was: same arguments, same Run."""
+    if not duration_s > 0:
+        raise TwinError("duration must be positive")
+    vessel = compiled.vessel
+    thrusters = vessel.thrusters
+    terms = terms or Terms()
+    model, hydrodynamics = _backend(compiled, terms, backend)
+    h = model.opt.timestep
+    n_steps = int(round(duration_s / h))
+    n_control = _steps(control_dt_s, h, "control period")
+    n_sample = _steps(sample_dt_s, h, "sample period")
+    n_delay = int(round(thrusters.delay_s / h))
+    data = mujoco.MjData(model)
+    initial_state(model, data, eta0, nu0)
+    qpos, dof = callbacks._joint_indices(model)
+    step_times = np.arange(n_steps + 1) * h
+
+    series = drive if isinstance(drive, InputSeries) else None
+    if series is not None:
+        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
+        held_steps = series.at(step_times)
+        kind = series.kind
+    else:
+        # closed loop: the controller's output at step k reaches the thrusters at step k + n_delay
+        cmd_steps = np.zeros((n_steps + 1, 2))
+        held_steps = np.zeros((n_steps + 1, 2))
+        kind = None
+    applied_t, applied_v = [], []
+    marks = np.arange(0, n_steps + 1, n_control) if series is None else None
+    if series is None and n_delay:
+        marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
+    if series is None and thrusters.decay_per_min:
+        marks = np.arange(n_steps + 1)  # the decaying command changes at every step
+    events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
+    if not terms.thrust:
+        cmd_steps = np.zeros_like(cmd_steps)
+    rows = {"t": [], "eta": [], "nu": [], "held": [], "cmd": []}
+    chunk_start = np.empty(mujoco.mj_stateSize(model, FULL))
+    with hydrodynamics, quiet_log():
+        for i, k in enumerate(events):
+            t = k * h
+            eta, nu = _state(data, qpos, dof)
+            if series is None and k % n_control == 0:
+                kind, held = _controller_output(vessel, drive, t, eta, nu)
+                applied_t.append(t)
+                applied_v.append(held)
+                held_steps[k:] = held
+                act_at = min(k + n_delay, n_steps)
+                cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
+                cmd_steps[act_at:] = cmd if terms.thrust else 0.0
+            data.ctrl[:2] = cmd_steps[k]
+            if k % n_sample == 0:
+                rows["t"].append(start_s + t)
+                rows["eta"].append(eta)
+                rows["nu"].append(nu)
+                rows["held"].append(held_steps[k] if kind == "pwm" else (np.nan, np.nan))
+                rows["cmd"].append(data.act[:2].copy() if model.na else data.ctrl[:2].copy())
+            if k == n_steps:
+                break
+            mujoco.mj_getState(model, data, chunk_start, FULL)
+            mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
+            if flagged(data) or not np.all(np.isfinite(data.qvel)):
+                raise TwinError(_divergence(model, data, chunk_start, cmd_steps[k], int(events[i + 1] - k), start_s))
+    if series is None:
+        series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
+    nu = np.array(rows["nu"])
+    return Run(
+        np.array(rows["t"]), np.array(rows["eta"]), nu, np.array(rows["held"], dtype=float),
+        delivered_thrust(vessel, compiled.geometry.thruster_y_m, np.array(rows["cmd"]), nu),
+        meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
+              "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
+              "inputs": series, "start_s": start_s},
+    )
+
+
+def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndarray, command_n: np.ndarray,
+                nstep: int, start_s: float) -> str:
+    """One line naming when the run diverged (the chunk replayed one step at a time)."""
+    mujoco.mj_setState(model, data, chunk_start, FULL)
+    data.ctrl[:2] = command_n  # the reset zeroed the controls
+    clear(data)
+    t_s = float(data.time)
+    for _ in range(nstep):
+        t_s = float(data.time)
+        mujoco.mj_step(model, data)
+        if flagged(data) or not np.all(np.isfinite(data.qvel)):
+            break
+    return (f"the twin diverged at t = {start_s + t_s:.2f} s: MuJoCo found its {what_diverged(data)} "
+            f"non-finite or beyond {mujoco.mjMAXVAL:g} (unstable parameters, inputs or time step)")
+
+
+def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain
+    and the advance-speed factor."""
+    t_min, t_max = vessel.thrusters.bounds()
+    factor = np.array([advance_factor(vessel.thrusters, n, thruster_y_m) for n in nu]) if len(nu) else 1.0
+    return np.clip(command_n, t_min, t_max) * vessel.thrusters.gains() * factor

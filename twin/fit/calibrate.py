@@ -1,0 +1,182 @@
+"""A log's sensors as the vessel description says they are: the recording seen through them.
+
+The vessel's `sensors` (twin.physics.sensors) hold the heading bias and compass deviation
+(common and per log), the GNSS antenna's offset from the MJCF site and the PWM log's clock
+offset. `prepare_for` prepares a recording (seed 004 §5.1) as this vessel's sensors see it:
+heading corrected, lever arm from its antenna. The PWM clock offset acts where the PWM drives
+the twin (twin.fit.windows). Every command that replays a log (view, evaluate, identify,
+diagnose) prepares it here, so they all replay it with the same calibration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..engine.mjcf import CompiledVessel
+from ..physics.sensors import antenna_body_m, true_heading
+from ..prepare import Prepared, prepare
+from ..recording import Recording, Stream
+from ..vessel import Vessel
+
+
+def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
+    """OP = (dx, dy) from the real antenna to CO (seed 000 eq. 28): minus the antenna's
+    body position, the MJCF gnss site plus the vessel's surveyed offset."""
+    a = antenna_body_m(compiled.geometry.gnss_pos_m, compiled.vessel.sensors)
+    return float(-a[0]), float(-a[1])
+
+
+def calibrated(rec: Recording, vessel: Vessel) -> Recording:
+    """The recording with the vessel's heading-sensor error, for this log, taken out (physics/sensors.py)."""
+    sensors = vessel.sensors.for_log(rec.source)
+    if not sensors.has_heading_error or not len(rec.heading):
+        return rec
+    psi = true_heading(sensors, np.unwrap(rec.heading["psi_rad"]))
+    return replace(rec, heading=Stream(rec.heading.t, {**rec.heading.columns, "psi_rad": psi}))
+
+
+def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
+    """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
+    corrected, lever arm from its antenna. (The PWM clock offset acts where the
+    PWM drives the twin: twin.ident.windows.)"""
+    return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled), **kwargs)
+
+
+# ---------------------------------------------------------------- a log's own calibration, from its kinematics
+
+STRAIGHT_SPEED_M_S = 0.4  # under way: slower, the GNSS velocity's direction is mostly noise
+STRAIGHT_YAW_RATE_RAD_S = 0.1  # about 6°/s: turning slower, a catamaran's CO barely slips sideways
+MIN_STRETCH_S = 1.0  # a GNSS velocity direction needs a few fixes
+PIECE_S = 2.0  # straight running is cut into pieces this long: each gives the offset once
+MIN_STRAIGHT_S = 3.0  # less straight running than this says nothing reliable about the compass
+DRIFT_HEADING_SPREAD_DEG = 60.0  # straight legs this far apart in heading separate a drift from an offset
+
+
+@dataclass(frozen=True)
+class LogCalibration:
+    """A log's own compass offset, estimated from its kinematics alone (no dynamic model).
+
+    Going straight under way, a symmetric hull's track over ground follows its true heading,
+    so the angle between the GNSS track and the logged heading is the compass's error there:
+    heading_bias_deg = ψ_logged − ψ_true (twin.physics.sensors' sign), with its 1-σ from the
+    spread of the offsets of 2-s pieces of straight running (optimistic where one long stretch
+    gives all the pieces: what that stretch shares is not in it). Where straight legs point in different directions, a
+    ground drift (current, wind leeway; NED m/s) is fitted with it so that the two are not
+    confused; it is reported, not applied (it is physics, the twin's business). None where the
+    log has too little straight running (why: `note`)."""
+
+    log: str
+    heading_bias_deg: float | None
+    sigma_deg: float | None
+    stretches: int
+    seconds: float
+    drift_ned_m_s: tuple[float, float] | None
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return {"log": self.log, "heading_bias_deg": self.heading_bias_deg, "sigma_deg": self.sigma_deg,
+                "stretches": self.stretches, "seconds": round(self.seconds, 1),
+                "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note}
+
+    def text(self) -> str:
+        if self.heading_bias_deg is None:
+            return f"{self.log}: compass offset not estimable ({self.note})"
+        drift = "" if self.drift_ned_m_s is None else \
+            f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s"
+        return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
+                f"{self.stretches} straight stretches ({self.seconds:.0f} s under way){drift}")
+
+
+def straight_stretches(prep: Prepared, min_speed_m_s: float = STRAIGHT_SPEED_M_S,
+                       max_yaw_rate_rad_s: float = STRAIGHT_YAW_RATE_RAD_S,
+                       min_stretch_s: float = MIN_STRETCH_S) -> list[slice]:
+    """Runs of grid samples going straight under way, each at least min_stretch_s long and
+    inside one segment."""
+    h = prep.settings.grid_dt
+    ok = (prep.u > min_speed_m_s) & (np.abs(prep.r) < max_yaw_rate_rad_s) & np.isfinite(prep.u) & np.isfinite(prep.v)
+    out = []
+    for seg in prep.segments:
+        k = seg.start
+        while k < seg.stop:
+            if not ok[k]:
+                k += 1
+                continue
+            j = k
+            while j < seg.stop and ok[j]:
+                j += 1
+            if (j - k) * h >= min_stretch_s:
+                out.append(slice(k, j))
+            k = j
+    return out
+
+
+def _ground_velocity(prep: Prepared, sl: slice) -> tuple[np.ndarray, np.ndarray]:
+    """NED velocity over ground (m/s) and the logged heading (rad) over one stretch."""
+    psi, u, v = prep.psi[sl], prep.u[sl], prep.v[sl]
+    c, s = np.cos(psi), np.sin(psi)
+    return np.column_stack([c * u - s * v, s * u + c * v]), psi
+
+
+def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) -> LogCalibration:
+    """The log's compass offset relative to the vessel's common heading calibration (any per-log
+    entry the vessel already holds for this log is set aside first), see LogCalibration."""
+    from scipy.optimize import least_squares
+
+    from ..physics.sensors import log_name
+
+    name = log_name(rec.source)
+    sensors = compiled.vessel.sensors
+    own = dict(sensors.heading_bias_by_log_deg)
+    own.pop(name, None)
+    common = replace(compiled.vessel, sensors=replace(sensors, heading_bias_by_log_deg=tuple(sorted(own.items()))))
+    prep = prepare_for(rec, CompiledVessel(common, compiled.model, compiled.geometry))
+    stretches = straight_stretches(prep, **limits)
+    seconds = sum(sl.stop - sl.start for sl in stretches) * prep.settings.grid_dt
+    if seconds < MIN_STRAIGHT_S:
+        return LogCalibration(name, None, None, len(stretches), seconds, None,
+                              f"{seconds:.1f} s of straight running under way (u > {STRAIGHT_SPEED_M_S:g} m/s, "
+                              f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s); {MIN_STRAIGHT_S:g} s are needed")
+    legs = [_ground_velocity(prep, sl) for sl in stretches]
+    vel = np.concatenate([v for v, _ in legs])
+    psi = np.concatenate([p for _, p in legs])
+    spread = _heading_spread_deg(np.array([np.angle(np.mean(np.exp(1j * p))) for _, p in legs]))
+    piece = int(round(PIECE_S / prep.settings.grid_dt))
+    which = np.concatenate([np.full(len(p), i) for i, (_, p) in enumerate(legs)]) * 10_000 + \
+        np.concatenate([np.arange(len(p)) // piece for _, p in legs])
+    which = np.unique(which, return_inverse=True)[1]
+    with_drift = spread >= DRIFT_HEADING_SPREAD_DEG
+
+    def across(x):  # velocity across the true heading ψ_logged − δ: zero for a hull going straight
+        delta, cn, ce = x[0], (x[1] if with_drift else 0.0), (x[2] if with_drift else 0.0)
+        true = psi - delta
+        return -(vel[:, 0] - cn) * np.sin(true) + (vel[:, 1] - ce) * np.cos(true)
+
+    fit = least_squares(across, np.zeros(3 if with_drift else 1), loss="soft_l1", f_scale=0.05)
+    delta = float(fit.x[0])
+    # each piece of straight running gives the offset once: their spread is the offset's uncertainty
+    drift_now = np.r_[fit.x[1:3]] if with_drift else np.zeros(2)
+    speed = np.hypot(*(vel - drift_now).T)
+    crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1:]]) / speed, -1.0, 1.0))
+    per_piece = -np.array([np.average(crab[which == i], weights=speed[which == i]) for i in range(which.max() + 1)])
+    sigma = float(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1 else float("nan")
+    drift = (float(fit.x[1]), float(fit.x[2])) if with_drift else None
+    note = "" if with_drift else f"straight legs within {spread:.0f}° of each other: no drift fitted"
+    return LogCalibration(name, float(np.degrees(delta)), float(np.degrees(sigma)), len(stretches), seconds, drift,
+                          note)
+
+
+def _heading_spread_deg(angles_rad: np.ndarray) -> float:
+    """The largest angle between two headings of the set (deg, 0-180)."""
+    d = np.abs(np.angle(np.exp(1j * (angles_rad[:, None] - angles_rad[None, :]))))
+    return float(np.degrees(d.max())) if len(angles_rad) > 1 else 0.0
+
+
+def with_log_calibrations(vessel: Vessel, calibrations: list[LogCalibration]) -> Vessel:
+    """The vessel with each log's estimated compass offset as its per-log heading bias (logs whose
+    offset could not be estimated keep what the vessel says)."""
+    table = dict(vessel.sensors.heading_bias_by_log_deg)
+    for c in calibrations:
+        if c.heading_bias_deg is not None:
+            table[c.log] = c.heading_bias_deg
+    return replace(vessel, sensors=replace(vessel.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))

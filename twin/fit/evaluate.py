@@ -1,0 +1,112 @@
+"""Judging a model by what it predicts (seed 004 eqs. 40-41, R² and MAE per DOF):
+
+  one_step       ν̂(k+1) from the measured state at k (what seed 004 reports; the
+                 persistence model ν(k+1) = ν(k) already scores R² ≈ 0.99 on it)
+  free_run_10s   free runs of 10 s from measured states, driven by the recorded PWM
+  free_run_30s   the same over 30 s
+  full           each whole trajectory segment from its first measured state
+
+Every model is a predictor with `predict_windows(prep, starts, n_steps) -> (W, n+1, 3)`
+(ν̂ with index 0 the measured start): the grey-box models of seed 004 implement it,
+and `TwinPredictor` wraps a vessel description on the batch engine.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from ..prepare import Prepared
+from ..vessel import Vessel
+from .metrics import DOFS, r2_mae
+from .windows import ModelCache, Window, make_windows, measured, predict
+
+HORIZONS = {"one_step": None, "free_run_10s": 10.0, "free_run_30s": 30.0, "full": "segment"}
+
+
+class Predictor(Protocol):
+    def predict_windows(self, prep: Prepared, starts: np.ndarray, n_steps: int) -> np.ndarray: ...
+
+
+@dataclass
+class TwinPredictor:
+    """A vessel description as a predictor: free runs on the batch engine."""
+
+    vessel: Vessel
+    cache: ModelCache | None = None
+
+    def predict_windows(self, prep: Prepared, starts: np.ndarray, n_steps: int) -> np.ndarray:
+        wins = [Window(0, int(s), _steps_in_segment(prep, int(s), n_steps)) for s in starts]
+        out = np.full((len(wins), n_steps + 1, 3), np.nan)
+        keep = [i for i, w in enumerate(wins) if w.n > 0]
+        if keep:
+            pred = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache)[0]
+            nu = pred.nu.copy()
+            for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
+                w = wins[keep[j]]
+                nu[j, : w.n + 1] = np.where(np.isnan(nu[j, : w.n + 1]), np.inf, nu[j, : w.n + 1])
+            out[keep, : nu.shape[1]] = nu
+        return out
+
+
+def _steps_in_segment(prep: Prepared, start: int, n_steps: int) -> int:
+    seg = prep.segments[int(prep.segment[start])]
+    return min(n_steps, seg.stop - 1 - start)
+
+
+def horizon_windows(preps: list[Prepared], horizon, stride_s: float) -> list[Window]:
+    if horizon is None:
+        return make_windows(preps, 0.1, 0.1, min_length_s=0.1) if preps else []
+    if horizon == "segment":
+        return make_windows(preps, None)
+    return make_windows(preps, float(horizon), stride_s, min_length_s=float(horizon))
+
+
+def evaluate(model: Predictor | Vessel, preps: list[Prepared], stride_s: float = 2.0,
+             horizons: dict | None = None) -> dict:
+    """Metrics per horizon (see the module docstring): {horizon: {u, v, r: {r2, mae, n}}}.
+
+    Only the predicted samples count (not the measured start of each window); a free
+    run of a given horizon uses full-length windows only, so every horizon is what its
+    name says."""
+    if isinstance(model, Vessel):
+        model = TwinPredictor(model, ModelCache())
+    out = {}
+    for name, horizon in (horizons or HORIZONS).items():
+        wins = horizon_windows(preps, horizon, stride_s)
+        if not wins:
+            out[name] = {d: {"r2": None, "mae": None, "n": 0, "diverged": 0} for d in DOFS}
+            continue
+        pred, meas = _predictions(model, preps, wins)
+        out[name] = r2_mae(pred[:, 1:], meas[:, 1:])
+    return out
+
+
+def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) -> tuple[np.ndarray, np.ndarray]:
+    n_max = max(w.n for w in wins)
+    pred = np.full((len(wins), n_max + 1, 3), np.nan)
+    by_rec: dict[int, list[int]] = {}
+    for j, w in enumerate(wins):
+        by_rec.setdefault(w.rec, []).append(j)
+    for rec, rows in by_rec.items():
+        # windows of one length at a time, so a predictor never runs past what is asked
+        for n in sorted({wins[j].n for j in rows}):
+            same = [j for j in rows if wins[j].n == n]
+            got = model.predict_windows(preps[rec], np.array([wins[j].start for j in same]), n)
+            pred[same, : n + 1] = got[:, : n + 1]
+    _, meas = measured(preps, wins)
+    return pred, meas
+
+
+def format_metrics(metrics: dict, title: str = "") -> str:
+    """Rows per horizon, R² and MAE per DOF, ≤ 100 columns."""
+    head = f"{'horizon':14s}" + "".join(f"{'R2 ' + d:>9s}{'MAE ' + d:>10s}" for d in DOFS)
+    lines = ([title] if title else []) + [head, "-" * len(head)]
+    for name, m in metrics.items():
+        cells = []
+        for d in DOFS:
+            r2, mae = m[d]["r2"], m[d]["mae"]
+            cells.append(f"{'-' if r2 is None else f'{r2:.3f}':>9s}{'-' if mae is None else f'{mae:.4f}':>10s}")
+        lines.append(f"{name:14s}" + "".join(cells))
+    return "\n".join(lines)

@@ -1,0 +1,54 @@
+"""How well a prediction matches a measurement, per DOF (seed 004 eqs. 40-41): R² and the mean
+absolute error, over the finite pairs; a diverged (infinite) prediction is a failure, not a gap."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DOFS = ("u", "v", "r")
+
+
+def r2_score(truth: np.ndarray, predicted: np.ndarray) -> float:
+    """Eq. 40 over the finite pairs; NaN with fewer than two or no variance."""
+    ok = np.isfinite(truth) & ~np.isnan(predicted)
+    y, p = truth[ok], predicted[ok]
+    if len(y) < 2:
+        return math.nan
+    total = float(np.sum((y - y.mean()) ** 2))
+    if total == 0.0:
+        return math.nan
+    with np.errstate(over="ignore", invalid="ignore"):
+        resid = float(np.sum((y - p) ** 2))
+    return 1.0 - resid / total if np.isfinite(resid) else -math.inf
+
+
+def mae(truth: np.ndarray, predicted: np.ndarray) -> float:
+    """Eq. 41 over the finite pairs (a diverged, infinite prediction gives inf)."""
+    ok = np.isfinite(truth) & ~np.isnan(predicted)
+    return float(np.mean(np.abs(truth[ok] - predicted[ok]))) if ok.any() else math.nan
+
+
+def scores(truth: np.ndarray, predicted: np.ndarray) -> dict[str, dict[str, float]]:
+    """{"u": {"r2", "mae", "n"}, "v": …, "r": …} for (n, 3) arrays."""
+    out = {}
+    for j, dof in enumerate(DOFS):
+        ok = np.isfinite(truth[:, j]) & ~np.isnan(predicted[:, j])
+        out[dof] = {"r2": r2_score(truth[:, j], predicted[:, j]), "mae": mae(truth[:, j], predicted[:, j]),
+                    "n": int(ok.sum())}
+    return out
+
+
+def r2_mae(pred: np.ndarray, meas: np.ndarray) -> dict:
+    """{u, v, r} → {r2, mae, n} over every pair with a measurement (eqs. 40-41, seed 004's
+    own definitions in `scores`). A diverged prediction (inf) makes R² and MAE
+    unbounded: they are reported as None, with `diverged` counting such samples."""
+    p, m = pred.reshape(-1, 3), meas.reshape(-1, 3)
+    out = scores(m, p)
+    for k, dof in enumerate(DOFS):
+        out[dof] = {key: (float(val) if isinstance(val, float) and np.isfinite(val) else
+                          (val if isinstance(val, int) else None)) for key, val in out[dof].items()}
+        out[dof]["diverged"] = int(np.sum(np.isinf(p[:, k]) & np.isfinite(m[:, k])))
+    return out
+
+

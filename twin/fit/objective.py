@@ -1,0 +1,239 @@
+"""The objective of fitting by simulation: free runs of the twin over short windows (from
+measured states, driven by the recorded PWM) against the measured velocities, as a function of
+a vector of Quantities of the vessel description; its Jacobian from one batch rollout; and the
+cluster-robust covariance of a fit, windows as clusters (the errors of one free run are
+correlated).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import Quantity
+from ..errors import TwinError
+from ..prepare import Prepared
+from ..vessel import Vessel, check
+from .windows import ModelCache, Window, as_measured, measured, predict
+
+SETTLE_S = 1.0
+START_STEP = np.array([0.01, 0.01, 0.01])  # m/s, m/s, rad/s: finite differences of the initial velocities
+
+@dataclass
+class Estimate:
+    name: str
+    unit: str
+    prior: float
+    value: float
+    sigma: float | None  # 1-σ from the cluster-robust covariance; None when not identifiable
+    identifiable: bool
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
+                "identifiable": self.identifiable, "note": self.note}
+
+
+class Measurements:
+    """The recordings as a candidate vessel's sensors see them.
+
+    Fixed prepared recordings (identification), or raw recordings re-prepared for each
+    heading-sensor and antenna calibration a candidate carries (diagnosis of sensor
+    effects: what is measured changes with the calibration, not only what is predicted).
+    The grid does not change with the calibration, so windows stay valid."""
+
+    def __init__(self, preps: list[Prepared], recordings: list | None = None, compiled=None,
+                 prepare_kwargs: dict | None = None):
+        """preps: the recordings prepared for `compiled.vessel` (or fixed, without recordings)."""
+        self.preps, self.recordings, self.compiled = preps, recordings, compiled
+        self.kwargs = prepare_kwargs or {}
+        self._cache: dict[tuple, list[Prepared]] = {}
+        self._key0 = self._key(compiled.vessel) if compiled is not None else None
+
+    @staticmethod
+    def _key(vessel: Vessel) -> tuple:
+        s = vessel.sensors
+        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.antenna_offset_m),
+                s.heading_bias_by_log_deg)
+
+    def for_vessel(self, vessel: Vessel) -> list[Prepared]:
+        if self.recordings is None or self._key(vessel) == self._key0:
+            return self.preps
+        key = self._key(vessel)
+        if key not in self._cache:
+            from ..engine.mjcf import CompiledVessel
+            from ..fit.calibrate import prepare_for
+
+            cv = CompiledVessel(vessel, self.compiled.model, self.compiled.geometry)
+            self._cache[key] = [prepare_for(r, cv, **self.kwargs) for r in self.recordings]
+            if len(self._cache) > 64:
+                self._cache.pop(next(iter(self._cache)))
+        return self._cache[key]
+
+
+class Objective:
+    """Free-run residuals of the windows, (ν̂ − ν)/σ_dof for u, v, r (σ_dof the spread of
+    the measured ν), as a function of the scaled parameter vector x (value = x·scale);
+    Jacobians by forward differences in one batch.
+
+    Velocities, not positions or heading: a free run's position and heading errors are
+    mostly the integral of its initial velocity error (the start is a smoothed
+    measurement), which would outweigh the dynamics being fitted. For the same reason
+    the first settle_s of each window is not compared: a fit that followed the decay of
+    a noisy initial state would bend the fast dynamics (yaw and sway inertia) to do it.
+
+    free_start: each window's initial velocities are nuisance parameters, re-estimated for
+    every candidate (output-error identification with unknown initial state). A smoothed
+    GNSS velocity is off by a few cm/s at any instant; a free run from it carries that
+    error, and a least-squares fit answers by changing the dynamics that propagate it
+    (errors in variables): on synthetic data with 2 cm GNSS jitter, yaw inertia came out
+    60 % high from measured starts and within 3 % from the true ones. The correction is
+    linear (three extra runs per candidate give the sensitivities to u₀, v₀, r₀, then a
+    3×3 least squares per window), which the few-cm/s start errors allow."""
+
+    def __init__(self, prior: Vessel, params: list[Quantity], preps: list[Prepared] | Measurements,
+                 windows: list[Window], cache: ModelCache | None = None, settle_s: float = SETTLE_S,
+                 free_start: bool = False):
+        self.free_start = free_start
+        self.data = preps if isinstance(preps, Measurements) else Measurements(preps)
+        self.settle_s = settle_s
+        self.prior, self.params, self.preps, self.windows = prior, params, self.data.preps, windows
+        self.cache = cache or ModelCache()
+        self.scale = np.array([max(abs(p.get(prior)), p.typical) for p in params])
+        self.steps = np.array([1e-4 if p.fd_abs is None else p.fd_abs / s for p, s in zip(params, self.scale)])
+        self.meas = self._measured(self.preps)
+        self.valid = np.isfinite(self.meas)
+        h = self.preps[0].settings.grid_dt
+        self.valid[:, : int(round(settle_s / h))] = False
+        sd = np.array([np.nanstd(self.meas[..., k]) for k in range(3)])
+        self.sigma = np.where(sd > 1e-6, sd, 1.0)
+        self.evaluations = 0
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _measured(self, preps: list[Prepared]) -> np.ndarray:
+        return measured(preps, self.windows)[1][:, 1:]
+
+    def _seen(self, nu: np.ndarray, preps: list[Prepared]) -> np.ndarray:
+        """The prediction as the measurement would show it (see windows.as_measured)."""
+        return as_measured(nu, preps, self.windows)
+
+    @property
+    def x_prior(self) -> np.ndarray:
+        return np.array([p.get(self.prior) for p in self.params]) / self.scale
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array([p.lo for p in self.params]) / self.scale, np.array([p.hi for p in self.params]) / self.scale)
+
+    def vessel(self, x: np.ndarray) -> Vessel:
+        v = self.prior
+        for p, xi, s in zip(self.params, x, self.scale):
+            v = p.put(v, float(xi * s))
+        return v
+
+    def residuals_of(self, vessels: list[Vessel]) -> list[np.ndarray]:
+        """Flat residuals of each vessel on the valid samples; with free_start, the first
+        vessel's initial-state sensitivities serve all (the others are its finite-difference
+        neighbours, whose sensitivities differ by second-order amounts)."""
+        full = self._full(vessels, with_start=self.free_start)
+        if not self.free_start:
+            return [r if r.ndim == 1 else r[self.valid] for r in full]
+        base, sens = full[0], full[1:4]
+        if base.ndim == 1:  # the base twin is not physical: nothing to linearise about
+            return [r if r.ndim == 1 else r[self.valid] for r in [base] + full[4:]]
+        S = np.stack([np.where(self.valid, np.nan_to_num((s - base) / d, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
+                      for s, d in zip(sens, START_STEP)], axis=-1)  # (W, n, 3 dof, 3 start)
+        return [r if r.ndim == 1 else self._free_started(r, S) for r in [base] + full[4:]]
+
+    def _free_started(self, r: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """Residuals with each window's initial velocities re-estimated (linearised about
+        the base twin): r + S·Δ with Δ = argmin |r + S·Δ|² per window."""
+        r = np.where(self.valid, np.nan_to_num(r, nan=10.0), 0.0)
+        W = r.shape[0]
+        Sf, rf = S.reshape(W, -1, 3), r.reshape(W, -1)
+        G = np.einsum("wki,wkj->wij", Sf, Sf)
+        G += (1e-9 * np.trace(G, axis1=1, axis2=2)[:, None, None] + 1e-12) * np.eye(3)
+        delta = -np.linalg.solve(G, np.einsum("wki,wk->wi", Sf, rf)[..., None])[..., 0]
+        return (rf + np.einsum("wki,wi->wk", Sf, delta)).reshape(r.shape)[self.valid]
+
+    def _full(self, vessels: list[Vessel], with_start: bool) -> list[np.ndarray]:
+        """(W, n, 3) scaled residuals per vessel (NaN where the twin diverged), or a flat array
+        of 10s for a vessel that is not physical; with_start: after the first vessel, its
+        three runs from initial velocities offset by START_STEP."""
+        runs = list(vessels[:1]) * (4 if with_start else 1) + list(vessels[1:])
+        offsets = ([None] + [np.eye(3)[k] * START_STEP[k] for k in range(3)] if with_start else [None])
+        offsets += [None] * (len(runs) - len(offsets))
+        ok = []
+        for v in runs:
+            try:
+                check(v)
+                ok.append(True)
+            except TwinError:
+                ok.append(False)
+        good = [i for i, g in enumerate(ok) if g]
+        seen = [self.data.for_vessel(runs[i]) for i in good]
+        preds = predict([runs[i] for i in good], seen, self.windows, self.cache,
+                        nu_offsets=[offsets[i] for i in good]) if good else []
+        self.evaluations += len(vessels)
+        out: list[np.ndarray] = [np.full(int(self.valid.sum()), 10.0)] * len(runs)
+        for i, prediction, preps in zip(good, preds, seen):
+            meas = self.meas if preps is self.preps else self._measured(preps)
+            pred = self._seen(prediction.nu, preps)[:, 1:]
+            r = (pred - meas) / self.sigma
+            if not with_start or i >= 4:
+                r = np.where(np.isfinite(pred), r, 10.0)  # a diverged twin costs a lot, smoothly enough
+            out[i] = r
+        return out
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        if self._last is not None and np.array_equal(self._last[0], x):
+            return self._last[1]
+        r = self.residuals_of([self.vessel(x)])[0]
+        self._last = (x.copy(), r)
+        return r
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        lo, hi = self.bounds()
+        steps = np.where(x + self.steps <= hi, self.steps, -self.steps)  # stay inside the bounds
+        trial = [x.copy() for _ in x]
+        for i in range(len(x)):
+            trial[i][i] += steps[i]
+        rs = self.residuals_of([self.vessel(x)] + [self.vessel(t) for t in trial])
+        self._last = (x.copy(), rs[0])
+        return np.column_stack([(r - rs[0]) / h for r, h in zip(rs[1:], steps)])
+
+    def window_index(self) -> np.ndarray:
+        """Window number of each residual (the clusters of the sandwich covariance)."""
+        idx = np.broadcast_to(np.arange(len(self.windows))[:, None, None], self.meas.shape)
+        return idx[self.valid]
+
+
+def estimates_of(obj: Objective, x: np.ndarray, J: np.ndarray, r: np.ndarray) -> list[Estimate]:
+    """Values, cluster-robust 1-σ, and whether the data pins each parameter down."""
+    norms = np.linalg.norm(J, axis=0)
+    cov = cluster_covariance(J, r, obj.window_index())
+    out = []
+    for i, p in enumerate(obj.params):
+        value, prior = float(x[i] * obj.scale[i]), float(p.get(obj.prior))
+        sigma = float(np.sqrt(cov[i, i]) * obj.scale[i]) if cov is not None and cov[i, i] >= 0 else None
+        note = ""
+        if norms[i] < 1e-6 * max(norms.max(), 1e-12):
+            ok, note = False, "no effect on these recordings (the motion that excites it is missing)"
+        elif sigma is None or not np.isfinite(sigma):
+            ok, note = False, "not separable from the other parameters on these recordings"
+        elif sigma > max(abs(value), obj.scale[i] * 0.05):
+            ok, note = False, f"uncertainty ±{sigma:.3g} exceeds the value: not pinned down by these recordings"
+        else:
+            ok = True
+        out.append(Estimate(p.name, p.unit, prior, value, sigma if ok else None, ok, note))
+    return out
+
+
+def cluster_covariance(J: np.ndarray, r: np.ndarray, clusters: np.ndarray) -> np.ndarray | None:
+    """(JᵀJ)⁻¹ (Σ_w g_w g_wᵀ) (JᵀJ)⁻¹ with g_w = J_wᵀ r_w summed over the residuals of window w."""
+    JtJ = J.T @ J
+    if np.linalg.cond(JtJ) > 1e14:
+        return None
+    A = np.linalg.inv(JtJ)
+    g = np.zeros((clusters.max() + 1, J.shape[1]))
+    np.add.at(g, clusters, J * r[:, None])
+    return A @ (g.T @ g) @ A

@@ -1,0 +1,345 @@
+"""Multi-step predictions: the twin started from measured states and driven by the
+recorded PWM over short windows, many windows and many candidate vessels at once
+on the batch engine (`engine.batch.rollout`, native callbacks, all cores).
+
+A window starts at a grid sample of a prepared recording and predicts `n` grid
+steps ahead without looking at the measurements again: the free run that
+identification by simulation, `twin evaluate` and `twin diagnose` judge a model by.
+A whole segment is one long window.
+
+What the recording's clock means for the thrusters (vessel.thrusters, vessel.sensors):
+the thrust at recording time t answers the PWM logged at t − delay_s + pwm_clock_offset_s
+(a late-stamped PWM log makes the thrust seem to come first), decayed by t.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..engine import batch, native
+from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..errors import TwinError
+from ..prepare import Prepared
+from ..prepare.prepared import hold
+from ..vessel import Vessel
+
+
+@dataclass(frozen=True)
+class Window:
+    """Grid samples start..start+n of prepared recording `rec`, inside one segment."""
+
+    rec: int
+    start: int
+    n: int
+
+
+def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float | None = None,
+                 min_length_s: float = 2.0) -> list[Window]:
+    """Windows of length_s every stride_s (default: length_s) inside every segment;
+    length_s None = each whole segment. The last, shorter stretch of a segment is
+    kept when it is at least min_length_s long."""
+    out = []
+    for i, prep in enumerate(preps):
+        h = prep.settings.grid_dt
+        for seg in prep.segments:
+            last = seg.stop - 1
+            if length_s is None:
+                if (last - seg.start) * h >= min_length_s:
+                    out.append(Window(i, seg.start, last - seg.start))
+                continue
+            n = int(round(length_s / h))
+            stride = max(1, int(round((stride_s or length_s) / h)))
+            for start in range(seg.start, last, stride):
+                steps = min(n, last - start)
+                if steps * h >= min(min_length_s, length_s) - 1e-9:
+                    out.append(Window(i, start, steps))
+    return out
+
+
+# ---------------------------------------------------------------- models
+
+def _structure_key(vessel: Vessel) -> tuple:
+    """What needs a recompilation: everything else is set on a copy of a compiled model."""
+    t = vessel.thrusters
+    return (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0)
+
+
+class ModelCache:
+    """Compiled native models by structure; per vessel a cheap copy with its own
+    hydrodynamic parameters, thruster gains, advance loss, lag and range.
+
+    timestep_s overrides the MJCF's time step (a coarser RK4 step for the many
+    candidate runs of a diagnosis; it must divide the recordings' grid)."""
+
+    def __init__(self, timestep_s: float | None = None) -> None:
+        self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
+        self.timestep_s = timestep_s
+        self._inputs: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = {}
+
+    def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool):
+        """(thrust commands, lag state at the start) of a window: the same for every candidate
+        that leaves the thrusters and the PWM clock alone, so computed once."""
+        # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
+        # the recording (source, grid) and the window identify it
+        key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
+               vessel.thrusters, vessel.sensors.pwm_clock_offset_s, lagged)
+        hit = self._inputs.get(key)
+        if hit is None:
+            cmd = thrust_commands(vessel, prep, window, timestep_s)
+            act0 = lagged_thrust_at_start(vessel, prep, window, timestep_s) if lagged else None
+            hit = (cmd, act0)
+            if len(self._inputs) >= 20000:
+                self._inputs.pop(next(iter(self._inputs)))
+            self._inputs[key] = hit
+        return hit
+
+    def compiled(self, vessel: Vessel) -> CompiledVessel:
+        return self._base(vessel)[0]
+
+    def _base(self, vessel: Vessel) -> tuple[CompiledVessel, mujoco.MjModel]:
+        key = _structure_key(vessel)
+        if key not in self._compiled:
+            cv = compile_vessel(vessel)
+            model = native.with_native_params(cv)
+            if self.timestep_s is not None:
+                model.opt.timestep = self.timestep_s
+            self._compiled[key] = (cv, model)
+        return self._compiled[key]
+
+    def model(self, vessel: Vessel) -> mujoco.MjModel:
+        """A native-parameterised model of `vessel` (same dynamics as compiling it afresh)."""
+        cv, base = self._base(vessel)
+        m = copy.copy(base)
+        native.set_params(m, CompiledVessel(vessel, cv.model, cv.geometry).hydro())
+        t = vessel.thrusters
+        m.actuator_ctrlrange[:2] = t.bounds()
+        for i, gain in enumerate(t.gains()):
+            m.actuator_gainprm[i, 0] = gain
+            m.actuator_gainprm[i, 2] = -gain * t.speed_loss_per_m_s if t.speed_loss_per_m_s else 0.0
+            if t.lag_s > 0:
+                m.actuator_dynprm[i, 0] = t.lag_s
+        return m
+
+
+# ---------------------------------------------------------------- inputs
+
+def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
+    """(steps, 2) thrust commands (N) for the engine steps of one window."""
+    h = prep.settings.grid_dt
+    sub = _substeps(h, timestep_s)
+    t0 = prep.t[window.start]
+    times = t0 + timestep_s * np.arange(window.n * sub)
+    seg = prep.segments[int(prep.segment[window.start])]
+    look = times - vessel.thrusters.delay_s + vessel.sensors.pwm_clock_offset_s
+    look = np.clip(look, prep.t[seg.start], prep.t[seg.stop - 1])  # nothing is known outside the segment
+    sl = seg.slice
+    pwm = np.column_stack([hold(prep.t[sl], prep.pwm[sl, j], look) for j in range(2)])
+    return vessel.thrusters.command("pwm", pwm, times)
+
+
+def _substeps(grid_dt: float, timestep_s: float) -> int:
+    sub = int(round(grid_dt / timestep_s))
+    if sub < 1 or abs(sub * timestep_s - grid_dt) > 1e-9:
+        raise TwinError(f"the recording's grid {grid_dt} s is not a multiple of the model time step {timestep_s} s")
+    return sub
+
+
+def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
+    """The first-order lag's state (N) at the window start: the recorded commands since
+    the segment began, filtered (exact discretisation), so a window does not start from
+    a thrust the thrusters never had."""
+    seg = prep.segments[int(prep.segment[window.start])]
+    history = Window(window.rec, seg.start, window.start - seg.start)
+    if history.n == 0:
+        return np.clip(thrust_commands(vessel, prep, Window(window.rec, window.start, 1), timestep_s)[0],
+                       *vessel.thrusters.bounds())
+    cmd = np.clip(thrust_commands(vessel, prep, history, timestep_s), *vessel.thrusters.bounds())
+    from scipy.signal import lfilter
+
+    a = np.exp(-timestep_s / vessel.thrusters.lag_s)
+    filtered, _ = lfilter([1 - a], [1, -a], cmd, axis=0, zi=(a * cmd[0])[None, :])
+    return filtered[-1]
+
+
+def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,
+                   act0: np.ndarray | None, nu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
+    k = w.start
+    du, dv, dr = nu_offset
+    batch._set_initial_state(model, data, (prep.north[k], prep.east[k], prep.psi[k]),
+                             (prep.u[k] + du, prep.v[k] + dv, prep.r[k] + dr))
+    data.time = prep.t[k]
+    if model.na:
+        data.act[:2] = act0
+    state = np.empty(batch.state_size(model))
+    mujoco.mj_getState(model, data, state, batch.FULL)
+    return state
+
+
+# ---------------------------------------------------------------- prediction
+
+@dataclass
+class Prediction:
+    """States at each window's grid samples: index 0 is the measured start, NaN past
+    the window's end or after a divergence. eta (W, n+1, 3) = north, east (m), ψ (rad);
+    nu (W, n+1, 3) = u, v (m/s), r (rad/s)."""
+
+    windows: list[Window]
+    eta: np.ndarray
+    nu: np.ndarray
+    diverged: list[tuple[int, float]]
+
+
+def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list[Window],
+            cache: ModelCache | None = None, nthread: int | None = None,
+            nu_offsets: list | None = None) -> list[Prediction]:
+    """Free runs of every vessel over every window in one batch; one Prediction per vessel.
+
+    `preps` are the recordings as each vessel's sensors see them: either one list
+    shared by all vessels or, for candidates with different sensor calibrations,
+    a list of lists (one per vessel). nu_offsets: per vessel, None or a (u, v, r)
+    added to every window's measured initial velocities (initial-state sensitivities)."""
+    vessels = [vessels] if isinstance(vessels, Vessel) else list(vessels)
+    per_vessel = preps if preps and isinstance(preps[0], list) else [preps] * len(vessels)
+    if not windows:
+        raise TwinError("no window to predict: the recording has no segment long enough")
+    cache = cache or ModelCache()
+    n_max = max(w.n for w in windows)
+    models, states, controls, owners = [], [], [], []
+    offsets = nu_offsets or [None] * len(vessels)
+    for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
+        offset = (0.0, 0.0, 0.0) if offsets[iv] is None else tuple(offsets[iv])
+        if vessel.thrusters.kind != "t200":
+            raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a recording cannot drive it")
+        model = cache.model(vessel)
+        h = model.opt.timestep
+        data = mujoco.MjData(model)
+        for w in windows:
+            prep = vpreps[w.rec]
+            cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na))
+            steps = _substeps(prep.settings.grid_dt, h) * n_max
+            padded = np.zeros((steps, 2))
+            padded[: len(cmd)] = cmd
+            models.append(model)
+            states.append(_initial_state(model, data, prep, w, act0, offset))
+            controls.append(padded)
+            owners.append(iv)
+    traj, diverged = _rollout(models, states, controls, nthread)
+    return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
+                     per_vessel[iv])
+            for iv in range(len(vessels))]
+
+
+def _rollout(models, states, controls, nthread) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
+    """One rollout per state size (a lagged twin carries actuator states, a plain one does not)."""
+    sizes: dict[int, list[int]] = {}
+    for i, s in enumerate(states):
+        sizes.setdefault(len(s), []).append(i)
+    traj: list[np.ndarray | None] = [None] * len(models)
+    diverged = []
+    for rows in sizes.values():
+        out, bad = batch.rollout([models[i] for i in rows], np.array([states[i] for i in rows]),
+                                 np.array([controls[i] for i in rows]), nthread=nthread)
+        for j, i in enumerate(rows):
+            traj[i] = out[j]
+        diverged += [(rows[j], t) for j, t in bad]
+    return traj, diverged
+
+
+def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction:
+    model = models[rows[0]]
+    nq = model.nq
+    qpos, dof = _joint_columns(model)
+    n_max = max(w.n for w in windows)
+    eta = np.full((len(windows), n_max + 1, 3), np.nan)
+    nu = np.full_like(eta, np.nan)
+    bad = {i: t for i, t in diverged}
+    lost = []
+    for j, (row, w) in enumerate(zip(rows, windows)):
+        prep = preps[w.rec]
+        sub = _substeps(prep.settings.grid_dt, model.opt.timestep)
+        picks = traj[row][sub - 1: w.n * sub: sub]
+        eta[j, 0] = (prep.north[w.start], prep.east[w.start], prep.psi[w.start])
+        nu[j, 0] = (prep.u[w.start], prep.v[w.start], prep.r[w.start])
+        e = picks[:, [1 + q for q in qpos]]
+        qv = picks[:, [1 + nq + d for d in dof]]
+        c, s = np.cos(e[:, 2]), np.sin(e[:, 2])
+        eta[j, 1: w.n + 1] = e
+        nu[j, 1: w.n + 1] = np.column_stack([c * qv[:, 0] + s * qv[:, 1], -s * qv[:, 0] + c * qv[:, 1], qv[:, 2]])
+        if row in bad:
+            lost.append((j, bad[row]))
+    return Prediction(list(windows), eta, nu, lost)
+
+
+def _joint_columns(model: mujoco.MjModel) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    from ..engine.callbacks import _joint_indices
+
+    return _joint_indices(model)
+
+
+def measured(preps: list[Prepared], windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
+    """The measurements on the windows' samples, shaped like a Prediction's eta and nu."""
+    n_max = max(w.n for w in windows)
+    eta = np.full((len(windows), n_max + 1, 3), np.nan)
+    nu = np.full_like(eta, np.nan)
+    for j, w in enumerate(windows):
+        p, sl = preps[w.rec], slice(w.start, w.start + w.n + 1)
+        eta[j, : w.n + 1] = np.column_stack([p.north[sl], p.east[sl], p.psi[sl]])
+        nu[j, : w.n + 1] = np.column_stack([p.u[sl], p.v[sl], p.r[sl]])
+    return eta, nu
+
+
+def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window]) -> np.ndarray:
+    """Predicted velocities seen through the measurement's own velocity estimator.
+
+    A Savitzky-Golay slope over ±L = window_s/2 (any polyorder ≤ 2: the quadratic term
+    does not move the centre slope) of a position is the velocity averaged with the
+    Epanechnikov kernel 3(L² − s²)/(4L³). So the measured ν is a smoothed ν, and a
+    fit that compares it with the raw prediction mistakes the smoothing for physics
+    (more lag, less added mass). Smoothing the prediction the same way removes that
+    bias; before the window's start the measured velocities stand in for the prediction,
+    past its end the kernel is truncated and renormalised. u, v use the GNSS window,
+    r the heading window of the preparation."""
+    settings = preps[0].settings
+    if settings.smoother != "savgol":
+        return nu_pred
+    window_s, heading_s = settings.window_s, settings.yaw_rate_window_s
+    return np.concatenate([_smoothed(nu_pred, preps, windows, window_s)[..., :2],
+                           _smoothed(nu_pred, preps, windows, heading_s)[..., 2:]], axis=-1)
+
+
+def _smoothed(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window], window_s: float) -> np.ndarray:
+    """All windows at once: [measured past | prediction | nothing] convolved with the kernel,
+    missing samples left out of both the weighted sum and the weights."""
+    from scipy.ndimage import correlate1d
+
+    h = preps[0].settings.grid_dt
+    half = int(np.floor(window_s / 2 / h + 1e-9))
+    if half < 1:
+        return nu_pred
+    s = np.arange(-half, half + 1) * h
+    kernel = np.maximum(0.0, (window_s / 2) ** 2 - s ** 2)
+    W, n1, _ = nu_pred.shape
+    padded = np.full((W, half + n1 + half, 3), np.nan)
+    padded[:, half: half + n1] = nu_pred
+    past = _past(preps, windows, half)
+    padded[:, :half] = past
+    ok = np.isfinite(padded)
+    num = correlate1d(np.where(ok, padded, 0.0), kernel, axis=1, mode="constant")
+    den = correlate1d(ok.astype(float), kernel, axis=1, mode="constant")
+    out = num[:, half: half + n1] / np.where(den[:, half: half + n1] > 0, den[:, half: half + n1], np.nan)
+    return np.where(np.isfinite(nu_pred), out, np.nan)
+
+
+def _past(preps: list[Prepared], windows: list[Window], half: int) -> np.ndarray:
+    """(W, half, 3) measured ν of the `half` samples before each window (NaN outside its segment)."""
+    out = np.full((len(windows), half, 3), np.nan)
+    for j, w in enumerate(windows):
+        p = preps[w.rec]
+        first = p.segments[int(p.segment[w.start])].start
+        idx = np.arange(w.start - half, w.start)
+        keep = idx >= first
+        out[j, keep] = np.column_stack([p.u[idx[keep]], p.v[idx[keep]], p.r[idx[keep]]])
+    return out

@@ -1,0 +1,106 @@
+"""What ArduPilot's two log formats share: which servo outputs drive the thrusters.
+
+Thrusters: SERVOn_FUNCTION 73 (throttle left) and 74 (throttle right), reversal
+from SERVOn_REVERSED (older: RCn_REVERSED 0/1, RCn_REV −1), trim from SERVOn_TRIM /
+RCn_TRIM (default 1500 µs); or an explicit mapping
+  channels={"left": 1, "right": 3, "reversed": {"left": True, "right": False},
+            "trim": {"left": 1500, "right": 1500}}   ("reversed"/"trim" optional).
+A reversed channel is mirrored around its trim (pwm' = 2·trim − pwm), so the
+Recording always holds "forward thrust = higher PWM". A PWM of 0 (output off) is
+treated as missing.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import TwinError
+from ..recording import Recording, clean_stream, with_common_origin
+
+FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLeft, ThrottleRight
+
+
+# ---------------------------------------------------------------- thrusters
+
+def thruster_mapping(params: dict[str, float], channels: dict | None, notes: list[str]) -> dict | None:
+    """{"left", "right" (1-based output channels), "reversed": {...}, "trim": {...},
+    "from"} from an explicit `channels` dict or the SERVOn_FUNCTION parameters
+    (73 = throttle left, 74 = throttle right); None (with a note) if neither."""
+    if channels is not None:
+        mapping = _explicit(channels)
+    else:
+        found = {side: n for n in range(1, 33) for side, fn in (("left", FUNCTION_LEFT), ("right", FUNCTION_RIGHT))
+                 if params.get(f"SERVO{n}_FUNCTION") == fn}
+        if len(found) < 2:
+            notes.append("no thruster channels: the parameters have no SERVOn_FUNCTION = 73 and 74 "
+                         "(throttle left/right); pass --channels LEFT,RIGHT (Python: channels={'left': n, 'right': m})")
+            return None
+        mapping = {"left": found["left"], "right": found["right"], "reversed": {}, "trim": {},
+                   "from": "SERVOn_FUNCTION"}
+    for side in ("left", "right"):
+        n = mapping[side]
+        mapping["reversed"].setdefault(side, _reversed(params, n))
+        mapping["trim"].setdefault(side, params.get(f"SERVO{n}_TRIM", params.get(f"RC{n}_TRIM", 1500.0)))
+    return mapping
+
+
+def _explicit(channels: dict) -> dict:
+    if not isinstance(channels, dict) or set(channels) - {"left", "right", "reversed", "trim"}:
+        raise TwinError("channels must be a dict with keys left, right and optionally reversed, trim")
+    try:
+        left, right = int(channels["left"]), int(channels["right"])
+    except (KeyError, TypeError, ValueError):
+        raise TwinError("channels needs integer output channel numbers for 'left' and 'right'") from None
+    if not (1 <= left <= 32 and 1 <= right <= 32) or left == right:
+        raise TwinError(f"channels: left={left}, right={right} must be two different channels in 1..32")
+    rev = dict(channels.get("reversed") or {})
+    trim = {k: float(v) for k, v in dict(channels.get("trim") or {}).items()}
+    return {"left": left, "right": right, "reversed": {k: bool(v) for k, v in rev.items()}, "trim": trim,
+            "from": "explicit"}
+
+
+def _reversed(params: dict[str, float], n: int) -> bool:
+    if f"SERVO{n}_REVERSED" in params:
+        return params[f"SERVO{n}_REVERSED"] == 1
+    if f"RC{n}_REVERSED" in params:
+        return params[f"RC{n}_REVERSED"] == 1
+    return params.get(f"RC{n}_REV", 1.0) == -1  # before 3.x: RCn_REV = −1 means reversed
+
+
+def set_pwm(rec: Recording, t, raw: dict[int, list], mapping: dict) -> None:
+    """Store the thruster PWM, mirrored around the trim where reversed."""
+    t = np.asarray(t, dtype=float)
+    raw_lr = {side: np.array(raw[mapping[side]], dtype=float) for side in ("left", "right")}
+    on = (raw_lr["left"] > 0) & (raw_lr["right"] > 0)  # 0 µs: output off or channel unused
+    if not np.all(on):
+        rec.dropped.append(("pwm: samples with the output off (0 µs)", int(np.sum(~on))))
+    cols = {}
+    for side, pwm in raw_lr.items():
+        trim = float(mapping["trim"][side])
+        cols[f"{side}_us"] = (2 * trim - pwm if mapping["reversed"][side] else pwm)[on]
+    rec.pwm = clean_stream("pwm", t[on], cols, rec.dropped)
+    rec.pwm_neutral_us = (float(mapping["trim"]["left"]), float(mapping["trim"]["right"]))
+    rec.channels = mapping
+
+
+# ---------------------------------------------------------------- helpers
+
+def read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise TwinError(f"{path.name}: cannot read ({exc.strerror or exc})") from None
+
+
+def text(x) -> str:
+    return x.decode("ascii", "replace").rstrip("\x00") if isinstance(x, (bytes, bytearray)) else str(x)
+
+
+def finish(rec: Recording) -> Recording:
+    """Common origin; raise if no sample at all is left (read_recording then asks for two in a stream)."""
+    if not any(len(s) for s in rec.streams().values()):
+        why = "; ".join(f"{reason}: {n}" for reason, n in rec.dropped[:3])
+        raise TwinError(f"{Path(rec.source).name}: no usable samples (no GNSS fix, heading, PWM, IMU or battery)"
+                        + (f"; dropped {why}" if why else ""))
+    return with_common_origin(rec)

@@ -1,0 +1,50 @@
+"""The BlueBoat dataset's CSV layout (jankristia/BlueBoatSystemIdentification), an adapter
+onto the generic CSV reader: columns original_timestamp (ms since boot), lat, lon, alt,
+yaw (deg), thr_left, thr_right (µs), thr_left_pwm_zero_point, thr_right_pwm_zero_point
+(µs, neutral, about 1511). The author's surge/sway/yaw_rate estimates are not read.
+
+Its channel labels are swapped and one channel is reversed: the column the dataset calls
+thr_left drives the STARBOARD thruster, reversed (1100 µs drives it forward). With thr_left
+as port every one of the ten runs turns the wrong way (more "left" thrust yaws to port),
+while the tracks follow the heading on straight runs. So thr_right is the port (left)
+thruster and thr_left, mirrored around its neutral, the starboard (right) one.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..recording import Recording, clean_stream
+from .csv import csv_pwm, neutral
+
+COLUMNS = {"original_timestamp", "lat", "lon", "yaw", "thr_left", "thr_right"}
+NEUTRAL_US = 1500.0 + 11.0  # the recordings' neutral, about 1511 µs
+
+
+def matches(header) -> bool:
+    """True when a CSV header is this layout's."""
+    return COLUMNS <= set(header)
+
+
+def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict | None) -> Recording:
+    """The layout's columns `c` (from the CSV reader) as a Recording, thrusters relabelled."""
+    rec = Recording(source=str(path), kind="blueboat-csv")
+    t = c["original_timestamp"] * 1e-3
+    gnss = {"lat_deg": c["lat"], "lon_deg": c["lon"]}
+    if "alt" in c:
+        gnss["alt_m"] = c["alt"]
+    rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
+    rec.heading = clean_stream("heading", t, {"psi_rad": np.radians(c["yaw"])}, rec.dropped)
+    neutral_us = tuple(neutral(c.get(f"thr_{s}_pwm_zero_point"), NEUTRAL_US) for s in ("right", "left"))
+    csv_pwm(rec, t, c["thr_right"], c["thr_left"], neutral_us, {"left": False, "right": True}, channels)
+    rec.notes.append("thrusters: port = column thr_right, starboard = column thr_left mirrored (the dataset's "
+                     "labels are swapped, which every run's turning shows)")
+    g = rec.gnss
+    if len(g) > 1:  # rows at 10 Hz from a slower receiver repeat the fix: say how many
+        same = np.mean((np.diff(g["lat_deg"]) == 0) & (np.diff(g["lon_deg"]) == 0))
+        rec.notes.append(f"GNSS: {100 * same:.0f}% of the rows repeat the previous fix")
+    rec.notes.append("the file's own surge/sway/yaw_rate estimates are not read")
+    return rec
+
+

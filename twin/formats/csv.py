@@ -1,0 +1,207 @@
+"""The generic CSV layout, read and written, and the twin's own run CSV.
+
+Generic CSV (one header line, comma separated, empty or "nan" cells are missing):
+  t                  s, any origin, increasing
+  lat, lon           deg (WGS-84, antenna)     -- or --   north, east   m (local NED)
+                                               -- or --   x, y          m, north, east of the body
+                                                          origin (`twin simulate --out run.csv`)
+  alt                m (optional, with lat/lon)
+  heading_deg        deg from north to east    -- or --   psi           rad
+  pwm_left, pwm_right   µs, forward thrust = higher PWM (optional)
+  pwm_neutral_left, pwm_neutral_right   µs, the PWM of zero thrust (optional, default 1500)
+  yaw_rate           rad/s, gyro (optional; a twin run's r is read as one)
+  voltage            V, battery (optional)
+A twin run's u, v (its true velocities) and thrust_left/right are not read: a
+Recording holds what sensors log. Streams at different rates share the rows.
+`channels={"reversed": {"left": True}, "trim": {"left": 1500, "right": 1500}}` mirrors
+a reversed channel and sets the neutral.
+
+Written: the columns of the streams that have samples, one row per distinct sample
+time (µs) of any stream, an empty cell where a stream has no sample at that time.
+t %.6f s, lat/lon %.10f deg, alt %.4f m, north/east %.6f m, heading_deg %.7f in
+[0, 360), pwm %.10g µs (integers stay integers), yaw_rate %.9f rad/s, voltage %.4f V.
+The PWM neutral columns are written on the PWM rows only when it is not 1500 µs.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import TwinError
+from ..files import write_bytes_atomic
+from ..recording import Recording, clean_stream, with_common_origin
+
+CSV_NEUTRAL_US = 1500.0
+
+
+Layout = Callable[[Path, list[str], dict[str, np.ndarray], dict | None], Recording]
+
+
+def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Callable, Layout], ...] = ()
+             ) -> Recording:
+    """Read a CSV recording: the first adapter whose `matches(header)` holds reads the columns
+    (a dataset's own layout, e.g. blueboat_csv), else the generic layout (module docstring)."""
+    header, cols, malformed = table(path)
+    reader = next((read for matches, read in adapters if matches(header)), None)
+    if reader is not None:
+        rec = reader(path, header, cols, channels)
+    elif "t" in header:
+        rec = _generic(path, header, cols, channels)
+    else:
+        raise TwinError(f"{path.name}: CSV layout not recognised (need a 't' column or a known dataset's columns)")
+    if malformed:
+        rec.dropped.insert(0, ("csv: rows with the wrong number of fields", malformed))
+    if not any(len(s) for s in rec.streams().values()):
+        raise TwinError(f"{path.name}: no usable rows")
+    return with_common_origin(rec)
+
+
+def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], int]:
+    """Header, float columns (non-numbers → NaN) and the number of malformed rows."""
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="replace")  # -sig: a spreadsheet's BOM
+    except OSError as exc:
+        raise TwinError(f"{path.name}: cannot read ({exc.strerror or exc})") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise TwinError(f"{path.name}: empty CSV file")
+    header = [h.strip() for h in rows[0]]
+    good = [r for r in rows[1:] if len(r) == len(header)]
+    malformed = sum(1 for r in rows[1:] if r and len(r) != len(header))
+    cols = {name: np.array([_float(r[i]) for r in good], dtype=float) for i, name in enumerate(header) if name}
+    return header, cols, malformed
+
+
+def _float(s: str) -> float:
+    try:
+        return float(s)
+    except ValueError:
+        return np.nan
+
+
+def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict | None) -> Recording:
+    """Multi-rate streams share the rows: a row whose cells of one stream are all empty
+    is simply not a sample of it (only partly filled rows count as dropped)."""
+    rec = Recording(source=str(path), kind="csv")
+    t = c["t"]
+    if {"lat", "lon"} <= set(header):
+        gnss = {"lat_deg": c["lat"], "lon_deg": c["lon"]} | ({"alt_m": c["alt"]} if "alt" in c else {})
+    elif {"north", "east"} <= set(header):
+        gnss = {"north_m": c["north"], "east_m": c["east"]}
+    elif {"x", "y"} <= set(header):
+        gnss = {"north_m": c["x"], "east_m": c["y"]}
+        rec.meta["positions"] = "body origin"
+        rec.notes.append("positions x, y are north, east of the body origin (a twin run): no lever arm to apply")
+    else:
+        gnss = None
+        rec.notes.append("no GNSS: no lat/lon, north/east or x/y columns")
+    if gnss is not None:
+        rec.gnss = stream("gnss", t, gnss, rec.dropped)
+    psi = np.radians(c["heading_deg"]) if "heading_deg" in c else c.get("psi")
+    if psi is not None:
+        rec.heading = stream("heading", t, {"psi_rad": psi}, rec.dropped)
+    else:
+        rec.notes.append("no heading: no heading_deg or psi column")
+    if {"pwm_left", "pwm_right"} <= set(header):
+        neutral_us = tuple(neutral(c.get(f"pwm_neutral_{side}"), 1500.0) for side in ("left", "right"))
+        csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], neutral_us, {"left": False, "right": False}, channels)
+    yaw_rate = c.get("yaw_rate", c.get("r"))
+    if yaw_rate is not None:
+        rec.imu = stream("imu", t, {"yaw_rate_rads": yaw_rate}, rec.dropped)
+    if "voltage" in c:
+        rec.battery = stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
+    return rec
+
+
+def stream(name: str, t: np.ndarray, cols: dict, dropped: list):
+    """clean_stream on the rows that hold at least one cell of this stream."""
+    present = np.zeros(len(t), bool)
+    for v in cols.values():
+        present |= np.isfinite(v)
+    return clean_stream(name, t[present], {k: v[present] for k, v in cols.items()}, dropped)
+
+
+def neutral(col, default: float) -> float:
+    if col is None or not np.any(np.isfinite(col)):
+        return default
+    return float(np.nanmedian(col))
+
+
+def csv_pwm(rec: Recording, t, left, right, neutral, reversed_: dict, channels: dict | None) -> None:
+    """PWM stream, mirrored around the neutral where the channel is reversed."""
+    if channels is not None:
+        if not isinstance(channels, dict) or set(channels) - {"reversed", "trim"}:
+            raise TwinError("for a CSV recording, channels may only hold 'reversed' and 'trim'")
+        reversed_ = reversed_ | {k: bool(v) for k, v in dict(channels.get("reversed") or {}).items()}
+        trim = dict(channels.get("trim") or {})
+        neutral = (float(trim.get("left", neutral[0])), float(trim.get("right", neutral[1])))
+    cols = {}
+    for side, pwm, n in (("left", left, neutral[0]), ("right", right, neutral[1])):
+        cols[f"{side}_us"] = 2 * n - pwm if reversed_.get(side) else pwm
+    rec.pwm = stream("pwm", t, cols, rec.dropped)
+    rec.pwm_neutral_us = (float(neutral[0]), float(neutral[1]))
+    rec.channels = {"reversed": {k: bool(reversed_.get(k)) for k in ("left", "right")},
+                    "trim": {"left": neutral[0], "right": neutral[1]}, "from": rec.kind}
+
+
+def csv_text(rec: Recording) -> str:
+    """The generic CSV layout of a file-ready recording (times ≥ 0)."""
+    cells = _csv_cells(rec)
+    micros = {name: _micros(name, s.t) for name, s in rec.streams().items() if len(s)}
+    rows_us = np.unique(np.concatenate(list(micros.values())))
+    table = np.full((len(rows_us), len(cells) + 1), "", dtype=object)
+    table[:, 0] = [f"{us // 1_000_000}.{us % 1_000_000:06d}" for us in rows_us.tolist()]
+    for j, (_, name, text) in enumerate(cells, start=1):
+        table[np.searchsorted(rows_us, micros[name]), j] = text
+    lines = [",".join(["t"] + [header for header, _, _ in cells])]
+    lines += [",".join(row) for row in table.tolist()]
+    return "\n".join(lines) + "\n"
+
+
+def _micros(name: str, t: np.ndarray) -> np.ndarray:
+    us = np.round(t * 1e6).astype(np.int64)
+    if np.any(np.diff(us) <= 0):
+        raise TwinError(f"csv: two {name} samples less than 1 µs apart (the layout's time resolution)")
+    return us
+
+
+def _csv_cells(rec: Recording) -> list[tuple[str, str, np.ndarray]]:
+    """(header, stream, formatted values) of every column, in the layout's order."""
+    g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
+    out = []
+    if len(g) and g.has("lat_deg", "lon_deg"):
+        out += [("lat", "gnss", _fmt("%.10f", g["lat_deg"])), ("lon", "gnss", _fmt("%.10f", g["lon_deg"]))]
+        if "alt_m" in g.columns:
+            out.append(("alt", "gnss", _fmt("%.4f", g["alt_m"])))
+    elif len(g):
+        out += [("north", "gnss", _fmt("%.6f", g["north_m"])), ("east", "gnss", _fmt("%.6f", g["east_m"]))]
+    if len(h):
+        out.append(("heading_deg", "heading", _fmt("%.7f", np.degrees(h["psi_rad"]) % 360.0)))
+    if len(p):
+        out += [("pwm_left", "pwm", _fmt("%.10g", p["left_us"])), ("pwm_right", "pwm", _fmt("%.10g", p["right_us"]))]
+        if any(n != CSV_NEUTRAL_US for n in rec.pwm_neutral_us):  # the layout's default neutral needs no column
+            out += [(f"pwm_neutral_{side}", "pwm", _fmt("%.10g", np.full(len(p), n)))
+                    for side, n in zip(("left", "right"), rec.pwm_neutral_us)]
+    if len(imu):
+        out.append(("yaw_rate", "imu", _fmt("%.9f", imu["yaw_rate_rads"])))
+    if len(bat):
+        out.append(("voltage", "battery", _fmt("%.4f", bat["voltage_v"])))
+    return out
+
+
+def _fmt(spec: str, values: np.ndarray) -> np.ndarray:
+    return np.char.mod(spec, np.asarray(values, dtype=float)).astype(object)
+
+
+def write_recording_csv(rec: Recording, path: Path) -> None:
+    """A file-ready recording (times ≥ 0) in the generic layout, atomically."""
+    write_bytes_atomic(path, csv_text(rec).encode())
+
+
+def write_run_csv(run, path: Path) -> None:
+    """A twin run (twin.run.Run) in the run layout t,x,y,psi,u,v,r,pwm_*,thrust_*, atomically."""
+    write_bytes_atomic(path, run.to_csv_text().encode())

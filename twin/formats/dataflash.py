@@ -1,0 +1,290 @@
+"""Runs and recordings as ArduPilot DataFlash logs (.bin), the format the
+vehicle writes, so that log viewers and this project's readers open them.
+
+A DataFlash log is a sequence of messages [0xA3 0x95 type][payload]; the
+first messages are FMT records that describe every type, FMT included.
+Written here: PARM (a recording's own parameters, then the thruster functions
+73/74 on channels 1/3 as ArduRover, and their trims), GPS (lat/lon 1e-7 deg,
+alt cm), ATT (heading, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s) and
+BAT (Volt), each message at its own sample time (TimeUS, µs).
+A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
+the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import struct
+import sys
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import TwinError
+from ..files import write_bytes_atomic
+from ..recording import Recording, clean_stream
+from ..run import Run
+from .ardupilot import finish, set_pwm, thruster_mapping
+from .telemetry import DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, log_parameters, sample
+
+HEAD = b"\xa3\x95"
+SIZES = {"B": 1, "H": 2, "I": 4, "Q": 8, "c": 2, "C": 2, "L": 4, "e": 4, "f": 4, "n": 4, "N": 16, "Z": 64}
+PACK = {"B": "B", "H": "H", "I": "I", "Q": "Q", "c": "h", "C": "H", "L": "i", "e": "i", "f": "f", "n": "4s",
+        "N": "16s", "Z": "64s"}
+FORMATS = {  # type id, name, format, columns (ArduPilot's layouts, trimmed to what is written)
+    "FMT": (128, "BBnNZ", "Type,Length,Name,Format,Columns"),
+    "PARM": (64, "QNf", "TimeUS,Name,Value"),
+    "GPS": (65, "QBBIHBcLLeff", "TimeUS,I,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs"),
+    "ATT": (66, "QccccCCCC", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw"),
+    "RCOU": (67, "Q" + "H" * 14, "TimeUS," + ",".join(f"C{i}" for i in range(1, 15))),
+    "IMU": (68, "QBfff", "TimeUS,I,GyrX,GyrY,GyrZ"),
+    "BAT": (69, "QBf", "TimeUS,Inst,Volt"),
+}
+GPS_EPOCH_UNIX_S = 315964800.0
+LEAP_S = 18.0
+
+
+def _message(name: str, *values) -> bytes:
+    type_id, fmt, _ = FORMATS[name]
+    return HEAD + bytes([type_id]) + struct.pack("<" + "".join(PACK[c] for c in fmt), *values)
+
+
+def _fmt_record(name: str) -> bytes:
+    type_id, fmt, cols = FORMATS[name]
+    length = 3 + sum(SIZES[c] for c in fmt)
+    return _message("FMT", type_id, length, name.encode(), fmt.encode(), cols.encode())
+
+
+def dataflash_bytes(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, start_unix_s: float = 1.7e9,
+                    **rates) -> bytes:
+    tel = sample(run, antenna_body_m, origin, **rates)
+    timed = _parameters(THRUSTER_PARAMS)
+    timed += _gps(tel.gnss_t, tel.lat_deg, tel.lon_deg, np.zeros(len(tel.gnss_t)), tel.speed_m_s, start_unix_s,
+                  tel.course_deg())
+    timed += _attitude(tel.heading_t, tel.psi_rad) + _imu(tel.heading_t, tel.r_rad_s) + _rcou(tel.pwm_t, tel.pwm_us)
+    return _log_bytes(timed)
+
+
+def write_run_bin(run: Run, path, **kwargs) -> None:
+    """Write the run as a DataFlash .bin atomically (temporary name, then rename)."""
+    write_bytes_atomic(path, dataflash_bytes(run, **kwargs))
+
+
+def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
+    """A recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg and whose psi_rad
+    is wrapped (twin.recordings.writers prepares it) as a DataFlash log; TwinError where a value
+    does not fit its field."""
+    g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
+    pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
+    _check_range("PWM (µs)", np.round(pwm), 1, 65535)
+    timed = _parameters(log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(p) > 0))
+    if len(g):
+        alt = g["alt_m"] if g.has("alt_m") else np.zeros(len(g))
+        timed += _gps(g.t, g["lat_deg"], g["lon_deg"], alt, np.zeros(len(g)), start_unix_s)
+    if len(h):
+        timed += _attitude(h.t, h["psi_rad"])
+    if len(imu):
+        timed += _imu(imu.t, imu["yaw_rate_rads"])
+    if len(bat):
+        timed += [(_us(t), _message("BAT", _us(t), 0, float(v))) for t, v in zip(bat.t, bat["voltage_v"])]
+    return _log_bytes(timed + _rcou(p.t, pwm))
+
+
+def write_recording_bin(rec: Recording, path) -> None:
+    """Write the recording as a DataFlash .bin atomically (see recording_bytes)."""
+    write_bytes_atomic(path, recording_bytes(rec))
+
+
+# ---------------------------------------------------------------- messages: (TimeUS, bytes)
+
+def _us(t_s: float) -> int:
+    return int(round(t_s * 1e6))
+
+
+def _parameters(params: dict[str, float]) -> list[tuple[int, bytes]]:
+    return [(0, _message("PARM", 0, name.encode()[:16], float(value))) for name, value in params.items()]
+
+
+def _gps(t_s, lat_deg, lon_deg, alt_m, speed_m_s, start_unix_s: float, course_deg=None) -> list[tuple[int, bytes]]:
+    out = []
+    course_deg = np.zeros(len(t_s)) if course_deg is None else np.nan_to_num(course_deg)
+    for t, la, lo, h, v, c in zip(t_s, lat_deg, lon_deg, alt_m, speed_m_s, course_deg):
+        gps_s = start_unix_s + t - GPS_EPOCH_UNIX_S + LEAP_S
+        us = _us(t)
+        out.append((us, _message("GPS", us, 0, 3, int(round((gps_s % 604800) * 1000)), int(gps_s // 604800), 12, 80,
+                                 int(round(la * 1e7)), int(round(lo * 1e7)), int(round(h * 100)),
+                                 float(v) if np.isfinite(v) else 0.0, float(c))))
+    return out
+
+
+def _attitude(t_s, psi_rad) -> list[tuple[int, bytes]]:
+    return [(_us(t), _message("ATT", _us(t), 0, 0, 0, 0, 0, int(round(np.degrees(psi) % 360.0 * 100)) % 36000, 0, 0))
+            for t, psi in zip(t_s, psi_rad)]
+
+
+def _imu(t_s, yaw_rate_rads) -> list[tuple[int, bytes]]:
+    return [(_us(t), _message("IMU", _us(t), 0, 0.0, 0.0, float(r))) for t, r in zip(t_s, yaw_rate_rads)]
+
+
+def _rcou(t_s, pwm_us) -> list[tuple[int, bytes]]:
+    out = []
+    for t, (left, right) in zip(t_s, pwm_us):
+        ch = [0] * 14
+        ch[LEFT_CHANNEL - 1], ch[RIGHT_CHANNEL - 1] = int(round(left)), int(round(right))
+        out.append((_us(t), _message("RCOU", _us(t), *ch)))
+    return out
+
+
+def _log_bytes(timed: list[tuple[int, bytes]]) -> bytes:
+    timed.sort(key=lambda item: item[0])  # stable: parameters first at 0
+    return b"".join([_fmt_record(n) for n in FORMATS] + [m for _, m in timed])
+
+
+def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
+    from ..errors import TwinError
+
+    bad = (values < lo) | (values > hi)
+    if np.any(bad):
+        raise TwinError(f"bin: {what} {values[bad][0]:g} does not fit DataFlash's range {lo:g}..{hi:g}")
+
+
+# ---------------------------------------------------------------- reading
+# Read with pymavlink's DFReader_binary (current TimeUS and legacy TimeMS layouts; its
+# per-message `_timestamp` is one clock for all messages): GPS (Status ≥ 3, instance 0),
+# ATT (Yaw in degrees), RCOU (C1..C14 or legacy Ch1..Ch12), PARM, BAT (instance 0) or
+# legacy CURR, IMU (GyrZ, instance 0).
+
+DF_WANTED = ["GPS", "ATT", "RCOU", "PARM", "BAT", "CURR", "IMU"]
+
+
+def read_dataflash(path: Path, channels: dict | None) -> Recording:
+    """Read an ArduPilot DataFlash .bin log; see the module docstring."""
+    rows, dropped = _df_messages(path)
+    if not any(rows.values()):
+        raise TwinError(f"{path.name}: no readable DataFlash messages (not a DataFlash log?)")
+    rec = Recording(source=str(path), kind="dataflash", dropped=dropped)
+    rec.parameters = {str(m.Name): float(m.Value) for m in rows["PARM"]}
+    _df_gnss(rec, rows["GPS"])
+    att = rows["ATT"]
+    rec.heading = clean_stream("heading", [m._timestamp for m in att],
+                               {"psi_rad": [np.radians(m.Yaw) for m in att]}, rec.dropped)
+    imu = [m for m in rows["IMU"] if _instance(m) == 0 and hasattr(m, "GyrZ")]
+    rec.imu = clean_stream("imu", [m._timestamp for m in imu], {"yaw_rate_rads": [m.GyrZ for m in imu]}, rec.dropped)
+    _df_pwm(rec, rows["RCOU"], channels)
+    _df_battery(rec, rows)
+    return finish(rec)
+
+
+def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
+    """The wanted messages by type, and what DFReader complained about. It prints
+    its complaints (bad headers, skipped bytes; its Cython indexer straight to
+    file descriptor 2): they are captured and counted instead."""
+    from pymavlink import DFReader
+
+    rows: dict[str, list] = defaultdict(list)
+    stopped = 0
+    with _captured_output() as out:
+        try:
+            log = DFReader.DFReader_binary(str(path), zero_time_base=False)
+        except Exception as exc:  # empty, truncated header, not DataFlash: pymavlink raises anything
+            raise TwinError(f"{path.name}: not a readable DataFlash log ({type(exc).__name__})") from None
+        while True:
+            try:
+                m = log.recv_match(type=DF_WANTED)
+            except Exception:
+                stopped = 1
+                break
+            if m is None:
+                break
+            rows[m.get_type()].append(m)
+    text = out.getvalue()
+    dropped = [(reason, n) for reason, n in (
+        ("dataflash: bad message headers skipped", text.count("bad header")),
+        ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
+        ("dataflash: unreadable rest of the log", stopped),
+        ("dataflash: last message cut short (the log is truncated)", int(_ends_inside_a_message(log)))) if n]
+    return rows, dropped
+
+
+def _ends_inside_a_message(log) -> bool:
+    """True when the file ends before the last message it starts (a log cut short: copied
+    while written, a full card, a half download). DFReader drops that message silently;
+    its index still holds where the message started."""
+    starts = [(offsets[-1], mtype) for mtype, offsets in enumerate(getattr(log, "offsets", None) or []) if offsets]
+    if not starts:
+        return False
+    start, mtype = max(starts)
+    fmt = log.formats.get(mtype)
+    return fmt is not None and start + fmt.len > log.data_len
+
+
+@contextlib.contextmanager
+def _captured_output():
+    """Capture sys.stdout/sys.stderr and, briefly, file descriptor 2 (C code)."""
+    sink = io.StringIO()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield sink
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            sink.write(tmp.read().decode("utf-8", "replace"))
+
+
+def _instance(m) -> int:
+    for name in ("I", "Instance", "Inst"):
+        if name in m.get_fieldnames():
+            return int(getattr(m, name))
+    return 0
+
+
+def _df_gnss(rec: Recording, gps: list) -> None:
+    first = [m for m in gps if _instance(m) == 0]
+    fixed = [m for m in first if m.Status >= 3 and (m.Lat or m.Lng)]
+    if len(fixed) < len(first):
+        rec.dropped.append(("gnss: GPS without a 3-D fix", len(first) - len(fixed)))
+    if not fixed:
+        rec.notes.append("no GNSS: no GPS message with a 3-D fix" if first else "no GNSS: the log has no GPS messages")
+        return
+    cols = {"lat_deg": [m.Lat for m in fixed], "lon_deg": [m.Lng for m in fixed],
+            "alt_m": [getattr(m, "Alt", np.nan) for m in fixed]}
+    rec.gnss = clean_stream("gnss", [m._timestamp for m in fixed], cols, rec.dropped)
+
+
+def _df_pwm(rec: Recording, rcou: list, channels: dict | None) -> None:
+    mapping = thruster_mapping(rec.parameters, channels, rec.notes)
+    if mapping is None or not rcou:
+        if mapping is not None:
+            rec.notes.append("no RCOU messages: no thruster PWM")
+        return
+    fields = rcou[0].get_fieldnames()
+    raw = {}
+    for ch in (mapping["left"], mapping["right"]):
+        name = f"C{ch}" if f"C{ch}" in fields else f"Ch{ch}"  # Ch1..Ch12 in the legacy layout
+        if name not in fields:
+            raise TwinError(f"{Path(rec.source).name}: RCOU has no output channel {ch}")
+        raw[ch] = [getattr(m, name) for m in rcou]
+    set_pwm(rec, [m._timestamp for m in rcou], raw, mapping)
+
+
+def _df_battery(rec: Recording, rows: dict[str, list]) -> None:
+    bat = [m for m in rows["BAT"] if _instance(m) == 0]
+    t = [m._timestamp for m in bat]
+    volt = np.array([m.Volt for m in bat], dtype=float)
+    if not bat and rows["CURR"]:
+        t = [m._timestamp for m in rows["CURR"]]
+        volt = np.array([m.Volt for m in rows["CURR"]], dtype=float)
+        if len(volt) and np.median(volt) > 100:  # legacy CURR logged centivolts
+            volt = volt / 100
+    on = volt > 0  # 0 V: no battery monitor
+    if not np.all(on):
+        rec.dropped.append(("battery: samples at 0 V (no monitor)", int(np.sum(~on))))
+    rec.battery = clean_stream("battery", np.asarray(t, dtype=float)[on], {"voltage_v": volt[on]}, rec.dropped)

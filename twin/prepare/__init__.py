@@ -1,0 +1,7 @@
+"""A recording made ready for fitting (seed 004 §5.1): streams synchronised on one grid,
+GNSS in local NED, the lever arm applied, body velocities, segments without dropouts,
+operating regions; and the model-based smoother, and what `twin convert` writes."""
+from ..geodesy import ned_from_geodetic as geodetic_to_ned
+from .prepared import DEADBAND_US, Preparation, Prepared, Segment, hold, prepare
+
+__all__ = ["DEADBAND_US", "Preparation", "Prepared", "Segment", "geodetic_to_ned", "hold", "prepare"]

@@ -1,0 +1,61 @@
+"""What `twin convert` writes: the recording as read, its navigation streams
+synchronised onto one grid where that is possible.
+
+Where the recording has GNSS and heading, GNSS (as recorded: lat/lon/alt or
+north/east, no lever arm), heading and PWM are held onto the grid of seed 004
+§5.1 (prepare.py: causal zero-order hold, dropouts cut out), so every row of a
+CSV holds all three. A log without GNSS or heading (an ROV, a bench test, a
+broken receiver) cannot be prepared: its streams are written at their own times
+instead. IMU and battery always keep their own times, parameters and PWM neutral
+are carried, and the writer keeps what its format can hold (writers.py).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..errors import TwinError
+from .prepared import hold, prepare
+from ..recording import Recording, Stream
+
+
+@dataclasses.dataclass
+class Conversion:
+    """The recording to write and one line saying how its streams were timed."""
+
+    recording: Recording
+    timing: str
+    synchronised: bool
+
+
+def for_conversion(rec: Recording, grid_dt: float = 0.1) -> Conversion:
+    """GNSS, heading and PWM on one grid of grid_dt s where possible, else every stream as recorded."""
+    if not (np.isfinite(grid_dt) and grid_dt > 0):
+        raise TwinError(f"--grid-dt must be a positive number of seconds, got {grid_dt}")
+    try:
+        prep = prepare(rec, grid_dt=grid_dt)
+    except TwinError as exc:  # why it cannot be synchronised: the recording's own name leads the message
+        reason = str(exc).split(": ", 1)[-1]
+        return Conversion(rec, f"streams at their own times (not synchronised: {reason})", False)
+    t = prep.t
+    gnss = Stream(t, {k: hold(rec.gnss.t, v, t) for k, v in rec.gnss.columns.items()})
+    heading = Stream(t, {"psi_rad": np.angle(np.exp(1j * prep.psi))})
+    pwm = Stream(t, {"left_us": prep.pwm[:, 0], "right_us": prep.pwm[:, 1]}) if len(rec.pwm) else rec.pwm
+    held = [name for name, s in (("gnss", gnss), ("heading", heading), ("pwm", pwm)) if len(s)]
+    timing = (f"{', '.join(held)} synchronised on a {grid_dt:g} s grid ({len(t)} samples in "
+              f"{len(prep.segments)} segment{'s' if len(prep.segments) != 1 else ''})")
+    own = [name for name in ("imu", "battery") if len(getattr(rec, name))]
+    if own:
+        timing += f"; {', '.join(own)} at {'their' if len(own) > 1 else 'its'} own times"
+    return Conversion(dataclasses.replace(rec, gnss=gnss, heading=heading, pwm=pwm), timing, True)
+
+
+def not_kept(rec: Recording, suffix: str) -> list[str]:
+    """What a format cannot hold of this recording, one line each."""
+    out = []
+    if suffix == ".csv" and rec.parameters:
+        out.append(f"the CSV layout has no place for the {len(rec.parameters)} parameters (use .mcap, .tlog or .bin)")
+    if suffix == ".tlog" and len(rec.imu) and not len(rec.heading):
+        out.append("a .tlog carries the yaw rate in ATTITUDE with the heading: without heading the imu stream is lost")
+    return out

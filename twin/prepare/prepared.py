@@ -1,0 +1,338 @@
+"""Data preparation of seed 004 §5.1: a Recording → synchronised kinematics and inputs.
+
+1. Causal synchronisation onto one time grid (step grid_dt): each stream is held
+   (zero-order hold) at its latest sample at or before the grid time, never a
+   later one. The seed extrapolates causally with splines; a hold is the simplest
+   causal choice and adds no overshoot.
+2. GNSS latitude/longitude → local NED, flat earth around the first fix with the
+   WGS-84 meridian and prime-vertical radii of curvature at that latitude.
+3. Lever arm (seed 000 appendix): the antenna O is not the body origin CO;
+   OP = (dx, dy) points from O to CO in body axes, x_CO = x_O + R2(ψ)·OP (eqs. 30-32),
+   V_CO = V_O + r·S·R2(ψ)·OP (eqs. 33-34), (u, v) = R2(ψ)ᵀ·V_CO (eqs. 35-36).
+4. Velocities: V_O and r = dψ/dt by Savitzky-Golay derivatives (seed 004 §5.1,
+   scipy.signal.savgol_filter, ψ unwrapped first), or plain central differences
+   (smoother="none"). Each is taken on the stream's own samples (GNSS at its rate,
+   a fix repeated by a faster logger counted once; heading at its rate) and read
+   at the grid times, not on the held grid values, whose steps would add ripple and
+   half a GNSS period of lag. Savitzky-Golay is a centred window: the smoothing
+   looks ahead by window/2, like the seed's offline filtering; only step 1 is causal.
+5. Segments: the grid is cut wherever a needed stream (GNSS, heading, PWM if any)
+   falls silent for more than max_gap_s; no hold bridges such a dropout and
+   derivatives never cross a cut. Segments shorter than min_segment_s are dropped.
+6. Operating region of each sample (seed 004 §4.2.1): "ff", "fr", "rf", "rr" with
+   the left letter for the left thruster; f when pwm ≥ neutral (forward thrust),
+   r when pwm < neutral. A sample in the dead band (seed 000 Table VII: no thrust
+   for δ̃ in (−0.0925, 0.0775), i.e. about −37..+31 µs around the neutral) is
+   still classified by its sign, and flagged in `in_deadband` so that an
+   identification can leave it out. Region "" when the recording has no PWM.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from ..errors import TwinError
+from ..geodesy import ned_from_geodetic as geodetic_to_ned
+from ..recording import Recording, Stream
+from ..run import Run
+
+DEADBAND_US = (-37.0, 31.0)  # seed 000 Table VII (experimental): 400·(3.75 + δ̃) − 1500
+_EPS_S = 1e-6  # a grid time within this of a sample time counts as "at" the sample
+
+
+@dataclass
+class Segment:
+    """A run of grid samples without dropouts: Prepared arrays [start:stop]."""
+
+    index: int
+    start: int
+    stop: int
+    t0: float
+    t1: float
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.start, self.stop)
+
+
+@dataclass(frozen=True)
+class Preparation:
+    """How a recording was prepared (prepare()'s settings; module docstring) and from which source."""
+
+    grid_dt: float = 0.1
+    smoother: str = "savgol"
+    window_s: float = 1.0
+    heading_window_s: float | None = None
+    polyorder: int = 2
+    max_gap_s: float = 1.0
+    min_segment_s: float = 1.0
+    deadband_us: tuple[float, float] = DEADBAND_US
+    lever_arm_OP_m: tuple[float, float] | None = None
+    source: str = ""
+
+    @property
+    def yaw_rate_window_s(self) -> float:
+        """The yaw rate's Savitzky-Golay window (s): its own, else the GNSS one."""
+        return self.window_s if self.heading_window_s is None else self.heading_window_s
+
+
+@dataclass
+class Prepared:
+    """Synchronised samples at the grid times t (s, recording origin), segments
+    concatenated: CO position north, east (m), heading psi (rad, unwrapped),
+    body velocities u, v (m/s) and yaw rate r (rad/s), thruster PWM (n, 2) µs
+    (left, right; forward = higher), segment id (n,), region (n,) and
+    in_deadband (n, 2)."""
+
+    t: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+    psi: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    r: np.ndarray
+    pwm: np.ndarray
+    segment: np.ndarray
+    region: np.ndarray
+    in_deadband: np.ndarray
+    segments: list[Segment]
+    pwm_neutral_us: tuple[float, float] = (1500.0, 1500.0)
+    origin: dict = field(default_factory=dict)
+    settings: Preparation = field(default_factory=Preparation)
+    dropped: list[tuple[str, int]] = field(default_factory=list)
+
+
+def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None, grid_dt: float = 0.1,
+            smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
+            heading_window_s: float | None = None,
+            min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US) -> Prepared:
+    """Seed 004 §5.1 data preparation of `rec` (see the module docstring).
+
+    lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
+    (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
+    body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
+    its degree; heading_window_s: the yaw rate's window (default window_s), which a
+    fast AHRS can afford shorter."""
+    _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
+    name = Path(rec.source).name
+    if not len(rec.gnss) or not len(rec.heading):
+        missing = " and ".join(s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower())))
+        raise TwinError(f"{name}: cannot prepare without {missing} samples")
+    north_o, east_o, origin = local_ned(rec.gnss)
+    pos = Stream(rec.gnss.t, {"north": north_o, "east": east_o})
+    hdg = Stream(rec.heading.t, {"psi": np.unwrap(rec.heading["psi_rad"])})
+    needed = [pos, hdg] + ([rec.pwm] if len(rec.pwm) else [])
+    grid = _grid(needed, grid_dt)
+    if grid is None:
+        raise TwinError(f"{name}: the GNSS, heading and PWM streams do not overlap in time")
+    valid = np.ones(len(grid), bool)
+    for s in needed:
+        valid &= _fresh(s.t, grid, max_gap_s)
+    runs = _runs(valid, int(np.ceil(min_segment_s / grid_dt - 1e-9)))
+    if not runs:
+        raise TwinError(f"{name}: no stretch of {min_segment_s:g} s without a dropout > {max_gap_s:g} s")
+    dropped = _dropped_runs(valid, runs)
+    idx = np.concatenate([np.arange(a, b) for a, b in runs])
+    t = grid[idx]
+    n_o, e_o = hold(pos.t, north_o, t), hold(pos.t, east_o, t)
+    psi = hold(hdg.t, hdg["psi"], t)
+    seg_id = np.concatenate([np.full(b - a, k) for k, (a, b) in enumerate(runs)])
+    segments = _segments(runs, t)
+    heading_window_s = window_s if heading_window_s is None else heading_window_s
+    _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
+    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder)
+    north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
+    pwm, region, dead = _inputs(rec, t, deadband_us)
+    settings = Preparation(grid_dt, smoother, window_s, heading_window_s, polyorder, max_gap_s, min_segment_s,
+                           tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
+                           rec.source)
+    return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
+                    tuple(rec.pwm_neutral_us), origin, settings, dropped)
+
+
+def _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s) -> None:
+    if not (np.isfinite(grid_dt) and grid_dt > 0):
+        raise TwinError(f"grid_dt must be a positive number of seconds, got {grid_dt}")
+    if smoother not in ("savgol", "none"):
+        raise TwinError(f"smoother must be 'savgol' or 'none', got {smoother!r}")
+    if smoother == "savgol" and not (window_s > 0 and 0 <= polyorder <= 5):
+        raise TwinError(f"savgol needs window_s > 0 and polyorder 0..5, got {window_s}, {polyorder}")
+    if not max_gap_s > 0:
+        raise TwinError(f"max_gap_s must be positive, got {max_gap_s}")
+
+
+# ---------------------------------------------------------------- geodesy
+
+def local_ned(gnss: Stream) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Antenna north, east (m) from a gnss stream: lat/lon (deg) projected around
+    the first fix, or the stream's own north_m/east_m."""
+    if gnss.has("lat_deg", "lon_deg"):
+        lat0, lon0 = float(gnss["lat_deg"][0]), float(gnss["lon_deg"][0])
+        h0 = float(gnss["alt_m"][0]) if gnss.has("alt_m") and np.isfinite(gnss["alt_m"][0]) else 0.0
+        n, e = geodetic_to_ned(gnss["lat_deg"], gnss["lon_deg"], lat0, lon0, h0)
+        return n, e, {"lat_deg": lat0, "lon_deg": lon0, "alt_m": h0}
+    if gnss.has("north_m", "east_m"):
+        return np.asarray(gnss["north_m"], float), np.asarray(gnss["east_m"], float), {}
+    raise TwinError("the gnss stream has neither lat_deg/lon_deg nor north_m/east_m")
+
+
+# ---------------------------------------------------------------- synchronisation
+
+def _grid(streams: list[Stream], dt: float) -> np.ndarray | None:
+    """Grid from the time every stream has a first sample to the end of the
+    earliest-ending stream."""
+    t0 = max(s.t[0] for s in streams)
+    t1 = min(s.t[-1] for s in streams)
+    if t1 < t0:
+        return None
+    return t0 + dt * np.arange(int(np.floor((t1 - t0) / dt + 1e-9)) + 1)
+
+
+def hold(ts: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Zero-order hold: the latest value at or before each time t (causal: no
+    later sample is used). NaN before the first sample."""
+    i = np.searchsorted(ts, t + _EPS_S, side="right") - 1
+    out = np.asarray(values, float)[np.clip(i, 0, None)]
+    return np.where(i >= 0, out, np.nan)
+
+
+def _fresh(ts: np.ndarray, t: np.ndarray, max_gap_s: float) -> np.ndarray:
+    """True where the held sample is not inside a dropout: the interval from the
+    held sample to the next one is ≤ max_gap_s (or t is at the sample itself)."""
+    i = np.searchsorted(ts, t + _EPS_S, side="right") - 1
+    ok = i >= 0
+    ic = np.clip(i, 0, len(ts) - 1)
+    nxt = np.where(ic + 1 < len(ts), ts[np.minimum(ic + 1, len(ts) - 1)], np.inf)
+    at_sample = np.abs(t - ts[ic]) <= _EPS_S
+    return ok & ((nxt - ts[ic] <= max_gap_s) | at_sample)
+
+
+def _runs(valid: np.ndarray, min_len: int) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the runs of True at least min_len long."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
+    pairs = list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+    return [(a, b) for a, b in pairs if b - a >= max(min_len, 2)]
+
+
+def _dropped_runs(valid: np.ndarray, runs: list[tuple[int, int]]) -> list[tuple[str, int]]:
+    kept = sum(b - a for a, b in runs)
+    out = []
+    if np.sum(~valid):
+        out.append(("grid samples inside dropouts", int(np.sum(~valid))))
+    if int(np.sum(valid)) - kept:
+        out.append(("grid samples in segments too short", int(np.sum(valid)) - kept))
+    return out
+
+
+def _segments(runs: list[tuple[int, int]], t: np.ndarray) -> list[Segment]:
+    out, start = [], 0
+    for k, (a, b) in enumerate(runs):
+        stop = start + (b - a)
+        out.append(Segment(k, start, stop, float(t[start]), float(t[stop - 1])))
+        start = stop
+    return out
+
+
+# ---------------------------------------------------------------- kinematics
+
+def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segment], smoother: str,
+                  windows_s: tuple[float, float], polyorder: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Antenna velocity north, east (m/s) and yaw rate (rad/s) at the grid times t, each
+    differentiated on its own stream inside each segment (windows: GNSS, heading)."""
+    vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
+    for seg in segments:
+        tg = t[seg.slice]
+        vn[seg.slice], ve[seg.slice] = (_rate_at(pos.t, pos[k], tg, smoother, windows_s[0], polyorder, True)
+                                        for k in ("north", "east"))
+        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False)
+    return vn, ve, r
+
+
+_RATES: dict[tuple, np.ndarray] = {}  # _rate_at by content: a diagnosis re-prepares a recording for
+# every heading or antenna calibration it tries, and those leave the GNSS velocities as they were
+
+
+def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
+             drop_repeats: bool) -> np.ndarray:
+    """dx/dt at the grid times tg from the samples (ts, x) of one stream over tg's span
+    (the sample held at tg[0] included): resampled at the stream's own median period,
+    differentiated, interpolated at tg."""
+    key = (hash(ts.tobytes()), hash(x.tobytes()), hash(tg.tobytes()), smoother, window_s, polyorder, drop_repeats)
+    if key not in _RATES:
+        if len(_RATES) >= 512:
+            _RATES.pop(next(iter(_RATES)))
+        _RATES[key] = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
+    return _RATES[key].copy()
+
+
+def _rate_uncached(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
+                   drop_repeats: bool) -> np.ndarray:
+    lo = max(int(np.searchsorted(ts, tg[0] + _EPS_S, side="right")) - 1, 0)
+    hi = int(np.searchsorted(ts, tg[-1] + _EPS_S, side="right"))
+    ts, x = ts[lo:hi], x[lo:hi]
+    if drop_repeats and len(x) > 2:  # a fix logged again by a faster logger carries no new time
+        new = np.r_[True, np.diff(x) != 0]
+        new[-1] = True
+        ts, x = ts[new], x[new]
+    if len(ts) < 2:
+        return np.zeros(len(tg))
+    dt = float(np.median(np.diff(ts)))
+    tu = ts[0] + dt * np.arange(int(np.floor((ts[-1] - ts[0]) / dt + 1e-9)) + 1)
+    rate = derivative(np.interp(tu, ts, x), dt, smoother, window_s, polyorder)
+    return np.interp(tg, tu, rate)
+
+
+def _kinematics(n_o, e_o, psi, rates, lever_arm):
+    """CO position (eq. 32), body velocities (eqs. 33-36) and yaw rate."""
+    c, s = np.cos(psi), np.sin(psi)
+    dx, dy = (0.0, 0.0) if lever_arm is None else map(float, lever_arm)
+    arm_n, arm_e = c * dx - s * dy, s * dx + c * dy  # R2(ψ)·OP, eq. 31
+    north, east = n_o + arm_n, e_o + arm_e  # eq. 32
+    vn, ve, r = rates
+    vn, ve = vn - r * arm_e, ve + r * arm_n  # eqs. 33-34: V_CO = V_O + r·S·R2·OP, S = [[0, −1], [1, 0]]
+    u, v = c * vn + s * ve, -s * vn + c * ve  # eqs. 35-36: (u, v) = R2ᵀ·V_CO
+    return north, east, u, v, r
+
+
+def derivative(x: np.ndarray, dt: float, smoother: str, window_s: float, polyorder: int) -> np.ndarray:
+    """dx/dt of one segment sampled every dt: Savitzky-Golay (window shrunk to the
+    segment if needed) or central differences."""
+    n = len(x)
+    if smoother == "savgol":
+        w = min(int(round(window_s / dt)) | 1, n if n % 2 else n - 1)
+        if w > polyorder:
+            return savgol_filter(x, w, polyorder, deriv=1, delta=dt, mode="interp")
+    return np.gradient(x, dt) if n > 1 else np.zeros(n)
+
+
+# ---------------------------------------------------------------- inputs
+
+def _inputs(rec: Recording, t: np.ndarray, deadband_us) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """PWM held on the grid (n, 2), region ("ff", "fr", "rf", "rr"; "" without PWM)
+    and the dead-band flags (n, 2)."""
+    if not len(rec.pwm):
+        nan = np.full((len(t), 2), np.nan)
+        return nan, np.full(len(t), "", dtype="<U2"), np.zeros((len(t), 2), bool)
+    pwm = np.column_stack([hold(rec.pwm.t, rec.pwm["left_us"], t), hold(rec.pwm.t, rec.pwm["right_us"], t)])
+    offset = pwm - np.asarray(rec.pwm_neutral_us, float)
+    letters = np.where(offset >= 0, "f", "r")  # by sign, dead band included (module docstring)
+    region = np.char.add(letters[:, 0], letters[:, 1]).astype("<U2")
+    dead = (offset > deadband_us[0]) & (offset < deadband_us[1])
+    return pwm, region, dead
+
+
+def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:
+    """A run's true states as a one-segment Prepared recording (for tests and truth)."""
+    n = len(run.t)
+    offset = run.pwm_us - np.asarray(neutral_us)
+    letters = np.where(offset >= 0, "f", "r")
+    region = np.char.add(letters[:, 0], letters[:, 1]).astype("<U2")
+    dt = float(np.median(np.diff(run.t))) if n > 1 else 0.1
+    return Prepared(run.t.copy(), run.eta[:, 0].copy(), run.eta[:, 1].copy(), run.eta[:, 2].copy(),
+                    run.nu[:, 0].copy(), run.nu[:, 1].copy(), run.nu[:, 2].copy(), run.pwm_us.astype(float),
+                    np.zeros(n, int), region, np.zeros((n, 2), bool), [Segment(0, 0, n, float(run.t[0]),
+                                                                                 float(run.t[-1]))],
+                    tuple(neutral_us), settings=Preparation(grid_dt=round(dt, 9), smoother="none", source="run"))

@@ -1,0 +1,241 @@
+"""The Recording type: time-stamped sensor streams of a real (or replayed) run.
+
+Each stream has its own time base t (s, strictly increasing) measured from one
+common origin (`Recording.origin_s`, in the source's own clock), because real
+sensors are not sampled together: GNSS at 1-10 Hz, heading at 10-50 Hz, PWM at
+10 Hz. Synchronising them onto one grid is `prepare.py`'s job, not the reader's.
+
+Streams and their columns (SI units, NED, ψ from north towards east):
+  gnss     lat_deg, lon_deg, alt_m (geodetic, antenna)   and/or   north_m, east_m (local)
+  heading  psi_rad
+  pwm      left_us, right_us  (already mirrored so that forward thrust = higher PWM)
+  imu      yaw_rate_rads (gyro z, body FRD)
+  battery  voltage_v
+"""
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import TwinError
+
+GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
+STREAMS = ("gnss", "heading", "pwm", "imu", "battery")
+# values no sensor can report: a sample holding one is corrupt, dropped and counted
+PLAUSIBLE = {
+    "lat_deg": (-90.0, 90.0, "latitude outside ±90°"),
+    "lon_deg": (-180.0, 180.0, "longitude outside ±180°"),
+    "left_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),  # servo outputs span about 800-2200 µs
+    "right_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),
+}
+
+
+@dataclass
+class Stream:
+    """One sensor stream: sample times t (s from the recording origin) and named columns."""
+
+    t: np.ndarray
+    columns: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @classmethod
+    def empty(cls, *names: str) -> "Stream":
+        return cls(np.zeros(0), {n: np.zeros(0) for n in names})
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def has(self, *names: str) -> bool:
+        """True if the stream has samples and all the named columns."""
+        return len(self.t) > 0 and all(n in self.columns for n in names)
+
+    def shifted(self, dt: float) -> "Stream":
+        """The same samples with t − dt (used to move the origin)."""
+        return Stream(self.t - dt, self.columns)
+
+    def median_rate_hz(self) -> float:
+        """1 / median sample interval (Hz); 0 with fewer than two samples."""
+        if len(self.t) < 2:
+            return 0.0
+        return float(1.0 / np.median(np.diff(self.t)))
+
+    def gaps(self, threshold_s: float = GAP_S) -> np.ndarray:
+        """Lengths (s) of the intervals between samples longer than threshold_s."""
+        d = np.diff(self.t)
+        return d[d > threshold_s]
+
+
+@dataclass
+class Recording:
+    """Streams of one recording plus what the reader learnt and what it skipped.
+
+    `dropped` lists (reason, count) of what the reader skipped or found missing
+    (bad-CRC packets, NaN rows, backwards time, GNSS without fix, dropouts > 1 s);
+    `notes` are one-line remarks (no GNSS in this log, how the thrusters were mapped).
+    `pwm_neutral_us` is the (left, right) PWM of zero thrust after mirroring.
+    """
+
+    source: str
+    kind: str
+    gnss: Stream = field(default_factory=lambda: Stream.empty("lat_deg", "lon_deg", "alt_m"))
+    heading: Stream = field(default_factory=lambda: Stream.empty("psi_rad"))
+    pwm: Stream = field(default_factory=lambda: Stream.empty("left_us", "right_us"))
+    imu: Stream = field(default_factory=lambda: Stream.empty("yaw_rate_rads"))
+    battery: Stream = field(default_factory=lambda: Stream.empty("voltage_v"))
+    parameters: dict[str, float] = field(default_factory=dict)
+    pwm_neutral_us: tuple[float, float] = (1500.0, 1500.0)
+    channels: dict = field(default_factory=dict)
+    origin_s: float = 0.0
+    dropped: list[tuple[str, int]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+    def streams(self) -> dict[str, Stream]:
+        return {name: getattr(self, name) for name in STREAMS}
+
+    def duration_s(self) -> float:
+        """Time from the first to the last sample of any stream (s)."""
+        ts = [s.t for s in self.streams().values() if len(s)]
+        if not ts:
+            return 0.0
+        return float(max(t[-1] for t in ts) - min(t[0] for t in ts))
+
+    def summary(self) -> dict:
+        """Plain-data description for `twin info`: duration, per-stream counts,
+        median rates and dropouts (> 1 s), what was dropped, notes."""
+        streams = {}
+        for name, s in self.streams().items():
+            gaps = s.gaps()
+            streams[name] = {
+                "samples": len(s),
+                "rate_hz": round(s.median_rate_hz(), 3),
+                "t_first_s": round(float(s.t[0]), 3) if len(s) else None,
+                "t_last_s": round(float(s.t[-1]), 3) if len(s) else None,
+                "gaps": len(gaps),
+                "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
+            }
+        return {
+            "source": self.source,
+            "kind": self.kind,
+            "duration_s": round(self.duration_s(), 3),
+            "streams": streams,
+            "channels": self.channels,
+            "pwm_neutral_us": list(self.pwm_neutral_us),
+            "parameters": len(self.parameters),
+            "dropped": [[reason, int(n)] for reason, n in self.dropped],
+            "notes": list(self.notes),
+        }
+
+
+def format_summary(summary: dict) -> str:
+    """The summary as a few human-readable lines (what `twin info` prints)."""
+    lines = [f"{summary['source']} ({summary['kind']}): {summary['duration_s']:.1f} s, "
+             f"{summary['parameters']} parameters"]
+    for name, s in summary["streams"].items():
+        if s["samples"]:
+            gap = f", {s['gaps']} gaps > {GAP_S:g} s (longest {s['longest_gap_s']:.1f} s)" if s["gaps"] else ""
+            lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}")
+        else:
+            lines.append(f"  {name:8s}       - none")
+    lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"]]
+    lines += [f"  note: {note}" for note in summary["notes"]]
+    return "\n".join(lines)
+
+
+def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
+    """A Stream from raw samples, dropping (and recording in `dropped`) samples with
+    non-finite time or values, values no sensor can report (PLAUSIBLE), samples
+    repeating the previous time and samples whose time goes backwards.
+
+    For the time order the longest strictly increasing run of samples is kept, so
+    one wild timestamp (forwards or backwards) costs one sample, not the rest of
+    the file; a clock reset keeps the longer part."""
+    t = np.asarray(t, dtype=float)
+    cols = {k: np.asarray(v, dtype=float) for k, v in columns.items()}
+    ok = np.isfinite(t)
+    for v in cols.values():
+        ok &= np.isfinite(v)
+    _note(dropped, f"{name}: samples with NaN or missing values", int(np.sum(~ok)))
+    t, cols = t[ok], {k: v[ok] for k, v in cols.items()}
+    ok = _plausible(name, len(t), cols, dropped)
+    t, cols = t[ok], {k: v[ok] for k, v in cols.items()}
+    again = np.zeros(len(t), bool)
+    again[1:] = np.diff(t) == 0  # the same sample sent twice (e.g. a 5 Hz fix at 10 Hz)
+    _note(dropped, f"{name}: samples repeating the previous time", int(np.sum(again)))
+    t, cols = t[~again], {k: v[~again] for k, v in cols.items()}
+    keep = increasing_subsequence(t)
+    _note(dropped, f"{name}: samples with time going backwards", len(t) - len(keep))
+    t, cols = t[keep], {k: v[keep] for k, v in cols.items()}
+    stream = Stream(t, cols)
+    if name in ("gnss", "heading", "pwm"):
+        _note(dropped, f"{name}: dropouts > {GAP_S:g} s", len(stream.gaps()))
+    return stream
+
+
+def _plausible(name: str, n: int, cols: dict[str, np.ndarray], dropped: list) -> np.ndarray:
+    """Mask of the n samples whose values are all within PLAUSIBLE; the others counted by reason."""
+    ok = np.ones(n, bool)
+    reasons: dict[str, np.ndarray] = {}
+    for col, v in cols.items():
+        if col in PLAUSIBLE:
+            lo, hi, reason = PLAUSIBLE[col]
+            out = (v < lo) | (v > hi)
+            reasons[reason] = reasons.get(reason, np.zeros(len(v), bool)) | out
+            ok &= ~out
+    for reason, out in reasons.items():
+        _note(dropped, f"{name}: {reason}", int(np.sum(out)))
+    return ok
+
+
+def increasing_subsequence(t: np.ndarray) -> np.ndarray:
+    """Indices of a longest strictly increasing subsequence of t (O(n log n))."""
+    n = len(t)
+    if n < 2 or np.all(np.diff(t) > 0):
+        return np.arange(n)
+    tails: list[float] = []  # smallest tail value of an increasing run of each length
+    tail_idx: list[int] = []
+    prev = np.full(n, -1)
+    for i, x in enumerate(t.tolist()):
+        k = bisect.bisect_left(tails, x)
+        if k == len(tails):
+            tails.append(x)
+            tail_idx.append(i)
+        else:
+            tails[k], tail_idx[k] = x, i
+        prev[i] = tail_idx[k - 1] if k else -1
+    out, i = [], tail_idx[-1]
+    while i >= 0:
+        out.append(i)
+        i = prev[i]
+    return np.array(out[::-1], dtype=int)
+
+
+def _note(dropped: list, reason: str, count: int) -> None:
+    if count:
+        dropped.append((reason, int(count)))
+
+
+def check_usable(rec: Recording, name: str) -> None:
+    """TwinError (one line) unless some stream has two samples or more: one sample has no
+    duration, rate or motion, so a file reduced to that (reversed time, one row) is not a
+    recording."""
+    if any(len(s) >= 2 for s in rec.streams().values()):
+        return
+    why = "; ".join(f"{reason}: {n}" for reason, n in rec.dropped[:3])
+    raise TwinError(f"{name}: nothing usable: no stream has two samples with increasing time"
+                    + (f" (dropped {why})" if why else ""))
+
+
+def with_common_origin(rec: Recording) -> Recording:
+    """Shift all streams so that the earliest sample of any stream is at t = 0."""
+    firsts = [s.t[0] for s in rec.streams().values() if len(s)]
+    if firsts:
+        t0 = float(min(firsts))
+        for name, s in rec.streams().items():
+            setattr(rec, name, s.shifted(t0))
+        rec.origin_s += t0
+    return rec

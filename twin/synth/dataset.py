@@ -1,0 +1,208 @@
+"""Synthetic identification datasets from the twin (seed 004 §6.1 in shape): a truth
+vessel (the vessel description with effects injected by name), trajectory segments
+of identification manoeuvres separated by gaps, and the sensors an ArduPilot boat
+logs at their real rates and noise (seed 004 §3, Table 1):
+
+  GNSS     lat/lon of the antenna (MJCF gnss site + the sensors' offset, seed 000
+           appendix), every 200 ms, a small white jitter plus a smooth slow wander
+  heading  AHRS ψ with the sensors' bias/deviation, every 20 ms, white noise
+  PWM      the autopilot's output, every 100 ms, integer µs, stamped with the
+           sensors' PWM clock offset
+
+The result is a `Recording` (written by `twin.recordings.write_recording` as .tlog,
+.mcap or .csv) and, separately, the truth: the truth vessel, the effects, the noise,
+the seed and the noise-free states. Identification never reads the truth.
+Open-loop segments run in one batch (`engine.batch.simulate_many`); closed-loop
+ones (zig-zag, autopilot) step the engine with their controller.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..engine.batch import simulate_many
+from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..engine.sim import simulate
+from ..errors import TwinError
+from ..geodesy import geodetic_from_ned
+from ..drive import InputSeries
+from ..physics.kinematics import wrap_angle
+from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading
+from ..recording import Recording, Stream
+from ..run import Run
+from ..vessel import Vessel
+from . import manoeuvres as man
+from ..effects import apply_effects, as_effect
+
+ORIGIN = (37.4136, -5.9786, 0.0)  # Seville, the Yellowfish's home waters; any origin works
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Noise of the logged sensors. GNSS: white jitter σ per axis plus a smooth wander (σ,
+    time scale): a receiver's own filter makes epoch-to-epoch jitter small (cm) while
+    the position wanders by decimetres over a minute; heading: white σ. Rates of
+    seed 004 Table 1."""
+
+    gnss_white_m: float = 0.02
+    gnss_wander_m: float = 0.5
+    gnss_wander_s: float = 60.0
+    heading_deg: float = 0.3
+    gnss_dt_s: float = 0.2
+    heading_dt_s: float = 0.02
+    pwm_dt_s: float = 0.1
+
+
+PROFILES = {"realistic": SensorNoise(), "rtk": SensorNoise(0.01, 0.0, 60.0, 0.1),
+            "noisy": SensorNoise(0.1, 1.0, 60.0, 1.0), "none": SensorNoise(0.0, 0.0, 60.0, 0.0)}
+
+
+def noise_profile(text: str) -> SensorNoise:
+    """A profile name (realistic, rtk, none) or 'GNSS_M,HEADING_DEG' white noise levels."""
+    if text in PROFILES:
+        return PROFILES[text]
+    try:
+        gnss, heading = (float(x) for x in text.split(","))
+    except ValueError:
+        raise TwinError(f"noise '{text}': use {', '.join(PROFILES)} or GNSS_M,HEADING_DEG") from None
+    if gnss < 0 or heading < 0:
+        raise TwinError("noise levels must be ≥ 0")
+    return SensorNoise(gnss, 0.0, 60.0, heading)
+
+
+@dataclass
+class Dataset:
+    recording: Recording
+    truth_vessel: Vessel
+    effects: list
+    noise: SensorNoise
+    seed: int
+    manoeuvres: list[man.Manoeuvre]
+    runs: list[Run] = field(default_factory=list)  # noise-free states of each segment
+
+    def truth(self) -> dict:
+        """Everything identification must not see, as plain data."""
+        return {
+            "vessel": self.truth_vessel.to_dict(),
+            "effects": [as_effect(e).to_dict() for e in self.effects],
+            "noise": asdict(self.noise),
+            "seed": self.seed,
+            "segments": [{"manoeuvre": m.name, "t0_s": float(r.t[0]), "t1_s": float(r.t[-1])}
+                         for m, r in zip(self.manoeuvres, self.runs)],
+            "states": [{"t": _rounded(r.t, 3), "north": _rounded(r.eta[:, 0]), "east": _rounded(r.eta[:, 1]),
+                        "psi": _rounded(r.eta[:, 2]), "u": _rounded(r.nu[:, 0]), "v": _rounded(r.nu[:, 1]),
+                        "r": _rounded(r.nu[:, 2]), "thrust_left": _rounded(r.thrust_n[:, 0]),
+                        "thrust_right": _rounded(r.thrust_n[:, 1])} for r in self.runs],
+        }
+
+
+def _rounded(a: np.ndarray, digits: int = 6) -> list[float]:
+    return [round(float(x), digits) for x in a]
+
+
+def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: list[str] | None = None, seed: int = 0,
+             noise: SensorNoise = SensorNoise(), gap_s: float = 6.0,
+             segment_s: tuple[float, float] = (40.0, 90.0)) -> Dataset:
+    """A dataset of `n_segments` manoeuvres of the vessel with `effects` injected (see
+    twin.ident.effects), logged by noisy sensors; reproducible from `seed`."""
+    truth = apply_effects(vessel, effects)
+    if truth.thrusters.kind != "t200":
+        raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a dataset logs PWM")
+    rng = np.random.default_rng(seed)
+    plan = man.plan(list(manoeuvres or man.ALL), n_segments, rng, segment_s)
+    compiled = compile_vessel(truth)
+    starts = np.cumsum([0.0] + [m.duration_s + gap_s for m in plan[:-1]])
+    eta0 = [(float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-np.pi, np.pi)))
+            for _ in plan]
+    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s)
+    recording = _log(compiled, runs, noise, rng, f"synthetic:{vessel.name}:seed{seed}")
+    return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
+
+
+LEAD_IN_S = 5.0  # unlogged seconds before each segment: a logged segment starts under way, as real ones do
+
+
+def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float) -> list[Run]:
+    runs: list[Run | None] = [None] * len(plan)
+    open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)]
+    if open_idx:
+        batch = simulate_many(compiled, [_led_in(plan[i].drive) for i in open_idx],
+                              [plan[i].duration_s + LEAD_IN_S for i in open_idx], eta0=[eta0[i] for i in open_idx],
+                              start_s=[starts[i] - LEAD_IN_S for i in open_idx], sample_dt_s=sample_dt_s)
+        if batch.diverged:
+            (k, t), *_ = batch.diverged
+            i = open_idx[k]
+            raise TwinError(f"the twin diverged in segment {i + 1} ({plan[i].name}) at {t - starts[i]:.2f} s "
+                            f"after its logged start: the vessel's parameters do not give a stable twin "
+                            f"({batch.describe_divergence()})")
+        for i, run in zip(open_idx, batch):
+            runs[i] = run
+    for i, m in enumerate(plan):
+        if runs[i] is None:
+            runs[i] = simulate(compiled, m.drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
+                               sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S)
+    return [_logged_part(r, float(t0)) for r, t0 in zip(runs, starts)]
+
+
+def _led_in(series: InputSeries) -> InputSeries:
+    """The series delayed by the lead-in, its first input held meanwhile."""
+    return InputSeries(np.concatenate([[0.0], series.t + LEAD_IN_S]), np.vstack([series.values[:1], series.values]),
+                       series.kind)
+
+
+def _logged_part(run: Run, t0: float) -> Run:
+    keep = run.t >= t0 - 1e-9
+    inputs = run.meta["inputs"]
+    shifted = InputSeries(inputs.t - LEAD_IN_S, inputs.values, inputs.kind)  # on the logged segment's clock
+    return Run(run.t[keep], run.eta[keep], run.nu[keep], run.pwm_us[keep], run.thrust_n[keep],
+               meta={**run.meta, "inputs": shifted, "start_s": t0})
+
+
+# ---------------------------------------------------------------- sensors
+
+def _wander(rng: np.random.Generator, n: int, dt: float, sigma: float, scale_s: float) -> np.ndarray:
+    """Smooth random wander of standard deviation σ over time scale scale_s: white noise
+    through a Gaussian filter (a first-order Markov process would be rough, and its
+    derivative would swamp the velocities, which a real receiver's does not)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    if sigma <= 0 or n == 0:
+        return np.zeros(n)
+    width = scale_s / dt / 2.0
+    pad = int(4 * width)
+    smooth = gaussian_filter1d(rng.normal(0.0, 1.0, n + 2 * pad), width)[pad: pad + n]
+    return sigma * smooth / np.sqrt(1.0 / (2.0 * np.sqrt(np.pi) * width))
+
+
+def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.random.Generator,
+         source: str) -> Recording:
+    vessel = compiled.vessel
+    antenna = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
+    g_t, g_n, g_e, h_t, h_psi, p_t, p_v = [], [], [], [], [], [], []
+    for run in runs:
+        t0, t1 = float(run.t[0]), float(run.t[-1])
+        tg = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.gnss_dt_s)
+        n_a, e_a = antenna_ned(run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], antenna)
+        wander = [_wander(rng, len(tg), noise.gnss_dt_s, noise.gnss_wander_m, noise.gnss_wander_s)
+                  for _ in range(2)]
+        g_t.append(tg)
+        g_n.append(np.interp(tg, run.t, n_a) + wander[0] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
+        g_e.append(np.interp(tg, run.t, e_a) + wander[1] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
+        th = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
+        psi = np.interp(th, run.t, run.eta[:, 2])
+        h_t.append(th)
+        h_psi.append(wrap_angle(measured_heading(vessel.sensors.for_log(source), psi)
+                                + np.radians(rng.normal(0.0, noise.heading_deg, len(th)))))
+        tp = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.pwm_dt_s)
+        p_t.append(tp + vessel.sensors.pwm_clock_offset_s)
+        p_v.append(np.round(run.meta["inputs"].at(tp - t0)))
+    lat, lon = geodetic_from_ned(np.concatenate(g_n), np.concatenate(g_e), ORIGIN[0], ORIGIN[1], ORIGIN[2])
+    pwm = np.concatenate(p_v)
+    rec = Recording(source=source, kind="synthetic")
+    rec.gnss = Stream(np.concatenate(g_t), {"lat_deg": lat, "lon_deg": lon, "alt_m": np.full(len(lat), ORIGIN[2])})
+    rec.heading = Stream(np.concatenate(h_t), {"psi_rad": np.concatenate(h_psi)})
+    rec.pwm = Stream(np.concatenate(p_t), {"left_us": pwm[:, 0], "right_us": pwm[:, 1]})
+    rec.pwm_neutral_us = (man.NEUTRAL_US, man.NEUTRAL_US)
+    rec.notes.append(f"synthetic dataset: {len(runs)} segments, seed and truth in the separate truth file")
+    return rec
