@@ -5,8 +5,11 @@
 with the Python callbacks and with the native (numba) callbacks, one
 evaluation of the analytic model's right-hand side; each as a ratio to the bare
 engine. Simulated seconds per wall second of the same work (256 runs of 60 s)
-done by one twin, run after run, and by a batch of twins on all cores, timed in
-turn. Default integrator and time step of the vessel's MJCF.
+done by one twin, run after run, and by a batch of twins on all cores, and of
+the main job end to end: `twin.simulate` of a 1-h zig-zag (vessel loaded and
+compiled, the closed-loop scenario at the autopilot rate) written to CSV, as a
+ratio to the one twin's rate (the engine's own speed); the three timed in turn.
+Default integrator and time step of the vessel's MJCF.
 
     python scripts/bench.py [--vessel yellowfish] [--batch 256] [--json out.json]
 """
@@ -17,6 +20,7 @@ import json
 import os
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,6 +28,7 @@ import mujoco
 import numpy as np
 
 import twin.vessel as vessel_mod
+from twin import api, outputs
 from twin.engine import batch, callbacks, native
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import initial_state
@@ -56,12 +61,24 @@ def _analytic_us(cv, repeats: int) -> float:
     return statistics.median(out)
 
 
-def _single_and_batch(model, n_twins: int, duration_s: float, nthread: int, repeats: int) -> tuple[float, float]:
-    """Simulated seconds per wall second of one twin and of a batch: the same n_twins runs of
-    duration_s (their own initial states and thrusts), one after the other on one twin, then
-    all at once on nthread threads; medians over repeats, the two measured in turn in each.
-    Same work, similar wall times, measured side by side: a virtual machine's background
-    load comes and goes, and a short single-twin timing would catch its quiet moments."""
+def _simulate_to_csv_s(vessel: str, duration_s: float, folder: Path) -> float:
+    """Wall seconds of what `twin simulate --scenario zigzag --out run.csv` does, in-process:
+    twin.api.simulate (load and compile the vessel, run the scenario's controller at the
+    autopilot rate) and the run written as CSV."""
+    t0 = time.perf_counter()
+    run = api.simulate(vessel, "zigzag", duration_s)
+    outputs.write({"twin": run}, folder / "run.csv")
+    return time.perf_counter() - t0
+
+
+def _throughputs(model, n_twins: int, duration_s: float, nthread: int, repeats: int, vessel: str,
+                 simulate_s: float) -> tuple[float, float, float]:
+    """Simulated seconds per wall second of one twin, of a batch and of `twin.simulate` to CSV:
+    the same n_twins runs of duration_s (their own initial states and thrusts), one after the
+    other on one twin, then all at once on nthread threads, then one zig-zag of simulate_s;
+    medians over repeats, the three measured in turn in each. Similar wall times measured
+    side by side: a virtual machine's background load comes and goes, and a short
+    single-twin timing would catch its quiet moments."""
     h = model.opt.timestep
     nstep = int(round(duration_s / h))
     rng = np.random.default_rng(0)
@@ -70,7 +87,8 @@ def _single_and_batch(model, n_twins: int, duration_s: float, nthread: int, repe
     controls = np.repeat(thrust[:, None, :], nstep, axis=1)
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     data = mujoco.MjData(model)
-    single, walls = [], []
+    single, walls, sims = [], [], []
+    folder = Path(tempfile.mkdtemp(prefix="twin-bench-"))
     for _ in range(repeats):
         with native.installed_native():
             t0 = time.perf_counter()
@@ -84,8 +102,11 @@ def _single_and_batch(model, n_twins: int, duration_s: float, nthread: int, repe
         walls.append(time.perf_counter() - t0)
         if diverged:
             raise SystemExit(f"benchmark twins diverged: {diverged[:3]}")
+        sims.append(_simulate_to_csv_s(vessel, simulate_s, folder))
+    (folder / "run.csv").unlink()
+    folder.rmdir()
     work = n_twins * duration_s
-    return work / statistics.median(single), work / statistics.median(walls)
+    return work / statistics.median(single), work / statistics.median(walls), simulate_s / statistics.median(sims)
 
 
 def main(argv=None) -> int:
@@ -95,6 +116,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--batch-duration", type=float, default=60.0)
+    ap.add_argument("--simulate-duration", type=float, default=3600.0, help="zig-zag run to CSV, s")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
 
@@ -113,15 +135,17 @@ def main(argv=None) -> int:
         python = _us_per_step(cv.model, max(300, args.steps // 10), args.repeats)
     analytic = _analytic_us(cv, args.repeats)
     cores = os.cpu_count() or 1
-    single, batch_all = _single_and_batch(model, args.batch, args.batch_duration, cores, args.repeats)
+    single, batch_all, simulate = _throughputs(model, args.batch, args.batch_duration, cores, args.repeats,
+                                               args.vessel, args.simulate_duration)
 
     result = {
         "vessel": args.vessel, "integrator": mujoco.mjtIntegrator(cv.model.opt.integrator).name, "timestep_s": h,
         "cores": cores, "batch_twins": args.batch, "batch_duration_s": args.batch_duration,
+        "simulate_duration_s": args.simulate_duration,
         "bare_us": bare, "python_us": python, "native_us": native_us, "analytic_us": analytic,
-        "single_simsec_per_s": single, "batch_simsec_per_s": batch_all,
+        "single_simsec_per_s": single, "batch_simsec_per_s": batch_all, "simulate_simsec_per_s": simulate,
         "native_over_bare": native_us / bare, "python_over_bare": python / bare,
-        "batch_speedup": batch_all / single,
+        "batch_speedup": batch_all / single, "simulate_over_single": simulate / single,
     }
     rows = [
         ("bare engine (no callbacks)", f"{bare:8.2f} µs/step", f"{h / (bare * 1e-6):9.0f} sim-s/s", "1.00"),
@@ -132,6 +156,8 @@ def main(argv=None) -> int:
         (f"one twin, the {args.batch} runs in turn", "", f"{single:9.0f} sim-s/s", ""),
         (f"batch of {args.batch} twins, {cores} threads", "", f"{batch_all:9.0f} sim-s/s",
          f"speed-up {batch_all / single:.2f} x one twin"),
+        (f"simulate, {args.simulate_duration:g}-s zig-zag to CSV", "", f"{simulate:9.0f} sim-s/s",
+         f"{simulate / single:.2f} x one twin"),
     ]
     print(f"{args.vessel}: {result['integrator']}, dt = {h * 1e3:g} ms, {cores} cores")
     print(f"{'':34s} {'per step':>16s} {'throughput':>15s}  ratio to bare")

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,17 +34,22 @@ class Run:
         }
 
     def to_csv_text(self) -> str:
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(CSV_COLUMNS)
+        """The run layout: a header of CSV_COLUMNS, then one row per sample, each value '{:.9g}'
+        and an empty cell for NaN (or infinity). Formatted a column at a time, not a cell at a
+        time through csv.writer (a 1-h run has 400 000 cells); the cells need no quoting."""
         cols = self.columns()
-        for i in range(len(self.t)):
-            w.writerow([_fmt(cols[c][i]) for c in CSV_COLUMNS])
-        return buf.getvalue()
+        cells = [_cells(cols[c]) for c in CSV_COLUMNS]
+        return "".join([",".join(CSV_COLUMNS), "\n", *(",".join(row) + "\n" for row in zip(*cells))])
 
 
-def _fmt(x: float) -> str:
-    return "" if not np.isfinite(x) else f"{x:.9g}"
+def _cells(values) -> list[str]:
+    """'{:.9g}' of each value of one column, "" where it is not finite."""
+    values = np.asarray(values, dtype=float)
+    fmt = "{:.9g}".format
+    finite = np.isfinite(values)
+    if finite.all():
+        return list(map(fmt, values.tolist()))
+    return [fmt(x) if ok else "" for x, ok in zip(values.tolist(), finite.tolist())]
 
 
 def read_csv(path: str | Path) -> Run:

@@ -1,24 +1,38 @@
 """Headless runs of the MuJoCo twin: open-loop input series or a closed-loop
-scenario controller, recorded at fixed sample times."""
+scenario controller, recorded at fixed sample times.
+
+The loop returns to Python only at events (samples, controller ticks, command
+changes); between them the engine runs `mj_step(nstep=...)` by itself. It runs at
+the engine's own speed because an event does little in Python: one `mj_getState`
+into a preallocated array (the sample's row, which is also the chunk start that a
+divergence replay needs), two writes to ctrl, and at a controller tick the
+controller and its thrust command in float arithmetic (engine/tick.py). Open-loop
+commands are computed for every step ahead; η, ν, the held inputs and the delivered
+thrust come from the stored states afterwards, in whole-array operations. The
+results are the bits of the slower loop this replaced (engine/sim_reference.py,
+tests/test_sim_speed.py).
+"""
 from __future__ import annotations
 
+import math
+from collections import deque
 from typing import Callable
 
 import mujoco
 import numpy as np
 
+from ..drive import InputSeries
 from ..errors import TwinError
-from ..inputs import InputSeries
 from ..physics.hydrodynamics import Terms
-from ..physics.thrusters import advance_factor
 from ..run import Run
-from ..scenarios import to_thruster_inputs
 from . import callbacks
-from .divergence import clear, flagged, quiet_log, what_diverged
+from .divergence import CHECKS, clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
+from .tick import Pair, TickMap
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_CHECKED = [int(kind) for kind in CHECKS]  # data.warning indices of MuJoCo's divergence checks
 
 
 def _steps(interval_s: float, timestep_s: float, what: str) -> int:
@@ -37,14 +51,6 @@ def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0) -> None
     data.qvel[list(dof)] = [c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2]]
     if model.na:
         data.act[:] = 0.0
-
-
-def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
-    """η = (x, y, ψ) and ν = (u, v, r) from the joint state."""
-    eta = data.qpos[list(qpos)].copy()
-    c, s = np.cos(eta[2]), np.sin(eta[2])
-    w = data.qvel[list(dof)]
-    return eta, np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
 
 
 def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps, extra=None) -> np.ndarray:
@@ -74,13 +80,126 @@ def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
     raise TwinError(f"unknown backend '{backend}' (native or python)")
 
 
-def _controller_output(vessel, controller, t: float, eta: np.ndarray, nu: np.ndarray) -> tuple[str, np.ndarray]:
-    """(kind, held input) from a controller: normalised (surge, yaw) → PWM or thrust by
-    `scenarios.to_thruster_inputs`, or thrusts in N when the controller says `output = "thrust"`."""
-    out = controller(t, eta, nu)
-    if getattr(controller, "output", "normalised") == "thrust":
-        return "thrust", np.asarray(out, float)
-    return to_thruster_inputs(vessel.thrusters, *out)
+class _Layout:
+    """Where η, the joint velocities and the thrust lag sit in a full-physics state vector
+    [time, qpos, qvel, act, ...]; slices when contiguous (cheaper than index arrays per tick)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        qpos, dof = callbacks._joint_indices(model)
+        self.eta = _picker([1 + q for q in qpos])
+        self.w = _picker([1 + model.nq + d for d in dof])
+        self.act = slice(1 + model.nq + model.nv, 1 + model.nq + model.nv + min(model.na, 2)) if model.na else None
+
+    def eta_nu(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """η = (x, y, ψ) and ν = (u, v, r) of one state, as fresh arrays for a controller."""
+        eta = state[self.eta].copy()
+        c, s = np.cos(eta[2]), np.sin(eta[2])
+        w0, w1, w2 = state[self.w]
+        return eta, np.array([c * w0 + s * w1, -s * w0 + c * w1, w2])
+
+    def samples(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """η and ν of every stored state: the same operations as `eta_nu`, element by element."""
+        eta = states[:, self.eta].copy()
+        c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
+        w = states[:, self.w]
+        return eta, np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
+
+
+def _picker(indices: list[int]):
+    if indices == list(range(indices[0], indices[0] + len(indices))):
+        return slice(indices[0], indices[0] + len(indices))
+    return np.array(indices)
+
+
+class _OpenLoop:
+    """An input series: the thrust command of every step computed ahead, events where it changes."""
+
+    def __init__(self, series: InputSeries, thrusters, n_steps: int, n_sample: int, h: float, start_s: float,
+                 thrust_on: bool):
+        self.series = series
+        step_times = np.arange(n_steps + 1) * h
+        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
+        self.events = _event_steps(n_steps, n_sample, None, cmd_steps)
+        if not thrust_on:
+            cmd_steps = np.zeros_like(cmd_steps)
+        self._at = dict(zip(self.events.tolist(), map(tuple, cmd_steps[self.events].tolist())))
+        self.h = h
+
+    def command(self, k: int, state: np.ndarray) -> Pair:
+        return self._at[k]
+
+    def held(self, steps: np.ndarray) -> np.ndarray:
+        """PWM (µs) held at these steps, NaN when the series is in thrust."""
+        if self.series.kind != "pwm":
+            return np.full((len(steps), 2), np.nan)
+        return np.asarray(self.series.at(steps * self.h), dtype=float)
+
+    def inputs(self) -> InputSeries:
+        return self.series
+
+
+class _ClosedLoop:
+    """A controller evaluated every n_control steps. Its output at step k reaches the thrusters
+    at step min(k + n_delay, n_steps) (the delay), decayed by the recording time of each step."""
+
+    def __init__(self, compiled: CompiledVessel, controller: Controller, layout: _Layout, *, n_steps: int,
+                 n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool):
+        thrusters = compiled.vessel.thrusters
+        self.controller, self.layout, self.map = controller, layout, TickMap.of(thrusters)
+        self.n_steps, self.n_control, self.h, self.start_s = n_steps, n_control, h, start_s
+        self.n_delay = int(round(thrusters.delay_s / h))
+        self.thrust_on = thrust_on
+        self.decaying = bool(thrusters.decay_per_min) and thrust_on
+        self.pending: deque[tuple[int, Pair]] = deque()  # (step it acts from, raw thrust command)
+        self.raw: Pair = (0.0, 0.0)  # the command in force before decay: none until the first one acts
+        self.ticks: list[int] = []
+        self.times: list[float] = []
+        self.values: list = []
+        self.kinds: list[str] = []
+        self.events = _event_steps(n_steps, n_sample, None, None, self._marks())
+
+    def _marks(self) -> np.ndarray:
+        """Ticks, the steps their delayed commands act from, or every step while the command decays."""
+        if self.decaying:
+            return np.arange(self.n_steps + 1)
+        marks = np.arange(0, self.n_steps + 1, self.n_control)
+        if self.n_delay:
+            marks = np.unique(np.concatenate([marks, np.minimum(marks + self.n_delay, self.n_steps)]))
+        return marks
+
+    def command(self, k: int, state: np.ndarray) -> Pair:
+        """The thrust command (N) over step k, after the controller's tick at k if there is one."""
+        if k % self.n_control == 0:
+            self._tick(k, state)
+        pending = self.pending
+        while pending and pending[0][0] <= k:
+            self.raw = pending.popleft()[1]
+        if self.decaying:
+            f = self.map.decay(self.start_s + k * self.h)
+            return self.raw[0] * f, self.raw[1] * f
+        return self.raw
+
+    def _tick(self, k: int, state: np.ndarray) -> None:
+        t = np.float64(k * self.h)  # the type the controller always got (k·h on numpy steps)
+        eta, nu = self.layout.eta_nu(state)
+        kind, held = self.map.held(self.controller, self.controller(t, eta, nu))
+        self.ticks.append(k)
+        self.times.append(t)
+        self.values.append(held)
+        self.kinds.append(kind)
+        if self.thrust_on:
+            self.pending.append((min(k + self.n_delay, self.n_steps), self.map.raw_thrust(kind, held)))
+
+    def held(self, steps: np.ndarray) -> np.ndarray:
+        """PWM (µs) held at these steps (the latest tick's), NaN where that tick gave thrust."""
+        last = np.searchsorted(np.array(self.ticks), steps, side="right") - 1
+        values = np.array(self.values, dtype=float)[last]
+        pwm = np.array([kind == "pwm" for kind in self.kinds])[last]
+        return np.where(pwm[:, None], values, np.nan)
+
+    def inputs(self) -> InputSeries:
+        """The inputs the controller gave, as a series that replays the run."""
+        return InputSeries(np.array(self.times), np.array(self.values), self.kinds[-1])
 
 
 def simulate(
@@ -112,78 +231,73 @@ def simulate(
     if not duration_s > 0:
         raise TwinError("duration must be positive")
     vessel = compiled.vessel
-    thrusters = vessel.thrusters
     terms = terms or Terms()
     model, hydrodynamics = _backend(compiled, terms, backend)
     h = model.opt.timestep
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
     n_sample = _steps(sample_dt_s, h, "sample period")
-    n_delay = int(round(thrusters.delay_s / h))
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
-    qpos, dof = callbacks._joint_indices(model)
-    step_times = np.arange(n_steps + 1) * h
-
-    series = drive if isinstance(drive, InputSeries) else None
-    if series is not None:
-        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
-        held_steps = series.at(step_times)
-        kind = series.kind
+    layout = _Layout(model)
+    if isinstance(drive, InputSeries):
+        loop = _OpenLoop(drive, vessel.thrusters, n_steps, n_sample, h, start_s, terms.thrust)
     else:
-        # closed loop: the controller's output at step k reaches the thrusters at step k + n_delay
-        cmd_steps = np.zeros((n_steps + 1, 2))
-        held_steps = np.zeros((n_steps + 1, 2))
-        kind = None
-    applied_t, applied_v = [], []
-    marks = np.arange(0, n_steps + 1, n_control) if series is None else None
-    if series is None and n_delay:
-        marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
-    if series is None and thrusters.decay_per_min:
-        marks = np.arange(n_steps + 1)  # the decaying command changes at every step
-    events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
-    if not terms.thrust:
-        cmd_steps = np.zeros_like(cmd_steps)
-    rows = {"t": [], "eta": [], "nu": [], "held": [], "cmd": []}
-    chunk_start = np.empty(mujoco.mj_stateSize(model, FULL))
+        loop = _ClosedLoop(compiled, drive, layout, n_steps=n_steps, n_sample=n_sample, n_control=n_control, h=h,
+                           start_s=start_s, thrust_on=terms.thrust)
+    sample_steps = np.arange(0, n_steps + 1, n_sample)
+    states = np.empty((len(sample_steps), mujoco.mj_stateSize(model, FULL)))
     with hydrodynamics, quiet_log():
-        for i, k in enumerate(events):
-            t = k * h
-            eta, nu = _state(data, qpos, dof)
-            if series is None and k % n_control == 0:
-                kind, held = _controller_output(vessel, drive, t, eta, nu)
-                applied_t.append(t)
-                applied_v.append(held)
-                held_steps[k:] = held
-                act_at = min(k + n_delay, n_steps)
-                cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
-                cmd_steps[act_at:] = cmd if terms.thrust else 0.0
-            data.ctrl[:2] = cmd_steps[k]
-            if k % n_sample == 0:
-                rows["t"].append(start_s + t)
-                rows["eta"].append(eta)
-                rows["nu"].append(nu)
-                rows["held"].append(held_steps[k] if kind == "pwm" else (np.nan, np.nan))
-                rows["cmd"].append(data.act[:2].copy() if model.na else data.ctrl[:2].copy())
-            if k == n_steps:
-                break
-            mujoco.mj_getState(model, data, chunk_start, FULL)
-            mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
-            if flagged(data) or not np.all(np.isfinite(data.qvel)):
-                raise TwinError(_divergence(model, data, chunk_start, cmd_steps[k], int(events[i + 1] - k), start_s))
-    if series is None:
-        series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
-    nu = np.array(rows["nu"])
+        commands = _step_events(model, data, loop.events.tolist(), n_sample, states, loop.command, start_s)
+    eta, nu = layout.samples(states)
+    command_n = states[:, layout.act] if layout.act is not None else np.array(commands, dtype=float)
     return Run(
-        np.array(rows["t"]), np.array(rows["eta"]), nu, np.array(rows["held"], dtype=float),
-        delivered_thrust(vessel, compiled.geometry.thruster_y_m, np.array(rows["cmd"]), nu),
+        start_s + sample_steps * h, eta, nu, loop.held(sample_steps),
+        delivered_thrust(vessel, compiled.geometry.thruster_y_m, command_n, nu),
         meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
               "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
-              "inputs": series, "start_s": start_s},
+              "inputs": loop.inputs(), "start_s": start_s},
     )
 
 
-def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndarray, command_n: np.ndarray,
+def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], n_sample: int,
+                 states: np.ndarray, command: Callable[[int, np.ndarray], Pair], start_s: float) -> list[Pair]:
+    """Step the engine from event to event, the thrust command `command(k, state)` held from
+    each; the state at every sample step goes to the next row of `states`. Returns the command
+    set at each sample. Raises TwinError (naming when) if the twin diverges.
+
+    The hot loop of a run: names are bound to locals and the arrays (ctrl, qvel, the warning
+    counters) are views taken once, so an event costs a few microseconds of Python."""
+    rows = iter(states)
+    scratch = np.empty(states.shape[1])
+    ctrl, qvel, warnings = data.ctrl, data.qvel, data.warning.number
+    get_state, step = mujoco.mj_getState, mujoco.mj_step
+    commands: list[Pair] = []
+    last = len(events) - 1
+    for i, k in enumerate(events):
+        sampled = k % n_sample == 0
+        state = next(rows) if sampled else scratch
+        get_state(model, data, state, FULL)
+        left, right = command(k, state)
+        ctrl[0] = left
+        ctrl[1] = right
+        if sampled:
+            commands.append((left, right))
+        if i == last:
+            break
+        nstep = events[i + 1] - k
+        step(model, data, nstep)
+        if _diverged(warnings, qvel):
+            raise TwinError(_divergence(model, data, state, (left, right), nstep, start_s))
+    return commands
+
+
+def _diverged(warnings: np.ndarray, qvel: np.ndarray) -> bool:
+    """divergence.flagged(data) or a non-finite velocity, on views held by the caller."""
+    return any(warnings[_CHECKED].tolist()) or not all(map(math.isfinite, qvel.tolist()))
+
+
+def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndarray, command_n,
                 nstep: int, start_s: float) -> str:
     """One line naming when the run diverged: the chunk of nstep steps under the thrust command
     (N) replayed one step at a time from its saved start (MuJoCo reset the diverged state, so
@@ -203,7 +317,11 @@ def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndar
 
 def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
     """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain
-    and the advance-speed factor."""
+    and the advance-speed factor (`thrusters.advance_factor`, for all samples at once)."""
     t_min, t_max = vessel.thrusters.bounds()
-    factor = np.array([advance_factor(vessel.thrusters, n, thruster_y_m) for n in nu]) if len(nu) else 1.0
+    factor = 1.0
+    if len(nu):
+        nu = np.asarray(nu, float)
+        y = np.asarray(thruster_y_m, float)
+        factor = 1.0 - vessel.thrusters.speed_loss_per_m_s * (nu[:, :1] - nu[:, 2:3] * y)
     return np.clip(command_n, t_min, t_max) * vessel.thrusters.gains() * factor
