@@ -33,14 +33,17 @@ def test_dataset_writes_recordings_and_a_separate_truth(dataset):
 def test_identify_then_evaluate(dataset):
     model = dataset / "model.json"
     done = twin("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", model, "--repeats", "2",
-                "--params", "Xuu,thrust_gain", "--window", "5", "--json", dataset / "report.json")
+                "--params", "Xuu,thrust_gain", "--window", "5", "--json", dataset / "report.json", "--greybox")
     assert done.returncode == 0, done.stderr
     assert "seed 004 grey-box" in done.stdout and "identification by simulation" in done.stdout
+    assert "judged on left-out runs" in done.stdout and "on a new run expect" in done.stdout
     v = vessel_mod.load(str(model))
     assert v.thrusters.gain_left == pytest.approx(1.15, rel=0.03)
     assert "identification" in v.sources
     report = json.loads((dataset / "report.json").read_text())
-    assert {e["name"] for e in report["simfit"]["estimates"]} == {"Xuu", "thrust_gain"}
+    assert {e["name"] for e in report["fit"]["estimates"]} == {"Xuu", "thrust_gain"}
+    # one log: its time blocks stand in for left-out runs, and every choice carries their scores
+    assert report["chosen"] and all(len(c["runs"]) >= 3 for c in report["choices"])
     done = twin("evaluate", "--model", model, dataset / "train.csv", "--json", dataset / "eval.json",
                 "--rrd", dataset / "eval.rrd")
     assert done.returncode == 0, done.stderr

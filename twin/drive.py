@@ -176,5 +176,5 @@ def to_thruster_inputs(thrusters: ThrusterModel, surge: float, yaw: float) -> tu
         mid = 0.5 * (thrusters.pwm_min_us + thrusters.pwm_max_us)
         half = 0.5 * (thrusters.pwm_max_us - thrusters.pwm_min_us)
         return "pwm", mid + half * cmd
-    t_min, t_max = thrusters.bounds()
+    t_min, t_max = thrusters.command_range()
     return "thrust", np.where(cmd >= 0, cmd * t_max, -cmd * t_min)

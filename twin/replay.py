@@ -124,3 +124,34 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         if sim:
             runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep)
     return runs
+
+
+def stitched_runs(windows, series: dict) -> dict[str, Run]:
+    """{label: (preps, eta (W, n+1, 3), nu (W, n+1, 3))} → one Run per label over the windows' samples,
+    in time order (recordings one after another on one clock)."""
+    out = {}
+    for label, (preps, eta, nu) in series.items():
+        t, e, v, pwm = [], [], [], []
+        for j, w in enumerate(windows):
+            p = preps[w.rec]
+            sl = slice(w.start, w.start + w.n + 1)
+            t.append(p.t[sl] + 1e5 * w.rec)
+            e.append(eta[j, : w.n + 1])
+            v.append(nu[j, : w.n + 1])
+            pwm.append(p.pwm[sl])
+        order = np.argsort(np.concatenate(t), kind="stable")
+        tt = np.concatenate(t)[order]
+        out[label] = Run(tt, np.concatenate(e)[order], np.concatenate(v)[order], np.concatenate(pwm)[order],
+                         np.full((len(tt), 2), np.nan), meta={"engine": label})
+    return out
+
+
+def free_run_views(vessel: Vessel, preps: list[Prepared], window_s: float = 10.0) -> dict[str, Run]:
+    """The recordings and the twin's back-to-back free runs of window_s from measured states, as
+    two runs on one timeline (what `twin evaluate --rrd` shows)."""
+    from .fit.windows import make_windows, measured, predict
+
+    wins = make_windows(preps, window_s, window_s)
+    pred = predict(vessel, preps, wins)[0]
+    eta, nu = measured(preps, wins)
+    return stitched_runs(wins, {"real": (preps, eta, nu), "twin": (preps, pred.eta, pred.nu)})

@@ -6,10 +6,10 @@ from typing import Optional
 
 import typer
 
-from ..effects.coefficients import DEFAULT_FIT
+from ..effects.coefficients import FIT_GROUPS
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, progress_bar,
-                  say, vessel_from, write_json)
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, floats, note,
+                  progress_bar, say, vessel_from, write_json)
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
@@ -64,52 +64,68 @@ def identify_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
-    thruster: str = typer.Option("static", help="seed 004 thruster model: static | dynamic"),
-    split: str = typer.Option("segments", help="seed 004 tables: split by segments | points"),
-    train: float = typer.Option(0.7, help="training share of the seed 004 splits"),
-    repeats: int = typer.Option(20, help="random splits for the seed 004 tables"),
-    params: Optional[str] = typer.Option(None, help="parameters of the simulation fit, comma separated "
-                                                   "(default: " + ",".join(DEFAULT_FIT) + ")"),
+    groups: Optional[str] = typer.Option(None, help="groups of coefficients to consider, comma separated "
+                                                   "(default: all of " + ", ".join(FIT_GROUPS) + "); the fit "
+                                                   "keeps those that predict left-out runs better"),
+    params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
+                                                   "comma separated (e.g. Xu,Xuu,Nr,Nrr,thrust_gain)"),
+    beliefs: str = typer.Option("0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
+                                                 "the values tried (chosen on left-out runs)"),
     anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
     window: float = typer.Option(10.0, help="free-run window of the simulation fit, s"),
     start: str = typer.Option("free", help="initial velocities of each free run: free (estimated with the "
                                             "parameters) | measured (as the recording gives them)"),
-    no_simulation: bool = typer.Option(False, "--no-simulation", help="only the seed 004 least squares"),
+    calibration: bool = typer.Option(True, "--calibration/--no-calibration",
+                                     help="estimate each log's compass offset from its own GNSS track (default on)"),
+    greybox: bool = typer.Option(False, "--greybox", help="also run seed 004's grey-box least squares and tables"),
+    thruster: str = typer.Option("static", help="seed 004 thruster model (with --greybox): static | dynamic"),
+    split: str = typer.Option("segments", help="seed 004 tables (with --greybox): split by segments | points"),
+    train: float = typer.Option(0.7, help="training share of the seed 004 splits (with --greybox)"),
+    repeats: int = typer.Option(20, help="random splits for the seed 004 tables (with --greybox)"),
+    seed: int = typer.Option(0, help="random seed of the seed 004 splits"),
+    max_evaluations: int = typer.Option(20, help="cost evaluations of the first fit (later ones take a third)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
-    seed: int = typer.Option(0, help="random seed of the splits"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
 ):
-    """Identify a vessel from recordings: seed 004 grey-box, then simulation fit."""
+    """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
+    prior's beliefs, every choice judged on runs left out of the fit."""
     from ..fit import simfit
     from ..ident import identify as ident
     from ..vessel import save
 
-    check_outputs([out], (".json",))
-    if json_out is not None:
-        check_outputs([json_out], (".json",))
+    check_outputs([out], (".json",), "--out")
+    check_outputs([json_out], (".json",), "--json")
     prior = vessel_from(vessel, model, "nominal")
-    names = tuple(p.strip() for p in params.split(",")) if params else DEFAULT_FIT
-    simfit.check_names(prior, names, anchor)  # before any work
-    if start not in ("free", "measured"):
-        raise TwinError(f"--start must be free or measured, got '{start}'")
-    preps = ident.load(recordings, prior, channels_from(channels))
-    report = ident.identify(preps, prior, thruster=thruster, split=split, train=train, repeats=repeats, seed=seed,
-                            params=names, anchor=anchor, simulate=not no_simulation, window_s=window,
-                            start=start, sources=[str(r) for r in recordings])
-    text = ident.format_greybox(report.greybox)
+    weights = tuple(floats(beliefs, "beliefs"))
+    chosen_params = tuple(p.strip() for p in params.split(",") if p.strip()) if params else None
+    chosen_groups = tuple(g.strip() for g in groups.split(",") if g.strip()) if groups else None
+    if chosen_params:
+        simfit.check_names(prior, chosen_params, anchor)  # before any work
+    recs = ident.read(recordings, channels_from(channels))
+    with progress_bar("identify") as progress:
+        result = ident.identify(recs, prior, groups=chosen_groups, params=chosen_params, prior_weights=weights,
+                                anchor=anchor, window_s=window, start=start, calibrated=calibration,
+                                greybox=greybox, thruster=thruster, split=split, train=train, repeats=repeats,
+                                seed=seed, max_evaluations=max_evaluations,
+                                sources=[str(r) for r in recordings], progress=progress)
+    for c in result.calibrations:
+        say(f"calibration: {c.text()}")
+    text = ident.format_greybox(result.greybox)
     if text:
         console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")
         typer.echo(text)
-    if report.simfit is not None:
-        console.print("[bold]identification by simulation[/]")
-        typer.echo(ident.format_estimates(report.simfit))
-    for note in report.notes:
-        typer.echo(f"note: {note}")
-    if report.simfit is None:
-        raise TwinError("no vessel written: the simulation fit was switched off (--no-simulation)")
-    save(report.vessel, out)
-    console.print(f"wrote {out} (use: twin simulate --model {out}, twin evaluate --model {out} ...)")
-    write_json(json_out, report.to_dict())
+    console.print("[bold]choices, judged on left-out runs (10-s free runs from measured states)[/]")
+    typer.echo(ident.format_choices(result))
+    console.print("[bold]identification by simulation[/]")
+    typer.echo(ident.format_estimates(result.fit))
+    say(f"on a new run expect: {result.chosen.cv.summary()}")
+    for text in result.notes:
+        note(f"note: {text}")
+    if result.worse_than_prior:
+        note("warning: the twin written predicts runs left out of the fit worse than the prior did")
+    save(result.vessel, out)
+    say(f"wrote {out} (use: twin simulate --model {out}, twin evaluate --model {out} ...)")
+    write_json(json_out, result.to_dict())
 
 
 @app.command("evaluate")
@@ -119,37 +135,42 @@ def evaluate_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     stride: float = typer.Option(2.0, help="free-run windows start every STRIDE s"),
+    calibration: bool = typer.Option(True, "--calibration/--no-calibration",
+                                     help="apply each log's compass offset estimated from its own GNSS track"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the metrics as JSON"),
     rrd: Optional[Path] = typer.Option(None, help="write the recording and the twin's 10-s free runs to rerun"),
 ):
-    """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments."""
+    """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
+    log's own compass calibration."""
     from ..fit.evaluate import evaluate, format_metrics
-    from ..ident.identify import load
+    from ..ident.identify import calibrate, prepared, read
 
-    if json_out is not None:
-        check_outputs([json_out], (".json",))
-    if rrd is not None:
-        check_outputs([rrd], (".rrd",))
+    check_outputs([json_out], (".json",), "--json")
+    check_outputs([rrd], (".rrd",), "--rrd")
     v = vessel_from(vessel, model, "nominal")
-    preps = load(recordings, v, channels_from(channels))
-    metrics = evaluate(v, preps, stride_s=stride)
+    recs = read(recordings, channels_from(channels))
+    calibrated, calibrations = calibrate(recs, v)
+    out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
+           "calibrations": [c.to_dict() for c in calibrations]}
+    names = ", ".join(p.name for p in recordings)
+    with progress_bar("evaluate") as progress:
+        progress("without calibration", 0, 2)
+        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride)
+        progress("with each log's calibration", 1, 2)
+        out["metrics"] = evaluate(calibrated, prepared(recs, calibrated), stride_s=stride) if calibration \
+            else out["metrics_uncalibrated"]
+    for c in calibrations:
+        say(f"calibration: {c.text()}")
+    typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))
+    if calibration:
+        typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
     if rrd is not None:
-        _write_free_runs(v, preps, rrd)
-    typer.echo(format_metrics(metrics, f"{v.name} on {', '.join(p.name for p in recordings)}"))
-    write_json(json_out, {"vessel": v.name, "model": str(model) if model else None,
-                           "recordings": [str(p) for p in recordings], "metrics": metrics})
+        from ..engine.mjcf import compile_vessel
+        from ..outputs import write
+        from ..replay import free_run_views
 
-
-def _write_free_runs(vessel, preps, path: Path) -> None:
-    """The recording and the twin's back-to-back 10-s free runs on one rerun timeline."""
-    from ..diagnose.report import stitched_runs
-    from ..engine.mjcf import compile_vessel
-    from ..fit.windows import make_windows, measured, predict
-    from ..outputs import write
-
-    wins = make_windows(preps, 10.0, 10.0)
-    pred = predict(vessel, preps, wins)[0]
-    eta, nu = measured(preps, wins)
-    runs = stitched_runs(wins, {"real": (preps, eta, nu), "twin": (preps, pred.eta, pred.nu)})
-    write(runs, path, geometry=compile_vessel(vessel).geometry, vessel_name=vessel.name, mjcf=vessel.mjcf)
-    console.print(f"wrote {path} (open with: rerun {path})")
+        used = calibrated if calibration else v
+        write(free_run_views(used, prepared(recs, used)), rrd, geometry=compile_vessel(v).geometry, vessel_name=v.name,
+              mjcf=v.mjcf)
+        say(f"wrote {rrd} (open with: rerun {rrd})")
+    write_json(json_out, out)

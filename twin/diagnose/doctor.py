@@ -26,10 +26,9 @@ from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit.metrics import r2_mae
-from ..physics.hydrodynamics import acceleration
 from ..physics.sensors import log_name
 from ..fit.objective import Measurements
-from ..fit.windows import ModelCache, Window, make_windows, measured, predict
+from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared
 from ..recording import Recording
 from ..fit.calibrate import prepare_for
@@ -121,7 +120,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
             raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
     search = Search(prior, data, train, held, ModelCache(SEARCH_TIMESTEP_S), lib, log, other_folds,
-                    screen_cache=ModelCache(_screen_timestep(compiled, preps)))
+                    screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)))
     amended, kept, rounds = search.run()
     amended_preps = data.for_vessel(amended)
     after = _residuals(amended, amended_preps, every, exact)
@@ -140,22 +139,6 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
 
 
 # ---------------------------------------------------------------- pieces
-
-def _screen_timestep(compiled, preps: list[Prepared]) -> float:
-    """The recording's grid step if RK4 is comfortable at it for this vessel (SCREEN_H_LAMBDA),
-    else SEARCH_TIMESTEP_S. The fastest rate: the largest eigenvalue of ∂ν̇/∂ν at a brisk
-    state (2 m/s, 0.5 m/s, 1 rad/s, where quadratic damping is strong) or 1/lag."""
-    grid = preps[0].settings.grid_dt
-    if any(abs(p.settings.grid_dt - grid) > 1e-9 for p in preps) or grid <= SEARCH_TIMESTEP_S:
-        return SEARCH_TIMESTEP_S
-    hydro, nu, h = compiled.hydro(), np.array([2.0, 0.5, 1.0]), 1e-5
-    base = acceleration(hydro, 0.0, nu, np.zeros(3))
-    J = np.column_stack([(acceleration(hydro, 0.0, nu + h * e, np.zeros(3)) - base) / h for e in np.eye(3)])
-    rate = float(np.max(np.abs(np.linalg.eigvals(J))))
-    lag = compiled.vessel.thrusters.lag_s
-    rate = max(rate, 1.0 / lag if lag > 0 else 0.0)
-    return grid if grid * rate <= SCREEN_H_LAMBDA else SEARCH_TIMESTEP_S
-
 
 def _noise(recordings: list[Recording], preps: list[Prepared]) -> dict:
     per = [estimate_noise(r, p) for r, p in zip(recordings, preps)]

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..run import Run
 from ..files import write_text_atomic
+from ..replay import stitched_runs
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
 
@@ -28,26 +29,6 @@ def runs(d) -> dict[str, Run]:
     return stitched_runs(rp["windows"], {"real": (rp["preps"], before.meas_eta, before.meas_nu),
                                          "twin before": (rp["preps"], before.pred_eta, before.pred_nu),
                                          "twin after": (rp["amended_preps"], after.pred_eta, after.pred_nu)})
-
-
-def stitched_runs(windows, series: dict) -> dict[str, Run]:
-    """{label: (preps, eta (W, n+1, 3), nu (W, n+1, 3))} → one Run per label over the windows' samples,
-    in time order (recordings one after another on one clock)."""
-    out = {}
-    for label, (preps, eta, nu) in series.items():
-        t, e, v, pwm = [], [], [], []
-        for j, w in enumerate(windows):
-            p = preps[w.rec]
-            sl = slice(w.start, w.start + w.n + 1)
-            t.append(p.t[sl] + 1e5 * w.rec)
-            e.append(eta[j, : w.n + 1])
-            v.append(nu[j, : w.n + 1])
-            pwm.append(p.pwm[sl])
-        order = np.argsort(np.concatenate(t), kind="stable")
-        tt = np.concatenate(t)[order]
-        out[label] = Run(tt, np.concatenate(e)[order], np.concatenate(v)[order], np.concatenate(pwm)[order],
-                         np.full((len(tt), 2), np.nan), meta={"engine": label})
-    return out
 
 
 def write_rrd(d, path: Path) -> None:

@@ -8,6 +8,7 @@ number lives in the description.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Callable
 
@@ -159,3 +160,22 @@ def log_heading_bias(log: str) -> Quantity:
         return replace(v, sensors=replace(v.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))
 
     return Quantity(log, "deg", get, put, -30.0, 30.0, 1.0)
+
+
+def log_magnitude(q: Quantity, prior: Vessel, span: float = math.log(100.0)) -> Quantity:
+    """q as ln|value| with the prior's sign fixed: a dissipative coefficient or a positive scale
+    stays one, and a log-normal belief about it is a normal one about this coordinate. Bounds:
+    the prior's magnitude divided or multiplied by exp(span) (×/÷ 100 by default)."""
+    value = q.get(prior)
+    if value == 0.0:
+        raise ValueError(f"{q.name}: a zero prior has no magnitude to take the logarithm of")
+    sign, centre = math.copysign(1.0, value), math.log(abs(value))
+
+    def get(v: Vessel) -> float:
+        x = q.get(v)
+        return math.log(abs(x)) if x * sign > 0 else centre - span
+
+    def put(v: Vessel, x: float) -> Vessel:
+        return q.put(v, sign * math.exp(x))
+
+    return Quantity(q.name, f"ln({q.unit})", get, put, centre - span, centre + span, 1.0)

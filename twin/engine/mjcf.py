@@ -94,8 +94,11 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
         act = spec.actuator(name)
         if act is None:
             raise TwinError(f"{vessel.mjcf.name}: no actuator '{name}'")
-        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        act.ctrlrange = [t_min, t_max]
+        if t.bounded:  # an unbounded thruster (no bound in its source) is not limited
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [t_min, t_max]
+        else:
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         act.gainprm[0] = gain
         if t.speed_loss_per_m_s != 0.0:
             # force = gain·(1 − k·actuator velocity)·ctrl; for a site transmission along body x

@@ -52,7 +52,7 @@ class TickMap:
 
     @classmethod
     def of(cls, thrusters: ThrusterModel) -> "TickMap":
-        t_min, t_max = thrusters.bounds()
+        t_min, t_max = thrusters.command_range() if thrusters.kind != "t200" else thrusters.bounds()
         return cls(thrusters, 0.5 * (thrusters.pwm_min_us + thrusters.pwm_max_us),
                    0.5 * (thrusters.pwm_max_us - thrusters.pwm_min_us), t_min, t_max)
 

@@ -109,6 +109,32 @@ class Objective:
         self.sigma = np.where(sd > 1e-6, sd, 1.0)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._belief: tuple[np.ndarray, np.ndarray] | None = None  # (√w/σ, mean) per coordinate, value units
+
+    def believe(self, mean: np.ndarray, sigma: np.ndarray, weight: float) -> None:
+        """What is known before the data (a maximum a posteriori fit): each coordinate ~ N(mean, σ²)
+        in its value units (σ = inf: nothing known), counted as `weight` residual samples of the data.
+        residuals() and jacobian() then carry one extra row per coordinate after the data rows."""
+        sigma = np.asarray(sigma, float)
+        gain = np.where(np.isfinite(sigma) & (sigma > 0), np.sqrt(weight) / np.where(sigma > 0, sigma, 1.0), 0.0)
+        self._belief = (gain, np.asarray(mean, float))
+        self._last = None
+
+    @property
+    def n_data(self) -> int:
+        """Rows of residuals() that are data (the rest are the prior's)."""
+        return int(self.valid.sum())
+
+    def prior_rows(self, x: np.ndarray) -> np.ndarray:
+        if self._belief is None:
+            return np.zeros(0)
+        gain, mean = self._belief
+        return gain * (x * self.scale - mean)
+
+    def prior_jacobian(self) -> np.ndarray:
+        if self._belief is None:
+            return np.zeros((0, len(self.params)))
+        return np.diag(self._belief[0] * self.scale)
 
     def _measured(self, preps: list[Prepared]) -> np.ndarray:
         return measured(preps, self.windows)[1][:, 1:]
@@ -185,9 +211,10 @@ class Objective:
         return out
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
+        """The data's residuals, then the prior's rows (if any: believe())."""
         if self._last is not None and np.array_equal(self._last[0], x):
             return self._last[1]
-        r = self.residuals_of([self.vessel(x)])[0]
+        r = np.concatenate([self.residuals_of([self.vessel(x)])[0], self.prior_rows(x)])
         self._last = (x.copy(), r)
         return r
 
@@ -198,8 +225,9 @@ class Objective:
         for i in range(len(x)):
             trial[i][i] += steps[i]
         rs = self.residuals_of([self.vessel(x)] + [self.vessel(t) for t in trial])
-        self._last = (x.copy(), rs[0])
-        return np.column_stack([(r - rs[0]) / h for r, h in zip(rs[1:], steps)])
+        self._last = (x.copy(), np.concatenate([rs[0], self.prior_rows(x)]))
+        J = np.column_stack([(r - rs[0]) / h for r, h in zip(rs[1:], steps)])
+        return np.vstack([J, self.prior_jacobian()])
 
     def window_index(self) -> np.ndarray:
         """Window number of each residual (the clusters of the sandwich covariance)."""
@@ -208,7 +236,9 @@ class Objective:
 
 
 def estimates_of(obj: Objective, x: np.ndarray, J: np.ndarray, r: np.ndarray) -> list[Estimate]:
-    """Values, cluster-robust 1-σ, and whether the data pins each parameter down."""
+    """Values, cluster-robust 1-σ, and whether the data pins each parameter down (a fit
+    without a prior: see simfit for one with)."""
+    J, r = J[: obj.n_data], r[: obj.n_data]
     norms = np.linalg.norm(J, axis=0)
     cov = cluster_covariance(J, r, obj.window_index())
     out = []
@@ -228,12 +258,16 @@ def estimates_of(obj: Objective, x: np.ndarray, J: np.ndarray, r: np.ndarray) ->
     return out
 
 
-def cluster_covariance(J: np.ndarray, r: np.ndarray, clusters: np.ndarray) -> np.ndarray | None:
-    """(JᵀJ)⁻¹ (Σ_w g_w g_wᵀ) (JᵀJ)⁻¹ with g_w = J_wᵀ r_w summed over the residuals of window w."""
-    JtJ = J.T @ J
+def cluster_covariance(J: np.ndarray, r: np.ndarray, clusters: np.ndarray, prior: np.ndarray | None = None
+                       ) -> np.ndarray | None:
+    """(JᵀJ + PᵀP)⁻¹ (Σ_w g_w g_wᵀ + PᵀP) (JᵀJ + PᵀP)⁻¹ with g_w = J_wᵀ r_w summed over the residuals
+    of window w (J, r: the data rows); P: the prior's rows of the Jacobian (a maximum a posteriori
+    fit: the prior adds its information to both the curvature and the scatter)."""
+    info = prior.T @ prior if prior is not None and len(prior) else np.zeros((J.shape[1], J.shape[1]))
+    JtJ = J.T @ J + info
     if np.linalg.cond(JtJ) > 1e14:
         return None
     A = np.linalg.inv(JtJ)
     g = np.zeros((clusters.max() + 1, J.shape[1]))
     np.add.at(g, clusters, J * r[:, None])
-    return A @ (g.T @ g) @ A
+    return A @ (g.T @ g + info) @ A

@@ -21,6 +21,15 @@ Jacobians are finite differences computed in one batch rollout (all perturbed
 twins at once); least squares by scipy's trust-region reflective method within
 the bounds; uncertainties from the cluster-robust (sandwich) covariance with the
 windows as clusters, because the errors of one free run are correlated.
+
+With `prior_weight`, the fit is a maximum a posteriori one: each coefficient's belief
+(effects.coefficients.belief: a log-normal magnitude for a damping, an added mass or a
+thrust scale, a normal value for a coupling) enters as a residual row, counted as
+`prior_weight` windows' worth of data. A log-normal coefficient is fitted as ln|θ|, so its
+sign cannot flip. A coefficient whose posterior is not clearly narrower than its belief
+(POSTERIOR_RATIO) is not pinned down by the recordings: it goes back to its prior value
+exactly, keeps its belief's uncertainty, and the rest is fitted again around it, so what the
+report says is kept is what the vessel file holds.
 """
 from __future__ import annotations
 
@@ -30,13 +39,18 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..effects import coefficients
+from ..effects import Quantity, coefficients
+from ..effects.coefficients import Belief, belief
+from ..effects.quantity import log_magnitude
 from ..effects.coefficients import DEFAULT_FIT as DEFAULT
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
-from .objective import SETTLE_S, Estimate, Objective, estimates_of
+from .objective import SETTLE_S, Estimate, Objective, cluster_covariance, estimates_of
 from .windows import ModelCache, make_windows
+
+
+POSTERIOR_RATIO = 0.7  # a posterior σ above this share of the belief's: the data did not pin it down
 
 
 @dataclass
@@ -50,6 +64,10 @@ class FitResult:
     seconds: float
     message: str = ""
     meta: dict = field(default_factory=dict)
+    objective: Objective | None = field(default=None, repr=False)  # what was minimised, at the solution:
+    x: np.ndarray | None = field(default=None, repr=False)  # its coordinates (see Objective.vessel)
+    jacobian: np.ndarray | None = field(default=None, repr=False)  # data rows, then the prior's
+    covariance: np.ndarray | None = field(default=None, repr=False)  # of the coordinates' values
 
     def to_dict(self) -> dict:
         return {"estimates": [e.to_dict() for e in self.estimates], "cost_before": self.cost_before,
@@ -76,9 +94,26 @@ def check_names(prior: Vessel, names, anchor: str) -> list[str]:
 
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
-        cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True) -> FitResult:
-    """Identify `names` (see `parameters`) by free-run windows of window_s every stride_s s,
-    each window's initial velocities estimated with them unless free_start is False."""
+        cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True,
+        prior_weight: float | None = None, start: Vessel | None = None, windows: list | None = None
+        ) -> FitResult:
+    """Identify `names` (see `coefficients`) by free-run windows of window_s every stride_s s,
+    each window's initial velocities estimated with them unless free_start is False; with
+    prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior),
+    on `windows` if given."""
+    if prior_weight is not None:
+        return _fit_map(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
+                        max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start,
+                        prior_weight=prior_weight, start=start, windows=windows)
+    return _fit_least_squares(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
+                              max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start)
+
+
+def _fit_least_squares(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *,
+                       anchor: str = "mass", window_s: float = 10.0, stride_s: float = 5.0,
+                       max_evaluations: int = 40, cache: ModelCache | None = None, settle_s: float = SETTLE_S,
+                       free_start: bool = True) -> FitResult:
+    """Bounded least squares without a prior (the data alone)."""
     started = time.time()
     table = coefficients(prior)
     names = check_names(prior, names, anchor)
@@ -124,3 +159,137 @@ def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, 
                       "residual_rms": float(np.sqrt(np.mean(r ** 2)))})
 
 
+
+
+# ---------------------------------------------------------------- maximum a posteriori
+
+@dataclass(frozen=True)
+class Coordinate:
+    """One fitted coordinate: the Quantity the optimiser moves (ln|θ| for a log-normal belief),
+    the belief about it, and its prior value in the coordinate's units."""
+
+    name: str
+    quantity: Quantity
+    belief: Belief
+    log: bool
+    mean: float
+    unit: str
+    prior_value: float
+
+    def natural(self, x: float) -> float:
+        """The coefficient's value for coordinate value x."""
+        return float(np.sign(self.prior_value) * np.exp(x)) if self.log else float(x)
+
+
+def coordinates(prior: Vessel, names) -> list[Coordinate]:
+    """The coordinates of a maximum a posteriori fit of `names`: log-magnitude where the belief
+    is log-normal and the prior value non-zero, the value itself otherwise (a zero prior has no
+    magnitude: its belief is taken as normal with the same relative width of its typical size)."""
+    table = coefficients(prior)
+    out = []
+    for n in names:
+        q, b = table[n], belief(n, prior)
+        value = q.get(prior)
+        if b.log and value != 0.0:
+            out.append(Coordinate(n, log_magnitude(q, prior), b, True, float(np.log(abs(value))), q.unit, value))
+        else:
+            sigma = b.sigma if not b.log else b.sigma * max(abs(value), q.typical)
+            out.append(Coordinate(n, q, Belief(False, sigma, b.why), False, float(value), q.unit, value))
+    return out
+
+
+def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window_s: float, stride_s: float,
+             max_evaluations: int, cache: ModelCache | None, settle_s: float, free_start: bool,
+             prior_weight: float, start: Vessel | None, windows: list | None) -> FitResult:
+    started = time.time()
+    names = check_names(prior, names, anchor)
+    if prior.thrusters.kind != "t200":
+        raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
+    if windows is None:
+        windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
+    if not windows:
+        raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
+    if "lag_s" in names and prior.thrusters.lag_s <= 0:
+        prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))  # a log-normal lag needs a start
+    coords = coordinates(prior, names)
+    obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight)
+    x0 = obj.x_prior if start is None else np.clip(np.array([c.quantity.get(start) for c in coords]) / obj.scale,
+                                                    *obj.bounds())
+    cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
+    sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
+                        max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    x, J, r, cov = _solution(obj, sol.x)
+    free = _pinned(obj, coords, cov)
+    evaluations = obj.evaluations
+    for _ in range(3):  # until what is called pinned is pinned at the solution returned
+        if all(free):
+            break
+        # not pinned by the data: back to the prior exactly, and the rest fitted again around it
+        x = np.where(free, x, obj.x_prior)
+        if any(free):
+            sub = map_objective(prior, [c for c, f in zip(coords, free) if f], preps, windows, obj.cache,
+                                obj.settle_s, free_start, prior_weight)
+            xs = np.clip(x[free] * obj.scale[free] / sub.scale, *sub.bounds())
+            sol = least_squares(sub.residuals, xs, jac=sub.jacobian, bounds=sub.bounds(), method="trf",
+                                x_scale="jac", max_nfev=max(5, max_evaluations // 3), xtol=1e-8, ftol=1e-8)
+            x[free] = sol.x * sub.scale / obj.scale[free]
+            evaluations += sub.evaluations
+        x, J, r, cov = _solution(obj, x)
+        still = free & _pinned(obj, coords, cov)
+        if np.array_equal(still, free):
+            break
+        free = still
+    estimates = _map_estimates(obj, coords, x, cov, free)
+    data_r = r[: obj.n_data]
+    return FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
+                     time.time() - started, sol.message,
+                     {"anchor": anchor, "window_s": window_s, "stride_s": stride_s, "free_start": free_start,
+                      "prior_weight": prior_weight, "residual_rms": float(np.sqrt(np.mean(data_r ** 2)))},
+                     objective=obj, x=x, jacobian=J, covariance=cov)
+
+
+def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache, settle_s: float, free_start: bool,
+                  prior_weight: float) -> Objective:
+    """The objective of a maximum a posteriori fit: data rows, then one row per coordinate, the
+    beliefs counted as prior_weight windows' worth of data samples each."""
+    obj = Objective(prior, [c.quantity for c in coords], preps, windows, cache, settle_s, free_start=free_start)
+    per_window = obj.n_data / max(len(windows), 1)
+    obj.believe(np.array([c.mean for c in coords]), np.array([c.belief.sigma for c in coords]),
+                prior_weight * per_window)
+    return obj
+
+
+def _solution(obj: Objective, x: np.ndarray):
+    J = obj.jacobian(x)
+    r = obj.residuals(x)
+    n = obj.n_data
+    cov = cluster_covariance(J[:n], r[:n], obj.window_index(), J[n:])
+    if cov is not None:
+        cov = cov * np.outer(obj.scale, obj.scale)  # coordinate value units
+    return x, J, r, cov
+
+
+def _pinned(obj: Objective, coords: list[Coordinate], cov) -> np.ndarray:
+    """Which coordinates the data narrowed clearly below their belief (POSTERIOR_RATIO)."""
+    if cov is None:
+        return np.zeros(len(coords), bool)
+    sigma = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return sigma < POSTERIOR_RATIO * np.array([c.belief.sigma for c in coords])
+
+
+def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray
+                   ) -> list[Estimate]:
+    out = []
+    for i, c in enumerate(coords):
+        xv = float(x[i] * obj.scale[i])
+        value = c.natural(xv)
+        sx = float(np.sqrt(max(cov[i, i], 0.0))) if cov is not None else float("nan")
+        if free[i]:
+            sigma = abs(value) * sx if c.log else sx  # the delta method through exp
+            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True,
+                                f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"))
+        else:
+            sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
+            out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,
+                                f"kept at its prior with its prior's uncertainty: {c.belief.why}"))
+    return out

@@ -64,7 +64,8 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 def _structure_key(vessel: Vessel) -> tuple:
     """What needs a recompilation: everything else is set on a copy of a compiled model."""
     t = vessel.thrusters
-    return (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0)
+    return (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0,
+            t.bounded)
 
 
 class ModelCache:
@@ -115,7 +116,8 @@ class ModelCache:
         m = copy.copy(base)
         native.set_params(m, CompiledVessel(vessel, cv.model, cv.geometry).hydro())
         t = vessel.thrusters
-        m.actuator_ctrlrange[:2] = t.bounds()
+        if t.bounded:
+            m.actuator_ctrlrange[:2] = t.bounds()
         for i, gain in enumerate(t.gains()):
             m.actuator_gainprm[i, 0] = gain
             m.actuator_gainprm[i, 2] = -gain * t.speed_loss_per_m_s if t.speed_loss_per_m_s else 0.0
@@ -343,3 +345,21 @@ def _past(preps: list[Prepared], windows: list[Window], half: int) -> np.ndarray
         keep = idx >= first
         out[j, keep] = np.column_stack([p.u[idx[keep]], p.v[idx[keep]], p.r[idx[keep]]])
     return out
+
+
+def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallback_s: float) -> float:
+    """The recordings' grid step if RK4 is comfortable at it for this vessel (|hλ| ≤ h_lambda;
+    RK4's stability limit is 2.8), else fallback_s. The fastest rate: the largest eigenvalue of
+    ∂ν̇/∂ν at a brisk state (2 m/s, 0.5 m/s, 1 rad/s, where quadratic damping is strong) or 1/lag."""
+    from ..physics.hydrodynamics import acceleration
+
+    grid = preps[0].settings.grid_dt
+    if any(abs(p.settings.grid_dt - grid) > 1e-9 for p in preps) or grid <= fallback_s:
+        return fallback_s
+    hydro, nu, h = compiled.hydro(), np.array([2.0, 0.5, 1.0]), 1e-5
+    base = acceleration(hydro, 0.0, nu, np.zeros(3))
+    J = np.column_stack([(acceleration(hydro, 0.0, nu + h * e, np.zeros(3)) - base) / h for e in np.eye(3)])
+    rate = float(np.max(np.abs(np.linalg.eigvals(J))))
+    lag = compiled.vessel.thrusters.lag_s
+    rate = max(rate, 1.0 / lag if lag > 0 else 0.0)
+    return grid if grid * rate <= h_lambda else fallback_s

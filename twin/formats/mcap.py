@@ -138,7 +138,8 @@ def _write(fh, run: Run, vessel_name: str, origin: tuple[float, float] = DEFAULT
     w = Writer(fh, chunk_size=CHUNK_BYTES)
     w.start(profile="", library="twin")
     w.add_metadata("twin", {"vessel": vessel_name, "meta": json.dumps(_plain(run.meta), sort_keys=True),
-                            "origin": json.dumps([float(origin[0]), float(origin[1])])})
+                            "origin": json.dumps([float(origin[0]), float(origin[1])]),
+                            "limits": json.dumps(run.meta.get("limits", []))})
     channels = {}
     for topic, schema in ((TOPIC_POSE, POSE_SCHEMA), (TOPIC_STATE, STATE_SCHEMA), (TOPIC_INPUTS, INPUTS_SCHEMA),
                           (TOPIC_FIX, LOCATION_FIX_SCHEMA)):

@@ -52,7 +52,21 @@ def tlog_packets(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, sta
                  **rates) -> list[tuple[int, bytes]]:
     """(unix time µs, MAVLink packet) of a simulated run, in time order."""
     tel = sample(run, antenna_body_m, origin, **rates)
-    return telemetry_packets(tel, float(run.t[-1]), THRUSTER_PARAMS, start_unix_s)
+    packets = telemetry_packets(tel, float(run.t[-1]), THRUSTER_PARAMS, start_unix_s)
+    return _limit_notices(run, start_unix_s) + packets
+
+
+def _limit_notices(run: Run, start_unix_s: float) -> list[tuple[int, bytes]]:
+    """A STATUSTEXT (severity warning) at the time each thruster input bound was first hit
+    (run.meta["limits"], twin.engine.limits), so a ground station shows it in the log."""
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    out = []
+    for lim in run.meta.get("limits", []):
+        text = (f"{lim['thruster']} {lim['quantity']} beyond {lim['bound']:g} {lim['unit']} "
+                f"{lim['seconds']:.1f} s")[:50]
+        msg = mav.statustext_encode(mavlink.MAV_SEVERITY_WARNING, text.encode())
+        out.append((int(round(start_unix_s * 1e6)) + _us(lim["first_s"]), msg.pack(mav)))
+    return out
 
 
 def write_run_tlog(run: Run, path, **kwargs) -> None:

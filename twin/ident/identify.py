@@ -1,71 +1,145 @@
-"""`twin identify`: from recordings to a vessel description the twin loads.
+"""`twin identify`: from recordings to a vessel description the twin loads, every choice judged
+on runs left out of the fit.
 
-1. Seed 004 grey-box least squares (static or first-order dynamic thruster model),
-   with its tables (MAE and R² per DOF over random splits, by training share:
-   Tables 4-9 in shape) and the physical first guesses it implies.
-2. Identification by simulation (simfit.py) of the physical parameters, started
-   from whichever of the prior vessel and the grey-box guesses predicts the free
-   runs better; parameters the recordings cannot pin down keep their prior value
-   and are named with the reason.
-3. The result: the vessel description with the identified values and their
-   sources, ready for `twin simulate --model`, `twin evaluate --model`, `twin crosscheck`.
+1. Calibrate: each log's own compass offset from its kinematics (GNSS track against heading on
+   straight runs under way, fit/calibrate.py), applied to every log that has enough straight
+   running; the others keep the prior's calibration.
+2. Seed 004 (optional, `greybox=True`): its grey-box least squares and Tables 4-9 in shape, as
+   that paper reports them.
+3. Fit by simulation (fit/simfit.py), maximum a posteriori: the coefficients of FIT_GROUPS, each
+   with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
+   is right within a factor of 3, an added mass within 2, ...). A coefficient the recordings do
+   not pin down stays at its prior with its prior's uncertainty.
+4. Choose on left-out runs (fit/crossval.py, leave one run out; time blocks with fewer than three
+   recordings): how much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of
+   coefficients stay free: a group goes back to its prior while the twins fitted without each run
+   predict that run better so. No choice looks at how well the fit matches its own data.
+5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
+   runs' scores: median and range), and a warning when it predicts the left-out runs worse than
+   the prior did.
 """
 from __future__ import annotations
 
 import datetime as _dt
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..effects import coefficients
+from ..effects.coefficients import FIT_GROUPS
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
-from ..prepare import Prepared
-from ..formats import read_recording
-from ..fit.calibrate import prepare_for
-from ..vessel import Vessel, check
 from ..fit import simfit
-from ..fit.objective import Objective
-from ..fit.windows import ModelCache, make_windows
+from ..fit.calibrate import LogCalibration, kinematic_calibration, prepare_for, with_log_calibrations
+from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
+from ..fit.windows import ModelCache, comfortable_timestep, make_windows
+from ..formats import read_recording
+from ..prepare import Prepared
+from ..progress import Progress, steps
+from ..recording import Recording
+from ..vessel import Vessel
 from .seed004.greybox import fit_dynamic, fit_static
 from .seed004.physical import first_guesses
 from .seed004.splits import render_split_table, render_training_table, split_method_table, training_size_table
 
 GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities (seed 004 §5.1)
 HEADING_WINDOW_S = 0.5  # the AHRS at 50 Hz affords a shorter one for the yaw rate
+PRIOR_WEIGHTS = (0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
+START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it
+IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all three a window is a drift
+FIT_H_LAMBDA, FIT_TIMESTEP_S = 1.5, 0.05  # the candidate twins' RK4 step (the final scores use the vessel's)
+WINDOW_S = 10.0
 
 
-def load(paths: list[Path], vessel: Vessel, channels: dict | None = None, window_s: float = GNSS_WINDOW_S,
-         heading_window_s: float = HEADING_WINDOW_S) -> list[Prepared]:
-    """Read and prepare recordings as the vessel's sensors see them."""
-    compiled = compile_vessel(vessel)
+def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
+    """The recordings, each with thruster PWM (TwinError naming the one without)."""
     out = []
     for path in paths:
         rec = read_recording(path, channels=channels)
         if not len(rec.pwm):
             raise TwinError(f"{Path(path).name}: no thruster PWM: nothing can be identified without the inputs "
                             "(for an ArduPilot log, give the thruster channels with --channels LEFT,RIGHT)")
-        out.append(prepare_for(rec, compiled, window_s=window_s, heading_window_s=heading_window_s))
+        out.append(rec)
     return out
 
 
+def prepared(recordings: list[Recording], vessel: Vessel) -> list[Prepared]:
+    """The recordings prepared (seed 004 §5.1) as the vessel's sensors see them."""
+    compiled = compile_vessel(vessel)
+    return [prepare_for(r, compiled, window_s=GNSS_WINDOW_S, heading_window_s=HEADING_WINDOW_S) for r in recordings]
+
+
+def calibrate(recordings: list[Recording], vessel: Vessel) -> tuple[Vessel, list[LogCalibration]]:
+    """Each log's compass offset from its kinematics, put into the vessel's per-log heading biases."""
+    compiled = compile_vessel(vessel)
+    calibrations = [kinematic_calibration(r, compiled) for r in recordings]
+    return with_log_calibrations(vessel, calibrations), calibrations
+
+
+def load(paths: list[Path], vessel: Vessel, channels: dict | None = None, *, calibrated: bool = True
+         ) -> list[Prepared]:
+    """Read and prepare recordings as the vessel's sensors see them, each log's own compass offset
+    applied unless `calibrated` is False."""
+    recordings = read(paths, channels)
+    if calibrated:
+        vessel, _ = calibrate(recordings, vessel)
+    return prepared(recordings, vessel)
+
+
 @dataclass
-class Report:
-    vessel: Vessel
-    greybox: dict = field(default_factory=dict)
-    simfit: simfit.FitResult | None = None
-    start: str = "prior"
-    notes: list[str] = field(default_factory=list)
+class Choice:
+    """One configuration judged on left-out runs."""
+
+    label: str
+    prior_weight: float
+    free_groups: tuple[str, ...]
+    cv: CrossValidation
 
     def to_dict(self) -> dict:
-        return {"greybox": self.greybox, "simfit": self.simfit.to_dict() if self.simfit else None,
-                "simfit_start": self.start, "notes": self.notes}
+        return {"label": self.label, "prior_weight": self.prior_weight, "free_groups": list(self.free_groups),
+                **self.cv.to_dict()}
+
+
+@dataclass
+class Identification:
+    """What `twin identify` found: the twin it writes, the fit, the choices and what they were
+    judged by, each log's calibration, and the expectation for a new run."""
+
+    vessel: Vessel
+    prior: Vessel
+    fit: simfit.FitResult | None
+    calibrations: list[LogCalibration] = field(default_factory=list)
+    choices: list[Choice] = field(default_factory=list)
+    chosen: Choice | None = None
+    prior_cv: CrossValidation | None = None
+    greybox: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def __repr__(self) -> str:
+        free = ", ".join(self.chosen.free_groups) if self.chosen else "-"
+        return (f"Identification({self.vessel.name}: {len(self.calibrations)} logs, free groups {free}, "
+                f"{self.seconds:.0f} s)")
+
+    @property
+    def worse_than_prior(self) -> bool:
+        return bool(self.chosen and self.prior_cv and self.chosen.cv.cost > self.prior_cv.cost)
+
+    def to_dict(self) -> dict:
+        return {"vessel": self.vessel.name, "calibrations": [c.to_dict() for c in self.calibrations],
+                "fit": self.fit.to_dict() if self.fit else None,
+                "choices": [c.to_dict() for c in self.choices],
+                "chosen": self.chosen.label if self.chosen else None,
+                "expected_on_a_new_run": self.chosen.cv.to_dict() if self.chosen else None,
+                "prior_on_left_out_runs": self.prior_cv.to_dict() if self.prior_cv else None,
+                "worse_than_prior": self.worse_than_prior, "greybox": self.greybox, "notes": self.notes,
+                "seconds": round(self.seconds, 1)}
 
 
 def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: str, train: float, repeats: int,
-                  seed: int) -> tuple[dict, dict | None, list[str]]:
-    """Seed 004 tables and first guesses; a grey-box failure is a note, not the end."""
+                  seed: int) -> tuple[dict, list[str]]:
+    """Seed 004 tables and the physical quantities they imply; a grey-box failure is a note."""
     fit = {"static": fit_static, "dynamic": fit_dynamic}[thruster]
     notes: list[str] = []
     out: dict = {"thruster": thruster}
@@ -75,59 +149,102 @@ def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: st
         out["model"] = model.to_dict()
     except TwinError as exc:
         notes.append(f"grey-box ({thruster}, seed 004): {exc}")
-        return out, None, notes
+        return out, notes
     try:
         out["by_split_method"] = split_method_table(fit, preps, train=train, repeats=repeats, seed=seed)
         out["by_training_share"] = training_size_table(fit, preps, method=split)
     except TwinError as exc:
         notes.append(f"grey-box tables: {exc}")
-    return out, out["first_guesses"], notes
+    return out, notes
 
 
-def vessel_from_guesses(prior: Vessel, guesses: dict) -> Vessel | None:
-    """The prior with the grey-box's physically admissible guesses put in (None if none is)."""
-    rigid = compile_vessel(prior).geometry.rigid
-    v = prior
+def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, ...] | None = None,
+             params: tuple[str, ...] | None = None, prior_weights: tuple[float, ...] = PRIOR_WEIGHTS,
+             anchor: str = "mass", window_s: float = WINDOW_S, start: str = "free", calibrated: bool = True,
+             greybox: bool = False, thruster: str = "static", split: str = "segments", train: float = 0.7,
+             repeats: int = 20, seed: int = 0, max_evaluations: int = 20, sources: list[str] | None = None,
+             progress: Progress | None = None) -> Identification:
+    """The whole identification (module docstring). groups: the FIT_GROUPS to consider (default
+    all), or params: an explicit list of coefficients (then no group is dropped); start: each
+    window's initial velocities "free" (estimated with the fit) or "measured"."""
+    started = time.time()
+    say = steps(progress)
+    _check(start, thruster, split, train, prior_weights)
+    names_by_group = _groups(groups, params)
+    all_names = tuple(n for names in names_by_group.values() for n in names)
+    simfit.check_names(prior, all_names, anchor)
+    say("calibrating each log's compass", 0, 4)
+    vessel, calibrations = calibrate(recordings, prior) if calibrated else (prior, [])
+    preps = prepared(recordings, vessel)
+    result = Identification(vessel, prior, None, calibrations)
+    if greybox:
+        say("seed 004 grey-box tables", 1, 4)
+        result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
+        result.notes += notes
+    cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S))
+    every = make_windows(preps, window_s, window_s, min_length_s=window_s)
+    if not every:
+        raise TwinError(f"no stretch of {window_s:g} s without a dropout to fit on")
+    informative = [w for w in every if _informative(preps[w.rec], w)]
+    if len(informative) < 3:
+        raise TwinError(f"only {len(informative)} windows of {window_s:g} s with the thrusters working or the boat "
+                        "moving: nothing to identify (record some driving)")
+    fits, previous = {}, None
+    for k, weight in enumerate(sorted(prior_weights, key=lambda w: abs(np.log(w / START_WEIGHT)))):
+        say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {weight:g} windows",
+            2, 4)
+        fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
+                                  max_evaluations=max_evaluations if previous is None else max(6, max_evaluations // 3),
+                                  cache=cache, free_start=start == "free", prior_weight=weight, start=previous,
+                                  windows=informative)
+        previous = fits[weight].vessel if previous is None else previous  # each later fit starts from the first
+    say("judging the choices on left-out runs", 3, 4)
+    first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
+    fit_groups, _ = held_out_groups(first.objective.windows, preps)
+    judge_groups, group_names = held_out_groups(every, preps)
+    configs = {"prior (no fit)": [vessel] * len(group_names)}
+    for weight, f in fits.items():
+        configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
+                                                            fit_groups)
+    judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache)
+    result.prior_cv = judged.pop("prior (no fit)")
+    choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
+    best = min(choices, key=lambda c: c.cv.cost)
+    chosen_fit = fits[best.prior_weight]
+    if params is None:
+        best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
+                                  judge_groups, group_names, cache)
+        choices += more
+    result.choices, result.chosen = choices, best
+    fit_best = chosen_fit
+    if best.free_groups != tuple(names_by_group):
+        say("refitting with the chosen groups", 3, 4)
+        names = tuple(n for g in best.free_groups for n in names_by_group[g])
+        refit = simfit.fit(vessel, preps, names, anchor=anchor, window_s=window_s, stride_s=window_s,
+                           max_evaluations=max(6, max_evaluations // 3), cache=cache, free_start=start == "free",
+                           prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative)
+        cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
+                                               refit.objective.residuals(refit.x), fit_groups)},
+                   preps, every, judge_groups, group_names, first.objective.sigma, cache)["refit"]
+        refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups, cv)
+        choices.append(refitted)
+        if cv.cost <= min(c.cv.cost for c in choices if c.free_groups == tuple(names_by_group)):
+            fit_best, best = refit, refitted
+        else:  # the linearised choice did not hold up once refitted: every group stays free
+            best = min((c for c in choices if c.free_groups == tuple(names_by_group)), key=lambda c: c.cv.cost)
+            result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
+    result.fit = fit_best
+    result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
+    if result.worse_than_prior:
+        result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
+                            f"{best.cv.cost:.4g} against {result.prior_cv.cost:.4g}): more varied recordings "
+                            "are needed before a fit can be trusted")
+    result.seconds = time.time() - started
+    say("done", 4, 4)
+    return result
 
-    def value(key):
-        entry = guesses.get(key) or {}
-        x = entry.get("value")
-        return float(x) if isinstance(x, (int, float)) and np.isfinite(x) else None
 
-    changes = 0
-    for name in ("Xu", "Xuu", "Nr", "Nrr"):
-        x = value(name)
-        if x is not None and x < 0:
-            v = replace(v, damping=replace(v.damping, **{name: x}))
-            changes += 1
-    if (s := value("thrust_scale_forward")) is not None and 0.05 < s < 20:
-        t = v.thrusters
-        v = replace(v, thrusters=replace(t, gain_left=t.gain_left * s, gain_right=t.gain_right * s))
-        changes += 1
-    if (m33 := value("M33_eff")) is not None and m33 > rigid.Iz_kgm2:
-        v = replace(v, added_mass=replace(v.added_mass, Nrdot=rigid.Iz_kgm2 - m33))
-        changes += 1
-    m22 = value("M22_from_sway")
-    if m22 is not None and m22 > rigid.mass_kg:
-        v = replace(v, added_mass=replace(v.added_mass, Yvdot=rigid.mass_kg - m22))
-        changes += 1
-    if (lag := value("lag_s")) is not None and 0.01 < lag < 3:
-        v = replace(v, thrusters=replace(v.thrusters, lag_s=lag))
-        changes += 1
-    try:
-        check(v)
-    except TwinError:
-        return None
-    return v if changes else None
-
-
-def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", split: str = "segments",
-             train: float = 0.7, repeats: int = 20, seed: int = 0, params: tuple[str, ...] = simfit.DEFAULT,
-             anchor: str = "mass", simulate: bool = True, window_s: float = 10.0, stride_s: float = 5.0,
-             start: str = "free", sources: list[str] | None = None) -> Report:
-    """The whole identification (module docstring). start: each free run's initial velocities
-    "free" (estimated with the parameters: unbiased physics from noisy starts) or "measured"
-    (the twin that predicts best from the starts as recorded, which is how it is judged)."""
+def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
     if start not in ("free", "measured"):
         raise TwinError(f"--start must be free or measured, got '{start}'")
     if thruster not in ("static", "dynamic"):
@@ -136,46 +253,67 @@ def identify(preps: list[Prepared], prior: Vessel, *, thruster: str = "static", 
         raise TwinError(f"--split must be segments or points, got '{split}'")
     if not 0.1 <= train <= 0.9:
         raise TwinError(f"--train must lie in [0.1, 0.9], got {train}")
-    table, guesses, notes = greybox_stage(preps, prior, thruster, split, train, repeats, seed)
-    report = Report(prior, table, notes=notes)
-    if not simulate:
-        return report
-    first, cache = prior, ModelCache()
-    guessed = vessel_from_guesses(prior, guesses) if guesses else None
-    if guessed is not None:
-        costs = {name: _free_run_cost(v, preps, params, anchor, window_s, stride_s, cache)
-                 for name, v in (("prior", prior), ("grey-box", guessed))}
-        report.start = min(costs, key=costs.get)
-        first = guessed if report.start == "grey-box" else prior
-        notes.append("simulation fit started from the " + report.start + " (free-run cost " +
-                     ", ".join(f"{k} {c:.4g}" for k, c in costs.items()) + ")")
-    result = simfit.fit(first, preps, params, anchor=anchor, window_s=window_s, stride_s=stride_s, cache=cache,
-                        free_start=start == "free")
-    report.simfit = result
-    report.vessel = _with_sources(result, sources or [])
-    for e in result.estimates:
-        if not e.identifiable:
-            notes.append(f"{e.name} kept at its prior {e.prior:.4g} {e.unit}: {e.note}")
-    return report
+    if not prior_weights or any(not w > 0 for w in prior_weights):
+        raise TwinError("the beliefs' weights must be positive numbers")
 
 
-def _free_run_cost(vessel: Vessel, preps, params, anchor, window_s, stride_s, cache) -> float:
-    windows = make_windows(preps, window_s, stride_s * 2, min_length_s=min(window_s, 3.0))
-    table = coefficients(vessel)
-    obj = Objective(vessel, [table[n] for n in params if n in table], preps, windows, cache)
-    return 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
+def _groups(groups, params) -> dict[str, tuple[str, ...]]:
+    if params is not None:
+        return {"chosen": tuple(params)}
+    chosen = tuple(FIT_GROUPS) if groups is None else tuple(groups)
+    unknown = [g for g in chosen if g not in FIT_GROUPS]
+    if unknown:
+        raise TwinError(f"unknown group(s) {', '.join(unknown)} (known: {', '.join(FIT_GROUPS)})")
+    return {g: FIT_GROUPS[g] for g in chosen}
 
 
-def _with_sources(result: simfit.FitResult, sources: list[str]) -> Vessel:
-    v = result.vessel
-    names = ", ".join(f"{e.name}" for e in result.estimates if e.identifiable)
-    kept = ", ".join(e.name for e in result.estimates if not e.identifiable)
+def _informative(prep: Prepared, w) -> bool:
+    """A window in which the thrusters work or the boat moves: a drifting boat at rest says nothing
+    about its hull or thrusters (only about the wind and current of that day)."""
+    sl = slice(w.start, w.start + w.n + 1)
+    thrust = np.any(np.abs(prep.pwm[sl] - np.asarray(prep.pwm_neutral_us)) > IDLE_PWM_US)
+    moving = np.any(np.hypot(prep.u[sl], prep.v[sl]) > IDLE_SPEED_M_S) or np.any(np.abs(prep.r[sl]) > IDLE_YAW_RAD_S)
+    return bool(thrust or moving)
+
+
+def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
+                 group_names, cache) -> tuple[Choice, list[Choice]]:
+    """Backward: the group whose return to its prior most improves the left-out scores goes back,
+    while one does (each refit linearised about the fit with every group free)."""
+    obj, x, J = fit.objective, fit.x, fit.jacobian
+    r = obj.residuals(x)
+    col = {n: i for i, n in enumerate(all_names)}
+    current, tried = start, []
+    while len(current.free_groups) > 1:
+        configs = {}
+        for g in current.free_groups:
+            fixed = np.ones(len(all_names), bool)
+            for kept in current.free_groups:
+                if kept != g:
+                    fixed[[col[n] for n in names_by_group[kept]]] = False
+            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
+        judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache)
+        options = [Choice(f"{current.label} without {g}", current.prior_weight,
+                          tuple(k for k in current.free_groups if k != g), cv) for g, cv in judged.items()]
+        tried += options
+        best = min(options, key=lambda c: c.cv.cost)
+        if best.cv.cost >= current.cv.cost:
+            break
+        current = best
+    return current, tried
+
+
+def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> Vessel:
+    v = fit.vessel
+    pinned = ", ".join(e.name for e in fit.estimates if e.identifiable)
+    kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
     files = ", ".join(Path(s).name for s in sources) or "recordings"
-    text = (f"identified by `twin identify` on {when} from {files}: {names} by free-run windows of "
-            f"{result.meta.get('window_s')} s (anchor: {result.meta.get('anchor')}, initial velocities "
-            f"{'estimated' if result.meta.get('free_start') else 'as measured'}, residual RMS "
-            f"{result.meta.get('residual_rms', float('nan')):.3f} σ)" + (f"; kept at the prior: {kept}" if kept else ""))
+    expected = choice.cv.summary()
+    text = (f"identified by `twin identify` on {when} from {files}: maximum a posteriori fit by free-run windows of "
+            f"{fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
+            f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
+            + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
     return replace(v, sources={**v.sources, "identification": text})
 
 
@@ -188,6 +326,18 @@ def format_estimates(result: simfit.FitResult) -> str:
         lines.append(f"{e.name:14s} {e.unit[:9]:9s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note[:40]}")
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
                  f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
+    return "\n".join(lines)
+
+
+def format_choices(ident: Identification) -> str:
+    """The choices and their left-out scores, ≤ 100 columns."""
+    head = f"{'configuration':44s} {'cost':>9s} " + " ".join(f"{'R2 ' + d + ' med':>9s}" for d in "uvr")
+    lines = [head, "-" * len(head)]
+    rows = ([("prior (no fit)", ident.prior_cv)] if ident.prior_cv else []) + [(c.label, c.cv) for c in ident.choices]
+    for label, cv in rows:
+        mark = " *" if ident.chosen is not None and cv is ident.chosen.cv else ""
+        cells = " ".join(f"{(s[0] if (s := cv.spread(d)) else float('nan')):9.3f}" for d in "uvr")
+        lines.append(f"{(label + mark)[:44]:44s} {cv.cost:9.4g} {cells}")
     return "\n".join(lines)
 
 

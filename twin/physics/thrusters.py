@@ -30,7 +30,10 @@ class ThrusterModel:
     reverse quadratics in δ̃ (coefficients [a, b, c] of a·δ̃² + b·δ̃ + c), zero
     thrust inside the dead zone (deadzone_rev, deadzone_fwd).
     `kind = "direct"`: inputs are thrusts in N; no PWM map is known.
-    Thrust bounds (N) are the map's values at full PWM, or given for "direct".
+    Thrust bounds (N) are the map's values at full PWM, or, for "direct", thrust_min_n and
+    thrust_max_n where the vessel's source gives them: none given, the thrust is not bounded.
+    command_scale_n: the thrust a full normalised command (a scenario's ±1) asks of an unbounded
+    "direct" thruster; a scale for scenarios, not a limit.
     """
 
     kind: str = "t200"
@@ -44,6 +47,7 @@ class ThrusterModel:
     pwm_max_us: float = 1900.0
     thrust_min_n: float | None = None
     thrust_max_n: float | None = None
+    command_scale_n: float | None = None
     lag_s: float = 0.0
     delay_s: float = 0.0
     decay_per_min: float = 0.0
@@ -67,13 +71,27 @@ class ThrusterModel:
         return np.where(x >= self.deadzone_fwd, fwd, np.where(x <= self.deadzone_rev, rev, 0.0))
 
     def bounds(self) -> tuple[float, float]:
-        """(T_min, T_max) of one thruster in N."""
+        """(T_min, T_max) of one thruster in N; ±inf where no bound is given."""
         if self.kind == "t200":
             ends = self.thrust_from_pwm(np.array([self.pwm_min_us, self.pwm_max_us]))
             return float(ends[0]), float(ends[1])
-        if self.thrust_min_n is None or self.thrust_max_n is None:
-            raise ValueError("a direct-thrust model needs thrust_min_n and thrust_max_n")
-        return float(self.thrust_min_n), float(self.thrust_max_n)
+        lo = -np.inf if self.thrust_min_n is None else float(self.thrust_min_n)
+        hi = np.inf if self.thrust_max_n is None else float(self.thrust_max_n)
+        return lo, hi
+
+    @property
+    def bounded(self) -> bool:
+        return bool(np.all(np.isfinite(self.bounds())))
+
+    def command_range(self) -> tuple[float, float]:
+        """The thrust (N) a normalised command of −1 and +1 stands for: the bounds, or
+        ±command_scale_n for an unbounded thruster (ValueError if neither is given)."""
+        lo, hi = self.bounds()
+        if np.isfinite(lo) and np.isfinite(hi):
+            return lo, hi
+        if self.command_scale_n is None:
+            raise ValueError("an unbounded direct-thrust model needs command_scale_n to run a scenario")
+        return -float(self.command_scale_n), float(self.command_scale_n)
 
     def gains(self) -> np.ndarray:
         return np.array([self.gain_left, self.gain_right])
@@ -111,8 +129,11 @@ def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:
 
 
 def force_torque_bounds(model: ThrusterModel, thruster_y_m) -> dict[str, float]:
-    """Fu and τr bounds for both thrusters saturated (seed 000 Table VIII)."""
+    """Fu and τr bounds for both thrusters saturated (seed 000 Table VIII); None for an
+    unbounded thruster."""
     t_min, t_max = model.bounds()
+    if not (np.isfinite(t_min) and np.isfinite(t_max)):
+        return {"Fu_min_n": None, "Fu_max_n": None, "tau_r_min_nm": None, "tau_r_max_nm": None}
     B = allocation_matrix(thruster_y_m)
     corners = np.array([[a, b] for a in (t_min, t_max) for b in (t_min, t_max)]) * model.gains()
     tau = corners @ B.T

@@ -112,6 +112,11 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
         label = run.meta.get("series_labels", {}).get(q, name)  # e.g. a thrust that was derived, not measured
         rec.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
         rec.send_columns(entity, indexes=times, columns=rr.Scalars.columns(scalars=cols[q]))
+    for lim in run.meta.get("limits", []):  # an input the engine bounded: said where it happened
+        rec.set_time(TIMELINE, duration=float(run.t[0] + lim["first_s"]))
+        rec.log(f"log/{key}", rr.TextLog(f"{lim['thruster']} thruster {lim['quantity']} requested beyond the bound "
+                                         f"{lim['bound']:g} {lim['unit']} for {lim['seconds']:.2f} s (by up to "
+                                         f"{abs(lim['worst_excess']):.3g} {lim['unit']})", level="WARN"))
 
 
 def _log_hull(rec: rr.RecordingStream, vessel: str, color, geometry, meshes) -> None:

@@ -294,7 +294,7 @@ def heading_step(compiled, yaw: DofModel, step_deg: float, duration_s: float | N
 
     duration_s = duration_s or settle_s(yaw.model)
     ctrl = DpController(yaw.loop(anti_windup), math.radians(step_deg), compiled.geometry.thruster_y_m,
-                        compiled.vessel.thrusters.bounds())
+                        compiled.vessel.thrusters.command_range())
     run = simulate(compiled, ctrl, duration_s, control_dt_s=CONTROL_DT_S, sample_dt_s=CONTROL_DT_S)
     name = f"heading step {step_deg:g}°" + ("" if anti_windup else " without anti-windup")
     return DpRun(name, run, [_response("yaw", "deg", ctrl.yaw_log, yaw.model)])
@@ -307,7 +307,7 @@ def point_move(compiled, yaw: DofModel, surge: DofModel, target_ne_m: tuple[floa
     from ...engine.sim import simulate
 
     bearing = math.atan2(target_ne_m[1], target_ne_m[0])
-    ctrl = DpController(yaw.loop(), bearing, compiled.geometry.thruster_y_m, compiled.vessel.thrusters.bounds(),
+    ctrl = DpController(yaw.loop(), bearing, compiled.geometry.thruster_y_m, compiled.vessel.thrusters.command_range(),
                         surge=surge.loop(), distance_m=math.hypot(*target_ne_m),
                         surge_start_s=8 / yaw.model.omega_n_rad_s)
     duration_s = duration_s or settle_s(yaw.model) + settle_s(surge.model)

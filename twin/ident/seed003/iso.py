@@ -280,7 +280,7 @@ class IsoSweep:
 def sweep(compiled, dof: str, amplitudes: list[float] | None = None, xa: float | None = None,
           duration_s: float | None = None) -> IsoSweep:
     """IS-O at several relay outputs C (default: fractions of the largest the thrusters give)."""
-    y_m, bounds = compiled.geometry.thruster_y_m, compiled.vessel.thrusters.bounds()
+    y_m, bounds = compiled.geometry.thruster_y_m, compiled.vessel.thrusters.command_range()
     check_dof(compiled.vessel.name, dof)
     limit = relay_limit(y_m, bounds, dof)
     amplitudes = amplitudes or [math.floor(f * limit * 100) / 100 for f in DEFAULT_FRACTIONS]

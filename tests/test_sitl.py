@@ -1,0 +1,595 @@
+"""`twin sitl`: the twin as ArduPilot SITL's JSON physics backend (issue 17).
+
+No ArduPilot binary here: `Client` plays ArduPilot's side, written from the protocol text
+(libraries/SITL/examples/JSON/readme.md, SIM_JSON.h) with struct and json, not with
+twin.sitl.protocol, so that the backend's own packing and parsing are checked against an
+independent reading. Every session runs the server in a thread on an ephemeral port with
+a stop event; references are computed after the server thread has ended (MuJoCo's passive
+callback is process-global).
+"""
+from __future__ import annotations
+
+import _thread
+import contextlib
+import json
+import math
+import re
+import socket
+import struct
+import threading
+import time
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+
+from twin.drive import InputSeries
+from twin.engine.mjcf import compile_vessel
+from twin.engine.native import installed_native, with_native_params
+from twin.engine.sim import delivered_thrust, initial_state, simulate
+from twin.errors import TwinError
+from twin.formats import read_recording
+from twin.physics.hydrodynamics import Terms
+from twin.run import read_csv
+from twin.sitl.backend import PwmMap, SitlTwin, delivered_thrust_n, with_environment
+from twin.sitl.protocol import (PacketError, Reply, ServoFrame, format_reply, pack_servo_packet,
+                                parse_servo_packet)
+from twin.sitl.server import run_sitl
+from twin.vessel import MODEL_DIR, load
+
+GRAVITY = 9.81
+NEUTRAL = 1500.0  # yellowfish: pwm_offset·pwm_scale_us
+
+
+# ---------------------------------------------------------------- ArduPilot's side
+
+class Client:
+    """ArduPilot's side of the link: servo packets out (`<HHI16H`, magic 18458, or `<HHI32H`, magic
+    29569), one newline-framed JSON object back per frame; the latency of each frame."""
+
+    def __init__(self, port: int):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.settimeout(5.0)
+        self.address = ("127.0.0.1", port)
+        self.latencies_s: list[float] = []
+
+    def send(self, count: int, pwm, rate: int = 400) -> None:
+        magic = 18458 if len(pwm) == 16 else 29569
+        self.sock.sendto(struct.pack(f"<HHI{len(pwm)}H", magic, rate, count, *pwm), self.address)
+
+    def raw(self, data: bytes) -> None:
+        self.sock.sendto(data, self.address)
+
+    def receive(self) -> bytes:
+        data, _ = self.sock.recvfrom(65536)
+        return data
+
+    def frame(self, count: int, pwm, rate: int = 400) -> dict:
+        start = time.perf_counter()
+        self.send(count, pwm, rate)
+        data = self.receive()
+        self.latencies_s.append(time.perf_counter() - start)
+        return decode(data)
+
+    def nothing_pending(self, wait_s: float = 0.2) -> bool:
+        self.sock.settimeout(wait_s)
+        try:
+            self.sock.recvfrom(65536)
+        except TimeoutError:
+            return True
+        finally:
+            self.sock.settimeout(5.0)
+        return False
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def decode(data: bytes) -> dict:
+    text = data.decode("ascii")
+    assert text.startswith("\n") and text.endswith("\n"), "a reply is preceded and followed by a newline"
+    return json.loads(text)
+
+
+@contextlib.contextmanager
+def sitl(vessel, **kwargs):
+    """run_sitl in a thread on an ephemeral port; yields (client, box); box["summary"] after the block."""
+    box: dict = {}
+    ready, stop = threading.Event(), threading.Event()
+
+    def on_ready(address):
+        box["port"] = address[1]
+        ready.set()
+
+    def target():
+        try:
+            box["summary"] = run_sitl(vessel, port=0, host="127.0.0.1", stop_event=stop, ready=on_ready, **kwargs)
+        except BaseException as exc:  # noqa: BLE001  (re-raised in the test's thread)
+            box["error"] = exc
+            ready.set()
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    assert ready.wait(120), "the backend did not start"
+    if "error" in box:
+        raise box["error"]
+    client = Client(box["port"])
+    try:
+        yield client, box
+    finally:
+        stop.set()
+        thread.join(10)
+        client.close()
+        assert not thread.is_alive(), "the backend did not stop"
+        if "error" in box:
+            raise box["error"]
+
+
+def play(vessel, frames, **kwargs) -> tuple[list[dict], dict, list[float]]:
+    """One lock-step session: frames = [(count, pwm, rate)]; the replies, the summary, the latencies."""
+    with sitl(vessel, **kwargs) as (client, box):
+        replies = [client.frame(count, pwm, rate) for count, pwm, rate in frames]
+        latencies = client.latencies_s
+    return replies, box["summary"], latencies
+
+
+# ---------------------------------------------------------------- inputs and references
+
+@pytest.fixture(scope="module")
+def full_vessel():
+    """The yellowfish with every thruster effect and an environment: lag, transport delay (2.5 frames
+    at 50 Hz), decay, advance-speed loss, asymmetric gains, current and wind."""
+    v = load("yellowfish")
+    thrusters = replace(v.thrusters, lag_s=0.15, delay_s=0.05, decay_per_min=0.05, speed_loss_per_m_s=0.05,
+                        gain_left=0.95)
+    return with_environment(replace(v, thrusters=thrusters), current=(0.3, 40.0), wind=(6.0, 100.0))
+
+
+@pytest.fixture(scope="module")
+def fine_vessel(full_vessel, tmp_path_factory):
+    """The same vessel with its MJCF time step at 2.5 ms: the offline reference at SITL's 400 Hz step."""
+    folder = tmp_path_factory.mktemp("mjcf")
+    text = (MODEL_DIR / "yellowfish.xml").read_text()
+    assert 'timestep="0.02"' in text and 'meshdir="../assets"' in text
+    text = text.replace('timestep="0.02"', 'timestep="0.0025"')
+    text = text.replace('meshdir="../assets"', f'meshdir="{(MODEL_DIR.parent / "assets").resolve()}"')
+    path = folder / "yellowfish_fine.xml"
+    path.write_text(text)
+    return replace(full_vessel, mjcf=path)
+
+
+def pwm_frames(n: int, seed: int, outputs: int = 16) -> tuple[list[list[int]], np.ndarray]:
+    """n frames of servo outputs: channels 1 and 3 held at random levels for random spans, sometimes 0
+    (no output) or beyond 1100-1900 µs; every other output random (it must not matter). Also the
+    (left, right) PWM the thrusters should see: 0 is the neutral."""
+    rng = np.random.default_rng(seed)
+    frames, pairs = [], []
+    while len(frames) < n:
+        hold = int(rng.integers(3, 40))
+        level = [0 if rng.random() < 0.1 else int(rng.integers(1000, 2001)) for _ in range(2)]
+        for _ in range(hold):
+            pwm = [int(x) for x in rng.integers(900, 2100, outputs)]
+            pwm[0], pwm[2] = level
+            frames.append(pwm)
+            pairs.append([x if x else NEUTRAL for x in level])
+    return frames[:n], np.array(pairs[:n], float)
+
+
+def offline(vessel, pairs: np.ndarray, frame_s: float):
+    """The twin run offline by engine.sim.simulate on the same PWM (a zero-order hold from each frame's
+    start, neutral before the session): samples at every frame boundary."""
+    n = len(pairs)
+    series = InputSeries(np.concatenate([[-1.0], np.arange(n) * frame_s]),
+                         np.vstack([[NEUTRAL, NEUTRAL], pairs]), "pwm")
+    return simulate(compile_vessel(vessel), series, n * frame_s, sample_dt_s=frame_s)
+
+
+def stepped(vessel, segments) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """Reference for frame rate changes, stepped with mj_step: frames of (rate, pairs) segments, each
+    frame split into ceil(400 Hz / rate) equal steps; thrust commands from InputSeries (delay, map,
+    decay) at each step's start. (timestamp, qpos, qvel) after each frame."""
+    compiled = compile_vessel(vessel)
+    model = with_native_params(compiled, Terms())
+    data = mujoco.MjData(model)
+    initial_state(model, data, None, None)
+    starts, values, out = [-1.0], [[NEUTRAL, NEUTRAL]], []
+    t_seg = 0.0
+    with installed_native():
+        for rate, pairs in segments:
+            n_sub = math.ceil(400.0 / rate - 1e-9)
+            h = (1.0 / rate) / n_sub
+            model.opt.timestep = h
+            k = 0
+            for pair in pairs:
+                starts.append(t_seg + k * h)
+                values.append(list(pair))
+                series = InputSeries(np.array(starts), np.array(values, float), "pwm")
+                for _ in range(n_sub):
+                    data.ctrl[:2] = series.commanded_thrust(vessel.thrusters, np.array([t_seg + k * h]))[0]
+                    mujoco.mj_step(model, data)
+                    k += 1
+                out.append((t_seg + k * h, data.qpos.copy(), data.qvel.copy()))
+            t_seg = t_seg + k * h
+    return out
+
+
+def arrays(replies: list[dict]) -> dict[str, np.ndarray]:
+    return {
+        "t": np.array([r["timestamp"] for r in replies]),
+        "pos": np.array([r["position"] for r in replies]),
+        "vel": np.array([r["velocity"] for r in replies]),
+        "att": np.array([r["attitude"] for r in replies]),
+        "quat": np.array([r["quaternion"] for r in replies]),
+        "gyro": np.array([r["imu"]["gyro"] for r in replies]),
+        "acc": np.array([r["imu"]["accel_body"] for r in replies]),
+    }
+
+
+def ned_velocity(run) -> np.ndarray:
+    c, s = np.cos(run.eta[:, 2]), np.sin(run.eta[:, 2])
+    u, v = run.nu[:, 0], run.nu[:, 1]
+    return np.column_stack([c * u - s * v, s * u + c * v])
+
+
+def assert_matches_offline(replies: list[dict], run) -> None:
+    """Lock-step replies against the offline run: the same doubles (position, heading, time) and the
+    same velocities up to the body↔NED rotation's rounding."""
+    a = arrays(replies)
+    n = len(replies)
+    np.testing.assert_array_equal(a["t"], run.t[1:n + 1])
+    np.testing.assert_array_equal(a["pos"][:, :2], run.eta[1:n + 1, :2])
+    np.testing.assert_array_equal(a["att"][:, 2], [math.remainder(p, 2 * math.pi) for p in run.eta[1:n + 1, 2]])
+    np.testing.assert_allclose(a["vel"][:, :2], ned_velocity(run)[1:n + 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a["gyro"][:, 2], run.nu[1:n + 1, 2], rtol=0, atol=1e-12)
+    assert np.hypot(*a["pos"][-1, :2]) > 0.2, "the boat must have moved for the comparison to mean anything"
+
+
+# ---------------------------------------------------------------- protocol
+
+def test_servo_packets_parse_as_sent_and_anything_else_is_refused_with_a_reason():
+    pwm16 = list(range(1000, 1016))
+    frame = parse_servo_packet(struct.pack("<HHI16H", 18458, 400, 123456, *pwm16))
+    assert frame == ServoFrame(400, 123456, tuple(pwm16))
+    pwm32 = list(range(1100, 1132))
+    assert parse_servo_packet(struct.pack("<HHI32H", 29569, 1200, 7, *pwm32)) == ServoFrame(1200, 7, tuple(pwm32))
+    assert pack_servo_packet(400, 123456, pwm16) == struct.pack("<HHI16H", 18458, 400, 123456, *pwm16)
+    assert len(pack_servo_packet(50, 1, pwm32)) == 72
+    cases = {
+        b"": "short packet",
+        b"\x1a\x48": "short packet",
+        struct.pack("<HHI16H", 18458, 400, 1, *pwm16)[:39]: "short packet",
+        struct.pack("<HHI16H", 29569, 400, 1, *pwm16): "short packet",  # 40 bytes for the 72-byte magic
+        struct.pack("<HHI32H", 18458, 400, 1, *pwm32): "long packet",
+        struct.pack("<HHI16H", 12345, 400, 1, *pwm16): "unknown magic",
+        b'{"timestamp":1.0}': "unknown magic",
+        struct.pack("<HHI16H", 18458, 0, 1, *pwm16): "zero frame rate",
+    }
+    for data, reason in cases.items():
+        with pytest.raises(PacketError) as err:
+            parse_servo_packet(data)
+        assert err.value.reason == reason, data
+
+
+def _ardupilot_parse(text: str) -> dict:
+    """SIM_JSON.cpp parse_sensors, transcribed: strstr the section, strstr the key after it, skip
+    strlen(key) + 2 characters, then sscanf "[%f, %f, %f]" (a format space matches any whitespace,
+    none included) or atof."""
+    keys = [("", "timestamp", 1), ("imu", "gyro", 3), ("imu", "accel_body", 3), ("", "position", 3),
+            ("", "attitude", 3), ("", "quaternion", 4), ("", "velocity", 3)]
+    number = r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+    out = {}
+    for section, key, n in keys:
+        p = text.find(section) + len(section) + 1
+        p = text.find(key, p)
+        assert p >= 0, key
+        p += len(key) + 2
+        pattern = number if n == 1 else r"\[" + r"\s*,".join([number] * n) + r"\s*\]"
+        m = re.match(pattern, text[p:])
+        assert m, f"ArduPilot could not read {key} from {text[p:p + 30]!r}"
+        out[key] = [float(g) for g in m.groups()]
+    return out
+
+
+def test_a_reply_is_a_newline_framed_json_object_that_ardupilots_own_parser_reads_exactly():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        values = rng.normal(size=10) * 10.0 ** rng.integers(-9, 4, 10)
+        r = Reply(*(float(x) for x in values))
+        r = r._replace(yaw_rad=math.remainder(r.yaw_rad, 2 * math.pi), timestamp_s=abs(r.timestamp_s))
+        line = format_reply(r).decode("ascii")
+        data = decode(line.encode())
+        assert data["timestamp"] == r.timestamp_s
+        assert data["position"] == [r.north_m, r.east_m, 0.0]
+        assert data["velocity"] == [r.vn_m_s, r.ve_m_s, 0.0]
+        assert data["imu"] == {"gyro": [0.0, 0.0, r.yaw_rate_rad_s], "accel_body": [r.ax_m_s2, r.ay_m_s2, r.az_m_s2]}
+        assert data["attitude"] == [0.0, 0.0, r.yaw_rad]
+        w, x, y, z = data["quaternion"]
+        assert (x, y) == (0.0, 0.0) and w >= 0 and math.isclose(math.atan2(z, w) * 2, r.yaw_rad, abs_tol=1e-12)
+        seen = _ardupilot_parse(line)
+        assert seen["timestamp"] == [r.timestamp_s] and seen["gyro"][2] == r.yaw_rate_rad_s
+        assert seen["accel_body"] == [r.ax_m_s2, r.ay_m_s2, r.az_m_s2] and seen["position"][:2] == [r.north_m, r.east_m]
+        assert seen["velocity"][:2] == [r.vn_m_s, r.ve_m_s] and seen["attitude"][2] == r.yaw_rad
+        assert r.as_dict() == data
+
+
+def test_the_t200_pwm_map_gives_the_bits_of_the_thruster_model_and_direct_thrusters_map_linearly():
+    thrusters = load("yellowfish").thrusters
+    pwm = np.arange(900.0, 2100.5, 0.25)
+    m = PwmMap.of(thrusters)
+    assert m.neutral_us == 1500.0 and m.raw(m.held(1500.0)) == 0.0
+    np.testing.assert_array_equal([m.raw(m.held(float(p))) for p in pwm], thrusters.thrust_from_pwm(pwm))
+    direct = PwmMap.of(load("cybership1").thrusters)  # a full command is ±2 N, PWM range 1100-1900 µs
+    assert direct.kind == "thrust" and direct.neutral_us == 1500.0
+    assert [direct.raw(direct.held(p)) for p in (1100.0, 1300.0, 1500.0, 1700.0, 1900.0, 2100.0, 900.0)] == \
+        [-2.0, -1.0, 0.0, 1.0, 2.0, 2.0, -2.0]
+    twin = SitlTwin(load("cybership1"))
+    with twin.active():
+        for _ in range(50):
+            twin.step([1900, 0, 1700] + [0] * 13, 50)
+    np.testing.assert_array_equal(twin.recording().thrust_n[-1], [2.0, 1.0])
+
+
+def test_recorded_thrust_is_what_the_engine_says_each_thruster_delivers(full_vessel):
+    rng = np.random.default_rng(11)
+    compiled = compile_vessel(full_vessel)
+    command, nu = rng.uniform(-40, 50, (40, 2)), rng.normal(size=(40, 3))
+    y = compiled.geometry.thruster_y_m
+    np.testing.assert_allclose(delivered_thrust_n(full_vessel.thrusters, y, command, nu),
+                               delivered_thrust(full_vessel, y, command, nu), rtol=1e-15, atol=1e-13)
+
+
+# ---------------------------------------------------------------- lock-step against the offline twin
+
+def test_lock_step_at_400_hz_is_the_offline_twin_with_the_same_pwm(full_vessel, fine_vessel):
+    frames, pairs = pwm_frames(1200, seed=1)
+    replies, summary, latencies = play(full_vessel, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert summary.counters.frames == 1200 and summary.physics_time_s == pytest.approx(3.0)
+    assert_matches_offline(replies, offline(fine_vessel, pairs, 1 / 400))
+    assert np.median(latencies) < 5e-3, f"median latency {np.median(latencies) * 1e6:.0f} µs per frame"
+
+
+def test_lock_step_at_50_hz_substeps_the_frame_and_reads_32_output_packets(full_vessel, fine_vessel):
+    frames, pairs = pwm_frames(150, seed=2, outputs=32)
+    replies, _, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)])
+    a = arrays(replies)
+    np.testing.assert_array_equal(np.diff(a["t"]), np.diff(np.arange(1, 151) * 0.02))
+    assert_matches_offline(replies, offline(fine_vessel, pairs, 0.02))  # 8 steps of 2.5 ms per frame
+
+
+def test_a_frame_rate_change_changes_the_physics_step(full_vessel):
+    frames, pairs = pwm_frames(700, seed=3)
+    segments = [(400, slice(0, 300)), (200, slice(300, 500)), (1200, slice(500, 640)), (50, slice(640, 700))]
+    sent = [(k, frames[k], rate) for rate, part in segments for k in range(part.start, part.stop)]
+    replies, summary, _ = play(full_vessel, sent)
+    assert summary.counters.rate_changes == 3
+    a = arrays(replies)
+    steps = np.diff(np.concatenate([[0.0], a["t"]]))
+    for rate, part in segments:
+        np.testing.assert_allclose(steps[part], 1.0 / rate, rtol=1e-9)
+    reference = stepped(full_vessel, [(rate, pairs[part]) for rate, part in segments])
+    np.testing.assert_array_equal(a["t"], [t for t, _, _ in reference])
+    np.testing.assert_array_equal(a["pos"][:, :2], [q[:2] for _, q, _ in reference])
+    np.testing.assert_array_equal(a["vel"][:, :2], [w[:2] for _, _, w in reference])
+
+
+# ---------------------------------------------------------------- what ArduPilot's side can do
+
+def test_duplicates_are_answered_again_without_stepping_and_missed_frames_are_counted(full_vessel):
+    frames, _ = pwm_frames(120, seed=4)
+    counts = [k for k in range(120) if not 70 <= k < 73]  # frames 70-72 never arrive
+    with sitl(full_vessel) as (client, box):
+        replies = []
+        for k in counts:
+            replies.append(client.frame(k, frames[k]))
+            if k in (10, 50):
+                client.send(k, frames[k])  # ArduPilot re-sends a frame it got no answer to
+                again = client.receive()
+                assert decode(again) == replies[-1]
+    counters = box["summary"].counters
+    assert (counters.frames, counters.duplicates, counters.missed) == (117, 2, 3)
+    clean, _, _ = play(full_vessel, [(i, frames[k], 400) for i, k in enumerate(counts)])
+    assert replies == clean  # one step per frame answered, whatever the counter did
+    np.testing.assert_allclose(np.diff(arrays(replies)["t"]), 1 / 400, rtol=1e-9)
+
+
+def test_a_frame_count_going_back_is_an_ardupilot_restart_and_resets_the_twin(full_vessel, tmp_path):
+    frames, _ = pwm_frames(200, seed=5)
+    session = [(k, pwm, 400) for k, pwm in enumerate(frames)]
+    path = tmp_path / "restart.csv"
+    replies, summary, _ = play(full_vessel, session + session[:150], record_paths=[path])
+    assert summary.counters.restarts == 1
+    assert replies[200:] == replies[:150]  # the same PWM from a fresh twin: the same states
+    assert replies[200]["timestamp"] == 1 / 400 and replies[199]["timestamp"] == pytest.approx(0.5)
+    run = read_csv(path)
+    assert len(run.t) == 351 and np.all(np.diff(run.t) > 0)  # the record clock runs on across the restart
+    assert run.t[200] == pytest.approx(0.5) and np.all(run.eta[200] == 0.0)  # the reset state
+    np.testing.assert_allclose(run.eta[199, :2], replies[198]["position"][:2], rtol=1e-8)
+    assert np.hypot(*replies[199]["position"][:2]) > 0.01
+
+
+def test_16_and_32_output_packets_mix_and_the_channels_can_be_chosen(full_vessel):
+    frames, _ = pwm_frames(200, seed=6, outputs=32)
+    mixed = [(k, pwm if k % 3 else pwm[:16], 400) for k, pwm in enumerate(frames)]
+    only16 = [(k, pwm[:16], 400) for k, pwm in enumerate(frames)]
+    replies_mixed, _, _ = play(full_vessel, mixed)
+    replies_16, _, _ = play(full_vessel, only16)
+    assert replies_mixed == replies_16
+    moved = []
+    for k, pwm in enumerate(frames):  # left thruster on output 20, right on 17; outputs 1 and 3 now unused
+        out = list(pwm)
+        out[19], out[16], out[0], out[2] = pwm[0], pwm[2], 1900, 1100
+        moved.append((k, out, 400))
+    replies_moved, _, _ = play(full_vessel, moved, channels=(20, 17))
+    assert replies_moved == replies_16
+    sixteen_only, _, _ = play(full_vessel, only16[:50], channels=(20, 17), current=(0, 0), wind=(0, 0))
+    assert all(r["position"] == [0.0, 0.0, 0.0] for r in sixteen_only)  # outputs 17+ absent: neutral
+
+
+def test_garbage_and_short_datagrams_are_counted_and_ignored(full_vessel):
+    rng = np.random.default_rng(7)
+    frames, _ = pwm_frames(60, seed=7)
+    garbage = [b"", b"\x00", b"x" * 7, bytes(rng.integers(0, 256, 39, dtype=np.uint8)),
+               struct.pack("<HHI16H", 18458, 400, 3, *frames[3])[:30],
+               struct.pack("<HHI16H", 29569, 400, 3, *frames[3]),
+               struct.pack("<HHI32H", 18458, 400, 3, *(frames[3] * 2)),
+               b'{"timestamp":1.0,"imu":{}}\n', struct.pack("<HHI16H", 18458, 0, 3, *frames[3]),
+               bytes(rng.integers(0, 256, 2000, dtype=np.uint8))]
+    expected = {"short packet": 5, "long packet": 1, "unknown magic": 3, "zero frame rate": 1}
+    assert all(g[:2] not in (struct.pack("<H", 18458), struct.pack("<H", 29569)) for g in garbage[2:4] + garbage[-1:])
+    with sitl(full_vessel) as (client, box):
+        replies = []
+        for k, pwm in enumerate(frames):
+            if k % 6 == 3:
+                for g in garbage:
+                    client.raw(g)
+            replies.append(client.frame(k, pwm))  # the next datagram back answers this frame
+        assert client.nothing_pending(), "garbage must never be answered"
+    counters = box["summary"].counters
+    assert counters.ignored == {reason: 10 * n for reason, n in expected.items()}
+    assert counters.frames == 60
+    clean, _, _ = play(full_vessel, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert replies == clean
+
+
+# ---------------------------------------------------------------- the states are consistent
+
+def test_the_states_sent_are_kinematically_consistent(full_vessel):
+    frames, _ = pwm_frames(600, seed=8)
+    replies, _, _ = play(full_vessel, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    a = arrays(replies)
+    dt = np.diff(a["t"])[:, None]
+    # velocity is the derivative of position: the chord slope is the mean of the end velocities to O(dt²)
+    np.testing.assert_allclose(np.diff(a["pos"], axis=0) / dt, 0.5 * (a["vel"][1:] + a["vel"][:-1]), atol=2e-5)
+    np.testing.assert_allclose(np.diff(np.unwrap(a["att"][:, 2])) / dt[:, 0],
+                               0.5 * (a["gyro"][1:, 2] + a["gyro"][:-1, 2]), atol=2e-5)
+    # the specific force, rotated to NED with the attitude sent, plus gravity, is the velocity change
+    psi = a["att"][1:, 2]
+    c, s = np.cos(psi), np.sin(psi)
+    ax, ay = a["acc"][1:, 0], a["acc"][1:, 1]
+    accel_ned = np.column_stack([c * ax - s * ay, s * ax + c * ay])
+    np.testing.assert_allclose(accel_ned, np.diff(a["vel"][:, :2], axis=0) / dt, atol=1e-9)
+    np.testing.assert_array_equal(a["acc"][:, 2], -GRAVITY)
+    assert np.all(a["gyro"][:, :2] == 0) and np.all(a["att"][:, :2] == 0)
+    np.testing.assert_allclose(a["quat"][:, 0], np.cos(a["att"][:, 2] / 2), atol=1e-15)
+    np.testing.assert_allclose(a["quat"][:, 3], np.sin(a["att"][:, 2] / 2), atol=1e-15)
+    assert np.all(np.abs(a["att"][:, 2]) <= np.pi)
+
+
+def test_at_rest_the_imu_feels_only_gravity_and_in_a_steady_turn_the_centripetal_force():
+    calm = load("yellowfish")
+    rest, _, _ = play(calm, [(k, [0] * 16, 50) for k in range(20)], current=(0, 0), wind=(0, 0))
+    for r in rest:
+        assert r["imu"] == {"gyro": [0.0, 0.0, 0.0], "accel_body": [0.0, 0.0, -GRAVITY]}
+        assert r["position"] == [0.0, 0.0, 0.0] and r["velocity"] == [0.0, 0.0, 0.0]
+    turn = [1750, 0, 1550] + [0] * 13
+    replies, _, _ = play(calm, [(k, turn, 50) for k in range(1500)], rate_hz=50)  # 30 s, steady
+    last = replies[-1]
+    psi = last["attitude"][2]
+    vn, ve = last["velocity"][:2]
+    u, v = math.cos(psi) * vn + math.sin(psi) * ve, -math.sin(psi) * vn + math.cos(psi) * ve
+    r = last["imu"]["gyro"][2]
+    ax, ay, _ = last["imu"]["accel_body"]
+    assert r > 0.05 and u > 0.5, "a steady starboard turn"
+    assert ay == pytest.approx(r * u, rel=0.02) and ax == pytest.approx(-r * v, abs=2e-3)
+
+
+# ---------------------------------------------------------------- real time
+
+def test_real_time_paces_the_twin_to_the_wall_clock(full_vessel):
+    frames, _ = pwm_frames(400, seed=9)
+    with sitl(full_vessel, realtime=True) as (client, _box):
+        start = time.perf_counter()
+        fast = []
+        for k in range(40):  # as fast as answered: the twin may not run ahead of the wall clock
+            fast.append((client.frame(k, frames[k])["timestamp"], time.perf_counter() - start))
+        slow = []
+        for k in range(40, 55):  # 50 Hz arrivals of 400 Hz frames: the twin keeps up with the wall clock
+            time.sleep(0.02)
+            slow.append((client.frame(k, frames[k])["timestamp"], time.perf_counter() - start))
+    for t_s, wall_s in fast + slow:
+        assert t_s <= wall_s + 1e-3
+    t_end, wall_end = slow[-1]
+    assert t_end == pytest.approx(wall_end, abs=0.05)
+    assert fast[-1][0] == pytest.approx(fast[-1][1], abs=0.03)
+    steps = np.diff([t for t, _ in slow])
+    assert np.median(steps) >= 0.015, "several frame periods per frame when frames come slower than real time"
+
+
+# ---------------------------------------------------------------- recording and bad input
+
+def test_the_session_is_recorded_in_the_project_formats_also_when_ended_by_ctrl_c(full_vessel, tmp_path):
+    frames, _ = pwm_frames(300, seed=10)
+    paths = [tmp_path / f"sitl{ext}" for ext in (".csv", ".mcap", ".tlog", ".bin", ".rrd")]
+    box, replies = {}, []
+
+    def ardupilot():
+        ready_port = box_ready.wait(120)
+        assert ready_port
+        client = Client(box["port"])
+        try:
+            replies.extend(client.frame(k, pwm) for k, pwm in enumerate(frames))
+        finally:
+            client.close()
+            time.sleep(0.05)  # the backend back waiting for a frame, as when a user presses Ctrl-C
+            _thread.interrupt_main()  # Ctrl-C in the backend's thread
+
+    box_ready = threading.Event()
+    thread = threading.Thread(target=ardupilot, daemon=True)
+    thread.start()
+    summary = None
+    try:
+        summary = run_sitl(full_vessel, port=0, host="127.0.0.1", record_paths=paths, origin=(37.41, -5.98),
+                           ready=lambda address: (box.__setitem__("port", address[1]), box_ready.set()))
+    except KeyboardInterrupt:  # pragma: no cover - a late interrupt outside the session loop
+        pytest.fail("Ctrl-C escaped run_sitl")
+    thread.join(10)
+    assert summary.interrupted and summary.counters.frames == 300 and set(summary.written) == set(paths)
+    assert all(p.is_file() and p.stat().st_size > 0 for p in paths)
+    assert not list(tmp_path.glob(".*.tmp")), "atomic writes leave no temporary file"
+    run = read_csv(paths[0])
+    a = arrays(replies)
+    assert len(run.t) == 301
+    np.testing.assert_allclose(run.t[1:], a["t"], rtol=1e-9)
+    np.testing.assert_allclose(run.eta[1:, :2], a["pos"][:, :2], rtol=1e-8, atol=1e-9)
+    np.testing.assert_allclose(run.pwm_us[:, 0], [p[0] or NEUTRAL for p in frames] + [frames[-1][0] or NEUTRAL])
+    for path in paths[1:4]:  # what `twin info` reads
+        rec = read_recording(path)
+        assert len(rec.gnss) > 3 and len(rec.pwm) > 3 and rec.duration_s() == pytest.approx(0.75, abs=0.11)
+
+
+def test_bad_input_is_a_one_line_error(tmp_path):
+    holder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    holder.bind(("127.0.0.1", 0))
+    port = holder.getsockname()[1]
+    try:
+        with pytest.raises(TwinError, match=rf"^port {port} is in use \(another SITL backend running\?\): "
+                                            r"choose --port$"):
+            run_sitl("yellowfish", port=port, host="127.0.0.1", stop_after_frames=0)
+    finally:
+        holder.close()
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"name": "x", "mjcf": "nowhere.xml"}')
+    with pytest.raises(TwinError, match="MJCF file 'nowhere.xml' not found"):
+        run_sitl(str(bad), port=0, stop_after_frames=0)
+    with pytest.raises(TwinError, match="unknown format"):
+        run_sitl("yellowfish", port=0, record_paths=[tmp_path / "x.txt"], stop_after_frames=0)
+    with pytest.raises(TwinError, match="two different servo outputs"):
+        run_sitl("yellowfish", port=0, channels=(3, 3), stop_after_frames=0)
+
+
+def test_the_twin_refuses_to_step_without_its_hydrodynamics():
+    twin = SitlTwin(load("yellowfish"))
+    with pytest.raises(RuntimeError, match="active"):
+        twin.step([1600] * 16, 400)
+
+
+def test_a_diverging_twin_is_a_one_line_error_not_a_silent_reset():
+    twin = SitlTwin(load("yellowfish"), record=False)
+    with twin.active():
+        for k in range(10):
+            twin.step([1700, 0, 1700] + [0] * 13, 400)
+        twin.data.qvel[0] = 1e300  # beyond mjMAXVAL: MuJoCo would reset the boat to the origin and go on
+        with pytest.raises(TwinError, match=r"^the twin diverged between t = 0\.025 s and 0\.028 s: MuJoCo found "
+                                            r"its velocity non-finite"):
+            twin.step([1700, 0, 1700] + [0] * 13, 400)

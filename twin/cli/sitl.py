@@ -1,0 +1,43 @@
+"""`twin sitl`: the twin as ArduPilot SITL's physics backend (JSON interface)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, note, say, speed_direction,
+                  vessel_from)
+from .run import RUN_OUTPUTS, origin_from
+
+
+@app.command()
+def sitl(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
+    host: str = typer.Option("0.0.0.0", help="address to listen on (127.0.0.1: this machine only)"),
+    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames are split into equal steps"),
+    channels: Optional[str] = typer.Option(None, help="servo outputs LEFT,RIGHT of the thrusters (default 1,3: "
+                                                     "SERVO1_FUNCTION=73, SERVO3_FUNCTION=74)"),
+    current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
+    wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
+    heading: float = typer.Option(0.0, help="initial heading, deg"),
+    origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the origin, SITL's home, for map positions"),
+    record: list[Path] = typer.Option([], help="record the session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
+    realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
+                                                                       "frame per servo frame (default)"),
+):
+    """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
+    from ..sitl.server import run_sitl
+
+    check_outputs(record, RUN_OUTPUTS, "--record")
+    pair = channels_from(channels)
+    summary = run_sitl(
+        vessel_from(vessel, model, case), port=port, host=host, rate_hz=rate, record_paths=record,
+        realtime=realtime, channels=(pair["left"], pair["right"]) if pair else (1, 3),
+        current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"),
+        heading_deg=heading, origin=origin_from(origin), log=note,
+    )
+    say(summary.text())

@@ -1,0 +1,156 @@
+"""Judging a fit's choices on runs left out of it: leave one run out.
+
+Every choice identification makes (how strongly to believe the prior, which coefficients to
+free) is judged by how the twin fitted WITHOUT a run predicts THAT run, run by run. With fewer
+than MIN_RUNS recordings, blocks of consecutive windows (BLOCKS per recording) stand in for runs:
+an honest second best, since blocks of one log share its conditions. Refitting
+from scratch for every left-out run would cost as many fits as runs; instead each refit is one
+Gauss-Newton step from the fit on all runs, using the Jacobian the fit already has (an
+approximate jackknife, exact for a model linear in its coordinates): θ₋ₖ = θ̂ + Δ with
+Δ = argmin |r₋ₖ + J₋ₖΔ|² (the prior's rows kept). The left-out run is then predicted by real
+free runs of the twin θ₋ₖ from its measured states, as `twin evaluate` does: the score is never
+linearised.
+
+A run's score: R² and MAE per DOF of 10-s free runs (fit/metrics.py), and its cost, the sum of
+squared errors over the DOFs, each divided by the spread of that DOF's measurements in all
+the runs (so runs add up and DOFs weigh alike).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..physics.sensors import log_name
+from ..prepare import Prepared
+from ..vessel import Vessel
+from .metrics import DOFS, r2_mae
+from .windows import ModelCache, Window, measured, predict
+
+MIN_RUNS = 3
+BLOCKS = 4
+
+
+def held_out_groups(windows: list[Window], preps: list[Prepared]) -> tuple[np.ndarray, list[str]]:
+    """The group each window is left out with, and the groups' names: its recording, or with
+    fewer than MIN_RUNS recordings a time block of it (BLOCKS per recording, by the window's
+    start time, so that any set of windows of the same recordings gets the same blocks)."""
+    recs = np.array([w.rec for w in windows])
+    if len(preps) >= MIN_RUNS:
+        return recs, [log_name(p.settings.source) for p in preps]
+    blocks = np.array([min(BLOCKS - 1, int(BLOCKS * (preps[w.rec].t[w.start] - preps[w.rec].t[0])
+                                          / max(preps[w.rec].t[-1] - preps[w.rec].t[0], 1e-9))) for w in windows])
+    names = [f"{log_name(p.settings.source)} part {b + 1}" for p in preps for b in range(BLOCKS)]
+    return recs * BLOCKS + blocks, names
+
+
+def reweighted(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, factor: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fit's linearisation with its beliefs counted `factor` times as much, solved: (x, J, r)
+    of the maximum a posteriori solution for that weight, one Gauss-Newton step from the fit."""
+    n = obj.n_data
+    J2, r2 = J.copy(), r.copy()
+    J2[n:] *= np.sqrt(factor)
+    r2[n:] *= np.sqrt(factor)
+    lo, hi = obj.bounds()
+    x2 = np.clip(x + np.linalg.lstsq(J2, -r2, rcond=None)[0], lo, hi)
+    return x2, J2, r2 + J2 @ (x2 - x)
+
+
+@dataclass
+class RunScore:
+    """How the twin fitted without one run predicts it."""
+
+    log: str
+    metrics: dict  # {u, v, r: {r2, mae, n}}
+    cost: float
+
+    def to_dict(self) -> dict:
+        return {"log": self.log, "cost": self.cost, "metrics": self.metrics}
+
+
+@dataclass
+class CrossValidation:
+    """One configuration's leave-one-run-out scores."""
+
+    label: str
+    runs: list[RunScore] = field(default_factory=list)
+
+    @property
+    def cost(self) -> float:
+        return float(sum(r.cost for r in self.runs))
+
+    def spread(self, dof: str) -> tuple[float, float, float] | None:
+        """(median, lowest, highest) R² of one DOF over the runs."""
+        values = [r.metrics[dof]["r2"] for r in self.runs if r.metrics[dof]["r2"] is not None]
+        if not values:
+            return None
+        return float(np.median(values)), float(np.min(values)), float(np.max(values))
+
+    def to_dict(self) -> dict:
+        return {"label": self.label, "cost": self.cost, "runs": [r.to_dict() for r in self.runs],
+                "r2_median_min_max": {d: self.spread(d) for d in DOFS}}
+
+    def summary(self) -> str:
+        parts = []
+        for d in DOFS:
+            s = self.spread(d)
+            parts.append(f"{d} {s[0]:.2f} ({s[1]:.2f} to {s[2]:.2f})" if s else f"{d} -")
+        return f"{self.label}: R² on left-out runs, median (range): " + ", ".join(parts)
+
+
+def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,
+                      fixed: np.ndarray | None = None, at: np.ndarray | None = None) -> list[Vessel]:
+    """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels.
+    fixed: coordinates held at `at` (default: the prior) instead of refitted; the step then
+    starts by moving them there."""
+    n = obj.n_data
+    runs = groups[obj.window_index()]
+    free = np.ones(len(x), bool) if fixed is None else ~np.asarray(fixed, bool)
+    target = obj.x_prior if at is None else at
+    base = x.copy()
+    base[~free] = target[~free]
+    shift = (base - x)
+    r0 = r + J @ shift  # linearised residuals with the fixed coordinates moved
+    lo, hi = obj.bounds()
+    out = []
+    for k in range(int(groups.max()) + 1):
+        keep = np.ones(len(r), bool)
+        keep[:n] = runs != k
+        delta = np.zeros(len(x))
+        if free.any():
+            delta[free] = np.linalg.lstsq(J[keep][:, free], -r0[keep], rcond=None)[0]
+        out.append(obj.vessel(np.clip(base + delta, lo, hi)))
+    return out
+
+
+def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], windows: list[Window],
+          groups: np.ndarray, names: list[str], sigma: np.ndarray, cache: ModelCache | None = None
+          ) -> dict[str, CrossValidation]:
+    """Each configuration's twins (one per group, fitted without it) predicting their own group's
+    windows by free runs from measured states; every configuration of one group in one batch."""
+    cache = cache or ModelCache()
+    out = {label: CrossValidation(label) for label in configurations}
+    labels = list(configurations)
+    for k, name in enumerate(names):
+        mine = [w for w, g in zip(windows, groups) if g == k]
+        if not mine:
+            continue
+        predictions = predict([configurations[lb][k] for lb in labels], preps, mine, cache)
+        _, meas = measured(preps, mine)
+        for label, pred in zip(labels, predictions):
+            nu = pred.nu.copy()
+            for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
+                nu[j] = np.where(np.isnan(nu[j]), np.inf, nu[j])
+            out[label].runs.append(score_run(name, nu[:, 1:], meas[:, 1:], sigma))
+    return out
+
+
+def score_run(log: str, pred: np.ndarray, meas: np.ndarray, sigma: np.ndarray) -> RunScore:
+    """R²/MAE per DOF and the σ-scaled squared error of one run's free runs."""
+    metrics = r2_mae(pred, meas)
+    err = (pred - meas) / sigma
+    ok = np.isfinite(meas)
+    diverged = np.isinf(pred) & ok
+    cost = float(np.sum(np.where(ok & ~diverged, err, 0.0) ** 2) + 100.0 * np.sum(diverged))
+    return RunScore(log, metrics, cost)

@@ -1,0 +1,8 @@
+"""The twin as ArduPilot SITL's physics backend over its JSON interface (`twin sitl`).
+
+protocol.py  the bytes: servo packets in, JSON state lines out (pure functions)
+backend.py   SitlTwin: the vessel's twin stepped one frame at a time, recorded as a Run
+server.py    the UDP loop (lock-step or real time) and `run_sitl`, which the CLI calls
+
+docs/sitl.md says how to run ArduPilot against it.
+"""

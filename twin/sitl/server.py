@@ -1,0 +1,342 @@
+"""`twin sitl`: the UDP loop that makes the twin ArduPilot SITL's physics backend.
+
+ArduPilot sends a servo packet per frame and waits for the answer before its next
+frame (SIM_JSON.cpp: output_servos, then a blocking recv_fdm), so in lock-step the
+twin steps exactly once per frame and a session is deterministic at any SITL
+speed-up. What the loop does with each datagram (twin.sitl.protocol has the bytes):
+
+- not a servo packet (too short, too long, unknown magic, frame rate 0): ignored and
+  counted by reason; the first of each kind is logged once;
+- the frame just answered again (same frame_count): ArduPilot re-sends a frame only
+  when no answer came within a second (SIM_JSON.cpp recv_fdm), so the answer is sent
+  again unchanged and the twin is not stepped twice; with the same timestamp ArduPilot's
+  clock does not move;
+- frame_count lower than the last: ArduPilot restarted (the readme: "This count will be
+  reset when SITL is re-started allowing the physics backend to reset the vehicle"): the
+  twin is reset to the origin, at rest, clock 0 (ArduPilot takes a timestamp going
+  backwards as a physics reset);
+- frame_count jumping ahead: the missing frames are counted; the twin still steps once;
+- a new frame_rate: the physics step follows (SitlTwin), logged.
+
+`--realtime` instead paces the twin to the wall clock: a frame advances the twin by as
+many frame periods as the wall clock has moved since the session started minus the
+twin's time (at least one, and under ArduPilot's 0.1 s limit on one step, beyond which
+the lost time is given up), and the answer waits until the wall clock reaches its
+timestamp. Realtime sessions are not reproducible; lock-step ones are.
+
+Recording (`record_paths`): every frame's state, PWM and thrust as a twin Run, written
+with twin.outputs.write when the session ends, however it ends (frame limit, stop event,
+Ctrl-C, a diverged twin), each file atomically.
+"""
+from __future__ import annotations
+
+import errno
+import math
+import socket
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from threading import Event
+from typing import Callable, Sequence
+
+from twin.errors import TwinError
+from twin.outputs import FORMATS, write
+from twin.sitl.backend import DEFAULT_CHANNELS, SitlTwin, check_channels, sensor_amendments, with_environment
+from twin.sitl.protocol import REASONS, PacketError, format_reply, parse_servo_packet
+from twin.vessel import Vessel, load
+
+Log = Callable[[str], None]
+RECV_BYTES = 2048  # larger than any servo packet: a longer datagram is seen whole and refused
+POLL_S = 0.1  # how often a blocked receive looks at the stop event (and lets Ctrl-C through)
+MAX_STEP_S = 0.09  # ArduPilot advances its clock only for timestamp steps under 0.1 s (SIM_JSON.cpp)
+
+
+@dataclass
+class Counters:
+    """What a session did: frames stepped and answered, duplicates answered again, restarts,
+    frames skipped by the frame counter, frame rate changes, datagrams ignored by reason,
+    and (real time only) wall-clock time given up because the twin fell too far behind."""
+
+    frames: int = 0
+    duplicates: int = 0
+    restarts: int = 0
+    missed: int = 0
+    rate_changes: int = 0
+    ignored: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
+    lag_dropped_s: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {"frames": self.frames, "duplicates": self.duplicates, "restarts": self.restarts,
+                "missed": self.missed, "rate_changes": self.rate_changes, "ignored": dict(self.ignored),
+                "lag_dropped_s": self.lag_dropped_s}
+
+
+@dataclass(frozen=True)
+class SitlSummary:
+    """How a `run_sitl` session ended: its counters, the twin's time over all ArduPilot sessions (s),
+    the wall time (s), whether Ctrl-C ended it, and the files written."""
+
+    counters: Counters
+    physics_time_s: float
+    wall_time_s: float
+    interrupted: bool
+    written: tuple[Path, ...]
+
+    def text(self) -> str:
+        c = self.counters
+        ignored = sum(c.ignored.values())
+        why = ", ".join(f"{n} {reason}" for reason, n in c.ignored.items() if n)
+        return (f"{c.frames} frames, {self.physics_time_s:.2f} s of twin time in {self.wall_time_s:.2f} s; "
+                f"{c.duplicates} duplicates, {c.missed} missed, {c.restarts} restarts, "
+                f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else ""))
+
+
+def bind_udp(host: str, port: int) -> socket.socket:
+    """The UDP socket the backend listens on; a port that is taken or not ours to use is a one-line
+    TwinError. No SO_REUSEADDR: with it two backends could share the port and split the frames."""
+    if not (isinstance(port, int) and 0 <= port <= 65535):
+        raise TwinError(f"--port {port}: a UDP port number is 0..65535 (ArduPilot's JSON default is 9002)")
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            raise TwinError(f"port {port} is in use (another SITL backend running?): choose --port") from None
+        if exc.errno == errno.EACCES:
+            raise TwinError(f"port {port}: permission denied (ports below 1024 need privileges): choose --port") \
+                from None
+        raise TwinError(f"cannot listen on {host}:{port} ({exc.strerror or exc}): check --host and --port") from None
+    sock.settimeout(POLL_S)
+    return sock
+
+
+class SitlServer:
+    """The frame loop over a bound socket and a twin (module docstring). `serve()` returns when
+    `stop_after_frames` frames were stepped or `stop_event` is set; Ctrl-C raises through it."""
+
+    def __init__(self, sock: socket.socket, twin: SitlTwin, *, realtime: bool = False, log: Log | None = None):
+        self.sock = sock
+        self.twin = twin
+        self.realtime = realtime
+        self.log = log or (lambda text: None)
+        self.counters = Counters()
+        self._last_count: int | None = None
+        self._last_reply = b""
+        self._rate_hz: int | None = None
+        self._peer = None
+        self._wall0 = 0.0
+        self._logged: set[str] = set()
+
+    @property
+    def address(self) -> tuple[str, int]:
+        return self.sock.getsockname()
+
+    def serve(self, stop_after_frames: int | None = None, stop_event: Event | None = None) -> Counters:
+        """Answer frames until told to stop. The hot path is kept lean: one frame is one receive,
+        one parse, one step, one formatted line, one send."""
+        recv, send = self.sock.recvfrom, self.sock.sendto
+        parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
+        c = self.counters
+        limit = math.inf if stop_after_frames is None else stop_after_frames
+        if c.frames >= limit:
+            return c
+        realtime = self.realtime
+        while stop_event is None or not stop_event.is_set():
+            try:
+                data, peer = recv(RECV_BYTES)
+            except TimeoutError:
+                continue
+            try:
+                rate, count, pwm = parse(data)
+            except PacketError as exc:
+                self._ignore(exc)
+                continue
+            last = self._last_count
+            if last is None or count != last + 1:
+                if count == last:
+                    c.duplicates += 1
+                    send(self._last_reply, peer)
+                    continue
+                self._irregular(count, peer, len(pwm))
+            if rate != self._rate_hz:
+                self._new_rate(rate)
+            if realtime:
+                reply = step(pwm, rate, self._frames_due(rate))
+                self._wait_for(reply.timestamp_s)
+            else:
+                reply = step(pwm, rate)
+            c.frames += 1
+            line = fmt(reply)
+            self._last_reply, self._last_count = line, count
+            send(line, peer)
+            if c.frames >= limit:
+                break
+        return c
+
+    # ------------------------------------------------------------ the rare cases, off the hot path
+
+    def _ignore(self, exc: PacketError) -> None:
+        self.counters.ignored[exc.reason] += 1
+        if exc.reason not in self._logged:
+            self._logged.add(exc.reason)
+            self.log(f"ignoring datagrams that are not servo packets ({exc}); counted in the summary")
+
+    def _irregular(self, count: int, peer, n_outputs: int) -> None:
+        """A first frame, a restart (frame_count went back) or skipped frames."""
+        last = self._last_count
+        if last is None:
+            self._connected(peer, n_outputs)
+        elif count < last:
+            self.counters.restarts += 1
+            self.twin.reset()
+            self._wall0 = time.perf_counter()
+            self._rate_hz = None
+            self.log(f"ArduPilot restarted (frame_count {last} → {count}): twin reset to the origin, at rest")
+        else:
+            self.counters.missed += count - last - 1
+        if peer != self._peer and last is not None:
+            self._connected(peer, n_outputs)
+
+    def _connected(self, peer, n_outputs: int) -> None:
+        self._peer = peer
+        self._wall0 = time.perf_counter() - self.twin.time_s
+        self.log(f"ArduPilot connected from {peer[0]}:{peer[1]} ({n_outputs} servo outputs)")
+
+    def _new_rate(self, rate: int) -> None:
+        if self._rate_hz is not None:
+            self.counters.rate_changes += 1
+        frame_s = 1.0 / rate
+        substeps = max(1, math.ceil(frame_s * self.twin.min_rate_hz - 1e-9))
+        self.log(f"frames at {rate} Hz: physics step {frame_s / substeps * 1e3:.4g} ms, {substeps} per frame")
+        self._rate_hz = rate
+
+    def _frames_due(self, rate: int) -> int:
+        """Real time: the frame periods the wall clock is ahead of the twin, at least one. More than
+        ArduPilot accepts in one step is given up (counted), not caught up in a burst."""
+        frame_s = 1.0 / rate
+        behind_s = time.perf_counter() - self._wall0 - self.twin.time_s
+        n = max(1, int(behind_s / frame_s))
+        cap = max(1, int(MAX_STEP_S / frame_s))
+        if n > cap:
+            self._wall0 += (n - cap) * frame_s
+            self.counters.lag_dropped_s += (n - cap) * frame_s
+            n = cap
+        return n
+
+    def _wait_for(self, timestamp_s: float) -> None:
+        """Real time: hold the answer until the wall clock reaches the twin's time."""
+        wait_s = self._wall0 + timestamp_s - time.perf_counter()
+        if wait_s > 0:
+            time.sleep(wait_s)
+
+
+def run_sitl(
+    vessel: Vessel | str,
+    *,
+    port: int = 9002,
+    rate_hz: float = 400.0,
+    record_paths: Sequence[str | Path] = (),
+    realtime: bool = False,
+    channels: tuple[int, int] = DEFAULT_CHANNELS,
+    current: tuple[float, float] | None = None,
+    wind: tuple[float, float] | None = None,
+    log: Log | None = None,
+    stop_after_frames: int | None = None,
+    stop_event: Event | None = None,
+    host: str = "0.0.0.0",
+    heading_deg: float = 0.0,
+    origin: tuple[float, float] | None = None,
+    ready: Callable[[tuple[str, int]], None] | None = None,
+) -> SitlSummary:
+    """Serve ArduPilot SITL's JSON interface with the vessel's twin until stopped (module docstring).
+
+    vessel: a Vessel, a shipped vessel's name or a vessel file. port: UDP port (0: any free one,
+    reported through `ready`). rate_hz: the least physics rate (Hz); frames are split into equal
+    steps no longer than 1/rate_hz. channels: the servo outputs (1-based) of the left and right
+    thrusters (SERVOn_FUNCTION 73/74). current / wind: (speed m/s, direction deg) in place of the
+    vessel file's (current flowing towards, wind blowing from). heading_deg: the initial heading.
+    origin: (lat, lon) deg of the twin's origin for the map positions of .mcap/.tlog/.bin
+    recordings (set it to SITL's home). ready: called with the bound (host, port) once frames
+    are answered. Ctrl-C ends the session normally (`interrupted`); what was recorded is written.
+    """
+    log = log or (lambda text: None)
+    paths = check_record_paths(record_paths)
+    check_channels(channels)
+    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
+        raise TwinError(f"--rate {rate_hz}: the physics rate must be a positive number of Hz (e.g. 400)")
+    if stop_after_frames is not None and stop_after_frames < 0:
+        raise TwinError("stop_after_frames must be ≥ 0")
+    v = load(vessel) if isinstance(vessel, str) else vessel
+    v = with_environment(v, current, wind)
+    sock = bind_udp(host, port)  # first: a port in use fails before the twin is built
+    started = time.perf_counter()
+    interrupted = False
+    twin = server = None
+    written: tuple[Path, ...] = ()
+    try:
+        twin = SitlTwin(v, min_rate_hz=rate_hz, channels=channels, heading_deg=heading_deg, record=bool(paths))
+        with twin.active():
+            twin.warm_up()
+            server = SitlServer(sock, twin, realtime=realtime, log=log)
+            _announce(server, v, log)
+            if ready is not None:
+                ready(server.address)
+            try:
+                server.serve(stop_after_frames, stop_event)
+            except KeyboardInterrupt:
+                interrupted = True
+                log("interrupted: ending the session")
+    finally:
+        sock.close()
+        if server is not None and paths:  # the session began: write what it did, however it ends
+            written = write_recording(twin, paths, origin, log)
+    counters = server.counters
+    summary = SitlSummary(counters, twin.total_time_s, time.perf_counter() - started,
+                          interrupted, written)
+    log(summary.text())
+    return summary
+
+
+def _announce(server: SitlServer, vessel: Vessel, log: Log) -> None:
+    host, port = server.address
+    twin = server.twin
+    mode = "real time" if server.realtime else "lock-step"
+    env = vessel.environment
+    log(f"twin sitl: {vessel.name} on udp {host}:{port}, {mode}, thrusters on servo outputs "
+        f"{twin.channels[0]} (left) and {twin.channels[1]} (right), physics ≥ {twin.min_rate_hz:g} Hz; "
+        f"current {env.current_speed_m_s:g} m/s towards {env.current_dir_deg:g}°, "
+        f"wind {env.wind_speed_m_s:g} m/s from {env.wind_dir_deg:g}°")
+    amended = sensor_amendments(vessel)
+    if amended:
+        log(f"note: the vessel file's sensor calibration ({', '.join(amended)}) is not applied: "
+            "SITL simulates its own sensors (set SIM_MAG_*, SIM_GPS*_POS_* for that)")
+
+
+def check_record_paths(paths: Sequence[str | Path]) -> tuple[Path, ...]:
+    """Refuse, before listening, a recording path with an unknown extension or a missing folder."""
+    out = []
+    for p in paths:
+        p = Path(p)
+        if p.suffix.lower() not in FORMATS:
+            raise TwinError(f"--record '{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(FORMATS)})")
+        if not p.parent.is_dir():
+            raise TwinError(f"--record '{p}': folder '{p.parent}' does not exist (create it first)")
+        if p.is_dir():
+            raise TwinError(f"--record '{p}' is a folder: give a file name")
+        out.append(p)
+    return tuple(out)
+
+
+def write_recording(twin: SitlTwin, paths: Sequence[Path], origin: tuple[float, float] | None,
+                    log: Log) -> tuple[Path, ...]:
+    """The session as a twin Run to each path (outputs.write: atomic, format by extension)."""
+    if twin.frames_recorded == 0:
+        log("nothing recorded: no frame came from ArduPilot")
+        return ()
+    run = twin.recording()
+    v = twin.vessel
+    for path in paths:
+        write({"sitl": run}, path, geometry=twin.compiled.geometry, vessel_name=v.name, mjcf=v.mjcf, origin=origin)
+        log(f"wrote {path} ({len(run.t)} rows, {run.t[-1] - run.t[0]:.2f} s)")
+    return tuple(paths)
