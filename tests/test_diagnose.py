@@ -5,18 +5,19 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
 from twin.effects import candidates
-from twin.diagnose.doctor import diagnose, split_windows
+from twin.diagnose.doctor import diagnose
 from twin.diagnose.search import Search
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.synth.dataset import PROFILES, generate
 from twin.effects import EFFECTS, as_effect
 from twin.fit.objective import Measurements
-from twin.fit.windows import ModelCache
+from twin.fit.windows import ModelCache, make_windows
 from twin.physics.sensors import log_name
 from twin.formats import write_recording
 from twin.fit.calibrate import prepare_for
@@ -28,12 +29,15 @@ MIXED = ["rc", "circle_varying", "forward_varying", "zigzag"]
 CASES = {
     "current=0.3,60": ("current", {"speed_m_s": 0.05, "dir_deg": 5.0}),
     "wind=8,30": ("wind", {"speed_m_s": 0.15, "dir_deg": 10.0}),
+    "wind_shape=7,200,1.2,0.3": ("wind_shape", {"speed_m_s": 0.15, "dir_deg": 10.0, "cn": 0.15}),
     "thruster_lag=0.5": ("thruster_lag", {"lag_s": 0.1}),
     "input_delay=0.4": ("input_delay", {"delay_s": 0.021}),
     "clock_offset=0.3": ("clock_offset", {"pwm_clock_offset_s": 0.021}),
     "dead_zone=0.2,0.2": ("dead_zone", {"fwd": 0.15, "rev": 0.15}),
     "thruster_asymmetry=0.85": ("thruster_asymmetry", {"ratio": 0.03}),
     "thrust_gain=1.2": ("thrust_gain", {"scale": 0.03}),
+    "thruster_gain_left=0.7": ("thruster_gain_left", {"scale": 0.03}),
+    "thruster_gain_right=1.2": ("thruster_gain_right", {"scale": 0.03}),
     "thrust_decay=0.1": ("thrust_decay", {"decay_per_min": 0.15}),
     "thrust_speed_loss=0.2": ("thrust_speed_loss", {"speed_loss_per_m_s": 0.15}),
     "heading_bias=5": ("heading_bias", {"heading_bias_deg": 0.5}),
@@ -48,6 +52,13 @@ CASES = {
 }
 ABSOLUTE = {"dir_deg", "delay_s", "pwm_clock_offset_s", "heading_bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
             "Yuv", "Nur"}
+
+
+def make_search(prior, preps, recs, cv, library):
+    """A Search over every 10-s window of the recordings (its refine fits on fold 0's training part)."""
+    windows = make_windows(preps, 10.0, 10.0, min_length_s=10.0)
+    return Search(prior, Measurements(preps, recs, cv, PREP), windows, ModelCache(0.05), library,
+                  np.array([0.02, 0.02, 0.005]))
 
 
 @pytest.fixture(scope="module")
@@ -66,11 +77,10 @@ def test_heading_bias_of_each_log_recovered(prior):
                      segment_s=(35, 40), manoeuvres=MIXED).recording for i, b in enumerate((4.0, -3.0))]
     cv = compile_vessel(prior)
     preps = [prepare_for(r, cv, **PREP) for r in recs]
-    train, held = split_windows(preps)
     logs = [log_name(r.source) for r in recs]
     library = candidates(prior, logs)
     assert "heading_bias_per_log" not in candidates(prior, logs[:1])  # one log: that is heading_bias
-    search = Search(prior, Measurements(preps, recs, cv, PREP), train + held, held, ModelCache(0.05), library)
+    search = make_search(prior, preps, recs, cv, library)
     cand = library["heading_bias_per_log"]
     fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
     got = cand.to_effect(fitted.values).params
@@ -86,9 +96,7 @@ def test_candidate_recovers_its_effect(prior, text):
                   manoeuvres=MIXED)
     cv = compile_vessel(prior)
     preps = [prepare_for(ds.recording, cv, **PREP)]
-    train, held = split_windows(preps)
-    search = Search(prior, Measurements(preps, [ds.recording], cv, PREP), train + held, held, ModelCache(0.05),
-                    candidates(prior))
+    search = make_search(prior, preps, [ds.recording], cv, candidates(prior))
     cand = search.library[name]
     fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
     got = cand.to_effect(fitted.values).params
@@ -118,7 +126,7 @@ def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(pr
 
 
 def test_diagnose_command_writes_everything(tmp_path, prior):
-    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=5, seed=3, noise=PROFILES["realistic"],
+    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=8, seed=3, noise=PROFILES["realistic"],
                   manoeuvres=MIXED)
     rec = tmp_path / "run.tlog"
     write_recording(ds.recording, rec)
@@ -133,7 +141,8 @@ def test_diagnose_command_writes_everything(tmp_path, prior):
     assert d["effects"][0]["name"] == "thruster_asymmetry"
     assert d["effects"][0]["parameters"]["ratio"] == pytest.approx(0.85, abs=0.03)
     assert set(d["fit_after"]["r"]) >= {"r2", "mae"} and d["fit_after"]["r"]["r2"] > d["fit_before"]["r"]["r2"]
-    assert out["html"].read_text().count("<img") == 1 and out["rrd"].stat().st_size > 1000
+    assert out["html"].read_text().count("<img") == 2 and out["rrd"].stat().st_size > 1000
+    assert d["answer"]["missing"][0].startswith("thruster_asymmetry")
     v = vessel_mod.load(str(amended))
     assert v.thrusters.gain_right / v.thrusters.gain_left == pytest.approx(0.85, abs=0.03)
 

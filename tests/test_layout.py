@@ -22,7 +22,7 @@ FLOORS = {
     5: ("fit", "verify", "replay", "viz", "outputs"),
     6: ("ident", "synth", "sitl"),
     7: ("diagnose",),
-    8: ("api", "__init__"),
+    8: ("api", "__init__", "scale"),
     9: ("cli", "__main__"),
 }
 FLOOR_OF = {name: floor for floor, names in FLOORS.items() for name in names}

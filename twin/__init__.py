@@ -1,5 +1,6 @@
-"""A MuJoCo digital twin of small twin-thruster autonomous surface vessels."""
-__version__ = "0.1.0"
+"""A MuJoCo digital twin of small twin-thruster autonomous surface vessels (see twin.api)."""
+__version__ = "0.2.0"
 
-from .api import (InputSeries, Run, Validation, Vessel, compile_vessel, crosscheck,  # noqa: F401
-                  effective_parameters, load_vessel, save_vessel, simulate, validate)
+from .api import (Evaluation, InputSeries, Run, Simulation, Validation, Vessel, calibrate,  # noqa: F401
+                  compile_vessel, crosscheck, diagnose, effective_parameters, evaluate, identify, load_vessel,
+                  prepare, read_recording, save_vessel, simulate, simulate_run, validate)

@@ -1,8 +1,14 @@
-"""The Python API: what the `twin` command does, as functions returning typed results.
+"""The Python API: what the `twin` command does, as functions returning typed results with short
+reprs (and `to_dict()` / `table()` where a table is what one wants to look at).
 
     import twin
-    v = twin.load_vessel("yellowfish")
-    run = twin.simulate(v, "zigzag", duration_s=120)
+    v = twin.load_vessel("blueboat")
+    recs = [twin.read_recording(p) for p in paths]         # Recording (twin info)
+    prep = twin.prepare(recs[0], v)                        # Prepared: as the vessel's sensors see it
+    ident = twin.identify(recs[:7], v)                     # Identification (twin identify)
+    score = twin.evaluate(ident.vessel, recs[7:])          # Evaluation (twin evaluate)
+    found = twin.diagnose(recs[:7], ident.vessel)          # Diagnosis (twin diagnose)
+    run = twin.simulate(ident.vessel, "zigzag", duration_s=120)
 """
 from __future__ import annotations
 
@@ -20,8 +26,9 @@ from .verify.crosscheck import crosscheck
 from .verify.validate import Validation, validate as _validate
 from .vessel import Vessel, load as load_vessel, save as save_vessel
 
-__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "load_vessel", "save_vessel", "simulate",
-           "simulate_run", "crosscheck", "effective_parameters", "compile_vessel", "validate"]
+__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "Evaluation", "load_vessel", "save_vessel",
+           "simulate", "simulate_run", "crosscheck", "effective_parameters", "compile_vessel", "validate",
+           "read_recording", "prepare", "calibrate", "identify", "evaluate", "diagnose"]
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
@@ -87,3 +94,101 @@ def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     return _validate(vessel if case is None else vessel.with_case(case))
+
+
+def _vessel(vessel: Vessel | str) -> Vessel:
+    return load_vessel(vessel) if isinstance(vessel, str) else vessel
+
+
+def _recordings(recordings) -> list:
+    from .formats import read_recording as read
+    from .recording import Recording
+
+    items = [recordings] if isinstance(recordings, (str, Path, Recording)) else list(recordings)
+    return [r if isinstance(r, Recording) else read(r) for r in items]
+
+
+def read_recording(path, channels: dict | None = None):
+    """`twin info`'s reader: an ArduPilot .bin/.tlog, a CSV (generic or a known dataset's layout) or
+    an MCAP file → Recording."""
+    from .formats import read_recording as read
+
+    return read(path, channels=channels)
+
+
+def prepare(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
+    """A recording made ready for fitting (seed 004 §5.1): with a vessel, as its sensors see it (lever
+    arm, heading corrections) and, when `calibrated`, with the log's own compass offset estimated
+    from its GNSS track; without one, the antenna's positions as logged."""
+    from .ident.identify import calibrate as calibrate_logs, prepared
+    from .prepare import prepare as bare
+
+    rec = _recordings(recording)[0]
+    if vessel is None:
+        return bare(rec)
+    v = _vessel(vessel)
+    if calibrated:
+        v, _ = calibrate_logs([rec], v)
+    return prepared([rec], v)[0]
+
+
+def calibrate(recordings, vessel: Vessel | str) -> list:
+    """Each log's compass offset from its kinematics (twin.fit.calibrate.LogCalibration)."""
+    from .ident.identify import calibrate as calibrate_logs
+
+    return calibrate_logs(_recordings(recordings), _vessel(vessel))[1]
+
+
+def identify(recordings, vessel: Vessel | str, **options):
+    """`twin identify`: an Identification (.vessel is the identified twin; options as
+    twin.ident.identify.identify)."""
+    from .ident.identify import identify as run
+
+    return run(_recordings(recordings), _vessel(vessel), **options)
+
+
+@dataclass
+class Evaluation:
+    """`twin evaluate`: R² and MAE per DOF and horizon, with and without each log's compass
+    calibration, and the calibrations."""
+
+    vessel: str
+    metrics: dict
+    metrics_uncalibrated: dict
+    calibrations: list
+
+    def __repr__(self) -> str:
+        m = self.metrics.get("free_run_10s", {})
+        cells = ", ".join(f"{d} {m[d]['r2']:.3f}" for d in "uvr" if m.get(d, {}).get("r2") is not None)
+        return f"Evaluation({self.vessel}: 10-s free runs R² {cells})"
+
+    def table(self) -> list[dict]:
+        """One row per horizon and DOF: {horizon, dof, r2, mae, n, calibrated}."""
+        rows = []
+        for calibrated, metrics in ((True, self.metrics), (False, self.metrics_uncalibrated)):
+            for horizon, m in metrics.items():
+                rows += [{"horizon": horizon, "dof": d, **{k: m[d].get(k) for k in ("r2", "mae", "n")},
+                          "calibrated": calibrated} for d in "uvr"]
+        return rows
+
+    def to_dict(self) -> dict:
+        return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
+                "calibrations": [c.to_dict() for c in self.calibrations]}
+
+
+def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0) -> Evaluation:
+    """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments)."""
+    from .fit.evaluate import evaluate as run
+    from .ident.identify import calibrate as calibrate_logs, prepared
+
+    v, recs = _vessel(vessel), _recordings(recordings)
+    calibrated, calibrations = calibrate_logs(recs, v)
+    return Evaluation(v.name, run(calibrated, prepared(recs, calibrated), stride_s=stride_s),
+                      run(v, prepared(recs, v), stride_s=stride_s), calibrations)
+
+
+def diagnose(recordings, vessel: Vessel | str, **options):
+    """`twin diagnose`: a Diagnosis (.effects, .amended, .fit_before/.fit_after, .unexplained)."""
+    from .diagnose.doctor import diagnose as run
+
+    return run(_recordings(recordings), _vessel(vessel), **options)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -96,6 +97,10 @@ class Recording:
 
     def streams(self) -> dict[str, Stream]:
         return {name: getattr(self, name) for name in STREAMS}
+
+    def __repr__(self) -> str:
+        have = ", ".join(f"{n} {len(s)}" for n, s in self.streams().items() if len(s))
+        return f"Recording({Path(self.source).name}, {self.kind}, {self.duration_s():.1f} s: {have})"
 
     def duration_s(self) -> float:
         """Time from the first to the last sample of any stream (s)."""

@@ -25,6 +25,12 @@ class Run:
     thrust_n: np.ndarray  # (n, 2)
     meta: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        if not len(self.t):
+            return "Run(empty)"
+        return (f"Run({self.meta.get('vessel', '?')}, {self.t[-1] - self.t[0]:g} s, {len(self.t)} samples, final "
+                f"position ({self.eta[-1, 0]:.2f}, {self.eta[-1, 1]:.2f}) m)")
+
     def columns(self) -> dict[str, np.ndarray]:
         return {
             "t": self.t, "x": self.eta[:, 0], "y": self.eta[:, 1], "psi": self.eta[:, 2],

@@ -52,7 +52,14 @@ class Vessel:
     cases: dict[str, MassCase] = field(default_factory=dict)
     case: str = "nominal"
     sources: dict[str, str] = field(default_factory=dict)
+    # what identification left uncertain: {"coordinates": [{"name", "log", "sign"}], "mean": [...],
+    # "covariance": [[...]]} in the fit's coordinates (ln|θ| where "log"), see twin.fit.uncertainty
+    uncertainty: dict = field(default_factory=dict)
     path: Path | None = None
+
+    def __repr__(self) -> str:
+        where = f" from {self.path.name}" if self.path else ""
+        return f"Vessel({self.name}{where}, case {self.case}, MJCF {self.mjcf.name})"
 
     def with_case(self, case: str) -> "Vessel":
         if case != "nominal" and case not in self.cases:
@@ -82,6 +89,7 @@ class Vessel:
             "cg_offset_m": list(self.cg_offset_m),
             "cases": {k: asdict(v) for k, v in self.cases.items()},
             "sources": dict(self.sources),
+            **({"uncertainty": self.uncertainty} if self.uncertainty else {}),
         }
 
 
@@ -182,10 +190,29 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         cg_offset_m=_pair(data.get("cg_offset_m", (0.0, 0.0)), "cg_offset_m", path),
         cases=cases,
         sources=dict(data.get("sources") or {}),
+        uncertainty=_uncertainty(data.get("uncertainty"), path),
         path=path,
     )
     check(vessel)
     return vessel
+
+
+def _uncertainty(data, path: Path) -> dict:
+    """The identification's uncertainty block, checked for shape (a covariance of the coordinates)."""
+    if not data:
+        return {}
+    if not isinstance(data, dict) or not {"coordinates", "mean", "covariance"} <= set(data):
+        raise TwinError(f"{path.name}: uncertainty needs coordinates, mean and covariance")
+    n = len(data["coordinates"])
+    cov = data["covariance"]
+    if len(data["mean"]) != n or len(cov) != n or any(len(row) != n for row in cov):
+        raise TwinError(f"{path.name}: uncertainty: mean and covariance must match the {n} coordinates")
+    for i, row in enumerate(cov):
+        for j, x in enumerate(row):
+            _typed(x, float, f"uncertainty.covariance[{i}][{j}]", path)
+    return {"coordinates": [dict(c) for c in data["coordinates"]], "mean": [float(x) for x in data["mean"]],
+            "covariance": [[float(x) for x in row] for row in cov], **({"source": str(data["source"])}
+                                                                        if "source" in data else {})}
 
 
 def check(vessel: Vessel) -> None:

@@ -35,10 +35,9 @@ from ..fit.calibrate import prepare_for
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
-from .search import Search
+from .search import BLOCK_WINDOWS, Search
 
 WINDOW_S = 10.0
-BLOCK_WINDOWS = 3  # held-out blocks of 3 windows (30 s): long enough that a block is not its neighbours' copy
 GNSS_WINDOW_S, HEADING_WINDOW_S = 1.0, 0.5
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
 # Screening only ranks candidates: it may step at the recording's grid where RK4 stays well
@@ -64,40 +63,29 @@ class Diagnosis:
     notes: list[str] = field(default_factory=list)
     replay: dict = field(default_factory=dict)  # window predictions for plots and rerun
     overall: dict = field(default_factory=dict)  # residual bias and RMS per DOF over every window
+    calibrations: list = field(default_factory=list)  # each log's compass offset from its kinematics (applied)
+
+    def __repr__(self) -> str:
+        found = ", ".join(e["text"] for e in self.effects) or "no effect named"
+        return f"Diagnosis({self.prior.name}: {found}; {len(self.unexplained)} unexplained regions, {self.seconds:.0f} s)"
 
     def to_dict(self) -> dict:
         return {"vessel": self.prior.name, "effects": self.effects, "located": self.located, "growth": self.growth,
                 "correlations": self.correlations, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "unexplained": self.unexplained, "overall": self.overall, "noise": self.noise, "rounds": self.rounds,
-                "windows": self.windows, "seconds": round(self.seconds, 1), "notes": self.notes}
-
-
-def split_windows(preps: list[Prepared], window_s: float = WINDOW_S) -> tuple[list[Window], list[Window]]:
-    """Non-overlapping windows; every third block of BLOCK_WINDOWS windows is held out."""
-    return folds(preps, window_s)[0]
-
-
-def folds(preps: list[Prepared], window_s: float = WINDOW_S) -> list[tuple[list[Window], list[Window]]]:
-    """Non-overlapping windows in blocks of BLOCK_WINDOWS, dealt to three folds in turn;
-    (training, held-out) for each fold, the fold of the second block of every three first."""
-    wins = make_windows(preps, window_s, window_s, min_length_s=window_s)
-    out = []
-    for fold in (1, 0, 2):
-        train, held = [], []
-        for k, w in enumerate(wins):
-            (held if (k // BLOCK_WINDOWS) % 3 == fold else train).append(w)
-        out.append((train, held))
-    if len(out[0][1]) < 3 or len(out[0][0]) < 3:
-        raise TwinError(f"the recording gives {len(wins)} windows of {window_s:g} s: too short to fit on one part "
-                        "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
-    return [(t, h) for t, h in out if len(h) >= 3 and len(t) >= 3]
+                "windows": self.windows, "seconds": round(self.seconds, 1), "notes": self.notes,
+                "calibrations": [c.to_dict() for c in self.calibrations], "answer": _answer(self)}
 
 
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
-             library: list[str] | None = None) -> Diagnosis:
-    """The whole diagnosis (module docstring); `library` restricts the candidates by name."""
+             library: list[str] | None = None, calibrated: bool = True) -> Diagnosis:
+    """The whole diagnosis (module docstring); `library` restricts the candidates by name;
+    `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py)."""
     started = time.time()
     log = log or (lambda msg: None)
+    calibrations = []
+    if calibrated:
+        prior, calibrations = _calibrated(recordings, prior)
     compiled = compile_vessel(prior)
     kwargs = {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S}
     for rec in recordings:
@@ -105,40 +93,58 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
             raise TwinError(f"{rec.source}: no thruster PWM: the twin cannot be replayed without its inputs")
     preps = [prepare_for(r, compiled, **kwargs) for r in recordings]
     data = Measurements(preps, recordings, compiled, kwargs)
-    (train, held), *other_folds = folds(preps, window_s)
+    every = make_windows(preps, window_s, window_s, min_length_s=window_s)
+    if len(every) < 2 * BLOCK_WINDOWS * 2:
+        raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
+                        "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
     noise = _noise(recordings, preps)
     exact = ModelCache()
-    every = train + held  # locating fits nothing: every window may speak
-    before = _residuals(prior, preps, every, exact)
+    before = _residuals(prior, preps, every, exact)  # locating fits nothing: every window may speak
     located, growth, corr, overall = _locate(before, preps, every, noise)
-    log(f"replayed {len(train) + len(held)} windows of {window_s:g} s ({len(held)} held out); "
-        f"{len(located)} significant residual regions")
+    log(f"replayed {len(every)} windows of {window_s:g} s; {len(located)} significant residual regions")
     lib = candidates(prior, [log_name(r.source) for r in recordings])
     if library:
         unknown = set(library) - set(lib)
         if unknown:
             raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
-    search = Search(prior, data, train, held, ModelCache(SEARCH_TIMESTEP_S), lib, log, other_folds,
+    noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
+    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
                     screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)))
     amended, kept, rounds = search.run()
     amended_preps = data.for_vessel(amended)
     after = _residuals(amended, amended_preps, every, exact)
     after_located, _, after_corr, after_overall = _locate(after, amended_preps, every, noise)
-    n_train = len(train)
+    held_before, held_after = _held_out_fits(search, prior, kept, data, exact)
     diagnosis = Diagnosis(
-        prior, amended, _effects(kept, search), located, growth, corr, _fit(_part(before, n_train)),
-        _fit(_part(after, n_train)), _unexplained(after_located, after_corr, after_overall), noise, rounds,
-        {"length_s": window_s, "train": len(train), "held_out": len(held)}, time.time() - started)
+        prior, amended, _effects(kept, search), located, growth, corr, held_before, held_after,
+        _unexplained(after_located, after_corr, after_overall), noise, rounds,
+        {"length_s": window_s, "windows": len(every), "folds": len(search.folds), "blocks": int(search.blocks.max()) + 1},
+        time.time() - started)
     diagnosis.overall = {"before": overall, "after": after_overall}
+    diagnosis.calibrations = calibrations
     diagnosis.replay = {"windows": every, "preps": preps, "amended_preps": amended_preps, "before": before,
-                        "after": after, "held_from": n_train}
+                        "after": after}
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
     return diagnosis
 
 
 # ---------------------------------------------------------------- pieces
+
+def _calibrated(recordings: list[Recording], prior: Vessel):
+    from ..fit.calibrate import kinematic_calibration, with_log_calibrations
+
+    compiled = compile_vessel(prior)
+    calibrations = [kinematic_calibration(r, compiled) for r in recordings]
+    return with_log_calibrations(prior, calibrations), calibrations
+
+
+def _answer(d) -> dict:
+    from .report import answer
+
+    return answer(d)
+
 
 def _noise(recordings: list[Recording], preps: list[Prepared]) -> dict:
     per = [estimate_noise(r, p) for r, p in zip(recordings, preps)]
@@ -160,13 +166,21 @@ def _residuals(vessel: Vessel, preps: list[Prepared], windows: list[Window], cac
     return _Replay(pred.nu, pred.eta, nu, eta)
 
 
-def _part(rep: _Replay, start: int) -> _Replay:
-    """The held-out windows (they follow the training ones in `every`)."""
-    return _Replay(rep.pred_nu[start:], rep.pred_eta[start:], rep.meas_nu[start:], rep.meas_eta[start:])
-
-
-def _fit(rep: _Replay) -> dict:
-    return r2_mae(rep.pred_nu[:, 1:], rep.meas_nu[:, 1:])
+def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cache: ModelCache) -> tuple[dict, dict]:
+    """R² and MAE per DOF on every fold's held-out windows: the prior, and the kept effects as
+    fitted without those windows (each fold's own fit), pooled."""
+    bases = search.final_bases
+    pred0, pred1, meas0, meas1 = [], [], [], []
+    for base, (_, held) in zip(bases, search.folds):
+        preps0, preps1 = data.for_vessel(prior), data.for_vessel(base)
+        pred0.append(predict(prior, preps0, held, cache)[0].nu[:, 1:])
+        pred1.append(predict(base, preps1, held, cache)[0].nu[:, 1:])
+        meas0.append(measured(preps0, held)[1][:, 1:])
+        meas1.append(measured(preps1, held)[1][:, 1:])
+    n = max(a.shape[1] for a in pred0)
+    pad = [lambda a: np.pad(a, ((0, 0), (0, n - a.shape[1]), (0, 0)), constant_values=np.nan)]
+    stack = lambda arrs: np.concatenate([pad[0](a) for a in arrs])  # noqa: E731
+    return r2_mae(stack(pred0), stack(meas0)), r2_mae(stack(pred1), stack(meas1))
 
 
 def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -221,17 +235,17 @@ def _locate(rep: _Replay, preps, windows, noise) -> tuple[list[dict], dict, dict
 def _effects(kept, search: Search) -> list[dict]:
     out = []
     for k in kept:
-        f = k.fitted
-        names = [f"{f.candidate.name}.{p.name}" for p in f.candidate.params]
-        values = {p.name: search.values.get(n, f.values[p.name]) for p, n in zip(f.candidate.params, names)}
-        eff = f.candidate.to_effect(values)
-        ci = _effect_ci(f.candidate, values, names, search)
-        out.append({"name": f.candidate.name, "parameters": dict(eff.params), "ci": ci, "text": eff.text,
-                    "fitted": values, "fitted_sigma": {p.name: search.sigma.get(n) for p, n in
-                                                       zip(f.candidate.params, names)},
-                    "improvement": {d: round(v, 4) for d, v in k.improvement.items()},
-                    "held_out_gain": round(f.rel, 4), "z": round(f.z, 2), "rivals": k.rivals,
-                    "separable": all(r["separable"] for r in k.rivals)})
+        cand, e = k.trial.candidate, k.trial.evidence
+        names = [f"{cand.name}.{p.name}" for p in cand.params]
+        values = {p.name: search.values.get(n, k.trial.fits[0].values[p.name]) for p, n in zip(cand.params, names)}
+        eff = cand.to_effect(values)
+        ci = _effect_ci(cand, values, names, search)
+        out.append({"name": cand.name, "parameters": dict(eff.params), "ci": ci, "text": eff.text,
+                    "fitted": values, "fitted_sigma": {p.name: search.sigma_values.get(n) for p, n in
+                                                       zip(cand.params, names)},
+                    "improvement": {d: round(v, 4) for d, v in e.dof_rel.items()},
+                    "held_out_gain": round(e.rel, 4), "excess_gain": round(e.rel_excess, 4), "z": round(e.z, 2),
+                    "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals)})
     return out
 
 

@@ -23,6 +23,7 @@ DOFS = ("u", "v", "r")
 Z_MIN = 3.0  # below this an entry is what noise alone produces now and then
 TOP = 20
 ABOVE_NOISE = 2.0  # a residual RMS over this many σ is more than the measurement's own noise
+GROWS = 1.3  # a late RMS this much above the early one: the residual grows along the free run
 
 
 # ---------------------------------------------------------------- statistics
@@ -273,6 +274,8 @@ def growth(res_w: np.ndarray, time_in_window_s: np.ndarray, noise=None, *, early
     - "measurement": it is already above noise early and does not grow that way: an
       offset between what the sensors report and the state (heading error, antenna
       position, timing) that no amount of free run makes worse.
+    - "unsettled": above noise and growing (late/early ≥ GROWS) without significance: this
+      recording cannot tell the two apart.
     - "none": neither early nor late RMS is above noise.
     "Above noise" is RMS > 2σ (noise: σ of u, v, r; the residual of a correct twin is
     about √2σ at most: the measurement's noise plus the start state's). Without noise,
@@ -304,8 +307,10 @@ def growth(res_w: np.ndarray, time_in_window_s: np.ndarray, noise=None, *, early
         early_above, late_above = bool(rms_e > floor), bool(rms_l > floor)
         if z >= z_min and ratio >= 1.5 and late_above:
             verdict = "dynamics"
-        elif early_above:
+        elif early_above and not ratio >= GROWS:
             verdict = "measurement"
+        elif early_above or late_above:
+            verdict = "unsettled"  # above the noise and growing, but not significantly: too few windows to say
         else:
             verdict = "none"
         out[dof] = {"rms_early": rms_e, "rms_late": rms_l, "ratio": float(ratio), "z": z, "n_windows": w,

@@ -1,6 +1,7 @@
-"""What a diagnosis shows: an HTML page (effects, fit before and after, where the misfit
-was, what is left, with plots) and a rerun recording with the real run, the twin before
-and the twin after on one timeline.
+"""What a diagnosis shows, answer first: what is missing and how sure, what it changes, what the
+recording cannot settle and what to record next; then the evidence (effects, fit before and after
+on held-out data, where the misfit was, what is left). As text (the terminal), an HTML page with
+plots, and a rerun recording with the real run, the twin before and the twin after on one timeline.
 
 The twin's curves are its 10-s free runs from measured states, window after window (each
 window restarts from the measurement, so the curves jump at window starts): exactly what
@@ -48,32 +49,165 @@ def _png(fig) -> str:
     return base64.b64encode(buf.getvalue()).decode()
 
 
-def series_png(d, max_windows: int = 12) -> str:
-    """u, v, r of the first held-out windows: measured, twin before, twin after."""
+# what to record next, by the family of effects a recording could not tell apart or name
+NEXT = {
+    "drift": "straight runs under way on opposite headings, and a few minutes drifting with the thrusters off: "
+             "a current or wind pushes the same way whatever the heading, a compass error turns with the boat",
+    "timing": "steps of the sticks from rest and back to neutral (the thrust's timing shows at steps), and the "
+              "PWM logged on the same clock as GNSS and heading",
+    "thrust": "straight runs at several fixed throttles ahead and astern, and spins in place both ways "
+              "(a weak thruster turns the boat better one way than the other)",
+    "turning": "spins in place both ways and turns at a steady speed both ways",
+    "drag": "coast-downs from full speed with the thrusters at neutral, and runs at several steady speeds",
+    "inertia": "zig-zags and sharp throttle steps",
+}
+MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment: the twin's form is off there
+
+
+def answer(d) -> dict:
+    """What the diagnosis concludes, in the order a user needs it: {"missing": [...], "form": [...],
+    "changes": str, "unsettled": [...], "next": [...]} (lines of plain text)."""
+    from .search import REL_EXCESS, Z_MIN
+
+    out = {"missing": [], "form": [], "changes": "", "unsettled": [], "next": []}
+    families = set()
+    for e in d.effects:
+        params = ", ".join(f"{k} {v:.3g}" + (f" [{e['ci'][k][0]:.3g}, {e['ci'][k][1]:.3g}]" if k in e["ci"] else "")
+                           for k, v in e["parameters"].items())
+        ev = e.get("evidence", {})
+        out["missing"].append(
+            f"{e['name']} ({params}): removes {100 * e.get('excess_gain', 0):.0f} % of the held-out misfit above the "
+            f"noise, z {e['z']:.1f} over {ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
+            f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)")
+        for r in e["rivals"]:
+            if not r["separable"]:
+                out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
+                                        f"(blocks z {r['z']:.1f})")
+                families.add(_family(d, r["name"]))
+    if not d.effects:
+        out["missing"].append(f"no effect of the library earns its place (z ≥ {Z_MIN:g} over the held-out blocks and "
+                              f"≥ {100 * REL_EXCESS:.0f} % of the misfit above the noise removed)")
+    for u in d.unexplained:
+        if u.get("dimension") == "all" and (u.get("rms_over_noise") or 0) > MODEL_FORM_SIGMA:
+            follows = ", ".join(f"{c['signal']} ({c['r']:+.2f})" for c in u.get("correlates_with", []))
+            where = _worst_bin(d, u["dof"])
+            out["form"].append(f"{u['dof']} is still {u['rms_over_noise']:.0f}× the noise off (RMS "
+                               f"{u['rms']:.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
+                               + (f", and follows {follows}" if follows else "")
+                               + ": the twin's form is off there, beyond what the library's effects can say")
+    if d.effects:
+        b, a = d.fit_before, d.fit_after
+        out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
+    candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
+    if not d.effects and out["form"]:
+        families |= {_family(d, n) for n in candidates_tried}
+    out["next"] = [f"to settle {fam} effects: {NEXT[fam]}" for fam in sorted(families) if fam in NEXT]
+    return out
+
+
+def _family(d, name: str) -> str:
+    from ..effects import candidates
+
+    cand = candidates(d.prior, [""]).get(name)
+    return cand.family if cand is not None else ""
+
+
+def _worst_bin(d, dof: str) -> str:
+    bins = [e for e in d.located if e["dof"] == dof and e.get("z", 0) >= 3.0]
+    if not bins:
+        return ""
+    e = max(bins, key=lambda x: x.get("share_of_residual", 0))
+    return f"{e['dimension']} {e['bin']}"
+
+
+def format_text(d) -> str:
+    """The diagnosis for the terminal, ≤ 100 columns, answer first."""
+    a = answer(d)
+    lines = [f"diagnosis of {d.prior.name}: {d.windows.get('windows')} windows of {d.windows.get('length_s')} s in "
+             f"{d.windows.get('blocks')} blocks, judged in {d.windows.get('folds')} folds; {d.seconds:.0f} s"]
+    lines += [f"MISSING: {x}" for x in a["missing"]]
+    lines += [f"TWIN'S FORM: {x}" for x in a["form"]]
+    if a["changes"]:
+        lines.append(f"CHANGES: {a['changes']}")
+    lines += [f"UNSETTLED: {x}" for x in a["unsettled"]]
+    lines += [f"RECORD NEXT: {x}" for x in a["next"]]
+    noise = d.noise
+    lines.append(f"noise estimated from the recording: GNSS {noise.get('gnss_m', float('nan')):.3f} m, heading "
+                 f"{noise.get('heading_deg', float('nan')):.2f}° → u {noise.get('u', float('nan')):.3f} m/s, "
+                 f"v {noise.get('v', float('nan')):.3f} m/s, r {noise.get('r', float('nan')):.4f} rad/s")
+    lines.append(f"{'held-out fit':14s}" + "".join(f"{'R2 ' + k:>9s}{'MAE ' + k:>10s}" for k in "uvr"))
+    for name, fit in (("before", d.fit_before), ("after", d.fit_after)):
+        lines.append(f"{name:14s}" + "".join(f"{_num(fit[k]['r2']):>9s}{_num(fit[k]['mae'], 4):>10s}" for k in "uvr"))
+    growth = ", ".join(f"{k}: {v.get('verdict')}" for k, v in d.growth.items())
+    lines.append(f"along the free runs the residual is (dynamics: grows; measurement: there from the start): {growth}")
+    lines += [f"note: {n}" for n in d.notes]
+    return "\n".join(lines)
+
+
+def _telling(d, most: int) -> list[int]:
+    """The windows where the amendment changed the twin most (all alike without one)."""
+    rp = d.replay
+    change = np.nanmean(np.abs(rp["after"].pred_nu - rp["before"].pred_nu), axis=(1, 2))
+    order = np.argsort(-np.nan_to_num(change))
+    return sorted(order[:most].tolist())
+
+
+def series_png(d, max_windows: int = 8) -> str:
+    """u, v, r of the windows the amendment changed most: measured, twin before (red), twin after
+    (green, dashed, drawn over it: where they agree the red shows through)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rp = d.replay
-    start = rp.get("held_from", 0)
-    wins = rp["windows"][start: start + max_windows]
+    picks = _telling(d, max_windows)
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
     offset = 0.0
-    for j, w in enumerate(wins, start=start):
+    for i, j in enumerate(picks):
+        w = rp["windows"][j]
         n = w.n + 1
         x = offset + np.arange(n) * 0.1
         for k, ax in enumerate(axes):
-            ax.plot(x, rp["before"].meas_nu[j, :n, k], color="k", lw=1.2, label="measured" if j == start else None)
-            ax.plot(x, rp["before"].pred_nu[j, :n, k], color="tab:red", lw=1, label="twin before" if j == start else None)
-            ax.plot(x, rp["after"].pred_nu[j, :n, k], color="tab:green", lw=1, label="twin after" if j == start else None)
+            ax.plot(x, rp["before"].meas_nu[j, :n, k], color="k", lw=1.4, label="measured" if i == 0 else None)
+            ax.plot(x, rp["before"].pred_nu[j, :n, k], color="tab:red", lw=2.2, alpha=0.7,
+                    label="twin before" if i == 0 else None)
+            ax.plot(x, rp["after"].pred_nu[j, :n, k], color="tab:green", lw=1.2, ls="--",
+                    label="twin after" if i == 0 else None)
         offset = x[-1] + 1.0
     for ax, dof in zip(axes, "uvr"):
         ax.set_ylabel(f"{dof} ({DOF_UNITS[dof]})")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=3)
-    axes[-1].set_xlabel("held-out free runs of 10 s, one after another (s)")
-    fig.suptitle(f"{d.prior.name}: held-out windows, measured vs twin before and after", fontsize=10)
+    axes[-1].set_xlabel("free runs of 10 s from measured states, one after another (s)")
+    fig.suptitle(f"{d.prior.name}: the windows the amendment changed most", fontsize=10)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def track_png(d, max_windows: int = 8) -> str:
+    """The real track and the twin's free runs before and after on the map (north up, east right),
+    for the windows the amendment changed most."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rp = d.replay
+    fig, ax = plt.subplots(figsize=(7, 7))
+    for i, j in enumerate(_telling(d, max_windows)):
+        n = rp["windows"][j].n + 1
+        for eta, style, label in ((rp["before"].meas_eta, dict(color="k", lw=1.4), "real"),
+                                  (rp["before"].pred_eta, dict(color="tab:red", lw=2.0, alpha=0.7), "twin before"),
+                                  (rp["after"].pred_eta, dict(color="tab:green", lw=1.2, ls="--"), "twin after")):
+            ax.plot(eta[j, :n, 1], eta[j, :n, 0], label=label if i == 0 else None, **style)
+        ax.plot(rp["before"].meas_eta[j, 0, 1], rp["before"].meas_eta[j, 0, 0], "k.", ms=6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{d.prior.name}: 10-s free runs from the dots", fontsize=10)
     fig.tight_layout()
     return _png(fig)
 
@@ -89,6 +223,7 @@ def _num(x, digits=3) -> str:
 
 
 def write_html(d, path: Path) -> None:
+    a = answer(d)
     eff_rows = []
     for e in d.effects:
         params = "; ".join(f"{k} = {v:.4g} [{e['ci'][k][0]:.4g}, {e['ci'][k][1]:.4g}]" if k in e["ci"] else
@@ -96,7 +231,7 @@ def write_html(d, path: Path) -> None:
         rivals = "; ".join(f"{r['name']}: {'told apart' if r['separable'] else 'not separable'} (z {r['z']})"
                            for r in e["rivals"]) or "-"
         gain = ", ".join(f"{k} {100 * v:.0f} %" for k, v in e["improvement"].items())
-        eff_rows.append([e["name"], params, f"{100 * e['held_out_gain']:.1f} % (z {e['z']})", gain, rivals])
+        eff_rows.append([e["name"], params, f"{100 * e.get('excess_gain', 0):.0f} % (z {e['z']})", gain, rivals])
     fit_rows = [[name] + [f"{_num(fit[k]['r2'])} / {_num(fit[k]['mae'], 4)}" for k in "uvr"]
                 for name, fit in (("before", d.fit_before), ("after", d.fit_after))]
     loc_rows = [[e["dimension"], e["bin"], e["dof"], e["kind"], e["n"], _num(e["rms"], 4), _num(e["bias"], 4),
@@ -107,21 +242,33 @@ def write_html(d, path: Path) -> None:
     unexpl = [[u["dof"], u["dimension"], u["bin"], _num(u["rms"], 4), _num(u.get("rms_over_noise"), 1),
                ", ".join(f"{c['signal']} ({c['r']:+.2f})" for c in u.get("correlates_with", []))]
               for u in d.unexplained]
-    noise = ", ".join(f"{k} {v:.4g}" for k, v in d.noise.items() if isinstance(v, float))
+    noise_rows = [["GNSS position", _num(d.noise.get("gnss_m"), 3), "m"],
+                  ["heading", _num(d.noise.get("heading_deg"), 2), "deg"],
+                  ["u (from GNSS)", _num(d.noise.get("u"), 3), "m/s"], ["v (from GNSS)", _num(d.noise.get("v"), 3), "m/s"],
+                  ["r (from heading)", _num(d.noise.get("r"), 4), "rad/s"]]
+    lead = ("<ul>" + "".join(f"<li><b>Missing</b>: {html.escape(x)}</li>" for x in a["missing"])
+            + "".join(f"<li><b>The twin's form</b>: {html.escape(x)}</li>" for x in a["form"])
+            + (f"<li><b>What it changes</b>: {html.escape(a['changes'])}</li>" if a["changes"] else "")
+            + "".join(f"<li><b>Unsettled</b>: {html.escape(x)}</li>" for x in a["unsettled"])
+            + "".join(f"<li><b>Record next</b>: {html.escape(x)}</li>" for x in a["next"]) + "</ul>")
     parts = [
-        f"<h1>twin diagnose: {html.escape(d.prior.name)}</h1>",
-        f"<p>{d.windows.get('train')} training and {d.windows.get('held_out')} held-out free-run windows of "
-        f"{d.windows.get('length_s')} s; {d.seconds:.0f} s. Noise: {html.escape(noise)}.</p>",
-        "<h2>Effects found</h2>", _table(["effect", "parameters [95 % CI]", "held-out misfit removed",
-                                          "per DOF", "rivals"], eff_rows) if eff_rows else "<p>none</p>",
+        f"<h1>twin diagnose: {html.escape(d.prior.name)}</h1>", "<h2>The answer</h2>", lead,
+        f"<p>{d.windows.get('windows')} free-run windows of {d.windows.get('length_s')} s in {d.windows.get('blocks')} "
+        f"blocks of 30 s, every block judged once by fits that did not see it ({d.windows.get('folds')} folds); "
+        f"{d.seconds:.0f} s.</p>",
+        "<h2>Effects named</h2>", _table(["effect", "parameters [95 % CI]", "misfit above noise removed",
+                                          "per DOF (held-out)", "rivals"], eff_rows) if eff_rows else "<p>none</p>",
         "<h2>Held-out fit (R² / MAE)</h2>", _table(["twin", "u", "v", "r"], fit_rows),
-        f'<img src="data:image/png;base64,{series_png(d)}" alt="held-out windows">',
+        f'<img src="data:image/png;base64,{series_png(d)}" alt="free runs before and after">',
+        f'<img src="data:image/png;base64,{track_png(d)}" alt="tracks before and after">',
+        "<h2>Noise estimated from the recording</h2>", _table(["signal", "σ", "unit"], noise_rows),
         "<h2>Where the twin before disagreed</h2>",
         _table(["dimension", "bin", "DOF", "kind", "n", "RMS", "bias", "RMS/noise", "z"], loc_rows)
-        if loc_rows else "<p>no bin differs significantly from the rest</p>",
-        _table(["DOF", "residual is", "RMS early", "RMS late"], grow_rows),
+        if loc_rows else "<p>no part of the data stands out from the rest (the misfit, if any, is everywhere: "
+                         "see what is left)</p>",
+        _table(["DOF", "residual along the free run", "RMS early", "RMS late"], grow_rows),
         _table(["DOF", "follows", "", ""], corr_rows),
-        "<h2>Unexplained after the amendment</h2>",
+        "<h2>What is left after the amendment</h2>",
         _table(["DOF", "dimension", "bin", "RMS", "RMS/noise", "follows"], unexpl) if unexpl else "<p>nothing</p>",
         "".join(f"<p>note: {html.escape(n)}</p>" for n in d.notes),
     ]

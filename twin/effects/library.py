@@ -103,6 +103,28 @@ def _wind_fit(prior: Vessel, logs) -> Candidate | None:
                      starts, to_effect, "drift")
 
 
+def wind_shape(vessel: Vessel, speed_m_s: float, dir_deg: float, cy: float, cn: float) -> Vessel:
+    """Wind (m/s, from dir_deg) with the sway and yaw load coefficients set (the surge one, c_x, stays
+    the vessel's: it sets the scale, since speed² and a coefficient trade off): a superstructure
+    whose shape the vessel file does not describe."""
+    vessel = wind(vessel, speed_m_s, dir_deg)
+    return replace(vessel, wind_load=replace(vessel.wind_load, cy=cy, cn=cn))
+
+
+def _wind_shape_fit(prior: Vessel, logs) -> Candidate | None:
+    base = _wind_fit(prior, logs)
+    if base is None or prior.wind_load.cx == 0.0:
+        return None
+    cy = member("wind_load", "cy", "-", -5.0, 5.0, max(abs(prior.wind_load.cy), 0.1))
+    cn = member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05))
+
+    def to_effect(p: dict) -> Effect:
+        w = base.to_effect(p)
+        return effect("wind_shape", cy=p["cy"], cn=p["cn"], **w.params)
+    starts = tuple(s + (prior.wind_load.cy, prior.wind_load.cn) for s in base.starts)
+    return Candidate("wind_shape", base.params + (cy, cn), starts, to_effect, "drift")
+
+
 # ---------------------------------------------------------------- thrusters
 
 def thruster_lag(vessel: Vessel, lag_s: float) -> Vessel:
@@ -129,6 +151,26 @@ def thrust_gain(vessel: Vessel, scale: float) -> Vessel:
     """Both thruster gains multiplied by `scale` (e.g. a higher supply voltage than the map's 10 V)."""
     t = vessel.thrusters
     return _thrusters(vessel, gain_left=t.gain_left * scale, gain_right=t.gain_right * scale)
+
+
+def thruster_gain_left(vessel: Vessel, scale: float) -> Vessel:
+    """The left thruster alone delivers `scale` times what it did (fouled, damaged, a weaker motor)."""
+    return _thrusters(vessel, gain_left=vessel.thrusters.gain_left * scale)
+
+
+def thruster_gain_right(vessel: Vessel, scale: float) -> Vessel:
+    """The right thruster alone delivers `scale` times what it did."""
+    return _thrusters(vessel, gain_right=vessel.thrusters.gain_right * scale)
+
+
+def _one_gain_fit(side: str):
+    """One thruster's gain as a scale of the prior's."""
+    def fit(prior: Vessel, logs) -> Candidate:
+        q = scale_of(prior, "thrusters", f"gain_{side}", "gain")
+        q = q.renamed("scale", lo=0.2, hi=3.0)
+        return Candidate(f"thruster_gain_{side}", (q,), ((1.0,),), lambda p: effect(f"thruster_gain_{side}",
+                                                                                      scale=p["scale"]), "thrust")
+    return fit
 
 
 def dead_zone(vessel: Vessel, fwd: float, rev: float) -> Vessel:
@@ -266,6 +308,10 @@ _SPECS = [
                "water current towards dir_deg", _current_fit),
     EffectSpec("wind", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)), wind,
                "wind from dir_deg", _wind_fit),
+    EffectSpec("wind_shape", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360),
+                                              _v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_shape,
+               "wind from dir_deg with its sway and yaw load coefficients fitted (another superstructure)",
+               _wind_shape_fit),
     EffectSpec("thruster_lag", "thrusters", (_v("lag_s", "s", 0, 10),), thruster_lag, "first-order thrust lag",
                _single("thruster_lag", member("thrusters", "lag_s", "s", 0.02, 3.0, 0.2), ((0.15,), (0.6,)),
                        "timing")),
@@ -277,6 +323,10 @@ _SPECS = [
                _single("thruster_asymmetry", gain_ratio("ratio", 0.3, 3.0), ((1.0,),), "turning")),
     EffectSpec("thrust_gain", "thrusters", (_v(*_SCALE),), thrust_gain, "overall thrust scale",
                _single("thrust_gain", gain_mean("scale", 0.2, 5.0), ((1.0,),), "thrust")),
+    EffectSpec("thruster_gain_left", "thrusters", (_v(*_SCALE),), thruster_gain_left,
+               "the left thruster alone weaker or stronger", _one_gain_fit("left")),
+    EffectSpec("thruster_gain_right", "thrusters", (_v(*_SCALE),), thruster_gain_right,
+               "the right thruster alone weaker or stronger", _one_gain_fit("right")),
     EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
                "dead-zone widths in normalised PWM", _dead_zone_fit),
     EffectSpec("thrust_decay", "thrusters", (_v("decay_per_min", "1/min", 0, 0.99),), thrust_decay,

@@ -14,9 +14,10 @@ left out (`simulate_many`). MuJoCo's own warning log stays off meanwhile
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
-from typing import Sequence, Union
+from typing import Iterator, Sequence, Union
 
 import mujoco
 import numpy as np
@@ -33,6 +34,28 @@ from .sim import initial_state as _set_initial_state
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 Twin = Union[CompiledVessel, mujoco.MjModel]
+_thread_limit: list[int] = []  # innermost `thread_limit` last
+
+
+@contextlib.contextmanager
+def thread_limit(nthread: int) -> Iterator[None]:
+    """Rollouts that are not given `nthread` use at most this many threads meanwhile.
+
+    A worker of a cluster is granted a few CPUs of a node whose os.cpu_count() counts them all;
+    code that rolls out deep inside (a diagnosis, a dataset) would otherwise start a thread per
+    core of the node in every worker at once."""
+    if nthread < 1:
+        raise TwinError(f"thread limit must be at least 1, got {nthread}")
+    _thread_limit.append(int(nthread))
+    try:
+        yield
+    finally:
+        _thread_limit.pop()
+
+
+def default_threads() -> int:
+    """Threads of a rollout not told how many: the innermost `thread_limit`, else every CPU."""
+    return _thread_limit[-1] if _thread_limit else (os.cpu_count() or 1)
 
 
 def state_size(model: mujoco.MjModel) -> int:
@@ -166,7 +189,7 @@ def rollout(twins: Twin | Sequence[Twin], initial_states, controls, nthread: int
     controls = np.ascontiguousarray(controls, dtype=float)
     models = _as_models(twins, len(initial))
     _check_inputs(models, initial, controls)
-    nthread = nthread or os.cpu_count() or 1
+    nthread = nthread or default_threads()
     states = np.empty((len(models), controls.shape[1], initial.shape[1]))
     with native.installed_native(), quiet_log():
         for idx in _groups(models):

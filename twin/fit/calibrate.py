@@ -51,6 +51,8 @@ MIN_STRETCH_S = 1.0  # a GNSS velocity direction needs a few fixes
 PIECE_S = 2.0  # straight running is cut into pieces this long: each gives the offset once
 MIN_STRAIGHT_S = 3.0  # less straight running than this says nothing reliable about the compass
 DRIFT_HEADING_SPREAD_DEG = 60.0  # straight legs this far apart in heading separate a drift from an offset
+SLIP_YAW_SPREAD_RAD_S = 0.02
+MIN_OFFSET_DEG, SIGNIFICANT_SIGMA = 1.5, 3.0  # smaller or less sure: a compass's own error, not applied
 
 
 @dataclass(frozen=True)
@@ -79,9 +81,12 @@ class LogCalibration:
                 "stretches": self.stretches, "seconds": round(self.seconds, 1),
                 "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note}
 
+    def __repr__(self) -> str:
+        return f"LogCalibration({self.text()})"
+
     def text(self) -> str:
         if self.heading_bias_deg is None:
-            return f"{self.log}: compass offset not estimable ({self.note})"
+            return f"{self.log}: compass offset not applied ({self.note})"
         drift = "" if self.drift_ned_m_s is None else \
             f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s"
         return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
@@ -140,30 +145,41 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) ->
     legs = [_ground_velocity(prep, sl) for sl in stretches]
     vel = np.concatenate([v for v, _ in legs])
     psi = np.concatenate([p for _, p in legs])
+    yaw = np.concatenate([prep.r[sl] for sl in stretches])
     spread = _heading_spread_deg(np.array([np.angle(np.mean(np.exp(1j * p))) for _, p in legs]))
     piece = int(round(PIECE_S / prep.settings.grid_dt))
     which = np.concatenate([np.full(len(p), i) for i, (_, p) in enumerate(legs)]) * 10_000 + \
         np.concatenate([np.arange(len(p)) // piece for _, p in legs])
     which = np.unique(which, return_inverse=True)[1]
     with_drift = spread >= DRIFT_HEADING_SPREAD_DEG
+    # the sideslip of gentle turns is told from the offset only where the yaw rate varies enough
+    with_slip = len(stretches) >= 2 and float(np.std(yaw)) >= SLIP_YAW_SPREAD_RAD_S
 
-    def across(x):  # velocity across the true heading ψ_logged − δ: zero for a hull going straight
-        delta, cn, ce = x[0], (x[1] if with_drift else 0.0), (x[2] if with_drift else 0.0)
+    def across(x):
+        """Velocity across the true heading ψ_logged − δ, less the sideslip a hull takes in a gentle
+        turn (proportional to r at its speed: x[1]), for a drift (x[2:4]) over ground."""
+        delta, slip = x[0], (x[1] if with_slip else 0.0)
+        cn, ce = (x[2], x[3]) if with_drift else (0.0, 0.0)
         true = psi - delta
-        return -(vel[:, 0] - cn) * np.sin(true) + (vel[:, 1] - ce) * np.cos(true)
+        speed = np.hypot(vel[:, 0] - cn, vel[:, 1] - ce)
+        return -(vel[:, 0] - cn) * np.sin(true) + (vel[:, 1] - ce) * np.cos(true) - slip * yaw * speed
 
-    fit = least_squares(across, np.zeros(3 if with_drift else 1), loss="soft_l1", f_scale=0.05)
+    fit = least_squares(across, np.zeros(4 if with_drift else 2), loss="soft_l1", f_scale=0.05)
     delta = float(fit.x[0])
     # each piece of straight running gives the offset once: their spread is the offset's uncertainty
-    drift_now = np.r_[fit.x[1:3]] if with_drift else np.zeros(2)
+    drift_now = np.r_[fit.x[2:4]] if with_drift else np.zeros(2)
     speed = np.hypot(*(vel - drift_now).T)
     crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1:]]) / speed, -1.0, 1.0))
     per_piece = -np.array([np.average(crab[which == i], weights=speed[which == i]) for i in range(which.max() + 1)])
     sigma = float(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1 else float("nan")
-    drift = (float(fit.x[1]), float(fit.x[2])) if with_drift else None
+    drift = (float(fit.x[2]), float(fit.x[3])) if with_drift else None
     note = "" if with_drift else f"straight legs within {spread:.0f}° of each other: no drift fitted"
-    return LogCalibration(name, float(np.degrees(delta)), float(np.degrees(sigma)), len(stretches), seconds, drift,
-                          note)
+    offset_deg, sigma_deg = float(np.degrees(delta)), float(np.degrees(sigma))
+    if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):  # NaN σ: not significant
+        return LogCalibration(name, None, sigma_deg, len(stretches), seconds, drift,
+                              f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "
+                              f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ)")
+    return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note)
 
 
 def _heading_spread_deg(angles_rad: np.ndarray) -> float:

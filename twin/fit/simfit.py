@@ -46,6 +46,7 @@ from ..effects.coefficients import DEFAULT_FIT as DEFAULT
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
+from .uncertainty import block
 from .objective import SETTLE_S, Estimate, Objective, cluster_covariance, estimates_of
 from .windows import ModelCache, make_windows
 
@@ -241,11 +242,13 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
         free = still
     estimates = _map_estimates(obj, coords, x, cov, free)
     data_r = r[: obj.n_data]
-    return FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
+    result = FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
                      time.time() - started, sol.message,
                      {"anchor": anchor, "window_s": window_s, "stride_s": stride_s, "free_start": free_start,
                       "prior_weight": prior_weight, "residual_rms": float(np.sqrt(np.mean(data_r ** 2)))},
                      objective=obj, x=x, jacobian=J, covariance=cov)
+    result.vessel = replace(result.vessel, uncertainty=block(result, coords, free))
+    return result
 
 
 def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache, settle_s: float, free_start: bool,

@@ -104,6 +104,10 @@ class Prepared:
     settings: Preparation = field(default_factory=Preparation)
     dropped: list[tuple[str, int]] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        return (f"Prepared({Path(self.settings.source).name or '?'}: {len(self.t)} samples every "
+                f"{self.settings.grid_dt:g} s in {len(self.segments)} segments, {self.settings.smoother} velocities)")
+
 
 def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None, grid_dt: float = 0.1,
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,

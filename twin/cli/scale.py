@@ -1,0 +1,198 @@
+"""`twin montecarlo`, `twin dataset-shards`, `twin fleet`: many twins, locally on every core or on
+a Ray cluster (--ray); registered on the main CLI app."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..errors import TwinError
+from .app import MODEL_HELP, VESSEL_HELP, app, check_outputs, note, progress_bar, say, vessel_from, write_json
+
+RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
+            "this machine), ray://HOST:10001 or HOST:6379; default: this machine's cores, no Ray")
+CPUS_HELP = "CPUs of a Ray node each task takes (its rollouts use as many threads)"
+RETRIES_HELP = "times Ray runs a task again whose worker or node died"
+VARY_HELP = "a coefficient (or mass) times a factor drawn log-uniformly, NAME=LO..HI (repeatable), e.g. Xu=0.5..2"
+EFFECT_HELP = ("an effect with values fixed or drawn uniformly, NAME=V|LO..HI,... (repeatable; `twin effects`), "
+               "e.g. current=0..0.3,0..360")
+MC_OUTPUTS = (".csv", ".json", ".png", ".rrd")
+
+
+def _executor(ray: Optional[str], cpus_per_task: int, retries: int):
+    from ..scale.batches import executor_from
+
+    return executor_from(ray, cpus_per_task=cpus_per_task, retries=retries)
+
+
+def _variation(vessel, vary: list[str], effect: list[str], covariance: bool, share: float = 1.0):
+    from ..scale.draws import Variation, parse_effect_range, parse_factor
+
+    return Variation(covariance, tuple(parse_factor(v, vessel) for v in vary),
+                     tuple(parse_effect_range(e) for e in effect), share)
+
+
+@app.command("montecarlo")
+def montecarlo_command(
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP + "; its uncertainty block gives the draws"),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with --no-covariance and --vary/--effect)"),
+    scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag): run "
+                                                      "closed loop once by the nominal twin, its inputs replayed"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
+    duration: Optional[float] = typer.Option(None, help="mission length, s (default 120, or the inputs' last time)"),
+    draws: int = typer.Option(1000, help="number of twins drawn"),
+    seed: int = typer.Option(0, help="root seed (batch i draws from its i-th child)"),
+    level: float = typer.Option(0.9, help="central share of the band (0.9: 5th to 95th percentile)"),
+    sample_dt: float = typer.Option(0.5, help="band sample period, s"),
+    covariance: bool = typer.Option(True, "--covariance/--no-covariance",
+                                    help="draw the identified coefficients from the vessel file's covariance"),
+    vary: list[str] = typer.Option([], help=VARY_HELP),
+    effect: list[str] = typer.Option([], help=EFFECT_HELP),
+    out: list[Path] = typer.Option(..., help="output(s): .csv, .json (band), .png (plot), .rrd (rerun) (repeatable)"),
+    batch_size: int = typer.Option(64, help="draws per batch (a batch is one rollout and one cluster task)"),
+    ray: Optional[str] = typer.Option(None, help=RAY_HELP),
+    cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
+    retries: int = typer.Option(3, help=RETRIES_HELP),
+):
+    """Prediction bands of an identified twin: draws from its covariance through a mission."""
+    from ..drive import read_inputs_csv
+    from ..scale import montecarlo as mc
+
+    check_outputs(out, MC_OUTPUTS, "--out")
+    if scenario is not None and inputs is not None:
+        raise TwinError("give --scenario or --inputs, not both")
+    v = vessel_from(vessel, model, "nominal")
+    variation = _variation(v, vary, effect, covariance)
+    executor = _executor(ray, cpus_per_task, retries)
+    if inputs is not None:
+        series = read_inputs_csv(inputs)
+        length = duration if duration is not None else float(series.t[-1])
+        if not length > 0:
+            raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {series.t[-1]:g} s)")
+        mission = mc.inputs_mission(series, length, sample_dt, source=f"inputs {inputs.name}")
+    else:
+        mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed)
+    with progress_bar("montecarlo") as progress:
+        result = mc.run(v, mission, draws, seed=seed, variation=variation, level=level, batch_size=batch_size,
+                        executor=executor, progress=progress)
+    for path in out:
+        _write_band(result, path)
+    _report(result)
+
+
+def _write_band(result, path: Path) -> None:
+    from ..files import write_text_atomic
+    from ..scale import views
+
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        write_json(path, result.to_dict())
+        return
+    if suffix == ".csv":
+        write_text_atomic(path, result.to_csv_text())
+    elif suffix == ".png":
+        views.write_png(result, path)
+    else:
+        views.write_rrd(result, path)
+    say(f"wrote {path}" + (f" (open with: rerun {path})" if suffix == ".rrd" else ""))
+
+
+def _report(result) -> None:
+    from ..scale.montecarlo import level_percentiles
+
+    b = result.band
+    lo_p, hi_p = level_percentiles(b.level)
+    rate = result.simulated_s / result.seconds if result.seconds > 0 else float("nan")
+    say(f"{result.vessel.name}: {result.draws} draws of {result.mission.duration_s:g} s ({result.mission.source}) "
+        f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
+        f"{result.rejected} unphysical draws redrawn")
+    k = 180.0 / math.pi
+    dev = b.values["deviation"]
+    psi = b.nominal["psi"][-1]
+    say(f"at t = {b.t_s[-1]:g} s: distance from nominal median {dev[b.percentiles.index(50.0), -1]:.2f} m, "
+        f"{100 * b.level:g} % within {b.interval('deviation')[1][-1]:.2f} m; heading nominal "
+        f"{k * psi:.1f}° ({k * (b.at('psi', lo_p)[-1] - psi):+.1f}° to {k * (b.at('psi', hi_p)[-1] - psi):+.1f}°), "
+        f"u [{b.at('u', lo_p)[-1]:.3f}, {b.at('u', hi_p)[-1]:.3f}] m/s ({100 * b.level:g} % band)")
+
+
+@app.command("dataset-shards")
+def dataset_shards_command(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    out: Path = typer.Option(..., help="folder to write the shards and index.json/index.csv into (new or empty)"),
+    vessels: int = typer.Option(100, help="number of randomised vessels (one recording each)"),
+    per_shard: int = typer.Option(16, help="vessels per shard (a shard is one batch and one cluster task)"),
+    segments: int = typer.Option(8, help="trajectory segments per vessel"),
+    manoeuvres: str = typer.Option(",".join(("rc", "forward_constant", "forward_varying", "zigzag", "circle_constant",
+                                             "circle_varying")), help="manoeuvres to cycle through (`twin dataset`)"),
+    vary: list[str] = typer.Option([], help=VARY_HELP),
+    effect: list[str] = typer.Option([], help=EFFECT_HELP),
+    effect_share: float = typer.Option(1.0, help="chance that each --effect is present in a vessel at all"),
+    covariance: bool = typer.Option(False, "--covariance/--no-covariance",
+                                    help="also draw the coefficients from the vessel file's identified covariance"),
+    noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
+    fmt: str = typer.Option("mcap", "--format", help="recording format: mcap | tlog | bin | csv"),
+    seed: int = typer.Option(0, help="root seed (shard i draws from its i-th child)"),
+    resume: bool = typer.Option(False, "--resume", help="keep the shards a cut-short run with the same settings "
+                                                        "completed in --out"),
+    ray: Optional[str] = typer.Option(None, help=RAY_HELP),
+    cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
+    retries: int = typer.Option(3, help=RETRIES_HELP),
+):
+    """Synthetic identification datasets at scale: randomised vessels, sharded files, one truth index."""
+    from ..scale.datasets import Settings, generate_shards
+    from ..synth.dataset import noise_profile
+
+    v = vessel_from(vessel, model, "nominal")
+    noise_profile(noise)  # a bad profile fails now, not in every worker
+    settings = Settings(vessels, per_shard, segments, tuple(m.strip() for m in manoeuvres.split(",") if m.strip()),
+                        noise, "." + fmt.lower().lstrip("."), seed, _variation(v, vary, effect, covariance, effect_share))
+    executor = _executor(ray, cpus_per_task, retries)
+    with progress_bar("dataset-shards") as progress:
+        result = generate_shards(v, settings, out, executor=executor, resume=resume, progress=progress)
+    logged = sum(e["logged_s"] for e in result.entries)
+    if result.reused:
+        note(f"note: {result.reused} shards were already complete in {out} and kept")
+    say(f"wrote {out}: {len(result.entries)} vessels in {result.index['shards']} shards ({result.made} made now, "
+        f"{result.bytes_written / 1e6:.1f} MB of recordings), {logged / 3600:.2f} h logged; index {out / 'index.json'}")
+
+
+@app.command("fleet")
+def fleet_command(
+    recordings: list[Path] = typer.Argument(None, help="recordings: .tlog, .bin, .csv, .mcap (or --manifest)"),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    manifest: Optional[Path] = typer.Option(None, help="CSV with a recording column and optional vessel, day columns"),
+    out: Path = typer.Option(..., help="folder for one report per log, fleet.json and fleet.md"),
+    effects: Optional[str] = typer.Option(None, help="only these candidate effects (comma separated; `twin effects`)"),
+    window: Optional[float] = typer.Option(None, help="free-run window length of the diagnoses, s"),
+    html: bool = typer.Option(False, "--html", help="also an HTML report per log"),
+    batch_size: int = typer.Option(1, help="logs per batch (a batch is one cluster task)"),
+    ray: Optional[str] = typer.Option(None, help=RAY_HELP),
+    cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
+    retries: int = typer.Option(3, help=RETRIES_HELP),
+):
+    """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
+    from ..scale.fleet import Log, diagnose_fleet, format_summary, read_manifest
+
+    default = str(model) if model is not None else vessel
+    if manifest is not None:
+        if recordings:
+            raise TwinError("give recordings or --manifest, not both")
+        logs = read_manifest(manifest, default)
+    else:
+        if not recordings:
+            raise TwinError("give recordings to diagnose, or --manifest FILE")
+        if default is None:
+            raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
+        logs = [Log(p, default) for p in recordings]
+    library = [e.strip() for e in effects.split(",") if e.strip()] if effects else None
+    with progress_bar("fleet") as progress:
+        fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
+                               executor=_executor(ray, cpus_per_task, retries), progress=progress)
+    typer.echo(format_summary(fleet.summary))
+    say(f"wrote {len(fleet.reports)} reports, {out / 'fleet.json'} and {out / 'fleet.md'}")
+    if fleet.summary["failed"]:
+        note(f"note: {len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed")

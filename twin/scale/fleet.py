@@ -1,0 +1,312 @@
+"""`twin diagnose` over a fleet's logs: one diagnosis per log, a report per log, and a fleet
+summary of which effects were found, how often, how large, per vessel and per day.
+
+Each log is diagnosed alone against its vessel (a log's effects are its own: a current on
+Tuesday is not Wednesday's). Logs go to the workers as bytes, read when their batch is
+submitted, and reports come back as data, so a cluster needs no shared file system; the
+driver writes every report atomically as it arrives. A log that cannot be diagnosed (no PWM,
+too short) is reported with its one-line reason and the others go on.
+
+Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manifest CSV with a
+`recording` column and optional `vessel` (a shipped name or a vessel file) and `day`
+(YYYY-MM-DD) columns, paths relative to the manifest's folder. A log's day, when the manifest
+does not give it, is the date (UTC) of the log's own clock when that is a calendar time, else
+of the file's modification time.
+"""
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import TwinError
+from ..files import write_bytes_atomic, write_text_atomic
+from ..progress import Progress
+from ..vessel import load
+from .batches import Batch, Executor, LocalExecutor, plan
+
+EPOCH_2000_S, EPOCH_2100_S = 946684800.0, 4102444800.0
+
+
+@dataclass(frozen=True)
+class Log:
+    """A recording of the fleet, the vessel it was logged on (a shipped name or a vessel file)
+    and its day (YYYY-MM-DD; "" to take it from the log)."""
+
+    path: Path
+    vessel: str
+    day: str = ""
+
+
+def read_manifest(path: Path, default_vessel: str | None = None) -> list[Log]:
+    """The logs of a manifest CSV (module docstring)."""
+    path = Path(path)
+    try:
+        rows = list(csv.DictReader(path.read_text(encoding="utf-8-sig").splitlines()))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TwinError(f"manifest '{path}': cannot read ({exc})") from None
+    if not rows or "recording" not in rows[0]:
+        raise TwinError(f"manifest '{path.name}': needs a header with a 'recording' column (and optional vessel, day)")
+    out = []
+    for line, row in enumerate(rows, start=2):
+        rec = (row.get("recording") or "").strip()
+        vessel = (row.get("vessel") or "").strip() or default_vessel
+        day = (row.get("day") or "").strip()
+        if not rec:
+            raise TwinError(f"manifest '{path.name}': line {line}: empty recording")
+        if not vessel:
+            raise TwinError(f"manifest '{path.name}': line {line}: no vessel (add a vessel column or give --vessel)")
+        if day:
+            _check_day(day, f"manifest '{path.name}': line {line}")
+        model = Path(vessel)
+        if vessel.endswith(".json") and not model.is_absolute():
+            vessel = str(path.parent / model)
+        out.append(Log(_resolved(path.parent, rec), vessel, day))
+    return out
+
+
+def _resolved(folder: Path, name: str) -> Path:
+    p = Path(name)
+    return p if p.is_absolute() else folder / p
+
+
+def _check_day(day: str, where: str) -> None:
+    try:
+        dt.date.fromisoformat(day)
+    except ValueError:
+        raise TwinError(f"{where}: day '{day}' is not YYYY-MM-DD") from None
+
+
+# ---------------------------------------------------------------- the work
+
+@dataclass(frozen=True)
+class _Job:
+    vessels: dict  # the text that named a vessel -> Vessel
+    options: dict  # keyword arguments of the diagnosis (window_s, library)
+    html: bool
+    diagnose: Callable | None  # None: twin.diagnose.doctor.diagnose
+
+
+@dataclass(frozen=True)
+class _Item:
+    """One log as a worker gets it."""
+
+    index: int
+    name: str
+    data: bytes
+    vessel: str
+    day: str
+    file_day: str
+
+
+def run_logs(job: _Job, b: Batch, items: list[_Item]) -> list[dict]:
+    """The diagnoses of a batch's logs (the task a worker runs)."""
+    return [_diagnosed(job, item) for item in items]
+
+
+def _diagnosed(job: _Job, item: _Item) -> dict:
+    from ..formats import read_recording
+
+    started = time.perf_counter()
+    out = {"index": item.index, "log": item.name, "vessel": item.vessel}
+    with tempfile.TemporaryDirectory(prefix="twin-fleet-") as folder:
+        path = Path(folder) / Path(item.name).name  # its own name: per-log calibrations go by it
+        path.write_bytes(item.data)
+        try:
+            rec = read_recording(path)
+            out["day"], out["day_from"] = _day(rec, item)
+            diagnose = job.diagnose or _default_diagnose()
+            result = diagnose([rec], job.vessels[item.vessel], **job.options)
+            out.update(ok=True, report=_plain(result.to_dict()), effects=_plain(list(result.effects)))
+            if job.html:
+                from ..diagnose.report import write_html
+
+                page = Path(folder) / "report.html"
+                write_html(result, page)
+                out["html"] = page.read_bytes()
+        except TwinError as exc:
+            out.update(ok=False, error=str(exc))
+            out.setdefault("day", item.day or item.file_day)
+            out.setdefault("day_from", "manifest" if item.day else "file time")
+    out["seconds"] = round(time.perf_counter() - started, 3)
+    return out
+
+
+def _default_diagnose():
+    from ..diagnose.doctor import diagnose
+
+    return diagnose
+
+
+def _day(rec, item: _Item) -> tuple[str, str]:
+    if item.day:
+        return item.day, "manifest"
+    if EPOCH_2000_S <= rec.origin_s <= EPOCH_2100_S:
+        return dt.datetime.fromtimestamp(rec.origin_s, dt.timezone.utc).date().isoformat(), "log clock"
+    return item.file_day, "file time"
+
+
+def _plain(x):
+    """JSON-ready copy (numpy numbers and arrays as plain values)."""
+    return json.loads(json.dumps(x, allow_nan=True, default=_default))
+
+
+def _default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if hasattr(x, "to_dict"):
+        return x.to_dict()
+    return str(x)
+
+
+# ---------------------------------------------------------------- the fleet
+
+@dataclass
+class Fleet:
+    """Every log's outcome (in the order given) and the summary."""
+
+    results: list[dict]
+    summary: dict
+    reports: dict  # log index -> report file written
+
+
+def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None, library: list[str] | None = None,
+                   html: bool = False, batch_size: int = 1, executor: Executor | None = None,
+                   progress: Progress | None = None, diagnose: Callable | None = None) -> Fleet:
+    """Diagnose every log (module docstring), writing OUT/<log name>.json (and .html) per log,
+    OUT/fleet.json and OUT/fleet.md. `diagnose`: the per-log diagnosis, (recordings, vessel,
+    **options) -> an object with .effects and .to_dict() (default twin.diagnose.doctor.diagnose)."""
+    out = Path(out)
+    if not logs:
+        raise TwinError("no logs to diagnose")
+    if out.exists() and not out.is_dir():
+        raise TwinError(f"--out '{out}' is a file: give a folder")
+    if not out.parent.is_dir():
+        raise TwinError(f"--out '{out}': folder '{out.parent}' does not exist (create it first)")
+    for log in logs:
+        if not log.path.is_file():
+            raise TwinError(f"{log.path}: no such file")
+    vessels = {name: load(name) for name in sorted({log.vessel for log in logs})}
+    options = {k: v for k, v in (("window_s", window_s), ("library", library)) if v is not None}
+    job = _Job(vessels, options, html, diagnose)
+    out.mkdir(exist_ok=True)
+    names = _report_names(logs)
+    batches = plan(len(logs), batch_size, 0)
+    results: list[dict | None] = [None] * len(logs)
+    reports = {}
+
+    def items(b: Batch) -> list[_Item]:
+        return [_item(i, logs[i]) for i in range(b.start, b.stop)]
+
+    for _, batch_results in (executor or LocalExecutor()).run(run_logs, job, batches, items, progress):
+        for r in batch_results:
+            r["log"] = str(logs[r["index"]].path)
+            reports[r["index"]] = _write_report(out, names[r["index"]], r)
+            results[r["index"]] = r
+    summary = summarise([r for r in results if r is not None])
+    write_text_atomic(out / "fleet.json", json.dumps(summary, indent=1, allow_nan=False, default=_default) + "\n")
+    write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
+    return Fleet(results, summary, reports)
+
+
+def _item(i: int, log: Log) -> _Item:
+    mtime = log.path.stat().st_mtime
+    file_day = dt.datetime.fromtimestamp(mtime, dt.timezone.utc).date().isoformat()
+    return _Item(i, log.path.name, log.path.read_bytes(), log.vessel, log.day, file_day)
+
+
+def _report_names(logs: list[Log]) -> list[str]:
+    """A report name per log: its file's stem, numbered where two logs share one."""
+    seen: dict[str, int] = {}
+    out = []
+    for log in logs:
+        stem = log.path.stem
+        seen[stem] = seen.get(stem, 0) + 1
+        out.append(stem if seen[stem] == 1 else f"{stem}-{seen[stem]}")
+    return out
+
+
+def _write_report(out: Path, name: str, r: dict) -> Path:
+    page = r.pop("html", None)
+    if page is not None:
+        write_bytes_atomic(out / f"{name}.html", page)
+    path = out / f"{name}.json"
+    body = {k: v for k, v in r.items() if k != "effects"}
+    write_text_atomic(path, json.dumps(body, indent=1, allow_nan=True, default=_default) + "\n")
+    return path
+
+
+# ---------------------------------------------------------------- summary
+
+def summarise(results: list[dict]) -> dict:
+    """Which effects, how often, how large: over the fleet, per vessel and per day."""
+    ok = [r for r in results if r.get("ok")]
+    return {"logs": len(results), "diagnosed": len(ok),
+            "effects": _effects(ok),
+            "per_vessel": {v: _group(ok, results, "vessel", v) for v in sorted({r["vessel"] for r in results})},
+            "per_day": {d: _group(ok, results, "day", d) for d in sorted({r.get("day", "") for r in results})},
+            "failed": [{"log": r["log"], "error": r.get("error", "")} for r in results if not r.get("ok")],
+            "table": [{"log": r["log"], "vessel": r["vessel"], "day": r.get("day", ""), "ok": bool(r.get("ok")),
+                       "effects": [e.get("name") for e in r.get("effects", [])], "seconds": r.get("seconds")}
+                      for r in results]}
+
+
+def _group(ok: list[dict], results: list[dict], key: str, value: str) -> dict:
+    mine = [r for r in ok if r.get(key) == value]
+    return {"logs": sum(r.get(key) == value for r in results), "diagnosed": len(mine), "effects": _effects(mine)}
+
+
+def _effects(ok: list[dict]) -> dict:
+    """Per effect name: logs where it was found, their share of the diagnosed logs, and each
+    parameter's median and range over those logs."""
+    found: dict[str, list[dict]] = {}
+    for r in ok:
+        for e in r.get("effects", []):
+            found.setdefault(str(e.get("name")), []).append(e)
+    out = {}
+    for name in sorted(found, key=lambda n: (-len(found[n]), n)):
+        items = found[name]
+        params: dict[str, list[float]] = {}
+        for e in items:
+            for k, v in (e.get("parameters") or {}).items():
+                if isinstance(v, (int, float)) and np.isfinite(v):
+                    params.setdefault(k, []).append(float(v))
+        gains = [float(g) for e in items if isinstance(g := e.get("held_out_gain"), (int, float)) and np.isfinite(g)]
+        out[name] = {"logs": len(items), "share": len(items) / len(ok) if ok else 0.0,
+                     "parameters": {k: {"median": float(np.median(v)), "min": min(v), "max": max(v)}
+                                    for k, v in params.items()},
+                     **({"held_out_gain_median": float(np.median(gains))} if gains else {})}
+    return out
+
+
+def format_summary(summary: dict) -> str:
+    """The summary as Markdown: effects over the fleet, per vessel, per day, and the failures."""
+    lines = [f"# Fleet diagnosis: {summary['diagnosed']} of {summary['logs']} logs diagnosed", ""]
+    lines += _effect_table(summary["effects"], summary["diagnosed"])
+    for title, key in (("Per vessel", "per_vessel"), ("Per day", "per_day")):
+        lines += ["", f"## {title}", ""]
+        for name, group in summary[key].items():
+            lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed", ""]
+            lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
+    if summary["failed"]:
+        lines += ["## Not diagnosed", ""] + [f"- {f['log']}: {f['error']}" for f in summary["failed"]]
+    return "\n".join(lines).rstrip()
+
+
+def _effect_table(effects: dict, diagnosed: int) -> list[str]:
+    if not effects:
+        return ["no effect found" if diagnosed else "no log diagnosed"]
+    rows = ["| effect | logs | share | parameters: median [min, max] |", "| --- | ---: | ---: | --- |"]
+    for name, e in effects.items():
+        params = "; ".join(f"{k} {p['median']:.3g} [{p['min']:.3g}, {p['max']:.3g}]" for k, p in e["parameters"].items())
+        rows.append(f"| {name} | {e['logs']} | {100 * e['share']:.0f} % | {params} |")
+    return rows
