@@ -23,14 +23,11 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.synth.dataset import PROFILES, generate  # noqa: E402
 from twin.fit.evaluate import evaluate  # noqa: E402
-from twin.ident.identify import identify  # noqa: E402
-from twin.fit.calibrate import prepare_for  # noqa: E402
-from twin.vessel import write_text_atomic  # noqa: E402
+from twin.ident.identify import GNSS_WINDOW_S, HEADING_WINDOW_S, identify, prepared  # noqa: E402
+from twin.files import write_text_atomic  # noqa: E402
 
 TRUTH = ["linear_damping=Xu:1.4,Nr:0.7", "quadratic_damping=Xuu:0.8,Nrr:1.3,Yvv:1.2",
          "added_mass=Yvdot:1.3,Nrdot:1.5", "thrust_gain=1.12", "thruster_lag=0.3"]
-# Savitzky-Golay windows (GNSS, heading): without noise a short window distorts least; with it, longer
-WINDOWS = {"none": (0.6, 0.3), "realistic": (1.0, 0.5)}
 DOMINANT = ("M11", "M33", "Xuu", "Yv", "Nr", "thrust_full_n")
 
 
@@ -48,29 +45,29 @@ def run(noise: str, segments: int) -> dict:
     prior = vessel_mod.load("yellowfish")
     train = generate(prior, effects=TRUTH, n_segments=segments, seed=1, noise=PROFILES[noise])
     held = generate(prior, effects=TRUTH, n_segments=8, seed=2, noise=PROFILES[noise])
-    gnss_s, heading_s = WINDOWS[noise]
-    cv = compile_vessel(prior)
-    preps = [prepare_for(train.recording, cv, window_s=gnss_s, heading_window_s=heading_s)]
     started = time.time()
-    report = identify(preps, prior, repeats=5)
+    # exactly what `twin identify` does with the recording (its own preparation and calibration)
+    report = identify([train.recording], prior)
     seconds = time.time() - started
     truth, got, before = physical(train.truth_vessel), physical(report.vessel), physical(prior)
     rows = [{"name": k, "truth": truth[k], "prior": before[k], "identified": got[k],
              "error": (got[k] - truth[k]) / truth[k] if truth[k] else None} for k in truth]
-    held_preps = [prepare_for(held.recording, compile_vessel(report.vessel), window_s=gnss_s,
-                              heading_window_s=heading_s)]
+    held_preps = prepared([held.recording], report.vessel)
     horizons = {"one_step": None, "free_run_10s": 10.0}
     scores = {name: evaluate(v, held_preps, horizons=horizons)
               for name, v in (("truth", train.truth_vessel), ("prior", prior), ("identified", report.vessel))}
-    return {"noise": noise, "segments": segments, "sg_windows_s": [gnss_s, heading_s], "seconds": round(seconds, 1),
-            "parameters": rows, "held_out": scores, "simfit": report.simfit.to_dict(), "notes": report.notes}
+    return {"noise": noise, "segments": segments, "sg_windows_s": [GNSS_WINDOW_S, HEADING_WINDOW_S],
+            "seconds": round(seconds, 1), "parameters": rows, "held_out": scores,
+            "simfit": report.fit.to_dict() if report.fit else None, "choices": report.chosen.label if report.chosen
+            else None, "notes": report.notes}
 
 
 def markdown(results: list[dict]) -> str:
     lines = ["# Identification recovery on synthetic data", "",
              "Truth: the Yellowfish twin with " + ", ".join(f"`{e}`" for e in TRUTH) + ". Prior: the untuned "
-             "`yellowfish`. Training: 20 segments (seed 1) of the six identification manoeuvres and the autopilot; "
-             "judged on 8 held-out segments (seed 2). `python scripts/identify_synthetic.py`.", ""]
+             f"`yellowfish`. Training: {results[0]['segments']} segments (seed 1) of the six identification "
+             "manoeuvres and the autopilot; judged on 8 held-out segments (seed 2). "
+             "`python scripts/identify_synthetic.py`.", ""]
     for r in results:
         lines += [f"## Sensor noise: {r['noise']} (Savitzky-Golay windows {r['sg_windows_s'][0]} s GNSS, "
                   f"{r['sg_windows_s'][1]} s heading; fit {r['seconds']} s)", "",
@@ -85,7 +82,7 @@ def markdown(results: list[dict]) -> str:
             lines.append(f"| {name} | " + " | ".join(f"{f[k]['r2']:.3f}" for k in "uvr") + " |")
         lines.append("")
     lines.append("M11 is the anchor (m from the MJCF, Xu̇ at its prior): GNSS, heading and PWM fix only M⁻¹τ and "
-                 "M⁻¹D, so one absolute scale must come from outside the recording (twin/ident/simfit.py). "
+                 "M⁻¹D, so one absolute scale must come from outside the recording (twin/fit/simfit.py). "
                  "Names in bold are the targets' dominant terms.")
     lines += ["", "Each window's initial velocities are estimated with the parameters (`simfit.fit`, free_start): "
               "fitted from the measured starts instead, the realistic case gave M33 +12.8 %, Nr −5.4 %, "

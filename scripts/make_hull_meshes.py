@@ -10,8 +10,18 @@ depth tapering to a raked bow. Body frame FRD (x forward, y starboard, z down);
 the mesh origin is the bounding-box centre in x and y and the design
 waterline in z (Yellowfish: deck at z = −0.25 m, keel at z = +0.05 m).
 
-Run:  python scripts/make_hull_meshes.py   (writes twin/assets/<vessel>_hull_port.stl
-and twin/assets/<vessel>_hull_starboard.stl; identical output on every run)
+Esso Osaka 3 m model (a single hull, full form) from its principal particulars: L_pp 3.0 m,
+B 0.489 m, draft d 0.201 m, block coefficient C_b 0.830 (NAOE-5thLab/FRT-DS-ESSO). Sections are
+superellipses (exponent 10: flat bottom and sides, a small bilge radius; midship coefficient
+0.986) about the waterline, with a flat keel at the draft and a freeboard of 0.10 m (visual only:
+the depth is not published); the waterline has a parallel middle body, an elliptic bow and a
+parabolic run aft 1/0.6 times as long as the bow's. The run lengths are solved (bisection) so
+that the mesh's displaced volume below the design waterline z = 0 is exactly C_b·L·B·d. The mesh
+origin is midship on the waterline, the twin's body origin for this ship (MMG convention).
+
+Run:  python scripts/make_hull_meshes.py   (writes twin/assets/<vessel>_hull_port.stl,
+twin/assets/<vessel>_hull_starboard.stl and twin/assets/esso_osaka_hull.stl; identical output
+on every run)
 """
 from __future__ import annotations
 
@@ -27,6 +37,10 @@ HULLS = {  # length, breadth, deck z, keel z (m)
 }
 STATIONS, RING_POINTS, EXPONENT = 65, 48, 4.0
 ASSETS = Path(__file__).resolve().parent.parent / "twin" / "assets"
+SHIPS = {  # L_pp, B, draft, C_b, freeboard (m)
+    "esso_osaka": (3.0, 0.489, 0.201, 0.830, 0.10),
+}
+SHIP_STATIONS, SHIP_RING_POINTS, SHIP_EXPONENT, BOW_TO_STERN_RUN, END_WIDTH = 121, 64, 10.0, 0.6, 0.02
 
 
 def _section_scale(x_m: np.ndarray, length_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -71,6 +85,77 @@ def hull_mesh(vessel: str = "yellowfish") -> trimesh.Trimesh:
     return mesh
 
 
+def _closed_mesh(stations: list[np.ndarray], ring_points: int) -> trimesh.Trimesh:
+    """Rings of vertices (one per station, aft to fore) joined into a closed surface with end caps."""
+    vertices = [tuple(p) for ring in stations for p in ring]
+    n, faces = ring_points, []
+    for i in range(len(stations) - 1):
+        for j in range(n):
+            a, b = i * n + j, i * n + (j + 1) % n
+            faces += [(a, b, b + n), (a, b + n, a + n)]
+    for end, station in (("stern", 0), ("bow", len(stations) - 1)):
+        centre = np.mean(vertices[station * n:(station + 1) * n], axis=0)
+        k = len(vertices)
+        vertices.append(tuple(centre))
+        for j in range(n):
+            a, b = station * n + j, station * n + (j + 1) % n
+            faces.append((k, b, a) if end == "stern" else (k, a, b))
+    mesh = trimesh.Trimesh(np.array(vertices), np.array(faces), process=True)
+    trimesh.repair.fix_normals(mesh)
+    if not mesh.is_watertight or mesh.volume <= 0:
+        raise SystemExit("hull mesh is not a closed positive volume")
+    return mesh
+
+
+def _waterline_halfbreadth(s: np.ndarray, stern_run: float) -> np.ndarray:
+    """Relative half-breadth along the ship, s = 2x/L in [−1, 1]: 1 on the parallel middle body, an
+    ellipse over the bow run, a parabola over the stern run (both in units of s), END_WIDTH at the ends."""
+    bow_run = BOW_TO_STERN_RUN * stern_run
+    t_bow = np.clip((s - (1 - bow_run)) / bow_run, 0.0, 1.0)
+    t_stern = np.clip(((-1 + stern_run) - s) / stern_run, 0.0, 1.0)
+    w = np.sqrt(1 - t_bow**2) * (1 - t_stern**2)
+    return np.maximum(w, END_WIDTH)
+
+
+def ship_mesh(vessel: str, stern_run: float) -> trimesh.Trimesh:
+    length_m, breadth_m, draft_m, _, freeboard_m = SHIPS[vessel]
+    xs = np.linspace(-length_m / 2, length_m / 2, SHIP_STATIONS)
+    half = 0.5 * breadth_m * _waterline_halfbreadth(2 * xs / length_m, stern_run)
+    theta = np.linspace(0.0, 2 * np.pi, SHIP_RING_POINTS, endpoint=False)
+    c, s = np.cos(theta), np.sin(theta)
+    ring_y = np.sign(c) * np.abs(c) ** (2 / SHIP_EXPONENT)
+    ring_z = np.sign(s) * np.abs(s) ** (2 / SHIP_EXPONENT)
+    depth = np.where(ring_z > 0, draft_m, freeboard_m)  # z down: keel below, deck above the waterline
+    return _closed_mesh([np.column_stack([np.full(len(theta), x), b * ring_y, depth * ring_z])
+                         for x, b in zip(xs, half)], SHIP_RING_POINTS)
+
+
+def block_coefficient(vessel: str, mesh: trimesh.Trimesh) -> float:
+    from twin.physics.hydrostatics import submerged_volume
+
+    length_m, breadth_m, draft_m, _, _ = SHIPS[vessel]
+    return submerged_volume(mesh.vertices, mesh.faces, 0.0)[0] / (length_m * breadth_m * draft_m)
+
+
+def ship_hull(vessel: str) -> trimesh.Trimesh:
+    """The ship's mesh with the run lengths that give its block coefficient (bisection, 60 halvings)."""
+    target = SHIPS[vessel][3]
+    lo, hi = 0.05, 1.0  # stern run in units of s: a longer run, a finer hull
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if block_coefficient(vessel, ship_mesh(vessel, mid)) > target:
+            lo = mid
+        else:
+            hi = mid
+    return ship_mesh(vessel, 0.5 * (lo + hi))
+
+
+def _write_stl(mesh: trimesh.Trimesh, out: Path) -> None:
+    tmp = out.with_suffix(".stl.tmp")
+    tmp.write_bytes(trimesh.exchange.stl.export_stl(mesh))
+    tmp.replace(out)
+
+
 def main() -> int:
     ASSETS.mkdir(exist_ok=True)
     for vessel in HULLS:
@@ -83,6 +168,12 @@ def main() -> int:
         ext = mesh.bounds[1] - mesh.bounds[0]
         print(f"{vessel} hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, volume {mesh.volume * 1e3:.2f} L, "
               f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}")
+    for vessel in SHIPS:
+        mesh = ship_hull(vessel)
+        _write_stl(mesh, ASSETS / f"{vessel}_hull.stl")
+        ext = mesh.bounds[1] - mesh.bounds[0]
+        print(f"{vessel} hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, C_b {block_coefficient(vessel, mesh):.4f} "
+              f"at the design draft, watertight {mesh.is_watertight}")
     return 0
 
 

@@ -105,7 +105,9 @@ def _declared() -> set[str]:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     requirements = project["dependencies"] + sum(project.get("optional-dependencies", {}).values(), [])
     dists = {re.split(r"[<>=!~\[; ]", r, maxsplit=1)[0].strip().lower().replace("_", "-") for r in requirements}
-    modules = set()
+    # a declared distribution that is not installed here (an optional extra) still declares the
+    # module of its own name: the check must not depend on which extras this machine installed
+    modules = {d.replace("-", "_") for d in dists}
     for module, owners in metadata.packages_distributions().items():
         if any(o.lower().replace("_", "-") in dists for o in owners):
             modules.add(module)

@@ -1,4 +1,4 @@
-"""Readers and seed 004 §5.1 preparation of real recordings (twin.recordings).
+"""Readers and seed 004 §5.1 preparation of real recordings (twin.formats, twin.prepare).
 
 The fixtures are generated here from a known trajectory (a constant-speed circle),
 so a fresh clone tests the readers: a MAVLink telemetry log written with

@@ -6,22 +6,40 @@ integrated with an adaptive 8th-order Runge-Kutta (DOP853) at tight
 tolerances, piecewise between input changes. It shares the force functions of
 `twin.physics` with the engine callbacks but none of the engine: no MuJoCo
 rigid-body dynamics, no MuJoCo integrator, its own thrust lag state.
+
+A propeller-and-rudder ship: the held inputs (n rps, δ rad) go to the MMG forces of
+physics/mmg.py (through hydrodynamics.acceleration's `controls`), no thrust allocation. A
+measured wind (drive.WindSeries) is a known input held like the thrusters' inputs: its
+changes are break points of the piecewise integration.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .drive import InputSeries
-from .physics.hydrodynamics import HydroModel, acceleration
+from .drive import InputSeries, WindSeries
+from .physics.hydrodynamics import HydroModel, acceleration, mmg_forces
 from .physics.kinematics import eta_dot
 from .physics.thrusters import ThrusterModel, advance_factor, allocation_matrix
 from .run import Run
 
 
-def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndarray, start_s: float):
+def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndarray, start_s: float,
+         wind_ned=None):
     """Right-hand side with the input `raw` (N, before decay) held; the thrust decays in
-    continuous time and loses with the advance speed (physics/thrusters.py)."""
+    continuous time and loses with the advance speed (physics/thrusters.py). A propeller and
+    rudder's `raw` is (n, δ), the MMG forces' controls. `wind_ned`: the air's velocity held."""
+    if thrusters.kind == "propeller_rudder":
+        controls = np.asarray(raw, float)
+
+        def f_mmg(t, x):
+            psi, nu = x[2], x[3:6]
+            dx = np.empty_like(x)
+            dx[0:3] = eta_dot(psi, nu)
+            dx[3:6] = acceleration(hydro, psi, nu, np.zeros(3), controls, wind_ned)
+            return dx
+
+        return f_mmg
     B = allocation_matrix(thruster_y_m)
     gains = thrusters.gains()
     lag = thrusters.lag_s
@@ -34,7 +52,7 @@ def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndar
         tau = B @ (gains * delivered * advance_factor(thrusters, nu, thruster_y_m))
         dx = np.empty_like(x)
         dx[0:3] = eta_dot(psi, nu)
-        dx[3:6] = acceleration(hydro, psi, nu, tau)
+        dx[3:6] = acceleration(hydro, psi, nu, tau, None, wind_ned)
         if lag > 0:
             dx[6:8] = (cmd - x[6:8]) / lag
         return dx
@@ -53,13 +71,14 @@ def simulate(
     start_s: float = 0.0,
     rtol: float = 1e-11,
     atol: float = 1e-11,
+    wind: WindSeries | None = None,
 ) -> Run:
     """Integrate from t_samples[0] and return the state at every sample time.
 
     The inputs' clock starts at the run's start, as in the engine; `start_s` is the
     recording time of t = 0 for the thrust decay. The input changes reach the
-    thrusters delay_s later."""
-    lag = thrusters.lag_s > 0
+    thrusters delay_s later. `wind`: a measured wind on the same clock, held (no delay)."""
+    lag = thrusters.lag_s > 0 and thrusters.kind != "propeller_rudder"
     x = np.concatenate([np.zeros(3) if eta0 is None else eta0, np.zeros(3) if nu0 is None else nu0,
                         np.zeros(2)])[: 8 if lag else 6].astype(float)
     t0, t_end = float(t_samples[0]), float(t_samples[-1])
@@ -67,21 +86,33 @@ def simulate(
     inside_run = (changes > t0) & (changes < t_end)
     changed = np.r_[True, np.any(np.diff(inputs.values, axis=0) != 0, axis=1)]
     breaks = np.unique(np.concatenate([[t0, t_end], changes[inside_run & changed]]))
+    if wind is not None:
+        wind_changed = np.r_[True, np.any(np.diff(wind.air_ned, axis=0) != 0, axis=1)]
+        breaks = np.unique(np.concatenate([breaks, wind.t[(wind.t > t0) & (wind.t < t_end) & wind_changed]]))
     out = np.full((len(t_samples), len(x)), np.nan)
     out[0] = x
     for a, b in zip(breaks[:-1], breaks[1:]):
         held = inputs.at(np.array([a - thrusters.delay_s]))
-        raw = held[0] if inputs.kind == "thrust" else thrusters.thrust_from_pwm(held)[0]
-        if not hydro.terms.thrust:
-            raw = np.zeros(2)
+        if inputs.kind == "propeller_rudder":
+            raw = held[0]  # (n, δ): the MMG forces' controls, which the MMG terms switch (not `thrust`)
+        else:
+            raw = held[0] if inputs.kind == "thrust" else thrusters.thrust_from_pwm(held)[0]
+            if not hydro.terms.thrust:
+                raw = np.zeros(2)
+        air = None if wind is None else wind.at(np.array([a]))[0]
         inside = (t_samples > a) & (t_samples <= b)
         t_eval = np.unique(np.concatenate([t_samples[inside], [b]]))
-        sol = solve_ivp(_rhs(hydro, thrusters, thruster_y_m, np.asarray(raw, float), start_s), (a, b), x,
+        sol = solve_ivp(_rhs(hydro, thrusters, thruster_y_m, np.asarray(raw, float), start_s, air), (a, b), x,
                         method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
         if not sol.success:
             raise FloatingPointError(f"analytic integration failed at t = {a:.2f} s: {sol.message}")
         out[inside] = sol.y.T[np.searchsorted(t_eval, t_samples[inside])]
         x = sol.y[:, -1]
+    if thrusters.kind == "propeller_rudder":
+        controls = inputs.commanded_thrust(thrusters, t_samples, start_s)
+        forces = np.array([mmg_forces(hydro, nu, c)[3:5] for nu, c in zip(out[:, 3:6], controls)]).reshape(-1, 2)
+        return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), forces,
+                   meta={"engine": "analytic", "integrator": "DOP853"})
     gains = thrusters.gains()
     t_min, t_max = thrusters.bounds()
     if lag:

@@ -1,10 +1,16 @@
 """What drives a run: thruster input series (open loop, zero-order hold) and controllers
 (closed loop: the scenarios step, turn, zig-zag, spin, random RC driving).
 
-An input series holds PWM (µs) or thrust (N) per thruster. A controller is a function
+An input series holds PWM (µs) or thrust (N) per thruster, or a propeller-and-rudder ship's
+propeller speed (rps) and rudder angle (rad) (kind "propeller_rudder"). A controller is a function
 (t, η, ν) → (surge command, yaw command), both normalised to [−1, 1], evaluated at the
 autopilot rate; a positive yaw command speeds the left thruster up and the right one
-down, which turns the vessel to starboard (r > 0, seed 000 eq. 26c).
+down, which turns the vessel to starboard (r > 0, seed 000 eq. 26c); on a propeller-and-rudder
+ship the surge command is the propeller speed and the yaw command the rudder angle, as fractions
+of their bounds (δ > 0 turns to starboard too).
+
+A wind series (`WindSeries`) is a measured wind held like the inputs: the air's velocity over
+ground, which the engine takes as two extra controls and the analytic model as a known input.
 """
 from __future__ import annotations
 
@@ -20,11 +26,14 @@ from .physics.thrusters import ThrusterModel
 
 PWM_COLUMNS = ("pwm_left", "pwm_right")
 THRUST_COLUMNS = ("thrust_left", "thrust_right")
+PROPELLER_RUDDER_COLUMNS = ("prop_rps", "rudder_deg")
+KINDS = ("pwm", "thrust", "propeller_rudder")
 
 
 @dataclass(frozen=True)
 class InputSeries:
-    """values[i] holds from t[i] until t[i+1] (zero-order hold); kind 'pwm' or 'thrust'."""
+    """values[i] holds from t[i] until t[i+1] (zero-order hold); kind 'pwm' (µs, left, right),
+    'thrust' (N, left, right) or 'propeller_rudder' (n rps, δ rad)."""
 
     t: np.ndarray
     values: np.ndarray  # (n, 2): left, right
@@ -36,7 +45,8 @@ class InputSeries:
 
     def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray, start_s: float = 0.0) -> np.ndarray:
         """Thrust command (N) per thruster at `times` (s, this series' clock), before gains, lag and
-        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t."""
+        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t.
+        For a propeller and rudder: the engine's two controls (n rps, δ rad) held at t − delay_s."""
         times = np.asarray(times, float)
         return thrusters.command(self.kind, self.at(times - thrusters.delay_s), times + start_s)
 
@@ -46,8 +56,41 @@ class InputSeries:
         return np.full((len(np.atleast_1d(times)), 2), np.nan)
 
 
+@dataclass(frozen=True)
+class WindSeries:
+    """A wind over ground held from t[i] until t[i+1] (s, the run's clock, zero-order hold):
+    air_ned[i] is the air's velocity (north, east m/s: where it goes)."""
+
+    t: np.ndarray
+    air_ned: np.ndarray  # (n, 2)
+
+    @classmethod
+    def from_speed_direction(cls, t, speed_m_s, from_deg) -> "WindSeries":
+        """From speeds (m/s) and the directions the wind blows FROM (deg clockwise from north)."""
+        a = np.radians(np.asarray(from_deg, float))
+        speed = np.asarray(speed_m_s, float)
+        t = np.asarray(t, float)
+        if t.ndim != 1 or len(t) < 1 or speed.shape != t.shape or a.shape != t.shape:
+            raise TwinError("a wind series needs one speed and one direction per time")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(speed)) and np.all(np.isfinite(a))):
+            raise TwinError("a wind series holds NaN or infinite values")
+        if np.any(np.diff(t) <= 0):
+            raise TwinError("a wind series' times must increase")
+        return cls(t, -speed[:, None] * np.column_stack([np.cos(a), np.sin(a)]))
+
+    def at(self, times) -> np.ndarray:
+        """(n, 2) air velocity NED (m/s) held at `times`; the first value before the first time."""
+        idx = np.searchsorted(self.t, np.asarray(times, float) + 1e-9, side="right") - 1
+        return self.air_ned[np.clip(idx, 0, len(self.t) - 1)]
+
+    def shifted(self, dt_s: float) -> "WindSeries":
+        """The same wind on a clock started dt_s later (t − dt_s)."""
+        return WindSeries(self.t - dt_s, self.air_ned)
+
+
 def read_inputs_csv(path: str | Path) -> InputSeries:
-    """CSV with a `t` column (s) and pwm_left,pwm_right (µs) or thrust_left,thrust_right (N).
+    """CSV with a `t` column (s) and pwm_left,pwm_right (µs), thrust_left,thrust_right (N) or, for a
+    propeller-and-rudder ship, prop_rps,rudder_deg (rps; degrees, > 0 turns to starboard).
 
     The first row must be at t ≤ 0: the run starts at t = 0 and nothing says what the
     thrusters did before a later first row. Spreadsheets may prefix a UTF-8 byte-order mark."""
@@ -84,21 +127,28 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     if a[0, 0] > 0:
         raise TwinError(f"{path.name}: the first row is at t = {a[0, 0]:g} s; the run starts at t = 0, so the "
                         "first row must be at t ≤ 0 (add a row at t = 0 with the inputs to hold until then)")
-    return InputSeries(a[:, 0], a[:, 1:], kind)
+    values = a[:, 1:]
+    if kind == "propeller_rudder":
+        values = np.column_stack([values[:, 0], np.radians(values[:, 1])])
+    return InputSeries(a[:, 0], values, kind)
 
 
 def _input_columns(header: list[str], path: Path) -> tuple[str, tuple[str, str]]:
-    """'pwm' or 'thrust' and its two columns; both kinds at once would leave one silently unused."""
-    has_pwm = any(c in header for c in PWM_COLUMNS)
-    has_thrust = any(c in header for c in THRUST_COLUMNS)
-    if has_pwm and has_thrust:
+    """'pwm', 'thrust' or 'propeller_rudder' and its two columns; two kinds at once would leave one
+    silently unused."""
+    kinds = {"pwm": PWM_COLUMNS, "thrust": THRUST_COLUMNS, "propeller_rudder": PROPELLER_RUDDER_COLUMNS}
+    present = [k for k, cols in kinds.items() if any(c in header for c in cols)]
+    if present == ["pwm", "thrust"]:
         raise TwinError(f"{path.name}: both PWM and thrust columns: give pwm_left,pwm_right (µs) or "
                         "thrust_left,thrust_right (N), not both")
-    if set(PWM_COLUMNS) <= set(header):
-        return "pwm", PWM_COLUMNS
-    if set(THRUST_COLUMNS) <= set(header):
-        return "thrust", THRUST_COLUMNS
-    raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right or thrust_left,thrust_right")
+    if len(present) > 1:
+        raise TwinError(f"{path.name}: columns of two kinds of inputs: give pwm_left,pwm_right (µs), "
+                        "thrust_left,thrust_right (N) or prop_rps,rudder_deg, not more than one")
+    for kind, cols in kinds.items():
+        if set(cols) <= set(header):
+            return kind, cols
+    raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right, thrust_left,thrust_right or "
+                    "prop_rps,rudder_deg")
 
 
 # ---------------------------------------------------------------- closed loop
@@ -170,7 +220,13 @@ def get(name: str, seed: int = 0) -> Controller:
 
 
 def to_thruster_inputs(thrusters: ThrusterModel, surge: float, yaw: float) -> tuple[str, np.ndarray]:
-    """Normalised (surge, yaw) → per-thruster PWM (µs) or thrust (N) command."""
+    """Normalised (surge, yaw) → per-thruster PWM (µs) or thrust (N) command, or a propeller and
+    rudder's (n rps, δ rad) as the fractions surge and yaw of their bounds."""
+    if thrusters.kind == "propeller_rudder":
+        (_, n_max), (_, d_max) = thrusters.channel_bounds()
+        if not (np.isfinite(n_max) and np.isfinite(d_max)):
+            raise TwinError("a scenario needs the propeller and rudder's bounds (thrusters.rps_max, rudder_max_deg)")
+        return "propeller_rudder", np.array([np.clip(surge, -1.0, 1.0) * n_max, np.clip(yaw, -1.0, 1.0) * d_max])
     cmd = np.clip(np.array([surge + yaw, surge - yaw]), -1.0, 1.0)
     if thrusters.kind == "t200":
         mid = 0.5 * (thrusters.pwm_min_us + thrusters.pwm_max_us)

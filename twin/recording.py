@@ -3,7 +3,7 @@
 Each stream has its own time base t (s, strictly increasing) measured from one
 common origin (`Recording.origin_s`, in the source's own clock), because real
 sensors are not sampled together: GNSS at 1-10 Hz, heading at 10-50 Hz, PWM at
-10 Hz. Synchronising them onto one grid is `prepare.py`'s job, not the reader's.
+10 Hz. Synchronising them onto one grid is `twin.prepare`'s job, not the reader's.
 
 Streams and their columns (SI units, NED, ψ from north towards east):
   gnss     lat_deg, lon_deg, alt_m (geodetic, antenna)   and/or   north_m, east_m (local)
@@ -11,6 +11,15 @@ Streams and their columns (SI units, NED, ψ from north towards east):
   pwm      left_us, right_us  (already mirrored so that forward thrust = higher PWM)
   imu      yaw_rate_rads (gyro z, body FRD)
   battery  voltage_v
+  prop_rudder  n_rps, delta_rad: a propeller-and-rudder ship's inputs (propeller speed, > 0
+           ahead; rudder angle, > 0 turns to starboard). A recording holds them or PWM: they are
+           the two input channels a twin replays (prepare() puts either into Prepared.pwm and
+           says which in Prepared.input_kind)
+  wind     speed_m_s, from_deg (true wind over ground: speed, direction it blows FROM, degrees
+           clockwise from north) and, where measured, relative_speed_m_s, relative_from_deg
+           (the apparent wind on board: direction FROM, degrees clockwise from the bow). A
+           measured stream that nothing uses unless asked (fit.windows.predict(..., wind="measured"))
+The last two are summarised only when present, so other recordings read as before.
 """
 from __future__ import annotations
 
@@ -23,13 +32,18 @@ import numpy as np
 from .errors import TwinError
 
 GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
-STREAMS = ("gnss", "heading", "pwm", "imu", "battery")
+STREAMS = ("gnss", "heading", "pwm", "imu", "battery", "prop_rudder", "wind")
+OPTIONAL_STREAMS = ("prop_rudder", "wind")  # summarised only when they have samples
 # values no sensor can report: a sample holding one is corrupt, dropped and counted
 PLAUSIBLE = {
     "lat_deg": (-90.0, 90.0, "latitude outside ±90°"),
     "lon_deg": (-180.0, 180.0, "longitude outside ±180°"),
     "left_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),  # servo outputs span about 800-2200 µs
     "right_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),
+    "n_rps": (-500.0, 500.0, "propeller speed beyond ±500 rps"),
+    "delta_rad": (-np.pi / 2, np.pi / 2, "rudder angle beyond ±90°"),
+    "speed_m_s": (0.0, 100.0, "wind speed outside 0-100 m/s"),
+    "relative_speed_m_s": (0.0, 100.0, "wind speed outside 0-100 m/s"),
 }
 
 
@@ -87,6 +101,8 @@ class Recording:
     pwm: Stream = field(default_factory=lambda: Stream.empty("left_us", "right_us"))
     imu: Stream = field(default_factory=lambda: Stream.empty("yaw_rate_rads"))
     battery: Stream = field(default_factory=lambda: Stream.empty("voltage_v"))
+    prop_rudder: Stream = field(default_factory=lambda: Stream.empty("n_rps", "delta_rad"))
+    wind: Stream = field(default_factory=lambda: Stream.empty("speed_m_s", "from_deg"))
     parameters: dict[str, float] = field(default_factory=dict)
     pwm_neutral_us: tuple[float, float] = (1500.0, 1500.0)
     channels: dict = field(default_factory=dict)
@@ -114,6 +130,8 @@ class Recording:
         median rates and dropouts (> 1 s), what was dropped, notes."""
         streams = {}
         for name, s in self.streams().items():
+            if name in OPTIONAL_STREAMS and not len(s):
+                continue
             gaps = s.gaps()
             streams[name] = {
                 "samples": len(s),
@@ -176,7 +194,7 @@ def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
     _note(dropped, f"{name}: samples with time going backwards", len(t) - len(keep))
     t, cols = t[keep], {k: v[keep] for k, v in cols.items()}
     stream = Stream(t, cols)
-    if name in ("gnss", "heading", "pwm"):
+    if name in ("gnss", "heading", "pwm", "prop_rudder"):
         _note(dropped, f"{name}: dropouts > {GAP_S:g} s", len(stream.gaps()))
     return stream
 

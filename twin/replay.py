@@ -20,10 +20,11 @@ from .vessel import Vessel
 
 
 def logged_pwm(vessel: Vessel, prep: Prepared, sl: slice) -> InputSeries:
-    """The segment's logged PWM on the segment's clock, moved by the vessel's PWM clock offset
-    (sensors.pwm_clock_offset_s > 0: the stamps are late), as the fit windows apply it."""
+    """The segment's logged PWM (or a propeller and rudder's (n, δ): prep.input_kind) on the segment's
+    clock, moved by the vessel's PWM clock offset (sensors.pwm_clock_offset_s > 0: the stamps are
+    late), as the fit windows apply it."""
     t = prep.t[sl]
-    return InputSeries(t - t[0] - vessel.sensors.pwm_clock_offset_s, prep.pwm[sl].astype(float), "pwm")
+    return InputSeries(t - t[0] - vessel.sensors.pwm_clock_offset_s, prep.pwm[sl].astype(float), prep.input_kind)
 
 
 def measured_run(prep: Prepared, sl: slice | None = None) -> Run:

@@ -22,6 +22,9 @@ from .files import write_text_atomic
 from .physics.added_mass import AddedMass
 from .physics.damping import Damping, is_dissipative
 from .physics.environment import Environment, WindLoad
+from .physics.fujiwara import COEFFICIENTS as WIND_COEFFICIENTS
+from .physics.fujiwara import FujiwaraWind
+from .physics.mmg import MmgHull, MmgModel, MmgPropeller, MmgRudder
 from .physics.sensors import Sensors
 from .physics.thrusters import ThrusterModel
 
@@ -55,6 +58,8 @@ class Vessel:
     # what identification left uncertain: {"coordinates": [{"name", "log", "sign"}], "mean": [...],
     # "covariance": [[...]]} in the fit's coordinates (ln|θ| where "log"), see twin.fit.uncertainty
     uncertainty: dict = field(default_factory=dict)
+    mmg: MmgModel | None = None  # MMG standard method of a propeller-and-rudder ship
+    wind_regression: FujiwaraWind | None = None  # Fujiwara wind loads, in place of wind_load
     path: Path | None = None
 
     def __repr__(self) -> str:
@@ -90,6 +95,9 @@ class Vessel:
             "cases": {k: asdict(v) for k, v in self.cases.items()},
             "sources": dict(self.sources),
             **({"uncertainty": self.uncertainty} if self.uncertainty else {}),
+            **({"mmg": asdict(self.mmg)} if self.mmg is not None else {}),
+            **({"wind_regression": _wind_regression_to_dict(self.wind_regression)}
+               if self.wind_regression is not None else {}),
         }
 
 
@@ -97,6 +105,15 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     d = asdict(t)
     d["forward"], d["reverse"] = list(t.forward), list(t.reverse)
     d["reversed_channels"] = list(t.reversed_channels)
+    if t.kind != "propeller_rudder":  # fields of a propeller and rudder only: other files stay as they were
+        for key in ("rps_max", "rudder_max_deg"):
+            d.pop(key)
+    return d
+
+
+def _wind_regression_to_dict(w: FujiwaraWind) -> dict[str, Any]:
+    d = asdict(w)
+    d["coefficients"] = None if w.coefficients is None else list(w.coefficients)
     return d
 
 
@@ -191,10 +208,38 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         cases=cases,
         sources=dict(data.get("sources") or {}),
         uncertainty=_uncertainty(data.get("uncertainty"), path),
+        mmg=_mmg(data.get("mmg"), path),
+        wind_regression=_wind_regression(data.get("wind_regression"), path),
         path=path,
     )
     check(vessel)
     return vessel
+
+
+def _mmg(data, path: Path) -> MmgModel | None:
+    """The `mmg` block: top-level particulars plus `hull`, `propeller` and `rudder` objects."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise TwinError(f"{path.name}: mmg must be an object of named fields")
+    parts = {"hull": MmgHull, "propeller": MmgPropeller, "rudder": MmgRudder}
+    built = {k: _build(cls, data.get(k), f"mmg.{k}", path) for k, cls in parts.items()}
+    top = _build(MmgModel, {k: v for k, v in data.items() if k not in parts}, "mmg", path)
+    return replace(top, **built)
+
+
+def _wind_regression(data, path: Path) -> FujiwaraWind | None:
+    if data is None:
+        return None
+    w = _build(FujiwaraWind, data, "wind_regression", path)
+    if w.coefficients is not None and len(w.coefficients) != len(WIND_COEFFICIENTS):
+        raise TwinError(f"{path.name}: wind_regression.coefficients must be {len(WIND_COEFFICIENTS)} numbers "
+                        f"({', '.join(WIND_COEFFICIENTS)})")
+    try:
+        return w.resolved()
+    except ZeroDivisionError:
+        raise TwinError(f"{path.name}: wind_regression: a zero area, length or height leaves the regression "
+                        "undefined; give the coefficients") from None
 
 
 def _uncertainty(data, path: Path) -> dict:
@@ -227,10 +272,36 @@ def check(vessel: Vessel) -> None:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
     if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not 0 <= t.speed_loss_per_m_s < 1:
         raise TwinError(f"vessel '{vessel.name}': thruster delay must be ≥ 0, decay and speed loss in [0, 1)")
+    _check_propeller_rudder(vessel)
     for case in vessel.cases.values():
         for geom, mass in case.geom_mass_kg.items():
             if not mass > 0:
                 raise TwinError(f"vessel '{vessel.name}': mass of '{geom}' must be positive, got {mass}")
+
+
+def _check_propeller_rudder(vessel: Vessel) -> None:
+    """A propeller-and-rudder ship needs its MMG description, and only it has one: the MMG forces
+    read the two controls as (n, δ), which for thrusters would be thrusts."""
+    t, m, name = vessel.thrusters, vessel.mmg, vessel.name
+    if (t.kind == "propeller_rudder") != (m is not None):
+        raise TwinError(f"vessel '{name}': thrusters.kind 'propeller_rudder' and an 'mmg' block go together "
+                        f"(kind '{t.kind}', mmg {'given' if m is not None else 'missing'})")
+    if m is None:
+        return
+    if t.lag_s or t.delay_s < 0 or t.decay_per_min or t.speed_loss_per_m_s or t.gain_left != 1 or t.gain_right != 1:
+        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, speed loss or "
+                        "gains (the MMG forces model the propeller)")
+    for what, x in (("thrusters.rps_max", t.rps_max), ("thrusters.rudder_max_deg", t.rudder_max_deg)):
+        if x is not None and not x > 0:
+            raise TwinError(f"vessel '{name}': {what} must be positive, got {x}")
+    positive = {"mmg.rho_kg_m3": m.rho_kg_m3, "mmg.lpp_m": m.lpp_m, "mmg.draft_m": m.draft_m,
+                "mmg.low_speed_m_s": m.low_speed_m_s, "mmg.propeller.diameter_m": m.propeller.diameter_m,
+                "mmg.rudder.area_m2": m.rudder.area_m2, "mmg.rudder.aspect_ratio": m.rudder.aspect_ratio}
+    for what, x in positive.items():
+        if not x > 0:
+            raise TwinError(f"vessel '{name}': {what} must be positive, got {x}")
+    if not 0 <= m.propeller.wP0 < 1 or not 0 <= m.propeller.tP < 1 or not 0 <= m.rudder.tR < 1:
+        raise TwinError(f"vessel '{name}': mmg wake fraction w_P0 and deductions t_P, t_R must lie in [0, 1)")
 
 
 def available() -> list[str]:

@@ -104,8 +104,19 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}': folder '{folder}' does not exist (create it first)")
         if p.is_dir():
             raise TwinError(f"{option} '{p}' is a folder: give a file name")
-        if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
-            raise TwinError(f"{option} '{p}': no permission to write there (choose another folder)")
+        if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)) or not _can_create(folder):
+            raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
+
+
+def _can_create(folder: Path) -> bool:
+    """Whether a file can really be created in `folder` (permissions alone do not say: /proc)."""
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".twin-probe-"):
+            return True
+    except OSError:
+        return False
 
 
 def write_json(path: Optional[Path], data: dict) -> None:
@@ -147,12 +158,15 @@ def progress_bar(title: str) -> Iterator[Progress]:
         return
     from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
 
-    with Bar(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[what]}"),
-             TimeElapsedColumn(), console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task(title, total=None, what="")
+    with Bar(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
+             TextColumn("{task.fields[what]}"), TimeElapsedColumn(), console=Console(stderr=True),
+             transient=True) as bar:
+        task = bar.add_task(title, total=None, what="", count="")
 
         def update(what: str, done: int | None = None, total: int | None = None) -> None:
-            bar.update(task, what=what, completed=done if done is not None else 0, total=total)
+            # the count beside the bar: how far in numbers, not only as a bar's length
+            count = f"{done}/{total}" if done is not None and total else ""
+            bar.update(task, what=what, count=count, completed=done if done is not None else 0, total=total)
 
         yield update
 

@@ -7,7 +7,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, say, vessel_from
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, progress_bar, say,
+                  vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
 
@@ -80,9 +81,16 @@ def view(
     check_outputs([out], (".rrd",), "--out")
     check_outputs([png], (".png",), "--png")
     v = vessel_from(vessel, model) if (vessel or model) else None
-    recordings = [read_recording(path, channels=channels_from(channels)) for path in files]
-    runs = view_runs(recordings, v, sim=sim, smoother=smoother)
-    write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
+    mapping = channels_from(channels)
+    with progress_bar("view") as progress:
+        recordings = []
+        for k, path in enumerate(files):
+            progress(f"reading {path.name}", k, len(files))
+            recordings.append(read_recording(path, channels=mapping))
+        progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
+        runs = view_runs(recordings, v, sim=sim, smoother=smoother)
+        progress(f"writing {out.name}")
+        write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
     say(f"wrote {out} (open with: rerun {out})")
     if png is not None:
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"

@@ -51,13 +51,23 @@ def simulate(
     check_outputs(out, RUN_OUTPUTS, "--out")
     start = origin_from(origin)
     v = vessel_from(vessel, model, case)
-    result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed, sample_dt_s=sample_dt,
-                          current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"))
+    flows = speed_direction(current, "current"), speed_direction(wind, "wind")
+    # a long run (hours of simulated time, an .rrd or .mcap of it) takes a while: say which part is running
+    written = []
+    try:
+        with progress_bar("simulate") as progress:
+            progress(f"simulating {duration:g} s of {v.name}")
+            result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed,
+                                  sample_dt_s=sample_dt, current=flows[0], wind=flows[1])
+            for k, path in enumerate(out):
+                progress(f"writing {path.name}", k, len(out))
+                result.write(path, origin=start)
+                written.append(path)
+    finally:  # after the bar (a line printed under it would be drawn over), and also when a later output fails
+        for path in written:
+            say(f"wrote {path}")
     for limit in result.limits:
         note(f"note: {limit.text()}")
-    for path in out:
-        result.write(path, origin=start)
-        say(f"wrote {path}")
     run = result.run
     say(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
         f"heading {run.eta[-1, 2] * 57.29578:.1f}°, u {run.nu[-1, 0]:.3f} m/s")

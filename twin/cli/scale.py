@@ -40,7 +40,8 @@ def montecarlo_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with --no-covariance and --vary/--effect)"),
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag): run "
                                                       "closed loop once by the nominal twin, its inputs replayed"),
-    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,"
+                                                     "thrust_right (N)"),
     duration: Optional[float] = typer.Option(None, help="mission length, s (default 120, or the inputs' last time)"),
     draws: int = typer.Option(1000, help="number of twins drawn"),
     seed: int = typer.Option(0, help="root seed (batch i draws from its i-th child)"),
@@ -65,6 +66,8 @@ def montecarlo_command(
         raise TwinError("give --scenario or --inputs, not both")
     v = vessel_from(vessel, model, "nominal")
     variation = _variation(v, vary, effect, covariance)
+    mc.check_variation(v, variation)
+    mc.level_percentiles(level)
     executor = _executor(ray, cpus_per_task, retries)
     if inputs is not None:
         series = read_inputs_csv(inputs)
@@ -147,8 +150,9 @@ def dataset_shards_command(
 
     v = vessel_from(vessel, model, "nominal")
     noise_profile(noise)  # a bad profile fails now, not in every worker
-    settings = Settings(vessels, per_shard, segments, tuple(m.strip() for m in manoeuvres.split(",") if m.strip()),
-                        noise, "." + fmt.lower().lstrip("."), seed, _variation(v, vary, effect, covariance, effect_share))
+    names = tuple(m.strip() for m in manoeuvres.split(",") if m.strip())
+    variation = _variation(v, vary, effect, covariance, effect_share)
+    settings = Settings(vessels, per_shard, segments, names, noise, "." + fmt.lower().lstrip("."), seed, variation)
     executor = _executor(ray, cpus_per_task, retries)
     with progress_bar("dataset-shards") as progress:
         result = generate_shards(v, settings, out, executor=executor, resume=resume, progress=progress)

@@ -10,8 +10,10 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from ..ident.seed003.ipd import HEADING_OMEGA_RAD_S, SURGE_OMEGA_RAD_S  # why these values: that module
-from .app import MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, say, vessel_from, write_json
+from ..ident.seed003.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
+                                  SURGE_OMEGA_RAD_S)
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, progress_bar, say, vessel_from,
+                  write_json)
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -26,18 +28,24 @@ def _sweep_table(result) -> Table:
     from ..ident.seed003.iso import UNITS
 
     u = UNITS[result.dof]
-    table = Table(title=f"IS-O {result.vessel} {result.dof} (seed 003 Table I; Table II layout)")
+    ship = any(r.rudder_deg is not None for r in result.rows)
+    table = Table(title=f"IS-O {result.vessel} {result.dof}{' with the rudder as the relay' if ship else ''} "
+                        "(seed 003 Table I; Table II layout)")
+    if ship:
+        for col in ("n [rps]", "δ_c [°]"):
+            table.add_column(col, justify="right")
     for col in (f"C [{u['C']}]", f"Xm [{u['x']}]", "ω [rad/s]", f"x0 [{u['x']}]", f"α [{u['alpha']}]",
                 f"β_ν [{u['beta_lin']}]", f"β_νν [{u['beta_quad']}]", f"Δ [{u['C']}]"):
         table.add_column(col, justify="right")
+    pad = ["", ""] if ship else []
     for r in result.rows:
         o, e = r.oscillation, r.estimate
-        table.add_row(f"{r.relay_c:.2f}", f"{o.amplitude_xm:.4f}", f"{o.frequency_rad_s:.3f}", f"{o.bias_x0:+.1e}",
+        table.add_row(*([f"{r.rps:g}", f"{r.rudder_deg:g}"] if ship else []), f"{r.relay_c:.2f}", f"{o.amplitude_xm:.4f}", f"{o.frequency_rad_s:.3f}", f"{o.bias_x0:+.1e}",
                       f"{e.alpha:.3f}", f"{e.beta_lin:.3f}", f"{e.beta_quad:.3f}", f"{e.disturbance:+.3f}")
     s, t = result.spreads(), result.twin
-    table.add_row("σ/mean", "", "", "", f"{s['alpha'].cv_percent:.1f} %", f"{s['beta_lin'].cv_percent:.1f} %",
+    table.add_row(*pad, "σ/mean", "", "", "", f"{s['alpha'].cv_percent:.1f} %", f"{s['beta_lin'].cv_percent:.1f} %",
                   f"{s['beta_quad'].cv_percent:.1f} %", "")
-    table.add_row("twin", "", "", "", f"{t.alpha:.3f}", f"{t.drag_lin:.3f}", f"{t.drag_quad:.3f}", "0")
+    table.add_row(*pad, "twin", "", "", "", f"{t.alpha:.3f}", f"{t.drag_lin:.3f}", f"{t.drag_quad:.3f}", "0")
     return table
 
 
@@ -49,9 +57,13 @@ def iso_command(
     xa: Optional[float] = typer.Option(None, help="relay hysteresis: switches at e = ±xa; degrees for yaw, metres "
                                                   "for surge (default 1° / 0.25 m)"),
     amplitudes: Optional[str] = typer.Option(None, help="relay outputs C, comma-separated, N·m for yaw, N for surge "
-                                                        "(default: 7 from 20 % to 100 % of what the thrusters give)"),
+                                                        "(default: 7 from 20 % to 100 % of what the thrusters give); "
+                                                        "for a propeller-and-rudder ship rudder angles in degrees "
+                                                        "(default 10,15,20,25,30,35)"),
+    rps: Optional[str] = typer.Option(None, help="a propeller-and-rudder ship's propeller speeds, rps, comma-separated "
+                                                 "(default 8,10)"),
     duration: Optional[float] = typer.Option(None, help="length of each relay experiment, s "
-                                                        "(default 30 yaw, 150 surge)"),
+                                                        "(default 30 yaw, 150 surge; 900 for a ship)"),
     case: str = typer.Option("nominal", help="mass case"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the table, CVs and the twin's values as JSON"),
     png: Optional[Path] = typer.Option(None, help="write α, β_ν, β_νν against C as PNG"),
@@ -65,19 +77,32 @@ def iso_command(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
     v = vessel_from(vessel, model, case)
-    iso.check_dof(v.name, dof)
+    iso.check_dof(v.name, dof, v.thrusters.kind)
     if duration is not None and not duration > 0:
         raise TwinError("--duration must be positive")
     xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)
-    result = iso.sweep(compile_vessel(v), dof, floats(amplitudes, "amplitudes"), xa_si, duration)
+    if v.thrusters.kind != "propeller_rudder" and rps is not None:
+        raise TwinError("--rps applies to a propeller-and-rudder ship only")
+    with progress_bar("iso") as progress:
+        if v.thrusters.kind == "propeller_rudder":
+            result = iso.ship_sweep(compile_vessel(v), floats(amplitudes, "amplitudes"), floats(rps, "rps"), xa_si,
+                                    duration, progress=progress)
+        else:
+            result = iso.sweep(compile_vessel(v), dof, floats(amplitudes, "amplitudes"), xa_si, duration,
+                               progress=progress)
     console.print(_sweep_table(result))
     s = result.spreads()
     console.print(f"α: {s['alpha'].mean:.4g} vs the twin's {result.twin.alpha:.4g} "
                   f"({result.alpha_error_percent():+.1f} %), "
                   f"CV {s['alpha'].cv_percent:.1f} % (seed 003: ~10 %); drag CV {s['beta_lin'].cv_percent:.1f} % "
                   f"(constant) / {s['beta_quad'].cv_percent:.1f} % (linear): {result.better_drag_model()} fits better.")
-    console.print("The twin's drag has a linear and a quadratic term, so neither one-term model is exact: "
-                  "each β is the describing-function equivalent at the experiment's speed amplitude.")
+    if v.thrusters.kind == "propeller_rudder":
+        console.print("C is the rudder's yaw moment at ±δ_c in straight running (u₀ at n). The ship's yaw is coupled "
+                      "with its sway (rudder side force, N'_v), so α and β are effective values: the twin's uncoupled "
+                      "M33 and −∂N/∂r at u₀ are shown for scale.")
+    else:
+        console.print("The twin's drag has a linear and a quadratic term, so neither one-term model is exact: "
+                      "each β is the describing-function equivalent at the experiment's speed amplitude.")
     write_json(json_out, result.to_dict())
     _write_png(png, lambda: iso.sweep_png(result))
 
@@ -89,17 +114,23 @@ def _target(text: str) -> tuple[float, float]:
     return values[0], values[1]
 
 
-def tuned_models(compiled, omega_heading: float, omega_surge: float | None):
-    """IS-O sweeps with the default settings → (yaw, surge) DofModels for the I-PD (surge None if not asked)."""
-    from ..ident import ipd, iso
+def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps: float | None = None,
+                 progress=None):
+    """IS-O sweeps with the default settings → (yaw, surge) DofModels for the I-PD (surge None if not asked);
+    a ship's yaw from its rudder relay at the propeller speed `rps`. `progress` hears each relay run."""
+    from ..ident.seed003 import ipd, iso
 
     for w in (omega_heading, omega_surge):
         if w is not None and not w > 0:
             raise TwinError("model-function frequencies must be positive")
-    yaw = ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "yaw")), ipd.binomial(omega_heading))
+    if iso.is_ship(compiled):
+        sweep = iso.ship_sweep(compiled, rps=[rps], progress=progress)
+        return ipd.DofModel(*iso.linear_model(sweep, rps), ipd.binomial(omega_heading)), None
+    yaw = ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "yaw", progress=progress)), ipd.binomial(omega_heading))
     if omega_surge is None:
         return yaw, None
-    return yaw, ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "surge")), ipd.binomial(omega_surge))
+    return yaw, ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "surge", progress=progress)),
+                             ipd.binomial(omega_surge))
 
 
 def dp_command(
@@ -108,7 +139,10 @@ def dp_command(
     run: str = typer.Option("heading", help="heading (a heading step, seed 003 Figs. 8-9) | point (move to --target)"),
     step: float = typer.Option(45.0, help="heading step, degrees (45 stays inside the thrusters, 90 saturates)"),
     target: str = typer.Option("10,10", help="point to reach, NORTH,EAST in m from the start (heading 0)"),
-    omega_heading: float = typer.Option(HEADING_OMEGA_RAD_S, help="ω_n of the binomial heading model function, rad/s"),
+    omega_heading: Optional[float] = typer.Option(None, help=f"ω_n of the binomial heading model function, rad/s "
+                                                            f"(default {HEADING_OMEGA_RAD_S:g}; a propeller-and-rudder "
+                                                            f"ship {SHIP_HEADING_OMEGA_RAD_S:g})"),
+    rps: float = typer.Option(SHIP_RPS, help="a propeller-and-rudder ship's constant propeller speed, rps"),
     omega_surge: float = typer.Option(SURGE_OMEGA_RAD_S, help="ω_n of the binomial surge model function, rad/s"),
     no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
     case: str = typer.Option("nominal", help="mass case"),
@@ -118,7 +152,8 @@ def dp_command(
     """I-PD control (seed 003 eqs. 9-11) tuned from IS-O run in the twin first (`twin iso` defaults,
     constant-drag model), with anti-windup on the saturated thrust, run in the twin against the
     binomial model function; prints the IAE ratio (twin / model function). Point moves turn to the
-    bearing first, then surge along the line (the vessel has no sway thruster)."""
+    bearing first, then surge along the line (the vessel has no sway thruster). A propeller-and-rudder ship
+    steers its heading step with the rudder at a constant propeller speed (--rps); it has no point move."""
     from ..engine.mjcf import compile_vessel
     from ..ident.seed003 import ipd
 
@@ -130,9 +165,25 @@ def dp_command(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
     cv = compile_vessel(vessel_from(vessel, model, case))
-    yaw, surge = tuned_models(cv, omega_heading, omega_surge if run == "point" else None)
-    dp = ipd.heading_step(cv, yaw, step, anti_windup=not no_anti_windup) if run == "heading" \
-        else ipd.point_move(cv, yaw, surge, goal)
+    ship = cv.vessel.thrusters.kind == "propeller_rudder"
+    if ship and run == "point":
+        raise TwinError(f"--run point: vessel '{cv.vessel.name}' is a propeller-and-rudder ship without sway or "
+                        "astern control for a point move; run a heading step")
+    if ship:
+        (_, n_max), _ = cv.vessel.thrusters.channel_bounds()
+        if not 0 < rps <= n_max:
+            raise TwinError(f"--rps must lie in (0, {n_max:g}] rps")
+    omega_heading = omega_heading if omega_heading is not None else (SHIP_HEADING_OMEGA_RAD_S if ship
+                                                                     else HEADING_OMEGA_RAD_S)
+    with progress_bar("dp") as progress:
+        yaw, surge = tuned_models(cv, omega_heading, omega_surge if run == "point" else None, rps if ship else None,
+                                  progress=progress)
+        progress(f"I-PD: {'point move' if run == 'point' else 'heading step'} in the twin")
+        if ship:
+            dp = ipd.ship_heading_step(cv, yaw, step, rps, anti_windup=not no_anti_windup)
+        else:
+            dp = ipd.heading_step(cv, yaw, step, anti_windup=not no_anti_windup) if run == "heading" \
+                else ipd.point_move(cv, yaw, surge, goal)
     summary = dp.summary()
     for lp in summary["loops"]:
         console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} (seed 003: ~1.02 for 45°), "

@@ -2,16 +2,18 @@
 how much of it, and the amended twin, judged on data it did not fit.
 
 1. Replay: the twin over 10-s free-run windows from measured states, driven by the
-   recorded PWM; the windows are split by time blocks into training (2/3) and
-   held-out (1/3) sets. The noise of every signal is estimated so that "significant"
-   has a scale.
-2. Locate: where the held-out residual concentrates (DOF, time, operating regime),
-   whether it grows along a free run (dynamics) or is there from the start
-   (measurement), and what it correlates with (locate.py).
-3. Explain: candidate effects fitted on the training windows, kept only if they cut
-   the held-out misfit significantly, one at a time, rivals checked (search.py).
+   recorded PWM, after each log's compass calibration. The noise of every signal is
+   estimated so that "significant" has a scale.
+2. Locate: where the residual of the twin as given concentrates (DOF, time, operating
+   regime), whether it grows along a free run (dynamics) or is there from the start
+   (measurement), and what it correlates with (locate.py). Locating fits nothing, so
+   every window speaks.
+3. Explain: the windows are grouped into blocks of consecutive windows of one log, dealt
+   to folds; each candidate effect is fitted on the other folds and judged on each fold's
+   blocks, kept only if it cuts the held-out misfit significantly, one at a time, rivals
+   checked (search.py: BLOCK_WINDOWS, FOLDS).
 4. Model it: the amended vessel description, fit before and after on held-out
-   windows, per DOF.
+   blocks, per DOF.
 5. Honesty: what stays significant after the amendment is reported as unexplained,
    with where it is, how big, and which signals it follows.
 """

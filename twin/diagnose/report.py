@@ -94,15 +94,48 @@ def answer(d) -> dict:
             out["form"].append(f"{u['dof']} is still {u['rms_over_noise']:.0f}× the noise off (RMS "
                                f"{u['rms']:.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
                                + (f", and follows {follows}" if follows else "")
-                               + ": the twin's form is off there, beyond what the library's effects can say")
+                               + ": the twin's form is off there, and no effect of the library explains it on held-out blocks")
     if d.effects:
         b, a = d.fit_before, d.fit_after
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
+    for c in _promising(d):
+        out["unsettled"].append(
+            f"{c['name']} may be missing but is not proven: it removes {100 * c['excess_gain']:.0f} % of the held-out "
+            f"misfit above the noise, z {c['z']:.1f} from the {c['blocks_for'] + c['blocks_against']} blocks in which "
+            f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
+            f"such blocks)")
+        families.add(_family(d, c["name"]))
     candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
     if not d.effects and out["form"]:
         families |= {_family(d, n) for n in candidates_tried}
     out["next"] = [f"to settle {fam} effects: {NEXT[fam]}" for fam in sorted(families) if fam in NEXT]
     return out
+
+
+PROMISING_Z = 2.0  # below Z_MIN: worth recording more for, never named
+PROMISING_UNANIMOUS = 3  # or every one of at least this many affected blocks for it (4 of 4 is z 1.5 at best)
+
+
+def _promising(d) -> list[dict]:
+    """Candidates of the last round (the one where nothing more earned its place) that remove at
+    least REL_EXCESS of the excess misfit with z ≥ PROMISING_Z or all of at least
+    PROMISING_UNANIMOUS affected blocks for them, but too few blocks for z ≥ Z_MIN: the recording
+    hints, it does not prove."""
+    from .search import REL_EXCESS, Z_MIN
+
+    if not d.rounds:
+        return []
+    kept = {e["name"] for e in d.effects}
+    best = []
+    for c in d.rounds[-1].get("candidates", []):
+        unanimous = c["blocks_against"] == 0 and c["blocks_for"] >= PROMISING_UNANIMOUS
+        if c["name"] in kept or c["z"] >= Z_MIN or c["excess_gain"] < REL_EXCESS or \
+                not (c["z"] >= PROMISING_Z or unanimous):
+            continue
+        if any(_family(d, c["name"]) == _family(d, b["name"]) for b in best):
+            continue  # its rivals of the same family tie with it: one hint per family
+        best.append(c)
+    return best
 
 
 def _family(d, name: str) -> str:

@@ -434,7 +434,7 @@ def _signed_rank_z(votes: np.ndarray) -> float:
     # blocks out of ten are by chance: z 2.8 instead of 3.1)
     method = "exact" if len(d) <= 50 else "approx"
     p = float(wilcoxon(d, zero_method="wilcox", alternative="greater", method=method).pvalue)
-    return float(norm.isf(max(p, 1e-300)))
+    return float(norm.isf(min(max(p, 1e-300), 1.0 - 1e-12)))  # finite at both ends (JSON)
 
 
 def _spread(windows: list[Window], most: int) -> list[Window]:

@@ -28,7 +28,8 @@ import numpy as np
 from ..errors import TwinError
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING)
-from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, member, ned_component, scale_of)
+from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, member, ned_component,
+                       reverse_scale, scale_of)
 from .spec import ALL, Candidate, Effect, EffectSpec, Value, checked
 
 _SCALE = ("scale", "×", 0.0, 100.0, True)
@@ -171,6 +172,20 @@ def _one_gain_fit(side: str):
         return Candidate(f"thruster_gain_{side}", (q,), ((1.0,),), lambda p: effect(f"thruster_gain_{side}",
                                                                                       scale=p["scale"]), "thrust")
     return fit
+
+
+def reverse_thrust(vessel: Vessel, scale: float) -> Vessel:
+    """The reverse branch of the thrust map × scale: a propeller astern pushes its wash against the
+    hull (or through a guard) and delivers less than the datasheet's bollard curve."""
+    t = vessel.thrusters
+    return _thrusters(vessel, reverse=tuple(float(c) * scale for c in t.reverse))
+
+
+def _reverse_fit(prior: Vessel, logs) -> Candidate | None:
+    if prior.thrusters.kind != "t200":
+        return None
+    q = reverse_scale(prior).renamed("scale", lo=0.2, hi=2.0)
+    return Candidate("reverse_thrust", (q,), ((1.0,),), lambda p: effect("reverse_thrust", scale=p["scale"]), "thrust")
 
 
 def dead_zone(vessel: Vessel, fwd: float, rev: float) -> Vessel:
@@ -327,6 +342,8 @@ _SPECS = [
                "the left thruster alone weaker or stronger", _one_gain_fit("left")),
     EffectSpec("thruster_gain_right", "thrusters", (_v(*_SCALE),), thruster_gain_right,
                "the right thruster alone weaker or stronger", _one_gain_fit("right")),
+    EffectSpec("reverse_thrust", "thrusters", (_v(*_SCALE),), reverse_thrust,
+               "thrust astern weaker or stronger than the map's", _reverse_fit),
     EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
                "dead-zone widths in normalised PWM", _dead_zone_fit),
     EffectSpec("thrust_decay", "thrusters", (_v("decay_per_min", "1/min", 0, 0.99),), thrust_decay,

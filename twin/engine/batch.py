@@ -2,7 +2,8 @@
 
 Each twin is one model carrying its own parameters (`native.with_native_params`,
 or a copy re-parameterised with `native.set_params`), an initial full-physics
-state and an open-loop sequence of thrust commands. Because the hydrodynamics
+state and an open-loop sequence of thrust commands (a propeller and rudder's (n, δ); a model
+with wind inputs takes the air's NED velocity as two more controls per step). Because the hydrodynamics
 run as a C function pointer, rollout's threads never take the GIL, and the
 results are bit-identical to stepping each twin alone with `mj_step`.
 
@@ -136,11 +137,13 @@ def _check_inputs(models, states: np.ndarray, controls: np.ndarray) -> None:
     n = len(models)
     if states.ndim != 2 or states.shape[0] != n:
         raise TwinError(f"batch: initial states must be (N, nstate), got {states.shape}")
-    if controls.ndim != 3 or controls.shape[0] != n or controls.shape[2] != 2:
-        raise TwinError(f"batch: controls must be (N, nstep, 2) thrust commands, got {controls.shape}")
+    if controls.ndim != 3 or controls.shape[0] != n or controls.shape[2] not in (2, 4):
+        raise TwinError(f"batch: controls must be (N, nstep, 2) thrust commands (4 with the wind), "
+                        f"got {controls.shape}")
     for m in {id(m): m for m in models}.values():
-        if m.nu != 2 or state_size(m) != states.shape[1]:
-            raise TwinError("batch: every model needs 2 thrusters and the initial states' nstate")
+        if m.nu != controls.shape[2] or state_size(m) != states.shape[1]:
+            raise TwinError(f"batch: every model needs {controls.shape[2]} controls (2 thrusters"
+                            f"{' and the wind' if controls.shape[2] == 4 else ''}) and the initial states' nstate")
 
 
 def _first_bad(traj: np.ndarray, t0: float) -> int | None:
@@ -253,7 +256,7 @@ def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, s
          traj: np.ndarray, controls: np.ndarray, every: int, start_s: float, qpos, dof):
     """One rollout trajectory (full-physics states after each step) as a Run sampled every `every` steps."""
     from ..run import Run
-    from .sim import delivered_thrust
+    from .sim import delivered_forces
 
     h = model.opt.timestep
     full = np.vstack([state0, traj])[::every]
@@ -265,6 +268,6 @@ def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, s
     act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
     cmd = act if act is not None else np.vstack([controls, controls[-1]])[::every]
     return Run(start_s + t_rel, eta, nu, series.pwm_at(t_rel),
-               delivered_thrust(compiled.vessel, compiled.geometry.thruster_y_m, cmd, nu),
+               delivered_forces(compiled, cmd, nu),
                meta={"vessel": compiled.vessel.name, "engine": "mujoco-rollout", "timestep_s": h,
                      "inputs": series, "start_s": start_s})

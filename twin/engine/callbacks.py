@@ -7,6 +7,9 @@ actuation comes after the passive forces); computes the body-frame
 hydrodynamic force of `physics.hydrodynamics.hydrodynamic_force` (added mass
 with the exact acceleration, C_A, D, current, wind); rotates it back to the
 generalised forces of the north/east/yaw joints and adds it to qfrc_passive.
+A propeller-and-rudder ship's inputs (n, δ) are the controls 0 and 1 (its actuators exert no
+force), and a model with wind inputs (mjcf.add_wind_inputs) has the air's NED velocity in its
+controls 2 and 3 (in place of the environment's constant wind).
 
 MuJoCo holds one global passive callback, so vessels register here by model
 address and the installed function looks its vessel up.
@@ -20,7 +23,7 @@ import mujoco
 import numpy as np
 
 from ..physics.hydrodynamics import HydroModel, hydrodynamic_force
-from .mjcf import JOINTS
+from .mjcf import JOINTS, wind_control
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,7 @@ class _Entry:
     hydro: HydroModel
     qpos: tuple[int, int, int]
     dof: tuple[int, int, int]
+    wind_ctrl: int = -1  # index of the wind's first control, −1: the environment's constant wind
 
 
 _REGISTRY: dict[int, _Entry] = {}
@@ -54,7 +58,10 @@ def passive_force(entry: _Entry, model: mujoco.MjModel, data: mujoco.MjData) -> 
     mujoco.mj_fwdActuation(model, data)
     fa = data.qfrc_actuator
     tau = np.array([c * fa[dx] + s * fa[dy], -s * fa[dx] + c * fa[dy], fa[dpsi]])
-    X = hydrodynamic_force(entry.hydro, psi, nu, tau)
+    controls = data.ctrl[:2] if entry.hydro.mmg is not None else None
+    k = entry.wind_ctrl
+    wind = data.ctrl[k:k + 2] if k >= 0 else None
+    X = hydrodynamic_force(entry.hydro, psi, nu, tau, controls, wind)
     return np.array([c * X[0] - s * X[1], s * X[0] + c * X[1], X[2]])
 
 
@@ -71,7 +78,7 @@ def _passive(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 def register(model: mujoco.MjModel, hydro: HydroModel) -> None:
     qpos, dof = _joint_indices(model)
-    _REGISTRY[model._address] = _Entry(hydro, qpos, dof)
+    _REGISTRY[model._address] = _Entry(hydro, qpos, dof, wind_control(model))
 
 
 def unregister(model: mujoco.MjModel) -> None:

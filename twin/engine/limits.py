@@ -2,7 +2,8 @@
 
 A vessel file may bound the thruster inputs: the PWM range of an ESC (pwm_min_us,
 pwm_max_us, which also bounds the thrust through the map) or, for thrust inputs, the
-thrust range a source gives (thrust_min_n, thrust_max_n). The engine applies such a bound;
+thrust range a source gives (thrust_min_n, thrust_max_n), or a propeller and rudder's speed and
+angle (rps_max, rudder_max_deg; reported in rps and degrees). The engine applies such a bound;
 this module says when a run's inputs went beyond it, for how long and by how much, so that
 no limit acts silently. A vessel whose source gives no bound has none (unbounded thrust).
 """
@@ -23,8 +24,8 @@ class Limited:
     """One thruster's input held beyond the vessel's bound: which bound, for how long (s), the
     largest excess (in the input's unit) and when it began (s from the run's start)."""
 
-    thruster: str
-    quantity: str  # "PWM" or "thrust"
+    thruster: str  # left, right, or propeller, rudder
+    quantity: str  # "PWM", "thrust", or "speed", "angle"
     unit: str
     bound: float
     seconds: float
@@ -33,7 +34,8 @@ class Limited:
 
     def text(self) -> str:
         side = "above" if self.worst_excess > 0 else "below"
-        return (f"{self.thruster} thruster {self.quantity} requested {side} the vessel file's bound "
+        what = self.thruster if self.thruster in ("propeller", "rudder") else f"{self.thruster} thruster"
+        return (f"{what} {self.quantity} requested {side} the vessel file's bound "
                 f"{self.bound:g} {self.unit} for {self.seconds:.2f} s from t = {self.first_s:.2f} s "
                 f"(by up to {abs(self.worst_excess):.3g} {self.unit}); the engine applied the bound")
 
@@ -52,15 +54,22 @@ def _held_seconds(series: InputSeries, duration_s: float) -> np.ndarray:
 def beyond_bounds(vessel: Vessel, series: InputSeries, duration_s: float) -> list[Limited]:
     """Every (thruster, direction) whose requested input left the vessel's bound during the run."""
     t = vessel.thrusters
+    channels = [(side, None, None, None, 1.0) for side in SIDES]  # (name, lo, hi, quantity, unit scale)
     if series.kind == "pwm":
         lo, hi, quantity, unit = t.pwm_min_us, t.pwm_max_us, "PWM", "µs"
+    elif series.kind == "propeller_rudder":
+        (n_lo, n_hi), (d_lo, d_hi) = t.channel_bounds()
+        channels = [("propeller", n_lo, n_hi, ("speed", "rps"), 1.0),
+                    ("rudder", np.degrees(d_lo), np.degrees(d_hi), ("angle", "deg"), 180.0 / np.pi)]
     else:
         lo, hi = t.bounds()
         quantity, unit = "thrust", "N"
     held = _held_seconds(series, duration_s)
     out = []
-    for j, side in enumerate(SIDES):
-        values = np.asarray(series.values[:, j], float)
+    for j, (side, c_lo, c_hi, c_quantity, scale) in enumerate(channels):
+        if c_quantity is not None:
+            lo, hi, (quantity, unit) = c_lo, c_hi, c_quantity
+        values = np.asarray(series.values[:, j], float) * scale
         for bound, excess in ((hi, values - hi), (lo, values - lo)):
             if not np.isfinite(bound):
                 continue

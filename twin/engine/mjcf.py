@@ -4,6 +4,15 @@ The vessel file's mass case, thrust range, thruster gains and lag are applied
 to the MJCF through mjSpec, so the MJCF never repeats a parameter of the JSON.
 The rigid-body inertia the callbacks and the analytic model use is read back
 from the compiled model, so the engine's mass distribution is the only one.
+
+A propeller-and-rudder ship's actuators (`propeller`, `rudder`) exert no force: they carry the
+inputs n (rps) and δ (rad) as controls 0 and 1 to the hydrodynamic callback, which applies the
+MMG forces; the propeller's and rudder's positions in those forces are their MJCF sites.
+
+A measured, time-varying wind enters as two more controls (`wind_inputs`): actuators
+`wind_north`, `wind_east` without force whose controls are the air's velocity over ground
+(NED, m/s, where the air goes), held over each step like the thrust commands; the callback
+reads them in place of the environment's constant wind.
 """
 from __future__ import annotations
 
@@ -14,12 +23,20 @@ import mujoco
 import numpy as np
 
 from ..errors import TwinError
+from ..physics import fujiwara, mmg
 from ..physics.added_mass import RigidBody, is_symmetric_positive_definite
 from ..physics.hydrodynamics import HydroModel, Terms
 from ..vessel import Vessel
 
 JOINTS = ("north", "east", "yaw")
 THRUSTERS = ("thruster_left", "thruster_right")
+PROPELLER_RUDDER = ("propeller", "rudder")
+WIND_ACTUATORS = ("wind_north", "wind_east")
+
+
+def actuator_names(vessel: Vessel) -> tuple[str, str]:
+    """The two input actuators (and their sites) of the vessel's kind of thrusters."""
+    return PROPELLER_RUDDER if vessel.thrusters.kind == "propeller_rudder" else THRUSTERS
 
 
 @dataclass(frozen=True)
@@ -27,7 +44,7 @@ class Geometry:
     """What the compiled MJCF says about the vessel, in the body frame (m, kg)."""
 
     rigid: RigidBody
-    thruster_pos_m: np.ndarray  # (2, 3): left, right
+    thruster_pos_m: np.ndarray  # (2, 3): left, right thrusters, or the propeller and the rudder
     gnss_pos_m: np.ndarray  # (3,)
     imu_pos_m: np.ndarray  # (3,)
 
@@ -44,6 +61,11 @@ class CompiledVessel:
 
     def hydro(self, terms: Terms | None = None) -> HydroModel:
         return hydro_model(self.vessel, self.geometry, terms)
+
+    @property
+    def wind_inputs(self) -> bool:
+        """Whether the model takes the wind as controls 2 and 3 (`compile_vessel(..., wind_inputs=True)`)."""
+        return wind_control(self.model) >= 0
 
 
 def _spec(vessel: Vessel) -> mujoco.MjSpec:
@@ -87,8 +109,43 @@ def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
         body.pos[0] = x
 
 
+def _apply_propeller_rudder(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    """The propeller's and rudder's actuators carry n and δ: no gain, no bias, no range, no dynamics."""
+    for name in PROPELLER_RUDDER:
+        act = spec.actuator(name)
+        if act is None:
+            raise TwinError(f"{vessel.mjcf.name}: no actuator '{name}' (a propeller-and-rudder ship needs "
+                            "actuators 'propeller' and 'rudder')")
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act.gaintype, act.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_NONE
+        act.gainprm[0] = 0.0
+        act.dyntype = mujoco.mjtDyn.mjDYN_NONE
+
+
+def add_wind_inputs(spec: mujoco.MjSpec) -> None:
+    """Two force-free actuators after the vessel's own whose controls carry the wind (module docstring)."""
+    for name in WIND_ACTUATORS:
+        act = spec.add_actuator()
+        act.name = name
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.target = JOINTS[0]
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act.gaintype, act.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_NONE
+        act.gainprm[0] = 0.0
+
+
+def wind_control(model: mujoco.MjModel) -> int:
+    """Index of the wind's first control (wind_north; wind_east follows), −1 without wind inputs."""
+    first = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, WIND_ACTUATORS[0])
+    second = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, WIND_ACTUATORS[1])
+    return first if first >= 0 and second == first + 1 else -1
+
+
 def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     t = vessel.thrusters
+    if t.kind == "propeller_rudder":
+        _apply_propeller_rudder(vessel, spec)
+        return
     t_min, t_max = t.bounds()
     for name, gain in zip(THRUSTERS, t.gains()):
         act = spec.actuator(name)
@@ -125,17 +182,21 @@ def _apply_cg_offset(vessel: Vessel, spec: mujoco.MjSpec) -> None:
         item.pos[1] += dy
 
 
-def edited_spec(vessel: Vessel) -> mujoco.MjSpec:
-    """The vessel's MJCF with the vessel file's mass case, CG offset and thruster settings applied."""
+def edited_spec(vessel: Vessel, wind_inputs: bool = False) -> mujoco.MjSpec:
+    """The vessel's MJCF with the vessel file's mass case, CG offset and thruster settings applied
+    (and the wind's two controls when `wind_inputs`)."""
     spec = _spec(vessel)
     _apply_case(vessel, spec)
     _apply_cg_offset(vessel, spec)
     _apply_thrusters(vessel, spec)
+    if wind_inputs:
+        add_wind_inputs(spec)
     return spec
 
 
-def compile_vessel(vessel: Vessel) -> CompiledVessel:
-    spec = edited_spec(vessel)
+def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
+    """The vessel's MuJoCo model, its geometry and checks; `wind_inputs`: with the wind as controls."""
+    spec = edited_spec(vessel, wind_inputs)
     _check_masses(vessel, spec)
     try:
         model = spec.compile()
@@ -203,11 +264,18 @@ def read_geometry(model: mujoco.MjModel, vessel: Vessel) -> Geometry:
     if not m > 0:
         raise TwinError(f"{vessel.mjcf.name}: the vessel has no mass")
     rigid = RigidBody(mass_kg=float(m), xg_m=float(M[1, 2] / m), yg_m=float(-M[0, 2] / m), Iz_kgm2=float(M[2, 2]))
-    thrusters = np.array([_site(model, data, n, vessel) for n in THRUSTERS])
+    thrusters = np.array([_site(model, data, n, vessel) for n in actuator_names(vessel)])
     return Geometry(rigid, thrusters, _site(model, data, "gnss", vessel), _site(model, data, "imu", vessel))
 
 
 def hydro_model(vessel: Vessel, geometry: Geometry, terms: Terms | None = None) -> HydroModel:
+    """The force functions' numbers: the vessel file's, with M_RB and (for a propeller-and-rudder
+    ship) the propeller's and rudder's positions from the compiled MJCF."""
+    mmg_params = None
+    if vessel.mmg is not None:
+        n_bounds, delta_bounds = vessel.thrusters.channel_bounds()
+        mmg_params = mmg.pack(vessel.mmg, float(geometry.thruster_pos_m[0, 0]), float(geometry.thruster_pos_m[1, 0]),
+                              n_bounds, delta_bounds[1])
     return HydroModel(
         M_RB=geometry.rigid.matrix(),
         M_A=vessel.added_mass.matrix(),
@@ -215,4 +283,7 @@ def hydro_model(vessel: Vessel, geometry: Geometry, terms: Terms | None = None) 
         wind_load=vessel.wind_load,
         environment=vessel.environment,
         terms=terms or Terms(),
+        mmg=mmg_params,
+        wind_regression=None if vessel.wind_regression is None else fujiwara.pack(vessel.wind_regression),
+        munk_moment=vessel.mmg is None,  # an MMG hull's N'_v holds the Munk moment (eq. 4)
     )

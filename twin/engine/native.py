@@ -12,6 +12,12 @@ model's first custom numeric `twin_params` (layout `LAYOUT`). A model whose
 first numeric does not start with the two magic numbers is left alone, so the
 callback can stay installed while other models are simulated.
 
+A propeller-and-rudder ship's MMG forces and a Fujiwara wind load are the very functions of
+physics/mmg.py and physics/fujiwara.py compiled by numba; they read the ship's inputs (n, δ)
+from the controls 0 and 1, and a model with wind inputs the air's velocity from its controls 2
+and 3 (mjcf.add_wind_inputs). The layout grew at its end for them; a twin-thruster vessel's
+parameters leave them off and its forces are computed as before, operation for operation.
+
 The callback reads mjModel/mjData fields through byte offsets into the C
 structs. They are found once, at import, from the shipped headers (field order)
 and the live structs (one anchor address found by scanning), and every
@@ -31,10 +37,11 @@ from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from ..errors import TwinError
+from ..physics import fujiwara, mmg
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
-from .mjcf import CompiledVessel, edited_spec
+from .mjcf import CompiledVessel, edited_spec, wind_control
 
 PARAMS_NAME = "twin_params"
 MAGIC = (7.0710678118654752e11, -2.7182818284590452e-13)  # unlikely to be anyone else's first numeric
@@ -46,6 +53,10 @@ _FIELDS = (  # (name, number of doubles), in storage order
     ("damping", 16),  # Damping.names() order, Fossen's signs
     ("wind_load", 6),  # A_F m², A_L m², L m, c_x, c_y, c_n
     ("current_ned", 2), ("wind_ned", 2),  # m/s; wind as the air's velocity
+    ("flags", 4),  # Munk moment in C_A (0/1), MMG forces (0/1), first wind control (−1: none), Fujiwara (0/1)
+    ("mmg_switches", 3),  # MMG hull, propeller, rudder (0/1)
+    ("mmg", mmg.SIZE),  # physics.mmg.FIELDS
+    ("fujiwara", fujiwara.SIZE),  # physics.fujiwara.pack
 )
 
 
@@ -72,8 +83,10 @@ def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
     """
     qpos, dof = callbacks._joint_indices(model)
     t, env = hydro.terms, hydro.environment
+    wind_ctrl = wind_control(model)
     switches = (t.added_mass, t.added_mass_coriolis, t.damping, t.thrust,
-                t.current and env.current_speed_m_s != 0.0, t.wind and env.wind_speed_m_s != 0.0)
+                t.current and env.current_speed_m_s != 0.0,
+                t.wind and (env.wind_speed_m_s != 0.0 or wind_ctrl >= 0))
     w = hydro.wind_load
     values = {
         "magic": MAGIC, "size": (NPARAM,), "qpos_adr": qpos, "dof_adr": dof,
@@ -82,6 +95,11 @@ def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
         "damping": [getattr(hydro.damping, n) for n in type(hydro.damping).names()],
         "wind_load": (w.frontal_area_m2, w.lateral_area_m2, w.length_m, w.cx, w.cy, w.cn),
         "current_ned": env.current_ned, "wind_ned": env.wind_ned,
+        "flags": (float(hydro.munk_moment), float(hydro.mmg is not None), float(wind_ctrl),
+                  float(hydro.wind_regression is not None)),
+        "mmg_switches": (float(t.mmg_hull), float(t.propeller), float(t.rudder)),
+        "mmg": np.zeros(mmg.SIZE) if hydro.mmg is None else hydro.mmg,
+        "fujiwara": np.zeros(fujiwara.SIZE) if hydro.wind_regression is None else hydro.wind_regression,
     }
     p = np.zeros(NPARAM)
     for name, sl in LAYOUT.items():
@@ -113,13 +131,16 @@ def has_params(model: mujoco.MjModel) -> bool:
     return bool(p[0] == MAGIC[0] and p[1] == MAGIC[1])
 
 
-def with_native_params(compiled: CompiledVessel, terms: Terms | None = None) -> mujoco.MjModel:
+def with_native_params(compiled: CompiledVessel, terms: Terms | None = None,
+                       wind_inputs: bool | None = None) -> mujoco.MjModel:
     """The vessel's model recompiled with `twin_params` as its first custom numeric.
 
     Built from the vessel's spec with the same edits as `compile_vessel`, so the
     dynamics are identical to `compiled.model`; parameters from `compiled.hydro(terms)`.
+    wind_inputs: the wind as controls 2 and 3 (default: as `compiled` has them).
     """
-    spec = edited_spec(compiled.vessel)
+    wind_inputs = compiled.wind_inputs if wind_inputs is None else wind_inputs
+    spec = edited_spec(compiled.vessel, wind_inputs)
     others = [(n.name, list(n.data), n.size) for n in spec.numerics]
     for n in list(spec.numerics):
         spec.delete(n)
@@ -247,8 +268,8 @@ def _size_offsets(model: mujoco.MjModel) -> dict[str, int]:
     for n in checked:
         if _word(model._address + offsets[n]) != int(getattr(model, n)):
             raise TwinError(f"native callback: mjModel.{n} is not at byte {offsets[n]}")
-    if not {"nq", "nv", "nnumeric"} <= set(checked):
-        raise TwinError("native callback: mjModel sizes nq, nv, nnumeric not found in mjmodel.h")
+    if not {"nq", "nv", "nu", "nnumeric"} <= set(checked):
+        raise TwinError("native callback: mjModel sizes nq, nv, nu, nnumeric not found in mjmodel.h")
     return offsets
 
 
@@ -260,9 +281,9 @@ def offsets() -> dict[str, int]:
     sizes = _size_offsets(model)
     m_ptr = _pointer_offsets(model, "mjmodel.h", "mjModel", "buffer", "numeric_data")
     d_ptr = _pointer_offsets(data, "mjdata.h", "mjData", "buffer", "qpos")
-    out = {f"m.{n}": sizes[n] for n in ("nq", "nv", "nnumeric")}
+    out = {f"m.{n}": sizes[n] for n in ("nq", "nv", "nu", "nnumeric")}
     out.update({f"m.{n}": m_ptr[n] for n in ("numeric_adr", "numeric_size", "numeric_data")})
-    out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "qfrc_passive", "qfrc_actuator")})
+    out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "ctrl", "qfrc_passive", "qfrc_actuator")})
     return out
 
 
@@ -320,10 +341,10 @@ def _damping(p, o, u, v, r):
 
 
 @njit(inline="always")
-def _wind(p, o, wo, c, s, u, v):
-    """τ_wind (environment.wind_force) with the load p[o:o+6] and wind NED p[wo:wo+2]."""
-    u_w = c * p[wo] + s * p[wo + 1]
-    v_w = -s * p[wo] + c * p[wo + 1]
+def _wind(p, o, wn, we, c, s, u, v):
+    """τ_wind (environment.wind_force) with the load p[o:o+6] and the air's NED velocity (wn, we)."""
+    u_w = c * wn + s * we
+    v_w = -s * wn + c * we
     u_rw, v_rw = u - u_w, v - v_w
     q = 0.5 * RHO_AIR_KG_M3 * (u_rw * u_rw + v_rw * v_rw)
     g = -np.arctan2(v_rw, u_rw)
@@ -335,14 +356,21 @@ _SW = LAYOUT["switches"].start
 _O_MRB, _O_MA, _O_MINV = LAYOUT["M_RB"].start, LAYOUT["M_A"].start, LAYOUT["M_inv"].start
 _O_DAMP, _O_WL = LAYOUT["damping"].start, LAYOUT["wind_load"].start
 _O_CUR, _O_WIND = LAYOUT["current_ned"].start, LAYOUT["wind_ned"].start
+_O_FLAGS, _O_MSW = LAYOUT["flags"].start, LAYOUT["mmg_switches"].start
+_O_MMG, _O_FUJI = LAYOUT["mmg"].start, LAYOUT["fujiwara"].start
+_E_MMG, _E_FUJI = _O_MMG + mmg.SIZE, _O_FUJI + fujiwara.SIZE
+_mmg_force = njit(mmg.mmg_force)  # the physics functions themselves, compiled
+_fujiwara_force = njit(fujiwara.wind_force)
 
 
 @njit
-def hydro_force_body(p, psi, u, v, r, t0, t1, t2):
+def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0):
     """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`.
 
     ν = (u, v, r) in m/s, rad/s; τ = (t0, t1, t2) the actuator force the engine
-    applies by itself (it enters only through the exact ν̇_r of added mass).
+    applies by itself (it enters only through the exact ν̇_r of added mass); (n, δ)
+    the MMG inputs (rps, rad) and (wn, we) the air's NED velocity when the wind comes
+    from the controls (flags, see LAYOUT).
     """
     c, s = np.cos(psi), np.sin(psi)
     ur, vr, rr = u, v, r
@@ -352,14 +380,25 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2):
     th = p[_SW + 3] != 0.0
     e0, e1, e2 = (t0, t1, t2) if th else (0.0, 0.0, 0.0)
     if p[_SW + 5] != 0.0:  # wind sees the true velocity ν
-        w0, w1, w2 = _wind(p, _O_WL, _O_WIND, c, s, u, v)
+        if p[_O_FLAGS + 2] < 0.0:
+            wn, we = p[_O_WIND], p[_O_WIND + 1]
+        if p[_O_FLAGS + 3] != 0.0:
+            w0, w1, w2 = _fujiwara_force(p[_O_FUJI:_E_FUJI], c, s, u, v, wn, we)
+        else:
+            w0, w1, w2 = _wind(p, _O_WL, wn, we, c, s, u, v)
         e0, e1, e2 = e0 + w0, e1 + w1, e2 + w2
     if p[_SW + 2] != 0.0:
         d0, d1, d2 = _damping(p, _O_DAMP, ur, vr, rr)
         e0, e1, e2 = e0 - d0, e1 - d1, e2 - d2
     if p[_SW + 1] != 0.0:
         k0, k1, k2 = _coriolis(p, _O_MA, ur, vr, rr)
+        if p[_O_FLAGS] == 0.0:  # no Munk moment: the MMG hull's N'_v holds it
+            k2 = 0.0
         e0, e1, e2 = e0 - k0, e1 - k1, e2 - k2
+    if p[_O_FLAGS + 1] != 0.0:
+        m0, m1, m2, _, _ = _mmg_force(p[_O_MMG:_E_MMG], ur, vr, rr, n, delta, p[_O_MSW] != 0.0,
+                                      p[_O_MSW + 1] != 0.0, p[_O_MSW + 2] != 0.0)
+        e0, e1, e2 = e0 + m0, e1 + m1, e2 + m2
     f0, f1, f2 = (e0 - t0, e1 - t1, e2 - t2) if th else (e0, e1, e2)
     if p[_SW] != 0.0:  # added mass with the exact ν̇_r = M⁻¹(external − C_RB(ν_r)ν_r)
         k0, k1, k2 = _coriolis(p, _O_MRB, ur, vr, rr)
@@ -396,7 +435,9 @@ def _build_callback():
     o_nq, o_nv, o_nnum = off["m.nq"], off["m.nv"], off["m.nnumeric"]
     o_nadr, o_nsize, o_ndata = off["m.numeric_adr"], off["m.numeric_size"], off["m.numeric_data"]
     o_qpos, o_qvel, o_pas, o_act = off["d.qpos"], off["d.qvel"], off["d.qfrc_passive"], off["d.qfrc_actuator"]
+    o_nu, o_ctrl = off["m.nu"], off["d.ctrl"]
     o_q, o_d, n, magic0, magic1 = LAYOUT["qpos_adr"].start, LAYOUT["dof_adr"].start, NPARAM, *MAGIC
+    o_flags = LAYOUT["flags"].start
 
     @njit(inline="always")
     def params(mb):
@@ -424,7 +465,18 @@ def _build_callback():
         fwd_actuation(m, d)  # actuation comes after passive forces in MuJoCo's pipeline
         fa = carray(_f64_ptr(_field(db, o_act)), nv)
         t0, t1 = c * fa[dx] + s * fa[dy], -s * fa[dx] + c * fa[dy]
-        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi])
+        n_rps, delta, wn, we = 0.0, 0.0, 0.0, 0.0
+        uses_mmg, wind_ctrl = p[o_flags + 1] != 0.0, int(p[o_flags + 2])
+        if uses_mmg or wind_ctrl >= 0:
+            nu = _field(mb, o_nu)
+            if (uses_mmg and nu < 2) or wind_ctrl + 2 > nu:
+                return
+            ctrl = carray(_f64_ptr(_field(db, o_ctrl)), nu)
+            if uses_mmg:
+                n_rps, delta = ctrl[0], ctrl[1]
+            if wind_ctrl >= 0:
+                wn, we = ctrl[wind_ctrl], ctrl[wind_ctrl + 1]
+        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi], n_rps, delta, wn, we)
         qfrc = carray(_f64_ptr(_field(db, o_pas)), nv)
         qfrc[dx] += c * x0 - s * x1
         qfrc[dy] += s * x0 + c * x1

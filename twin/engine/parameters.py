@@ -3,9 +3,12 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
-from .mjcf import compile_vessel
+import numpy as np
+
+from ..physics import mmg
 from ..physics.thrusters import allocation_matrix, force_torque_bounds
 from ..vessel import Vessel
+from .mjcf import compile_vessel
 
 
 def effective_parameters(vessel: Vessel) -> dict:
@@ -13,10 +16,24 @@ def effective_parameters(vessel: Vessel) -> dict:
     cv = compile_vessel(vessel)
     g, hydro = cv.geometry, cv.hydro()
     thrusters = asdict(vessel.thrusters)
-    thrusters["positions_m"] = {"left": g.thruster_pos_m[0].tolist(), "right": g.thruster_pos_m[1].tolist()}
-    thrusters["allocation_B"] = allocation_matrix(g.thruster_y_m).tolist()
-    thrusters["bounds_per_thruster_n"] = list(vessel.thrusters.bounds())
-    thrusters.update(force_torque_bounds(vessel.thrusters, g.thruster_y_m))
+    ship = vessel.thrusters.kind == "propeller_rudder"
+    if ship:  # a propeller and a rudder: positions and input bounds, no thrust allocation
+        thrusters["positions_m"] = {"propeller": g.thruster_pos_m[0].tolist(), "rudder": g.thruster_pos_m[1].tolist()}
+        thrusters["input_bounds"] = {"n_rps": list(vessel.thrusters.channel_bounds()[0]),
+                                     "rudder_rad": list(vessel.thrusters.channel_bounds()[1])}
+    else:
+        for key in ("rps_max", "rudder_max_deg"):  # a propeller and rudder's only
+            thrusters.pop(key)
+        thrusters["positions_m"] = {"left": g.thruster_pos_m[0].tolist(), "right": g.thruster_pos_m[1].tolist()}
+        thrusters["allocation_B"] = allocation_matrix(g.thruster_y_m).tolist()
+        thrusters["bounds_per_thruster_n"] = list(vessel.thrusters.bounds())
+        thrusters.update(force_torque_bounds(vessel.thrusters, g.thruster_y_m))
+    extra = {}
+    if vessel.mmg is not None:
+        extra["mmg"] = asdict(vessel.mmg)
+        extra["mmg_packed"] = {k: x if np.isfinite(x) else None for k, x in zip(mmg.FIELDS, hydro.mmg.tolist())}
+    if vessel.wind_regression is not None:
+        extra["wind_regression"] = asdict(vessel.wind_regression)
     return {
         "vessel": vessel.name,
         "case": vessel.case,
@@ -33,5 +50,6 @@ def effective_parameters(vessel: Vessel) -> dict:
         "imu_m": g.imu_pos_m.tolist(),
         "wind_load": asdict(vessel.wind_load),
         "environment": asdict(vessel.environment),
+        **extra,
         "sources": vessel.sources,
     }

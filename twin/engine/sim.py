@@ -11,6 +11,11 @@ commands are computed for every step ahead; η, ν, the held inputs and the deli
 thrust come from the stored states afterwards, in whole-array operations. The
 results are the bits of the slower loop this replaced (engine/sim_reference.py,
 tests/test_sim_speed.py).
+
+A propeller-and-rudder ship's controls are its inputs (n rps, δ rad) themselves; its run's
+thrust_n holds the propeller thrust T and the rudder normal force F_N (N) the MMG forces give.
+A measured wind (`wind`, a drive.WindSeries on the run's clock) is held over each step as the
+model's controls 2 and 3 (mjcf.add_wind_inputs), in place of the environment's constant wind.
 """
 from __future__ import annotations
 
@@ -21,13 +26,13 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from ..drive import InputSeries
+from ..drive import InputSeries, WindSeries
 from ..errors import TwinError
-from ..physics.hydrodynamics import Terms
+from ..physics.hydrodynamics import Terms, mmg_forces
 from ..run import Run
 from . import callbacks
 from .divergence import CHECKS, clear, flagged, quiet_log, what_diverged
-from .mjcf import CompiledVessel
+from .mjcf import CompiledVessel, compile_vessel
 from .tick import Pair, TickMap
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
@@ -69,15 +74,34 @@ def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps, 
     return np.unique(np.concatenate(marks)).astype(int)
 
 
-def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
-    """The model to step and the context that installs its hydrodynamic callback."""
+def _backend(compiled: CompiledVessel, terms: Terms, backend: str, wind: bool = False):
+    """The model to step and the context that installs its hydrodynamic callback (with the wind's
+    two controls when `wind`)."""
     if backend == "native":
         from . import native
 
-        return native.with_native_params(compiled, terms), native.installed_native()
+        return native.with_native_params(compiled, terms, wind_inputs=wind), native.installed_native()
     if backend == "python":
+        if wind and not compiled.wind_inputs:
+            compiled = CompiledVessel(compiled.vessel, compile_vessel(compiled.vessel, wind_inputs=True).model,
+                                      compiled.geometry)
         return compiled.model, callbacks.installed(compiled.model, compiled.hydro(terms))
     raise TwinError(f"unknown backend '{backend}' (native or python)")
+
+
+class _Wind:
+    """A wind series held over the engine's steps: the air's velocity at every step, the steps where
+    it changes (events of the loop) and the value each event sets on the wind's controls."""
+
+    def __init__(self, series: WindSeries, n_steps: int, h: float):
+        self.series = series
+        self.steps = series.at(np.arange(n_steps + 1) * h)
+        changed = np.flatnonzero(np.any(np.diff(self.steps, axis=0) != 0, axis=1)) + 1
+        self.changes = np.concatenate([[0], changed])
+        self._at = [tuple(row) for row in self.steps.tolist()]
+
+    def __call__(self, k: int) -> tuple[float, float]:
+        return self._at[k]
 
 
 class _Layout:
@@ -214,6 +238,7 @@ def simulate(
     start_s: float = 0.0,
     terms: Terms | None = None,
     backend: str = "native",
+    wind: WindSeries | None = None,
 ) -> Run:
     """Run the engine twin for `duration_s` and return samples every `sample_dt_s`.
 
@@ -227,12 +252,14 @@ def simulate(
     the run's start), so that any run can be replayed.
     `backend`: "native" (compiled callback, the default) or "python" (the
     readable reference callback); both give the same forces to 1e-9.
+    `wind`: a measured wind on the run's clock, held over each step (module docstring); it
+    replaces the vessel environment's constant wind and is returned in `run.meta["wind"]`.
     """
     if not duration_s > 0:
         raise TwinError("duration must be positive")
     vessel = compiled.vessel
     terms = terms or Terms()
-    model, hydrodynamics = _backend(compiled, terms, backend)
+    model, hydrodynamics = _backend(compiled, terms, backend, wind is not None)
     h = model.opt.timestep
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
@@ -240,31 +267,54 @@ def simulate(
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
     layout = _Layout(model)
+    # a propeller and rudder's controls are inputs to the MMG forces, which their own terms switch
+    inputs_on = terms.thrust or vessel.thrusters.kind == "propeller_rudder"
     if isinstance(drive, InputSeries):
-        loop = _OpenLoop(drive, vessel.thrusters, n_steps, n_sample, h, start_s, terms.thrust)
+        if (drive.kind == "propeller_rudder") != (vessel.thrusters.kind == "propeller_rudder"):
+            raise TwinError(f"vessel '{vessel.name}' is driven by {vessel.thrusters.input_kind} inputs, "
+                            f"not {drive.kind}")
+        loop = _OpenLoop(drive, vessel.thrusters, n_steps, n_sample, h, start_s, inputs_on)
     else:
         loop = _ClosedLoop(compiled, drive, layout, n_steps=n_steps, n_sample=n_sample, n_control=n_control, h=h,
-                           start_s=start_s, thrust_on=terms.thrust)
+                           start_s=start_s, thrust_on=inputs_on)
+    events, air = loop.events, None
+    if wind is not None:
+        air = _Wind(wind, n_steps, h)
+        events = np.unique(np.concatenate([events, air.changes]))
     sample_steps = np.arange(0, n_steps + 1, n_sample)
     states = np.empty((len(sample_steps), mujoco.mj_stateSize(model, FULL)))
     with hydrodynamics, quiet_log():
-        commands = _step_events(model, data, loop.events.tolist(), n_sample, states, loop.command, start_s)
+        commands = _step_events(model, data, events.tolist(), n_sample, states, loop.command, start_s, air)
     eta, nu = layout.samples(states)
     command_n = states[:, layout.act] if layout.act is not None else np.array(commands, dtype=float)
-    return Run(
-        start_s + sample_steps * h, eta, nu, loop.held(sample_steps),
-        delivered_thrust(vessel, compiled.geometry.thruster_y_m, command_n, nu),
-        meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
-              "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
-              "inputs": loop.inputs(), "start_s": start_s},
-    )
+    meta = {"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
+            "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
+            "inputs": loop.inputs(), "start_s": start_s}
+    if wind is not None:
+        meta["wind"] = wind
+    return Run(start_s + sample_steps * h, eta, nu, loop.held(sample_steps),
+               delivered_forces(compiled, command_n, nu, terms), meta=meta)
+
+
+def delivered_forces(compiled: CompiledVessel, commands: np.ndarray, nu: np.ndarray,
+                     terms: Terms | None = None) -> np.ndarray:
+    """(n, 2) per sample: each thruster's delivered thrust (N, `delivered_thrust`) or, for a
+    propeller and rudder driven by the controls (n rps, δ rad), the propeller thrust T and the
+    rudder normal force F_N (N) of the MMG forces at the sample's velocity."""
+    vessel = compiled.vessel
+    if vessel.thrusters.kind != "propeller_rudder":
+        return delivered_thrust(vessel, compiled.geometry.thruster_y_m, commands, nu)
+    hydro = compiled.hydro(terms)
+    return np.array([mmg_forces(hydro, v, c)[3:5] for v, c in zip(np.asarray(nu, float), commands)]).reshape(-1, 2)
 
 
 def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], n_sample: int,
-                 states: np.ndarray, command: Callable[[int, np.ndarray], Pair], start_s: float) -> list[Pair]:
+                 states: np.ndarray, command: Callable[[int, np.ndarray], Pair], start_s: float,
+                 wind: Callable[[int], Pair] | None = None) -> list[Pair]:
     """Step the engine from event to event, the thrust command `command(k, state)` held from
-    each; the state at every sample step goes to the next row of `states`. Returns the command
-    set at each sample. Raises TwinError (naming when) if the twin diverges.
+    each (and the air's velocity `wind(k)` on controls 2 and 3); the state at every sample step
+    goes to the next row of `states`. Returns the command set at each sample. Raises TwinError
+    (naming when) if the twin diverges.
 
     The hot loop of a run: names are bound to locals and the arrays (ctrl, qvel, the warning
     counters) are views taken once, so an event costs a few microseconds of Python."""
@@ -281,6 +331,8 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
         left, right = command(k, state)
         ctrl[0] = left
         ctrl[1] = right
+        if wind is not None:
+            ctrl[2], ctrl[3] = wind(k)
         if sampled:
             commands.append((left, right))
         if i == last:
@@ -288,7 +340,8 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
         nstep = events[i + 1] - k
         step(model, data, nstep)
         if _diverged(warnings, qvel):
-            raise TwinError(_divergence(model, data, state, (left, right), nstep, start_s))
+            controls = (left, right) if wind is None else (left, right, *wind(k))
+            raise TwinError(_divergence(model, data, state, controls, nstep, start_s))
     return commands
 
 
@@ -303,7 +356,7 @@ def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndar
     (N) replayed one step at a time from its saved start (MuJoCo reset the diverged state, so
     only the replay knows the step), and what MuJoCo found bad."""
     mujoco.mj_setState(model, data, chunk_start, FULL)
-    data.ctrl[:2] = command_n  # the reset zeroed the controls
+    data.ctrl[:len(command_n)] = command_n  # the reset zeroed the controls
     clear(data)
     t_s = float(data.time)
     for _ in range(nstep):

@@ -9,6 +9,10 @@ floats give the same bits (Horner's scheme started from 0 as `np.polyval` does; 
 max-then-min, which keeps NaN as np.clip does), which tests/test_sim_speed.py checks
 against the numpy versions. Anything that is not a pair of plain numbers (numpy float32,
 arrays, ...) goes through the numpy versions, so the result never depends on the path.
+
+A propeller-and-rudder ship's controller gives (n rps, δ rad) itself (`output =
+"propeller_rudder"`) or normalised (surge, yaw) as fractions of their bounds; either way the
+engine's controls are (n, δ) as they are.
 """
 from __future__ import annotations
 
@@ -52,7 +56,10 @@ class TickMap:
 
     @classmethod
     def of(cls, thrusters: ThrusterModel) -> "TickMap":
-        t_min, t_max = thrusters.command_range() if thrusters.kind != "t200" else thrusters.bounds()
+        if thrusters.kind == "propeller_rudder":
+            t_min, t_max = -np.inf, np.inf  # no thrust command: normalised outputs go through drive
+        else:
+            t_min, t_max = thrusters.command_range() if thrusters.kind != "t200" else thrusters.bounds()
         return cls(thrusters, 0.5 * (thrusters.pwm_min_us + thrusters.pwm_max_us),
                    0.5 * (thrusters.pwm_max_us - thrusters.pwm_min_us), t_min, t_max)
 
@@ -60,10 +67,13 @@ class TickMap:
         """(kind, input held) from a controller's output, as `sim` defines it: thrusts in N when
         the controller says `output = "thrust"`, else normalised (surge, yaw) through
         `drive.to_thruster_inputs`."""
-        if getattr(controller, "output", "normalised") == "thrust":
+        output = getattr(controller, "output", "normalised")
+        if output in ("thrust", "propeller_rudder"):
             if isinstance(out, tuple) and len(out) == 2 and _plain(out[0]) and _plain(out[1]):
-                return "thrust", (float(out[0]), float(out[1]))
-            return "thrust", np.asarray(out, float)
+                return output, (float(out[0]), float(out[1]))
+            return output, np.asarray(out, float)
+        if self.thrusters.kind == "propeller_rudder":
+            return to_thruster_inputs(self.thrusters, *out)
         if isinstance(out, (tuple, list)) and len(out) == 2:
             left, right = out[0] + out[1], out[0] - out[1]
             if _plain(left) and _plain(right):
@@ -79,7 +89,13 @@ class TickMap:
                           right * self.t_max if right >= 0 else -right * self.t_min)
 
     def raw_thrust(self, kind: str, held) -> Pair:
-        """`ThrusterModel.command` before the decay: PWM through eq. 27 or thrust as it is (N)."""
+        """`ThrusterModel.command` before the decay: PWM through eq. 27 or thrust as it is (N); a
+        propeller and rudder's (n, δ) as they are."""
+        if kind == "propeller_rudder" or self.thrusters.kind == "propeller_rudder":
+            if kind != self.thrusters.input_kind:
+                raise ValueError(f"thrusters of kind '{self.thrusters.kind}' cannot take {kind} inputs")
+            left, right = np.broadcast_to(np.asarray(held, float), (2,)).tolist()
+            return left, right
         if isinstance(held, tuple) and (kind != "pwm" or self.thrusters.kind == "t200"):
             return (self._thrust(held[0]), self._thrust(held[1])) if kind == "pwm" else held
         raw = self.thrusters.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)

@@ -75,6 +75,7 @@ class CrossValidation:
 
     label: str
     runs: list[RunScore] = field(default_factory=list)
+    pooled: dict = field(default_factory=dict)  # {u, v, r: {r2, mae, n}} over every left-out sample together
 
     @property
     def cost(self) -> float:
@@ -89,14 +90,17 @@ class CrossValidation:
 
     def to_dict(self) -> dict:
         return {"label": self.label, "cost": self.cost, "runs": [r.to_dict() for r in self.runs],
-                "r2_median_min_max": {d: self.spread(d) for d in DOFS}}
+                "r2_median_min_max": {d: self.spread(d) for d in DOFS}, "pooled": self.pooled}
 
     def summary(self) -> str:
         parts = []
         for d in DOFS:
             s = self.spread(d)
             parts.append(f"{d} {s[0]:.2f} ({s[1]:.2f} to {s[2]:.2f})" if s else f"{d} -")
-        return f"{self.label}: R² on left-out runs, median (range): " + ", ".join(parts)
+        pooled = ", ".join(f"{d} {self.pooled[d]['r2']:.2f}" for d in DOFS
+                           if self.pooled.get(d, {}).get("r2") is not None)
+        return (f"{self.label}: R² on left-out runs, all together: {pooled}; run by run, median (range): "
+                + ", ".join(parts))
 
 
 def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,
@@ -132,6 +136,7 @@ def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], window
     cache = cache or ModelCache()
     out = {label: CrossValidation(label) for label in configurations}
     labels = list(configurations)
+    pairs = {label: ([], []) for label in labels}
     for k, name in enumerate(names):
         mine = [w for w, g in zip(windows, groups) if g == k]
         if not mine:
@@ -143,6 +148,11 @@ def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], window
             for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
                 nu[j] = np.where(np.isnan(nu[j]), np.inf, nu[j])
             out[label].runs.append(score_run(name, nu[:, 1:], meas[:, 1:], sigma))
+            pairs[label][0].append(nu[:, 1:].reshape(-1, 3))
+            pairs[label][1].append(meas[:, 1:].reshape(-1, 3))
+    for label, (pred, meas) in pairs.items():
+        if pred:
+            out[label].pooled = r2_mae(np.concatenate(pred), np.concatenate(meas))
     return out
 
 

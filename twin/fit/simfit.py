@@ -225,21 +225,21 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     for _ in range(3):  # until what is called pinned is pinned at the solution returned
         if all(free):
             break
-        # not pinned by the data: back to the prior exactly, and the rest fitted again around it
-        x = np.where(free, x, obj.x_prior)
+        # not pinned by the data: back to the prior exactly, and the rest moved to where that puts
+        # their optimum: one Gauss-Newton step on the Jacobian already at hand (the unpinned ones
+        # barely move the fit, or the data would have pinned them)
+        reset = np.where(free, x, obj.x_prior)
+        r0 = r + J @ (reset - x)
+        step = np.zeros(len(x))
         if any(free):
-            sub = map_objective(prior, [c for c, f in zip(coords, free) if f], preps, windows, obj.cache,
-                                obj.settle_s, free_start, prior_weight)
-            xs = np.clip(x[free] * obj.scale[free] / sub.scale, *sub.bounds())
-            sol = least_squares(sub.residuals, xs, jac=sub.jacobian, bounds=sub.bounds(), method="trf",
-                                x_scale="jac", max_nfev=max(5, max_evaluations // 3), xtol=1e-8, ftol=1e-8)
-            x[free] = sol.x * sub.scale / obj.scale[free]
-            evaluations += sub.evaluations
+            step[free] = np.linalg.lstsq(J[:, free], -r0, rcond=None)[0]
+        x = np.clip(reset + step, *obj.bounds())
         x, J, r, cov = _solution(obj, x)
         still = free & _pinned(obj, coords, cov)
         if np.array_equal(still, free):
             break
         free = still
+    evaluations = obj.evaluations
     estimates = _map_estimates(obj, coords, x, cov, free)
     data_r = r[: obj.n_data]
     result = FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,

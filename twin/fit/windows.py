@@ -10,11 +10,22 @@ A whole segment is one long window.
 What the recording's clock means for the thrusters (vessel.thrusters, vessel.sensors):
 the thrust at recording time t answers the PWM logged at t − delay_s + pwm_clock_offset_s
 (a late-stamped PWM log makes the thrust seem to come first), decayed by t.
+
+The recorded inputs are the prepared recording's two input channels (`Prepared.pwm`) of its
+`input_kind`: PWM for thrusters, or a propeller-and-rudder ship's (n rps, δ rad), which
+`ThrusterModel.command` passes on as the engine's controls; a recording of the other kind
+cannot drive the vessel.
+
+Measured wind (`predict(..., wind="measured")`): the recording's wind stream, held on the grid
+(Prepared.wind_ned), is held over each engine step as the model's controls 2 and 3 (a model
+compiled with wind inputs) in place of the vessel environment's constant wind: a known input,
+not a fitted one. Without it (the default) nothing of the measured wind is used.
 """
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -61,11 +72,12 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 
 # ---------------------------------------------------------------- models
 
-def _structure_key(vessel: Vessel) -> tuple:
+def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
     """What needs a recompilation: everything else is set on a copy of a compiled model."""
     t = vessel.thrusters
-    return (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0,
-            t.bounded)
+    key = (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0,
+           t.bounded)
+    return key + (t.kind, True) if wind else key
 
 
 class ModelCache:
@@ -82,7 +94,8 @@ class ModelCache:
 
     def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool):
         """(thrust commands, lag state at the start) of a window: the same for every candidate
-        that leaves the thrusters and the PWM clock alone, so computed once."""
+        that leaves the thrusters and the PWM clock alone, so computed once. (A propeller and
+        rudder's commands are its controls (n, δ).)"""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
         # the recording (source, grid) and the window identify it
         key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
@@ -100,22 +113,25 @@ class ModelCache:
     def compiled(self, vessel: Vessel) -> CompiledVessel:
         return self._base(vessel)[0]
 
-    def _base(self, vessel: Vessel) -> tuple[CompiledVessel, mujoco.MjModel]:
-        key = _structure_key(vessel)
+    def _base(self, vessel: Vessel, wind: bool = False) -> tuple[CompiledVessel, mujoco.MjModel]:
+        key = _structure_key(vessel, wind)
         if key not in self._compiled:
             cv = compile_vessel(vessel)
-            model = native.with_native_params(cv)
+            model = native.with_native_params(cv, wind_inputs=wind)
             if self.timestep_s is not None:
                 model.opt.timestep = self.timestep_s
             self._compiled[key] = (cv, model)
         return self._compiled[key]
 
-    def model(self, vessel: Vessel) -> mujoco.MjModel:
-        """A native-parameterised model of `vessel` (same dynamics as compiling it afresh)."""
-        cv, base = self._base(vessel)
+    def model(self, vessel: Vessel, wind: bool = False) -> mujoco.MjModel:
+        """A native-parameterised model of `vessel` (same dynamics as compiling it afresh);
+        `wind`: with the measured wind as controls 2 and 3."""
+        cv, base = self._base(vessel, wind)
         m = copy.copy(base)
         native.set_params(m, CompiledVessel(vessel, cv.model, cv.geometry).hydro())
         t = vessel.thrusters
+        if t.kind == "propeller_rudder":  # its actuators carry (n, δ) and exert no force: nothing to set
+            return m
         if t.bounded:
             m.actuator_ctrlrange[:2] = t.bounds()
         for i, gain in enumerate(t.gains()):
@@ -139,7 +155,26 @@ def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: 
     look = np.clip(look, prep.t[seg.start], prep.t[seg.stop - 1])  # nothing is known outside the segment
     sl = seg.slice
     pwm = np.column_stack([hold(prep.t[sl], prep.pwm[sl, j], look) for j in range(2)])
-    return vessel.thrusters.command("pwm", pwm, times)
+    return vessel.thrusters.command(prep.input_kind, pwm, times)
+
+
+def wind_steps(prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
+    """(steps, 2) measured wind (the air's NED velocity, m/s) held over the engine steps of a window,
+    within its segment; TwinError where the recording has none."""
+    name = Path(prep.settings.source or "the recording").name
+    if prep.wind_ned is None:
+        raise TwinError(f"{name}: no measured wind (the recording has no wind stream)")
+    sub = _substeps(prep.settings.grid_dt, timestep_s)
+    t0 = prep.t[window.start]
+    times = t0 + timestep_s * np.arange(window.n * sub)
+    seg = prep.segments[int(prep.segment[window.start])]
+    sl = seg.slice
+    look = np.clip(times, prep.t[seg.start], prep.t[seg.stop - 1])
+    air = np.column_stack([hold(prep.t[sl], prep.wind_ned[sl, j], look) for j in range(2)])
+    if not np.all(np.isfinite(air)):
+        raise TwinError(f"{name}: no measured wind yet at t = {float(times[~np.isfinite(air).all(axis=1)][0]):.1f} s "
+                        "of a window")
+    return air
 
 
 def _substeps(grid_dt: float, timestep_s: float) -> int:
@@ -196,13 +231,17 @@ class Prediction:
 
 def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list[Window],
             cache: ModelCache | None = None, nthread: int | None = None,
-            nu_offsets: list | None = None) -> list[Prediction]:
+            nu_offsets: list | None = None, wind: str | None = None) -> list[Prediction]:
     """Free runs of every vessel over every window in one batch; one Prediction per vessel.
 
     `preps` are the recordings as each vessel's sensors see them: either one list
     shared by all vessels or, for candidates with different sensor calibrations,
     a list of lists (one per vessel). nu_offsets: per vessel, None or a (u, v, r)
-    added to every window's measured initial velocities (initial-state sensitivities)."""
+    added to every window's measured initial velocities (initial-state sensitivities).
+    wind: None (the vessel environment's constant wind) or "measured" (each recording's
+    wind stream as a known input over every window, module docstring)."""
+    if wind not in (None, "measured"):
+        raise TwinError(f"wind must be None or 'measured', got {wind!r}")
     vessels = [vessels] if isinstance(vessels, Vessel) else list(vessels)
     per_vessel = preps if preps and isinstance(preps[0], list) else [preps] * len(vessels)
     if not windows:
@@ -213,17 +252,26 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
     offsets = nu_offsets or [None] * len(vessels)
     for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
         offset = (0.0, 0.0, 0.0) if offsets[iv] is None else tuple(offsets[iv])
-        if vessel.thrusters.kind != "t200":
+        if vessel.thrusters.kind not in ("t200", "propeller_rudder"):
             raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a recording cannot drive it")
-        model = cache.model(vessel)
+        kinds = {vpreps[w.rec].input_kind for w in windows}
+        if kinds != {vessel.thrusters.input_kind}:
+            other = sorted(kinds - {vessel.thrusters.input_kind})
+            raise TwinError(f"vessel '{vessel.name}' is driven by {vessel.thrusters.input_kind} inputs; the recording "
+                            f"holds {', '.join(other) or 'none'}")
+        model = cache.model(vessel, wind=wind is not None)
         h = model.opt.timestep
         data = mujoco.MjData(model)
         for w in windows:
             prep = vpreps[w.rec]
             cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na))
             steps = _substeps(prep.settings.grid_dt, h) * n_max
-            padded = np.zeros((steps, 2))
-            padded[: len(cmd)] = cmd
+            padded = np.zeros((steps, model.nu))
+            padded[: len(cmd), :2] = cmd
+            if wind is not None:
+                air = wind_steps(prep, w, h)
+                padded[: len(air), 2:4] = air
+                padded[len(air):, 2:4] = air[-1]
             models.append(model)
             states.append(_initial_state(model, data, prep, w, act0, offset))
             controls.append(padded)

@@ -5,8 +5,8 @@
     MCAP (magic "\\x89MCAP")    /sensors/* topics (a recording) or a run written here   mcap.py
     DataFlash (bytes A3 95)     ArduPilot .bin log                                      dataflash.py
     tlog (MAVLink marker at byte 8, or extension .tlog)                                 tlog.py
-    CSV text                    the BlueBoat layout (blueboat_csv.py) or the generic
-                                layout (csv.py)
+    CSV text                    the BlueBoat layout (blueboat_csv.py), the Esso Osaka
+                                model's tests (esso_csv.py) or the generic layout (csv.py)
   write_recording(rec, path)  a Recording → .csv, .tlog, .bin or .mcap that read_recording
                               reads back to the same streams
   write_run(run, path)        a simulated run → .csv, .mcap, .tlog or .bin
@@ -17,7 +17,8 @@ write_recording go through exactly the path real logs take.
 The format follows the extension:
   .csv   the generic CSV layout (csv.py): header
            t[,lat,lon[,alt] | ,north,east][,heading_deg][,pwm_left,pwm_right[,pwm_neutral_left,
-           pwm_neutral_right]][,yaw_rate][,voltage]
+           pwm_neutral_right]][,yaw_rate][,voltage][,prop_rps,rudder_deg]
+           [,wind_speed,wind_from_deg[,wind_rel_speed,wind_rel_from_deg]]
          with the columns of the streams that have samples, one row per distinct sample
          time (µs) of any stream, an empty cell where a stream has no sample at that time.
          t %.6f s, lat/lon %.10f deg, alt %.4f m, north/east %.6f m, heading_deg %.7f
@@ -29,7 +30,10 @@ The format follows the extension:
   .bin   ArduPilot DataFlash (dataflash.py): PARM (the recording's parameters and
          the same thruster mapping), GPS, ATT, RCOU, IMU (GyrZ), BAT.
   .mcap  /sensors/gnss (foxglove.LocationFix), /sensors/heading, /sensors/pwm,
-         /sensors/imu, /sensors/battery (mcap.py), the parameters in its metadata.
+         /sensors/imu, /sensors/battery, /sensors/prop_rudder, /sensors/wind (mcap.py), the
+         parameters in its metadata.
+A propeller-and-rudder ship's inputs (prop_rudder) and a measured wind (wind) are kept by .csv
+and .mcap; .tlog and .bin have no place for them (`twin convert` says so).
 
 What a round trip keeps (sample times / values):
   .csv   1 µs / lat, lon 1e-10 deg, heading 1e-7 deg, PWM as written; no parameters
@@ -40,6 +44,7 @@ What a round trip keeps (sample times / values):
   .bin   1 µs / lat, lon 1e-7 deg, alt 1 cm, heading 0.01 deg, PWM integer µs (rounded),
          yaw rate and voltage float32, parameters float32
   .mcap  1 ns / every value exactly (JSON), plus the origin, PWM neutral and parameters
+  (.csv prop_rudder and wind: 10 significant digits, 1e-6 m/s and deg)
 
 Times: a stream's t (s from the recording's origin) is written as it is, unless some
 sample is before the origin: then every stream is shifted by the same amount so that
@@ -67,14 +72,16 @@ from ..geodesy import geodetic_from_ned
 from ..recording import Recording, Stream, check_usable
 from ..run import Run
 from . import csv as csv_format
-from . import blueboat_csv, dataflash, mcap, tlog
+from . import blueboat_csv, dataflash, esso_csv, mcap, tlog
 from .telemetry import DEFAULT_ORIGIN
 
-CSV_LAYOUTS = ((blueboat_csv.matches, blueboat_csv.read),)  # datasets with their own CSV layout
+# datasets with their own CSV layout
+CSV_LAYOUTS = ((blueboat_csv.matches, blueboat_csv.read), (esso_csv.matches, esso_csv.read))
 MCAP_MAGIC = b"\x89MCAP"
 DATAFLASH_MAGIC = b"\xa3\x95"
 COLUMNS = {"heading": ("psi_rad",), "pwm": ("left_us", "right_us"), "imu": ("yaw_rate_rads",),
-           "battery": ("voltage_v",)}
+           "battery": ("voltage_v",), "prop_rudder": ("n_rps", "delta_rad"), "wind": ("speed_m_s", "from_deg")}
+OPTIONAL_COLUMNS = {"wind": ("relative_speed_m_s", "relative_from_deg")}  # checked where present
 
 
 def read_recording(path, *, channels: dict | None = None) -> Recording:
@@ -172,7 +179,7 @@ def _columns(name: str, s: Stream) -> tuple[str, ...]:
         missing = [c for c in COLUMNS[name] if c not in s.columns]
         if missing:
             raise TwinError(f"{name}: no column {', '.join(missing)}")
-        return COLUMNS[name]
+        return COLUMNS[name] + tuple(c for c in OPTIONAL_COLUMNS.get(name, ()) if c in s.columns)
     if s.has("lat_deg", "lon_deg"):
         return ("lat_deg", "lon_deg") + (("alt_m",) if "alt_m" in s.columns else ())
     if s.has("north_m", "east_m"):

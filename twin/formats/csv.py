@@ -11,6 +11,11 @@ Generic CSV (one header line, comma separated, empty or "nan" cells are missing)
   pwm_neutral_left, pwm_neutral_right   µs, the PWM of zero thrust (optional, default 1500)
   yaw_rate           rad/s, gyro (optional; a twin run's r is read as one)
   voltage            V, battery (optional)
+  prop_rps, rudder_deg   a propeller-and-rudder ship's inputs: rps (> 0 ahead), degrees (> 0 turns to
+                     starboard) (optional, the prop_rudder stream)
+  wind_speed, wind_from_deg   true wind over ground, m/s and degrees FROM, clockwise from north
+  wind_rel_speed, wind_rel_from_deg   apparent wind on board, m/s and degrees FROM, clockwise from the bow
+                     (optional, the wind stream; the relative pair only with the true one)
 A twin run's u, v (its true velocities) and thrust_left/right are not read: a
 Recording holds what sensors log. Streams at different rates share the rows.
 `channels={"reversed": {"left": True}, "trim": {"left": 1500, "right": 1500}}` mirrors
@@ -19,7 +24,8 @@ a reversed channel and sets the neutral.
 Written: the columns of the streams that have samples, one row per distinct sample
 time (µs) of any stream, an empty cell where a stream has no sample at that time.
 t %.6f s, lat/lon %.10f deg, alt %.4f m, north/east %.6f m, heading_deg %.7f in
-[0, 360), pwm %.10g µs (integers stay integers), yaw_rate %.9f rad/s, voltage %.4f V.
+[0, 360), pwm %.10g µs (integers stay integers), yaw_rate %.9f rad/s, voltage %.4f V,
+prop_rps %.10g, rudder_deg %.10g, wind speeds %.6f m/s, wind directions %.6f deg.
 The PWM neutral columns are written on the PWM rows only when it is not 1500 µs.
 """
 from __future__ import annotations
@@ -114,6 +120,14 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.imu = stream("imu", t, {"yaw_rate_rads": yaw_rate}, rec.dropped)
     if "voltage" in c:
         rec.battery = stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
+    if {"prop_rps", "rudder_deg"} <= set(header):
+        rec.prop_rudder = stream("prop_rudder", t, {"n_rps": c["prop_rps"], "delta_rad": np.radians(c["rudder_deg"])},
+                                 rec.dropped)
+    if {"wind_speed", "wind_from_deg"} <= set(header):
+        cols = {"speed_m_s": c["wind_speed"], "from_deg": c["wind_from_deg"]}
+        if {"wind_rel_speed", "wind_rel_from_deg"} <= set(header):
+            cols |= {"relative_speed_m_s": c["wind_rel_speed"], "relative_from_deg": c["wind_rel_from_deg"]}
+        rec.wind = stream("wind", t, cols, rec.dropped)
     return rec
 
 
@@ -190,6 +204,16 @@ def _csv_cells(rec: Recording) -> list[tuple[str, str, np.ndarray]]:
         out.append(("yaw_rate", "imu", _fmt("%.9f", imu["yaw_rate_rads"])))
     if len(bat):
         out.append(("voltage", "battery", _fmt("%.4f", bat["voltage_v"])))
+    pr, w = rec.prop_rudder, rec.wind
+    if len(pr):
+        out += [("prop_rps", "prop_rudder", _fmt("%.10g", pr["n_rps"])),
+                ("rudder_deg", "prop_rudder", _fmt("%.10g", np.degrees(pr["delta_rad"])))]
+    if len(w):
+        out += [("wind_speed", "wind", _fmt("%.6f", w["speed_m_s"])),
+                ("wind_from_deg", "wind", _fmt("%.6f", w["from_deg"]))]
+        if w.has("relative_speed_m_s", "relative_from_deg"):
+            out += [("wind_rel_speed", "wind", _fmt("%.6f", w["relative_speed_m_s"])),
+                    ("wind_rel_from_deg", "wind", _fmt("%.6f", w["relative_from_deg"]))]
     return out
 
 

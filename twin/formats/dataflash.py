@@ -75,7 +75,7 @@ def write_run_bin(run: Run, path, **kwargs) -> None:
 
 def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
     """A recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg and whose psi_rad
-    is wrapped (twin.recordings.writers prepares it) as a DataFlash log; TwinError where a value
+    is wrapped (twin.formats.write_recording prepares it) as a DataFlash log; TwinError where a value
     does not fit its field."""
     g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))

@@ -17,6 +17,10 @@ A sensor recording, each message logged at its own stream's sample time (s → n
   /sensors/pwm      twin.ThrusterPwm      left_us, right_us (µs, forward thrust = higher)
   /sensors/imu      twin.YawRate          yaw_rate_rads (rad/s, gyro z, body FRD)      (if recorded)
   /sensors/battery  twin.Battery          voltage_v (V)                                (if recorded)
+  /sensors/prop_rudder twin.PropellerRudder n_rps (rps, > 0 ahead), delta_rad (rad, > 0 to starboard) (if recorded)
+  /sensors/wind     twin.Wind             speed_m_s, from_deg (true wind, FROM, clockwise from north) and
+                                          relative_speed_m_s, relative_from_deg (apparent, FROM, clockwise
+                                          from the bow; where measured)                (if recorded)
 Metadata record "twin.recording": origin_s (the recording's origin, s, repr), pwm_neutral_us
 (JSON [left, right]), source, kind (of the recording written), meta (JSON, plain entries),
 parameters (JSON {name: value}, the autopilot's parameters when the source had them).
@@ -328,12 +332,20 @@ SENSORS = {
         "twin.YawRate", "Gyro z, body FRD (rad/s)", ("yaw_rate_rads",)), {"yaw_rate_rads": "yaw_rate_rads"}),
     "battery": ("/sensors/battery", _project_schema(
         "twin.Battery", "Battery voltage (V)", ("voltage_v",)), {"voltage_v": "voltage_v"}),
+    "prop_rudder": ("/sensors/prop_rudder", _project_schema(
+        "twin.PropellerRudder", "Propeller speed n_rps (rps, > 0 ahead) and rudder angle delta_rad (rad, > 0 turns "
+        "to starboard)", ("n_rps", "delta_rad")), {"n_rps": "n_rps", "delta_rad": "delta_rad"}),
+    "wind": ("/sensors/wind", {**_project_schema(
+        "twin.Wind", "True wind speed_m_s (m/s) and from_deg (direction it blows FROM, deg clockwise from north); "
+        "apparent relative_speed_m_s, relative_from_deg (FROM, deg clockwise from the bow) where measured",
+        ("speed_m_s", "from_deg", "relative_speed_m_s", "relative_from_deg")), "required": ["speed_m_s", "from_deg"]},
+        {k: k for k in ("speed_m_s", "from_deg", "relative_speed_m_s", "relative_from_deg")}),
 }
 
 
 def write_recording_mcap(rec: Recording, path: str | Path) -> None:
     """Write a recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg
-    and whose psi_rad is wrapped (twin.recordings.writers prepares it) atomically."""
+    and whose psi_rad is wrapped (twin.formats.write_recording prepares it) atomically."""
     write_atomic(Path(path), lambda fh: _write_sensors(fh, rec))
 
 
@@ -408,8 +420,9 @@ def _columns(name: str, msgs: list[tuple[int, dict]]) -> tuple[np.ndarray, dict[
     t = np.array([ns for ns, _ in msgs], dtype=np.int64) / 1e9
     cols = {col: np.array([_float(m.get(field)) for _, m in msgs], dtype=float)
             for col, field in SENSORS[name][2].items()}
-    if "alt_m" in cols and not np.any(np.isfinite(cols["alt_m"])):
-        del cols["alt_m"]  # a fix without altitude must not cost the whole sample
+    for optional in ("alt_m", "relative_speed_m_s", "relative_from_deg"):
+        if optional in cols and not np.any(np.isfinite(cols[optional])):
+            del cols[optional]  # a fix without altitude, a wind without its apparent pair, must not cost the sample
     return t, cols
 
 

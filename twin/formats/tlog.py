@@ -76,7 +76,7 @@ def write_run_tlog(run: Run, path, **kwargs) -> None:
 
 def write_recording_tlog(rec: Recording, path, start_unix_s: float = START_UNIX_S) -> None:
     """Write a recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg
-    and whose psi_rad is wrapped (twin.recordings.writers prepares it) atomically."""
+    and whose psi_rad is wrapped (twin.formats.write_recording prepares it) atomically."""
     tel = recording_telemetry(rec)
     ends = [s.t[-1] for s in rec.streams().values() if len(s)]
     params = log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(rec.pwm) > 0)

@@ -226,7 +226,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
                                                refit.objective.residuals(refit.x), fit_groups)},
                    preps, every, judge_groups, group_names, first.objective.sigma, cache)["refit"]
-        refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups, cv)
+        refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
+                          _labelled(cv, best.label + " (refitted)"))
         choices.append(refitted)
         if cv.cost <= min(c.cv.cost for c in choices if c.free_groups == tuple(names_by_group)):
             fit_best, best = refit, refitted
@@ -267,6 +268,11 @@ def _groups(groups, params) -> dict[str, tuple[str, ...]]:
     return {g: FIT_GROUPS[g] for g in chosen}
 
 
+def _labelled(cv: CrossValidation, label: str) -> CrossValidation:
+    cv.label = label
+    return cv
+
+
 def _informative(prep: Prepared, w) -> bool:
     """A window in which the thrusters work or the boat moves: a drifting boat at rest says nothing
     about its hull or thrusters (only about the wind and current of that day)."""
@@ -294,7 +300,8 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
         judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
-                          tuple(k for k in current.free_groups if k != g), cv) for g, cv in judged.items()]
+                          tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
+                   for g, cv in judged.items()]
         tried += options
         best = min(options, key=lambda c: c.cv.cost)
         if best.cv.cost >= current.cv.cost:

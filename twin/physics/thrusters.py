@@ -14,6 +14,11 @@ what real thrusters add to a datasheet curve:
   negative advance ratios. MuJoCo applies it as an affine actuator gain, whose
   velocity is exactly u − r·y_i for a site transmission along body x; the
   speed is over ground (the actuator does not see a current).
+
+A single propeller and rudder (kind "propeller_rudder", the Esso Osaka model): the inputs are the
+propeller speed n (rps, signed) and the rudder angle δ (rad, > 0 turns to starboard), carried to
+the engine unchanged as its two controls; the forces they make (MMG standard method) are the
+hydrodynamic callback's (physics/mmg.py), not the actuators'.
 """
 from __future__ import annotations
 
@@ -30,6 +35,9 @@ class ThrusterModel:
     reverse quadratics in δ̃ (coefficients [a, b, c] of a·δ̃² + b·δ̃ + c), zero
     thrust inside the dead zone (deadzone_rev, deadzone_fwd).
     `kind = "direct"`: inputs are thrusts in N; no PWM map is known.
+    `kind = "propeller_rudder"`: inputs are the propeller speed n (rps) and the rudder angle δ (rad),
+    bounded by |n| ≤ rps_max and |δ| ≤ rudder_max_deg where given (which a scenario's full
+    normalised command also asks for); gains, lag, decay and speed loss do not apply.
     Thrust bounds (N) are the map's values at full PWM, or, for "direct", thrust_min_n and
     thrust_max_n where the vessel's source gives them: none given, the thrust is not bounded.
     command_scale_n: the thrust a full normalised command (a scenario's ±1) asks of an unbounded
@@ -55,6 +63,23 @@ class ThrusterModel:
     gain_left: float = 1.0
     gain_right: float = 1.0
     reversed_channels: tuple[str, ...] = field(default_factory=tuple)
+    rps_max: float | None = None
+    rudder_max_deg: float | None = None
+
+    @property
+    def input_kind(self) -> str:
+        """What a recording or input series must hold to drive these thrusters: "pwm" (µs),
+        "thrust" (N) or "propeller_rudder" (rps, rad)."""
+        return {"t200": "pwm", "propeller_rudder": "propeller_rudder"}.get(self.kind, "thrust")
+
+    def channel_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((lo, hi) of the first input, (lo, hi) of the second) in the engine's control units:
+        thrust N for thrusters, rps and rad for a propeller and rudder (±inf where none)."""
+        if self.kind == "propeller_rudder":
+            n = np.inf if self.rps_max is None else float(self.rps_max)
+            d = np.inf if self.rudder_max_deg is None else float(np.radians(self.rudder_max_deg))
+            return (-n, n), (-d, d)
+        return self.bounds(), self.bounds()
 
     def normalised(self, pwm_us):
         """δ̃ = δ/400 − 3.75 (seed 000 §V-B), clipped to the PWM range."""
@@ -75,6 +100,8 @@ class ThrusterModel:
         if self.kind == "t200":
             ends = self.thrust_from_pwm(np.array([self.pwm_min_us, self.pwm_max_us]))
             return float(ends[0]), float(ends[1])
+        if self.kind == "propeller_rudder":
+            return -np.inf, np.inf  # no thrust input: the inputs' own bounds are channel_bounds()
         lo = -np.inf if self.thrust_min_n is None else float(self.thrust_min_n)
         hi = np.inf if self.thrust_max_n is None else float(self.thrust_max_n)
         return lo, hi
@@ -106,7 +133,15 @@ class ThrusterModel:
         `held` are the inputs in force at t_s − delay_s (the caller looks them up):
         PWM in µs through eq. 27 (kind "pwm") or thrust in N (kind "thrust"), then
         the decay. Gains, lag and the advance-speed loss act later, in the engine.
+        A propeller and rudder's (n rps, δ rad) (kind "propeller_rudder") are the controls as
+        they are (the MMG forces clip them to the bounds).
         """
+        if self.kind == "propeller_rudder" or kind == "propeller_rudder":
+            if kind != self.input_kind:
+                raise ValueError(f"thrusters of kind '{self.kind}' are driven by {self.input_kind} inputs, "
+                                 f"not {kind}")
+            held = np.asarray(held, float)
+            return held * np.ones_like(np.asarray(t_s, float))[..., None]
         raw = self.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
         return raw * np.asarray(self.decay_factor(t_s))[..., None]
 

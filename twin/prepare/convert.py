@@ -3,11 +3,13 @@ synchronised onto one grid where that is possible.
 
 Where the recording has GNSS and heading, GNSS (as recorded: lat/lon/alt or
 north/east, no lever arm), heading and PWM are held onto the grid of seed 004
-§5.1 (prepare.py: causal zero-order hold, dropouts cut out), so every row of a
+§5.1 (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a
 CSV holds all three. A log without GNSS or heading (an ROV, a bench test, a
 broken receiver) cannot be prepared: its streams are written at their own times
 instead. IMU and battery always keep their own times, parameters and PWM neutral
-are carried, and the writer keeps what its format can hold (writers.py).
+are carried, and the writer keeps what its format can hold (twin.formats.write_recording).
+A propeller-and-rudder ship's inputs (prop_rudder) are held on the grid like the PWM; a
+measured wind keeps its own times.
 """
 from __future__ import annotations
 
@@ -42,13 +44,18 @@ def for_conversion(rec: Recording, grid_dt: float = 0.1) -> Conversion:
     gnss = Stream(t, {k: hold(rec.gnss.t, v, t) for k, v in rec.gnss.columns.items()})
     heading = Stream(t, {"psi_rad": np.angle(np.exp(1j * prep.psi))})
     pwm = Stream(t, {"left_us": prep.pwm[:, 0], "right_us": prep.pwm[:, 1]}) if len(rec.pwm) else rec.pwm
-    held = [name for name, s in (("gnss", gnss), ("heading", heading), ("pwm", pwm)) if len(s)]
+    prop_rudder = rec.prop_rudder
+    if not len(rec.pwm) and len(rec.prop_rudder):
+        prop_rudder = Stream(t, {"n_rps": prep.pwm[:, 0], "delta_rad": prep.pwm[:, 1]})
+    held = [name for name, s in (("gnss", gnss), ("heading", heading), ("pwm", pwm), ("prop_rudder", prop_rudder))
+            if len(s)]
     timing = (f"{', '.join(held)} synchronised on a {grid_dt:g} s grid ({len(t)} samples in "
               f"{len(prep.segments)} segment{'s' if len(prep.segments) != 1 else ''})")
-    own = [name for name in ("imu", "battery") if len(getattr(rec, name))]
+    own = [name for name in ("imu", "battery", "wind") if len(getattr(rec, name))]
     if own:
         timing += f"; {', '.join(own)} at {'their' if len(own) > 1 else 'its'} own times"
-    return Conversion(dataclasses.replace(rec, gnss=gnss, heading=heading, pwm=pwm), timing, True)
+    return Conversion(dataclasses.replace(rec, gnss=gnss, heading=heading, pwm=pwm, prop_rudder=prop_rudder),
+                      timing, True)
 
 
 def not_kept(rec: Recording, suffix: str) -> list[str]:
@@ -56,6 +63,11 @@ def not_kept(rec: Recording, suffix: str) -> list[str]:
     out = []
     if suffix == ".csv" and rec.parameters:
         out.append(f"the CSV layout has no place for the {len(rec.parameters)} parameters (use .mcap, .tlog or .bin)")
+    if suffix in (".tlog", ".bin"):
+        lost = [what for name, what in (("prop_rudder", "propeller and rudder inputs"), ("wind", "measured wind"))
+                if len(getattr(rec, name))]
+        if lost:
+            out.append(f"a {suffix} file has no place for the {' and the '.join(lost)} (use .mcap or .csv)")
     if suffix == ".tlog" and len(rec.imu) and not len(rec.heading):
         out.append("a .tlog carries the yaw rate in ATTITUDE with the heading: without heading the imu stream is lost")
     return out

@@ -25,6 +25,15 @@
    for δ̃ in (−0.0925, 0.0775), i.e. about −37..+31 µs around the neutral) is
    still classified by its sign, and flagged in `in_deadband` so that an
    identification can leave it out. Region "" when the recording has no PWM.
+7. Inputs: a recording holds PWM (µs) or a propeller-and-rudder ship's inputs (the prop_rudder
+   stream: n rps, δ rad). Either is held on the grid as the two input channels `pwm` (n, 2), and
+   `input_kind` ("pwm" or "propeller_rudder", as drive.InputSeries and ThrusterModel.command
+   name them) says which, so windows, replays and fits take them through the vessel's own
+   thruster model unchanged. A propeller and rudder has no operating regions of seed 004
+   (region "") and no dead band.
+8. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
+   (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
+   whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
 """
 from __future__ import annotations
 
@@ -84,8 +93,9 @@ class Prepared:
     """Synchronised samples at the grid times t (s, recording origin), segments
     concatenated: CO position north, east (m), heading psi (rad, unwrapped),
     body velocities u, v (m/s) and yaw rate r (rad/s), thruster PWM (n, 2) µs
-    (left, right; forward = higher), segment id (n,), region (n,) and
-    in_deadband (n, 2)."""
+    (left, right; forward = higher) or, when input_kind is "propeller_rudder", the
+    propeller speed (rps) and rudder angle (rad), segment id (n,), region (n,) and
+    in_deadband (n, 2); the measured wind (n, 2) when the recording has one (step 8)."""
 
     t: np.ndarray
     north: np.ndarray
@@ -103,6 +113,8 @@ class Prepared:
     origin: dict = field(default_factory=dict)
     settings: Preparation = field(default_factory=Preparation)
     dropped: list[tuple[str, int]] = field(default_factory=list)
+    input_kind: str = "pwm"  # what the two input channels `pwm` hold (step 7)
+    wind_ned: np.ndarray | None = None  # (n, 2) measured wind, the air's NED velocity m/s (step 8)
 
     def __repr__(self) -> str:
         return (f"Prepared({Path(self.settings.source).name or '?'}: {len(self.t)} samples every "
@@ -128,10 +140,12 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     north_o, east_o, origin = local_ned(rec.gnss)
     pos = Stream(rec.gnss.t, {"north": north_o, "east": east_o})
     hdg = Stream(rec.heading.t, {"psi": np.unwrap(rec.heading["psi_rad"])})
-    needed = [pos, hdg] + ([rec.pwm] if len(rec.pwm) else [])
+    inputs = rec.pwm if len(rec.pwm) else rec.prop_rudder
+    needed = [pos, hdg] + ([inputs] if len(inputs) else [])
     grid = _grid(needed, grid_dt)
     if grid is None:
-        raise TwinError(f"{name}: the GNSS, heading and PWM streams do not overlap in time")
+        raise TwinError(f"{name}: the GNSS, heading and {'PWM' if inputs is rec.pwm else 'input'} streams "
+                        "do not overlap in time")
     valid = np.ones(len(grid), bool)
     for s in needed:
         valid &= _fresh(s.t, grid, max_gap_s)
@@ -149,12 +163,12 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
     rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder)
     north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
-    pwm, region, dead = _inputs(rec, t, deadband_us)
+    pwm, region, dead, input_kind = _inputs(rec, t, deadband_us)
     settings = Preparation(grid_dt, smoother, window_s, heading_window_s, polyorder, max_gap_s, min_segment_s,
                            tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
                            rec.source)
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
-                    tuple(rec.pwm_neutral_us), origin, settings, dropped)
+                    tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t))
 
 
 def _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s) -> None:
@@ -314,18 +328,47 @@ def derivative(x: np.ndarray, dt: float, smoother: str, window_s: float, polyord
 
 # ---------------------------------------------------------------- inputs
 
-def _inputs(rec: Recording, t: np.ndarray, deadband_us) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _inputs(rec: Recording, t: np.ndarray, deadband_us) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """PWM held on the grid (n, 2), region ("ff", "fr", "rf", "rr"; "" without PWM)
-    and the dead-band flags (n, 2)."""
+    and the dead-band flags (n, 2), and the input kind; a propeller and rudder's (n, δ) in
+    place of the PWM (step 7)."""
     if not len(rec.pwm):
+        pr = rec.prop_rudder
+        if len(pr):
+            held = np.column_stack([hold(pr.t, pr["n_rps"], t), hold(pr.t, pr["delta_rad"], t)])
+            return held, np.full(len(t), "", dtype="<U2"), np.zeros((len(t), 2), bool), "propeller_rudder"
         nan = np.full((len(t), 2), np.nan)
-        return nan, np.full(len(t), "", dtype="<U2"), np.zeros((len(t), 2), bool)
+        return nan, np.full(len(t), "", dtype="<U2"), np.zeros((len(t), 2), bool), "pwm"
     pwm = np.column_stack([hold(rec.pwm.t, rec.pwm["left_us"], t), hold(rec.pwm.t, rec.pwm["right_us"], t)])
     offset = pwm - np.asarray(rec.pwm_neutral_us, float)
     letters = np.where(offset >= 0, "f", "r")  # by sign, dead band included (module docstring)
     region = np.char.add(letters[:, 0], letters[:, 1]).astype("<U2")
     dead = (offset > deadband_us[0]) & (offset < deadband_us[1])
-    return pwm, region, dead
+    return pwm, region, dead, "pwm"
+
+
+def wind_series(prep: Prepared, sl: slice):
+    """The measured wind of the grid samples `sl` as a drive.WindSeries on their own clock (t − t[0]),
+    for sim.simulate(..., wind=...) and analytic.simulate; TwinError without a measured wind."""
+    from ..drive import WindSeries
+
+    if prep.wind_ned is None:
+        raise TwinError(f"{Path(prep.settings.source or 'the recording').name}: no measured wind")
+    t, air = prep.t[sl], prep.wind_ned[sl]
+    ok = np.all(np.isfinite(air), axis=1)
+    if not ok.any():
+        raise TwinError(f"{Path(prep.settings.source or 'the recording').name}: no measured wind in these samples")
+    return WindSeries(t[ok] - t[0], air[ok])
+
+
+def measured_wind(rec: Recording, t: np.ndarray) -> np.ndarray | None:
+    """The wind stream held on the grid as the air's NED velocity (m/s; step 8), None without one."""
+    w = rec.wind
+    if not w.has("speed_m_s", "from_deg"):
+        return None
+    a = np.radians(w["from_deg"])
+    north, east = -w["speed_m_s"] * np.cos(a), -w["speed_m_s"] * np.sin(a)
+    return np.column_stack([hold(w.t, north, t), hold(w.t, east, t)])
 
 
 def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:

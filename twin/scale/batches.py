@@ -20,8 +20,9 @@ from __future__ import annotations
 import logging
 import math
 import os
+import socket
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Iterator, Protocol, Sequence
+from typing import Any, Callable, Iterator, Protocol, Sequence
 
 import numpy as np
 
@@ -195,6 +196,8 @@ def connect(ray, address: str, init_options: dict | None = None) -> bool:
         return False
     options = {"logging_level": logging.WARNING, "log_to_driver": False, "include_dashboard": False,
                **(init_options or {})}
+    if address not in ("auto", "local"):
+        check_reachable(address)
     try:
         if address == "local":
             ray.init(num_cpus=options.pop("num_cpus", os.cpu_count() or 1), **options)
@@ -208,6 +211,19 @@ def connect(ray, address: str, init_options: dict | None = None) -> bool:
     return True
 
 
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """TwinError unless something listens at HOST:PORT of the address: Ray itself retries an
+    unreachable head for minutes (ray://) to a quarter of an hour (HOST:PORT) before it gives up."""
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise TwinError(f"--ray {address}: expected auto, local, ray://HOST:PORT or HOST:PORT")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise TwinError(f"--ray {address}: nothing answers there ({exc.strerror or exc}); is the head running "
+                        "(`ray start --head`) and its port open?") from None
+
+
 def cluster_cpus(ray) -> int:
     return max(1, int(math.floor(ray.cluster_resources().get("CPU", 1))))
 
@@ -219,16 +235,7 @@ def executor_from(ray: str | None, *, cpus_per_task: int = 1, retries: int = 3,
         return LocalExecutor(nthread)
     if not ray.strip():
         raise TwinError("--ray needs auto, local or an address (ray://HOST:10001 or HOST:6379)")
+    if ray.strip() not in ("auto", "local"):
+        check_reachable(ray.strip())  # before any work is done
     return RayExecutor(ray.strip(), cpus_per_task=cpus_per_task, max_retries=retries)
 
-
-def chunks(items: Iterable[Any], size: int) -> Iterator[list[Any]]:
-    """items in lists of `size` (the last one shorter)."""
-    out: list[Any] = []
-    for item in items:
-        out.append(item)
-        if len(out) == size:
-            yield out
-            out = []
-    if out:
-        yield out

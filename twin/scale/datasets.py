@@ -63,7 +63,8 @@ class Settings:
             raise TwinError("a dataset needs at least one vessel, one vessel per shard and one segment each")
         unknown = [m for m in self.manoeuvres if m not in man.ALL]
         if unknown or not self.manoeuvres:
-            raise TwinError(f"unknown manoeuvre(s) {', '.join(unknown) or '(none given)'} (known: {', '.join(man.ALL)})")
+            raise TwinError(f"unknown manoeuvre(s) {', '.join(unknown) or '(none given)'} "
+                            f"(known: {', '.join(man.ALL)})")
 
     def to_dict(self) -> dict:
         return {"vessels": self.vessels, "per_shard": self.per_shard, "segments": self.segments,

@@ -175,9 +175,10 @@ class Drawn:
         """The vessel with its effects applied (what is simulated)."""
         return apply_effects(self.vessel, self.effects) if self.effects else self.vessel
 
-    def coordinates(self, names: list[dict]) -> list[float]:
-        """The drawn values of the uncertainty block's coordinates (its own units: ln|θ| where log)."""
-        known = coefficients(self.vessel)
+    def coordinates(self, names: list[dict], known: dict | None = None) -> list[float]:
+        """The drawn values of the uncertainty block's coordinates (its own units: ln|θ| where log);
+        known: `coefficients` of the vessel drawn from, if at hand."""
+        known = known or coefficients(self.vessel)
         out = []
         for c in names:
             x = known[c["name"]].get(self.vessel)

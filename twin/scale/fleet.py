@@ -5,7 +5,8 @@ Each log is diagnosed alone against its vessel (a log's effects are its own: a c
 Tuesday is not Wednesday's). Logs go to the workers as bytes, read when their batch is
 submitted, and reports come back as data, so a cluster needs no shared file system; the
 driver writes every report atomically as it arrives. A log that cannot be diagnosed (no PWM,
-too short) is reported with its one-line reason and the others go on.
+too short, or an unexpected error in its diagnosis) is reported with its one-line reason and
+the others go on: one bad log must not end a month's job.
 
 Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manifest CSV with a
 `recording` column and optional `vessel` (a shipped name or a vessel file) and `day`
@@ -131,8 +132,9 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
                 page = Path(folder) / "report.html"
                 write_html(result, page)
                 out["html"] = page.read_bytes()
-        except TwinError as exc:
-            out.update(ok=False, error=str(exc))
+        except Exception as exc:  # one log's failure, expected (TwinError) or not, must not end a month's job
+            text = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}".splitlines()[0]
+            out.update(ok=False, error=text)
             out.setdefault("day", item.day or item.file_day)
             out.setdefault("day_from", "manifest" if item.day else "file time")
     out["seconds"] = round(time.perf_counter() - started, 3)
@@ -307,6 +309,7 @@ def _effect_table(effects: dict, diagnosed: int) -> list[str]:
         return ["no effect found" if diagnosed else "no log diagnosed"]
     rows = ["| effect | logs | share | parameters: median [min, max] |", "| --- | ---: | ---: | --- |"]
     for name, e in effects.items():
-        params = "; ".join(f"{k} {p['median']:.3g} [{p['min']:.3g}, {p['max']:.3g}]" for k, p in e["parameters"].items())
+        params = "; ".join(f"{k} {p['median']:.3g} [{p['min']:.3g}, {p['max']:.3g}]"
+                           for k, p in e["parameters"].items())
         rows.append(f"| {name} | {e['logs']} | {100 * e['share']:.0f} % | {params} |")
     return rows

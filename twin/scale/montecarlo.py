@@ -22,7 +22,7 @@ measured states, driven by its PWM; the share of the measured samples inside the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -30,6 +30,7 @@ import numpy as np
 from ..drive import InputSeries
 from ..engine import batch as engine
 from ..engine.callbacks import _joint_indices
+from ..effects import coefficients
 from ..errors import TwinError
 from ..fit.windows import ModelCache, Window, as_measured, make_windows, measured, predict
 from ..physics.kinematics import wrap_angle
@@ -112,7 +113,7 @@ def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache |
     n_samples = nstep // every + 1
     out = np.full((len(vessels), n_samples, len(STATE)), np.nan)
     diverged: list[int] = []
-    states0 = [engine.initial_state(m, mission.eta0, mission.nu0) for m in models]
+    states0 = _start_states(models, mission)
     for rows in _by_state_size(states0).values():
         sub = [models[i] for i in rows]
         traj, bad = _sampled_rollout(sub, np.array([states0[i] for i in rows]), controls[rows], every)
@@ -122,16 +123,29 @@ def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache |
 
 
 def _controls(vessels: list[Vessel], mission: Mission, nstep: int, h: float) -> np.ndarray:
-    """(n, nstep, 2) thrust commands; computed once per distinct thruster model (a draw that
-    leaves the thrust curve alone shares it)."""
+    """(n, nstep, 2) thrust commands; computed once per distinct thrust curve (the gains act in
+    the engine, after the command: a draw of thrust_gain shares its curve)."""
     times = np.arange(nstep) * h
     done: dict = {}
     out = np.empty((len(vessels), nstep, 2))
     for i, v in enumerate(vessels):
-        key = v.thrusters
+        key = replace(v.thrusters, gain_left=1.0, gain_right=1.0)
         if key not in done:
             done[key] = mission.inputs.commanded_thrust(v.thrusters, times, 0.0)
         out[i] = done[key]
+    return out
+
+
+def _start_states(models, mission: Mission) -> list[np.ndarray]:
+    """Each twin's full-physics start state: one per model layout, since it holds the state
+    (time, joints, thrust lag) and not the parameters."""
+    layouts: dict[tuple[int, int, int], np.ndarray] = {}
+    out = []
+    for m in models:
+        key = (m.nq, m.nv, m.na)
+        if key not in layouts:
+            layouts[key] = engine.initial_state(m, mission.eta0, mission.nu0)
+        out.append(layouts[key])
     return out
 
 
@@ -214,7 +228,8 @@ def run_batch(job: _Job, b: Batch, extra=None) -> BatchResult:
     drawn, rejected = job.variation.draw(job.vessel, b.size, b.rng())
     tracks, diverged = simulate_tracks([d.truth() for d in drawn], job.mission, _cache(job))
     names = job.vessel.uncertainty.get("coordinates", []) if job.variation.covariance else []
-    coords = np.array([d.coordinates(names) for d in drawn], float).reshape(len(drawn), len(names))
+    known = coefficients(job.vessel)
+    coords = np.array([d.coordinates(names, known) for d in drawn], float).reshape(len(drawn), len(names))
     return BatchResult(tracks, tuple(diverged), rejected, coords)
 
 
@@ -361,6 +376,16 @@ def _tag(p: float) -> str:
     return f"p{p:02g}"
 
 
+def check_variation(vessel: Vessel, variation: Variation) -> None:
+    """TwinError unless the draws of `variation` can differ, and the vessel has what they draw from."""
+    if not variation.varies:
+        raise TwinError("nothing varies between the draws: give a vessel file with an uncertainty block "
+                        "(twin identify writes one) or --vary / --effect ranges")
+    if variation.covariance and not vessel.uncertainty:
+        raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty: use a vessel file "
+                        "written by `twin identify`, or give --vary / --effect ranges with --no-covariance")
+
+
 def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variation: Variation | None = None,
         level: float = 0.9, batch_size: int = 64, executor: Executor | None = None, keep_tracks: int = 50,
         progress: Progress | None = None) -> MonteCarlo:
@@ -370,12 +395,7 @@ def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variatio
     import time
 
     variation = variation or Variation(covariance=True)
-    if not variation.varies:
-        raise TwinError("nothing varies between the draws: give a vessel file with an uncertainty block "
-                        "(twin identify writes one) or --vary / --effect ranges")
-    if variation.covariance and not vessel.uncertainty:
-        raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty: use a vessel file "
-                        "written by `twin identify`, or give --vary / --effect ranges with --no-covariance")
+    check_variation(vessel, variation)
     level_percentiles(level)
     batches = plan(draws, batch_size, seed)
     executor = executor or LocalExecutor()

@@ -9,7 +9,7 @@ logs at their real rates and noise (seed 004 §3, Table 1):
   PWM      the autopilot's output, every 100 ms, integer µs, stamped with the
            sensors' PWM clock offset
 
-The result is a `Recording` (written by `twin.recordings.write_recording` as .tlog,
+The result is a `Recording` (written by `twin.formats.write_recording` as .tlog,
 .mcap or .csv) and, separately, the truth: the truth vessel, the effects, the noise,
 the seed and the noise-free states. Identification never reads the truth.
 Open-loop segments run in one batch (`engine.batch.simulate_many`); closed-loop
@@ -29,6 +29,7 @@ from ..geodesy import geodetic_from_ned
 from ..drive import InputSeries
 from ..physics.kinematics import wrap_angle
 from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading
+from ..progress import Progress, steps
 from ..recording import Recording, Stream
 from ..run import Run
 from ..vessel import Vessel
@@ -103,9 +104,10 @@ def _rounded(a: np.ndarray, digits: int = 6) -> list[float]:
 
 def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: list[str] | None = None, seed: int = 0,
              noise: SensorNoise = SensorNoise(), gap_s: float = 6.0,
-             segment_s: tuple[float, float] = (40.0, 90.0)) -> Dataset:
+             segment_s: tuple[float, float] = (40.0, 90.0), progress: Progress | None = None) -> Dataset:
     """A dataset of `n_segments` manoeuvres of the vessel with `effects` injected (see
-    twin.ident.effects), logged by noisy sensors; reproducible from `seed`."""
+    twin.effects), logged by noisy sensors; reproducible from `seed`. `progress` hears which
+    segment (k of n) is simulated, then logged."""
     truth = apply_effects(vessel, effects)
     if truth.thrusters.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a dataset logs PWM")
@@ -115,18 +117,20 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     starts = np.cumsum([0.0] + [m.duration_s + gap_s for m in plan[:-1]])
     eta0 = [(float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-np.pi, np.pi)))
             for _ in plan]
-    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s)
-    recording = _log(compiled, runs, noise, rng, f"synthetic:{vessel.name}:seed{seed}")
+    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress))
+    recording = _log(compiled, runs, noise, rng, f"synthetic:{vessel.name}:seed{seed}", steps(progress))
     return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
 
 
 LEAD_IN_S = 5.0  # unlogged seconds before each segment: a logged segment starts under way, as real ones do
 
 
-def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float) -> list[Run]:
+def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, progress: Progress) -> list[Run]:
     runs: list[Run | None] = [None] * len(plan)
     open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)]
     if open_idx:
+        # open-loop segments run together in one batch: one report for all of them
+        progress(f"simulating {len(open_idx)} open-loop segments in one batch", 0, len(plan))
         batch = simulate_many(compiled, [_led_in(plan[i].drive) for i in open_idx],
                               [plan[i].duration_s + LEAD_IN_S for i in open_idx], eta0=[eta0[i] for i in open_idx],
                               start_s=[starts[i] - LEAD_IN_S for i in open_idx], sample_dt_s=sample_dt_s)
@@ -138,8 +142,11 @@ def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float) 
                             f"({batch.describe_divergence()})")
         for i, run in zip(open_idx, batch):
             runs[i] = run
+    done = len(open_idx)
     for i, m in enumerate(plan):
         if runs[i] is None:
+            progress(f"simulating segment {i + 1} of {len(plan)} ({m.name}, closed loop)", done, len(plan))
+            done += 1
             runs[i] = simulate(compiled, m.drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
                                sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S)
     return [_logged_part(r, float(t0)) for r, t0 in zip(runs, starts)]
@@ -176,11 +183,12 @@ def _wander(rng: np.random.Generator, n: int, dt: float, sigma: float, scale_s: 
 
 
 def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.random.Generator,
-         source: str) -> Recording:
+         source: str, progress: Progress) -> Recording:
     vessel = compiled.vessel
     antenna = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
     g_t, g_n, g_e, h_t, h_psi, p_t, p_v = [], [], [], [], [], [], []
-    for run in runs:
+    for k, run in enumerate(runs):
+        progress(f"logging segment {k + 1} of {len(runs)} (sensors and noise)", k, len(runs))
         t0, t1 = float(run.t[0]), float(run.t[-1])
         tg = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.gnss_dt_s)
         n_a, e_a = antenna_ned(run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], antenna)

@@ -2,7 +2,13 @@
 one physics. Run for the full model and for each force term alone, so that a
 term computed but never applied (or applied with a wrong sign or frame)
 cannot hide: every term case also reports how far the term moves the vessel
-("effect"), which must dwarf the tolerance."""
+("effect"), which must dwarf the tolerance.
+
+A propeller-and-rudder ship (MMG standard method) has its own cases: the MMG hull, propeller
+and rudder forces each alone, its Fujiwara wind load under a constant wind and under a
+time-varying (measured-like, gusty) wind series, the added mass's Coriolis terms without the
+Munk moment, the current through the hull forces; its zig-zag steers with the rudder at full
+propeller speed."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -11,6 +17,7 @@ import numpy as np
 
 from .. import analytic
 from .. import drive as scenarios
+from ..drive import WindSeries
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..engine.sim import simulate
 from ..errors import TwinError
@@ -25,6 +32,10 @@ POSITION_TOL_M = 0.01
 HEADING_TOL_DEG = 0.1
 NU0_TERMS = (0.8, 0.2, 0.2)
 TERM_ENV = Environment(current_speed_m_s=0.4, current_dir_deg=60.0, wind_speed_m_s=8.0, wind_dir_deg=200.0)
+# a 3-m ship model in a pond: its own speeds (m/s, rad/s) and a pond's current and wind
+SHIP_NU0_TERMS = (0.3, 0.03, 0.02)
+SHIP_TERM_ENV = Environment(current_speed_m_s=0.1, current_dir_deg=60.0, wind_speed_m_s=2.0, wind_dir_deg=200.0)
+SHIP_GUST_SEED = 20240516
 
 
 @dataclass(frozen=True)
@@ -34,9 +45,44 @@ class Case:
     environment: Environment
     nu0: tuple[float, float, float]
     baseline: Terms | None  # the case without the term, to measure the term's effect
+    wind: WindSeries | None = None  # a time-varying wind on the run's clock (replaces the environment's)
 
 
-def cases() -> list[Case]:
+def gusty_wind(duration_s: float = 600.0, seed: int = SHIP_GUST_SEED) -> WindSeries:
+    """A measured-like wind for the checks: 10 Hz samples of a mean 1.7 m/s from 135° with gusts
+    (σ 0.6 m/s, a random walk in direction, σ 3° per s^½), as the Esso tests log (docs/esso.md)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration_s, 0.1)
+    speed = np.abs(1.7 + 0.6 * np.convolve(rng.standard_normal(len(t)), np.ones(20) / np.sqrt(20), "same"))
+    direction = 135.0 + np.cumsum(rng.standard_normal(len(t))) * 3.0 * np.sqrt(0.1)
+    return WindSeries.from_speed_direction(t, speed, direction)
+
+
+def ship_cases() -> list[Case]:
+    """The cases of a propeller-and-rudder ship (module docstring)."""
+    none = Terms().only()
+    env, nu0 = SHIP_TERM_ENV, SHIP_NU0_TERMS
+    calm = Environment()
+    return [
+        Case("full", Terms(), calm, (0.2, 0.0, 0.0), None),
+        Case("rigid_body", none, calm, nu0, None),
+        Case("added_mass", none.only("added_mass"), calm, nu0, none),
+        Case("coriolis", none.only("added_mass_coriolis"), calm, nu0, none),
+        Case("mmg_hull", none.only("mmg_hull"), calm, nu0, none),
+        Case("propeller", none.only("propeller"), calm, nu0, none),
+        Case("rudder", none.only("rudder"), calm, nu0, none),
+        Case("current", none.only("mmg_hull", "current"), env, nu0, none.only("mmg_hull")),
+        Case("wind", none.only("wind"), env, nu0, none),
+        Case("wind_series", none.only("wind"), calm, nu0, none, gusty_wind()),
+        Case("full_environment", Terms(), env, (0.2, 0.0, 0.0), Terms(current=False, wind=False)),
+        Case("full_wind_series", Terms(), calm, (0.2, 0.0, 0.0), Terms(wind=False), gusty_wind()),
+    ]
+
+
+def cases(vessel: Vessel | None = None) -> list[Case]:
+    """The term cases of the vessel's kind (default: a twin-thruster vessel's)."""
+    if vessel is not None and vessel.thrusters.kind == "propeller_rudder":
+        return ship_cases()
     none = Terms().only()
     env = TERM_ENV
     return [
@@ -77,21 +123,29 @@ def _compare(a: Run, b: Run) -> tuple[float, float]:
     return pos, head
 
 
+def zigzag_for(vessel: Vessel):
+    """The check's zig-zag: the scenario's, or for a ship the rudder at half its bound (20°) and the
+    propeller at full speed, switched at ±10° of heading."""
+    if vessel.thrusters.kind == "propeller_rudder":
+        return scenarios.ZigZag(surge=1.0, yaw=0.5, switch_deg=10.0, at_s=5.0)
+    return scenarios.get("zigzag")
+
+
 def run_case(compiled: CompiledVessel, case: Case, duration_s: float, inputs=None) -> Result:
     vessel = replace(compiled.vessel, environment=case.environment)
     cv = CompiledVessel(vessel, compiled.model, compiled.geometry)
-    drive = inputs if inputs is not None else scenarios.get("zigzag")
+    drive = inputs if inputs is not None else zigzag_for(vessel)
     try:
-        eng = simulate(cv, drive, duration_s, nu0=case.nu0, terms=case.terms)
+        eng = simulate(cv, drive, duration_s, nu0=case.nu0, terms=case.terms, wind=case.wind)
     except TwinError as exc:  # say which term case blew up: the full model may be fine
         raise TwinError(f"crosscheck case '{case.name}': {exc}") from None
     ana = analytic.simulate(cv.hydro(case.terms), vessel.thrusters, cv.geometry.thruster_y_m,
-                            eng.meta["inputs"], eng.t, nu0=np.array(case.nu0))
+                            eng.meta["inputs"], eng.t, nu0=np.array(case.nu0), wind=case.wind)
     pos, head = _compare(eng, ana)
     effect = None
     if case.baseline is not None:
         base = analytic.simulate(cv.hydro(case.baseline), vessel.thrusters, cv.geometry.thruster_y_m,
-                                 eng.meta["inputs"], eng.t, nu0=np.array(case.nu0))
+                                 eng.meta["inputs"], eng.t, nu0=np.array(case.nu0), wind=case.wind)
         effect = _compare(ana, base)[0]
     return Result(case.name, pos, head, effect, eng, ana)
 
@@ -102,7 +156,7 @@ def crosscheck(vessel: Vessel, duration_s: float = 120.0, only: list[str] | None
     compiled = compile_vessel(vessel)
     results: list[Result] = []
     inputs = None
-    chosen = [c for c in cases() if not only or c.name in only or c.name == "full"]
+    chosen = [c for c in cases(vessel) if not only or c.name in only or c.name == "full"]
     for k, case in enumerate(chosen):
         steps(progress)(f"case {case.name}", k, len(chosen))
         res = run_case(compiled, case, duration_s, inputs)

@@ -19,7 +19,7 @@ import numpy as np
 from ..engine.mjcf import CompiledVessel, compile_vessel, edited_spec
 from ..errors import TwinError
 from ..physics import added_mass as am
-from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_for_mass
+from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_for_mass, waterplane_extent
 from ..physics.thrusters import force_torque_bounds
 from ..references import SEED000, SEED002
 from ..vessel import Vessel
@@ -474,6 +474,30 @@ def _seed002(compiled: CompiledVessel) -> list[Quantity]:
     return out
 
 
+def _ship_particulars(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantity]:
+    """A ship with an MMG description: its published particulars (the vessel file's mmg block) against
+    the hull mesh at the design waterline z = 0 (scripts/make_hull_meshes.py builds it from them)."""
+    m = compiled.vessel.mmg
+    if m is None or not meshes:
+        return []
+    placed = [(h["mesh"].vertices, h["mesh"].faces) for h in meshes]
+    volume_m3 = sum(submerged_volume(v, f, 0.0)[0] for v, f in placed)
+    length_m, breadth_m = waterplane_extent(*placed[0], 0.0)
+    draft_m = max(float(v[:, 2].max()) for v, _ in placed)
+    box_m3 = m.lpp_m * m.breadth_m * m.draft_m
+    mass_why = (f"the particulars' displacement L·B·d·C_b = {box_m3 * m.block_coefficient * 1e3:.1f} L floats "
+                f"{box_m3 * m.block_coefficient * m.rho_kg_m3:.1f} kg of {m.rho_kg_m3:g} kg/m³ water against the "
+                f"published mass {compiled.geometry.rigid.mass_kg:g} kg: the particulars are rounded")
+    return [
+        Quantity("L_pp (waterline length)", "m", table=m.lpp_m, mesh=length_m),
+        Quantity("breadth B", "m", table=m.breadth_m, mesh=breadth_m),
+        Quantity("draft d", "m", table=m.draft_m, mesh=draft_m),
+        Quantity("block coefficient C_b", "-", table=m.block_coefficient, mesh=volume_m3 / box_m3),
+        Quantity("displacement at the draft", "L", analytic=compiled.geometry.rigid.mass_kg / m.rho_kg_m3 * 1e3,
+                 table=box_m3 * m.block_coefficient * 1e3, mesh=volume_m3 * 1e3, explanation=mass_why),
+    ]
+
+
 def _generic(compiled: CompiledVessel) -> list[Quantity]:
     r = compiled.geometry.rigid
     return [Quantity("m", "kg", engine=r.mass_kg, reference="engine"),
@@ -496,7 +520,7 @@ def validate(vessel: Vessel) -> Validation:
     elif vessel.name == "cybership1":
         qs = _seed002(compiled)
     else:
-        qs = _generic(compiled)
+        qs = _generic(compiled) + _ship_particulars(compiled, meshes)
     qs += _mesh_quantities(compiled, meshes)
     hydro_qs, flotation = _hydrostatics(compiled, case, meshes)
     qs += hydro_qs

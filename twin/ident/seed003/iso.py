@@ -24,6 +24,21 @@ The twin has linear *and* quadratic damping, so neither one-term drag model is
 exact: the describing-function equivalents at the measured speed amplitude
 ν_m = ω Xm are β_ν ≈ d₁ + 8/(3π)·d₂·ν_m and β_νν ≈ d₂ + 3π/(8 ν_m)·d₁, where
 d₁ = −Nr (−Xu), d₂ = −Nrr (−Xuu).
+
+A propeller-and-rudder ship (the Esso Osaka twin) is identified in yaw with the rudder as the
+relay, as seed 003 §V-A does its tanker model (Table II: "IS-O results for the ship model yaw
+DOF using the rudder", at several propeller speeds and rudder angles): the propeller turns at a
+constant n, the ship starts from its straight-running speed u₀(n) (δ = 0, no wind), and the
+relay puts the rudder at ±δ_c, switching when the heading error passes ±xa. The relay output C
+of Table I is the yaw moment that rudder angle gives: the seed's allocation N = L₁ k_F δ τ₁
+(eq. 4), here the MMG rudder moment N_R(δ_c) at the operating point (u₀, 0, 0) and n, so α and
+β come out in kg·m² and N·m·s (the seed reports them divided by its unknown k_F). Surge and
+sway make no sense for it here: the ship has no sway actuator, and its one propeller's thrust
+depends on the advance speed and is not symmetric astern (K_T(J)), so a relay in rps is no
+relay in force. The twin's own uncoupled yaw values to compare with are M₃₃ (I_z about midship
+with the added J_z) and −∂N/∂r at the operating point (hull, propeller and rudder), the
+derivative the relay's small oscillations see; the sway coupling (Y_R, N'_v) that a ship
+cannot avoid makes IS-O's α and β effective values, not these.
 """
 from __future__ import annotations
 
@@ -34,10 +49,16 @@ import numpy as np
 
 from ...errors import TwinError
 from ...physics.kinematics import wrap_angle
+from ...progress import Progress, steps
 from ...physics.thrusters import allocation_matrix
 
 DOFS = ("yaw", "surge", "sway")
 CONTROL_DT_S = 0.02  # autopilot rate of the relay, s
+SHIP_CONTROL_DT_S = 0.1  # a ship's relay at the Esso tests' 10 Hz, s
+SHIP_XA_RAD = math.radians(1.0)
+SHIP_DURATION_S = 900.0  # its yaw period is tens of seconds: enough for ~10 periods after the transient
+SHIP_RUDDER_DEG = (10.0, 15.0, 20.0, 25.0, 30.0, 35.0)  # seed 003 Table II's range of rudder angles
+SHIP_RPS = (8.0, 10.0)  # the Esso turning tests' propeller speeds
 DEFAULT_XA = {"yaw": math.radians(1.0), "surge": 0.25}  # rad, m: ωα/β ≈ 1 on the Yellowfish (see module doc)
 DEFAULT_DURATION_S = {"yaw": 30.0, "surge": 150.0}
 DEFAULT_FRACTIONS = (0.2, 0.33, 0.46, 0.6, 0.73, 0.86, 1.0)  # of the largest relay output the thrusters give
@@ -175,9 +196,15 @@ def relay_limit(thruster_y_m: tuple[float, float], bounds_n: tuple[float, float]
     return float(min(min(t_max / abs(c), -t_min / abs(c)) for c in column if c != 0))
 
 
-def check_dof(vessel_name: str, dof: str) -> None:
+def check_dof(vessel_name: str, dof: str, kind: str = "t200") -> None:
     if dof not in DOFS:
         raise TwinError(f"unknown DOF '{dof}' (yaw, surge or sway)")
+    if kind == "propeller_rudder" and dof != "yaw":
+        why = ("it has no sway actuator (one propeller along body x, one rudder)" if dof == "sway" else
+               "its one propeller's thrust depends on the advance speed and is not symmetric astern (K_T(J)), "
+               "so a relay in rps is no relay in force")
+        raise TwinError(f"{dof}: vessel '{vessel_name}' is a propeller-and-rudder ship: {why}; identify yaw "
+                        "(the rudder as the relay)")
     if dof == "sway":  # the twin's thrusters only ever push along body x (allocation row Y = 0)
         raise TwinError(f"sway: vessel '{vessel_name}' has no sway actuator (both thrusters push along "
                         "body x, allocation row Y = 0), so no relay can drive v; identify yaw or surge")
@@ -185,7 +212,8 @@ def check_dof(vessel_name: str, dof: str) -> None:
 
 @dataclass(frozen=True)
 class IsoRow:
-    """One IS-O experiment: relay output, the oscillation and Table I."""
+    """One IS-O experiment: relay output, the oscillation and Table I (a ship's rudder angle and
+    propeller speed too)."""
 
     relay_c: float
     xa_set: float
@@ -195,6 +223,9 @@ class IsoRow:
     speed_amplitude: float  # ν_m = ω Xm
     beta_lin_equivalent: float  # the twin's two-term drag seen by the relay (module docstring)
     beta_quad_equivalent: float
+    rudder_deg: float | None = None  # a ship's relay in rudder angle: ±δ_c
+    rps: float | None = None  # its propeller speed
+    speed_m_s: float | None = None  # its straight-running speed u₀ at that propeller speed
 
 
 @dataclass(frozen=True)
@@ -213,15 +244,133 @@ def twin_uncoupled(compiled, dof: str) -> TwinUncoupled:
     return TwinUncoupled(float(M[0, 0]), -d.Xu, -d.Xuu)
 
 
-def iso_row(relay_c: float, xa: float, log: np.ndarray, settle_s: float, twin: TwinUncoupled) -> IsoRow:
+def iso_row(relay_c: float, xa: float, log: np.ndarray, settle_s: float, twin: TwinUncoupled, **ship) -> IsoRow:
     osc = measure_oscillation(log[:, 0], log[:, 1], log[:, 2], settle_s)
     speed = osc.frequency_rad_s * osc.amplitude_xm
     return IsoRow(
         relay_c=relay_c, xa_set=xa, oscillation=osc, estimate=table_i(relay_c, osc.xa_eff, osc),
         alpha_at_set_xa=table_i(relay_c, xa, osc).alpha, speed_amplitude=speed,
         beta_lin_equivalent=twin.drag_lin + 8 / (3 * math.pi) * twin.drag_quad * speed,
-        beta_quad_equivalent=twin.drag_quad + 3 * math.pi / (8 * speed) * twin.drag_lin,
+        beta_quad_equivalent=twin.drag_quad + 3 * math.pi / (8 * speed) * twin.drag_lin, **ship,
     )
+
+
+# ---------------------------------------------------------------- a propeller-and-rudder ship
+
+def is_ship(compiled) -> bool:
+    return compiled.vessel.thrusters.kind == "propeller_rudder"
+
+
+def straight_speed(compiled, n_rps: float) -> float:
+    """u₀ (m/s): the steady straight-running speed at propeller speed n with the rudder amidships, in
+    calm water (X(u₀, 0, 0) = 0 of the MMG forces)."""
+    from scipy.optimize import brentq
+
+    from ...physics.hydrodynamics import acceleration
+
+    hydro = compiled.hydro().with_environment(type(compiled.vessel.environment)())
+
+    def surge(u: float) -> float:
+        return float(acceleration(hydro, 0.0, np.array([u, 0.0, 0.0]), np.zeros(3), (n_rps, 0.0))[0])
+
+    hi = 0.1
+    while surge(hi) > 0 and hi < 20:
+        hi *= 2
+    return float(brentq(surge, 0.0, hi, xtol=1e-10)) if surge(0.0) > 0 else 0.0
+
+
+def rudder_moment(compiled, speed_m_s: float, n_rps: float, rudder_rad: float) -> float:
+    """N_R (N·m): the MMG rudder moment at the straight-running state (u₀, 0, 0): the relay's C and the
+    I-PD's allocation (seed 003 eq. 4's N = L₁ k_F δ τ₁)."""
+    from ...physics.hydrodynamics import Terms, mmg_forces
+
+    hydro = compiled.hydro(Terms().only("rudder"))
+    return float(mmg_forces(hydro, np.array([speed_m_s, 0.0, 0.0]), (n_rps, rudder_rad))[2])
+
+
+def ship_twin_uncoupled(compiled, n_rps: float) -> TwinUncoupled:
+    """M₃₃ and −∂N/∂r at (u₀(n), 0, 0) with the rudder amidships (hull, propeller, rudder)."""
+    from ...physics.hydrodynamics import mmg_forces
+
+    hydro, u0, h = compiled.hydro(), straight_speed(compiled, n_rps), 1e-6
+    n_at = [mmg_forces(hydro, np.array([u0, 0.0, r]), (n_rps, 0.0))[2] for r in (-h, h)]
+    return TwinUncoupled(float(hydro.M[2, 2]), float(-(n_at[1] - n_at[0]) / (2 * h)), 0.0)
+
+
+class RudderRelayExperiment:
+    """Seed 003 Fig. 4 with the rudder: e = ψ_ref − ψ (wrapped), rudder ±δ_c (the relay), propeller at n;
+    returns (n rps, δ rad) and logs (t, e, C·sign) with C the rudder moment of ±δ_c (N·m)."""
+
+    output = "propeller_rudder"
+
+    def __init__(self, n_rps: float, rudder_rad: float, moment_nm: float, xa: float):
+        self.n_rps, self.rudder_rad, self.moment_nm = n_rps, rudder_rad, moment_nm
+        self.relay = RelayWithHysteresis(1.0, xa)
+        self.heading_ref_rad: float | None = None
+        self.log: list[tuple[float, float, float]] = []
+
+    def __call__(self, t_s: float, eta: np.ndarray, nu: np.ndarray) -> tuple[float, float]:
+        if self.heading_ref_rad is None:
+            self.heading_ref_rad = float(eta[2])
+        e = float(wrap_angle(self.heading_ref_rad - eta[2]))
+        sign = self.relay(e)
+        self.log.append((t_s, e, sign * self.moment_nm))
+        return self.n_rps, sign * self.rudder_rad
+
+
+def run_ship_experiment(compiled, n_rps: float, rudder_deg: float, xa: float, duration_s: float,
+                        twin: TwinUncoupled | None = None) -> IsoRow:
+    """One rudder-relay experiment from straight running at n (module docstring); the first third is transient."""
+    from ...engine.sim import simulate
+
+    u0 = straight_speed(compiled, n_rps)
+    delta = math.radians(rudder_deg)
+    moment = rudder_moment(compiled, u0, n_rps, delta)
+    calm = calm_water(compiled)
+    controller = RudderRelayExperiment(n_rps, delta, moment, xa)
+    simulate(calm, controller, duration_s, control_dt_s=SHIP_CONTROL_DT_S, sample_dt_s=SHIP_CONTROL_DT_S,
+             nu0=(u0, 0.0, 0.0))
+    return iso_row(moment, xa, np.array(controller.log), duration_s / 3, twin or ship_twin_uncoupled(compiled, n_rps),
+                   rudder_deg=rudder_deg, rps=n_rps, speed_m_s=u0)
+
+
+def calm_water(compiled):
+    """The compiled vessel in calm water (IS-O in the seed is run without disturbances)."""
+    from dataclasses import replace
+
+    from ...engine.mjcf import CompiledVessel
+
+    return CompiledVessel(replace(compiled.vessel, environment=type(compiled.vessel.environment)()), compiled.model,
+                          compiled.geometry)
+
+
+def ship_sweep(compiled, rudder_deg: list[float] | None = None, rps: list[float] | None = None,
+               xa: float | None = None, duration_s: float | None = None,
+               progress: Progress | None = None) -> "IsoSweep":
+    """Table II for a ship's yaw: the rudder relay at every propeller speed and rudder angle
+    (`progress` hears each experiment, k of n, before it runs)."""
+    v = compiled.vessel
+    limit = math.degrees(v.thrusters.channel_bounds()[1][1])
+    rudder_deg = list(rudder_deg or SHIP_RUDDER_DEG)
+    bad = [d for d in rudder_deg if not 0 < d <= limit + 1e-9]
+    if bad:
+        raise TwinError(f"rudder relay amplitude {bad[0]:g}° outside (0, {limit:g}°] of the rudder")
+    rps = list(rps or SHIP_RPS)
+    (_, n_max), _ = v.thrusters.channel_bounds()
+    if any(not 0 < n <= n_max + 1e-9 for n in rps):
+        raise TwinError(f"propeller speed outside (0, {n_max:g}] rps")
+    xa = SHIP_XA_RAD if xa is None else xa
+    if not xa > 0:
+        raise TwinError("hysteresis xa must be positive")
+    duration_s = duration_s or SHIP_DURATION_S
+    twins = {n: ship_twin_uncoupled(compiled, n) for n in rps}
+    say, runs = steps(progress), [(n, d) for n in rps for d in rudder_deg]
+    rows = []
+    for k, (n, d) in enumerate(runs):
+        say(f"IS-O yaw: rudder relay ±{d:g}° at {n:g} rps", k, len(runs))
+        rows.append(run_ship_experiment(compiled, n, d, xa, duration_s, twins[n]))
+    say("IS-O yaw: done", len(runs), len(runs))
+    return IsoSweep(v.name, "yaw", rows, twins[max(rps)])
 
 
 def run_experiment(compiled, dof: str, relay_c: float, xa: float, duration_s: float,
@@ -278,10 +427,14 @@ class IsoSweep:
 
 
 def sweep(compiled, dof: str, amplitudes: list[float] | None = None, xa: float | None = None,
-          duration_s: float | None = None) -> IsoSweep:
-    """IS-O at several relay outputs C (default: fractions of the largest the thrusters give)."""
+          duration_s: float | None = None, progress: Progress | None = None) -> IsoSweep:
+    """IS-O at several relay outputs C (default: fractions of the largest the thrusters give). A
+    propeller-and-rudder ship: `ship_sweep` (amplitudes are rudder angles in degrees). `progress`
+    hears each relay experiment, k of n, before it runs."""
+    check_dof(compiled.vessel.name, dof, compiled.vessel.thrusters.kind)
+    if is_ship(compiled):
+        return ship_sweep(compiled, amplitudes, None, xa, duration_s, progress)
     y_m, bounds = compiled.geometry.thruster_y_m, compiled.vessel.thrusters.command_range()
-    check_dof(compiled.vessel.name, dof)
     limit = relay_limit(y_m, bounds, dof)
     amplitudes = amplitudes or [math.floor(f * limit * 100) / 100 for f in DEFAULT_FRACTIONS]
     bad = [c for c in amplitudes if not 0 < c <= limit + 1e-9]
@@ -293,14 +446,21 @@ def sweep(compiled, dof: str, amplitudes: list[float] | None = None, xa: float |
         raise TwinError("hysteresis xa must be positive")
     twin = twin_uncoupled(compiled, dof)
     duration_s = duration_s or DEFAULT_DURATION_S[dof]
-    rows = [run_experiment(compiled, dof, c, xa, duration_s, twin) for c in amplitudes]
+    say, rows = steps(progress), []
+    for k, c in enumerate(amplitudes):
+        say(f"IS-O {dof}: relay ±{c:g} {UNITS[dof]['C']}", k, len(amplitudes))
+        rows.append(run_experiment(compiled, dof, c, xa, duration_s, twin))
+    say(f"IS-O {dof}: done", len(amplitudes), len(amplitudes))
     return IsoSweep(compiled.vessel.name, dof, rows, twin)
 
 
-def linear_model(sweep_result: IsoSweep) -> tuple[float, float]:
-    """(α, β_ν): mean over the sweep of the constant-drag model, what the I-PD of eq. 11 is tuned with."""
-    s = sweep_result.spreads()
-    return s["alpha"].mean, s["beta_lin"].mean
+def linear_model(sweep_result: IsoSweep, rps: float | None = None) -> tuple[float, float]:
+    """(α, β_ν): mean over the sweep of the constant-drag model, what the I-PD of eq. 11 is tuned with
+    (a ship's: over the experiments at propeller speed `rps`, where given)."""
+    rows = [r for r in sweep_result.rows if rps is None or r.rps == rps]
+    if not rows:
+        raise TwinError(f"no IS-O experiment at {rps:g} rps")
+    return (float(np.mean([r.estimate.alpha for r in rows])), float(np.mean([r.estimate.beta_lin for r in rows])))
 
 
 def relay_on_first_order_plant(alpha: float, beta_lin: float, relay_c: float, xa: float, *, beta_quad: float = 0.0,
@@ -332,27 +492,36 @@ def relay_on_first_order_plant(alpha: float, beta_lin: float, relay_c: float, xa
 def table_markdown(result: IsoSweep) -> str:
     """Table II layout for one DOF, with the CV row and the twin's values."""
     u = UNITS[result.dof]
-    lines = [f"| C [{u['C']}] | xa_eff [{u['x']}] | Xm [{u['x']}] | ω [rad/s] | x0 [{u['x']}] | ν_m | "
+    ship = any(r.rudder_deg is not None for r in result.rows)
+    head = "| n [rps] | u₀ [m/s] | δ_c [°] " if ship else ""
+    lines = [f"{head}| C [{u['C']}] | xa_eff [{u['x']}] | Xm [{u['x']}] | ω [rad/s] | x0 [{u['x']}] | ν_m | "
              f"α [{u['alpha']}] | β_ν [{u['beta_lin']}] | β_νν [{u['beta_quad']}] | Δ [{u['C']}] | "
-             "β_ν twin eq. | β_νν twin eq. |", "|" + "---|" * 12]
+             "β_ν twin eq. | β_νν twin eq. |", "|" + "---|" * (15 if ship else 12)]
+    pad = "| | | " if ship else ""
     for r in result.rows:
         o, e = r.oscillation, r.estimate
-        lines.append(f"| {r.relay_c:.2f} | {o.xa_eff:.4f} | {o.amplitude_xm:.4f} | {o.frequency_rad_s:.3f} | "
+        first = f"| {r.rps:g} | {r.speed_m_s:.3f} | {r.rudder_deg:g} " if ship else ""
+        lines.append(f"{first}| {r.relay_c:.2f} | {o.xa_eff:.4f} | {o.amplitude_xm:.4f} | {o.frequency_rad_s:.3f} | "
                      f"{o.bias_x0:+.1e} | {r.speed_amplitude:.3f} | {e.alpha:.3f} | {e.beta_lin:.3f} | "
                      f"{e.beta_quad:.3f} | {e.disturbance:+.3f} | {r.beta_lin_equivalent:.3f} | "
                      f"{r.beta_quad_equivalent:.3f} |")
     s = result.spreads()
-    lines.append(f"| **σ/mean** | | | | | | **{s['alpha'].cv_percent:.1f} %** | **{s['beta_lin'].cv_percent:.1f} %** "
+    lines.append(f"{pad}| **σ/mean** | | | | | | **{s['alpha'].cv_percent:.1f} %** | **{s['beta_lin'].cv_percent:.1f} %** "
                  f"| **{s['beta_quad'].cv_percent:.1f} %** | | | |")
     t = result.twin
-    lines.append(f"| **twin** | | | | | | {t.alpha:.3f} | {t.drag_lin:.3f} (linear term only) | "
-                 f"{t.drag_quad:.3f} (quadratic term only) | 0 | | |")
+    if ship:
+        lines.append(f"{pad}| **twin** | | | | | | {t.alpha:.3f} (M₃₃) | {t.drag_lin:.3f} (−∂N/∂r at u₀) | "
+                     f"{t.drag_quad:.3f} | 0 | | |")
+    else:
+        lines.append(f"| **twin** | | | | | | {t.alpha:.3f} | {t.drag_lin:.3f} (linear term only) | "
+                     f"{t.drag_quad:.3f} (quadratic term only) | 0 | | |")
     return "\n".join(lines)
 
 
 def sweep_png(result: IsoSweep) -> bytes:
     """α, β_ν, β_νν against the relay output, beside the twin's coefficients and their
-    describing-function equivalents at each experiment's speed amplitude."""
+    describing-function equivalents at each experiment's speed amplitude (a ship's: one line per
+    propeller speed, the twin's −∂N/∂r at each speed's u₀)."""
     import io
 
     import matplotlib
@@ -360,26 +529,39 @@ def sweep_png(result: IsoSweep) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    u, rows, twin = UNITS[result.dof], result.rows, result.twin
-    c = [r.relay_c for r in rows]
-    panels = (
-        ("α", u["alpha"], [r.estimate.alpha for r in rows], [twin.alpha] * len(rows), "twin M (uncoupled)", None),
-        ("β_ν (constant drag)", u["beta_lin"], [r.estimate.beta_lin for r in rows], [twin.drag_lin] * len(rows),
-         "twin linear term", [r.beta_lin_equivalent for r in rows]),
-        ("β_νν (linear drag)", u["beta_quad"], [r.estimate.beta_quad for r in rows], [twin.drag_quad] * len(rows),
-         "twin quadratic term", [r.beta_quad_equivalent for r in rows]),
-    )
+    u, twin = UNITS[result.dof], result.twin
+    ship = any(r.rps is not None for r in result.rows)
+    groups = {n: [r for r in result.rows if r.rps == n] for n in dict.fromkeys(r.rps for r in result.rows)}
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
-    for ax, (name, unit, est, own, own_label, equivalent) in zip(axes, panels):
-        ax.plot(c, est, "o-", label="IS-O (Table I)")
-        ax.plot(c, own, "k--", label=own_label)
-        if equivalent is not None:
-            ax.plot(c, equivalent, "k:", label="twin, describing-function equivalent")
+    for k, (n, rows) in enumerate(groups.items()):
+        c = [r.relay_c for r in rows]
+        tag = f", {n:g} rps" if ship else ""
+        first = k == 0
+        panels = (
+            ("α", u["alpha"], [r.estimate.alpha for r in rows], [twin.alpha] * len(rows),
+             "twin M₃₃ (uncoupled)" if ship else "twin M (uncoupled)", None),
+            ("β_ν (constant drag)", u["beta_lin"], [r.estimate.beta_lin for r in rows],
+             [r.beta_lin_equivalent for r in rows] if ship else [twin.drag_lin] * len(rows),
+             "twin −∂N/∂r at u₀" if ship else "twin linear term", None if ship else [r.beta_lin_equivalent for r in rows]),
+            ("β_νν (linear drag)", u["beta_quad"], [r.estimate.beta_quad for r in rows], [twin.drag_quad] * len(rows),
+             "twin quadratic term", [r.beta_quad_equivalent for r in rows]),
+        )
+        for ax, (name, unit, est, own, own_label, equivalent) in zip(axes, panels):
+            ax.plot(c, est, "o-", color=f"C{k}", label=f"IS-O (Table I){tag}")
+            ax.plot(c, own, "--", color="k" if not ship else f"C{k}", lw=1,
+                    label=own_label + tag if (ship or first) else None)
+            if equivalent is not None and (ship or first):
+                ax.plot(c, equivalent, ":", color="k" if not ship else f"C{k}",
+                        label="twin, describing-function equivalent" + tag)
+    estimates = {"α": [r.estimate.alpha for r in result.rows], "β_ν (constant drag)": [r.estimate.beta_lin for r in
+                 result.rows], "β_νν (linear drag)": [r.estimate.beta_quad for r in result.rows]}
+    for ax, (name, est), unit in zip(axes, estimates.items(), (u["alpha"], u["beta_lin"], u["beta_quad"])):
         ax.set_title(f"{name}: CV {spread(est).cv_percent:.1f} %")
-        ax.set_xlabel(f"relay output C [{u['C']}]")
+        ax.set_xlabel(f"relay output C [{u['C']}]" + (" (rudder moment at ±δ_c)" if ship else ""))
         ax.set_ylabel(f"{name} [{unit}]")
-        ax.legend(fontsize=8)
-    fig.suptitle(f"IS-O {result.vessel} {result.dof} (seed 003 Table I): α {result.alpha_error_percent():+.1f} % "
+        ax.legend(fontsize=7)
+    relay = " with the rudder as the relay" if ship else ""
+    fig.suptitle(f"IS-O {result.vessel} {result.dof}{relay} (seed 003 Table I): α {result.alpha_error_percent():+.1f} % "
                  "from the twin's")
     fig.tight_layout()
     buf = io.BytesIO()

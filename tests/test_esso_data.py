@@ -1,0 +1,149 @@
+"""The Esso Osaka tests' CSV layout (formats/esso_csv.py): its conventions checked on the data itself, its
+streams through `twin info/convert/view`, and bad input. Tests reading ../shared skip without it; the
+synthetic ones build their own files (no data row of the dataset is copied here)."""
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.errors import TwinError
+from twin.formats import read_recording, write_recording
+from twin.prepare import prepare
+from twin.prepare.convert import for_conversion
+
+TURNS = ["turn_14-Sep-2020_13_39_32", "turn_14-Oct-2020_14_56_07", "turn_14-Sep-2020_15_47_33",
+         "turn_14-Oct-2020_14_29_49"]
+HEADER = ("t [s],x_position_mid [m],u_velo [m/s],y_position_mid [m],vm_velo [m/s],psi_hat [rad],r_angvelo [rad/s],"
+          "n_prop [rps],delta_rudder [rad],wind_velo_relative_mid [m/s],wind_dir_relative_mid [rad],"
+          "wind_velo_true [m/s],wind_dir_true [rad]")
+
+
+@pytest.fixture
+def esso_dir(shared_dir):
+    folder = shared_dir / "data" / "esso"
+    if not folder.is_dir():
+        pytest.skip("../shared/data/esso is not present")
+    return folder
+
+
+def _raw(path: Path) -> dict[str, np.ndarray]:
+    with open(path) as fh:
+        rows = list(csv.reader(fh))
+    return {name.split(" ")[0]: np.array([float(r[i]) for r in rows[1:]]) for i, name in enumerate(rows[0])}
+
+
+def test_reader_streams_and_notes(esso_dir):
+    rec = read_recording(esso_dir / f"{TURNS[0]}.csv")
+    assert rec.kind == "esso-csv" and rec.meta["positions"] == "body origin"
+    for name in ("gnss", "heading", "imu", "prop_rudder", "wind"):
+        assert getattr(rec, name).median_rate_hz() == pytest.approx(10.0)
+    assert set(rec.wind.columns) == {"speed_m_s", "from_deg", "relative_speed_m_s", "relative_from_deg"}
+    assert not len(rec.pwm) and set(rec.summary()["streams"]) >= {"prop_rudder", "wind"}
+    raw = _raw(esso_dir / f"{TURNS[0]}.csv")
+    np.testing.assert_array_equal(rec.prop_rudder["delta_rad"], raw["delta_rudder"])
+    np.testing.assert_allclose(rec.wind["from_deg"], np.degrees(raw["wind_dir_true"]) % 360)
+
+
+@pytest.mark.parametrize("name", TURNS)
+def test_a_turning_tests_steady_yaw_rate_has_the_sign_of_its_rudder(esso_dir, name):
+    prep = prepare(read_recording(esso_dir / f"{name}.csv"))
+    assert prep.input_kind == "propeller_rudder"
+    half = slice(len(prep.t) // 2, int(0.95 * len(prep.t)))  # the rudder held, before the end's stop
+    delta, r = np.mean(prep.pwm[half, 1]), np.mean(prep.r[half])
+    assert abs(delta) > math.radians(15) and np.sign(r) == np.sign(delta) and abs(math.degrees(r)) > 1.5
+
+
+@pytest.mark.parametrize("name", [TURNS[0], "random_06-Aug-2020_16_24_25_3"])
+def test_body_velocities_from_positions_match_the_files_own(esso_dir, name):
+    """x0, y0 are north, east with v to starboard: the twin's velocities from positions match u_velo, vm_velo;
+    with y0 to port (the mirrored reading) the sway would not."""
+    path = esso_dir / f"{name}.csv"
+    prep, raw = prepare(read_recording(path)), _raw(path)
+    t = raw["t"] - raw["t"][0]
+    u, v = (np.interp(prep.t, t, raw[k]) for k in ("u_velo", "vm_velo"))
+    inner = slice(20, -20)
+    assert np.sqrt(np.mean((prep.u - u)[inner] ** 2)) < 0.05 and np.sqrt(np.mean((prep.v - v)[inner] ** 2)) < 0.02
+    mirrored = -np.sin(-prep.psi) * np.gradient(prep.north, 0.1) + np.cos(-prep.psi) * np.gradient(-prep.east, 0.1)
+    assert np.sqrt(np.mean((mirrored - v)[inner] ** 2)) > 2 * np.sqrt(np.mean((prep.v - v)[inner] ** 2))
+    r = np.interp(prep.t, t, raw["r_angvelo"])
+    assert np.sqrt(np.mean((prep.r - r)[inner] ** 2)) < 0.02  # r = +dψ/dt
+
+
+def test_true_wind_is_the_apparent_wind_plus_the_ships_velocity(esso_dir):
+    """Both wind angles are FROM directions, clockwise: true from north (x0), relative from the bow."""
+    path = esso_dir / f"{TURNS[1]}.csv"
+    rec, raw = read_recording(path), _raw(path)
+    w = rec.wind
+    psi, u, v = raw["psi_hat"], raw["u_velo"], raw["vm_velo"]
+    rel = np.radians(w["relative_from_deg"])
+    air_body = -w["relative_speed_m_s"][:, None] * np.column_stack([np.cos(rel), np.sin(rel)])  # air rel. to ship
+    gx, gy = air_body[:, 0] + u, air_body[:, 1] + v  # air over ground, body axes
+    north, east = np.cos(psi) * gx - np.sin(psi) * gy, np.sin(psi) * gx + np.cos(psi) * gy
+    true = np.radians(w["from_deg"])
+    err = np.hypot(north + w["speed_m_s"] * np.cos(true), east + w["speed_m_s"] * np.sin(true))
+    assert np.sqrt(np.mean(err**2)) < 0.01
+
+
+def test_convert_keeps_inputs_and_wind_in_csv_and_mcap(esso_dir, tmp_path):
+    rec = read_recording(esso_dir / f"{TURNS[0]}.csv")
+    conv = for_conversion(rec).recording
+    for suffix in (".csv", ".mcap"):
+        write_recording(conv, tmp_path / f"e{suffix}")
+        back = read_recording(tmp_path / f"e{suffix}")
+        np.testing.assert_allclose(back.prop_rudder["delta_rad"], conv.prop_rudder["delta_rad"], atol=1e-9)
+        np.testing.assert_allclose(back.wind["speed_m_s"], rec.wind["speed_m_s"], atol=1e-6)
+        np.testing.assert_allclose(back.wind["relative_from_deg"], rec.wind["relative_from_deg"], atol=1e-6)
+        assert prepare(back).input_kind == "propeller_rudder"
+
+
+def _write(path: Path, rows: list[str], header: str = HEADER) -> Path:
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def _rows(n: int = 40) -> list[str]:
+    out = []
+    for k in range(n):  # a synthetic straight run north at 0.2 m/s, wind from the east
+        t = 0.1 * k
+        out.append(f"{t:.1f},{0.2 * t:.4f},0.2,0.0,0.0,0.0,0.0,10,0.05,1.5,1.4,1.52,1.57")
+    return out
+
+
+def test_bad_input_is_one_line_and_bad_rows_are_counted(tmp_path):
+    good = read_recording(_write(tmp_path / "ok.csv", _rows()))
+    assert good.kind == "esso-csv" and len(good.prop_rudder) == 40
+    rows = _rows()
+    rows[5] = rows[5].replace(",10,", ",nan,")
+    rows[6] = "0.0,1,2"  # wrong number of fields
+    rows[7] = rows[7].replace(",0.05,", ",3.5,")  # a rudder angle beyond 90°
+    rec = read_recording(_write(tmp_path / "bad.csv", rows))
+    reasons = dict(rec.dropped)
+    assert reasons["csv: rows with the wrong number of fields"] == 1
+    assert reasons["prop_rudder: samples with NaN or missing values"] == 1
+    assert reasons["prop_rudder: rudder angle beyond ±90°"] == 1
+    no_wind = HEADER.rsplit(",", 4)[0]
+    rec = read_recording(_write(tmp_path / "nowind.csv", [r.rsplit(",", 4)[0] for r in _rows()], no_wind))
+    assert not len(rec.wind) and any("no wind" in n for n in rec.notes)
+    with pytest.raises(TwinError, match="CSV layout not recognised"):
+        read_recording(_write(tmp_path / "x.csv", ["1,2"], "x_position_mid [m],psi_hat [rad]"))
+    with pytest.raises(TwinError, match="no usable rows|nothing usable"):
+        read_recording(_write(tmp_path / "empty.csv", ["nan,nan,nan,nan,nan,nan,nan,nan,nan,nan,nan,nan,nan"]))
+
+
+def test_twin_info_convert_view_on_an_esso_layout(tmp_path):
+    src = _write(tmp_path / "run.csv", _rows(60))
+
+    def twin(*args):
+        return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
+                              cwd=tmp_path, timeout=300)
+
+    info = twin("info", src)
+    assert info.returncode == 0 and "prop_rudder" in info.stdout and "wind" in info.stdout
+    out = twin("convert", src, tmp_path / "run.tlog")
+    assert out.returncode == 0 and "no place for the propeller and rudder inputs" in out.stdout + out.stderr
+    view = twin("view", src, "--sim", "--vessel", "esso_osaka", "--out", tmp_path / "v.rrd")
+    assert view.returncode == 0 and (tmp_path / "v.rrd").is_file(), view.stderr

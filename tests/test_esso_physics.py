@@ -1,0 +1,206 @@
+"""The MMG standard method and Fujiwara's wind loads (physics/mmg.py, physics/fujiwara.py) against the
+equations written out by hand here, in the paper's own form, on the Esso Osaka vessel's numbers."""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.engine.mjcf import compile_vessel
+from twin.errors import TwinError
+from twin.physics import fujiwara, mmg
+from twin.physics.environment import WindLoad, wind_force
+from twin.physics.hydrodynamics import Terms, mmg_forces
+
+
+@pytest.fixture(scope="module")
+def esso():
+    return compile_vessel(vessel_mod.load("esso_osaka"))
+
+
+def _p(esso) -> dict:
+    """The packed parameters by name."""
+    return dict(zip(mmg.FIELDS, esso.hydro().mmg))
+
+
+def _by_hand(p: dict, u, v, r, n, delta):
+    """Yasukawa & Yoshimura (2015) as printed (valid for u > 0, n > 0, U above the floor)."""
+    L, d, rho = p["L"], p["d"], p["rho"]
+    U = math.hypot(u, v)
+    vp, rp = v / U, r * L / U
+    q = 0.5 * rho * L * d * U**2
+    X_H = q * (-p["R0"] + p["Xvv"] * vp**2 + p["Xvr"] * vp * rp + p["Xrr"] * rp**2 + p["Xvvvv"] * vp**4)
+    Y_H = q * (p["Yv"] * vp + p["Yr"] * rp + p["Yvvv"] * vp**3 + p["Yvvr"] * vp**2 * rp + p["Yvrr"] * vp * rp**2
+               + p["Yrrr"] * rp**3)
+    N_H = q * L * (p["Nv"] * vp + p["Nr"] * rp + p["Nvvv"] * vp**3 + p["Nvvr"] * vp**2 * rp + p["Nvrr"] * vp * rp**2
+                   + p["Nrrr"] * rp**3)
+    beta = math.atan(-v / u)
+    beta_p = beta - p["xP_nd"] * rp
+    c2 = p["C2_plus"] if beta_p > 0 else p["C2_minus"]
+    one_minus_w = (1 - p["wP0"]) * (1 + (1 - math.exp(-p["C1"] * abs(beta_p))) * (c2 - 1))
+    D = p["D_P"]
+    J = u * one_minus_w / (n * D)
+    K_T = p["k0"] + p["k1"] * J + p["k2"] * J**2
+    T = rho * n**2 * D**4 * K_T
+    X_P = (1 - p["tP"]) * T
+    eta, eps, kappa = p["eta"], p["epsilon"], p["kappa"]
+    u_R = eps * u * one_minus_w * math.sqrt(eta * (1 + kappa * (math.sqrt(1 + 8 * K_T / (math.pi * J**2)) - 1))**2
+                                            + (1 - eta))
+    beta_R = beta - p["lR_nd"] * rp
+    gamma = p["gamma_minus"] if beta_R < 0 else p["gamma_plus"]
+    v_R = U * gamma * beta_R
+    alpha_R = delta - math.atan(v_R / u_R)
+    F_N = 0.5 * rho * p["A_R"] * (u_R**2 + v_R**2) * p["f_alpha"] * math.sin(alpha_R)
+    X_R = -(1 - p["tR"]) * F_N * math.sin(delta)
+    Y_R = -(1 + p["aH"]) * F_N * math.cos(delta)
+    N_R = -(p["xR_m"] + p["aH"] * p["xH_m"]) * F_N * math.cos(delta)
+    return {"hull": (X_H, Y_H, N_H), "propeller": (X_P, 0.0, 0.0), "rudder": (X_R, Y_R, N_R), "T": T, "F_N": F_N}
+
+
+STATES = [(0.35, -0.04, 0.03, 10.0, math.radians(20)), (0.2, 0.05, -0.04, 8.0, math.radians(-35)),
+          (0.3, 0.0, 0.0, 10.0, 0.0), (0.12, -0.045, 0.044, 10.0, math.radians(35))]
+
+
+@pytest.mark.parametrize("state", STATES)
+def test_mmg_hull_propeller_rudder_equal_the_equations(esso, state):
+    u, v, r, n, delta = state
+    p, hydro = _p(esso), esso.hydro()
+    ref = _by_hand(p, u, v, r, n, delta)
+    nu = np.array([u, v, r])
+    for term, name in (("mmg_hull", "hull"), ("propeller", "propeller"), ("rudder", "rudder")):
+        got = mmg_forces(hydro.with_terms(Terms().only(term)), nu, (n, delta))
+        np.testing.assert_allclose(got[:3], ref[name], rtol=1e-12, atol=1e-12, err_msg=name)
+    got = mmg_forces(hydro, nu, (n, delta))
+    np.testing.assert_allclose(got[3:], (ref["T"], ref["F_N"]), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(got[:3], np.sum([ref[k] for k in ("hull", "propeller", "rudder")], axis=0), rtol=1e-12)
+
+
+def test_the_vessel_numbers_are_the_ones_the_sources_name(esso):
+    p = _p(esso)
+    assert p["f_alpha"] == pytest.approx(6.13 * 1.539 / (1.539 + 2.25))  # Fujii, eq. 20
+    assert p["eta"] == pytest.approx(0.084 / math.sqrt(0.01063 * 1.539))  # D_P / H_R = 0.657
+    assert p["xP_nd"] == pytest.approx(-0.48) and p["xR_m"] == pytest.approx(-1.5)  # the MJCF's sites
+    assert p["xH_m"] == pytest.approx(-0.464 * 3.0)
+    M = esso.hydro().M
+    q2, q4 = 0.5 * 998 * 3.0**2 * 0.201, 0.5 * 998 * 3.0**4 * 0.201
+    m, xg, izg = 244.6, 0.094, 244.6 * 0.75**2
+    np.testing.assert_allclose(np.diag(M), [m + 0.022 * q2, m + 0.223 * q2, izg + m * xg**2 + 0.011 * q4], rtol=1e-4)
+    assert M[1, 2] == pytest.approx(m * xg)  # MMG eq. 4: x_G m in Y and N
+
+
+def test_rudder_to_starboard_turns_to_starboard_and_the_propeller_pushes_ahead(esso):
+    hydro = esso.hydro()
+    for delta in (0.1, 0.35, 0.6):
+        X, Y, N, T, F_N = mmg_forces(hydro.with_terms(Terms().only("rudder")), np.array([0.3, 0.0, 0.0]), (10, delta))
+        assert N > 0 and Y < 0 and F_N > 0 and X < 0
+    assert mmg_forces(hydro.with_terms(Terms().only("propeller")), np.zeros(3), (10.0, 0.0))[0] > 0
+    assert mmg_forces(hydro.with_terms(Terms().only("propeller")), np.array([0.3, 0, 0]), (-10.0, 0.0))[0] < 0
+
+
+def test_outside_the_standard_the_forces_stay_finite_continuous_and_resist(esso):
+    hydro, p = esso.hydro(), _p(esso)
+    for nu in ([0.0, 0.0, 0.05], [0.0, 0.0, 0.0], [-0.2, 0.1, -0.02], [0.0, 0.3, 0.0], [1e-9, 0.0, 0.3]):
+        assert np.all(np.isfinite(mmg_forces(hydro, np.array(nu), (10.0, 0.3))))
+    hull = hydro.with_terms(Terms().only("mmg_hull"))
+    for u in (0.3, -0.3):  # the resistance opposes the motion ahead and astern
+        assert mmg_forces(hull, np.array([u, 0.0, 0.0]))[0] * u < 0
+    assert mmg_forces(hull, np.array([0.0, 0.2, 0.0]))[0] == pytest.approx(  # broadside: no R'_0, X'_vv + X'_vvvv
+        0.5 * 998 * 3.0 * 0.201 * 0.04 * (p["Xvv"] + p["Xvvvv"]))
+    rudder = hydro.with_terms(Terms().only("rudder"))
+    below, above = (mmg_forces(rudder, np.array([u, 0.0, 0.0]), (10.0, 0.3))[4] for u in (-1e-9, 1e-9))
+    assert below == pytest.approx(above, rel=1e-6)  # u_R continuous at u = 0 (the race alone)
+    u, r, un = 0.01, 0.05, p["U_min"]  # below the floor U_nd = low_speed_m_s stands in for U in v', r', U²
+    rp = r * 3.0 / un
+    assert mmg_forces(hull, np.array([u, 0.0, r]))[1] == pytest.approx(
+        0.5 * 998 * 3.0 * 0.201 * un**2 * (p["Yr"] * rp + p["Yrrr"] * rp**3), rel=1e-12)
+    clipped = mmg_forces(hydro, np.array([0.3, 0.0, 0.0]), (25.0, 1.2))  # the vessel's bounds: 10 rps, 40°
+    np.testing.assert_allclose(clipped, mmg_forces(hydro, np.array([0.3, 0.0, 0.0]), (10.0, math.radians(40))))
+
+
+def test_fujiwara_regression_gives_the_published_simulator_coefficients(esso):
+    # NAOE-5thLab/mmg-1p1r-simulator's XX0..NN3 for the Esso 3 m model (research note §2.2)
+    published = (-0.010466, -0.821992, 0.060274, 0.044558, 1.058172, 0.002321, -0.015293, -0.030728, 0.104116,
+                 -0.000880)
+    w = esso.vessel.wind_regression
+    np.testing.assert_allclose(fujiwara.regression(w), published, atol=1e-6)
+    np.testing.assert_allclose(w.coefficients, fujiwara.regression(w), atol=1e-9)  # the vessel file stores them
+
+
+def test_fujiwara_signs_and_its_first_harmonics_are_the_simple_wind_load(esso):
+    p = fujiwara.pack(esso.vessel.wind_regression)
+    q = 0.5 * 1.166 * 2.0**2
+    X, Y, N = fujiwara.wind_force(p, 1.0, 0.0, 0.0, 0.0, -2.0, 0.0)  # ship heading north, wind from north: head
+    assert X == pytest.approx(q * 0.13544 * sum(p[4:8])) and X < 0 and Y == pytest.approx(0.0, abs=1e-12)
+    X, Y, N = fujiwara.wind_force(p, 1.0, 0.0, 0.0, 0.0, 0.0, 2.0)  # wind from the west: from port
+    assert Y > 0 and Y == pytest.approx(q * 0.52038 * (p[8] - p[9] + p[10]))
+    s = math.sqrt(0.5)
+    assert fujiwara.wind_force(p, 1.0, 0.0, 0.0, 0.0, -2 * s, 2 * s)[2] > 0  # from the port bow: bow turns away
+    # only X1, Y1, N2 (and the twin's air density): environment.WindLoad with c_x = −X1, c_y = Y1, c_n = N2
+    only = np.zeros_like(p)
+    only[:4] = (0.3, 0.5, 1.3, 1.225)
+    only[5], only[8], only[12] = -0.7, 0.9, 0.12
+    load = WindLoad(0.3, 0.5, 1.3, 0.7, 0.9, 0.12)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        psi, u, v, wn, we = rng.uniform(-3, 3, 5)
+        np.testing.assert_allclose(fujiwara.wind_force(only, math.cos(psi), math.sin(psi), u, v, wn, we),
+                                   wind_force(load, psi, np.array([u, v, 0.0]), np.array([wn, we])), atol=1e-12)
+
+
+def test_munk_moment_is_left_to_the_hull_and_the_energy_balance_says_so(esso):
+    """C_A without its yaw row (MMG eq. 4): with added mass and its Coriolis terms alone the kinetic energy
+    changes at (m_y − m_x)·u·v·r, the Munk moment's power; the Fossen C_A (a twin-thruster vessel) conserves it."""
+    from twin.physics.hydrodynamics import acceleration
+
+    hydro = esso.hydro(Terms().only("added_mass", "added_mass_coriolis"))
+    fossen = replace(hydro, munk_moment=True)
+    mx, my = hydro.M_A[0, 0], hydro.M_A[1, 1]
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        nu = rng.uniform(-0.4, 0.4, 3)
+        power = nu @ hydro.M @ acceleration(hydro, 0.3, nu, np.zeros(3))
+        assert power == pytest.approx((my - mx) * nu[0] * nu[1] * nu[2], rel=1e-9, abs=1e-12)
+        assert nu @ fossen.M @ acceleration(fossen, 0.3, nu, np.zeros(3)) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_hull_resistance_and_rudder_drag_dissipate_in_straight_motion(esso):
+    hydro = esso.hydro(Terms().only("mmg_hull", "rudder"))
+    for u in (0.05, 0.2, 0.4, -0.1, -0.3):
+        nu = np.array([u, 0.0, 0.0])
+        assert nu @ mmg_forces(hydro, nu, (0.0, 0.4))[:3] < 0
+
+
+def test_vessel_file_checks_the_ship_description(tmp_path):
+    import json
+
+    data = json.loads(vessel_mod.load("esso_osaka").path.read_text())
+    data["mjcf"] = str(vessel_mod.MODEL_DIR / "esso_osaka.xml")
+
+    def load(change):
+        d = json.loads(json.dumps(data))
+        change(d)
+        path = tmp_path / "v.json"
+        path.write_text(json.dumps(d))
+        return vessel_mod.load(path)
+
+    assert load(lambda d: None).mmg.hull.Nr == -0.049
+    with pytest.raises(TwinError, match="go together"):
+        load(lambda d: d.pop("mmg"))
+    with pytest.raises(TwinError, match="go together"):
+        load(lambda d: d["thrusters"].update(kind="direct"))
+    with pytest.raises(TwinError, match="mmg.propeller.diameter_m must be positive"):
+        load(lambda d: d["mmg"]["propeller"].update(diameter_m=0.0))
+    with pytest.raises(TwinError, match="must be a number"):
+        load(lambda d: d["mmg"]["hull"].update(Yv="big"))
+    with pytest.raises(TwinError, match="unknown mmg.rudder field"):
+        load(lambda d: d["mmg"]["rudder"].update(chord=0.1))
+    with pytest.raises(TwinError, match="10 numbers"):
+        load(lambda d: d["wind_regression"].update(coefficients=[1.0, 2.0]))
+    computed = load(lambda d: d["wind_regression"].update(coefficients=None)).wind_regression.coefficients
+    np.testing.assert_allclose(computed, data["wind_regression"]["coefficients"], atol=1e-9)
+    saved = vessel_mod.save(vessel_mod.load("esso_osaka"), tmp_path / "copy.json")
+    again = vessel_mod.load(saved)
+    assert again.mmg == vessel_mod.load("esso_osaka").mmg and again.thrusters.rudder_max_deg == 40.0
+    assert "rps_max" not in json.loads(vessel_mod.save(vessel_mod.load("yellowfish"),
+                                                       tmp_path / "y.json").read_text())["thrusters"]

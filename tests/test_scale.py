@@ -1,0 +1,298 @@
+"""twin/scale on this machine: seeded batches, the Monte Carlo band and its coverage, sharded
+datasets, fleet diagnoses, and their commands (the Ray executor: test_scale_ray.py)."""
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from scale_fixtures import identified
+from twin.errors import TwinError
+from twin.scale import batches, datasets, fleet, montecarlo as mc
+from twin.scale.draws import Variation, parse_effect_range, parse_factor, with_mass_scale
+
+
+def twin(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def vessel():
+    return identified()
+
+
+@pytest.fixture(scope="module")
+def mission(vessel):
+    return mc.scenario_mission(vessel, "turn", 20.0, 0.5)
+
+
+# ---------------------------------------------------------------- batches
+
+def test_a_batch_draws_from_its_own_child_seed_whoever_runs_it():
+    plan = batches.plan(10, 4, seed=7)
+    assert [(b.start, b.stop) for b in plan] == [(0, 4), (4, 8), (8, 10)]
+    children = np.random.SeedSequence(7).spawn(3)
+    for b, child in zip(plan, children):
+        assert np.array_equal(b.rng().standard_normal(5), np.random.default_rng(child).standard_normal(5))
+    assert not np.array_equal(plan[0].rng().standard_normal(5), plan[1].rng().standard_normal(5))
+    with pytest.raises(TwinError, match="batch size"):
+        batches.plan(10, 0, 0)
+
+
+def test_chunked_rollout_is_the_one_long_rollout_bit_for_bit(vessel, mission, monkeypatch):
+    drawn, _ = Variation(covariance=True).draw(vessel, 6, np.random.default_rng(3))
+    vessels = [d.truth() for d in drawn]
+    whole, _ = mc.simulate_tracks(vessels, mission)
+    monkeypatch.setattr(mc, "CHUNK_BYTES", 1)  # one sample period per rollout call
+    chunked, _ = mc.simulate_tracks(vessels, mission)
+    assert np.array_equal(whole, chunked)
+    assert np.ptp(whole[:, -1, 0]) > 0.1  # the draws differ: their tracks spread
+
+
+def test_the_mission_replays_the_closed_loop_run_open_loop(vessel):
+    from twin.drive import get
+    from twin.engine.mjcf import compile_vessel
+    from twin.engine.sim import simulate
+
+    m = mc.scenario_mission(vessel, "zigzag", 30.0, 0.5)
+    run = simulate(compile_vessel(vessel), get("zigzag"), 30.0, sample_dt_s=0.5)
+    tracks, diverged = mc.simulate_tracks([vessel], m)
+    assert not diverged and "closed loop" in m.source
+    assert np.max(np.abs(tracks[0, :, :3] - run.eta)) < 1e-9 and np.max(np.abs(tracks[0, :, 3:] - run.nu)) < 1e-9
+
+
+# ---------------------------------------------------------------- Monte Carlo
+
+@pytest.fixture(scope="module")
+def band_run(vessel, mission):
+    return mc.run(vessel, mission, 300, seed=1, batch_size=64)
+
+
+def test_a_truth_drawn_from_the_same_covariance_is_inside_the_band_as_often_as_it_should(vessel, mission,
+                                                                                          band_run):
+    truths, _ = Variation(covariance=True).draw(vessel, 200, np.random.default_rng(12345))
+    tracks, diverged = mc.simulate_tracks([d.truth() for d in truths], mission)
+    assert not diverged
+    at_90 = mc.coverage(band_run.band, tracks, 0.9)
+    at_50 = mc.coverage(band_run.band, tracks, 0.5)
+    # 200 truths and a band of 300 draws: a few per cent of sampling error either way; a band of
+    # 1.5 times the spread would hold 98 %, one of two thirds 73 %
+    for q in mc.QUANTITIES:
+        assert 0.84 <= at_90[q] <= 0.96, (q, at_90[q])
+        assert 0.38 <= at_50[q] <= 0.62, (q, at_50[q])
+    assert np.mean(list(at_90.values())) == pytest.approx(0.9, abs=0.03)
+    assert np.mean(list(at_50.values())) == pytest.approx(0.5, abs=0.06)
+    # the band is not trivially wide: the nominal twin stays inside it, a 30 % faster twin does not
+    slow = replace(vessel, thrusters=replace(vessel.thrusters, gain_left=1.3, gain_right=1.3))
+    off, _ = mc.simulate_tracks([slow], mission)
+    assert mc.coverage(band_run.band, off)["u"] < 0.2
+
+
+def test_the_band_is_the_same_numbers_on_any_number_of_threads(vessel, mission):
+    one = mc.run(vessel, mission, 40, seed=5, batch_size=16, executor=batches.LocalExecutor(nthread=1))
+    two = mc.run(vessel, mission, 40, seed=5, batch_size=16, executor=batches.LocalExecutor(nthread=2))
+    assert all(np.array_equal(one.band.values[q], two.band.values[q]) for q in mc.QUANTITIES)
+    assert np.array_equal(one.coordinates, two.coordinates) and one.coordinates.shape == (40, 5)
+    # the drawn coordinates follow the block: mean and spread of ln|Xu|
+    xu = vessel.uncertainty["mean"][0]
+    assert abs(np.mean(one.coordinates[:, 0]) - xu) < 0.15 and 0.1 < np.std(one.coordinates[:, 0]) < 0.3
+
+
+def test_band_outputs_and_their_columns(band_run, tmp_path):
+    from twin.scale import views
+
+    text = band_run.to_csv_text()
+    head = text.splitlines()[0].split(",")
+    assert head[:3] == ["t_s", "north_m_nominal", "north_m_p05"] and "deviation_m_p90" in head
+    rows = np.array([[float(x) for x in line.split(",")] for line in text.splitlines()[1:]])
+    assert rows.shape == (41, len(head)) and rows[-1, 0] == pytest.approx(20.0)
+    d = band_run.to_dict()
+    assert d["draws"] == 300 and d["percentiles"] == [5.0, 25.0, 50.0, 75.0, 90.0, 95.0]
+    assert d["final"]["deviation"]["p90"] > 0.5 and d["coordinates"]["names"][0] == "Xu"
+    json.dumps(d, default=lambda x: x.tolist())
+    views.write_rrd(band_run, tmp_path / "band.rrd")
+    views.write_png(band_run, tmp_path / "band.png")
+    assert (tmp_path / "band.rrd").stat().st_size > 10_000 and (tmp_path / "band.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_effect_ranges_and_factors_are_drawn_within_their_ranges(vessel):
+    r = parse_effect_range("current=0..0.3,90")
+    drawn = [r.draw(np.random.default_rng(i)).params for i in range(20)]
+    assert all(0 <= p["speed_m_s"] <= 0.3 and p["dir_deg"] == 90 for p in drawn)
+    assert np.ptp([p["speed_m_s"] for p in drawn]) > 0.1
+    with pytest.raises(TwinError, match="dir_deg"):
+        parse_effect_range("current=0..0.3,0..400")
+    with pytest.raises(TwinError, match="LO ≤ HI"):
+        parse_factor("Xu=2..1", vessel)
+    v = Variation(factors=(parse_factor("mass=1.2..1.2", vessel), parse_factor("Xu=0.5..0.5", vessel)))
+    (d,), _ = v.draw(vessel, 1, np.random.default_rng(0))
+    assert d.vessel.damping.Xu == pytest.approx(0.5 * vessel.damping.Xu)
+    from twin.engine.mjcf import compile_vessel
+
+    heavy = compile_vessel(d.vessel).geometry.rigid.mass_kg
+    assert heavy == pytest.approx(1.2 * compile_vessel(vessel).geometry.rigid.mass_kg)
+    assert with_mass_scale(vessel, 1.1).case != with_mass_scale(vessel, 1.2).case
+
+
+def test_band_against_a_recording(vessel, tmp_path):
+    from twin.synth.dataset import PROFILES, generate
+
+    nominal = generate(vessel, n_segments=2, manoeuvres=["rc"], seed=2, noise=PROFILES["none"],
+                       segment_s=(70.0, 70.0)).recording
+    faster = generate(vessel, effects=["thrust_gain=1.5"], n_segments=2, manoeuvres=["rc"], seed=2,
+                      noise=PROFILES["none"], segment_s=(70.0, 70.0)).recording
+    options = {"draws": 48, "seed": 0, "window_s": 20.0, "batch_size": 16, "calibrated": False}
+    inside = mc.recording_coverage(vessel, [nominal], **options)
+    outside = mc.recording_coverage(vessel, [faster], **options)
+    assert inside.windows >= 6 and inside.draws == 48 and len(inside.horizon_s) == 20
+    assert inside.inside["u"] > 0.9 and inside.inside["r"] > 0.8 and inside.inside["deviation"] > 0.9
+    assert outside.inside["u"] < 0.3 and outside.inside["deviation"] < 0.5
+    assert "share of the recording inside" in inside.text() and set(inside.to_dict()["inside"]) >= {"u", "v", "r"}
+
+
+# ---------------------------------------------------------------- datasets
+
+def _settings(**kw):
+    v = vessel_mod.load("yellowfish")
+    variation = Variation(factors=(parse_factor("mass=0.9..1.2", v), parse_factor("Xu=0.5..2", v)),
+                          effects=(parse_effect_range("current=0..0.3,0..360"),), effect_share=0.5)
+    return v, datasets.Settings(**{"vessels": 5, "per_shard": 2, "segments": 1, "manoeuvres": ("rc",), "seed": 3,
+                                   "variation": variation, **kw})
+
+
+def test_shards_with_one_truth_index_and_resume(tmp_path):
+    v, settings = _settings()
+    first = datasets.generate_shards(v, settings, tmp_path / "a")
+    index = json.loads((tmp_path / "a" / "index.json").read_text())
+    assert index["shards"] == 3 and [e["vessel_index"] for e in index["entries"]] == [0, 1, 2, 3, 4]
+    assert first.made == 3 and first.reused == 0
+    for e in index["entries"]:
+        truth = json.loads((tmp_path / "a" / f"shard-{e['shard']:05d}" / "truth.json").read_text())
+        mine = next(t for t in truth["truths"] if t["vessel_index"] == e["vessel_index"])
+        assert (tmp_path / "a" / e["file"]).stat().st_size > 1000
+        assert e["labels"]["Xu"] == pytest.approx(v.damping.Xu * e["factors"]["Xu"])
+        assert mine["vessel"]["damping"]["Xu"] == pytest.approx(e["labels"]["Xu"])
+        assert e["mass_kg"] == pytest.approx(24.39 * e["factors"]["mass"])
+        assert [x["text"] for x in mine["effects"]] == e["effects"]
+    assert 0 < sum(bool(e["effects"]) for e in index["entries"]) < 5  # share 0.5: some have the current
+    csv_head = (tmp_path / "a" / "index.csv").read_text().splitlines()[0].split(",")
+    assert {"file", "factor_mass", "label_Xu", "effects"} <= set(csv_head)
+    # cut short: the middle shard's truth is gone, so resuming makes that shard alone, the same bytes
+    shard = tmp_path / "a" / "shard-00001"
+    before = (shard / "vessel-000002.mcap").read_bytes()
+    (shard / "truth.json").unlink()
+    again = datasets.generate_shards(v, settings, tmp_path / "a", resume=True)
+    assert (again.made, again.reused) == (1, 2) and (shard / "vessel-000002.mcap").read_bytes() == before
+    assert json.loads((tmp_path / "a" / "index.json").read_text()) == index
+    with pytest.raises(TwinError, match="not empty"):
+        datasets.generate_shards(v, settings, tmp_path / "a")
+    with pytest.raises(TwinError, match="other settings"):
+        datasets.generate_shards(v, replace(settings, seed=4), tmp_path / "a", resume=True)
+
+
+# ---------------------------------------------------------------- fleet
+
+def fake_diagnose(recordings, vessel, **options):
+    """A stand-in diagnosis: a current whose speed is the log's duration / 1000 on 'boat' logs."""
+    rec = recordings[0]
+    if rec.duration_s() < 10:
+        raise TwinError(f"{rec.source}: too short")
+    effects = [{"name": "current", "parameters": {"speed_m_s": rec.duration_s() / 1000.0}, "held_out_gain": 0.5}]
+    effects = effects if vessel.name == "yellowfish" else []
+    return SimpleNamespace(effects=effects, to_dict=lambda: {"vessel": vessel.name, "effects": effects,
+                                                           "options": options})
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    from twin.formats import write_recording
+    from twin.synth.dataset import PROFILES, generate
+
+    d = tmp_path_factory.mktemp("fleet")
+    v = vessel_mod.load("yellowfish")
+    for i, seconds in enumerate((40.0, 60.0, 5.0)):
+        ds = generate(v, n_segments=1, manoeuvres=["rc"], seed=i, noise=PROFILES["none"],
+                      segment_s=(seconds, seconds))
+        write_recording(ds.recording, d / f"log{i}.mcap")
+    (d / "manifest.csv").write_text("recording,vessel,day\nlog0.mcap,yellowfish,2026-05-01\n"
+                                    "log1.mcap,blueboat,2026-05-02\nlog2.mcap,,2026-05-02\n")
+    return d
+
+
+def test_fleet_reports_and_summary_per_vessel_and_day(logs, tmp_path):
+    entries = fleet.read_manifest(logs / "manifest.csv", default_vessel="yellowfish")
+    assert [e.vessel for e in entries] == ["yellowfish", "blueboat", "yellowfish"]
+    done = fleet.diagnose_fleet(entries, tmp_path / "out", window_s=5.0, diagnose=fake_diagnose)
+    s = done.summary
+    assert (s["logs"], s["diagnosed"]) == (3, 2) and "too short" in s["failed"][0]["error"]
+    assert s["effects"]["current"]["logs"] == 1 and s["effects"]["current"]["share"] == 0.5
+    assert s["effects"]["current"]["parameters"]["speed_m_s"]["median"] == pytest.approx(0.04, abs=0.002)
+    assert s["per_vessel"]["blueboat"]["effects"] == {} and s["per_vessel"]["yellowfish"]["logs"] == 2
+    assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}}
+    report = json.loads((tmp_path / "out" / "log0.json").read_text())
+    assert report["ok"] and report["day"] == "2026-05-01" and report["report"]["options"] == {"window_s": 5.0}
+    assert "| current | 1 | 50 % |" in (tmp_path / "out" / "fleet.md").read_text()
+    with pytest.raises(TwinError, match="not YYYY-MM-DD"):
+        (logs / "bad.csv").write_text("recording,day\nlog0.mcap,May 1\n")
+        fleet.read_manifest(logs / "bad.csv", "yellowfish")
+
+
+# ---------------------------------------------------------------- commands
+
+def test_montecarlo_command_writes_every_output(vessel, tmp_path):
+    model = vessel_mod.save(vessel, tmp_path / "identified.json")
+    outs = [tmp_path / f"band.{ext}" for ext in ("csv", "json", "png", "rrd")]
+    done = twin("montecarlo", "--model", model, "--scenario", "turn", "--duration", "10", "--draws", "40",
+                "--batch-size", "16", *sum((["--out", p] for p in outs), []))
+    assert done.returncode == 0, done.stderr
+    assert "40 draws of 10 s" in done.stdout and "distance from nominal" in done.stdout
+    band = json.loads(outs[1].read_text())
+    assert band["draws"] == 40 and len(band["t_s"]) == 21 and band["variation"]["covariance"]
+    assert all(p.stat().st_size > 1000 for p in outs)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["montecarlo", "--vessel", "yellowfish"], "carries no identification uncertainty"),
+    (["montecarlo", "--vessel", "yellowfish", "--no-covariance"], "nothing varies"),
+    (["montecarlo", "--vessel", "yellowfish", "--vary", "Xq=1..2"], "unknown coefficient 'Xq'"),
+    (["montecarlo", "--vessel", "yellowfish", "--effect", "current=0..0.3,0..400"], "dir_deg must be"),
+    (["montecarlo", "--vessel", "yellowfish", "--no-covariance", "--vary", "Xu=1..2", "--ray", "127.0.0.1:1"],
+     "nothing answers"),
+    (["montecarlo", "--vessel", "yellowfish", "--no-covariance", "--vary", "Xu=1..2", "--ray", "ray://127.0.0.1"],
+     "expected auto"),
+    (["dataset-shards", "--vessel", "yellowfish", "--vary", "mass=0..2"], "factors must be > 0"),
+    (["dataset-shards", "--vessel", "yellowfish", "--manoeuvres", "loop"], "unknown manoeuvre"),
+    (["fleet", "--vessel", "yellowfish", "missing.tlog"], "no such file"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, message, tmp_path, monkeypatch, capsys):
+    from twin.cli.app import main
+
+    out = tmp_path / ("b.json" if args[0] == "montecarlo" else "out")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["twin", *args, "--out", str(out)])
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_dataset_shards_and_fleet_commands(logs, tmp_path):
+    done = twin("dataset-shards", "--vessel", "yellowfish", "--out", tmp_path / "ds", "--vessels", "3",
+                "--per-shard", "2", "--segments", "1", "--manoeuvres", "rc", "--vary", "Nr=0.8..1.25",
+                "--format", "csv")
+    assert done.returncode == 0, done.stderr
+    index = json.loads((tmp_path / "ds" / "index.json").read_text())
+    assert len(index["entries"]) == 3 and index["entries"][2]["file"] == "shard-00001/vessel-000002.csv"
+    done = twin("fleet", logs / "log1.mcap", logs / "log2.mcap", "--vessel", "yellowfish", "--out", tmp_path / "f",
+                "--effects", "current", "--window", "5")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((tmp_path / "f" / "fleet.json").read_text())
+    assert (summary["logs"], summary["diagnosed"]) == (2, 1) and summary["failed"][0]["log"].endswith("log2.mcap")
+    report = json.loads((tmp_path / "f" / "log1.json").read_text())
+    assert report["ok"] and {"effects", "fit_before", "fit_after"} <= set(report["report"])

@@ -1,0 +1,256 @@
+"""The MMG standard method for a single-propeller, single-rudder ship (Yasukawa & Yoshimura 2015,
+"Introduction of MMG standard method for ship maneuvering predictions", J. Mar. Sci. Technol.
+20:37-52, doi 10.1007/s00773-014-0293-y): hull, propeller and rudder forces at midship.
+
+Frames and signs as the rest of the twin: body FRD with the origin at MIDSHIP on the waterline
+(the point the MMG equations and every published coefficient refer to), ν = (u, v_m, r) the
+midship velocities, δ > 0 turns the ship to starboard (r > 0), n > 0 drives it ahead. The
+rigid body (mass at x_G, its Coriolis terms, MMG eq. 4's left side) is MuJoCo's, added mass
+is the twin's exact added-mass term (hydrodynamics.py, without the Munk moment: it is inside
+N'_v, see `AddedMass.munk_moment`); this module gives X = X_H + X_P + X_R etc. (eq. 5).
+
+Equations, numbered as in the paper (the numbering follows the paper's published layout as far
+as this project could check it; the paper text itself was not available, docs/esso.md):
+  hull (eqs. 7-8)      X_H = ½ρL d U² (−R'_0 + X'_vv v'² + X'_vr v'r' + X'_rr r'² + X'_vvvv v'⁴)
+                       Y_H = ½ρL d U² (Y'_v v' + Y'_r r' + Y'_vvv v'³ + Y'_vvr v'²r' + Y'_vrr v'r'² + Y'_rrr r'³)
+                       N_H = ½ρL²d U² (N'_v v' + N'_r r' + N'_vvv v'³ + N'_vvr v'²r' + N'_vrr v'r'² + N'_rrr r'³)
+                       v' = v_m/U, r' = rL/U, U = √(u² + v_m²)
+  propeller (eqs. 10-16) X_P = (1 − t_P) T,  T = ρ n² D_P⁴ K_T(J_P),  K_T = k0 + k1 J_P + k2 J_P²,
+                       J_P = u (1 − w_P)/(n D_P),
+                       1 − w_P = (1 − w_P0)[1 + (1 − exp(−C_1|β_P|))(C_2 − 1)],  β_P = β − x'_P r',
+                       C_2 = C_2⁺ for β_P > 0, C_2⁻ otherwise; β = atan(−v_m/u)
+  rudder (eqs. 17-27)  X_R = −(1 − t_R) F_N sin δ,  Y_R = −(1 + a_H) F_N cos δ,
+                       N_R = −(x_R + a_H x_H) F_N cos δ,  F_N = ½ρ A_R U_R² f_α sin α_R,
+                       U_R² = u_R² + v_R²,  α_R = δ − atan(v_R/u_R),  f_α = 6.13Λ/(Λ + 2.25) (Fujii),
+                       u_R = ε u_P √(η{1 + κ(√(1 + 8K_T/(πJ_P²)) − 1)}² + (1 − η)),  η = D_P/H_R,
+                       v_R = U γ_R β_R,  β_R = β − l'_R r',  γ_R = γ_R⁻ for β_R < 0, γ_R⁺ otherwise
+
+Written so that they stay finite where the standard's own form is not: u_R is the paper's
+expression multiplied through by u_P = u(1 − w_P) (identical for u_P > 0, finite at u_P = 0:
+ε √(η (u_P + κ(√(u_P² + 8K_T n²D_P²/π) − u_P))² + (1 − η) u_P²)), and T is ρ D_P⁴(k0 n² + k1 n
+u_P/D_P + k2 u_P²/D_P²), which is K_T(J)·ρn²D⁴ for n > 0 and the locked propeller's drag at n = 0.
+
+The standard is a forward-speed model (u > 0, n ≥ 0, |β| up to about 30°). A free-running
+model in a pond stops, reverses and drifts, so outside that domain this module extends it,
+keeping the standard exact inside it (each extension says why; identification may revise them):
+  * U → 0: v', r' and U² use U_nd = max(U, low_speed_m_s); above that speed nothing changes,
+    below it the forces stay bounded (r'³ U² = r³L³/U would grow without limit);
+  * resistance −R'_0 U² is multiplied by f = clip(2u/U, −1, 1): 1 (the standard) for drift
+    angles up to 60°, no surge resistance when moving broadside, opposing the motion astern
+    (the standard's −R'_0U² would push a ship going astern further astern);
+  * β = atan2(−v_m, |u|) (the standard's β for u ≥ 0; astern the drift angle is measured from
+    the stern), 1 − w_P = 1 for u < 0 (no wake ahead of the propeller when going astern);
+  * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
+    clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the NAOE Esso 3 m set's
+    reverse-propeller form; no slipstream on the rudder;
+  * u < 0: the rudder sees the hull's flow from astern, u_R = u + ε κ √η √(8K_T n²D_P²/π),
+    continuous with the standard's u_R at u = 0; α_R = δ − atan2(v_R, u_R) then reverses the
+    rudder's effect, as a rudder going astern does.
+  * n and δ are clipped to the vessel's input bounds here, so the engine and the analytic model
+    see the same inputs.
+
+Every function is a plain function of floats and one float array of parameters (layout FIELDS),
+so numba compiles the very same code for the native callback (engine/native.py).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+HULL_FIELDS = ("R0", "Xvv", "Xvr", "Xrr", "Xvvvv", "Yv", "Yr", "Yvvv", "Yvvr", "Yvrr", "Yrrr",
+               "Nv", "Nr", "Nvvv", "Nvvr", "Nvrr", "Nrrr")
+
+
+@dataclass(frozen=True)
+class MmgHull:
+    """Non-dimensional hull derivatives of eqs. 7-8 (primes dropped): R0 is R'_0 (> 0 resists)."""
+
+    R0: float = 0.0
+    Xvv: float = 0.0
+    Xvr: float = 0.0
+    Xrr: float = 0.0
+    Xvvvv: float = 0.0
+    Yv: float = 0.0
+    Yr: float = 0.0
+    Yvvv: float = 0.0
+    Yvvr: float = 0.0
+    Yvrr: float = 0.0
+    Yrrr: float = 0.0
+    Nv: float = 0.0
+    Nr: float = 0.0
+    Nvvv: float = 0.0
+    Nvvr: float = 0.0
+    Nvrr: float = 0.0
+    Nrrr: float = 0.0
+
+
+@dataclass(frozen=True)
+class MmgPropeller:
+    """Propeller of eqs. 10-16 and its astern extension (module docstring). Its longitudinal
+    position x'_P comes from the MJCF's `propeller` site, not from here."""
+
+    diameter_m: float = 0.0
+    k0: float = 0.0
+    k1: float = 0.0
+    k2: float = 0.0
+    tP: float = 0.0  # thrust deduction t_P
+    wP0: float = 0.0  # wake fraction in straight motion w_P0
+    C1: float = 0.0
+    C2_plus: float = 1.0  # C_2 for β_P > 0
+    C2_minus: float = 1.0  # C_2 for β_P ≤ 0
+    astern_kt0: float = 0.0  # K_astern at u = 0 (n < 0)
+    astern_kt1: float = 0.0  # its growth with u/(|n|D_P)
+    astern_kt_max: float = 0.0  # its cap
+
+
+@dataclass(frozen=True)
+class MmgRudder:
+    """Rudder of eqs. 17-27. Its longitudinal position x_R comes from the MJCF's `rudder` site."""
+
+    area_m2: float = 0.0  # A_R
+    aspect_ratio: float = 1.0  # Λ: f_α (Fujii) and the span H_R = √(A_R Λ), η = D_P/H_R
+    tR: float = 0.0  # steering resistance deduction t_R
+    aH: float = 0.0  # rudder force increase factor a_H
+    xH: float = 0.0  # x'_H, where the hull's share of the rudder force acts, in units of L
+    gamma_minus: float = 0.0  # flow straightening γ_R for β_R < 0
+    gamma_plus: float = 0.0  # γ_R for β_R ≥ 0
+    lR: float = 0.0  # l'_R, effective longitudinal position of the rudder in the yaw term
+    epsilon: float = 1.0  # ε = (1 − w_R)/(1 − w_P)
+    kappa: float = 0.0  # κ, propeller race acceleration at the rudder
+
+
+@dataclass(frozen=True)
+class MmgModel:
+    """The ship's MMG description: water density, principal particulars and the three parts.
+
+    lpp_m and draft_m make the forces dimensional; breadth_m and block_coefficient are the
+    particulars the hull mesh and `twin validate` check against (not in the forces).
+    """
+
+    rho_kg_m3: float = 998.0
+    lpp_m: float = 0.0
+    breadth_m: float = 0.0
+    draft_m: float = 0.0
+    block_coefficient: float = 0.0
+    low_speed_m_s: float = 0.05  # U_nd floor of the module docstring
+    hull: MmgHull = MmgHull()
+    propeller: MmgPropeller = MmgPropeller()
+    rudder: MmgRudder = MmgRudder()
+
+
+# ---------------------------------------------------------------- packed parameters
+
+FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS,
+          "D_P", "k0", "k1", "k2", "tP", "wP0", "C1", "C2_plus", "C2_minus", "xP_nd",
+          "astern_kt0", "astern_kt1", "astern_kt_max",
+          "A_R", "f_alpha", "eta", "tR", "aH", "xH_m", "xR_m", "gamma_minus", "gamma_plus", "lR_nd",
+          "epsilon", "kappa", "n_min", "n_max", "delta_max")
+INDEX = {name: i for i, name in enumerate(FIELDS)}
+SIZE = len(FIELDS)
+# index constants: numba reads module globals as compile-time constants
+_RHO, _L, _D, _UMIN, _H = 0, 1, 2, 3, 4
+(_DP, _K0, _K1, _K2, _TP, _WP0, _C1, _C2P, _C2M, _XP, _KA0, _KA1, _KAMAX, _AR, _FA, _ETA, _TR, _AH, _XH, _XR,
+ _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):])
+
+
+def fujii_lift_slope(aspect_ratio: float) -> float:
+    """f_α = 6.13Λ/(Λ + 2.25), Fujii's rudder normal-force gradient (eq. 20 of the standard)."""
+    return 6.13 * aspect_ratio / (aspect_ratio + 2.25)
+
+
+def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
+         n_bounds: tuple[float, float] = (-math.inf, math.inf), delta_max_rad: float = math.inf) -> np.ndarray:
+    """The float vector of FIELDS: the vessel file's numbers with the MJCF's propeller and rudder
+    positions (x'_P = x_P/L, x_R in m) and the input bounds (rps, rad; inf when none)."""
+    p, r, h = model.propeller, model.rudder, model.hull
+    span_m = math.sqrt(r.area_m2 * r.aspect_ratio)
+    values = {"rho": model.rho_kg_m3, "L": model.lpp_m, "d": model.draft_m, "U_min": model.low_speed_m_s,
+              **{k: getattr(h, k) for k in HULL_FIELDS},
+              "D_P": p.diameter_m, "k0": p.k0, "k1": p.k1, "k2": p.k2, "tP": p.tP, "wP0": p.wP0, "C1": p.C1,
+              "C2_plus": p.C2_plus, "C2_minus": p.C2_minus, "xP_nd": propeller_x_m / model.lpp_m,
+              "astern_kt0": p.astern_kt0, "astern_kt1": p.astern_kt1, "astern_kt_max": p.astern_kt_max,
+              "A_R": r.area_m2, "f_alpha": fujii_lift_slope(r.aspect_ratio),
+              "eta": p.diameter_m / span_m if span_m > 0 else 0.0, "tR": r.tR, "aH": r.aH,
+              "xH_m": r.xH * model.lpp_m, "xR_m": rudder_x_m, "gamma_minus": r.gamma_minus,
+              "gamma_plus": r.gamma_plus, "lR_nd": r.lR, "epsilon": r.epsilon, "kappa": r.kappa,
+              "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad}
+    return np.array([float(values[k]) for k in FIELDS])
+
+
+def hull_fields() -> list[str]:
+    return [f.name for f in fields(MmgHull)]
+
+
+# ---------------------------------------------------------------- the forces
+
+def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
+              hull_on: bool, propeller_on: bool, rudder_on: bool):
+    """(X, Y, N, T, F_N) at midship: the sum of the switched-on parts of X_H + X_P + X_R (N),
+    Y (N), N (N m), and the propeller thrust T (N, before thrust deduction) and rudder normal
+    force F_N (N) whatever the switches. p: the packed FIELDS; ν relative to the water."""
+    rho, L, d = p[_RHO], p[_L], p[_D]
+    n = min(max(n, p[_NMIN]), p[_NMAX])
+    delta = min(max(delta, -p[_DMAX]), p[_DMAX])
+    U = math.sqrt(u * u + v * v)
+    Un = max(U, p[_UMIN])  # U_nd
+    vp = v / Un
+    rp = r * L / Un
+    beta = math.atan2(-v, abs(u))
+    X = 0.0
+    Y = 0.0
+    N = 0.0
+    # hull, eqs. 7-8 (R'_0 with the direction factor of the module docstring)
+    if hull_on:
+        h = _H
+        q = 0.5 * rho * L * d
+        f = 0.0
+        if U > 0.0:
+            f = min(max(2.0 * u / U, -1.0), 1.0)
+        U2 = Un * Un
+        X += q * (-p[h] * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
+                                             + p[h + 4] * vp * vp * vp * vp))
+        Y += q * U2 * (p[h + 5] * vp + p[h + 6] * rp + p[h + 7] * vp * vp * vp + p[h + 8] * vp * vp * rp
+                       + p[h + 9] * vp * rp * rp + p[h + 10] * rp * rp * rp)
+        N += q * L * U2 * (p[h + 11] * vp + p[h + 12] * rp + p[h + 13] * vp * vp * vp + p[h + 14] * vp * vp * rp
+                           + p[h + 15] * vp * rp * rp + p[h + 16] * rp * rp * rp)
+    # propeller, eqs. 10-16: the wake in manoeuvring motion (eqs. 15-16), the thrust multiplied
+    # through by n² so that it stays finite at n = 0
+    D = p[_DP]
+    beta_p = beta - p[_XP] * rp
+    c2 = p[_C2P] if beta_p > 0.0 else p[_C2M]
+    one_minus_w = (1.0 - p[_WP0]) * (1.0 + (1.0 - math.exp(-p[_C1] * abs(beta_p))) * (c2 - 1.0))
+    if u < 0.0:
+        one_minus_w = 1.0
+    u_p = u * one_minus_w
+    if n >= 0.0:
+        T = rho * (p[_K0] * n * n * D ** 4 + p[_K1] * n * u_p * D ** 3 + p[_K2] * u_p * u_p * D * D)
+        x_p = (1.0 - p[_TP]) * T
+        race2 = 0.0  # 8 K_T n² D_P²/π, the propeller race in u_R (eq. 21)
+        if n > 0.0:
+            race2 = 8.0 * max(T, 0.0) / (math.pi * rho * D * D)
+    else:
+        k_astern = min(max(p[_KA0] + p[_KA1] * u / (-n * D), 0.0), p[_KAMAX])
+        T = -rho * n * n * D ** 4 * k_astern
+        x_p = T
+        race2 = 0.0
+    if propeller_on:
+        X += x_p
+    # rudder, eqs. 17-27
+    eps, kappa, eta = p[_EPS], p[_KAPPA], p[_ETA]
+    if u >= 0.0:
+        inner = u_p + kappa * (math.sqrt(u_p * u_p + race2) - u_p)
+        u_r = eps * math.sqrt(eta * inner * inner + (1.0 - eta) * u_p * u_p)
+    else:
+        u_r = u + eps * kappa * math.sqrt(eta) * math.sqrt(race2)
+    beta_r = beta - p[_LR] * rp
+    gamma = p[_GM] if beta_r < 0.0 else p[_GP]
+    v_r = gamma * (U * beta - p[_LR] * r * L * U / Un)  # U γ_R β_R (r' on U_nd below the floor)
+    alpha_r = delta - math.atan2(v_r, u_r)
+    f_n = 0.5 * rho * p[_AR] * (u_r * u_r + v_r * v_r) * p[_FA] * math.sin(alpha_r)
+    if rudder_on:
+        X += -(1.0 - p[_TR]) * f_n * math.sin(delta)
+        Y += -(1.0 + p[_AH]) * f_n * math.cos(delta)
+        N += -(p[_XR] + p[_AH] * p[_XH]) * f_n * math.cos(delta)
+    return X, Y, N, T, f_n
