@@ -158,6 +158,7 @@ def _score(name, effects, manoeuvres, seed, prior, recordings) -> dict:
     return {"case": name, "effects": effects, "manoeuvres": manoeuvres, "rows": rows, "extra": extra,
             "fit_before": d.fit_before, "fit_after": d.fit_after, "seconds": round(time.time() - started, 1),
             "unexplained": len(d.unexplained), "found_all": all(r["found"] for r in rows), "seed": seed,
+            "hints": [u.split(" may be missing")[0] for u in d.to_dict()["answer"]["unsettled"] if " may be missing" in u],
             "kept": [{"name": e["name"], "parameters": e["parameters"], "rivals": e["rivals"]} for e in d.effects]}
 
 
@@ -290,15 +291,17 @@ def markdown(results: list[dict]) -> str:
              "Recordings from a truth the diagnosis never sees; realistic sensors (GNSS 5 Hz at the antenna, "
              "2 cm white + 0.5 m wander; heading 50 Hz, 0.3°; PWM 10 Hz). Prior twin: `yellowfish`. "
              "Regenerate: `python scripts/diagnose_proof.py`.", "",
-             "| case | injected | found | parameter error | extra effects named | held-out R² u / v / r before → after | s |",
-             "|---|---|---|---|---|---|---|"]
+             "| case | injected | found | parameter error | extra effects named | hints not proven | "
+             "held-out R² u / v / r before → after | s |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in results:
         inj = "; ".join(r["effects"]) or "none"
         found = ", ".join(("✔ " if x["found"] else "✘ ") + x["effect"] + _ambiguity(x) for x in r["rows"]) \
             or ("✔ nothing" if not r["extra"] else "✘")
         err = ", ".join(f"{100 * x['error']:.0f} %" for x in r["rows"] if x["error"] is not None) or "-"
         fit = " / ".join(f"{_r2(r['fit_before'][k])} → {_r2(r['fit_after'][k])}" for k in "uvr")
-        lines.append(f"| {r['case']} | {inj} | {found} | {err} | {', '.join(r['extra']) or '-'} | {fit} | "
+        lines.append(f"| {r['case']} | {inj} | {found} | {err} | {', '.join(r['extra']) or '-'} | "
+                     f"{', '.join(r.get('hints', [])) or '-'} | {fit} | "
                      f"{r['seconds']} |")
     singles = [r for r in results if len(r["effects"]) == 1 and "small" not in r["case"] and "autopilot" not in r["case"]]
     ok = [r for r in singles if r["found_all"] and all((x["error"] or 0) <= 0.2 for x in r["rows"])]
@@ -360,7 +363,7 @@ def main() -> None:
         if only and name not in only:
             continue
         res = run_multi_log(name, biases, manoeuvres, args.segments, args.seed + len(CASES) + k)
-        results.append(res)
+        results[:] = [r for r in results if r["case"] != name] + [res]
         print(f"{name:28s} found: {'yes' if res['found_all'] else 'NO':40s} extra: {','.join(res['extra']) or '-':20s} "
               f"{res['seconds']} s", flush=True)
         save()

@@ -192,6 +192,8 @@ def markdown(ctx: dict) -> str:
         "",
         fence, format_choices(first), fence,
         "",
+        *[f"Note: {n}." for n in first.notes],
+        "",
         fence, format_estimates(first.fit), fence,
         "",
         "## 2. Diagnosis of the identified twin on the seven runs",

@@ -60,29 +60,12 @@ def hull_mesh(vessel: str = "yellowfish") -> trimesh.Trimesh:
     c, s = np.cos(theta), np.sin(theta)
     ring_y = np.sign(c) * np.abs(c) ** (2 / EXPONENT)
     ring_z = np.sign(s) * np.abs(s) ** (2 / EXPONENT)
-    vertices, faces = [], []
+    rings = []
     for i, x in enumerate(xs):
         keel = deck_z_m + (keel_z_m - deck_z_m) * depth[i]
         zc, half_h = 0.5 * (deck_z_m + keel), 0.5 * (keel - deck_z_m)
-        for y, z in zip(ring_y, ring_z):
-            vertices.append((x, 0.5 * breadth_m * breadth[i] * y, zc + half_h * z))
-    n = RING_POINTS
-    for i in range(STATIONS - 1):
-        for j in range(n):
-            a, b = i * n + j, i * n + (j + 1) % n
-            faces += [(a, b, b + n), (a, b + n, a + n)]
-    for end, station in (("stern", 0), ("bow", STATIONS - 1)):
-        centre = np.mean(vertices[station * n:(station + 1) * n], axis=0)
-        k = len(vertices)
-        vertices.append(tuple(centre))
-        for j in range(n):
-            a, b = station * n + j, station * n + (j + 1) % n
-            faces.append((k, b, a) if end == "stern" else (k, a, b))
-    mesh = trimesh.Trimesh(np.array(vertices), np.array(faces), process=True)
-    trimesh.repair.fix_normals(mesh)
-    if not mesh.is_watertight or mesh.volume <= 0:
-        raise SystemExit("hull mesh is not a closed positive volume")
-    return mesh
+        rings.append(np.array([(x, 0.5 * breadth_m * breadth[i] * y, zc + half_h * z) for y, z in zip(ring_y, ring_z)]))
+    return _closed_mesh(rings, RING_POINTS)
 
 
 def _closed_mesh(stations: list[np.ndarray], ring_points: int) -> trimesh.Trimesh:
@@ -161,10 +144,7 @@ def main() -> int:
     for vessel in HULLS:
         mesh = hull_mesh(vessel)
         for side in ("port", "starboard"):
-            out = ASSETS / f"{vessel}_hull_{side}.stl"
-            tmp = out.with_suffix(".stl.tmp")
-            tmp.write_bytes(trimesh.exchange.stl.export_stl(mesh))
-            tmp.replace(out)
+            _write_stl(mesh, ASSETS / f"{vessel}_hull_{side}.stl")
         ext = mesh.bounds[1] - mesh.bounds[0]
         print(f"{vessel} hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, volume {mesh.volume * 1e3:.2f} L, "
               f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}")

@@ -296,3 +296,20 @@ def test_dataset_shards_and_fleet_commands(logs, tmp_path):
     assert (summary["logs"], summary["diagnosed"]) == (2, 1) and summary["failed"][0]["log"].endswith("log2.mcap")
     report = json.loads((tmp_path / "f" / "log1.json").read_text())
     assert report["ok"] and {"effects", "fit_before", "fit_after"} <= set(report["report"])
+
+
+def test_evaluate_band_command_on_a_recording(vessel, tmp_path):
+    from twin.formats import write_recording
+    from twin.synth.dataset import PROFILES, generate
+
+    rec = generate(vessel, n_segments=2, manoeuvres=["rc"], seed=2, noise=PROFILES["none"],
+                   segment_s=(70.0, 70.0)).recording
+    write_recording(rec, tmp_path / "run.csv")
+    model = vessel_mod.save(vessel, tmp_path / "identified.json")
+    done = twin("evaluate", tmp_path / "run.csv", "--model", model, "--no-calibration", "--band", "--draws", "32",
+                "--json", tmp_path / "eval.json")
+    assert done.returncode == 0, done.stderr
+    band = json.loads((tmp_path / "eval.json").read_text())["band"]
+    assert band["level"] == 0.9 and band["inside"]["u"] > 0.9 and "share of the recording inside" in done.stdout
+    done = twin("evaluate", tmp_path / "run.csv", "--vessel", "yellowfish", "--band")
+    assert done.returncode == 2 and "uncertainty" in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -30,6 +30,7 @@ from .physics.thrusters import ThrusterModel
 
 # the vessels ship inside the package (package data), so an installed `twin` finds them from any folder
 MODEL_DIR = Path(str(resources.files("twin") / "model"))
+PACKAGE_MJCF = "package:"  # "mjcf": "package:blueboat.xml" names an MJCF shipped in twin/model
 CASES = ("min", "nominal", "max")
 
 
@@ -77,7 +78,10 @@ class Vessel:
 
     def to_dict(self) -> dict[str, Any]:
         mjcf = self.mjcf
-        if self.path is not None:
+        if Path(self.mjcf).resolve().parent == MODEL_DIR.resolve():
+            # a shipped MJCF by its package name: the file stays valid wherever it is moved or installed
+            mjcf = Path(PACKAGE_MJCF + Path(self.mjcf).name)
+        elif self.path is not None:
             try:
                 mjcf = Path(os.path.relpath(self.mjcf, self.path.parent))
             except ValueError:
@@ -186,7 +190,8 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
     _typed(data["name"], str, "name", path)
     _typed(data["mjcf"], str, "mjcf", path)
-    mjcf = (path.parent / data["mjcf"]).resolve()
+    shipped = data["mjcf"].startswith(PACKAGE_MJCF)
+    mjcf = (MODEL_DIR / data["mjcf"][len(PACKAGE_MJCF):]) if shipped else (path.parent / data["mjcf"]).resolve()
     if not mjcf.is_file():
         raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
     for key in ("cases", "sources"):

@@ -6,7 +6,7 @@ from typing import Optional
 
 import typer
 
-from ..effects.coefficients import FIT_GROUPS
+from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, floats, note,
                   progress_bar, say, vessel_from, write_json)
@@ -39,10 +39,13 @@ def dataset_command(
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
-    ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names, seed=seed,
-                  noise=noise_profile(noise))
+    with progress_bar("dataset") as progress:
+        ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names,
+                      seed=seed, noise=noise_profile(noise), progress=progress)
+        for k, path in enumerate(out):
+            progress(f"writing {path.name}", k, len(out))
+            write_recording(ds.recording, path)
     for path in out:
-        write_recording(ds.recording, path)
         console.print(f"wrote {path}")
     write_json(truth, ds.truth())
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
@@ -65,7 +68,9 @@ def identify_command(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
     groups: Optional[str] = typer.Option(None, help="groups of coefficients to consider, comma separated "
-                                                   "(default: all of " + ", ".join(FIT_GROUPS) + "); the fit "
+                                                   "(default: all of " + ", ".join(FIT_GROUPS) + "; for a "
+                                                   "propeller-and-rudder ship: " + ", ".join(MMG_FIT_GROUPS)
+                                                   + "); the fit "
                                                    "keeps those that predict left-out runs better"),
     params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
                                                    "comma separated (e.g. Xu,Xuu,Nr,Nrr,thrust_gain)"),
@@ -86,6 +91,9 @@ def identify_command(
     max_evaluations: int = typer.Option(20, help="cost evaluations of the first fit (later ones take a third)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="take each recording's measured wind (its anemometer stream) as a known "
+                                            "input of every free run"),
 ):
     """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
     prior's beliefs, every choice judged on runs left out of the fit."""
@@ -102,12 +110,14 @@ def identify_command(
     if chosen_params:
         simfit.check_names(prior, chosen_params, anchor)  # before any work
     recs = ident.read(recordings, channels_from(channels))
+    wind = "measured" if wind_measured else None
+    ident.check_wind(recs, wind)  # before any work
     with progress_bar("identify") as progress:
         result = ident.identify(recs, prior, groups=chosen_groups, params=chosen_params, prior_weights=weights,
                                 anchor=anchor, window_s=window, start=start, calibrated=calibration,
                                 greybox=greybox, thruster=thruster, split=split, train=train, repeats=repeats,
                                 seed=seed, max_evaluations=max_evaluations,
-                                sources=[str(r) for r in recordings], progress=progress)
+                                sources=[str(r) for r in recordings], progress=progress, wind=wind)
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
     text = ident.format_greybox(result.greybox)
@@ -139,9 +149,16 @@ def evaluate_command(
                                      help="apply each log's compass offset estimated from its own GNSS track"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the metrics as JSON"),
     rrd: Optional[Path] = typer.Option(None, help="write the recording and the twin's 10-s free runs to rerun"),
+    band: bool = typer.Option(False, "--band", help="also: how often the recording falls inside the Monte Carlo band "
+                                                    "of the identified uncertainty (30-s free runs)"),
+    draws: int = typer.Option(200, help="--band: parameter draws from the identification's covariance"),
+    level: float = typer.Option(0.9, help="--band: the band's level"),
+    seed: int = typer.Option(0, help="--band: random seed of the draws"),
+    ray: Optional[str] = typer.Option(None, help="--band: run the draws on Ray (auto, local or an address)"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
-    log's own compass calibration."""
+    log's own compass calibration; with --band, the share of the recording inside the prediction band
+    of the identified uncertainty."""
     from ..fit.evaluate import evaluate, format_metrics
     from ..ident.identify import calibrate, prepared, read
 
@@ -173,4 +190,19 @@ def evaluate_command(
         write(free_run_views(used, prepared(recs, used)), rrd, geometry=compile_vessel(v).geometry, vessel_name=v.name,
               mjcf=v.mjcf)
         say(f"wrote {rrd} (open with: rerun {rrd})")
+    if band:
+        from ..scale.batches import executor_from
+        from ..scale.montecarlo import band_coverage
+
+        used = calibrated if calibration else v
+        if not used.uncertainty:
+            raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "
+                            f"write one with twin identify)")
+        if draws < 2 or not 0.0 < level < 1.0:
+            raise TwinError("--band needs --draws of at least 2 and a --level between 0 and 1")
+        with progress_bar("band") as progress:
+            coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,
+                                     executor=executor_from(ray), progress=progress)
+        typer.echo(coverage.text())
+        out["band"] = coverage.to_dict()
     write_json(json_out, out)

@@ -1,11 +1,13 @@
 """The coefficients of the vessel description that identification fits one by one, with their
 units, the bounds that keep a fit physical and what is believed about each before any data: damping of seed 004 eq. 7 (Fossen's signs,
 so ≤ 0 where a term dissipates), added mass ≤ 0 with M_A symmetric, the thrust curve's
-scales, lag, delay, dead zone and a steady current."""
+scales, lag, delay, dead zone and a steady current; for a propeller-and-rudder ship (an `mmg`
+block), the MMG standard's non-dimensional hull derivatives, wake fraction and rudder inflow
+factors instead of the PWM thrusters' (MMG_FIT_GROUPS; `fit_groups` picks the vessel's)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..vessel import Vessel
 from .quantity import Quantity, gain_mean, gain_ratio, member, ned_component, reverse_scale
@@ -30,6 +32,23 @@ FIT_GROUPS = {
     "speed damping": ("Yuv", "Nur"),
     "coupling": ("Yr", "Nv"),
 }
+# a propeller-and-rudder ship (MMG, physics/mmg.py): the same idea on its own description. Not the
+# PWM thrusters' dead zone, gains or lag (it has none), and not X'_vv.., Y'_vvv, N'_vvv, Y'_rrr:
+# large drift at low speed is where the recordings are thin and the cubic terms trade off against
+# the linear ones. Names carry the `mmg_` prefix: Yv, Nr are already the PWM vessels' dimensional
+# damping.
+MMG_FIT_GROUPS = {
+    "mmg resistance": ("mmg_R0", "mmg_wP0"),
+    "mmg sway": ("mmg_Yv", "mmg_Nv"),
+    "mmg yaw": ("mmg_Yr", "mmg_Nr"),
+    "mmg nonlinear": ("mmg_Yvvr", "mmg_Yvrr", "mmg_Nvvr", "mmg_Nvrr"),
+    "mmg rudder": ("mmg_epsilon", "mmg_gamma_plus", "mmg_gamma_minus"),
+    "mmg added mass": ("Yvdot", "Nrdot"),
+}
+MMG_HULL = ("R0", "Xvv", "Xvr", "Xrr", "Xvvvv", "Yv", "Yr", "Yvvv", "Yvvr", "Yvrr", "Yrrr",
+            "Nv", "Nr", "Nvvv", "Nvvr", "Nvrr", "Nrrr")
+MMG_PROPELLER = ("tP", "wP0", "C1", "C2_plus", "C2_minus")
+MMG_RUDDER = ("tR", "aH", "xH", "gamma_minus", "gamma_plus", "lR", "epsilon", "kappa")
 
 
 def damping(name: str) -> Quantity:
@@ -48,8 +67,49 @@ def added_mass(name: str) -> Quantity:
     return member("added_mass", name, ADDED_MASS_UNITS[name], lo, hi, 1.0, also=("Nvdot",) if name == "Yrdot" else ())
 
 
+def fit_groups(vessel: Vessel) -> dict[str, tuple[str, ...]]:
+    """The groups `twin identify` considers for this vessel: its thrusters' kind decides."""
+    return MMG_FIT_GROUPS if vessel.mmg is not None else FIT_GROUPS
+
+
+def mmg_member(part: str, attr: str, lo: float, hi: float, typical: float) -> Quantity:
+    """vessel.mmg.<part>.<attr>, a non-dimensional MMG coefficient (named mmg_<attr>)."""
+
+    def get(v: Vessel) -> float:
+        return float(getattr(getattr(v.mmg, part), attr))
+
+    def put(v: Vessel, x: float) -> Vessel:
+        holder = replace(getattr(v.mmg, part), **{attr: x})
+        return replace(v, mmg=replace(v.mmg, **{part: holder}))
+
+    return Quantity(f"mmg_{attr}", "-", get, put, lo, hi, typical)
+
+
+def mmg_coefficients() -> dict[str, Quantity]:
+    """The MMG coefficients a fit may move, with bounds that keep them physical: wake fraction and
+    deductions in [0, 1), flow-straightening and inflow factors positive; hull derivatives in a
+    wide band around any published full-form ship's (|Y'_v| < 2 etc.), either sign."""
+    out = {f"mmg_{n}": mmg_member("hull", n, -5.0, 5.0, 0.05) for n in MMG_HULL}
+    out["mmg_R0"] = mmg_member("hull", "R0", 0.001, 0.2, 0.02)  # a resistance resists
+    out.update({"mmg_tP": mmg_member("propeller", "tP", 0.0, 0.6, 0.2),
+                "mmg_wP0": mmg_member("propeller", "wP0", 0.0, 0.8, 0.3),
+                "mmg_C1": mmg_member("propeller", "C1", 0.0, 10.0, 1.0),
+                "mmg_C2_plus": mmg_member("propeller", "C2_plus", 0.5, 3.0, 1.0),
+                "mmg_C2_minus": mmg_member("propeller", "C2_minus", 0.5, 3.0, 1.0)})
+    out.update({"mmg_tR": mmg_member("rudder", "tR", 0.0, 0.8, 0.3),
+                "mmg_aH": mmg_member("rudder", "aH", 0.0, 1.0, 0.3),
+                "mmg_xH": mmg_member("rudder", "xH", -0.8, 0.0, 0.4),
+                "mmg_gamma_minus": mmg_member("rudder", "gamma_minus", 0.05, 2.0, 0.4),
+                "mmg_gamma_plus": mmg_member("rudder", "gamma_plus", 0.05, 2.0, 0.4),
+                "mmg_lR": mmg_member("rudder", "lR", -2.0, 0.0, 0.7),
+                "mmg_epsilon": mmg_member("rudder", "epsilon", 0.3, 3.0, 1.0),
+                "mmg_kappa": mmg_member("rudder", "kappa", 0.05, 2.0, 0.5)})
+    return out
+
+
 def coefficients(prior: Vessel) -> dict[str, Quantity]:
-    """Every coefficient identification can fit, by name (curve scales relative to `prior`)."""
+    """Every coefficient identification can fit, by name (curve scales relative to `prior`; the
+    MMG ones only for a vessel with an `mmg` block)."""
     out = {n: damping(n) for n in ("Xu", "Xuu", "Yv", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nr", "Nrr")}
     out.update({n: coupling(n) for n in ("Yr", "Nv")})
     out.update({n: damping(n) for n in ("Yuv", "Nur")})
@@ -60,6 +120,8 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
                 "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
                 "current_north": ned_component("current", 0, -3.0, 3.0, 0.1),
                 "current_east": ned_component("current", 1, -3.0, 3.0, 0.1)})
+    if prior.mmg is not None:
+        out.update(mmg_coefficients())
     return out
 
 
@@ -84,6 +146,8 @@ TYPICAL_SPEED_M_S = 1.0  # a small ASV's cruising speed: scales the speed-propor
 
 def belief(name: str, prior: Vessel) -> Belief:
     """The prior belief about coefficient `name` of vessel `prior` (see Belief)."""
+    if prior.mmg is not None and (name.startswith("mmg_") or name in ("Yvdot", "Nrdot", "Xudot")):
+        return mmg_belief(name)
     d, a = prior.damping, prior.added_mass
     if name in ("Xu", "Yv", "Nr", "Xuu", "Yvv", "Nrr", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr"):
         return Belief(True, FACTOR_3, "hull damping from a first-principles estimate: right within a factor of 3")
@@ -117,3 +181,43 @@ def belief(name: str, prior: Vessel) -> Belief:
     if name in ("current_north", "current_east"):
         return Belief(False, 0.2, "a lake or harbour current: a few tenths of a m/s")
     raise KeyError(name)
+
+
+# Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
+# Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
+# against 5.5). Widths from how far the published full-form ships' derivatives scatter among
+# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of Kijima): the linear ones
+# within about 25 %, the nonlinear ones within a factor of 2 or their own size.
+MMG_LOG_BELIEFS = {
+    "mmg_R0": (0.3, "resistance from KVLCC2's R'_0 at the Esso model's form: within about 30 % (scale effect, "
+                    "laminar flow at model Reynolds numbers)"),
+    "mmg_Yv": (0.25, "linear sway derivative of a full-form VLCC: the published sets scatter by about 25 %"),
+    "mmg_Nv": (0.25, "linear yaw-sway derivative (Munk moment inside it): about 25 % among full-form ships"),
+    "mmg_Nr": (0.3, "yaw damping N'_r: about 30 % among full-form ships (KVLCC2 −0.049, Esso captive −0.048)"),
+    "mmg_Yr": (0.5, "Y'_r − (m' + m'_x) is what acts; Y'_r itself scatters by a factor of 1.6"),
+    "mmg_epsilon": (0.25, "wake ratio rudder/propeller ε: 1.09 (KVLCC2) to 1.42 (Esso captive): about 25 %"),
+    "mmg_gamma_plus": (0.4, "flow straightening γ_R: 0.4-0.65 in published sets, a factor of 1.5"),
+    "mmg_gamma_minus": (0.4, "flow straightening γ_R: 0.35-0.45 in published sets, a factor of 1.5"),
+    "Yvdot": (0.25, "sway added mass m'_y (KVLCC2 0.223, Esso captive 0.258): about 25 %"),
+    "Nrdot": (0.5, "yaw added inertia J'_z, an empirical formula's value: a factor of 1.6"),
+    "Xudot": (0.5, "surge added mass m'_x (KVLCC2 0.022, Esso captive 0.047): a factor of 1.6"),
+}
+MMG_NORMAL_BELIEFS = {  # the nonlinear derivatives change sign between published sets: normal beliefs
+    "mmg_wP0": (0.1, "wake fraction w_P0: 0.40 (KVLCC2) to 0.61 (Esso captive); ±0.1"),
+    "mmg_Yvvr": (0.4, "Y'_vvr: its own size (0.38)"),
+    "mmg_Yvrr": (0.4, "Y'_vrr: its own size (−0.39)"),
+    "mmg_Nvvr": (0.3, "N'_vvr: its own size (−0.29)"),
+    "mmg_Nvrr": (0.1, "N'_vrr: twice its own size (0.055)"),
+}
+
+
+def mmg_belief(name: str) -> Belief:
+    """The belief about one MMG coefficient of the KVLCC2-based prior (tables above); any other
+    MMG coefficient: normal with σ 0.1 (hull) or 30 % (factors), wide enough to be told apart."""
+    if name in MMG_LOG_BELIEFS:
+        sigma, why = MMG_LOG_BELIEFS[name]
+        return Belief(True, sigma, why)
+    if name in MMG_NORMAL_BELIEFS:
+        sigma, why = MMG_NORMAL_BELIEFS[name]
+        return Belief(False, sigma, why)
+    return Belief(False, 0.1, "an MMG coefficient outside the standard groups: ±0.1")

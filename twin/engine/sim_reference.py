@@ -20,27 +20,10 @@ from ..run import Run
 from . import callbacks
 from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
+from .sim import _event_steps, _steps, initial_state  # the loop differs, not its arithmetic
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-
-def _steps(interval_s: float, timestep_s: float, what: str) -> int:
-    n = int(round(interval_s / timestep_s))
-    if n < 1 or abs(n * timestep_s - interval_s) > 1e-9:
-        raise TwinError(f"{what} {interval_s} s is not a multiple of the time step {timestep_s} s")
-    return n
-
-
-def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0) -> None:
-    eta0 = np.zeros(3) if eta0 is None else np.asarray(eta0, float)
-    nu0 = np.zeros(3) if nu0 is None else np.asarray(nu0, float)
-    qpos, dof = callbacks._joint_indices(model)
-    data.qpos[list(qpos)] = eta0
-    c, s = np.cos(eta0[2]), np.sin(eta0[2])
-    data.qvel[list(dof)] = [c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2]]
-    if model.na:
-        data.act[:] = 0.0
 
 
 def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
@@ -49,22 +32,6 @@ def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
     c, s = np.cos(eta[2]), np.sin(eta[2])
     w = data.qvel[list(dof)]
     return eta, np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])
-
-
-def _event_steps(n_steps: int, n_sample: int, n_control: int | None, cmd_steps, extra=None) -> np.ndarray:
-    """Steps at which the loop must act: samples, controller ticks, command changes, the end.
-
-    Between them the engine runs `mj_step(nstep=...)` without returning to Python.
-    """
-    marks = [np.arange(0, n_steps + 1, n_sample), [n_steps]]
-    if n_control is not None:
-        marks.append(np.arange(0, n_steps + 1, n_control))
-    if extra is not None:
-        marks.append(extra)
-    if cmd_steps is not None:
-        changed = np.flatnonzero(np.any(np.diff(cmd_steps, axis=0) != 0, axis=1)) + 1
-        marks += [[0], changed[changed <= n_steps]]
-    return np.unique(np.concatenate(marks)).astype(int)
 
 
 def _backend(compiled: CompiledVessel, terms: Terms, backend: str):

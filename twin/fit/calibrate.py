@@ -39,7 +39,7 @@ def calibrated(rec: Recording, vessel: Vessel) -> Recording:
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
     """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
     corrected, lever arm from its antenna. (The PWM clock offset acts where the
-    PWM drives the twin: twin.ident.windows.)"""
+    PWM drives the twin: twin.fit.windows.)"""
     return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled), **kwargs)
 
 

@@ -129,10 +129,11 @@ def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: 
 
 
 def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], windows: list[Window],
-          groups: np.ndarray, names: list[str], sigma: np.ndarray, cache: ModelCache | None = None
-          ) -> dict[str, CrossValidation]:
+          groups: np.ndarray, names: list[str], sigma: np.ndarray, cache: ModelCache | None = None,
+          wind: str | None = None) -> dict[str, CrossValidation]:
     """Each configuration's twins (one per group, fitted without it) predicting their own group's
-    windows by free runs from measured states; every configuration of one group in one batch."""
+    windows by free runs from measured states; every configuration of one group in one batch
+    (wind "measured": with each recording's measured wind, windows.predict)."""
     cache = cache or ModelCache()
     out = {label: CrossValidation(label) for label in configurations}
     labels = list(configurations)
@@ -141,7 +142,7 @@ def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], window
         mine = [w for w, g in zip(windows, groups) if g == k]
         if not mine:
             continue
-        predictions = predict([configurations[lb][k] for lb in labels], preps, mine, cache)
+        predictions = predict([configurations[lb][k] for lb in labels], preps, mine, cache, wind=wind)
         _, meas = measured(preps, mine)
         for label, pred in zip(labels, predictions):
             nu = pred.nu.copy()

@@ -35,13 +35,14 @@ class TwinPredictor:
 
     vessel: Vessel
     cache: ModelCache | None = None
+    wind: str | None = None  # "measured": each recording's wind stream a known input (windows.predict)
 
     def predict_windows(self, prep: Prepared, starts: np.ndarray, n_steps: int) -> np.ndarray:
         wins = [Window(0, int(s), _steps_in_segment(prep, int(s), n_steps)) for s in starts]
         out = np.full((len(wins), n_steps + 1, 3), np.nan)
         keep = [i for i, w in enumerate(wins) if w.n > 0]
         if keep:
-            pred = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache)[0]
+            pred = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache, wind=self.wind)[0]
             nu = pred.nu.copy()
             for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
                 w = wins[keep[j]]
@@ -64,14 +65,14 @@ def horizon_windows(preps: list[Prepared], horizon, stride_s: float) -> list[Win
 
 
 def evaluate(model: Predictor | Vessel, preps: list[Prepared], stride_s: float = 2.0,
-             horizons: dict | None = None) -> dict:
+             horizons: dict | None = None, wind: str | None = None) -> dict:
     """Metrics per horizon (see the module docstring): {horizon: {u, v, r: {r2, mae, n}}}.
 
     Only the predicted samples count (not the measured start of each window); a free
     run of a given horizon uses full-length windows only, so every horizon is what its
-    name says."""
+    name says. wind "measured": a vessel's free runs take each recording's measured wind."""
     if isinstance(model, Vessel):
-        model = TwinPredictor(model, ModelCache())
+        model = TwinPredictor(model, ModelCache(), wind)
     out = {}
     for name, horizon in (horizons or HORIZONS).items():
         wins = horizon_windows(preps, horizon, stride_s)

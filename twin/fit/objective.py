@@ -93,8 +93,10 @@ class Objective:
 
     def __init__(self, prior: Vessel, params: list[Quantity], preps: list[Prepared] | Measurements,
                  windows: list[Window], cache: ModelCache | None = None, settle_s: float = SETTLE_S,
-                 free_start: bool = False):
+                 free_start: bool = False, wind: str | None = None):
+        """wind: None, or "measured" (each recording's wind stream a known input: windows.predict)."""
         self.free_start = free_start
+        self.wind = wind
         self.data = preps if isinstance(preps, Measurements) else Measurements(preps)
         self.settle_s = settle_s
         self.prior, self.params, self.preps, self.windows = prior, params, self.data.preps, windows
@@ -198,7 +200,7 @@ class Objective:
         good = [i for i, g in enumerate(ok) if g]
         seen = [self.data.for_vessel(runs[i]) for i in good]
         preds = predict([runs[i] for i in good], seen, self.windows, self.cache,
-                        nu_offsets=[offsets[i] for i in good]) if good else []
+                        nu_offsets=[offsets[i] for i in good], wind=self.wind) if good else []
         self.evaluations += len(vessels)
         out: list[np.ndarray] = [np.full(int(self.valid.sum()), 10.0)] * len(runs)
         for i, prediction, preps in zip(good, preds, seen):

@@ -22,6 +22,11 @@ twins at once); least squares by scipy's trust-region reflective method within
 the bounds; uncertainties from the cluster-robust (sandwich) covariance with the
 windows as clusters, because the errors of one free run are correlated.
 
+A propeller-and-rudder ship (thrusters kind `propeller_rudder`, an MMG block) is driven by its
+recorded (n, δ) instead of PWM and fits its MMG coefficients (effects.coefficients.MMG_FIT_GROUPS);
+its scale is anchored by the mass and the propeller's K_T, neither of which is fitted. With
+wind="measured" every free run takes the recording's measured wind as a known input.
+
 With `prior_weight`, the fit is a maximum a posteriori one: each coefficient's belief
 (effects.coefficients.belief: a log-normal magnitude for a damping, an added mass or a
 thrust scale, a normal value for a coupling) enters as a residual row, counted as
@@ -93,40 +98,49 @@ def check_names(prior: Vessel, names, anchor: str) -> list[str]:
     return names
 
 
+FITTABLE_KINDS = ("t200", "propeller_rudder")  # thrusters a recording's inputs drive
+
+
+def check_kind(prior: Vessel) -> None:
+    """A vessel whose inputs a recording can give (PWM, or a propeller's n and a rudder's δ)."""
+    if prior.thrusters.kind not in FITTABLE_KINDS:
+        raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
+
+
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
         cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True,
-        prior_weight: float | None = None, start: Vessel | None = None, windows: list | None = None
-        ) -> FitResult:
+        prior_weight: float | None = None, start: Vessel | None = None, windows: list | None = None,
+        wind: str | None = None) -> FitResult:
     """Identify `names` (see `coefficients`) by free-run windows of window_s every stride_s s,
     each window's initial velocities estimated with them unless free_start is False; with
     prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior),
-    on `windows` if given."""
+    on `windows` if given; wind "measured": the recordings' wind a known input."""
     if prior_weight is not None:
         return _fit_map(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
                         max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start,
-                        prior_weight=prior_weight, start=start, windows=windows)
+                        prior_weight=prior_weight, start=start, windows=windows, wind=wind)
     return _fit_least_squares(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
-                              max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start)
+                              max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start,
+                              wind=wind)
 
 
 def _fit_least_squares(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *,
                        anchor: str = "mass", window_s: float = 10.0, stride_s: float = 5.0,
                        max_evaluations: int = 40, cache: ModelCache | None = None, settle_s: float = SETTLE_S,
-                       free_start: bool = True) -> FitResult:
+                       free_start: bool = True, wind: str | None = None) -> FitResult:
     """Bounded least squares without a prior (the data alone)."""
     started = time.time()
     table = coefficients(prior)
     names = check_names(prior, names, anchor)
-    if prior.thrusters.kind != "t200":
-        raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
+    check_kind(prior)
     windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
     if not windows:
         raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
     if "lag_s" in names and prior.thrusters.lag_s <= 0:
         prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.05))  # the lag state needs a start
     obj = Objective(prior, [table[n] for n in names], preps, windows, cache, min(settle_s, window_s / 2),
-                    free_start=free_start)
+                    free_start=free_start, wind=wind)
     x0 = np.clip(obj.x_prior, *obj.bounds())
     cost0 = 0.5 * float(np.sum(obj.residuals(x0) ** 2))
     sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
@@ -140,7 +154,7 @@ def _fit_least_squares(prior: Vessel, preps: list[Prepared], names: tuple[str, .
         # the data cannot say what the others are: they go back to the prior and the rest is fitted
         # again around them, so the returned twin is one that was fitted, not a mix of two
         sub = Objective(prior, [obj.params[i] for i in pinned], preps, windows, obj.cache, obj.settle_s,
-                        free_start=free_start)
+                        free_start=free_start, wind=wind)
         x1 = np.clip(np.array([estimates[i].value for i in pinned]) / sub.scale, *sub.bounds())
         if pinned:
             sol = least_squares(sub.residuals, x1, jac=sub.jacobian, bounds=sub.bounds(), method="trf",
@@ -201,11 +215,11 @@ def coordinates(prior: Vessel, names) -> list[Coordinate]:
 
 def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window_s: float, stride_s: float,
              max_evaluations: int, cache: ModelCache | None, settle_s: float, free_start: bool,
-             prior_weight: float, start: Vessel | None, windows: list | None) -> FitResult:
+             prior_weight: float, start: Vessel | None, windows: list | None, wind: str | None = None
+             ) -> FitResult:
     started = time.time()
     names = check_names(prior, names, anchor)
-    if prior.thrusters.kind != "t200":
-        raise TwinError(f"vessel '{prior.name}' has no PWM thruster model: a recording cannot drive it")
+    check_kind(prior)
     if windows is None:
         windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
     if not windows:
@@ -213,7 +227,8 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     if "lag_s" in names and prior.thrusters.lag_s <= 0:
         prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))  # a log-normal lag needs a start
     coords = coordinates(prior, names)
-    obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight)
+    obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
+                        wind)
     x0 = obj.x_prior if start is None else np.clip(np.array([c.quantity.get(start) for c in coords]) / obj.scale,
                                                     *obj.bounds())
     cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
@@ -245,17 +260,19 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     result = FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
                      time.time() - started, sol.message,
                      {"anchor": anchor, "window_s": window_s, "stride_s": stride_s, "free_start": free_start,
-                      "prior_weight": prior_weight, "residual_rms": float(np.sqrt(np.mean(data_r ** 2)))},
+                      "prior_weight": prior_weight, "residual_rms": float(np.sqrt(np.mean(data_r ** 2))),
+                      **({"wind": wind} if wind else {})},
                      objective=obj, x=x, jacobian=J, covariance=cov)
     result.vessel = replace(result.vessel, uncertainty=block(result, coords, free))
     return result
 
 
 def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache, settle_s: float, free_start: bool,
-                  prior_weight: float) -> Objective:
+                  prior_weight: float, wind: str | None = None) -> Objective:
     """The objective of a maximum a posteriori fit: data rows, then one row per coordinate, the
     beliefs counted as prior_weight windows' worth of data samples each."""
-    obj = Objective(prior, [c.quantity for c in coords], preps, windows, cache, settle_s, free_start=free_start)
+    obj = Objective(prior, [c.quantity for c in coords], preps, windows, cache, settle_s, free_start=free_start,
+                    wind=wind)
     per_window = obj.n_data / max(len(windows), 1)
     obj.believe(np.array([c.mean for c in coords]), np.array([c.belief.sigma for c in coords]),
                 prior_weight * per_window)

@@ -17,6 +17,11 @@ on runs left out of the fit.
 5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
    runs' scores: median and range), and a warning when it predicts the left-out runs worse than
    the prior did.
+
+A propeller-and-rudder ship (an MMG block) goes through the same steps with its own groups
+(effects.coefficients.fit_groups: MMG hull derivatives, wake, rudder inflow, added mass) and
+its recorded (n, δ) as the inputs; with wind="measured" every free run, of the fits and of the
+judging alike, takes each recording's measured wind as a known input.
 """
 from __future__ import annotations
 
@@ -27,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..effects.coefficients import FIT_GROUPS
+from ..effects.coefficients import fit_groups as groups_of
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
@@ -48,16 +53,18 @@ HEADING_WINDOW_S = 0.5  # the AHRS at 50 Hz affords a shorter one for the yaw ra
 PRIOR_WEIGHTS = (0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
 START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it
 IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all three a window is a drift
+IDLE_RPS = 1.0  # a propeller turning slower than this drives a 3-m model at a few cm/s at most
 FIT_H_LAMBDA, FIT_TIMESTEP_S = 1.5, 0.05  # the candidate twins' RK4 step (the final scores use the vessel's)
 WINDOW_S = 10.0
 
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
-    """The recordings, each with thruster PWM (TwinError naming the one without)."""
+    """The recordings, each with thruster PWM or a propeller's and rudder's inputs (TwinError naming
+    the one without)."""
     out = []
     for path in paths:
         rec = read_recording(path, channels=channels)
-        if not len(rec.pwm):
+        if not len(rec.pwm) and not len(rec.prop_rudder):
             raise TwinError(f"{Path(path).name}: no thruster PWM: nothing can be identified without the inputs "
                             "(for an ArduPilot log, give the thruster channels with --channels LEFT,RIGHT)")
         out.append(rec)
@@ -163,21 +170,27 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
              anchor: str = "mass", window_s: float = WINDOW_S, start: str = "free", calibrated: bool = True,
              greybox: bool = False, thruster: str = "static", split: str = "segments", train: float = 0.7,
              repeats: int = 20, seed: int = 0, max_evaluations: int = 20, sources: list[str] | None = None,
-             progress: Progress | None = None) -> Identification:
-    """The whole identification (module docstring). groups: the FIT_GROUPS to consider (default
-    all), or params: an explicit list of coefficients (then no group is dropped); start: each
-    window's initial velocities "free" (estimated with the fit) or "measured"."""
+             progress: Progress | None = None, wind: str | None = None) -> Identification:
+    """The whole identification (module docstring). groups: the vessel's fit groups to consider
+    (default all), or params: an explicit list of coefficients (then no group is dropped); start:
+    each window's initial velocities "free" (estimated with the fit) or "measured"; wind:
+    "measured" to take each recording's measured wind as a known input."""
     started = time.time()
     say = steps(progress)
     _check(start, thruster, split, train, prior_weights)
-    names_by_group = _groups(groups, params)
+    check_wind(recordings, wind)
+    simfit.check_kind(prior)
+    names_by_group = _groups(groups, params, prior)
     all_names = tuple(n for names in names_by_group.values() for n in names)
     simfit.check_names(prior, all_names, anchor)
     say("calibrating each log's compass", 0, 4)
     vessel, calibrations = calibrate(recordings, prior) if calibrated else (prior, [])
     preps = prepared(recordings, vessel)
     result = Identification(vessel, prior, None, calibrations)
-    if greybox:
+    if greybox and prior.thrusters.kind != "t200":
+        # seed 004's grey-box is a model of PWM thrusters (dead zone, thrust gain, operating regions)
+        result.notes.append("seed 004's grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
+    elif greybox:
         say("seed 004 grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
         result.notes += notes
@@ -196,7 +209,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
                                   max_evaluations=max_evaluations if previous is None else max(6, max_evaluations // 3),
                                   cache=cache, free_start=start == "free", prior_weight=weight, start=previous,
-                                  windows=informative)
+                                  windows=informative, wind=wind)
         previous = fits[weight].vessel if previous is None else previous  # each later fit starts from the first
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
@@ -206,14 +219,14 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
                                                             fit_groups)
-    judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache)
+    judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
     best = min(choices, key=lambda c: c.cv.cost)
     chosen_fit = fits[best.prior_weight]
     if params is None:
         best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
-                                  judge_groups, group_names, cache)
+                                  judge_groups, group_names, cache, wind)
         choices += more
     result.choices, result.chosen = choices, best
     fit_best = chosen_fit
@@ -222,10 +235,11 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         names = tuple(n for g in best.free_groups for n in names_by_group[g])
         refit = simfit.fit(vessel, preps, names, anchor=anchor, window_s=window_s, stride_s=window_s,
                            max_evaluations=max(6, max_evaluations // 3), cache=cache, free_start=start == "free",
-                           prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative)
+                           prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative,
+                           wind=wind)
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
                                                refit.objective.residuals(refit.x), fit_groups)},
-                   preps, every, judge_groups, group_names, first.objective.sigma, cache)["refit"]
+                   preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
         refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
                           _labelled(cv, best.label + " (refitted)"))
         choices.append(refitted)
@@ -234,7 +248,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         else:  # the linearised choice did not hold up once refitted: every group stays free
             best = min((c for c in choices if c.free_groups == tuple(names_by_group)), key=lambda c: c.cv.cost)
             result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
-    result.fit = fit_best
+    result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
@@ -258,14 +272,26 @@ def _check(start: str, thruster: str, split: str, train: float, prior_weights) -
         raise TwinError("the beliefs' weights must be positive numbers")
 
 
-def _groups(groups, params) -> dict[str, tuple[str, ...]]:
+def check_wind(recordings: list[Recording], wind: str | None) -> None:
+    """wind None or "measured"; measured needs every recording's wind stream (TwinError naming one without)."""
+    if wind not in (None, "measured"):
+        raise TwinError(f"wind must be None or 'measured', got {wind!r}")
+    if wind == "measured":
+        for rec in recordings:
+            if not len(rec.wind):
+                raise TwinError(f"{Path(rec.source).name}: no measured wind (the recording has no wind stream): "
+                                "--wind-measured needs an anemometer's")
+
+
+def _groups(groups, params, prior: Vessel) -> dict[str, tuple[str, ...]]:
     if params is not None:
         return {"chosen": tuple(params)}
-    chosen = tuple(FIT_GROUPS) if groups is None else tuple(groups)
-    unknown = [g for g in chosen if g not in FIT_GROUPS]
+    table = groups_of(prior)
+    chosen = tuple(table) if groups is None else tuple(groups)
+    unknown = [g for g in chosen if g not in table]
     if unknown:
-        raise TwinError(f"unknown group(s) {', '.join(unknown)} (known: {', '.join(FIT_GROUPS)})")
-    return {g: FIT_GROUPS[g] for g in chosen}
+        raise TwinError(f"unknown group(s) {', '.join(unknown)} (known for '{prior.name}': {', '.join(table)})")
+    return {g: table[g] for g in chosen}
 
 
 def _labelled(cv: CrossValidation, label: str) -> CrossValidation:
@@ -277,13 +303,16 @@ def _informative(prep: Prepared, w) -> bool:
     """A window in which the thrusters work or the boat moves: a drifting boat at rest says nothing
     about its hull or thrusters (only about the wind and current of that day)."""
     sl = slice(w.start, w.start + w.n + 1)
-    thrust = np.any(np.abs(prep.pwm[sl] - np.asarray(prep.pwm_neutral_us)) > IDLE_PWM_US)
+    if prep.input_kind == "propeller_rudder":  # (n rps, δ rad): the propeller is what drives
+        thrust = np.any(np.abs(prep.pwm[sl, 0]) > IDLE_RPS)
+    else:
+        thrust = np.any(np.abs(prep.pwm[sl] - np.asarray(prep.pwm_neutral_us)) > IDLE_PWM_US)
     moving = np.any(np.hypot(prep.u[sl], prep.v[sl]) > IDLE_SPEED_M_S) or np.any(np.abs(prep.r[sl]) > IDLE_YAW_RAD_S)
     return bool(thrust or moving)
 
 
 def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
-                 group_names, cache) -> tuple[Choice, list[Choice]]:
+                 group_names, cache, wind: str | None = None) -> tuple[Choice, list[Choice]]:
     """Backward: the group whose return to its prior most improves the left-out scores goes back,
     while one does (each refit linearised about the fit with every group free)."""
     obj, x, J = fit.objective, fit.x, fit.jacobian
@@ -298,7 +327,7 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
                 if kept != g:
                     fixed[[col[n] for n in names_by_group[kept]]] = False
             configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
-        judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache)
+        judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
                           tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
                    for g, cv in judged.items()]
@@ -325,26 +354,27 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> 
 
 
 def format_estimates(result: simfit.FitResult) -> str:
-    """The simulation fit's parameters as a text table, ≤ 100 columns."""
+    """The simulation fit's parameters as a text table; notes in full (a cut note hides why)."""
     head = f"{'parameter':14s} {'unit':9s} {'prior':>11s} {'identified':>11s} {'± 1σ':>10s}  note"
     lines = [head, "-" * len(head)]
     for e in result.estimates:
         sigma = f"{e.sigma:10.3g}" if e.sigma is not None else f"{'-':>10s}"
-        lines.append(f"{e.name:14s} {e.unit[:9]:9s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note[:40]}")
+        lines.append(f"{e.name:14s} {e.unit[:9]:9s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
                  f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
     return "\n".join(lines)
 
 
 def format_choices(ident: Identification) -> str:
-    """The choices and their left-out scores, ≤ 100 columns."""
-    head = f"{'configuration':44s} {'cost':>9s} " + " ".join(f"{'R2 ' + d + ' med':>9s}" for d in "uvr")
-    lines = [head, "-" * len(head)]
+    """The choices and their left-out scores; labels in full (a cut label hides which groups were freed)."""
     rows = ([("prior (no fit)", ident.prior_cv)] if ident.prior_cv else []) + [(c.label, c.cv) for c in ident.choices]
-    for label, cv in rows:
-        mark = " *" if ident.chosen is not None and cv is ident.chosen.cv else ""
+    marked = [(label + (" *" if ident.chosen is not None and cv is ident.chosen.cv else ""), cv) for label, cv in rows]
+    width = max([len("configuration")] + [len(label) for label, _ in marked])
+    head = f"{'configuration':{width}s} {'cost':>9s} " + " ".join(f"{'R2 ' + d + ' med':>9s}" for d in "uvr")
+    lines = [head, "-" * len(head)]
+    for label, cv in marked:
         cells = " ".join(f"{(s[0] if (s := cv.spread(d)) else float('nan')):9.3f}" for d in "uvr")
-        lines.append(f"{(label + mark)[:44]:44s} {cv.cost:9.4g} {cells}")
+        lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}")
     return "\n".join(lines)
 
 

@@ -1,0 +1,247 @@
+"""Issue 16 item 4: the Esso Osaka model ship identified by `twin identify` and judged on tests it
+did not see.
+
+    python scripts/identify_esso.py [--parts turn:none,turn:measured,random:none,random:measured]
+                                    [--max-evaluations 6] [--work /tmp/esso_ident] [--out docs]
+
+Each part `FAMILY:WIND` runs `twin.ident.identify.identify` on one family of tests (the 14 turning
+tests or the 9 random tests; `turn_cut_14-Sep-2020_15_58_08` is the first 287 s of
+`turn_14-Sep-2020_15_58_08` and is left out so that no test counts twice), without the measured
+wind (`none`) or with it as a known input (`measured`), and judges the twin it writes on the other
+family: 30-s free runs from measured states every 10 s, R² of u, v, r pooled and test by test
+(twin.fit.evaluate), beside the prior (the untuned KVLCC2-based twin) judged the same way. Within
+the training family, identify's own leave-one-test-out scores (30-s free runs of the twins refitted
+without each test, twin.fit.crossval) are reported too. Each part is saved as JSON in --work, so
+parts can run in separate processes; the report (docs/esso_identification.md and .json) is written
+from whatever parts are there.
+
+The recordings (../shared/data/esso, CC BY-NC-SA 4.0) are read in place, never copied; without them
+the script says so and exits 0. Everything it reports is computed by the package; the script only
+runs it and writes the report.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import twin.vessel as vessel_mod  # noqa: E402
+from twin.errors import TwinError  # noqa: E402
+from twin.files import write_text_atomic  # noqa: E402
+from twin.fit.evaluate import evaluate  # noqa: E402
+from twin.fit.metrics import DOFS  # noqa: E402
+from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
+from twin.physics.sensors import log_name  # noqa: E402
+
+DATA = ROOT.parent / "shared" / "data" / "esso"
+DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"  # the first 287 s of turn_14-Sep-2020_15_58_08
+HORIZON = {"free_run_30s": 30.0}
+STRIDE_S = 10.0
+WINDOW_S = 30.0  # the fit's and the leave-one-out judging's free runs: the horizon the targets are on
+TARGETS = {"u": 0.9, "v": 0.6, "r": 0.9}
+# how much the beliefs count, in 30-s windows of data each, the values identify chooses between on
+# left-out tests. Lower than `twin identify`'s default (0.1, 1, 10), chosen for a small ASV's few
+# minutes of data: here a family holds 190-260 windows, and at weight 1 the belief of one coefficient
+# outweighs the misfit that all of them together could remove (synthetic check: Nr 40 % off stays
+# at the prior at weight 1 and is recovered exactly without a prior)
+BELIEFS = (0.01, 0.1)
+OTHER = {"turn": "random", "random": "turn"}
+
+
+def family(name: str) -> list[Path]:
+    """The tests of one family, the duplicate left out."""
+    return sorted(p for p in DATA.glob(f"{name}_*.csv") if p.name != DUPLICATE)  # turn_* holds turn_cut_*
+
+
+def scores(v: vessel_mod.Vessel, recordings, wind: str | None) -> dict:
+    """30-s free-run R² on the recordings, pooled and test by test (each log's compass calibration
+    from its own kinematics, as identify does)."""
+    calibrated = calibrate(recordings, v)[0]
+    preps = prepared(recordings, calibrated)
+    out = {"pooled": evaluate(calibrated, preps, stride_s=STRIDE_S, horizons=HORIZON, wind=wind)["free_run_30s"],
+           "tests": {}}
+    for p in preps:
+        out["tests"][log_name(p.settings.source)] = evaluate(calibrated, [p], stride_s=STRIDE_S, horizons=HORIZON,
+                                                             wind=wind)["free_run_30s"]
+    return out
+
+
+def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beliefs: tuple[float, ...] = BELIEFS
+             ) -> dict:
+    """Identify on one family, judge on the other; the part's JSON in `work`."""
+    wind = None if wind_label == "none" else "measured"
+    prior = vessel_mod.load("esso_osaka")
+    train_recs, test_recs = read(family(train)), read(family(OTHER[train]))
+    started = time.time()
+    result = identify(train_recs, prior, prior_weights=beliefs, window_s=WINDOW_S, max_evaluations=max_evaluations,
+                      wind=wind, sources=[str(p) for p in family(train)])
+    part = {"train": train, "test": OTHER[train], "wind": wind_label, "seconds_identify": round(time.time() - started),
+            "train_tests": [p.name for p in family(train)], "test_tests": [p.name for p in family(OTHER[train])],
+            "chosen": result.chosen.label, "free_groups": list(result.chosen.free_groups),
+            "estimates": [e.to_dict() for e in result.fit.estimates],
+            "leave_one_out": {"identified": result.chosen.cv.to_dict(), "prior": result.prior_cv.to_dict()},
+            "held_out": {"identified": scores(result.vessel, test_recs, wind), "prior": scores(prior, test_recs, wind)},
+            "notes": result.notes, "identification": result.to_dict()}
+    vessel_mod.save(result.vessel, work / f"esso_{train}_{wind_label}.vessel.json")
+    write_text_atomic(work / f"esso_{train}_{wind_label}.json", json.dumps(part, indent=1, default=float))
+    return part
+
+
+def fmt(x) -> str:
+    return "-" if x is None else f"{x:.2f}"
+
+
+def r2_cells(metrics: dict) -> str:
+    return " / ".join(fmt(metrics[d]["r2"]) for d in DOFS)
+
+
+def met(metrics: dict) -> str:
+    ok = [d for d in DOFS if metrics[d]["r2"] is not None and metrics[d]["r2"] >= TARGETS[d]]
+    return ", ".join(ok) if ok else "none"
+
+
+def report(parts: list[dict]) -> str:
+    """The markdown report of every part there is."""
+    lines = ["# The Esso Osaka model identified, judged on tests it did not see",
+             "",
+             "Written by `python scripts/identify_esso.py` (issue 16 item 4). `twin identify` "
+             "(twin/ident/identify.py) on one family of free-running tests, judged on the other: 30-s free runs "
+             "from measured states every 10 s, R² of u / v / r (twin/fit/evaluate.py). Targets: u ≥ 0.9, "
+             "v ≥ 0.6, r ≥ 0.9. Prior: the untuned KVLCC2-based twin (docs/esso.md). The duplicate "
+             f"`{DUPLICATE}` is left out. Fit: maximum a posteriori, the beliefs' weight (windows of data each) "
+             "chosen by identify among "
+             f"{', '.join(f'{b:g}' for b in BELIEFS)} on left-out tests, "
+             "groups of MMG coefficients (effects/coefficients.py MMG_FIT_GROUPS) dropped backwards while "
+             "that improves the leave-one-test-out score.",
+             ""]
+    if not parts:
+        return "\n".join(lines + ["No part has been run yet."])
+    lines += reading(parts)
+    lines += ["## Held out: identified on one family, judged on the other (pooled R² u / v / r)", "",
+              "| identified on | judged on | wind | prior | identified | targets met (identified) | free groups |",
+              "| --- | --- | --- | --- | --- | --- | --- |"]
+    for p in parts:
+        h = p["held_out"]
+        lines.append(f"| {p['train']} | {p['test']} | {p['wind']} | {r2_cells(h['prior']['pooled'])} | "
+                     f"{r2_cells(h['identified']['pooled'])} | {met(h['identified']['pooled'])} | "
+                     f"{', '.join(p['free_groups'])} |")
+    lines += ["", "## Leave one test out within the training family (identify's own jackknife refits, pooled R²)", "",
+              "| family | wind | prior | identified |", "| --- | --- | --- | --- |"]
+    for p in parts:
+        loo = p["leave_one_out"]
+        lines.append(f"| {p['train']} | {p['wind']} | {_pooled(loo['prior'])} | {_pooled(loo['identified'])} |")
+    lines += ["", "## Targets met, test by test (held out, identified twin)", "",
+              "| identified on | judged on | wind | tests | u ≥ 0.9 | v ≥ 0.6 | r ≥ 0.9 | prior: u / v / r |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for p in parts:
+        h = p["held_out"]
+        lines.append(f"| {p['train']} | {p['test']} | {p['wind']} | {len(h['identified']['tests'])} | "
+                     + " | ".join(str(_count(h["identified"]["tests"], d)) for d in DOFS)
+                     + f" | {' / '.join(str(_count(h['prior']['tests'], d)) for d in DOFS)} |")
+    for p in parts:
+        loo = p["leave_one_out"]
+        prior_runs = {r["log"]: r["metrics"] for r in loo["prior"]["runs"]}
+        lines += ["", f"### Leave one test out within {p['train']}, wind {p['wind']} (R² u / v / r)", "",
+                  "| left-out test | prior | identified without it |", "| --- | --- | --- |"]
+        for r in loo["identified"]["runs"]:
+            lines.append(f"| {r['log']} | {r2_cells(prior_runs[r['log']])} | {r2_cells(r['metrics'])} |")
+    for p in parts:
+        lines += ["", f"### Test by test: identified on {p['train']}, wind {p['wind']}, judged on {p['test']} "
+                      "(R² u / v / r)", "", "| test | prior | identified |", "| --- | --- | --- |"]
+        h = p["held_out"]
+        for name, m in h["identified"]["tests"].items():
+            lines.append(f"| {name} | {r2_cells(h['prior']['tests'][name])} | {r2_cells(m)} |")
+        lines += ["", "| coefficient | prior | identified | ± 1σ | pinned |", "| --- | --- | --- | --- | --- |"]
+        for e in p["estimates"]:
+            sigma = "-" if e["sigma"] is None else f"{e['sigma']:.3g}"
+            lines.append(f"| {e['name']} | {e['prior']:.4g} | {e['value']:.4g} | {sigma} | "
+                         f"{'yes' if e['identifiable'] else 'no (kept at the prior)'} |")
+        for note in p["notes"]:
+            lines.append(f"\nNote: {note}")
+    return "\n".join(lines) + "\n"
+
+
+def reading(parts: list[dict]) -> list[str]:
+    """What the numbers say, in sentences computed from them, and what they cannot say."""
+    out = ["## Reading", ""]
+    for p in parts:
+        h = p["held_out"]
+        prior, ident = h["prior"]["pooled"], h["identified"]["pooled"]
+        missed = [d for d in DOFS if ident[d]["r2"] is None or ident[d]["r2"] < TARGETS[d]]
+        change = ", ".join(f"{d} {prior[d]['r2']:.2f} → {ident[d]['r2']:.2f}" for d in DOFS)
+        out.append(f"* Identified on the {p['train']} tests, wind {p['wind']}, judged on the {p['test']} tests "
+                   f"(pooled R², prior → identified): {change}. Targets "
+                   + ("all met." if not missed else f"not met for {', '.join(missed)}."))
+    out += ["* R² of one test alone is low wherever that test barely varies: a steady turn holds r nearly "
+            "constant, so its own R² of r measures the scatter about a constant and can be poor while the "
+            "absolute error (MAE, in the JSON) stays small; the pooled figures (all tests' samples together) "
+            "are the ones the targets are read on.",
+            "* The random tests run at low speed, stop, go astern and reverse the propeller: outside the MMG "
+            "standard's domain (docs/esso.md, Known limits). The fitted groups are the standard's own coefficients; "
+            "the twin's extension of the standard to low speed and astern (U_nd floor, astern propeller, rudder "
+            "inflow from astern) is not among them, so a shortfall there cannot be fitted away by these groups.",
+            "* Published figures on this dataset: Wakita et al. (2022) identify a recurrent neural network on "
+            "these free-running tests (low-speed berthing manoeuvres) and Miyauchi et al. (2022) explore MMG "
+            "parameters with CMA-ES for docking; a brief search found no per-DOF R² of 30-s free runs in either "
+            "to set beside these numbers, so none is compared here.",
+            ""]
+    return out
+
+
+def _count(tests: dict, dof: str) -> int:
+    return sum(1 for m in tests.values() if m[dof]["r2"] is not None and m[dof]["r2"] >= TARGETS[dof])
+
+
+def _pooled(cv: dict) -> str:
+    pooled = cv.get("pooled") or {}
+    return " / ".join(fmt(pooled.get(d, {}).get("r2")) for d in DOFS)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--parts", default="turn:none,turn:measured,random:none,random:measured")
+    ap.add_argument("--max-evaluations", type=int, default=8)
+    ap.add_argument("--beliefs", default=",".join(f"{b:g}" for b in BELIEFS),
+                    help="the beliefs' weights identify chooses between (windows of data each)")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/esso_ident"))
+    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--report-only", action="store_true", help="write the report from the parts in --work")
+    args = ap.parse_args()
+    if not DATA.is_dir():
+        print(f"no Esso data at {DATA}: nothing to do")
+        return 0
+    args.work.mkdir(parents=True, exist_ok=True)
+    if not args.report_only:
+        for spec in args.parts.split(","):
+            train, _, wind = spec.partition(":")
+            if train not in OTHER or wind not in ("none", "measured"):
+                print(f"error: part '{spec}' must be turn|random:none|measured", file=sys.stderr)
+                return 2
+            try:
+                run_part(train, wind, args.max_evaluations, args.work,
+                         tuple(float(b) for b in args.beliefs.split(",")))
+            except TwinError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return 2
+            print(f"part {spec} done", flush=True)
+    order = {(f, w): i for i, (f, w) in enumerate([("turn", "none"), ("turn", "measured"), ("random", "none"),
+                                                    ("random", "measured")])}
+    parts = [json.loads(p.read_text()) for p in sorted(args.work.glob("esso_*_*.json"))
+             if not p.name.endswith(".vessel.json")]
+    parts.sort(key=lambda p: order.get((p["train"], p["wind"]), 9))
+    write_text_atomic(args.out / "esso_identification.md", report(parts))
+    summary = [{k: p[k] for k in ("train", "test", "wind", "chosen", "free_groups", "estimates", "leave_one_out",
+                                  "held_out", "notes", "train_tests", "test_tests", "seconds_identify")} for p in parts]
+    write_text_atomic(args.out / "esso_identification.json", json.dumps({"targets": TARGETS, "parts": summary},
+                                                                        indent=1, default=float))
+    print(f"wrote {args.out / 'esso_identification.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

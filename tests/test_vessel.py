@@ -1,0 +1,35 @@
+"""Vessel files a user writes and moves: identified and amended vessels keep working wherever they go."""
+import json
+
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.errors import TwinError
+
+
+def test_a_written_vessel_names_a_shipped_mjcf_by_package_so_it_can_move(tmp_path):
+    v = vessel_mod.load("blueboat")
+    (tmp_path / "a").mkdir()
+    path = vessel_mod.save(v, tmp_path / "a" / "identified.json")
+    assert json.loads(path.read_text())["mjcf"] == "package:blueboat.xml"
+    moved = tmp_path / "elsewhere" / "deeper" / "identified.json"
+    moved.parent.mkdir(parents=True)
+    path.replace(moved)
+    again = vessel_mod.load(str(moved))
+    assert again.mjcf.resolve() == v.mjcf.resolve() and again.damping == v.damping
+    data = json.loads(moved.read_text())
+    data["mjcf"] = "package:nonesuch.xml"
+    moved.write_text(json.dumps(data))
+    with pytest.raises(TwinError, match="nonesuch.xml' not found"):
+        vessel_mod.load(str(moved))
+
+
+def test_a_vessel_with_its_own_mjcf_keeps_the_path_relative_to_its_file(tmp_path):
+    xml = (vessel_mod.MODEL_DIR / "yellowfish.xml").read_text()
+    (tmp_path / "boat.xml").write_text(xml)
+    data = json.loads((vessel_mod.MODEL_DIR / "yellowfish.json").read_text())
+    data["mjcf"] = "boat.xml"
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    v = vessel_mod.load(str(tmp_path / "boat.json"))
+    out = vessel_mod.save(v, tmp_path / "copy.json")
+    assert json.loads(out.read_text())["mjcf"] == "boat.xml"
