@@ -91,8 +91,9 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     compiled = compile_vessel(prior)
     kwargs = {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S}
     for rec in recordings:
-        if not len(rec.pwm):
-            raise TwinError(f"{rec.source}: no thruster PWM: the twin cannot be replayed without its inputs")
+        if not len(rec.pwm) and not len(rec.prop_rudder):
+            raise TwinError(f"{rec.source}: no thruster PWM (nor propeller and rudder inputs): the twin cannot be "
+                            "replayed without its inputs")
     preps = [prepare_for(r, compiled, **kwargs) for r in recordings]
     data = Measurements(preps, recordings, compiled, kwargs)
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)

@@ -304,7 +304,10 @@ class Search:
             except TwinError as exc:
                 self.log(f"candidate {name} skipped: {exc}")
         screened.sort(key=lambda f: f.train_cost)
-        trials = [self.trial(bases, base_costs, f) for f in screened[:FULL_FITS]]
+        # a short library (a vessel few effects apply to, or --effects) is judged whole: screening is
+        # a one-step look, and it is only worth its risk of passing over an effect when it saves much
+        shortlist = screened if len(screened) <= 2 * FULL_FITS else screened[:FULL_FITS]
+        trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
 
     def joint(self, kept: list[Kept], windows: list[Window], start: Vessel | None = None,

@@ -83,17 +83,24 @@ def _current_fit(prior: Vessel, logs) -> Candidate:
                      ((0.0, 0.0),), to_effect, "drift")
 
 
-def wind(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
-    """Wind (m/s) blowing from dir_deg (cw from north) on the vessel's wind_load areas."""
+def _feels_wind(vessel: Vessel) -> bool:
+    """A wind load model: projected areas (wind_load) or a published regression (wind_regression)."""
     load = vessel.wind_load
-    if speed_m_s > 0 and not (load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0):
-        raise TwinError(f"effect 'wind': vessel '{vessel.name}' has no wind_load areas, so wind would do nothing")
+    return load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None
+
+
+def wind(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
+    """Wind (m/s) blowing from dir_deg (cw from north) on the vessel's wind load model (its
+    wind_load areas, or its wind_regression, e.g. Fujiwara's)."""
+    if speed_m_s > 0 and not _feels_wind(vessel):
+        raise TwinError(f"effect 'wind': vessel '{vessel.name}' has no wind load model (wind_load areas or "
+                        "wind_regression), so wind would do nothing")
     env = replace(vessel.environment, wind_speed_m_s=speed_m_s, wind_dir_deg=dir_deg)
     return replace(vessel, environment=env)
 
 
 def _wind_fit(prior: Vessel, logs) -> Candidate | None:
-    if not (prior.wind_load.frontal_area_m2 > 0 or prior.wind_load.lateral_area_m2 > 0):
+    if not _feels_wind(prior):
         return None
 
     def to_effect(p: dict) -> Effect:
@@ -404,10 +411,18 @@ def effect(name: str, **params) -> Effect:
     return checked(spec(name), params)
 
 
+# what a diagnosis may change of a vessel whose model is not the PWM twin's: a propeller-and-rudder
+# ship has no PWM map (lag, dead zone, gains: thrusters) and its hull is the MMG standard's, not the
+# seed 004 damping those effects scale
+_ACTS_ON = {"propeller_rudder": ("environment", "sensors")}
+
+
 def candidates(prior: Vessel, logs: list[str] = ()) -> dict[str, Candidate]:
     """What a diagnosis can fit for this prior and the names of the logs diagnosed together."""
     out = {}
     for s in _SPECS:
+        if s.acts_on not in _ACTS_ON.get(prior.thrusters.kind, (s.acts_on,)):
+            continue
         cand = s.fit(prior, tuple(logs)) if s.fit is not None else None
         if cand is not None:
             out[s.name] = cand

@@ -1,0 +1,49 @@
+"""The diagnosis on a propeller-and-rudder ship: what it may name, and the concealed wind of a real
+test estimated without the anemometer (tests reading ../shared skip without it)."""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.diagnose.doctor import diagnose
+from twin.effects import apply_effects
+from twin.effects.library import candidates
+from twin.errors import TwinError
+from twin.formats import read_recording
+from twin.ident.identify import prepared
+from twin.recording import Stream
+
+
+def test_the_ship_is_offered_only_effects_its_model_has():
+    esso = candidates(vessel_mod.load("esso_osaka"))
+    assert set(esso) == {"current", "wind", "clock_offset", "heading_bias", "compass_deviation", "gnss_lever_arm"}
+    boat = candidates(vessel_mod.load("yellowfish"))
+    assert {"thruster_lag", "dead_zone", "quadratic_damping", "wind_shape"} <= set(boat) and len(boat) == 23
+
+
+def test_wind_acts_through_the_ships_regression_and_is_refused_without_a_load_model():
+    esso = apply_effects(vessel_mod.load("esso_osaka"), ["wind=2,90"])
+    assert (esso.environment.wind_speed_m_s, esso.environment.wind_dir_deg) == (2.0, 90.0)
+    boat = vessel_mod.load("yellowfish")
+    bare = replace(boat, wind_load=replace(boat.wind_load, frontal_area_m2=0.0, lateral_area_m2=0.0))
+    with pytest.raises(TwinError, match="no wind load model"):
+        apply_effects(bare, ["wind=2,90"])
+    assert "wind" not in candidates(bare)
+
+
+def test_a_windy_turning_test_gives_the_anemometers_wind_without_reading_it(shared_dir):
+    path = shared_dir / "data" / "esso" / "turn_14-Sep-2020_15_47_33.csv"
+    if not path.is_file():
+        pytest.skip("../shared/data/esso is not present")
+    prior = vessel_mod.load("esso_osaka")
+    rec = read_recording(path)
+    air = prepared([rec], prior)[0].wind_ned
+    north, east = air[np.isfinite(air).all(axis=1)].mean(axis=0)  # the anemometer's mean true wind: 1.93 m/s from 143°
+    d = diagnose([replace(rec, wind=Stream.empty("speed_m_s", "from_deg"))], prior)  # the anemometer removed
+    wind = next(c for c in d.to_dict()["rounds"][0]["candidates"] if c["name"] == "wind")
+    n = float(np.median([f["wind_north"] for f in wind["fold_values"]]))  # each fold fitted without the anemometer
+    e = float(np.median([f["wind_east"] for f in wind["fold_values"]]))
+    off = (math.degrees(math.atan2(-e, -n)) - math.degrees(math.atan2(-east, -north)) + 180) % 360 - 180
+    assert abs(off) < 30 and abs(math.hypot(n, e) / math.hypot(north, east) - 1) < 0.4
