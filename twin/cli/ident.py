@@ -165,6 +165,15 @@ def evaluate_command(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
     v = vessel_from(vessel, model, "nominal")
+    if band and not v.uncertainty:  # said before any work is done
+        raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "
+                        f"write one with twin identify)")
+    if band and (draws < 2 or not 0.0 < level < 1.0):
+        raise TwinError("--band needs --draws of at least 2 and a --level between 0 and 1")
+    if band:
+        from ..scale.batches import executor_from
+
+        executor = executor_from(ray)  # an unreachable --ray address is refused before the work
     recs = read(recordings, channels_from(channels))
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
@@ -191,18 +200,12 @@ def evaluate_command(
               mjcf=v.mjcf)
         say(f"wrote {rrd} (open with: rerun {rrd})")
     if band:
-        from ..scale.batches import executor_from
         from ..scale.montecarlo import band_coverage
 
         used = calibrated if calibration else v
-        if not used.uncertainty:
-            raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "
-                            f"write one with twin identify)")
-        if draws < 2 or not 0.0 < level < 1.0:
-            raise TwinError("--band needs --draws of at least 2 and a --level between 0 and 1")
         with progress_bar("band") as progress:
             coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,
-                                     executor=executor_from(ray), progress=progress)
+                                     executor=executor, progress=progress)
         typer.echo(coverage.text())
         out["band"] = coverage.to_dict()
     write_json(json_out, out)
