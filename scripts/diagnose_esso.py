@@ -126,7 +126,8 @@ def markdown(rows: list[dict], s: dict) -> str:
              f"{CALM_M_S} m/s. The candidates a diagnosis offers this ship: current, wind, and the sensor effects "
              "(the PWM thruster effects and the seed 004 damping scales do not apply to it).", "",
              f"- tests: {s['tests']}; with mean true wind ≥ {WINDY_M_S} m/s: {s['windy']}; below {CALM_M_S} m/s: "
-             f"{s['calm']} (none is that calm, so the calm criterion is untested)",
+             f"{s['calm']}" + (" (none is that calm, so the calm criterion is untested)" if not s["calm"] else
+                                f", wind named on {s['calm_with_wind_named']} of them"),
              f"- **wind named on {s['windy_named']} of {s['windy']} windy tests** (target ≥ 70 %), "
              f"{s['windy_named_agreeing']} of them within the tolerances",
              f"- the wind candidate's own estimate (named or not) within the tolerances on "
