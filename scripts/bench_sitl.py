@@ -115,7 +115,7 @@ def main() -> None:
         return
     shipped = load("yellowfish")
     effects = replace(shipped, thrusters=replace(shipped.thrusters, lag_s=0.15, delay_s=0.05, decay_per_min=0.05,
-                                                 speed_loss_per_m_s=0.05))
+                                                 advance_loss=0.8))
     print(f"{args.frames} frames at {args.rate} Hz, lock-step, current 0.3 m/s and wind 6 m/s, "
           f"median of {args.repeats}; target ≥ {TARGET_X_REAL_TIME:g}× real time", flush=True)
     results = {

@@ -110,6 +110,9 @@ def load_vessel(path: Path) -> Vessel:
         M, M_RB, M_A = (np.array(p[k], float) for k in ("M", "M_RB", "M_A"))
         th = p["thrusters"]
         damping = {k: float(p["damping"].get(k, 0.0)) for k in DAMPING_NAMES}
+        unknown = sorted(k for k, x in p["damping"].items() if k not in DAMPING_NAMES and float(x) != 0.0)
+        if unknown:
+            raise UsageError(f"params: damping terms {', '.join(unknown)} are not modelled by this world")
         env = p.get("environment", {})
         wl = p["wind_load"]
         if M.shape != (3, 3) or M_RB.shape != (3, 3) or M_A.shape != (3, 3):
@@ -118,7 +121,7 @@ def load_vessel(path: Path) -> Vessel:
             raise UsageError("params: M is not positive definite")
         if th.get("reversed_channels"):
             raise UsageError("params: reversed thruster channels are not modelled by this world")
-        for k in ("decay_per_min", "speed_loss_per_m_s"):
+        for k in ("decay_per_min", "advance_loss"):
             if float(th.get(k) or 0.0) != 0.0:
                 raise UsageError(f"params: thrusters.{k} != 0 is not modelled by this world")
         if float(env.get("wind_speed_m_s") or 0.0) != 0.0:

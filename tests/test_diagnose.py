@@ -40,7 +40,7 @@ CASES = {
     "thruster_gain_right=1.2": ("thruster_gain_right", {"scale": 0.03}),
     "reverse_thrust=0.6": ("reverse_thrust", {"scale": 0.05}),
     "thrust_decay=0.1": ("thrust_decay", {"decay_per_min": 0.15}),
-    "thrust_speed_loss=0.2": ("thrust_speed_loss", {"speed_loss_per_m_s": 0.15}),
+    "thrust_speed_loss=1.5": ("thrust_speed_loss", {"advance_loss": 0.6}),
     "heading_bias=5": ("heading_bias", {"heading_bias_deg": 0.5}),
     "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
@@ -49,10 +49,11 @@ CASES = {
     "coupling_damping=-6,-4": ("coupling_damping", {"Yr": 2.0, "Nv": 2.0}),
     "added_mass=Yvdot:1.6": ("added_mass", {"Yvdot": 0.15}),
     "speed_damping=-20,-15": ("speed_damping", {"Yuv": 8.0, "Nur": 3.0}),
+    "speed_coupling=15,-5": ("speed_coupling", {"Yur": 3.0, "Nuv": 3.0}),
     "cg_offset=0.2,0": ("cg_offset", {"dx_m": 0.05, "dy_m": 0.05}),
 }
 ABSOLUTE = {"dir_deg", "delay_s", "pwm_clock_offset_s", "heading_bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
-            "Yuv", "Nur"}
+            "Yuv", "Nur", "Yur", "Nuv"}
 
 
 def make_search(prior, preps, recs, cv, library):

@@ -86,7 +86,7 @@ def test_dataset_round_trips_through_a_tlog(tmp_path, yellowfish_vessel):
     assert len(prep.segments) == 2
 
 
-@pytest.mark.parametrize("change", [{"lag_s": 0.3}, {"delay_s": 0.2}, {"speed_loss_per_m_s": 0.1},
+@pytest.mark.parametrize("change", [{"lag_s": 0.3}, {"delay_s": 0.2}, {"advance_loss": 1.0},
                                     {"decay_per_min": 0.1}, {"gain_right": 0.8}])
 def test_windows_reproduce_the_generating_twin(yellowfish_vessel, change):
     v = replace(yellowfish_vessel, thrusters=replace(yellowfish_vessel.thrusters, **change))

@@ -172,3 +172,28 @@ def test_every_damping_coefficient_reaches_the_native_callback(compiled):
     # the speed terms act: yaw damping with |u| differs from without
     nu = np.array([1.5, 0.2, 0.3])
     assert abs(Damping(Nur=-4.0).matrix(nu)[2, 2] - 6.0) < 1e-12 and abs(Damping(Yuv=-2.0).matrix(nu)[1, 1] - 3.0) < 1e-12
+    # the signed coupling changes sign with the direction of travel (physics.damping)
+    assert Damping(Yur=2.0).matrix(nu)[1, 2] == pytest.approx(-3.0)
+    assert Damping(Yur=2.0).matrix(-nu)[1, 2] == pytest.approx(3.0)
+
+
+def test_advance_loss_reaches_the_native_callback(compiled):
+    """The propellers' advance loss reads each thruster's actuator force in the callback: the
+    native one must agree with the Python reference, and the loss must act."""
+    cv = compiled["yellowfish"]
+    vessel = replace(cv.vessel, thrusters=replace(cv.vessel.thrusters, advance_loss=1.7))
+    cv = CompiledVessel(vessel, cv.model, cv.geometry)
+    model, hydro = native.with_native_params(cv), cv.hydro()
+    plain = native.with_native_params(compiled["yellowfish"])
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(5)
+    moved = []
+    for _ in range(10):
+        _random_state(rng, data)
+        data.ctrl[:2] = rng.uniform(-20.0, 30.0, 2)
+        reference = _passive(model, data, lambda: callbacks.installed(model, hydro))
+        np.testing.assert_allclose(_passive(model, data, native.installed_native), reference, rtol=0, atol=1e-9)
+        d2 = mujoco.MjData(plain)
+        d2.qpos[:], d2.qvel[:], d2.ctrl[:] = data.qpos, data.qvel, data.ctrl
+        moved.append(np.abs(reference - _passive(plain, d2, native.installed_native)).max())
+    assert max(moved) > 0.5

@@ -22,7 +22,7 @@ from twin.physics.hydrodynamics import Terms
 from twin.physics.thrusters import ThrusterModel
 from twin.run import CSV_COLUMNS, Run
 
-EFFECTS = dict(delay_s=0.13, decay_per_min=0.05, lag_s=0.2, speed_loss_per_m_s=0.1, gain_right=0.9)
+EFFECTS = dict(delay_s=0.13, decay_per_min=0.05, lag_s=0.2, advance_loss=1.0, gain_right=0.9)
 _rng = np.random.default_rng(42)
 _T = np.concatenate([[0.0], np.sort(_rng.uniform(0.01, 30.0, 25))])
 PWM = InputSeries(_T, _rng.uniform(1050, 1950, (len(_T), 2)).round(1), "pwm")

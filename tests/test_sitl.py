@@ -141,7 +141,7 @@ def full_vessel():
     """The yellowfish with every thruster effect and an environment: lag, transport delay (2.5 frames
     at 50 Hz), decay, advance-speed loss, asymmetric gains, current and wind."""
     v = load("yellowfish")
-    thrusters = replace(v.thrusters, lag_s=0.15, delay_s=0.05, decay_per_min=0.05, speed_loss_per_m_s=0.05,
+    thrusters = replace(v.thrusters, lag_s=0.15, delay_s=0.05, decay_per_min=0.05, advance_loss=0.8,
                         gain_left=0.95)
     return with_environment(replace(v, thrusters=thrusters), current=(0.3, 40.0), wind=(6.0, 100.0))
 

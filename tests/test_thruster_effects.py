@@ -25,8 +25,8 @@ def _both(vessel, duration=20.0, start_s=0.0):
     return eng, ana
 
 
-@pytest.mark.parametrize("change", [{"delay_s": 0.3}, {"decay_per_min": 0.2}, {"speed_loss_per_m_s": 0.15},
-                                    {"speed_loss_per_m_s": 0.1, "lag_s": 0.4, "delay_s": 0.2}])
+@pytest.mark.parametrize("change", [{"delay_s": 0.3}, {"decay_per_min": 0.2}, {"advance_loss": 1.5},
+                                    {"advance_loss": 1.0, "lag_s": 0.4, "delay_s": 0.2}])
 def test_engine_matches_analytic_with_thruster_effects(change):
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, **change))
@@ -56,16 +56,33 @@ def test_decay_scales_thrust_with_recording_time():
     np.testing.assert_allclose(run.thrust_n, (1 - 0.1 * run.t / 60)[:, None] * ref.thrust_n, rtol=1e-9)
 
 
-def test_speed_loss_is_the_thrusters_advance_speed():
+def test_advance_loss_is_each_propellers_own_advance():
     base = vessel_mod.load("yellowfish")
-    k = 0.2
-    v = replace(base, thrusters=replace(base.thrusters, speed_loss_per_m_s=k))
+    c = 1.5
+    v = replace(base, thrusters=replace(base.thrusters, advance_loss=c))
     cv = compile_vessel(v)
     run = simulate(cv, PWM, 8.0, nu0=(1.0, 0.0, 0.3))
     y = np.array(cv.geometry.thruster_y_m)
     cmd = np.clip(PWM.commanded_thrust(v.thrusters, run.t), *v.thrusters.bounds())
-    expected = cmd * (1 - k * (run.nu[:, [0]] - run.nu[:, [2]] * y))
+    expected = cmd - c * np.sqrt(np.abs(cmd)) * (run.nu[:, [0]] - run.nu[:, [2]] * y)
     np.testing.assert_allclose(run.thrust_n, expected, rtol=1e-12)
+
+
+def test_advance_loss_damps_the_advance_whichever_way_the_propeller_turns():
+    """K_T linear in J: a reversed propeller on a boat going ahead pushes harder (crash stop), one
+    backing into its own jet pushes less; the T0·(1 − k·u_a) form has both the wrong way round."""
+    from twin.physics.thrusters import delivered
+
+    y = (-0.3, 0.3)
+    ahead, astern = np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
+    forward, reverse = np.array([20.0, 20.0]), np.array([-20.0, -20.0])
+    assert np.all(delivered(1.0, forward, ahead, y) < 20.0)  # advancing: less thrust
+    assert np.all(delivered(1.0, reverse, ahead, y) < -20.0)  # crash stop: more reverse thrust
+    assert np.all(delivered(1.0, reverse, astern, y) > -20.0)  # backing into its jet: less
+    spin = delivered(1.0, np.array([20.0, -20.0]), np.array([0.0, 0.0, 1.0]), y)
+    # r > 0 moves the port (y < 0) thruster ahead and the starboard one astern: both push less
+    np.testing.assert_allclose(spin, [20.0 - np.sqrt(20) * 0.3, -20.0 + np.sqrt(20) * 0.3])
+    assert delivered(0.0, forward, ahead, y) == pytest.approx(forward)
 
 
 def test_cg_offset_moves_the_centre_of_gravity_only():
@@ -95,7 +112,7 @@ def test_heading_error_and_its_inverse():
 def test_vessel_file_round_trip_keeps_the_new_fields(tmp_path):
     base = vessel_mod.load("yellowfish")
     v = replace(base, sensors=Sensors(heading_bias_deg=1.5, antenna_offset_m=(0.1, 0.0)), cg_offset_m=(0.01, 0.0),
-                thrusters=replace(base.thrusters, delay_s=0.2, decay_per_min=0.05, speed_loss_per_m_s=0.1))
+                thrusters=replace(base.thrusters, delay_s=0.2, decay_per_min=0.05, advance_loss=1.2))
     path = vessel_mod.save(v, tmp_path / "amended.json")
     back = vessel_mod.load(str(path))
     assert back.sensors == v.sensors and back.cg_offset_m == v.cg_offset_m and back.thrusters == v.thrusters

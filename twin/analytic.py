@@ -20,14 +20,14 @@ from scipy.integrate import solve_ivp
 from .drive import InputSeries, WindSeries
 from .physics.hydrodynamics import HydroModel, acceleration, mmg_forces
 from .physics.kinematics import eta_dot
-from .physics.thrusters import ThrusterModel, advance_factor, allocation_matrix
+from .physics.thrusters import ThrusterModel, allocation_matrix, delivered
 from .run import Run
 
 
 def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndarray, start_s: float,
          wind_ned=None):
     """Right-hand side with the input `raw` (N, before decay) held; the thrust decays in
-    continuous time and loses with the advance speed (physics/thrusters.py). A propeller and
+    continuous time; its advance loss is a hydrodynamic force (physics/hydrodynamics.py). A propeller and
     rudder's `raw` is (n, δ), the MMG forces' controls. `wind_ned`: the air's velocity held."""
     if thrusters.kind == "propeller_rudder":
         controls = np.asarray(raw, float)
@@ -49,10 +49,10 @@ def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndar
         psi, nu = x[2], x[3:6]
         cmd = np.clip(raw * thrusters.decay_factor(t + start_s), t_min, t_max)
         delivered = x[6:8] if lag > 0 else cmd
-        tau = B @ (gains * delivered * advance_factor(thrusters, nu, thruster_y_m))
+        static = gains * delivered  # the advance loss acts on it in the hydrodynamics
         dx = np.empty_like(x)
         dx[0:3] = eta_dot(psi, nu)
-        dx[3:6] = acceleration(hydro, psi, nu, tau, None, wind_ned)
+        dx[3:6] = acceleration(hydro, psi, nu, B @ static, None, wind_ned, static)
         if lag > 0:
             dx[6:8] = (cmd - x[6:8]) / lag
         return dx
@@ -120,6 +120,6 @@ def simulate(
     else:
         cmd = np.clip(inputs.commanded_thrust(thrusters, t_samples, start_s), t_min, t_max)
         cmd = cmd if hydro.terms.thrust else np.zeros_like(cmd)
-    factor = np.array([advance_factor(thrusters, nu, thruster_y_m) for nu in out[:, 3:6]])
-    return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), cmd * gains * factor,
+    thrust = delivered(thrusters.advance_loss, cmd * gains, out[:, 3:6], thruster_y_m)  # as the engine reports it
+    return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), thrust,
                meta={"engine": "analytic", "integrator": "DOP853"})

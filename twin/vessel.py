@@ -275,8 +275,8 @@ def check(vessel: Vessel) -> None:
     t = vessel.thrusters
     if t.lag_s < 0 or t.gain_left <= 0 or t.gain_right <= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
-    if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not 0 <= t.speed_loss_per_m_s < 1:
-        raise TwinError(f"vessel '{vessel.name}': thruster delay must be ≥ 0, decay and speed loss in [0, 1)")
+    if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not t.advance_loss >= 0:
+        raise TwinError(f"vessel '{vessel.name}': thruster delay and advance loss must be ≥ 0, decay in [0, 1)")
     _check_propeller_rudder(vessel)
     for case in vessel.cases.values():
         for geom, mass in case.geom_mass_kg.items():
@@ -293,8 +293,8 @@ def _check_propeller_rudder(vessel: Vessel) -> None:
                         f"(kind '{t.kind}', mmg {'given' if m is not None else 'missing'})")
     if m is None:
         return
-    if t.lag_s or t.delay_s < 0 or t.decay_per_min or t.speed_loss_per_m_s or t.gain_left != 1 or t.gain_right != 1:
-        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, speed loss or "
+    if t.lag_s or t.delay_s < 0 or t.decay_per_min or t.advance_loss or t.gain_left != 1 or t.gain_right != 1:
+        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, advance loss or "
                         "gains (the MMG forces model the propeller)")
     for what, x in (("thrusters.rps_max", t.rps_max), ("thrusters.rudder_max_deg", t.rudder_max_deg)):
         if x is not None and not x > 0:

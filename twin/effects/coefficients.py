@@ -14,7 +14,8 @@ from .quantity import Quantity, gain_mean, gain_ratio, member, ned_component, re
 
 DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2", "Yrv": "N s2/m", "Yr": "N s",
                  "Yvr": "N s2/m", "Yrr": "N s2", "Nv": "N s", "Nvv": "N s2", "Nrv": "N s2", "Nr": "N m s",
-                 "Nvr": "N s2", "Nrr": "N m s2", "Yuv": "N s2/m2", "Nur": "N m s2/m"}
+                 "Nvr": "N s2", "Nrr": "N m s2", "Yuv": "N s2/m2", "Nur": "N m s2/m",
+                 "Yur": "N s2/m", "Nuv": "N s2/m"}
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
@@ -31,6 +32,8 @@ FIT_GROUPS = {
     "asymmetry": ("asymmetry",),
     "speed damping": ("Yuv", "Nur"),
     "coupling": ("Yr", "Nv"),
+    "speed coupling": ("Yur", "Nuv"),
+    "advance loss": ("advance_loss",),
 }
 # a propeller-and-rudder ship (MMG, physics/mmg.py): the same idea on its own description. Not the
 # PWM thrusters' dead zone, gains or lag (it has none), and not X'_vv.., Y'_vvv, N'_vvv, Y'_rrr:
@@ -59,6 +62,11 @@ def damping(name: str) -> Quantity:
 def coupling(name: str) -> Quantity:
     """Linear sway-yaw coupling Yr, Nv: either sign is dissipative while Yv·Nr dominates."""
     return member("damping", name, DAMPING_UNITS[name], -1e3, 1e3, 1.0)
+
+
+def speed_coupling(name: str) -> Quantity:
+    """Speed-proportional sway-yaw coupling Y_ur, N_uv: either sign (physics.damping)."""
+    return member("damping", name, DAMPING_UNITS[name], -1e3, 1e3, 5.0)
 
 
 def added_mass(name: str) -> Quantity:
@@ -113,9 +121,11 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
     out = {n: damping(n) for n in ("Xu", "Xuu", "Yv", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nr", "Nrr")}
     out.update({n: coupling(n) for n in ("Yr", "Nv")})
     out.update({n: damping(n) for n in ("Yuv", "Nur")})
+    out.update({n: speed_coupling(n) for n in ("Yur", "Nuv")})
     out.update({n: added_mass(n) for n in ADDED_MASS})
     out.update({"thrust_gain": gain_mean(), "reverse_scale": reverse_scale(prior), "asymmetry": gain_ratio(),
                 "lag_s": member("thrusters", "lag_s", "s", 0.01, 3.0, 0.2),
+                "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
                 "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
                 "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
                 "current_north": ned_component("current", 0, -3.0, 3.0, 0.1),
@@ -165,6 +175,10 @@ def belief(name: str, prior: Vessel) -> Belief:
     if name == "Nur":
         return Belief(False, abs(d.Nr) / TYPICAL_SPEED_M_S or 10.0,
                       "speed-proportional yaw damping: up to the linear term's size at 1 m/s")
+    if name in ("Yur", "Nuv"):
+        return Belief(False, math.sqrt(abs(d.Yv * d.Nr)) / TYPICAL_SPEED_M_S or 10.0,
+                      "speed-proportional sway-yaw coupling (hull lift in a turn): up to the direct terms' "
+                      "geometric mean at 1 m/s")
     if name == "thrust_gain":
         return Belief(True, 0.4, "thrust curve measured at another supply voltage (a T200 gives about 1.6 times "
                                  "the 10 V thrust at 16 V)")
@@ -172,6 +186,9 @@ def belief(name: str, prior: Vessel) -> Belief:
         return Belief(True, 0.3, "reverse thrust curve: within about 30 % of the datasheet's")
     if name == "asymmetry":
         return Belief(True, 0.15, "two thrusters of one model: within about 15 % of each other")
+    if name == "advance_loss":
+        return Belief(False, 1.5, "propeller advance loss c = √(ρK_T0)·D/J_0: about 1.5 √N·s/m for a small "
+                                  "thruster's propeller (D 76 mm, K_T0 0.4, J_0 1), known to a factor of 2")
     if name == "lag_s":
         return Belief(True, 1.0, "thrust lag of a small ESC and propeller: tenths of a second, a factor of e")
     if name == "delay_s":

@@ -214,9 +214,9 @@ def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
     return _thrusters(vessel, decay_per_min=decay_per_min)
 
 
-def thrust_speed_loss(vessel: Vessel, speed_loss_per_m_s: float) -> Vessel:
-    """Thrust × (1 − speed_loss_per_m_s·advance speed of the thruster)."""
-    return _thrusters(vessel, speed_loss_per_m_s=speed_loss_per_m_s)
+def thrust_speed_loss(vessel: Vessel, advance_loss: float) -> Vessel:
+    """Each propeller's thrust less advance_loss·√|T0|·its advance speed (√N·s/m, physics/thrusters.py)."""
+    return _thrusters(vessel, advance_loss=advance_loss)
 
 
 # ---------------------------------------------------------------- hull
@@ -260,6 +260,12 @@ def coupling_damping(vessel: Vessel, Yr: float, Nv: float) -> Vessel:
 def speed_damping(vessel: Vessel, Yuv: float, Nur: float) -> Vessel:
     """Sway and yaw damping proportional to the forward speed, Y_|u|v and N_|u|r (Fossen's signs), set."""
     return replace(vessel, damping=replace(vessel.damping, Yuv=Yuv, Nur=Nur))
+
+
+def speed_coupling(vessel: Vessel, Yur: float, Nuv: float) -> Vessel:
+    """Sway-yaw coupling proportional to the signed forward speed, Y_ur and N_uv (N s²/m), set: the
+    lift of a hull in a turn (physics.damping)."""
+    return replace(vessel, damping=replace(vessel.damping, Yur=Yur, Nuv=Nuv))
 
 
 def cg_offset(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
@@ -357,10 +363,10 @@ _SPECS = [
                "thrust sag over time",
                _single("thrust_decay", member("thrusters", "decay_per_min", "1/min", 0.0, 0.6, 0.05), ((0.02,),),
                        "thrust")),
-    EffectSpec("thrust_speed_loss", "thrusters", (_v("speed_loss_per_m_s", "s/m", 0, 0.99),), thrust_speed_loss,
-               "thrust loss with advance speed",
-               _single("thrust_speed_loss", member("thrusters", "speed_loss_per_m_s", "s/m", 0.0, 0.8, 0.1),
-                       ((0.05,),), "drag")),
+    EffectSpec("thrust_speed_loss", "thrusters", (_v("advance_loss", "√N s/m", 0, 20),), thrust_speed_loss,
+               "propeller thrust loss with advance speed (T0 − c·√|T0|·u_a)",
+               _single("thrust_speed_loss", member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
+                       ((0.5,),), "drag")),
     EffectSpec("quadratic_damping", "hull", (), quadratic_damping, "quadratic damping scales",
                _scales_fit("quadratic_damping", "damping", QUADRATIC_DAMPING), keys=QUADRATIC_DAMPING),
     EffectSpec("linear_damping", "hull", (), linear_damping, "linear damping scales",
@@ -372,6 +378,10 @@ _SPECS = [
     EffectSpec("speed_damping", "hull", (_v("Yuv", "N s2/m2", -500, 0), _v("Nur", "N m s2/m", -500, 0)),
                speed_damping, "sway and yaw damping growing with forward speed",
                _pair_fit("speed_damping", "damping", ("Yuv", "Nur"), "N s2/m2", -300.0, 0.0, 5.0, "drag",
+                         start_from_prior=True)),
+    EffectSpec("speed_coupling", "hull", (_v("Yur", "N s2/m", -500, 500), _v("Nuv", "N s2/m", -500, 500)),
+               speed_coupling, "sway-yaw coupling growing with forward speed (a hull's lift in a turn)",
+               _pair_fit("speed_coupling", "damping", ("Yur", "Nuv"), "N s2/m", -300.0, 300.0, 5.0, "turning",
                          start_from_prior=True)),
     EffectSpec("added_mass", "hull", (), added_mass, "added-mass scales",
                _scales_fit("added_mass", "added_mass", ADDED_MASS), keys=ADDED_MASS),

@@ -61,7 +61,8 @@ def passive_force(entry: _Entry, model: mujoco.MjModel, data: mujoco.MjData) -> 
     controls = data.ctrl[:2] if entry.hydro.mmg is not None else None
     k = entry.wind_ctrl
     wind = data.ctrl[k:k + 2] if k >= 0 else None
-    X = hydrodynamic_force(entry.hydro, psi, nu, tau, controls, wind)
+    thrusts = data.actuator_force[:2] if entry.hydro.advance_loss else None  # actuators 0, 1: the thrusters
+    X = hydrodynamic_force(entry.hydro, psi, nu, tau, controls, wind, thrusts)
     return np.array([c * X[0] - s * X[1], s * X[0] + c * X[1], X[2]])
 
 

@@ -156,12 +156,7 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
             act.ctrlrange = [t_min, t_max]
         else:
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        act.gainprm[0] = gain
-        if t.speed_loss_per_m_s != 0.0:
-            # force = gain·(1 − k·actuator velocity)·ctrl; for a site transmission along body x
-            # the actuator velocity is the thruster's own advance speed u − r·y_i
-            act.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
-            act.gainprm[2] = -gain * t.speed_loss_per_m_s
+        act.gainprm[0] = gain  # the advance loss is the hydrodynamic callback's (physics/hydrodynamics.py)
         if t.lag_s > 0:
             # MuJoCo integrates the first-order thrust lag (seed 004 eq. 15) as actuator state.
             # "filter", not "filterexact": under RK4 the latter lags by about half a step
@@ -286,4 +281,6 @@ def hydro_model(vessel: Vessel, geometry: Geometry, terms: Terms | None = None) 
         mmg=mmg_params,
         wind_regression=None if vessel.wind_regression is None else fujiwara.pack(vessel.wind_regression),
         munk_moment=vessel.mmg is None,  # an MMG hull's N'_v holds the Munk moment (eq. 4)
+        advance_loss=vessel.thrusters.advance_loss if vessel.mmg is None else 0.0,
+        thruster_y_m=geometry.thruster_y_m,
     )

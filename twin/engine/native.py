@@ -41,7 +41,7 @@ from ..physics import fujiwara, mmg
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
-from .mjcf import CompiledVessel, edited_spec, wind_control
+from .mjcf import THRUSTERS, CompiledVessel, edited_spec, wind_control
 
 PARAMS_NAME = "twin_params"
 MAGIC = (7.0710678118654752e11, -2.7182818284590452e-13)  # unlikely to be anyone else's first numeric
@@ -50,13 +50,14 @@ _FIELDS = (  # (name, number of doubles), in storage order
     ("magic", 2), ("size", 1), ("qpos_adr", 3), ("dof_adr", 3),
     ("switches", 6),  # added_mass, added_mass_coriolis, damping, thrust, current, wind (0/1, effective)
     ("M_RB", 9), ("M_A", 9), ("M_inv", 9),  # row-major, kg / kg m / kg m²
-    ("damping", 16),  # Damping.names() order, Fossen's signs
+    ("damping", 18),  # Damping.names() order, Fossen's signs
     ("wind_load", 6),  # A_F m², A_L m², L m, c_x, c_y, c_n
     ("current_ned", 2), ("wind_ned", 2),  # m/s; wind as the air's velocity
     ("flags", 4),  # Munk moment in C_A (0/1), MMG forces (0/1), first wind control (−1: none), Fujiwara (0/1)
     ("mmg_switches", 3),  # MMG hull, propeller, rudder (0/1)
     ("mmg", mmg.SIZE),  # physics.mmg.FIELDS
     ("fujiwara", fujiwara.SIZE),  # physics.fujiwara.pack
+    ("advance", 5),  # advance loss c (√N·s/m, 0: none), thruster y_L, y_R (m), their actuator ids
 )
 
 
@@ -100,11 +101,20 @@ def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
         "mmg_switches": (float(t.mmg_hull), float(t.propeller), float(t.rudder)),
         "mmg": np.zeros(mmg.SIZE) if hydro.mmg is None else hydro.mmg,
         "fujiwara": np.zeros(fujiwara.SIZE) if hydro.wind_regression is None else hydro.wind_regression,
+        "advance": _advance(hydro, model),
     }
     p = np.zeros(NPARAM)
     for name, sl in LAYOUT.items():
         p[sl] = values[name]
     return p
+
+
+def _advance(hydro: HydroModel, model: mujoco.MjModel) -> tuple[float, ...]:
+    """The advance loss's numbers (LAYOUT): c, where the thrusters sit and which actuators they are."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in THRUSTERS]
+    if not hydro.advance_loss or min(ids) < 0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0)
+    return (float(hydro.advance_loss), *map(float, hydro.thruster_y_m), float(ids[0]), float(ids[1]))
 
 
 def _params_view(model: mujoco.MjModel) -> np.ndarray:
@@ -283,7 +293,8 @@ def offsets() -> dict[str, int]:
     d_ptr = _pointer_offsets(data, "mjdata.h", "mjData", "buffer", "qpos")
     out = {f"m.{n}": sizes[n] for n in ("nq", "nv", "nu", "nnumeric")}
     out.update({f"m.{n}": m_ptr[n] for n in ("numeric_adr", "numeric_size", "numeric_data")})
-    out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "ctrl", "qfrc_passive", "qfrc_actuator")})
+    out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "ctrl", "qfrc_passive", "qfrc_actuator",
+                                               "actuator_force")})
     return out
 
 
@@ -330,12 +341,12 @@ def _coriolis(M, o, u, v, r):
 
 @njit(inline="always")
 def _damping(p, o, u, v, r):
-    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+16] in Damping.names() order."""
+    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+18] in Damping.names() order."""
     au, av, ar = abs(u), abs(v), abs(r)
     d00 = -(p[o] + p[o + 1] * au)
     d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar + p[o + 14] * au)
-    d12 = -(p[o + 5] + p[o + 6] * av + p[o + 7] * ar)
-    d21 = -(p[o + 8] + p[o + 9] * av + p[o + 10] * ar)
+    d12 = -(p[o + 5] + p[o + 6] * av + p[o + 7] * ar + p[o + 16] * u)
+    d21 = -(p[o + 8] + p[o + 9] * av + p[o + 10] * ar + p[o + 17] * u)
     d22 = -(p[o + 11] + p[o + 12] * av + p[o + 13] * ar + p[o + 15] * au)
     return d00 * u, d11 * v + d12 * r, d21 * v + d22 * r
 
@@ -357,20 +368,21 @@ _O_MRB, _O_MA, _O_MINV = LAYOUT["M_RB"].start, LAYOUT["M_A"].start, LAYOUT["M_in
 _O_DAMP, _O_WL = LAYOUT["damping"].start, LAYOUT["wind_load"].start
 _O_CUR, _O_WIND = LAYOUT["current_ned"].start, LAYOUT["wind_ned"].start
 _O_FLAGS, _O_MSW = LAYOUT["flags"].start, LAYOUT["mmg_switches"].start
-_O_MMG, _O_FUJI = LAYOUT["mmg"].start, LAYOUT["fujiwara"].start
+_O_MMG, _O_FUJI, _O_ADV = LAYOUT["mmg"].start, LAYOUT["fujiwara"].start, LAYOUT["advance"].start
 _E_MMG, _E_FUJI = _O_MMG + mmg.SIZE, _O_FUJI + fujiwara.SIZE
 _mmg_force = njit(mmg.mmg_force)  # the physics functions themselves, compiled
 _fujiwara_force = njit(fujiwara.wind_force)
 
 
 @njit
-def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0):
+def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0, thrust_l=0.0, thrust_r=0.0):
     """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`.
 
     ν = (u, v, r) in m/s, rad/s; τ = (t0, t1, t2) the actuator force the engine
     applies by itself (it enters only through the exact ν̇_r of added mass); (n, δ)
     the MMG inputs (rps, rad) and (wn, we) the air's NED velocity when the wind comes
-    from the controls (flags, see LAYOUT).
+    from the controls (flags, see LAYOUT); thrust_l, thrust_r each thruster's actuator force
+    (N), on which the advance loss acts.
     """
     c, s = np.cos(psi), np.sin(psi)
     ur, vr, rr = u, v, r
@@ -379,6 +391,11 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0
         vr = v - (-s * p[_O_CUR] + c * p[_O_CUR + 1])
     th = p[_SW + 3] != 0.0
     e0, e1, e2 = (t0, t1, t2) if th else (0.0, 0.0, 0.0)
+    if th and p[_O_ADV] != 0.0:  # advance loss −c·√|T0|·(u_r − r·y_i), physics/thrusters.py
+        loss_l = -p[_O_ADV] * np.sqrt(abs(thrust_l)) * (ur - rr * p[_O_ADV + 1])
+        loss_r = -p[_O_ADV] * np.sqrt(abs(thrust_r)) * (ur - rr * p[_O_ADV + 2])
+        e0 = e0 + loss_l + loss_r
+        e2 = e2 - p[_O_ADV + 1] * loss_l - p[_O_ADV + 2] * loss_r
     if p[_SW + 5] != 0.0:  # wind sees the true velocity ν
         if p[_O_FLAGS + 2] < 0.0:
             wn, we = p[_O_WIND], p[_O_WIND + 1]
@@ -435,9 +452,9 @@ def _build_callback():
     o_nq, o_nv, o_nnum = off["m.nq"], off["m.nv"], off["m.nnumeric"]
     o_nadr, o_nsize, o_ndata = off["m.numeric_adr"], off["m.numeric_size"], off["m.numeric_data"]
     o_qpos, o_qvel, o_pas, o_act = off["d.qpos"], off["d.qvel"], off["d.qfrc_passive"], off["d.qfrc_actuator"]
-    o_nu, o_ctrl = off["m.nu"], off["d.ctrl"]
+    o_nu, o_ctrl, o_afrc = off["m.nu"], off["d.ctrl"], off["d.actuator_force"]
     o_q, o_d, n, magic0, magic1 = LAYOUT["qpos_adr"].start, LAYOUT["dof_adr"].start, NPARAM, *MAGIC
-    o_flags = LAYOUT["flags"].start
+    o_flags, o_adv = LAYOUT["flags"].start, LAYOUT["advance"].start
 
     @njit(inline="always")
     def params(mb):
@@ -476,7 +493,16 @@ def _build_callback():
                 n_rps, delta = ctrl[0], ctrl[1]
             if wind_ctrl >= 0:
                 wn, we = ctrl[wind_ctrl], ctrl[wind_ctrl + 1]
-        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi], n_rps, delta, wn, we)
+        thrust_l, thrust_r = 0.0, 0.0
+        if p[o_adv] != 0.0:
+            nu_act = _field(mb, o_nu)
+            i_l, i_r = int(p[o_adv + 3]), int(p[o_adv + 4])
+            if max(i_l, i_r) >= nu_act or min(i_l, i_r) < 0:
+                return
+            afrc = carray(_f64_ptr(_field(db, o_afrc)), nu_act)
+            thrust_l, thrust_r = afrc[i_l], afrc[i_r]
+        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi], n_rps, delta, wn, we,
+                                      thrust_l, thrust_r)
         qfrc = carray(_f64_ptr(_field(db, o_pas)), nv)
         qfrc[dx] += c * x0 - s * x1
         qfrc[dy] += s * x0 + c * x1

@@ -29,6 +29,7 @@ import numpy as np
 from ..drive import InputSeries, WindSeries
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms, mmg_forces
+from ..physics import thrusters
 from ..run import Run
 from . import callbacks
 from .divergence import CHECKS, clear, flagged, quiet_log, what_diverged
@@ -369,12 +370,11 @@ def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndar
 
 
 def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain
-    and the advance-speed factor (`thrusters.advance_factor`, for all samples at once)."""
+    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain,
+    less its advance loss (`thrusters.delivered`, for all samples at once; at the speed over
+    ground ν, which with a current differs from the callback's speed through the water)."""
     t_min, t_max = vessel.thrusters.bounds()
-    factor = 1.0
-    if len(nu):
-        nu = np.asarray(nu, float)
-        y = np.asarray(thruster_y_m, float)
-        factor = 1.0 - vessel.thrusters.speed_loss_per_m_s * (nu[:, :1] - nu[:, 2:3] * y)
-    return np.clip(command_n, t_min, t_max) * vessel.thrusters.gains() * factor
+    static = np.clip(command_n, t_min, t_max) * vessel.thrusters.gains()
+    if not len(nu) or not vessel.thrusters.advance_loss:
+        return static
+    return thrusters.delivered(vessel.thrusters.advance_loss, static, np.asarray(nu, float), thruster_y_m)

@@ -15,7 +15,7 @@ import numpy as np
 from ..drive import InputSeries, to_thruster_inputs
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
-from ..physics.thrusters import advance_factor
+from ..physics.thrusters import delivered
 from ..run import Run
 from . import callbacks
 from .divergence import clear, flagged, quiet_log, what_diverged
@@ -159,8 +159,11 @@ def _divergence(model: mujoco.MjModel, data: mujoco.MjData, chunk_start: np.ndar
 
 
 def delivered_thrust(vessel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain
-    and the advance-speed factor."""
+    """Thrust each thruster delivers (N): the (lagged) command within the range, times its gain,
+    less its advance loss (row by row)."""
     t_min, t_max = vessel.thrusters.bounds()
-    factor = np.array([advance_factor(vessel.thrusters, n, thruster_y_m) for n in nu]) if len(nu) else 1.0
-    return np.clip(command_n, t_min, t_max) * vessel.thrusters.gains() * factor
+    static = np.clip(command_n, t_min, t_max) * vessel.thrusters.gains()
+    if not len(nu):
+        return static
+    c = vessel.thrusters.advance_loss
+    return np.array([delivered(c, s, n, thruster_y_m) for s, n in zip(static, nu)])

@@ -45,8 +45,11 @@ def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
 
 # ---------------------------------------------------------------- a log's own calibration, from its kinematics
 
-STRAIGHT_SPEED_M_S = 0.4  # under way: slower, the GNSS velocity's direction is mostly noise
-STRAIGHT_YAW_RATE_RAD_S = 0.1  # about 6°/s: turning slower, a catamaran's CO barely slips sideways
+STRAIGHT_SPEED_M_S = 0.4  # under way, ahead or astern: slower, the GNSS velocity's direction is mostly noise
+# about 20°/s: a boat weaving under way still holds its offset; the sideslip of such turns (a light hull
+# slips inwards, physics.damping's Y_ur) is fitted with it (x[1]). At 0.1 rad/s, the earlier limit, logs of
+# zig-zags and weaving had no straight running at all
+STRAIGHT_YAW_RATE_RAD_S = 0.35
 MIN_STRETCH_S = 1.0  # a GNSS velocity direction needs a few fixes
 PIECE_S = 2.0  # straight running is cut into pieces this long: each gives the offset once
 MIN_STRAIGHT_S = 3.0  # less straight running than this says nothing reliable about the compass
@@ -59,7 +62,7 @@ MIN_OFFSET_DEG, SIGNIFICANT_SIGMA = 1.5, 3.0  # smaller or less sure: a compass'
 class LogCalibration:
     """A log's own compass offset, estimated from its kinematics alone (no dynamic model).
 
-    Going straight under way, a symmetric hull's track over ground follows its true heading,
+    Going straight under way, ahead or astern, a symmetric hull's track over ground follows its true heading,
     so the angle between the GNSS track and the logged heading is the compass's error there:
     heading_bias_deg = ψ_logged − ψ_true (twin.physics.sensors' sign), with its 1-σ from the
     spread of the offsets of 2-s pieces of straight running (optimistic where one long stretch
@@ -96,10 +99,10 @@ class LogCalibration:
 def straight_stretches(prep: Prepared, min_speed_m_s: float = STRAIGHT_SPEED_M_S,
                        max_yaw_rate_rad_s: float = STRAIGHT_YAW_RATE_RAD_S,
                        min_stretch_s: float = MIN_STRETCH_S) -> list[slice]:
-    """Runs of grid samples going straight under way, each at least min_stretch_s long and
+    """Runs of grid samples going straight under way (ahead or astern), each at least min_stretch_s long and
     inside one segment."""
     h = prep.settings.grid_dt
-    ok = (prep.u > min_speed_m_s) & (np.abs(prep.r) < max_yaw_rate_rad_s) & np.isfinite(prep.u) & np.isfinite(prep.v)
+    ok = (np.abs(prep.u) > min_speed_m_s) & (np.abs(prep.r) < max_yaw_rate_rad_s) & np.isfinite(prep.u) & np.isfinite(prep.v)
     out = []
     for seg in prep.segments:
         k = seg.start
@@ -140,7 +143,7 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) ->
     seconds = sum(sl.stop - sl.start for sl in stretches) * prep.settings.grid_dt
     if seconds < MIN_STRAIGHT_S:
         return LogCalibration(name, None, None, len(stretches), seconds, None,
-                              f"{seconds:.1f} s of straight running under way (u > {STRAIGHT_SPEED_M_S:g} m/s, "
+                              f"{seconds:.1f} s of straight running under way (|u| > {STRAIGHT_SPEED_M_S:g} m/s, "
                               f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s); {MIN_STRAIGHT_S:g} s are needed")
     legs = [_ground_velocity(prep, sl) for sl in stretches]
     vel = np.concatenate([v for v, _ in legs])

@@ -75,7 +75,7 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
     """What needs a recompilation: everything else is set on a copy of a compiled model."""
     t = vessel.thrusters
-    key = (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0, t.speed_loss_per_m_s != 0.0,
+    key = (str(vessel.mjcf), vessel.case, tuple(vessel.cg_offset_m), t.lag_s > 0,
            t.bounded)
     return key + (t.kind, True) if wind else key
 
@@ -136,7 +136,6 @@ class ModelCache:
             m.actuator_ctrlrange[:2] = t.bounds()
         for i, gain in enumerate(t.gains()):
             m.actuator_gainprm[i, 0] = gain
-            m.actuator_gainprm[i, 2] = -gain * t.speed_loss_per_m_s if t.speed_loss_per_m_s else 0.0
             if t.lag_s > 0:
                 m.actuator_dynprm[i, 0] = t.lag_s
         return m

@@ -10,6 +10,13 @@ with lift-like forces, so its linear sway and yaw derivatives grow with the spee
 (Y_v = Y_v'·½ρL²U, N_r = N_r'·½ρL⁴U in non-dimensional manoeuvring form; Fossen
 2011 §6.4). Seed 004 eq. 7 has no such term: it is zero in every vessel file unless
 identification asks for it.
+
+`Yur` (Y_{ur}) and `Nuv` (N_{uv}): the sway-yaw coupling of the same lift, Y_r = Y_r'·½ρL³U and
+N_v = N_v'·½ρL³U. Signed u, not |u|: the hull's lift acts towards its leading end, which is the
+stern when it goes astern, so the coupling changes sign with the direction of travel (the
+direct terms above do not). A light slender hull has Y_r' larger than its non-dimensional mass
+m' (KVLCC2: Y_r' 0.083 against m' 0.18; a 15-kg catamaran of 1.2 m: m' ≈ 0.02), so in a turn it
+slips inwards, against the centrifugal (m − X_u̇)·u·r that alone makes it slip outwards.
 """
 from __future__ import annotations
 
@@ -36,6 +43,8 @@ class Damping:
     Nrr: float = 0.0
     Yuv: float = 0.0
     Nur: float = 0.0
+    Yur: float = 0.0
+    Nuv: float = 0.0
 
     @classmethod
     def names(cls) -> list[str]:
@@ -44,12 +53,13 @@ class Damping:
     def matrix(self, nu: np.ndarray) -> np.ndarray:
         """D(ν) of seed 004 eq. 7."""
         au, av, ar = np.abs(nu)
+        u = nu[0]
         return -np.array(
             [
                 [self.Xu + self.Xuu * au, 0.0, 0.0],
                 [0.0, self.Yv + self.Yvv * av + self.Yrv * ar + self.Yuv * au,
-                 self.Yr + self.Yvr * av + self.Yrr * ar],
-                [0.0, self.Nv + self.Nvv * av + self.Nrv * ar,
+                 self.Yr + self.Yvr * av + self.Yrr * ar + self.Yur * u],
+                [0.0, self.Nv + self.Nvv * av + self.Nrv * ar + self.Nuv * u,
                  self.Nr + self.Nvr * av + self.Nrr * ar + self.Nur * au],
             ]
         )

@@ -23,6 +23,11 @@ The MMG equations of motion (Yasukawa & Yoshimura 2015, eq. 4) have no Munk mome
 of the measured N'_v, so such a hull's C_A(ν_r)ν_r drops its yaw row (`munk_moment` False);
 C_A then keeps +m_y v r in X and −m_x u r in Y, exactly eq. 4's added-mass terms.
 
+`thrusts` (N, left and right, each actuator's static thrust T0 after gain and lag) carry the
+propellers' advance loss −c·√|T0|·u_a (physics/thrusters.py) where the vessel has one: it depends
+on the thrust and on the flow through each propeller, so it is a hydrodynamic force of the
+callback, not a property of the actuator.
+
 `wind_ned` (where the air goes, NED m/s) overrides the environment's constant wind: a measured,
 time-varying wind passed in by the engine (from its controls) or the analytic model.
 """
@@ -38,6 +43,7 @@ from .damping import Damping, damping_force
 from .environment import Environment, WindLoad, current_body, current_body_rate, wind_force
 from .fujiwara import wind_force as fujiwara_wind_force
 from .mmg import mmg_force
+from .thrusters import advance_force
 
 
 @dataclass(frozen=True)
@@ -78,6 +84,8 @@ class HydroModel:
     mmg: np.ndarray | None = None  # physics.mmg.pack(...): the MMG forces of a propeller-and-rudder ship
     wind_regression: np.ndarray | None = None  # physics.fujiwara.pack(...): replaces wind_load
     munk_moment: bool = True  # C_A's yaw row (the Munk moment); False where N'_v holds it (MMG)
+    advance_loss: float = 0.0  # c of physics/thrusters.py, √N·s/m
+    thruster_y_m: tuple[float, float] = (0.0, 0.0)  # where the advance loss acts
 
     @property
     def M_A_active(self) -> np.ndarray:
@@ -108,10 +116,12 @@ def relative_velocity(model: HydroModel, psi_rad: float, nu: np.ndarray) -> tupl
 
 
 def _external_force(model: HydroModel, psi_rad: float, nu: np.ndarray, nu_r: np.ndarray,
-                    tau_thrust: np.ndarray, controls=None, wind_ned=None) -> np.ndarray:
-    """τ_thrust + τ_wind − C_A(ν_r)ν_r − D(ν_r)ν_r + τ_MMG: every force but inertia and C_RB."""
+                    tau_thrust: np.ndarray, controls=None, wind_ned=None, thrusts=None) -> np.ndarray:
+    """τ_thrust + τ_advance + τ_wind − C_A(ν_r)ν_r − D(ν_r)ν_r + τ_MMG: every force but inertia and C_RB."""
     t = model.terms
     force = np.array(tau_thrust, dtype=float) if t.thrust else np.zeros(3)
+    if t.thrust and model.advance_loss and thrusts is not None:
+        force = force + advance_force(model.advance_loss, thrusts, nu_r, model.thruster_y_m)
     if wind_on(model, wind_ned):
         air = model.environment.wind_ned if wind_ned is None else np.asarray(wind_ned, float)
         if model.wind_regression is not None:
@@ -146,30 +156,32 @@ def mmg_forces(model: HydroModel, nu_r: np.ndarray, controls=None) -> np.ndarray
 
 
 def relative_acceleration(model: HydroModel, psi_rad: float, nu: np.ndarray,
-                          tau_thrust: np.ndarray, controls=None, wind_ned=None) -> np.ndarray:
-    """ν̇_r from M ν̇_r = τ − C(ν_r)ν_r − D(ν_r)ν_r (+ τ_wind + τ_MMG)."""
+                          tau_thrust: np.ndarray, controls=None, wind_ned=None, thrusts=None) -> np.ndarray:
+    """ν̇_r from M ν̇_r = τ − C(ν_r)ν_r − D(ν_r)ν_r (+ τ_advance + τ_wind + τ_MMG)."""
     nu_r, _ = relative_velocity(model, psi_rad, nu)
-    rhs = _external_force(model, psi_rad, nu, nu_r, tau_thrust, controls, wind_ned) - coriolis_force(model.M_RB, nu_r)
+    rhs = (_external_force(model, psi_rad, nu, nu_r, tau_thrust, controls, wind_ned, thrusts)
+           - coriolis_force(model.M_RB, nu_r))
     return model.M_inv @ rhs
 
 
 def acceleration(model: HydroModel, psi_rad: float, nu: np.ndarray, tau_thrust: np.ndarray,
-                 controls=None, wind_ned=None) -> np.ndarray:
+                 controls=None, wind_ned=None, thrusts=None) -> np.ndarray:
     """ν̇ = ν̇_r + ν̇_c: the analytic model's body-frame acceleration."""
     _, nu_c = relative_velocity(model, psi_rad, nu)
-    return relative_acceleration(model, psi_rad, nu, tau_thrust, controls, wind_ned) + current_body_rate(nu_c, nu[2])
+    return (relative_acceleration(model, psi_rad, nu, tau_thrust, controls, wind_ned, thrusts)
+            + current_body_rate(nu_c, nu[2]))
 
 
 def hydrodynamic_force(model: HydroModel, psi_rad: float, nu: np.ndarray,
-                       tau_thrust: np.ndarray, controls=None, wind_ned=None) -> np.ndarray:
+                       tau_thrust: np.ndarray, controls=None, wind_ned=None, thrusts=None) -> np.ndarray:
     """Body-frame force X the engine must add to its rigid-body dynamics:
 
     X = −M_A ν̇_r − C_A(ν_r)ν_r − D(ν_r)ν_r + τ_wind, with ν̇_r exact (see module doc).
     `tau_thrust` is the actuator force the engine applies by itself; it enters
-    only through ν̇_r. `controls`, `wind_ned`: see the module docstring.
+    only through ν̇_r. `controls`, `wind_ned`, `thrusts`: see the module docstring.
     """
     nu_r, _ = relative_velocity(model, psi_rad, nu)
-    external = _external_force(model, psi_rad, nu, nu_r, tau_thrust, controls, wind_ned)
+    external = _external_force(model, psi_rad, nu, nu_r, tau_thrust, controls, wind_ned, thrusts)
     thrust = np.array(tau_thrust, dtype=float) if model.terms.thrust else np.zeros(3)
     force = external - thrust
     if model.terms.added_mass:

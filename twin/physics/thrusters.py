@@ -7,13 +7,19 @@ what real thrusters add to a datasheet curve:
   latency): the thrusters act on the PWM of `delay_s` earlier;
 - thrust decay over a run (battery sag): the command is scaled by
   1 − decay_per_min·t/60 s, t from the start of the recording;
-- thrust loss with advance speed: a propeller advancing through the water at
-  u_a delivers T(1 − k·u_a) (the linear part of K_T(J) = K_T0(1 − J/J_0)),
-  with u_a the thruster's own forward speed u − r·y_i. It is symmetric: a
-  reversed propeller on a boat moving ahead pushes harder, as K_T does for
-  negative advance ratios. MuJoCo applies it as an affine actuator gain, whose
-  velocity is exactly u − r·y_i for a site transmission along body x; the
-  speed is over ground (the actuator does not see a current).
+- thrust loss with advance speed: with K_T linear in the advance ratio J = u_a/(nD),
+  K_T = K_T0(1 − J/J_0), a propeller turning at n gives T = ρD⁴K_T0·n|n| − ρD³(K_T0/J_0)·|n|·u_a.
+  Its static thrust T0 = ρD⁴K_T0·n|n| fixes |n| = √(|T0|/(ρD⁴K_T0)), so
+
+      T = T0 − c·√|T0|·u_a,    c = √(ρK_T0)·D/J_0   (√N·s/m, `advance_loss`)
+
+  with u_a the thruster's own speed through the water along body x, u_r − r·y_i. The loss
+  acts against the advance whichever way the propeller turns: a propeller is a damper whose
+  strength grows with its speed. Going ahead it lowers a forward thrust and strengthens a
+  reversed one (crash stop); in a spin it weakens the reversed thruster, which backs into its
+  own jet, and strengthens the forward one. (T0·(1 − k·u_a), which an earlier form used, gets
+  every reversed thruster's case the wrong way round.) The engine applies it in the
+  hydrodynamic callback from each actuator's force (physics.hydrodynamics).
 
 A single propeller and rudder (kind "propeller_rudder", the Esso Osaka model): the inputs are the
 propeller speed n (rps, signed) and the rudder angle δ (rad, > 0 turns to starboard), carried to
@@ -59,7 +65,7 @@ class ThrusterModel:
     lag_s: float = 0.0
     delay_s: float = 0.0
     decay_per_min: float = 0.0
-    speed_loss_per_m_s: float = 0.0
+    advance_loss: float = 0.0  # c of the module docstring, √N·s/m
     gain_left: float = 1.0
     gain_right: float = 1.0
     reversed_channels: tuple[str, ...] = field(default_factory=tuple)
@@ -146,10 +152,24 @@ class ThrusterModel:
         return raw * np.asarray(self.decay_factor(t_s))[..., None]
 
 
-def advance_factor(model: ThrusterModel, nu: np.ndarray, thruster_y_m) -> np.ndarray:
-    """1 − k·(u − r·y_i) per thruster: the advance-speed loss (see the module docstring)."""
-    u, r = nu[0], nu[2]
-    return 1.0 - model.speed_loss_per_m_s * (u - r * np.asarray(thruster_y_m, float))
+def advance_speed(nu_r: np.ndarray, thruster_y_m) -> np.ndarray:
+    """u_a = u_r − r·y_i (m/s) per thruster: its own speed through the water along body x."""
+    return np.asarray(nu_r, float)[..., :1] - np.asarray(nu_r, float)[..., 2:3] * np.asarray(thruster_y_m, float)
+
+
+def advance_loss(c: float, static_thrust_n, u_a_m_s) -> np.ndarray:
+    """−c·√|T0|·u_a (N) per thruster: what the advance takes off the static thrust T0 (module docstring)."""
+    return -c * np.sqrt(np.abs(np.asarray(static_thrust_n, float))) * np.asarray(u_a_m_s, float)
+
+
+def delivered(c: float, static_thrust_n, nu_r: np.ndarray, thruster_y_m) -> np.ndarray:
+    """T0 − c·√|T0|·u_a (N) per thruster (module docstring)."""
+    return np.asarray(static_thrust_n, float) + advance_loss(c, static_thrust_n, advance_speed(nu_r, thruster_y_m))
+
+
+def advance_force(c: float, static_thrust_n, nu_r: np.ndarray, thruster_y_m) -> np.ndarray:
+    """Body-frame (X, Y, N) of both thrusters' advance loss at one state ν_r (seed 000 eq. 26)."""
+    return allocation_matrix(thruster_y_m) @ advance_loss(c, static_thrust_n, advance_speed(nu_r, thruster_y_m))
 
 
 def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:

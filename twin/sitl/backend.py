@@ -61,7 +61,7 @@ from twin.engine.sim import initial_state
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
-from twin.physics.thrusters import ThrusterModel
+from twin.physics.thrusters import ThrusterModel, delivered
 from twin.run import Run
 from twin.sitl.protocol import Reply, channel_pair
 from twin.vessel import Vessel
@@ -391,13 +391,12 @@ class SitlTwin:
 
 
 def delivered_thrust_n(thrusters: ThrusterModel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Thrust each thruster delivers (N): the (lagged) command within the bounds, times its gain and the
-    advance-speed factor 1 − k·(u − r·y_i). engine.sim.delivered_thrust, vectorised over rows: a
+    """Thrust each thruster delivers (N): the (lagged) command within the bounds, times its gain, less
+    its advance loss −c·√|T0|·(u − r·y_i). engine.sim.delivered_thrust, vectorised over rows: a
     session at 400 Hz records 1.4 million rows an hour."""
     t_min, t_max = thrusters.bounds()
-    y = np.asarray(thruster_y_m, float)
-    factor = 1.0 - thrusters.speed_loss_per_m_s * (nu[:, [0]] - nu[:, [2]] * y)
-    return np.clip(command_n, t_min, t_max) * thrusters.gains() * factor
+    static = np.clip(command_n, t_min, t_max) * thrusters.gains()
+    return delivered(thrusters.advance_loss, static, nu, thruster_y_m) if thrusters.advance_loss else static
 
 
 def check_channels(channels: tuple[int, int]) -> None:
