@@ -69,6 +69,7 @@ CASES = [
     ("coupling_damping", ["coupling_damping=-6,-4"], MIXED, "realistic"),
     ("added_mass", ["added_mass=Yvdot:1.6"], MIXED, "realistic"),
     ("speed_damping", ["speed_damping=-20,-15"], MIXED, "realistic"),
+    ("speed_coupling", ["speed_coupling=15,-5"], MIXED, "realistic"),
     ("cg_offset", ["cg_offset=0.15,0"], MIXED, "realistic"),
     ("gnss_lever_arm", ["gnss_lever_arm=0.4,-0.3"], MIXED, "realistic"),
     ("gnss_lever_arm-small", ["gnss_lever_arm=0.15,-0.1"], MIXED, "small"),

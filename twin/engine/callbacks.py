@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from ..physics.hydrodynamics import HydroModel, hydrodynamic_force
-from .mjcf import JOINTS, wind_control
+from .mjcf import JOINTS, THRUSTERS, wind_control
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,7 @@ class _Entry:
     qpos: tuple[int, int, int]
     dof: tuple[int, int, int]
     wind_ctrl: int = -1  # index of the wind's first control, −1: the environment's constant wind
+    thrusters: tuple[int, ...] = ()  # actuator ids of the left and right thrusters (none: a propeller-rudder ship)
 
 
 _REGISTRY: dict[int, _Entry] = {}
@@ -61,7 +62,7 @@ def passive_force(entry: _Entry, model: mujoco.MjModel, data: mujoco.MjData) -> 
     controls = data.ctrl[:2] if entry.hydro.mmg is not None else None
     k = entry.wind_ctrl
     wind = data.ctrl[k:k + 2] if k >= 0 else None
-    thrusts = data.actuator_force[:2] if entry.hydro.advance_loss else None  # actuators 0, 1: the thrusters
+    thrusts = data.actuator_force[list(entry.thrusters)] if entry.hydro.advance_loss and entry.thrusters else None
     X = hydrodynamic_force(entry.hydro, psi, nu, tau, controls, wind, thrusts)
     return np.array([c * X[0] - s * X[1], s * X[0] + c * X[1], X[2]])
 
@@ -79,7 +80,8 @@ def _passive(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 def register(model: mujoco.MjModel, hydro: HydroModel) -> None:
     qpos, dof = _joint_indices(model)
-    _REGISTRY[model._address] = _Entry(hydro, qpos, dof, wind_control(model))
+    ids = tuple(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in THRUSTERS)
+    _REGISTRY[model._address] = _Entry(hydro, qpos, dof, wind_control(model), ids if min(ids) >= 0 else ())
 
 
 def unregister(model: mujoco.MjModel) -> None:
