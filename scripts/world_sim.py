@@ -1150,8 +1150,8 @@ def b_latency(rng, v):
     lat = round(float(rng.uniform(0.2, 0.4)), 2)
     return Effects(gnss_latency_s=lat), [effect(
         "gnss_latency", "GNSS fix of the antenna at time t is stamped t + L (heading and PWM on time)",
-        {"latency_s": lat}, "none (model-form)", {"latency_s": lat}, ["input_delay (~L)", "clock_offset (~−L)"],
-        notes="no GNSS timing effect in the library; a delay on the input side imitates the position part")]
+        {"latency_s": lat}, "gnss_latency", {"gnss_latency_s": lat}, ["input_delay (~L)", "clock_offset (~−L)"],
+        notes="the library's gnss_latency shifts the fixes back by L, as this world stamps them")]
 
 
 def b_antenna(rng, v):

@@ -47,3 +47,28 @@ def test_astern_running_and_gentle_turns_give_the_offset(blueboat):
 def test_no_straight_running_no_offset(blueboat):
     cal = kinematic_calibration(_log([(20, 0.1, 0.8)], 7.0), blueboat)  # a spin in place
     assert cal.heading_bias_deg is None and "straight running" in cal.note
+
+
+def test_gnss_latency_reads_the_fixes_late_on_the_same_grid(blueboat):
+    """A late receiver: the fix stamped t was taken at t − L. Read L later, the track is the
+    true one again, and the grid (so every diagnosis window) stays the logged one."""
+    from dataclasses import replace
+
+    from twin.engine.mjcf import CompiledVessel
+    from twin.fit.calibrate import prepare_for
+    from twin.recording import Stream
+
+    log = _log([(20, 1.5, 0.2)], 0.0)
+    late = replace(log, gnss=Stream(log.gnss.t + 0.4, log.gnss.columns))  # stamped 0.4 s late
+    v = blueboat.vessel
+    fixed = replace(v, sensors=replace(v.sensors, gnss_latency_s=0.4))
+    truth = prepare_for(log, blueboat)
+    plain = prepare_for(late, blueboat)
+    read_late = prepare_for(late, CompiledVessel(fixed, blueboat.model, blueboat.geometry))
+    np.testing.assert_array_equal(read_late.t, plain.t)
+    inner = slice(20, -20)  # away from the ends, where the late read runs out of fixes
+    common = np.intersect1d(truth.t[inner], read_late.t[inner])
+    at = lambda p, x: np.interp(common, p.t, x)  # noqa: E731
+    err_plain = np.abs(at(plain, plain.v) - at(truth, truth.v)).max()
+    err_read = np.abs(at(read_late, read_late.v) - at(truth, truth.v)).max()
+    assert err_plain > 0.05 and err_read < 0.2 * err_plain

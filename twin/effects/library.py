@@ -294,6 +294,11 @@ def clock_offset(vessel: Vessel, pwm_clock_offset_s: float) -> Vessel:
     return _sensors(vessel, pwm_clock_offset_s=pwm_clock_offset_s)
 
 
+def gnss_latency(vessel: Vessel, gnss_latency_s: float) -> Vessel:
+    """The GNSS fixes are stamped gnss_latency_s after they were taken (heading and PWM on time)."""
+    return _sensors(vessel, gnss_latency_s=gnss_latency_s)
+
+
 def heading_bias(vessel: Vessel, heading_bias_deg: float) -> Vessel:
     """A constant heading error (deg) of every log."""
     return _sensors(vessel, heading_bias_deg=heading_bias_deg)
@@ -392,6 +397,10 @@ _SPECS = [
                "PWM log stamps late",
                _single("clock_offset", member("sensors", "pwm_clock_offset_s", "s", -1.5, 1.5, 0.1), ((0.0,),),
                        "timing", scan=_grid(-0.96, 0.96, 0.12), scan_step=(0.01,), time_shift=True)),
+    EffectSpec("gnss_latency", "sensors", (_v("gnss_latency_s", "s", -2, 5),), gnss_latency,
+               "GNSS fixes stamped late",
+               _single("gnss_latency", member("sensors", "gnss_latency_s", "s", -0.5, 1.5, 0.1), ((0.0,),),
+                       "timing", scan=_grid(-0.2, 1.2, 0.1), scan_step=(0.02,))),
     EffectSpec("heading_bias", "sensors", (_v("heading_bias_deg", *_DEG),), heading_bias, "constant heading error",
                _single("heading_bias", member("sensors", "heading_bias_deg", "deg", -30.0, 30.0, 1.0), ((0.0,),),
                        "drift")),

@@ -14,7 +14,10 @@ that day, has a bias of its own in each log: `heading_bias_by_log_deg` holds
 The antenna sits at the vessel's MJCF `gnss` site plus `antenna_offset_m` (body
 FRD), so a wrongly surveyed lever arm is a sensor parameter, not a new MJCF.
 `pwm_clock_offset_s` > 0: the PWM log's stamps are late against GNSS and heading
-(the thrust seems to answer before the logged command).
+(the thrust seems to answer before the logged command). `gnss_latency_s` > 0: the GNSS fix
+stamped t was taken at t − gnss_latency_s (a receiver's solution latency, with heading and PWM
+on time). Its mark in a log: the track over ground lags the heading in every turn, so the
+measured sway carries −u·r·latency, which a hull's sway-yaw coupling can imitate.
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ class Sensors:
     compass_deviation_deg: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # B, C, D, E
     antenna_offset_m: tuple[float, float] = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
+    gnss_latency_s: float = 0.0
     heading_bias_by_log_deg: tuple[tuple[str, float], ...] = ()
 
     def for_log(self, source: str) -> "Sensors":

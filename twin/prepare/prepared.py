@@ -31,7 +31,11 @@
    name them) says which, so windows, replays and fits take them through the vessel's own
    thruster model unchanged. A propeller and rudder has no operating regions of seed 004
    (region "") and no dead band.
-8. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
+8. GNSS latency (`gnss_latency_s` L > 0: a fix stamped t was taken at t − L): the grid and its
+   segments are those of the streams as logged, so a calibration that tries several latencies
+   keeps every window valid; the position and velocity at grid time t are read from the GNSS
+   stream at t + L.
+9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
    (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
    whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
 """
@@ -81,6 +85,7 @@ class Preparation:
     deadband_us: tuple[float, float] = DEADBAND_US
     lever_arm_OP_m: tuple[float, float] | None = None
     source: str = ""
+    gnss_latency_s: float = 0.0
 
     @property
     def yaw_rate_window_s(self) -> float:
@@ -124,14 +129,15 @@ class Prepared:
 def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None, grid_dt: float = 0.1,
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
             heading_window_s: float | None = None,
-            min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US) -> Prepared:
+            min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US,
+            gnss_latency_s: float = 0.0) -> Prepared:
     """Seed 004 §5.1 data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
     body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
-    fast AHRS can afford shorter."""
+    fast AHRS can afford shorter. gnss_latency_s: step 8 of the module docstring."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
     name = Path(rec.source).name
     if not len(rec.gnss) or not len(rec.heading):
@@ -155,18 +161,19 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     dropped = _dropped_runs(valid, runs)
     idx = np.concatenate([np.arange(a, b) for a, b in runs])
     t = grid[idx]
-    n_o, e_o = hold(pos.t, north_o, t), hold(pos.t, east_o, t)
+    t_fix = t + gnss_latency_s  # the fix that describes grid time t (step 8)
+    n_o, e_o = hold(pos.t, north_o, t_fix), hold(pos.t, east_o, t_fix)
     psi = hold(hdg.t, hdg["psi"], t)
     seg_id = np.concatenate([np.full(b - a, k) for k, (a, b) in enumerate(runs)])
     segments = _segments(runs, t)
     heading_window_s = window_s if heading_window_s is None else heading_window_s
     _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
-    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder)
+    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder, gnss_latency_s)
     north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
     pwm, region, dead, input_kind = _inputs(rec, t, deadband_us)
     settings = Preparation(grid_dt, smoother, window_s, heading_window_s, polyorder, max_gap_s, min_segment_s,
                            tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
-                           rec.source)
+                           rec.source, float(gnss_latency_s))
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
                     tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t))
 
@@ -257,14 +264,16 @@ def _segments(runs: list[tuple[int, int]], t: np.ndarray) -> list[Segment]:
 # ---------------------------------------------------------------- kinematics
 
 def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segment], smoother: str,
-                  windows_s: tuple[float, float], polyorder: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  windows_s: tuple[float, float], polyorder: int, gnss_latency_s: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Antenna velocity north, east (m/s) and yaw rate (rad/s) at the grid times t, each
-    differentiated on its own stream inside each segment (windows: GNSS, heading)."""
+    differentiated on its own stream inside each segment (windows: GNSS, heading); the GNSS read
+    gnss_latency_s later (step 8)."""
     vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
     for seg in segments:
         tg = t[seg.slice]
-        vn[seg.slice], ve[seg.slice] = (_rate_at(pos.t, pos[k], tg, smoother, windows_s[0], polyorder, True)
-                                        for k in ("north", "east"))
+        vn[seg.slice], ve[seg.slice] = (_rate_at(pos.t, pos[k], tg + gnss_latency_s, smoother, windows_s[0],
+                                                 polyorder, True) for k in ("north", "east"))
         r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False)
     return vn, ve, r
 

@@ -195,8 +195,9 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
         wander = [_wander(rng, len(tg), noise.gnss_dt_s, noise.gnss_wander_m, noise.gnss_wander_s)
                   for _ in range(2)]
         g_t.append(tg)
-        g_n.append(np.interp(tg, run.t, n_a) + wander[0] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
-        g_e.append(np.interp(tg, run.t, e_a) + wander[1] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
+        taken = tg - vessel.sensors.gnss_latency_s  # a late receiver stamps an older position
+        g_n.append(np.interp(taken, run.t, n_a) + wander[0] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
+        g_e.append(np.interp(taken, run.t, e_a) + wander[1] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
         th = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
         psi = np.interp(th, run.t, run.eta[:, 2])
         h_t.append(th)
