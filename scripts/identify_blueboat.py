@@ -35,7 +35,8 @@ from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import TwinPredictor, evaluate  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.fit.windows import ModelCache  # noqa: E402
-from twin.ident.identify import calibrate, format_choices, format_estimates, identify, prepared, read  # noqa: E402
+from twin.ident.identify import (calibrate, format_choices, format_estimates, format_needed, identify,  # noqa: E402
+                                 prepared, read)
 from twin.ident.seed004.greybox import fit_static  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
@@ -192,6 +193,8 @@ def markdown(ctx: dict) -> str:
         "",
         fence, format_choices(first), fence,
         "",
+        f"{format_needed(first)[0].upper()}{format_needed(first)[1:]}.",
+        "",
         *[f"Note: {n}." for n in first.notes],
         "",
         fence, format_estimates(first.fit), fence,
@@ -246,6 +249,8 @@ def markdown(ctx: dict) -> str:
         "without it:",
         "",
         fence, format_choices(everything), fence,
+        "",
+        f"{format_needed(everything)[0].upper()}{format_needed(everything)[1:]}.",
         "",
         everything.chosen.cv.summary(),
         "",

@@ -187,3 +187,23 @@ def test_a_diverging_segment_is_named(monkeypatch, yellowfish_vessel):
     monkeypatch.setattr(dataset, "simulate_many", diverging)
     with pytest.raises(TwinError, match=r"segment 1 \(rc\) at 7\.50 s after its logged start"):
         generate(yellowfish_vessel, n_segments=1, seed=4, noise=QUIET, manoeuvres=["rc"], segment_s=(20, 25))
+
+
+def test_needed_groups_are_those_whose_return_to_the_prior_hurts_left_out_runs(yellowfish_vessel):
+    from twin.fit.crossval import CrossValidation, RunScore
+    from twin.ident.identify import Choice, Identification, format_needed
+
+    def choice(label, weight, groups, cost):
+        return Choice(label, weight, groups, CrossValidation(label, [RunScore("run", {}, cost)]))
+
+    every = ("surge", "yaw", "coupling")
+    ident = Identification(yellowfish_vessel, yellowfish_vessel, None, choices=[
+        choice("beliefs ×1", 1.0, every, 100.0), choice("beliefs ×0.1", 0.1, every, 120.0),
+        choice("beliefs ×1 without surge", 1.0, ("yaw", "coupling"), 104.0),
+        choice("beliefs ×1 without yaw", 1.0, ("surge", "coupling"), 480.0),
+        choice("beliefs ×1 without coupling", 1.0, ("surge", "yaw"), 130.0),
+        choice("beliefs ×0.1 without yaw", 0.1, ("surge", "coupling"), 900.0),  # another weight: not compared
+        choice("beliefs ×1 without surge without coupling", 1.0, ("yaw",), 700.0)])  # a later round
+    assert ident.needed() == [("yaw", pytest.approx(4.8)), ("coupling", pytest.approx(1.3))]
+    assert format_needed(ident).startswith("the left-out runs need: yaw (left-out cost ×4.80")
+    assert Identification(yellowfish_vessel, yellowfish_vessel, None).needed() == []

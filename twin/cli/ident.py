@@ -126,6 +126,7 @@ def identify_command(
         typer.echo(text)
     console.print("[bold]choices, judged on left-out runs (10-s free runs from measured states)[/]")
     typer.echo(ident.format_choices(result))
+    say(ident.format_needed(result))
     console.print("[bold]identification by simulation[/]")
     typer.echo(ident.format_estimates(result.fit))
     say(f"on a new run expect: {result.chosen.cv.summary()}")

@@ -234,7 +234,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
     sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
                         max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8)
-    x, J, r, cov = _solution(obj, sol.x)
+    x, J, r, cov = _solution(obj, sol.x, sol.jac)  # trf's last Jacobian is the one at sol.x
     free = _pinned(obj, coords, cov)
     evaluations = obj.evaluations
     for _ in range(3):  # until what is called pinned is pinned at the solution returned
@@ -279,8 +279,9 @@ def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache
     return obj
 
 
-def _solution(obj: Objective, x: np.ndarray):
-    J = obj.jacobian(x)
+def _solution(obj: Objective, x: np.ndarray, J: np.ndarray | None = None):
+    """x, the Jacobian there (computed unless given), the residuals and the coordinates' covariance."""
+    J = obj.jacobian(x) if J is None else J
     r = obj.residuals(x)
     n = obj.n_data
     cov = cluster_covariance(J[:n], r[:n], obj.window_index(), J[n:])

@@ -56,6 +56,7 @@ IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all thre
 IDLE_RPS = 1.0  # a propeller turning slower than this drives a 3-m model at a few cm/s at most
 FIT_H_LAMBDA, FIT_TIMESTEP_S = 1.5, 0.05  # the candidate twins' RK4 step (the final scores use the vessel's)
 WINDOW_S = 10.0
+NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost this much is physics the runs need
 
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
@@ -129,6 +130,26 @@ class Identification:
         return (f"Identification({self.vessel.name}: {len(self.calibrations)} logs, free groups {free}, "
                 f"{self.seconds:.0f} s)")
 
+    def needed(self) -> list[tuple[str, float]]:
+        """The groups the left-out runs need: (group, left-out cost without it ÷ with it) for each group
+        whose return to its prior raises the left-out cost by NEEDED_RATIO or more, from the first
+        round of the backward elimination (each refit linearised about the fit with every group
+        free), largest first."""
+        if not self.choices:
+            return []
+        full = max(len(c.free_groups) for c in self.choices)
+        whole = [c for c in self.choices if len(c.free_groups) == full and "refitted" not in c.label]
+        if not whole:
+            return []
+        base = min(whole, key=lambda c: c.cv.cost)
+        out = []
+        for c in self.choices:
+            missing = set(base.free_groups) - set(c.free_groups)
+            if (c.prior_weight == base.prior_weight and len(c.free_groups) == full - 1 and len(missing) == 1
+                    and "refitted" not in c.label and c.cv.cost >= NEEDED_RATIO * base.cv.cost):
+                out.append((missing.pop(), c.cv.cost / base.cv.cost))
+        return sorted(out, key=lambda gr: -gr[1])
+
     @property
     def worse_than_prior(self) -> bool:
         return bool(self.chosen and self.prior_cv and self.chosen.cv.cost > self.prior_cv.cost)
@@ -140,6 +161,7 @@ class Identification:
                 "chosen": self.chosen.label if self.chosen else None,
                 "expected_on_a_new_run": self.chosen.cv.to_dict() if self.chosen else None,
                 "prior_on_left_out_runs": self.prior_cv.to_dict() if self.prior_cv else None,
+                "needed_by_left_out_runs": [{"group": g, "cost_ratio_without": round(r, 3)} for g, r in self.needed()],
                 "worse_than_prior": self.worse_than_prior, "greybox": self.greybox, "notes": self.notes,
                 "seconds": round(self.seconds, 1)}
 
@@ -363,6 +385,14 @@ def format_estimates(result: simfit.FitResult) -> str:
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
                  f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
     return "\n".join(lines)
+
+
+def format_needed(ident: Identification) -> str:
+    """One line: the physics the left-out runs need most (Identification.needed)."""
+    needed = ident.needed()
+    if not needed:
+        return f"no group is needed by the left-out runs (none raises their cost ×{NEEDED_RATIO:g} back at its prior)"
+    return "the left-out runs need: " + ", ".join(f"{g} (left-out cost ×{r:.2f} without it)" for g, r in needed)
 
 
 def format_choices(ident: Identification) -> str:
