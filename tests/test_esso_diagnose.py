@@ -18,9 +18,11 @@ from twin.recording import Stream
 
 def test_the_ship_is_offered_only_effects_its_model_has():
     esso = candidates(vessel_mod.load("esso_osaka"))
-    assert set(esso) == {"current", "wind", "clock_offset", "heading_bias", "compass_deviation", "gnss_lever_arm"}
+    assert set(esso) == {"current", "wind", "clock_offset", "heading_bias", "compass_deviation", "gnss_lever_arm",
+                         "gnss_latency"}
     boat = candidates(vessel_mod.load("yellowfish"))
-    assert {"thruster_lag", "dead_zone", "quadratic_damping", "wind_shape"} <= set(boat) and len(boat) == 23
+    assert {"thruster_lag", "dead_zone", "quadratic_damping", "wind_shape", "speed_coupling"} <= set(boat)
+    assert len(boat) == 25
 
 
 def test_wind_acts_through_the_ships_regression_and_is_refused_without_a_load_model():

@@ -51,6 +51,7 @@ AFFECT_SIGMA = 0.5  # a window votes when the candidate moves its residual RMS b
 BLOCK_WINDOWS = 3
 FOLDS = 3
 FULL_FITS = 3  # candidates fitted on every fold per round, after screening
+JUDGED_WHOLE = 8  # a library this short (a propeller-and-rudder ship's: drift and sensors) skips the screening cut
 SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread over the recording
 # a candidate's own fit sees at most this many (spread): enough to fit two or three numbers
 REFINE_WINDOWS = 48
@@ -306,7 +307,7 @@ class Search:
         screened.sort(key=lambda f: f.train_cost)
         # a short library (a vessel few effects apply to, or --effects) is judged whole: screening is
         # a one-step look, and it is only worth its risk of passing over an effect when it saves much
-        shortlist = screened if len(screened) <= 2 * FULL_FITS else screened[:FULL_FITS]
+        shortlist = screened if len(screened) <= JUDGED_WHOLE else screened[:FULL_FITS]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
 
