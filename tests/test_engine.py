@@ -1,4 +1,5 @@
 """The MJCF models and the MuJoCo callbacks."""
+import copy
 from pathlib import Path
 
 import mujoco
@@ -153,3 +154,25 @@ def test_a_diverging_twin_raises_naming_the_time(yellowfish, backend, tmp_path, 
     assert mujoco.MjLogConfig.get().logto_file  # MuJoCo's log is only silenced while the twin steps
     run = simulate(yellowfish, series, 2.0, backend=backend)
     assert np.all(np.isfinite(run.nu)) and run.nu[-1, 0] > 0.3
+
+
+@pytest.mark.parametrize("name", ["yellowfish", "blueboat", "cybership1", "esso_osaka"])
+def test_contact_and_constraint_stages_are_off_and_safe_to_be(name):
+    """The MJCFs switch off contact and constraint (a fifth of every step): safe only while no geom
+    can collide and no joint is limited, and the motion is the same as with them on."""
+    cv = compile_vessel(vessel_mod.load(name))
+    m = cv.model
+    off = mujoco.mjtDisableBit
+    assert m.opt.disableflags & off.mjDSBL_CONTACT and m.opt.disableflags & off.mjDSBL_CONSTRAINT
+    assert not np.any(m.geom_contype | m.geom_conaffinity)
+    assert not np.any(m.jnt_limited) and not np.any(m.dof_frictionloss) and m.neq == 0
+    on = copy.copy(m)
+    on.opt.disableflags = 0
+    states = []
+    for model in (m, on):
+        d = mujoco.MjData(model)
+        d.qvel[:] = (1.0, 0.3, 0.4)
+        for _ in range(200):
+            mujoco.mj_step(model, d)
+        states.append(np.concatenate([d.qpos, d.qvel]))
+    np.testing.assert_allclose(states[0], states[1], rtol=0, atol=1e-12)
