@@ -48,9 +48,9 @@ WINDY_M_S, CALM_M_S = 1.5, 0.8  # the issue's thresholds on the mean true wind
 DIRECTION_DEG, SPEED_SHARE = 30.0, 0.4  # the issue's tolerances
 
 
-def anemometer(prep) -> dict:
-    """Mean true wind of the test: the air's mean NED velocity → speed and direction FROM (deg)."""
-    air = prep.wind_ned[np.all(np.isfinite(prep.wind_ned), axis=1)]
+def anemometer(*preps) -> dict:
+    """Mean true wind of the tests: the air's mean NED velocity → speed and direction FROM (deg)."""
+    air = np.vstack([p.wind_ned[np.all(np.isfinite(p.wind_ned), axis=1)] for p in preps])
     north, east = air.mean(axis=0)
     return {"speed_m_s": float(math.hypot(north, east)), "from_deg": _from_deg(north, east),
             "scalar_mean_m_s": float(np.mean(np.hypot(air[:, 0], air[:, 1])))}
@@ -103,8 +103,9 @@ def run_test(path: Path, prior) -> dict:
 
 
 def day_of(name: str) -> str:
-    """The test's date from its file name (random_06-Aug-2020_16_24_25_1.csv → 06-Aug-2020)."""
-    return next(part for part in name.split("_") if part.count("-") == 2)
+    """The test's date from its file name (random_06-Aug-2020_16_24_25_1.csv → 06-Aug-2020); a name
+    without one is a day of its own."""
+    return next((part for part in name.split("_") if part.count("-") == 2), name)
 
 
 def run_day(day: str, paths: list[Path], prior) -> dict:
@@ -113,22 +114,20 @@ def run_day(day: str, paths: list[Path], prior) -> dict:
     recs = [read_recording(p) for p in paths]
     preps = prepared(recs, prior)
     refs = [anemometer(p) for p in preps]
-    air = np.vstack([p.wind_ned[np.all(np.isfinite(p.wind_ned), axis=1)] for p in preps])
-    north, east = air.mean(axis=0)
-    day_ref = {"speed_m_s": float(math.hypot(north, east)), "from_deg": _from_deg(north, east),
-               "scalar_mean_m_s": float(np.mean(np.hypot(air[:, 0], air[:, 1])))}
+    day_ref = anemometer(*preps)
     d = diagnose(recs, prior)
     est = wind_estimate(d)
     return {"day": day, "tests": [p.name for p in paths], "anemometer_per_test": refs, "anemometer_day": day_ref,
-            "named": [e["name"] for e in d.effects], "named_text": [e["text"] for e in d.effects],
+            "named": [e["name"] for e in d.effects],
+            "named_effects": [{"name": e["name"], "parameters": e["parameters"], "text": e["text"]} for e in d.effects],
             "wind": est, "agrees_day": agrees(est, day_ref),
             "agrees_per_test": [agrees(est, r) for r in refs], "held_out_before": d.fit_before,
             "held_out_after": d.fit_after, "seconds": round(time.time() - started, 1)}
 
 
 def _current_dirs(day: dict) -> list[float]:
-    """Directions (towards, deg) of the currents a day's diagnosis named ('current=speed,dir')."""
-    return [float(t.split("=", 1)[1].split(",")[1]) for t in day.get("named_text", []) if t.startswith("current=")]
+    """Directions (towards, deg) of the currents a day's diagnosis named."""
+    return [float(e["parameters"]["dir_deg"]) for e in day["named_effects"] if e["name"] == "current"]
 
 
 def _angle(a_deg: float, b_deg: float) -> float:
@@ -170,7 +169,7 @@ def day_markdown(days: list[dict], s: dict) -> str:
         per = sum(bool(x) for x in d["agrees_per_test"])
         fit = " / ".join(f"{_r2(d['held_out_before'].get(k))} → {_r2(d['held_out_after'].get(k))}" for k in "uvr")
         lines.append(f"| {d['day']} | {len(d['tests'])} | {a['speed_m_s']:.2f} from {a['from_deg']:.0f} | "
-                     f"{'; '.join(d.get('named_text', d['named'])) or '-'} | {est} | {'yes' if d['agrees_day'] else 'no'} / {per} of "
+                     f"{'; '.join(e['text'] for e in d['named_effects']) or '-'} | {est} | {'yes' if d['agrees_day'] else 'no'} / {per} of "
                      f"{len(d['tests'])} | {fit} | {d['seconds']} |")
     return "\n".join(lines) + "\n"
 
@@ -233,6 +232,9 @@ def main() -> int:
                     help="only the days' pooled diagnoses (the tests' rows are kept from --out's JSON)")
     args = ap.parse_args()
     if args.render:
+        if not args.render.is_file():
+            print(f"error: {args.render}: no such file", file=sys.stderr)
+            return 2
         old = json.loads(args.render.read_text())
         return _write(args.out, old["tests"], old.get("days", []))
     if not DATA.is_dir():
