@@ -88,7 +88,7 @@ MULTI_LOG = [("heading_bias per log", [6.0, -4.0, 2.0], MIXED)]
 
 
 def _truth_values(effect) -> dict[str, float]:
-    return {k: float(v) for k, v in effect.params.items()}
+    return effect.flat()
 
 
 def _param_error(injected, found) -> float | None:
@@ -347,6 +347,8 @@ def main() -> None:
         results, world = old.get("library", []), old.get("world", [])
 
     def save():
+        order = {c: i for i, c in enumerate(world_cases())}  # a re-run case back in its place
+        world.sort(key=lambda w: (w["seed"], order.get(w["case"], len(order))))
         write_text_atomic(args.out / "proof.json", json.dumps({"library": results, "world": world,
                                                                "world_summary": world_summary(world)},
                                                               indent=1, default=float) + "\n")

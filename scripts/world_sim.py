@@ -124,7 +124,7 @@ def load_vessel(path: Path) -> Vessel:
         for k in ("decay_per_min", "advance_loss"):
             if float(th.get(k) or 0.0) != 0.0:
                 raise UsageError(f"params: thrusters.{k} != 0 is not modelled by this world")
-        if float(env.get("wind_speed_m_s") or 0.0) != 0.0:
+        if float(env.get("wind_speed_m_s") or 0.0) != 0.0 or env.get("wind_by_log"):
             raise UsageError("params: a wind in the environment is not modelled by the null world")
         return Vessel(
             M=M, M_inv=np.linalg.inv(M), M_RB=M_RB, M_A=M_A, damping=damping,

@@ -6,6 +6,7 @@ twin's free run and the real track share one timeline.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -81,8 +82,9 @@ def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
 
 
 def replay(vessel: Vessel, prep: Prepared) -> Run:
-    """All segments replayed and concatenated on the recording's timeline."""
-    compiled = compile_vessel(vessel)
+    """All segments replayed and concatenated on the recording's timeline, in the recording's own
+    environment (its wind, where the vessel holds one per log)."""
+    compiled = compile_vessel(replace(vessel, environment=vessel.environment.for_log(prep.settings.source)))
     runs = [replay_segment(compiled, prep, seg.slice) for seg in prep.segments if seg.stop - seg.start >= 2]
     if not runs:
         raise TwinError(f"{_source_name(prep)}: no segment long enough to replay")
@@ -115,7 +117,8 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         if smoother == "model":
             from .prepare.smoother import model_smoothed
 
-            prep = model_smoothed(compiled, prep)
+            own = replace(vessel, environment=vessel.environment.for_log(rec.source))
+            prep = model_smoothed(compiled if own == vessel else compile_vessel(own), prep)
         label = name if len(recordings) > 1 else "real"
         runs[label] = measured_run(prep)
         if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r

@@ -93,7 +93,7 @@ class Vessel:
             "damping": asdict(self.damping),
             "thrusters": _thrusters_to_dict(self.thrusters),
             "wind_load": asdict(self.wind_load),
-            "environment": asdict(self.environment),
+            "environment": environment_to_dict(self.environment),
             "sensors": _sensors_to_dict(self.sensors),
             "cg_offset_m": list(self.cg_offset_m),
             "cases": {k: asdict(v) for k, v in self.cases.items()},
@@ -118,6 +118,15 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
 def _wind_regression_to_dict(w: FujiwaraWind) -> dict[str, Any]:
     d = asdict(w)
     d["coefficients"] = None if w.coefficients is None else list(w.coefficients)
+    return d
+
+
+def environment_to_dict(env: Environment) -> dict[str, Any]:
+    """The environment's fields; the per-log winds only when there are some (a vessel file, and the
+    fingerprint of a dataset made from it, stay what they were before logs had winds of their own)."""
+    d = asdict(env)
+    if not env.wind_by_log:
+        del d["wind_by_log"]
     return d
 
 

@@ -243,7 +243,7 @@ def _effects(kept, search: Search) -> list[dict]:
         values = {p.name: search.values.get(n, k.trial.fits[0].values[p.name]) for p, n in zip(cand.params, names)}
         eff = cand.to_effect(values)
         ci = _effect_ci(cand, values, names, search)
-        out.append({"name": cand.name, "parameters": dict(eff.params), "ci": ci, "text": eff.text,
+        out.append({"name": cand.name, "parameters": eff.flat(), "ci": ci, "text": eff.text,
                     "fitted": values, "fitted_sigma": {p.name: search.sigma_values.get(n) for p, n in
                                                        zip(cand.params, names)},
                     "improvement": {d: round(v, 4) for d, v in e.dof_rel.items()},
@@ -258,15 +258,15 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
         return {}
     idx = [search.cov_names.index(n) for n in names]
     cov = search.cov[np.ix_(idx, idx)]
-    base = cand.to_effect(values).params
+    base = cand.to_effect(values).flat()
     keys = list(base)
     J = np.zeros((len(keys), len(names)))
     for j, p in enumerate(cand.params):
         h = max(1e-6, 1e-4 * max(1.0, abs(values[p.name])))
-        moved = cand.to_effect({**values, p.name: values[p.name] + h}).params
+        moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
         for i, key in enumerate(keys):
             d = moved[key] - base[key]
-            if "dir" in key:  # an angle: the short way round
+            if key.endswith("dir_deg"):  # an angle: the short way round
                 d = (d + 180.0) % 360.0 - 180.0
             J[i, j] = d / h
     var = np.einsum("ij,jk,ik->i", J, cov, J)

@@ -141,7 +141,7 @@ def _promising(d) -> list[dict]:
 def _family(d, name: str) -> str:
     from ..effects import candidates
 
-    cand = candidates(d.prior, [""]).get(name)
+    cand = candidates(d.prior, ["log 1", "log 2"]).get(name)  # two logs: the per-log effects have a family too
     return cand.family if cand is not None else ""
 
 

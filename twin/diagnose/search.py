@@ -42,6 +42,7 @@ from ..effects import Candidate
 from ..errors import TwinError
 from ..fit.objective import Measurements, Objective, cluster_covariance
 from ..fit.windows import ModelCache, Window
+from ..physics.sensors import log_name
 from ..vessel import Vessel
 
 Z_MIN = 3.0  # one-sided p ≈ 0.0013 per test over the blocks
@@ -53,8 +54,11 @@ FOLDS = 3
 FULL_FITS = 3  # candidates fitted on every fold per round, after screening
 JUDGED_WHOLE = 8  # a library this short (a propeller-and-rudder ship's: drift and sensors) skips the screening cut
 SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread over the recording
-# a candidate's own fit sees at most this many (spread): enough to fit two or three numbers
+# a candidate's own fit sees at most this many (spread): enough to fit two or three numbers; one of
+# more numbers (a wind or compass offset per log: two or one for each log) sees REFINE_PER_NUMBER
+# windows for each, or a log's own numbers would be fitted on a handful of its windows
 REFINE_WINDOWS = 48
+REFINE_PER_NUMBER = 12
 MAX_EFFECTS = 5
 
 
@@ -218,8 +222,11 @@ class Search:
         else:
             starts = [np.clip(np.array(start, float) / obj.scale, *obj.bounds()) for start in cand.starts]
             if len(starts) > 1:  # one step, from the start the data like best
-                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in starts])]
-                starts = [starts[int(np.argmin(costs))]]
+                residuals = obj.residuals_of([obj.vessel(x) for x in starts])
+                if cand.log_of_param:
+                    starts = [self._start_per_log(obj, cand, starts, residuals)]
+                else:
+                    starts = [starts[int(np.argmin([float(np.sum(r * r)) for r in residuals]))]]
             for x0 in starts:
                 J = obj.jacobian(x0)
                 r0 = obj.residuals(x0)
@@ -232,6 +239,19 @@ class Search:
         self.evaluations += obj.evaluations * len(self.screening)
         for f in out:  # relative to the base twin at the same step, so both steps rank together
             f.train_cost /= base_cost
+        return out
+
+    def _start_per_log(self, obj: Objective, cand: Candidate, starts: list[np.ndarray],
+                       residuals: list[np.ndarray]) -> np.ndarray:
+        """Each log's quantities from the start its own windows like best (costs summed per log)."""
+        idx = obj.window_index()
+        logs = np.array([log_name(self.data.preps[w.rec].settings.source) for w in obj.windows])
+        per_window = np.array([np.bincount(idx, r * r, minlength=len(obj.windows)) for r in residuals])
+        owner = np.array(cand.log_of_param)
+        out = np.array(starts[0], float)
+        for log in set(cand.log_of_param):
+            best = int(np.argmin(per_window[:, logs == log].sum(axis=1)))
+            out[owner == log] = np.asarray(starts[best])[owner == log]
         return out
 
     def _screen_base(self, base: Vessel, cache: ModelCache) -> float:
@@ -247,7 +267,8 @@ class Search:
         """Bounded least squares from the screened point (a scanned candidate: finer scans),
         on the first fold's training windows unless `train` is given."""
         cand = fitted.candidate
-        train = _spread(self.folds[0][0] if train is None else train, REFINE_WINDOWS)
+        train = _spread(self.folds[0][0] if train is None else train,
+                        max(REFINE_WINDOWS, REFINE_PER_NUMBER * len(cand.params)))
         obj = self._objective(base, cand.params, train)
         x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
         if cand.scan:
@@ -307,7 +328,9 @@ class Search:
         screened.sort(key=lambda f: f.train_cost)
         # a short library (a vessel few effects apply to, or --effects) is judged whole: screening is
         # a one-step look, and it is only worth its risk of passing over an effect when it saves much
-        shortlist = screened if len(screened) <= JUDGED_WHOLE else screened[:FULL_FITS]
+        # (a wind of each log's own, offered when several logs are diagnosed, does not lengthen it)
+        length = sum(not f.candidate.log_of_param for f in screened)
+        shortlist = screened if length <= JUDGED_WHOLE else screened[:FULL_FITS]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
 
@@ -405,7 +428,7 @@ class Search:
             z = e.z  # positive: the winner is better (the rival is the base here)
             out.append({"name": t.name, "z": round(z, 2), "separable": bool(z > Z_SEPARABLE),
                         "held_out_gain": round(t.evidence.rel, 4),
-                        "parameters": dict(t.candidate.to_effect(t.fits[0].values).params)})
+                        "parameters": t.candidate.to_effect(t.fits[0].values).flat()})
         return out
 
 

@@ -28,9 +28,9 @@ import numpy as np
 from ..errors import TwinError
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING)
-from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, member, ned_component,
+from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
                        reverse_scale, scale_of)
-from .spec import ALL, Candidate, Effect, EffectSpec, Value, checked
+from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
 
 _SCALE = ("scale", "×", 0.0, 100.0, True)
 _DEG = ("deg", -180.0, 180.0)
@@ -109,6 +109,39 @@ def _wind_fit(prior: Vessel, logs) -> Candidate | None:
     starts = tuple((5 * np.cos(a), 5 * np.sin(a)) for a in np.radians([0, 90, 180, 270]))
     return Candidate("wind", (ned_component("wind", 0, -25.0, 25.0, 1.0), ned_component("wind", 1, -25.0, 25.0, 1.0)),
                      starts, to_effect, "drift")
+
+
+def wind_per_log(vessel: Vessel, **wind_by_log: tuple[float, float]) -> Vessel:
+    """Each named log's own wind (speed m/s, from deg), in place of the constant wind for that log:
+    a wind that changed between outings, or between the tests of one day; set."""
+    if any(speed > 0 for speed, _ in wind_by_log.values()) and not _feels_wind(vessel):
+        raise TwinError(f"effect 'wind_per_log': vessel '{vessel.name}' has no wind load model (wind_load areas or "
+                        "wind_regression), so wind would do nothing")
+    entries = tuple(sorted((n, float(s), float(d)) for n, (s, d) in wind_by_log.items()))
+    return replace(vessel, environment=replace(vessel.environment, wind_by_log=entries))
+
+
+def _wind_per_log_fit(prior: Vessel, logs) -> Candidate | None:
+    """Two numbers per log (its air velocity north, east), started from calm; one log's wind is `wind`."""
+    logs = list(dict.fromkeys(logs))
+    if len(logs) < 2 or not _feels_wind(prior):
+        return None
+    params = tuple(log_wind(n, axis) for n in logs for axis in (0, 1))
+
+    def to_effect(p: dict) -> Effect:
+        winds = {}
+        for n in logs:
+            north, east = p[f"{n}@wind_north"], p[f"{n}@wind_east"]
+            winds[n] = (float(np.hypot(north, east)), float(np.degrees(np.arctan2(-east, -north))))
+        return effect("wind_per_log", **winds)
+    # calm, and a wind of 1, 2 or 5 m/s from each of eight directions: each log takes the start its own
+    # windows like best (a log's wind acts on no other log), and one Gauss-Newton step moves every
+    # log's wind from there (from calm alone the step barely moves: the load grows with the square of
+    # the relative wind)
+    starts = ((0.0,) * len(params),) + tuple((speed * np.cos(a), speed * np.sin(a)) * len(logs)
+                                              for speed in (1.0, 2.0, 5.0) for a in np.radians(np.arange(0, 360, 45)))
+    return Candidate("wind_per_log", params, starts, to_effect, "drift",
+                     log_of_param=tuple(n for n in logs for _ in (0, 1)))
 
 
 def wind_shape(vessel: Vessel, speed_m_s: float, dir_deg: float, cy: float, cn: float) -> Vessel:
@@ -341,6 +374,9 @@ _SPECS = [
                "water current towards dir_deg", _current_fit),
     EffectSpec("wind", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)), wind,
                "wind from dir_deg", _wind_fit),
+    EffectSpec("wind_per_log", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)),
+               wind_per_log, "each log's own wind (file name), from dir_deg: a wind that changed between logs",
+               _wind_per_log_fit, per_key="LOG"),
     EffectSpec("wind_shape", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360),
                                               _v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_shape,
                "wind from dir_deg with its sway and yaw load coefficients fitted (another superstructure)",
@@ -454,7 +490,7 @@ def describe() -> str:
     for s in _SPECS:
         vals = ",".join(f"{p.name}" + ("?" if p.default is not None else "") for p in s.values)
         if s.per_key:
-            vals = f"{s.per_key}:{s.values[0].name},..."
+            vals = f"{s.per_key}:{PER_KEY_SEP.join(v.name for v in s.values)},..."
         vals = vals or f"S|KEY:S,... (KEY in {' '.join(s.keys)})"
         lines.append(f"{s.name}={vals}  [{s.acts_on}] {s.doc}")
     return "\n".join(lines)

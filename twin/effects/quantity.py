@@ -162,6 +162,28 @@ def log_heading_bias(log: str) -> Quantity:
     return Quantity(log, "deg", get, put, -30.0, 30.0, 1.0)
 
 
+def log_wind(log: str, axis: int) -> Quantity:
+    """One log's own wind (environment.wind_by_log), as the air's velocity north (axis 0) or east
+    (axis 1), m/s, like ned_component's: a log without an entry sees the constant wind."""
+    def table(v: Vessel) -> dict[str, np.ndarray]:
+        return {n: -speed * np.array([math.cos(math.radians(frm)), math.sin(math.radians(frm))])
+                for n, speed, frm in v.environment.wind_by_log}
+
+    def get(v: Vessel) -> float:
+        return float(table(v).get(log, v.environment.wind_ned)[axis])
+
+    def put(v: Vessel, x: float) -> Vessel:
+        winds = table(v)
+        air = winds.get(log, v.environment.wind_ned).copy()
+        air[axis] = x
+        winds[log] = air
+        entries = tuple(sorted((n, float(np.hypot(*a)), float(np.degrees(np.arctan2(-a[1], -a[0]))))
+                               for n, a in winds.items()))
+        return replace(v, environment=replace(v.environment, wind_by_log=entries))
+
+    return Quantity(f"{log}@wind_{('north', 'east')[axis]}", "m/s", get, put, -25.0, 25.0, 1.0)
+
+
 def log_magnitude(q: Quantity, prior: Vessel, span: float = math.log(100.0)) -> Quantity:
     """q as ln|value| with the prior's sign fixed: a dissipative coefficient or a positive scale
     stays one, and a log-normal belief about it is a normal one about this coordinate. Bounds:

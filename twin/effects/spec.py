@@ -12,6 +12,7 @@ from ..vessel import Vessel
 from .quantity import Quantity
 
 ALL = "all"  # the scale key that stands for every coefficient of a scale effect
+PER_KEY_SEP = "@"  # between the values of one key of a per-key effect of several values: LOG:1.5@270
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,8 @@ class Candidate:
     start), `to_effect` from fitted values to the effect, the family of effects it can imitate;
     `scan`: points (one value per quantity) for a staircase cost and `scan_step` the finer scan's
     step per quantity; `time_shift`: the engine's step sets its resolution (never screened at a
-    coarse step)."""
+    coarse step); `log_of_param`: for an effect of each log's own numbers, the log (file name) each
+    quantity belongs to, so that each log takes the start its own windows like best."""
 
     name: str
     params: tuple[Quantity, ...]
@@ -51,6 +53,7 @@ class Candidate:
     scan: tuple[tuple[float, ...], ...] = ()
     scan_step: tuple[float, ...] = ()
     time_shift: bool = False
+    log_of_param: tuple[str, ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -64,8 +67,8 @@ FitForm = Callable[[Vessel, tuple[str, ...]], "Candidate | None"]
 class EffectSpec:
     """A registered effect: what it acts on ("hull", "environment", "thrusters", "sensors"), its
     values and `apply(vessel, **values)`; keys: for scale effects, the coefficients that may be
-    scaled (plus "all"); per_key: a free key (a log's name) whose values are checked against
-    values[0]; fit(prior, logs): the Candidate a diagnosis fits, None where it cannot act."""
+    scaled (plus "all"); per_key: a free key (a log's name) taking all the values (one number
+    per key, or v1@v2 for several); fit(prior, logs): the Candidate a diagnosis fits, None where it cannot act."""
 
     name: str
     acts_on: str
@@ -90,10 +93,14 @@ class Effect:
         """Canonical CLI text; parse_effect(effect.text) == effect."""
         if self.spec.keys or self.spec.per_key:
             p = self.params
-            if set(p) == {ALL}:
+            if self.spec.keys and set(p) == {ALL}:
                 return f"{self.name}={p[ALL]:.12g}"
-            return f"{self.name}=" + ",".join(f"{k}:{v:.12g}" for k, v in p.items())
+            return f"{self.name}=" + ",".join(f"{k}:{_per_key_text(v)}" for k, v in p.items())
         return f"{self.name}=" + ",".join(f"{self.params[q.name]:.12g}" for q in self.spec.values)
+
+    def flat(self) -> dict[str, float]:
+        """The values as one number per name: a per-key effect of several values as "KEY value_name"."""
+        return flat_params(self.spec, self.params)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "acts_on": self.spec.acts_on, "params": dict(self.params), "text": self.text}
@@ -136,17 +143,43 @@ def _check_scales(s: EffectSpec, params: dict) -> dict:
 
 
 def _check_per_key(s: EffectSpec, params: dict) -> dict:
+    """KEY → value (one value per key) or KEY → (v1, v2, ...) in the values' order, given as a
+    sequence or as the text `v1@v2`."""
     if not params:
-        raise TwinError(f"effect '{s.name}': give {s.per_key}:{s.values[0].name} pairs")
+        raise TwinError(f"effect '{s.name}': give {s.per_key}:{PER_KEY_SEP.join(v.name for v in s.values)} pairs")
     out = {}
     for key, value in params.items():
         if not str(key).strip():
             raise TwinError(f"effect '{s.name}': empty {s.per_key} name")
-        value = _number(s.name, value)
-        if (msg := s.values[0].check(s.name, value)) is not None:
-            raise TwinError(msg)
-        out[str(key)] = value
+        items = value.split(PER_KEY_SEP) if isinstance(value, str) else value
+        items = list(items) if isinstance(items, (list, tuple)) else [items]
+        if len(items) != len(s.values):
+            raise TwinError(f"effect '{s.name}': {key} takes {PER_KEY_SEP.join(v.name for v in s.values)}, "
+                            f"got {PER_KEY_SEP.join(map(str, items))}")
+        numbers = []
+        for spec_value, item in zip(s.values, items):
+            number = _number(s.name, item)
+            if (msg := spec_value.check(s.name, number)) is not None:
+                raise TwinError(msg)
+            numbers.append(number)
+        out[str(key)] = numbers[0] if len(numbers) == 1 else tuple(numbers)
     return out
+
+
+def flat_params(s: EffectSpec, params: dict) -> dict[str, float]:
+    out = {}
+    for key, value in params.items():
+        if isinstance(value, tuple):
+            out.update({f"{key} {v.name}": float(x) for v, x in zip(s.values, value)})
+        else:
+            out[key] = float(value)
+    return out
+
+
+def _per_key_text(value) -> str:
+    if isinstance(value, tuple):
+        return PER_KEY_SEP.join(f"{v:.12g}" for v in value)
+    return f"{value:.12g}"
 
 
 def _number(name: str, value) -> float:

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..physics import mmg
 from ..physics.thrusters import allocation_matrix, force_torque_bounds
-from ..vessel import Vessel
+from ..vessel import Vessel, environment_to_dict
 from .mjcf import compile_vessel
 
 
@@ -49,7 +49,7 @@ def effective_parameters(vessel: Vessel) -> dict:
         "gnss_lever_arm_OP_m": (-g.gnss_pos_m[:2]).tolist(),
         "imu_m": g.imu_pos_m.tolist(),
         "wind_load": asdict(vessel.wind_load),
-        "environment": asdict(vessel.environment),
+        "environment": environment_to_dict(vessel.environment),
         **extra,
         "sources": vessel.sources,
     }

@@ -24,7 +24,7 @@ not a fitted one. Without it (the default) nothing of the measured wind is used.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -261,8 +261,10 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         model = cache.model(vessel, wind=wind is not None)
         h = model.opt.timestep
         data = mujoco.MjData(model)
+        model_of_log = _per_log_models(vessel, model, cache) if wind is None else (lambda source, m=model: m)
         for w in windows:
             prep = vpreps[w.rec]
+            model = model_of_log(prep.settings.source)
             cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na))
             steps = _substeps(prep.settings.grid_dt, h) * n_max
             padded = np.zeros((steps, model.nu))
@@ -279,6 +281,21 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
     return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
                      per_vessel[iv])
             for iv in range(len(vessels))]
+
+
+def _per_log_models(vessel: Vessel, own: mujoco.MjModel, cache: ModelCache):
+    """source → the model of that log's environment (its own wind where `wind_by_log` names it),
+    each made once; `own`: the vessel's model, for every log without an entry."""
+    if not vessel.environment.wind_by_log:
+        return lambda source: own
+    models: dict = {}
+
+    def model_of(source: str) -> mujoco.MjModel:
+        env = vessel.environment.for_log(source)
+        if env not in models:
+            models[env] = cache.model(replace(vessel, environment=env))
+        return models[env]
+    return model_of
 
 
 def _rollout(models, states, controls, nthread) -> tuple[list[np.ndarray], list[tuple[int, float]]]:

@@ -5,12 +5,18 @@ velocity ν_r = ν − ν_c (Fossen 2011 §10.3), and a simple wind load
 Direction conventions, as in each field: the current's direction is where the
 water flows *to* (oceanographic); the wind's is where it blows *from*
 (meteorological). Both in degrees clockwise from north.
+
+The wind of one outing is not that of another: `wind_by_log` holds (log name, speed m/s, from
+deg) triples that replace the constant wind for the recording of that name (a twin replaying
+several logs sees each log's own wind; one without an entry sees the constant wind).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+
+from .sensors import log_name
 
 RHO_AIR_KG_M3 = 1.225
 
@@ -21,6 +27,15 @@ class Environment:
     current_dir_deg: float = 0.0
     wind_speed_m_s: float = 0.0
     wind_dir_deg: float = 0.0
+    wind_by_log: tuple[tuple[str, float, float], ...] = ()
+
+    def for_log(self, source: str) -> "Environment":
+        """The environment of the recording from `source` (a path or name): its own wind, if
+        `wind_by_log` names it, as the constant wind."""
+        own = {name: (speed, frm) for name, speed, frm in self.wind_by_log}.get(log_name(source))
+        if own is None:
+            return replace(self, wind_by_log=())
+        return replace(self, wind_speed_m_s=own[0], wind_dir_deg=own[1], wind_by_log=())
 
     @property
     def current_ned(self) -> np.ndarray:

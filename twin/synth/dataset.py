@@ -17,7 +17,7 @@ ones (zig-zag, autopilot) step the engine with their controller.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -113,12 +113,14 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
         raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a dataset logs PWM")
     rng = np.random.default_rng(seed)
     plan = man.plan(list(manoeuvres or man.ALL), n_segments, rng, segment_s)
-    compiled = compile_vessel(truth)
+    source = f"synthetic:{vessel.name}:seed{seed}"
+    # the recording's own wind, where the truth holds one for this log (wind_per_log): what it logs
+    compiled = compile_vessel(replace(truth, environment=truth.environment.for_log(source)))
     starts = np.cumsum([0.0] + [m.duration_s + gap_s for m in plan[:-1]])
     eta0 = [(float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-np.pi, np.pi)))
             for _ in plan]
     runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress))
-    recording = _log(compiled, runs, noise, rng, f"synthetic:{vessel.name}:seed{seed}", steps(progress))
+    recording = _log(compiled, runs, noise, rng, source, steps(progress))
     return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
 
 
