@@ -9,7 +9,7 @@ Two kinds of truth. The library's cases are made by `twin dataset` from the libr
 functions (they prove the search finds what it can express). The world cases are made by
 scripts/world_sim.py, an independent simulator that never calls the library: effects in forms of
 their own (one thruster weakened, Blendermann-like wind tables, battery sag, slew-rate limits,
-hysteresis dead zones, hull fouling ∝ u³, toed thrusters, GNSS latency, per-log compass offsets),
+hysteresis dead zones, hull fouling ∝ u³, toed thrusters, GNSS latency, per-log compass offsets, a wind per outing),
 idle-heavy and closed-loop driving, several logs per case. Each world truth names the library
 effect that covers it (or "none (model-form)") and the alternatives that approximate it.
 
@@ -169,7 +169,7 @@ WORLD_SIM = ROOT / "scripts" / "world_sim.py"
 # the library's effects that express the same physics in another parametrisation
 SAME = {"thruster_asymmetry": {"thruster_asymmetry", "thruster_gain_left", "thruster_gain_right"},
         "wind": {"wind", "wind_shape"}, "heading_bias_per_log": {"heading_bias_per_log"},
-        "input_delay": {"input_delay"}, "dead_zone": {"dead_zone"}}
+        "input_delay": {"input_delay"}, "dead_zone": {"dead_zone"}, "wind_per_log": {"wind_per_log"}}
 CALIBRATION_TOLERANCE_DEG = 1.5
 
 

@@ -1255,12 +1255,16 @@ CASES: dict[str, CaseSpec] = {
                                    b_faults),
     "pair_weak_left_wind": CaseSpec("weak left thruster + Blendermann wind, RC", "rc", 900,
                                     pair(b_weak("left"), b_wind)),
+    "wind_per_outing_multilog": CaseSpec("3-4 outings, each under its own Blendermann-like wind (4-6.5 m/s from "
+                                         "anywhere, gusts): the wind changed between outings", "multilog", 480,
+                                         b_null, n_logs=(3, 4)),
     "pair_current_compass_multilog": CaseSpec("constant current + per-log compass offsets, 3-4 outings", "multilog",
                                               480, b_current(False), n_logs=(3, 4)),
     "pair_fouling_delay_cl": CaseSpec("hull fouling + 0.3-0.5 s input delay under the autopilot", "closed_loop", 900,
                                       pair(b_fouling, b_delay)),
 }
 MULTILOG_OFFSETS = {"compass_offset_per_log", "pair_current_compass_multilog"}
+MULTILOG_WINDS = {"wind_per_outing_multilog"}
 
 
 # ---------------------------------------------------------------- expected values from the realised run
@@ -1431,10 +1435,13 @@ def generate(v: Vessel, case: str, seed: int, out: Path | None, out_dir: Path | 
         if base is None:
             raise UsageError("a multi-log case needs --out-dir or --out")
         paths = [base / f"{stem}_log{i + 1}.csv" for i in range(n)]
+        winds = [wind_spec(rng) for _ in range(n)] if case in MULTILOG_WINDS else [None] * n
         plans = []
         for i in range(n):
             f_i = Effects(**{k: getattr(fx, k) for k in vars(fx)})
             f_i.heading_offset_deg = offsets[i]
+            if winds[i] is not None:
+                f_i.wind = winds[i]
             d_i = dur * (2.0 if drivers[i] == "idle" else 1.0) * float(rng.uniform(0.85, 1.15))
             plans.append(LogPlan(drivers[i], round(d_i, 1), f_i, np.random.default_rng(rng.integers(2 ** 63))))
         if case in MULTILOG_OFFSETS:
@@ -1446,6 +1453,16 @@ def generate(v: Vessel, case: str, seed: int, out: Path | None, out_dir: Path | 
                                  "offset_minus_mean_deg_by_log": {k: r3(o - np.mean(offsets)) for k, o in by_log.items()}},
                                 ["heading_bias (the common mean)"],
                                 notes="a diagnosis may report a common heading_bias (the mean) plus per-log deviations"))
+        if case in MULTILOG_WINDS:
+            by_log = {p.name: w for p, w in zip(paths, winds)}
+            entry = wind_effect(winds[0])
+            truth.append(effect(
+                "wind_per_outing", "each outing under its own wind: " + entry["physical_form"],
+                {"wind_by_log": by_log}, "wind_per_log",
+                {"by_log": {k: {"speed_m_s": w["speed"], "dir_from_deg": w["from_deg"]} for k, w in by_log.items()}},
+                ["wind (one mean wind for every log)", "wind_shape (one mean wind for every log)"],
+                notes="the library's cos/sin coefficient shape differs: each log's fitted speed may be off by tens "
+                      "of %, its direction should be within ~20°"))
     else:
         if out is None:
             if out_dir is None:

@@ -154,3 +154,23 @@ def test_a_dataset_logs_the_wind_its_truth_holds_for_that_log():
     np.testing.assert_array_equal(own.runs[0].eta, constant.runs[0].eta)
     np.testing.assert_array_equal(other.runs[0].eta, calm.runs[0].eta)
     assert np.max(np.abs(own.runs[0].eta[:, 1] - calm.runs[0].eta[:, 1])) > 0.5  # 8 m/s from the east
+
+
+def test_a_constant_wind_beside_every_logs_own_is_reported_as_acting_on_no_log(esso):
+    """wind_shape kept beside a wind for every log: its speed and direction act on no log, so they are
+    not reported as findings; its load coefficients are."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.doctor import _inert_constant_wind
+
+    amended = apply_effects(esso, ["wind_per_log=a.csv:2@10,b.csv:3@200"])
+    shape = {"name": "wind_shape", "parameters": {"speed_m_s": 34.0, "dir_deg": 133.0, "cy": 0.8, "cn": -0.06},
+             "ci": {"speed_m_s": [1, 60], "cy": [0.7, 0.9]}}
+    d = SimpleNamespace(amended=amended, effects=[shape], notes=[])
+    _inert_constant_wind(d, {"a.csv", "b.csv"})
+    assert shape["parameters"] == {"cy": 0.8, "cn": -0.06} and shape["inert"] == {"speed_m_s": 34.0, "dir_deg": 133.0}
+    assert "speed_m_s" not in shape["ci"] and "acts on no log" in d.notes[0]
+    partial = {"name": "wind", "parameters": {"speed_m_s": 2.0, "dir_deg": 10.0}, "ci": {}}
+    d = SimpleNamespace(amended=amended, effects=[partial], notes=[])
+    _inert_constant_wind(d, {"a.csv", "b.csv", "c.csv"})  # c.csv sees the constant wind: it acts
+    assert partial["parameters"] == {"speed_m_s": 2.0, "dir_deg": 10.0} and not d.notes

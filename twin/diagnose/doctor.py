@@ -130,7 +130,26 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                         "after": after}
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
+    _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def _inert_constant_wind(diagnosis, logs: set[str]) -> None:
+    """Where every log has a wind of its own, the constant wind of a kept `wind` or `wind_shape` acts
+    on no log: its speed and direction are not reported as findings (what `wind_shape` still changes
+    is the superstructure's load coefficients cy, cn), and a note says so."""
+    if not logs <= {n for n, _, _ in diagnosis.amended.environment.wind_by_log}:
+        return
+    for e in diagnosis.effects:
+        inert = {k: e["parameters"].pop(k) for k in ("speed_m_s", "dir_deg")
+                 if e["name"] in ("wind", "wind_shape") and k in e["parameters"]}
+        if inert:
+            e["inert"] = inert
+            for k in inert:
+                e["ci"].pop(k, None)
+            diagnosis.notes.append(f"{e['name']}: every log has its own wind (wind_per_log), so its constant wind "
+                                   f"({inert['speed_m_s']:.3g} m/s from {inert['dir_deg']:.0f}°) acts on no log" +
+                                   ("; it changes the superstructure's load coefficients" if e["parameters"] else ""))
 
 
 # ---------------------------------------------------------------- pieces
