@@ -146,7 +146,9 @@ def run_day(day: str, paths: list[Path], prior) -> dict:
             "agrees_per_log": None if per_log is None else [agrees(per_log["per_log"][p.name], r)
                                                             for p, r in zip(paths, refs)],
             "named": [e["name"] for e in d.effects],
-            "named_effects": [{"name": e["name"], "parameters": e["parameters"], "text": e["text"]} for e in d.effects],
+            "named_effects": [{"name": e["name"], "parameters": e["parameters"], "text": e["text"],
+                               "not_separable_from": [r["name"] for r in e["rivals"] if not r["separable"]]}
+                              for e in d.effects],
             "wind": est, "agrees_day": agrees(est, day_ref),
             "agrees_per_test": [agrees(est, r) for r in refs], "held_out_before": d.fit_before,
             "held_out_after": d.fit_after, "seconds": round(time.time() - started, 1)}
