@@ -155,7 +155,9 @@ def run_day(day: str, paths: list[Path], prior) -> dict:
 
 
 def _named_text(e: dict) -> str:
-    return "wind_per_log (each test's: the table below)" if e["name"] == "wind_per_log" else e["text"]
+    text = "wind_per_log (each test's: the table below)" if e["name"] == "wind_per_log" else e["text"]
+    rivals = e.get("not_separable_from") or []
+    return text + (f" (not separable from {', '.join(rivals)})" if rivals else "")
 
 
 def _current_dirs(day: dict) -> list[float]:

@@ -174,3 +174,13 @@ def test_a_constant_wind_beside_every_logs_own_is_reported_as_acting_on_no_log(e
     d = SimpleNamespace(amended=amended, effects=[partial], notes=[])
     _inert_constant_wind(d, {"a.csv", "b.csv", "c.csv"})  # c.csv sees the constant wind: it acts
     assert partial["parameters"] == {"speed_m_s": 2.0, "dir_deg": 10.0} and not d.notes
+
+
+def test_asking_a_single_log_for_its_own_wind_says_why_it_cannot(esso):
+    from twin.diagnose.doctor import diagnose
+
+    rec = _windy_log(esso, "a.csv", "wind=3,60", 1, 150.0)
+    with pytest.raises(TwinError, match="wind_per_log cannot be fitted to these recordings .*two or more logs"):
+        diagnose([rec], esso, library=["wind", "wind_per_log"])
+    with pytest.raises(TwinError, match="unknown effect.*no_such_effect"):
+        diagnose([rec], esso, library=["no_such_effect"])

@@ -109,6 +109,13 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if library:
         unknown = set(library) - set(lib)
         if unknown:
+            from ..effects import EFFECTS
+
+            idle = sorted(unknown & set(EFFECTS))  # in the library, but with nothing to act on here
+            if idle:
+                raise TwinError(f"effect(s) {', '.join(idle)} cannot be fitted to these recordings (a per-log effect "
+                                "needs two or more logs; a wind needs the vessel's wind load model; a propeller-and-"
+                                f"rudder ship is offered drift and sensor effects only); these can: {', '.join(lib)}")
             raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
