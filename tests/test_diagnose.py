@@ -89,7 +89,7 @@ def test_heading_bias_of_each_log_recovered(prior):
     fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
     got = cand.to_effect(fitted.values).params
     assert got[logs[0]] == pytest.approx(4.0, abs=0.3) and got[logs[1]] == pytest.approx(-3.0, abs=0.3)
-    amended = as_effect(cand.to_effect(fitted.values).text).spec.apply(prior, **got)
+    amended = as_effect(cand.to_effect(fitted.values).text).spec.apply(prior, got)
     assert amended.sensors.for_log("/any/folder/" + logs[1]).heading_bias_deg == pytest.approx(got[logs[1]])
 
 

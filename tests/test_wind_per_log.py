@@ -184,3 +184,9 @@ def test_asking_a_single_log_for_its_own_wind_says_why_it_cannot(esso):
         diagnose([rec], esso, library=["wind", "wind_per_log"])
     with pytest.raises(TwinError, match="unknown effect.*no_such_effect"):
         diagnose([rec], esso, library=["no_such_effect"])
+
+
+def test_a_log_may_be_named_like_a_python_argument(esso):
+    v = apply_effects(esso, ["wind_per_log=vessel:2@10", "heading_bias_per_log=vessel:3"])
+    assert v.environment.for_log("vessel").wind_speed_m_s == 2.0
+    assert v.sensors.for_log("vessel").heading_bias_deg == 3.0

@@ -48,7 +48,8 @@ def apply_effects(vessel: Vessel, effects=()) -> Vessel:
     (dissipative damping, symmetric M_A, positive gains)."""
     for item in effects:
         e = as_effect(item)
-        vessel = e.spec.apply(vessel, **e.params)
+        # a per-key effect takes its table whole: a log may be named anything, "vessel" included
+        vessel = e.spec.apply(vessel, e.params) if e.spec.per_key else e.spec.apply(vessel, **e.params)
     try:
         check(vessel)
     except TwinError as exc:

@@ -111,7 +111,7 @@ def _wind_fit(prior: Vessel, logs) -> Candidate | None:
                      starts, to_effect, "drift")
 
 
-def wind_per_log(vessel: Vessel, **wind_by_log: tuple[float, float]) -> Vessel:
+def wind_per_log(vessel: Vessel, wind_by_log: dict[str, tuple[float, float]]) -> Vessel:
     """Each named log's own wind (speed m/s, from deg), in place of the constant wind for that log:
     a wind that changed between outings, or between the tests of one day; set."""
     if any(speed > 0 for speed, _ in wind_by_log.values()) and not _feels_wind(vessel):
@@ -337,7 +337,7 @@ def heading_bias(vessel: Vessel, heading_bias_deg: float) -> Vessel:
     return _sensors(vessel, heading_bias_deg=heading_bias_deg)
 
 
-def heading_bias_per_log(vessel: Vessel, **bias_deg_by_log: float) -> Vessel:
+def heading_bias_per_log(vessel: Vessel, bias_deg_by_log: dict[str, float]) -> Vessel:
     """Each named log's own heading bias (deg), on top of the common one; set."""
     return _sensors(vessel, heading_bias_by_log_deg=tuple(sorted(bias_deg_by_log.items())))
 

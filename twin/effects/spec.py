@@ -66,7 +66,7 @@ FitForm = Callable[[Vessel, tuple[str, ...]], "Candidate | None"]
 @dataclass(frozen=True)
 class EffectSpec:
     """A registered effect: what it acts on ("hull", "environment", "thrusters", "sensors"), its
-    values and `apply(vessel, **values)`; keys: for scale effects, the coefficients that may be
+    values and `apply(vessel, **values)` (a per-key effect: `apply(vessel, {key: value})`); keys: for scale effects, the coefficients that may be
     scaled (plus "all"); per_key: a free key (a log's name) taking all the values (one number
     per key, or v1@v2 for several); fit(prior, logs): the Candidate a diagnosis fits, None where it cannot act."""
 
