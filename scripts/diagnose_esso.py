@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
-from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.doctor import diagnose, measured_wind_evidence  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import evaluate  # noqa: E402
@@ -76,6 +76,14 @@ def wind_estimate(d) -> dict | None:
     return {"named": False, "speed_m_s": math.hypot(north, east), "from_deg": _from_deg(north, east),
             "z": cand["z"], "blocks_for": cand["blocks_for"], "blocks_against": cand["blocks_against"],
             "excess_gain": cand["excess_gain"]}
+
+
+def measured_evidence(path: Path, prior) -> dict:
+    """The test's own anemometer wind as a known input, judged by the diagnosis's rule (blocks, z,
+    share of the excess): how one test's blocks judge the wind as it blew."""
+    e = measured_wind_evidence([read_recording(path)], prior)
+    return {"z": round(e.z, 2), "excess_gain": round(e.rel_excess, 4), "blocks_for": e.blocks_for,
+            "blocks_against": e.blocks_against, "earns_its_place": bool(e.earns_its_place())}
 
 
 def log_wind_estimates(d, logs: list[str]) -> dict | None:
@@ -245,7 +253,10 @@ def summary(rows: list[dict]) -> dict:
             "windy_named_agreeing": sum(bool(r["agrees"]) for r in named),
             "windy_estimate_agreeing_named_or_not": sum(bool(r["agrees"]) for r in windy),
             "calm": len(calm), "calm_with_wind_named": sum(bool(r["wind"] and r["wind"]["named"]) for r in calm),
-            "other_effects_named": sorted({n for r in rows for n in r["named"] if n != "wind"})}
+            "other_effects_named": sorted({n for r in rows for n in r["named"] if n != "wind"}),
+            "windy_measured_wind_judged": sum("measured_wind_evidence" in r for r in windy),
+            "windy_measured_wind_earns": sum(bool(r.get("measured_wind_evidence", {}).get("earns_its_place"))
+                                             for r in windy)}
 
 
 def _r2(m: dict | None) -> str:
@@ -269,17 +280,26 @@ def markdown(rows: list[dict], s: dict) -> str:
              f"{s['windy_named_agreeing']} of them within the tolerances",
              f"- the wind candidate's own estimate (named or not) within the tolerances on "
              f"{s['windy_estimate_agreeing_named_or_not']} of {s['windy']} windy tests",
-             f"- other effects named anywhere: {', '.join(s['other_effects_named']) or 'none'}", "",
+             f"- other effects named anywhere: {', '.join(s['other_effects_named']) or 'none'}"] + ([
+             f"- **the test's own anemometer wind**, put into the twin as a known input (the wind as it blew, nothing "
+             f"fitted) and judged by the same rule against the twin without wind, earns its place on "
+             f"{s['windy_measured_wind_earns']} of {s['windy_measured_wind_judged']} windy tests: even the true wind, "
+             f"through this twin, is proven by one test's blocks on few tests (`--measured-evidence`)"] if s.get("windy_measured_wind_judged") else []) + [
+             "",
              "| test | anemometer: mean speed; vector mean m/s from ° | named | wind estimate m/s from ° (z, blocks +/−) | agrees | "
+             "measured wind judged by the rule (z, blocks +/−, share of the excess) | "
              "30-s R² u / v / r: no wind | measured wind | diagnosed constant wind (in sample) | s |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         a, w, f = r["anemometer"], r["wind"], r["fits_30s"]
         est = "-" if w is None else (f"{w['speed_m_s']:.2f} from {w['from_deg']:.0f}" +
                                      ("" if w["named"] else f" (z {w['z']:.2f}, {w['blocks_for']}/{w['blocks_against']})"))
         cell = {k: " / ".join(_r2(f.get(k, {}).get(d)) for d in "uvr") for k in ("none", "measured", "diagnosed_constant")}
+        m = r.get("measured_wind_evidence")
+        judged = "-" if not m else (f"z {m['z']:.2f}, {m['blocks_for']}/{m['blocks_against']}, "
+                                    f"{100 * m['excess_gain']:.1f} %" + (" (earns)" if m["earns_its_place"] else ""))
         lines.append(f"| {r['test']} | {a['scalar_mean_m_s']:.2f}; {a['speed_m_s']:.2f} from {a['from_deg']:.0f} | {', '.join(r['named']) or '-'} | "
-                     f"{est} | {'-' if r['agrees'] is None else ('yes' if r['agrees'] else 'no')} | {cell['none']} | "
+                     f"{est} | {'-' if r['agrees'] is None else ('yes' if r['agrees'] else 'no')} | {judged} | {cell['none']} | "
                      f"{cell['measured']} | {cell['diagnosed_constant']} | {r['seconds']} |")
     return "\n".join(lines) + "\n"
 
@@ -289,6 +309,9 @@ def main() -> int:
     ap.add_argument("--only", default="", help="comma-separated test file names")
     ap.add_argument("--out", type=Path, default=ROOT / "docs")
     ap.add_argument("--render", type=Path, help="only write the report again from this script's JSON")
+    ap.add_argument("--measured-evidence", action="store_true",
+                    help="only each test's measured wind judged by the diagnosis's rule (rows and days kept from "
+                         "--out's JSON)")
     ap.add_argument("--by-day", action="store_true",
                     help="only the days' pooled diagnoses (the tests' rows are kept from --out's JSON)")
     args = ap.parse_args()
@@ -305,6 +328,13 @@ def main() -> int:
     prior = vessel_mod.load("esso_osaka")
     paths = [p for p in sorted(DATA.glob("*.csv")) if p.name != DUPLICATE and (not only or p.name in only)]
     rows = []
+    if args.measured_evidence:
+        old = json.loads((args.out / "esso_wind_diagnosis.json").read_text())
+        for r in old["tests"]:
+            if not only or r["test"] in only:
+                r["measured_wind_evidence"] = measured_evidence(DATA / r["test"], prior)
+                print(f"{r['test']:40s} measured wind: {r['measured_wind_evidence']}", flush=True)
+        return _write(args.out, old["tests"], old.get("days", []))
     if args.by_day:
         previous = args.out / "esso_wind_diagnosis.json"
         rows = json.loads(previous.read_text())["tests"] if previous.is_file() else []

@@ -49,8 +49,21 @@ def _windy_log(vessel, source: str, wind: str, seed: int, duration_s: float = 30
     psi = run.eta[:, 2] + rng.normal(0, math.radians(0.3), len(run.t))
     rec.heading = Stream(run.t, {"psi_rad": np.angle(np.exp(1j * psi))})
     rec.prop_rudder = Stream(run.t, {"n_rps": inputs.at(run.t)[:, 0], "delta_rad": inputs.at(run.t)[:, 1]})
+    speed, frm = (float(x) for x in wind.partition("=")[2].split(","))
+    rec.wind = Stream(run.t, {"speed_m_s": np.full(len(run.t), speed), "from_deg": np.full(len(run.t), frm)})
     rec.meta["positions"] = "body origin"
     return rec
+
+
+def test_the_measured_wind_judged_by_the_diagnosis_rule(esso):
+    """The anemometer's wind as a known input, judged on the blocks against the twin without it: a
+    4 m/s wind that moved the boat earns its place; a calm log's (zero) wind changes nothing."""
+    from twin.diagnose.doctor import measured_wind_evidence
+
+    windy = measured_wind_evidence([_windy_log(esso, "a.csv", "wind=4,60", 1, 450.0)], esso)  # ≥ 10 blocks
+    assert windy.earns_its_place() and windy.rel_excess > 0.5 and windy.blocks_for > 4 * max(windy.blocks_against, 1)
+    calm = measured_wind_evidence([_windy_log(esso, "b.csv", "wind=0,0", 2, 240.0)], esso)
+    assert calm.affected == 0 and not calm.earns_its_place()
 
 
 def test_a_diagnosis_of_two_logs_fits_each_logs_own_wind(esso):

@@ -85,22 +85,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py)."""
     started = time.time()
     log = log or (lambda msg: None)
-    calibrations = []
-    if calibrated:
-        prior, calibrations = _calibrated(recordings, prior)
-    compiled = compile_vessel(prior)
-    kwargs = {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S}
-    for rec in recordings:
-        if not len(rec.pwm) and not len(rec.prop_rudder):
-            raise TwinError(f"{rec.source}: no thruster PWM (nor propeller and rudder inputs): the twin cannot be "
-                            "replayed without its inputs")
-    preps = [prepare_for(r, compiled, **kwargs) for r in recordings]
-    data = Measurements(preps, recordings, compiled, kwargs)
-    every = make_windows(preps, window_s, window_s, min_length_s=window_s)
-    if len(every) < 2 * BLOCK_WINDOWS * 2:
-        raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
-                        "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
-    noise = _noise(recordings, preps)
+    prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
     before = _residuals(prior, preps, every, exact)  # locating fits nothing: every window may speak
     located, growth, corr, overall = _locate(before, preps, every, noise)
@@ -139,6 +124,37 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calibrated: bool):
+    """The recordings as a diagnosis sees them: (prior with each log's compass calibration, the
+    calibrations, compiled prior, prepared recordings, Measurements, windows, noise)."""
+    calibrations = []
+    if calibrated:
+        prior, calibrations = _calibrated(recordings, prior)
+    compiled = compile_vessel(prior)
+    kwargs = {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S}
+    for rec in recordings:
+        if not len(rec.pwm) and not len(rec.prop_rudder):
+            raise TwinError(f"{rec.source}: no thruster PWM (nor propeller and rudder inputs): the twin cannot be "
+                            "replayed without its inputs")
+    preps = [prepare_for(r, compiled, **kwargs) for r in recordings]
+    data = Measurements(preps, recordings, compiled, kwargs)
+    every = make_windows(preps, window_s, window_s, min_length_s=window_s)
+    if len(every) < 2 * BLOCK_WINDOWS * 2:
+        raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
+                        "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
+    return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)
+
+
+def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):
+    """The recordings' own measured wind (the anemometer through the vessel's wind load model, a known
+    input: nothing fitted) judged by the diagnosis's rule against the twin without it, on the same
+    blocks: what the recordings can prove of the wind as it blew. An Evidence (search.py)."""
+    prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, True)
+    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]))
+    same = [prior] * len(search.folds)
+    return search.evidence(search.held_costs(same), search.held_costs(same, wind="measured"))
 
 
 def _inert_constant_wind(diagnosis, logs: set[str]) -> None:

@@ -162,16 +162,18 @@ class Search:
 
     # ------------------------------------------------------------ costs
 
-    def _objective(self, base: Vessel, params, windows, cache: ModelCache | None = None) -> Objective:
-        obj = Objective(base, list(params), self.data, windows, cache or self.cache)
+    def _objective(self, base: Vessel, params, windows, cache: ModelCache | None = None,
+                   wind: str | None = None) -> Objective:
+        obj = Objective(base, list(params), self.data, windows, cache or self.cache, wind=wind)
         obj.sigma = self.sigma
         return obj
 
-    def held_costs(self, per_fold: list[Vessel]) -> _Costs:
-        """Every fold's vessel on that fold's held-out windows, pooled (held_order)."""
+    def held_costs(self, per_fold: list[Vessel], wind: str | None = None) -> _Costs:
+        """Every fold's vessel on that fold's held-out windows, pooled (held_order); wind="measured":
+        with the recordings' measured wind as a known input (windows.predict)."""
         costs, dofs, residuals, noise = [], [], [], []
         for vessel, (_, held) in zip(per_fold, self.folds):
-            obj = self._objective(self.prior, [], held)
+            obj = self._objective(self.prior, [], held, wind=wind)
             r = obj.residuals_of([vessel])[0]
             self.evaluations += len(held)
             idx = obj.window_index()
