@@ -122,7 +122,8 @@ def wind_per_log(vessel: Vessel, wind_by_log: dict[str, tuple[float, float]]) ->
 
 
 def _wind_per_log_fit(prior: Vessel, logs) -> Candidate | None:
-    """Two numbers per log (its air velocity north, east), started from calm; one log's wind is `wind`."""
+    """Two numbers per log (its air velocity north, east), each log started from the calm or uniform wind
+    its own windows like best; one log's wind is `wind`."""
     logs = list(dict.fromkeys(logs))
     if len(logs) < 2 or not _feels_wind(prior):
         return None
