@@ -114,6 +114,10 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     rng = np.random.default_rng(seed)
     plan = man.plan(list(manoeuvres or man.ALL), n_segments, rng, segment_s)
     source = f"synthetic:{vessel.name}:seed{seed}"
+    own = [name for name, _, _ in truth.environment.wind_by_log]
+    if own and source not in own:  # a wind for logs this dataset is not would silently do nothing
+        raise TwinError(f"wind_per_log names {', '.join(own)}, not this dataset's log '{source}' (its name in the "
+                        "truth file; the seed sets it): give that name, or the wind as wind=SPEED,FROM")
     # the recording's own wind, where the truth holds one for this log (wind_per_log): what it logs
     compiled = compile_vessel(replace(truth, environment=truth.environment.for_log(source)))
     starts = np.cumsum([0.0] + [m.duration_s + gap_s for m in plan[:-1]])
