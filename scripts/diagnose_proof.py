@@ -169,7 +169,9 @@ WORLD_SIM = ROOT / "scripts" / "world_sim.py"
 # the library's effects that express the same physics in another parametrisation
 SAME = {"thruster_asymmetry": {"thruster_asymmetry", "thruster_gain_left", "thruster_gain_right"},
         "wind": {"wind", "wind_shape"}, "heading_bias_per_log": {"heading_bias_per_log"},
-        "input_delay": {"input_delay"}, "dead_zone": {"dead_zone"}, "wind_per_log": {"wind_per_log"}}
+        "input_delay": {"input_delay"}, "dead_zone": {"dead_zone"},
+        # each log's own wind, and the load's shape the world's tables give it (as wind_shape is for one wind)
+        "wind_per_log": {"wind_per_log", "wind_load_shape"}}
 CALIBRATION_TOLERANCE_DEG = 1.5
 
 
@@ -262,7 +264,8 @@ def world_markdown(results: list[dict]) -> str:
              "Each recording is made by an independent simulator with its own forms of the effects (see "
              "scripts/world_cases.md); the diagnosis sees only the CSV log and the yellowfish prior. "
              "*named*: the library effect that covers the truth (for a weakened thruster its per-thruster gain, for "
-             "a wind of another coefficient shape `wind` or `wind_shape`); *calibrated*: per-log compass offsets "
+             "a wind of another coefficient shape `wind` or `wind_shape`, and beside each log's own wind "
+             "(`wind_per_log`) the load shape `wind_load_shape`); *calibrated*: per-log compass offsets "
              "recovered by the kinematic calibration within 1.5°; *alternative*: an effect the truth file lists as "
              "approximating it; *spurious*: anything else named.", "",
              f"- true effects named: {share(s['named'] + s['calibrated'], s['true_effects'])} "

@@ -71,7 +71,8 @@ def prior():
 
 def test_every_library_effect_has_a_case():
     # the per-log effects have tests of their own (below; tests/test_wind_per_log.py)
-    covered = {as_effect(text).name for text in CASES} | {"thruster_asymmetry", "heading_bias_per_log", "wind_per_log"}
+    covered = {as_effect(text).name for text in CASES} | {"thruster_asymmetry", "heading_bias_per_log", "wind_per_log",
+                                                      "wind_load_shape"}
     assert covered >= set(EFFECTS)
 
 

@@ -203,3 +203,52 @@ def test_a_log_may_be_named_like_a_python_argument(esso):
     v = apply_effects(esso, ["wind_per_log=vessel:2@10", "heading_bias_per_log=vessel:3"])
     assert v.environment.for_log("vessel").wind_speed_m_s == 2.0
     assert v.sensors.for_log("vessel").heading_bias_deg == 3.0
+
+
+# ---------------------------------------------------------------- the wind load's shape beside each log's wind
+
+def _shaped_logs(prior, cy: float, cn: float):
+    """Two yellowfish logs, each under its own 6 m/s wind (from 40° and 220°) through a load of sway and
+    yaw coefficients (cy, cn): the truth's shape, not the vessel file's."""
+    from twin.synth.dataset import PROFILES, generate
+
+    return [generate(prior, effects=[f"wind_shape=6,{frm},{cy},{cn}"], n_segments=3, seed=30 + i,
+                     noise=PROFILES["none"], segment_s=(35, 40), manoeuvres=["rc", "circle_varying", "zigzag"]).recording
+            for i, frm in enumerate((40.0, 220.0))]
+
+
+def test_the_load_shape_sets_cy_and_cn_and_acts_on_each_logs_own_wind():
+    prior = vessel_mod.load("yellowfish")
+    shaped = apply_effects(prior, ["wind_load_shape=1.6,-0.2"])
+    assert (shaped.wind_load.cy, shaped.wind_load.cn, shaped.wind_load.cx) == (1.6, -0.2, prior.wind_load.cx)
+    assert parse_effect("wind_load_shape=1.6,-0.2").params == {"cy": 1.6, "cn": -0.2}
+    with pytest.raises(TwinError, match="no wind load model"):
+        apply_effects(vessel_mod.load("cybership1"), ["wind_load_shape=1.6,-0.2"])
+    # offered beside winds of each log's own only: one log's wind and its shape are wind_shape
+    assert "wind_load_shape" in candidates(prior, ["a.csv", "b.csv"])
+    assert "wind_load_shape" not in candidates(prior, ["a.csv"])
+    assert candidates(prior, ["a.csv", "b.csv"])["wind_per_log"].supersedes == ("wind", "wind_shape")
+
+
+def test_the_load_shape_is_fitted_beside_each_logs_wind():
+    """Each log's wind in the twin (as a diagnosis that kept wind_per_log has it): the load shape's fit
+    finds the truth's c_y and c_n, which the vessel file has at 0.8 and 0.1."""
+    from twin.diagnose.search import Search
+    from twin.fit.calibrate import prepare_for
+    from twin.fit.objective import Measurements
+    from twin.fit.windows import ModelCache, make_windows
+    from twin.physics.sensors import log_name
+
+    prior = vessel_mod.load("yellowfish")
+    recs = _shaped_logs(prior, 1.6, -0.2)
+    logs = [log_name(r.source) for r in recs]
+    base = apply_effects(prior, [f"wind_per_log={logs[0]}:6@40,{logs[1]}:6@220"])
+    cv = compile_vessel(prior)
+    library = candidates(prior, logs)
+    prep = {"window_s": 1.0, "heading_window_s": 0.5}
+    preps = [prepare_for(r, cv, **prep) for r in recs]
+    search = Search(prior, Measurements(preps, recs, cv, prep), make_windows(preps, 10.0, 10.0, min_length_s=10.0),
+                    ModelCache(0.05), library, np.array([0.02, 0.02, 0.005]))
+    cand = library["wind_load_shape"]
+    fitted = search.refine(base, min(search.screen(base, cand), key=lambda f: f.train_cost))
+    assert fitted.values["cy"] == pytest.approx(1.6, rel=0.1) and fitted.values["cn"] == pytest.approx(-0.2, abs=0.05)

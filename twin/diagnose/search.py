@@ -365,7 +365,8 @@ class Search:
         rounds: list[dict] = []
         dropped: set[str] = set()
         for _ in range(MAX_EFFECTS):
-            trials = self.round(bases, base_costs, {k.trial.name for k in kept} | dropped)
+            superseded = {n for k in kept for n in k.trial.candidate.supersedes}
+            trials = self.round(bases, base_costs, {k.trial.name for k in kept} | dropped | superseded)
             rounds.append({"candidates": [{"name": t.name, **t.evidence.to_dict()} for t in trials]})
             winner = next((t for t in trials if t.evidence.earns_its_place()), None)
             if winner is None:

@@ -141,8 +141,36 @@ def _wind_per_log_fit(prior: Vessel, logs) -> Candidate | None:
     # the relative wind)
     starts = ((0.0,) * len(params),) + tuple((speed * np.cos(a), speed * np.sin(a)) * len(logs)
                                               for speed in (1.0, 2.0, 5.0) for a in np.radians(np.arange(0, 360, 45)))
+    # every log of the diagnosis has its own wind: a constant one (with or without its shape) acts
+    # on none, and only the superstructure's load shape is left to fit (wind_load_shape)
     return Candidate("wind_per_log", params, starts, to_effect, "drift",
-                     log_of_param=tuple(n for n in logs for _ in (0, 1)))
+                     log_of_param=tuple(n for n in logs for _ in (0, 1)), supersedes=("wind", "wind_shape"))
+
+
+def wind_load_shape(vessel: Vessel, cy: float, cn: float) -> Vessel:
+    """The wind load's sway and yaw coefficients set (c_x stays the vessel's, as in `wind_shape`),
+    for whatever wind acts (each log's own, a constant one, or a measured one): the shape of a
+    superstructure the vessel file does not describe, apart from the wind itself."""
+    if vessel.wind_load.cx == 0.0 or not _feels_wind(vessel):
+        raise TwinError(f"effect 'wind_load_shape': vessel '{vessel.name}' has no wind load model with "
+                        "coefficients (wind_load areas and c_x), so its shape would do nothing")
+    return replace(vessel, wind_load=replace(vessel.wind_load, cy=cy, cn=cn))
+
+
+def _wind_load_shape_fit(prior: Vessel, logs) -> Candidate | None:
+    """Offered beside winds of each log's own (several logs): a single log's wind and its shape are
+    `wind_shape`."""
+    if len(set(logs)) < 2 or not _feels_wind(prior) or prior.wind_load.cx == 0.0:
+        return None
+    shape = _load_coefficients(prior)
+    return Candidate("wind_load_shape", shape, ((prior.wind_load.cy, prior.wind_load.cn),),
+                     lambda p: effect("wind_load_shape", cy=p["cy"], cn=p["cn"]), "drift")
+
+
+def _load_coefficients(prior: Vessel) -> tuple:
+    """The wind load's c_y and c_n as fitted quantities, scaled by the prior's."""
+    return (member("wind_load", "cy", "-", -5.0, 5.0, max(abs(prior.wind_load.cy), 0.1)),
+            member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05)))
 
 
 def wind_shape(vessel: Vessel, speed_m_s: float, dir_deg: float, cy: float, cn: float) -> Vessel:
@@ -157,8 +185,7 @@ def _wind_shape_fit(prior: Vessel, logs) -> Candidate | None:
     base = _wind_fit(prior, logs)
     if base is None or prior.wind_load.cx == 0.0:
         return None
-    cy = member("wind_load", "cy", "-", -5.0, 5.0, max(abs(prior.wind_load.cy), 0.1))
-    cn = member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05))
+    cy, cn = _load_coefficients(prior)
 
     def to_effect(p: dict) -> Effect:
         w = base.to_effect(p)
@@ -240,7 +267,17 @@ def _dead_zone_fit(prior: Vessel, logs) -> Candidate:
     now = (t.deadzone_fwd, -t.deadzone_rev)
     return Candidate("dead_zone", (dead_zone_edge("fwd"), dead_zone_edge("rev")), (now,),
                      lambda p: effect("dead_zone", fwd=p["fwd"], rev=p["rev"]), "thrust",
-                     scan=(now,) + tuple((w, w) for w, in _grid(0.0, 0.3, 0.025)), scan_step=(0.0125, 0.0125))
+                     scan=_dead_zone_scan(now), scan_step=(0.0125, 0.0125))
+
+
+def _dead_zone_scan(now: tuple[float, float]) -> tuple[tuple[float, float], ...]:
+    """Both edges together, then each alone from the prior's: a dead zone need not be symmetric
+    (an ESC's reverse band may be wider than its forward one), and one edge moved alone is only
+    half-found on a symmetric scan. Screening ranks by the best point of all three."""
+    both = tuple((w, w) for w, in _grid(0.0, 0.3, 0.025))
+    fwd = tuple((w, now[1]) for w, in _grid(0.0, 0.3, 0.05))
+    rev = tuple((now[0], w) for w, in _grid(0.0, 0.3, 0.05))
+    return (now,) + both + fwd + rev
 
 
 def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
@@ -378,6 +415,9 @@ _SPECS = [
     EffectSpec("wind_per_log", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)),
                wind_per_log, "each log's own wind (file name), from dir_deg: a wind that changed between logs",
                _wind_per_log_fit, per_key="LOG"),
+    EffectSpec("wind_load_shape", "environment", (_v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_load_shape,
+               "the wind load's sway and yaw coefficients, for whatever wind acts (beside each log's own wind)",
+               _wind_load_shape_fit),
     EffectSpec("wind_shape", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360),
                                               _v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_shape,
                "wind from dir_deg with its sway and yaw load coefficients fitted (another superstructure)",

@@ -43,7 +43,9 @@ class Candidate:
     `scan`: points (one value per quantity) for a staircase cost and `scan_step` the finer scan's
     step per quantity; `time_shift`: the engine's step sets its resolution (never screened at a
     coarse step); `log_of_param`: for an effect of each log's own numbers, the log (file name) each
-    quantity belongs to, so that each log takes the start its own windows like best."""
+    quantity belongs to, so that each log takes the start its own windows like best; `supersedes`:
+    effects that can do nothing more once this one is kept (a constant wind, once every log has
+    its own), so a diagnosis stops offering them."""
 
     name: str
     params: tuple[Quantity, ...]
@@ -54,6 +56,7 @@ class Candidate:
     scan_step: tuple[float, ...] = ()
     time_shift: bool = False
     log_of_param: tuple[str, ...] = ()
+    supersedes: tuple[str, ...] = ()  # effects a diagnosis stops offering once this one is kept
 
     @property
     def names(self) -> list[str]:
