@@ -178,9 +178,11 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     rounds = [{"candidates": [cand("input_delay", 2.15, 0.079, 6, 0), cand("clock_offset", 2.15, 0.079, 6, 0),
                               cand("current", 2.5, 0.01, 8, 2), cand("added_mass", 1.2, 0.3, 5, 3)]}]
     d = SimpleNamespace(effects=[], rounds=rounds, unexplained=[], located=[], fit_before={}, fit_after={},
-                        prior=vessel_mod.load("yellowfish"))
+                        prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 90})
     a = answer(d)
     assert a["missing"][0].startswith("no effect of the library earns its place")
     hints = [u for u in a["unsettled"] if "may be missing but is not proven" in u]
     assert len(hints) == 1 and hints[0].startswith("input_delay") and "6 for, 0 against" in hints[0]
+    # z grows as √(blocks): (3 / 2.15)² = 1.95 times the 15 minutes (more than the 10/6 that ten blocks need)
+    assert "about 1.9× as long as these 15 min" in hints[0]
     assert any(line.startswith("to settle timing effects") for line in a["next"])

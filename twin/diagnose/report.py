@@ -103,13 +103,31 @@ def answer(d) -> dict:
             f"{c['name']} may be missing but is not proven: it removes {100 * c['excess_gain']:.0f} % of the held-out "
             f"misfit above the noise, z {c['z']:.1f} from the {c['blocks_for'] + c['blocks_against']} blocks in which "
             f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
-            f"such blocks)")
+            f"such blocks{_more_to_record(d, c)})")
         families.add(_family(d, c["name"]))
     candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
     if not d.effects and out["form"]:
         families |= {_family(d, n) for n in candidates_tried}
     out["next"] = [f"to settle {fam} effects: {NEXT[fam]}" for fam in sorted(families) if fam in NEXT]
     return out
+
+
+MIN_UNANIMOUS_BLOCKS = 10  # the fewest blocks whose votes, all for, reach z ≥ 3 in the exact test (z 3.1)
+
+
+def _more_to_record(d, c: dict) -> str:
+    """How much more recording of the same kind would take z to Z_MIN if the further blocks voted as
+    these did: z grows as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS
+    blocks can reach it. "" where z ≤ 0 (no trend to extrapolate) or the length is unknown."""
+    from .search import Z_MIN
+
+    n = c["blocks_for"] + c["blocks_against"]
+    minutes = (d.windows.get("windows") or 0) * (d.windows.get("length_s") or 0.0) / 60.0
+    if c["z"] <= 0 or n == 0 or minutes <= 0:
+        return ""
+    factor = max((Z_MIN / c["z"]) ** 2, MIN_UNANIMOUS_BLOCKS / n)
+    return (f"; if further blocks voted as these did, a recording of the same kind of driving about "
+            f"{factor:.1f}× as long as these {minutes:.0f} min would reach it")
 
 
 PROMISING_Z = 2.0  # below Z_MIN: worth recording more for, never named
