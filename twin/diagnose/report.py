@@ -115,17 +115,25 @@ def answer(d) -> dict:
 MIN_UNANIMOUS_BLOCKS = 10  # the fewest blocks whose votes, all for, reach z ≥ 3 in the exact test (z 3.1)
 
 
-def _more_to_record(d, c: dict) -> str:
-    """How much more recording of the same kind would take z to Z_MIN if the further blocks voted as
-    these did: z grows as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS
-    blocks can reach it. "" where z ≤ 0 (no trend to extrapolate) or the length is unknown."""
+def more_recording_factor(candidate: dict) -> float | None:
+    """How many times as long a recording of the same kind would take a candidate's z (a round's
+    record: z, blocks_for, blocks_against) to Z_MIN if the further blocks voted as these did: z grows
+    as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS blocks can reach it.
+    None where z ≤ 0 (no trend to extrapolate)."""
     from .search import Z_MIN
 
-    n = c["blocks_for"] + c["blocks_against"]
+    n = candidate["blocks_for"] + candidate["blocks_against"]
+    if candidate["z"] <= 0 or n == 0:
+        return None
+    return max((Z_MIN / candidate["z"]) ** 2, MIN_UNANIMOUS_BLOCKS / n)
+
+
+def _more_to_record(d, c: dict) -> str:
+    """`more_recording_factor` as the hint's closing words ("" where it has none)."""
+    factor = more_recording_factor(c)
     minutes = (d.windows.get("windows") or 0) * (d.windows.get("length_s") or 0.0) / 60.0
-    if c["z"] <= 0 or n == 0 or minutes <= 0:
+    if factor is None or minutes <= 0:
         return ""
-    factor = max((Z_MIN / c["z"]) ** 2, MIN_UNANIMOUS_BLOCKS / n)
     return (f"; if further blocks voted as these did, a recording of the same kind of driving about "
             f"{factor:.1f}× as long as these {minutes:.0f} min would reach it")
 
