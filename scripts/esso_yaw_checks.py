@@ -116,7 +116,7 @@ def main() -> int:
         lines.append(f"| {name} | {s['u']['r2']:.3f} | {s['v']['r2']:.3f} | {s['r']['r2']:.3f} | "
                      f"{s['r']['r2'] - base:+.3f} |")
     lines += ["", "None of these moves R² r by more than a few hundredths: the yaw misfit of the random tests is "
-              "neither the inputs' timing nor a low-speed yaw damping of this size. What the twin cannot see "
+              "neither the inputs' timing (at the rates tried) nor a low-speed yaw damping of this size. What the twin cannot see "
               "remains: the model's bow and stern thrusters, which the dataset's source says exist and these "
               "files do not log (docs/esso.md, Known limits)." if max(abs(s["r"]["r2"] - base) for s in rows.values())
               < 0.05 else "At least one suspect moves R² r by 0.05 or more: see the table.", ""]

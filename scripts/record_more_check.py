@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.diagnose.report import more_recording_factor  # noqa: E402
+from twin.diagnose.report import more_recording_factor, promising  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
 
@@ -47,17 +47,15 @@ def record(case: str, seed: int, folder: Path, params: Path, duration_s: float |
     return csv, json.loads(truth.read_text())
 
 
-def hints(d: dict) -> dict[str, dict]:
-    """The last round's candidates the answer reports as hints, by name."""
-    said = [u.split(" may be missing")[0] for u in d["answer"]["unsettled"] if "may be missing but is not proven" in u]
-    last = d["rounds"][-1]["candidates"] if d["rounds"] else []
-    return {c["name"]: c for c in last if c["name"] in said}
+def hints(d) -> dict[str, dict]:
+    """The candidates the answer reports as hints (twin.diagnose.report.promising), by name."""
+    return {c["name"]: c for c in promising(d)}
 
 
 def run(case: str, seed: int, truth_effect: str, work: Path, params: Path, prior) -> dict:
     csv, truth = record(case, seed, work / f"{case}_s{seed}", params)
-    first = diagnose([read_recording(csv)], prior).to_dict()
-    hinted = hints(first)
+    diagnosis = diagnose([read_recording(csv)], prior)
+    first, hinted = diagnosis.to_dict(), hints(diagnosis)
     out = {"case": case, "seed": seed, "truth": truth_effect, "duration_s": truth["duration_s"],
            "named": [e["name"] for e in first["effects"]],
            "hints": {n: {k: c[k] for k in ("z", "blocks_for", "blocks_against", "excess_gain")} |
@@ -68,11 +66,12 @@ def run(case: str, seed: int, truth_effect: str, work: Path, params: Path, prior
         return out
     longer_s = 60.0 * math.ceil(factor * truth["duration_s"] / 60.0)
     csv2, truth2 = record(case, seed, work / f"{case}_s{seed}_longer", params, longer_s)
-    again = diagnose([read_recording(csv2)], prior).to_dict()
+    diagnosis = diagnose([read_recording(csv2)], prior)
+    again = diagnosis.to_dict()
     named = [e["name"] for e in again["effects"]]
     out["longer"] = {"duration_s": longer_s, "named": named, "truth_named": truth_effect in named,
                      "others_named": [n for n in named if n != truth_effect],
-                     "hints": sorted(hints(again)),
+                     "hints": sorted(hints(diagnosis)),
                      "parameters": {e["name"]: e["parameters"] for e in again["effects"]},
                      "truth_expected": truth2["effects"][0].get("expected_values")}
     return out

@@ -76,6 +76,18 @@ def test_every_library_effect_has_a_case():
     assert covered >= set(EFFECTS)
 
 
+def test_a_dead_zone_widened_astern_only_is_screened_at_that_edge(prior):
+    """The reverse edge alone moved (0.0925 → 0.2; the thrust it removes reaches 2.7 N, where a moved edge
+    near neutral removes tenths of a newton and no fit can place it): screening scans each edge alone,
+    and lands on it, which a scan of both edges together cannot."""
+    ds = generate(prior, effects=["dead_zone=0.0775,0.2"], n_segments=3, seed=2, noise=PROFILES["none"],
+                  segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    search = make_search(prior, [prepare_for(ds.recording, cv, **PREP)], [ds.recording], cv, candidates(prior))
+    screened = min(search.screen(prior, search.library["dead_zone"]), key=lambda f: f.train_cost)
+    assert screened.values["fwd"] == pytest.approx(0.0775) and screened.values["rev"] == pytest.approx(0.2, abs=0.026)
+
+
 def test_heading_bias_of_each_log_recovered(prior):
     """Two logs, each with its own compass bias: one parameter per log, by the log's file name."""
     recs = [generate(prior, effects=[f"heading_bias={b}"], n_segments=3, seed=20 + i, noise=PROFILES["none"],
@@ -183,6 +195,18 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     assert a["missing"][0].startswith("no effect of the library earns its place")
     hints = [u for u in a["unsettled"] if "may be missing but is not proven" in u]
     assert len(hints) == 1 and hints[0].startswith("input_delay") and "6 for, 0 against" in hints[0]
-    # z grows as √(blocks): (3 / 2.15)² = 1.95 times the 15 minutes (more than the 10/6 that ten blocks need)
-    assert "about 1.9× as long as these 15 min" in hints[0]
+    # six blocks, all for: ten such blocks reach z 3.1, so 10/6 of the 15 minutes
+    assert "about 1.7× as long as these 15 min of windows" in hints[0]
     assert any(line.startswith("to settle timing effects") for line in a["next"])
+
+
+def test_how_much_more_to_record_for_a_hint():
+    from twin.diagnose.report import more_recording_factor
+
+    def c(z, n_for, n_against):
+        return {"z": z, "blocks_for": n_for, "blocks_against": n_against}
+
+    assert more_recording_factor(c(1.53, 4, 0)) == pytest.approx(2.5)  # ten unanimous blocks: exact z 3.1
+    assert more_recording_factor(c(2.67, 16, 2)) == pytest.approx((3 / 2.67) ** 2)  # z ∝ √blocks
+    assert more_recording_factor(c(2.5, 5, 1)) == pytest.approx(10 / 6)  # never fewer than ten blocks
+    assert more_recording_factor(c(-0.4, 5, 6)) is None and more_recording_factor(c(0.0, 0, 0)) is None

@@ -98,7 +98,7 @@ def answer(d) -> dict:
     if d.effects:
         b, a = d.fit_before, d.fit_after
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
-    for c in _promising(d):
+    for c in promising(d):
         out["unsettled"].append(
             f"{c['name']} may be missing but is not proven: it removes {100 * c['excess_gain']:.0f} % of the held-out "
             f"misfit above the noise, z {c['z']:.1f} from the {c['blocks_for'] + c['blocks_against']} blocks in which "
@@ -118,13 +118,16 @@ MIN_UNANIMOUS_BLOCKS = 10  # the fewest blocks whose votes, all for, reach z ≥
 def more_recording_factor(candidate: dict) -> float | None:
     """How many times as long a recording of the same kind would take a candidate's z (a round's
     record: z, blocks_for, blocks_against) to Z_MIN if the further blocks voted as these did: z grows
-    as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS blocks can reach it.
+    as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS blocks can reach it
+    (which, every block voting for, is exactly what it takes).
     None where z ≤ 0 (no trend to extrapolate)."""
     from .search import Z_MIN
 
     n = candidate["blocks_for"] + candidate["blocks_against"]
     if candidate["z"] <= 0 or n == 0:
         return None
+    if candidate["blocks_against"] == 0:  # every block for: the exact test needs just ten such blocks
+        return max(MIN_UNANIMOUS_BLOCKS / n, 1.0)
     return max((Z_MIN / candidate["z"]) ** 2, MIN_UNANIMOUS_BLOCKS / n)
 
 
@@ -135,14 +138,14 @@ def _more_to_record(d, c: dict) -> str:
     if factor is None or minutes <= 0:
         return ""
     return (f"; if further blocks voted as these did, a recording of the same kind of driving about "
-            f"{factor:.1f}× as long as these {minutes:.0f} min would reach it")
+            f"{factor:.1f}× as long as these {minutes:.0f} min of windows would reach it")
 
 
 PROMISING_Z = 2.0  # below Z_MIN: worth recording more for, never named
 PROMISING_UNANIMOUS = 3  # or every one of at least this many affected blocks for it (4 of 4 is z 1.5 at best)
 
 
-def _promising(d) -> list[dict]:
+def promising(d) -> list[dict]:
     """Candidates of the last round (the one where nothing more earned its place) that remove at
     least REL_EXCESS of the excess misfit with z ≥ PROMISING_Z or all of at least
     PROMISING_UNANIMOUS affected blocks for them, but too few blocks for z ≥ Z_MIN: the recording

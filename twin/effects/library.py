@@ -151,16 +151,17 @@ def wind_load_shape(vessel: Vessel, cy: float, cn: float) -> Vessel:
     """The wind load's sway and yaw coefficients set (c_x stays the vessel's, as in `wind_shape`),
     for whatever wind acts (each log's own, a constant one, or a measured one): the shape of a
     superstructure the vessel file does not describe, apart from the wind itself."""
-    if vessel.wind_load.cx == 0.0 or not _feels_wind(vessel):
+    if vessel.wind_load.cx == 0.0 or not _feels_wind(vessel) or vessel.wind_regression is not None:
         raise TwinError(f"effect 'wind_load_shape': vessel '{vessel.name}' has no wind load model with "
-                        "coefficients (wind_load areas and c_x), so its shape would do nothing")
+                        "coefficients (wind_load areas and c_x, and no wind_regression in their place), so its "
+                        "shape would do nothing")
     return replace(vessel, wind_load=replace(vessel.wind_load, cy=cy, cn=cn))
 
 
 def _wind_load_shape_fit(prior: Vessel, logs) -> Candidate | None:
     """Offered beside winds of each log's own (several logs): a single log's wind and its shape are
     `wind_shape`."""
-    if len(set(logs)) < 2 or not _feels_wind(prior) or prior.wind_load.cx == 0.0:
+    if len(set(logs)) < 2 or not _feels_wind(prior) or prior.wind_load.cx == 0.0 or prior.wind_regression is not None:
         return None
     shape = _load_coefficients(prior)
     return Candidate("wind_load_shape", shape, ((prior.wind_load.cy, prior.wind_load.cn),),
@@ -191,7 +192,9 @@ def _wind_shape_fit(prior: Vessel, logs) -> Candidate | None:
         w = base.to_effect(p)
         return effect("wind_shape", cy=p["cy"], cn=p["cn"], **w.params)
     starts = tuple(s + (prior.wind_load.cy, prior.wind_load.cn) for s in base.starts)
-    return Candidate("wind_shape", base.params + (cy, cn), starts, to_effect, "drift")
+    # its c_y and c_n are wind_load_shape's: once kept, that one would fit the same two numbers again
+    return Candidate("wind_shape", base.params + (cy, cn), starts, to_effect, "drift",
+                     supersedes=("wind_load_shape",))
 
 
 # ---------------------------------------------------------------- thrusters
