@@ -4,6 +4,7 @@ closed-loop runs where an autopilot hides the effect, and null cases), with the 
 realistic sensors (GNSS 5 Hz at the antenna with noise, heading 50 Hz, PWM 10 Hz).
 
     python scripts/diagnose_proof.py [--only NAME,...] [--segments 8] [--world-seeds 1,2] [--out docs/diagnose]
+                                     [--refit GROUPS --refit-weight 1]
 
 Two kinds of truth. The library's cases are made by `twin dataset` from the library's own effect
 functions (they prove the search finds what it can express). The world cases are made by
@@ -12,6 +13,10 @@ their own (one thruster weakened, Blendermann-like wind tables, battery sag, sle
 hysteresis dead zones, hull fouling ∝ u³, toed thrusters, GNSS latency, per-log compass offsets, a wind per outing),
 idle-heavy and closed-loop driving, several logs per case. Each world truth names the library
 effect that covers it (or "none (model-form)") and the alternatives that approximate it.
+
+--refit runs every diagnosis with those identification groups refitted beside each candidate
+(`twin diagnose --refit`); their own effects (a damping scale, the thrust gain, ...) are then not
+candidates, so a truth of that kind cannot be named. Write those runs to another --out.
 
 Writes docs/diagnose/proof.json and proof.md: per case the effects injected, what
 the diagnosis found, the parameter error, and the held-out fit gain; for the world cases the
@@ -40,6 +45,7 @@ from twin.effects import as_effect, effect  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.vessel import write_text_atomic  # noqa: E402
 
+REFIT: dict = {}  # diagnose()'s refit and refit_weight, from --refit (none: the default diagnosis)
 MIXED = ["rc", "forward_varying", "zigzag", "circle_varying", "forward_constant", "circle_constant"]
 CLOSED = ["autopilot"]
 
@@ -128,7 +134,7 @@ def run_multi_log(name, biases_deg, manoeuvres, segments, seed) -> dict:
 
 def _score(name, effects, manoeuvres, seed, prior, recordings) -> dict:
     started = time.time()
-    d = diagnose(recordings, prior)
+    d = diagnose(recordings, prior, **REFIT)
     found = {e["name"]: e for e in d.effects}
     # an effect named only as a rival that this recording cannot tell from the one kept
     ambiguous = {r["name"]: (e["name"], r) for e in d.effects for r in e["rivals"] if not r["separable"]}
@@ -193,7 +199,7 @@ def run_world(case: str, seed: int, work: Path, params: Path) -> dict:
     truth = json.loads(truth_path.read_text())
     recordings = [read_recording(p) for p in sorted(folder.glob("*.csv"))]
     started = time.time()
-    d = diagnose(recordings, vessel_mod.load("yellowfish"))
+    d = diagnose(recordings, vessel_mod.load("yellowfish"), **REFIT)
     return score_world(case, seed, truth, d.to_dict(), round(time.time() - started, 1))
 
 
@@ -341,7 +347,11 @@ def main() -> None:
     ap.add_argument("--append", action="store_true",
                     help="keep the cases already in OUT/proof.json and add these (same case and seed: replaced)")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnose")
+    ap.add_argument("--refit", default="", help="identification groups refitted beside every candidate (comma separated)")
+    ap.add_argument("--refit-weight", type=float, default=1.0)
     args = ap.parse_args()
+    if args.refit:
+        REFIT.update(refit=tuple(g.strip() for g in args.refit.split(",") if g.strip()), refit_weight=args.refit_weight)
     only = {s.strip() for s in args.only.split(",") if s.strip()}
     args.out.mkdir(parents=True, exist_ok=True)
     results, world = [], []

@@ -23,7 +23,8 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.synth.dataset import PROFILES, generate  # noqa: E402
 from twin.fit.evaluate import evaluate  # noqa: E402
-from twin.ident.identify import GNSS_WINDOW_S, HEADING_WINDOW_S, identify, prepared  # noqa: E402
+from twin.fit.calibrate import GNSS_WINDOW_S, HEADING_WINDOW_S  # noqa: E402
+from twin.ident.identify import identify, prepared  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 
 TRUTH = ["linear_damping=Xu:1.4,Nr:0.7", "quadratic_damping=Xuu:0.8,Nrr:1.3,Yvv:1.2",

@@ -210,3 +210,74 @@ def test_how_much_more_to_record_for_a_hint():
     assert more_recording_factor(c(2.67, 16, 2)) == pytest.approx((3 / 2.67) ** 2)  # z ∝ √blocks
     assert more_recording_factor(c(2.5, 5, 1)) == pytest.approx(10 / 6)  # never fewer than ten blocks
     assert more_recording_factor(c(-0.4, 5, 6)) is None and more_recording_factor(c(0.0, 0, 0)) is None
+
+
+def test_refitting_the_core_recovers_an_effect_beside_an_untuned_coefficient(prior):
+    """The truth's yaw damping is half the prior's and its hull has a speed coupling. Fitted against the
+    prior's yaw damping, the coupling takes the wrong values (N_uv stands in for the damping too); with
+    the yaw group refitted beside it (search.py, CORE; beliefs worth a tenth of a window each, as little
+    data as this) both come back: the coupling within 3-4 N s²/m, N_r within 15 %."""
+    from twin.diagnose.doctor import _core
+
+    ds = generate(prior, effects=["linear_damping=Nr:0.5", "speed_coupling=15,-5"], n_segments=4, seed=2,
+                  noise=PROFILES["none"], segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    preps = [prepare_for(ds.recording, cv, **PREP)]
+    library = candidates(prior)
+    core, names, start = _core(prior, ("yaw",))
+    assert names == ["Nr", "Nrr", "Nrdot"] and start is prior
+    results = {}
+    for label, c in (("held", None), ("refitted", core)):
+        search = Search(prior, Measurements(preps, [ds.recording], cv, PREP),
+                        make_windows(preps, 10.0, 10.0, min_length_s=10.0), ModelCache(0.05),
+                        {"speed_coupling": library["speed_coupling"]}, np.array([0.02, 0.02, 0.005]), core=c,
+                        core_weight=0.1)
+        base = search.fold_bases([], [])[0]
+        cand = search.library["speed_coupling"]
+        results[label] = search.refine(base, min(search.screen(base, cand), key=lambda f: f.train_cost))
+    held, refitted = results["held"].values, results["refitted"].values
+    assert abs(refitted["Yur"] - 15) < 3 and abs(refitted["Nuv"] + 5) < 4, refitted
+    assert abs(held["Yur"] - 15) > 4 and abs(held["Nuv"] + 5) > 6, held  # without the core it cannot
+    assert results["refitted"].vessel.damping.Nr == pytest.approx(0.5 * prior.damping.Nr, rel=0.15)
+
+
+def test_what_the_core_already_does_is_not_offered_beside_it():
+    """A damping scale, the thrust's overall gain, its lag, the reverse curve and the added masses are
+    moved by the BlueBoat's core groups (the core's refit would write over them); one thruster's gain, a
+    coupling or a current are not."""
+    from twin.diagnose.doctor import _core
+    from twin.diagnose.search import _moves_core
+
+    boat = vessel_mod.load("blueboat")
+    core, _, start = _core(boat, ("surge", "yaw", "sway", "thrust curve"))
+    lib = candidates(start)
+    moved = {n for n, c in lib.items() if _moves_core(c, core, start)}
+    assert moved == {"thruster_lag", "thrust_gain", "reverse_thrust", "quadratic_damping", "linear_damping",
+                     "added_mass"}
+    assert start.thrusters.lag_s == pytest.approx(0.1)  # a refitted lag needs a start (simfit.map_start)
+    with pytest.raises(TwinError, match="unknown group"):
+        _core(boat, ("yaw", "hull"))
+
+
+def test_diagnose_command_refits_the_core_with_each_candidate(tmp_path, prior):
+    """`--refit yaw`: the untuned yaw damping (the truth's is 0.6 of the prior's) refitted beside a concealed
+    current; the current is named, the amended twin carries the refitted N_r, the JSON says what was
+    refitted, and a group the vessel does not have is one line of error."""
+    ds = generate(prior, effects=["linear_damping=Nr:0.6", "current=0.2,120"], n_segments=6, seed=5,
+                  noise=PROFILES["realistic"])
+    rec = tmp_path / "run.tlog"
+    write_recording(ds.recording, rec)
+    out, amended = tmp_path / "d.json", tmp_path / "amended.json"
+    base = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"]
+    done = subprocess.run(base + ["--refit", "yaw", "--refit-weight", "0.1", "--effects", "current,speed_coupling",
+                                  "--json", str(out), "--write-model", str(amended)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    d = json.loads(out.read_text())
+    assert d["refit"]["coefficients"] == ["Nr", "Nrr", "Nrdot"] and d["refit"]["beliefs_weight"] == 0.1
+    assert [e["name"] for e in d["effects"]] == ["current"]
+    assert abs(d["effects"][0]["parameters"]["dir_deg"] - 120) < 10
+    assert vessel_mod.load(str(amended)).damping.Nr == pytest.approx(0.6 * prior.damping.Nr, rel=0.2)
+    bad = subprocess.run(base + ["--refit", "hull"], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.startswith("error:") and len(bad.stderr.strip().splitlines()) == 1
+    assert "unknown group" in bad.stderr

@@ -33,3 +33,22 @@ def test_a_vessel_with_its_own_mjcf_keeps_the_path_relative_to_its_file(tmp_path
     v = vessel_mod.load(str(tmp_path / "boat.json"))
     out = vessel_mod.save(v, tmp_path / "copy.json")
     assert json.loads(out.read_text())["mjcf"] == "boat.xml"
+
+
+def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
+    """`sensors.heading_rate_window_s`: a vessel file without it is written exactly as before (dataset
+    fingerprints), one with it keeps it, identify and diagnose prepare with it, and it must be positive."""
+    from dataclasses import replace
+
+    from twin.errors import TwinError
+    from twin.fit.calibrate import HEADING_WINDOW_S, rate_windows
+
+    boat = vessel_mod.load("yellowfish")
+    assert "heading_rate_window_s" not in boat.to_dict()["sensors"]
+    assert rate_windows(boat)["heading_window_s"] == HEADING_WINDOW_S
+    slow = replace(boat, sensors=replace(boat.sensors, heading_rate_window_s=1.5))
+    path = vessel_mod.save(slow, tmp_path / "slow.json")
+    again = vessel_mod.load(str(path))
+    assert again.sensors.heading_rate_window_s == 1.5 and rate_windows(again)["heading_window_s"] == 1.5
+    with pytest.raises(TwinError, match="heading_rate_window_s must be positive"):
+        vessel_mod.check(replace(boat, sensors=replace(boat.sensors, heading_rate_window_s=0.0)))

@@ -99,7 +99,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
     calibration identify, evaluate and diagnose use: heading corrections, antenna position), its
     thrust through the vessel's thruster map, and with `sim` the twin's replay of each segment.
     Without a vessel the positions are the antenna's (no lever arm is known)."""
-    from .fit.calibrate import prepare_for
+    from .fit.calibrate import prepare_for, rate_windows
     from .prepare import prepare
 
     if (sim or smoother == "model") and vessel is None:
@@ -113,7 +113,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         if compiled is None or rec.meta.get("positions") == "body origin":  # a twin's run: no antenna
             prep = prepare(rec)
         else:
-            prep = prepare_for(rec, compiled)
+            prep = prepare_for(rec, compiled, **rate_windows(vessel))  # as identify and diagnose see it
         if smoother == "model":
             from .prepare.smoother import model_smoothed
 

@@ -132,6 +132,8 @@ def environment_to_dict(env: Environment) -> dict[str, Any]:
 
 def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
     d = asdict(s)
+    if s.heading_rate_window_s is None:  # files without it stay what they were (dataset fingerprints)
+        del d["heading_rate_window_s"]
     return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 
@@ -286,6 +288,9 @@ def check(vessel: Vessel) -> None:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
     if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not t.advance_loss >= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster delay and advance loss must be ≥ 0, decay in [0, 1)")
+    window = vessel.sensors.heading_rate_window_s
+    if window is not None and not window > 0:
+        raise TwinError(f"vessel '{vessel.name}': sensors.heading_rate_window_s must be positive, got {window}")
     _check_propeller_rudder(vessel)
     for case in vessel.cases.values():
         for geom, mass in case.geom_mass_kg.items():

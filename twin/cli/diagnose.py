@@ -25,6 +25,11 @@ def diagnose_command(
     window: float = typer.Option(10.0, help="free-run window length, s"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
                                      help="apply each log's compass offset estimated from its own GNSS track first"),
+    refit: Optional[str] = typer.Option(None, help="identification groups whose coefficients are refitted with every "
+                                                   "candidate, for a twin not yet identified (comma separated, "
+                                                   "`twin identify`'s groups, e.g. surge,yaw,sway,thrust curve)"),
+    refit_weight: float = typer.Option(1.0, help="with --refit: windows of data each refitted coefficient's belief "
+                                                 "counts as (as `twin identify`'s beliefs ×1)"),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     from ..diagnose.doctor import diagnose
@@ -39,9 +44,10 @@ def diagnose_command(
     prior = vessel_from(vessel, model, "nominal")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     library = [e.strip() for e in effects.split(",") if e.strip()] if effects else None
+    groups = tuple(g.strip() for g in refit.split(",") if g.strip()) if refit is not None else None
     with progress_bar("diagnose") as progress:
-        result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration,
-                          log=lambda m: progress(m), )
+        result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,
+                          refit_weight=refit_weight, log=lambda m: progress(m))
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
     typer.echo(format_text(result))

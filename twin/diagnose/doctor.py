@@ -19,8 +19,9 @@ how much of it, and the amended twin, judged on data it did not fit.
 """
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -33,14 +34,13 @@ from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared
 from ..recording import Recording
-from ..fit.calibrate import prepare_for
+from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
 from .search import BLOCK_WINDOWS, Search
 
 WINDOW_S = 10.0
-GNSS_WINDOW_S, HEADING_WINDOW_S = 1.0, 0.5
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
 # Screening only ranks candidates: it may step at the recording's grid where RK4 stays well
 # inside its stability limit (|hλ| < 2.8) for the prior's fastest dynamics.
@@ -66,6 +66,7 @@ class Diagnosis:
     replay: dict = field(default_factory=dict)  # window predictions for plots and rerun
     overall: dict = field(default_factory=dict)  # residual bias and RMS per DOF over every window
     calibrations: list = field(default_factory=list)  # each log's compass offset from its kinematics (applied)
+    refit: dict = field(default_factory=dict)  # the core refitted with every candidate (search.py), if any
 
     def __repr__(self) -> str:
         found = ", ".join(e["text"] for e in self.effects) or "no effect named"
@@ -76,14 +77,22 @@ class Diagnosis:
                 "correlations": self.correlations, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "unexplained": self.unexplained, "overall": self.overall, "noise": self.noise, "rounds": self.rounds,
                 "windows": self.windows, "seconds": round(self.seconds, 1), "notes": self.notes,
-                "calibrations": [c.to_dict() for c in self.calibrations], "answer": _answer(self)}
+                "calibrations": [c.to_dict() for c in self.calibrations], "answer": _answer(self),
+                **({"refit": self.refit} if self.refit else {})}
 
 
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
-             library: list[str] | None = None, calibrated: bool = True) -> Diagnosis:
+             library: list[str] | None = None, calibrated: bool = True,
+             refit: tuple[str, ...] | None = None, refit_weight: float = 1.0) -> Diagnosis:
     """The whole diagnosis (module docstring); `library` restricts the candidates by name;
-    `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py)."""
+    `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py);
+    `refit`: identification groups (`twin identify`'s, e.g. "surge", "yaw") whose coefficients are
+    refitted with every candidate (search.py, CORE), for a twin whose own coefficients are not yet
+    identified; `refit_weight`: how many windows' worth of data each of their beliefs counts (as
+    `twin identify`'s beliefs ×1)."""
     started = time.time()
+    if refit is not None:
+        _check_refit(prior, refit, refit_weight)
     log = log or (lambda msg: None)
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
@@ -104,8 +113,13 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
             raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
-    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
-                    screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)))
+    core, core_names, search_prior = _core(prior, refit)
+    search = Search(search_prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
+                    screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)),
+                    core=core, core_weight=refit_weight)
+    if core and not search.library:
+        raise TwinError(f"with {', '.join(refit)} refitted no candidate is left to judge (each one moves a refitted "
+                        "coefficient itself)")
     amended, kept, rounds = search.run()
     amended_preps = data.for_vessel(amended)
     after = _residuals(amended, amended_preps, every, exact)
@@ -122,8 +136,48 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                         "after": after}
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
+    if core:
+        diagnosis.amended = replace(diagnosis.amended, uncertainty={})  # the prior's covariance is not the refit's
+        diagnosis.refit = {"groups": list(refit), "coefficients": core_names, "beliefs_weight": refit_weight,
+                           "not_offered": search.overlapping}
+        diagnosis.notes.append(
+            f"the twin's own coefficients of {', '.join(refit)} ({', '.join(core_names)}) were refitted with every "
+            "candidate on the same training windows; the held-out fit 'before' is the twin with only them refitted "
+            "(where the residual concentrates is located on the twin as given)"
+            + (f"; not offered, as they move those coefficients themselves: {', '.join(search.overlapping)}"
+               if search.overlapping else ""))
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def _check_refit(prior: Vessel, refit: tuple[str, ...], weight: float) -> None:
+    """Bad --refit input as one line, before any work."""
+    from ..effects.coefficients import fit_groups
+
+    if not math.isfinite(weight) or not weight > 0:
+        raise TwinError(f"--refit-weight must be a positive number of windows, got {weight}")
+    if not refit:
+        raise TwinError("--refit needs one or more of the vessel's identification groups "
+                        f"({', '.join(fit_groups(prior))})")
+    unknown = [g for g in refit if g not in fit_groups(prior)]
+    if unknown:
+        raise TwinError(f"unknown group(s) to refit: {', '.join(unknown)} (this vessel's: "
+                        f"{', '.join(fit_groups(prior))})")
+
+
+def _core(prior: Vessel, refit: tuple[str, ...] | None) -> tuple[list, list[str], Vessel]:
+    """The simfit coordinates of the refitted groups' coefficients, their names, and the prior the
+    search starts from (a thrust lag of 0.1 s where a refitted prior has none: simfit.map_start)."""
+    if not refit:
+        return [], [], prior
+    from ..effects.coefficients import fit_groups
+    from ..fit.simfit import coordinates, map_start
+
+    groups = fit_groups(prior)
+    _check_refit(prior, refit, 1.0)
+    names = list(dict.fromkeys(n for g in refit for n in groups[g]))
+    start = map_start(prior, names)
+    return coordinates(start, names), names, start
 
 
 def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calibrated: bool):
@@ -133,7 +187,7 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
     if calibrated:
         prior, calibrations = _calibrated(recordings, prior)
     compiled = compile_vessel(prior)
-    kwargs = {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S}
+    kwargs = rate_windows(prior)
     for rec in recordings:
         if not len(rec.pwm) and not len(rec.prop_rudder):
             raise TwinError(f"{rec.source}: no thruster PWM (nor propeller and rudder inputs): the twin cannot be "
@@ -212,13 +266,13 @@ def _residuals(vessel: Vessel, preps: list[Prepared], windows: list[Window], cac
 
 
 def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cache: ModelCache) -> tuple[dict, dict]:
-    """R² and MAE per DOF on every fold's held-out windows: the prior, and the kept effects as
-    fitted without those windows (each fold's own fit), pooled."""
-    bases = search.final_bases
+    """R² and MAE per DOF on every fold's held-out windows: the twin before (the prior, or with a
+    core its core refitted without those windows) and the kept effects as fitted without those
+    windows (each fold's own fit), pooled."""
     pred0, pred1, meas0, meas1 = [], [], [], []
-    for base, (_, held) in zip(bases, search.folds):
-        preps0, preps1 = data.for_vessel(prior), data.for_vessel(base)
-        pred0.append(predict(prior, preps0, held, cache)[0].nu[:, 1:])
+    for start, base, (_, held) in zip(search.initial_bases, search.final_bases, search.folds):
+        preps0, preps1 = data.for_vessel(start), data.for_vessel(base)
+        pred0.append(predict(start, preps0, held, cache)[0].nu[:, 1:])
         pred1.append(predict(base, preps1, held, cache)[0].nu[:, 1:])
         meas0.append(measured(preps0, held)[1][:, 1:])
         meas1.append(measured(preps1, held)[1][:, 1:])

@@ -26,13 +26,28 @@ When nothing earns its place but the misfit stays well above the noise, the diag
 the twin's form is off (doctor.py: where, how much, what it follows) instead of naming small
 compensating effects.
 
+With a CORE (`twin diagnose --refit GROUPS`), the twin's own coefficients of those identification
+groups (fit/simfit.coordinates: the vessel's beliefs about each) are refitted with every candidate,
+maximum a posteriori, on the same training windows, and the base each candidate is judged against
+is the core refitted alone on them. A candidate then competes with the twin as the data would
+identify it, not with an untuned twin whose coefficients are off by factors: judged against an
+untuned twin, every small effect competes with that, and an effect the core then refits away
+(it only stood in for a wrong coefficient) gains nothing. Candidates with a quantity the core already
+moves (a damping scale when the damping is refitted) are not offered: the core's refit would write
+over it. Every fit with the core (alone, with a candidate, with the kept effects) sees all of the
+fold's training windows and the same number of solver steps (CORE_NFEV), so a candidate gains
+nothing from a better-fitted core; screening compares a candidate's one step with the core's
+own one step on the same windows. Scanned candidates (time
+shifts, dead zones) are scanned with the core held, then the core is refitted around the scanned
+value; backward elimination refits the core without the effect put back.
+
 A candidate that does nearly as well as the one kept (the blocks' votes between the two: z <
 Z_SEPARABLE) is reported as not separable from it by this recording. Uncertainty: the
 cluster-robust (sandwich) covariance of the final joint fit on all windows, windows as clusters.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -60,6 +75,7 @@ SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread
 REFINE_WINDOWS = 48
 REFINE_PER_NUMBER = 12
 MAX_EFFECTS = 5
+CORE_NFEV = 20  # solver steps of every fit with the core (module docstring)
 
 
 @dataclass
@@ -131,13 +147,17 @@ class _Costs:
 class Search:
     def __init__(self, prior: Vessel, data: Measurements, windows: list[Window], cache: ModelCache,
                  library: dict[str, Candidate], noise_sd: np.ndarray, log=None,
-                 screen_cache: ModelCache | None = None):
+                 screen_cache: ModelCache | None = None, core: list | None = None, core_weight: float = 1.0):
         """windows: every (non-overlapping) window of the recordings, in time order per log;
         noise_sd: the measurement noise of u, v, r (m/s, m/s, rad/s) estimated from the recordings;
-        screen_cache: models at a coarser step for screening the candidates that are not scanned."""
+        screen_cache: models at a coarser step for screening the candidates that are not scanned;
+        core: simfit Coordinates of the twin's own coefficients refitted with every candidate (module
+        docstring), their beliefs counted as core_weight windows' worth of data each."""
         self.prior, self.data, self.windows, self.cache = prior, data, windows, cache
         self.screen_cache = screen_cache or cache
-        self.library = library
+        self.core, self.core_weight = list(core or []), core_weight
+        self.overlapping = sorted(n for n, c in library.items() if self.core and _moves_core(c, self.core, prior))
+        self.library = {n: c for n, c in library.items() if n not in self.overlapping}
         self.log = log or (lambda msg: None)
         self.evaluations = 0
         self.blocks = blocks_of(windows)
@@ -163,10 +183,29 @@ class Search:
     # ------------------------------------------------------------ costs
 
     def _objective(self, base: Vessel, params, windows, cache: ModelCache | None = None,
-                   wind: str | None = None) -> Objective:
-        obj = Objective(base, list(params), self.data, windows, cache or self.cache, wind=wind)
+                   wind: str | None = None, with_core: bool = False) -> Objective:
+        """The objective of `params` on `windows` from `base`; with_core: the core's coordinates
+        after them, with their beliefs (the params before them have none: an effect is either
+        there or not, and its size is the data's to say)."""
+        params = list(params)
+        core = self.core if with_core else []
+        obj = Objective(base, params + [c.quantity for c in core], self.data, windows, cache or self.cache,
+                        wind=wind)
         obj.sigma = self.sigma
+        if core:
+            mean = np.r_[np.zeros(len(params)), [c.mean for c in core]]
+            sigma = np.r_[np.full(len(params), np.inf), [c.belief.sigma for c in core]]
+            obj.believe(mean, sigma, self.core_weight * obj.n_data / max(len(windows), 1))
         return obj
+
+    def _core_fit(self, base: Vessel, train: list[Window]) -> Vessel:
+        """The core refitted alone on `train` from `base` (the candidate, if any, held as it is)."""
+        obj = self._objective(base, [], train, with_core=True)
+        x0 = np.clip(np.array([c.quantity.get(base) for c in self.core]) / obj.scale, *obj.bounds())
+        sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
+                            max_nfev=CORE_NFEV, xtol=1e-5, ftol=1e-5)
+        self.evaluations += obj.evaluations * len(obj.windows)
+        return obj.vessel(sol.x)
 
     def held_costs(self, per_fold: list[Vessel], wind: str | None = None) -> _Costs:
         """Every fold's vessel on that fold's held-out windows, pooled (held_order); wind="measured":
@@ -222,7 +261,11 @@ class Search:
             costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in xs])]
             out.append(self._fitted(cand, obj, xs[_plateau_middle(costs)], min(costs)))
         else:
-            starts = [np.clip(np.array(start, float) / obj.scale, *obj.bounds()) for start in cand.starts]
+            if self.core:  # one step of the candidate and the core together (module docstring)
+                obj = self._objective(base, cand.params, self.screening, obj.cache, with_core=True)
+            core_x = [c.quantity.get(base) for c in self.core]
+            starts = [np.clip(np.r_[np.array(start, float), core_x] / obj.scale, *obj.bounds())
+                      for start in cand.starts]
             if len(starts) > 1:  # one step, from the start the data like best
                 residuals = obj.residuals_of([obj.vessel(x) for x in starts])
                 if cand.log_of_param:
@@ -236,8 +279,10 @@ class Search:
                 trials = [np.clip(x0 + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
                 costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in trials])]
                 best = int(np.argmin(costs))  # a short line search: one linearised step can overshoot
-                c0 = float(np.sum(r0 ** 2))
+                c0 = float(np.sum(r0[: obj.n_data] ** 2))  # the data's cost (the prior's rows only steer the step)
                 out.append(self._fitted(cand, obj, trials[best] if costs[best] < c0 else x0, min(c0, costs[best])))
+            if self.core:  # against the core's own step on these windows, not against the core held
+                base_cost = self._screen_base(base, obj.cache, stepped=True)
         self.evaluations += obj.evaluations * len(self.screening)
         for f in out:  # relative to the base twin at the same step, so both steps rank together
             f.train_cost /= base_cost
@@ -249,28 +294,43 @@ class Search:
         idx = obj.window_index()
         logs = np.array([log_name(self.data.preps[w.rec].settings.source) for w in obj.windows])
         per_window = np.array([np.bincount(idx, r * r, minlength=len(obj.windows)) for r in residuals])
-        owner = np.array(cand.log_of_param)
+        owner = np.array(list(cand.log_of_param) + [""] * (len(starts[0]) - len(cand.log_of_param)))  # core: no log
         out = np.array(starts[0], float)
         for log in set(cand.log_of_param):
             best = int(np.argmin(per_window[:, logs == log].sum(axis=1)))
             out[owner == log] = np.asarray(starts[best])[owner == log]
         return out
 
-    def _screen_base(self, base: Vessel, cache: ModelCache) -> float:
-        """The base twin's cost on the screening windows at this cache's step (kept per round)."""
+    def _screen_base(self, base: Vessel, cache: ModelCache, stepped: bool = False) -> float:
+        """The base twin's cost on the screening windows at this cache's step (kept per round);
+        stepped: after one step of the core alone (the same step a candidate's screening takes)."""
         if self._screen_costs.get("base") is not base:  # a new round: its base twin
             self._screen_costs = {"base": base}
-        if id(cache) not in self._screen_costs:
-            r = self._objective(base, [], self.screening, cache).residuals_of([base])[0]
-            self._screen_costs[id(cache)] = max(float(np.sum(r * r)), 1e-300)
-        return self._screen_costs[id(cache)]
+        key = (id(cache), stepped)
+        if key not in self._screen_costs:
+            if stepped:
+                obj = self._objective(base, [], self.screening, cache, with_core=True)
+                x0 = np.clip(np.array([c.quantity.get(base) for c in self.core]) / obj.scale, *obj.bounds())
+                r0 = obj.residuals(x0)
+                step = np.linalg.lstsq(obj.jacobian(x0), -r0, rcond=None)[0]
+                trials = [np.clip(x0 + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
+                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in trials])]
+                self.evaluations += obj.evaluations * len(self.screening)
+                cost = min(costs + [float(np.sum(r0[: obj.n_data] ** 2))])
+            else:
+                r = self._objective(base, [], self.screening, cache).residuals_of([base])[0]
+                cost = float(np.sum(r * r))
+            self._screen_costs[key] = max(cost, 1e-300)
+        return self._screen_costs[key]
 
     def refine(self, base: Vessel, fitted: Fitted, train: list[Window] | None = None) -> Fitted:
         """Bounded least squares from the screened point (a scanned candidate: finer scans),
         on the first fold's training windows unless `train` is given."""
         cand = fitted.candidate
-        train = _spread(self.folds[0][0] if train is None else train,
-                        max(REFINE_WINDOWS, REFINE_PER_NUMBER * len(cand.params)))
+        train = self.folds[0][0] if train is None else train
+        if self.core:
+            return self._refine_with_core(base, fitted, train)
+        train = _spread(train, max(REFINE_WINDOWS, REFINE_PER_NUMBER * len(cand.params)))
         obj = self._objective(base, cand.params, train)
         x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
         if cand.scan:
@@ -282,6 +342,24 @@ class Search:
             best = self._fitted(cand, obj, sol.x, float(np.sum(sol.fun ** 2)))
         self.evaluations += obj.evaluations * len(train)
         return best
+
+    def _refine_with_core(self, base: Vessel, fitted: Fitted, train: list[Window]) -> Fitted:
+        """The candidate and the core fitted together (module docstring); a scanned candidate is
+        scanned with the core held, then the core refitted around it."""
+        cand = fitted.candidate
+        if cand.scan:
+            obj = self._objective(base, cand.params, _spread(train, max(REFINE_WINDOWS, REFINE_PER_NUMBER *
+                                                                          len(cand.params))))
+            x, cost = self._coordinate_scans(obj, cand, np.array([fitted.values[n] for n in cand.names]) / obj.scale)
+            self.evaluations += obj.evaluations * len(obj.windows)
+            scanned = self._fitted(cand, obj, x, cost)
+            return Fitted(cand, scanned.values, self._core_fit(scanned.vessel, train), cost)
+        obj = self._objective(base, cand.params, train, with_core=True)
+        x0 = np.r_[[fitted.values[n] for n in cand.names], [c.quantity.get(base) for c in self.core]] / obj.scale
+        sol = least_squares(obj.residuals, np.clip(x0, *obj.bounds()), jac=obj.jacobian, bounds=obj.bounds(),
+                            method="trf", x_scale="jac", max_nfev=CORE_NFEV, xtol=1e-5, ftol=1e-5)
+        self.evaluations += obj.evaluations * len(obj.windows)
+        return self._fitted(cand, obj, sol.x, float(np.sum(sol.fun[: obj.n_data] ** 2)))
 
     @staticmethod
     def _coordinate_scans(obj: Objective, cand: Candidate, x0: np.ndarray) -> tuple[np.ndarray, float]:
@@ -341,17 +419,19 @@ class Search:
         """Every kept effect refitted together on `windows`, from the prior (values from `start`
         or each effect's last fit): the vessel, the objective and its solution."""
         params = [p for k in kept for p in k.trial.candidate.params]
-        obj = self._objective(self.prior, params, windows)
+        obj = self._objective(self.prior, params, windows, with_core=True)
         source = start or kept[-1].trial.fits[0].vessel
-        x0 = np.clip(np.array([p.get(source) for p in params]) / obj.scale, *obj.bounds())
+        x0 = np.clip(np.array([p.get(source) for p in obj.params]) / obj.scale, *obj.bounds())
         sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
-                            max_nfev=max_nfev, xtol=1e-7, ftol=1e-7)
+                            max_nfev=max(max_nfev, CORE_NFEV) if self.core else max_nfev, xtol=1e-7, ftol=1e-7)
         self.evaluations += obj.evaluations * len(windows)
         return obj.vessel(sol.x), obj, sol.x
 
     def fold_bases(self, kept: list[Kept], previous: list[Vessel]) -> list[Vessel]:
         """The kept effects refitted together on each fold's training windows."""
         if not kept:
+            if self.core:
+                return [self._core_fit(self.prior, train) for train, _ in self.folds]
             return [self.prior] * len(self.folds)
         return [self.joint(kept, train, start=prev)[0] for prev, (train, _) in zip(previous, self.folds)]
 
@@ -361,6 +441,7 @@ class Search:
         record of every round."""
         kept: list[Kept] = []
         bases = self.fold_bases(kept, [])
+        self.initial_bases = bases  # each fold's twin before any effect (the prior, or its core refitted)
         base_costs = self.held_costs(bases)
         rounds: list[dict] = []
         dropped: set[str] = set()
@@ -382,7 +463,7 @@ class Search:
             rounds[-1]["dropped"] = sorted(gone)
         self.final_bases = bases  # each fold's fit of the kept effects, for the held-out scores
         if not kept:
-            return self.prior, kept, rounds
+            return (self._core_fit(self.prior, self.windows) if self.core else self.prior), kept, rounds
         amended, obj, x = self.joint(kept, self.windows, start=bases[0], max_nfev=20)
         self._covariance(kept, obj, x)
         return amended, kept, rounds
@@ -394,7 +475,8 @@ class Search:
         while len(kept) > 1:
             worst, worst_e = None, None
             for k in kept:
-                without = [_reset(b, k.trial.candidate, self.prior) for b in bases]
+                without = ([_reset(b, k.trial.candidate, self.prior) for b in bases] if not self.core else
+                           self.fold_bases([o for o in kept if o is not k], bases))
                 e = self.evidence(self.held_costs(without), base_costs)
                 if not e.earns_its_place() and (worst_e is None or e.rel_excess < worst_e.rel_excess):
                     worst, worst_e = k, e
@@ -409,12 +491,13 @@ class Search:
         return kept, bases, base_costs, gone
 
     def _covariance(self, kept: list[Kept], obj: Objective, x: np.ndarray) -> None:
-        J = obj.jacobian(x)[: obj.n_data]
+        J = obj.jacobian(x)
         r = obj.residuals(x)[: obj.n_data]
-        cov = cluster_covariance(J, r, obj.window_index())
+        cov = cluster_covariance(J[: obj.n_data], r, obj.window_index(), J[obj.n_data:])
         names = [f"{k.trial.name}.{p.name}" for k in kept for p in k.trial.candidate.params]
         self.values = {n: float(xi * s) for n, xi, s in zip(names, x, obj.scale)}
-        self.cov = None if cov is None else cov * np.outer(obj.scale, obj.scale)  # value units
+        m = len(names)  # the core's coordinates, if any, follow the effects' own
+        self.cov = None if cov is None else (cov * np.outer(obj.scale, obj.scale))[:m, :m]  # value units
         self.cov_names = names
         self.sigma_values = {n: (float(np.sqrt(self.cov[i, i])) if self.cov is not None and self.cov[i, i] >= 0
                                  else None) for i, n in enumerate(names)}
@@ -444,6 +527,56 @@ def blocks_of(windows: list[Window]) -> np.ndarray:
         out.append(block)
         count += 1
     return np.array(out, int)
+
+
+def _moves_core(candidate: Candidate, core: list, prior: Vessel) -> bool:
+    """Whether the core already moves one of the candidate's quantities: some direction in which the
+    candidate moves the vessel description lies in the span of the core's (a damping scale when the
+    damping is refitted; the sway and yaw scales of an added-mass effect when those added masses are).
+    Such a quantity would be written over by the core's refit and fitted to nothing; one thruster's gain
+    when both gains' mean is refitted lies outside it."""
+    base = _numbers(prior)
+
+    def direction(q, v) -> np.ndarray | None:
+        value = q.get(v)
+        step = 1e-3 * max(abs(value), q.typical, 1e-6)
+        moved = _numbers(q.put(v, value + step))
+        return None if len(moved) != len(base) else (moved - base) / step
+
+    core_dirs = [d for d in (direction(c.quantity, prior) for c in core) if d is not None]
+    if not core_dirs:
+        return False
+    D = np.column_stack(core_dirs)
+    for q in candidate.params:
+        d = direction(q, prior)
+        if d is None or not np.any(d):
+            continue
+        coef = np.linalg.lstsq(D, d, rcond=None)[0]
+        if np.linalg.norm(D @ coef - d) <= 1e-3 * np.linalg.norm(d):  # finite differences of curved puts: 1e-3
+            return True
+    return False
+
+
+def _numbers(obj) -> np.ndarray:
+    """Every number of a vessel description, flattened in a fixed order (names, paths, sources and the
+    identification's uncertainty left out): what a quantity's put() changes."""
+    out: list[float] = []
+
+    def walk(x) -> None:
+        if is_dataclass(x):
+            for f in fields(x):
+                if f.name not in ("name", "mjcf", "path", "sources", "uncertainty"):
+                    walk(getattr(x, f.name))
+        elif isinstance(x, dict):
+            for k in sorted(x):
+                walk(x[k])
+        elif isinstance(x, (list, tuple)):
+            for item in x:
+                walk(item)
+        elif isinstance(x, (bool, int, float)):
+            out.append(float(x))
+    walk(obj)
+    return np.array(out)
 
 
 def _reset(vessel: Vessel, candidate: Candidate, prior: Vessel) -> Vessel:

@@ -20,6 +20,17 @@ from ..recording import Recording, Stream
 from ..vessel import Vessel
 
 
+GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities (seed 004 §5.1)
+HEADING_WINDOW_S = 0.5  # an AHRS at 50 Hz affords a shorter one for the yaw rate
+
+
+def rate_windows(vessel: Vessel) -> dict[str, float]:
+    """prepare()'s derivative windows for this vessel's sensors: the GNSS velocities' and the yaw
+    rate's (the vessel's own `sensors.heading_rate_window_s` where its heading sensor needs one)."""
+    own = vessel.sensors.heading_rate_window_s
+    return {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S if own is None else own}
+
+
 def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
     """OP = (dx, dy) from the real antenna to CO (seed 000 eq. 28): minus the antenna's
     body position, the MJCF gnss site plus the vessel's surveyed offset."""

@@ -52,3 +52,9 @@ def r2_mae(pred: np.ndarray, meas: np.ndarray) -> dict:
     return out
 
 
+def ceiling_r2(measured: np.ndarray, reference: np.ndarray) -> float:
+    """The R² (eq. 40) a perfect twin would score against `measured` when the truth is `reference`
+    (the same signal less its measurement noise, e.g. a derivative over a window much longer than the
+    noise but shorter than the dynamics): 1 − Σ(measured − reference)² / Σ(measured − mean)². A
+    target above it cannot be met by any twin against this measurement."""
+    return r2_score(np.asarray(measured, float), np.asarray(reference, float))

@@ -197,6 +197,14 @@ class Coordinate:
         return float(np.sign(self.prior_value) * np.exp(x)) if self.log else float(x)
 
 
+def map_start(prior: Vessel, names) -> Vessel:
+    """The prior a maximum a posteriori fit of `names` starts from: a thrust lag of 0.1 s where the
+    prior has none (a log-normal belief needs a magnitude, and the lag's state a start)."""
+    if "lag_s" in names and prior.thrusters.lag_s <= 0:
+        return replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))
+    return prior
+
+
 def coordinates(prior: Vessel, names) -> list[Coordinate]:
     """The coordinates of a maximum a posteriori fit of `names`: log-magnitude where the belief
     is log-normal and the prior value non-zero, the value itself otherwise (a zero prior has no
@@ -225,8 +233,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
         windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
     if not windows:
         raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
-    if "lag_s" in names and prior.thrusters.lag_s <= 0:
-        prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))  # a log-normal lag needs a start
+    prior = map_start(prior, names)
     coords = coordinates(prior, names)
     obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
                         wind)

@@ -36,7 +36,7 @@ from ..effects.coefficients import fit_groups as groups_of
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
-from ..fit.calibrate import LogCalibration, kinematic_calibration, prepare_for, with_log_calibrations
+from ..fit.calibrate import LogCalibration, kinematic_calibration, prepare_for, rate_windows, with_log_calibrations
 from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -48,8 +48,6 @@ from .seed004.greybox import fit_dynamic, fit_static
 from .seed004.physical import first_guesses
 from .seed004.splits import render_split_table, render_training_table, split_method_table, training_size_table
 
-GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities (seed 004 §5.1)
-HEADING_WINDOW_S = 0.5  # the AHRS at 50 Hz affords a shorter one for the yaw rate
 PRIOR_WEIGHTS = (0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
 START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it
 IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all three a window is a drift
@@ -75,7 +73,7 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
 def prepared(recordings: list[Recording], vessel: Vessel) -> list[Prepared]:
     """The recordings prepared (seed 004 §5.1) as the vessel's sensors see them."""
     compiled = compile_vessel(vessel)
-    return [prepare_for(r, compiled, window_s=GNSS_WINDOW_S, heading_window_s=HEADING_WINDOW_S) for r in recordings]
+    return [prepare_for(r, compiled, **rate_windows(vessel)) for r in recordings]
 
 
 def calibrate(recordings: list[Recording], vessel: Vessel) -> tuple[Vessel, list[LogCalibration]]:

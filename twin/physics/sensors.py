@@ -35,6 +35,10 @@ class Sensors:
     pwm_clock_offset_s: float = 0.0
     gnss_latency_s: float = 0.0
     heading_bias_by_log_deg: tuple[tuple[str, float], ...] = ()
+    # the Savitzky-Golay window (s) of the yaw rate taken from this heading sensor; None: the
+    # package's default for a fast AHRS (fit.calibrate.HEADING_WINDOW_S). A slower or noisier heading
+    # needs a longer one, or its derivative is mostly noise (a vessel file's sources say why)
+    heading_rate_window_s: float | None = None
 
     def for_log(self, source: str) -> "Sensors":
         """The sensors of the recording from `source` (a path or name): its own heading bias
