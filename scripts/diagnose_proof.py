@@ -337,6 +337,17 @@ def _r2(m) -> str:
     return "-" if m.get("r2") is None else f"{m['r2']:.3f}"
 
 
+def refit_note(args) -> str:
+    """What a --refit run is, above its report (an empty string otherwise)."""
+    if not REFIT:
+        return ""
+    groups = ",".join(REFIT["refit"])
+    return (f"> Every diagnosis below ran with `--refit {groups}` (beliefs ×{REFIT['refit_weight']:g}): the prior's "
+            "own coefficients of those groups refitted beside each candidate; the effects they already move are "
+            f"not candidates. Regenerate: `python scripts/diagnose_proof.py --refit \"{groups}\" --only "
+            f"{args.only} --world-seeds {args.world_seeds} --out {args.out.relative_to(ROOT)}`.\n\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated case names (library or world)")
@@ -400,8 +411,8 @@ def main() -> None:
                           f"{','.join(res['spurious']) or '-':20s} {res['seconds']} s", flush=True)
                     save()
     save()
-    text = (markdown(results) if results else "# `twin diagnose` on concealed effects\n") + "\n" + \
-        (world_markdown(world) if world else "")
+    text = refit_note(args) + (markdown(results) if results else "# `twin diagnose` on concealed effects\n") + \
+        "\n" + (world_markdown(world) if world else "")
     write_text_atomic(args.out / "proof.md", text)
     print(f"wrote {args.out / 'proof.md'}")
 

@@ -281,3 +281,20 @@ def test_diagnose_command_refits_the_core_with_each_candidate(tmp_path, prior):
     bad = subprocess.run(base + ["--refit", "hull"], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and bad.stderr.startswith("error:") and len(bad.stderr.strip().splitlines()) == 1
     assert "unknown group" in bad.stderr
+
+
+def test_an_effect_kept_before_the_one_that_supersedes_it_goes():
+    """wind_shape kept first, then each log's own wind: the constant wind would act on no log, so it
+    is dropped (search.without_superseded); an effect the winner does not supersede stays."""
+    from twin.diagnose.search import Evidence, Kept, Trial, without_superseded
+    from twin.effects.spec import Candidate
+
+    def trial(name, supersedes=()):
+        cand = Candidate(name, (), ((),), lambda p: None, "environment", supersedes=tuple(supersedes))
+        return Trial(cand, [], Evidence(4.0, 0.2, 0.2, {}, 5, 0, 5))
+
+    kept = [Kept(trial("wind_shape"), []), Kept(trial("current"), [])]
+    winner = trial("wind_per_log", ("wind", "wind_shape"))
+    left, gone = without_superseded(kept + [Kept(winner, [])], winner)
+    assert [k.trial.name for k in left] == ["current", "wind_per_log"] and gone == {"wind_shape"}
+    assert without_superseded(kept, trial("current"))[1] == set()

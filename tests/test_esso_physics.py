@@ -204,3 +204,29 @@ def test_vessel_file_checks_the_ship_description(tmp_path):
     assert again.mmg == vessel_mod.load("esso_osaka").mmg and again.thrusters.rudder_max_deg == 40.0
     assert "rps_max" not in json.loads(vessel_mod.save(vessel_mod.load("yellowfish"),
                                                        tmp_path / "y.json").read_text())["thrusters"]
+
+
+def test_a_backing_propeller_swings_the_bow_to_starboard_and_only_when_backing(esso):
+    """The astern side force (physics/mmg.py; Hachii's form, the NAOE Esso 3 m coefficients): written out
+    by hand at J_s = u/(nD_P) in each of its three pieces, continuous at both knots, N > 0 (the bow to
+    starboard, as a right-handed single screw backing), and nothing for n ≥ 0."""
+    hydro, p = esso.hydro(), _p(esso)
+    prop = hydro.with_terms(Terms().only("propeller"))
+    a = [p[f"ay{i}"] for i in range(5)]
+    b = [p[f"bn{i}"] for i in range(5)]
+    assert a[4] < 0 < b[4]  # the vessel file's published set: stern to port, bow to starboard
+    n, D, L, d = -7.0, p["D_P"], p["L"], p["d"]
+    q = 0.5 * 998 * L * d * (n * D) ** 2
+    pieces = {0.0: (a[4], b[4]), 0.02: (a[4], b[4]),  # J_s above −0.06, between the knots, below −0.35
+              0.15: (a[0] + a[1] * 0.15 / (n * D), b[0] + b[1] * 0.15 / (n * D)),
+              0.4: (a[2] + a[3] * 0.4 / (n * D), b[2] + b[3] * 0.4 / (n * D))}
+    for u, (ka, kb) in pieces.items():
+        X, Y, N, _, _ = mmg_forces(prop, np.array([u, 0.0, 0.0]), (n, 0.0))
+        assert Y == pytest.approx(q * ka, rel=1e-9) and N == pytest.approx(q * L * kb, rel=1e-9), u
+        assert N > 0
+    for js in (mmg.JS_SYN, mmg.JS_SYN0):  # continuous where the pieces meet (to the published 3 digits)
+        u = js * n * D
+        lo, hi = (mmg_forces(prop, np.array([u * f, 0.0, 0.0]), (n, 0.0))[1:3] for f in (1 - 1e-7, 1 + 1e-7))
+        np.testing.assert_allclose(lo, hi, rtol=2e-3)
+    for n_ahead in (0.0, 5.0):
+        assert mmg_forces(prop, np.array([0.1, 0.0, 0.0]), (n_ahead, 0.0))[1:3] == pytest.approx((0.0, 0.0), abs=1e-12)

@@ -456,11 +456,14 @@ class Search:
             self.log(f"kept {winner.name}: held-out misfit −{100 * e.rel:.1f} % (−{100 * e.rel_excess:.1f} % of "
                      f"the excess over the noise), z = {e.z:.1f} over {e.blocks_for + e.blocks_against} blocks")
             kept.append(Kept(winner, self._rivals(winner, trials, base_costs)))
+            kept, outdone = without_superseded(kept, winner)
+            for name in sorted(outdone):
+                self.log(f"dropped {name}: {winner.name} does what it did (a constant wind once every log has its own)")
             bases = self.fold_bases(kept, [winner.fits[f].vessel for f in range(len(self.folds))])
             base_costs = self.held_costs(bases)
             kept, bases, base_costs, gone = self._backward(kept, bases, base_costs)
-            dropped |= gone
-            rounds[-1]["dropped"] = sorted(gone)
+            dropped |= gone | outdone
+            rounds[-1]["dropped"] = sorted(gone | outdone)
         self.final_bases = bases  # each fold's fit of the kept effects, for the held-out scores
         if not kept:
             return (self._core_fit(self.prior, self.windows) if self.core else self.prior), kept, rounds
@@ -516,6 +519,14 @@ class Search:
                         "held_out_gain": round(t.evidence.rel, 4),
                         "parameters": t.candidate.to_effect(t.fits[0].values).flat()})
         return out
+
+
+def without_superseded(kept: list[Kept], winner: Trial) -> tuple[list[Kept], set[str]]:
+    """The kept effects less those the new winner supersedes (`Candidate.supersedes`: a constant wind
+    acts on no log once every log has its own), and their names: kept, they would be refitted to
+    nothing and reported as if they mattered."""
+    gone = {k.trial.name for k in kept if k.trial.name in winner.candidate.supersedes}
+    return [k for k in kept if k.trial.name not in gone], gone
 
 
 def blocks_of(windows: list[Window]) -> np.ndarray:

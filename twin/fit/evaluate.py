@@ -84,6 +84,24 @@ def evaluate(model: Predictor | Vessel, preps: list[Prepared], stride_s: float =
     return out
 
 
+def error_growth(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, stride_s: float = 2.0,
+                 wind: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """How the free-run error grows, window by window: (W, 2) mean inputs of each window (PWM µs, or
+    n rps and δ rad) and (W, 3) the change of the prediction's error (predicted − measured) of u, v,
+    r from its start to its end. An error that grows the same way whenever some input does the same
+    is a force the twin lacks there (a start error decays; a missing force builds)."""
+    if isinstance(model, Vessel):
+        model = TwinPredictor(model, ModelCache(), wind)
+    wins = horizon_windows(preps, horizon_s, stride_s)
+    if not wins:
+        return np.zeros((0, 2)), np.zeros((0, 3))
+    pred, meas = _predictions(model, preps, wins)
+    err = pred - meas
+    inputs = np.array([preps[w.rec].pwm[w.start:w.start + w.n + 1].mean(axis=0) for w in wins])
+    growth = np.array([err[j, w.n] - err[j, 0] for j, w in enumerate(wins)])
+    return inputs, growth
+
+
 def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) -> tuple[np.ndarray, np.ndarray]:
     n_max = max(w.n for w in wins)
     pred = np.full((len(wins), n_max + 1, 3), np.nan)

@@ -43,6 +43,12 @@ keeping the standard exact inside it (each extension says why; identification ma
   * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
     clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the NAOE Esso 3 m set's
     reverse-propeller form; no slipstream on the rudder;
+  * n < 0 also pushes the stern sideways (a single screw backing: the paddle-wheel effect, which
+    swings a right-handed ship's bow to starboard): Y_P = ½ρL d (nD_P)² Y*_P(J_s), N_P =
+    ½ρL²d (nD_P)² N*_P(J_s), J_s = u/(n D_P), each piecewise linear in J_s with knots at −0.35 and
+    −0.06 (Hachii's form, the NAOE Esso 3 m set's coefficients a0..a4, b0..b4: a0 + a1 J_s between
+    the knots, a2 + a3 J_s below −0.35, a4 above −0.06, continuous at both); zero for n ≥ 0, where
+    the standard has none;
   * u < 0: the rudder sees the hull's flow from astern, u_R = u + ε κ √η √(8K_T n²D_P²/π),
     continuous with the standard's u_R at u = 0; α_R = δ − atan2(v_R, u_R) then reverses the
     rudder's effect, as a rudder going astern does.
@@ -103,6 +109,9 @@ class MmgPropeller:
     astern_kt0: float = 0.0  # K_astern at u = 0 (n < 0)
     astern_kt1: float = 0.0  # its growth with u/(|n|D_P)
     astern_kt_max: float = 0.0  # its cap
+    # the astern side force's Y*_P and N*_P (module docstring): a0..a4 and b0..b4 of Hachii's form
+    astern_side_y: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    astern_side_n: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -145,6 +154,7 @@ class MmgModel:
 FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS,
           "D_P", "k0", "k1", "k2", "tP", "wP0", "C1", "C2_plus", "C2_minus", "xP_nd",
           "astern_kt0", "astern_kt1", "astern_kt_max",
+          "ay0", "ay1", "ay2", "ay3", "ay4", "bn0", "bn1", "bn2", "bn3", "bn4",
           "A_R", "f_alpha", "eta", "tR", "aH", "xH_m", "xR_m", "gamma_minus", "gamma_plus", "lR_nd",
           "epsilon", "kappa", "n_min", "n_max", "delta_max")
 INDEX = {name: i for i, name in enumerate(FIELDS)}
@@ -152,7 +162,10 @@ SIZE = len(FIELDS)
 # index constants: numba reads module globals as compile-time constants
 _RHO, _L, _D, _UMIN, _H = 0, 1, 2, 3, 4
 (_DP, _K0, _K1, _K2, _TP, _WP0, _C1, _C2P, _C2M, _XP, _KA0, _KA1, _KAMAX, _AR, _FA, _ETA, _TR, _AH, _XH, _XR,
- _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):])
+ _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):]
+                                                      if not k.startswith(("ay", "bn")))
+_AY, _BN = INDEX["ay0"], INDEX["bn0"]
+JS_SYN, JS_SYN0 = -0.35, -0.06  # the knots of Hachii's astern side force in J_s (module docstring)
 
 
 def fujii_lift_slope(aspect_ratio: float) -> float:
@@ -171,6 +184,8 @@ def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
               "D_P": p.diameter_m, "k0": p.k0, "k1": p.k1, "k2": p.k2, "tP": p.tP, "wP0": p.wP0, "C1": p.C1,
               "C2_plus": p.C2_plus, "C2_minus": p.C2_minus, "xP_nd": propeller_x_m / model.lpp_m,
               "astern_kt0": p.astern_kt0, "astern_kt1": p.astern_kt1, "astern_kt_max": p.astern_kt_max,
+              **{f"ay{i}": a for i, a in enumerate(p.astern_side_y)},
+              **{f"bn{i}": b for i, b in enumerate(p.astern_side_n)},
               "A_R": r.area_m2, "f_alpha": fujii_lift_slope(r.aspect_ratio),
               "eta": p.diameter_m / span_m if span_m > 0 else 0.0, "tR": r.tR, "aH": r.aH,
               "xH_m": r.xH * model.lpp_m, "xR_m": rudder_x_m, "gamma_minus": r.gamma_minus,
@@ -237,6 +252,15 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         race2 = 0.0
     if propeller_on:
         X += x_p
+        if n < 0.0:  # the astern side force, Hachii's piecewise-linear form in J_s (module docstring)
+            js = u / (n * D)
+            k = _AY + 2 if js < JS_SYN else _AY  # a2 + a3 J_s below the lower knot, a0 + a1 J_s between
+            side_y = p[_AY + 4] if js > JS_SYN0 else p[k] + p[k + 1] * js
+            k = _BN + 2 if js < JS_SYN else _BN
+            side_n = p[_BN + 4] if js > JS_SYN0 else p[k] + p[k + 1] * js
+            nd2 = n * n * D * D
+            Y += 0.5 * rho * L * d * nd2 * side_y
+            N += 0.5 * rho * L * L * d * nd2 * side_n
     # rudder, eqs. 17-27
     eps, kappa, eta = p[_EPS], p[_KAPPA], p[_ETA]
     if u >= 0.0:
@@ -254,3 +278,4 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         Y += -(1.0 + p[_AH]) * f_n * math.cos(delta)
         N += -(p[_XR] + p[_AH] * p[_XH]) * f_n * math.cos(delta)
     return X, Y, N, T, f_n
+
