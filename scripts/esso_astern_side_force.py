@@ -88,7 +88,11 @@ def main() -> int:
              "measured wind a known input)", "",
              "| propeller | rudder | windows | r error growth over 10 s, without → with (rad/s) |", "|---|---|---|---|"]
     without, with_it = result["signature"].values()
-    for a, b in zip(without, with_it):
+    by_bin = {(b["propeller"], b["rudder"]): b for b in with_it}
+    for a in without:
+        b = by_bin.get((a["propeller"], a["rudder"]))
+        if b is None:
+            continue
         lines.append(f"| {a['propeller']} | {a['rudder']} | {a['windows']} | {a['r_error_growth_rad_s']:+.4f} ± "
                      f"{a['standard_error']:.4f} → {b['r_error_growth_rad_s']:+.4f} ± {b['standard_error']:.4f} |")
     lines += ["", "## The untuned twin, 30-s free runs from measured states every 10 s (pooled R² u / v / r)", "",

@@ -209,12 +209,13 @@ def test_vessel_file_checks_the_ship_description(tmp_path):
 def test_a_backing_propeller_swings_the_bow_to_starboard_and_only_when_backing(esso):
     """The astern side force (physics/mmg.py; Hachii's form, the NAOE Esso 3 m coefficients): written out
     by hand at J_s = u/(nD_P) in each of its three pieces, continuous at both knots, N > 0 (the bow to
-    starboard, as a right-handed single screw backing), and nothing for n ≥ 0."""
+    starboard, as a right-handed single screw backing) down to where the published lowest piece turns
+    over, finite for any n, and nothing for n ≥ 0."""
     hydro, p = esso.hydro(), _p(esso)
     prop = hydro.with_terms(Terms().only("propeller"))
     a = [p[f"ay{i}"] for i in range(5)]
     b = [p[f"bn{i}"] for i in range(5)]
-    assert a[4] < 0 < b[4]  # the vessel file's published set: stern to port, bow to starboard
+    assert (a[4], b[4]) == (-5.58e-4, 2.25e-4)  # NAOE's set for this model: stern to port, bow to starboard
     n, D, L, d = -7.0, p["D_P"], p["L"], p["d"]
     q = 0.5 * 998 * L * d * (n * D) ** 2
     pieces = {0.0: (a[4], b[4]), 0.02: (a[4], b[4]),  # J_s above −0.06, between the knots, below −0.35
@@ -228,5 +229,21 @@ def test_a_backing_propeller_swings_the_bow_to_starboard_and_only_when_backing(e
         u = js * n * D
         lo, hi = (mmg_forces(prop, np.array([u * f, 0.0, 0.0]), (n, 0.0))[1:3] for f in (1 - 1e-7, 1 + 1e-7))
         np.testing.assert_allclose(lo, hi, rtol=2e-3)
+    js = -1.0  # past where the published lowest piece changes sign: the bow to port (module docstring)
+    N = mmg_forces(prop, np.array([js * n * D, 0.0, 0.0]), (n, 0.0))[2]
+    assert N == pytest.approx(q * L * (b[2] + b[3] * js), rel=1e-9) and N < 0
+    assert np.all(np.isfinite(mmg_forces(prop, np.array([0.2, 0.0, 0.0]), (-1e-320, 0.0))))  # no tiny n divides
     for n_ahead in (0.0, 5.0):
         assert mmg_forces(prop, np.array([0.1, 0.0, 0.0]), (n_ahead, 0.0))[1:3] == pytest.approx((0.0, 0.0), abs=1e-12)
+
+
+def test_an_mmg_file_without_a_side_force_is_written_as_before(tmp_path):
+    """The astern side force's coefficients are written only where set (dataset fingerprints of other
+    MMG vessels stay what they were) and read back."""
+    ship = vessel_mod.load("esso_osaka")
+    assert ship.to_dict()["mmg"]["propeller"]["astern_side_n"][4] == 2.25e-4
+    bare = replace(ship, mmg=replace(ship.mmg, propeller=replace(ship.mmg.propeller, astern_side_y=(0.0,) * 5,
+                                                                  astern_side_n=(0.0,) * 5)))
+    assert not {"astern_side_y", "astern_side_n"} & set(bare.to_dict()["mmg"]["propeller"])
+    again = vessel_mod.load(str(vessel_mod.save(ship, tmp_path / "esso.json")))
+    assert again.mmg.propeller.astern_side_y == ship.mmg.propeller.astern_side_y

@@ -99,7 +99,7 @@ class Vessel:
             "cases": {k: asdict(v) for k, v in self.cases.items()},
             "sources": dict(self.sources),
             **({"uncertainty": self.uncertainty} if self.uncertainty else {}),
-            **({"mmg": asdict(self.mmg)} if self.mmg is not None else {}),
+            **({"mmg": _mmg_to_dict(self.mmg)} if self.mmg is not None else {}),
             **({"wind_regression": _wind_regression_to_dict(self.wind_regression)}
                if self.wind_regression is not None else {}),
         }
@@ -112,6 +112,18 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     if t.kind != "propeller_rudder":  # fields of a propeller and rudder only: other files stay as they were
         for key in ("rps_max", "rudder_max_deg"):
             d.pop(key)
+    return d
+
+
+def _mmg_to_dict(m) -> dict[str, Any]:
+    """The MMG block; the astern side force's coefficients only where some are set (files without
+    them stay what they were: dataset fingerprints)."""
+    d = asdict(m)
+    for key in ("astern_side_y", "astern_side_n"):
+        if not any(getattr(m.propeller, key)):
+            del d["propeller"][key]
+        else:
+            d["propeller"][key] = list(getattr(m.propeller, key))
     return d
 
 

@@ -458,7 +458,7 @@ class Search:
             kept.append(Kept(winner, self._rivals(winner, trials, base_costs)))
             kept, outdone = without_superseded(kept, winner)
             for name in sorted(outdone):
-                self.log(f"dropped {name}: {winner.name} does what it did (a constant wind once every log has its own)")
+                self.log(f"dropped {name}: {winner.name} supersedes it (it can do nothing more beside it)")
             bases = self.fold_bases(kept, [winner.fits[f].vessel for f in range(len(self.folds))])
             base_costs = self.held_costs(bases)
             kept, bases, base_costs, gone = self._backward(kept, bases, base_costs)

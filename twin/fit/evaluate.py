@@ -89,7 +89,8 @@ def error_growth(model: Predictor | Vessel, preps: list[Prepared], horizon_s: fl
     """How the free-run error grows, window by window: (W, 2) mean inputs of each window (PWM µs, or
     n rps and δ rad) and (W, 3) the change of the prediction's error (predicted − measured) of u, v,
     r from its start to its end. An error that grows the same way whenever some input does the same
-    is a force the twin lacks there (a start error decays; a missing force builds)."""
+    is a force the twin lacks there (a start error decays; a missing force builds). `wind` applies
+    to a Vessel given as the model (a Predictor carries its own)."""
     if isinstance(model, Vessel):
         model = TwinPredictor(model, ModelCache(), wind)
     wins = horizon_windows(preps, horizon_s, stride_s)

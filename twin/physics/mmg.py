@@ -48,7 +48,8 @@ keeping the standard exact inside it (each extension says why; identification ma
     ½ρL²d (nD_P)² N*_P(J_s), J_s = u/(n D_P), each piecewise linear in J_s with knots at −0.35 and
     −0.06 (Hachii's form, the NAOE Esso 3 m set's coefficients a0..a4, b0..b4: a0 + a1 J_s between
     the knots, a2 + a3 J_s below −0.35, a4 above −0.06, continuous at both); zero for n ≥ 0, where
-    the standard has none;
+    the standard has none. As published, the lowest piece changes sign near J_s = −0.84 (a ship
+    still running ahead fast on a slowly backing screw: bow to port); it is kept as published;
   * u < 0: the rudder sees the hull's flow from astern, u_R = u + ε κ √η √(8K_T n²D_P²/π),
     continuous with the standard's u_R at u = 0; α_R = δ − atan2(v_R, u_R) then reverses the
     rudder's effect, as a rudder going astern does.
@@ -246,21 +247,23 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         if n > 0.0:
             race2 = 8.0 * max(T, 0.0) / (math.pi * rho * D * D)
     else:
-        k_astern = min(max(p[_KA0] + p[_KA1] * u / (-n * D), 0.0), p[_KAMAX])
-        T = -rho * n * n * D ** 4 * k_astern
+        nd_abs = -n * D  # K_astern multiplied through by (nD)², so that no tiny n divides
+        T = -rho * D * D * min(max(p[_KA0] * nd_abs * nd_abs + p[_KA1] * u * nd_abs, 0.0), p[_KAMAX] * nd_abs * nd_abs)
         x_p = T
         race2 = 0.0
     if propeller_on:
         X += x_p
         if n < 0.0:  # the astern side force, Hachii's piecewise-linear form in J_s (module docstring)
-            js = u / (n * D)
-            k = _AY + 2 if js < JS_SYN else _AY  # a2 + a3 J_s below the lower knot, a0 + a1 J_s between
-            side_y = p[_AY + 4] if js > JS_SYN0 else p[k] + p[k + 1] * js
-            k = _BN + 2 if js < JS_SYN else _BN
-            side_n = p[_BN + 4] if js > JS_SYN0 else p[k] + p[k + 1] * js
-            nd2 = n * n * D * D
-            Y += 0.5 * rho * L * d * nd2 * side_y
-            N += 0.5 * rho * L * L * d * nd2 * side_n
+            # multiplied through by (nD)², as T is, so that no tiny n divides: with nD < 0,
+            # J_s < c ⇔ u > c·nD
+            nd = n * D
+            if u < JS_SYN0 * nd:  # J_s above the upper knot: a4, b4
+                cy, cn = p[_AY + 4] * nd * nd, p[_BN + 4] * nd * nd
+            else:  # a0 + a1 J_s between the knots, a2 + a3 J_s below the lower one
+                ky, kn = (_AY + 2, _BN + 2) if u > JS_SYN * nd else (_AY, _BN)
+                cy, cn = p[ky] * nd * nd + p[ky + 1] * u * nd, p[kn] * nd * nd + p[kn + 1] * u * nd
+            Y += 0.5 * rho * L * d * cy
+            N += 0.5 * rho * L * L * d * cn
     # rudder, eqs. 17-27
     eps, kappa, eta = p[_EPS], p[_KAPPA], p[_ETA]
     if u >= 0.0:
@@ -278,4 +281,3 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         Y += -(1.0 + p[_AH]) * f_n * math.cos(delta)
         N += -(p[_XR] + p[_AH] * p[_XH]) * f_n * math.cos(delta)
     return X, Y, N, T, f_n
-
