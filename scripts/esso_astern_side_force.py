@@ -18,7 +18,6 @@ The recordings (../shared/data/esso) are read in place; without them the script 
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -36,9 +35,8 @@ from twin.fit.evaluate import TwinPredictor, error_growth, evaluate  # noqa: E40
 from twin.fit.windows import ModelCache  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
 from twin.ident.identify import prepared  # noqa: E402
+from esso_yaw_rate_window import DATA, DUPLICATE, esso_arguments  # noqa: E402  (scripts/ is on the path)
 
-DATA = ROOT.parent / "shared" / "data" / "esso"
-DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 N_BINS = (("astern (n < −2 rps)", -np.inf, -2.0), ("stopped (|n| ≤ 2)", -2.0, 2.0), ("ahead (n > 2)", 2.0, np.inf))
 RUDDER_BINS = (("δ < −5°", -np.inf, -5.0), ("|δ| ≤ 5°", -5.0, 5.0), ("δ > 5°", 5.0, np.inf))
 
@@ -63,11 +61,8 @@ def signature(vessel, preps) -> list[dict]:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
-    args = ap.parse_args()
-    if not DATA.is_dir():
-        print(f"the Esso recordings are not here ({DATA}): nothing to do")
+    args = esso_arguments(__doc__)
+    if args is None:
         return 0
     started = time.time()
     ship = vessel_mod.load("esso_osaka")

@@ -89,8 +89,9 @@ def markdown(rows: list[dict], seconds: float) -> str:
              "u / v / r (from measured states every 10 s; without wind, and with the anemometer's wind as a "
              "known input). The vessel file's `sensors.heading_rate_window_s` takes 1 s for this ship "
              "(0.5 s, the package's default, is for a 50-Hz AHRS).", "",
-             "| tests | yaw-rate window s | noise sd (MAD) rad/s | r sd rad/s | ceiling R² r | RMS to r_angvelo rad/s | "
-             "untuned, no wind | untuned, measured wind |", "|---|---|---|---|---|---|---|---|"]
+             "| tests | yaw-rate window s | noise sd (MAD) rad/s | r sd rad/s | ceiling R² r | "
+             "RMS to r_angvelo rad/s | untuned, no wind | untuned, measured wind |",
+             "|---|---|---|---|---|---|---|---|"]
     for row in rows:
         s = row["untuned"]
         fmt = lambda d: " / ".join(f"{d[k]:.3f}" for k in "uvr")  # noqa: E731
@@ -108,12 +109,20 @@ def markdown(rows: list[dict], seconds: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def esso_arguments(doc: str) -> argparse.Namespace | None:
+    """--out of an Esso script; None (said) when the recordings are not beside the project."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "docs")
     args = ap.parse_args()
     if not DATA.is_dir():
         print(f"the Esso recordings are not here ({DATA}): nothing to do")
+        return None
+    return args
+
+
+def main() -> int:
+    args = esso_arguments(__doc__)
+    if args is None:
         return 0
     started = time.time()
     rows = run(vessel_mod.load("esso_osaka"))
