@@ -1,7 +1,7 @@
 """Issue 16 item 4: the concealed wind on the Esso Osaka's tests, found by `twin diagnose` without
 the anemometer, then checked against it.
 
-    python scripts/diagnose_esso.py [--only NAME,...] [--out docs]
+    python scripts/diagnose_esso.py [--only NAME,...] [--out docs] [--hulls /tmp/esso_ident]
 
 Each test is diagnosed alone from the untuned `esso_osaka` twin; the diagnosis reads positions,
 heading and the propeller's and rudder's inputs, never the wind columns. Per test: the
@@ -18,6 +18,13 @@ Then, beside what the issue asks (each test alone), what a user with a day's tes
 `twin diagnose` on all tests of one day together, offered one constant wind for the day and a wind
 of each test's own (`wind_per_log`, fitted together, judged on the day's pooled blocks); each
 estimate compared with each test's anemometer mean and the day's (--by-day only runs this part).
+
+With --hulls DIR, each test is diagnosed instead from the twin `scripts/identify_esso.py` identified
+on the OTHER family of tests with their measured wind as a known input (DIR/esso_turn_measured.
+vessel.json for a random test, esso_random_measured for a turning one): the hull calibrated on runs
+whose wind was measured, as the issue's `--wind-measured` is meant for, then a new test diagnosed
+without its anemometer. No test's own data, wind or otherwise, reaches the twin it is diagnosed
+from. The report is written to esso_wind_diagnosis_calibrated.{md,json} beside the untuned one.
 """
 from __future__ import annotations
 
@@ -55,6 +62,19 @@ def anemometer(*preps) -> dict:
     north, east = air.mean(axis=0)
     return {"speed_m_s": float(math.hypot(north, east)), "from_deg": _from_deg(north, east),
             "scalar_mean_m_s": float(np.mean(np.hypot(air[:, 0], air[:, 1])))}
+
+
+def family_of(name: str) -> str:
+    return "random" if name.startswith("random") else "turn"
+
+
+def hull_for(name: str, hulls: Path | None, prior):
+    """The twin a test is diagnosed from: the prior, or the one identified on the other family with
+    measured wind (module docstring)."""
+    if hulls is None:
+        return prior
+    other = {"random": "turn", "turn": "random"}[family_of(name)]
+    return vessel_mod.load(str(hulls / f"esso_{other}_measured.vessel.json"))
 
 
 def _from_deg(air_north: float, air_east: float) -> float:
@@ -263,10 +283,16 @@ def _r2(m: dict | None) -> str:
     return "-" if not m or m.get("r2") is None else f"{m['r2']:.2f}"
 
 
-def markdown(rows: list[dict], s: dict) -> str:
-    lines = ["# The concealed wind on the Esso Osaka's tests (issue 16 item 4)", "",
-             "Written by `python scripts/diagnose_esso.py`. Each test diagnosed alone by `twin diagnose` from the "
-             "untuned `esso_osaka` twin, without the wind columns; its wind checked against the anemometer's mean "
+def markdown(rows: list[dict], s: dict, hulls: str | None = None) -> str:
+    source = ("untuned `esso_osaka` twin" if not hulls else
+              f"{hulls}: a random test from the twin identified on the turning tests, a turning test from the one "
+              "identified on the random tests, each with those tests' measured wind as a known input, so that no "
+              "test's own data reaches the twin it is diagnosed from")
+    lines = ["# The concealed wind on the Esso Osaka's tests (issue 16 item 4)" + (
+             ": from a hull calibrated on other tests" if hulls else ""), "",
+             f"Written by `python scripts/diagnose_esso.py{' --hulls DIR' if hulls else ''}`. Each test diagnosed "
+             f"alone by `twin diagnose` from {'the ' if not hulls else ''}{source}; the diagnosis reads no wind "
+             "column; its wind checked against the anemometer's mean "
              "true wind over the test: windy or calm by its mean speed, the estimate compared with its vector mean "
              "(speed, direction FROM, clockwise from the pond's x0 = north). Targets: "
              f"wind named on ≥ 70 % of the tests whose mean true wind is ≥ {WINDY_M_S} m/s, its direction within "
@@ -312,6 +338,8 @@ def main() -> int:
     ap.add_argument("--measured-evidence", action="store_true",
                     help="only each test's measured wind judged by the diagnosis's rule (rows and days kept from "
                          "--out's JSON)")
+    ap.add_argument("--hulls", type=Path, help="diagnose each test from the twin scripts/identify_esso.py identified "
+                    "on the other family with measured wind (its --work directory)")
     ap.add_argument("--by-day", action="store_true",
                     help="only the days' pooled diagnoses (the tests' rows are kept from --out's JSON)")
     args = ap.parse_args()
@@ -320,27 +348,36 @@ def main() -> int:
             print(f"error: {args.render}: no such file", file=sys.stderr)
             return 2
         old = json.loads(args.render.read_text())
-        return _write(args.out, old["tests"], old.get("days", []))
+        return _write(args.out, old["tests"], old.get("days", []), old.get("hulls"))
     if not DATA.is_dir():
         print(f"no Esso recordings at {DATA}: nothing to do")
         return 0
     only = {s.strip() for s in args.only.split(",") if s.strip()}
     prior = vessel_mod.load("esso_osaka")
+    hulls = None
+    if args.hulls:
+        missing = [f for f in ("esso_turn_measured.vessel.json", "esso_random_measured.vessel.json")
+                   if not (args.hulls / f).is_file()]
+        if missing:
+            print(f"error: {args.hulls}: no {', '.join(missing)} (run scripts/identify_esso.py --work "
+                  f"{args.hulls} first)", file=sys.stderr)
+            return 2
+        hulls = "the twin identified on the other family with measured wind (scripts/identify_esso.py)"
     paths = [p for p in sorted(DATA.glob("*.csv")) if p.name != DUPLICATE and (not only or p.name in only)]
     rows = []
     if args.measured_evidence:
-        old = json.loads((args.out / "esso_wind_diagnosis.json").read_text())
+        old = json.loads((args.out / f"{_stem(hulls)}.json").read_text())
         for r in old["tests"]:
             if not only or r["test"] in only:
-                r["measured_wind_evidence"] = measured_evidence(DATA / r["test"], prior)
+                r["measured_wind_evidence"] = measured_evidence(DATA / r["test"], hull_for(r["test"], args.hulls, prior))
                 print(f"{r['test']:40s} measured wind: {r['measured_wind_evidence']}", flush=True)
-        return _write(args.out, old["tests"], old.get("days", []))
+        return _write(args.out, old["tests"], old.get("days", []), hulls)
     if args.by_day:
-        previous = args.out / "esso_wind_diagnosis.json"
+        previous = args.out / f"{_stem(hulls)}.json"
         rows = json.loads(previous.read_text())["tests"] if previous.is_file() else []
     else:
         for path in paths:
-            rows.append(run_test(path, prior))
+            rows.append(run_test(path, hull_for(path.name, args.hulls, prior)))
             r = rows[-1]
             print(f"{r['test']:40s} anemometer {r['anemometer']['speed_m_s']:.2f} from "
                   f"{r['anemometer']['from_deg']:.0f}; named {','.join(r['named']) or '-'}; estimate {r['wind']}; "
@@ -352,20 +389,46 @@ def main() -> int:
     for day, group in by_day.items():
         if len(group) < 2:
             continue
-        days.append(run_day(day, group, prior))
+        days.append(run_day(day, group, hull_for(group[0].name, args.hulls, prior)))
         d = days[-1]
         print(f"{day}: {len(group)} tests; named {','.join(d['named']) or '-'}; estimate {d['wind']}; "
               f"{d['seconds']} s", flush=True)
-    return _write(args.out, rows, days)
+    return _write(args.out, rows, days, hulls)
 
 
-def _write(out: Path, rows: list[dict], days: list[dict]) -> int:
+def beside_untuned(untuned: dict, calibrated: dict) -> str:
+    """The calibrated hull's counts beside the untuned twin's (esso_wind_diagnosis.json)."""
+    def counts(d: dict) -> list[str]:
+        s, days = d["summary"], d.get("days_summary") or {}
+        return [f"{s['windy_named']} of {s['windy']}", f"{s['windy_estimate_agreeing_named_or_not']} of {s['windy']}",
+                f"{s.get('windy_measured_wind_earns', '-')} of {s['windy']}",
+                f"{days.get('windy_per_log_named', '-')} of {days.get('windy', '-')} "
+                f"({days.get('windy_per_log_named_agreeing', '-')} within the tolerances)",
+                ", ".join(sorted(set(s["other_effects_named"]) | set(days.get("other_effects_named", [])))) or "none"]
+    rows = [("untuned prior (esso_wind_diagnosis.md)", counts(untuned)),
+            ("hull identified on the other family with measured wind (this page)", counts(calibrated))]
+    lines = ["", "## Beside the untuned twin", "",
+             "| twin diagnosed from | wind named, per test | estimate within tolerance, per test | measured wind earns "
+             "its place, per test | each test's own wind named, by day | other effects named (the pond has no "
+             "current: any current is the wind's drift misattributed) |", "|---|---|---|---|---|---|"]
+    lines += [f"| {name} | " + " | ".join(c) + " |" for name, c in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _stem(hulls: str | None) -> str:
+    return "esso_wind_diagnosis" + ("_calibrated" if hulls else "")
+
+
+def _write(out: Path, rows: list[dict], days: list[dict], hulls: str | None = None) -> int:
     s = summary(rows)
     out.mkdir(parents=True, exist_ok=True)
-    payload = {"summary": s, "tests": rows, "days_summary": day_summary(days) if days else None, "days": days}
-    write_text_atomic(out / "esso_wind_diagnosis.json", json.dumps(payload, indent=1, default=float) + "\n")
-    text = markdown(rows, s) + (day_markdown(days, payload["days_summary"]) if days else "")
-    write_text_atomic(out / "esso_wind_diagnosis.md", text)
+    payload = {"summary": s, "hulls": hulls, "tests": rows, "days_summary": day_summary(days) if days else None,
+               "days": days}
+    write_text_atomic(out / f"{_stem(hulls)}.json", json.dumps(payload, indent=1, default=float) + "\n")
+    text = markdown(rows, s, hulls) + (day_markdown(days, payload["days_summary"]) if days else "")
+    if hulls and (out / "esso_wind_diagnosis.json").is_file():
+        text += beside_untuned(json.loads((out / "esso_wind_diagnosis.json").read_text()), payload)
+    write_text_atomic(out / f"{_stem(hulls)}.md", text)
     print(json.dumps(s))
     if days:
         print(json.dumps(payload["days_summary"]))
