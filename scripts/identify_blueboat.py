@@ -9,7 +9,9 @@ again, and judged on three runs it never saw; and what to expect on a new run.
 3. The named effects put into the twin, and `twin identify` again from it.
 4. Every twin, and seed 004's grey-boxes (one-step models simulated freely), judged on runs 225,
    226, 228: 10-s free runs from measured states every 2 s, with and without each log's compass
-   calibration (estimated from the log's own GNSS track, not from the twin).
+   calibration (estimated from the log's own GNSS track, not from the twin); where the final
+   twin's held-out misfit lies, by what the inputs do (idle, ahead, turning, spin, astern), beside
+   how many windows of each the training runs hold.
 5. What to expect on a new run: `twin identify` on all ten runs, its left-out scores run by run.
 
 The recordings (../shared/data/blueboat) have no licence: they are read in place, never copied;
@@ -32,7 +34,7 @@ from twin.diagnose.doctor import diagnose  # noqa: E402
 from twin.diagnose.report import answer  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
-from twin.fit.evaluate import TwinPredictor, evaluate  # noqa: E402
+from twin.fit.evaluate import MANOEUVRES, TwinPredictor, evaluate, misfit_by_manoeuvre  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.fit.windows import ModelCache  # noqa: E402
 from twin.ident.identify import (calibrate, format_choices, format_estimates, format_needed, identify,  # noqa: E402
@@ -82,6 +84,26 @@ def row(name: str, s: dict) -> str:
 
 HEAD = f"{'twin':30s} " + " ".join(f"{'R2 ' + d:>7s}" for d in DOFS) + "  " + " ".join(
     f"{'MAE ' + d:>7s}" for d in DOFS) + f" {'n':>6s}"
+
+
+def by_manoeuvre(vessel: vessel_mod.Vessel, recordings) -> dict:
+    """The twin's 10-s free-run misfit grouped by manoeuvre (twin.fit.evaluate.misfit_by_manoeuvre),
+    each log's compass calibration applied."""
+    v = calibrate(recordings, vessel)[0]
+    return misfit_by_manoeuvre(v, prepared(recordings, v), v, 10.0)
+
+
+def manoeuvre_table(held: dict, train: dict) -> list[str]:
+    head = f"{'manoeuvre':10s} {'training windows':>17s} {'held-out windows':>17s}" + "".join(
+        f" {'share of 1 - R2 ' + d:>18s}" for d in DOFS)
+    lines = [head, "-" * len(head)]
+    for name in MANOEUVRES:
+        h, t = held["groups"].get(name), train["groups"].get(name)
+        if h is None and t is None:
+            continue
+        lines.append(f"{name:10s} {t['windows'] if t else 0:17d} {h['windows'] if h else 0:17d}" + "".join(
+            f" {fmt(h['share'][d]) if h else '-':>18s}" for d in DOFS))
+    return lines
 
 
 def per_run_table(models: dict[str, dict]) -> list[str]:
@@ -142,6 +164,7 @@ def main() -> int:
     residual = diagnose(held, final)
     say(f"4. residual of the final twin on the held-out runs read in {time.time() - t0:.0f} s")
     held_calibrations = calibrate(held, final)[1]
+    manoeuvres = {"held": by_manoeuvre(final, held), "train": by_manoeuvre(final, train)}
 
     t0 = time.time()
     everything = identify(train + held, prior, sources=[str(p) for p in paths(TRAIN_RUNS + HELD_OUT_RUNS)])
@@ -150,7 +173,8 @@ def main() -> int:
 
     ctx = {"first": first, "found": found, "second": second, "final_name": list(models)[-1],
            "held": held_scores, "everything": everything, "expect_seconds": expect_seconds,
-           "seconds": time.time() - started, "residual": residual, "held_calibrations": held_calibrations}
+           "seconds": time.time() - started, "residual": residual, "held_calibrations": held_calibrations,
+           "manoeuvres": manoeuvres}
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "blueboat.md", markdown(ctx))
     write_text_atomic(args.out / "blueboat.json", json.dumps(summary(ctx), indent=1, default=str) + "\n")
@@ -165,6 +189,7 @@ def summary(ctx: dict) -> dict:
             "held_out": ctx["held"], "all_ten_runs": ctx["everything"].to_dict(),
             "held_out_residual": ctx["residual"].to_dict(),
             "held_out_calibrations": [c.to_dict() for c in ctx["held_calibrations"]],
+            "held_out_by_manoeuvre": ctx["manoeuvres"]["held"], "train_by_manoeuvre": ctx["manoeuvres"]["train"],
             "seconds": ctx["seconds"], "targets": TARGETS}
 
 
@@ -234,6 +259,12 @@ def markdown(ctx: dict) -> str:
         "",
         "Targets for the final twin (" + ctx["final_name"] + "): " + ", ".join(
             f"{d} ≥ {t} ({'met' if met[d] else 'not met'}: {fmt(final[d]['r2'])})" for d, t in TARGETS.items()) + ".",
+        "",
+        "Where the final twin's held-out misfit lies: 10-s free-run windows (every 2 s) grouped by what their "
+        "inputs do (twin.fit.evaluate.manoeuvres: from the thrust map alone), and per group its share of the "
+        "pooled misfit (the shares add up to 1 − R²), beside how many windows of each the seven training runs hold:",
+        "",
+        fence, *manoeuvre_table(ctx["manoeuvres"]["held"], ctx["manoeuvres"]["train"]), fence,
         "",
         "What the residual of the final twin on the held-out runs points at (`twin diagnose` of those runs, "
         "the twin fixed; its statements where no library effect earns its place):",

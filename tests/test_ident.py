@@ -12,7 +12,7 @@ from twin.errors import TwinError
 from twin.fit import simfit
 from twin.synth.dataset import PROFILES, SensorNoise, generate
 from twin.effects import parse_effect
-from twin.fit.evaluate import evaluate
+from twin.fit.evaluate import evaluate, manoeuvres, misfit_by_manoeuvre
 from twin.fit.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
 from twin.formats import read_recording, write_recording
@@ -113,6 +113,28 @@ def test_evaluate_tells_the_truth_from_a_wrong_twin(yellowfish_vessel):
     assert gap["free_run_10s"] > 0.02
     # the one-step metric barely tells them apart: why models are judged by free runs
     assert gap["one_step"] < gap["free_run_10s"] / 5
+
+
+def test_manoeuvres_read_what_the_inputs_ask(yellowfish_vessel):
+    pwm = np.array([[1500, 1500], [1700, 1700], [1700, 1300], [1300, 1300], [1700, 1500], [1520, 1480]])
+    assert list(manoeuvres(yellowfish_vessel, pwm)) == ["idle", "ahead", "spin", "astern", "turning", "idle"]
+    esso = vessel_mod.load("esso_osaka")
+    inputs = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, np.radians(20)], [-8.0, 0.0], [0.5, np.radians(35)]])
+    assert list(manoeuvres(esso, inputs)) == ["idle", "ahead", "turning", "astern", "idle"]
+
+
+def test_misfit_by_manoeuvre_adds_up_to_one_minus_r2_and_finds_the_wrong_yaw(yellowfish_vessel):
+    ds = generate(yellowfish_vessel, n_segments=3, seed=5, segment_s=(30, 40))
+    preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
+    wrong = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Nr=-60.0))
+    pooled = evaluate(wrong, preps, horizons={"h": 10.0})["h"]
+    split = misfit_by_manoeuvre(wrong, preps, yellowfish_vessel, 10.0)
+    assert split["diverged"] == 0 and sum(g["windows"] for g in split["groups"].values()) == split["windows"]
+    for d in ("u", "v", "r"):
+        assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
+    # a yaw damping twice too strong misses where the boat turns, not where it idles or runs straight
+    turning = sum(split["groups"][k]["share"]["r"] for k in ("turning", "spin") if k in split["groups"])
+    assert turning > 0.5 * (1.0 - pooled["r"]["r2"])
 
 
 def test_simulation_fit_recovers_the_truth_on_exact_data(yellowfish_vessel):

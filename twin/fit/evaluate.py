@@ -103,6 +103,79 @@ def error_growth(model: Predictor | Vessel, preps: list[Prepared], horizon_s: fl
     return inputs, growth
 
 
+# what a window's inputs do, for `misfit_by_manoeuvre`
+MANOEUVRES = ("idle", "ahead", "turning", "spin", "astern")
+POWERED_SHARE = 0.1  # of full thrust (or of the propeller's top speed): below it a thruster idles
+TURNING_RUDDER_DEG = 10.0  # a propeller-and-rudder ship turns beyond this rudder angle
+TURNING_THRUST_SHARE = 0.5  # twin thrusters turn when one delivers less than half the other's thrust
+
+
+def manoeuvres(vessel: Vessel, inputs: np.ndarray) -> np.ndarray:
+    """What each sample's inputs (PWM µs per thruster, or n rps and δ rad) ask of the vessel: one of
+    MANOEUVRES per row, from the thrust map alone (no state): idle (no thruster above POWERED_SHARE
+    of full thrust), spin (both, opposite ways), astern (net thrust backwards), turning (one
+    thruster below TURNING_THRUST_SHARE of the other; a rudder beyond TURNING_RUDDER_DEG), else
+    ahead."""
+    x = np.asarray(inputs, float).reshape(-1, 2)
+    th = vessel.thrusters
+    names = np.array(MANOEUVRES)
+    if th.kind == "propeller_rudder":
+        top = th.rps_max if th.rps_max else np.nanmax(np.abs(x[:, 0]), initial=0.0)
+        idle = np.abs(x[:, 0]) <= POWERED_SHARE * top
+        turning = np.abs(np.degrees(x[:, 1])) > TURNING_RUDDER_DEG
+        code = np.where(idle, 0, np.where(x[:, 0] < 0.0, 4, np.where(turning, 2, 1)))
+        return names[code]
+    thrust = th.thrust_from_pwm(x) if th.kind == "t200" else x
+    full = max((abs(b) for b in th.bounds() if np.isfinite(b)), default=0.0) or \
+        float(np.nanmax(np.abs(thrust), initial=0.0))
+    on = np.abs(thrust) > POWERED_SHARE * full
+    left, right = thrust[:, 0], thrust[:, 1]
+    spin = on.all(axis=1) & (np.sign(left) != np.sign(right))
+    weak, strong = np.minimum(np.abs(left), np.abs(right)), np.maximum(np.abs(left), np.abs(right))
+    turning = weak < TURNING_THRUST_SHARE * strong
+    code = np.where(~on.any(axis=1), 0, np.where(spin, 3, np.where(left + right < 0.0, 4, np.where(turning, 2, 1))))
+    return names[code]
+
+
+def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], vessel: Vessel, horizon_s: float,
+                        stride_s: float = 2.0, wind: str | None = None) -> dict:
+    """Where a free run's misfit lies: the windows of `horizon_s` grouped by what their inputs do
+    (each window's most frequent of `manoeuvres`), and per group the share of the pooled misfit of
+    u, v, r: Σ(predicted − measured)² over its predicted samples divided by the pooled Σ(measured −
+    mean)² of all windows, so the shares add up to 1 − R² (evaluate's pooled R², finite windows).
+    {"windows", "diverged", "groups": {manoeuvre: {"windows", "samples", "share": {u, v, r}}}}; a
+    window whose prediction blew up is counted in "diverged" and in no share. `vessel` classifies
+    the inputs (for a grey-box predictor, the vessel whose thrusters it is driven by)."""
+    if isinstance(model, Vessel):
+        model = TwinPredictor(model, ModelCache(), wind)
+    wins = horizon_windows(preps, horizon_s, stride_s)
+    out: dict = {"windows": len(wins), "diverged": 0, "groups": {}}
+    if not wins:
+        return out
+    pred, meas = _predictions(model, preps, wins)
+    pred, meas = pred[:, 1:], meas[:, 1:]
+    finite = ~np.any(np.isinf(pred), axis=(1, 2))
+    out["diverged"] = int(np.sum(~finite))
+    pairs = np.isfinite(meas) & ~np.isnan(pred) & finite[:, None, None]
+    y = np.where(pairs, meas, np.nan)
+    total = np.nansum((y - np.nanmean(y.reshape(-1, 3), axis=0)) ** 2, axis=(0, 1))
+    sq = np.where(pairs, (pred - meas) ** 2, 0.0)
+    kind = []
+    for w in wins:
+        labels, counts = np.unique(manoeuvres(vessel, preps[w.rec].pwm[w.start:w.start + w.n + 1]),
+                                   return_counts=True)
+        kind.append(max(zip(counts, [-MANOEUVRES.index(lab) for lab in labels]))[1])
+    kind = -np.array(kind)
+    for i, name in enumerate(MANOEUVRES):
+        sel = (kind == i) & finite
+        if sel.any():
+            sse = sq[sel].sum(axis=(0, 1))
+            out["groups"][name] = {"windows": int(sel.sum()), "samples": int(pairs[sel].any(axis=2).sum()),
+                                   "share": {d: float(sse[k] / total[k]) if total[k] > 0 else None
+                                             for k, d in enumerate(DOFS)}}
+    return out
+
+
 def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) -> tuple[np.ndarray, np.ndarray]:
     n_max = max(w.n for w in wins)
     pred = np.full((len(wins), n_max + 1, 3), np.nan)
