@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
-from twin.fit.evaluate import evaluate  # noqa: E402
+from twin.fit.evaluate import MANOEUVRES, evaluate, misfit_by_manoeuvre  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
@@ -68,7 +68,50 @@ def scores(v: vessel_mod.Vessel, recordings, wind: str | None) -> dict:
     for p in preps:
         out["tests"][log_name(p.settings.source)] = evaluate(calibrated, [p], stride_s=STRIDE_S, horizons=HORIZON,
                                                              wind=wind)["free_run_30s"]
+    out["by_manoeuvre"] = misfit_by_manoeuvre(calibrated, preps, calibrated, WINDOW_S, STRIDE_S, wind)
     return out
+
+
+def add_manoeuvres(work: Path) -> None:
+    """Each part's held-out misfit by manoeuvre, for parts written before scores() computed it: from
+    the part's saved twin and the prior, on the other family (the part's JSON rewritten)."""
+    prior = vessel_mod.load("esso_osaka")
+    for path in sorted(work.glob("esso_*_*.json")):
+        if path.name.endswith(".vessel.json"):
+            continue
+        part = json.loads(path.read_text())
+        wind = None if part["wind"] == "none" else "measured"
+        identified = vessel_mod.load(str(path.with_name(path.stem + ".vessel.json")))
+        tests = read(family(part["test"]))
+        for name, v in (("identified", identified), ("prior", prior)):
+            calibrated = calibrate(tests, v)[0]
+            part["held_out"][name]["by_manoeuvre"] = misfit_by_manoeuvre(
+                calibrated, prepared(tests, calibrated), calibrated, WINDOW_S, STRIDE_S, wind)
+        write_text_atomic(path, json.dumps(part, indent=1, default=float))
+        print(f"{path.name}: by manoeuvre added", flush=True)
+
+
+def manoeuvre_lines(parts: list[dict]) -> list[str]:
+    """Where each part's held-out misfit lies (twin.fit.evaluate.misfit_by_manoeuvre)."""
+    parts = [p for p in parts if "by_manoeuvre" in p["held_out"]["identified"]]
+    if not parts:
+        return []
+    lines = ["", "## Where the held-out misfit lies, by manoeuvre", "",
+             "30-s windows of the judged family grouped by what their inputs do (twin.fit.evaluate.manoeuvres: idle "
+             "below a tenth of the top propeller speed, astern for n < 0, turning beyond 10° of rudder, else ahead); "
+             "per group its share of the pooled misfit, which add up to 1 − R² (identified twin; the prior's in "
+             "brackets).", "",
+             "| identified on → judged on | wind | manoeuvre | windows | share of 1 − R² u | v | r |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for p in parts:
+        ident, prior = (p["held_out"][k]["by_manoeuvre"]["groups"] for k in ("identified", "prior"))
+        for name in MANOEUVRES:
+            if name not in ident:
+                continue
+            cells = " | ".join(f"{_share(ident[name]['share'][d])} ({_share(prior.get(name, {}).get('share', {}).get(d))})"
+                               for d in DOFS)
+            lines.append(f"| {p['train']} → {p['test']} | {p['wind']} | {name} | {ident[name]['windows']} | {cells} |")
+    return lines
 
 
 def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beliefs: tuple[float, ...] = BELIEFS
@@ -94,6 +137,10 @@ def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beli
 
 def fmt(x) -> str:
     return "-" if x is None else f"{x:.2f}"
+
+
+def _share(x) -> str:
+    return "-" if x is None else f"{x:.3f}"
 
 
 def r2_cells(metrics: dict) -> str:
@@ -130,6 +177,7 @@ def report(parts: list[dict]) -> str:
         lines.append(f"| {p['train']} | {p['test']} | {p['wind']} | {r2_cells(h['prior']['pooled'])} | "
                      f"{r2_cells(h['identified']['pooled'])} | {met(h['identified']['pooled'])} | "
                      f"{', '.join(p['free_groups'])} |")
+    lines += manoeuvre_lines(parts)
     lines += ["", "## Leave one test out within the training family (identify's own jackknife refits, pooled R²)", "",
               "| family | wind | prior | identified |", "| --- | --- | --- | --- |"]
     for p in parts:
@@ -176,7 +224,8 @@ def reading(parts: list[dict]) -> list[str]:
         change = ", ".join(f"{d} {prior[d]['r2']:.2f} → {ident[d]['r2']:.2f}" for d in DOFS)
         out.append(f"* Identified on the {p['train']} tests, wind {p['wind']}, judged on the {p['test']} tests "
                    f"(pooled R², prior → identified): {change}. Targets "
-                   + ("all met." if not missed else f"not met for {', '.join(missed)}."))
+                   + ("all met." if not missed else f"not met for {', '.join(missed)}.")
+                   + "".join(_where(h, d) for d in missed))
     out += ["* R² of one test alone is low wherever that test barely varies: a steady turn holds r nearly "
             "constant, so its own R² of r measures the scatter about a constant and can be poor while the "
             "absolute error (MAE, in the JSON) stays small; the pooled figures (all tests' samples together) "
@@ -191,6 +240,22 @@ def reading(parts: list[dict]) -> list[str]:
             "to set beside these numbers, so none is compared here.",
             ""]
     return out
+
+
+def _where(held: dict, dof: str) -> str:
+    """Which manoeuvre holds the largest share of a missed DOF's held-out misfit, and what
+    identification did to that share."""
+    if "by_manoeuvre" not in held["identified"]:
+        return ""
+    ident, prior = (held[k]["by_manoeuvre"]["groups"] for k in ("identified", "prior"))
+    shares = {k: g["share"][dof] for k, g in ident.items() if g["share"][dof] is not None}
+    if not shares:
+        return ""
+    worst = max(shares, key=shares.get)
+    before = prior.get(worst, {}).get("share", {}).get(dof)
+    total = sum(shares.values())
+    return (f" Of {dof}'s misfit (1 − R² {total:.3f}), {shares[worst]:.3f} lies in the {ident[worst]['windows']} "
+            f"{worst} windows" + ("" if before is None else f" (prior: {before:.3f})") + ".")
 
 
 def _count(tests: dict, dof: str) -> int:
@@ -211,12 +276,16 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("/tmp/esso_ident"))
     ap.add_argument("--out", type=Path, default=ROOT / "docs")
     ap.add_argument("--report-only", action="store_true", help="write the report from the parts in --work")
+    ap.add_argument("--manoeuvres", action="store_true",
+                    help="add each part's held-out misfit by manoeuvre to the parts in --work, then report")
     args = ap.parse_args()
     if not DATA.is_dir():
         print(f"no Esso data at {DATA}: nothing to do")
         return 0
     args.work.mkdir(parents=True, exist_ok=True)
-    if not args.report_only:
+    if args.manoeuvres:
+        add_manoeuvres(args.work)
+    elif not args.report_only:
         for spec in args.parts.split(","):
             train, _, wind = spec.partition(":")
             if train not in OTHER or wind not in ("none", "measured"):
