@@ -48,9 +48,16 @@ def test_identify_then_evaluate(dataset):
                 "--rrd", dataset / "eval.rrd")
     assert done.returncode == 0, done.stderr
     assert (dataset / "eval.rrd").stat().st_size > 1000
-    metrics = json.loads((dataset / "eval.json").read_text())["metrics"]
+    report = json.loads((dataset / "eval.json").read_text())
+    metrics = report["metrics"]
     assert set(metrics) == {"one_step", "free_run_10s", "free_run_30s", "full"}
     assert metrics["free_run_10s"]["u"]["r2"] > 0.95 and set(metrics["full"]["r"]) >= {"r2", "mae"}
+    # where the 10-s free runs miss: the groups' shares add up to 1 − R² of the 10-s free runs
+    split = report["by_manoeuvre_10s"]
+    assert "where the 10-s free runs miss" in done.stdout and split["groups"]
+    for d in ("u", "v", "r"):
+        total = sum(g["share"][d] for g in split["groups"].values())
+        assert total == pytest.approx(1.0 - metrics["free_run_10s"][d]["r2"], rel=1e-6, abs=1e-9)
 
 
 def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:

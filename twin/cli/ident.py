@@ -158,9 +158,10 @@ def evaluate_command(
     ray: Optional[str] = typer.Option(None, help="--band: run the draws on Ray (auto, local or an address)"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
-    log's own compass calibration; with --band, the share of the recording inside the prediction band
-    of the identified uncertainty."""
-    from ..fit.evaluate import evaluate, format_metrics
+    log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
+    spin, astern: each one's share of 1 − R²); with --band, the share of the recording inside the
+    prediction band of the identified uncertainty."""
+    from ..fit.evaluate import evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..ident.identify import calibrate, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
@@ -180,30 +181,33 @@ def evaluate_command(
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations]}
     names = ", ".join(p.name for p in recordings)
+    used = calibrated if calibration else v
     with progress_bar("evaluate") as progress:
-        progress("without calibration", 0, 2)
+        progress("without calibration", 0, 3)
         out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride)
-        progress("with each log's calibration", 1, 2)
+        progress("with each log's calibration", 1, 3)
         out["metrics"] = evaluate(calibrated, prepared(recs, calibrated), stride_s=stride) if calibration \
             else out["metrics_uncalibrated"]
+        progress("by manoeuvre", 2, 3)
+        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(used, prepared(recs, used), used, 10.0, stride)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))
     if calibration:
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
+    typer.echo(format_by_manoeuvre(out["by_manoeuvre_10s"], "where the 10-s free runs miss, by what the inputs ask "
+                                                            "(each group's share of 1 − R²; the shares add up to it)"))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel
         from ..outputs import write
         from ..replay import free_run_views
 
-        used = calibrated if calibration else v
         write(free_run_views(used, prepared(recs, used)), rrd, geometry=compile_vessel(v).geometry, vessel_name=v.name,
               mjcf=v.mjcf)
         say(f"wrote {rrd} (open with: rerun {rrd})")
     if band:
         from ..scale.montecarlo import band_coverage
 
-        used = calibrated if calibration else v
         with progress_bar("band") as progress:
             coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,
                                      executor=executor, progress=progress)

@@ -192,6 +192,20 @@ def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) ->
     return pred, meas
 
 
+def format_by_manoeuvre(split: dict, title: str = "") -> str:
+    """misfit_by_manoeuvre's groups as rows: windows and each DOF's share of 1 − R², ≤ 100 columns."""
+    head = f"{'manoeuvre':10s}{'windows':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
+    lines = ([title] if title else []) + [head, "-" * len(head)]
+    for name in MANOEUVRES:
+        g = split["groups"].get(name)
+        if g is not None:
+            shares = ["-" if g["share"][d] is None else f"{g['share'][d]:.3f}" for d in DOFS]
+            lines.append(f"{name:10s}{g['windows']:9d}" + "".join(f"{x:>10s}" for x in shares))
+    if split.get("diverged"):
+        lines.append(f"{split['diverged']} windows diverged and are in no group")
+    return "\n".join(lines)
+
+
 def format_metrics(metrics: dict, title: str = "") -> str:
     """Rows per horizon, R² and MAE per DOF, ≤ 100 columns."""
     head = f"{'horizon':14s}" + "".join(f"{'R2 ' + d:>9s}{'MAE ' + d:>10s}" for d in DOFS)
