@@ -29,6 +29,7 @@ from. The report is written to esso_wind_diagnosis_calibrated.{md,json} beside t
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import sys
@@ -43,6 +44,7 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose, measured_wind_evidence  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
+from twin.errors import TwinError  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import evaluate  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
@@ -68,13 +70,24 @@ def family_of(name: str) -> str:
     return "random" if name.startswith("random") else "turn"
 
 
-def hull_for(name: str, hulls: Path | None, prior):
-    """The twin a test is diagnosed from: the prior, or the one identified on the other family with
-    measured wind (module docstring)."""
-    if hulls is None:
-        return prior
-    other = {"random": "turn", "turn": "random"}[family_of(name)]
-    return vessel_mod.load(str(hulls / f"esso_{other}_measured.vessel.json"))
+HULL_FILES = {"random": "esso_turn_measured.vessel.json", "turn": "esso_random_measured.vessel.json"}
+
+
+def load_hulls(directory: Path) -> dict:
+    """The twin each family is diagnosed from (module docstring), with where it came from: {family:
+    (vessel, {"file", "sha256"})}. TwinError when a file is missing or not a vessel."""
+    out = {}
+    for fam, name in HULL_FILES.items():
+        path = directory / name
+        if not path.is_file():
+            raise TwinError(f"{directory}: no {name} (run scripts/identify_esso.py --work {directory} first)")
+        out[fam] = (vessel_mod.load(str(path)), {"file": name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    return out
+
+
+def hull_for(name: str, hulls: dict | None, prior):
+    """The twin a test is diagnosed from: the prior, or its family's entry of load_hulls."""
+    return prior if hulls is None else hulls[family_of(name)][0]
 
 
 def _from_deg(air_north: float, air_east: float) -> float:
@@ -354,22 +367,27 @@ def main() -> int:
         return 0
     only = {s.strip() for s in args.only.split(",") if s.strip()}
     prior = vessel_mod.load("esso_osaka")
-    hulls = None
+    hulls, twins = None, None
     if args.hulls:
-        missing = [f for f in ("esso_turn_measured.vessel.json", "esso_random_measured.vessel.json")
-                   if not (args.hulls / f).is_file()]
-        if missing:
-            print(f"error: {args.hulls}: no {', '.join(missing)} (run scripts/identify_esso.py --work "
-                  f"{args.hulls} first)", file=sys.stderr)
+        try:
+            twins = load_hulls(args.hulls)
+        except TwinError as exc:
+            print(f"error: {exc}", file=sys.stderr)
             return 2
-        hulls = "the twin identified on the other family with measured wind (scripts/identify_esso.py)"
+        hulls = ("the twin identified on the other family with measured wind (scripts/identify_esso.py; "
+                 + "; ".join(f"{fam} tests from {info['file']}, sha256 {info['sha256'][:12]}"
+                             for fam, (_, info) in twins.items()) + ")")
     paths = [p for p in sorted(DATA.glob("*.csv")) if p.name != DUPLICATE and (not only or p.name in only)]
     rows = []
     if args.measured_evidence:
-        old = json.loads((args.out / f"{_stem(hulls)}.json").read_text())
+        previous = args.out / f"{_stem(hulls)}.json"
+        if not previous.is_file():
+            print(f"error: {previous}: no such file (run the diagnosis first)", file=sys.stderr)
+            return 2
+        old = json.loads(previous.read_text())
         for r in old["tests"]:
             if not only or r["test"] in only:
-                r["measured_wind_evidence"] = measured_evidence(DATA / r["test"], hull_for(r["test"], args.hulls, prior))
+                r["measured_wind_evidence"] = measured_evidence(DATA / r["test"], hull_for(r["test"], twins, prior))
                 print(f"{r['test']:40s} measured wind: {r['measured_wind_evidence']}", flush=True)
         return _write(args.out, old["tests"], old.get("days", []), hulls)
     if args.by_day:
@@ -377,7 +395,7 @@ def main() -> int:
         rows = json.loads(previous.read_text())["tests"] if previous.is_file() else []
     else:
         for path in paths:
-            rows.append(run_test(path, hull_for(path.name, args.hulls, prior)))
+            rows.append(run_test(path, hull_for(path.name, twins, prior)))
             r = rows[-1]
             print(f"{r['test']:40s} anemometer {r['anemometer']['speed_m_s']:.2f} from "
                   f"{r['anemometer']['from_deg']:.0f}; named {','.join(r['named']) or '-'}; estimate {r['wind']}; "
@@ -389,7 +407,10 @@ def main() -> int:
     for day, group in by_day.items():
         if len(group) < 2:
             continue
-        days.append(run_day(day, group, hull_for(group[0].name, args.hulls, prior)))
+        if twins and len({family_of(p.name) for p in group}) > 1:
+            print(f"{day}: tests of both families, no one hull to diagnose them from: skipped", flush=True)
+            continue
+        days.append(run_day(day, group, hull_for(group[0].name, twins, prior)))
         d = days[-1]
         print(f"{day}: {len(group)} tests; named {','.join(d['named']) or '-'}; estimate {d['wind']}; "
               f"{d['seconds']} s", flush=True)

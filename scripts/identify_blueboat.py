@@ -90,7 +90,7 @@ def by_manoeuvre(vessel: vessel_mod.Vessel, recordings) -> dict:
     """The twin's 10-s free-run misfit grouped by manoeuvre (twin.fit.evaluate.misfit_by_manoeuvre),
     each log's compass calibration applied."""
     v = calibrate(recordings, vessel)[0]
-    return misfit_by_manoeuvre(v, prepared(recordings, v), v, 10.0)
+    return misfit_by_manoeuvre(v, prepared(recordings, v), 10.0)
 
 
 def manoeuvre_table(held: dict, train: dict) -> list[str]:

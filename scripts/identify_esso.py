@@ -68,17 +68,20 @@ def scores(v: vessel_mod.Vessel, recordings, wind: str | None) -> dict:
     for p in preps:
         out["tests"][log_name(p.settings.source)] = evaluate(calibrated, [p], stride_s=STRIDE_S, horizons=HORIZON,
                                                              wind=wind)["free_run_30s"]
-    out["by_manoeuvre"] = misfit_by_manoeuvre(calibrated, preps, calibrated, WINDOW_S, STRIDE_S, wind)
+    out["by_manoeuvre"] = misfit_by_manoeuvre(calibrated, preps, WINDOW_S, STRIDE_S, wind)
     return out
+
+
+def _part_files(work: Path) -> list[Path]:
+    """The parts' JSON files in `work` (not their twins')."""
+    return [p for p in sorted(work.glob("esso_*_*.json")) if not p.name.endswith(".vessel.json")]
 
 
 def add_manoeuvres(work: Path) -> None:
     """Each part's held-out misfit by manoeuvre, for parts written before scores() computed it: from
     the part's saved twin and the prior, on the other family (the part's JSON rewritten)."""
     prior = vessel_mod.load("esso_osaka")
-    for path in sorted(work.glob("esso_*_*.json")):
-        if path.name.endswith(".vessel.json"):
-            continue
+    for path in _part_files(work):
         part = json.loads(path.read_text())
         wind = None if part["wind"] == "none" else "measured"
         identified = vessel_mod.load(str(path.with_name(path.stem + ".vessel.json")))
@@ -86,7 +89,7 @@ def add_manoeuvres(work: Path) -> None:
         for name, v in (("identified", identified), ("prior", prior)):
             calibrated = calibrate(tests, v)[0]
             part["held_out"][name]["by_manoeuvre"] = misfit_by_manoeuvre(
-                calibrated, prepared(tests, calibrated), calibrated, WINDOW_S, STRIDE_S, wind)
+                calibrated, prepared(tests, calibrated), WINDOW_S, STRIDE_S, wind)
         write_text_atomic(path, json.dumps(part, indent=1, default=float))
         print(f"{path.name}: by manoeuvre added", flush=True)
 
@@ -277,14 +280,22 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "docs")
     ap.add_argument("--report-only", action="store_true", help="write the report from the parts in --work")
     ap.add_argument("--manoeuvres", action="store_true",
-                    help="add each part's held-out misfit by manoeuvre to the parts in --work, then report")
+                    help="add each part's held-out misfit by manoeuvre to the parts already in --work (no part is "
+                         "run), then report")
     args = ap.parse_args()
     if not DATA.is_dir():
         print(f"no Esso data at {DATA}: nothing to do")
         return 0
+    if (args.manoeuvres or args.report_only) and not _part_files(args.work):
+        print(f"error: {args.work}: no parts to report (run the parts first, or give their --work)", file=sys.stderr)
+        return 2
     args.work.mkdir(parents=True, exist_ok=True)
     if args.manoeuvres:
-        add_manoeuvres(args.work)
+        try:
+            add_manoeuvres(args.work)
+        except (TwinError, KeyError, ValueError) as exc:  # a part or twin file this script did not write
+            print(f"error: {args.work}: a part cannot be read ({exc})", file=sys.stderr)
+            return 2
     elif not args.report_only:
         for spec in args.parts.split(","):
             train, _, wind = spec.partition(":")
@@ -300,8 +311,11 @@ def main() -> int:
             print(f"part {spec} done", flush=True)
     order = {(f, w): i for i, (f, w) in enumerate([("turn", "none"), ("turn", "measured"), ("random", "none"),
                                                     ("random", "measured")])}
-    parts = [json.loads(p.read_text()) for p in sorted(args.work.glob("esso_*_*.json"))
-             if not p.name.endswith(".vessel.json")]
+    try:
+        parts = [json.loads(p.read_text()) for p in _part_files(args.work)]
+    except ValueError as exc:
+        print(f"error: {args.work}: a part cannot be read ({exc})", file=sys.stderr)
+        return 2
     parts.sort(key=lambda p: order.get((p["train"], p["wind"]), 9))
     write_text_atomic(args.out / "esso_identification.md", report(parts))
     summary = [{k: p[k] for k in ("train", "test", "wind", "chosen", "free_groups", "estimates", "leave_one_out",

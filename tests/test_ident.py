@@ -12,7 +12,7 @@ from twin.errors import TwinError
 from twin.fit import simfit
 from twin.synth.dataset import PROFILES, SensorNoise, generate
 from twin.effects import parse_effect
-from twin.fit.evaluate import evaluate, manoeuvres, misfit_by_manoeuvre
+from twin.fit.evaluate import TwinPredictor, evaluate, manoeuvres, misfit_by_manoeuvre
 from twin.fit.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
 from twin.formats import read_recording, write_recording
@@ -128,13 +128,52 @@ def test_misfit_by_manoeuvre_adds_up_to_one_minus_r2_and_finds_the_wrong_yaw(yel
     preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
     wrong = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Nr=-60.0))
     pooled = evaluate(wrong, preps, horizons={"h": 10.0})["h"]
-    split = misfit_by_manoeuvre(wrong, preps, yellowfish_vessel, 10.0)
+    split = misfit_by_manoeuvre(wrong, preps, 10.0)
     assert split["diverged"] == 0 and sum(g["windows"] for g in split["groups"].values()) == split["windows"]
     for d in ("u", "v", "r"):
         assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
     # a yaw damping twice too strong misses where the boat turns, not where it idles or runs straight
     turning = sum(split["groups"][k]["share"]["r"] for k in ("turning", "spin") if k in split["groups"])
     assert turning > 0.5 * (1.0 - pooled["r"]["r2"])
+
+
+def test_manoeuvres_read_a_window_the_same_whatever_else_is_recorded(yellowfish_vessel):
+    esso = vessel_mod.load("esso_osaka")
+    no_top = replace(esso, thrusters=replace(esso.thrusters, rps_max=None))
+    slow = np.array([[0.5, 0.0]] * 3)
+    # without a top speed in the vessel "full" is what the recordings reach, taken once for all of them
+    assert list(manoeuvres(no_top, slow)) == ["ahead"] * 3
+    assert list(manoeuvres(no_top, slow, scale=10.0)) == ["idle"] * 3
+    assert list(manoeuvres(no_top, np.vstack([slow, [[10.0, 0.0]]]))[:3]) == ["idle"] * 3
+    # a missing input drives nothing, for either kind of vessel
+    assert list(manoeuvres(yellowfish_vessel, np.array([[np.nan, np.nan]]))) == ["idle"]
+    assert list(manoeuvres(esso, np.array([[np.nan, 0.3]]))) == ["idle"]
+
+
+class _BlowsUp:
+    """A predictor whose first window of every batch diverges."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def predict_windows(self, prep, starts, n_steps):
+        out = self.inner.predict_windows(prep, starts, n_steps)
+        out[0, 1:] = np.inf
+        return out
+
+
+def test_a_diverged_window_is_counted_in_its_group_and_in_no_share(yellowfish_vessel):
+    ds = generate(yellowfish_vessel, n_segments=2, seed=6, segment_s=(30, 40))
+    preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
+    split = misfit_by_manoeuvre(_BlowsUp(TwinPredictor(yellowfish_vessel)), preps, 10.0, vessel=yellowfish_vessel)
+    assert split["diverged"] >= 1
+    assert sum(g["diverged"] for g in split["groups"].values()) == split["diverged"]
+    assert sum(g["windows"] for g in split["groups"].values()) == split["windows"]
+    for d in ("u", "v", "r"):
+        assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - split["r2"][d], rel=1e-9)
+        assert np.isfinite(split["r2"][d])
+    with pytest.raises(TwinError):
+        misfit_by_manoeuvre(_BlowsUp(TwinPredictor(yellowfish_vessel)), preps, 10.0)
 
 
 def test_simulation_fit_recovers_the_truth_on_exact_data(yellowfish_vessel):

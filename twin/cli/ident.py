@@ -161,7 +161,8 @@ def evaluate_command(
     log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
     spin, astern: each one's share of 1 − R²); with --band, the share of the recording inside the
     prediction band of the identified uncertainty."""
-    from ..fit.evaluate import evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
+    from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
+    from ..fit.windows import ModelCache
     from ..ident.identify import calibrate, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
@@ -186,17 +187,19 @@ def evaluate_command(
         progress("without calibration", 0, 3)
         out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride)
         progress("with each log's calibration", 1, 3)
-        out["metrics"] = evaluate(calibrated, prepared(recs, calibrated), stride_s=stride) if calibration \
-            else out["metrics_uncalibrated"]
+        cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
+        out["metrics"] = evaluate(TwinPredictor(calibrated, cache), prepared(recs, calibrated), stride_s=stride) \
+            if calibration else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, 3)
-        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(used, prepared(recs, used), used, 10.0, stride)
+        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache), prepared(recs, used), 10.0, stride,
+                                                      vessel=used)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))
     if calibration:
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre_10s"], "where the 10-s free runs miss, by what the inputs ask "
-                                                            "(each group's share of 1 − R²; the shares add up to it)"))
+                                                            "(each group's share of 1 − R²)"))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel
         from ..outputs import write

@@ -9,6 +9,10 @@
 Every model is a predictor with `predict_windows(prep, starts, n_steps) -> (W, n+1, 3)`
 (ν̂ with index 0 the measured start): the grey-box models of seed 004 implement it,
 and `TwinPredictor` wraps a vessel description on the batch engine.
+
+Where a model misses, beside how much: `error_growth` (how each window's error grows, with its
+inputs: a missing force builds whenever the same inputs recur) and `misfit_by_manoeuvre` (each
+manoeuvre's share of 1 − R²: idle, ahead, turning, spin, astern, read from the inputs alone).
 """
 from __future__ import annotations
 
@@ -17,6 +21,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
 from .metrics import DOFS, r2_mae
@@ -105,75 +110,118 @@ def error_growth(model: Predictor | Vessel, preps: list[Prepared], horizon_s: fl
 
 # what a window's inputs do, for `misfit_by_manoeuvre`
 MANOEUVRES = ("idle", "ahead", "turning", "spin", "astern")
-POWERED_SHARE = 0.1  # of full thrust (or of the propeller's top speed): below it a thruster idles
-TURNING_RUDDER_DEG = 10.0  # a propeller-and-rudder ship turns beyond this rudder angle
-TURNING_THRUST_SHARE = 0.5  # twin thrusters turn when one delivers less than half the other's thrust
+# a tenth of full thrust (or of the top propeller speed) moves a small boat at a few cm/s: below it
+# the inputs hold the boat, they do not drive it
+POWERED_SHARE = 0.1
+# below 10° a rudder holds a course against small disturbances; beyond it the ship is turned
+TURNING_RUDDER_DEG = 10.0
+# twin thrusters steer by their difference: one at less than half the other's thrust turns the boat
+# about as hard as its rudder-steered cousin beyond 10°
+TURNING_THRUST_SHARE = 0.5
 
 
-def manoeuvres(vessel: Vessel, inputs: np.ndarray) -> np.ndarray:
+def _filled(vessel: Vessel, inputs: np.ndarray) -> np.ndarray:
+    """The inputs as (n, 2) floats, a missing one (NaN) at what drives nothing: the PWM map's neutral
+    pulse, or zero thrust, rps and rudder."""
+    th = vessel.thrusters
+    neutral = th.pwm_offset * th.pwm_scale_us if th.kind == "t200" else 0.0
+    return np.nan_to_num(np.asarray(inputs, float).reshape(-1, 2), nan=neutral)
+
+
+def input_scale(vessel: Vessel, inputs: np.ndarray) -> float:
+    """What "full" means for `manoeuvres`: full thrust (N) of a thruster, or the top propeller speed
+    (rps), from the vessel where it says, otherwise the largest in `inputs` (all the recordings
+    judged, so that a window is classified the same way whatever else it holds)."""
+    th = vessel.thrusters
+    x = _filled(vessel, inputs)
+    if th.kind == "propeller_rudder":
+        return float(th.rps_max) if th.rps_max else float(np.max(np.abs(x[:, 0]), initial=0.0))
+    bound = max((abs(b) for b in th.bounds() if np.isfinite(b)), default=0.0)
+    thrust = th.thrust_from_pwm(x) if th.kind == "t200" else x
+    return float(bound or (th.command_scale_n or 0.0) or np.max(np.abs(thrust), initial=0.0))
+
+
+def manoeuvres(vessel: Vessel, inputs: np.ndarray, scale: float | None = None) -> np.ndarray:
     """What each sample's inputs (PWM µs per thruster, or n rps and δ rad) ask of the vessel: one of
     MANOEUVRES per row, from the thrust map alone (no state): idle (no thruster above POWERED_SHARE
     of full thrust), spin (both, opposite ways), astern (net thrust backwards), turning (one
     thruster below TURNING_THRUST_SHARE of the other; a rudder beyond TURNING_RUDDER_DEG), else
-    ahead."""
-    x = np.asarray(inputs, float).reshape(-1, 2)
+    ahead. A missing input (NaN) reads as idle. `scale`: input_scale's "full" (default: from these
+    inputs)."""
+    return np.array(MANOEUVRES)[_manoeuvre_codes(vessel, inputs, scale)]
+
+
+def _manoeuvre_codes(vessel: Vessel, inputs: np.ndarray, scale: float | None) -> np.ndarray:
+    x = _filled(vessel, inputs)
+    full = input_scale(vessel, x) if scale is None else scale
     th = vessel.thrusters
-    names = np.array(MANOEUVRES)
     if th.kind == "propeller_rudder":
-        top = th.rps_max if th.rps_max else np.nanmax(np.abs(x[:, 0]), initial=0.0)
-        idle = np.abs(x[:, 0]) <= POWERED_SHARE * top
+        idle = np.abs(x[:, 0]) <= POWERED_SHARE * full
         turning = np.abs(np.degrees(x[:, 1])) > TURNING_RUDDER_DEG
-        code = np.where(idle, 0, np.where(x[:, 0] < 0.0, 4, np.where(turning, 2, 1)))
-        return names[code]
+        return np.where(idle, 0, np.where(x[:, 0] < 0.0, 4, np.where(turning, 2, 1)))
     thrust = th.thrust_from_pwm(x) if th.kind == "t200" else x
-    full = max((abs(b) for b in th.bounds() if np.isfinite(b)), default=0.0) or \
-        float(np.nanmax(np.abs(thrust), initial=0.0))
     on = np.abs(thrust) > POWERED_SHARE * full
     left, right = thrust[:, 0], thrust[:, 1]
     spin = on.all(axis=1) & (np.sign(left) != np.sign(right))
-    weak, strong = np.minimum(np.abs(left), np.abs(right)), np.maximum(np.abs(left), np.abs(right))
-    turning = weak < TURNING_THRUST_SHARE * strong
-    code = np.where(~on.any(axis=1), 0, np.where(spin, 3, np.where(left + right < 0.0, 4, np.where(turning, 2, 1))))
-    return names[code]
+    turning = np.minimum(np.abs(left), np.abs(right)) < TURNING_THRUST_SHARE * np.maximum(np.abs(left), np.abs(right))
+    return np.where(~on.any(axis=1), 0, np.where(spin, 3, np.where(left + right < 0.0, 4, np.where(turning, 2, 1))))
 
 
-def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], vessel: Vessel, horizon_s: float,
-                        stride_s: float = 2.0, wind: str | None = None) -> dict:
-    """Where a free run's misfit lies: the windows of `horizon_s` grouped by what their inputs do
-    (each window's most frequent of `manoeuvres`), and per group the share of the pooled misfit of
-    u, v, r: Σ(predicted − measured)² over its predicted samples divided by the pooled Σ(measured −
-    mean)² of all windows, so the shares add up to 1 − R² (evaluate's pooled R², finite windows).
-    {"windows", "diverged", "groups": {manoeuvre: {"windows", "samples", "share": {u, v, r}}}}; a
-    window whose prediction blew up is counted in "diverged" and in no share. `vessel` classifies
-    the inputs (for a grey-box predictor, the vessel whose thrusters it is driven by)."""
+def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, stride_s: float = 2.0,
+                        wind: str | None = None, vessel: Vessel | None = None) -> dict:
+    """Where a free run's misfit lies: the windows of `horizon_s` grouped by what their inputs ask
+    (each window's most frequent of `manoeuvres`; a tie goes to the first in MANOEUVRES), and per
+    group its share of the pooled misfit of u, v, r: Σ(predicted − measured)² over its predicted
+    samples divided by the pooled Σ(measured − mean)² of the windows that did not blow up, so the
+    shares add up to 1 − R² of those windows (`r2`; evaluate's R², unless a window diverged, when
+    evaluate has none). {"windows", "diverged", "r2": {u, v, r}, "groups": {manoeuvre: {"windows",
+    "diverged", "samples", "share": {u, v, r}}}}. A group's windows are its share of the time; its
+    share per window says where the twin misses most. `vessel` classifies the inputs (default: the
+    model when it is a Vessel; for a grey-box predictor, the vessel whose thrusters drive it);
+    `wind` applies to a Vessel given as the model (a Predictor carries its own)."""
     if isinstance(model, Vessel):
+        vessel = vessel or model
         model = TwinPredictor(model, ModelCache(), wind)
+    if vessel is None:
+        raise TwinError("misfit_by_manoeuvre needs the vessel whose thrusters drive the predictor")
     wins = horizon_windows(preps, horizon_s, stride_s)
-    out: dict = {"windows": len(wins), "diverged": 0, "groups": {}}
+    out: dict = {"windows": len(wins), "diverged": 0, "r2": {d: None for d in DOFS}, "groups": {}}
     if not wins:
         return out
     pred, meas = _predictions(model, preps, wins)
-    pred, meas = pred[:, 1:], meas[:, 1:]
-    finite = ~np.any(np.isinf(pred), axis=(1, 2))
+    kind = _window_manoeuvres(vessel, preps, wins)
+    finite = ~np.any(np.isinf(pred[:, 1:]), axis=(1, 2))
     out["diverged"] = int(np.sum(~finite))
-    pairs = np.isfinite(meas) & ~np.isnan(pred) & finite[:, None, None]
-    y = np.where(pairs, meas, np.nan)
-    total = np.nansum((y - np.nanmean(y.reshape(-1, 3), axis=0)) ** 2, axis=(0, 1))
-    sq = np.where(pairs, (pred - meas) ** 2, 0.0)
-    kind = []
-    for w in wins:
-        labels, counts = np.unique(manoeuvres(vessel, preps[w.rec].pwm[w.start:w.start + w.n + 1]),
-                                   return_counts=True)
-        kind.append(max(zip(counts, [-MANOEUVRES.index(lab) for lab in labels]))[1])
-    kind = -np.array(kind)
+    sq, total = _squares(pred[:, 1:], meas[:, 1:], finite)
+    out["r2"] = {d: (1.0 - float(sq[:, :, k].sum() / total[k])) if total[k] > 0 else None for k, d in enumerate(DOFS)}
     for i, name in enumerate(MANOEUVRES):
-        sel = (kind == i) & finite
-        if sel.any():
+        if np.any(kind == i):
+            sel = (kind == i) & finite
             sse = sq[sel].sum(axis=(0, 1))
-            out["groups"][name] = {"windows": int(sel.sum()), "samples": int(pairs[sel].any(axis=2).sum()),
+            out["groups"][name] = {"windows": int(np.sum(kind == i)), "diverged": int(np.sum((kind == i) & ~finite)),
+                                   "samples": int(np.isfinite(meas[sel, 1:]).any(axis=2).sum()),
                                    "share": {d: float(sse[k] / total[k]) if total[k] > 0 else None
                                              for k, d in enumerate(DOFS)}}
     return out
+
+
+def _window_manoeuvres(vessel: Vessel, preps: list[Prepared], wins: list[Window]) -> np.ndarray:
+    """Each window's most frequent manoeuvre code, "full" scaled on every recording judged."""
+    scale = input_scale(vessel, np.vstack([p.pwm for p in preps]))
+    codes = [_manoeuvre_codes(vessel, preps[w.rec].pwm[w.start:w.start + w.n + 1], scale) for w in wins]
+    return np.array([np.bincount(c, minlength=len(MANOEUVRES)).argmax() for c in codes])
+
+
+def _squares(pred: np.ndarray, meas: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared errors per sample (0 where no pair or the window diverged) and the pooled Σ(y − ȳ)²
+    per DOF of the measured samples paired in the finite windows."""
+    pairs = np.isfinite(meas) & ~np.isnan(pred) & finite[:, None, None]
+    sq = np.where(pairs, (pred - meas) ** 2, 0.0)
+    total = np.zeros(3)
+    for k in range(3):
+        y = meas[..., k][pairs[..., k]]
+        total[k] = float(np.sum((y - y.mean()) ** 2)) if y.size else 0.0
+    return sq, total
 
 
 def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) -> tuple[np.ndarray, np.ndarray]:
@@ -193,16 +241,21 @@ def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) ->
 
 
 def format_by_manoeuvre(split: dict, title: str = "") -> str:
-    """misfit_by_manoeuvre's groups as rows: windows and each DOF's share of 1 − R², ≤ 100 columns."""
-    head = f"{'manoeuvre':10s}{'windows':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
+    """misfit_by_manoeuvre's groups as rows: windows (and their share of the time), each DOF's share
+    of 1 − R², ≤ 100 columns; the R² they add up to below."""
+    head = f"{'manoeuvre':10s}{'windows':>9s}{'of time':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
     lines = ([title] if title else []) + [head, "-" * len(head)]
     for name in MANOEUVRES:
         g = split["groups"].get(name)
         if g is not None:
             shares = ["-" if g["share"][d] is None else f"{g['share'][d]:.3f}" for d in DOFS]
-            lines.append(f"{name:10s}{g['windows']:9d}" + "".join(f"{x:>10s}" for x in shares))
+            lines.append(f"{name:10s}{g['windows']:9d}{g['windows'] / split['windows']:9.0%}"
+                         + "".join(f"{x:>10s}" for x in shares))
+    r2 = ["-" if split["r2"][d] is None else f"{1.0 - split['r2'][d]:.3f}" for d in DOFS]
+    lines.append(f"{'1 - R2':28s}" + "".join(f"{x:>10s}" for x in r2))
     if split.get("diverged"):
-        lines.append(f"{split['diverged']} windows diverged and are in no group")
+        lines.append(f"{split['diverged']} windows diverged: counted in their group, in no share, and R² is of the "
+                     "others")
     return "\n".join(lines)
 
 
