@@ -50,6 +50,31 @@ def test_an_mmg_quantity_writes_its_own_coefficient_only(esso):
     assert eps.mmg.rudder.epsilon == 1.3 and eps.mmg.hull == esso.mmg.hull
 
 
+def test_the_sway_added_mass_a_fit_moves_leaves_the_surge_force_of_a_turn_alone(esso):
+    """MMG eq. 4/7: m_y and X'_vr multiply the same v·r in surge, so fitting m_y moves X'_vr back
+    (coefficients.mmg_sway_added_mass): the sway row's inertia changes, a turn's speed loss does not."""
+    from twin.effects.coefficients import added_mass
+    from twin.engine.mjcf import compile_vessel
+    from twin.physics.hydrodynamics import relative_acceleration
+
+    def accel(v):  # 0.6 m/s ahead, drifting and turning, 10 rps, 20° of rudder
+        return relative_acceleration(compile_vessel(v).hydro(), 0.0, np.array([0.6, -0.05, 0.04]), np.zeros(3),
+                                     controls=(10.0, np.radians(20.0)))
+
+    heavier = esso.added_mass.Yvdot * 3.0
+    tied, untied = coefficients(esso)["Yvdot"].put(esso, heavier), added_mass("Yvdot").put(esso, heavier)
+    assert tied.added_mass.Yvdot == untied.added_mass.Yvdot == heavier
+    nd = 0.5 * esso.mmg.rho_kg_m3 * esso.mmg.lpp_m ** 2 * esso.mmg.draft_m
+    assert tied.mmg.hull.Xvr == pytest.approx(esso.mmg.hull.Xvr + 2.0 * esso.added_mass.Yvdot / nd)
+    a0, a_tied, a_untied = accel(esso), accel(tied), accel(untied)
+    assert a_tied[0] == pytest.approx(a0[0], rel=1e-9, abs=1e-12)
+    assert abs(a_untied[0] - a0[0]) > 0.1 * abs(a0[0])  # the coupling the tie removes is not small
+    assert abs(a_tied[1] - a0[1]) > 0.05 * abs(a0[1])  # the sway row feels the heavier added mass
+    boat = vessel_mod.load("yellowfish")  # no X'_vr on a PWM boat: its Yvdot writes itself only
+    moved = coefficients(boat)["Yvdot"].put(boat, 2.0 * boat.added_mass.Yvdot)
+    assert moved.damping == boat.damping and moved.added_mass.Nrdot == boat.added_mass.Nrdot
+
+
 def synthetic_turns(truth, duration_s: float = 60.0) -> Recording:
     """A recording of `truth` driven by open-loop (n, δ): rudder ±25° every 15 s, 10 then 7 rps."""
     ts = np.arange(0.0, duration_s, 0.1)

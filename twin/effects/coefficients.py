@@ -75,6 +75,27 @@ def added_mass(name: str) -> Quantity:
     return member("added_mass", name, ADDED_MASS_UNITS[name], lo, hi, 1.0, also=("Nvdot",) if name == "Yrdot" else ())
 
 
+def mmg_sway_added_mass() -> Quantity:
+    """Yvdot of a propeller-and-rudder ship (kg, ≤ 0), the surge force of a turn held.
+
+    In MMG eq. 4 the sway added mass m_y acts twice: as inertia in the sway row, (m + m_y)·v̇, and
+    in the surge row as −(m + m_y)·v·r, beside the hull's X'_vr·v'·r' (eq. 7), which multiplies the
+    same v·r. Only the sum m_y + ½ρL²d·X'_vr acts on surge, and a captive test measures that sum.
+    A free run tells m_y from the sway row; moving it alone would also move the ship's speed loss in
+    every turn by what the sway transients asked for, which on tests without fast turns nothing
+    checks (docs/esso_identification.md). So X'_vr moves by −Δm_y/(½ρL²d): the fitted sway inertia
+    changes the sway row only, and the surge force of a turn stays the prior's."""
+    base = added_mass("Yvdot")
+
+    def put(v: Vessel, x: float) -> Vessel:
+        m = v.mmg
+        shift_nd = (x - v.added_mass.Yvdot) / (0.5 * m.rho_kg_m3 * m.lpp_m ** 2 * m.draft_m)  # Δ(−m_y) = Δ Yvdot
+        held = replace(m, hull=replace(m.hull, Xvr=m.hull.Xvr + shift_nd))
+        return base.put(replace(v, mmg=held), x)
+
+    return replace(base, put=put)
+
+
 def fit_groups(vessel: Vessel) -> dict[str, tuple[str, ...]]:
     """The groups `twin identify` considers for this vessel: its thrusters' kind decides."""
     return MMG_FIT_GROUPS if vessel.mmg is not None else FIT_GROUPS
@@ -132,6 +153,7 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
                 "current_east": ned_component("current", 1, -3.0, 3.0, 0.1)})
     if prior.mmg is not None:
         out.update(mmg_coefficients())
+        out["Yvdot"] = mmg_sway_added_mass()
     return out
 
 
