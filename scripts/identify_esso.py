@@ -33,7 +33,8 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
-from twin.fit.evaluate import MANOEUVRES, evaluate, misfit_by_manoeuvre  # noqa: E402
+from twin.fit.coverage import Envelope  # noqa: E402
+from twin.fit.evaluate import MANOEUVRES, beyond_text, evaluate, fitted_envelope, misfit_by_manoeuvre  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
@@ -58,9 +59,17 @@ def family(name: str) -> list[Path]:
     return sorted(p for p in DATA.glob(f"{name}_*.csv") if p.name != DUPLICATE)  # turn_* holds turn_cut_*
 
 
-def scores(v: vessel_mod.Vessel, recordings, wind: str | None) -> dict:
+def seen_by_fit(train: str) -> Envelope:
+    """What a fit on family `train` saw: its tests' u, v, r span and 30-s windows per manoeuvre."""
+    prior = vessel_mod.load("esso_osaka")
+    recs = read(family(train))
+    calibrated = calibrate(recs, prior)[0]
+    return fitted_envelope(calibrated, prepared(recs, calibrated), WINDOW_S, STRIDE_S)
+
+
+def scores(v: vessel_mod.Vessel, recordings, wind: str | None, fitted: Envelope | None = None) -> dict:
     """30-s free-run R² on the recordings, pooled and test by test (each log's compass calibration
-    from its own kinematics, as identify does)."""
+    from its own kinematics, as identify does); by manoeuvre, read against what the fit saw."""
     calibrated = calibrate(recordings, v)[0]
     preps = prepared(recordings, calibrated)
     out = {"pooled": evaluate(calibrated, preps, stride_s=STRIDE_S, horizons=HORIZON, wind=wind)["free_run_30s"],
@@ -68,7 +77,7 @@ def scores(v: vessel_mod.Vessel, recordings, wind: str | None) -> dict:
     for p in preps:
         out["tests"][log_name(p.settings.source)] = evaluate(calibrated, [p], stride_s=STRIDE_S, horizons=HORIZON,
                                                              wind=wind)["free_run_30s"]
-    out["by_manoeuvre"] = misfit_by_manoeuvre(calibrated, preps, WINDOW_S, STRIDE_S, wind)
+    out["by_manoeuvre"] = misfit_by_manoeuvre(calibrated, preps, WINDOW_S, STRIDE_S, wind, fitted=fitted)
     return out
 
 
@@ -85,11 +94,11 @@ def add_manoeuvres(work: Path) -> None:
         part = json.loads(path.read_text())
         wind = None if part["wind"] == "none" else "measured"
         identified = vessel_mod.load(str(path.with_name(path.stem + ".vessel.json")))
-        tests = read(family(part["test"]))
+        tests, seen = read(family(part["test"])), seen_by_fit(part["train"])
         for name, v in (("identified", identified), ("prior", prior)):
             calibrated = calibrate(tests, v)[0]
             part["held_out"][name]["by_manoeuvre"] = misfit_by_manoeuvre(
-                calibrated, prepared(tests, calibrated), WINDOW_S, STRIDE_S, wind)
+                calibrated, prepared(tests, calibrated), WINDOW_S, STRIDE_S, wind, fitted=seen)
         write_text_atomic(path, json.dumps(part, indent=1, default=float))
         print(f"{path.name}: by manoeuvre added", flush=True)
 
@@ -104,16 +113,26 @@ def manoeuvre_lines(parts: list[dict]) -> list[str]:
              "below a tenth of the top propeller speed, astern for n < 0, turning beyond 10° of rudder, else ahead); "
              "per group its share of the pooled misfit, which add up to 1 − R² (identified twin; the prior's in "
              "brackets).", "",
-             "| identified on → judged on | wind | manoeuvre | windows | share of 1 − R² u | v | r |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+             "| identified on → judged on | wind | manoeuvre | windows | in the fit | share of 1 − R² u | v | r |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for p in parts:
-        ident, prior = (p["held_out"][k]["by_manoeuvre"]["groups"] for k in ("identified", "prior"))
+        split = p["held_out"]["identified"]["by_manoeuvre"]
+        ident, prior = split["groups"], p["held_out"]["prior"]["by_manoeuvre"]["groups"]
+        seen = split.get("fitted_on", {}).get("windows")
         for name in MANOEUVRES:
             if name not in ident:
                 continue
             cells = " | ".join(f"{_share(ident[name]['share'][d])} ({_share(prior.get(name, {}).get('share', {}).get(d))})"
                                for d in DOFS)
-            lines.append(f"| {p['train']} → {p['test']} | {p['wind']} | {name} | {ident[name]['windows']} | {cells} |")
+            lines.append(f"| {p['train']} → {p['test']} | {p['wind']} | {name} | {ident[name]['windows']} | "
+                         f"{'-' if seen is None else seen.get(name, 0)} | {cells} |")
+    beyond = [(p, p["held_out"]["identified"]["by_manoeuvre"]) for p in parts]
+    beyond = [(p, s) for p, s in beyond if "fitted_on" in s]
+    if beyond:
+        lines += ["", "Beyond what the fit saw (twin.fit.coverage: the judged samples outside the span of u, v, r "
+                      "between the 1st and 99th percentiles of the fitted tests' samples), and the share of 1 − R² "
+                      "they carry (identified twin):", ""]
+        lines += [f"- {p['train']} → {p['test']}, wind {p['wind']}: " + "; ".join(beyond_text(s)) for p, s in beyond]
     return lines
 
 
@@ -131,7 +150,8 @@ def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beli
             "chosen": result.chosen.label, "free_groups": list(result.chosen.free_groups),
             "estimates": [e.to_dict() for e in result.fit.estimates],
             "leave_one_out": {"identified": result.chosen.cv.to_dict(), "prior": result.prior_cv.to_dict()},
-            "held_out": {"identified": scores(result.vessel, test_recs, wind), "prior": scores(prior, test_recs, wind)},
+            "held_out": {"identified": scores(result.vessel, test_recs, wind, seen_by_fit(train)),
+                         "prior": scores(prior, test_recs, wind, seen_by_fit(train))},
             "notes": result.notes, "identification": result.to_dict()}
     vessel_mod.save(result.vessel, work / f"esso_{train}_{wind_label}.vessel.json")
     write_text_atomic(work / f"esso_{train}_{wind_label}.json", json.dumps(part, indent=1, default=float))
@@ -261,8 +281,12 @@ def _where(held: dict, dof: str) -> str:
     worst = max(shares, key=shares.get)
     before = prior.get(worst, {}).get("share", {}).get(dof)
     total = sum(shares.values())
+    beyond = held["identified"]["by_manoeuvre"].get("beyond_fit")
+    outside = ("" if not beyond or beyond["share"][dof] is None else
+               f" {beyond['share'][dof]:.3f} of it lies in the {beyond['share_of_samples']:.0%} of the samples beyond "
+               "the span of u, v, r the fit saw, where the twin extrapolates.")
     return (f" Of {dof}'s misfit (1 − R² {total:.3f}), {shares[worst]:.3f} lies in the {ident[worst]['windows']} "
-            f"{worst} windows" + ("" if before is None else f" (prior: {before:.3f})") + ".")
+            f"{worst} windows" + ("" if before is None else f" (prior: {before:.3f})") + "." + outside)
 
 
 def _count(tests: dict, dof: str) -> int:

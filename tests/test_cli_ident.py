@@ -58,6 +58,18 @@ def test_identify_then_evaluate(dataset):
     for d in ("u", "v", "r"):
         total = sum(g["share"][d] for g in split["groups"].values())
         assert total == pytest.approx(1.0 - metrics["free_run_10s"][d]["r2"], rel=1e-6, abs=1e-9)
+    # judged on the very log it was fitted on: the fit saw every window, and only the extreme
+    # samples beyond its own 1st-99th percentiles lie outside its span
+    seen = split["fitted_on"]
+    assert seen["logs"] == 1 and seen == v.uncertainty["fitted_on"]
+    assert seen["windows"] == {name: g["windows"] for name, g in split["groups"].items()}
+    assert 0.0 < split["beyond_fit"]["share_of_samples"] <= 0.06 and "beyond that span" in done.stdout
+    # a vessel file whose record of the fit is damaged is refused in one line, before any work
+    broken = json.loads(model.read_text())
+    broken["uncertainty"]["fitted_on"] = {"ranges": {"u": [1.0, 0.0]}}
+    (dataset / "broken.json").write_text(json.dumps(broken))
+    done = twin("evaluate", "--model", dataset / "broken.json", dataset / "train.csv")
+    assert done.returncode == 2 and "fitted_on" in done.stderr and "Traceback" not in done.stderr
 
 
 def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:

@@ -137,6 +137,36 @@ def test_misfit_by_manoeuvre_adds_up_to_one_minus_r2_and_finds_the_wrong_yaw(yel
     assert turning > 0.5 * (1.0 - pooled["r"]["r2"])
 
 
+def test_the_misfit_beyond_what_the_fit_saw(yellowfish_vessel):
+    from twin.fit.coverage import Envelope, from_dict
+    from twin.fit.evaluate import fitted_envelope, horizon_windows
+
+    ds = generate(yellowfish_vessel, n_segments=3, seed=5, segment_s=(30, 40))
+    preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
+    wrong = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Xuu=-12.0))
+    own = fitted_envelope(yellowfish_vessel, preps)
+    assert from_dict(own.to_dict()) == own and own.logs == 1
+    # a fit that saw only half the top speed: the faster samples are the ones it extrapolates to
+    slow = Envelope({**own.ranges, "u": (own.ranges["u"][0], 0.5 * own.ranges["u"][1])}, own.windows, 10.0, 1)
+    split = misfit_by_manoeuvre(wrong, preps, 10.0, fitted=slow)
+    b = split["beyond_fit"]
+    _, meas = measured(preps, horizon_windows(preps, 10.0, 2.0))
+    m = meas[:, 1:]
+    beyond_any = np.zeros(m.shape[:2], bool)
+    for k, d in enumerate(("u", "v", "r")):
+        beyond_any |= (m[..., k] < slow.ranges[d][0]) | (m[..., k] > slow.ranges[d][1])
+    fast = m[..., 0] > slow.ranges["u"][1]
+    assert b["outside"] == int(beyond_any.sum()) and 0.1 < b["share_of_samples"] < 0.9
+    assert fast.sum() > 0.9 * b["outside"]  # nearly all of them for their speed
+    # a drag too strong misses most at speed: the fast samples carry more than their share of u's misfit
+    assert b["share"]["u"] / (1.0 - split["r2"]["u"]) > b["share_of_samples"] + 0.1
+    assert misfit_by_manoeuvre(wrong, preps, 10.0, fitted=own)["beyond_fit"]["share_of_samples"] <= 0.06
+    with pytest.raises(TwinError, match="fitted_on"):
+        from_dict({"ranges": {"u": [0.0, 1.0]}})
+    with pytest.raises(TwinError, match="low ≤ high"):
+        from_dict({**own.to_dict(), "ranges": {"u": [1.0, 0.0], "v": [0, 1], "r": [0, 1]}})
+
+
 def test_manoeuvres_read_a_window_the_same_whatever_else_is_recorded(yellowfish_vessel):
     esso = vessel_mod.load("esso_osaka")
     no_top = replace(esso, thrusters=replace(esso.thrusters, rps_max=None))

@@ -284,8 +284,16 @@ def _uncertainty(data, path: Path) -> dict:
         for j, x in enumerate(row):
             _typed(x, float, f"uncertainty.covariance[{i}][{j}]", path)
     return {"coordinates": [dict(c) for c in data["coordinates"]], "mean": [float(x) for x in data["mean"]],
-            "covariance": [[float(x) for x in row] for row in cov], **({"source": str(data["source"])}
-                                                                        if "source" in data else {})}
+            "covariance": [[float(x) for x in row] for row in cov],
+            **({"source": str(data["source"])} if "source" in data else {}),
+            **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {})}
+
+
+def _fitted_on(data, path: Path) -> dict:
+    """What the fit saw (twin.fit.coverage.Envelope's dict), kept as read; its use checks its shape."""
+    if not isinstance(data, dict):
+        raise TwinError(f"{path.name}: uncertainty.fitted_on must be a mapping (ranges, windows, horizon_s, logs)")
+    return dict(data)
 
 
 def check(vessel: Vessel) -> None:

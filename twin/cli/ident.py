@@ -159,8 +159,11 @@ def evaluate_command(
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
-    spin, astern: each one's share of 1 − R²); with --band, the share of the recording inside the
+    spin, astern: each one's share of 1 − R²), and for a twin written by `twin identify` how many
+    windows of each its fit saw and how much of the misfit lies beyond the speeds and turn rates it
+    was fitted on; with --band, the share of the recording inside the
     prediction band of the identified uncertainty."""
+    from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
     from ..ident.identify import calibrate, prepared, read
@@ -177,6 +180,8 @@ def evaluate_command(
         from ..scale.batches import executor_from
 
         executor = executor_from(ray)  # an unreachable --ray address is refused before the work
+    fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
+              if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work
     recs = read(recordings, channels_from(channels))
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
@@ -192,7 +197,7 @@ def evaluate_command(
             if calibration else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, 3)
         out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache), prepared(recs, used), 10.0, stride,
-                                                      vessel=used)
+                                                      vessel=used, fitted=fitted)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))

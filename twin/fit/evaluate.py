@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
+from .coverage import Envelope, beyond, sample_ranges
 from .metrics import DOFS, r2_mae
 from .windows import ModelCache, Window, make_windows, measured, predict
 
@@ -167,8 +168,18 @@ def _manoeuvre_codes(vessel: Vessel, inputs: np.ndarray, scale: float | None) ->
     return np.where(~on.any(axis=1), 0, np.where(spin, 3, np.where(left + right < 0.0, 4, np.where(turning, 2, 1))))
 
 
+def fitted_envelope(vessel: Vessel, preps: list[Prepared], horizon_s: float = 10.0, stride_s: float = 2.0) -> Envelope:
+    """What the recordings `preps` give a fit (coverage.Envelope): the range of their measured u, v,
+    r and their free-run windows of `horizon_s` per manoeuvre."""
+    states = np.vstack([np.column_stack([p.u, p.v, p.r]) for p in preps])
+    wins = horizon_windows(preps, horizon_s, stride_s)
+    kind = _window_manoeuvres(vessel, preps, wins) if wins else np.zeros(0, int)
+    counts = {name: int(np.sum(kind == i)) for i, name in enumerate(MANOEUVRES) if np.any(kind == i)}
+    return Envelope(sample_ranges(states), counts, float(horizon_s), len(preps))
+
+
 def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, stride_s: float = 2.0,
-                        wind: str | None = None, vessel: Vessel | None = None) -> dict:
+                        wind: str | None = None, vessel: Vessel | None = None, fitted: Envelope | None = None) -> dict:
     """Where a free run's misfit lies: the windows of `horizon_s` grouped by what their inputs ask
     (each window's most frequent of `manoeuvres`; a tie goes to the first in MANOEUVRES), and per
     group its share of the pooled misfit of u, v, r: Σ(predicted − measured)² over its predicted
@@ -178,7 +189,9 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     "diverged", "samples", "share": {u, v, r}}}}. A group's windows are its share of the time; its
     share per window says where the twin misses most. `vessel` classifies the inputs (default: the
     model when it is a Vessel; for a grey-box predictor, the vessel whose thrusters drive it);
-    `wind` applies to a Vessel given as the model (a Predictor carries its own)."""
+    `wind` applies to a Vessel given as the model (a Predictor carries its own). `fitted`: what the
+    twin's fit saw (coverage.Envelope); then also "fitted_on" (its dict) and "beyond_fit": the
+    judged samples outside its range and the share of 1 − R² they carry (coverage.beyond)."""
     if isinstance(model, Vessel):
         vessel = vessel or model
         model = TwinPredictor(model, ModelCache(), wind)
@@ -194,6 +207,9 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     out["diverged"] = int(np.sum(~finite))
     sq, total = _squares(pred[:, 1:], meas[:, 1:], finite)
     out["r2"] = {d: (1.0 - float(sq[:, :, k].sum() / total[k])) if total[k] > 0 else None for k, d in enumerate(DOFS)}
+    if fitted is not None:
+        out["fitted_on"] = fitted.to_dict()
+        out["beyond_fit"] = beyond(fitted, np.where(finite[:, None, None], meas[:, 1:], np.nan), sq, total)
     for i, name in enumerate(MANOEUVRES):
         if np.any(kind == i):
             sel = (kind == i) & finite
@@ -243,20 +259,39 @@ def _predictions(model: Predictor, preps: list[Prepared], wins: list[Window]) ->
 def format_by_manoeuvre(split: dict, title: str = "") -> str:
     """misfit_by_manoeuvre's groups as rows: windows (and their share of the time), each DOF's share
     of 1 − R², ≤ 100 columns; the R² they add up to below."""
-    head = f"{'manoeuvre':10s}{'windows':>9s}{'of time':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
+    fit = split.get("fitted_on")
+    fit_windows = fit["windows"] if fit else None
+    head = (f"{'manoeuvre':10s}{'windows':>9s}{'of time':>9s}" + (f"{'in fit':>8s}" if fit else "")
+            + "".join(f"{'share ' + d:>10s}" for d in DOFS))
     lines = ([title] if title else []) + [head, "-" * len(head)]
     for name in MANOEUVRES:
         g = split["groups"].get(name)
         if g is not None:
             shares = ["-" if g["share"][d] is None else f"{g['share'][d]:.3f}" for d in DOFS]
             lines.append(f"{name:10s}{g['windows']:9d}{g['windows'] / split['windows']:9.0%}"
-                         + "".join(f"{x:>10s}" for x in shares))
+                         + (f"{fit_windows.get(name, 0):8d}" if fit else "") + "".join(f"{x:>10s}" for x in shares))
     r2 = ["-" if split["r2"][d] is None else f"{1.0 - split['r2'][d]:.3f}" for d in DOFS]
-    lines.append(f"{'1 - R2':28s}" + "".join(f"{x:>10s}" for x in r2))
+    lines.append(f"{'1 - R2':{36 if fit else 28}s}" + "".join(f"{x:>10s}" for x in r2))
+    if fit:
+        lines += beyond_text(split)
     if split.get("diverged"):
         lines.append(f"{split['diverged']} windows diverged: counted in their group, in no share, and R² is of the "
                      "others")
     return "\n".join(lines)
+
+
+def beyond_text(split: dict) -> list[str]:
+    """The lines that say how much of the judged data lies beyond what the fit saw, and its misfit."""
+    fit, b = split["fitted_on"], split.get("beyond_fit")
+    units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+    spans = ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {units[d]}" for d, (lo, hi) in fit["ranges"].items())
+    lines = [f"in fit: {fit['horizon_s']:g}-s windows of the {fit['logs']} logs the twin was fitted on; their "
+             f"samples (1st-99th percentile) span {spans}"]
+    if b and b["samples"]:
+        shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
+        lines.append(f"beyond that span: {b['share_of_samples']:.0%} of the judged samples, holding {shares} of "
+                     "1 − R² (the twin extrapolates there)")
+    return lines
 
 
 def format_metrics(metrics: dict, title: str = "") -> str:

@@ -38,6 +38,7 @@ from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibration, prepare_for, rate_windows, with_log_calibrations
 from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
+from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
 from ..prepare import Prepared
@@ -270,6 +271,9 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
             result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
+    if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
+        seen = fitted_envelope(vessel, preps).to_dict()
+        result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen})
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
                             f"{best.cv.cost:.4g} against {result.prior_cv.cost:.4g}): more varied recordings "

@@ -1,0 +1,92 @@
+"""What a fit saw, so that a score on other runs can say where the twin extrapolates.
+
+A twin identified on some runs is pinned by the states and manoeuvres those runs hold. Where a
+new run goes further (faster, turning harder, a manoeuvre the fit saw only a few times) the twin
+extrapolates, and a poor score there says less about missing physics than about missing data.
+`Envelope` is what the fitted recordings held: the range of u, v and r between the 1st and 99th
+percentiles of their samples (a spike at either end does not widen it) and their free-run
+windows per manoeuvre (evaluate.MANOEUVRES, counted by `evaluate.fitted_envelope`). `twin identify`
+writes it into the vessel file's uncertainty block as "fitted_on"; `evaluate.misfit_by_manoeuvre`
+reads a judged recording against it: the share of its samples outside that range and the share of
+1 − R² they carry.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import TwinError
+from .metrics import DOFS
+
+RANGE_PERCENTILES = (1.0, 99.0)
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """ranges: {u, v, r: (low, high)} in m/s and rad/s; windows: free-run windows per manoeuvre;
+    horizon_s: their length; logs: how many recordings the fit used."""
+
+    ranges: dict[str, tuple[float, float]]
+    windows: dict[str, int]
+    horizon_s: float
+    logs: int
+
+    def outside(self, states: np.ndarray) -> np.ndarray:
+        """Boolean per sample of `states` (..., 3: u, v, r): beyond the range in any DOF (NaN: not)."""
+        x = np.asarray(states, float)
+        out = np.zeros(x.shape[:-1], bool)
+        for k, d in enumerate(DOFS):
+            lo, hi = self.ranges[d]
+            with np.errstate(invalid="ignore"):
+                out |= (x[..., k] < lo) | (x[..., k] > hi)
+        return out
+
+    def to_dict(self) -> dict:
+        return {"ranges": {d: [float(a), float(b)] for d, (a, b) in self.ranges.items()},
+                "windows": {k: int(n) for k, n in self.windows.items()}, "horizon_s": float(self.horizon_s),
+                "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
+
+    def text(self) -> str:
+        units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+        spans = ", ".join(f"{d} {a:+.2f}..{b:+.2f} {units[d]}" for d, (a, b) in self.ranges.items())
+        return f"{spans} (the {self.logs} fitted logs' samples between their 1st and 99th percentiles)"
+
+
+def from_dict(data, where: str = "fitted_on") -> Envelope:
+    """An Envelope from its to_dict form; TwinError naming `where` on anything else."""
+    try:
+        ranges = {d: (float(data["ranges"][d][0]), float(data["ranges"][d][1])) for d in DOFS}
+        windows = {str(k): int(n) for k, n in dict(data["windows"]).items()}
+        env = Envelope(ranges, windows, float(data["horizon_s"]), int(data["logs"]))
+    except (KeyError, TypeError, ValueError, IndexError):
+        raise TwinError(f"{where}: needs ranges of u, v, r (low, high), windows per manoeuvre, horizon_s and "
+                        "logs") from None
+    if any(not (np.isfinite(a) and np.isfinite(b) and a <= b) for a, b in env.ranges.values()):
+        raise TwinError(f"{where}: each range needs finite low ≤ high")
+    return env
+
+
+def sample_ranges(states: np.ndarray) -> dict[str, tuple[float, float]]:
+    """{u, v, r: (1st, 99th percentile)} of the finite samples of `states` (n, 3)."""
+    x = np.asarray(states, float)
+    out = {}
+    for k, d in enumerate(DOFS):
+        col = x[:, k][np.isfinite(x[:, k])]
+        if not col.size:
+            raise TwinError(f"no measured {d} to bound what the fit saw")
+        lo, hi = np.percentile(col, RANGE_PERCENTILES)
+        out[d] = (float(lo), float(hi))
+    return out
+
+
+def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -> dict:
+    """The judged samples outside `env` and their part of the misfit: meas (W, n, 3) the measured
+    predicted samples, sq their squared errors (0 where none), total the pooled Σ(y − ȳ)² per DOF
+    (evaluate._squares). {"samples", "outside", "share_of_samples", "share": {u, v, r} of 1 − R²}."""
+    paired = np.isfinite(meas).any(axis=-1)
+    out_mask = env.outside(meas) & paired
+    n, k = int(paired.sum()), int(out_mask.sum())
+    sse = sq[out_mask].sum(axis=0) if k else np.zeros(3)
+    return {"samples": n, "outside": k, "share_of_samples": k / n if n else None,
+            "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)}}
