@@ -35,7 +35,7 @@ from twin.diagnose.report import answer  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.coverage import from_dict as envelope_from  # noqa: E402
-from twin.fit.evaluate import MANOEUVRES, TwinPredictor, beyond_text, evaluate, misfit_by_manoeuvre  # noqa: E402
+from twin.fit.evaluate import MANOEUVRES, TwinPredictor, beyond_sentence, evaluate, misfit_by_manoeuvre  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.fit.windows import ModelCache  # noqa: E402
 from twin.ident.identify import (calibrate, format_choices, format_estimates, format_needed, identify,  # noqa: E402
@@ -94,6 +94,10 @@ def by_manoeuvre(vessel: vessel_mod.Vessel, recordings) -> dict:
     v = calibrate(recordings, vessel)[0]
     seen = vessel.uncertainty.get("fitted_on")
     return misfit_by_manoeuvre(v, prepared(recordings, v), 10.0, fitted=envelope_from(seen) if seen else None)
+
+
+def _upper_first(text: str) -> str:
+    return text[:1].upper() + text[1:]
 
 
 def manoeuvre_table(held: dict, train: dict) -> list[str]:
@@ -269,7 +273,7 @@ def markdown(ctx: dict) -> str:
         "",
         fence, *manoeuvre_table(ctx["manoeuvres"]["held"], ctx["manoeuvres"]["train"]), fence,
         "",
-        *([f"{x}." for x in beyond_text(ctx["manoeuvres"]["held"])] + [""]
+        *([_upper_first(beyond_sentence(ctx["manoeuvres"]["held"])) + ".", ""]
           if "fitted_on" in ctx["manoeuvres"]["held"] else []),
         "What the residual of the final twin on the held-out runs points at (`twin diagnose` of those runs, "
         "the twin fixed; its statements where no library effect earns its place):",

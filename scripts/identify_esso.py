@@ -34,7 +34,7 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.coverage import Envelope  # noqa: E402
-from twin.fit.evaluate import MANOEUVRES, beyond_text, evaluate, fitted_envelope, misfit_by_manoeuvre  # noqa: E402
+from twin.fit.evaluate import MANOEUVRES, beyond_sentence, evaluate, fitted_envelope, misfit_by_manoeuvre  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
@@ -60,7 +60,8 @@ def family(name: str) -> list[Path]:
 
 
 def seen_by_fit(train: str) -> Envelope:
-    """What a fit on family `train` saw: its tests' u, v, r span and 30-s windows per manoeuvre."""
+    """What a fit on family `train` saw: its tests' u, v, r span and their windows per manoeuvre,
+    counted as the held-out family's are (WINDOW_S long, one every STRIDE_S)."""
     prior = vessel_mod.load("esso_osaka")
     recs = read(family(train))
     calibrated = calibrate(recs, prior)[0]
@@ -112,8 +113,9 @@ def manoeuvre_lines(parts: list[dict]) -> list[str]:
              "30-s windows of the judged family grouped by what their inputs do (twin.fit.evaluate.manoeuvres: idle "
              "below a tenth of the top propeller speed, astern for n < 0, turning beyond 10° of rudder, else ahead); "
              "per group its share of the pooled misfit, which add up to 1 − R² (identified twin; the prior's in "
-             "brackets).", "",
-             "| identified on → judged on | wind | manoeuvre | windows | in the fit | share of 1 − R² u | v | r |",
+             "brackets); beside it the same count of the fitted family's windows (not the fit's own windows: it "
+             "fits 30-s windows one every 30 s, those with the propeller turning or the ship moving).", "",
+             "| identified on → judged on | wind | manoeuvre | windows | in the fitted tests | share of 1 − R² u | v | r |",
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for p in parts:
         split = p["held_out"]["identified"]["by_manoeuvre"]
@@ -129,10 +131,11 @@ def manoeuvre_lines(parts: list[dict]) -> list[str]:
     beyond = [(p, p["held_out"]["identified"]["by_manoeuvre"]) for p in parts]
     beyond = [(p, s) for p, s in beyond if "fitted_on" in s]
     if beyond:
-        lines += ["", "Beyond what the fit saw (twin.fit.coverage: the judged samples outside the span of u, v, r "
-                      "between the 1st and 99th percentiles of the fitted tests' samples), and the share of 1 − R² "
-                      "they carry (identified twin):", ""]
-        lines += [f"- {p['train']} → {p['test']}, wind {p['wind']}: " + "; ".join(beyond_text(s)) for p, s in beyond]
+        lines += ["", "Beyond what the fit saw (twin.fit.coverage: the judged free-run samples outside the span of "
+                      "u, v, r between the 1st and 99th percentiles of the fitted tests' samples; windows overlap, so "
+                      "a sample counts once per window, as in R²), and the share of 1 − R² they carry (identified "
+                      "twin):", ""]
+        lines += [f"- {p['train']} → {p['test']}, wind {p['wind']}: " + beyond_sentence(s) for p, s in beyond]
     return lines
 
 
@@ -143,6 +146,7 @@ def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beli
     prior = vessel_mod.load("esso_osaka")
     train_recs, test_recs = read(family(train)), read(family(OTHER[train]))
     started = time.time()
+    seen = seen_by_fit(train)
     result = identify(train_recs, prior, prior_weights=beliefs, window_s=WINDOW_S, max_evaluations=max_evaluations,
                       wind=wind, sources=[str(p) for p in family(train)])
     part = {"train": train, "test": OTHER[train], "wind": wind_label, "seconds_identify": round(time.time() - started),
@@ -150,8 +154,8 @@ def run_part(train: str, wind_label: str, max_evaluations: int, work: Path, beli
             "chosen": result.chosen.label, "free_groups": list(result.chosen.free_groups),
             "estimates": [e.to_dict() for e in result.fit.estimates],
             "leave_one_out": {"identified": result.chosen.cv.to_dict(), "prior": result.prior_cv.to_dict()},
-            "held_out": {"identified": scores(result.vessel, test_recs, wind, seen_by_fit(train)),
-                         "prior": scores(prior, test_recs, wind, seen_by_fit(train))},
+            "held_out": {"identified": scores(result.vessel, test_recs, wind, seen),
+                         "prior": scores(prior, test_recs, wind, seen)},
             "notes": result.notes, "identification": result.to_dict()}
     vessel_mod.save(result.vessel, work / f"esso_{train}_{wind_label}.vessel.json")
     write_text_atomic(work / f"esso_{train}_{wind_label}.json", json.dumps(part, indent=1, default=float))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
+from twin.errors import TwinError
 from twin.api import simulate_run
 from twin.drive import InputSeries
 from twin.effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS, belief, coefficients, fit_groups
@@ -70,6 +71,8 @@ def test_the_sway_added_mass_a_fit_moves_leaves_the_surge_force_of_a_turn_alone(
     assert a_tied[0] == pytest.approx(a0[0], rel=1e-9, abs=1e-12)
     assert abs(a_untied[0] - a0[0]) > 0.1 * abs(a0[0])  # the coupling the tie removes is not small
     assert abs(a_tied[1] - a0[1]) > 0.05 * abs(a0[1])  # the sway row feels the heavier added mass
+    with pytest.raises(TwinError, match="mmg_Xvr"):  # fitted together, the second would undo the tie
+        simfit.check_names(esso, ("Yvdot", "mmg_Xvr"), "mass")
     boat = vessel_mod.load("yellowfish")  # no X'_vr on a PWM boat: its Yvdot writes itself only
     moved = coefficients(boat)["Yvdot"].put(boat, 2.0 * boat.added_mass.Yvdot)
     assert moved.damping == boat.damping and moved.added_mass.Nrdot == boat.added_mass.Nrdot

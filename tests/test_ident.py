@@ -163,6 +163,8 @@ def test_the_misfit_beyond_what_the_fit_saw(yellowfish_vessel):
     assert misfit_by_manoeuvre(wrong, preps, 10.0, fitted=own)["beyond_fit"]["share_of_samples"] <= 0.06
     with pytest.raises(TwinError, match="fitted_on"):
         from_dict({"ranges": {"u": [0.0, 1.0]}})
+    with pytest.raises(TwinError, match="counts"):
+        from_dict({**own.to_dict(), "windows": {"idle": -1}})
     with pytest.raises(TwinError, match="low ≤ high"):
         from_dict({**own.to_dict(), "ranges": {"u": [1.0, 0.0], "v": [0, 1], "r": [0, 1]}})
 

@@ -5,9 +5,11 @@ new run goes further (faster, turning harder, a manoeuvre the fit saw only a few
 extrapolates, and a poor score there says less about missing physics than about missing data.
 `Envelope` is what the fitted recordings held: the range of u, v and r between the 1st and 99th
 percentiles of their samples (a spike at either end does not widen it) and their free-run
-windows per manoeuvre (evaluate.MANOEUVRES, counted by `evaluate.fitted_envelope`). `twin identify`
+windows per manoeuvre (evaluate.MANOEUVRES, counted by `evaluate.fitted_envelope` as evaluate
+counts a judged recording's, so the two compare). `twin identify`
 writes it into the vessel file's uncertainty block as "fitted_on"; `evaluate.misfit_by_manoeuvre`
-reads a judged recording against it: the share of its samples outside that range and the share of
+reads a judged recording against it: the share of its free-run samples outside that range (the
+samples R² is pooled over: overlapping windows count a sample once per window) and the share of
 1 − R² they carry.
 """
 from __future__ import annotations
@@ -20,17 +22,20 @@ from ..errors import TwinError
 from .metrics import DOFS
 
 RANGE_PERCENTILES = (1.0, 99.0)
+DEFAULT_STRIDE_S = 2.0
 
 
 @dataclass(frozen=True)
 class Envelope:
-    """ranges: {u, v, r: (low, high)} in m/s and rad/s; windows: free-run windows per manoeuvre;
-    horizon_s: their length; logs: how many recordings the fit used."""
+    """ranges: {u, v, r: (low, high)} in m/s and rad/s; windows: the fitted logs' free-run windows
+    per manoeuvre, counted as evaluate counts (horizon_s long, one every stride_s; not the fit's
+    own windows, whose length and spacing are the fit's choice); logs: how many recordings."""
 
     ranges: dict[str, tuple[float, float]]
     windows: dict[str, int]
     horizon_s: float
     logs: int
+    stride_s: float = 2.0
 
     def outside(self, states: np.ndarray) -> np.ndarray:
         """Boolean per sample of `states` (..., 3: u, v, r): beyond the range in any DOF (NaN: not)."""
@@ -45,25 +50,33 @@ class Envelope:
     def to_dict(self) -> dict:
         return {"ranges": {d: [float(a), float(b)] for d, (a, b) in self.ranges.items()},
                 "windows": {k: int(n) for k, n in self.windows.items()}, "horizon_s": float(self.horizon_s),
-                "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
-
-    def text(self) -> str:
-        units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
-        spans = ", ".join(f"{d} {a:+.2f}..{b:+.2f} {units[d]}" for d, (a, b) in self.ranges.items())
-        return f"{spans} (the {self.logs} fitted logs' samples between their 1st and 99th percentiles)"
+                "stride_s": float(self.stride_s), "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
 
 
 def from_dict(data, where: str = "fitted_on") -> Envelope:
     """An Envelope from its to_dict form; TwinError naming `where` on anything else."""
+    def number(x) -> float:
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise TypeError
+        return float(x)
+
+    def count(x) -> int:
+        if isinstance(x, bool) or not isinstance(x, int) or x < 0:
+            raise ValueError
+        return x
+
     try:
-        ranges = {d: (float(data["ranges"][d][0]), float(data["ranges"][d][1])) for d in DOFS}
-        windows = {str(k): int(n) for k, n in dict(data["windows"]).items()}
-        env = Envelope(ranges, windows, float(data["horizon_s"]), int(data["logs"]))
+        ranges = {d: (number(data["ranges"][d][0]), number(data["ranges"][d][1])) for d in DOFS}
+        windows = {str(k): count(n) for k, n in dict(data["windows"]).items()}
+        env = Envelope(ranges, windows, number(data["horizon_s"]), count(data["logs"]),
+                       number(data.get("stride_s", DEFAULT_STRIDE_S)))
     except (KeyError, TypeError, ValueError, IndexError):
-        raise TwinError(f"{where}: needs ranges of u, v, r (low, high), windows per manoeuvre, horizon_s and "
-                        "logs") from None
+        raise TwinError(f"{where}: needs ranges of u, v, r (low, high numbers), windows per manoeuvre (counts), "
+                        "horizon_s, stride_s and logs") from None
     if any(not (np.isfinite(a) and np.isfinite(b) and a <= b) for a, b in env.ranges.values()):
         raise TwinError(f"{where}: each range needs finite low ≤ high")
+    if not (env.horizon_s > 0 and env.stride_s > 0 and env.logs >= 1):
+        raise TwinError(f"{where}: horizon_s and stride_s must be positive and logs at least 1")
     return env
 
 

@@ -16,6 +16,7 @@ manoeuvre's share of 1 − R²: idle, ahead, turning, spin, astern, read from th
 """
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -175,7 +176,7 @@ def fitted_envelope(vessel: Vessel, preps: list[Prepared], horizon_s: float = 10
     wins = horizon_windows(preps, horizon_s, stride_s)
     kind = _window_manoeuvres(vessel, preps, wins) if wins else np.zeros(0, int)
     counts = {name: int(np.sum(kind == i)) for i, name in enumerate(MANOEUVRES) if np.any(kind == i)}
-    return Envelope(sample_ranges(states), counts, float(horizon_s), len(preps))
+    return Envelope(sample_ranges(states), counts, float(horizon_s), len(preps), float(stride_s))
 
 
 def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, stride_s: float = 2.0,
@@ -280,18 +281,23 @@ def format_by_manoeuvre(split: dict, title: str = "") -> str:
     return "\n".join(lines)
 
 
-def beyond_text(split: dict) -> list[str]:
-    """The lines that say how much of the judged data lies beyond what the fit saw, and its misfit."""
+def beyond_sentence(split: dict) -> str:
+    """What the fit saw and how much of the judged data lies beyond it, with its misfit, in one sentence."""
     fit, b = split["fitted_on"], split.get("beyond_fit")
     units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
     spans = ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {units[d]}" for d, (lo, hi) in fit["ranges"].items())
-    lines = [f"in fit: {fit['horizon_s']:g}-s windows of the {fit['logs']} logs the twin was fitted on; their "
-             f"samples (1st-99th percentile) span {spans}"]
+    text = (f"in fit: {fit['horizon_s']:g}-s windows, one every {fit.get('stride_s', 2.0):g} s, of the {fit['logs']} "
+            f"logs the twin was fitted on, whose samples (1st-99th percentile) span {spans}")
     if b and b["samples"]:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
-        lines.append(f"beyond that span: {b['share_of_samples']:.0%} of the judged samples, holding {shares} of "
-                     "1 − R² (the twin extrapolates there)")
-    return lines
+        text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
+                 "of 1 − R² (the twin extrapolates there)")
+    return text
+
+
+def beyond_text(split: dict) -> list[str]:
+    """beyond_sentence as lines of at most 100 columns."""
+    return textwrap.wrap(beyond_sentence(split), 100, subsequent_indent="  ")
 
 
 def format_metrics(metrics: dict, title: str = "") -> str:

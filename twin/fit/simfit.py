@@ -94,6 +94,9 @@ def check_names(prior: Vessel, names, anchor: str) -> list[str]:
     if anchor == "mass" and "Xudot" in names and "thrust_gain" in names:
         raise TwinError("Xudot and thrust_gain together are not identifiable (the scale needs an anchor): "
                         "drop one, or use --anchor thrust")
+    if prior.mmg is not None and "Yvdot" in names and "mmg_Xvr" in names:
+        raise TwinError("Yvdot and mmg_Xvr together: a ship's fitted Yvdot moves X'_vr with it, so that surge feels "
+                        "m_y + X'_vr unchanged (effects/coefficients.py mmg_sway_added_mass): fit one of them")
     if anchor == "thrust":
         names = [n for n in names if n != "thrust_gain"] + (["Xudot"] if "Xudot" not in names else [])
     return names

@@ -207,6 +207,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     say("calibrating each log's compass", 0, 4)
     vessel, calibrations = calibrate(recordings, prior) if calibrated else (prior, [])
     preps = prepared(recordings, vessel)
+    seen = fitted_envelope(vessel, preps).to_dict()  # the logs' span and windows as evaluate counts them
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
         # seed 004's grey-box is a model of PWM thrusters (dead zone, thrust gain, operating regions)
@@ -272,7 +273,6 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
-        seen = fitted_envelope(vessel, preps).to_dict()
         result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen})
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
