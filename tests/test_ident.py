@@ -158,6 +158,9 @@ def test_the_misfit_beyond_what_the_fit_saw(yellowfish_vessel):
     fast = m[..., 0] > slow.ranges["u"][1]
     assert b["outside"] == int(beyond_any.sum()) and 0.1 < b["share_of_samples"] < 0.9
     assert fast.sum() > 0.9 * b["outside"]  # nearly all of them for their speed
+    assert b["dofs"]["u"]["high"] == pytest.approx(np.nanpercentile(m[..., 0][np.isfinite(m).any(-1)], 99))
+    off_u = (m[..., 0] < slow.ranges["u"][0]) | fast
+    assert b["dofs"]["u"]["share_of_samples"] == pytest.approx(off_u.sum() / np.isfinite(m).any(-1).sum())
     # a drag too strong misses most at speed: the fast samples carry more than their share of u's misfit
     assert b["share"]["u"] / (1.0 - split["r2"]["u"]) > b["share_of_samples"] + 0.1
     assert misfit_by_manoeuvre(wrong, preps, 10.0, fitted=own)["beyond_fit"]["share_of_samples"] <= 0.06

@@ -96,10 +96,22 @@ def sample_ranges(states: np.ndarray) -> dict[str, tuple[float, float]]:
 def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -> dict:
     """The judged samples outside `env` and their part of the misfit: meas (W, n, 3) the measured
     predicted samples, sq their squared errors (0 where none), total the pooled Σ(y − ȳ)² per DOF
-    (evaluate._squares). {"samples", "outside", "share_of_samples", "share": {u, v, r} of 1 − R²}."""
+    (evaluate._squares). {"samples", "outside", "share_of_samples", "share": {u, v, r} of 1 − R², "dofs":
+    {each DOF the judged samples leave the span in: "share_of_samples", and "low", "high": the judged
+    samples' own 1st and 99th percentiles}}."""
     paired = np.isfinite(meas).any(axis=-1)
     out_mask = env.outside(meas) & paired
     n, k = int(paired.sum()), int(out_mask.sum())
     sse = sq[out_mask].sum(axis=0) if k else np.zeros(3)
+    per_dof = {}
+    for i, d in enumerate(DOFS):  # which way the judged data leaves the span, and how far: what to record next
+        lo, hi = env.ranges[d]
+        x = meas[..., i][paired]
+        with np.errstate(invalid="ignore"):
+            beyond_d = (x < lo) | (x > hi)
+        if beyond_d.any():  # the judged samples' own span, on the same percentiles (a spike does not set it)
+            low, high = np.nanpercentile(x, RANGE_PERCENTILES)
+            per_dof[d] = {"share_of_samples": float(beyond_d.sum() / n), "low": float(low), "high": float(high)}
     return {"samples": n, "outside": k, "share_of_samples": k / n if n else None,
-            "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)}}
+            "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)},
+            "dofs": per_dof}

@@ -292,7 +292,15 @@ def beyond_sentence(split: dict) -> str:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
                  "of 1 − R² (the twin extrapolates there)")
+        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span {x['low']:+.2f}..{x['high']:+.2f} "
+                 f"{units[d]})" for d, x in b.get("dofs", {}).items()]
+        if reach:
+            text += "; beyond it in " + ", ".join(reach) + ": record runs that reach there to fit it"
     return text
+
+
+def _percent(share: float) -> str:
+    return f"{share:.0%}" if share >= 0.005 or share == 0 else "under 1 %"
 
 
 def beyond_text(split: dict) -> list[str]:
