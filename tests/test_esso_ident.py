@@ -71,6 +71,11 @@ def test_the_sway_added_mass_a_fit_moves_leaves_the_surge_force_of_a_turn_alone(
     assert a_tied[0] == pytest.approx(a0[0], rel=1e-9, abs=1e-12)
     assert abs(a_untied[0] - a0[0]) > 0.1 * abs(a0[0])  # the coupling the tie removes is not small
     assert abs(a_tied[1] - a0[1]) > 0.05 * abs(a0[1])  # the sway row feels the heavier added mass
+    # the library's added-mass effect (twin dataset's truths, the diagnosis's candidate) ties it the same way
+    from twin.effects import apply_effects
+    truth = apply_effects(esso, ["added_mass=Yvdot:3"])
+    assert truth.added_mass.Yvdot == pytest.approx(heavier) and truth.mmg.hull.Xvr == pytest.approx(tied.mmg.hull.Xvr)
+    assert accel(truth)[0] == pytest.approx(a0[0], rel=1e-9, abs=1e-12)
     with pytest.raises(TwinError, match="mmg_Xvr"):  # fitted together, the second would undo the tie
         simfit.check_names(esso, ("Yvdot", "mmg_Xvr"), "mass")
     boat = vessel_mod.load("yellowfish")  # no X'_vr on a PWM boat: its Yvdot writes itself only

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..errors import TwinError
 from ..vessel import Vessel
-from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING)
+from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
+                           mmg_sway_added_mass)
 from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
                        reverse_scale, scale_of)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
@@ -306,8 +307,13 @@ def linear_damping(vessel: Vessel, **scales: float) -> Vessel:
 
 
 def added_mass(vessel: Vessel, **scales: float) -> Vessel:
-    """Added-mass derivatives multiplied by scales; Yrdot scales Nvdot too (M_A stays symmetric)."""
-    return replace(vessel, added_mass=_scaled(vessel.added_mass, ADDED_MASS, scales, {"Yrdot": "Nvdot"}))
+    """Added-mass derivatives multiplied by scales; Yrdot scales Nvdot too (M_A stays symmetric). On a
+    propeller-and-rudder ship a scaled Yvdot moves X'_vr back, as identification's does: surge feels
+    only m_y + X'_vr (coefficients.mmg_sway_added_mass, MMG eq. 4 and 7)."""
+    scaled = _scaled(vessel.added_mass, ADDED_MASS, scales, {"Yrdot": "Nvdot"})
+    if vessel.mmg is None:
+        return replace(vessel, added_mass=scaled)
+    return replace(mmg_sway_added_mass().put(vessel, scaled.Yvdot), added_mass=scaled)
 
 
 def _scales_fit(name: str, group: str, keys: tuple[str, ...]):
