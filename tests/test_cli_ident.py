@@ -37,6 +37,7 @@ def test_identify_then_evaluate(dataset):
     assert done.returncode == 0, done.stderr
     assert "seed 004 grey-box" in done.stdout and "identification by simulation" in done.stdout
     assert "judged on left-out runs" in done.stdout and "on a new run expect" in done.stdout
+    assert "fitted on: u " in done.stdout and "the twin extrapolates" in done.stdout
     v = vessel_mod.load(str(model))
     assert v.thrusters.gain_left == pytest.approx(1.15, rel=0.03)
     assert "identification" in v.sources

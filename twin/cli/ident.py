@@ -130,6 +130,12 @@ def identify_command(
     console.print("[bold]identification by simulation[/]")
     typer.echo(ident.format_estimates(result.fit))
     say(f"on a new run expect: {result.chosen.cv.summary()}")
+    seen = result.vessel.uncertainty.get("fitted_on")
+    if seen:  # where that expectation holds: beyond this span the twin extrapolates
+        units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+        say("fitted on: " + ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {units[d]}" for d, (lo, hi) in seen["ranges"].items())
+            + " (1st-99th percentile of the samples); 10-s windows " + ", ".join(
+                f"{k} {n}" for k, n in seen["windows"].items()) + ": beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")
     if result.worse_than_prior:
