@@ -115,7 +115,8 @@ def manoeuvre_lines(parts: list[dict]) -> list[str]:
              "per group its share of the pooled misfit, which add up to 1 − R² (identified twin; the prior's in "
              "brackets); beside it the same count of the fitted family's windows (not the fit's own windows: it "
              "fits 30-s windows one every 30 s, those with the propeller turning or the ship moving).", "",
-             "| identified on → judged on | wind | manoeuvre | windows | in the fitted tests | share of 1 − R² u | v | r |",
+             "| identified on → judged on | wind | manoeuvre | windows | in the fitted tests | share of 1 − R² u | v "
+             "| r |",
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for p in parts:
         split = p["held_out"]["identified"]["by_manoeuvre"]

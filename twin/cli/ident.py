@@ -98,6 +98,7 @@ def identify_command(
     """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
     prior's beliefs, every choice judged on runs left out of the fit."""
     from ..fit import simfit
+    from ..fit.coverage import span_text
     from ..ident import identify as ident
     from ..vessel import save
 
@@ -132,10 +133,9 @@ def identify_command(
     say(f"on a new run expect: {result.chosen.cv.summary()}")
     seen = result.vessel.uncertainty.get("fitted_on")
     if seen:  # where that expectation holds: beyond this span the twin extrapolates
-        units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
-        say("fitted on: " + ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {units[d]}" for d, (lo, hi) in seen["ranges"].items())
-            + " (1st-99th percentile of the samples); 10-s windows " + ", ".join(
-                f"{k} {n}" for k, n in seen["windows"].items()) + ": beyond these the twin extrapolates")
+        windows = ", ".join(f"{k} {n}" for k, n in seen["windows"].items())
+        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); 10-s windows {windows}: "
+            "beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")
     if result.worse_than_prior:

@@ -53,6 +53,14 @@ class Envelope:
                 "stride_s": float(self.stride_s), "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
 
 
+UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+
+
+def span_text(ranges: dict) -> str:
+    """"u −0.10..+0.27 m/s, v …, r …" of a {dof: (low, high)} span (an Envelope's or its dict's)."""
+    return ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {UNITS[d]}" for d, (lo, hi) in ranges.items())
+
+
 def from_dict(data, where: str = "fitted_on") -> Envelope:
     """An Envelope from its to_dict form; TwinError naming `where` on anything else."""
     def number(x) -> float:

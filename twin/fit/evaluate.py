@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
-from .coverage import Envelope, beyond, sample_ranges
+from .coverage import UNITS, Envelope, beyond, sample_ranges, span_text
 from .metrics import DOFS, r2_mae
 from .windows import ModelCache, Window, make_windows, measured, predict
 
@@ -284,16 +284,15 @@ def format_by_manoeuvre(split: dict, title: str = "") -> str:
 def beyond_sentence(split: dict) -> str:
     """What the fit saw and how much of the judged data lies beyond it, with its misfit, in one sentence."""
     fit, b = split["fitted_on"], split.get("beyond_fit")
-    units = {"u": "m/s", "v": "m/s", "r": "rad/s"}
-    spans = ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {units[d]}" for d, (lo, hi) in fit["ranges"].items())
+    spans = span_text(fit["ranges"])
     text = (f"in fit: {fit['horizon_s']:g}-s windows, one every {fit.get('stride_s', 2.0):g} s, of the {fit['logs']} "
             f"logs the twin was fitted on, whose samples (1st-99th percentile) span {spans}")
     if b and b["samples"]:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
                  "of 1 − R² (the twin extrapolates there)")
-        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span {x['low']:+.2f}..{x['high']:+.2f} "
-                 f"{units[d]})" for d, x in b.get("dofs", {}).items()]
+        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span "
+                 f"{x['low']:+.2f}..{x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
         if reach:
             text += "; beyond it in " + ", ".join(reach) + ": record runs that reach there to fit it"
     return text
