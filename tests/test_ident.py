@@ -172,6 +172,23 @@ def test_the_misfit_beyond_what_the_fit_saw(yellowfish_vessel):
         from_dict({**own.to_dict(), "ranges": {"u": [1.0, 0.0], "v": [0, 1], "r": [0, 1]}})
 
 
+def test_the_api_evaluation_says_where_the_twin_misses_and_beyond_what_its_fit_saw(yellowfish_vessel):
+    import twin
+    from twin.fit.evaluate import fitted_envelope
+
+    ds = generate(yellowfish_vessel, n_segments=2, seed=8, segment_s=(30, 40))
+    wrong = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Xuu=-12.0))
+    preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
+    seen = fitted_envelope(yellowfish_vessel, preps)
+    slow = replace(seen, ranges={**seen.ranges, "u": (seen.ranges["u"][0], 0.5 * seen.ranges["u"][1])})
+    ev = twin.evaluate(replace(wrong, uncertainty={"fitted_on": slow.to_dict()}), [ds.recording])
+    split, pooled = ev.by_manoeuvre, ev.metrics["free_run_10s"]
+    for d in ("u", "v", "r"):
+        assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
+    assert split["beyond_fit"]["share_of_samples"] > 0.1 and ev.to_dict()["by_manoeuvre_10s"] is split
+    assert "beyond_fit" not in twin.evaluate(wrong, [ds.recording]).by_manoeuvre  # no record of a fit: none
+
+
 def test_manoeuvres_read_a_window_the_same_whatever_else_is_recorded(yellowfish_vessel):
     esso = vessel_mod.load("esso_osaka")
     no_top = replace(esso, thrusters=replace(esso.thrusters, rps_max=None))

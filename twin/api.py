@@ -150,12 +150,14 @@ def identify(recordings, vessel: Vessel | str, **options):
 @dataclass
 class Evaluation:
     """`twin evaluate`: R² and MAE per DOF and horizon, with and without each log's compass
-    calibration, and the calibrations."""
+    calibration, and the calibrations; by_manoeuvre: where the 10-s free runs miss
+    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
 
     vessel: str
     metrics: dict
     metrics_uncalibrated: dict
     calibrations: list
+    by_manoeuvre: dict = field(default_factory=dict)
 
     def __repr__(self) -> str:
         m = self.metrics.get("free_run_10s", {})
@@ -173,18 +175,23 @@ class Evaluation:
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
-                "calibrations": [c.to_dict() for c in self.calibrations]}
+                "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
 
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0) -> Evaluation:
-    """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments)."""
-    from .fit.evaluate import evaluate as run
+    """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
+    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw."""
+    from .fit.coverage import from_dict
+    from .fit.evaluate import evaluate as run, misfit_by_manoeuvre
     from .ident.identify import calibrate as calibrate_logs, prepared
 
     v, recs = _vessel(vessel), _recordings(recordings)
+    seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
+        if "fitted_on" in v.uncertainty else None
     calibrated, calibrations = calibrate_logs(recs, v)
-    return Evaluation(v.name, run(calibrated, prepared(recs, calibrated), stride_s=stride_s),
-                      run(v, prepared(recs, v), stride_s=stride_s), calibrations)
+    preps = prepared(recs, calibrated)
+    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s), run(v, prepared(recs, v), stride_s=stride_s),
+                      calibrations, misfit_by_manoeuvre(calibrated, preps, 10.0, stride_s, fitted=seen))
 
 
 def diagnose(recordings, vessel: Vessel | str, **options):
