@@ -20,6 +20,7 @@ def info(
 ):
     """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
     from ..formats import read_recording
+    from ..prepare.outliers import counted, describe
     from ..recording import format_summary
 
     mapping = channels_from(channels)
@@ -33,6 +34,8 @@ def info(
             continue
         typer.echo(f"== {path}")
         typer.echo(format_summary(rec.summary()))
+        for line in describe(counted(rec)):
+            typer.echo(f"  {line}")
     if failed:
         raise typer.Exit(2)
 

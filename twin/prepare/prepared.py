@@ -35,6 +35,8 @@
    segments are those of the streams as logged, so a calibration that tries several latencies
    keeps every window valid; the position and velocity at grid time t are read from the GNSS
    stream at t + L.
+0. Outliers (outliers.py): GNSS fixes off their neighbours' track and heading spikes are left out
+   of their streams before anything else, and counted in `dropped`.
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
    (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
    whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
@@ -51,6 +53,7 @@ from ..errors import TwinError
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
 from ..recording import Recording, Stream
 from ..run import Run
+from .outliers import distinct_count, gnss_outliers, heading_spikes
 
 DEADBAND_US = (-37.0, 31.0)  # seed 000 Table VII (experimental): 400·(3.75 + δ̃) − 1500
 _EPS_S = 1e-6  # a grid time within this of a sample time counts as "at" the sample
@@ -144,8 +147,17 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         missing = " and ".join(s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower())))
         raise TwinError(f"{name}: cannot prepare without {missing} samples")
     north_o, east_o, origin = local_ned(rec.gnss)
-    pos = Stream(rec.gnss.t, {"north": north_o, "east": east_o})
-    hdg = Stream(rec.heading.t, {"psi": np.unwrap(rec.heading["psi_rad"])})
+    psi_h = np.unwrap(rec.heading["psi_rad"])
+    off_track = gnss_outliers(north_o, east_o, rec.gnss.t)
+    spiked = heading_spikes(psi_h, rec.heading.t)
+    if off_track.all() or spiked.all():
+        raise TwinError(f"{name}: every GNSS fix or heading sample is an outlier of its neighbours")
+    outliers = [(why, n) for why, n in (
+        ("GNSS fixes off their neighbours' track (outliers)", distinct_count(off_track, np.column_stack([north_o, east_o]))),
+        ("heading spikes (outliers)", distinct_count(spiked, psi_h))) if n]
+    pos = Stream(rec.gnss.t[~off_track], {"north": north_o[~off_track], "east": east_o[~off_track]})
+    hdg = Stream(rec.heading.t[~spiked], {"psi": psi_h[~spiked]})
+    north_o, east_o = pos["north"], pos["east"]
     inputs = rec.pwm if len(rec.pwm) else rec.prop_rudder
     needed = [pos, hdg] + ([inputs] if len(inputs) else [])
     grid = _grid(needed, grid_dt)
@@ -158,7 +170,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     runs = _runs(valid, int(np.ceil(min_segment_s / grid_dt - 1e-9)))
     if not runs:
         raise TwinError(f"{name}: no stretch of {min_segment_s:g} s without a dropout > {max_gap_s:g} s")
-    dropped = _dropped_runs(valid, runs)
+    dropped = outliers + _dropped_runs(valid, runs)
     idx = np.concatenate([np.arange(a, b) for a, b in runs])
     t = grid[idx]
     t_fix = t + gnss_latency_s  # the fix that describes grid time t (step 8)
