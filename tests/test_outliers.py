@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from twin.prepare import prepare
-from twin.prepare.outliers import FLOOR_GNSS_M, counted, describe, gnss_outliers, heading_spikes
+from twin.prepare.outliers import FLOOR_GNSS_M, describe, gnss_outliers, heading_spikes
+from twin.prepare.prepared import outlier_counts as counted
 from twin.recording import Recording, Stream
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -20,7 +20,8 @@ def info(
 ):
     """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
     from ..formats import read_recording
-    from ..prepare.outliers import counted, describe
+    from ..prepare.outliers import describe
+    from ..prepare.prepared import outlier_counts as counted
     from ..recording import format_summary
 
     mapping = channels_from(channels)

@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..recording import Recording
-
 FLOOR_GNSS_M = 0.5
 FLOOR_HEADING_RAD = float(np.radians(5.0))
 K_SCALE = 10.0
@@ -89,20 +87,6 @@ def heading_spikes(psi_unwrapped_rad: np.ndarray, t: np.ndarray) -> np.ndarray:
     return spikes(t, psi_unwrapped_rad, FLOOR_HEADING_RAD)
 
 
-def counted(rec: Recording) -> dict[str, int]:
-    """How many GNSS fixes and heading samples of `rec` preparation leaves out as outliers."""
-    from .prepared import local_ned
-
-    out = {}
-    if len(rec.gnss):
-        n, e, _ = local_ned(rec.gnss)
-        out["gnss"] = distinct_count(gnss_outliers(n, e, rec.gnss.t), np.column_stack([n, e]))
-    if len(rec.heading):
-        psi = np.unwrap(rec.heading["psi_rad"])
-        out["heading"] = distinct_count(heading_spikes(psi, rec.heading.t), psi)
-    return out
-
-
 def distinct_count(mask: np.ndarray, x: np.ndarray) -> int:
     """How many distinct samples (a logger's repeats counted once) `mask` flags."""
     x = np.asarray(x, float).reshape(len(mask), -1)
@@ -111,7 +95,7 @@ def distinct_count(mask: np.ndarray, x: np.ndarray) -> int:
 
 
 def describe(counts: dict[str, int]) -> list[str]:
-    """`twin info`'s lines for counted()."""
+    """`twin info`'s lines for prepared.outlier_counts()."""
     what = {"gnss": f"GNSS fixes off their neighbours' track by more than {FLOOR_GNSS_M:g} m",
             "heading": f"heading samples off their neighbours by more than {np.degrees(FLOOR_HEADING_RAD):.0f}°"}
     return [f"outliers: {what[k]} (left out by preparation): {n}" for k, n in counts.items() if n]

@@ -190,6 +190,18 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
                     tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t))
 
 
+def outlier_counts(rec: Recording) -> dict[str, int]:
+    """How many GNSS fixes and heading samples of `rec` preparation leaves out as outliers (step 0)."""
+    out = {}
+    if len(rec.gnss):
+        n, e, _ = local_ned(rec.gnss)
+        out["gnss"] = distinct_count(gnss_outliers(n, e, rec.gnss.t), np.column_stack([n, e]))
+    if len(rec.heading):
+        psi = np.unwrap(rec.heading["psi_rad"])
+        out["heading"] = distinct_count(heading_spikes(psi, rec.heading.t), psi)
+    return out
+
+
 def _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s) -> None:
     if not (np.isfinite(grid_dt) and grid_dt > 0):
         raise TwinError(f"grid_dt must be a positive number of seconds, got {grid_dt}")
