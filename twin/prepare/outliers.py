@@ -35,7 +35,7 @@ def spikes(t: np.ndarray, x: np.ndarray, floor: float) -> np.ndarray:
     outliers side by side leave no chord that avoids both of them for the samples between."""
     t = np.asarray(t, float)
     x = np.asarray(x, float).reshape(len(t), -1)
-    first = np.r_[True, np.any(np.diff(x, axis=0) != 0, axis=1)] if len(t) else np.zeros(0, bool)
+    first = _firsts(x)
     idx = np.flatnonzero(first)  # the first sample of each distinct value
     bad_distinct = np.zeros(len(idx), bool)
     limit = None
@@ -89,9 +89,12 @@ def heading_spikes(psi_unwrapped_rad: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def distinct_count(mask: np.ndarray, x: np.ndarray) -> int:
     """How many distinct samples (a logger's repeats counted once) `mask` flags."""
-    x = np.asarray(x, float).reshape(len(mask), -1)
-    first = np.r_[True, np.any(np.diff(x, axis=0) != 0, axis=1)]
-    return int(np.sum(mask & first))
+    return int(np.sum(mask & _firsts(np.asarray(x, float).reshape(len(mask), -1))))
+
+
+def _firsts(x: np.ndarray) -> np.ndarray:
+    """True at the first sample of each run of one repeated value of x (n, d)."""
+    return np.r_[True, np.any(np.diff(x, axis=0) != 0, axis=1)] if len(x) else np.zeros(0, bool)
 
 
 def describe(counts: dict[str, int]) -> list[str]:
