@@ -1106,8 +1106,12 @@ def b_hysteresis(rng, v):
         "deadzone_hysteresis", "motor start/stop hysteresis: a stopped thruster starts only past start_fwd/start_rev; "
         "a spinning one keeps its T200 branch until the PWM passes stop_fwd/stop_rev back towards neutral",
         {"start_fwd_pwm_us": start_f, "stop_fwd_pwm_us": stop_f, "start_rev_pwm_us": start_r, "stop_rev_pwm_us": stop_r},
-        "dead_zone", {"fwd_edge_pwm_us": r3(0.5 * (start_f + stop_f)), "rev_edge_pwm_us": r3(0.5 * (start_r + stop_r))},
-        notes="a symmetric-edge dead zone can only average the start and stop edges")]
+        "motor_start", {"start_fwd_pwm_us": start_f, "start_rev_pwm_us": start_r,
+                        "fwd_edge_pwm_us": r3(0.5 * (start_f + stop_f)), "rev_edge_pwm_us": r3(0.5 * (start_r + stop_r))},
+        alternatives=["dead_zone"],
+        notes="the library's motor_start keeps the stop edges at its dead zone (31 / 37 µs from neutral, where the "
+              "T200 curve gives under 0.7 N) and fits the start edges; a dead zone alone can only average the "
+              "start and stop edges")]
 
 
 def b_fouling(rng, v):

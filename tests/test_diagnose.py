@@ -34,6 +34,7 @@ CASES = {
     "input_delay=0.4": ("input_delay", {"delay_s": 0.021}),
     "clock_offset=0.3": ("clock_offset", {"pwm_clock_offset_s": 0.021}),
     "dead_zone=0.2,0.2": ("dead_zone", {"fwd": 0.15, "rev": 0.15}),
+    "motor_start=0.16,0.17": ("motor_start", {"fwd": 0.026, "rev": 0.026}),
     "thruster_asymmetry=0.85": ("thruster_asymmetry", {"ratio": 0.03}),
     "thrust_gain=1.2": ("thrust_gain", {"scale": 0.03}),
     "thruster_gain_left=0.7": ("thruster_gain_left", {"scale": 0.03}),
@@ -298,3 +299,21 @@ def test_an_effect_kept_before_the_one_that_supersedes_it_goes():
     left, gone = without_superseded(kept + [Kept(winner, [])], winner)
     assert [k.trial.name for k in left] == ["current", "wind_per_log"] and gone == {"wind_shape"}
     assert without_superseded(kept, trial("current"))[1] == set()
+
+
+def test_a_window_votes_when_one_dof_moves_by_half_its_own_noise():
+    """Residuals in each DOF's noise units: a surge change of 0.6 σ over the window votes, though
+    it is small beside a sway noise many times larger in the fit's scale; 0.4 σ does not; a change
+    spread over the three DOFs votes only where one of them passes 0.5 σ."""
+    from twin.diagnose.search import _moved
+    rng = np.random.default_rng(4)
+    base = rng.normal(size=300)
+    dof = np.repeat([0, 1, 2], 100)
+    surge = base.copy()
+    surge[:100] += 0.6
+    assert _moved(base, surge, dof)
+    surge[:100] -= 0.2
+    assert not _moved(base, surge, dof)
+    spread = base + 0.45
+    assert not _moved(base, spread, dof)
+    assert _moved(base, base[:-1], dof)  # a window that lost samples is not the same window

@@ -349,6 +349,23 @@ def test_lock_step_at_400_hz_is_the_offline_twin_with_the_same_pwm(full_vessel, 
     assert np.median(latencies) < 5e-3, f"median latency {np.median(latencies) * 1e6:.0f} µs per frame"
 
 
+def test_lock_step_with_motor_hysteresis_is_the_offline_twin(full_vessel, fine_vessel):
+    """A motor that starts late answers the PWM as it comes, in SITL as offline (levels near neutral)."""
+    hyst = {"start_fwd": 0.16, "start_rev": -0.17}
+    full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, **hyst))
+    fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, **hyst))
+    rng = np.random.default_rng(5)
+    levels = rng.choice([1500, 1525, 1545, 1555, 1575, 1610, 1470, 1450, 1440, 1420, 1380], size=(30, 2))
+    pairs = np.repeat(levels, 100, axis=0).astype(float)
+    frames = [[1500] * 16 for _ in pairs]
+    for f, (left, right) in zip(frames, pairs):
+        f[0], f[2] = int(left), int(right)
+    replies, _, _ = play(full, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert_matches_offline(replies, offline(fine, pairs, 1 / 400))
+    plain = offline(fine_vessel, pairs, 1 / 400)
+    assert np.abs(arrays(replies)["pos"][-1, :2] - plain.eta[len(pairs), :2]).max() > 0.05
+
+
 def test_lock_step_at_50_hz_substeps_the_frame_and_reads_32_output_packets(full_vessel, fine_vessel):
     frames, pairs = pwm_frames(150, seed=2, outputs=32)
     replies, _, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)])

@@ -112,7 +112,79 @@ def test_heading_error_and_its_inverse():
 def test_vessel_file_round_trip_keeps_the_new_fields(tmp_path):
     base = vessel_mod.load("yellowfish")
     v = replace(base, sensors=Sensors(heading_bias_deg=1.5, antenna_offset_m=(0.1, 0.0)), cg_offset_m=(0.01, 0.0),
-                thrusters=replace(base.thrusters, delay_s=0.2, decay_per_min=0.05, advance_loss=1.2))
+                thrusters=replace(base.thrusters, delay_s=0.2, decay_per_min=0.05, advance_loss=1.2,
+                                            start_fwd=0.15, start_rev=-0.16))
     path = vessel_mod.save(v, tmp_path / "amended.json")
     back = vessel_mod.load(str(path))
     assert back.sensors == v.sensors and back.cg_offset_m == v.cg_offset_m and back.thrusters == v.thrusters
+    assert "start_fwd" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()  # old files unchanged
+
+
+# ---------------------------------------------------------------- motor start/stop hysteresis
+
+HYST = {"start_fwd": 0.16, "start_rev": -0.17}  # 64 µs and 68 µs from neutral, dead zone 31 / 37 µs
+
+
+def test_motor_states_vectorised_and_stepwise_agree():
+    from twin.physics.thrusters import motor_state_step, motor_states
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        x = np.cumsum(rng.normal(0.0, 0.05, 400)) * rng.uniform(0.2, 1.0)
+        x[rng.random(400) < 0.05] = np.nan
+        state, steps = 0, []
+        for xi in x:
+            state = motor_state_step(state, xi, 0.16, 0.0775, -0.17, -0.0925)
+            steps.append(state)
+        np.testing.assert_array_equal(motor_states(x, 0.16, 0.0775, -0.17, -0.0925), steps)
+
+
+def test_a_stopped_motor_starts_beyond_its_start_edge_and_stops_inside_the_dead_zone():
+    t = replace(vessel_mod.load("yellowfish").thrusters, **HYST)
+    pwm = np.array([1500, 1550, 1570, 1550, 1540, 1525, 1550, 1440, 1420, 1450, 1470, 1440], float)
+    driven = t.as_driven(np.column_stack([pwm, np.full_like(pwm, 1500.0)]))[:, 0]
+    # 1550 from stopped: nothing; 1570 starts it; 1550, 1540 keep it; 1525 (inside 1531) stops it;
+    # 1550 again: stopped; 1440 not past 1432: stopped; 1420 starts astern; 1450 keeps; 1470 stops
+    np.testing.assert_array_equal(driven, [1500, 1500, 1570, 1550, 1540, 1500, 1500, 1500, 1420, 1450, 1500, 1500])
+    state, stepped = (0, 0), []
+    for p in pwm:
+        state, pair = t.driven_step(state, (p, 1500.0))
+        stepped.append(pair[0])
+    np.testing.assert_array_equal(stepped, driven)
+    plain = vessel_mod.load("yellowfish").thrusters
+    assert not plain.hysteretic and np.array_equal(plain.as_driven(pwm[:, None]), pwm[:, None])
+    inside = replace(plain, start_fwd=0.05, start_rev=-0.05)  # edges inside the dead zone: no hysteresis
+    assert not inside.hysteretic and inside.start_edges == (plain.deadzone_fwd, plain.deadzone_rev)
+
+
+NEAR_NEUTRAL = InputSeries(np.arange(0.0, 24.0, 2.0), np.array(
+    [[1550, 1545], [1575, 1500], [1545, 1545], [1540, 1430], [1520, 1415], [1550, 1445],
+     [1565, 1470], [1545, 1440], [1600, 1550], [1535, 1535], [1500, 1420], [1548, 1455]], float), "pwm")
+
+
+def test_hysteresis_engine_matches_analytic_and_changes_the_run():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, **HYST))
+    cv = compile_vessel(v)
+    eng = simulate(cv, NEAR_NEUTRAL, 24.0)
+    ana = analytic.simulate(cv.hydro(), v.thrusters, cv.geometry.thruster_y_m, NEAR_NEUTRAL, eng.t,
+                            nu0=np.zeros(3))
+    pos, head = _compare(eng, ana)
+    assert pos < 0.01 and head < 0.1
+    plain = simulate(compile_vessel(base), NEAR_NEUTRAL, 24.0)
+    assert _compare(eng, plain)[0] > 0.5
+    # the run logs the PWM as commanded, not as the motors answered it
+    np.testing.assert_array_equal(eng.pwm_us[0], [1550, 1545])
+
+
+def test_hysteresis_closed_loop_is_its_own_pwm_replayed():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, **HYST))
+    cv = compile_vessel(v)
+    levels = [(0.1, 0.0), (0.25, 0.05), (0.12, -0.02), (0.0, 0.0), (-0.15, 0.03), (0.1, 0.08)]
+
+    def controller(t, eta, nu):
+        return levels[min(int(t // 3.0), len(levels) - 1)]
+    closed = simulate(cv, controller, 18.0, sample_dt_s=0.1)
+    replayed = simulate(cv, closed.meta["inputs"], 18.0, sample_dt_s=0.1)
+    np.testing.assert_allclose(closed.eta, replayed.eta, atol=1e-9)
+    assert np.abs(closed.nu[:, 0]).max() > 0.1

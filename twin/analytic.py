@@ -82,9 +82,10 @@ def simulate(
     x = np.concatenate([np.zeros(3) if eta0 is None else eta0, np.zeros(3) if nu0 is None else nu0,
                         np.zeros(2)])[: 8 if lag else 6].astype(float)
     t0, t_end = float(t_samples[0]), float(t_samples[-1])
+    driven = inputs.driven(thrusters)
     changes = inputs.t + thrusters.delay_s
     inside_run = (changes > t0) & (changes < t_end)
-    changed = np.r_[True, np.any(np.diff(inputs.values, axis=0) != 0, axis=1)]
+    changed = np.r_[True, np.any(np.diff(driven.values, axis=0) != 0, axis=1)]
     breaks = np.unique(np.concatenate([[t0, t_end], changes[inside_run & changed]]))
     if wind is not None:
         wind_changed = np.r_[True, np.any(np.diff(wind.air_ned, axis=0) != 0, axis=1)]
@@ -92,7 +93,7 @@ def simulate(
     out = np.full((len(t_samples), len(x)), np.nan)
     out[0] = x
     for a, b in zip(breaks[:-1], breaks[1:]):
-        held = inputs.at(np.array([a - thrusters.delay_s]))
+        held = driven.at(np.array([a - thrusters.delay_s]))
         if inputs.kind == "propeller_rudder":
             raw = held[0]  # (n, δ): the MMG forces' controls, which the MMG terms switch (not `thrust`)
         else:

@@ -48,7 +48,14 @@ class InputSeries:
         advance loss: the input held at t − delay_s, decayed by the recording time start_s + t.
         For a propeller and rudder: the engine's two controls (n rps, δ rad) held at t − delay_s."""
         times = np.asarray(times, float)
-        return thrusters.command(self.kind, self.at(times - thrusters.delay_s), times + start_s)
+        return thrusters.command(self.kind, self.driven(thrusters).at(times - thrusters.delay_s), times + start_s)
+
+    def driven(self, thrusters: ThrusterModel) -> "InputSeries":
+        """The series as the motors answer it: a PWM series through `ThrusterModel.as_driven` (a stopped
+        motor's pulse is neutral until it passes its start edge); the series itself otherwise."""
+        if self.kind != "pwm" or not thrusters.hysteretic:
+            return self
+        return InputSeries(self.t, thrusters.as_driven(self.values), self.kind)
 
     def pwm_at(self, times: np.ndarray) -> np.ndarray:
         if self.kind == "pwm":

@@ -112,6 +112,9 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     if t.kind != "propeller_rudder":  # fields of a propeller and rudder only: other files stay as they were
         for key in ("rps_max", "rudder_max_deg"):
             d.pop(key)
+    for key in ("start_fwd", "start_rev"):  # only where a motor starts late: other files stay as they were
+        if d[key] is None:
+            d.pop(key)
     return d
 
 
@@ -308,6 +311,9 @@ def check(vessel: Vessel) -> None:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
     if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not t.advance_loss >= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster delay and advance loss must be ≥ 0, decay in [0, 1)")
+    if (t.start_fwd is not None and not t.start_fwd >= 0) or (t.start_rev is not None and not t.start_rev <= 0):
+        raise TwinError(f"vessel '{vessel.name}': thrusters.start_fwd must be ≥ 0 and start_rev ≤ 0 (δ̃), got "
+                        f"{t.start_fwd}, {t.start_rev}")
     window = vessel.sensors.heading_rate_window_s
     if window is not None and not window > 0:
         raise TwinError(f"vessel '{vessel.name}': sensors.heading_rate_window_s must be positive, got {window}")

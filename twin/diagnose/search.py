@@ -7,8 +7,8 @@ its neighbours' copy); the blocks are dealt to FOLDS folds in turn, and every ca
 on the other folds and judged on each fold's blocks, so every block is judged once by a fit that
 did not see it. The unit of evidence is the block, not the window: the windows of one block
 share their conditions and would inflate the count. A block votes with the relative change of
-the misfit of its AFFECTED windows only: those in which the candidate moves the residual by more
-than AFFECT_SIGMA times the noise. Idle windows where both twins agree do not vote, so a mostly
+the misfit of its AFFECTED windows only: those in which the candidate moves the residual of some
+DOF by more than AFFECT_SIGMA times that DOF's noise. Idle windows where both twins agree do not vote, so a mostly
 idle log neither dilutes a real effect nor lets noise decide. The test is the Wilcoxon
 signed-rank test of the blocks' votes (one-sided, z).
 
@@ -140,7 +140,8 @@ class _Costs:
 
     per_window: np.ndarray
     per_dof: np.ndarray  # (W, 3)
-    residuals: list[np.ndarray]  # one flat array per window
+    residuals: list[np.ndarray]  # one flat array per window, in units of each sample's DOF noise σ
+    dofs: list[np.ndarray]  # the DOF (0 u, 1 v, 2 r) of each of those residuals
     noise: np.ndarray  # per window: the cost a perfect twin would still have (the measurement noise)
 
 
@@ -210,7 +211,7 @@ class Search:
     def held_costs(self, per_fold: list[Vessel], wind: str | None = None) -> _Costs:
         """Every fold's vessel on that fold's held-out windows, pooled (held_order); wind="measured":
         with the recordings' measured wind as a known input (windows.predict)."""
-        costs, dofs, residuals, noise = [], [], [], []
+        costs, dofs, residuals, noise, dof_of = [], [], [], [], []
         for vessel, (_, held) in zip(per_fold, self.folds):
             obj = self._objective(self.prior, [], held, wind=wind)
             r = obj.residuals_of([vessel])[0]
@@ -224,14 +225,14 @@ class Search:
             counts = np.zeros((len(held), 3))
             np.add.at(counts, (idx, dof), 1.0)
             noise.append(counts @ self.noise_var)
-            residuals += [r[idx == j] for j in range(len(held))]
-        return _Costs(np.concatenate(costs), np.vstack(dofs), residuals, np.concatenate(noise))
+            in_noise = r / np.sqrt(self.noise_var)[dof]
+            residuals += [in_noise[idx == j] for j in range(len(held))]
+            dof_of += [dof[idx == j] for j in range(len(held))]
+        return _Costs(np.concatenate(costs), np.vstack(dofs), residuals, dof_of, np.concatenate(noise))
 
     def evidence(self, base: _Costs, cand: _Costs, fold_values: list[dict] | None = None) -> Evidence:
         """`cand` against `base` on the pooled held-out windows (module docstring)."""
-        noise_rms = float(np.sqrt(np.mean(self.noise_var)))
-        affected = np.array([len(a) != len(b) or (len(a) and np.sqrt(np.mean((a - b) ** 2)) > AFFECT_SIGMA * noise_rms)
-                             for a, b in zip(base.residuals, cand.residuals)], bool)
+        affected = np.array([_moved(a, b, d) for a, b, d in zip(base.residuals, cand.residuals, base.dofs)], bool)
         votes = []
         for b in np.unique(self.held_blocks):
             sel = (self.held_blocks == b) & affected
@@ -595,6 +596,16 @@ def _reset(vessel: Vessel, candidate: Candidate, prior: Vessel) -> Vessel:
     for p in candidate.params:
         vessel = p.put(vessel, p.get(prior))
     return vessel
+
+
+def _moved(base: np.ndarray, cand: np.ndarray, dof: np.ndarray) -> bool:
+    """A window is affected when, in some DOF, the candidate moves its residual RMS by more than
+    AFFECT_SIGMA of that DOF's own noise σ (residuals in noise units): judged per DOF, a change in
+    surge is not measured against the sway noise, which is larger in the fit's scale."""
+    if len(base) != len(cand):
+        return True
+    diff2 = (base - cand) ** 2
+    return any(np.sqrt(np.mean(diff2[dof == k])) > AFFECT_SIGMA for k in range(3) if np.any(dof == k))
 
 
 def _signed_rank_z(votes: np.ndarray) -> float:

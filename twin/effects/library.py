@@ -30,7 +30,7 @@ from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
                            mmg_sway_added_mass)
 from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
-                       reverse_scale, scale_of)
+                       reverse_scale, scale_of, start_edge)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
 
 _SCALE = ("scale", "×", 0.0, 100.0, True)
@@ -284,6 +284,29 @@ def _dead_zone_scan(now: tuple[float, float]) -> tuple[tuple[float, float], ...]
     return (now,) + both + fwd + rev
 
 
+def motor_start(vessel: Vessel, fwd: float, rev: float) -> Vessel:
+    """Start edges (widths ≥ 0 in δ̃, as dead_zone's) of a motor with start/stop hysteresis: a
+    stopped motor starts only beyond them, a running one stops inside the dead zone (physics/thrusters.py);
+    an edge inside the dead zone is the dead-zone edge (no hysteresis on that side)."""
+    return _thrusters(vessel, start_fwd=fwd, start_rev=-rev)
+
+
+def _motor_start_fit(prior: Vessel, logs) -> Candidate | None:
+    """Scanned like the dead zone (a staircase in the edges), from the dead-zone edges: both edges
+    out together, then each alone. The stop edges stay the prior's dead zone."""
+    t = prior.thrusters
+    if t.kind != "t200":
+        return None
+    dz = (t.deadzone_fwd, -t.deadzone_rev)
+    now = (t.start_edges[0], -t.start_edges[1])
+    out = np.round(np.arange(0.025, 0.2 + 1e-9, 0.025), 4)
+    scan = ((now,) + tuple((dz[0] + w, dz[1] + w) for w in out) + tuple((dz[0] + w, now[1]) for w in out[1::2])
+            + tuple((now[0], dz[1] + w) for w in out[1::2]))
+    return Candidate("motor_start", (start_edge("fwd"), start_edge("rev")), (now,),
+                     lambda p: effect("motor_start", fwd=p["fwd"], rev=p["rev"]), "thrust",
+                     scan=scan, scan_step=(0.0125, 0.0125))
+
+
 def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
     """Thrust × (1 − decay_per_min·t/60 s), t from the start of the recording (battery sag)."""
     return _thrusters(vessel, decay_per_min=decay_per_min)
@@ -450,6 +473,8 @@ _SPECS = [
                "thrust astern weaker or stronger than the map's", _reverse_fit),
     EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
                "dead-zone widths in normalised PWM", _dead_zone_fit),
+    EffectSpec("motor_start", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), motor_start,
+               "start edges of a motor with start/stop hysteresis (a stopped motor starts late)", _motor_start_fit),
     EffectSpec("thrust_decay", "thrusters", (_v("decay_per_min", "1/min", 0, 0.99),), thrust_decay,
                "thrust sag over time",
                _single("thrust_decay", member("thrusters", "decay_per_min", "1/min", 0.0, 0.6, 0.05), ((0.02,),),

@@ -150,6 +150,21 @@ def dead_zone_edge(which: str) -> Quantity:
     return Quantity(which, "δ̃", get, put, 0.0, 0.3, 0.05, fd_abs=0.005)
 
 
+def start_edge(which: str) -> Quantity:
+    """Where a stopped motor starts, as a width ≥ 0 in normalised PWM δ̃ (never inside the dead zone:
+    ThrusterModel.start_edges)."""
+    key = "start_fwd" if which == "fwd" else "start_rev"
+    sign = 1.0 if which == "fwd" else -1.0
+
+    def get(v: Vessel) -> float:
+        return sign * v.thrusters.start_edges[0 if which == "fwd" else 1]
+
+    def put(v: Vessel, x: float) -> Vessel:
+        return replace(v, thrusters=replace(v.thrusters, **{key: sign * x}))
+
+    return Quantity(which, "δ̃", get, put, 0.0, 0.4, 0.05, fd_abs=0.005)
+
+
 def log_heading_bias(log: str) -> Quantity:
     """One log's own heading bias (deg), in sensors.heading_bias_by_log_deg."""
     def get(v: Vessel) -> float:

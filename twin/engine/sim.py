@@ -177,6 +177,7 @@ class _ClosedLoop:
         self.decaying = bool(thrusters.decay_per_min) and thrust_on
         self.pending: deque[tuple[int, Pair]] = deque()  # (step it acts from, raw thrust command)
         self.raw: Pair = (0.0, 0.0)  # the command in force before decay: none until the first one acts
+        self.motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
         self.ticks: list[int] = []
         self.times: list[float] = []
         self.values: list = []
@@ -212,6 +213,8 @@ class _ClosedLoop:
         self.times.append(t)
         self.values.append(held)
         self.kinds.append(kind)
+        if kind == "pwm" and self.map.thrusters.hysteretic:  # the motors answer the PWM as it comes
+            self.motors, held = self.map.thrusters.driven_step(self.motors, held)
         if self.thrust_on:
             self.pending.append((min(k + self.n_delay, self.n_steps), self.map.raw_thrust(kind, held)))
 

@@ -104,6 +104,7 @@ def simulate_reference(
     if not terms.thrust:
         cmd_steps = np.zeros_like(cmd_steps)
     rows = {"t": [], "eta": [], "nu": [], "held": [], "cmd": []}
+    motors = (0, 0)  # a hysteretic map's motor states
     chunk_start = np.empty(mujoco.mj_stateSize(model, FULL))
     with hydrodynamics, quiet_log():
         for i, k in enumerate(events):
@@ -115,6 +116,9 @@ def simulate_reference(
                 applied_v.append(held)
                 held_steps[k:] = held
                 act_at = min(k + n_delay, n_steps)
+                if kind == "pwm":
+                    motors, driven = thrusters.driven_step(motors, held)
+                    held = np.asarray(driven)
                 cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
                 cmd_steps[act_at:] = cmd if terms.thrust else 0.0
             data.ctrl[:2] = cmd_steps[k]

@@ -153,7 +153,13 @@ def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: 
     look = times - vessel.thrusters.delay_s + vessel.sensors.pwm_clock_offset_s
     look = np.clip(look, prep.t[seg.start], prep.t[seg.stop - 1])  # nothing is known outside the segment
     sl = seg.slice
-    pwm = np.column_stack([hold(prep.t[sl], prep.pwm[sl, j], look) for j in range(2)])
+    logged = prep.pwm[sl]
+    if prep.input_kind == "pwm" and vessel.thrusters.hysteretic:
+        # a motor's state follows the PWM since the segment began; nothing later matters
+        end = min(int(np.searchsorted(prep.t[sl], look[-1], side="right")) + 1, len(logged))
+        logged = vessel.thrusters.as_driven(logged[:end])
+        sl = slice(sl.start, sl.start + end)
+    pwm = np.column_stack([hold(prep.t[sl], logged[:, j], look) for j in range(2)])
     return vessel.thrusters.command(prep.input_kind, pwm, times)
 
 

@@ -7,6 +7,11 @@ what real thrusters add to a datasheet curve:
   latency): the thrusters act on the PWM of `delay_s` earlier;
 - thrust decay over a run (battery sag): the command is scaled by
   1 − decay_per_min·t/60 s, t from the start of the recording;
+- a motor that starts late (start/stop hysteresis of a sensorless ESC): a stopped motor starts
+  only when the PWM passes a start edge beyond the dead-zone edge (`start_fwd`, `start_rev`),
+  and a running one keeps its branch of the map until the PWM comes back inside the dead zone.
+  Which branch drives a sample depends on the PWM before it, so the map acts on a series
+  (`as_driven`, `motor_states`), not on one pulse: a stopped motor's pulse counts as neutral;
 - thrust loss with advance speed: with K_T linear in the advance ratio J = u_a/(nD),
   K_T = K_T0(1 − J/J_0), a propeller turning at n gives T = ρD⁴K_T0·n|n| − ρD³(K_T0/J_0)·|n|·u_a.
   Its static thrust T0 = ρD⁴K_T0·n|n| fixes |n| = √(|T0|/(ρD⁴K_T0)), so
@@ -39,7 +44,9 @@ class ThrusterModel:
 
     `kind = "t200"`: seed 000 eq. 27 with δ̃ = δ/400 − 3.75 and separate forward and
     reverse quadratics in δ̃ (coefficients [a, b, c] of a·δ̃² + b·δ̃ + c), zero
-    thrust inside the dead zone (deadzone_rev, deadzone_fwd).
+    thrust inside the dead zone (deadzone_rev, deadzone_fwd). start_fwd / start_rev (δ̃, None:
+    the dead-zone edge): where a stopped motor starts (module docstring); an edge inside the
+    dead zone is the dead-zone edge, since no motor runs there.
     `kind = "direct"`: inputs are thrusts in N; no PWM map is known.
     `kind = "propeller_rudder"`: inputs are the propeller speed n (rps) and the rudder angle δ (rad),
     bounded by |n| ≤ rps_max and |δ| ≤ rudder_max_deg where given (which a scenario's full
@@ -69,6 +76,8 @@ class ThrusterModel:
     gain_left: float = 1.0
     gain_right: float = 1.0
     reversed_channels: tuple[str, ...] = field(default_factory=tuple)
+    start_fwd: float | None = None
+    start_rev: float | None = None
     rps_max: float | None = None
     rudder_max_deg: float | None = None
 
@@ -91,6 +100,45 @@ class ThrusterModel:
         """δ̃ = δ/400 − 3.75 (seed 000 §V-B), clipped to the PWM range."""
         pwm = np.clip(np.asarray(pwm_us, dtype=float), self.pwm_min_us, self.pwm_max_us)
         return pwm / self.pwm_scale_us - self.pwm_offset
+
+    @property
+    def start_edges(self) -> tuple[float, float]:
+        """(forward, reverse) δ̃ at which a stopped motor starts: never inside the dead zone."""
+        f = self.deadzone_fwd if self.start_fwd is None else max(self.start_fwd, self.deadzone_fwd)
+        r = self.deadzone_rev if self.start_rev is None else min(self.start_rev, self.deadzone_rev)
+        return f, r
+
+    @property
+    def hysteretic(self) -> bool:
+        """A PWM map whose motors start beyond the dead-zone edges (the map acts on a series)."""
+        return self.kind == "t200" and self.start_edges != (self.deadzone_fwd, self.deadzone_rev)
+
+    @property
+    def neutral_us(self) -> float:
+        """The PWM of δ̃ = 0 (µs)."""
+        return self.pwm_offset * self.pwm_scale_us
+
+    def as_driven(self, pwm_us) -> np.ndarray:
+        """(n, 2) PWM series (µs, in time order, motors stopped before it) as the motors answer it:
+        a stopped motor's pulse becomes neutral (module docstring). Unchanged without hysteresis."""
+        pwm = np.array(pwm_us, dtype=float)
+        if not self.hysteretic:
+            return pwm
+        start_f, start_r = self.start_edges
+        for j in range(pwm.shape[1]):
+            running = motor_states(self.normalised(pwm[:, j]), start_f, self.deadzone_fwd, start_r, self.deadzone_rev)
+            pwm[(running == 0) & np.isfinite(pwm[:, j]), j] = self.neutral_us
+        return pwm
+
+    def driven_step(self, states: tuple[int, int], pwm_us) -> tuple[tuple[int, int], tuple[float, float]]:
+        """One pulse pair after `states` (+1 ahead, −1 astern, 0 stopped): (new states, the pair as
+        the motors answer it): `as_driven` for a controller that makes its PWM as it goes."""
+        if not self.hysteretic:
+            return states, (float(pwm_us[0]), float(pwm_us[1]))
+        start_f, start_r = self.start_edges
+        new = tuple(motor_state_step(s, float(self.normalised(p)), start_f, self.deadzone_fwd, start_r,
+                                     self.deadzone_rev) for s, p in zip(states, pwm_us))
+        return new, tuple(float(p) if s else self.neutral_us for s, p in zip(new, pwm_us))
 
     def thrust_from_pwm(self, pwm_us):
         """Commanded thrust T(δ) in N (seed 000 eq. 27), before gains and lag."""
@@ -150,6 +198,31 @@ class ThrusterModel:
             return held * np.ones_like(np.asarray(t_s, float))[..., None]
         raw = self.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
         return raw * np.asarray(self.decay_factor(t_s))[..., None]
+
+
+def motor_states(x, start_fwd: float, stop_fwd: float, start_rev: float, stop_rev: float) -> np.ndarray:
+    """+1 (running ahead), −1 (astern) or 0 (stopped) per sample of one motor's δ̃ series, stopped
+    before it: ahead from a sample ≥ start_fwd until one < stop_fwd, astern from one ≤ start_rev
+    until one > stop_rev (a NaN sample changes nothing). The last start must be later than the
+    last stop: two running maxima, no loop over the samples."""
+    x = np.asarray(x, float)
+    idx = np.arange(len(x))
+
+    def since(started, stopped) -> np.ndarray:
+        return np.maximum.accumulate(np.where(started, idx, -1)) > np.maximum.accumulate(np.where(stopped, idx, -1))
+    return since(x >= start_fwd, x < stop_fwd).astype(int) - since(x <= start_rev, x > stop_rev).astype(int)
+
+
+def motor_state_step(state: int, x: float, start_fwd: float, stop_fwd: float, start_rev: float,
+                     stop_rev: float) -> int:
+    """`motor_states` one sample at a time: the state after δ̃ = x."""
+    if x != x:
+        return state
+    if (state == 1 and x < stop_fwd) or (state == -1 and x > stop_rev):
+        state = 0
+    if state == 0:
+        state = 1 if x >= start_fwd else (-1 if x <= start_rev else 0)
+    return state
 
 
 def advance_speed(nu_r: np.ndarray, thruster_y_m) -> np.ndarray:

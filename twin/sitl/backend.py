@@ -237,6 +237,7 @@ class SitlTwin:
         self._hist_r = [self._neutral_held]
         self._hist_i = 0
         self._pwm_last = (self.map.neutral_us, self.map.neutral_us)
+        self._motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
         self._state = self._read_state()
 
     def _set_rate(self, frame_rate_hz: int) -> None:
@@ -263,27 +264,29 @@ class SitlTwin:
         n = frames * self._nsub
         t0 = self._seg_t0 + self._seg_k * self._h
         time_before = self.data.time
+        # a hysteretic map's motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps the PWM
+        self._motors, driven = self.vessel.thrusters.driven_step(self._motors, (pl, pr))
         if self._plain:
-            self._advance_held(t0, pl, pr, n)
+            self._advance_held(t0, (pl, pr), driven, n)
         else:
-            self._advance_delayed(t0, pl, pr, n)
+            self._advance_delayed(t0, (pl, pr), driven, n)
         self._seg_k += n
         self._pwm_last = (pl, pr)
         return self._reply(t0, n, time_before)
 
-    def _advance_held(self, t0_s: float, pwm_left: float, pwm_right: float, n: int) -> None:
+    def _advance_held(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo."""
         mp, ctrl, (il, ir) = self.map, self.data.ctrl, self._ctrl_ids
-        ctrl[il] = mp.raw(mp.held(pwm_left))
-        ctrl[ir] = mp.raw(mp.held(pwm_right))
-        self._record(t0_s, pwm_left, pwm_right)
+        ctrl[il] = mp.raw(mp.held(driven[0]))
+        ctrl[ir] = mp.raw(mp.held(driven[1]))
+        self._record(t0_s, *logged)
         mujoco.mj_step(self.model, self.data, nstep=n)
 
-    def _advance_delayed(self, t0_s: float, pwm_left: float, pwm_right: float, n: int) -> None:
+    def _advance_delayed(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
         mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self.data.ctrl, self._ctrl_ids
-        self._hold(t0_s, mp.held(pwm_left), mp.held(pwm_right))
+        self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
         for i in range(n):
             t = t_seg + (k0 + i) * h
@@ -292,7 +295,7 @@ class SitlTwin:
             ctrl[il] = mp.raw(held_left) * f
             ctrl[ir] = mp.raw(held_right) * f
             if i == 0:
-                self._record(t0_s, pwm_left, pwm_right)
+                self._record(t0_s, *logged)
             mujoco.mj_step(m, d)
 
     def _reply(self, t0_s: float, n: int, time_before_s: float) -> Reply:
