@@ -301,19 +301,62 @@ def test_an_effect_kept_before_the_one_that_supersedes_it_goes():
     assert without_superseded(kept, trial("current"))[1] == set()
 
 
-def test_a_window_votes_when_one_dof_moves_by_half_its_own_noise():
-    """Residuals in each DOF's noise units: a surge change of 0.6 σ over the window votes, though
-    it is small beside a sway noise many times larger in the fit's scale; 0.4 σ does not; a change
-    spread over the three DOFs votes only where one of them passes 0.5 σ."""
+def test_a_window_votes_when_its_residual_moves_by_half_the_pooled_noise():
+    """Residuals in each DOF's noise units, noise variances in the fit's scale: a window votes when
+    the change, back in the fit's scale, passes 0.5 × the noise pooled over u, v, r. A surge change
+    of 0.6 surge σ does not vote when the sway noise is 10× larger in that scale; the same change
+    in sway does; a lost sample always does (not the same window)."""
     from twin.diagnose.search import _moved
     rng = np.random.default_rng(4)
     base = rng.normal(size=300)
     dof = np.repeat([0, 1, 2], 100)
+    noise_var = np.array([1.0, 100.0, 1.0])
+    pooled = np.sqrt(noise_var.mean())
     surge = base.copy()
     surge[:100] += 0.6
-    assert _moved(base, surge, dof)
-    surge[:100] -= 0.2
-    assert not _moved(base, surge, dof)
-    spread = base + 0.45
-    assert not _moved(base, spread, dof)
-    assert _moved(base, base[:-1], dof)  # a window that lost samples is not the same window
+    assert not _moved(base, surge, dof, noise_var)
+    sway = base.copy()
+    sway[100:200] += 0.6  # RMS over the window: sqrt(0.36·100/3) = 3.46 against 0.5·5.8 = 2.9
+    assert np.sqrt(0.36 * 100 / 3) > 0.5 * pooled
+    assert _moved(base, sway, dof, noise_var)
+    assert not _moved(base, base + 0.45 * np.sqrt(noise_var[dof]).min(), dof, np.ones(3))
+    assert _moved(base, base[:-1], dof, noise_var)
+
+
+def test_fit_on_an_unphysical_edge_is_not_named():
+    """Added yaw inertia ×20 on every fold (a thruster's slow response read as inertia) does not
+    earn its place whatever its z; on one fold only, or a time shift at its range end, it may."""
+    from twin.diagnose.search import Evidence, Fitted, at_unphysical_edge
+    prior = vessel_mod.load("yellowfish")
+    lib = candidates(prior)
+    am = lib["added_mass"]
+    fitted = lambda values: Fitted(am, values, prior, 0.0)  # noqa: E731
+    edge = {"Xudot_scale": 1.3, "Yvdot_scale": 1.0, "Nrdot_scale": 20.0}
+    inside = dict(edge, Nrdot_scale=19.0)
+    assert at_unphysical_edge(am, [fitted(edge)] * 3) == ["Nrdot_scale"]
+    assert at_unphysical_edge(am, [fitted(edge), fitted(inside), fitted(edge)]) == []
+    low = dict(inside, Xudot_scale=0.05)
+    assert at_unphysical_edge(am, [fitted(low)] * 3) == ["Xudot_scale"]
+    delay = lib["input_delay"]
+    hi = delay.params[0].hi
+    assert at_unphysical_edge(delay, [Fitted(delay, {delay.names[0]: hi}, prior, 0.0)] * 3) == []
+    strong = Evidence(6.0, 0.3, 0.4, {}, 20, 0, 40)
+    assert strong.earns_its_place()
+    strong.at_edge = ["Nrdot_scale"]
+    assert not strong.earns_its_place()
+
+
+def test_the_report_says_the_form_is_off_where_an_edge_fit_was_refused():
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+    edge = {"name": "added_mass", "z": 3.61, "excess_gain": 0.199, "blocks_for": 14, "blocks_against": 2,
+            "affected_windows": 27, "at_edge": ["Nrdot_scale"],
+            "fold_values": [{"Nrdot_scale": 20.0}, {"Nrdot_scale": 20.0}, {"Nrdot_scale": 19.99}]}
+    d = SimpleNamespace(effects=[], rounds=[{"candidates": [edge]}], unexplained=[], located=[], fit_before={},
+                        fit_after={}, prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 70})
+    a = answer(d)
+    assert a["missing"][0].startswith("no effect of the library earns its place")
+    form = [f for f in a["form"] if f.startswith("added_mass")]
+    assert len(form) == 1 and "Nrdot_scale 20" in form[0] and "20 %" in form[0]
+    assert not any("added_mass may be missing" in u for u in a["unsettled"])

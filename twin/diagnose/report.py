@@ -95,6 +95,11 @@ def answer(d) -> dict:
                                f"{u['rms']:.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
                                + (f", and follows {follows}" if follows else "")
                                + ": the twin's form is off there, and no effect of the library explains it on held-out blocks")
+    for c in at_edge(d):
+        edges = ", ".join(f"{k} {np.median([f[k] for f in c['fold_values']]):.3g}" for k in c["at_edge"])
+        out["form"].append(f"{c['name']} would remove {100 * c['excess_gain']:.0f} % of the held-out misfit above the "
+                           f"noise (z {c['z']:.1f}), but only at the edge of what is physical ({edges}, on every "
+                           f"fold): not named; the twin's form is off where {c['name']} acts")
     if d.effects:
         b, a = d.fit_before, d.fit_after
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
@@ -110,6 +115,15 @@ def answer(d) -> dict:
         families |= {_family(d, n) for n in candidates_tried}
     out["next"] = [f"to settle {fam} effects: {NEXT[fam]}" for fam in sorted(families) if fam in NEXT]
     return out
+
+
+def at_edge(d) -> list[dict]:
+    """Candidates of the last round that would have earned their place but for a parameter fitted
+    to an unphysical edge of its range on every fold (search.at_unphysical_edge)."""
+    from .search import REL_EXCESS, Z_MIN
+
+    last = d.rounds[-1].get("candidates", []) if d.rounds else []
+    return [c for c in last if c.get("at_edge") and c["z"] >= Z_MIN and c["excess_gain"] >= REL_EXCESS]
 
 
 MIN_UNANIMOUS_BLOCKS = 10  # the fewest blocks whose votes, all for, reach z ≥ 3 in the exact test (z 3.1)

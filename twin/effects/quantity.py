@@ -20,7 +20,10 @@ from ..vessel import Vessel
 @dataclass(frozen=True)
 class Quantity:
     """name, unit, get(vessel) → float, put(vessel, value) → vessel, bounds [lo, hi], typical
-    size; fd_abs: an absolute finite-difference step (value units) where the cost is a staircase."""
+    size; fd_abs: an absolute finite-difference step (value units) where the cost is a staircase;
+    edges_unphysical: the bounds are not physical limits but the end of any plausible value (a
+    coefficient ×20 or ×0.05 of a first-principles prior), so a fit that ends on one says the form is
+    off, not that the number is that large (diagnose/search.py)."""
 
     name: str
     unit: str
@@ -30,6 +33,7 @@ class Quantity:
     hi: float
     typical: float
     fd_abs: float | None = None
+    edges_unphysical: bool = False
 
     def renamed(self, name: str, lo: float | None = None, hi: float | None = None) -> "Quantity":
         return replace(self, name=name, lo=self.lo if lo is None else lo, hi=self.hi if hi is None else hi)
@@ -69,7 +73,7 @@ def scale_of(prior: Vessel, group: str, attr: str, unit: str, also: tuple[str, .
         values = {attr: base * s, **{a: base * s for a in also}}
         return replace(v, **{group: replace(getattr(v, group), **values)})
 
-    return Quantity(f"{attr}_scale", f"× {unit}", get, put, 0.05, 20.0, 1.0)
+    return Quantity(f"{attr}_scale", f"× {unit}", get, put, 0.05, 20.0, 1.0, edges_unphysical=True)
 
 
 def ned_component(kind: str, axis: int, lo: float, hi: float, typical: float) -> Quantity:
@@ -106,7 +110,7 @@ def gain_ratio(name: str = "asymmetry", lo: float = 0.2, hi: float = 5.0) -> Qua
         left = 2 * mean / (1 + ratio)
         return replace(v, thrusters=replace(t, gain_left=left, gain_right=ratio * left))
 
-    return Quantity(name, "right/left", get, put, lo, hi, 1.0)
+    return Quantity(name, "right/left", get, put, lo, hi, 1.0, edges_unphysical=True)
 
 
 def gain_mean(name: str = "thrust_gain", lo: float = 0.05, hi: float = 20.0) -> Quantity:
@@ -119,7 +123,7 @@ def gain_mean(name: str = "thrust_gain", lo: float = 0.05, hi: float = 20.0) -> 
         k = g / get(v)
         return replace(v, thrusters=replace(t, gain_left=t.gain_left * k, gain_right=t.gain_right * k))
 
-    return Quantity(name, "×", get, put, lo, hi, 1.0)
+    return Quantity(name, "×", get, put, lo, hi, 1.0, edges_unphysical=True)
 
 
 def reverse_scale(prior: Vessel) -> Quantity:
@@ -133,7 +137,7 @@ def reverse_scale(prior: Vessel) -> Quantity:
     def put(v: Vessel, s: float) -> Vessel:
         return replace(v, thrusters=replace(v.thrusters, reverse=tuple(float(c) for c in ref * s)))
 
-    return Quantity("reverse_scale", "×", get, put, 0.05, 20.0, 1.0)
+    return Quantity("reverse_scale", "×", get, put, 0.05, 20.0, 1.0, edges_unphysical=True)
 
 
 def dead_zone_edge(which: str) -> Quantity:

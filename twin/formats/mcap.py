@@ -233,8 +233,12 @@ def read_contents(path: Path) -> Contents:
             if reader.get_summary() is None:
                 raise McapError("no summary")
             messages: dict[str, list] = {}
-            for _, channel, message in reader.iter_messages():
+            # in file order, then each topic sorted by time (stable: file order breaks ties): what the
+            # reader's own time-ordered merge gives per topic, without its heap over every message
+            for _, channel, message in reader.iter_messages(log_time_order=False):
                 messages.setdefault(channel.topic, []).append((message.log_time, message.data))
+            for m in messages.values():
+                m.sort(key=lambda item: item[0])
             metadata = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
         return Contents(messages, metadata)
     except _MCAP_ERRORS as exc:

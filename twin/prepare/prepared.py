@@ -148,8 +148,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         raise TwinError(f"{name}: cannot prepare without {missing} samples")
     north_o, east_o, origin = local_ned(rec.gnss)
     psi_h = np.unwrap(rec.heading["psi_rad"])
-    off_track = gnss_outliers(north_o, east_o, rec.gnss.t)
-    spiked = heading_spikes(psi_h, rec.heading.t)
+    off_track = _flagged(gnss_outliers, north_o, east_o, rec.gnss.t)
+    spiked = _flagged(heading_spikes, psi_h, rec.heading.t)
     if off_track.all() or spiked.all():
         raise TwinError(f"{name}: every GNSS fix or heading sample is an outlier of its neighbours")
     outliers = [(why, n) for why, n in (
@@ -188,6 +188,19 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
                            rec.source, float(gnss_latency_s))
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
                     tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t))
+
+
+_FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibration that leaves a stream as
+# it was (the GNSS under a compass calibration) leaves its outliers as they were
+
+
+def _flagged(rule, *arrays: np.ndarray) -> np.ndarray:
+    key = (rule.__name__, *(_digest(a) for a in arrays))
+    if key not in _FLAGGED:
+        if len(_FLAGGED) >= 64:
+            _FLAGGED.pop(next(iter(_FLAGGED)))
+        _FLAGGED[key] = rule(*arrays)
+    return _FLAGGED[key].copy()
 
 
 def outlier_counts(rec: Recording) -> dict[str, int]:
@@ -294,26 +307,38 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
     differentiated on its own stream inside each segment (windows: GNSS, heading); the GNSS read
     gnss_latency_s later (step 8)."""
     vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
+    # content keys, each array hashed once (a diagnosis prepares one recording hundreds of times)
+    keys = {k: _digest(a) for k, a in (("gnss_t", pos.t), ("north", pos["north"]), ("east", pos["east"]),
+                                        ("hdg_t", hdg.t), ("psi", hdg["psi"]), ("grid", t))}
     for seg in segments:
         tg = t[seg.slice]
-        vn[seg.slice], ve[seg.slice] = (_rate_at(pos.t, pos[k], tg + gnss_latency_s, smoother, windows_s[0],
-                                                 polyorder, True) for k in ("north", "east"))
-        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False)
+        grid = (keys["grid"], seg.start, seg.stop)
+        vn[seg.slice], ve[seg.slice] = (
+            _rate_at(pos.t, pos[k], tg + gnss_latency_s, smoother, windows_s[0], polyorder, True,
+                     (keys["gnss_t"], keys[k], grid, float(gnss_latency_s))) for k in ("north", "east"))
+        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False,
+                                (keys["hdg_t"], keys["psi"], grid, 0.0))
     return vn, ve, r
 
 
 _RATES: dict[tuple, np.ndarray] = {}  # _rate_at by content: a diagnosis re-prepares a recording for
 # every heading or antenna calibration it tries, and those leave the GNSS velocities as they were
+_RATES_KEPT = 8192  # a 30-min log has some 30 segments × 3 streams: room for many calibrations
+
+
+def _digest(a: np.ndarray) -> tuple:
+    a = np.ascontiguousarray(a)
+    return a.shape, a.dtype.str, hash(a.tobytes())
 
 
 def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
-             drop_repeats: bool) -> np.ndarray:
+             drop_repeats: bool, content: tuple) -> np.ndarray:
     """dx/dt at the grid times tg from the samples (ts, x) of one stream over tg's span
     (the sample held at tg[0] included): resampled at the stream's own median period,
-    differentiated, interpolated at tg."""
-    key = (hash(ts.tobytes()), hash(x.tobytes()), hash(tg.tobytes()), smoother, window_s, polyorder, drop_repeats)
+    differentiated, interpolated at tg. `content` identifies (ts, x, tg) for the cache."""
+    key = (content, smoother, window_s, polyorder, drop_repeats)
     if key not in _RATES:
-        if len(_RATES) >= 512:
+        if len(_RATES) >= _RATES_KEPT:
             _RATES.pop(next(iter(_RATES)))
         _RATES[key] = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
     return _RATES[key].copy()
