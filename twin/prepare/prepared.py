@@ -323,7 +323,8 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
 
 _RATES: dict[tuple, np.ndarray] = {}  # _rate_at by content: a diagnosis re-prepares a recording for
 # every heading or antenna calibration it tries, and those leave the GNSS velocities as they were
-_RATES_KEPT = 8192  # a 30-min log has some 30 segments × 3 streams: room for many calibrations
+_RATES_BYTES = 256 * 2**20  # bounded by size, not count: a 30-min log of one segment is 144 kB a stream
+_rates_held = [0]
 
 
 def _digest(a: np.ndarray) -> tuple:
@@ -338,9 +339,11 @@ def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, windo
     differentiated, interpolated at tg. `content` identifies (ts, x, tg) for the cache."""
     key = (content, smoother, window_s, polyorder, drop_repeats)
     if key not in _RATES:
-        if len(_RATES) >= _RATES_KEPT:
-            _RATES.pop(next(iter(_RATES)))
-        _RATES[key] = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
+        rate = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
+        while _RATES and _rates_held[0] + rate.nbytes > _RATES_BYTES:
+            _rates_held[0] -= _RATES.pop(next(iter(_RATES))).nbytes
+        _RATES[key] = rate
+        _rates_held[0] += rate.nbytes
     return _RATES[key].copy()
 
 
