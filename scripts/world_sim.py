@@ -1070,10 +1070,11 @@ def b_slew(rng, v):
     rate = r3(rng.uniform(10.0, 16.0))
     return Effects(slew_n_per_s=rate), [effect(
         "thruster_rate_limit", "dT/dt = clip((T200(pwm) − T)/dt, ±R): thrust slews at a fixed rate R (ESC ramp), "
-        "not a first-order lag", {"rate_n_per_s": rate}, "thruster_lag",
-        {"equivalent_lag_s": None}, ["input_delay"],
-        notes="equivalent_lag_s: a first-order lag with the same lost impulse on this log's thrust steps "
-              "(median of ΔT/(2R) over steps > 2 N)")]
+        "not a first-order lag", {"rate_n_per_s": rate}, "thrust_ramp",
+        {"ramp_s": None, "equivalent_lag_s": None}, ["thruster_lag", "input_delay"],
+        notes="ramp_s: the map's full forward thrust over R (the library's thrust_ramp, since 2026-11-26; "
+              "before it the library had only the first-order lag, which the proof still accepts); "
+              "equivalent_lag_s: the first-order lag whose response best matches the slewed thrust")]
 
 
 def b_delay(rng, v):
@@ -1322,7 +1323,8 @@ def finalize_expected(tr: dict, run: Run, fx: Effects, v: Vessel) -> None:
                                  "voltage_start_v": r3(run.volt_v[first_tick]), "voltage_end_v": r3(run.volt_v[-1]),
                                  "energy_wh": r3(run.energy_wh)}
     elif kind == "thruster_rate_limit":
-        tr["expected_values"] = equivalent_lag(run, v)
+        full = ThrusterChain(v, Effects(), run.steps_per_tick, DT_S).static_n(0, v.pwm_max_us)
+        tr["expected_values"] = {"ramp_s": r3(full / tr["params"]["rate_n_per_s"]), **equivalent_lag(run, v)}
 
 
 def equivalent_lag(run: Run, v: Vessel) -> dict:

@@ -32,6 +32,7 @@ CASES = {
     "wind_shape=7,200,1.2,0.3": ("wind_shape", {"speed_m_s": 0.15, "dir_deg": 10.0, "cn": 0.15}),
     "thruster_lag=0.5": ("thruster_lag", {"lag_s": 0.1}),
     "input_delay=0.4": ("input_delay", {"delay_s": 0.021}),
+    "thrust_ramp=2": ("thrust_ramp", {"ramp_s": 0.15}),
     "clock_offset=0.3": ("clock_offset", {"pwm_clock_offset_s": 0.021}),
     "dead_zone=0.2,0.2": ("dead_zone", {"fwd": 0.15, "rev": 0.15}),
     "motor_start=0.16,0.17": ("motor_start", {"fwd": 0.026, "rev": 0.026}),
@@ -299,6 +300,27 @@ def test_an_effect_kept_before_the_one_that_supersedes_it_goes():
     left, gone = without_superseded(kept + [Kept(winner, [])], winner)
     assert [k.trial.name for k in left] == ["current", "wind_per_log"] and gone == {"wind_shape"}
     assert without_superseded(kept, trial("current"))[1] == set()
+
+
+def test_the_rival_the_blocks_prefer_is_kept_when_it_earns_its_place_too():
+    """Two effects explaining the same misfit: the larger pooled gain is kept unless the blocks lean to
+    the rival (head-to-head z ≤ −1.5) and the rival earns its place itself; the most preferred wins."""
+    from twin.diagnose.search import Evidence, Search, Trial
+    from twin.effects.spec import Candidate
+
+    def trial(name, z, rel):
+        return Trial(Candidate(name, (), ((),), lambda p: None, "drag"), [], Evidence(z, rel, rel, {}, 10, 0, 10))
+
+    winner, stand_in, weak, leaning_more = (trial("thrust_speed_loss", 5.0, 0.30), trial("quadratic_damping", 4.8, 0.29),
+                                            trial("linear_damping", 2.0, 0.29), trial("speed_damping", 4.0, 0.28))
+    trials = [winner, stand_in, weak, leaning_more]
+    rivals = [{"name": "quadratic_damping", "z": -1.8}, {"name": "linear_damping", "z": -2.5},
+              {"name": "speed_damping", "z": -1.4}]
+    assert Search._preferred(winner, trials, rivals) is stand_in  # linear_damping leans more but does not earn
+    rivals[2]["z"] = -2.2
+    assert Search._preferred(winner, trials, rivals) is leaning_more
+    assert Search._preferred(winner, trials, [{"name": "quadratic_damping", "z": -1.2}]) is winner
+    assert Search._preferred(winner, trials, []) is winner
 
 
 def test_a_window_votes_when_its_residual_moves_by_half_the_pooled_noise():

@@ -87,7 +87,8 @@ def test_dataset_round_trips_through_a_tlog(tmp_path, yellowfish_vessel):
 
 
 @pytest.mark.parametrize("change", [{"lag_s": 0.3}, {"delay_s": 0.2}, {"advance_loss": 1.0},
-                                    {"decay_per_min": 0.1}, {"gain_right": 0.8}])
+                                    {"decay_per_min": 0.1}, {"gain_right": 0.8}, {"ramp_s": 2.0},
+                                    {"ramp_s": 1.5, "lag_s": 0.3}])
 def test_windows_reproduce_the_generating_twin(yellowfish_vessel, change):
     v = replace(yellowfish_vessel, thrusters=replace(yellowfish_vessel.thrusters, **change))
     ds = generate(v, n_segments=2, seed=3, noise=QUIET, segment_s=(25, 30), manoeuvres=["rc", "circle_varying"])

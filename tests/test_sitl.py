@@ -366,6 +366,17 @@ def test_lock_step_with_motor_hysteresis_is_the_offline_twin(full_vessel, fine_v
     assert np.abs(arrays(replies)["pos"][-1, :2] - plain.eta[len(pairs), :2]).max() > 0.05
 
 
+def test_lock_step_with_a_thrust_ramp_is_the_offline_twin(full_vessel, fine_vessel):
+    """A slew-limited thrust ramps from rest at the session's start, in SITL as offline."""
+    full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, ramp_s=2.0))
+    fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, ramp_s=2.0))
+    frames, pairs = pwm_frames(1200, seed=4)
+    replies, _, _ = play(full, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert_matches_offline(replies, offline(fine, pairs, 1 / 400))
+    plain = offline(fine_vessel, pairs, 1 / 400)
+    assert np.abs(arrays(replies)["pos"][-1, :2] - plain.eta[len(pairs), :2]).max() > 0.05
+
+
 def test_lock_step_at_50_hz_substeps_the_frame_and_reads_32_output_packets(full_vessel, fine_vessel):
     frames, pairs = pwm_frames(150, seed=2, outputs=32)
     replies, _, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)])

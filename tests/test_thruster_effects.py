@@ -26,7 +26,8 @@ def _both(vessel, duration=20.0, start_s=0.0):
 
 
 @pytest.mark.parametrize("change", [{"delay_s": 0.3}, {"decay_per_min": 0.2}, {"advance_loss": 1.5},
-                                    {"advance_loss": 1.0, "lag_s": 0.4, "delay_s": 0.2}])
+                                    {"advance_loss": 1.0, "lag_s": 0.4, "delay_s": 0.2}, {"ramp_s": 3.0},
+                                    {"ramp_s": 2.0, "lag_s": 0.3, "delay_s": 0.2, "decay_per_min": 0.2}])
 def test_engine_matches_analytic_with_thruster_effects(change):
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, **change))
@@ -118,6 +119,9 @@ def test_vessel_file_round_trip_keeps_the_new_fields(tmp_path):
     back = vessel_mod.load(str(path))
     assert back.sensors == v.sensors and back.cg_offset_m == v.cg_offset_m and back.thrusters == v.thrusters
     assert "start_fwd" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()  # old files unchanged
+    assert "ramp_s" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()
+    ramped = replace(base, thrusters=replace(base.thrusters, ramp_s=1.7))
+    assert vessel_mod.load(str(vessel_mod.save(ramped, tmp_path / "ramped.json"))).thrusters.ramp_s == 1.7
 
 
 # ---------------------------------------------------------------- motor start/stop hysteresis
@@ -188,3 +192,60 @@ def test_hysteresis_closed_loop_is_its_own_pwm_replayed():
     replayed = simulate(cv, closed.meta["inputs"], 18.0, sample_dt_s=0.1)
     np.testing.assert_allclose(closed.eta, replayed.eta, atol=1e-9)
     assert np.abs(closed.nu[:, 0]).max() > 0.1
+
+
+# ---------------------------------------------------------------- thrust ramp (slew limit)
+
+def test_a_ramp_heads_for_the_command_at_its_rate_and_its_step_means_keep_the_impulse():
+    t = replace(vessel_mod.load("yellowfish").thrusters, ramp_s=2.0)
+    rate = t.slew_n_per_s
+    assert rate == pytest.approx(t.bounds()[1] / 2.0)
+    # a step from 0 to 20 N (held 0 first) on steps of 0.05 s and of 0.01 s
+    for dt in (0.05, 0.01):
+        n = int(round(4.0 / dt))
+        cmd = np.zeros((n, 2))
+        cmd[int(round(1.0 / dt)):] = [20.0, -15.0]
+        means, end = t.slewed(cmd, dt)
+        times = np.arange(n) * dt
+        ramp = np.column_stack([np.clip((times - 1.0) * rate, 0.0, 20.0), -np.clip((times - 1.0) * rate, 0.0, 15.0)])
+        after = np.clip((times + dt - 1.0) * rate, 0.0, None)  # the ramp at each step's end
+        np.testing.assert_allclose(end, [20.0, -15.0])
+        # each step's mean is the continuous ramp's mean over it: the impulse is the ramp's to rounding
+        np.testing.assert_allclose(means.sum(axis=0) * dt, [20.0 * (3.0 - 20.0 / rate / 2),
+                                                            -15.0 * (3.0 - 15.0 / rate / 2)], rtol=1e-9)
+        assert np.all(np.abs(means - ramp) <= rate * dt / 2 + 1e-9)
+        assert np.all(means[:, 0] <= np.minimum(after, 20.0) + 1e-9)
+    plain = vessel_mod.load("yellowfish").thrusters
+    cmd = np.array([[0.0, 0.0], [25.0, -10.0], [40.0, -40.0]])
+    np.testing.assert_array_equal(plain.slewed(cmd, 0.05)[0], np.clip(cmd, *plain.bounds()))
+
+
+def test_a_ramp_needs_a_thrust_to_ramp_across():
+    from twin.errors import TwinError
+    cyber = vessel_mod.load("cybership1")
+    unbounded = replace(cyber, thrusters=replace(cyber.thrusters, thrust_min_n=None, thrust_max_n=None,
+                                                 command_scale_n=None, ramp_s=1.0))
+    with pytest.raises(TwinError, match="ramp"):
+        vessel_mod.check(unbounded)
+    base = vessel_mod.load("yellowfish")
+    with pytest.raises(TwinError, match="ramp_s"):
+        vessel_mod.check(replace(base, thrusters=replace(base.thrusters, ramp_s=-1.0)))
+
+
+def test_a_ramped_closed_loop_is_its_own_pwm_replayed_and_slower_to_answer():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, ramp_s=2.5))
+    cv = compile_vessel(v)
+    levels = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.4), (-0.5, 0.0), (0.3, -0.3)]
+
+    def controller(t, eta, nu):
+        return levels[min(int(t // 4.0), len(levels) - 1)]
+    closed = simulate(cv, controller, 20.0, sample_dt_s=0.1)
+    replayed = simulate(cv, closed.meta["inputs"], 20.0, sample_dt_s=0.1)
+    np.testing.assert_allclose(closed.eta, replayed.eta, atol=1e-9)
+    plain = simulate(compile_vessel(base), controller, 20.0, sample_dt_s=0.1)
+    # 0.8 of full ahead from rest at t = 4 s: the plain thrusters give it at once, the ramp after 1.6 s
+    k = np.searchsorted(closed.t, 5.0)
+    assert plain.thrust_n[k, 0] == pytest.approx(plain.thrust_n[k + 15, 0])
+    assert closed.thrust_n[k, 0] < 0.7 * plain.thrust_n[k, 0]
+    np.testing.assert_allclose(closed.thrust_n[np.searchsorted(closed.t, 7.0), 0], plain.thrust_n[k, 0], rtol=1e-6)

@@ -5,7 +5,10 @@
 integrated with an adaptive 8th-order Runge-Kutta (DOP853) at tight
 tolerances, piecewise between input changes. It shares the force functions of
 `twin.physics` with the engine callbacks but none of the engine: no MuJoCo
-rigid-body dynamics, no MuJoCo integrator, its own thrust lag state.
+rigid-body dynamics, no MuJoCo integrator, its own thrust lag state, and a thrust ramp (slew
+limit) in continuous time: from where it stands when an input changes, the command heads for the
+held one at the ramp's rate and then follows it (`_ramp`), where the engine is given each step's
+mean of the same ramp.
 
 A propeller-and-rudder ship: the held inputs (n rps, δ rad) go to the MMG forces of
 physics/mmg.py (through hydrodynamics.acceleration's `controls`), no thrust allocation. A
@@ -24,11 +27,18 @@ from .physics.thrusters import ThrusterModel, allocation_matrix, delivered
 from .run import Run
 
 
+def _ramp(from_n: np.ndarray, command_n: np.ndarray, rate_n_per_s: float, elapsed_s: float) -> np.ndarray:
+    """A slew-limited command `elapsed_s` after it stood at `from_n`, heading for `command_n`."""
+    reach = rate_n_per_s * elapsed_s
+    return np.where(np.abs(command_n - from_n) <= reach, command_n, from_n + np.sign(command_n - from_n) * reach)
+
+
 def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndarray, start_s: float,
-         wind_ned=None):
+         wind_ned=None, ramp_from: tuple[float, np.ndarray] | None = None):
     """Right-hand side with the input `raw` (N, before decay) held; the thrust decays in
     continuous time; its advance loss is a hydrodynamic force (physics/hydrodynamics.py). A propeller and
-    rudder's `raw` is (n, δ), the MMG forces' controls. `wind_ned`: the air's velocity held."""
+    rudder's `raw` is (n, δ), the MMG forces' controls. `wind_ned`: the air's velocity held.
+    `ramp_from`: (time s, thrust N) where a thrust ramp stood when the input changed."""
     if thrusters.kind == "propeller_rudder":
         controls = np.asarray(raw, float)
 
@@ -44,10 +54,13 @@ def _rhs(hydro: HydroModel, thrusters: ThrusterModel, thruster_y_m, raw: np.ndar
     gains = thrusters.gains()
     lag = thrusters.lag_s
     t_min, t_max = thrusters.bounds()
+    rate = thrusters.slew_n_per_s if ramp_from is not None else None
 
     def f(t, x):
         psi, nu = x[2], x[3:6]
         cmd = np.clip(raw * thrusters.decay_factor(t + start_s), t_min, t_max)
+        if ramp_from is not None:
+            cmd = _ramp(ramp_from[1], cmd, rate, t - ramp_from[0])
         delivered = x[6:8] if lag > 0 else cmd
         static = gains * delivered  # the advance loss acts on it in the hydrodynamics
         dx = np.empty_like(x)
@@ -92,6 +105,8 @@ def simulate(
         breaks = np.unique(np.concatenate([breaks, wind.t[(wind.t > t0) & (wind.t < t_end) & wind_changed]]))
     out = np.full((len(t_samples), len(x)), np.nan)
     out[0] = x
+    ramping = thrusters.ramping
+    ramped, ramp_t, ramp_values = None, [], []  # where the ramp stands at each break
     for a, b in zip(breaks[:-1], breaks[1:]):
         held = driven.at(np.array([a - thrusters.delay_s]))
         if inputs.kind == "propeller_rudder":
@@ -101,14 +116,29 @@ def simulate(
             if not hydro.terms.thrust:
                 raw = np.zeros(2)
         air = None if wind is None else wind.at(np.array([a]))[0]
-        inside = (t_samples > a) & (t_samples <= b)
-        t_eval = np.unique(np.concatenate([t_samples[inside], [b]]))
-        sol = solve_ivp(_rhs(hydro, thrusters, thruster_y_m, np.asarray(raw, float), start_s, air), (a, b), x,
-                        method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
-        if not sol.success:
-            raise FloatingPointError(f"analytic integration failed at t = {a:.2f} s: {sol.message}")
-        out[inside] = sol.y.T[np.searchsorted(t_eval, t_samples[inside])]
-        x = sol.y[:, -1]
+        raw = np.asarray(raw, float)
+        ramp_from, stops = None, [a, b]
+        if ramping:
+            target = np.clip(raw * thrusters.decay_factor(a + start_s), *thrusters.bounds())
+            ramped = target if ramped is None else ramped
+            ramp_from = (a, ramped)
+            ramp_t.append(a)
+            ramp_values.append(ramped)
+            # where the ramp arrives the thrust has a kink: integrate up to it, then on
+            arrive = a + np.abs(target - ramped) / thrusters.slew_n_per_s
+            stops = np.unique(np.concatenate([[a, b], arrive[(arrive > a) & (arrive < b)]]))
+        for a1, b1 in zip(stops[:-1], stops[1:]):
+            inside = (t_samples > a1) & (t_samples <= b1)
+            t_eval = np.unique(np.concatenate([t_samples[inside], [b1]]))
+            sol = solve_ivp(_rhs(hydro, thrusters, thruster_y_m, raw, start_s, air, ramp_from), (a1, b1), x,
+                            method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
+            if not sol.success:
+                raise FloatingPointError(f"analytic integration failed at t = {a1:.2f} s: {sol.message}")
+            out[inside] = sol.y.T[np.searchsorted(t_eval, t_samples[inside])]
+            x = sol.y[:, -1]
+        if ramping:
+            ramped = _ramp(ramped, np.clip(raw * thrusters.decay_factor(b + start_s), *thrusters.bounds()),
+                           thrusters.slew_n_per_s, b - a)
     if thrusters.kind == "propeller_rudder":
         controls = inputs.commanded_thrust(thrusters, t_samples, start_s)
         forces = np.array([mmg_forces(hydro, nu, c)[3:5] for nu, c in zip(out[:, 3:6], controls)]).reshape(-1, 2)
@@ -120,6 +150,10 @@ def simulate(
         cmd = out[:, 6:8]
     else:
         cmd = np.clip(inputs.commanded_thrust(thrusters, t_samples, start_s), t_min, t_max)
+        if ramping and len(ramp_t):  # from where the ramp stood at the last break before each sample
+            i = np.clip(np.searchsorted(ramp_t, t_samples, side="right") - 1, 0, len(ramp_t) - 1)
+            cmd = _ramp(np.array(ramp_values)[i], cmd, thrusters.slew_n_per_s,
+                        (t_samples - np.array(ramp_t)[i])[:, None])
         cmd = cmd if hydro.terms.thrust else np.zeros_like(cmd)
     thrust = delivered(thrusters.advance_loss, cmd * gains, out[:, 3:6], thruster_y_m)  # as the engine reports it
     return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), thrust,

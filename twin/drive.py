@@ -50,6 +50,15 @@ class InputSeries:
         times = np.asarray(times, float)
         return thrusters.command(self.kind, self.driven(thrusters).at(times - thrusters.delay_s), times + start_s)
 
+    def thrust_on_steps(self, thrusters: ThrusterModel, n_steps: int, step_s: float, start_s: float = 0.0) -> np.ndarray:
+        """(n_steps, 2) thrust command (N) held over engine step k (from k·step_s): `commanded_thrust` at
+        the step's start; with a thrust ramp, within the bounds and through the slew limit (each step's
+        mean of the ramp, settled at the first command: ThrusterModel.slewed)."""
+        cmd = self.commanded_thrust(thrusters, np.arange(n_steps) * step_s, start_s)
+        if thrusters.ramping:
+            return thrusters.slewed(cmd, step_s)[0]
+        return cmd
+
     def driven(self, thrusters: ThrusterModel) -> "InputSeries":
         """The series as the motors answer it: a PWM series through `ThrusterModel.as_driven` (a stopped
         motor's pulse is neutral until it passes its start edge); the series itself otherwise."""

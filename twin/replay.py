@@ -40,8 +40,9 @@ def measured_run(prep: Prepared, sl: slice | None = None) -> Run:
 def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.ndarray:
     """(n, 2) thrust (N) the twin's thruster map gives for the recorded PWM, segment by segment:
     the PWM held delay_s before, seed 000 eq. 27 and the decay, then the range, the left/right
-    gains and the loss with the measured advance speed, as the twin delivers it, without the
-    first-order lag (that is the twin's own state). NaN without PWM or a PWM thruster model."""
+    gains and the loss with the measured advance speed, as the twin delivers it, through a thrust
+    ramp's slew limit on the recording's grid, without the first-order lag (that is the twin's own
+    state). NaN without PWM or a PWM thruster model."""
     out = np.full((len(prep.t), 2), np.nan)
     vessel = compiled.vessel
     if vessel.thrusters.kind != "t200":
@@ -51,8 +52,8 @@ def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.nda
         t = prep.t[sl]
         if not np.all(np.isfinite(prep.pwm[sl])):
             continue
-        command = logged_pwm(vessel, prep, sl).commanded_thrust(
-            vessel.thrusters, t - t[0], float(t[0]))
+        command = logged_pwm(vessel, prep, sl).thrust_on_steps(
+            vessel.thrusters, len(t), prep.settings.grid_dt, float(t[0]))
         nu = np.column_stack([prep.u[sl], prep.v[sl], prep.r[sl]])
         out[sl] = delivered_thrust(vessel, compiled.geometry.thruster_y_m, command, nu)
     return out

@@ -115,6 +115,8 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     for key in ("start_fwd", "start_rev"):  # only where a motor starts late: other files stay as they were
         if d[key] is None:
             d.pop(key)
+    if not d["ramp_s"]:  # only where the thrust is slew-limited
+        d.pop("ramp_s")
     return d
 
 
@@ -314,6 +316,14 @@ def check(vessel: Vessel) -> None:
     if (t.start_fwd is not None and not t.start_fwd >= 0) or (t.start_rev is not None and not t.start_rev <= 0):
         raise TwinError(f"vessel '{vessel.name}': thrusters.start_fwd must be ≥ 0 and start_rev ≤ 0 (δ̃), got "
                         f"{t.start_fwd}, {t.start_rev}")
+    if not t.ramp_s >= 0:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.ramp_s must be ≥ 0 s, got {t.ramp_s}")
+    if t.ramp_s > 0:
+        try:
+            t.slew_n_per_s
+        except ValueError:
+            raise TwinError(f"vessel '{vessel.name}': a thrust ramp (thrusters.ramp_s) needs bounded thrusters or "
+                            "command_scale_n (the full thrust it ramps across)") from None
     window = vessel.sensors.heading_rate_window_s
     if window is not None and not window > 0:
         raise TwinError(f"vessel '{vessel.name}': sensors.heading_rate_window_s must be positive, got {window}")
@@ -333,8 +343,9 @@ def _check_propeller_rudder(vessel: Vessel) -> None:
                         f"(kind '{t.kind}', mmg {'given' if m is not None else 'missing'})")
     if m is None:
         return
-    if t.lag_s or t.delay_s < 0 or t.decay_per_min or t.advance_loss or t.gain_left != 1 or t.gain_right != 1:
-        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, advance loss or "
+    if (t.lag_s or t.delay_s < 0 or t.decay_per_min or t.advance_loss or t.gain_left != 1 or t.gain_right != 1
+            or t.ramp_s):
+        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, advance loss, ramp or "
                         "gains (the MMG forces model the propeller)")
     for what, x in (("thrusters.rps_max", t.rps_max), ("thrusters.rudder_max_deg", t.rudder_max_deg)):
         if x is not None and not x > 0:

@@ -205,6 +205,12 @@ def thruster_lag(vessel: Vessel, lag_s: float) -> Vessel:
     return _thrusters(vessel, lag_s=lag_s)
 
 
+def thrust_ramp(vessel: Vessel, ramp_s: float) -> Vessel:
+    """A slew limit on the thrust command: s to change by the full forward thrust (an ESC's or the
+    autopilot's ramp, physics/thrusters.py); 0 = none."""
+    return _thrusters(vessel, ramp_s=ramp_s)
+
+
 def input_delay(vessel: Vessel, delay_s: float) -> Vessel:
     """The thrusters act on the PWM logged delay_s (s) earlier."""
     return _thrusters(vessel, delay_s=delay_s)
@@ -456,6 +462,10 @@ _SPECS = [
                _wind_shape_fit),
     EffectSpec("thruster_lag", "thrusters", (_v("lag_s", "s", 0, 10),), thruster_lag, "first-order thrust lag",
                _single("thruster_lag", member("thrusters", "lag_s", "s", 0.02, 3.0, 0.2), ((0.15,), (0.6,)),
+                       "timing")),
+    EffectSpec("thrust_ramp", "thrusters", (_v("ramp_s", "s", 0, 20),), thrust_ramp,
+               "thrust slew limit (ESC or autopilot ramp): s to change by the full forward thrust",
+               _single("thrust_ramp", member("thrusters", "ramp_s", "s", 0.05, 10.0, 0.5), ((0.5,), (2.0,)),
                        "timing")),
     EffectSpec("input_delay", "thrusters", (_v("delay_s", "s", 0, 5),), input_delay, "thrust acts on older PWM",
                _single("input_delay", member("thrusters", "delay_s", "s", 0.0, 1.5, 0.1), ((0.0,),), "timing",

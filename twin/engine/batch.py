@@ -91,9 +91,10 @@ def thrust_controls_from_inputs(vessel: Vessel, inputs: InputSeries, nstep: int,
 
     Step k runs from k·timestep with the command the zero-order-hold series
     gives at that instant less the thrusters' delay (PWM converted through the
-    thruster map), decayed by the recording time start_s + k·timestep.
+    thruster map), decayed by the recording time start_s + k·timestep; with a thrust ramp, through
+    its slew limit (each step's mean of the ramp, settled at the first command).
     """
-    return inputs.commanded_thrust(vessel.thrusters, np.arange(nstep) * timestep, start_s)
+    return inputs.thrust_on_steps(vessel.thrusters, nstep, timestep, start_s)
 
 
 def _as_models(twins: Twin | Sequence[Twin], n: int) -> list[mujoco.MjModel]:

@@ -142,8 +142,7 @@ class _OpenLoop:
     def __init__(self, series: InputSeries, thrusters, n_steps: int, n_sample: int, h: float, start_s: float,
                  thrust_on: bool):
         self.series = series
-        step_times = np.arange(n_steps + 1) * h
-        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
+        cmd_steps = series.thrust_on_steps(thrusters, n_steps + 1, h, start_s)
         self.events = _event_steps(n_steps, n_sample, None, cmd_steps)
         if not thrust_on:
             cmd_steps = np.zeros_like(cmd_steps)
@@ -175,6 +174,10 @@ class _ClosedLoop:
         self.n_delay = int(round(thrusters.delay_s / h))
         self.thrust_on = thrust_on
         self.decaying = bool(thrusters.decay_per_min) and thrust_on
+        # a slew-limited command changes at every step of a ramp; its state is the ramp's value
+        self.ramp = thrusters.slew_n_per_s * h if thrusters.ramping and thrust_on else None
+        self.ramped: Pair | None = None  # the ramp's value: settled at the first command
+        self.bounds = thrusters.bounds()
         self.pending: deque[tuple[int, Pair]] = deque()  # (step it acts from, raw thrust command)
         self.raw: Pair = (0.0, 0.0)  # the command in force before decay: none until the first one acts
         self.motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
@@ -186,7 +189,7 @@ class _ClosedLoop:
 
     def _marks(self) -> np.ndarray:
         """Ticks, the steps their delayed commands act from, or every step while the command decays."""
-        if self.decaying:
+        if self.decaying or self.ramp is not None:
             return np.arange(self.n_steps + 1)
         marks = np.arange(0, self.n_steps + 1, self.n_control)
         if self.n_delay:
@@ -200,10 +203,22 @@ class _ClosedLoop:
         pending = self.pending
         while pending and pending[0][0] <= k:
             self.raw = pending.popleft()[1]
+        command = self.raw
         if self.decaying:
             f = self.map.decay(self.start_s + k * self.h)
-            return self.raw[0] * f, self.raw[1] * f
-        return self.raw
+            command = (self.raw[0] * f, self.raw[1] * f)
+        return command if self.ramp is None else self._ramped(command)
+
+    def _ramped(self, command: Pair) -> Pair:
+        """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
+        lo, hi = self.bounds
+        left, right = min(max(command[0], lo), hi), min(max(command[1], lo), hi)
+        if self.ramped is None:
+            self.ramped = (left, right)
+        (mean_l, end_l), (mean_r, end_r) = (thrusters.slew_step(self.ramped[0], left, self.ramp),
+                                            thrusters.slew_step(self.ramped[1], right, self.ramp))
+        self.ramped = (end_l, end_r)
+        return mean_l, mean_r
 
     def _tick(self, k: int, state: np.ndarray) -> None:
         t = np.float64(k * self.h)  # the type the controller always got (k·h on numpy steps)

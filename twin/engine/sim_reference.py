@@ -15,7 +15,7 @@ import numpy as np
 from ..drive import InputSeries, to_thruster_inputs
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
-from ..physics.thrusters import delivered
+from ..physics.thrusters import delivered, slew_step
 from ..run import Run
 from . import callbacks
 from .divergence import clear, flagged, quiet_log, what_diverged
@@ -100,6 +100,10 @@ def simulate_reference(
         marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
     if series is None and thrusters.decay_per_min:
         marks = np.arange(n_steps + 1)  # the decaying command changes at every step
+    ramp = thrusters.slew_n_per_s * h if thrusters.ramping else None
+    if ramp is not None:
+        marks = np.arange(n_steps + 1)  # a ramp's command changes at every step; its state is where it stands
+    ramped = None
     events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
     if not terms.thrust:
         cmd_steps = np.zeros_like(cmd_steps)
@@ -121,7 +125,15 @@ def simulate_reference(
                     held = np.asarray(driven)
                 cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
                 cmd_steps[act_at:] = cmd if terms.thrust else 0.0
-            data.ctrl[:2] = cmd_steps[k]
+            if ramp is None:
+                data.ctrl[:2] = cmd_steps[k]
+            else:
+                target = np.clip(cmd_steps[k], *thrusters.bounds())
+                ramped = target if ramped is None else ramped
+                steps = [slew_step(a, b, ramp) for a, b in zip(ramped, target)]
+                data.ctrl[:2] = [m for m, _ in steps]
+                ramped = np.array([e for _, e in steps])
+            applied = data.ctrl[:2].copy()
             if k % n_sample == 0:
                 rows["t"].append(start_s + t)
                 rows["eta"].append(eta)
@@ -133,7 +145,7 @@ def simulate_reference(
             mujoco.mj_getState(model, data, chunk_start, FULL)
             mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
             if flagged(data) or not np.all(np.isfinite(data.qvel)):
-                raise TwinError(_divergence(model, data, chunk_start, cmd_steps[k], int(events[i + 1] - k), start_s))
+                raise TwinError(_divergence(model, data, chunk_start, applied, int(events[i + 1] - k), start_s))
     if series is None:
         series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
     nu = np.array(rows["nu"])

@@ -144,7 +144,37 @@ class ModelCache:
 # ---------------------------------------------------------------- inputs
 
 def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
-    """(steps, 2) thrust commands (N) for the engine steps of one window."""
+    """(steps, 2) thrust commands (N) for the engine steps of one window. A thrust ramp (slew limit)
+    stands where the commands since its segment began have brought it (settled at the first)."""
+    t = vessel.thrusters
+    if t.ramping:
+        seg = prep.segments[int(prep.segment[window.start])]
+        sub = _substeps(prep.settings.grid_dt, timestep_s)
+        k = (window.start - seg.start) * sub
+        return _ramped_segment(vessel, prep, seg, window.rec, timestep_s)[k:k + window.n * sub]
+    return _commands(vessel, prep, window, timestep_s)
+
+
+_RAMPED: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # a segment's ramped commands, by recording and ramp
+
+
+def _ramped_segment(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s: float) -> np.ndarray:
+    """The thrust ramp's commands over a whole segment (each engine step's mean), computed once per
+    recording, segment and thruster description: every window of the segment slices them. The key
+    holds the id of the recording's PWM array and the entry the array itself, so the id cannot be
+    reused by another recording while the entry lives."""
+    key = (id(prep.pwm), seg.start, vessel.thrusters, vessel.sensors.pwm_clock_offset_s, timestep_s)
+    hit = _RAMPED.get(key)
+    if hit is None:
+        since = _commands(vessel, prep, Window(rec, seg.start, seg.stop - seg.start), timestep_s)
+        hit = (prep.pwm, vessel.thrusters.slewed(since, timestep_s)[0])
+        if len(_RAMPED) >= 64:
+            _RAMPED.pop(next(iter(_RAMPED)))
+        _RAMPED[key] = hit
+    return hit[1]
+
+
+def _commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
     h = prep.settings.grid_dt
     sub = _substeps(h, timestep_s)
     t0 = prep.t[window.start]

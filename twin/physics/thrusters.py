@@ -7,6 +7,12 @@ what real thrusters add to a datasheet curve:
   latency): the thrusters act on the PWM of `delay_s` earlier;
 - thrust decay over a run (battery sag): the command is scaled by
   1 − decay_per_min·t/60 s, t from the start of the recording;
+- a slew limit (an ESC's or autopilot's ramp, ArduPilot's MOT_SLEWRATE in kind): the thrust
+  command, within the bounds, changes no faster than the full forward thrust in `ramp_s`
+  seconds, whatever the PWM asks. Its state is the command the ramp has reached, so like the
+  hysteresis it acts on a series (`slewed`), from the thrust it starts at. On a step grid the
+  engine is given each step's mean of the continuous ramp (`slew_step`), so the impulse a
+  thruster delivers does not depend on the step size;
 - a motor that starts late (start/stop hysteresis of a sensorless ESC): a stopped motor starts
   only when the PWM passes a start edge beyond the dead-zone edge (`start_fwd`, `start_rev`),
   and a running one keeps its branch of the map until the PWM comes back inside the dead zone.
@@ -36,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,35 @@ class ThrusterModel:
     start_rev: float | None = None
     rps_max: float | None = None
     rudder_max_deg: float | None = None
+    ramp_s: float = 0.0  # slew limit: s for the command to change by the full forward thrust; 0 = none
+
+    @property
+    def ramping(self) -> bool:
+        """A thrust ramp (slew limit) acts: its state must be carried along a run."""
+        return self.ramp_s > 0 and self.kind != "propeller_rudder"
+
+    @property
+    def slew_n_per_s(self) -> float:
+        """The fastest the thrust command changes (N/s): the full forward thrust (the upper bound, or
+        command_scale_n for an unbounded thruster) over ramp_s; inf without a ramp."""
+        if not self.ramp_s > 0:
+            return np.inf
+        hi = self.bounds()[1]
+        full = hi if np.isfinite(hi) else self.command_scale_n
+        if full is None or not full > 0:
+            raise ValueError("a thrust ramp needs a bounded thruster or command_scale_n")
+        return float(full) / self.ramp_s
+
+    def slewed(self, command_n, dt_s: float, start_n=None) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 2) thrust commands (N, one per step of dt_s, held over it) through the slew limit,
+        within the bounds: (each step's mean thrust command, the ramp's value at the end).
+        `start_n`: where the ramp stands before the first step (None: settled at the first command).
+        Unchanged (but bounded) without a ramp."""
+        cmd = np.clip(np.asarray(command_n, float), *self.bounds())
+        if not self.ramping or not len(cmd):
+            return cmd, (cmd[-1] if len(cmd) else np.asarray(start_n, float))
+        start = cmd[0] if start_n is None else np.asarray(start_n, float)
+        return _slewed(cmd, self.slew_n_per_s * dt_s, np.array(start, float))
 
     @property
     def input_kind(self) -> str:
@@ -283,3 +319,28 @@ def lag_time_constant_s(alpha: float, sample_s: float) -> float:
 def lag_alpha(time_constant_s: float, sample_s: float) -> float:
     """Inverse of `lag_time_constant_s`: the discrete pole α = exp(−h/τ)."""
     return float(np.exp(-sample_s / time_constant_s))
+
+
+@njit(cache=True)
+def slew_step(start_n: float, command_n: float, max_change_n: float) -> tuple[float, float]:
+    """One step of the slew limit (module docstring): a ramp at `start_n` heads for `command_n`,
+    changing by at most `max_change_n` (rate × step) over the step. (The step's mean, the end value.)
+    Compiled, so that a series (`_slewed`) and the closed loops' one step at a time share it."""
+    d = command_n - start_n
+    if d >= max_change_n:
+        return start_n + 0.5 * max_change_n, start_n + max_change_n
+    if d <= -max_change_n:
+        return start_n - 0.5 * max_change_n, start_n - max_change_n
+    # the ramp arrives within the step, after the fraction |d|/max_change of it, and holds there
+    return command_n - 0.5 * d * abs(d) / max_change_n, command_n
+
+
+@njit(cache=True)
+def _slewed(cmd: np.ndarray, max_change_n: float, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`slew_step` over a series (a loop numpy cannot vectorise: each step starts where the last ended)."""
+    means = np.empty_like(cmd)
+    state = start.copy()
+    for k in range(cmd.shape[0]):
+        for j in range(cmd.shape[1]):
+            means[k, j], state[j] = slew_step(state[j], cmd[k, j], max_change_n)
+    return means, state

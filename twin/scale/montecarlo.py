@@ -125,13 +125,12 @@ def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache |
 def _controls(vessels: list[Vessel], mission: Mission, nstep: int, h: float) -> np.ndarray:
     """(n, nstep, 2) thrust commands; computed once per distinct thrust curve (the gains act in
     the engine, after the command: a draw of thrust_gain shares its curve)."""
-    times = np.arange(nstep) * h
     done: dict = {}
     out = np.empty((len(vessels), nstep, 2))
     for i, v in enumerate(vessels):
         key = replace(v.thrusters, gain_left=1.0, gain_right=1.0)
         if key not in done:
-            done[key] = mission.inputs.commanded_thrust(v.thrusters, times, 0.0)
+            done[key] = mission.inputs.thrust_on_steps(v.thrusters, nstep, h, 0.0)
         out[i] = done[key]
     return out
 

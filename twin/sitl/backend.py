@@ -20,7 +20,8 @@ Choices, and why:
   `engine.sim.simulate` does: the input held `delay_s` earlier (a zero-order-hold
   history of the frames' inputs, neutral before the session started), through
   the PWM map (seed 000 eq. 27 with its dead zone), times the thrust decay at the
-  step's time. The decay counts from the start of the twin's clock, which starts
+  step's time, then a thrust ramp's slew limit (each step's mean of the ramp, from rest at
+  the session's start). The decay counts from the start of the twin's clock, which starts
   again with ArduPilot (a restart is a new session). Gains, lag and the
   advance-speed loss act in MuJoCo as everywhere else.
 - **PWM.** Output 0 (ArduPilot's "no output") is the thruster's neutral: for a
@@ -61,7 +62,7 @@ from twin.engine.sim import initial_state
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
-from twin.physics.thrusters import ThrusterModel, delivered
+from twin.physics.thrusters import ThrusterModel, delivered, slew_step
 from twin.run import Run
 from twin.sitl.protocol import Reply, channel_pair
 from twin.vessel import Vessel
@@ -162,7 +163,11 @@ class SitlTwin:
         self._neutral_held = self.map.held(self.map.neutral_us)
         self._delay_s = float(vessel.thrusters.delay_s)
         self._decay_per_min = float(vessel.thrusters.decay_per_min)
-        self._plain = self._delay_s == 0.0 and self._decay_per_min == 0.0  # one command per frame
+        t = vessel.thrusters
+        # a thrust ramp (slew limit): the most the command changes in one step, set with the step size
+        self._slew_n_per_s = t.slew_n_per_s if t.ramping else None
+        self._bounds = t.bounds()
+        self._plain = self._delay_s == 0.0 and self._decay_per_min == 0.0 and self._slew_n_per_s is None
         m = self.model
         self._qadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_qposadr") for j in JOINTS]
         self._dadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_dofadr") for j in JOINTS]
@@ -238,6 +243,7 @@ class SitlTwin:
         self._hist_i = 0
         self._pwm_last = (self.map.neutral_us, self.map.neutral_us)
         self._motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
+        self._ramped = (0.0, 0.0)  # where a thrust ramp stands: at rest, the inputs neutral before the session
         self._state = self._read_state()
 
     def _set_rate(self, frame_rate_hz: int) -> None:
@@ -292,8 +298,11 @@ class SitlTwin:
             t = t_seg + (k0 + i) * h
             held_left, held_right = self._delayed(t - delay_s)
             f = self._decay(t)
-            ctrl[il] = mp.raw(held_left) * f
-            ctrl[ir] = mp.raw(held_right) * f
+            left, right = mp.raw(held_left) * f, mp.raw(held_right) * f
+            if self._slew_n_per_s is not None:
+                left, right = self._ramp(left, right)
+            ctrl[il] = left
+            ctrl[ir] = right
             if i == 0:
                 self._record(t0_s, *logged)
             mujoco.mj_step(m, d)
@@ -344,6 +353,15 @@ class SitlTwin:
             i += 1
         self._hist_i = i
         return self._hist_l[i], self._hist_r[i]
+
+    def _ramp(self, left: float, right: float) -> tuple[float, float]:
+        """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
+        lo, hi = self._bounds
+        change = self._slew_n_per_s * self._h
+        (mean_l, end_l), (mean_r, end_r) = (slew_step(self._ramped[0], min(max(left, lo), hi), change),
+                                            slew_step(self._ramped[1], min(max(right, lo), hi), change))
+        self._ramped = (end_l, end_r)
+        return mean_l, mean_r
 
     def _decay(self, t_s: float) -> float:
         """ThrusterModel.decay_factor at t_s, on a float (same operations, same bits)."""
