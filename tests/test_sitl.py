@@ -14,6 +14,7 @@ import contextlib
 import json
 import math
 import re
+import signal
 import socket
 import struct
 import threading
@@ -552,18 +553,25 @@ def test_the_session_is_recorded_in_the_project_formats_also_when_ended_by_ctrl_
     box, replies = {}, []
 
     def ardupilot():
-        ready_port = box_ready.wait(120)
-        assert ready_port
-        client = Client(box["port"])
+        # Ctrl-C comes whatever happens here, so that a failure on this side fails the test (the
+        # counts below) instead of leaving the backend waiting for frames forever
         try:
-            replies.extend(client.frame(k, pwm) for k, pwm in enumerate(frames))
+            if not box_ready.wait(120):
+                return
+            client = Client(box["port"])
+            try:
+                replies.extend(client.frame(k, pwm) for k, pwm in enumerate(frames))
+            finally:
+                client.close()
+                time.sleep(0.05)  # the backend back waiting for a frame, as when a user presses Ctrl-C
         finally:
-            client.close()
-            time.sleep(0.05)  # the backend back waiting for a frame, as when a user presses Ctrl-C
             _thread.interrupt_main()  # Ctrl-C in the backend's thread
 
     box_ready = threading.Event()
     thread = threading.Thread(target=ardupilot, daemon=True)
+    # interrupt_main does nothing when SIGINT is not Python's own handler (something earlier in the
+    # session may have set it): the handler a user's Ctrl-C meets
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     thread.start()
     summary = None
     try:
@@ -571,6 +579,8 @@ def test_the_session_is_recorded_in_the_project_formats_also_when_ended_by_ctrl_
                            ready=lambda address: (box.__setitem__("port", address[1]), box_ready.set()))
     except KeyboardInterrupt:  # pragma: no cover - a late interrupt outside the session loop
         pytest.fail("Ctrl-C escaped run_sitl")
+    finally:
+        signal.signal(signal.SIGINT, previous)
     thread.join(10)
     assert summary.interrupted and summary.counters.frames == 300 and set(summary.written) == set(paths)
     assert all(p.is_file() and p.stat().st_size > 0 for p in paths)
