@@ -177,6 +177,9 @@ WORLD_SIM = ROOT / "scripts" / "world_sim.py"
 SAME = {"thruster_asymmetry": {"thruster_asymmetry", "thruster_gain_left", "thruster_gain_right"},
         "wind": {"wind", "wind_shape"}, "heading_bias_per_log": {"heading_bias_per_log"},
         "input_delay": {"input_delay"}, "dead_zone": {"dead_zone"},
+        # a drag growing faster than u²: the quadratic scales, or the surge resistance curve (Xu and Xuu
+        # together, the joint change the world's truth file gives beside the quadratic one alone)
+        "quadratic_damping": {"quadratic_damping", "surge_resistance"},
         # a slew limit: the ramp since the library has it; before, the first-order lag was its equivalent,
         # and is still counted as naming it (docs/diagnose/fresh_seeds_1112 says which of the two was named)
         "thrust_ramp": {"thrust_ramp", "thruster_lag"},

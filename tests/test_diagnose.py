@@ -49,6 +49,7 @@ CASES = {
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
     "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
     "linear_damping=Nr:0.6": ("linear_damping", {"Nr": 0.1}),
+    "surge_resistance=Xu:0.5,Xuu:1.4": ("surge_resistance", {"Xu": 0.25, "Xuu": 0.05}),  # Xu·u is a sixth of Xuu·u² at 1.5 m/s
     "coupling_damping=-6,-4": ("coupling_damping", {"Yr": 2.0, "Nv": 2.0}),
     "added_mass=Yvdot:1.6": ("added_mass", {"Yvdot": 0.15}),
     "speed_damping=-20,-15": ("speed_damping", {"Yuv": 8.0, "Nur": 3.0}),
@@ -255,7 +256,7 @@ def test_what_the_core_already_does_is_not_offered_beside_it():
     lib = candidates(start)
     moved = {n for n, c in lib.items() if _moves_core(c, core, start)}
     assert moved == {"thruster_lag", "thrust_gain", "reverse_thrust", "quadratic_damping", "linear_damping",
-                     "added_mass"}
+                     "surge_resistance", "added_mass"}
     assert start.thrusters.lag_s == pytest.approx(0.1)  # a refitted lag needs a start (simfit.map_start)
     with pytest.raises(TwinError, match="unknown group"):
         _core(boat, ("yaw", "hull"))

@@ -21,9 +21,9 @@ def test_the_ship_is_offered_only_effects_its_model_has():
     assert set(esso) == {"current", "wind", "clock_offset", "heading_bias", "compass_deviation", "gnss_lever_arm",
                          "gnss_latency"}
     boat = candidates(vessel_mod.load("yellowfish"))
-    assert {"thruster_lag", "thrust_ramp", "dead_zone", "motor_start", "quadratic_damping", "wind_shape",
+    assert {"thruster_lag", "thrust_ramp", "dead_zone", "motor_start", "quadratic_damping", "surge_resistance", "wind_shape",
             "speed_coupling"} <= set(boat)
-    assert len(boat) == 27
+    assert len(boat) == 28
 
 
 def test_wind_acts_through_the_ships_regression_and_is_refused_without_a_load_model():

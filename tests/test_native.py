@@ -197,3 +197,53 @@ def test_advance_loss_reaches_the_native_callback(compiled):
         d2.qpos[:], d2.qvel[:], d2.ctrl[:] = data.qpos, data.qvel, data.ctrl
         moved.append(np.abs(reference - _passive(plain, d2, native.installed_native)).max())
     assert max(moved) > 0.5
+
+
+@pytest.mark.parametrize("name", VESSELS + ("esso_osaka",))
+def test_the_lean_model_moves_as_the_full_one(name):
+    """The fit's model without meshes, geoms and welded bodies (mjcf.make_lean): the same planar
+    M_RB, sites and actuators, and the same trajectory to round-off under thrust and the callback."""
+    cv = compile_vessel(vessel_mod.load(name))
+    full = native.with_native_params(cv)
+    lean = native.with_native_params(cv, lean=True)
+    assert lean.ngeom == 0 and lean.nbody == 2 and lean.nu == full.nu and lean.nsite == full.nsite
+    M = []
+    for m in (full, lean):
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        M.append(np.zeros((3, 3)))
+        mujoco.mj_fullM(m, d, M[-1])
+    np.testing.assert_allclose(M[1], M[0], rtol=1e-12, atol=1e-12)
+    ends = []
+    for m in (full, lean):
+        d = mujoco.MjData(m)
+        d.qvel[:] = [1.0, 0.2, 0.3]
+        d.ctrl[:2] = [8.0, 0.2] if name == "esso_osaka" else [30.0, 10.0]  # rps and rudder, or N
+        with native.installed_native():
+            mujoco.mj_step(m, d, nstep=500)
+        ends.append(np.concatenate([d.qpos, d.qvel]))
+    assert np.abs(ends[0][:3]).max() > 1.0  # it went somewhere
+    np.testing.assert_allclose(ends[1], ends[0], rtol=1e-9, atol=1e-9)
+
+
+def test_a_vessel_with_a_site_on_a_welded_part_is_left_whole():
+    """make_lean moves no site: one that sits on a welded body keeps the model as it is."""
+    from twin.engine.mjcf import make_lean
+    from twin.physics.added_mass import RigidBody
+
+    spec = mujoco.MjSpec.from_string("""<mujoco><worldbody><body name="vessel">
+      <joint name="north" type="slide" axis="1 0 0"/><joint name="east" type="slide" axis="0 1 0"/>
+      <joint name="yaw" type="hinge" axis="0 0 1"/><geom type="box" size=".5 .2 .1" mass="10"/>
+      <body name="mast" pos="0.1 0 -0.5"><geom type="box" size=".05 .05 .3" mass="1"/><site name="gnss"/></body>
+      </body></worldbody></mujoco>""")
+    make_lean(spec, RigidBody(11.0, 0.01, 0.0, 0.5))
+    model = spec.compile()
+    assert model.nbody == 3 and model.ngeom == 2
+    spec = mujoco.MjSpec.from_string("""<mujoco><worldbody><body name="vessel">
+      <joint name="north" type="slide" axis="1 0 0"/><joint name="east" type="slide" axis="0 1 0"/>
+      <joint name="yaw" type="hinge" axis="0 0 1"/><geom type="box" size=".5 .2 .1" mass="10"/>
+      <body name="mast" pos="0.1 0 -0.5"><geom type="box" size=".05 .05 .3" mass="1"/></body><site name="gnss"/>
+      </body></worldbody></mujoco>""")
+    make_lean(spec, RigidBody(11.0, 0.01, 0.0, 0.5))
+    model = spec.compile()
+    assert model.nbody == 2 and model.ngeom == 0 and model.body_mass[1] == pytest.approx(11.0)

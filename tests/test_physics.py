@@ -5,7 +5,7 @@ from scipy.integrate import solve_ivp
 
 from twin.physics.added_mass import AddedMass, RigidBody, total_mass_matrix
 from twin.physics.coriolis import coriolis_force, coriolis_matrix, seed002_printed_coriolis
-from twin.physics.damping import Damping, damping_force, is_dissipative
+from twin.physics.damping import Damping, damping_force, dissipated_power, is_dissipative
 from twin.physics.environment import Environment, WindLoad, current_body, wind_force
 from twin.physics.hydrodynamics import HydroModel, Terms, acceleration, kinetic_energy
 from twin.physics.thrusters import (ThrusterModel, allocation_matrix, force_torque_bounds, lag_alpha,
@@ -63,6 +63,16 @@ def test_damping_eq7_signs_and_dissipation():
     assert is_dissipative(d)
     assert not is_dissipative(Damping(Xu=2.0))
     assert not is_dissipative(Damping(Yv=-1, Nr=-1, Yr=-5, Nv=5 - 20))
+
+
+def test_dissipated_power_is_nu_dot_damping_force_for_every_coefficient():
+    """The vectorised νᵀD(ν)ν that is_dissipative checks equals ν·D(ν)ν of eq. 7, term by term."""
+    rng = np.random.default_rng(7)
+    for name in Damping.names():
+        d = Damping(**{name: float(rng.normal(0.0, 10.0))})
+        nu = rng.normal(0.0, 1.5, (6, 3))
+        expected = np.array([x @ damping_force(d, x) for x in nu])
+        np.testing.assert_allclose(dissipated_power(d, nu), expected, rtol=1e-12, atol=1e-12)
 
 
 def test_t200_map_reproduces_table_viii_and_dead_zone():

@@ -19,6 +19,7 @@ DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
+SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| (seed 004 eq. 7)
 ADDED_MASS = ("Xudot", "Yvdot", "Yrdot", "Nrdot")
 # what `twin identify` fits unless told otherwise: seed 004 eq. 7's main damping terms, the yaw and sway
 # added mass, the thrust curve and its lag

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import TwinError
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
-                           mmg_sway_added_mass)
+                           SURGE_RESISTANCE, mmg_sway_added_mass)
 from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
                        reverse_scale, scale_of, start_edge)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
@@ -335,6 +335,13 @@ def linear_damping(vessel: Vessel, **scales: float) -> Vessel:
     return replace(vessel, damping=_scaled(vessel.damping, LINEAR_DAMPING, scales))
 
 
+def surge_resistance(vessel: Vessel, **scales: float) -> Vessel:
+    """The hull's surge resistance curve of another shape: Xu and Xuu multiplied by their own scales
+    (a fouled hull or wave making: resistance growing faster with speed than the model's, which
+    the two together follow over the speeds driven; one alone bends the whole curve)."""
+    return replace(vessel, damping=_scaled(vessel.damping, SURGE_RESISTANCE, scales))
+
+
 def added_mass(vessel: Vessel, **scales: float) -> Vessel:
     """Added-mass derivatives multiplied by scales; Yrdot scales Nvdot too (M_A stays symmetric). On a
     propeller-and-rudder ship a scaled Yvdot moves X'_vr back, as identification's does: surge feels
@@ -497,6 +504,8 @@ _SPECS = [
                _scales_fit("quadratic_damping", "damping", QUADRATIC_DAMPING), keys=QUADRATIC_DAMPING),
     EffectSpec("linear_damping", "hull", (), linear_damping, "linear damping scales",
                _scales_fit("linear_damping", "damping", LINEAR_DAMPING), keys=LINEAR_DAMPING),
+    EffectSpec("surge_resistance", "hull", (), surge_resistance, "surge resistance curve of another shape",
+               _scales_fit("surge_resistance", "damping", SURGE_RESISTANCE), keys=SURGE_RESISTANCE),
     EffectSpec("coupling_damping", "hull", (_v("Yr", "N s"), _v("Nv", "N s")), coupling_damping,
                "sway-yaw linear coupling damping",
                _pair_fit("coupling_damping", "damping", ("Yr", "Nv"), "N s", -60.0, 60.0, 1.0, "turning",

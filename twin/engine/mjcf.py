@@ -189,6 +189,43 @@ def edited_spec(vessel: Vessel, wind_inputs: bool = False) -> mujoco.MjSpec:
     return spec
 
 
+def make_lean(spec: mujoco.MjSpec, rigid: RigidBody) -> mujoco.MjSpec:
+    """The spec with the vessel's parts (meshes, geoms, welded bodies) replaced by one inertial of
+    the same planar M_RB (`rigid`, about CO), in place; sites, joints and actuators kept.
+
+    On three planar joints only the mass, the CG's (x, y) and the yaw inertia move the hull, so
+    the dynamics are those of the full model up to round-off, at a sixth less time per step
+    (kinematics of five bodies and seven geoms, four times per RK4 step). A vessel whose sites
+    or joints sit in its welded bodies is left whole."""
+    hull = next((j.parent for j in spec.joints if j.name == JOINTS[0]), None)
+    if hull is None:
+        return spec
+    parts = _subtree(hull)[1:]
+    if any(b.sites or b.joints or b.cameras for b in parts):
+        return spec
+    for b in hull.bodies:
+        spec.delete(b)
+    for g in list(hull.geoms):
+        spec.delete(g)
+    for mesh in list(spec.meshes):
+        spec.delete(mesh)
+    m, xg, yg = rigid.mass_kg, rigid.xg_m, rigid.yg_m
+    izz = rigid.Iz_kgm2 - m * (xg * xg + yg * yg)  # about the CG (parallel axes)
+    hull.explicitinertial = True
+    hull.mass = m
+    hull.ipos = [xg, yg, 0.0]
+    hull.iquat = [1.0, 0.0, 0.0, 0.0]
+    hull.inertia = [izz, izz, izz]  # only the yaw axis turns; equal axes keep MuJoCo's inertia checks happy
+    return spec
+
+
+def _subtree(body) -> list:
+    out = [body]
+    for child in body.bodies:
+        out.extend(_subtree(child))
+    return out
+
+
 def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
     """The vessel's MuJoCo model, its geometry and checks; `wind_inputs`: with the wind as controls."""
     spec = edited_spec(vessel, wind_inputs)

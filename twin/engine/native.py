@@ -41,7 +41,7 @@ from ..physics import fujiwara, mmg
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
-from .mjcf import THRUSTERS, CompiledVessel, edited_spec, wind_control
+from .mjcf import THRUSTERS, CompiledVessel, edited_spec, make_lean, wind_control
 
 PARAMS_NAME = "twin_params"
 MAGIC = (7.0710678118654752e11, -2.7182818284590452e-13)  # unlikely to be anyone else's first numeric
@@ -142,15 +142,18 @@ def has_params(model: mujoco.MjModel) -> bool:
 
 
 def with_native_params(compiled: CompiledVessel, terms: Terms | None = None,
-                       wind_inputs: bool | None = None) -> mujoco.MjModel:
+                       wind_inputs: bool | None = None, lean: bool = False) -> mujoco.MjModel:
     """The vessel's model recompiled with `twin_params` as its first custom numeric.
 
     Built from the vessel's spec with the same edits as `compile_vessel`, so the
     dynamics are identical to `compiled.model`; parameters from `compiled.hydro(terms)`.
-    wind_inputs: the wind as controls 2 and 3 (default: as `compiled` has them).
+    wind_inputs: the wind as controls 2 and 3 (default: as `compiled` has them). lean: without
+    the parts only a viewer needs (`mjcf.make_lean`: same dynamics up to round-off, faster).
     """
     wind_inputs = compiled.wind_inputs if wind_inputs is None else wind_inputs
     spec = edited_spec(compiled.vessel, wind_inputs)
+    if lean:
+        make_lean(spec, compiled.geometry.rigid)
     others = [(n.name, list(n.data), n.size) for n in spec.numerics]
     for n in list(spec.numerics):
         spec.delete(n)

@@ -117,7 +117,7 @@ class ModelCache:
         key = _structure_key(vessel, wind)
         if key not in self._compiled:
             cv = compile_vessel(vessel)
-            model = native.with_native_params(cv, wind_inputs=wind)
+            model = native.with_native_params(cv, wind_inputs=wind, lean=True)
             if self.timestep_s is not None:
                 model.opt.timestep = self.timestep_s
             self._compiled[key] = (cv, model)
