@@ -200,7 +200,7 @@ def make_lean(spec: mujoco.MjSpec, rigid: RigidBody) -> mujoco.MjSpec:
     hull = next((j.parent for j in spec.joints if j.name == JOINTS[0]), None)
     if hull is None:
         return spec
-    parts = _subtree(hull)[1:]
+    parts = hull.find_all(mujoco.mjtObj.mjOBJ_BODY)  # every body welded below the hull
     if any(b.sites or b.joints or b.cameras for b in parts):
         return spec
     for b in hull.bodies:
@@ -217,13 +217,6 @@ def make_lean(spec: mujoco.MjSpec, rigid: RigidBody) -> mujoco.MjSpec:
     hull.iquat = [1.0, 0.0, 0.0, 0.0]
     hull.inertia = [izz, izz, izz]  # only the yaw axis turns; equal axes keep MuJoCo's inertia checks happy
     return spec
-
-
-def _subtree(body) -> list:
-    out = [body]
-    for child in body.bodies:
-        out.extend(_subtree(child))
-    return out
 
 
 def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
