@@ -87,6 +87,8 @@ CASES = [
     ("autopilot asymmetry", ["thruster_asymmetry=0.85"], CLOSED, "realistic"),
     ("autopilot current", ["current=0.25,60"], CLOSED, "realistic"),
     ("autopilot heading_bias", ["heading_bias=5"], CLOSED, "realistic"),
+    # last, so the earlier cases keep their seeds (11 + index): the dataset logs the packs' voltage
+    ("supply_voltage", ["supply_voltage=1.5,16"], MIXED, "realistic"),
 ]
 # Several logs diagnosed together, each with its own heading bias (a compass calibrated afresh
 # before every outing): (case name, bias of each log in deg, manoeuvres). Each log has half the
@@ -183,6 +185,9 @@ SAME = {"thruster_asymmetry": {"thruster_asymmetry", "thruster_gain_left", "thru
         # a slew limit: the ramp since the library has it; before, the first-order lag was its equivalent,
         # and is still counted as naming it (docs/diagnose/fresh_seeds_1112 says which of the two was named)
         "thrust_ramp": {"thrust_ramp", "thruster_lag"},
+        # a pack that sags: the thrust decaying in time, or following the logged battery voltage (the
+        # world's own form, thrust ∝ (V/V_ref)², since the library has it)
+        "thrust_decay": {"thrust_decay", "supply_voltage"},
         # each log's own wind, and the load's shape the world's tables give it (as wind_shape is for one wind)
         "wind_per_log": {"wind_per_log", "wind_load_shape"}}
 CALIBRATION_TOLERANCE_DEG = 1.5

@@ -10,7 +10,7 @@ import pytest
 
 import twin.vessel as vessel_mod
 from twin.effects import candidates
-from twin.diagnose.doctor import diagnose
+from twin.diagnose.doctor import diagnose, supply_reference
 from twin.diagnose.search import Search
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
@@ -42,6 +42,9 @@ CASES = {
     "thruster_gain_right=1.2": ("thruster_gain_right", {"scale": 0.03}),
     "reverse_thrust=0.6": ("reverse_thrust", {"scale": 0.05}),
     "thrust_decay=0.1": ("thrust_decay", {"decay_per_min": 0.15}),
+    # the reference the diagnosis takes (the logged voltage's 99th percentile) is within a few mV of the
+    # truth's 16 V: one of the dataset's packs starts full
+    "supply_voltage=2,16": ("supply_voltage", {"exponent": 0.1}),
     "thrust_speed_loss=1.5": ("thrust_speed_loss", {"advance_loss": 0.6}),
     "heading_bias=5": ("heading_bias", {"heading_bias_deg": 0.5}),
     "gnss_latency=0.4": ("gnss_latency", {"gnss_latency_s": 0.05}),
@@ -116,7 +119,7 @@ def test_candidate_recovers_its_effect(prior, text):
                   manoeuvres=MIXED)
     cv = compile_vessel(prior)
     preps = [prepare_for(ds.recording, cv, **PREP)]
-    search = make_search(prior, preps, [ds.recording], cv, candidates(prior))
+    search = make_search(prior, preps, [ds.recording], cv, candidates(prior, supply_ref_v=supply_reference(preps)))
     cand = search.library[name]
     fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost))
     got = cand.to_effect(fitted.values).params
@@ -129,6 +132,31 @@ def test_candidate_recovers_its_effect(prior, text):
             assert got[key] == pytest.approx(want, abs=tol), (key, got[key], want)
         else:
             assert got[key] == pytest.approx(want, rel=tol), (key, got[key], want)
+
+
+def test_a_logged_pack_voltage_reaches_the_windows_and_offers_the_supply_effect(prior):
+    """A recording with a battery stream: held on the grid (its first reading before it), its 99th
+    percentile the reference, and the windows' thrust commands scaled by (V/V_ref)^k; a log without
+    one, in the same diagnosis, withdraws the offer."""
+    from dataclasses import replace
+    from twin.fit.windows import thrust_commands
+
+    ds = generate(prior, effects=["supply_voltage=2,16"], n_segments=3, seed=2, noise=PROFILES["none"],
+                  segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    prep = prepare_for(ds.recording, cv, **PREP)
+    assert prep.supply_v is not None and np.all(np.isfinite(prep.supply_v))
+    assert prep.supply_v.min() == pytest.approx(0.88 * 16.0 - 0.01 * 16.0 * 37.5 / 60, abs=0.05)
+    ref = supply_reference([prep])
+    assert ref == pytest.approx(16.0, abs=0.02)
+    assert "supply_voltage" in candidates(prior, supply_ref_v=ref) and "supply_voltage" not in candidates(prior)
+    plain = generate(prior, n_segments=3, seed=3, noise=PROFILES["none"], segment_s=(35, 40), manoeuvres=MIXED)
+    assert supply_reference([prep, prepare_for(plain.recording, cv, **PREP)]) is None
+    follows = replace(prior, thrusters=replace(prior.thrusters, supply_exponent=2.0, supply_ref_v=ref))
+    w = make_windows([prep], 10.0, 10.0, min_length_s=10.0)[5]
+    got, base = (thrust_commands(v, prep, w, 0.05) for v in (follows, prior))
+    volt = prep.supply_v[w.start + np.arange(w.n * 2) // 2]
+    np.testing.assert_allclose(got, base * ((volt / ref) ** 2)[:, None], rtol=1e-9)
 
 
 def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):

@@ -249,3 +249,74 @@ def test_a_ramped_closed_loop_is_its_own_pwm_replayed_and_slower_to_answer():
     assert plain.thrust_n[k, 0] == pytest.approx(plain.thrust_n[k + 15, 0])
     assert closed.thrust_n[k, 0] < 0.7 * plain.thrust_n[k, 0]
     np.testing.assert_allclose(closed.thrust_n[np.searchsorted(closed.t, 7.0), 0], plain.thrust_n[k, 0], rtol=1e-6)
+
+
+# ---------------------------------------------------------------- thrust following the supply voltage
+
+SUPPLY = {"supply_exponent": 2.0, "supply_ref_v": 16.0}
+VOLTS = np.array([16.0, 15.1, 14.4, 15.6])  # held with PWM's four inputs: a pack sagging under load
+
+
+def test_the_supply_factor_is_the_voltage_ratio_to_the_power_k():
+    t = replace(vessel_mod.load("yellowfish").thrusters, **SUPPLY)
+    pwm = np.array([[1800.0, 1300.0], [1700.0, 1650.0]])
+    raw = t.command("pwm", pwm, np.zeros(2))
+    np.testing.assert_allclose(t.command("pwm", pwm, np.zeros(2), np.array([12.0, 16.0])),
+                               raw * np.array([[0.5625], [1.0]]), rtol=1e-12)
+    # no voltage, a sample before the first reading, or a map that does not follow it: the map as it is
+    np.testing.assert_array_equal(t.command("pwm", pwm, np.zeros(2), None), raw)
+    np.testing.assert_array_equal(t.command("pwm", pwm, np.zeros(2), np.array([np.nan, 16.0])), raw)
+    plain = replace(t, supply_exponent=0.0)
+    np.testing.assert_array_equal(plain.command("pwm", pwm, np.zeros(2), np.array([12.0, 12.0])), raw)
+
+
+def test_engine_matches_analytic_with_a_logged_supply_voltage():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, **SUPPLY, lag_s=0.3, delay_s=0.2))
+    series = replace(PWM, supply_v=VOLTS)
+    cv = compile_vessel(v)
+    eng = simulate(cv, series, 20.0, start_s=30.0, nu0=(0.5, 0.0, 0.0))
+    ana = analytic.simulate(cv.hydro(), v.thrusters, cv.geometry.thruster_y_m, series, eng.t - 30.0,
+                            nu0=np.array([0.5, 0.0, 0.0]), start_s=30.0)
+    pos, head = _compare(eng, ana)
+    assert pos < 0.01 and head < 0.1
+    unlogged = simulate(cv, PWM, 20.0, start_s=30.0, nu0=(0.5, 0.0, 0.0))  # no voltage: the map at V_ref
+    assert _compare(eng, unlogged)[0] > 0.3
+
+
+def test_the_thrust_follows_the_voltage_held_with_the_inputs():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, **SUPPLY))
+    run = simulate(compile_vessel(v), replace(PWM, supply_v=VOLTS), 18.0, sample_dt_s=0.1)
+    ref = simulate(compile_vessel(base), PWM, 18.0, sample_dt_s=0.1)
+    volt = VOLTS[np.searchsorted(PWM.t, run.t + 1e-9, side="right") - 1]
+    np.testing.assert_allclose(run.thrust_n, ((volt / 16.0) ** 2)[:, None] * ref.thrust_n, rtol=1e-9)
+
+
+def test_a_closed_loop_on_a_sagging_pack_is_its_own_inputs_replayed():
+    from twin.drive import SupplySeries
+
+    base = vessel_mod.load("yellowfish")
+    cv = compile_vessel(replace(base, thrusters=replace(base.thrusters, **SUPPLY)))
+    supply = SupplySeries(np.array([0.0, 6.0, 12.0]), np.array([16.0, 14.8, 15.5]))  # changes at ticks
+
+    def controller(t, eta, nu):
+        return (0.6, 0.2 if t < 9.0 else -0.1)
+    closed = simulate(cv, controller, 18.0, sample_dt_s=0.1, supply=supply)
+    replayed = simulate(cv, closed.meta["inputs"], 18.0, sample_dt_s=0.1)
+    np.testing.assert_allclose(closed.eta, replayed.eta, atol=1e-9)
+    full = simulate(cv, controller, 18.0, sample_dt_s=0.1)  # the same pack at V_ref all along
+    assert full.nu[:, 0].mean() - closed.nu[:, 0].mean() > 0.03  # the sagging pack is slower
+
+
+def test_a_vessel_file_keeps_its_supply_and_refuses_an_exponent_without_a_reference(tmp_path):
+    from twin.errors import TwinError
+
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, **SUPPLY))
+    assert vessel_mod.load(str(vessel_mod.save(v, tmp_path / "v.json"))).thrusters == v.thrusters
+    assert "supply" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()  # old files unchanged
+    with pytest.raises(TwinError, match="supply_ref_v"):
+        vessel_mod.check(replace(base, thrusters=replace(base.thrusters, supply_exponent=1.5)))
+    with pytest.raises(TwinError, match="supply_exponent"):
+        vessel_mod.check(replace(base, thrusters=replace(base.thrusters, supply_exponent=-1.0, supply_ref_v=16.0)))

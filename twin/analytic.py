@@ -90,7 +90,8 @@ def simulate(
 
     The inputs' clock starts at the run's start, as in the engine; `start_s` is the
     recording time of t = 0 for the thrust decay. The input changes reach the
-    thrusters delay_s later. `wind`: a measured wind on the same clock, held (no delay)."""
+    thrusters delay_s later; a supply voltage the inputs carry (thrusters that follow it) acts
+    when it is logged. `wind`: a measured wind on the same clock, held (no delay)."""
     lag = thrusters.lag_s > 0 and thrusters.kind != "propeller_rudder"
     x = np.concatenate([np.zeros(3) if eta0 is None else eta0, np.zeros(3) if nu0 is None else nu0,
                         np.zeros(2)])[: 8 if lag else 6].astype(float)
@@ -103,6 +104,10 @@ def simulate(
     if wind is not None:
         wind_changed = np.r_[True, np.any(np.diff(wind.air_ned, axis=0) != 0, axis=1)]
         breaks = np.unique(np.concatenate([breaks, wind.t[(wind.t > t0) & (wind.t < t_end) & wind_changed]]))
+    supplied = thrusters.follows_supply and inputs.supply_v is not None
+    if supplied:  # the supply voltage acts when it is logged, not delay_s later
+        volt_changed = np.r_[True, np.diff(inputs.supply_v) != 0]
+        breaks = np.unique(np.concatenate([breaks, inputs.t[(inputs.t > t0) & (inputs.t < t_end) & volt_changed]]))
     out = np.full((len(t_samples), len(x)), np.nan)
     out[0] = x
     ramping = thrusters.ramping
@@ -117,6 +122,8 @@ def simulate(
                 raw = np.zeros(2)
         air = None if wind is None else wind.at(np.array([a]))[0]
         raw = np.asarray(raw, float)
+        if supplied:
+            raw = raw * thrusters.supply_factor(inputs.supply_at(np.array([a])))[0]
         ramp_from, stops = None, [a, b]
         if ramping:
             target = np.clip(raw * thrusters.decay_factor(a + start_s), *thrusters.bounds())

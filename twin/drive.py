@@ -11,6 +11,8 @@ of their bounds (δ > 0 turns to starboard too).
 
 A wind series (`WindSeries`) is a measured wind held like the inputs: the air's velocity over
 ground, which the engine takes as two extra controls and the analytic model as a known input.
+A supply series (`SupplySeries`) is a battery's voltage held like the inputs, for thrusters whose
+thrust follows it; an input series may carry it (`supply_v`, on the series' own times).
 """
 from __future__ import annotations
 
@@ -38,17 +40,28 @@ class InputSeries:
     t: np.ndarray
     values: np.ndarray  # (n, 2): left, right
     kind: str
+    supply_v: np.ndarray | None = None  # (n,) battery voltage V held like the values (None: not logged)
 
     def at(self, times: np.ndarray) -> np.ndarray:
         idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
         return self.values[np.clip(idx, 0, len(self.t) - 1)]
 
+    def supply_at(self, times: np.ndarray) -> np.ndarray | None:
+        """The battery voltage (V) held at `times` (no delay: the ESC sees the pack as it is), None
+        without one."""
+        if self.supply_v is None:
+            return None
+        idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
+        return np.asarray(self.supply_v, float)[np.clip(idx, 0, len(self.t) - 1)]
+
     def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray, start_s: float = 0.0) -> np.ndarray:
         """Thrust command (N) per thruster at `times` (s, this series' clock), before gains, lag and
-        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t.
+        advance loss: the input held at t − delay_s, decayed by the recording time start_s + t and
+        scaled by the supply voltage held at t (thrusters that follow it, a series that logs it).
         For a propeller and rudder: the engine's two controls (n rps, δ rad) held at t − delay_s."""
         times = np.asarray(times, float)
-        return thrusters.command(self.kind, self.driven(thrusters).at(times - thrusters.delay_s), times + start_s)
+        return thrusters.command(self.kind, self.driven(thrusters).at(times - thrusters.delay_s), times + start_s,
+                                 self.supply_at(times) if thrusters.follows_supply else None)
 
     def thrust_on_steps(self, thrusters: ThrusterModel, n_steps: int, step_s: float, start_s: float = 0.0) -> np.ndarray:
         """(n_steps, 2) thrust command (N) held over engine step k (from k·step_s): `commanded_thrust` at
@@ -64,12 +77,26 @@ class InputSeries:
         motor's pulse is neutral until it passes its start edge); the series itself otherwise."""
         if self.kind != "pwm" or not thrusters.hysteretic:
             return self
-        return InputSeries(self.t, thrusters.as_driven(self.values), self.kind)
+        return InputSeries(self.t, thrusters.as_driven(self.values), self.kind, self.supply_v)
 
     def pwm_at(self, times: np.ndarray) -> np.ndarray:
         if self.kind == "pwm":
             return self.at(times).astype(float)
         return np.full((len(np.atleast_1d(times)), 2), np.nan)
+
+
+@dataclass(frozen=True)
+class SupplySeries:
+    """A battery's terminal voltage held from t[i] until t[i+1] (s, the run's clock; zero-order hold,
+    the first value before the first time): what thrusters that follow the supply answer
+    (physics/thrusters.py)."""
+
+    t: np.ndarray
+    volt_v: np.ndarray  # (n,) V
+
+    def at(self, times) -> np.ndarray:
+        idx = np.searchsorted(self.t, np.asarray(times, float) + 1e-9, side="right") - 1
+        return np.asarray(self.volt_v, float)[np.clip(idx, 0, len(self.t) - 1)]
 
 
 @dataclass(frozen=True)

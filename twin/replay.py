@@ -16,6 +16,7 @@ from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import delivered_thrust, simulate
 from .errors import TwinError
 from .prepare import Prepared
+from .prepare.prepared import hold
 from .run import Run
 from .vessel import Vessel
 
@@ -23,9 +24,16 @@ from .vessel import Vessel
 def logged_pwm(vessel: Vessel, prep: Prepared, sl: slice) -> InputSeries:
     """The segment's logged PWM (or a propeller and rudder's (n, δ): prep.input_kind) on the segment's
     clock, moved by the vessel's PWM clock offset (sensors.pwm_clock_offset_s > 0: the stamps are
-    late), as the fit windows apply it."""
+    late), as the fit windows apply it; with the battery voltage on the segment's own clock
+    (unshifted), for thrusters that follow it."""
     t = prep.t[sl]
-    return InputSeries(t - t[0] - vessel.sensors.pwm_clock_offset_s, prep.pwm[sl].astype(float), prep.input_kind)
+    series = InputSeries(t - t[0] - vessel.sensors.pwm_clock_offset_s, prep.pwm[sl].astype(float), prep.input_kind)
+    if prep.supply_v is None or not vessel.thrusters.follows_supply:
+        return series
+    if vessel.sensors.pwm_clock_offset_s:  # the voltage is held on the grid's own stamps, not the PWM's
+        shifted = hold(t - t[0], prep.supply_v[sl], np.clip(series.t, 0.0, t[-1] - t[0]))
+        return replace(series, supply_v=shifted)
+    return replace(series, supply_v=prep.supply_v[sl].astype(float))
 
 
 def measured_run(prep: Prepared, sl: slice | None = None) -> Run:

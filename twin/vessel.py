@@ -117,6 +117,8 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
             d.pop(key)
     if not d["ramp_s"]:  # only where the thrust is slew-limited
         d.pop("ramp_s")
+    if not d["supply_exponent"] and d["supply_ref_v"] is None:  # only where the thrust follows the supply
+        d.pop("supply_exponent"), d.pop("supply_ref_v")
     return d
 
 
@@ -318,6 +320,12 @@ def check(vessel: Vessel) -> None:
                         f"{t.start_fwd}, {t.start_rev}")
     if not t.ramp_s >= 0:
         raise TwinError(f"vessel '{vessel.name}': thrusters.ramp_s must be ≥ 0 s, got {t.ramp_s}")
+    if not 0 <= t.supply_exponent <= 10 or (t.supply_ref_v is not None and not t.supply_ref_v > 0):
+        raise TwinError(f"vessel '{vessel.name}': thrusters.supply_exponent must lie in [0, 10] and supply_ref_v be "
+                        f"> 0 V, got {t.supply_exponent}, {t.supply_ref_v}")
+    if t.supply_exponent > 0 and t.supply_ref_v is None:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.supply_exponent > 0 needs supply_ref_v (the voltage "
+                        "the thrust map holds at)")
     if t.ramp_s > 0:
         try:
             t.slew_n_per_s
@@ -344,9 +352,9 @@ def _check_propeller_rudder(vessel: Vessel) -> None:
     if m is None:
         return
     if (t.lag_s or t.delay_s < 0 or t.decay_per_min or t.advance_loss or t.gain_left != 1 or t.gain_right != 1
-            or t.ramp_s):
-        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, advance loss, ramp or "
-                        "gains (the MMG forces model the propeller)")
+            or t.ramp_s or t.supply_exponent):
+        raise TwinError(f"vessel '{name}': a propeller and rudder take no thruster lag, decay, advance loss, ramp, "
+                        "supply voltage or gains (the MMG forces model the propeller)")
     for what, x in (("thrusters.rps_max", t.rps_max), ("thrusters.rudder_max_deg", t.rudder_max_deg)):
         if x is not None and not x > 0:
             raise TwinError(f"vessel '{name}': {what} must be positive, got {x}")

@@ -143,6 +143,18 @@ def say(text: str) -> None:
     console.print(text, highlight=False, soft_wrap=True)
 
 
+def say_unlogged_supply(recordings, vessel) -> None:
+    """For a twin whose thrust follows the supply voltage: which recordings log none (their thrust is
+    then the map's at the reference voltage), so no one reads that as a fit of the pack."""
+    t = vessel.thrusters
+    if not t.follows_supply:
+        return
+    for rec in recordings:
+        if not len(rec.battery):
+            say(f"{Path(rec.source).name}: no battery voltage logged: the twin's thrust follows none there "
+                f"(its map as at {t.supply_ref_v:g} V)")
+
+
 def note(text: str) -> None:
     """A side remark on stderr: hidden by --quiet."""
     if not _settings["quiet"]:

@@ -7,7 +7,7 @@ from typing import Optional
 import typer
 
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, progress_bar,
-                  say, vessel_from, write_json)
+                  say, say_unlogged_supply, vessel_from, write_json)
 
 
 @app.command("diagnose")
@@ -50,6 +50,7 @@ def diagnose_command(
                           refit_weight=refit_weight, log=lambda m: progress(m))
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
+    say_unlogged_supply(recs, result.amended)
     typer.echo(format_text(result))
     typer.echo("\nwhere the residual concentrates (every window, twin before):")
     typer.echo(format_located(result.located[:12]))

@@ -9,7 +9,7 @@ import typer
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, floats, note,
-                  progress_bar, say, vessel_from, write_json)
+                  progress_bar, say, say_unlogged_supply, vessel_from, write_json)
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
@@ -121,6 +121,7 @@ def identify_command(
                                 sources=[str(r) for r in recordings], progress=progress, wind=wind)
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
+    say_unlogged_supply(recs, prior)
     text = ident.format_greybox(result.greybox)
     if text:
         console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")
@@ -206,6 +207,7 @@ def evaluate_command(
                                                       vessel=used, fitted=fitted)
     for c in calibrations:
         say(f"calibration: {c.text()}")
+    say_unlogged_supply(recs, v)
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))
     if calibration:
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))

@@ -99,7 +99,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     before = _residuals(prior, preps, every, exact)  # locating fits nothing: every window may speak
     located, growth, corr, overall = _locate(before, preps, every, noise)
     log(f"replayed {len(every)} windows of {window_s:g} s; {len(located)} significant residual regions")
-    lib = candidates(prior, [log_name(r.source) for r in recordings])
+    lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
         unknown = set(library) - set(lib)
         if unknown:
@@ -199,6 +199,18 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
         raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
                         "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
     return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)
+
+
+def supply_reference(preps) -> float | None:
+    """The voltage (V) the thrust map is taken to hold at when every log has a battery stream: the
+    99th percentile of all their grid samples, the pack at its fullest and least loaded (a thrust
+    map is measured on a fresh pack; the highest reading, robust to a spike), so the supply factor
+    (V/V_ref)^k stays at or below 1 and the map's bounds keep meaning full thrust. A map measured
+    at another voltage shows as a level the exponent takes up: k then says how far below its map
+    the boat ran, not only how the thrust follows the pack. None when a log has no voltage."""
+    if not preps or any(p.supply_v is None for p in preps):
+        return None
+    return float(np.round(np.percentile(np.concatenate([p.supply_v for p in preps]), 99), 3))
 
 
 def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):
@@ -366,8 +378,9 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
                 d = (d + 180.0) % 360.0 - 180.0
             J[i, j] = d / h
     var = np.einsum("ij,jk,ik->i", J, cov, J)
+    # a value the fit holds (the supply effect's reference voltage) has no interval
     return {key: [base[key] - 1.96 * float(np.sqrt(max(v, 0.0))), base[key] + 1.96 * float(np.sqrt(max(v, 0.0)))]
-            for key, v in zip(keys, var)}
+            for key, v, row in zip(keys, var, J) if np.any(row)}
 
 
 def _unexplained(located: list[dict], corr: dict, overall: dict) -> list[dict]:

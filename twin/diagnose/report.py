@@ -184,7 +184,8 @@ def promising(d) -> list[dict]:
 def _family(d, name: str) -> str:
     from ..effects import candidates
 
-    cand = candidates(d.prior, ["log 1", "log 2"]).get(name)  # two logs: the per-log effects have a family too
+    # two logs: the per-log effects have a family too; any reference voltage: the supply effect's family
+    cand = candidates(d.prior, ["log 1", "log 2"], supply_ref_v=1.0).get(name)
     return cand.family if cand is not None else ""
 
 

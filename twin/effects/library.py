@@ -29,7 +29,7 @@ from ..errors import TwinError
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
                            SURGE_RESISTANCE, mmg_sway_added_mass)
-from .quantity import (dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
+from .quantity import (Quantity, dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
                        reverse_scale, scale_of, start_edge)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
 
@@ -318,6 +318,28 @@ def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
     return _thrusters(vessel, decay_per_min=decay_per_min)
 
 
+def supply_voltage(vessel: Vessel, exponent: float, ref_v: float = 0.0) -> Vessel:
+    """Thrust × (V/V_ref)^exponent with V the battery voltage the recording logs (physics/thrusters.py);
+    ref_v: V_ref (V), the voltage the thrust map holds at (0: the vessel's own supply_ref_v)."""
+    return _thrusters(vessel, supply_exponent=exponent, supply_ref_v=ref_v or vessel.thrusters.supply_ref_v)
+
+
+def _supply_fit(prior: Vessel, logs) -> Candidate | None:
+    """Offered where the diagnosis knows a reference voltage (every log has a battery stream:
+    `candidates(..., supply_ref_v=)`, or the prior follows the supply already). The exponent is fitted
+    with the reference held, so a kept effect writes both."""
+    ref = prior.thrusters.supply_ref_v
+    if ref is None or prior.thrusters.kind == "propeller_rudder":
+        return None
+
+    def put(v: Vessel, k: float) -> Vessel:
+        return _thrusters(v, supply_exponent=k, supply_ref_v=ref)
+
+    k = Quantity("exponent", "-", lambda v: float(v.thrusters.supply_exponent), put, 0.0, 4.0, 0.5)
+    return Candidate("supply_voltage", (k,), ((1.5,),), lambda p: effect("supply_voltage", exponent=p["exponent"],
+                                                                          ref_v=ref), "thrust")
+
+
 def thrust_speed_loss(vessel: Vessel, advance_loss: float) -> Vessel:
     """Each propeller's thrust less advance_loss·√|T0|·its advance speed (√N·s/m, physics/thrusters.py)."""
     return _thrusters(vessel, advance_loss=advance_loss)
@@ -496,6 +518,9 @@ _SPECS = [
                "thrust sag over time",
                _single("thrust_decay", member("thrusters", "decay_per_min", "1/min", 0.0, 0.6, 0.05), ((0.02,),),
                        "thrust")),
+    EffectSpec("supply_voltage", "thrusters", (_v("exponent", "-", 0, 10), _v("ref_v", "V", 0, 1000, default=0.0)),
+               supply_voltage, "thrust following the logged battery voltage, × (V/V_ref)^exponent (a pack that sags)",
+               _supply_fit),
     EffectSpec("thrust_speed_loss", "thrusters", (_v("advance_loss", "√N s/m", 0, 20),), thrust_speed_loss,
                "propeller thrust loss with advance speed (T0 − c·√|T0|·u_a)",
                _single("thrust_speed_loss", member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
@@ -566,8 +591,12 @@ def effect(name: str, **params) -> Effect:
 _ACTS_ON = {"propeller_rudder": ("environment", "sensors")}
 
 
-def candidates(prior: Vessel, logs: list[str] = ()) -> dict[str, Candidate]:
-    """What a diagnosis can fit for this prior and the names of the logs diagnosed together."""
+def candidates(prior: Vessel, logs: list[str] = (), supply_ref_v: float | None = None) -> dict[str, Candidate]:
+    """What a diagnosis can fit for this prior and the names of the logs diagnosed together;
+    supply_ref_v: the reference voltage (V) of logs that all log their battery, for a prior that has
+    none (only then is `supply_voltage` offered)."""
+    if supply_ref_v is not None and prior.thrusters.supply_ref_v is None:
+        prior = _thrusters(prior, supply_ref_v=float(supply_ref_v))
     out = {}
     for s in _SPECS:
         if s.acts_on not in _ACTS_ON.get(prior.thrusters.kind, (s.acts_on,)):

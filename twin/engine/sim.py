@@ -21,12 +21,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 from typing import Callable
 
 import mujoco
 import numpy as np
 
-from ..drive import InputSeries, WindSeries
+from ..drive import InputSeries, SupplySeries, WindSeries
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms, mmg_forces
 from ..physics import thrusters
@@ -167,13 +168,18 @@ class _ClosedLoop:
     at step min(k + n_delay, n_steps) (the delay), decayed by the recording time of each step."""
 
     def __init__(self, compiled: CompiledVessel, controller: Controller, layout: _Layout, *, n_steps: int,
-                 n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool):
+                 n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool,
+                 supply: SupplySeries | None = None):
         thrusters = compiled.vessel.thrusters
         self.controller, self.layout, self.map = controller, layout, TickMap.of(thrusters)
         self.n_steps, self.n_control, self.h, self.start_s = n_steps, n_control, h, start_s
         self.n_delay = int(round(thrusters.delay_s / h))
         self.thrust_on = thrust_on
-        self.decaying = bool(thrusters.decay_per_min) and thrust_on
+        # the supply factor of every step (the voltage as each step starts), where the thrust follows it
+        self.supply = supply
+        self.supplied = (np.asarray(thrusters.supply_factor(supply.at(np.arange(n_steps + 1) * h)), float)
+                         if supply is not None and thrusters.follows_supply and thrust_on else None)
+        self.decaying = (bool(thrusters.decay_per_min) or self.supplied is not None) and thrust_on
         # a slew-limited command changes at every step of a ramp; its state is the ramp's value
         self.ramp = thrusters.slew_n_per_s * h if thrusters.ramping and thrust_on else None
         self.ramped: Pair | None = None  # the ramp's value: settled at the first command
@@ -206,6 +212,8 @@ class _ClosedLoop:
         command = self.raw
         if self.decaying:
             f = self.map.decay(self.start_s + k * self.h)
+            if self.supplied is not None:
+                f *= float(self.supplied[k])
             command = (self.raw[0] * f, self.raw[1] * f)
         return command if self.ramp is None else self._ramped(command)
 
@@ -241,8 +249,11 @@ class _ClosedLoop:
         return np.where(pwm[:, None], values, np.nan)
 
     def inputs(self) -> InputSeries:
-        """The inputs the controller gave, as a series that replays the run."""
-        return InputSeries(np.array(self.times), np.array(self.values), self.kinds[-1])
+        """The inputs the controller gave, as a series that replays the run (with the supply voltage at
+        its ticks where one was given: a replay holds it over each tick, the run had it at every step)."""
+        times = np.array(self.times)
+        return InputSeries(times, np.array(self.values), self.kinds[-1],
+                           None if self.supply is None else self.supply.at(times))
 
 
 def simulate(
@@ -258,6 +269,7 @@ def simulate(
     terms: Terms | None = None,
     backend: str = "native",
     wind: WindSeries | None = None,
+    supply: SupplySeries | None = None,
 ) -> Run:
     """Run the engine twin for `duration_s` and return samples every `sample_dt_s`.
 
@@ -273,6 +285,8 @@ def simulate(
     readable reference callback); both give the same forces to 1e-9.
     `wind`: a measured wind on the run's clock, held over each step (module docstring); it
     replaces the vessel environment's constant wind and is returned in `run.meta["wind"]`.
+    `supply`: the battery voltage on the run's clock, for thrusters that follow it (an input series
+    may carry its own instead); without either they act as at their reference voltage.
     """
     if not duration_s > 0:
         raise TwinError("duration must be positive")
@@ -292,10 +306,12 @@ def simulate(
         if (drive.kind == "propeller_rudder") != (vessel.thrusters.kind == "propeller_rudder"):
             raise TwinError(f"vessel '{vessel.name}' is driven by {vessel.thrusters.input_kind} inputs, "
                             f"not {drive.kind}")
+        if supply is not None:
+            drive = replace(drive, supply_v=supply.at(drive.t))
         loop = _OpenLoop(drive, vessel.thrusters, n_steps, n_sample, h, start_s, inputs_on)
     else:
         loop = _ClosedLoop(compiled, drive, layout, n_steps=n_steps, n_sample=n_sample, n_control=n_control, h=h,
-                           start_s=start_s, thrust_on=inputs_on)
+                           start_s=start_s, thrust_on=inputs_on, supply=supply)
     events, air = loop.events, None
     if wind is not None:
         air = _Wind(wind, n_steps, h)

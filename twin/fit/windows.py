@@ -9,7 +9,8 @@ A whole segment is one long window.
 
 What the recording's clock means for the thrusters (vessel.thrusters, vessel.sensors):
 the thrust at recording time t answers the PWM logged at t − delay_s + pwm_clock_offset_s
-(a late-stamped PWM log makes the thrust seem to come first), decayed by t.
+(a late-stamped PWM log makes the thrust seem to come first), decayed by t and, for thrusters
+that follow the supply voltage, scaled by the battery voltage logged at t (Prepared.supply_v).
 
 The recorded inputs are the prepared recording's two input channels (`Prepared.pwm`) of its
 `input_kind`: PWM for thrusters, or a propeller-and-rudder ship's (n rps, δ rad), which
@@ -190,7 +191,15 @@ def _commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float)
         logged = vessel.thrusters.as_driven(logged[:end])
         sl = slice(sl.start, sl.start + end)
     pwm = np.column_stack([hold(prep.t[sl], logged[:, j], look) for j in range(2)])
-    return vessel.thrusters.command(prep.input_kind, pwm, times)
+    return vessel.thrusters.command(prep.input_kind, pwm, times, supply_steps(vessel, prep, times))
+
+
+def supply_steps(vessel: Vessel, prep: Prepared, times: np.ndarray) -> np.ndarray | None:
+    """The battery voltage (V) held at `times` (recording clock, within the recording) for thrusters
+    that follow it; None where they do not or the recording logs none (the map acts as at V_ref)."""
+    if not vessel.thrusters.follows_supply or prep.supply_v is None:
+        return None
+    return hold(prep.t, prep.supply_v, np.clip(times, prep.t[0], prep.t[-1]))
 
 
 def wind_steps(prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:

@@ -7,6 +7,16 @@ what real thrusters add to a datasheet curve:
   latency): the thrusters act on the PWM of `delay_s` earlier;
 - thrust decay over a run (battery sag): the command is scaled by
   1 − decay_per_min·t/60 s, t from the start of the recording;
+- thrust that follows the supply voltage: an ESC drives its motor with a duty cycle of the pack's
+  terminal voltage V, so one PWM gives less thrust as the pack sags and under the load's own
+  IR drop. Where the recording logs V (ArduPilot's BAT.Volt, the CSV `voltage`) the command is
+  scaled by (V/V_ref)^k (`supply_exponent` k, `supply_ref_v` V_ref: the voltage the map holds
+  at): a known input, like a measured wind, not a fitted trend in time. k is fitted, not
+  assumed (a propeller's thrust goes as n², n roughly as V at a given duty, so k ≈ 2 is the
+  ideal; an ESC's losses and current limit lower it). Without a logged voltage (a closed-loop
+  scenario, SITL, a log with no battery monitor) the map acts as at V_ref. The thrust bounds
+  stay the map's at full PWM: V_ref is meant as the fullest pack (a diagnosis takes the logs'
+  highest voltage), so the factor stays at or below 1 and a command is never held at them by it;
 - a slew limit (an ESC's or autopilot's ramp, ArduPilot's MOT_SLEWRATE in kind): the thrust
   command, within the bounds, changes no faster than the full forward thrust in `ramp_s`
   seconds, whatever the PWM asks. Its state is the command the ramp has reached, so like the
@@ -88,6 +98,8 @@ class ThrusterModel:
     rps_max: float | None = None
     rudder_max_deg: float | None = None
     ramp_s: float = 0.0  # slew limit: s for the command to change by the full forward thrust; 0 = none
+    supply_exponent: float = 0.0  # k of (V/V_ref)^k, the thrust's answer to the supply voltage; 0 = none
+    supply_ref_v: float | None = None  # V_ref, V: the supply voltage the map holds at
 
     @property
     def ramping(self) -> bool:
@@ -217,12 +229,26 @@ class ThrusterModel:
         """Fraction of the commanded thrust left t_s seconds into the recording (floored at 0)."""
         return np.maximum(0.0, 1.0 - self.decay_per_min * np.asarray(t_s, float) / 60.0)
 
-    def command(self, kind: str, held, t_s):
+    @property
+    def follows_supply(self) -> bool:
+        """The thrust answers a logged supply voltage ((V/V_ref)^k with k > 0)."""
+        return self.supply_exponent > 0 and self.kind != "propeller_rudder"
+
+    def supply_factor(self, volt_v):
+        """(V/V_ref)^k per sample of the supply voltage volt_v (V); 1 without one (None) or where a
+        sample is NaN (no voltage logged yet), and 1 for thrusters that do not follow it."""
+        if volt_v is None or not self.follows_supply:
+            return 1.0
+        ratio = np.asarray(volt_v, float) / self.supply_ref_v
+        return np.where(np.isfinite(ratio), np.abs(ratio) ** self.supply_exponent, 1.0)
+
+    def command(self, kind: str, held, t_s, supply_v=None):
         """Thrust command (N) per thruster, (n, 2), from inputs held at times t_s (s, recording clock).
 
         `held` are the inputs in force at t_s − delay_s (the caller looks them up):
         PWM in µs through eq. 27 (kind "pwm") or thrust in N (kind "thrust"), then
-        the decay. Gains, lag and the advance-speed loss act later, in the engine.
+        the decay and, with `supply_v` (V at t_s, one per time), the supply factor. Gains, lag
+        and the advance-speed loss act later, in the engine.
         A propeller and rudder's (n rps, δ rad) (kind "propeller_rudder") are the controls as
         they are (the MMG forces clip them to the bounds).
         """
@@ -233,7 +259,8 @@ class ThrusterModel:
             held = np.asarray(held, float)
             return held * np.ones_like(np.asarray(t_s, float))[..., None]
         raw = self.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
-        return raw * np.asarray(self.decay_factor(t_s))[..., None]
+        factor = np.asarray(self.decay_factor(t_s)) * np.asarray(self.supply_factor(supply_v))
+        return raw * factor[..., None]
 
 
 def motor_states(x, start_fwd: float, stop_fwd: float, start_rev: float, stop_rev: float) -> np.ndarray:

@@ -40,6 +40,10 @@
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
    (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
    whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
+10. The battery's terminal voltage (the battery stream) is held on the grid (`supply_v`, V;
+   the first sample's value before it: a pack's voltage moves slowly and its first reading is
+   the best guess of the minutes before), for a thruster model whose thrust follows it
+   (physics/thrusters.py, `supply_exponent`); None without a battery stream.
 """
 from __future__ import annotations
 
@@ -123,6 +127,7 @@ class Prepared:
     dropped: list[tuple[str, int]] = field(default_factory=list)
     input_kind: str = "pwm"  # what the two input channels `pwm` hold (step 7)
     wind_ned: np.ndarray | None = None  # (n, 2) measured wind, the air's NED velocity m/s (step 8)
+    supply_v: np.ndarray | None = None  # (n,) battery terminal voltage V held on the grid (step 10)
 
     def __repr__(self) -> str:
         return (f"Prepared({Path(self.settings.source).name or '?'}: {len(self.t)} samples every "
@@ -187,7 +192,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
                            tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
                            rec.source, float(gnss_latency_s))
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
-                    tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t))
+                    tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t),
+                    supply_voltage(rec, t))
 
 
 _FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibration that leaves a stream as
@@ -430,6 +436,19 @@ def measured_wind(rec: Recording, t: np.ndarray) -> np.ndarray | None:
     a = np.radians(w["from_deg"])
     north, east = -w["speed_m_s"] * np.cos(a), -w["speed_m_s"] * np.sin(a)
     return np.column_stack([hold(w.t, north, t), hold(w.t, east, t)])
+
+
+def supply_voltage(rec: Recording, t: np.ndarray) -> np.ndarray | None:
+    """The battery voltage held on the grid (V; step 10), None without a battery stream."""
+    b = rec.battery
+    if not len(b) or not b.has("voltage_v"):
+        return None
+    ok = np.isfinite(b["voltage_v"]) & (b["voltage_v"] > 0)
+    if not ok.any():
+        return None
+    ts, volt = b.t[ok], b["voltage_v"][ok]
+    held = hold(ts, volt, t)
+    return np.where(np.isfinite(held), held, volt[0])
 
 
 def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:

@@ -23,7 +23,9 @@ Choices, and why:
   step's time, then a thrust ramp's slew limit (each step's mean of the ramp, from rest at
   the session's start). The decay counts from the start of the twin's clock, which starts
   again with ArduPilot (a restart is a new session). Gains, lag and the
-  advance-speed loss act in MuJoCo as everywhere else.
+  advance-speed loss act in MuJoCo as everywhere else. A twin whose thrust follows the
+  supply voltage runs at its reference voltage: SITL sends no battery (ArduPilot simulates
+  its own), so the factor is 1.
 - **PWM.** Output 0 (ArduPilot's "no output") is the thruster's neutral: for a
   T200 map the PWM of δ̃ = 0, pwm_offset·pwm_scale_us (1500 µs); for a vessel whose
   thrusters are "direct" (thrust in N, no PWM map) the PWM range

@@ -8,6 +8,9 @@ logs at their real rates and noise (seed 004 §3, Table 1):
   heading  AHRS ψ with the sensors' bias/deviation, every 20 ms, white noise
   PWM      the autopilot's output, every 100 ms, integer µs, stamped with the
            sensors' PWM clock offset
+  battery  the pack's voltage every 500 ms (10 mV), only where the truth's thrust follows it
+           (supply_voltage): each segment on a pack of its own charge, starting at 0.88-1 of
+           V_ref (one of them full), sagging 1 % of V_ref a minute once logged
 
 The result is a `Recording` (written by `twin.formats.write_recording` as .tlog,
 .mcap or .csv) and, separately, the truth: the truth vessel, the effects, the noise,
@@ -26,7 +29,7 @@ from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..engine.sim import simulate
 from ..errors import TwinError
 from ..geodesy import geodetic_from_ned
-from ..drive import InputSeries
+from ..drive import InputSeries, SupplySeries
 from ..physics.kinematics import wrap_angle
 from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading
 from ..progress import Progress, steps
@@ -123,21 +126,40 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     starts = np.cumsum([0.0] + [m.duration_s + gap_s for m in plan[:-1]])
     eta0 = [(float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-np.pi, np.pi)))
             for _ in plan]
-    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress))
+    supplies = _supplies(truth, plan, rng)
+    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress), supplies)
     recording = _log(compiled, runs, noise, rng, source, steps(progress))
     return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
 
 
 LEAD_IN_S = 5.0  # unlogged seconds before each segment: a logged segment starts under way, as real ones do
+SUPPLY_DT_S = 0.5  # the battery monitor's period
 
 
-def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, progress: Progress) -> list[Run]:
+def _supplies(truth: Vessel, plan, rng: np.random.Generator) -> list[SupplySeries | None]:
+    """Each segment's pack voltage on its run's clock (lead-in included) where the truth's thrust
+    follows it (module docstring): packs of different charge tell the supply from a decay in time.
+    Their starting voltages spread evenly over 0.88-1 of V_ref in a random order, one of them full:
+    the highest logged voltage is V_ref, the reference a diagnosis takes."""
+    t = truth.thrusters
+    if not t.follows_supply:
+        return [None] * len(plan)
+    levels = t.supply_ref_v * rng.permutation(np.linspace(0.88, 1.0, len(plan)))
+    out = []
+    for m, v0 in zip(plan, levels):
+        times = np.arange(0.0, m.duration_s + LEAD_IN_S + SUPPLY_DT_S, SUPPLY_DT_S)
+        out.append(SupplySeries(times, v0 - 0.01 * t.supply_ref_v * np.maximum(times - LEAD_IN_S, 0.0) / 60.0))
+    return out
+
+
+def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, progress: Progress,
+              supplies: list[SupplySeries | None]) -> list[Run]:
     runs: list[Run | None] = [None] * len(plan)
     open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)]
     if open_idx:
         # open-loop segments run together in one batch: one report for all of them
         progress(f"simulating {len(open_idx)} open-loop segments in one batch", 0, len(plan))
-        batch = simulate_many(compiled, [_led_in(plan[i].drive) for i in open_idx],
+        batch = simulate_many(compiled, [_led_in(plan[i].drive, supplies[i]) for i in open_idx],
                               [plan[i].duration_s + LEAD_IN_S for i in open_idx], eta0=[eta0[i] for i in open_idx],
                               start_s=[starts[i] - LEAD_IN_S for i in open_idx], sample_dt_s=sample_dt_s)
         if batch.diverged:
@@ -154,20 +176,23 @@ def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, 
             progress(f"simulating segment {i + 1} of {len(plan)} ({m.name}, closed loop)", done, len(plan))
             done += 1
             runs[i] = simulate(compiled, m.drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
-                               sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S)
+                               sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S,
+                               supply=supplies[i])
     return [_logged_part(r, float(t0)) for r, t0 in zip(runs, starts)]
 
 
-def _led_in(series: InputSeries) -> InputSeries:
-    """The series delayed by the lead-in, its first input held meanwhile."""
-    return InputSeries(np.concatenate([[0.0], series.t + LEAD_IN_S]), np.vstack([series.values[:1], series.values]),
-                       series.kind)
+def _led_in(series: InputSeries, supply: SupplySeries | None = None) -> InputSeries:
+    """The series delayed by the lead-in, its first input held meanwhile; with the supply voltage (on
+    the run's clock) at its times."""
+    t = np.concatenate([[0.0], series.t + LEAD_IN_S])
+    return InputSeries(t, np.vstack([series.values[:1], series.values]), series.kind,
+                       None if supply is None else supply.at(t))
 
 
 def _logged_part(run: Run, t0: float) -> Run:
     keep = run.t >= t0 - 1e-9
     inputs = run.meta["inputs"]
-    shifted = InputSeries(inputs.t - LEAD_IN_S, inputs.values, inputs.kind)  # on the logged segment's clock
+    shifted = InputSeries(inputs.t - LEAD_IN_S, inputs.values, inputs.kind, inputs.supply_v)  # the segment's clock
     return Run(run.t[keep], run.eta[keep], run.nu[keep], run.pwm_us[keep], run.thrust_n[keep],
                meta={**run.meta, "inputs": shifted, "start_s": t0})
 
@@ -192,7 +217,7 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
          source: str, progress: Progress) -> Recording:
     vessel = compiled.vessel
     antenna = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
-    g_t, g_n, g_e, h_t, h_psi, p_t, p_v = [], [], [], [], [], [], []
+    g_t, g_n, g_e, h_t, h_psi, p_t, p_v, b_t, b_v = [], [], [], [], [], [], [], [], []
     for k, run in enumerate(runs):
         progress(f"logging segment {k + 1} of {len(runs)} (sensors and noise)", k, len(runs))
         t0, t1 = float(run.t[0]), float(run.t[-1])
@@ -212,6 +237,10 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
         tp = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.pwm_dt_s)
         p_t.append(tp + vessel.sensors.pwm_clock_offset_s)
         p_v.append(np.round(run.meta["inputs"].at(tp - t0)))
+        if run.meta["inputs"].supply_v is not None:
+            tb = t0 + np.arange(0.0, t1 - t0 + 1e-9, SUPPLY_DT_S)
+            b_t.append(tb)
+            b_v.append(np.round(run.meta["inputs"].supply_at(tb - t0), 2))
     lat, lon = geodetic_from_ned(np.concatenate(g_n), np.concatenate(g_e), ORIGIN[0], ORIGIN[1], ORIGIN[2])
     pwm = np.concatenate(p_v)
     rec = Recording(source=source, kind="synthetic")
@@ -219,5 +248,7 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
     rec.heading = Stream(np.concatenate(h_t), {"psi_rad": np.concatenate(h_psi)})
     rec.pwm = Stream(np.concatenate(p_t), {"left_us": pwm[:, 0], "right_us": pwm[:, 1]})
     rec.pwm_neutral_us = (man.NEUTRAL_US, man.NEUTRAL_US)
+    if b_t:
+        rec.battery = Stream(np.concatenate(b_t), {"voltage_v": np.concatenate(b_v)})
     rec.notes.append(f"synthetic dataset: {len(runs)} segments, seed and truth in the separate truth file")
     return rec
