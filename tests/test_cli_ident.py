@@ -73,6 +73,17 @@ def test_identify_then_evaluate(dataset):
     assert done.returncode == 2 and "fitted_on" in done.stderr and "Traceback" not in done.stderr
 
 
+def test_a_twin_that_follows_the_pack_says_which_logs_record_none(dataset, tmp_path):
+    from dataclasses import replace
+
+    base = vessel_mod.load("yellowfish")
+    model = vessel_mod.save(replace(base, thrusters=replace(base.thrusters, supply_exponent=2.0, supply_ref_v=16.0)),
+                            tmp_path / "pack.json")
+    done = twin("evaluate", "--model", model, dataset / "train.csv")
+    assert done.returncode == 0, done.stderr
+    assert "train.csv: no battery voltage logged" in done.stdout and "as at 16 V" in done.stdout
+
+
 def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:
     from twin.cli.app import main
 

@@ -503,3 +503,18 @@ def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
         for name in ("heading", "imu", "battery") if not conversion.synchronised else ("imu", "battery"):
             assert len(getattr(back, name)) == len(getattr(rec, name)), (path.name, name)
         assert len(back.parameters) == (0 if suffix == ".csv" else len(rec.parameters)), path.name
+
+
+def test_the_summary_says_how_far_the_pack_sagged_and_preparation_holds_it():
+    from twin.recording import Recording, Stream
+
+    rec = Recording(source="pack.csv", kind="csv")
+    rec.battery = Stream(np.array([2.0, 3.0, 4.0, 5.0]), {"voltage_v": np.array([16.1, 15.2, 15.6, 14.9])})
+    s = rec.summary()["streams"]["battery"]
+    assert (s["voltage_first_v"], s["voltage_last_v"], s["voltage_min_v"], s["voltage_max_v"]) == (16.1, 14.9, 14.9, 16.1)
+    assert "16.10 → 14.90 V (range 14.90-16.10)" in format_summary(rec.summary())
+    from twin.prepare.prepared import supply_voltage
+
+    held = supply_voltage(rec, np.array([0.0, 2.5, 4.0, 9.0]))  # before the first reading: the first
+    np.testing.assert_array_equal(held, [16.1, 16.1, 15.6, 14.9])
+    assert supply_voltage(Recording(source="none.csv", kind="csv"), np.array([0.0])) is None

@@ -32,6 +32,12 @@ PROPELLER_RUDDER_COLUMNS = ("prop_rps", "rudder_deg")
 KINDS = ("pwm", "thrust", "propeller_rudder")
 
 
+def _held(t: np.ndarray, values: np.ndarray, times) -> np.ndarray:
+    """Zero-order hold: values[i] from t[i] until t[i+1], the first value before t[0]."""
+    idx = np.searchsorted(t, np.asarray(times, float) + 1e-9, side="right") - 1
+    return values[np.clip(idx, 0, len(t) - 1)]
+
+
 @dataclass(frozen=True)
 class InputSeries:
     """values[i] holds from t[i] until t[i+1] (zero-order hold); kind 'pwm' (µs, left, right),
@@ -43,16 +49,12 @@ class InputSeries:
     supply_v: np.ndarray | None = None  # (n,) battery voltage V held like the values (None: not logged)
 
     def at(self, times: np.ndarray) -> np.ndarray:
-        idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
-        return self.values[np.clip(idx, 0, len(self.t) - 1)]
+        return _held(self.t, self.values, times)
 
     def supply_at(self, times: np.ndarray) -> np.ndarray | None:
         """The battery voltage (V) held at `times` (no delay: the ESC sees the pack as it is), None
         without one."""
-        if self.supply_v is None:
-            return None
-        idx = np.searchsorted(self.t, np.asarray(times) + 1e-9, side="right") - 1
-        return np.asarray(self.supply_v, float)[np.clip(idx, 0, len(self.t) - 1)]
+        return None if self.supply_v is None else _held(self.t, np.asarray(self.supply_v, float), times)
 
     def commanded_thrust(self, thrusters: ThrusterModel, times: np.ndarray, start_s: float = 0.0) -> np.ndarray:
         """Thrust command (N) per thruster at `times` (s, this series' clock), before gains, lag and
@@ -95,8 +97,7 @@ class SupplySeries:
     volt_v: np.ndarray  # (n,) V
 
     def at(self, times) -> np.ndarray:
-        idx = np.searchsorted(self.t, np.asarray(times, float) + 1e-9, side="right") - 1
-        return np.asarray(self.volt_v, float)[np.clip(idx, 0, len(self.t) - 1)]
+        return _held(self.t, np.asarray(self.volt_v, float), times)
 
 
 @dataclass(frozen=True)
@@ -123,8 +124,7 @@ class WindSeries:
 
     def at(self, times) -> np.ndarray:
         """(n, 2) air velocity NED (m/s) held at `times`; the first value before the first time."""
-        idx = np.searchsorted(self.t, np.asarray(times, float) + 1e-9, side="right") - 1
-        return self.air_ned[np.clip(idx, 0, len(self.t) - 1)]
+        return _held(self.t, self.air_ned, times)
 
     def shifted(self, dt_s: float) -> "WindSeries":
         """The same wind on a clock started dt_s later (t − dt_s)."""

@@ -141,6 +141,12 @@ class Recording:
                 "gaps": len(gaps),
                 "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
             }
+        if len(self.battery):  # how far the pack sagged: what a thrust that follows it would feel
+            volt = self.battery["voltage_v"]
+            streams["battery"].update({"voltage_first_v": round(float(volt[0]), 3),
+                                       "voltage_last_v": round(float(volt[-1]), 3),
+                                       "voltage_min_v": round(float(volt.min()), 3),
+                                       "voltage_max_v": round(float(volt.max()), 3)})
         return {
             "source": self.source,
             "kind": self.kind,
@@ -161,7 +167,9 @@ def format_summary(summary: dict) -> str:
     for name, s in summary["streams"].items():
         if s["samples"]:
             gap = f", {s['gaps']} gaps > {GAP_S:g} s (longest {s['longest_gap_s']:.1f} s)" if s["gaps"] else ""
-            lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}")
+            volt = (f", {s['voltage_first_v']:.2f} → {s['voltage_last_v']:.2f} V (range {s['voltage_min_v']:.2f}-"
+                    f"{s['voltage_max_v']:.2f})" if "voltage_first_v" in s else "")
+            lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}{volt}")
         else:
             lines.append(f"  {name:8s}       - none")
     lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"]]

@@ -56,7 +56,8 @@ NEXT = {
     "timing": "steps of the sticks from rest and back to neutral (the thrust's timing shows at steps), and the "
               "PWM logged on the same clock as GNSS and heading",
     "thrust": "straight runs at several fixed throttles ahead and astern, and spins in place both ways "
-              "(a weak thruster turns the boat better one way than the other)",
+              "(a weak thruster turns the boat better one way than the other), the same runs on a full and "
+              "on a tired pack with the battery voltage logged (a thrust that follows the pack, not the clock)",
     "turning": "spins in place both ways and turns at a steady speed both ways",
     "drag": "coast-downs from full speed with the thrusters at neutral, and runs at several steady speeds",
     "inertia": "zig-zags and sharp throttle steps",
