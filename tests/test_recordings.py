@@ -511,7 +511,8 @@ def test_the_summary_says_how_far_the_pack_sagged_and_preparation_holds_it():
     rec = Recording(source="pack.csv", kind="csv")
     rec.battery = Stream(np.array([2.0, 3.0, 4.0, 5.0]), {"voltage_v": np.array([16.1, 15.2, 15.6, 14.9])})
     s = rec.summary()["streams"]["battery"]
-    assert (s["voltage_first_v"], s["voltage_last_v"], s["voltage_min_v"], s["voltage_max_v"]) == (16.1, 14.9, 14.9, 16.1)
+    keys = ("voltage_first_v", "voltage_last_v", "voltage_min_v", "voltage_max_v")
+    assert tuple(s[k] for k in keys) == (16.1, 14.9, 14.9, 16.1)
     assert "16.10 → 14.90 V (range 14.90-16.10)" in format_summary(rec.summary())
     from twin.prepare.prepared import supply_voltage
 

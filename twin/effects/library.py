@@ -29,8 +29,8 @@ from ..errors import TwinError
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
                            SURGE_RESISTANCE, mmg_sway_added_mass)
-from .quantity import (Quantity, dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member, ned_component,
-                       reverse_scale, scale_of, start_edge)
+from .quantity import (Quantity, dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member,
+                       ned_component, reverse_scale, scale_of, start_edge)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
 
 _SCALE = ("scale", "×", 0.0, 100.0, True)
