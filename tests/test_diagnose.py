@@ -10,7 +10,8 @@ import pytest
 
 import twin.vessel as vessel_mod
 from twin.effects import candidates
-from twin.diagnose.doctor import diagnose, supply_reference
+from twin.diagnose.doctor import diagnose
+from twin.prepare import supply_reference
 from twin.diagnose.search import Search
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError

@@ -321,3 +321,21 @@ def test_needed_groups_are_those_whose_return_to_the_prior_hurts_left_out_runs(y
     assert ident.needed() == [("yaw", pytest.approx(4.8)), ("coupling", pytest.approx(1.3))]
     assert format_needed(ident).startswith("the left-out runs need: yaw (left-out cost ×4.80")
     assert Identification(yellowfish_vessel, yellowfish_vessel, None).needed() == []
+
+
+def test_identify_fits_the_thrusts_answer_to_the_logged_pack(yellowfish_vessel):
+    """Logs that record their battery offer the group 'pack voltage': the exponent of (V/V_ref)^k,
+    V_ref the logs' fullest pack; a log without one withdraws it, in one line."""
+    from twin.ident.identify import identify
+
+    ds = generate(yellowfish_vessel, effects=["supply_voltage=2,16"], n_segments=4, seed=3, noise=PROFILES["none"],
+                  segment_s=(35, 40), manoeuvres=["rc", "forward_varying", "circle_varying"])
+    # beliefs worth a hundredth of their default: the noise-free data speak, not the belief's k = 1 ± 1.5
+    result = identify([ds.recording], yellowfish_vessel, params=("supply_exponent",), prior_weights=(0.01,),
+                      calibrated=False, max_evaluations=8)
+    t = result.vessel.thrusters
+    assert t.supply_ref_v == pytest.approx(16.0, abs=0.02) and t.supply_exponent == pytest.approx(2.0, abs=0.25)
+    plain = generate(yellowfish_vessel, n_segments=3, seed=4, noise=PROFILES["none"], segment_s=(35, 40),
+                     manoeuvres=["rc"])
+    with pytest.raises(TwinError, match="pack voltage"):
+        identify([ds.recording, plain.recording], yellowfish_vessel, groups=("pack voltage",), prior_weights=(1.0,))

@@ -68,7 +68,8 @@ def identify_command(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
     groups: Optional[str] = typer.Option(None, help="groups of coefficients to consider, comma separated "
-                                                   "(default: all of " + ", ".join(FIT_GROUPS) + "; for a "
+                                                   "(default: all of " + ", ".join(FIT_GROUPS) + ", and pack voltage "
+                                                   "where every recording logs its battery; for a "
                                                    "propeller-and-rudder ship: " + ", ".join(MMG_FIT_GROUPS)
                                                    + "); the fit "
                                                    "keeps those that predict left-out runs better"),

@@ -32,7 +32,7 @@ from ..fit.metrics import r2_mae
 from ..physics.sensors import log_name
 from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
-from ..prepare import Prepared
+from ..prepare import Prepared, supply_reference
 from ..recording import Recording
 from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
@@ -199,18 +199,6 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
         raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
                         "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
     return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)
-
-
-def supply_reference(preps) -> float | None:
-    """The voltage (V) the thrust map is taken to hold at when every log has a battery stream: the
-    99th percentile of all their grid samples, the pack at its fullest and least loaded (a thrust
-    map is measured on a fresh pack; the highest reading, robust to a spike), so the supply factor
-    (V/V_ref)^k stays at or below 1 and the map's bounds keep meaning full thrust. A map measured
-    at another voltage shows as a level the exponent takes up: k then says how far below its map
-    the boat ran, not only how the thrust follows the pack. None when a log has no voltage."""
-    if not preps or any(p.supply_v is None for p in preps):
-        return None
-    return float(np.round(np.percentile(np.concatenate([p.supply_v for p in preps]), 99), 3))
 
 
 def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):

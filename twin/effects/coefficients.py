@@ -97,9 +97,16 @@ def mmg_sway_added_mass() -> Quantity:
     return replace(base, put=put)
 
 
-def fit_groups(vessel: Vessel) -> dict[str, tuple[str, ...]]:
-    """The groups `twin identify` considers for this vessel: its thrusters' kind decides."""
-    return MMG_FIT_GROUPS if vessel.mmg is not None else FIT_GROUPS
+# where every recording logs its battery, PWM thrusters' answer to the pack voltage (physics/thrusters.py)
+SUPPLY_GROUP = {"pack voltage": ("supply_exponent",)}
+
+
+def fit_groups(vessel: Vessel, supplied: bool = False) -> dict[str, tuple[str, ...]]:
+    """The groups `twin identify` considers for this vessel: its thrusters' kind decides; `supplied`:
+    every recording logs its battery voltage, which adds the thrust's answer to it."""
+    if vessel.mmg is not None:
+        return MMG_FIT_GROUPS
+    return {**FIT_GROUPS, **SUPPLY_GROUP} if supplied else FIT_GROUPS
 
 
 def mmg_member(part: str, attr: str, lo: float, hi: float, typical: float) -> Quantity:
@@ -149,6 +156,7 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
                 "lag_s": member("thrusters", "lag_s", "s", 0.01, 3.0, 0.2),
                 "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
                 "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
+                "supply_exponent": member("thrusters", "supply_exponent", "-", 0.0, 4.0, 0.5),
                 "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
                 "current_north": ned_component("current", 0, -3.0, 3.0, 0.1),
                 "current_east": ned_component("current", 1, -3.0, 3.0, 0.1)})
@@ -214,6 +222,10 @@ def belief(name: str, prior: Vessel) -> Belief:
                                   "thruster's propeller (D 76 mm, K_T0 0.4, J_0 1), known to a factor of 2")
     if name == "lag_s":
         return Belief(True, 1.0, "thrust lag of a small ESC and propeller: tenths of a second, a factor of e")
+    if name == "supply_exponent":
+        return Belief(False, 1.5, "the thrust's answer to the pack voltage, (V/V_ref)^k: between 0 (a regulated "
+                                  "supply) and about 2 (a propeller's n² on an ideal ESC); a prior without one "
+                                  "starts from 1 (fit/simfit.py map_start)")
     if name == "delay_s":
         return Belief(False, 0.2, "transport delay of a telemetry link: a few tenths of a second")
     if name == "deadzone_fwd":

@@ -202,9 +202,14 @@ class Coordinate:
 
 def map_start(prior: Vessel, names) -> Vessel:
     """The prior a maximum a posteriori fit of `names` starts from: a thrust lag of 0.1 s where the
-    prior has none (a log-normal belief needs a magnitude, and the lag's state a start)."""
+    prior has none (a log-normal belief needs a magnitude, and the lag's state a start), and a
+    thrust that follows the pack as V^1 where the prior's does not follow it."""
     if "lag_s" in names and prior.thrusters.lag_s <= 0:
-        return replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))
+        prior = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.1))
+    if "supply_exponent" in names and prior.thrusters.supply_exponent <= 0:
+        # k = 0 is the edge of its range, where a finite difference cannot look below: start between a
+        # regulated supply (0) and an ideal ESC (2), which is also the belief's centre
+        prior = replace(prior, thrusters=replace(prior.thrusters, supply_exponent=1.0))
     return prior
 
 

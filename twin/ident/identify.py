@@ -41,7 +41,7 @@ from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, 
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
-from ..prepare import Prepared
+from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
 from ..recording import Recording
 from ..vessel import Vessel
@@ -201,12 +201,15 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     _check(start, thruster, split, train, prior_weights)
     check_wind(recordings, wind)
     simfit.check_kind(prior)
-    names_by_group = _groups(groups, params, prior)
+    supplied = bool(recordings) and all(len(r.battery) for r in recordings)
+    names_by_group = _groups(groups, params, prior, supplied)
     all_names = tuple(n for names in names_by_group.values() for n in names)
     simfit.check_names(prior, all_names, anchor)
     say("calibrating each log's compass", 0, 4)
     vessel, calibrations = calibrate(recordings, prior) if calibrated else (prior, [])
     preps = prepared(recordings, vessel)
+    if "supply_exponent" in all_names:
+        vessel = _with_supply_reference(vessel, preps)
     seen = fitted_envelope(vessel, preps).to_dict()  # the logs' span and windows as evaluate counts them
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
@@ -307,11 +310,26 @@ def check_wind(recordings: list[Recording], wind: str | None) -> None:
                                 "--wind-measured needs an anemometer's")
 
 
-def _groups(groups, params, prior: Vessel) -> dict[str, tuple[str, ...]]:
+def _with_supply_reference(vessel: Vessel, preps: list[Prepared]) -> Vessel:
+    """The vessel with the voltage its thrust map holds at (the logs' fullest pack,
+    prepare.supply_reference) where it states none: fitting the thrust's answer to the pack needs
+    one. TwinError when a recording logs no battery."""
+    if vessel.thrusters.supply_ref_v is not None:
+        return vessel
+    ref = supply_reference(preps)
+    if ref is None:
+        raise TwinError("supply_exponent (the thrust's answer to the pack voltage) needs every recording's battery "
+                        "voltage, and one of them logs none")
+    return replace(vessel, thrusters=replace(vessel.thrusters, supply_ref_v=ref))
+
+
+def _groups(groups, params, prior: Vessel, supplied: bool = False) -> dict[str, tuple[str, ...]]:
     if params is not None:
         return {"chosen": tuple(params)}
-    table = groups_of(prior)
+    table = groups_of(prior, supplied)
     chosen = tuple(table) if groups is None else tuple(groups)
+    if "pack voltage" in chosen and "pack voltage" not in table and prior.mmg is None:
+        raise TwinError("group 'pack voltage' needs every recording's battery voltage, and one of them logs none")
     unknown = [g for g in chosen if g not in table]
     if unknown:
         raise TwinError(f"unknown group(s) {', '.join(unknown)} (known for '{prior.name}': {', '.join(table)})")

@@ -2,6 +2,7 @@
 GNSS in local NED, the lever arm applied, body velocities, segments without dropouts,
 operating regions; and the model-based smoother, and what `twin convert` writes."""
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
-from .prepared import DEADBAND_US, Preparation, Prepared, Segment, hold, prepare, wind_series
+from .prepared import DEADBAND_US, Preparation, Prepared, Segment, hold, prepare, supply_reference, wind_series
 
-__all__ = ["DEADBAND_US", "Preparation", "Prepared", "Segment", "geodetic_to_ned", "hold", "prepare", "wind_series"]
+__all__ = ["DEADBAND_US", "Preparation", "Prepared", "Segment", "geodetic_to_ned", "hold", "prepare", "supply_reference",
+           "wind_series"]

@@ -451,6 +451,18 @@ def supply_voltage(rec: Recording, t: np.ndarray) -> np.ndarray | None:
     return np.where(np.isfinite(held), held, volt[0])
 
 
+def supply_reference(preps) -> float | None:
+    """The voltage (V) the thrust map is taken to hold at when every log has a battery stream: the
+    99th percentile of all their grid samples, the pack at its fullest and least loaded (a thrust
+    map is measured on a fresh pack; the highest reading, robust to a spike), so the supply factor
+    (V/V_ref)^k stays at or below 1 and the map's bounds keep meaning full thrust. A map measured
+    at another voltage shows as a level the exponent takes up: k then says how far below its map
+    the boat ran, not only how the thrust follows the pack. None when a log has no voltage."""
+    if not preps or any(p.supply_v is None for p in preps):
+        return None
+    return float(np.round(np.percentile(np.concatenate([p.supply_v for p in preps]), 99), 3))
+
+
 def prepared_from_run(run: Run, neutral_us: tuple[float, float] = (1500.0, 1500.0)) -> Prepared:
     """A run's true states as a one-segment Prepared recording (for tests and truth)."""
     n = len(run.t)
