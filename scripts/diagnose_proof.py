@@ -89,6 +89,7 @@ CASES = [
     ("autopilot heading_bias", ["heading_bias=5"], CLOSED, "realistic"),
     # last, so the earlier cases keep their seeds (11 + index): the dataset logs the packs' voltage
     ("supply_voltage", ["supply_voltage=1.5,16"], MIXED, "realistic"),
+    ("full_thrust", ["full_thrust=0.75"], MIXED, "realistic"),
 ]
 # Several logs diagnosed together, each with its own heading bias (a compass calibrated afresh
 # before every outing): (case name, bias of each log in deg, manoeuvres). Each log has half the

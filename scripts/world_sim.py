@@ -178,6 +178,7 @@ class Effects:
     dz_fwd: float | None = None               # dead-zone edges in δ̃ (None: the params')
     dz_rev: float | None = None
     hysteresis: tuple | None = None           # (start_fwd, stop_fwd, start_rev, stop_rev) in δ̃
+    ventilation: tuple | None = None          # (knee_share, slope): forward thrust beyond knee_share of full grows at slope
     battery_sag: bool = False                 # thrust ∝ (V/V_ref)²
     battery_wh: float = 150.0
     battery_soc0: float = 0.95
@@ -189,6 +190,7 @@ class Effects:
     current: dict | None = None               # speed0, speed1, dir0_deg, dir1_deg (towards)
     wind: dict | None = None                  # speed, from_deg, gust_sigma, gust_tau_s, dir_sigma_deg, dir_tau_s
     heading_offset_deg: float = 0.0
+    magnetometer: tuple | None = None         # (hard_x, hard_y, soft_xx, soft_yy, soft_xy) in units of the field
     gnss_latency_s: float = 0.0
     antenna_offset_m: tuple = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
@@ -374,6 +376,7 @@ class ThrusterChain:
         self.volt = self.v_ref
         self.factor = 1.0
         self.energy_wh = 0.0
+        self.full_fwd_n = curve_thrust_n(pwm_to_unit(v.pwm_max_us, v), v, True)
 
     def static_n(self, side: int, pwm_us: float) -> float:
         """Thrust of the map at this PWM, N, before gain and dynamics."""
@@ -396,6 +399,10 @@ class ThrusterChain:
             t = curve_thrust_n(d, v, False)
         else:
             t = 0.0
+        if self.fx.ventilation is not None:
+            knee = self.fx.ventilation[0] * self.full_fwd_n
+            if t > knee:
+                t = knee + self.fx.ventilation[1] * (t - knee)
         if v.thrust_min_n is not None:
             t = max(t, v.thrust_min_n)
         if v.thrust_max_n is not None:
@@ -450,6 +457,18 @@ def thruster_forces(v: Vessel, fx: Effects) -> Callable[[float, float], tuple]:
 
 # ---------------------------------------------------------------- sensors
 
+def iron_error_rad(psi: np.ndarray, iron: tuple) -> np.ndarray:
+    """Heading error of a magnetic compass whose own iron bends the field it reads: the earth's
+    horizontal field (unit, pointing north) seen in the body frame FRD is (cos ψ, −sin ψ); the
+    soft iron scales and shears it, the hard iron adds a fixed body vector; the compass reports
+    atan2(−m_y, m_x). Exact, not the deviation's Fourier series."""
+    hx, hy, sxx, syy, sxy = iron
+    bx, by = np.cos(psi), -np.sin(psi)
+    mx = (1.0 + sxx) * bx + sxy * by + hx
+    my = sxy * bx + (1.0 + syy) * by + hy
+    return np.angle(np.exp(1j * (np.arctan2(-my, mx) - psi)))
+
+
 @dataclass
 class Sensors:
     """What is logged and when: sample steps, noise already drawn (so the autopilot sees exactly what
@@ -470,6 +489,13 @@ class Sensors:
     latency_steps: int
     noise_info: dict = field(default_factory=dict)
     fault_info: dict = field(default_factory=dict)
+    magnetometer: tuple | None = None
+
+    def heading_error_rad(self, psi: np.ndarray | float) -> np.ndarray | float:
+        """Logged minus true heading: the offset plus the magnetometer's iron error."""
+        if self.magnetometer is None:
+            return self.heading_offset_rad + 0.0 * np.asarray(psi)
+        return self.heading_offset_rad + iron_error_rad(np.asarray(psi, float), self.magnetometer)
 
     def heading_steps(self) -> np.ndarray:
         return np.arange(self.first_step + self.hdg_phase, self.n_steps, self.hdg_stride)
@@ -483,7 +509,7 @@ class Sensors:
         if j < 0:
             return None
         ks = self.first_step + self.hdg_phase + j * self.hdg_stride
-        return (psi[ks] + self.heading_offset_rad + self.hdg_noise_rad[j] + self.hdg_spike_rad[j],
+        return (psi[ks] + float(self.heading_error_rad(psi[ks])) + self.hdg_noise_rad[j] + self.hdg_spike_rad[j],
                 r[ks] + self.gyro_noise_rad_s[j])
 
     def latest_fix(self, k: int, n: list, e: list, psi: list) -> tuple[float, float, float] | None:
@@ -540,7 +566,7 @@ def make_sensors(rng: np.random.Generator, v: Vessel, fx: Effects, first_step: i
                    {"gnss_white_m": white_m, "gnss_wander_sigma_m": round(wander_m, 3),
                     "gnss_wander_tau_s": round(wander_tau_s, 1), "gnss_hz": 5, "heading_hz": hz,
                     "heading_noise_deg": hdg_sd_deg, "yaw_rate_noise_rad_s": gyro_sd, "pwm_hz": 10,
-                    "pwm_quantisation_us": 1, "voltage_hz": 2, "voltage_noise_v": 0.02}, fault_info)
+                    "pwm_quantisation_us": 1, "voltage_hz": 2, "voltage_noise_v": 0.02}, fault_info, fx.magnetometer)
 
 
 # ---------------------------------------------------------------- drivers
@@ -853,7 +879,7 @@ def recording_streams(run: Run, s: Sensors, fx: Effects, rng: np.random.Generato
     streams = []
     kh = s.heading_steps()
     jh = np.arange(len(kh))
-    hdg = x[kh, 2] + s.heading_offset_rad + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
+    hdg = x[kh, 2] + s.heading_error_rad(x[kh, 2]) + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
     rate = x[kh, 5] + s.gyro_noise_rad_s[jh]
     th = run.t_s[kh]
     keep = gap_mask(th, gaps)
@@ -1171,6 +1197,45 @@ def b_antenna(rng, v):
                            "antenna_x_m": true[0], "antenna_y_m": true[1]})]
 
 
+def b_iron(rng, v):
+    """Compass iron: hard iron 0.06-0.10 of the field in a random body direction, soft iron ±1-3 %
+    per axis and up to 1 % shear."""
+    mag, ang = rng.uniform(0.06, 0.10), rng.uniform(0, 2 * np.pi)
+    iron = (r3(mag * math.cos(ang)), r3(mag * math.sin(ang)),
+            r3(rng.choice([-1, 1]) * rng.uniform(0.01, 0.03)), r3(rng.choice([-1, 1]) * rng.uniform(0.01, 0.03)),
+            r3(rng.uniform(-0.01, 0.01)))
+    psi = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    basis = np.column_stack([np.ones_like(psi), np.sin(psi), np.cos(psi), np.sin(2 * psi), np.cos(2 * psi)])
+    a, b, c, d, e = np.degrees(np.linalg.lstsq(basis, iron_error_rad(psi, iron), rcond=None)[0])
+    peak = float(np.degrees(np.abs(iron_error_rad(psi, iron)).max()))
+    return Effects(magnetometer=iron), [effect(
+        "compass_iron", "magnetic compass reading a field bent by the boat's own iron: the earth's field in the body "
+        "frame, scaled and sheared by soft iron, plus a fixed hard-iron vector; heading = atan2(−m_y, m_x), exact",
+        {"hard_x": iron[0], "hard_y": iron[1], "soft_xx": iron[2], "soft_yy": iron[3], "soft_xy": iron[4]},
+        "compass_deviation", {"b_deg": r3(b), "c_deg": r3(c), "d_deg": r3(d), "e_deg": r3(e), "a_deg": r3(a),
+                              "peak_error_deg": r3(peak)},
+        ["heading_bias (the constant part, or the mean over the headings sailed)"],
+        notes="the library's candidate fits the one-cycle terms B, C; the two-cycle D, E and the constant A "
+              "(soft iron) are left over, and a single log's compass calibration may take a constant")]
+
+
+def b_ventilation(rng, v):
+    """Forward thrust beyond 40-55 % of full grows at 0.3-0.5 of the map's slope (a propeller near the
+    surface drawing air under heavy load): a knee in the thrust curve, not a gain."""
+    knee, slope = r3(rng.uniform(0.40, 0.55)), r3(rng.uniform(0.3, 0.5))
+    full = curve_thrust_n(pwm_to_unit(v.pwm_max_us, v), v, True)
+    return Effects(ventilation=(knee, slope)), [effect(
+        "thrust_ventilation", "forward thrust T of the map above the knee k·T_full becomes k·T_full + s·(T − k·T_full) "
+        "(both thrusters; astern unchanged)", {"knee_share_of_full": knee, "slope_beyond": slope},
+        "full_thrust", {"full_thrust_n": r3(full), "thrust_at_full_n": r3(knee * full + slope * (1 - knee) * full),
+                        "share": r3(knee + slope * (1 - knee))},
+        ["thrust_gain (the loss averaged over the PWM driven)", "thrust_speed_loss (a loss growing with speed)",
+         "surge_resistance (more drag at the speeds high thrust reaches)"],
+        notes="the library's full_thrust bends the curve over smoothly (T/√(1 + k(T/T_full)²)) where this world has a "
+              "knee; its share is the thrust at full PWM. A yaw damping standing in for it (a spin's forward thruster "
+              "gives less than the map) or a sensor effect beside it would be invented")]
+
+
 def b_clock(rng, v):
     """PWM log stamped 0.3-0.5 s late."""
     d = round(float(rng.uniform(0.3, 0.5)), 2)
@@ -1255,6 +1320,10 @@ CASES: dict[str, CaseSpec] = {
     "gnss_latency": CaseSpec("GNSS stamped 0.2-0.4 s late, RC", "rc", 900, b_latency),
     "gnss_antenna_offset": CaseSpec("antenna 0.3-0.5 m from where the params say, RC with spins", "rc", 900,
                                     b_antenna, style="spins"),
+    "compass_iron": CaseSpec("magnetic compass with hard and soft iron (deviation 3.5-6°, exact atan2 form), RC",
+                             "rc", 900, b_iron),
+    "thrust_ventilation": CaseSpec("forward thrust saturating beyond 40-55 % of full (slope ×0.3-0.5), RC heavy "
+                                   "sticks", "rc", 900, b_ventilation, style="heavy"),
     "pwm_clock_offset": CaseSpec("PWM log stamped 0.3-0.5 s late against GNSS/heading, RC", "rc", 900, b_clock),
     "measurement_faults": CaseSpec("GNSS outliers 2-4 %, dropouts, heading spikes; boat nominal, RC", "rc", 900,
                                    b_faults),

@@ -84,3 +84,158 @@ def test_a_bare_twin_prints_its_help_and_is_not_an_error(monkeypatch, capsys):
     with pytest.raises(SystemExit) as exit_info:
         cli.main()
     assert exit_info.value.code in (0, 2) and "Usage" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- refused before any work, nothing replaced
+
+def tiny_log(path):
+    """A 5-s recording in the generic CSV layout: GNSS, heading and PWM at 10 Hz."""
+    rows = [f"{k / 10:.1f},63.4013904,{10.3149425 + k * 1e-6:.7f},220.98,58.86,1510,1512,1511,1511" for k in range(51)]
+    path.write_text("t,lat,lon,alt,heading_deg,pwm_left,pwm_right,pwm_neutral_left,pwm_neutral_right\n"
+                    + "\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture
+def kept(tmp_path):
+    """Files a refused run must leave byte-identical: a recording, an inputs CSV, a JSON."""
+    log = tiny_log(tmp_path / "log.csv")
+    inputs = tmp_path / "inputs.csv"
+    inputs.write_text("t,thrust_left,thrust_right\n0,1,1\n5,1,1\n")
+    out = tmp_path / "same.json"
+    out.write_text('{"kept": true}\n')
+    return tmp_path, log, inputs, out
+
+
+def refused(monkeypatch, capsys, args, files=()) -> str:
+    """Run `twin ARGS`, assert exit 2 with one `error:` line and every file in `files` unchanged."""
+    before = {p: p.read_bytes() for p in files}
+    code, err = run(monkeypatch, capsys, args)
+    assert code == 2, (args, code, err)
+    assert err.startswith("error:") and len(err.strip().splitlines()) == 1 and "Traceback" not in err, (args, err)
+    assert {p: p.read_bytes() for p in files} == before, args
+    return err
+
+
+def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, capsys, kept):
+    root, log, inputs, same = kept
+    v = ["--vessel", "yellowfish"]
+    cases = [
+        (("convert", log, log), "is the input"),
+        (("convert", log, root / "." / "log.csv"), "is the input"),
+        (("simulate", *v, "--inputs", inputs, "--out", inputs), "is the input"),
+        (("simulate", *v, "--duration", "1", "--out", root / "a.csv", "--out", root / "a.csv"), "same file"),
+        (("identify", log, *v, "--out", same, "--json", same), "same file"),
+        (("diagnose", log, *v, "--json", same, "--write-model", same), "same file"),
+        (("diagnose", log, *v, "--json", same, "--report", root / "r.html", "--write-model", root / "same.json"),
+         "same file"),
+        (("evaluate", log, *v, "--json", same, "--rrd", root / "e.rrd", "--stride", "0"), "--stride"),
+        (("montecarlo", "--model", same, "--out", same), "is the input"),
+        (("dataset", *v, "--out", root / "d.csv", "--out", root / "d.csv"), "same file"),
+    ]
+    for args, message in cases:
+        err = refused(monkeypatch, capsys, args, [log, inputs, same])
+        assert message in err, (args, err)
+    assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (("simulate", "--duration", "inf"), "--duration must be a positive number"),
+    (("simulate", "--duration", "0"), "--duration must be a positive number"),
+    (("simulate", "--duration", "1e12"), "samples, more than this machine's memory"),
+    (("simulate", "--sample-dt", "nan"), "--sample-dt must be a positive number"),
+    (("simulate", "--seed", "-1"), "--seed must be a whole number ≥ 0"),
+    (("crosscheck", "--duration", "inf"), "--duration must be a positive number"),
+    (("montecarlo", "--duration", "inf"), "--duration must be a positive number"),
+    (("montecarlo", "--sample-dt", "nan"), "--sample-dt must be a positive number"),
+    (("dataset", "--seed", "-1"), "--seed must be a whole number ≥ 0"),
+    (("identify", "LOG", "--window", "0"), "--window must be a positive number"),
+    (("identify", "LOG", "--window", "-1"), "--window must be a positive number"),
+    (("identify", "LOG", "--window", "nan"), "--window must be a positive number"),
+    (("identify", "LOG", "--max-evaluations", "0"), "--max-evaluations must be at least 1"),
+    (("identify", "LOG", "--max-evaluations", "-5"), "--max-evaluations must be at least 1"),
+    (("evaluate", "LOG", "--stride", "0"), "--stride must be a positive number"),
+    (("evaluate", "LOG", "--stride", "-1"), "--stride must be a positive number"),
+    (("evaluate", "LOG", "--stride", "nan"), "--stride must be a positive number"),
+    (("evaluate", "LOG", "--stride", "inf"), "--stride must be a positive number"),
+    (("evaluate", "LOG", "--band", "--seed", "-1"), "--seed must be a whole number ≥ 0"),
+    (("diagnose", "LOG", "--window", "0"), "--window must be a positive number"),
+    (("diagnose", "LOG", "--window", "-5"), "--window must be a positive number"),
+    (("diagnose", "LOG", "--window", "nan"), "--window must be a positive number"),
+    (("diagnose", "LOG", "--effects", "bogus"), "unknown effect(s) bogus"),
+    (("convert", "LOG", "OUT.csv", "--grid-dt", "1e-9"), "samples, more than this machine's memory"),
+    (("convert", "LOG", "OUT.csv", "--grid-dt", "0"), "--grid-dt must be a positive number"),
+    (("dataset-shards", "--seed", "-1", "--out", "OUT"), "--seed must be a whole number ≥ 0"),
+    (("sitl", "--vessel", "esso_osaka"), "propeller-and-rudder ship"),
+    (("params", "--model", "."), "is a folder, not a vessel file"),
+])
+def test_bad_numbers_are_refused_before_any_work(monkeypatch, capsys, kept, args, message):
+    root, log, inputs, same = kept
+    command, *rest = args
+    rest = [str(log) if a == "LOG" else str(root / a) if a.startswith("OUT") else a for a in rest]
+    rest = [str(root) if a == "." else a for a in rest]
+    outputs = {"simulate": ["--out", root / "a.csv"], "montecarlo": ["--out", root / "m.json"],
+               "dataset": ["--out", root / "d.csv"], "identify": ["--out", root / "m.json"]}.get(command, [])
+    vessel = [] if command == "convert" or {"--vessel", "--model"} & set(rest) else ["--vessel", "yellowfish"]
+    err = refused(monkeypatch, capsys, [command, *rest, *vessel, *outputs], [log, inputs, same])
+    assert message in err, err
+    assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]
+
+
+def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys, kept):
+    root, log, inputs, same = kept
+    out = root / "fleet"
+    out.mkdir()
+    earlier = {name: f'{{"earlier": "{name}"}}\n' for name in ("fleet.json", "fleet.md", "empty.json")}
+    for name, text in earlier.items():
+        (out / name).write_text(text)
+    empty = root / "empty.csv"
+    empty.write_text("")
+    files = [out / name for name in earlier]
+    base = ["fleet", empty, "--vessel", "yellowfish", "--out", out]
+    assert "unknown effect(s) bogus" in refused(monkeypatch, capsys, [*base, "--effects", "bogus"], files)
+    assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "0"], files)
+    assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "nan"], files)
+    # every log failing (an empty file) is bad input, exit 2, and replaces nothing
+    assert "none of the 1 logs could be diagnosed" in refused(monkeypatch, capsys, base, files)
+    assert sorted(p.name for p in out.iterdir()) == sorted(earlier)
+    assert "none of the 1 logs" in refused(monkeypatch, capsys, ["fleet", empty, "--vessel", "yellowfish",
+                                                                 "--out", root / "new"])
+    assert not (root / "new").exists()
+
+
+def vessel_file(root, name: str, change) -> str:
+    """The shipped blueboat's description with `change` applied to its dict, as a file."""
+    import json
+
+    import twin.vessel as vessel_mod
+
+    data = json.loads((vessel_mod.MODEL_DIR / "blueboat.json").read_text())
+    data["mjcf"] = "package:blueboat.xml"  # the shipped MJCF from any folder
+    change(data)
+    path = root / f"{name}.json"
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+def _unc(**fields):
+    block = {"coordinates": [{"name": "Xu", "log": True, "sign": -1.0}], "mean": [0.7], "covariance": [[0.01]]}
+    return lambda d: d.update(uncertainty={**block, **fields})
+
+
+@pytest.mark.parametrize("name, change, message", [
+    ("pwm0", lambda d: d["thrusters"].update(pwm_scale_us=0.0), "pwm_scale_us must be positive"),
+    ("pwminv", lambda d: d["thrusters"].update(pwm_min_us=1900.0, pwm_max_us=1100.0), "pwm_min_us must be below"),
+    ("warp", lambda d: d["thrusters"].update(kind="warp"), "unknown thrusters.kind 'warp' (known: t200, direct"),
+    ("coord5", _unc(coordinates=5), "uncertainty.coordinates must be a list"),
+    ("coord1", _unc(coordinates=[1]), "uncertainty.coordinates[0] must be an object with 'name' and 'log'"),
+    ("nolog", _unc(coordinates=[{"name": "Xu"}]), "uncertainty.coordinates[0] must be an object"),
+    ("badname", _unc(coordinates=[{"name": 3, "log": False}]), "uncertainty.coordinates[0].name must be a string"),
+    ("mean", _unc(mean=["abc"]), "uncertainty.mean[0] must be a number"),
+    ("meanobj", _unc(mean={"a": 1}), "uncertainty.mean must be a list of numbers"),
+    ("negvar", _unc(covariance=[[-1.0]]), "covariance[0][0] is a variance and must be ≥ 0"),
+])
+def test_vessel_files_with_bad_fields_are_refused_at_load(monkeypatch, capsys, tmp_path, name, change, message):
+    model = vessel_file(tmp_path, name, change)
+    err = refused(monkeypatch, capsys, ["params", "--model", model])
+    assert message in err, err

@@ -42,6 +42,7 @@ CASES = {
     "thruster_gain_left=0.7": ("thruster_gain_left", {"scale": 0.03}),
     "thruster_gain_right=1.2": ("thruster_gain_right", {"scale": 0.03}),
     "reverse_thrust=0.6": ("reverse_thrust", {"scale": 0.05}),
+    "full_thrust=0.7": ("full_thrust", {"share": 0.05}),
     "thrust_decay=0.1": ("thrust_decay", {"decay_per_min": 0.15}),
     # the reference the diagnosis takes (the logged voltage's 99th percentile) is within a few mV of the
     # truth's 16 V: one of the dataset's packs starts full

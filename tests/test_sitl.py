@@ -320,6 +320,9 @@ def test_the_t200_pwm_map_gives_the_bits_of_the_thruster_model_and_direct_thrust
     m = PwmMap.of(thrusters)
     assert m.neutral_us == 1500.0 and m.raw(m.held(1500.0)) == 0.0
     np.testing.assert_array_equal([m.raw(m.held(float(p))) for p in pwm], thrusters.thrust_from_pwm(pwm))
+    saturating = replace(thrusters, full_share=0.7)
+    m = PwmMap.of(saturating)
+    np.testing.assert_array_equal([m.raw(m.held(float(p))) for p in pwm], saturating.thrust_from_pwm(pwm))
     direct = PwmMap.of(load("cybership1").thrusters)  # a full command is ±2 N, PWM range 1100-1900 µs
     assert direct.kind == "thrust" and direct.neutral_us == 1500.0
     assert [direct.raw(direct.held(p)) for p in (1100.0, 1300.0, 1500.0, 1700.0, 1900.0, 2100.0, 900.0)] == \

@@ -27,7 +27,8 @@ def _both(vessel, duration=20.0, start_s=0.0):
 
 @pytest.mark.parametrize("change", [{"delay_s": 0.3}, {"decay_per_min": 0.2}, {"advance_loss": 1.5},
                                     {"advance_loss": 1.0, "lag_s": 0.4, "delay_s": 0.2}, {"ramp_s": 3.0},
-                                    {"ramp_s": 2.0, "lag_s": 0.3, "delay_s": 0.2, "decay_per_min": 0.2}])
+                                    {"ramp_s": 2.0, "lag_s": 0.3, "delay_s": 0.2, "decay_per_min": 0.2},
+                                    {"full_share": 0.7}])
 def test_engine_matches_analytic_with_thruster_effects(change):
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, **change))
@@ -320,3 +321,34 @@ def test_a_vessel_file_keeps_its_supply_and_refuses_an_exponent_without_a_refere
         vessel_mod.check(replace(base, thrusters=replace(base.thrusters, supply_exponent=1.5)))
     with pytest.raises(TwinError, match="supply_exponent"):
         vessel_mod.check(replace(base, thrusters=replace(base.thrusters, supply_exponent=-1.0, supply_ref_v=16.0)))
+
+
+# ---------------------------------------------------------------- a forward curve that saturates
+
+def test_a_saturating_forward_curve_gives_its_share_at_full_pwm_and_keeps_the_low_end():
+    t = vessel_mod.load("yellowfish").thrusters
+    top = replace(t, full_share=0.7)
+    pwm = np.arange(1100.0, 1900.5, 1.0)
+    raw, bent = t.thrust_from_pwm(pwm), top.thrust_from_pwm(pwm)
+    assert bent[-1] == pytest.approx(0.7 * t.full_forward_n, rel=1e-12) and top.bounds()[1] == pytest.approx(bent[-1])
+    near = (pwm > 1500) & (raw > 0) & (raw < 0.1 * t.full_forward_n)
+    np.testing.assert_allclose(bent[near], raw[near], rtol=0.01)  # the low end is the map's
+    assert np.all(np.diff(bent[pwm >= 1540]) > 0)  # still rising with the PWM
+    np.testing.assert_array_equal(bent[raw <= 0], raw[raw <= 0])  # astern and the dead zone untouched
+    steeper = replace(t, full_share=1.2).thrust_from_pwm(pwm)
+    assert steeper[-1] == pytest.approx(1.2 * t.full_forward_n) and np.all(np.diff(steeper[pwm >= 1540]) > 0)
+
+
+def test_full_thrust_composes_and_a_vessel_file_keeps_it(tmp_path):
+    from twin.effects.library import full_thrust
+    from twin.errors import TwinError
+
+    base = vessel_mod.load("yellowfish")
+    v = full_thrust(full_thrust(base, 0.8), 0.9)
+    assert v.thrusters.full_share == pytest.approx(0.72)
+    assert vessel_mod.load(str(vessel_mod.save(v, tmp_path / "v.json"))).thrusters == v.thrusters
+    assert "full_share" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()  # old files unchanged
+    with pytest.raises(TwinError, match="full_share"):
+        vessel_mod.check(replace(base, thrusters=replace(base.thrusters, full_share=0.0)))
+    with pytest.raises(TwinError, match="falls with the PWM"):
+        vessel_mod.check(replace(base, thrusters=replace(base.thrusters, forward=(-20.0, 14.97, -0.62))))

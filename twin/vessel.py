@@ -32,6 +32,8 @@ from .physics.thrusters import ThrusterModel
 MODEL_DIR = Path(str(resources.files("twin") / "model"))
 PACKAGE_MJCF = "package:"  # "mjcf": "package:blueboat.xml" names an MJCF shipped in twin/model
 CASES = ("min", "nominal", "max")
+# thrusters.kind: PWM thrusters (seed 000 eq. 27), thrusts in N, a propeller and rudder (physics/thrusters.py)
+THRUSTER_KINDS = ("t200", "direct", "propeller_rudder")
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,8 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
         d.pop("ramp_s")
     if not d["supply_exponent"] and d["supply_ref_v"] is None:  # only where the thrust follows the supply
         d.pop("supply_exponent"), d.pop("supply_ref_v")
+    if d["full_share"] == 1.0:  # only where the forward curve saturates
+        d.pop("full_share")
     return d
 
 
@@ -283,17 +287,45 @@ def _uncertainty(data, path: Path) -> dict:
         return {}
     if not isinstance(data, dict) or not {"coordinates", "mean", "covariance"} <= set(data):
         raise TwinError(f"{path.name}: uncertainty needs coordinates, mean and covariance")
+    _uncertainty_coordinates(data["coordinates"], path)
     n = len(data["coordinates"])
     cov = data["covariance"]
+    if not isinstance(data["mean"], list) or not isinstance(cov, list) or not all(isinstance(r, list) for r in cov):
+        raise TwinError(f"{path.name}: uncertainty.mean must be a list of numbers and uncertainty.covariance a "
+                        "list of rows")
     if len(data["mean"]) != n or len(cov) != n or any(len(row) != n for row in cov):
         raise TwinError(f"{path.name}: uncertainty: mean and covariance must match the {n} coordinates")
+    for i, x in enumerate(data["mean"]):
+        _typed(x, float, f"uncertainty.mean[{i}]", path)
     for i, row in enumerate(cov):
         for j, x in enumerate(row):
             _typed(x, float, f"uncertainty.covariance[{i}][{j}]", path)
+        if row[i] < 0:  # a variance: the draws take its square root
+            raise TwinError(f"{path.name}: uncertainty.covariance[{i}][{i}] is a variance and must be ≥ 0, "
+                            f"got {row[i]}")
     return {"coordinates": [dict(c) for c in data["coordinates"]], "mean": [float(x) for x in data["mean"]],
             "covariance": [[float(x) for x in row] for row in cov],
             **({"source": str(data["source"])} if "source" in data else {}),
             **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {})}
+
+
+def _uncertainty_coordinates(coordinates, path: Path) -> None:
+    """The coordinates of the uncertainty block: objects with a 'name' (a coefficient) and 'log'
+    (true: the coordinate is ln|θ|, with the coefficient's 'sign'), as twin.fit.uncertainty reads them."""
+    if not isinstance(coordinates, list):
+        raise TwinError(f"{path.name}: uncertainty.coordinates must be a list of objects with 'name' and 'log', "
+                        f"got {_shown(coordinates)}")
+    for i, c in enumerate(coordinates):
+        where = f"uncertainty.coordinates[{i}]"
+        if not isinstance(c, dict) or not {"name", "log"} <= set(c):
+            raise TwinError(f"{path.name}: {where} must be an object with 'name' and 'log', got {_shown(c)}")
+        _typed(c["name"], str, f"{where}.name", path)
+        if not isinstance(c["log"], bool):
+            raise TwinError(f"{path.name}: {where}.log must be true or false, got {_shown(c['log'])}")
+        if c["log"] and "sign" not in c:
+            raise TwinError(f"{path.name}: {where}: a log coordinate needs the coefficient's 'sign' (1 or -1)")
+        if "sign" in c:
+            _typed(c["sign"], float, f"{where}.sign", path)
 
 
 def _fitted_on(data, path: Path) -> dict:
@@ -311,6 +343,7 @@ def check(vessel: Vessel) -> None:
     if abs(am.Yrdot - am.Nvdot) > 1e-9 * max(1.0, abs(am.Yrdot)):
         raise TwinError(f"vessel '{vessel.name}': added mass must be symmetric (Yrdot = Nvdot)")
     t = vessel.thrusters
+    _check_thruster_kind_and_pwm(vessel)
     if t.lag_s < 0 or t.gain_left <= 0 or t.gain_right <= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
     if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not t.advance_loss >= 0:
@@ -318,6 +351,11 @@ def check(vessel: Vessel) -> None:
     if (t.start_fwd is not None and not t.start_fwd >= 0) or (t.start_rev is not None and not t.start_rev <= 0):
         raise TwinError(f"vessel '{vessel.name}': thrusters.start_fwd must be ≥ 0 and start_rev ≤ 0 (δ̃), got "
                         f"{t.start_fwd}, {t.start_rev}")
+    if not t.full_share > 0:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.full_share must be positive, got {t.full_share}")
+    if t.kind == "t200" and not t.forward_rises():
+        raise TwinError(f"vessel '{vessel.name}': the forward thrust map {list(t.forward)} falls with the PWM "
+                        "somewhere between its dead-zone edge and full PWM")
     if not t.ramp_s >= 0:
         raise TwinError(f"vessel '{vessel.name}': thrusters.ramp_s must be ≥ 0 s, got {t.ramp_s}")
     if not 0 <= t.supply_exponent <= 10 or (t.supply_ref_v is not None and not t.supply_ref_v > 0):
@@ -340,6 +378,20 @@ def check(vessel: Vessel) -> None:
         for geom, mass in case.geom_mass_kg.items():
             if not mass > 0:
                 raise TwinError(f"vessel '{vessel.name}': mass of '{geom}' must be positive, got {mass}")
+
+
+def _check_thruster_kind_and_pwm(vessel: Vessel) -> None:
+    """A known thruster kind (another would run as thrusts in N unnoticed) and a PWM map that can be
+    evaluated: δ̃ = PWM / pwm_scale_us − pwm_offset divides by the scale, and clips to [min, max]."""
+    t = vessel.thrusters
+    if t.kind not in THRUSTER_KINDS:
+        raise TwinError(f"vessel '{vessel.name}': unknown thrusters.kind '{t.kind}' "
+                        f"(known: {', '.join(THRUSTER_KINDS)})")
+    if not t.pwm_scale_us > 0:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.pwm_scale_us must be positive, got {t.pwm_scale_us}")
+    if not t.pwm_min_us < t.pwm_max_us:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.pwm_min_us must be below pwm_max_us, got "
+                        f"{t.pwm_min_us}, {t.pwm_max_us}")
 
 
 def _check_propeller_rudder(vessel: Vessel) -> None:

@@ -45,6 +45,8 @@ def vessel_from(vessel: Optional[str], model: Optional[Path], case: str = "nomin
     from ..vessel import load
 
     if model is not None:
+        if Path(model).is_dir():  # else taken for a shipped vessel's name and called unknown
+            raise TwinError(f"--model '{model}' is a folder, not a vessel file: give the .json file")
         return load(str(model), case)
     if vessel is None:
         raise TwinError("give --vessel NAME (yellowfish, blueboat, cybership1) or --model FILE")
@@ -75,6 +77,20 @@ def channels_from(text: Optional[str]) -> Optional[dict]:
     return {"left": left, "right": right}
 
 
+def effect_names(text: Optional[str], option: str = "--effects") -> Optional[list[str]]:
+    """--effects A,B: names of the effect library, refused before any work when one is no effect at
+    all (which of them fit a given recording and vessel only the diagnosis can tell)."""
+    from ..effects import EFFECTS
+
+    if not text:
+        return None
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    unknown = [e for e in names if e not in EFFECTS]
+    if unknown:
+        raise TwinError(f"{option}: unknown effect(s) {', '.join(unknown)} (known: {', '.join(EFFECTS)})")
+    return names or None
+
+
 def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     """A comma-separated list of finite numbers."""
     if text is None:
@@ -86,6 +102,54 @@ def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     if not values or not all(math.isfinite(x) for x in values):
         raise TwinError(f"--{option} expects comma-separated finite numbers, got '{text}'")
     return values
+
+
+# ---------------------------------------------------------------- numbers
+
+def positive(value: float, option: str) -> float:
+    """A finite number > 0 (a period, a duration, a window): 0, negative, nan or inf is refused
+    before any work, where the computation would otherwise fail deep inside or loop forever."""
+    if not (math.isfinite(value) and value > 0):
+        raise TwinError(f"{option} must be a positive number, got {value:g}")
+    return value
+
+
+def at_least(value: int, least: int, option: str) -> int:
+    """A count of at least `least` (evaluations, draws)."""
+    if value < least:
+        raise TwinError(f"{option} must be at least {least}, got {value}")
+    return value
+
+
+def seed_from(seed: int, option: str = "--seed") -> int:
+    """A random seed: numpy's generators take only seeds ≥ 0."""
+    if seed < 0:
+        raise TwinError(f"{option} must be a whole number ≥ 0, got {seed}")
+    return seed
+
+
+def samples_fit(duration_s: float, period_s: float, what: str) -> None:
+    """Refuse a run whose sample count (duration / period) could not be held in this machine's memory
+    even at one 8-byte number per sample: the arrays would fail to allocate only once the work began."""
+    n = duration_s / period_s
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not a POSIX system: the allocation itself will say
+        return
+    if n * 8 > memory:
+        raise TwinError(f"{what}: {duration_s:g} s at {period_s:g} s is {n:.3g} samples, more than this machine's "
+                        f"memory ({memory / 2**30:.0f} GiB) holds")
+
+
+@contextlib.contextmanager
+def memory_for(what: str) -> Iterator[None]:
+    """A run too large for the memory left (a long --duration, a fine sample period) as one line
+    naming the options, not an exception name."""
+    try:
+        yield
+    except MemoryError:
+        raise TwinError(f"{what}: not enough memory for this many samples (shorten it or use a longer "
+                        "sample period)") from None
 
 
 # ---------------------------------------------------------------- outputs
@@ -106,6 +170,35 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}' is a folder: give a file name")
         if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)) or not _can_create(folder):
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
+
+
+def check_distinct(outputs: dict[str, object], inputs=()) -> None:
+    """Refuse, before any work is done, two outputs at one path (the second would replace the
+    first) and an output that is one of the inputs (the run would replace the data it read).
+    `outputs`: option -> path or list of paths (None skipped); `inputs`: the paths read."""
+    named = [(option, Path(p)) for option, given in outputs.items()
+             for p in (given if isinstance(given, (list, tuple)) else [given]) if p is not None]
+    read = [Path(p) for p in inputs if p is not None]
+    for k, (option, path) in enumerate(named):
+        for source in read:
+            if _same_file(path, source):
+                raise TwinError(f"{option} '{path}' is the input '{source}': writing it would replace the input "
+                                "(give another output name)")
+        for other_option, other in named[:k]:
+            if _same_file(path, other):
+                raise TwinError(f"{option} '{path}' and {other_option} '{other}' are the same file: one output "
+                                "would replace the other")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: by the file itself where both exist (links, other spellings),
+    else by their resolved paths."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+        return a.resolve() == b.resolve()
+    except OSError:  # a path that cannot be resolved names no file a run could replace
+        return False
 
 
 def _can_create(folder: Path) -> bool:

@@ -6,8 +6,8 @@ from typing import Optional
 
 import typer
 
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, progress_bar,
-                  say, say_unlogged_supply, vessel_from, write_json)
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, console,
+                  effect_names, positive, progress_bar, say, say_unlogged_supply, vessel_from, write_json)
 
 
 @app.command("diagnose")
@@ -41,9 +41,12 @@ def diagnose_command(
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
                                   (rrd, (".rrd",), "--rrd"), (write_model, (".json",), "--write-model")):
         check_outputs([path], formats, option)
+    check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
+                   [*recordings, model])
+    positive(window, "--window")
+    library = effect_names(effects)
     prior = vessel_from(vessel, model, "nominal")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
-    library = [e.strip() for e in effects.split(",") if e.strip()] if effects else None
     groups = tuple(g.strip() for g in refit.split(",") if g.strip()) if refit is not None else None
     with progress_bar("diagnose") as progress:
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,

@@ -8,8 +8,9 @@ import typer
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, console, floats, note,
-                  progress_bar, say, say_unlogged_supply, vessel_from, write_json)
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct, check_outputs,
+                  console, floats, note, positive, progress_bar, say, say_unlogged_supply, seed_from, vessel_from,
+                  write_json)
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
@@ -38,6 +39,8 @@ def dataset_command(
     check_outputs(out, RECORDING_FORMATS)
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
+    check_distinct({"--out": out, "--truth": truth}, [model])
+    seed_from(seed)
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
     with progress_bar("dataset") as progress:
         ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names,
@@ -105,6 +108,10 @@ def identify_command(
 
     check_outputs([out], (".json",), "--out")
     check_outputs([json_out], (".json",), "--json")
+    check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
+    positive(window, "--window")
+    at_least(max_evaluations, 1, "--max-evaluations")
+    seed_from(seed)
     prior = vessel_from(vessel, model, "nominal")
     weights = tuple(floats(beliefs, "beliefs"))
     chosen_params = tuple(p.strip() for p in params.split(",") if p.strip()) if params else None
@@ -178,6 +185,9 @@ def evaluate_command(
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
+    check_distinct({"--json": json_out, "--rrd": rrd}, [*recordings, model])
+    positive(stride, "--stride")
+    seed_from(seed)  # --band's draws: refused before the run, not after it
     v = vessel_from(vessel, model, "nominal")
     if band and not v.uncertainty:  # said before any work is done
         raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "

@@ -7,8 +7,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, progress_bar, say,
-                  vessel_from)
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+                  memory_for, positive, progress_bar, samples_fit, say, vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
 
@@ -54,8 +54,12 @@ def convert(
     from ..prepare.convert import for_conversion, not_kept
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
+    check_distinct({"output": dst}, [src])
+    positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
-    conversion = for_conversion(rec, grid_dt)
+    samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
+    with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):
+        conversion = for_conversion(rec, grid_dt)
     write_recording(conversion.recording, dst)
     say(f"wrote {dst}: {conversion.recording.duration_s():.1f} s, {conversion.timing}")
     for line in not_kept(conversion.recording, dst.suffix.lower()):
@@ -84,6 +88,7 @@ def view(
     out = out or Path(files[0].stem + ".rrd")  # the working folder: never beside the input (a shared data folder)
     check_outputs([out], (".rrd",), "--out")
     check_outputs([png], (".png",), "--png")
+    check_distinct({"--out": out, "--png": png}, [*files, model])
     v = vessel_from(vessel, model) if (vessel or model) else None
     mapping = channels_from(channels)
     with progress_bar("view") as progress:

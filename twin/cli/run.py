@@ -10,8 +10,8 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_outputs, console, note, progress_bar, say, speed_direction,
-                  vessel_from, write_json)
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, memory_for, note, positive,
+                  progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 
@@ -27,6 +27,14 @@ def origin_from(text: Optional[str]) -> Optional[tuple[float, float]]:
     if not (abs(lat) < 90 and abs(lon) <= 180):
         raise TwinError(f"--origin {text}: the latitude must lie in (−90, 90) and the longitude in [−180, 180]")
     return lat, lon
+
+
+def check_run_length(duration: float, sample_dt: float) -> None:
+    """--duration and --sample-dt of a run, before any work: positive, finite, and a sample count
+    that fits in memory."""
+    positive(duration, "--duration")
+    positive(sample_dt, "--sample-dt")
+    samples_fit(duration, sample_dt, "--duration at --sample-dt")
 
 
 @app.command()
@@ -49,6 +57,9 @@ def simulate(
     from ..api import simulate_run
 
     check_outputs(out, RUN_OUTPUTS, "--out")
+    check_distinct({"--out": out}, [inputs, model])
+    check_run_length(duration, sample_dt)
+    seed_from(seed)
     start = origin_from(origin)
     v = vessel_from(vessel, model, case)
     flows = speed_direction(current, "current"), speed_direction(wind, "wind")
@@ -57,8 +68,9 @@ def simulate(
     try:
         with progress_bar("simulate") as progress:
             progress(f"simulating {duration:g} s of {v.name}")
-            result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed,
-                                  sample_dt_s=sample_dt, current=flows[0], wind=flows[1])
+            with memory_for(f"--duration {duration:g} at --sample-dt {sample_dt:g}"):
+                result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed,
+                                      sample_dt_s=sample_dt, current=flows[0], wind=flows[1])
             for k, path in enumerate(out):
                 progress(f"writing {path.name}", k, len(out))
                 result.write(path, origin=start)
@@ -90,6 +102,8 @@ def crosscheck(
 
     check_outputs([rrd], (".rrd",), "--rrd")
     check_outputs([json_out], (".json",), "--json")
+    check_distinct({"--rrd": rrd, "--json": json_out}, [model])
+    positive(duration, "--duration")
     v = vessel_from(vessel, model, case)
     with progress_bar("crosscheck") as progress:
         results = run_crosscheck(v, duration, progress=progress)
@@ -149,6 +163,7 @@ def validate(
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([report], (".md", ".html", ".htm"), "--report")
+    check_distinct({"--json": json_out, "--report": report}, [model])
     result = run_validation(vessel_from(vessel, model, case))
     rows = [q.to_dict() for q in result.quantities]
     typer.echo(format_table(result.vessel, result.case, rows))

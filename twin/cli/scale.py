@@ -9,7 +9,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import MODEL_HELP, VESSEL_HELP, app, check_outputs, note, progress_bar, say, vessel_from, write_json
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, effect_names, memory_for, note,
+                  positive, progress_bar, samples_fit, say, seed_from, vessel_from, write_json)
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
             "this machine), ray://HOST:10001 or HOST:6379; default: this machine's cores, no Ray")
@@ -62,8 +63,13 @@ def montecarlo_command(
     from ..scale import montecarlo as mc
 
     check_outputs(out, MC_OUTPUTS, "--out")
+    check_distinct({"--out": out}, [inputs, model])
     if scenario is not None and inputs is not None:
         raise TwinError("give --scenario or --inputs, not both")
+    if duration is not None:
+        positive(duration, "--duration")
+    positive(sample_dt, "--sample-dt")
+    seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
     variation = _variation(v, vary, effect, covariance)
     mc.check_variation(v, variation)
@@ -74,10 +80,13 @@ def montecarlo_command(
         length = duration if duration is not None else float(series.t[-1])
         if not length > 0:
             raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {series.t[-1]:g} s)")
+        samples_fit(length, sample_dt, "--duration at --sample-dt")
         mission = mc.inputs_mission(series, length, sample_dt, source=f"inputs {inputs.name}")
     else:
-        mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed)
-    with progress_bar("montecarlo") as progress:
+        samples_fit(duration or 120.0, sample_dt, "--duration at --sample-dt")
+        with memory_for(f"--duration {duration or 120.0:g} at --sample-dt {sample_dt:g}"):
+            mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed)
+    with progress_bar("montecarlo") as progress, memory_for("--draws at --duration and --sample-dt"):
         result = mc.run(v, mission, draws, seed=seed, variation=variation, level=level, batch_size=batch_size,
                         executor=executor, progress=progress)
     for path in out:
@@ -148,6 +157,7 @@ def dataset_shards_command(
     from ..scale.datasets import Settings, generate_shards
     from ..synth.dataset import noise_profile
 
+    seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
     noise_profile(noise)  # a bad profile fails now, not in every worker
     names = tuple(m.strip() for m in manoeuvres.split(",") if m.strip())
@@ -181,6 +191,11 @@ def fleet_command(
     """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
     from ..scale.fleet import Log, diagnose_fleet, format_summary, read_manifest
 
+    # every option checked before any log is read or report written: a rerun into the same --out
+    # with a bad option must not replace its reports by failure records
+    library = effect_names(effects)
+    if window is not None:
+        positive(window, "--window")
     default = str(model) if model is not None else vessel
     if manifest is not None:
         if recordings:
@@ -192,7 +207,6 @@ def fleet_command(
         if default is None:
             raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
         logs = [Log(p, default) for p in recordings]
-    library = [e.strip() for e in effects.split(",") if e.strip()] if effects else None
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=_executor(ray, cpus_per_task, retries), progress=progress)

@@ -6,8 +6,9 @@ from typing import Optional
 
 import typer
 
-from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_outputs, note, say, speed_direction,
-                  vessel_from)
+from ..errors import TwinError
+from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
+                  speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, origin_from
 
 
@@ -33,9 +34,13 @@ def sitl(
     from ..sitl.server import run_sitl
 
     check_outputs(record, RUN_OUTPUTS, "--record")
+    check_distinct({"--record": record}, [model])
     pair = channels_from(channels)
+    v = vessel_from(vessel, model, case)
+    if v.thrusters.kind == "propeller_rudder":  # ArduPilot Rover's servo outputs are two thrusters' PWM
+        raise TwinError(f"vessel '{v.name}' is a propeller-and-rudder ship: SITL supports twin-thruster vessels only")
     summary = run_sitl(
-        vessel_from(vessel, model, case), port=port, host=host, rate_hz=rate, record_paths=record,
+        v, port=port, host=host, rate_hz=rate, record_paths=record,
         realtime=realtime, channels=(pair["left"], pair["right"]) if pair else (1, 3),
         current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"),
         heading_deg=heading, origin=origin_from(origin), log=note,

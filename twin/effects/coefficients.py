@@ -157,6 +157,7 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
                 "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
                 "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
                 "supply_exponent": member("thrusters", "supply_exponent", "-", 0.0, 4.0, 0.5),
+                "full_share": member("thrusters", "full_share", "×", 0.3, 2.0, 0.2),
                 "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
                 "current_north": ned_component("current", 0, -3.0, 3.0, 0.1),
                 "current_east": ned_component("current", 1, -3.0, 3.0, 0.1)})
@@ -220,6 +221,9 @@ def belief(name: str, prior: Vessel) -> Belief:
     if name == "advance_loss":
         return Belief(False, 1.5, "propeller advance loss c = √(ρK_T0)·D/J_0: about 1.5 √N·s/m for a small "
                                   "thruster's propeller (D 76 mm, K_T0 0.4, J_0 1), known to a factor of 2")
+    if name == "full_share":
+        return Belief(True, 0.3, "forward thrust at full PWM: within about 30 % of the datasheet's (ventilation, a "
+                                 "worn propeller or an ESC's current limit bend the top of the curve)")
     if name == "lag_s":
         return Belief(True, 1.0, "thrust lag of a small ESC and propeller: tenths of a second, a factor of e")
     if name == "supply_exponent":

@@ -266,6 +266,20 @@ def _reverse_fit(prior: Vessel, logs) -> Candidate | None:
     return Candidate("reverse_thrust", (q,), ((1.0,),), lambda p: effect("reverse_thrust", scale=p["scale"]), "thrust")
 
 
+def full_thrust(vessel: Vessel, share: float) -> Vessel:
+    """The forward curve saturating to `share` × the map's thrust at full PWM, the low end held
+    (ventilation under heavy load, a worn propeller, an ESC's current limit; physics/thrusters.py)."""
+    return _thrusters(vessel, full_share=vessel.thrusters.full_share * share)
+
+
+def _full_thrust_fit(prior: Vessel, logs) -> Candidate | None:
+    if prior.thrusters.kind != "t200":
+        return None
+    q = member("thrusters", "full_share", "×", 0.3, 2.0, 1.0).renamed("share")
+    return Candidate("full_thrust", (replace(q, edges_unphysical=True),), ((prior.thrusters.full_share,),),
+                     lambda p: effect("full_thrust", share=p["share"] / prior.thrusters.full_share), "thrust")
+
+
 def dead_zone(vessel: Vessel, fwd: float, rev: float) -> Vessel:
     """Dead-zone widths (≥ 0) in normalised PWM δ̃ = PWM/400 − offset (seed 000 eq. 27):
     no thrust for −rev < δ̃ < fwd. 0.0775 = 31 µs."""
@@ -510,6 +524,9 @@ _SPECS = [
                "the right thruster alone weaker or stronger", _one_gain_fit("right")),
     EffectSpec("reverse_thrust", "thrusters", (_v(*_SCALE),), reverse_thrust,
                "thrust astern weaker or stronger than the map's", _reverse_fit),
+    EffectSpec("full_thrust", "thrusters", (_v("share", "×", 0, 10, True),), full_thrust,
+               "forward thrust at full PWM × share, the low end held (ventilation, a worn propeller)",
+               _full_thrust_fit),
     EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
                "dead-zone widths in normalised PWM", _dead_zone_fit),
     EffectSpec("motor_start", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), motor_start,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..drive import to_thruster_inputs
-from ..physics.thrusters import ThrusterModel
+from ..physics.thrusters import ThrusterModel, saturated
 
 Pair = tuple[float, float]
 
@@ -107,7 +107,8 @@ class TickMap:
         t = self.thrusters
         x = _clip(pwm_us, t.pwm_min_us, t.pwm_max_us) / t.pwm_scale_us - t.pwm_offset
         if x >= t.deadzone_fwd:
-            return _horner(t.forward, x)
+            fwd = _horner(t.forward, x)
+            return fwd if t.full_share == 1.0 else saturated(fwd, t.full_forward_n, t.full_share)
         if x <= t.deadzone_rev:
             return _horner(t.reverse, x)
         return 0.0

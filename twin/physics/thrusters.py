@@ -28,6 +28,12 @@ what real thrusters add to a datasheet curve:
   and a running one keeps its branch of the map until the PWM comes back inside the dead zone.
   Which branch drives a sample depends on the PWM before it, so the map acts on a series
   (`as_driven`, `motor_states`), not on one pulse: a stopped motor's pulse counts as neutral;
+- a forward curve that saturates (`full_share` s): a propeller near the surface draws air under
+  heavy load (ventilation), a worn propeller or an ESC's current limit gives less at the top of the
+  datasheet's curve while the thrust near the dead zone is the map's. The forward branch T of the
+  map becomes T/√(1 + k·(T/T_full)²), k = 1/s² − 1, with T_full the map's thrust at full PWM: s·T_full
+  at full, rising with the PWM for any s > 0 (its slope (1 + k·(T/T_full)²)^(−3/2) > 0), bending
+  over smoothly instead of at a knee; s > 1 steepens the top. Astern has its own scale (`reverse`);
 - thrust loss with advance speed: with K_T linear in the advance ratio J = u_a/(nD),
   K_T = K_T0(1 − J/J_0), a propeller turning at n gives T = ρD⁴K_T0·n|n| − ρD³(K_T0/J_0)·|n|·u_a.
   Its static thrust T0 = ρD⁴K_T0·n|n| fixes |n| = √(|T0|/(ρD⁴K_T0)), so
@@ -100,6 +106,7 @@ class ThrusterModel:
     ramp_s: float = 0.0  # slew limit: s for the command to change by the full forward thrust; 0 = none
     supply_exponent: float = 0.0  # k of (V/V_ref)^k, the thrust's answer to the supply voltage; 0 = none
     supply_ref_v: float | None = None  # V_ref, V: the supply voltage the map holds at
+    full_share: float = 1.0  # forward thrust at full PWM as a share of the map's, a smooth saturation
 
     @property
     def ramping(self) -> bool:
@@ -194,8 +201,22 @@ class ThrusterModel:
             raise ValueError("this vessel has no PWM model: give thrust in N")
         x = self.normalised(pwm_us)
         fwd = np.polyval(self.forward, x)
+        if self.full_share != 1.0:
+            fwd = saturated(fwd, self.full_forward_n, self.full_share)
         rev = np.polyval(self.reverse, x)
         return np.where(x >= self.deadzone_fwd, fwd, np.where(x <= self.deadzone_rev, rev, 0.0))
+
+    @property
+    def full_forward_n(self) -> float:
+        """The map's forward thrust at full PWM (N), before its saturation."""
+        return float(np.polyval(self.forward, float(self.normalised(self.pwm_max_us))))
+
+    def forward_rises(self) -> bool:
+        """The forward branch's thrust grows with the PWM from its edge to full (a quadratic's slope
+        is linear in δ̃: both ends suffice)."""
+        a, b, _ = self.forward
+        ends = (self.deadzone_fwd, float(self.normalised(self.pwm_max_us)))
+        return all(2 * a * x + b > 0 for x in ends)
 
     def bounds(self) -> tuple[float, float]:
         """(T_min, T_max) of one thruster in N; ±inf where no bound is given."""
@@ -261,6 +282,13 @@ class ThrusterModel:
         raw = self.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
         factor = np.asarray(self.decay_factor(t_s)) * np.asarray(self.supply_factor(supply_v))
         return raw * factor[..., None]
+
+
+def saturated(thrust_n, full_n: float, share: float):
+    """Forward thrust through the saturation T/√(1 + k·(T/T_full)²), k = 1/share² − 1 (module
+    docstring); scalars or arrays."""
+    k = 1.0 / share ** 2 - 1.0
+    return thrust_n / (1.0 + k * (thrust_n / full_n) ** 2) ** 0.5
 
 
 def motor_states(x, start_fwd: float, stop_fwd: float, start_rev: float, stop_rev: float) -> np.ndarray:

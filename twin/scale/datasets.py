@@ -178,7 +178,6 @@ def generate_shards(vessel: Vessel, settings: Settings, folder: Path, *, executo
         raise TwinError(f"--out '{folder}': folder '{folder.parent}' does not exist (create it first)")
     if folder.is_dir() and any(folder.iterdir()) and not resume:
         raise TwinError(f"--out '{folder}' is not empty: choose an empty folder, or --resume to finish a job there")
-    folder.mkdir(exist_ok=True)
     if settings.variation.covariance and not vessel.uncertainty:
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty to draw from")
     from ..engine.mjcf import compile_vessel
@@ -186,6 +185,20 @@ def generate_shards(vessel: Vessel, settings: Settings, folder: Path, *, executo
     fp = fingerprint(vessel, settings)
     job = _Job(vessel, settings, fp, compile_vessel(vessel).geometry.rigid.mass_kg)
     batches = plan(settings.vessels, settings.per_shard, settings.seed)
+    created = not folder.exists()  # made only once the settings have passed, and removed if left empty
+    folder.mkdir(exist_ok=True)
+    try:
+        return _generate(folder, job, batches, resume, executor, progress)
+    except BaseException:
+        if created and not any(folder.iterdir()):  # a failed run leaves no empty folder behind
+            folder.rmdir()
+        raise
+
+
+def _generate(folder: Path, job: "_Job", batches: list, resume: bool, executor: Executor | None,
+              progress: Progress | None) -> DatasetIndex:
+    """The shards of `batches` written into `folder` (made), reusing complete ones with --resume."""
+    vessel, settings, fp = job.vessel, job.settings, job.fingerprint
     entries: dict[int, list[dict]] = {}
     for b in batches:
         found = _complete_shard(folder, b.index, fp) if resume else None

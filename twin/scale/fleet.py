@@ -6,7 +6,8 @@ Tuesday is not Wednesday's). Logs go to the workers as bytes, read when their ba
 submitted, and reports come back as data, so a cluster needs no shared file system; the
 driver writes every report atomically as it arrives. A log that cannot be diagnosed (no PWM,
 too short, or an unexpected error in its diagnosis) is reported with its one-line reason and
-the others go on: one bad log must not end a month's job.
+the others go on: one bad log must not end a month's job. A run in which no log could be
+diagnosed writes nothing (an earlier run's reports in the same folder stay) and is an error.
 
 Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manifest CSV with a
 `recording` column and optional `vessel` (a shipped name or a vessel file) and `day`
@@ -134,7 +135,7 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
                 out["html"] = page.read_bytes()
         except Exception as exc:  # one log's failure, expected (TwinError) or not, must not end a month's job
             text = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}".splitlines()[0]
-            out.update(ok=False, error=text)
+            out.update(ok=False, error=text, **({} if isinstance(exc, TwinError) else {"unexpected": True}))
             out.setdefault("day", item.day or item.file_day)
             out.setdefault("day_from", "manifest" if item.day else "file time")
     out["seconds"] = round(time.perf_counter() - started, 3)
@@ -200,11 +201,15 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     vessels = {name: load(name) for name in sorted({log.vessel for log in logs})}
     options = {k: v for k, v in (("window_s", window_s), ("library", library)) if v is not None}
     job = _Job(vessels, options, html, diagnose)
+    created = not out.exists()
     out.mkdir(exist_ok=True)
     names = _report_names(logs)
     batches = plan(len(logs), batch_size, 0)
     results: list[dict | None] = [None] * len(logs)
     reports = {}
+    # failure records wait until a log of this run is diagnosed: a run in which every log fails (a bad
+    # option, a wrong vessel) must not replace an earlier run's reports in the same folder
+    waiting: list[dict] = []
 
     def items(b: Batch) -> list[_Item]:
         return [_item(i, logs[i]) for i in range(b.start, b.stop)]
@@ -212,12 +217,31 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     for _, batch_results in (executor or LocalExecutor()).run(run_logs, job, batches, items, progress):
         for r in batch_results:
             r["log"] = str(logs[r["index"]].path)
-            reports[r["index"]] = _write_report(out, names[r["index"]], r)
             results[r["index"]] = r
+            waiting.append(r)
+            if any(w.get("ok") for w in waiting) or reports:
+                for w in waiting:
+                    reports[w["index"]] = _write_report(out, names[w["index"]], w)
+                waiting = []
+    if not reports:
+        if created and not any(out.iterdir()):
+            out.rmdir()
+        raise _all_failed([r for r in results if r is not None], out)
     summary = summarise([r for r in results if r is not None])
     write_text_atomic(out / "fleet.json", json.dumps(summary, indent=1, allow_nan=False, default=_default) + "\n")
     write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
     return Fleet(results, summary, reports)
+
+
+def _all_failed(results: list[dict], out: Path) -> Exception:
+    """The error of a run in which no log could be diagnosed: bad input (TwinError) when some log's
+    reason is one, else an unexpected error; either way nothing in `out` was replaced."""
+    first = results[0]
+    text = (f"none of the {len(results)} logs could be diagnosed (first: {Path(first['log']).name}: "
+            f"{first.get('error', '')}); nothing written in {out}")
+    if all(r.get("unexpected") for r in results):
+        return RuntimeError(text)
+    return TwinError(text)
 
 
 def _item(i: int, log: Log) -> _Item:

@@ -64,7 +64,7 @@ from twin.engine.sim import initial_state
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
-from twin.physics.thrusters import ThrusterModel, delivered, slew_step
+from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_step
 from twin.run import Run
 from twin.sitl.protocol import Reply, channel_pair
 from twin.vessel import Vessel
@@ -97,13 +97,16 @@ class PwmMap:
     deadzone_rev: float
     thrust_min_n: float
     thrust_max_n: float
+    full_forward_n: float = 0.0
+    full_share: float = 1.0
 
     @classmethod
     def of(cls, t: ThrusterModel) -> "PwmMap":
         if t.kind == "t200":
             t_min, t_max = t.bounds()
             return cls("pwm", t.pwm_offset * t.pwm_scale_us, t.pwm_min_us, t.pwm_max_us, t.pwm_scale_us,
-                       t.pwm_offset, tuple(t.forward), tuple(t.reverse), t.deadzone_fwd, t.deadzone_rev, t_min, t_max)
+                       t.pwm_offset, tuple(t.forward), tuple(t.reverse), t.deadzone_fwd, t.deadzone_rev, t_min, t_max,
+                       t.full_forward_n, t.full_share)
         try:  # full PWM asks what a full normalised command asks: the bounds, or ±command_scale_n
             t_min, t_max = t.command_range()
         except ValueError as exc:
@@ -133,6 +136,8 @@ class PwmMap:
         y = 0.0
         for c in coefficients:
             y = y * x + c
+        if coefficients is self.forward and self.full_share != 1.0:
+            return saturated(y, self.full_forward_n, self.full_share)
         return y
 
 
