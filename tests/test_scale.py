@@ -242,6 +242,21 @@ def test_fleet_reports_and_summary_per_vessel_and_day(logs, tmp_path):
         fleet.read_manifest(logs / "bad.csv", "yellowfish")
 
 
+
+def test_a_log_failing_on_a_rerun_keeps_its_earlier_report(logs, tmp_path):
+    entries = fleet.read_manifest(logs / "manifest.csv", default_vessel="yellowfish")
+    fleet.diagnose_fleet(entries, tmp_path / "out", diagnose=fake_diagnose)
+    good = (tmp_path / "out" / "log0.json").read_bytes()
+
+    def fails_on_log0(recordings, vessel, **options):
+        if "log0" in str(recordings[0].source):
+            raise TwinError("log0: no PWM")
+        return fake_diagnose(recordings, vessel, **options)
+    again = fleet.diagnose_fleet(entries, tmp_path / "out", diagnose=fails_on_log0)
+    assert (tmp_path / "out" / "log0.json").read_bytes() == good  # the earlier diagnosis stays
+    assert "no PWM" in json.loads((tmp_path / "out" / "log0.failed.json").read_text())["error"]
+    assert again.summary["diagnosed"] == 1 and not (tmp_path / "out" / "log2.failed.json").exists()
+
 # ---------------------------------------------------------------- commands
 
 def test_montecarlo_command_writes_every_output(vessel, tmp_path):

@@ -7,7 +7,9 @@ submitted, and reports come back as data, so a cluster needs no shared file syst
 driver writes every report atomically as it arrives. A log that cannot be diagnosed (no PWM,
 too short, or an unexpected error in its diagnosis) is reported with its one-line reason and
 the others go on: one bad log must not end a month's job. A run in which no log could be
-diagnosed writes nothing (an earlier run's reports in the same folder stay) and is an error.
+diagnosed writes nothing (an earlier run's reports in the same folder stay) and is an error; a
+log that fails where an earlier run diagnosed it keeps that report (its failure is written beside
+it as <name>.failed.json).
 
 Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manifest CSV with a
 `recording` column and optional `vessel` (a shipped name or a vessel file) and `day`
@@ -262,13 +264,25 @@ def _report_names(logs: list[Log]) -> list[str]:
 
 
 def _write_report(out: Path, name: str, r: dict) -> Path:
+    """OUT/<name>.json (and .html). A log that fails now, whose earlier run in this folder was
+    diagnosed, keeps that report: its failure goes to OUT/<name>.failed.json beside it."""
     page = r.pop("html", None)
     if page is not None:
         write_bytes_atomic(out / f"{name}.html", page)
     path = out / f"{name}.json"
+    if not r.get("ok") and _diagnosed_before(path):
+        path = out / f"{name}.failed.json"
     body = {k: v for k, v in r.items() if k != "effects"}
     write_text_atomic(path, json.dumps(body, indent=1, allow_nan=True, default=_default) + "\n")
     return path
+
+
+def _diagnosed_before(path: Path) -> bool:
+    """Whether `path` holds a report of a log that was diagnosed (a run's good result)."""
+    try:
+        return bool(json.loads(path.read_text()).get("ok"))
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 # ---------------------------------------------------------------- summary
