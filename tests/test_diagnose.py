@@ -154,6 +154,8 @@ def test_a_logged_pack_voltage_reaches_the_windows_and_offers_the_supply_effect(
     assert "supply_voltage" in candidates(prior, supply_ref_v=ref) and "supply_voltage" not in candidates(prior)
     plain = generate(prior, n_segments=3, seed=3, noise=PROFILES["none"], segment_s=(35, 40), manoeuvres=MIXED)
     assert supply_reference([prep, prepare_for(plain.recording, cv, **PREP)]) is None
+    with pytest.raises(TwinError, match="supply_voltage cannot be fitted .*every log's voltage"):
+        diagnose([ds.recording, plain.recording], prior, library=["supply_voltage"])
     follows = replace(prior, thrusters=replace(prior.thrusters, supply_exponent=2.0, supply_ref_v=ref))
     w = make_windows([prep], 10.0, 10.0, min_length_s=10.0)[5]
     got, base = (thrust_commands(v, prep, w, 0.05) for v in (follows, prior))

@@ -188,6 +188,11 @@ def test_the_api_evaluation_says_where_the_twin_misses_and_beyond_what_its_fit_s
         assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
     assert split["beyond_fit"]["share_of_samples"] > 0.1 and ev.to_dict()["by_manoeuvre_10s"] is split
     assert "beyond_fit" not in twin.evaluate(wrong, [ds.recording]).by_manoeuvre  # no record of a fit: none
+    rows = ev.table()  # a list for code, aligned columns for a person at the prompt
+    assert rows[0]["dof"] == "u" and len(rows) == 2 * 3 * len(ev.metrics)
+    text = str(rows).splitlines()
+    assert text[0].split() == ["horizon", "dof", "r2", "mae", "n", "calibrated"] and len(text) == len(rows) + 1
+    assert f"{pooled['u']['r2']:.4g}" in repr(rows) and "{" not in repr(rows)
 
 
 def test_manoeuvres_read_a_window_the_same_whatever_else_is_recorded(yellowfish_vessel):

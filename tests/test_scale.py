@@ -257,6 +257,17 @@ def test_a_log_failing_on_a_rerun_keeps_its_earlier_report(logs, tmp_path):
     assert "no PWM" in json.loads((tmp_path / "out" / "log0.failed.json").read_text())["error"]
     assert again.summary["diagnosed"] == 1 and not (tmp_path / "out" / "log2.failed.json").exists()
 
+
+def test_a_fleet_report_never_lands_on_a_vessel_file_it_reads(logs, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    model = vessel_mod.save(vessel_mod.load("yellowfish"), out / "log0.json")  # named like log0's report
+    kept = model.read_bytes()
+    entries = [fleet.Log(logs / "log0.mcap", str(model), ""), fleet.Log(logs / "log1.mcap", "yellowfish", "")]
+    with pytest.raises(TwinError, match="report 'log0.json' would replace the input"):
+        fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose)
+    assert model.read_bytes() == kept and sorted(p.name for p in out.iterdir()) == ["log0.json"]
+
 # ---------------------------------------------------------------- commands
 
 def test_montecarlo_command_writes_every_output(vessel, tmp_path):

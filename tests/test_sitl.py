@@ -634,3 +634,33 @@ def test_a_diverging_twin_is_a_one_line_error_not_a_silent_reset():
         with pytest.raises(TwinError, match=r"^the twin diverged between t = 0\.025 s and 0\.028 s: MuJoCo found "
                                             r"its velocity non-finite"):
             twin.step([1700, 0, 1700] + [0] * 13, 400)
+
+
+def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_the_twin_cruises_at(tmp_path):
+    import subprocess
+    import sys
+
+    from twin.sitl.params import boat_parameters, cruise_speed_m_s
+
+    boat = load("blueboat")
+    lines = dict(line.split("#")[0].split() for line in boat_parameters(boat, (2, 17)).splitlines()
+                 if line.strip() and not line.startswith("#"))
+    neutral = boat.thrusters.pwm_offset * boat.thrusters.pwm_scale_us
+    assert lines["SERVO2_FUNCTION"] == "73" and lines["SERVO17_FUNCTION"] == "74" and lines["SERVO_32_ENABLE"] == "1"
+    assert float(lines["SERVO17_TRIM"]) == pytest.approx(neutral, abs=0.5) and lines["FRAME_CLASS"] == "2"
+    # the cruise pair is the twin's own steady state: half throttle both, calm water
+    half = neutral + 0.5 * (boat.thrusters.pwm_max_us - neutral)
+    run = simulate(compile_vessel(boat), InputSeries(np.array([0.0]), np.array([[half, half]]), "pwm"), 120.0)
+    assert float(lines["CRUISE_SPEED"]) == pytest.approx(run.nu[-1, 0], abs=0.01) and lines["CRUISE_THROTTLE"] == "50"
+    windy = boat.with_environment(replace(boat.environment, current_speed_m_s=0.5, wind_speed_m_s=8.0))
+    assert cruise_speed_m_s(windy) == pytest.approx(float(lines["CRUISE_SPEED"]), abs=0.01)
+    with pytest.raises(TwinError, match="propeller-and-rudder"):
+        boat_parameters(load("esso_osaka"))
+    out = tmp_path / "boat.parm"
+    def twin(*args):
+        return subprocess.run([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", *args],
+                              capture_output=True, text=True, timeout=120)
+
+    assert twin("--write-params", out).returncode == 0 and "SERVO3_FUNCTION 74" in out.read_text()
+    refused = twin("--write-params", tmp_path / "b.json")
+    assert refused.returncode == 2 and "unknown format" in refused.stderr and not (tmp_path / "b.json").exists()

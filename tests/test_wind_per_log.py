@@ -189,10 +189,16 @@ def test_a_constant_wind_beside_every_logs_own_is_reported_as_acting_on_no_log(e
     assert partial["parameters"] == {"speed_m_s": 2.0, "dir_deg": 10.0} and not d.notes
 
 
-def test_asking_a_single_log_for_its_own_wind_says_why_it_cannot(esso):
+def test_asking_a_single_log_for_its_own_wind_says_why_it_cannot(esso, monkeypatch):
+    from twin.diagnose import doctor
     from twin.diagnose.doctor import diagnose
 
     rec = _windy_log(esso, "a.csv", "wind=3,60", 1, 150.0)
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a request that cannot be met is refused before the recordings are prepared")
+
+    monkeypatch.setattr(doctor, "_prepared", no_work)
     with pytest.raises(TwinError, match="wind_per_log cannot be fitted to these recordings .*two or more logs"):
         diagnose([rec], esso, library=["wind", "wind_per_log"])
     with pytest.raises(TwinError, match="unknown effect.*no_such_effect"):

@@ -147,6 +147,30 @@ def identify(recordings, vessel: Vessel | str, **options):
     return run(_recordings(recordings), _vessel(vessel), **options)
 
 
+class Table(list):
+    """Rows (dicts with the same keys) that print as aligned columns; still a list for code."""
+
+    def __str__(self) -> str:
+        if not self:
+            return "(no rows)"
+        keys = list(self[0])
+        cells = [[_cell(row.get(k)) for k in keys] for row in self]
+        widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
+        lines = ["  ".join(k.ljust(w) for k, w in zip(keys, widths))]
+        lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells]
+        return "\n".join(lines)
+
+    __repr__ = __str__
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
 @dataclass
 class Evaluation:
     """`twin evaluate`: R² and MAE per DOF and horizon, with and without each log's compass
@@ -164,9 +188,9 @@ class Evaluation:
         cells = ", ".join(f"{d} {m[d]['r2']:.3f}" for d in "uvr" if m.get(d, {}).get("r2") is not None)
         return f"Evaluation({self.vessel}: 10-s free runs R² {cells})"
 
-    def table(self) -> list[dict]:
-        """One row per horizon and DOF: {horizon, dof, r2, mae, n, calibrated}."""
-        rows = []
+    def table(self) -> Table:
+        """One row per horizon and DOF: {horizon, dof, r2, mae, n, calibrated} (prints as columns)."""
+        rows = Table()
         for calibrated, metrics in ((True, self.metrics), (False, self.metrics_uncalibrated)):
             for horizon, m in metrics.items():
                 rows += [{"horizon": horizon, "dof": d, **{k: m[d].get(k) for k in ("r2", "mae", "n")},

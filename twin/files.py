@@ -31,3 +31,15 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def same_file(a, b) -> bool:
+    """Whether two paths name one file: by the file itself where both exist (links, other spellings),
+    else by their resolved paths."""
+    a, b = Path(a), Path(b)
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+        return a.resolve() == b.resolve()
+    except OSError:  # a path that cannot be resolved names no file a run could replace
+        return False

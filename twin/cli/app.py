@@ -13,6 +13,7 @@ import json
 import math
 import os
 import sys
+from importlib import resources
 from pathlib import Path
 from typing import Iterator, Optional
 
@@ -20,13 +21,16 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import write_text_atomic
+from ..files import same_file, write_text_atomic
 from ..progress import Progress
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
                   help="MuJoCo digital twin of twin-thruster surface vessels.")
 console = Console(width=None if sys.stdout.isatty() else 100)
-VESSEL_HELP = "vessel name (one shipped with twin: yellowfish, blueboat, cybership1)"
+# listed from the package's model folder so that a vessel added there is offered without an edit here
+SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
+                           if p.name.endswith(".json")))
+VESSEL_HELP = f"vessel name (one shipped with twin: {SHIPPED})"
 MODEL_HELP = "vessel description file (e.g. written by `twin identify`); replaces --vessel"
 CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"
 _settings = {"quiet": False}
@@ -49,7 +53,7 @@ def vessel_from(vessel: Optional[str], model: Optional[Path], case: str = "nomin
             raise TwinError(f"--model '{model}' is a folder, not a vessel file: give the .json file")
         return load(str(model), case)
     if vessel is None:
-        raise TwinError("give --vessel NAME (yellowfish, blueboat, cybership1) or --model FILE")
+        raise TwinError(f"give --vessel NAME ({SHIPPED}) or --model FILE")
     return load(vessel, case)
 
 
@@ -181,24 +185,13 @@ def check_distinct(outputs: dict[str, object], inputs=()) -> None:
     read = [Path(p) for p in inputs if p is not None]
     for k, (option, path) in enumerate(named):
         for source in read:
-            if _same_file(path, source):
+            if same_file(path, source):
                 raise TwinError(f"{option} '{path}' is the input '{source}': writing it would replace the input "
                                 "(give another output name)")
         for other_option, other in named[:k]:
-            if _same_file(path, other):
+            if same_file(path, other):
                 raise TwinError(f"{option} '{path}' and {other_option} '{other}' are the same file: one output "
                                 "would replace the other")
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    """Whether two paths name one file: by the file itself where both exist (links, other spellings),
-    else by their resolved paths."""
-    try:
-        if a.exists() and b.exists():
-            return os.path.samefile(a, b)
-        return a.resolve() == b.resolve()
-    except OSError:  # a path that cannot be resolved names no file a run could replace
-        return False
 
 
 def _can_create(folder: Path) -> bool:

@@ -7,6 +7,7 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
+from ..files import write_text_atomic
 from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
                   speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, origin_from
@@ -29,14 +30,26 @@ def sitl(
     record: list[Path] = typer.Option([], help="record the session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
                                                                        "frame per servo frame (default)"),
+    write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "
+                                                           "and --channels (sim_vehicle.py --add-param-file) "
+                                                           "and exit"),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
     from ..sitl.server import run_sitl
 
     check_outputs(record, RUN_OUTPUTS, "--record")
-    check_distinct({"--record": record}, [model])
+    if write_params is not None:
+        check_outputs([write_params], (".parm", ".param", ".txt"), "--write-params")
+    check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model])
     pair = channels_from(channels)
     v = vessel_from(vessel, model, case)
+    if write_params is not None:
+        from ..sitl.params import boat_parameters
+
+        text = boat_parameters(v, (pair["left"], pair["right"]) if pair else (1, 3))
+        write_text_atomic(write_params, text)
+        say(f"wrote {write_params}: load it with sim_vehicle.py ... --add-param-file {write_params}")
+        return
     if v.thrusters.kind == "propeller_rudder":  # ArduPilot Rover's servo outputs are two thrusters' PWM
         raise TwinError(f"vessel '{v.name}' is a propeller-and-rudder ship: SITL supports twin-thruster vessels only")
     summary = run_sitl(

@@ -33,6 +33,7 @@ from ..physics.sensors import log_name
 from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared, supply_reference
+from ..prepare.prepared import supply_voltage
 from ..recording import Recording
 from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
@@ -81,6 +82,26 @@ class Diagnosis:
                 **({"refit": self.refit} if self.refit else {})}
 
 
+def _check_library(prior: Vessel, recordings: list[Recording], library: list[str]) -> None:
+    """Refuse, before any replay, a requested effect that is unknown or has nothing to act on in
+    these recordings (the same offer `candidates` makes once they are prepared: a battery's
+    effect only where every log has a voltage)."""
+    from ..effects import EFFECTS
+
+    logs_battery = all(supply_voltage(r, r.battery.t) is not None for r in recordings)
+    offered = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=1.0 if logs_battery else None)
+    unknown = set(library) - set(offered)
+    if not unknown:
+        return
+    idle = sorted(unknown & set(EFFECTS))  # in the library, but with nothing to act on here
+    if idle:
+        raise TwinError(f"effect(s) {', '.join(idle)} cannot be fitted to these recordings (a per-log effect "
+                        "needs two or more logs; a wind needs the vessel's wind load model; a battery effect needs "
+                        "every log's voltage; a propeller-and-rudder ship is offered drift and sensor effects only); "
+                        f"these can: {', '.join(offered)}")
+    raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(offered)})")
+
+
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
              library: list[str] | None = None, calibrated: bool = True,
              refit: tuple[str, ...] | None = None, refit_weight: float = 1.0) -> Diagnosis:
@@ -93,6 +114,8 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     started = time.time()
     if refit is not None:
         _check_refit(prior, refit, refit_weight)
+    if library:
+        _check_library(prior, recordings, library)
     log = log or (lambda msg: None)
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
@@ -101,16 +124,6 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     log(f"replayed {len(every)} windows of {window_s:g} s; {len(located)} significant residual regions")
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
-        unknown = set(library) - set(lib)
-        if unknown:
-            from ..effects import EFFECTS
-
-            idle = sorted(unknown & set(EFFECTS))  # in the library, but with nothing to act on here
-            if idle:
-                raise TwinError(f"effect(s) {', '.join(idle)} cannot be fitted to these recordings (a per-log effect "
-                                "needs two or more logs; a wind needs the vessel's wind load model; a propeller-and-"
-                                f"rudder ship is offered drift and sensor effects only); these can: {', '.join(lib)}")
-            raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(lib)})")
         lib = {k: v for k, v in lib.items() if k in library}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
     core, core_names, search_prior = _core(prior, refit)

@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TwinError
-from ..files import write_bytes_atomic, write_text_atomic
+from ..files import same_file, write_bytes_atomic, write_text_atomic
 from ..progress import Progress
 from ..vessel import load
 from .batches import Batch, Executor, LocalExecutor, plan
@@ -203,9 +203,10 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     vessels = {name: load(name) for name in sorted({log.vessel for log in logs})}
     options = {k: v for k, v in (("window_s", window_s), ("library", library)) if v is not None}
     job = _Job(vessels, options, html, diagnose)
+    names = _report_names(logs)
+    _check_inputs_kept(out, names, html, [log.path for log in logs] + [Path(v) for v in vessels if v.endswith(".json")])
     created = not out.exists()
     out.mkdir(exist_ok=True)
-    names = _report_names(logs)
     batches = plan(len(logs), batch_size, 0)
     results: list[dict | None] = [None] * len(logs)
     reports = {}
@@ -250,6 +251,19 @@ def _item(i: int, log: Log) -> _Item:
     mtime = log.path.stat().st_mtime
     file_day = dt.datetime.fromtimestamp(mtime, dt.timezone.utc).date().isoformat()
     return _Item(i, log.path.name, log.path.read_bytes(), log.vessel, log.day, file_day)
+
+
+def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Path]) -> None:
+    """Refuse, before anything is written, a report that would land on a file the run reads
+    (a vessel file or a log kept in --out under a report's name)."""
+    written = [out / "fleet.json", out / "fleet.md"]
+    for n in names:
+        written += [out / f"{n}.json", out / f"{n}.failed.json"] + ([out / f"{n}.html"] if html else [])
+    for path in written:
+        for source in inputs:
+            if same_file(path, source):
+                raise TwinError(f"--out '{out}': the report '{path.name}' would replace the input '{source}' "
+                                "(give another --out folder)")
 
 
 def _report_names(logs: list[Log]) -> list[str]:
