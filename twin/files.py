@@ -43,3 +43,17 @@ def same_file(a, b) -> bool:
         return a.resolve() == b.resolve()
     except OSError:  # a path that cannot be resolved names no file a run could replace
         return False
+
+
+def json_default(x):
+    """json.dumps' default= for the project's results: numpy numbers and arrays as plain values,
+    objects with to_dict() as that, anything else as its text."""
+    import numpy as np  # here: writing a file must not make every importer load numpy
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if hasattr(x, "to_dict"):
+        return x.to_dict()
+    return str(x)

@@ -21,7 +21,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import same_file, write_text_atomic
+from ..files import json_default, same_file, write_text_atomic
 from ..progress import Progress
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
@@ -208,20 +208,8 @@ def _can_create(folder: Path) -> bool:
 def write_json(path: Optional[Path], data: dict) -> None:
     """`data` as JSON, atomically; numpy numbers and arrays become plain JSON."""
     if path is not None:
-        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False, default=_plain) + "\n")
+        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False, default=json_default) + "\n")
         say(f"wrote {path}")
-
-
-def _plain(x):
-    import numpy as np
-
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if hasattr(x, "to_dict"):
-        return x.to_dict()
-    return str(x)
 
 
 def say(text: str) -> None:

@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TwinError
-from ..files import same_file, write_bytes_atomic, write_text_atomic
+from ..files import json_default, same_file, write_bytes_atomic, write_text_atomic
 from ..progress import Progress
 from ..vessel import load
 from .batches import Batch, Executor, LocalExecutor, plan
@@ -160,17 +160,7 @@ def _day(rec, item: _Item) -> tuple[str, str]:
 
 def _plain(x):
     """JSON-ready copy (numpy numbers and arrays as plain values)."""
-    return json.loads(json.dumps(x, allow_nan=True, default=_default))
-
-
-def _default(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if hasattr(x, "to_dict"):
-        return x.to_dict()
-    return str(x)
+    return json.loads(json.dumps(x, allow_nan=True, default=json_default))
 
 
 # ---------------------------------------------------------------- the fleet
@@ -231,7 +221,7 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
             out.rmdir()
         raise _all_failed([r for r in results if r is not None], out)
     summary = summarise([r for r in results if r is not None])
-    write_text_atomic(out / "fleet.json", json.dumps(summary, indent=1, allow_nan=False, default=_default) + "\n")
+    write_text_atomic(out / "fleet.json", json.dumps(summary, indent=1, allow_nan=False, default=json_default) + "\n")
     write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
     return Fleet(results, summary, reports)
 
@@ -287,7 +277,7 @@ def _write_report(out: Path, name: str, r: dict) -> Path:
     if not r.get("ok") and _diagnosed_before(path):
         path = out / f"{name}.failed.json"
     body = {k: v for k, v in r.items() if k != "effects"}
-    write_text_atomic(path, json.dumps(body, indent=1, allow_nan=True, default=_default) + "\n")
+    write_text_atomic(path, json.dumps(body, indent=1, allow_nan=True, default=json_default) + "\n")
     return path
 
 

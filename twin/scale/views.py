@@ -10,12 +10,10 @@ plots/<q>/p<N> (percentiles over time) for heading (deg), u, v, r and the distan
 from __future__ import annotations
 
 import io
-import os
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import TwinError
 from ..files import write_bytes_atomic
 from .montecarlo import ONE_SIDED, MonteCarlo
 
@@ -81,26 +79,13 @@ def write_rrd(mc: MonteCarlo, path: Path) -> None:
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from ..formats.mcap import temp_path
+    from ..viz.rerun_log import rrd_file
 
-    path = Path(path)
-    tmp = temp_path(path)
-    rec = rr.RecordingStream("twin-montecarlo")
     plots = [rrb.TimeSeriesView(origin=f"plots/{q}", name=label) for q, label, _ in PLOTTED]
-    try:
-        rec.save(str(tmp), default_blueprint=rrb.Blueprint(rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="water"), rrb.Grid(*plots))))
-        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
+    blueprint = rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="water"), rrb.Grid(*plots)))
+    with rrd_file(path, "twin-montecarlo", blueprint) as rec:
         _log_world(rr, rec, mc)
         _log_plots(rr, rec, mc)
-        rec.disconnect()
-        if not tmp.is_file() or tmp.stat().st_size == 0:
-            raise TwinError(f"{path.name}: rerun did not write the recording")
-        os.replace(tmp, path)
-    except BaseException:
-        rec.disconnect()
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _xyz(ne: np.ndarray) -> np.ndarray:

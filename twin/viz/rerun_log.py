@@ -13,7 +13,8 @@ All runs share the timeline "time" (duration, s), so runs line up in plots and i
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -46,14 +47,23 @@ def write_runs_rrd(runs: dict[str, Run], path: str | Path, *, geometry=None,
     for name, run in runs.items():
         check_run(run, name)
     meshes = _load_meshes(hull_mesh_paths)  # fail on a bad mesh before touching the disk
-    tmp = temp_path(path)
-    # a private stream: never the global recording, never a viewer
-    rec = rr.RecordingStream(application_id)
-    try:
-        rec.save(str(tmp), default_blueprint=_blueprint())
-        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
+    with rrd_file(path, application_id, _blueprint()) as rec:
         for i, (name, run) in enumerate(runs.items()):
             _log_run(rec, name, run, PALETTE[i % len(PALETTE)], geometry, meshes)
+
+
+@contextmanager
+def rrd_file(path: str | Path, application_id: str, blueprint: rrb.Blueprint) -> Iterator[rr.RecordingStream]:
+    """A private recording stream (never the global one, never a viewer) saving to `path`
+    atomically: logged under a temporary name with the NED "world" view coordinates, renamed
+    when the block ends, removed if it fails."""
+    path = Path(path)
+    tmp = temp_path(path)
+    rec = rr.RecordingStream(application_id)
+    try:
+        rec.save(str(tmp), default_blueprint=blueprint)
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
+        yield rec
         rec.disconnect()  # flushes and closes the file sink
         if not tmp.is_file() or tmp.stat().st_size == 0:  # the sink writes on its own thread
             raise TwinError(f"{path.name}: rerun did not write the recording")
