@@ -235,6 +235,26 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     assert any(line.startswith("to settle timing effects") for line in a["next"])
 
 
+def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable():
+    """Seed 23's tidal current: compass_deviation kept, current preferred by the blocks (z 4.3 between
+    the two) but short of its own place; the answer must not say the two cannot be told apart."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+
+    rival = {"name": "current", "z": -4.3, "separable": False, "held_out_gain": 0.2, "parameters": {}}
+    close = {"name": "wind_shape", "z": -1.2, "separable": False, "held_out_gain": 0.2, "parameters": {}}
+    kept = {"name": "compass_deviation", "parameters": {"b_deg": 1.0}, "ci": {}, "z": 3.4, "excess_gain": 0.2,
+            "evidence": {"blocks_for": 12, "blocks_against": 1}, "rivals": [rival, close]}
+    fit = {k: {"r2": 0.5} for k in "uvr"}
+    d = SimpleNamespace(effects=[kept], rounds=[], unexplained=[], located=[], fit_before=fit, fit_after=fit,
+                        prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 90})
+    unsettled = answer(d)["unsettled"]
+    assert any(u.startswith("compass_deviation or current: the blocks prefer current (z 4.3") and
+               "may stand in for it" in u for u in unsettled)
+    assert any(u.startswith("compass_deviation or wind_shape: this recording cannot tell them apart") for u in unsettled)
+
+
 def test_how_much_more_to_record_for_a_hint():
     from twin.diagnose.report import more_recording_factor
 

@@ -68,7 +68,7 @@ MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment
 def answer(d) -> dict:
     """What the diagnosis concludes, in the order a user needs it: {"missing": [...], "form": [...],
     "changes": str, "unsettled": [...], "next": [...]} (lines of plain text)."""
-    from .search import REL_EXCESS, Z_MIN
+    from .search import REL_EXCESS, Z_MIN, Z_PREFER
 
     out = {"missing": [], "form": [], "changes": "", "unsettled": [], "next": []}
     families = set()
@@ -81,7 +81,13 @@ def answer(d) -> dict:
             f"noise, z {e['z']:.1f} over {ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
             f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)")
         for r in e["rivals"]:
-            if not r["separable"]:
+            if not r["separable"] and r["z"] <= -Z_PREFER:
+                # kept all the same: the rival the blocks lean to did not earn its place by itself
+                out["unsettled"].append(f"{e['name']} or {r['name']}: the blocks prefer {r['name']} (z "
+                                        f"{-r['z']:.1f} between the two), but it does not earn its place by itself: "
+                                        f"{e['name']} may stand in for it")
+                families.add(_family(d, r["name"]))
+            elif not r["separable"]:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {r['z']:.1f})")
                 families.add(_family(d, r["name"]))
