@@ -10,6 +10,7 @@ import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.fit import simfit
+from twin.fit.objective import Objective
 from twin.synth.dataset import PROFILES, SensorNoise, generate
 from twin.effects import parse_effect
 from twin.fit.evaluate import TwinPredictor, evaluate, manoeuvres, misfit_by_manoeuvre
@@ -270,6 +271,32 @@ def test_free_start_removes_the_bias_of_noisy_initial_velocities(yellowfish_vess
     assert got[True]["Nr"] == pytest.approx(truth.damping.Nr, rel=0.005)
     assert fits[True].cost_after < 1e-3 * fits[False].cost_after
     assert abs(got[False]["Nrdot"] / truth.added_mass.Nrdot - 1) > 0.02
+
+
+@pytest.mark.parametrize("free_start", [False, True])
+def test_the_jacobian_reuses_the_runs_of_the_point_just_evaluated(yellowfish_vessel, free_start):
+    # a least-squares solver asks for the Jacobian where it has just had the residuals: the point's own
+    # runs (with free_start, four) are not rolled out again, and the Jacobian is the same to the bit
+    from twin.effects.coefficients import coefficients
+
+    ds = generate(yellowfish_vessel, n_segments=2, seed=3, noise=QUIET, segment_s=(25, 30))
+    preps = _truth_preps(ds)
+    wins = make_windows(preps, 5.0, 5.0)
+    table = coefficients(yellowfish_vessel)
+    params = [table["Nr"], table["Xu"]]
+    fresh = Objective(yellowfish_vessel, params, preps, wins, free_start=free_start)
+    x = fresh.x_prior * 1.1
+    J_fresh = fresh.jacobian(x)
+    used = Objective(yellowfish_vessel, params, preps, wins, free_start=free_start)
+    used.residuals(x)
+    before = used.evaluations
+    J_used = used.jacobian(x)
+    assert used.evaluations - before == len(params)  # only the neighbours
+    assert fresh.evaluations == len(params) + 1
+    np.testing.assert_array_equal(J_used, J_fresh)
+    np.testing.assert_array_equal(used.residuals(x), fresh.residuals(x))
+    used.sigma = used.sigma * 2.0  # rescaled residuals, not the kept runs (the free start's regulariser: 1e-6)
+    np.testing.assert_allclose(used.residuals(x)[: used.n_data] * 2.0, fresh.residuals(x)[: fresh.n_data], atol=1e-5)
 
 
 def test_a_parameter_the_data_cannot_excite_is_named_not_returned(yellowfish_vessel):

@@ -111,6 +111,7 @@ class Objective:
         self.sigma = np.where(sd > 1e-6, sd, 1.0)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._runs_at: tuple[np.ndarray, list[np.ndarray]] | None = None
         self._belief: tuple[np.ndarray, np.ndarray] | None = None  # (√w/σ, mean) per coordinate, value units
 
     def believe(self, mean: np.ndarray, sigma: np.ndarray, weight: float) -> None:
@@ -162,7 +163,10 @@ class Objective:
         """Flat residuals of each vessel on the valid samples; with free_start, the first
         vessel's initial-state sensitivities serve all (the others are its finite-difference
         neighbours, whose sensitivities differ by second-order amounts)."""
-        full = self._full(vessels, with_start=self.free_start)
+        return self._flat(self._full(vessels, with_start=self.free_start))
+
+    def _flat(self, full: list[np.ndarray]) -> list[np.ndarray]:
+        """residuals_of from _full's runs (with free_start: the first vessel's four, then the others)."""
         if not self.free_start:
             return [r if r.ndim == 1 else r[self.valid] for r in full]
         base, sens = full[0], full[1:4]
@@ -214,11 +218,25 @@ class Objective:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """The data's residuals, then the prior's rows (if any: believe())."""
-        if self._last is not None and np.array_equal(self._last[0], x):
+        if self._last is not None and np.array_equal(self._last[0], self._key(x)):
             return self._last[1]
-        r = np.concatenate([self.residuals_of([self.vessel(x)])[0], self.prior_rows(x)])
-        self._last = (x.copy(), r)
+        r = np.concatenate([self._flat(self._runs(x))[0], self.prior_rows(x)])
+        self._last = (self._key(x), r)
         return r
+
+    def _key(self, x: np.ndarray) -> np.ndarray:
+        """What residuals at x depend on besides the objective's own: x, and sigma, which a caller
+        may set after construction (one scale for several objectives)."""
+        return np.r_[x, self.sigma]
+
+    def _runs(self, x: np.ndarray) -> list[np.ndarray]:
+        """_full's runs of the vessel at x (with free_start, its four), kept for the last x: a
+        least-squares solver asks for the Jacobian at the point whose residuals it has just had,
+        and the Jacobian's neighbours need only their own runs beside these (the same numbers:
+        each run is rolled out on its own)."""
+        if self._runs_at is None or not np.array_equal(self._runs_at[0], self._key(x)):
+            self._runs_at = (self._key(x), self._full([self.vessel(x)], with_start=self.free_start))
+        return self._runs_at[1]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         lo, hi = self.bounds()
@@ -226,8 +244,8 @@ class Objective:
         trial = [x.copy() for _ in x]
         for i in range(len(x)):
             trial[i][i] += steps[i]
-        rs = self.residuals_of([self.vessel(x)] + [self.vessel(t) for t in trial])
-        self._last = (x.copy(), np.concatenate([rs[0], self.prior_rows(x)]))
+        rs = self._flat(self._runs(x) + self._full([self.vessel(t) for t in trial], with_start=False))
+        self._last = (self._key(x), np.concatenate([rs[0], self.prior_rows(x)]))
         J = np.column_stack([(r - rs[0]) / h for r, h in zip(rs[1:], steps)])
         return np.vstack([J, self.prior_jacobian()])
 
