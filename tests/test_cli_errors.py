@@ -86,6 +86,16 @@ def test_a_bare_twin_prints_its_help_and_is_not_an_error(monkeypatch, capsys):
     assert exit_info.value.code in (0, 2) and "Usage" in capsys.readouterr().out
 
 
+
+def test_the_list_of_commands_reads_as_sentences_not_as_docstring_lines():
+    # rich prints a help's line breaks as they stand: the docstrings' wrapping made the list ragged
+    from twin.cli.app import app
+
+    helps = {info.name or info.callback.__name__: info.help for info in app.registered_commands}
+    assert len(helps) >= 18 and all(helps.values())
+    assert all("\n" not in h.replace("\n\n", "") for h in helps.values()), [n for n, h in helps.items() if "\n" in h]
+    assert "each log's compass calibration, a fit by simulation with the prior's beliefs" in helps["identify"]
+
 # ---------------------------------------------------------------- refused before any work, nothing replaced
 
 def tiny_log(path):

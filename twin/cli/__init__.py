@@ -2,6 +2,8 @@
 module registers one group of commands on it and holds no domain logic (that lives in the
 package, so the Python API does the same things)."""
 from . import diagnose, ident, recordings, run, scale, seed003, sitl  # noqa: F401  (each registers its commands)
-from .app import main
+from .app import flow_help, main
+
+flow_help()
 
 __all__ = ["main"]

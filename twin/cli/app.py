@@ -257,6 +257,17 @@ def progress_bar(title: str) -> Iterator[Progress]:
         yield update
 
 
+def flow_help() -> None:
+    """Each command's help from its docstring, paragraphs kept and lines within one joined: rich
+    prints a docstring's line breaks as they stand, so the list of commands came out ragged."""
+    import inspect
+
+    for info in app.registered_commands:
+        doc = info.help or inspect.getdoc(info.callback) or ""
+        paragraphs = [" ".join(part.split()) for part in doc.split("\n\n")]
+        info.help = "\n\n".join(p for p in paragraphs if p)
+
+
 # ---------------------------------------------------------------- errors
 
 def _is_usage_error(exc: Exception) -> bool:
