@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
-from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.doctor import diagnose, given_evidence  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
 from twin.synth.dataset import PROFILES, generate  # noqa: E402
 from twin.effects import as_effect, effect  # noqa: E402
@@ -212,8 +212,59 @@ def run_world(case: str, seed: int, work: Path, params: Path) -> dict:
     truth = json.loads(truth_path.read_text())
     recordings = [read_recording(p) for p in sorted(folder.glob("*.csv"))]
     started = time.time()
-    d = diagnose(recordings, vessel_mod.load("yellowfish"), **REFIT)
-    return score_world(case, seed, truth, d.to_dict(), round(time.time() - started, 1))
+    prior = vessel_mod.load("yellowfish")
+    d = diagnose(recordings, prior, **REFIT)
+    out = score_world(case, seed, truth, d.to_dict(), round(time.time() - started, 1))
+    for row, t in zip(out["rows"], truth["effects"]):
+        row["given"] = given_truth(recordings, prior, t)
+    return out
+
+
+def library_form(truth_effect: dict, prior: vessel_mod.Vessel) -> str | None:
+    """The library's form of a world effect at the truth's own values (the effect text the simulator's
+    `expected_values` translate to), or None where the library has no form of it (model-form truths,
+    measurement faults). A world form the library's does not cover (a hysteresis's stop edges, a tidal
+    current's drift, a wind table's shape) is given as the library's nearest: the truth as the twin can
+    hold it, not the truth."""
+    kind, x = truth_effect["kind"], truth_effect.get("expected_values") or {}
+    t = prior.thrusters
+    width = lambda pwm: abs(float(t.normalised(pwm)) - float(t.normalised(t.neutral_us)))  # noqa: E731
+    forms = {
+        "weak_thruster_left": lambda: f"thruster_gain_left={x['gain_left']}",
+        "weak_thruster_right": lambda: f"thruster_gain_right={x['gain_right']}",
+        "both_thrusters_strong": lambda: f"thrust_gain={x['gain']}",
+        "wind_shape": lambda: f"wind={x['speed_m_s']},{x['dir_from_deg']}",
+        "constant_current": lambda: f"current={x['speed_m_s']},{x['dir_deg']}",
+        "current_tidal": lambda: f"current={x['speed_m_s']},{x['dir_deg']}",
+        "battery_sag": lambda: f"thrust_decay={x['linear_fit_decay_per_min']}",
+        "thruster_rate_limit": lambda: f"thrust_ramp={x['ramp_s']}",
+        "input_delay": lambda: f"input_delay={x['delay_s']}",
+        "deadzone_asym": lambda: f"dead_zone={abs(x['fwd_delta_unit'])},{abs(x['rev_delta_unit'])}",
+        "deadzone_hysteresis": lambda: f"motor_start={width(x['start_fwd_pwm_us'])},{width(x['start_rev_pwm_us'])}",
+        "hull_fouling": lambda: f"quadratic_damping=Xuu:{x['Xuu_total_alone'] / prior.damping.Xuu}",
+        "yaw_drag_shape": lambda: f"linear_damping=Nr:{x['Nr_total_alone'] / prior.damping.Nr}",
+        "compass_offset_per_log": lambda: "heading_bias_per_log=" + ",".join(
+            f"{log}:{deg}" for log, deg in x["offset_deg_by_log"].items()),
+        "gnss_latency": lambda: f"gnss_latency={x['gnss_latency_s']}",
+        "gnss_antenna_offset": lambda: f"gnss_lever_arm={x['antenna_offset_x_m']},{x['antenna_offset_y_m']}",
+        "compass_iron": lambda: f"compass_deviation={x['b_deg']},{x['c_deg']},{x['d_deg']},{x['e_deg']}",
+        "thrust_ventilation": lambda: f"full_thrust={x['share']}",
+        "pwm_clock_offset": lambda: f"clock_offset={x['pwm_clock_offset_s']}",
+        "wind_per_outing": lambda: "wind_per_log=" + ",".join(
+            f"{log}:{w['speed_m_s']}@{w['dir_from_deg']}" for log, w in x["by_log"].items()),
+    }
+    return forms[kind]() if kind in forms else None
+
+
+def given_truth(recordings, prior, truth_effect: dict) -> dict | None:
+    """The truth in the library's form at its own values, nothing fitted, judged by the diagnosis's rule
+    on the recording's blocks (doctor.given_evidence): whether the recording can prove it at all."""
+    text = library_form(truth_effect, prior)
+    if text is None:
+        return None
+    e = given_evidence(recordings, prior, [text])
+    return {"effect": text, "z": round(e.z, 2), "excess_gain": round(e.rel_excess, 4), "blocks_for": e.blocks_for,
+            "blocks_against": e.blocks_against, "earns_its_place": bool(e.earns_its_place())}
 
 
 def _multilog(case: str) -> bool:
@@ -273,7 +324,20 @@ def world_summary(results: list[dict]) -> dict:
             "nulls": len(nulls), "nulls_clean": sum(not r["named"] for r in nulls),
             "with_spurious": sum(bool(r["spurious"]) for r in results),
             "with_spurious_among_effect_cases": sum(bool(r["spurious"]) for r in with_truth),
-            "effect_cases": len(with_truth)}
+            "effect_cases": len(with_truth), **_given_summary(real)}
+
+
+def _given_summary(real: list[dict]) -> dict:
+    """The truths judged as given (run_world's `given`): how many the recording can prove in the library's
+    form at their own values, and of those and of the rest how many the diagnosis named (or calibrated)."""
+    judged = [x for x in real if x.get("given")]
+    if not judged:
+        return {}
+    found = lambda x: x["how"] in ("named", "calibrated")  # noqa: E731
+    provable = [x for x in judged if x["given"]["earns_its_place"]]
+    rest = [x for x in judged if not x["given"]["earns_its_place"]]
+    return {"given_judged": len(judged), "given_provable": len(provable),
+            "named_where_provable": sum(map(found, provable)), "named_where_not_provable": sum(map(found, rest))}
 
 
 def world_markdown(results: list[dict]) -> str:
@@ -293,18 +357,33 @@ def world_markdown(results: list[dict]) -> str:
              f"- recordings with spurious physics: {share(s['with_spurious'], s['recordings'])}",
              f"- null recordings clean: {share(s['nulls_clean'], s['nulls'])}",
              f"- truths outside the library (model-form): {s['model_form_truths']}, of which "
-             f"{s['model_form_approximated']} drew an approximating effect the truth lists", "",
-             "| case | seed | truth (library equivalent) | found | spurious | hints not proven | held-out R² u / v / r "
-             "before → after | s |", "|---|---|---|---|---|---|---|---|"]
+             f"{s['model_form_approximated']} drew an approximating effect the truth lists",
+             *([f"- **the truth as given** (the library's form at the truth's own values, nothing fitted, judged by "
+                f"the same rule on the same blocks: can this recording prove it at all?): earns its place for "
+                f"{share(s['given_provable'], s['given_judged'])} of the true effects; of those the diagnosis named "
+                f"{share(s['named_where_provable'], s['given_provable'])}; of the "
+                f"{s['given_judged'] - s['given_provable']} the recording cannot prove as given, it named "
+                f"{s['named_where_not_provable']} (a fitted form may do better than the given one)"]
+               if s.get("given_judged") else []), "",
+             "| case | seed | truth (library equivalent) | found | the truth as given: z, share of the excess | "
+             "spurious | hints not proven | held-out R² u / v / r before → after | s |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         truth = "; ".join(f"{x['kind']} ({x['equivalent']})" for x in r["rows"]) or "none"
         found = "; ".join(f"{'✔' if x['how'] in ('named', 'calibrated') else ('≈' if x['how'] else '✘')} "
                           f"{', '.join(x['by']) or '-'}" for x in r["rows"]) or ("✔ nothing" if not r["named"] else "")
         hints = "; ".join(u.split(" may be missing")[0] for u in r["unsettled"] if "may be missing" in u) or "-"
         fit = " / ".join(f"{_r2(r['fit_before'][k])} → {_r2(r['fit_after'][k])}" for k in "uvr")
-        lines.append(f"| {r['case']} | {r['seed']} | {truth} | {found} | {', '.join(r['spurious']) or '-'} | {hints} | "
-                     f"{fit} | {r['seconds']} |")
+        given = "; ".join(_given_cell(x.get("given")) for x in r["rows"]) or "-"
+        lines.append(f"| {r['case']} | {r['seed']} | {truth} | {found} | {given} | {', '.join(r['spurious']) or '-'} | "
+                     f"{hints} | {fit} | {r['seconds']} |")
     return "\n".join(lines) + "\n"
+
+
+def _given_cell(g: dict | None) -> str:
+    if not g:
+        return "-"
+    return f"{'earns' if g['earns_its_place'] else 'no'} (z {g['z']:.2f}, {100 * g['excess_gain']:.1f} %)"
 
 
 def markdown(results: list[dict]) -> str:

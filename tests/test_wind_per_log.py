@@ -66,6 +66,21 @@ def test_the_measured_wind_judged_by_the_diagnosis_rule(esso):
     assert calm.affected == 0 and not calm.earns_its_place()
 
 
+def test_physics_given_at_its_values_is_judged_by_the_same_rule(esso):
+    """doctor.given_evidence: the wind that blew, given as an effect (nothing fitted), earns its place on
+    the log it moved, as the anemometer's series does; the same wind from the opposite side does not,
+    and a given effect that changes nothing affects no window."""
+    from twin.diagnose.doctor import given_evidence, measured_wind_evidence
+
+    log = [_windy_log(esso, "a.csv", "wind=4,60", 1, 450.0)]
+    right, wrong = (given_evidence(log, esso, [w]) for w in ("wind=4,60", "wind=4,240"))
+    measured = measured_wind_evidence(log, esso)
+    assert right.earns_its_place() and right.rel_excess == pytest.approx(measured.rel_excess, abs=0.02)
+    assert not wrong.earns_its_place() and wrong.rel < 0
+    nothing = given_evidence(log, esso, ["wind=0,0"])
+    assert nothing.affected == 0 and not nothing.earns_its_place()
+
+
 def test_a_diagnosis_of_two_logs_fits_each_logs_own_wind(esso):
     """Two outings, the wind from opposite sides (no one constant wind fits both): every fold's fit of
     the per-log wind finds each log's speed and direction, and it removes far more of the held-out

@@ -214,14 +214,27 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
     return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)
 
 
+def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wind: str | None = None,
+                   window_s: float = WINDOW_S):
+    """Physics given, not fitted: the effects at the values given (`apply_effects` texts) and, with
+    wind="measured", the recordings' measured wind as a known input, judged by the diagnosis's rule
+    against the twin without them (each log's compass calibration applied to both), on the blocks a
+    diagnosis of these recordings judges on: what the recordings can prove of that physics as given,
+    whatever a fit of it would find. An Evidence (search.py)."""
+    from ..effects import apply_effects
+
+    prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, True)
+    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]))
+    given = apply_effects(prior, effects)
+    return search.evidence(search.held_costs([prior] * len(search.folds)),
+                           search.held_costs([given] * len(search.folds), wind=wind))
+
+
 def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):
     """The recordings' own measured wind (the anemometer through the vessel's wind load model, a known
     input: nothing fitted) judged by the diagnosis's rule against the twin without it, on the same
     blocks: what the recordings can prove of the wind as it blew. An Evidence (search.py)."""
-    prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, True)
-    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]))
-    same = [prior] * len(search.folds)
-    return search.evidence(search.held_costs(same), search.held_costs(same, wind="measured"))
+    return given_evidence(recordings, prior, wind="measured", window_s=window_s)
 
 
 def _inert_constant_wind(diagnosis, logs: set[str]) -> None:
