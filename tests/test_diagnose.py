@@ -199,6 +199,29 @@ def test_diagnose_command_writes_everything(tmp_path, prior):
     assert v.thrusters.gain_right / v.thrusters.gain_left == pytest.approx(0.85, abs=0.03)
 
 
+def test_diagnose_given_judges_an_effect_as_given_without_a_search(tmp_path, prior):
+    # the concealed asymmetry as given earns its place; the opposite one is contradicted; outputs of a
+    # search are refused with --given, and a bad effect text before anything is read
+    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=6, seed=3, noise=PROFILES["realistic"],
+                  manoeuvres=MIXED)
+    rec = tmp_path / "run.csv"
+    write_recording(ds.recording, rec)
+    base = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"]
+    right = subprocess.run(base + ["--given", "thruster_asymmetry=0.85", "--json", str(tmp_path / "g.json")],
+                           capture_output=True, text=True, timeout=120)
+    assert right.returncode == 0, right.stderr
+    assert right.stdout.startswith("thruster_asymmetry=0.85 earns its place as given: z ")
+    g = json.loads((tmp_path / "g.json").read_text())
+    assert g["earns_its_place"] and g["z"] >= 3 and g["excess_gain"] > 0.5 and g["given"] == ["thruster_asymmetry=0.85"]
+    wrong = subprocess.run(base + ["--given", "thruster_asymmetry=1.15"], capture_output=True, text=True, timeout=120)
+    assert wrong.returncode == 0 and "is contradicted by these recordings" in wrong.stdout
+    for extra, message in ((["--report", str(tmp_path / "r.html")], "--report does not apply"),
+                           (["--given", "current=0.2"], "expected 2 value(s)")):
+        bad = subprocess.run(base + ["--given", "current=0.1,0"] + extra, capture_output=True, text=True, timeout=60)
+        assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "r.html").exists()
+
+
 def test_bad_recordings_get_one_line_errors(tmp_path, prior):
     short = generate(prior, n_segments=1, seed=1, segment_s=(30, 31))
     with pytest.raises(TwinError, match="too short"):

@@ -6,6 +6,7 @@ from typing import Optional
 
 import typer
 
+from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, console,
                   effect_names, positive, progress_bar, say, say_unlogged_supply, vessel_from, write_json)
 
@@ -30,6 +31,10 @@ def diagnose_command(
                                                    "`twin identify`'s groups, e.g. surge,yaw,sway,thrust curve)"),
     refit_weight: float = typer.Option(1.0, help="with --refit: windows of data each refitted coefficient's belief "
                                                  "counts as (as `twin identify`'s beliefs ×1)"),
+    given: Optional[list[str]] = typer.Option(None, help="instead of a search: judge this effect at these values "
+                                                        "(`twin effects` syntax, e.g. current=0.2,90; repeat for "
+                                                        "several, judged together) by the same rule on the same "
+                                                        "blocks: can these recordings prove it?"),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     from ..diagnose.doctor import diagnose
@@ -44,9 +49,26 @@ def diagnose_command(
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
                    [*recordings, model])
     positive(window, "--window")
+    if given:
+        clash = [o for o, v in (("--report", report), ("--rrd", rrd), ("--write-model", write_model),
+                                ("--effects", effects), ("--refit", refit)) if v is not None]
+        if clash:
+            raise TwinError(f"--given judges the effects as given, without a search: {', '.join(clash)} does not "
+                            "apply (use --json for the figures)")
+        from ..effects import apply_effects
+
     library = effect_names(effects)
     prior = vessel_from(vessel, model, "nominal")
+    if given:
+        apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
+    if given:
+        from ..diagnose.doctor import given_evidence, given_text
+
+        e = given_evidence(recs, prior, given, window_s=window, calibrated=calibration)
+        typer.echo(given_text(given, e))
+        write_json(json_out, {"given": list(given), "earns_its_place": bool(e.earns_its_place()), **e.to_dict()})
+        return
     groups = tuple(g.strip() for g in refit.split(",") if g.strip()) if refit is not None else None
     with progress_bar("diagnose") as progress:
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,

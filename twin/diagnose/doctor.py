@@ -39,7 +39,7 @@ from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
-from .search import BLOCK_WINDOWS, Search
+from .search import BLOCK_WINDOWS, Z_MIN, Search
 
 WINDOW_S = 10.0
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
@@ -215,7 +215,7 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
 
 
 def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wind: str | None = None,
-                   window_s: float = WINDOW_S):
+                   window_s: float = WINDOW_S, calibrated: bool = True):
     """Physics given, not fitted: the effects at the values given (`apply_effects` texts) and, with
     wind="measured", the recordings' measured wind as a known input, judged by the diagnosis's rule
     against the twin without them (each log's compass calibration applied to both), on the blocks a
@@ -223,11 +223,29 @@ def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wi
     whatever a fit of it would find. An Evidence (search.py)."""
     from ..effects import apply_effects
 
-    prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, True)
+    prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]))
     given = apply_effects(prior, effects)
     return search.evidence(search.held_costs([prior] * len(search.folds)),
                            search.held_costs([given] * len(search.folds), wind=wind))
+
+
+def given_text(effects, e) -> str:
+    """One answer for given_evidence: whether the recordings prove the effects as given, how sure, what
+    they change."""
+    what = " + ".join(str(x) for x in effects) or "nothing"
+    if e.affected == 0:
+        return (f"{what} changes no window's prediction on these recordings: nothing to judge (a per-log effect "
+                "names its log by file name)")
+    blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
+    change = (f"held-out misfit {-100 * e.rel:+.1f} % ({-100 * e.rel_excess:+.1f} % of the misfit above the noise; "
+              + ", ".join(f"{k} {-100 * v:+.1f} %" for k, v in e.dof_rel.items()) + ")")
+    if e.earns_its_place():
+        return f"{what} earns its place as given: {blocks}; {change}"
+    if e.z <= -Z_MIN:  # the blocks' vote, mirrored: as sure as a finding, the other way
+        return f"{what} is contradicted by these recordings: {blocks}; {change}"
+    return (f"{what} does not earn its place as given ({blocks}; {change}): these recordings cannot prove it at "
+            "these values (the rule: z ≥ 3 and 5 % of the misfit above the noise)")
 
 
 def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):
