@@ -292,7 +292,9 @@ def given_truth(recordings, prior, truth_effect: dict) -> dict | None:
     text = library_form(truth_effect, prior)
     if text is None:
         return None
-    e = given_evidence(recordings, prior, [text])
+    # each log's compass offset is what the kinematic calibration finds before any candidate: given on top
+    # of it, it would change nothing; judged against the twin without it, it says what the rule would
+    e = given_evidence(recordings, prior, [text], calibrated=truth_effect["kind"] != "compass_offset_per_log")
     return {"effect": text, "z": round(e.z, 2), "excess_gain": round(e.rel_excess, 4), "blocks_for": e.blocks_for,
             "blocks_against": e.blocks_against, "earns_its_place": bool(e.earns_its_place())}
 
