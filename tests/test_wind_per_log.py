@@ -79,6 +79,10 @@ def test_physics_given_at_its_values_is_judged_by_the_same_rule(esso):
     assert not wrong.earns_its_place() and wrong.rel < 0
     nothing = given_evidence(log, esso, ["wind=0,0"])
     assert nothing.affected == 0 and not nothing.earns_its_place()
+    import twin
+
+    api = twin.judge(log, esso, "wind=4,60")  # the Python face of `twin diagnose --given`
+    assert api.z == right.z and api.rel_excess == right.rel_excess
 
 
 def test_a_diagnosis_of_two_logs_fits_each_logs_own_wind(esso):

@@ -3,4 +3,4 @@ __version__ = "0.2.0"
 
 from .api import (Evaluation, InputSeries, Run, Simulation, Validation, Vessel, calibrate,  # noqa: F401
                   compile_vessel, crosscheck, diagnose, effective_parameters, evaluate, identify, load_vessel,
-                  prepare, read_recording, save_vessel, simulate, simulate_run, validate)
+                  judge, prepare, read_recording, save_vessel, simulate, simulate_run, validate)

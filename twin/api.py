@@ -8,6 +8,7 @@ reprs (and `to_dict()` / `table()` where a table is what one wants to look at).
     ident = twin.identify(recs[:7], v)                     # Identification (twin identify)
     score = twin.evaluate(ident.vessel, recs[7:])          # Evaluation (twin evaluate)
     found = twin.diagnose(recs[:7], ident.vessel)          # Diagnosis (twin diagnose)
+    e = twin.judge(recs[:7], ident.vessel, "current=0.1,90")  # Evidence (twin diagnose --given)
     run = twin.simulate(ident.vessel, "zigzag", duration_s=120)
 """
 from __future__ import annotations
@@ -28,7 +29,7 @@ from .vessel import Vessel, load as load_vessel, save as save_vessel
 
 __all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "Evaluation", "load_vessel", "save_vessel",
            "simulate", "simulate_run", "crosscheck", "effective_parameters", "compile_vessel", "validate",
-           "read_recording", "prepare", "calibrate", "identify", "evaluate", "diagnose"]
+           "read_recording", "prepare", "calibrate", "identify", "evaluate", "diagnose", "judge"]
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
@@ -223,3 +224,14 @@ def diagnose(recordings, vessel: Vessel | str, **options):
     from .diagnose.doctor import diagnose as run
 
     return run(_recordings(recordings), _vessel(vessel), **options)
+
+
+def judge(recordings, vessel: Vessel | str, effects, **options):
+    """`twin diagnose --given`: the effects at the values given (texts as `twin effects` lists them),
+    nothing fitted, judged by the diagnosis's rule on the blocks a diagnosis of these recordings
+    uses. An Evidence (.earns_its_place(), .z, .rel_excess, .blocks_for/.blocks_against, .to_dict());
+    `str(twin.diagnose.doctor.given_text(effects, e))` says it in a sentence."""
+    from .diagnose.doctor import given_evidence
+
+    effects = [effects] if isinstance(effects, str) else list(effects)
+    return given_evidence(_recordings(recordings), _vessel(vessel), effects, **options)
