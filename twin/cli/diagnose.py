@@ -55,11 +55,11 @@ def diagnose_command(
         if clash:
             raise TwinError(f"--given judges the effects as given, without a search: {', '.join(clash)} does not "
                             "apply (use --json for the figures)")
-        from ..effects import apply_effects
-
     library = effect_names(effects)
     prior = vessel_from(vessel, model, "nominal")
     if given:
+        from ..effects import apply_effects
+
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     if given:

@@ -218,9 +218,9 @@ def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wi
                    window_s: float = WINDOW_S, calibrated: bool = True):
     """Physics given, not fitted: the effects at the values given (`apply_effects` texts) and, with
     wind="measured", the recordings' measured wind as a known input, judged by the diagnosis's rule
-    against the twin without them (each log's compass calibration applied to both), on the blocks a
-    diagnosis of these recordings judges on: what the recordings can prove of that physics as given,
-    whatever a fit of it would find. An Evidence (search.py)."""
+    against the twin without them (each log's compass calibration applied to both unless calibrated
+    is False), on the blocks a diagnosis of these recordings judges on: what the recordings can
+    prove of that physics as given, whatever a fit of it would find. An Evidence (search.py)."""
     from ..effects import apply_effects
 
     prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
