@@ -163,6 +163,22 @@ def test_a_logged_pack_voltage_reaches_the_windows_and_offers_the_supply_effect(
     np.testing.assert_allclose(got, base * ((volt / ref) ** 2)[:, None], rtol=1e-9)
 
 
+def test_a_delay_within_an_engine_step_moves_the_thrust_by_the_share_of_the_step_it_covers(prior):
+    """The engine holds each command over its 0.05-s step: the step's mean of the logged input, so
+    a 0.02-s delay is 0.4 of the way from no delay to one whole step (held at the step's start,
+    every delay within a step would give the same thrust and a fitted delay a plateau a step wide)."""
+    from dataclasses import replace
+    from twin.fit.windows import thrust_commands
+
+    ds = generate(prior, n_segments=1, seed=4, noise=PROFILES["none"], segment_s=(40, 41), manoeuvres=MIXED)
+    prep = prepare_for(ds.recording, compile_vessel(prior), **PREP)
+    w = make_windows([prep], 10.0, 10.0, min_length_s=10.0)[1]
+    late = {d: thrust_commands(replace(prior, thrusters=replace(prior.thrusters, delay_s=d)), prep, w, 0.05)
+            for d in (0.0, 0.02, 0.05)}
+    np.testing.assert_allclose(late[0.02], 0.6 * late[0.0] + 0.4 * late[0.05], rtol=1e-12, atol=1e-12)
+    assert np.abs(late[0.02] - late[0.0]).max() > 1.0  # the window's PWM changes: the delay moves thrust
+
+
 def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):
     ds = generate(prior, effects=["current=0.2,120"], n_segments=6, seed=5, noise=PROFILES["realistic"])
     d = diagnose([ds.recording], prior)

@@ -187,11 +187,25 @@ def _commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float)
     logged = prep.pwm[sl]
     if prep.input_kind == "pwm" and vessel.thrusters.hysteretic:
         # a motor's state follows the PWM since the segment began; nothing later matters
-        end = min(int(np.searchsorted(prep.t[sl], look[-1], side="right")) + 1, len(logged))
+        end = min(int(np.searchsorted(prep.t[sl], look[-1] + timestep_s, side="right")) + 1, len(logged))
         logged = vessel.thrusters.as_driven(logged[:end])
         sl = slice(sl.start, sl.start + end)
-    pwm = np.column_stack([hold(prep.t[sl], logged[:, j], look) for j in range(2)])
-    return vessel.thrusters.command(prep.input_kind, pwm, times, supply_steps(vessel, prep, times))
+    ts = prep.t[sl][: len(logged)]
+    supply = supply_steps(vessel, prep, times)
+    i = np.clip(np.searchsorted(ts, look + _EPS_S, side="right") - 1, 0, len(ts) - 1)
+    now = vessel.thrusters.command(prep.input_kind, logged[i], times, supply)
+    # the engine holds a command over its step: the step's mean of the input held from the log, so a
+    # shift that is not a whole number of steps moves the cost (held at the step's start, every shift
+    # within a step would cost the same and a fitted delay would sit on a plateau a step wide)
+    after = np.where(i + 1 < len(ts), (look + timestep_s - ts[np.minimum(i + 1, len(ts) - 1)]) / timestep_s, 0.0)
+    after = np.where(after > 1e-9, np.minimum(after, 1.0), 0.0)
+    if not after.any():
+        return now
+    later = vessel.thrusters.command(prep.input_kind, logged[np.minimum(i + 1, len(ts) - 1)], times, supply)
+    return now + after[:, None] * (later - now)
+
+
+_EPS_S = 1e-6  # as prepare.prepared: a time within this of a sample time counts as "at" the sample
 
 
 def supply_steps(vessel: Vessel, prep: Prepared, times: np.ndarray) -> np.ndarray | None:
