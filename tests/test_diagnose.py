@@ -114,6 +114,24 @@ def test_heading_bias_of_each_log_recovered(prior):
     assert amended.sensors.for_log("/any/folder/" + logs[1]).heading_bias_deg == pytest.approx(got[logs[1]])
 
 
+def test_a_scale_effect_frees_only_the_scales_its_training_blocks_pin(prior):
+    """Yaw damping ×0.6 alone: fitted on enough blocks, a scale its windows do not move by 3 σ stays
+    at the prior's value (and the twin's coefficient with it) and the others are refitted without
+    it; on a handful of blocks the sandwich's σ is not trusted and every scale stays free."""
+    ds = generate(prior, effects=["linear_damping=Nr:0.6"], n_segments=8, seed=3, noise=PROFILES["realistic"],
+                  segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    search = make_search(prior, [prepare_for(ds.recording, cv, **PREP)], [ds.recording], cv, candidates(prior))
+    cand = search.library["linear_damping"]
+    assert cand.separable and [p.name for p in cand.params] == ["Xu_scale", "Yv_scale", "Nr_scale"]
+    fitted = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost), search.windows)
+    assert fitted.fixed and "Nr_scale" not in fitted.fixed  # here sway's scale (seed 4: surge's too)
+    assert fitted.values["Nr_scale"] == pytest.approx(0.6, abs=0.05)
+    assert all(fitted.values[k] == 1.0 for k in fitted.fixed) and fitted.vessel.damping.Yv == prior.damping.Yv
+    few = search.refine(prior, min(search.screen(prior, cand), key=lambda f: f.train_cost), search.windows[:15])
+    assert few.fixed == ()
+
+
 @pytest.mark.parametrize("text", list(CASES))
 def test_candidate_recovers_its_effect(prior, text):
     name, tolerance = CASES[text]

@@ -87,6 +87,8 @@ SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread
 REFINE_WINDOWS = 48
 REFINE_PER_NUMBER = 12
 MAX_EFFECTS = 5
+T_PIN = 3.0  # a separable candidate's quantity is fitted when its training windows move it this many σ
+MIN_CLUSTERS = 8  # training blocks that σ must come from for T_PIN to decide
 CORE_NFEV = 20  # solver steps of every fit with the core (module docstring)
 
 
@@ -98,6 +100,7 @@ class Fitted:
     values: dict[str, float]
     vessel: Vessel
     train_cost: float
+    fixed: tuple[str, ...] = ()  # a separable candidate's quantities left at the base's value (_pinned_only)
 
 
 @dataclass
@@ -355,8 +358,39 @@ class Search:
             sol = least_squares(obj.residuals, np.clip(x0, *obj.bounds()), jac=obj.jacobian, bounds=obj.bounds(),
                                 method="trf", x_scale="jac", max_nfev=6, xtol=1e-5, ftol=1e-5)
             best = self._fitted(cand, obj, sol.x, float(np.sum(sol.fun ** 2)))
+            if cand.separable and len(cand.params) > 1:
+                best = self._pinned_only(base, best, obj, sol)
         self.evaluations += obj.evaluations * len(train)
         return best
+
+    def _pinned_only(self, base: Vessel, fitted: Fitted, obj: Objective, sol) -> Fitted:
+        """A separable candidate refitted with only the quantities its training windows pin free
+        (moved from the base's value by at least T_PIN cluster-robust σ, the training blocks as
+        clusters) and the others at the base's value; as fitted when all or none are pinned. A scale
+        the data do not need moves the prediction of every window it acts in by its noise, and those
+        windows then vote against the effect on held-out blocks."""
+        n = obj.n_data
+        index = {id(w): i for i, w in enumerate(self.windows)}
+        blocks = np.array([self.blocks[index[id(w)]] for w in obj.windows])[obj.window_index()]
+        clusters = np.unique(blocks, return_inverse=True)[1]
+        cov = cluster_covariance(sol.jac[:n], sol.fun[:n], clusters) if clusters.max() + 1 >= MIN_CLUSTERS else None
+        if cov is None:  # a sandwich over a handful of blocks understates σ: nothing is left out on it
+            return fitted
+        cand = fitted.candidate
+        null = np.array([p.get(base) for p in cand.params]) / obj.scale
+        pinned = np.abs(sol.x - null) >= T_PIN * np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        if pinned.all() or not pinned.any():
+            return fitted
+        free = [p for p, k in zip(cand.params, pinned) if k]
+        sub = self._objective(base, free, obj.windows)
+        x0 = np.clip(sol.x[pinned] * obj.scale[pinned] / sub.scale, *sub.bounds())
+        sol = least_squares(sub.residuals, x0, jac=sub.jacobian, bounds=sub.bounds(), method="trf", x_scale="jac",
+                            max_nfev=6, xtol=1e-5, ftol=1e-5)
+        self.evaluations += sub.evaluations * len(sub.windows)
+        values = {p.name: float(p.get(base)) for p in cand.params}
+        values.update({p.name: float(xi * s) for p, xi, s in zip(free, sol.x, sub.scale)})
+        fixed = tuple(p.name for p, k in zip(cand.params, pinned) if not k)
+        return Fitted(cand, values, sub.vessel(sol.x), float(np.sum(sol.fun ** 2)), fixed)
 
     def _refine_with_core(self, base: Vessel, fitted: Fitted, train: list[Window]) -> Fitted:
         """The candidate and the core fitted together (module docstring); a scanned candidate is
@@ -408,7 +442,13 @@ class Search:
         fits = [self.refine(base, screened, train) for base, (train, _) in zip(bases, self.folds)]
         cand_costs = self.held_costs([f.vessel for f in fits])
         evidence = self.evidence(base_costs, cand_costs, [f.values for f in fits])
-        return Trial(screened.candidate, fits, replace(evidence, at_edge=at_unphysical_edge(screened.candidate, fits)))
+        cand = screened.candidate
+        unpinned = set.intersection(*(set(f.fixed) for f in fits))
+        if unpinned:  # left at the base's value on every fold: kept effects are refitted without them
+            free = [i for i, p in enumerate(cand.params) if p.name not in unpinned]
+            cand = replace(cand, params=tuple(cand.params[i] for i in free),
+                           starts=tuple(tuple(s[i] for i in free) for s in cand.starts))
+        return Trial(cand, fits, replace(evidence, at_edge=at_unphysical_edge(screened.candidate, fits)))
 
     def round(self, bases: list[Vessel], base_costs: _Costs, skip: set[str]) -> list[Trial]:
         """Every remaining candidate screened, the best few fitted on every fold and judged,
@@ -677,8 +717,8 @@ def _spread(windows: list[Window], most: int) -> list[Window]:
 
 
 def _plateau_middle(costs: list[float]) -> int:
-    """Index of the middle of the run of equal lowest costs: a time shift finer than the
-    engine step cannot change the cost, so the best estimate is the plateau's centre."""
+    """Index of the middle of the run of equal lowest costs: a staircase cost (a dead zone's edge
+    moved between two logged PWM values changes nothing) is best estimated by its plateau's centre."""
     c = np.asarray(costs)
     best = int(np.argmin(c))
     flat = np.abs(c - c[best]) <= 1e-9 * max(abs(c[best]), 1e-30)

@@ -400,7 +400,8 @@ def _scales_fit(name: str, group: str, keys: tuple[str, ...]):
         params = tuple(scale_of(prior, group, k, units[k], ("Nvdot",) if k == "Yrdot" else ()) for k in present)
         family = "inertia" if group == "added_mass" else "drag"
         return Candidate(name, params, (tuple(1.0 for _ in present),),
-                         lambda p: effect(name, **{k[: -len("_scale")]: v for k, v in p.items()}), family)
+                         lambda p: effect(name, **{k[: -len("_scale")]: v for k, v in p.items()}), family,
+                         separable=True)
     return fit
 
 

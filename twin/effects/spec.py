@@ -45,7 +45,9 @@ class Candidate:
     coarse step); `log_of_param`: for an effect of each log's own numbers, the log (file name) each
     quantity belongs to, so that each log takes the start its own windows like best; `supersedes`:
     effects that can do nothing more once this one is kept (a constant wind, once every log has
-    its own), so a diagnosis stops offering them."""
+    its own), so a diagnosis stops offering them; `separable`: the quantities are separate
+    coefficients (a scale per DOF), each of which may stay at the base's value: a fit frees only
+    those its training windows pin (diagnose/search.py)."""
 
     name: str
     params: tuple[Quantity, ...]
@@ -57,6 +59,7 @@ class Candidate:
     time_shift: bool = False
     log_of_param: tuple[str, ...] = ()
     supersedes: tuple[str, ...] = ()  # effects a diagnosis stops offering once this one is kept
+    separable: bool = False
 
     @property
     def names(self) -> list[str]:
