@@ -12,21 +12,21 @@ from twin.recording import Recording, Stream
 DT = 0.1
 
 
-def _log(legs, offset_deg: float, seed: int = 0) -> Recording:
+def _log(legs, offset_deg: float, seed: int = 0, drift=(0.0, 0.0), name: str = "log.csv") -> Recording:
     """A kinematic log: legs of (seconds, u m/s, r rad/s) from heading 50°, the boat's sway
     v = 0.2·u·r (a turn's sideslip), the compass reading offset_deg more than the true heading,
-    2 cm of GNSS jitter."""
+    2 cm of GNSS jitter; the water drifting at drift (NED m/s)."""
     rng = np.random.default_rng(seed)
     u = np.concatenate([np.full(int(s / DT), a) for s, a, _ in legs])
     r = np.concatenate([np.full(int(s / DT), b) for s, _, b in legs])
     v = 0.2 * u * r
     psi = np.radians(50.0) + np.cumsum(r) * DT
-    n = np.cumsum(u * np.cos(psi) - v * np.sin(psi)) * DT + rng.normal(0, 0.02, len(u))
-    e = np.cumsum(u * np.sin(psi) + v * np.cos(psi)) * DT + rng.normal(0, 0.02, len(u))
+    n = np.cumsum(u * np.cos(psi) - v * np.sin(psi) + drift[0]) * DT + rng.normal(0, 0.02, len(u))
+    e = np.cumsum(u * np.sin(psi) + v * np.cos(psi) + drift[1]) * DT + rng.normal(0, 0.02, len(u))
     t = np.arange(len(u)) * DT
     lat, lon = geodetic_from_ned(n, e, 63.4, 10.3)
     alt = np.zeros_like(lat)
-    return Recording("log.csv", "csv", gnss=Stream(t, {"lat_deg": lat, "lon_deg": lon, "alt_m": alt}),
+    return Recording(name, "csv", gnss=Stream(t, {"lat_deg": lat, "lon_deg": lon, "alt_m": alt}),
                      heading=Stream(t, {"psi_rad": psi + np.radians(offset_deg)}),
                      pwm=Stream(t, {"left_us": np.full(len(t), 1500.0), "right_us": np.full(len(t), 1500.0)}))
 
@@ -42,6 +42,25 @@ def test_astern_running_and_gentle_turns_give_the_offset(blueboat):
     cal = kinematic_calibration(log, blueboat)
     assert cal.heading_bias_deg == pytest.approx(7.0, abs=1.0)
     assert cal.sigma_deg < 2.0 and cal.seconds > 20
+
+
+def test_a_log_whose_legs_point_one_way_is_read_with_the_other_logs_drifts(blueboat):
+    """A 0.25 m/s current across the track: three logs with legs on three headings fit it beside their
+    offsets; a fourth, straight one way only, would take the current's crab for a compass offset
+    (about 11° at 1.2 m/s), and read with the others' drifts gets its own offset back."""
+    from twin.fit.calibrate import kinematic_calibrations
+
+    drift = (0.06, -0.24)
+    turning = [(15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0)]
+    logs = [_log(turning, off, seed=i, drift=drift, name=f"log{i}.csv") for i, off in enumerate((3.0, -2.0, 4.0))]
+    one_way = _log([(20, 1.2, 0.0), (3, 0.0, 0.0), (20, 1.2, 0.0)], -1.9, seed=5, drift=drift, name="log3.csv")
+    alone = kinematic_calibration(one_way, blueboat)
+    assert alone.drift_ned_m_s is None and abs(alone.heading_bias_deg - (-1.9)) > 5.0
+    cals = kinematic_calibrations(logs + [one_way], blueboat)
+    assert [c.heading_bias_deg for c in cals[:3]] == pytest.approx([3.0, -2.0, 4.0], abs=0.7)
+    assert cals[3].heading_bias_deg == pytest.approx(-1.9, abs=0.7) and cals[3].drift_from_logs == 3
+    assert cals[3].drift_ned_m_s == pytest.approx(drift, abs=0.03) and "3 other logs'" in cals[3].text()
+    assert kinematic_calibrations(logs[:1] + [one_way], blueboat)[1] == alone  # one other drift: nothing borrowed
 
 
 def test_no_straight_running_no_offset(blueboat):

@@ -276,10 +276,9 @@ def _inert_constant_wind(diagnosis, logs: set[str]) -> None:
 # ---------------------------------------------------------------- pieces
 
 def _calibrated(recordings: list[Recording], prior: Vessel):
-    from ..fit.calibrate import kinematic_calibration, with_log_calibrations
+    from ..fit.calibrate import kinematic_calibrations, with_log_calibrations
 
-    compiled = compile_vessel(prior)
-    calibrations = [kinematic_calibration(r, compiled) for r in recordings]
+    calibrations = kinematic_calibrations(recordings, compile_vessel(prior))
     return with_log_calibrations(prior, calibrations), calibrations
 
 

@@ -91,11 +91,13 @@ class LogCalibration:
     seconds: float
     drift_ned_m_s: tuple[float, float] | None
     note: str = ""
+    drift_from_logs: int = 0  # the drift is the mean of this many other logs' own (kinematic_calibrations)
 
     def to_dict(self) -> dict:
         return {"log": self.log, "heading_bias_deg": self.heading_bias_deg, "sigma_deg": self.sigma_deg,
                 "stretches": self.stretches, "seconds": round(self.seconds, 1),
-                "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note}
+                "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note,
+                **({"drift_from_logs": self.drift_from_logs} if self.drift_from_logs else {})}
 
     def __repr__(self) -> str:
         return f"LogCalibration({self.text()})"
@@ -104,7 +106,9 @@ class LogCalibration:
         if self.heading_bias_deg is None:
             return f"{self.log}: compass offset not applied ({self.note})"
         drift = "" if self.drift_ned_m_s is None else \
-            f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s"
+            f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s" + \
+            (f" (the mean of {self.drift_from_logs} other logs': its own legs point one way)"
+             if self.drift_from_logs else "")
         return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
                 f"{self.stretches} straight stretches ({self.seconds:.0f} s under way){drift}")
 
@@ -139,9 +143,28 @@ def _ground_velocity(prep: Prepared, sl: slice) -> tuple[np.ndarray, np.ndarray]
     return np.column_stack([c * u - s * v, s * u + c * v]), psi
 
 
-def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) -> LogCalibration:
+def kinematic_calibrations(recordings: list[Recording], compiled: CompiledVessel, **limits) -> list[LogCalibration]:
+    """Each log's own `kinematic_calibration`; a log whose straight legs point too few ways to tell
+    a drift from an offset is then read with the drifts that at least two other logs of the set
+    fitted on their own legs (logs analysed together mostly share their water, and where they do
+    not, the spread of those drifts says so and the offset is not applied), instead of with none:
+    a 0.25 m/s current across a boat at 1 m/s is a 14° compass offset to a log without a drift."""
+    first = [kinematic_calibration(r, compiled, **limits) for r in recordings]
+    drifts = [c.drift_ned_m_s for c in first if c.drift_ned_m_s is not None]
+    if len(drifts) < 2:
+        return first
+    def others(c: LogCalibration) -> list[tuple[float, float]]:
+        return [o.drift_ned_m_s for o in first if o is not c and o.drift_ned_m_s is not None]
+
+    return [kinematic_calibration(r, compiled, borrowed=others(c), **limits)
+            if c.drift_ned_m_s is None and c.seconds >= MIN_STRAIGHT_S else c for r, c in zip(recordings, first)]
+
+
+def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(), **limits) -> LogCalibration:
     """The log's compass offset relative to the vessel's common heading calibration (any per-log
-    entry the vessel already holds for this log is set aside first), see LogCalibration."""
+    entry the vessel already holds for this log is set aside first), see LogCalibration. borrowed:
+    other logs' drifts (NED m/s), at least two, taken where this log's legs cannot fit one: the
+    offset read with each in turn, their mean, and their spread added to σ."""
     from scipy.optimize import least_squares
 
     from ..physics.sensors import log_name
@@ -170,6 +193,9 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) ->
     with_drift = spread >= DRIFT_HEADING_SPREAD_DEG
     # the sideslip of gentle turns is told from the offset only where the yaw rate varies enough
     with_slip = len(stretches) >= 2 and float(np.std(yaw)) >= SLIP_YAW_SPREAD_RAD_S
+    if not with_drift and len(borrowed) >= 2:
+        return _with_borrowed(name, vel, psi, yaw if with_slip else 0.0 * yaw, which, len(stretches), seconds,
+                              borrowed, spread)
 
     def across(x):
         """Velocity across the true heading ψ_logged − δ, less the sideslip a hull takes in a gentle
@@ -196,6 +222,41 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, **limits) ->
                               f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "
                               f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ)")
     return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note)
+
+
+def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: float, borrowed, spread: float
+                   ) -> LogCalibration:
+    """The offset across the true heading (with the sideslip of gentle turns where `yaw` varies, as
+    kinematic_calibration fits it) for each borrowed drift held in turn (kinematic_calibrations)."""
+    from scipy.optimize import least_squares
+
+    offsets, sigmas = [], []
+    for cn, ce in borrowed:
+        over = vel - np.array([cn, ce])
+        speed = np.hypot(*over.T)
+
+        def across(x, over=over, speed=speed):
+            true = psi - x[0]
+            return -over[:, 0] * np.sin(true) + over[:, 1] * np.cos(true) - x[1] * yaw * speed
+
+        fit = least_squares(across, np.zeros(2), loss="soft_l1", f_scale=0.05)
+        delta = float(fit.x[0])
+        crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1]]) / speed, -1.0, 1.0))
+        per_piece = -np.array([np.average(crab[which == i], weights=speed[which == i]) for i in range(which.max() + 1)])
+        offsets.append(np.degrees(delta))
+        sigmas.append(np.degrees(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1
+                      else float("nan"))
+    offset_deg = float(np.mean(offsets))
+    sigma_deg = float(np.sqrt(np.mean(np.square(sigmas)) + np.var(offsets, ddof=1)))
+    drift = tuple(float(x) for x in np.mean(np.asarray(borrowed, float), axis=0))
+    note = (f"straight legs within {spread:.0f}° of each other: read with the drifts of {len(borrowed)} other logs "
+            f"(offsets {min(offsets):+.1f}° to {max(offsets):+.1f}°)")
+    if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):
+        return LogCalibration(name, None, sigma_deg, stretches, seconds, drift,
+                              f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "
+                              f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ); {note}",
+                              len(borrowed))
+    return LogCalibration(name, offset_deg, sigma_deg, stretches, seconds, drift, note, len(borrowed))
 
 
 def _heading_spread_deg(angles_rad: np.ndarray) -> float:

@@ -11,6 +11,9 @@ What the recording's clock means for the thrusters (vessel.thrusters, vessel.sen
 the thrust at recording time t answers the PWM logged at t − delay_s + pwm_clock_offset_s
 (a late-stamped PWM log makes the thrust seem to come first), decayed by t and, for thrusters
 that follow the supply voltage, scaled by the battery voltage logged at t (Prepared.supply_v).
+The engine holds a command over its step: the step's mean of the input so held, so a shift that
+is not a whole number of steps mixes the two logged values around it by the share of the step
+each covers, and a fitted delay moves the cost however little it changes.
 
 The recorded inputs are the prepared recording's two input channels (`Prepared.pwm`) of its
 `input_kind`: PWM for thrusters, or a propeller-and-rudder ship's (n rps, δ rad), which

@@ -36,7 +36,7 @@ from ..effects.coefficients import fit_groups as groups_of
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
-from ..fit.calibrate import LogCalibration, kinematic_calibration, prepare_for, rate_windows, with_log_calibrations
+from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
 from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
@@ -79,8 +79,7 @@ def prepared(recordings: list[Recording], vessel: Vessel) -> list[Prepared]:
 
 def calibrate(recordings: list[Recording], vessel: Vessel) -> tuple[Vessel, list[LogCalibration]]:
     """Each log's compass offset from its kinematics, put into the vessel's per-log heading biases."""
-    compiled = compile_vessel(vessel)
-    calibrations = [kinematic_calibration(r, compiled) for r in recordings]
+    calibrations = kinematic_calibrations(recordings, compile_vessel(vessel))
     return with_log_calibrations(vessel, calibrations), calibrations
 
 
