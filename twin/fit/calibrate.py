@@ -81,7 +81,8 @@ class LogCalibration:
     spread of the offsets of 2-s pieces of straight running (optimistic where one long stretch
     gives all the pieces: what that stretch shares is not in it). Where straight legs point in different directions, a
     ground drift (current, wind leeway; NED m/s) is fitted with it so that the two are not
-    confused; it is reported, not applied (it is physics, the twin's business). None where the
+    confused; where they point one way, other logs' drifts may be taken (kinematic_calibrations). The
+    drift is reported, not applied (it is physics, the twin's business). None where the
     log has too little straight running (why: `note`)."""
 
     log: str
@@ -212,8 +213,7 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     drift_now = np.r_[fit.x[2:4]] if with_drift else np.zeros(2)
     speed = np.hypot(*(vel - drift_now).T)
     crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1:]]) / speed, -1.0, 1.0))
-    per_piece = -np.array([np.average(crab[which == i], weights=speed[which == i]) for i in range(which.max() + 1)])
-    sigma = float(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1 else float("nan")
+    sigma = _piece_sigma(crab, speed, which)
     drift = (float(fit.x[2]), float(fit.x[3])) if with_drift else None
     note = "" if with_drift else f"straight legs within {spread:.0f}° of each other: no drift fitted"
     offset_deg, sigma_deg = float(np.degrees(delta)), float(np.degrees(sigma))
@@ -242,10 +242,8 @@ def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: flo
         fit = least_squares(across, np.zeros(2), loss="soft_l1", f_scale=0.05)
         delta = float(fit.x[0])
         crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1]]) / speed, -1.0, 1.0))
-        per_piece = -np.array([np.average(crab[which == i], weights=speed[which == i]) for i in range(which.max() + 1)])
         offsets.append(np.degrees(delta))
-        sigmas.append(np.degrees(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1
-                      else float("nan"))
+        sigmas.append(np.degrees(_piece_sigma(crab, speed, which)))
     offset_deg = float(np.mean(offsets))
     sigma_deg = float(np.sqrt(np.mean(np.square(sigmas)) + np.var(offsets, ddof=1)))
     drift = tuple(float(x) for x in np.mean(np.asarray(borrowed, float), axis=0))
@@ -257,6 +255,13 @@ def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: flo
                               f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ); {note}",
                               len(borrowed))
     return LogCalibration(name, offset_deg, sigma_deg, stretches, seconds, drift, note, len(borrowed))
+
+
+def _piece_sigma(crab_rad: np.ndarray, speed: np.ndarray, which: np.ndarray) -> float:
+    """The offset's 1-σ (rad): the spread of the speed-weighted crab angles of the pieces of straight
+    running, each piece giving the offset once (NaN from one piece)."""
+    per_piece = [np.average(crab_rad[which == i], weights=speed[which == i]) for i in range(which.max() + 1)]
+    return float(np.std(per_piece, ddof=1) / np.sqrt(len(per_piece))) if len(per_piece) > 1 else float("nan")
 
 
 def _heading_spread_deg(angles_rad: np.ndarray) -> float:
