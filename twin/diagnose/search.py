@@ -137,6 +137,7 @@ class Trial:
     candidate: Candidate
     fits: list[Fitted]
     evidence: Evidence
+    costs: "_Costs | None" = field(default=None, repr=False)  # the fits' held-out costs the evidence judged
 
     @property
     def name(self) -> str:
@@ -448,7 +449,7 @@ class Search:
             free = [i for i, p in enumerate(cand.params) if p.name not in unpinned]
             cand = replace(cand, params=tuple(cand.params[i] for i in free),
                            starts=tuple(tuple(s[i] for i in free) for s in cand.starts))
-        return Trial(cand, fits, replace(evidence, at_edge=at_unphysical_edge(screened.candidate, fits)))
+        return Trial(cand, fits, replace(evidence, at_edge=at_unphysical_edge(screened.candidate, fits)), cand_costs)
 
     def round(self, bases: list[Vessel], base_costs: _Costs, skip: set[str]) -> list[Trial]:
         """Every remaining candidate screened, the best few fitted on every fold and judged,
@@ -579,11 +580,14 @@ class Search:
         """Candidates that did at least half as well: told apart from the winner only when the
         blocks prefer the winner clearly."""
         out = []
-        win = self.held_costs([f.vessel for f in winner.fits])
+        def costs(t: Trial) -> _Costs:
+            return t.costs if t.costs is not None else self.held_costs([f.vessel for f in t.fits])
+
+        win = costs(winner)
         for t in trials:
             if t is winner or t.evidence.rel < 0.5 * winner.evidence.rel:
                 continue
-            e = self.evidence(self.held_costs([f.vessel for f in t.fits]), win)
+            e = self.evidence(costs(t), win)
             z = e.z  # positive: the winner is better (the rival is the base here)
             out.append({"name": t.name, "z": round(z, 2), "separable": bool(z > Z_SEPARABLE),
                         "held_out_gain": round(t.evidence.rel, 4),
