@@ -18,7 +18,7 @@ from twin.errors import TwinError
 from twin.synth.dataset import PROFILES, generate
 from twin.effects import EFFECTS, as_effect
 from twin.fit.objective import Measurements
-from twin.fit.windows import ModelCache, make_windows
+from twin.fit.windows import ModelCache, Window, make_windows
 from twin.physics.sensors import log_name
 from twin.formats import write_recording
 from twin.fit.calibrate import prepare_for
@@ -197,6 +197,35 @@ def test_a_delay_within_an_engine_step_moves_the_thrust_by_the_share_of_the_step
     assert np.abs(late[0.02] - late[0.0]).max() > 1.0  # the window's PWM changes: the delay moves thrust
 
 
+def test_a_lags_and_a_gains_trials_share_the_commands_and_each_lag_starts_from_its_own_history(prior):
+    """The commands are the same for every lag, gain and advance loss (they act in the engine), so
+    the cache computes them once; the lag's state at a window's start is that lag's filter of the
+    commands since the segment began, whichever lag was asked first; a delay is not shared."""
+    from dataclasses import replace
+    from scipy.signal import lfilter
+    from twin.fit.windows import thrust_commands
+
+    ds = generate(prior, n_segments=1, seed=4, noise=PROFILES["none"], segment_s=(40, 41), manoeuvres=MIXED)
+    prep = prepare_for(ds.recording, compile_vessel(prior), **PREP)
+    w = make_windows([prep], 10.0, 10.0, min_length_s=10.0)[2]
+    cache = ModelCache(0.05)
+
+    def boat(**kw):
+        return replace(prior, thrusters=replace(prior.thrusters, **kw))
+
+    got = {lag: cache.inputs(boat(lag_s=lag, gain_right=0.9), prep, w, 0.05, True) for lag in (0.2, 0.6)}
+    assert got[0.2][0] is got[0.6][0] and cache.inputs(prior, prep, w, 0.05, False)[0] is got[0.2][0]
+    assert cache.inputs(boat(delay_s=0.1), prep, w, 0.05, False)[0] is not got[0.2][0]
+    seg = prep.segments[int(prep.segment[w.start])]
+    history = thrust_commands(prior, prep, Window(0, seg.start, w.start - seg.start), 0.05)
+    assert len(history) == 2 * (w.start - seg.start) > 100
+    for lag, (_, act0) in got.items():
+        a = np.exp(-0.05 / lag)
+        want = lfilter([1 - a], [1, -a], history, axis=0, zi=(a * history[0])[None, :])[0][-1]
+        np.testing.assert_allclose(act0, want, rtol=1e-12)
+    assert np.abs(got[0.2][1] - got[0.6][1]).max() > 0.5  # the two lags do start apart
+
+
 def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):
     ds = generate(prior, effects=["current=0.2,120"], n_segments=6, seed=5, noise=PROFILES["realistic"])
     d = diagnose([ds.recording], prior)
@@ -219,7 +248,8 @@ def test_diagnose_command_writes_everything(tmp_path, prior):
     out = {k: tmp_path / f"d.{k}" for k in ("json", "html", "rrd")}
     amended = tmp_path / "amended.json"
     cmd = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish", "--json",
-           str(out["json"]), "--report", str(out["html"]), "--rrd", str(out["rrd"]), "--write-model", str(amended)]
+           str(out["json"]), "--report", str(out["html"]), "--rrd", str(out["rrd"]), "--write-model", str(amended),
+           "--effects", "thruster_asymmetry,thruster_gain_left,thruster_gain_right,thrust_gain,current"]  # its rivals
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     d = json.loads(out["json"].read_text())

@@ -247,3 +247,21 @@ def test_a_vessel_with_a_site_on_a_welded_part_is_left_whole():
     make_lean(spec, RigidBody(11.0, 0.01, 0.0, 0.5))
     model = spec.compile()
     assert model.nbody == 2 and model.ngeom == 0 and model.body_mass[1] == pytest.approx(11.0)
+
+
+def test_a_later_process_loads_the_compiled_callback_from_the_disk_cache_and_steps_alike():
+    """Compiling the callback takes seconds, every `twin` command needs it: the second process
+    finds the first one's code (numba's cache) and steps the twin to the same state."""
+    import subprocess
+    import sys
+
+    code = ("import mujoco, numpy as np, twin.vessel as v; from twin.engine import native; "
+            "from twin.engine.mjcf import compile_vessel; f = native.passive_cfunc(); "
+            "m = native.with_native_params(compile_vessel(v.load('yellowfish'))); d = mujoco.MjData(m); "
+            "d.qvel[:] = [1.0, 0.2, 0.3]; d.ctrl[:2] = [30.0, 10.0]; native.install(); "
+            "mujoco.mj_step(m, d, nstep=500); print(f.cache_hits, repr(float(np.sum(d.qpos))))")
+    first, second = (subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+                     for _ in range(2))
+    assert first.returncode == 0 and second.returncode == 0, first.stderr + second.stderr
+    hits, state = second.stdout.split()
+    assert hits == "1" and state == first.stdout.split()[1] and float(state) != 0.0

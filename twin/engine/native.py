@@ -27,17 +27,21 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import hashlib
 import re
 from functools import lru_cache
 from pathlib import Path
 
 import mujoco
 import numpy as np
+from llvmlite import binding as llvm
+from llvmlite import ir
 from numba import carray, cfunc, njit, types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..errors import TwinError
-from ..physics import fujiwara, mmg
+from ..physics import environment, fujiwara, mmg
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
@@ -323,6 +327,20 @@ def _pointer_intrinsic(dtype):
     return to_pointer
 
 
+@intrinsic
+def _fwd_actuation(typingctx, m, d):
+    """mj_fwdActuation(m, d), linked by name: the symbol is resolved when the code is loaded
+    (`_libmujoco` makes the library's symbols visible), so no address of this process is baked into
+    the code and the compiled callback can be cached on disk (an address would differ per process)."""
+    def codegen(context, builder, signature, args):
+        vp = ir.IntType(8).as_pointer()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [vp, vp]),
+                                            "mj_fwdActuation")
+        builder.call(fn, list(args))
+        return context.get_dummy_value()
+    return types.void(types.voidptr, types.voidptr), codegen
+
+
 _f64_ptr = _pointer_intrinsic(types.float64)
 _i64_ptr = _pointer_intrinsic(types.int64)
 _i32_ptr = _pointer_intrinsic(types.int32)
@@ -443,15 +461,34 @@ def _libmujoco() -> ctypes.CDLL:
     lib = ctypes.CDLL(str(path))
     if lib.mj_version() != mujoco.mj_version():
         raise TwinError(f"native callback: {path.name} is not the library the bindings use")
+    llvm.load_library_permanently(str(path))  # its symbols for the compiled code (_fwd_actuation)
     return lib
+
+
+def _source_key() -> int:
+    """A positive integer that changes with the source of every module compiled into the callback
+    and with the MuJoCo version: part of the disk cache's key."""
+    digest = hashlib.sha256(mujoco.__version__.encode())
+    for module in (__file__, mmg.__file__, fujiwara.__file__, environment.__file__):
+        digest.update(Path(module).read_bytes())
+    return int(digest.hexdigest()[:15], 16) | 1
+
+
+@njit(inline="always")
+def _params(mb, o_nnum, o_nsize, o_ndata, o_nadr, n, magic0, magic1):
+    """(is a twin model, its parameters): checks count, size and magic before trusting the data
+    (module level, not a closure: the cache keys a closure by what it closes over)."""
+    if _field(mb, o_nnum) < 1 or carray(_i32_ptr(_field(mb, o_nsize)), 1)[0] < n:
+        return False, carray(_f64_ptr(_field(mb, o_ndata)), 0)
+    p = carray(_f64_ptr(_field(mb, o_ndata) + 8 * carray(_i32_ptr(_field(mb, o_nadr)), 1)[0]), n)
+    return p[0] == magic0 and p[1] == magic1 and p[2] == n, p
 
 
 def _build_callback():
     """Compile the cfunc with the struct offsets baked in as constants."""
     off = offsets()
-    fwd_actuation = _libmujoco().mj_fwdActuation
-    fwd_actuation.argtypes = (ctypes.c_void_p, ctypes.c_void_p)
-    fwd_actuation.restype = None
+    _libmujoco()
+    source = _source_key()
     o_nq, o_nv, o_nnum = off["m.nq"], off["m.nv"], off["m.nnumeric"]
     o_nadr, o_nsize, o_ndata = off["m.numeric_adr"], off["m.numeric_size"], off["m.numeric_data"]
     o_qpos, o_qvel, o_pas, o_act = off["d.qpos"], off["d.qvel"], off["d.qfrc_passive"], off["d.qfrc_actuator"]
@@ -459,18 +496,14 @@ def _build_callback():
     o_q, o_d, n, magic0, magic1 = LAYOUT["qpos_adr"].start, LAYOUT["dof_adr"].start, NPARAM, *MAGIC
     o_flags, o_adv = LAYOUT["flags"].start, LAYOUT["advance"].start
 
-    @njit(inline="always")
-    def params(mb):
-        """(is a twin model, its parameters): checks count, size and magic before trusting the data."""
-        if _field(mb, o_nnum) < 1 or carray(_i32_ptr(_field(mb, o_nsize)), 1)[0] < n:
-            return False, carray(_f64_ptr(_field(mb, o_ndata)), 0)
-        p = carray(_f64_ptr(_field(mb, o_ndata) + 8 * carray(_i32_ptr(_field(mb, o_nadr)), 1)[0]), n)
-        return p[0] == magic0 and p[1] == magic1 and p[2] == n, p
-
-    @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
+    # cached on disk: numba keys a closure's cache by the values it closes over, so other offsets
+    # (another MuJoCo) or other physics sources (`source`; numba itself sees only this file's date)
+    # compile afresh
     def passive(m, d):
+        if source == 0:  # never: `source` is closed over to key the cache, not to be used
+            return
         mb, db = _address(m), _address(d)
-        ok, p = params(mb)
+        ok, p = _params(mb, o_nnum, o_nsize, o_ndata, o_nadr, n, magic0, magic1)
         if not ok:
             return
         nq, nv = _field(mb, o_nq), _field(mb, o_nv)
@@ -482,7 +515,7 @@ def _build_callback():
         psi = qpos[qpsi]
         c, s = np.cos(psi), np.sin(psi)
         u, v = c * qvel[dx] + s * qvel[dy], -s * qvel[dx] + c * qvel[dy]
-        fwd_actuation(m, d)  # actuation comes after passive forces in MuJoCo's pipeline
+        _fwd_actuation(m, d)  # actuation comes after passive forces in MuJoCo's pipeline
         fa = carray(_f64_ptr(_field(db, o_act)), nv)
         t0, t1 = c * fa[dx] + s * fa[dy], -s * fa[dx] + c * fa[dy]
         n_rps, delta, wn, we = 0.0, 0.0, 0.0, 0.0
@@ -511,14 +544,19 @@ def _build_callback():
         qfrc[dy] += s * x0 + c * x1
         qfrc[dpsi] += x2
 
-    return passive
+    signature = types.void(types.voidptr, types.voidptr)
+    try:
+        return cfunc(signature, nopython=True, cache=True)(passive)
+    except RuntimeError:  # no cache directory numba can write to: compiled for this process alone
+        return cfunc(signature, nopython=True)(passive)
 
 
 @lru_cache(maxsize=1)
 def passive_cfunc():
     """The compiled callback (numba CFunc; `.ctypes` is the function pointer MuJoCo takes).
 
-    Compiled on first use (about a second), then cached for the process.
+    Compiled on first use (about 5 s), cached on disk beside this module by numba (later processes
+    load it in well under a second) and for the process.
     """
     return _build_callback()
 

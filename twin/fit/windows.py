@@ -37,6 +37,7 @@ import numpy as np
 from ..engine import batch, native
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..errors import TwinError
+from ..physics.thrusters import ThrusterModel
 from ..prepare import Prepared
 from ..prepare.prepared import hold
 from ..vessel import Vessel
@@ -94,24 +95,32 @@ class ModelCache:
     def __init__(self, timestep_s: float | None = None) -> None:
         self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
         self.timestep_s = timestep_s
-        self._inputs: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = {}
+        self._inputs: dict[tuple, np.ndarray] = {}
+        self._lag_starts: dict[tuple, np.ndarray] = {}
 
     def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool):
         """(thrust commands, lag state at the start) of a window: the same for every candidate
         that leaves the thrusters and the PWM clock alone, so computed once. (A propeller and
         rudder's commands are its controls (n, δ).)"""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
-        # the recording (source, grid) and the window identify it
+        # the recording (source, grid) and the window identify it; nor do the commands depend on the
+        # gains, lag or advance loss (they act in the engine), so a lag's or a gain's trials share them
+        thrusters = command_thrusters(vessel.thrusters)
         key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
-               vessel.thrusters, vessel.sensors.pwm_clock_offset_s, lagged)
-        hit = self._inputs.get(key)
+               thrusters, vessel.sensors.pwm_clock_offset_s)
+        cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
+        if not lagged:
+            return cmd, None
+        return cmd, self._held(self._lag_starts, key + (vessel.thrusters.lag_s,),
+                               lambda: lagged_thrust_at_start(vessel, prep, window, timestep_s))
+
+    @staticmethod
+    def _held(store: dict, key: tuple, make) -> np.ndarray:
+        hit = store.get(key)
         if hit is None:
-            cmd = thrust_commands(vessel, prep, window, timestep_s)
-            act0 = lagged_thrust_at_start(vessel, prep, window, timestep_s) if lagged else None
-            hit = (cmd, act0)
-            if len(self._inputs) >= 20000:
-                self._inputs.pop(next(iter(self._inputs)))
-            self._inputs[key] = hit
+            hit = store[key] = make()
+            if len(store) > 20000:
+                store.pop(next(iter(store)))
         return hit
 
     def compiled(self, vessel: Vessel) -> CompiledVessel:
@@ -155,26 +164,34 @@ def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: 
         seg = prep.segments[int(prep.segment[window.start])]
         sub = _substeps(prep.settings.grid_dt, timestep_s)
         k = (window.start - seg.start) * sub
-        return _ramped_segment(vessel, prep, seg, window.rec, timestep_s)[k:k + window.n * sub]
+        return _segment_commands(vessel, prep, seg, window.rec, timestep_s)[k:k + window.n * sub]
     return _commands(vessel, prep, window, timestep_s)
 
 
-_RAMPED: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # a segment's ramped commands, by recording and ramp
+def command_thrusters(thrusters: ThrusterModel) -> ThrusterModel:
+    """The thrusters as far as their commands go: the gains, the lag and the advance loss act
+    later, in the engine (ThrusterModel.command), so they are left at neutral values."""
+    return replace(thrusters, lag_s=0.0, gain_left=1.0, gain_right=1.0, advance_loss=0.0)
 
 
-def _ramped_segment(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s: float) -> np.ndarray:
-    """The thrust ramp's commands over a whole segment (each engine step's mean), computed once per
-    recording, segment and thruster description: every window of the segment slices them. The key
+_SEGMENTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # a segment's commands, by recording and thrusters
+
+
+def _segment_commands(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s: float) -> np.ndarray:
+    """The commands over a whole segment (each engine step's mean; through the ramp where there is
+    one), computed once per recording, segment and command_thrusters: a ramp's windows, and every
+    lag's state at a window's start (its history from the segment's start), slice them. The key
     holds the id of the recording's PWM array and the entry the array itself, so the id cannot be
     reused by another recording while the entry lives."""
-    key = (id(prep.pwm), seg.start, vessel.thrusters, vessel.sensors.pwm_clock_offset_s, timestep_s)
-    hit = _RAMPED.get(key)
+    key = (id(prep.pwm), seg.start, command_thrusters(vessel.thrusters), vessel.sensors.pwm_clock_offset_s,
+           timestep_s)
+    hit = _SEGMENTS.get(key)
     if hit is None:
         since = _commands(vessel, prep, Window(rec, seg.start, seg.stop - seg.start), timestep_s)
-        hit = (prep.pwm, vessel.thrusters.slewed(since, timestep_s)[0])
-        if len(_RAMPED) >= 64:
-            _RAMPED.pop(next(iter(_RAMPED)))
-        _RAMPED[key] = hit
+        hit = (prep.pwm, vessel.thrusters.slewed(since, timestep_s)[0] if vessel.thrusters.ramping else since)
+        if len(_SEGMENTS) >= 64:
+            _SEGMENTS.pop(next(iter(_SEGMENTS)))
+        _SEGMENTS[key] = hit
     return hit[1]
 
 
@@ -254,7 +271,10 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
     if history.n == 0:
         return np.clip(thrust_commands(vessel, prep, Window(window.rec, window.start, 1), timestep_s)[0],
                        *vessel.thrusters.bounds())
-    cmd = np.clip(thrust_commands(vessel, prep, history, timestep_s), *vessel.thrusters.bounds())
+    # the history's commands are the head of the segment's: the same look-ups from the same start
+    sub = _substeps(prep.settings.grid_dt, timestep_s)
+    cmd = np.clip(_segment_commands(vessel, prep, seg, window.rec, timestep_s)[: history.n * sub],
+                  *vessel.thrusters.bounds())
     from scipy.signal import lfilter
 
     a = np.exp(-timestep_s / vessel.thrusters.lag_s)
