@@ -484,12 +484,16 @@ def _smoothed(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window],
 def _past(preps: list[Prepared], windows: list[Window], half: int) -> np.ndarray:
     """(W, half, 3) measured ν of the `half` samples before each window (NaN outside its segment)."""
     out = np.full((len(windows), half, 3), np.nan)
-    for j, w in enumerate(windows):
-        p = preps[w.rec]
-        first = p.segments[int(p.segment[w.start])].start
-        idx = np.arange(w.start - half, w.start)
-        keep = idx >= first
-        out[j, keep] = np.column_stack([p.u[idx[keep]], p.v[idx[keep]], p.r[idx[keep]]])
+    recs = np.array([w.rec for w in windows])
+    starts = np.array([w.start for w in windows])
+    for rec in np.unique(recs):  # the windows of one recording at once
+        p, rows = preps[rec], np.flatnonzero(recs == rec)
+        first = np.array([s.start for s in p.segments])[p.segment[starts[rows]].astype(int)]
+        idx = starts[rows, None] + np.arange(-half, 0)
+        keep = idx >= first[:, None]
+        idx = np.where(keep, idx, 0)
+        past = np.stack([p.u[idx], p.v[idx], p.r[idx]], axis=-1)
+        out[rows] = np.where(keep[..., None], past, np.nan)
     return out
 
 
