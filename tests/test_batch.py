@@ -75,6 +75,20 @@ def test_batch_is_bit_identical_to_one_by_one(compiled, nthread):
     assert not np.array_equal(states[0], states[3])  # different parameters, different twins
 
 
+def test_rollouts_share_their_pool_and_data_and_stay_bit_identical(compiled):
+    """The kept MjData of a rollout in which a twin blew up (MuJoCo reset it) serve the next one."""
+    bad = _twins(compiled, bad=True)
+    states0, controls = _inputs(bad, seed=1)
+    assert [i for i, _ in batch.rollout(bad, states0, controls, nthread=2)[1]] == [2]
+    kept = batch._pool(bad[0], 2)
+    models = _twins(compiled)
+    states0, controls = _inputs(models, seed=2)
+    states, diverged = batch.rollout(models, states0, controls, nthread=2)
+    assert diverged == [] and batch._pool(models[0], 2)[1] is kept[1]
+    for i, m in enumerate(models):
+        assert np.array_equal(states[i], _one_by_one(m, states0[i], controls[i])), i
+
+
 def test_a_diverging_twin_is_reported_and_the_others_kept(compiled):
     models = _twins(compiled, bad=True)
     states0, controls = _inputs(models, seed=1)

@@ -25,6 +25,13 @@ is checked again: put back to the prior, does the fit get significantly worse (z
 blocks)? An effect that no longer earns its place is dropped (backward elimination): a term that
 compensated for a wrong form gives way once the right form is in.
 
+Which candidates a round judges: each remaining one is first screened (its scan, or one
+Gauss-Newton step, on at most SCREEN_WINDOWS training windows) and ranked by the training cost
+it reaches; the first FULL_FITS, and each further one up to the NEAR_MAX-th whose screening gain
+is at least NEAR_TIE of the leader's (_shortlist), are fitted on every fold and judged as above. A
+one-step look cannot order a crowd of near-equal stand-ins, so a crowd is judged whole; a clear
+leader keeps the round short. A library of at most JUDGED_WHOLE candidates is judged whole.
+
 When nothing earns its place but the misfit stays well above the noise, the diagnosis says that
 the twin's form is off (doctor.py: where, how much, what it follows) instead of naming small
 compensating effects.
