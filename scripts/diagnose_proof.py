@@ -332,9 +332,7 @@ def score_world(case: str, seed: int, truth: dict, d: dict, seconds: float) -> d
     return {"case": case, "seed": seed, "description": truth.get("description", ""), "rows": rows, "named": named,
             "spurious": spurious, "fit_before": d["fit_before"], "fit_after": d["fit_after"], "seconds": seconds,
             "unsettled": d["answer"]["unsettled"], "form": d["answer"]["form"],
-            "calibrations": [c for c in d.get("calibrations", []) if c.get("heading_bias_deg") is not None],
-            # per round, the candidates judged only as near ties of the screening leader (search._shortlist)
-            "near_ties": [r.get("near_ties", []) for r in d.get("rounds", [])]}
+            "calibrations": [c for c in d.get("calibrations", []) if c.get("heading_bias_deg") is not None]}
 
 
 def _calibrated_ok(truth_effect: dict, d: dict) -> bool:

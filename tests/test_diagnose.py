@@ -525,24 +525,3 @@ def test_the_report_says_the_form_is_off_where_an_edge_fit_was_refused():
     form = [f for f in a["form"] if f.startswith("added_mass")]
     assert len(form) == 1 and "Nrdot_scale 20" in form[0] and "20 %" in form[0]
     assert not any("added_mass may be missing" in u for u in a["unsettled"])
-
-
-def test_near_ties_of_the_screening_leader_are_judged_beyond_the_first_three():
-    """Seed 34's yaw drag: six hull terms with screening gains 0.09-0.11, the truth's fifth; each
-    within NEAR_TIE of the best's gain is judged (up to NEAR_MAX), a clear leader's round stays short."""
-    from types import SimpleNamespace
-
-    from twin.diagnose.search import FULL_FITS, NEAR_MAX, _shortlist
-
-    def screened(*costs):
-        return [SimpleNamespace(train_cost=c, candidate=SimpleNamespace(name=f"c{i}")) for i, c in enumerate(costs)]
-
-    crowd = screened(0.89, 0.895, 0.90, 0.905, 0.91, 0.91, 0.92)
-    assert [f.candidate.name for f in _shortlist(crowd)] == ["c0", "c1", "c2", "c3", "c4", "c5"]
-    assert len(_shortlist(crowd)) == NEAR_MAX
-    leader = screened(0.50, 0.85, 0.88, 0.89, 0.90)  # gain 0.5, the rest ≤ 0.15: not near
-    assert len(_shortlist(leader)) == FULL_FITS
-    edge = screened(0.80, 0.82, 0.83, 0.84, 0.85)  # 0.16 ≥ 0.8·0.2 is near, 0.15 is not
-    assert [f.candidate.name for f in _shortlist(edge)] == ["c0", "c1", "c2", "c3"]
-    worse = screened(1.01, 1.02, 1.03, 1.04)  # nothing gains at screening: no extra trials
-    assert len(_shortlist(worse)) == FULL_FITS

@@ -27,10 +27,9 @@ compensated for a wrong form gives way once the right form is in.
 
 Which candidates a round judges: each remaining one is first screened (its scan, or one
 Gauss-Newton step, on at most SCREEN_WINDOWS training windows) and ranked by the training cost
-it reaches; the first FULL_FITS, and each further one up to the NEAR_MAX-th whose screening gain
-is at least NEAR_TIE of the leader's (_shortlist), are fitted on every fold and judged as above. A
-one-step look cannot order a crowd of near-equal stand-ins, so a crowd is judged whole; a clear
-leader keeps the round short. A library of at most JUDGED_WHOLE candidates is judged whole.
+it reaches; the first FULL_FITS are fitted on every fold and judged as above. A library of at
+most JUDGED_WHOLE candidates is judged whole. (Judging also the screening leader's near ties, up
+to the sixth, was tried on fresh seeds 35-36 and not kept: README, Diagnosis, the bullet on seeds 35 and 36.)
 
 When nothing earns its place but the misfit stays well above the noise, the diagnosis says that
 the twin's form is off (doctor.py: where, how much, what it follows) instead of naming small
@@ -86,12 +85,6 @@ AFFECT_SIGMA = 0.5  # a window votes when the candidate moves its residual RMS b
 BLOCK_WINDOWS = 3
 FOLDS = 3
 FULL_FITS = 3  # candidates fitted on every fold per round, after screening
-# beyond FULL_FITS, a candidate whose screening gain (1 − relative training cost) is at least NEAR_TIE
-# of the best's is fitted and judged too, up to the NEAR_MAX-th: a one-step look cannot order a crowd
-# of near-equal stand-ins (seed 34 of the fresh proof: six hull terms within 0.89-0.91 of the base's
-# cost, the truth's fifth); the ratio, not a fixed count, keeps a clear screening leader's round short
-NEAR_TIE = 0.8
-NEAR_MAX = 6
 JUDGED_WHOLE = 8  # a library this short (a propeller-and-rudder ship's: drift and sensors) skips the screening cut
 SCREEN_WINDOWS = 32  # screening sees at most this many training windows, spread over the recording
 # a candidate's own fit sees at most this many (spread): enough to fit two or three numbers; one of
@@ -191,7 +184,6 @@ class Search:
         self.library = {n: c for n, c in library.items() if n not in self.overlapping}
         self.log = log or (lambda msg: None)
         self.evaluations = 0
-        self.near_ties: list[str] = []  # the last round's candidates judged beyond FULL_FITS (_shortlist)
         self.blocks = blocks_of(windows)
         fold = self.blocks % FOLDS
         self.folds = [([w for w, f in zip(windows, fold) if f != k], [w for w, f in zip(windows, fold) if f == k])
@@ -481,8 +473,7 @@ class Search:
         # a one-step look, and it is only worth its risk of passing over an effect when it saves much
         # (a wind of each log's own, offered when several logs are diagnosed, does not lengthen it)
         length = sum(not f.candidate.log_of_param for f in screened)
-        shortlist = screened if length <= JUDGED_WHOLE else _shortlist(screened)
-        self.near_ties = [f.candidate.name for f in shortlist[FULL_FITS:]] if length > JUDGED_WHOLE else []
+        shortlist = screened if length <= JUDGED_WHOLE else screened[:FULL_FITS]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
 
@@ -520,8 +511,7 @@ class Search:
         for _ in range(MAX_EFFECTS):
             superseded = {n for k in kept for n in k.trial.candidate.supersedes}
             trials = self.round(bases, base_costs, {k.trial.name for k in kept} | dropped | superseded)
-            rounds.append({"candidates": [{"name": t.name, **t.evidence.to_dict()} for t in trials],
-                           "near_ties": self.near_ties})
+            rounds.append({"candidates": [{"name": t.name, **t.evidence.to_dict()} for t in trials]})
             winner = next((t for t in trials if t.evidence.earns_its_place()), None)
             if winner is None:
                 break
@@ -729,14 +719,6 @@ def _signed_rank_z(votes: np.ndarray) -> float:
     method = "exact" if len(d) <= 50 else "approx"
     p = float(wilcoxon(d, zero_method="wilcox", alternative="greater", method=method).pvalue)
     return float(norm.isf(min(max(p, 1e-300), 1.0 - 1e-12)))  # finite at both ends (JSON)
-
-
-def _shortlist(screened: list[Fitted]) -> list[Fitted]:
-    """The first FULL_FITS screened candidates (best training cost first), and after them each
-    up to the NEAR_MAX-th whose screening gain is at least NEAR_TIE of the best's."""
-    best_gain = 1.0 - screened[0].train_cost if screened else 0.0
-    near = [f for f in screened[FULL_FITS:NEAR_MAX] if 1.0 - f.train_cost >= NEAR_TIE * best_gain > 0.0]
-    return screened[:FULL_FITS] + near
 
 
 def _spread(windows: list[Window], most: int) -> list[Window]:
