@@ -98,14 +98,16 @@ class ModelCache:
         self._inputs: dict[tuple, np.ndarray] = {}
         self._lag_starts: dict[tuple, np.ndarray] = {}
 
-    def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool):
+    def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool,
+               thrusters: ThrusterModel | None = None):
         """(thrust commands, lag state at the start) of a window: the same for every candidate
         that leaves the thrusters and the PWM clock alone, so computed once. (A propeller and
-        rudder's commands are its controls (n, δ).)"""
+        rudder's commands are its controls (n, δ).) thrusters: command_thrusters(vessel.thrusters),
+        when the caller has it (one vessel's many windows)."""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
         # the recording (source, grid) and the window identify it; nor do the commands depend on the
         # gains, lag or advance loss (they act in the engine), so a lag's or a gain's trials share them
-        thrusters = command_thrusters(vessel.thrusters)
+        thrusters = command_thrusters(vessel.thrusters) if thrusters is None else thrusters
         key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
                thrusters, vessel.sensors.pwm_clock_offset_s)
         cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
@@ -344,10 +346,11 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         h = model.opt.timestep
         data = mujoco.MjData(model)
         model_of_log = _per_log_models(vessel, model, cache) if wind is None else (lambda source, m=model: m)
+        thrusters = command_thrusters(vessel.thrusters)
         for w in windows:
             prep = vpreps[w.rec]
             model = model_of_log(prep.settings.source)
-            cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na))
+            cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na), thrusters)
             steps = _substeps(prep.settings.grid_dt, h) * n_max
             padded = np.zeros((steps, model.nu))
             padded[: len(cmd), :2] = cmd
