@@ -15,7 +15,8 @@ DT = 0.1
 def _log(legs, offset_deg: float, seed: int = 0, drift=(0.0, 0.0), name: str = "log.csv") -> Recording:
     """A kinematic log: legs of (seconds, u m/s, r rad/s) from heading 50°, the boat's sway
     v = 0.2·u·r (a turn's sideslip), the compass reading offset_deg more than the true heading,
-    2 cm of GNSS jitter; the water drifting at drift (NED m/s)."""
+    2 cm of GNSS jitter; the water drifting at drift (NED m/s); the thrusters at 1800 µs (1200 astern)
+    where the boat makes way, at neutral where it lies still (u = 0: drifting with the water)."""
     rng = np.random.default_rng(seed)
     u = np.concatenate([np.full(int(s / DT), a) for s, a, _ in legs])
     r = np.concatenate([np.full(int(s / DT), b) for s, _, b in legs])
@@ -28,7 +29,7 @@ def _log(legs, offset_deg: float, seed: int = 0, drift=(0.0, 0.0), name: str = "
     alt = np.zeros_like(lat)
     return Recording(name, "csv", gnss=Stream(t, {"lat_deg": lat, "lon_deg": lon, "alt_m": alt}),
                      heading=Stream(t, {"psi_rad": psi + np.radians(offset_deg)}),
-                     pwm=Stream(t, {"left_us": np.full(len(t), 1500.0), "right_us": np.full(len(t), 1500.0)}))
+                     pwm=Stream(t, {"left_us": 1500.0 + 300.0 * np.sign(u), "right_us": 1500.0 + 300.0 * np.sign(u)}))
 
 
 @pytest.fixture(scope="module")
@@ -61,6 +62,36 @@ def test_a_log_whose_legs_point_one_way_is_read_with_the_other_logs_drifts(blueb
     assert cals[3].heading_bias_deg == pytest.approx(-1.9, abs=0.7) and cals[3].drift_from_logs == 3
     assert cals[3].drift_ned_m_s == pytest.approx(drift, abs=0.03) and "3 other logs'" in cals[3].text()
     assert kinematic_calibrations(logs[:1] + [one_way], blueboat)[1] == alone  # one other drift: nothing borrowed
+
+
+def test_a_log_under_its_own_wind_is_not_read_with_the_other_logs_drifts(blueboat):
+    """Three logs drift with (0.06, −0.24) m/s and fit it on their legs; a fourth, straight one way and
+    with no compass offset, drifts under a wind of its own outing, (0.30, 0.20) m/s: read with the
+    others' drifts alone it takes the difference's crab for an offset of about −3.4°. Its own drift at
+    rest (a minute idle, the boat moving with its water) reads another offset; the spread keeps it
+    from being applied. Where the water is shared its drift at rest agrees and the offset is read."""
+    from twin.fit.calibrate import REST_SPEED_M_S, kinematic_calibrations, prepare_for, rest_drift, settle_s
+
+    turning = [(15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0)]
+    logs = [_log(turning, off, seed=i, drift=(0.06, -0.24), name=f"log{i}.csv") for i, off in enumerate((3.0, -2.0, 4.0))]
+    legs = [(20, 1.2, 0.0), (60, 0.0, 0.0), (20, 1.2, 0.0)]
+    windy = _log(legs, 0.0, seed=5, drift=(0.30, 0.20), name="log3.csv")
+    assert rest_drift(prepare_for(windy, blueboat), settle_s(blueboat)) == pytest.approx((0.30, 0.20), abs=0.03)
+    cal = kinematic_calibrations(logs + [windy], blueboat)[3]
+    assert cal.heading_bias_deg is None and cal.drift_from_logs == 3 and "its own at rest" in cal.note
+    import re
+    lowest, highest = map(float, re.search(r"offsets ([-+][\d.]+)° to ([-+][\d.]+)°", cal.note).groups())
+    assert lowest == pytest.approx(-3.4, abs=0.5) and highest == pytest.approx(0.0, abs=0.3)  # borrowed, at rest
+    shared = _log(legs, -4.0, seed=6, drift=(0.06, -0.24), name="log4.csv")
+    cal = kinematic_calibrations(logs + [shared], blueboat)[3]
+    assert cal.heading_bias_deg == pytest.approx(-4.0, abs=0.7) and "its own at rest" in cal.note
+    # the settling time is the coast-down of the surge row from 1 m/s to REST_SPEED_M_S (closed form)
+    hydro = blueboat.hydro()
+    u, t, dt = 1.0, 0.0, 1e-3
+    while u > REST_SPEED_M_S:
+        u += dt * (hydro.damping.Xu * u + hydro.damping.Xuu * u * abs(u)) / hydro.M[0, 0]
+        t += dt
+    assert settle_s(blueboat) == pytest.approx(t, rel=1e-3)
 
 
 def test_no_straight_running_no_offset(blueboat):

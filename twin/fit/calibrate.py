@@ -69,6 +69,9 @@ MIN_STRAIGHT_S = 3.0  # less straight running than this says nothing reliable ab
 DRIFT_HEADING_SPREAD_DEG = 60.0  # straight legs this far apart in heading separate a drift from an offset
 SLIP_YAW_SPREAD_RAD_S = 0.02
 MIN_OFFSET_DEG, SIGNIFICANT_SIGMA = 1.5, 3.0  # smaller or less sure: a compass's own error, not applied
+# a boat this slow through the water has lost its way: over ground it moves with its water and air (a
+# GNSS velocity's own noise, averaged over seconds, is about this)
+REST_SPEED_M_S = 0.02
 
 
 @dataclass(frozen=True)
@@ -147,9 +150,11 @@ def _ground_velocity(prep: Prepared, sl: slice) -> tuple[np.ndarray, np.ndarray]
 def kinematic_calibrations(recordings: list[Recording], compiled: CompiledVessel, **limits) -> list[LogCalibration]:
     """Each log's own `kinematic_calibration`; a log whose straight legs point too few ways to tell
     a drift from an offset is then read with the drifts that at least two other logs of the set
-    fitted on their own legs (logs analysed together mostly share their water, and where they do
-    not, the spread of those drifts says so and the offset is not applied), instead of with none:
-    a 0.25 m/s current across a boat at 1 m/s is a 14° compass offset to a log without a drift."""
+    fitted on their own legs, instead of with none (a 0.25 m/s current across a boat at 1 m/s is a
+    14° compass offset to a log without a drift), and with its own drift at rest where it has one
+    (rest_drift): logs analysed together share their water only mostly. Under each outing's own
+    wind they need not, and the log's own drift at rest then reads another offset than the borrowed
+    drifts do; the spread of the readings goes into σ and the offset is not applied."""
     first = [kinematic_calibration(r, compiled, **limits) for r in recordings]
     drifts = [c.drift_ned_m_s for c in first if c.drift_ned_m_s is not None]
     if len(drifts) < 2:
@@ -161,11 +166,52 @@ def kinematic_calibrations(recordings: list[Recording], compiled: CompiledVessel
             if c.drift_ned_m_s is None and c.seconds >= MIN_STRAIGHT_S else c for r, c in zip(recordings, first)]
 
 
-def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(), **limits) -> LogCalibration:
+def settle_s(compiled: CompiledVessel) -> float | None:
+    """How long the vessel coasts from 1 m/s to REST_SPEED_M_S in still water, its surge row alone
+    ((m − X_u̇)·u̇ = X_u·u + X_uu·u|u|, solved in closed form); None without surge damping (a ship whose
+    forces the MMG model makes: rest_drift does not read it)."""
+    hydro = compiled.hydro()
+    m = float(hydro.M[0, 0])
+    a, b = -hydro.damping.Xu / m, -hydro.damping.Xuu / m
+    u0, u1 = 1.0, REST_SPEED_M_S
+    if hydro.mmg is not None or a < 0 or b < 0 or (a == 0 and b == 0):
+        return None
+    if a == 0:
+        return (1 / u1 - 1 / u0) / b
+    return float(np.log(u0 * (a + b * u1) / (u1 * (a + b * u0))) / a)
+
+
+def rest_drift(prep: Prepared, settle: float | None) -> tuple[float, float] | None:
+    """The log's own drift at rest (NED m/s): the median velocity over ground where both thrusters
+    have been idle for `settle` s (settle_s: the boat has lost its way and moves with its water and,
+    pushed by it, the wind), None with less than MIN_STRAIGHT_S of such samples. A current drifts a
+    boat at rest as it drifts one under way; a wind drifts it more, and downwind."""
+    if settle is None or prep.input_kind != "pwm":
+        return None
+    idle = prep.in_deadband.all(axis=1)
+    dt = prep.settings.grid_dt
+    since = np.zeros(len(idle))  # seconds idle so far, restarted at every segment's start
+    for seg in prep.segments:
+        run = 0.0
+        for i in range(seg.start, seg.stop):
+            run = run + dt if idle[i] else 0.0
+            since[i] = run
+    rest = since > settle
+    if rest.sum() * dt < MIN_STRAIGHT_S:
+        return None
+    c, s = np.cos(prep.psi[rest]), np.sin(prep.psi[rest])
+    u, v = prep.u[rest], prep.v[rest]
+    return float(np.median(c * u - s * v)), float(np.median(s * u + c * v))
+
+
+def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(), at_rest: bool = True,
+                          **limits) -> LogCalibration:
     """The log's compass offset relative to the vessel's common heading calibration (any per-log
     entry the vessel already holds for this log is set aside first), see LogCalibration. borrowed:
     other logs' drifts (NED m/s), at least two, taken where this log's legs cannot fit one: the
-    offset read with each in turn, their mean, and their spread added to σ."""
+    offset read with each in turn and with the log's own drift at rest (rest_drift; at_rest=False
+    leaves it out, as before the fourteenth session: scripts/calibration_borrowing.py compares
+    both), their mean, and their spread added to σ."""
     from scipy.optimize import least_squares
 
     from ..physics.sensors import log_name
@@ -196,7 +242,7 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     with_slip = len(stretches) >= 2 and float(np.std(yaw)) >= SLIP_YAW_SPREAD_RAD_S
     if not with_drift and len(borrowed) >= 2:
         return _with_borrowed(name, vel, psi, yaw if with_slip else 0.0 * yaw, which, len(stretches), seconds,
-                              borrowed, spread)
+                              borrowed, spread, rest_drift(prep, settle_s(compiled)) if at_rest else None)
 
     def across(x):
         """Velocity across the true heading ψ_logged − δ, less the sideslip a hull takes in a gentle
@@ -224,14 +270,15 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note)
 
 
-def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: float, borrowed, spread: float
-                   ) -> LogCalibration:
+def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: float, borrowed, spread: float,
+                   at_rest: tuple[float, float] | None = None) -> LogCalibration:
     """The offset across the true heading (with the sideslip of gentle turns where `yaw` varies, as
-    kinematic_calibration fits it) for each borrowed drift held in turn (kinematic_calibrations)."""
+    kinematic_calibration fits it) for each borrowed drift held in turn, and for the log's own drift
+    at rest (kinematic_calibrations)."""
     from scipy.optimize import least_squares
 
     offsets, sigmas = [], []
-    for cn, ce in borrowed:
+    for cn, ce in list(borrowed) + ([at_rest] if at_rest is not None else []):
         over = vel - np.array([cn, ce])
         speed = np.hypot(*over.T)
 
@@ -247,7 +294,8 @@ def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: flo
     offset_deg = float(np.mean(offsets))
     sigma_deg = float(np.sqrt(np.mean(np.square(sigmas)) + np.var(offsets, ddof=1)))
     drift = tuple(float(x) for x in np.mean(np.asarray(borrowed, float), axis=0))
-    note = (f"straight legs within {spread:.0f}° of each other: read with the drifts of {len(borrowed)} other logs "
+    own = "" if at_rest is None else f" and its own at rest (N {at_rest[0]:+.3f}, E {at_rest[1]:+.3f} m/s)"
+    note = (f"straight legs within {spread:.0f}° of each other: read with the drifts of {len(borrowed)} other logs{own} "
             f"(offsets {min(offsets):+.1f}° to {max(offsets):+.1f}°)")
     if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):
         return LogCalibration(name, None, sigma_deg, stretches, seconds, drift,

@@ -74,6 +74,8 @@ def true_heading(sensors: Sensors, psi_measured_rad, iterations: int = 4) -> np.
     psi = psi_m.copy()
     if not sensors.has_heading_error:
         return psi
+    if not any(x != 0.0 for x in sensors.compass_deviation_deg):  # a bias alone: every iteration gives this
+        return psi_m - sensors.heading_error_rad(psi)
     for _ in range(iterations):
         psi = psi_m - sensors.heading_error_rad(psi)
     return psi
