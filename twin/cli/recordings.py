@@ -17,15 +17,20 @@ RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat
 def info(
     files: list[Path] = typer.Argument(..., help=RECORDING_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with it: each log's compass calibration)"),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP + " (with it: each log's compass calibration)"),
 ):
-    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why."""
+    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why; with --vessel or
+    --model, each log's compass calibration from its kinematics (the logs read together, as identify,
+    evaluate and diagnose read and apply it)."""
     from ..formats import read_recording
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
     from ..recording import format_summary
 
+    v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
-    failed = 0
+    failed, read = 0, []
     for path in files:  # one bad file must not hide the others' summaries
         try:
             rec = read_recording(path, channels=mapping)
@@ -37,8 +42,32 @@ def info(
         typer.echo(format_summary(rec.summary()))
         for line in describe(counted(rec)):
             typer.echo(f"  {line}")
+        read.append(rec)
+    if v is not None:
+        failed += _calibrations(read, v)
     if failed:
         raise typer.Exit(2)
+
+
+def _calibrations(recordings: list, vessel) -> int:
+    """Print each log's kinematic compass calibration (twin.fit.calibrate); 1 when it cannot be made."""
+    from ..ident.identify import calibrate
+
+    usable = [r for r in recordings if len(r.gnss) and len(r.heading)]
+    for r in recordings:
+        if r not in usable:
+            typer.echo(f"calibration: {Path(r.source).name}: no compass calibration (it needs GNSS and heading)")
+    if not usable:
+        return 0
+    try:
+        _, calibrations = calibrate(usable, vessel)
+    except TwinError as exc:
+        typer.echo(f"error: calibration: {exc}", err=True)
+        return 1
+    typer.echo(f"== each log's compass calibration ({vessel.name}; identify, evaluate and diagnose apply it)")
+    for c in calibrations:
+        typer.echo(f"calibration: {c.text()}" + (f" [{c.note}]" if c.heading_bias_deg is not None and c.note else ""))
+    return 0
 
 
 @app.command()
