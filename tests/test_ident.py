@@ -103,6 +103,25 @@ def test_windows_reproduce_the_generating_twin(yellowfish_vessel, change):
     assert np.nanmax(np.abs(pred.nu - nu)) < 1e-6
 
 
+def test_a_kept_cache_predicts_to_the_bit_what_a_fresh_one_does(yellowfish_vessel):
+    """The cache keeps each window's thrust commands and initial state across vessels (a Jacobian's, a
+    round's candidates): a lagged twin carries its actuator states, a velocity offset its own start,
+    and a prediction through a cache that has seen other vessels equals one through a fresh cache."""
+    ds = generate(yellowfish_vessel, n_segments=2, seed=4, noise=QUIET, segment_s=(25, 30))
+    preps = _truth_preps(ds)
+    wins = make_windows(preps, 5.0, 2.5)
+    lagged = replace(yellowfish_vessel, thrusters=replace(yellowfish_vessel.thrusters, lag_s=0.3))
+    vessels, offsets = [yellowfish_vessel, lagged, yellowfish_vessel], [None, None, (0.05, -0.02, 0.01)]
+    kept = ModelCache()
+    predict([lagged, yellowfish_vessel], preps, wins, kept)  # the kept cache has seen these windows
+    again = predict(vessels, preps, wins, kept, nu_offsets=offsets)
+    fresh = [predict(v, preps, wins, ModelCache(), nu_offsets=[o])[0] for v, o in zip(vessels, offsets)]
+    for a, b in zip(again, fresh):
+        np.testing.assert_array_equal(a.nu, b.nu)
+        np.testing.assert_array_equal(a.eta, b.eta)
+    assert np.nanmax(np.abs(again[2].nu[:, 1:] - again[0].nu[:, 1:])) > 1e-3  # the offset's start was its own
+
+
 def test_evaluate_tells_the_truth_from_a_wrong_twin(yellowfish_vessel):
     ds = generate(yellowfish_vessel, n_segments=3, seed=5, segment_s=(30, 40))
     preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]

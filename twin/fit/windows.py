@@ -97,6 +97,17 @@ class ModelCache:
         self.timestep_s = timestep_s
         self._inputs: dict[tuple, np.ndarray] = {}
         self._lag_starts: dict[tuple, np.ndarray] = {}
+        self._states: dict[tuple, np.ndarray] = {}
+
+    def initial_state(self, model: mujoco.MjModel, data: mujoco.MjData, layout: tuple, prep: Prepared, window: Window,
+                      act0: np.ndarray | None, nu_offset: tuple) -> np.ndarray:
+        """A window's full-physics initial state (_initial_state), made once for every vessel of one
+        state layout: it depends on nothing else than the measured state at the window's start, the
+        offset and the lag's start (a Jacobian's vessels and a round's candidates share them)."""
+        k = window.start
+        key = (layout, prep.t[k], prep.north[k], prep.east[k], prep.psi[k], prep.u[k], prep.v[k], prep.r[k], nu_offset,
+               None if act0 is None else np.asarray(act0, float).tobytes())
+        return self._held(self._states, key, lambda: _initial_state(model, data, prep, window, act0, nu_offset))
 
     def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool,
                thrusters: ThrusterModel | None = None):
@@ -347,9 +358,13 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         data = mujoco.MjData(model)
         model_of_log = _per_log_models(vessel, model, cache) if wind is None else (lambda source, m=model: m)
         thrusters = command_thrusters(vessel.thrusters)
+        layouts: dict[int, tuple] = {}
         for w in windows:
             prep = vpreps[w.rec]
             model = model_of_log(prep.settings.source)
+            layout = layouts.get(id(model))
+            if layout is None:  # what fixes a state vector besides the window: sizes, joints, unset qpos
+                layout = layouts[id(model)] = (batch._signature(model), _joint_columns(model), model.qpos0.tobytes())
             cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na), thrusters)
             steps = _substeps(prep.settings.grid_dt, h) * n_max
             padded = np.zeros((steps, model.nu))
@@ -359,7 +374,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
                 padded[: len(air), 2:4] = air
                 padded[len(air):, 2:4] = air[-1]
             models.append(model)
-            states.append(_initial_state(model, data, prep, w, act0, offset))
+            states.append(cache.initial_state(model, data, layout, prep, w, act0, offset))
             controls.append(padded)
             owners.append(iv)
     traj, diverged = _rollout(models, states, controls, nthread)
@@ -407,20 +422,21 @@ def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction
     eta = np.full((len(windows), n_max + 1, 3), np.nan)
     nu = np.full_like(eta, np.nan)
     bad = {i: t for i, t in diverged}
-    lost = []
-    for j, (row, w) in enumerate(zip(rows, windows)):
+    lost = [(j, bad[row]) for j, row in enumerate(rows) if row in bad]
+    groups: dict[tuple[int, int], list[int]] = {}  # windows of one length on one grid: sliced all at once
+    for j, w in enumerate(windows):
         prep = preps[w.rec]
-        sub = _substeps(prep.settings.grid_dt, model.opt.timestep)
-        picks = traj[row][sub - 1: w.n * sub: sub]
         eta[j, 0] = (prep.north[w.start], prep.east[w.start], prep.psi[w.start])
         nu[j, 0] = (prep.u[w.start], prep.v[w.start], prep.r[w.start])
-        e = picks[:, [1 + q for q in qpos]]
-        qv = picks[:, [1 + nq + d for d in dof]]
-        c, s = np.cos(e[:, 2]), np.sin(e[:, 2])
-        eta[j, 1: w.n + 1] = e
-        nu[j, 1: w.n + 1] = np.column_stack([c * qv[:, 0] + s * qv[:, 1], -s * qv[:, 0] + c * qv[:, 1], qv[:, 2]])
-        if row in bad:
-            lost.append((j, bad[row]))
+        groups.setdefault((_substeps(prep.settings.grid_dt, model.opt.timestep), w.n), []).append(j)
+    columns = [1 + q for q in qpos] + [1 + nq + d for d in dof]
+    for (sub, n), js in groups.items():
+        picks = np.stack([traj[rows[j]][sub - 1: n * sub: sub][:, columns] for j in js])  # (G, n, 6)
+        e, qv = picks[..., :3], picks[..., 3:]
+        c, s = np.cos(e[..., 2]), np.sin(e[..., 2])
+        eta[js, 1: n + 1] = e
+        nu[js, 1: n + 1] = np.stack([c * qv[..., 0] + s * qv[..., 1], -s * qv[..., 0] + c * qv[..., 1], qv[..., 2]],
+                                    axis=-1)
     return Prediction(list(windows), eta, nu, lost)
 
 
