@@ -63,7 +63,8 @@ def calibrate(work: Path, truth: dict, compiled) -> list[dict]:
         before = kinematic_calibration(rec, compiled, borrowed=donors, at_rest=False) if borrowing else c
         now = kinematic_calibration(rec, compiled, borrowed=donors) if borrowing else c
         rows.append({"case": truth["case"], "seed": truth["seed"], "log": c.log, "truth_deg": offsets.get(c.log, 0.0),
-                     "borrowing": borrowing, "before_deg": before.heading_bias_deg, "before_sigma_deg": before.sigma_deg,
+                     "borrowing": borrowing, "before_deg": before.heading_bias_deg,
+                     "before_sigma_deg": before.sigma_deg,
                      "now_deg": now.heading_bias_deg, "now_sigma_deg": now.sigma_deg, "note": now.note})
     return rows
 
@@ -89,7 +90,8 @@ def markdown(out: dict) -> str:
              f"{b['off_more_than_3_deg']} | {b['false_where_no_offset']} | {b['borrowing_applied']} |",
              f"| and the log's own drift at rest (now) | {n['applied']} | {n['within_1_5_deg']} | "
              f"{n['off_more_than_3_deg']} | {n['false_where_no_offset']} | {n['borrowing_applied']} |", "",
-             "Every borrowing log:", "", "| case | seed | log | truth ° | before ° (σ) | now ° (σ) | now: the readings |",
+             "Every borrowing log:", "",
+             "| case | seed | log | truth ° | before ° (σ) | now ° (σ) | now: the readings |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     def cell(v, s):
         return "not applied" + (f" (σ {s:.1f})" if s is not None else "") if v is None else f"{v:+.2f} ({s:.2f})"

@@ -110,7 +110,8 @@ def test_heading_error_and_its_inverse():
     np.testing.assert_allclose(m, expected)
     np.testing.assert_allclose(true_heading(s, m, iterations=12), psi, atol=1e-9)
     bias = Sensors(heading_bias_deg=-7.6)  # a bias alone is taken out in one step, to the last bit
-    np.testing.assert_array_equal(true_heading(bias, measured_heading(bias, psi)), psi + np.radians(-7.6) - np.radians(-7.6))
+    np.testing.assert_array_equal(true_heading(bias, measured_heading(bias, psi)),
+                                  psi + np.radians(-7.6) - np.radians(-7.6))
 
 
 def test_vessel_file_round_trip_keeps_the_new_fields(tmp_path):
