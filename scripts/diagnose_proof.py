@@ -283,6 +283,7 @@ GIVEN_AS = {
     "compass_iron": ("compass_deviation", ("b_deg", "c_deg", "d_deg", "e_deg")),
     "thrust_ventilation": ("full_thrust", ("share",)),
     "pwm_clock_offset": ("clock_offset", ("pwm_clock_offset_s",)),
+    "astern_drag": ("astern_resistance", ("excess",)),
 }
 
 

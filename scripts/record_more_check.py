@@ -1,6 +1,6 @@
 """Issue 15 item 7: does "record more" settle a hint? Checked on truths the library did not write.
 
-    python scripts/record_more_check.py [--out docs/diagnose]
+    python scripts/record_more_check.py [--out docs/diagnose] [--cases CASE:SEED:EFFECT,... --name NAME]
 
 `twin diagnose` reports an effect that removes misfit on held-out blocks but acts in too few of them
 for z ≥ 3 as a hint, with how much more recording of the same kind would reach z 3 if the further
@@ -81,9 +81,9 @@ def _values(d: dict | None) -> str:
     return "-" if not d else ", ".join(f"{k} {v:.3g}" for k, v in d.items() if isinstance(v, (int, float)))
 
 
-def markdown(rows: list[dict], seconds: float) -> str:
+def markdown(rows: list[dict], seconds: float, command: str = "python scripts/record_more_check.py") -> str:
     lines = ["# Does recording more settle a hint?", "",
-             f"Written by `python scripts/record_more_check.py` ({seconds:.0f} s). World cases of the proof whose "
+             f"Written by `{command}` ({seconds:.0f} s). World cases of the proof whose "
              "true effect was only a hint: the hint's own estimate of how much more recording of the same kind "
              "would reach z 3, then that recording (same seed, same kind of driving, random afresh) diagnosed.", "",
              "| case | seed | truth | first recording: hints (z, blocks for/against, × length) | longer recording | "
@@ -111,7 +111,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnose")
     ap.add_argument("--work", type=Path, default=None, help="folder for the recordings (default: a temporary one)")
+    ap.add_argument("--cases", default="", help="CASE:SEED:EFFECT,... instead of the proof's four hints")
+    ap.add_argument("--name", default="record_more", help="stem of the .md and .json written in --out")
     args = ap.parse_args()
+    try:
+        cases = [(c, int(s), e) for c, s, e in (x.split(":") for x in args.cases.split(",") if x.strip())] or CASES
+    except ValueError:
+        ap.error(f"--cases wants CASE:SEED:EFFECT,..., got {args.cases!r}")
     import tempfile
 
     started = time.time()
@@ -123,13 +129,14 @@ def main() -> int:
         params.write_text(subprocess.run([sys.executable, "-m", "twin", "params", "--vessel", "yellowfish", "--json"],
                                          capture_output=True, text=True, check=True).stdout)
         rows = []
-        for case, seed, eq in CASES:
+        for case, seed, eq in cases:
             rows.append(run(case, seed, eq, work, params, prior))
             print(json.dumps(rows[-1]), flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(args.out / "record_more.md", markdown(rows, time.time() - started))
-    write_text_atomic(args.out / "record_more.json", json.dumps(rows, indent=1) + "\n")
-    print(f"wrote {args.out / 'record_more.md'}")
+    write_text_atomic(args.out / f"{args.name}.md", markdown(rows, time.time() - started, " ".join(
+        ["python scripts/record_more_check.py"] + [f"{a}" for a in sys.argv[1:]])))
+    write_text_atomic(args.out / f"{args.name}.json", json.dumps(rows, indent=1) + "\n")
+    print(f"wrote {args.out / (args.name + '.md')}")
     return 0
 
 

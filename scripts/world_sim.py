@@ -187,6 +187,8 @@ class Effects:
     yaw_coulomb_nm: float = 0.0               # N_extra = −Nc·tanh(r/r0) − Nrrr·r³
     yaw_r0_rad_s: float = 0.08
     yaw_nrrr: float = 0.0
+    astern_drag: float = 1.0                  # hull drag × this factor while the water meets the transom (u_r < 0)
+    sea: dict | None = None                   # zero-mean chop: sigma_x_n, sigma_y_n, sigma_n_nm, tau_s (body axes)
     current: dict | None = None               # speed0, speed1, dir0_deg, dir1_deg (towards)
     wind: dict | None = None                  # speed, from_deg, gust_sigma, gust_tau_s, dir_sigma_deg, dir_tau_s
     heading_offset_deg: float = 0.0
@@ -232,6 +234,7 @@ def make_rhs(v: Vessel, fx: Effects) -> Callable:
     Nv, Nvv, Nrv, Nr, Nvr, Nrr, Nur = d["Nv"], d["Nvv"], d["Nrv"], d["Nr"], d["Nvr"], d["Nrr"], d["Nur"]
     k3 = fx.fouling_k3
     nc, r0, nrrr = fx.yaw_coulomb_nm, fx.yaw_r0_rad_s, fx.yaw_nrrr
+    astern_extra = fx.astern_drag - 1.0
     has_wind = fx.wind is not None
     qa_f = 0.5 * RHO_AIR_KG_M3 * v.frontal_area_m2
     qa_l = 0.5 * RHO_AIR_KG_M3 * v.lateral_area_m2
@@ -257,6 +260,8 @@ def make_rhs(v: Vessel, fx: Effects) -> Callable:
         f3 += (Nv + Nvv * avr + Nrv * ar) * vr + (Nr + Nvr * avr + Nrr * ar + Nur * aur) * r
         if k3:
             f1 -= k3 * ur * ur * ur
+        if astern_extra and ur < 0.0:
+            f1 += astern_extra * (Xu + Xuu * aur) * ur
         if nc or nrrr:
             f3 -= nc * tanh(r / r0) + nrrr * r * r * r
         # M_A ν̇_c: the water's acceleration seen in the turning body frame
@@ -594,6 +599,8 @@ RC_STYLES = {  # hold kinds and their weights
     "low": {"cruise": 0.16, "turn": 0.12, "spin": 0.06, "reverse": 0.08, "idle": 0.10, "creep": 0.20,
             "creep_rev": 0.14, "nudge": 0.14},
     "heavy": {"cruise": 0.50, "turn": 0.22, "spin": 0.06, "reverse": 0.04, "idle": 0.08, "creep": 0.10},
+    "astern": {"cruise": 0.28, "turn": 0.16, "spin": 0.06, "reverse": 0.20, "idle": 0.12, "creep": 0.10,
+               "creep_rev": 0.08},
 }
 
 
@@ -815,6 +822,17 @@ def simulate(v: Vessel, fx: Effects, driver, sensors: Sensors, rng: np.random.Ge
     wn, we, wsp, wfrom = wind_series(fx.wind, rng, n_steps + 1)
     cn_l, ce_l, dcn_l, dce_l, wn_l, we_l = (a.tolist() for a in (cn, ce, dcn, dce, wn, we))
     rhs, forces = make_rhs(v, fx), thruster_forces(v, fx)
+    if fx.sea is not None:   # drawn after the wind, and only here, so no other case's draws move
+        chop = [gauss_markov(rng, n_steps + 1, dt_s, fx.sea[key], fx.sea["tau_s"]).tolist()
+                for key in ("sigma_x_n", "sigma_y_n", "sigma_n_nm")]
+        thrust_forces = forces
+
+        def forces(tl, tr, k):
+            fx_, fy_, fn_ = thrust_forces(tl, tr)
+            return fx_ + chop[0][k], fy_ + chop[1][k], fn_ + chop[2][k]
+    else:
+        thrust_forces = forces
+        forces = lambda tl, tr, k: thrust_forces(tl, tr)  # noqa: E731
     chain = ThrusterChain(v, fx, spt, dt_s)
     w = World(sensors)
     x = tuple(float(a) for a in x0)
@@ -839,7 +857,7 @@ def simulate(v: Vessel, fx: Effects, driver, sensors: Sensors, rng: np.random.Ge
             thr.append((tl, tr))
             sum_l += abs(tl)
             sum_r += abs(tr)
-            x = rk4_step(rhs, x, dt_s, forces(tl, tr), (cn_l[k], ce_l[k], dcn_l[k], dce_l[k], wn_l[k], we_l[k]))
+            x = rk4_step(rhs, x, dt_s, forces(tl, tr, k), (cn_l[k], ce_l[k], dcn_l[k], dce_l[k], wn_l[k], we_l[k]))
             w.n.append(x[0])
             w.e.append(x[1])
             w.psi.append(x[2])
@@ -1161,6 +1179,29 @@ def b_yawdrag(rng, v):
         notes="expected: least-squares projection of the extra moment on r and r|r| over this log's yaw rates")]
 
 
+def b_astern(rng, v):
+    """Hull drag astern 1.8-2.6 times the params' (a transom stern leading)."""
+    k = r3(rng.uniform(1.8, 2.6))
+    return Effects(astern_drag=k), [effect(
+        "astern_drag", "while the water meets the transom (u_r < 0) the surge drag is k·(Xu + Xuu·|u_r|)·u_r: a hull "
+        "drawn to go ahead resists going astern more (flat transom, spray rails); ahead unchanged",
+        {"factor": k}, "astern_resistance", {"factor": k, "excess": r3(k - 1.0)},
+        ["reverse_thrust (astern thrust weaker: the same steady speed astern, not the same coast-down)"],
+        notes="the library's astern_resistance (since 2026-11-27) scales the whole surge curve astern by 1 + excess, "
+              "as this world does; before it the library had one curve for both directions")]
+
+
+def b_sea(rng, v):
+    """Zero-mean chop: body-axis force and moment as Gauss-Markov series (σ X, Y 2-3 N, N 0.8-1.2 N m, τ 1.5-3 s)."""
+    sea = {"sigma_x_n": r3(rng.uniform(2.0, 3.0)), "sigma_y_n": r3(rng.uniform(2.0, 3.0)),
+           "sigma_n_nm": r3(rng.uniform(0.8, 1.2)), "tau_s": r3(rng.uniform(1.5, 3.0))}
+    return Effects(sea=sea), [effect(
+        "sea_chop", "short wind waves as zero-mean random forcing: X, Y, N each a first-order Gauss-Markov series "
+        "(σ, τ) in body axes, independent of the boat's state; no mean drift", sea, "none (model-form)", {},
+        notes="no deterministic effect describes it and none should be named: the residual it leaves is for the "
+              "report's 'twin's form' lines, not for a library effect")]
+
+
 def b_toe(rng, v):
     """Thrusters toed in 5-8°."""
     a = r3(rng.uniform(5.0, 8.0))
@@ -1313,6 +1354,10 @@ CASES: dict[str, CaseSpec] = {
     "hull_fouling": CaseSpec("extra surge drag −k3·u³ (k3 0.8-1.4 N s³/m³), RC", "rc", 900, b_fouling),
     "yaw_drag_shape": CaseSpec("extra yaw drag −Nc·tanh(r/r0) − Nrrr·r³, RC with many spins", "rc", 900, b_yawdrag,
                                style="spins"),
+    "astern_drag": CaseSpec("hull drag astern 1.8-2.6x the params' (transom leading), RC with reversing", "rc", 900,
+                            b_astern, style="astern"),
+    "sea_chop": CaseSpec("zero-mean random forcing of short waves (σ 2-3 N, 0.8-1.2 N m, τ 1.5-3 s), RC", "rc", 900,
+                         b_sea),
     "thruster_toe": CaseSpec("thrusters toed in 5-8°: sway force and smaller yaw arm under thrust, RC", "rc", 900,
                              b_toe, style="spins"),
     "compass_offset_per_log": CaseSpec("3-4 outings, each with its own compass offset (±1.5-7°)", "multilog", 480,

@@ -53,6 +53,7 @@ CASES = {
     "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
     "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
+    "astern_resistance=1.0": ("astern_resistance", {"excess": 0.1}),
     "linear_damping=Nr:0.6": ("linear_damping", {"Nr": 0.1}),
     "surge_resistance=Xu:0.5,Xuu:1.4": ("surge_resistance", {"Xu": 0.25, "Xuu": 0.05}),  # Xu·u is a sixth of Xuu·u² at 1.5 m/s
     "coupling_damping=-6,-4": ("coupling_damping", {"Yr": 2.0, "Nv": 2.0}),
@@ -136,7 +137,7 @@ def test_a_scale_effect_frees_only_the_scales_its_training_blocks_pin(prior):
 def test_candidate_recovers_its_effect(prior, text):
     name, tolerance = CASES[text]
     ds = generate(prior, effects=[text], n_segments=3, seed=2, noise=PROFILES["none"], segment_s=(35, 40),
-                  manoeuvres=MIXED)
+                  manoeuvres=MIXED[:2] + ["astern_varying"] if name == "astern_resistance" else MIXED)
     cv = compile_vessel(prior)
     preps = [prepare_for(ds.recording, cv, **PREP)]
     search = make_search(prior, preps, [ds.recording], cv, candidates(prior, supply_ref_v=supply_reference(preps)))

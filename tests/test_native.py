@@ -175,6 +175,9 @@ def test_every_damping_coefficient_reaches_the_native_callback(compiled):
     # the signed coupling changes sign with the direction of travel (physics.damping)
     assert Damping(Yur=2.0).matrix(nu)[1, 2] == pytest.approx(-3.0)
     assert Damping(Yur=2.0).matrix(-nu)[1, 2] == pytest.approx(3.0)
+    # the astern excess acts going astern only, on the whole surge curve
+    hull = Damping(Xu=-2.0, Xuu=-8.0, astern_excess=0.5)
+    assert hull.matrix(nu)[0, 0] == pytest.approx(14.0) and hull.matrix(-nu)[0, 0] == pytest.approx(21.0)
 
 
 def test_advance_loss_reaches_the_native_callback(compiled):

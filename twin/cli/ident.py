@@ -25,7 +25,7 @@ def dataset_command(
     manoeuvres: str = typer.Option(",".join(("rc", "forward_constant", "forward_varying", "zigzag", "circle_constant",
                                              "circle_varying")),
                                    help="manoeuvres to cycle through: rc, forward_constant, forward_varying, zigzag, "
-                                        "circle_constant, circle_varying, autopilot"),
+                                        "circle_constant, circle_varying, autopilot, and astern_varying (backing)"),
     effect: list[str] = typer.Option([], help="effect injected in the truth, NAME=V1,V2 (repeatable; "
                                               "`twin effects` lists them)"),
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),

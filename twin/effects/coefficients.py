@@ -15,7 +15,7 @@ from .quantity import Quantity, gain_mean, gain_ratio, member, ned_component, re
 DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2", "Yrv": "N s2/m", "Yr": "N s",
                  "Yvr": "N s2/m", "Yrr": "N s2", "Nv": "N s", "Nvv": "N s2", "Nrv": "N s2", "Nr": "N m s",
                  "Nvr": "N s2", "Nrr": "N m s2", "Yuv": "N s2/m2", "Nur": "N m s2/m",
-                 "Yur": "N s2/m", "Nuv": "N s2/m"}
+                 "Yur": "N s2/m", "Nuv": "N s2/m", "astern_excess": "-"}
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
@@ -35,6 +35,7 @@ FIT_GROUPS = {
     "coupling": ("Yr", "Nv"),
     "speed coupling": ("Yur", "Nuv"),
     "advance loss": ("advance_loss",),
+    "astern resistance": ("astern_excess",),
 }
 # a propeller-and-rudder ship (MMG, physics/mmg.py): the same idea on its own description. Not the
 # PWM thrusters' dead zone, gains or lag (it has none), and not X'_vv.., Y'_vvv, N'_vvv, Y'_rrr:
@@ -155,6 +156,7 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
     out.update({"thrust_gain": gain_mean(), "reverse_scale": reverse_scale(prior), "asymmetry": gain_ratio(),
                 "lag_s": member("thrusters", "lag_s", "s", 0.01, 3.0, 0.2),
                 "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
+                "astern_excess": member("damping", "astern_excess", "-", -0.5, 4.0, 0.2),
                 "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
                 "supply_exponent": member("thrusters", "supply_exponent", "-", 0.0, 4.0, 0.5),
                 "full_share": member("thrusters", "full_share", "×", 0.3, 2.0, 0.2),
@@ -221,6 +223,9 @@ def belief(name: str, prior: Vessel) -> Belief:
     if name == "advance_loss":
         return Belief(False, 1.5, "propeller advance loss c = √(ρK_T0)·D/J_0: about 1.5 √N·s/m for a small "
                                   "thruster's propeller (D 76 mm, K_T0 0.4, J_0 1), known to a factor of 2")
+    if name == "astern_excess":
+        return Belief(False, 0.5, "surge drag astern against ahead at the same speed: a hull drawn to go ahead "
+                                  "meets the water with its transom, about 1 to 2 times the drag ahead")
     if name == "full_share":
         return Belief(True, 0.3, "forward thrust at full PWM: within about 30 % of the datasheet's (ventilation, a "
                                  "worn propeller or an ESC's current limit bend the top of the curve)")

@@ -421,6 +421,12 @@ def speed_coupling(vessel: Vessel, Yur: float, Nuv: float) -> Vessel:
     return replace(vessel, damping=replace(vessel.damping, Yur=Yur, Nuv=Nuv))
 
 
+def astern_resistance(vessel: Vessel, excess: float) -> Vessel:
+    """Going astern the surge drag curve is (1 + excess) times the one ahead (physics.damping): a hull
+    drawn to go ahead meets the water with its transom when it backs."""
+    return replace(vessel, damping=replace(vessel.damping, astern_excess=excess))
+
+
 def cg_offset(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
     """The whole mass distribution moved by (dx, dy) m, body FRD, from where the MJCF puts it."""
     return replace(vessel, cg_offset_m=(dx_m, dy_m))
@@ -561,6 +567,10 @@ _SPECS = [
                speed_coupling, "sway-yaw coupling growing with forward speed (a hull's lift in a turn)",
                _pair_fit("speed_coupling", "damping", ("Yur", "Nuv"), "N s2/m", -300.0, 300.0, 5.0, "turning",
                          start_from_prior=True)),
+    EffectSpec("astern_resistance", "hull", (_v("excess", "-", -1, 20, True),), astern_resistance,
+               "surge drag astern (1 + excess) times the drag ahead (a transom meeting the water)",
+               _single("astern_resistance", member("damping", "astern_excess", "-", -0.5, 4.0, 0.2, name="excess"),
+                       ((0.5,),), "drag")),
     EffectSpec("added_mass", "hull", (), added_mass, "added-mass scales",
                _scales_fit("added_mass", "added_mass", ADDED_MASS), keys=ADDED_MASS),
     EffectSpec("cg_offset", "hull", (_v("dx_m", "m", -1, 1), _v("dy_m", "m", -1, 1)), cg_offset,

@@ -54,7 +54,7 @@ _FIELDS = (  # (name, number of doubles), in storage order
     ("magic", 2), ("size", 1), ("qpos_adr", 3), ("dof_adr", 3),
     ("switches", 6),  # added_mass, added_mass_coriolis, damping, thrust, current, wind (0/1, effective)
     ("M_RB", 9), ("M_A", 9), ("M_inv", 9),  # row-major, kg / kg m / kg m²
-    ("damping", 18),  # Damping.names() order, Fossen's signs
+    ("damping", 19),  # Damping.names() order, Fossen's signs (the last, astern_excess, dimensionless)
     ("wind_load", 6),  # A_F m², A_L m², L m, c_x, c_y, c_n
     ("current_ned", 2), ("wind_ned", 2),  # m/s; wind as the air's velocity
     ("flags", 4),  # Munk moment in C_A (0/1), MMG forces (0/1), first wind control (−1: none), Fujiwara (0/1)
@@ -362,9 +362,9 @@ def _coriolis(M, o, u, v, r):
 
 @njit(inline="always")
 def _damping(p, o, u, v, r):
-    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+18] in Damping.names() order."""
+    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+19] in Damping.names() order."""
     au, av, ar = abs(u), abs(v), abs(r)
-    d00 = -(p[o] + p[o + 1] * au)
+    d00 = -(p[o] + p[o + 1] * au) * (1.0 + p[o + 18] if u < 0.0 else 1.0)
     d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar + p[o + 14] * au)
     d12 = -(p[o + 5] + p[o + 6] * av + p[o + 7] * ar + p[o + 16] * u)
     d21 = -(p[o + 8] + p[o + 9] * av + p[o + 10] * ar + p[o + 17] * u)

@@ -17,6 +17,11 @@ stern when it goes astern, so the coupling changes sign with the direction of tr
 direct terms above do not). A light slender hull has Y_r' larger than its non-dimensional mass
 m' (KVLCC2: Y_r' 0.083 against m' 0.18; a 15-kg catamaran of 1.2 m: m' ≈ 0.02), so in a turn it
 slips inwards, against the centrifugal (m − X_u̇)·u·r that alone makes it slip outwards.
+
+`astern_excess` (dimensionless, 0 in every vessel file unless a diagnosis or identification asks for
+it): going astern (u < 0) the surge damping is (1 + astern_excess)·(Xu + Xuu·|u|)·u. A hull drawn to
+go ahead meets the water with its transom when it backs, and resists more than ahead at the same
+speed; seed 004 eq. 7 has one curve for both directions. Dissipative for astern_excess > −1.
 """
 from __future__ import annotations
 
@@ -45,6 +50,11 @@ class Damping:
     Nur: float = 0.0
     Yur: float = 0.0
     Nuv: float = 0.0
+    astern_excess: float = 0.0
+
+    def surge_factor(self, u):
+        """1 ahead, 1 + astern_excess astern (u < 0): the share of the surge drag curve that acts."""
+        return np.where(np.asarray(u) < 0.0, 1.0 + self.astern_excess, 1.0)
 
     @classmethod
     def names(cls) -> list[str]:
@@ -56,7 +66,7 @@ class Damping:
         u = nu[0]
         return -np.array(
             [
-                [self.Xu + self.Xuu * au, 0.0, 0.0],
+                [(self.Xu + self.Xuu * au) * float(self.surge_factor(u)), 0.0, 0.0],
                 [0.0, self.Yv + self.Yvv * av + self.Yrv * ar + self.Yuv * au,
                  self.Yr + self.Yvr * av + self.Yrr * ar + self.Yur * u],
                 [0.0, self.Nv + self.Nvv * av + self.Nrv * ar + self.Nuv * u,
@@ -88,7 +98,7 @@ def dissipated_power(damping: Damping, nu: np.ndarray) -> np.ndarray:
     u, v, r = nu.T
     au, av, ar = np.abs(u), np.abs(v), np.abs(r)
     d = damping
-    surge = (d.Xu + d.Xuu * au) * u
+    surge = (d.Xu + d.Xuu * au) * u * d.surge_factor(u)
     sway = (d.Yv + d.Yvv * av + d.Yrv * ar + d.Yuv * au) * v + (d.Yr + d.Yvr * av + d.Yrr * ar + d.Yur * u) * r
     yaw = (d.Nv + d.Nvv * av + d.Nrv * ar + d.Nuv * u) * v + (d.Nr + d.Nvr * av + d.Nrr * ar + d.Nur * au) * r
     return -(u * surge + v * sway + r * yaw)

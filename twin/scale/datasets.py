@@ -61,10 +61,10 @@ class Settings:
             raise TwinError(f"dataset format '{self.fmt}': use {', '.join(FORMATS)}")
         if self.vessels < 1 or self.per_shard < 1 or self.segments < 1:
             raise TwinError("a dataset needs at least one vessel, one vessel per shard and one segment each")
-        unknown = [m for m in self.manoeuvres if m not in man.ALL]
+        unknown = [m for m in self.manoeuvres if m not in man.KNOWN]
         if unknown or not self.manoeuvres:
             raise TwinError(f"unknown manoeuvre(s) {', '.join(unknown) or '(none given)'} "
-                            f"(known: {', '.join(man.ALL)})")
+                            f"(known: {', '.join(man.KNOWN)})")
 
     def to_dict(self) -> dict:
         return {"vessels": self.vessels, "per_shard": self.per_shard, "segments": self.segments,
