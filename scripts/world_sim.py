@@ -196,6 +196,7 @@ class Effects:
     gnss_latency_s: float = 0.0
     antenna_offset_m: tuple = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
+    heading_lag_s: float = 0.0                # the logged heading through a first-order low-pass (an AHRS filter)
     faults: dict | None = None                # outlier_share, outlier_m, dropouts, spike_share, spike_deg
 
 
@@ -890,6 +891,18 @@ def gap_mask(t_s: np.ndarray, gaps: list) -> np.ndarray:
     return keep
 
 
+def low_pass(signal: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
+    """First-order low-pass y' = (x − y)/τ, exact for x held over each step, started at x[0] (the heading
+    is continuous: the true ψ here is never wrapped)."""
+    a = math.exp(-dt_s / tau_s)
+    y = np.empty_like(signal)
+    acc = float(signal[0])
+    for i, xi in enumerate(signal.tolist()):
+        acc = a * acc + (1.0 - a) * xi
+        y[i] = acc
+    return y
+
+
 def recording_streams(run: Run, s: Sensors, fx: Effects, rng: np.random.Generator, t_boot_s: float,
                       gaps: list) -> list[tuple[np.ndarray, dict]]:
     """The logged streams [(stamps s, {column: formatted strings})], vectorised from the true history."""
@@ -897,7 +910,8 @@ def recording_streams(run: Run, s: Sensors, fx: Effects, rng: np.random.Generato
     streams = []
     kh = s.heading_steps()
     jh = np.arange(len(kh))
-    hdg = x[kh, 2] + s.heading_error_rad(x[kh, 2]) + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
+    psi = x[:, 2] if not fx.heading_lag_s else low_pass(x[:, 2], fx.heading_lag_s, DT_S)
+    hdg = psi[kh] + s.heading_error_rad(psi[kh]) + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
     rate = x[kh, 5] + s.gyro_noise_rad_s[jh]
     th = run.t_s[kh]
     keep = gap_mask(th, gaps)
@@ -1286,6 +1300,19 @@ def b_clock(rng, v):
         notes="sign as the library's pwm_clock_offset_s: > 0 = PWM stamps late (thrust seems to answer early)")]
 
 
+def b_heading_lag(rng, v):
+    """The logged heading lags the boat through a first-order filter, τ 0.3-0.6 s; the gyro's yaw rate does not."""
+    tau = round(float(rng.uniform(0.3, 0.6)), 2)
+    return Effects(heading_lag_s=tau), [effect(
+        "heading_lag", "logged heading = first-order low-pass of the true heading (τ): an AHRS or compass filter "
+        "that smooths the heading and makes it late by about τ in a turn; the gyro's yaw rate column unfiltered",
+        {"tau_s": tau}, "none (model-form)", {"tau_s": tau},
+        ["gnss_latency (negative, about −τ: the track early against the heading)",
+         "clock_offset (negative, about −τ: the PWM early against the heading)"],
+        notes="a pure heading delay of τ is the GNSS and the PWM both early by τ, two library effects at once; a "
+              "thruster lag or any hull effect named would be invented")]
+
+
 def b_faults(rng, v):
     """GNSS outliers 2-4 % (1-3 m), 3-6 dropouts of 2-15 s, heading spikes 0.3-1 % (5-40°)."""
     f = {"outlier_share": r3(rng.uniform(0.02, 0.04)), "outlier_m": (1.0, 3.0), "dropouts": int(rng.integers(3, 7)),
@@ -1370,6 +1397,8 @@ CASES: dict[str, CaseSpec] = {
     "thrust_ventilation": CaseSpec("forward thrust saturating beyond 40-55 % of full (slope ×0.3-0.5), RC heavy "
                                    "sticks", "rc", 900, b_ventilation, style="heavy"),
     "pwm_clock_offset": CaseSpec("PWM log stamped 0.3-0.5 s late against GNSS/heading, RC", "rc", 900, b_clock),
+    "heading_lag": CaseSpec("logged heading through a 0.3-0.6 s first-order filter (AHRS), RC", "rc", 900,
+                            b_heading_lag),
     "measurement_faults": CaseSpec("GNSS outliers 2-4 %, dropouts, heading spikes; boat nominal, RC", "rc", 900,
                                    b_faults),
     "pair_weak_left_wind": CaseSpec("weak left thruster + Blendermann wind, RC", "rc", 900,
