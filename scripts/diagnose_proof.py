@@ -97,11 +97,13 @@ CASES = [
     # last, so the earlier cases keep their seeds (11 + index): the dataset logs the packs' voltage
     ("supply_voltage", ["supply_voltage=1.5,16"], MIXED, "realistic"),
     ("full_thrust", ["full_thrust=0.75"], MIXED, "realistic"),
+    ("heading_latency", ["heading_latency=0.3"], MIXED, "realistic"),
 ]
 # Several logs diagnosed together, each with its own heading bias (a compass calibrated afresh
 # before every outing): (case name, bias of each log in deg, manoeuvres). Each log has half the
 # segments of a single-log case.
 MULTI_LOG = [("heading_bias per log", [6.0, -4.0, 2.0], MIXED)]
+MULTI_LOG_SEED_OFFSET = 47  # the seeds it has always had (CASES was 47 long): a case added to CASES moves none
 
 
 def _truth_values(effect) -> dict[str, float]:
@@ -284,6 +286,7 @@ GIVEN_AS = {
     "thrust_ventilation": ("full_thrust", ("share",)),
     "pwm_clock_offset": ("clock_offset", ("pwm_clock_offset_s",)),
     "astern_drag": ("astern_resistance", ("excess",)),
+    "heading_lag": ("heading_latency", ("heading_latency_s",)),
 }
 
 
@@ -518,7 +521,7 @@ def main() -> None:
     for k, (name, biases, manoeuvres) in enumerate([] if args.no_library else MULTI_LOG):
         if only and name not in only:
             continue
-        res = run_multi_log(name, biases, manoeuvres, args.segments, args.seed + len(CASES) + k)
+        res = run_multi_log(name, biases, manoeuvres, args.segments, args.seed + MULTI_LOG_SEED_OFFSET + k)
         results[:] = [r for r in results if r["case"] != name] + [res]
         print(f"{name:28s} found: {'yes' if res['found_all'] else 'NO':40s} extra: {','.join(res['extra']) or '-':20s} "
               f"{res['seconds']} s", flush=True)

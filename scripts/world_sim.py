@@ -1306,10 +1306,11 @@ def b_heading_lag(rng, v):
     return Effects(heading_lag_s=tau), [effect(
         "heading_lag", "logged heading = first-order low-pass of the true heading (τ): an AHRS or compass filter "
         "that smooths the heading and makes it late by about τ in a turn; the gyro's yaw rate column unfiltered",
-        {"tau_s": tau}, "none (model-form)", {"tau_s": tau},
+        {"tau_s": tau}, "heading_latency", {"heading_latency_s": tau},
         ["gnss_latency (negative, about −τ: the track early against the heading)",
          "clock_offset (negative, about −τ: the PWM early against the heading)"],
-        notes="a pure heading delay of τ is the GNSS and the PWM both early by τ, two library effects at once; a "
+        notes="the library's heading_latency (since 2026-11-28) is a pure delay: a first-order filter's delay at "
+              "low frequency is τ, and it also damps the heading's faster wiggles, which a delay does not; a "
               "thruster lag or any hull effect named would be invented")]
 
 

@@ -95,6 +95,55 @@ def test_a_log_under_its_own_wind_is_not_read_with_the_other_logs_drifts(blueboa
     assert settle_s(blueboat) == pytest.approx(t, rel=1e-3)
 
 
+def test_heading_latency_reads_the_heading_late_on_the_same_grid(blueboat):
+    """An AHRS stamping its heading 0.4 s late: in every turn the heading lags the track, so the measured
+    sway carries +u·r·L. Read L later, the sway is the true one again; the grid stays the logged one."""
+    from dataclasses import replace
+
+    from twin.engine.mjcf import CompiledVessel
+    from twin.fit.calibrate import prepare_for
+    from twin.recording import Stream
+
+    log = _log([(20, 1.5, 0.2)], 0.0)
+    late = replace(log, heading=Stream(log.heading.t + 0.4, log.heading.columns))
+    v = blueboat.vessel
+    fixed = replace(v, sensors=replace(v.sensors, heading_latency_s=0.4))
+    truth, plain = prepare_for(log, blueboat), prepare_for(late, blueboat)
+    read_late = prepare_for(late, CompiledVessel(fixed, blueboat.model, blueboat.geometry))
+    np.testing.assert_array_equal(read_late.t, plain.t)
+    inner = slice(20, -20)
+    common = np.intersect1d(truth.t[inner], read_late.t[inner])
+    at = lambda p, x: np.interp(common, p.t, x)  # noqa: E731
+    err_plain = np.abs(at(plain, plain.v) - at(truth, truth.v)).max()
+    err_read = np.abs(at(read_late, read_late.v) - at(truth, truth.v)).max()
+    assert err_plain > 0.05 and err_read < 0.2 * err_plain
+    assert np.abs(at(read_late, read_late.r) - at(truth, truth.r)).max() < 0.01
+
+
+def test_a_latency_never_reads_across_a_dropout(blueboat):
+    """Read early (a negative latency) just after a GNSS dropout, the fix before the gap would describe
+    the segment's first grid times, and the velocity a derivative across the gap (the boat slowed from
+    1.5 to 0.5 m/s inside it: 0.37 m/s off before the fix). Held at the segment's edge instead, the
+    speed after the gap stays the boat's, whatever the latency."""
+    from dataclasses import replace
+
+    from twin.engine.mjcf import CompiledVessel
+    from twin.fit.calibrate import prepare_for
+    from twin.recording import Stream
+
+    log = _log([(17, 1.5, 0.0), (23, 0.5, 0.0)], 0.0)
+    g = log.gnss
+    keep = (g.t < 15.0) | (g.t > 20.0)  # a 5-s dropout
+    gapped = replace(log, gnss=Stream(g.t[keep], {k: c[keep] for k, c in g.columns.items()}))
+    v = blueboat.vessel
+    for latency in (-0.43, 0.43):
+        early = CompiledVessel(replace(v, sensors=replace(v.sensors, gnss_latency_s=latency)), blueboat.model,
+                               blueboat.geometry)
+        p = prepare_for(gapped, early)
+        assert len(p.segments) == 2
+        assert np.abs(p.u - 0.5)[p.t > 20.0].max() < 0.1 and np.abs(p.v).max() < 0.1
+
+
 def test_no_straight_running_no_offset(blueboat):
     cal = kinematic_calibration(_log([(20, 0.1, 0.8)], 7.0), blueboat)  # a spin in place
     assert cal.heading_bias_deg is None and "straight running" in cal.note

@@ -50,6 +50,7 @@ CASES = {
     "thrust_speed_loss=1.5": ("thrust_speed_loss", {"advance_loss": 0.6}),
     "heading_bias=5": ("heading_bias", {"heading_bias_deg": 0.5}),
     "gnss_latency=0.4": ("gnss_latency", {"gnss_latency_s": 0.05}),
+    "heading_latency=0.4": ("heading_latency", {"heading_latency_s": 0.05}),
     "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
     "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
@@ -63,7 +64,8 @@ CASES = {
     "cg_offset=0.2,0": ("cg_offset", {"dx_m": 0.05, "dy_m": 0.05}),
 }
 ABSOLUTE = {"dir_deg", "delay_s", "pwm_clock_offset_s", "heading_bias_deg", "b_deg", "c_deg", "dx_m", "dy_m", "Yr", "Nv", "fwd", "rev",
-            "Yuv", "Nur", "Yur", "Nuv", "gnss_latency_s"}
+            "Yuv", "Nur", "Yur", "Nuv", "gnss_latency_s",
+            "heading_latency_s"}
 
 
 def make_search(prior, preps, recs, cv, library):

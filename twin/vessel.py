@@ -157,6 +157,8 @@ def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
     d = asdict(s)
     if s.heading_rate_window_s is None:  # files without it stay what they were (dataset fingerprints)
         del d["heading_rate_window_s"]
+    if not s.heading_latency_s:  # likewise
+        del d["heading_latency_s"]
     return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 

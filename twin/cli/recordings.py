@@ -20,12 +20,14 @@ def info(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with it: each log's compass calibration)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP + " (with it: each log's compass calibration)"),
 ):
-    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why; with --vessel or
+    """Summarise recordings: duration, rates, signals, gaps, what was dropped and why, how late the heading
+    is against the gyro (where the log has one); with --vessel or
     --model, each log's compass calibration from its kinematics (the logs read together, as identify,
     evaluate and diagnose read and apply it)."""
     from ..formats import read_recording
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
+    from ..prepare.timing import heading_lag_behind_gyro
     from ..recording import format_summary
 
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
@@ -42,6 +44,8 @@ def info(
         typer.echo(format_summary(rec.summary()))
         for line in describe(counted(rec)):
             typer.echo(f"  {line}")
+        if len(rec.imu) and len(rec.heading):
+            typer.echo(f"  {heading_lag_behind_gyro(rec).text()}")
         read.append(rec)
     if v is not None:
         failed += _calibrations(read, v)

@@ -458,6 +458,12 @@ def gnss_latency(vessel: Vessel, gnss_latency_s: float) -> Vessel:
     return _sensors(vessel, gnss_latency_s=gnss_latency_s)
 
 
+def heading_latency(vessel: Vessel, heading_latency_s: float) -> Vessel:
+    """The heading samples are stamped heading_latency_s after they were taken (GNSS and PWM on
+    time): an AHRS or compass filter."""
+    return _sensors(vessel, heading_latency_s=heading_latency_s)
+
+
 def heading_bias(vessel: Vessel, heading_bias_deg: float) -> Vessel:
     """A constant heading error (deg) of every log."""
     return _sensors(vessel, heading_bias_deg=heading_bias_deg)
@@ -584,6 +590,10 @@ _SPECS = [
                "GNSS fixes stamped late",
                _single("gnss_latency", member("sensors", "gnss_latency_s", "s", -0.5, 1.5, 0.1), ((0.0,),),
                        "timing", scan=_grid(-0.2, 1.2, 0.1), scan_step=(0.02,))),
+    EffectSpec("heading_latency", "sensors", (_v("heading_latency_s", "s", -2, 5),), heading_latency,
+               "heading samples stamped late (an AHRS filter)",
+               _single("heading_latency", member("sensors", "heading_latency_s", "s", -0.5, 1.5, 0.1), ((0.0,),),
+                       "timing", scan=_grid(-0.2, 1.0, 0.1), scan_step=(0.02,))),
     EffectSpec("heading_bias", "sensors", (_v("heading_bias_deg", *_DEG),), heading_bias, "constant heading error",
                _single("heading_bias", member("sensors", "heading_bias_deg", "deg", -30.0, 30.0, 1.0), ((0.0,),),
                        "drift")),

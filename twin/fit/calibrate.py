@@ -49,11 +49,11 @@ def calibrated(rec: Recording, vessel: Vessel) -> Recording:
 
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
     """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
-    corrected, lever arm from its antenna, each GNSS fix read at the time it was taken. (The PWM
+    corrected, lever arm from its antenna, each GNSS fix and heading read at the time it was taken. (The PWM
     clock offset acts where the PWM drives the twin: twin.fit.windows.)"""
-    latency = compiled.vessel.sensors.for_log(rec.source).gnss_latency_s
+    sensors = compiled.vessel.sensors.for_log(rec.source)
     return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled),
-                   gnss_latency_s=latency, **kwargs)
+                   gnss_latency_s=sensors.gnss_latency_s, heading_latency_s=sensors.heading_latency_s, **kwargs)
 
 
 # ---------------------------------------------------------------- a log's own calibration, from its kinematics

@@ -18,6 +18,10 @@ FRD), so a wrongly surveyed lever arm is a sensor parameter, not a new MJCF.
 stamped t was taken at t − gnss_latency_s (a receiver's solution latency, with heading and PWM
 on time). Its mark in a log: the track over ground lags the heading in every turn, so the
 measured sway carries −u·r·latency, which a hull's sway-yaw coupling can imitate.
+`heading_latency_s` > 0: the heading sample stamped t was taken at t − heading_latency_s (an
+AHRS or compass filter: a first-order filter of time constant τ lags a turn by about τ). Its mark:
+the heading lags the track in every turn, so the measured sway carries +u·r·latency, and the yaw
+rate taken from the heading lags the thrust; late heading ≡ GNSS and PWM both early by as much.
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ class Sensors:
     antenna_offset_m: tuple[float, float] = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
     gnss_latency_s: float = 0.0
+    heading_latency_s: float = 0.0
     heading_bias_by_log_deg: tuple[tuple[str, float], ...] = ()
     # the Savitzky-Golay window (s) of the yaw rate taken from this heading sensor; None: the
     # package's default for a fast AHRS (fit.calibrate.HEADING_WINDOW_S). A slower or noisier heading

@@ -34,10 +34,14 @@
    name them) says which, so windows, replays and fits take them through the vessel's own
    thruster model unchanged. A propeller and rudder has no operating regions of seed 004
    (region "") and no dead band.
-8. GNSS latency (`gnss_latency_s` L > 0: a fix stamped t was taken at t − L): the grid and its
-   segments are those of the streams as logged, so a calibration that tries several latencies
-   keeps every window valid; the position and velocity at grid time t are read from the GNSS
-   stream at t + L.
+8. GNSS and heading latency (`gnss_latency_s` L > 0: a fix stamped t was taken at t − L;
+   `heading_latency_s` likewise for the heading): the grid and its segments are those of the
+   streams as logged, so a calibration that tries several latencies keeps every window valid; the
+   position and velocity at grid time t are read from the GNSS stream at t + L (the heading and
+   yaw rate from the heading stream at t + L_heading), but never outside the segment: within |L|
+   of a segment's edge the edge's reading is held. Read across the edge, a negative latency after
+   a dropout took fixes from before it (u off by 2.4 m/s for 0.3 s at L = −0.43 s); held, the
+   error is the motion of |L| seconds at the edge.
 0. Outliers (outliers.py): GNSS fixes off their neighbours' track and heading spikes are left out
    of their streams before anything else, and counted in `dropped`.
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
@@ -96,6 +100,7 @@ class Preparation:
     lever_arm_OP_m: tuple[float, float] | None = None
     source: str = ""
     gnss_latency_s: float = 0.0
+    heading_latency_s: float = 0.0
 
     @property
     def yaw_rate_window_s(self) -> float:
@@ -141,14 +146,14 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
             heading_window_s: float | None = None,
             min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US,
-            gnss_latency_s: float = 0.0) -> Prepared:
+            gnss_latency_s: float = 0.0, heading_latency_s: float = 0.0) -> Prepared:
     """Seed 004 §5.1 data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
     body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
-    fast AHRS can afford shorter. gnss_latency_s: step 8 of the module docstring."""
+    fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
     name = Path(rec.source).name
     if not len(rec.gnss) or not len(rec.heading):
@@ -181,19 +186,20 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     dropped = outliers + _dropped_runs(valid, runs)
     idx = np.concatenate([np.arange(a, b) for a, b in runs])
     t = grid[idx]
-    t_fix = t + gnss_latency_s  # the fix that describes grid time t (step 8)
-    n_o, e_o = hold(pos.t, north_o, t_fix), hold(pos.t, east_o, t_fix)
-    psi = between(hdg.t, hdg["psi"], t)
     seg_id = np.concatenate([np.full(b - a, k) for k, (a, b) in enumerate(runs)])
     segments = _segments(runs, t)
+    t_fix = read_times(t, segments, gnss_latency_s)  # the fix that describes grid time t (step 8)
+    n_o, e_o = hold(pos.t, north_o, t_fix), hold(pos.t, east_o, t_fix)
+    psi = between(hdg.t, hdg["psi"], read_times(t, segments, heading_latency_s))
     heading_window_s = window_s if heading_window_s is None else heading_window_s
     _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
-    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder, gnss_latency_s)
+    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder,
+                          (gnss_latency_s, heading_latency_s))
     north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
     pwm, region, dead, input_kind = _inputs(rec, t, deadband_us)
     settings = Preparation(grid_dt, smoother, window_s, heading_window_s, polyorder, max_gap_s, min_segment_s,
                            tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
-                           rec.source, float(gnss_latency_s))
+                           rec.source, float(gnss_latency_s), float(heading_latency_s))
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
                     tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t),
                     supply_voltage(rec, t))
@@ -308,6 +314,17 @@ def _dropped_runs(valid: np.ndarray, runs: list[tuple[int, int]]) -> list[tuple[
     return out
 
 
+def read_times(t: np.ndarray, segments: list[Segment], latency_s: float) -> np.ndarray:
+    """The stream times that describe grid times t for a stream stamped latency_s late: t + latency_s,
+    held inside each segment (step 8)."""
+    if not latency_s:
+        return t
+    out = t + latency_s
+    for seg in segments:
+        out[seg.slice] = np.clip(out[seg.slice], seg.t0, seg.t1)
+    return out
+
+
 def _segments(runs: list[tuple[int, int]], t: np.ndarray) -> list[Segment]:
     out, start = [], 0
     for k, (a, b) in enumerate(runs):
@@ -320,23 +337,25 @@ def _segments(runs: list[tuple[int, int]], t: np.ndarray) -> list[Segment]:
 # ---------------------------------------------------------------- kinematics
 
 def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segment], smoother: str,
-                  windows_s: tuple[float, float], polyorder: int, gnss_latency_s: float = 0.0
+                  windows_s: tuple[float, float], polyorder: int, latencies_s: tuple[float, float] = (0.0, 0.0)
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Antenna velocity north, east (m/s) and yaw rate (rad/s) at the grid times t, each
-    differentiated on its own stream inside each segment (windows: GNSS, heading); the GNSS read
-    gnss_latency_s later (step 8)."""
+    differentiated on its own stream inside each segment (windows: GNSS, heading); each stream read
+    its latency later, inside the segment (step 8; latencies: GNSS, heading)."""
     vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
     # content keys, each array hashed once (a diagnosis prepares one recording hundreds of times)
     keys = {k: _digest(a) for k, a in (("gnss_t", pos.t), ("north", pos["north"]), ("east", pos["east"]),
                                         ("hdg_t", hdg.t), ("psi", hdg["psi"]), ("grid", t))}
+    lat_g, lat_h = map(float, latencies_s)
     for seg in segments:
         tg = t[seg.slice]
         grid = (keys["grid"], seg.start, seg.stop)
+        at_g, at_h = (np.clip(tg + lat, seg.t0, seg.t1) if lat else tg for lat in (lat_g, lat_h))
         vn[seg.slice], ve[seg.slice] = (
-            _rate_at(pos.t, pos[k], tg + gnss_latency_s, smoother, windows_s[0], polyorder, True,
-                     (keys["gnss_t"], keys[k], grid, float(gnss_latency_s))) for k in ("north", "east"))
-        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], tg, smoother, windows_s[1], polyorder, False,
-                                (keys["hdg_t"], keys["psi"], grid, 0.0))
+            _rate_at(pos.t, pos[k], at_g, smoother, windows_s[0], polyorder, True,
+                     (keys["gnss_t"], keys[k], grid, lat_g)) for k in ("north", "east"))
+        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], at_h, smoother, windows_s[1], polyorder, False,
+                                (keys["hdg_t"], keys["psi"], grid, lat_h))
     return vn, ve, r
 
 

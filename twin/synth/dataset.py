@@ -230,7 +230,7 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
         g_n.append(np.interp(taken, run.t, n_a) + wander[0] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
         g_e.append(np.interp(taken, run.t, e_a) + wander[1] + rng.normal(0.0, noise.gnss_white_m, len(tg)))
         th = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
-        psi = np.interp(th, run.t, run.eta[:, 2])
+        psi = np.interp(th - vessel.sensors.heading_latency_s, run.t, run.eta[:, 2])  # a late AHRS: older
         h_t.append(th)
         h_psi.append(wrap_angle(measured_heading(vessel.sensors.for_log(source), psi)
                                 + np.radians(rng.normal(0.0, noise.heading_deg, len(th)))))

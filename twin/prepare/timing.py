@@ -1,0 +1,114 @@
+"""How late a log's heading is against its own gyro, from the two streams alone (no model).
+
+A heading sample stamped t that was taken at t − L (an AHRS or compass filter: a first-order filter
+of time constant τ lags a turn by about τ) is ψ(t) = ∫r up to t − L, where r is the gyro's yaw
+rate, which no heading filter has touched. Cut into WINDOW_S pieces, each with its own starting
+heading and a gyro bias of its own (the integral drifts), the L that lines the heading up with the
+integrated gyro best (least squares, scanned on a 10 ms grid) is the heading's delay against the
+gyro; the library's `heading_latency` is that delay against the GNSS and PWM, the same where the
+gyro is stamped on time. The integral weighs the slow turning most, where a filter's delay is its
+τ; a derivative of the heading weighs the fast wiggles, which a filter delays less (on the
+independent simulator's heading_lag recordings, τ 0.31-0.59 s: 0.30-0.54 s this way, 0.27-0.47 s
+from the derivative). A gyro's z axis is the yaw rate only while roll and pitch stay small, as on
+a surface boat.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+
+from ..recording import Recording
+from .outliers import heading_spikes
+
+MAX_LAG_S = 1.5
+STEP_S = 0.01
+WINDOW_S = 10.0
+MAX_GAP_S = 0.5  # a piece with a longer silence in either stream is left out
+MIN_TURNING_S = 30.0  # of samples at |r| ≥ TURNING_RAD_S: fewer, and the alignment is noise's
+TURNING_RAD_S = 0.05
+# below this share the heading's wiggles are mostly noise or a gyro's drift within a piece: the best
+# lag is theirs (a ship model turning at 1-3°/s: 24-56 %, lags of either sign)
+MIN_FIT = 0.9
+
+
+@dataclass(frozen=True)
+class GyroLag:
+    """lag_s: how late the heading is against the gyro (s, > 0: the heading is late), None when it
+    cannot be told; fit: the share of the heading's variance (each piece's offset and trend out) the shifted gyro's
+    integral explains;
+    turning_s: seconds of turning it rests on; note: why there is no lag."""
+
+    lag_s: float | None
+    fit: float | None = None
+    turning_s: float = 0.0
+    note: str = ""
+
+    def text(self) -> str:
+        if self.lag_s is None:
+            return f"heading against the gyro: not told ({self.note})"
+        return (f"heading against the gyro: {self.lag_s:+.2f} s late (the shifted gyro's turning explains {100 * self.fit:.0f} % "
+                f"of the heading's over {self.turning_s:.0f} s of turning; `heading_latency={self.lag_s:.2f}` "
+                "describes it if the gyro is on time)")
+
+
+def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
+    """The heading's delay against the gyro of `rec` (module docstring)."""
+    if not len(rec.imu) or not len(rec.heading):
+        return GyroLag(None, note="the log has no gyro" if not len(rec.imu) else "the log has no heading")
+    psi = np.unwrap(rec.heading["psi_rad"])
+    keep = ~heading_spikes(psi, rec.heading.t)
+    t_h, psi = rec.heading.t[keep], psi[keep]
+    t_g, r_g = rec.imu.t, np.asarray(rec.imu["yaw_rate_rads"], float)
+    ok = np.isfinite(r_g)
+    t_g, r_g = t_g[ok], r_g[ok]
+    if len(t_h) < 3 or len(t_g) < 3:
+        return GyroLag(None, note="too few heading or gyro samples")
+    turned = np.r_[0.0, cumulative_trapezoid(r_g, t_g)]  # the heading the gyro alone gives (rad), from 0
+    pieces = list(_pieces(t_h, t_g))
+    spin = np.abs(np.interp(t_h, t_g, r_g)) >= TURNING_RAD_S
+    dt = float(np.median(np.diff(t_h)))
+    turning_s = sum(float(np.sum(spin[m])) for m in pieces) * dt
+    if turning_s < MIN_TURNING_S:
+        return GyroLag(None, turning_s=turning_s,
+                       note=f"{turning_s:.0f} s of turning beside a running gyro; {MIN_TURNING_S:.0f} s are needed")
+    lags = np.round(np.arange(-MAX_LAG_S, MAX_LAG_S + STEP_S / 2, STEP_S), 4)
+    cost, spread = np.zeros(len(lags)), 0.0
+    for m in pieces:
+        t = t_h[m]
+        shifted = np.interp((t[None, :] - lags[:, None]).ravel(), t_g, turned).reshape(len(lags), len(t))
+        cost += _detrended_squares(psi[m][None, :] - shifted, t)
+        spread += float(_detrended_squares(psi[m][None, :], t)[0])
+    k = int(np.argmin(cost))
+    if k in (0, len(lags) - 1):
+        return GyroLag(None, turning_s=turning_s, note=f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
+    fit = float(1.0 - cost[k] / spread)
+    if fit < MIN_FIT:
+        return GyroLag(None, fit, turning_s, f"the gyro's turning explains only {100 * fit:.0f} % of the heading's; "
+                                              f"{100 * MIN_FIT:.0f} % are needed")
+    return GyroLag(float(lags[k]), fit, turning_s)
+
+
+def _detrended_squares(y: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Σ of squares of each row of y after its own offset and slope in t (a piece's starting heading
+    and gyro bias) are taken out."""
+    tc = t - t.mean()
+    yc = y - y.mean(axis=1, keepdims=True)
+    slope = (yc @ tc) / float(tc @ tc)
+    return np.sum((yc - slope[:, None] * tc[None, :]) ** 2, axis=1)
+
+
+def _pieces(t_h: np.ndarray, t_g: np.ndarray):
+    """Masks of the heading samples in WINDOW_S pieces where neither stream (the gyro over the scan's
+    reach too) is silent for more than MAX_GAP_S."""
+    for a in np.arange(t_h[0] + MAX_LAG_S, t_h[-1] - MAX_LAG_S - WINDOW_S, WINDOW_S):
+        m = (t_h >= a) & (t_h < a + WINDOW_S)
+        if np.sum(m) < 10 or np.max(np.diff(t_h[m])) > MAX_GAP_S:
+            continue
+        g = (t_g >= a - MAX_LAG_S) & (t_g <= a + WINDOW_S + MAX_LAG_S)
+        tg = t_g[g]
+        if len(tg) < 10 or tg[0] > a - MAX_LAG_S + MAX_GAP_S or tg[-1] < a + WINDOW_S + MAX_LAG_S - MAX_GAP_S \
+                or np.max(np.diff(tg)) > MAX_GAP_S:
+            continue
+        yield m
