@@ -47,3 +47,20 @@ def test_without_a_gyro_or_turning_nothing_is_told():
     assert heading_lag_behind_gyro(Recording("x.csv", "csv", heading=rec.heading)).lag_s is None
     straight = heading_lag_behind_gyro(_log(turn_rad_s=0.01))
     assert straight.lag_s is None and "turning" in straight.note
+
+
+def test_the_diagnosis_notes_each_logs_heading_against_its_gyro():
+    from twin.diagnose.doctor import _gyro_timing
+
+    late, plain = _log(heading_delay_s=0.25), _log(turn_rad_s=0.01)
+    notes = _gyro_timing([late, Recording("still.csv", "csv", heading=plain.heading, imu=plain.imu)])
+    assert len(notes) == 1 and notes[0].startswith("weave.csv: heading against the gyro: +")
+    assert float(notes[0].split(": +")[1].split(" s late")[0]) == pytest.approx(0.25, abs=0.02)
+
+
+def test_a_gyro_of_the_other_sign_is_not_read_as_a_lag():
+    rec = _log(heading_delay_s=0.3)
+    port_positive = Stream(rec.imu.t, {"yaw_rate_rads": -rec.imu["yaw_rate_rads"]})
+    flipped = Recording("x.csv", "csv", heading=rec.heading, imu=port_positive)
+    got = heading_lag_behind_gyro(flipped)
+    assert got.lag_s is None and "explains only" in got.note

@@ -34,6 +34,7 @@ from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared, supply_reference
 from ..prepare.prepared import supply_voltage
+from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
 from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
@@ -149,6 +150,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                         "after": after}
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
+    diagnosis.notes += _gyro_timing(recordings)
     if core:
         diagnosis.amended = replace(diagnosis.amended, uncertainty={})  # the prior's covariance is not the refit's
         diagnosis.refit = {"groups": list(refit), "coefficients": core_names, "beliefs_weight": refit_weight,
@@ -356,6 +358,19 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
         win.append(np.full(n, j))
         tiw.append(np.arange(1, n + 1) * h)
     return {k: np.concatenate(v) for k, v in cols.items()}, np.concatenate(win), np.concatenate(tiw)
+
+
+def _gyro_timing(recordings: list[Recording]) -> list[str]:
+    """Each log's heading against its own gyro, where it has one and it can be told (prepare/timing.py):
+    a kinematic fact the dynamics cannot give, e.g. to settle `heading_latency` against a hull's
+    sway-yaw coupling, which one log's blocks often cannot."""
+    out = []
+    for r in recordings:
+        if len(r.imu) and len(r.heading):
+            lag = heading_lag_behind_gyro(r)
+            if lag.lag_s is not None:
+                out.append(f"{log_name(r.source)}: {lag.text()}")
+    return out
 
 
 def _locate(rep: _Replay, preps, windows, noise) -> tuple[list[dict], dict, dict, dict]:

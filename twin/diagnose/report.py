@@ -54,7 +54,8 @@ NEXT = {
     "drift": "straight runs under way on opposite headings, and a few minutes drifting with the thrusters off: "
              "a current or wind pushes the same way whatever the heading, a compass error turns with the boat",
     "timing": "steps of the sticks from rest and back to neutral (the thrust's timing shows at steps), and the "
-              "PWM logged on the same clock as GNSS and heading",
+              "PWM logged on the same clock as GNSS and heading; with the gyro (IMU) logged, `twin info` reads "
+              "how late the heading is against it",
     "thrust": "straight runs at several fixed throttles ahead and astern, and spins in place both ways "
               "(a weak thruster turns the boat better one way than the other), the same runs on a full and "
               "on a tired pack with the battery voltage logged (a thrust that follows the pack, not the clock)",

@@ -155,6 +155,9 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
     fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
+    for what, latency in (("gnss_latency_s", gnss_latency_s), ("heading_latency_s", heading_latency_s)):
+        if not np.isfinite(latency):
+            raise TwinError(f"{what} must be a finite number of seconds, got {latency}")
     name = Path(rec.source).name
     if not len(rec.gnss) or not len(rec.heading):
         missing = " and ".join(s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower())))

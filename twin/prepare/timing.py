@@ -48,8 +48,8 @@ class GyroLag:
     def text(self) -> str:
         if self.lag_s is None:
             return f"heading against the gyro: not told ({self.note})"
-        return (f"heading against the gyro: {self.lag_s:+.2f} s late (the shifted gyro's turning explains {100 * self.fit:.0f} % "
-                f"of the heading's over {self.turning_s:.0f} s of turning; `heading_latency={self.lag_s:.2f}` "
+        return (f"heading against the gyro: {self.lag_s:+.2f} s late (the shifted gyro's turning explains "
+                f"{100 * self.fit:.0f} % of the heading's over {self.turning_s:.0f} s of turning; `heading_latency={self.lag_s:.2f}` "
                 "describes it if the gyro is on time)")
 
 
@@ -80,13 +80,16 @@ def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
         shifted = np.interp((t[None, :] - lags[:, None]).ravel(), t_g, turned).reshape(len(lags), len(t))
         cost += _detrended_squares(psi[m][None, :] - shifted, t)
         spread += float(_detrended_squares(psi[m][None, :], t)[0])
+    if not (np.all(np.isfinite(cost)) and spread > 0.0):
+        return GyroLag(None, turning_s=turning_s, note="the heading or the gyro has values that are not numbers")
     k = int(np.argmin(cost))
-    if k in (0, len(lags) - 1):
-        return GyroLag(None, turning_s=turning_s, note=f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
     fit = float(1.0 - cost[k] / spread)
-    if fit < MIN_FIT:
+    if fit < MIN_FIT:  # before the edge: a gyro in deg/s or of the other sign fits nowhere, its best lag is noise's
         return GyroLag(None, fit, turning_s, f"the gyro's turning explains only {100 * fit:.0f} % of the heading's; "
-                                              f"{100 * MIN_FIT:.0f} % are needed")
+                                              f"{100 * MIN_FIT:.0f} % are needed (a gyro in rad/s, positive turning "
+                                              "to starboard, is expected)")
+    if k in (0, len(lags) - 1):
+        return GyroLag(None, fit, turning_s, f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
     return GyroLag(float(lags[k]), fit, turning_s)
 
 
