@@ -328,6 +328,23 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     assert any(line.startswith("to settle timing effects") for line in a["next"])
 
 
+def test_a_residual_that_follows_no_signal_is_not_blamed_on_the_form_alone():
+    """A DOF still far off after the amendment: with signals it follows, the twin's form is blamed; with none
+    (the proof's chop, a random force the log does not record), the answer says it may be either."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+
+    def d_with(follows):
+        off = {"dimension": "all", "dof": "u", "rms": 0.12, "rms_over_noise": 4.0, "correlates_with": follows}
+        return SimpleNamespace(effects=[], rounds=[], unexplained=[off], located=[], fit_before={}, fit_after={},
+                               prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 90})
+
+    plain, followed = answer(d_with([]))["form"][0], answer(d_with([{"signal": "u", "r": 0.48}]))["form"][0]
+    assert "follows none of the logged signals" in plain and "a disturbance the log does not record" in plain
+    assert "and follows u (+0.48): the twin's form is off there" in followed and "disturbance" not in followed
+
+
 def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable():
     """Seed 23's tidal current: compass_deviation kept, current preferred by the blocks (z 4.3 between
     the two) but short of its own place; the answer must not say the two cannot be told apart."""

@@ -40,6 +40,7 @@ from ..fit.calibrate import prepare_for, rate_windows
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
+from .report import FOLLOWS_R
 from .search import BLOCK_WINDOWS, Z_MIN, Search
 
 WINDOW_S = 10.0
@@ -435,11 +436,11 @@ def _unexplained(located: list[dict], corr: dict, overall: dict) -> list[dict]:
     out = []
     for dof, o in overall.items():
         if (o.get("rms_over_noise") or 0) > 3.0:
-            follows = [c for c in corr.get(dof, []) if abs(c.get("r", 0)) > 0.3][:3]
+            follows = [c for c in corr.get(dof, []) if abs(c.get("r", 0)) > FOLLOWS_R][:3]
             out.append({"dimension": "all", "bin": "every window", "dof": dof, "rms": o["rms"], "bias": o["bias"],
                         "rms_over_noise": o["rms_over_noise"], "z": o.get("z_bias"), "correlates_with": follows})
     for e in located:
         if e.get("z", 0) >= 3.0 and (e.get("rms_over_noise") or 0) > 1.5:
-            follows = [c for c in corr.get(e["dof"], []) if abs(c.get("r", 0)) > 0.3][:3]
+            follows = [c for c in corr.get(e["dof"], []) if abs(c.get("r", 0)) > FOLLOWS_R][:3]
             out.append({**e, "correlates_with": follows})
     return out[:10]
