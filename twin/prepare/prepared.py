@@ -350,14 +350,13 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
     keys = {k: _digest(a) for k, a in (("gnss_t", pos.t), ("north", pos["north"]), ("east", pos["east"]),
                                         ("hdg_t", hdg.t), ("psi", hdg["psi"]), ("grid", t))}
     lat_g, lat_h = map(float, latencies_s)
+    read_g, read_h = read_times(t, segments, lat_g), read_times(t, segments, lat_h)
     for seg in segments:
-        tg = t[seg.slice]
         grid = (keys["grid"], seg.start, seg.stop)
-        at_g, at_h = (np.clip(tg + lat, seg.t0, seg.t1) if lat else tg for lat in (lat_g, lat_h))
         vn[seg.slice], ve[seg.slice] = (
-            _rate_at(pos.t, pos[k], at_g, smoother, windows_s[0], polyorder, True,
+            _rate_at(pos.t, pos[k], read_g[seg.slice], smoother, windows_s[0], polyorder, True,
                      (keys["gnss_t"], keys[k], grid, lat_g)) for k in ("north", "east"))
-        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], at_h, smoother, windows_s[1], polyorder, False,
+        r[seg.slice] = _rate_at(hdg.t, hdg["psi"], read_h[seg.slice], smoother, windows_s[1], polyorder, False,
                                 (keys["hdg_t"], keys["psi"], grid, lat_h))
     return vn, ve, r
 
