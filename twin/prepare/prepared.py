@@ -43,7 +43,9 @@
    a dropout took fixes from before it (u off by 2.4 m/s for 0.3 s at L = −0.43 s); held, the
    error is the motion of |L| seconds at the edge.
 0. Outliers (outliers.py): GNSS fixes off their neighbours' track and heading spikes are left out
-   of their streams before anything else, and counted in `dropped`.
+   of their streams before anything else, and counted in `dropped`. Fixes a receiver held while
+   the vessel moved on (outliers.held_fixes) stay in the stream, so they open no dropout, but the
+   velocities are taken across them, from the fresh fixes, as across a repeated fix (step 4).
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
    (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
    whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
@@ -64,7 +66,7 @@ from ..errors import TwinError
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
 from ..recording import Recording, Stream
 from ..run import Run
-from .outliers import distinct_count, gnss_outliers, heading_spikes
+from .outliers import distinct_count, gnss_outliers, heading_spikes, held_fixes
 
 DEADBAND_US = (-37.0, 31.0)  # seed 000 Table VII (experimental): 400·(3.75 + δ̃) − 1500
 _EPS_S = 1e-6  # a grid time within this of a sample time counts as "at" the sample
@@ -174,6 +176,10 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     pos = Stream(rec.gnss.t[~off_track], {"north": north_o[~off_track], "east": east_o[~off_track]})
     hdg = Stream(rec.heading.t[~spiked], {"psi": psi_h[~spiked]})
     north_o, east_o = pos["north"], pos["east"]
+    held = _flagged(held_fixes, north_o, east_o, pos.t)  # no new fixes, yet not a dropout (step 0)
+    if held.any():
+        outliers.append(("GNSS fixes held while the vessel moved on (velocities taken across them)", int(held.sum())))
+    fresh = Stream(pos.t[~held], {"north": north_o[~held], "east": east_o[~held]})
     inputs = rec.pwm if len(rec.pwm) else rec.prop_rudder
     needed = [pos, hdg] + ([inputs] if len(inputs) else [])
     grid = _grid(needed, grid_dt)
@@ -196,7 +202,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     psi = between(hdg.t, hdg["psi"], read_times(t, segments, heading_latency_s))
     heading_window_s = window_s if heading_window_s is None else heading_window_s
     _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
-    rates = _stream_rates(pos, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder,
+    rates = _stream_rates(fresh, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder,
                           (gnss_latency_s, heading_latency_s))
     north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
     pwm, region, dead, input_kind = _inputs(rec, t, deadband_us)
@@ -226,7 +232,9 @@ def outlier_counts(rec: Recording) -> dict[str, int]:
     out = {}
     if len(rec.gnss):
         n, e, _ = local_ned(rec.gnss)
-        out["gnss"] = distinct_count(gnss_outliers(n, e, rec.gnss.t), np.column_stack([n, e]))
+        off = gnss_outliers(n, e, rec.gnss.t)
+        out["gnss"] = distinct_count(off, np.column_stack([n, e]))
+        out["gnss_held"] = int(held_fixes(n[~off], e[~off], rec.gnss.t[~off]).sum())
     if len(rec.heading):
         psi = np.unwrap(rec.heading["psi_rad"])
         out["heading"] = distinct_count(heading_spikes(psi, rec.heading.t), psi)
