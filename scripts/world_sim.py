@@ -193,6 +193,7 @@ class Effects:
     wind: dict | None = None                  # speed, from_deg, gust_sigma, gust_tau_s, dir_sigma_deg, dir_tau_s
     heading_offset_deg: float = 0.0
     magnetometer: tuple | None = None         # (hard_x, hard_y, soft_xx, soft_yy, soft_xy) in units of the field
+    motor_field: tuple | None = None          # (cx, cy): the magnetometer's field offset per W of motor power, body x/y
     gnss_latency_s: float = 0.0
     antenna_offset_m: tuple = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
@@ -362,6 +363,11 @@ def ocv_4s_v(soc: float) -> float:
     return 4.0 * float(np.interp(soc, CELL_SOC, CELL_V))
 
 
+def motor_power_w(tl_n, tr_n):
+    """Electrical power of both thrusters (W) at thrusts tl, tr (N): k·|T|^1.5 each (floats or arrays)."""
+    return T200_POWER_W_PER_N15 * (abs(tl_n) ** 1.5 + abs(tr_n) ** 1.5)
+
+
 class ThrusterChain:
     """PWM command → thrust per thruster, step by step: transport delay, static T200 map with its dead zone
     (or this world's wider/hysteretic one), gain, first-order lag (params) or slew limit (effect), battery."""
@@ -496,12 +502,19 @@ class Sensors:
     noise_info: dict = field(default_factory=dict)
     fault_info: dict = field(default_factory=dict)
     magnetometer: tuple | None = None
+    motor_field: tuple | None = None
 
-    def heading_error_rad(self, psi: np.ndarray | float) -> np.ndarray | float:
-        """Logged minus true heading: the offset plus the magnetometer's iron error."""
-        if self.magnetometer is None:
-            return self.heading_offset_rad + 0.0 * np.asarray(psi)
-        return self.heading_offset_rad + iron_error_rad(np.asarray(psi, float), self.magnetometer)
+    def heading_error_rad(self, psi: np.ndarray | float, motor_power_w: np.ndarray | float = 0.0) -> np.ndarray | float:
+        """Logged minus true heading: the offset plus the magnetometer's iron error and the field of the
+        motor currents (a body-fixed offset growing with the power drawn, as ArduPilot's COMPASS_MOT)."""
+        psi = np.asarray(psi, float)
+        iron = self.magnetometer or (0.0, 0.0, 0.0, 0.0, 0.0)
+        if self.motor_field is not None:
+            p = np.asarray(motor_power_w, float)
+            iron = (iron[0] + self.motor_field[0] * p, iron[1] + self.motor_field[1] * p) + tuple(iron[2:])
+        elif self.magnetometer is None:
+            return self.heading_offset_rad + 0.0 * psi
+        return self.heading_offset_rad + iron_error_rad(psi, iron)
 
     def heading_steps(self) -> np.ndarray:
         return np.arange(self.first_step + self.hdg_phase, self.n_steps, self.hdg_stride)
@@ -509,13 +522,14 @@ class Sensors:
     def gnss_steps(self) -> np.ndarray:
         return np.arange(self.first_step + self.gnss_phase, self.n_steps, self.gnss_stride)
 
-    def latest_heading(self, k: int, psi: list, r: list) -> tuple[float, float] | None:
+    def latest_heading(self, k: int, psi: list, r: list, power: list) -> tuple[float, float] | None:
         """The newest heading (rad) and gyro rate (rad/s) at step k, as the autopilot reads them."""
         j = (k - self.first_step - self.hdg_phase) // self.hdg_stride
         if j < 0:
             return None
         ks = self.first_step + self.hdg_phase + j * self.hdg_stride
-        return (psi[ks] + float(self.heading_error_rad(psi[ks])) + self.hdg_noise_rad[j] + self.hdg_spike_rad[j],
+        return (psi[ks] + float(self.heading_error_rad(psi[ks], power[ks])) + self.hdg_noise_rad[j] +
+                self.hdg_spike_rad[j],
                 r[ks] + self.gyro_noise_rad_s[j])
 
     def latest_fix(self, k: int, n: list, e: list, psi: list) -> tuple[float, float, float] | None:
@@ -572,7 +586,8 @@ def make_sensors(rng: np.random.Generator, v: Vessel, fx: Effects, first_step: i
                    {"gnss_white_m": white_m, "gnss_wander_sigma_m": round(wander_m, 3),
                     "gnss_wander_tau_s": round(wander_tau_s, 1), "gnss_hz": 5, "heading_hz": hz,
                     "heading_noise_deg": hdg_sd_deg, "yaw_rate_noise_rad_s": gyro_sd, "pwm_hz": 10,
-                    "pwm_quantisation_us": 1, "voltage_hz": 2, "voltage_noise_v": 0.02}, fault_info, fx.magnetometer)
+                    "pwm_quantisation_us": 1, "voltage_hz": 2, "voltage_noise_v": 0.02}, fault_info, fx.magnetometer,
+                   fx.motor_field)
 
 
 # ---------------------------------------------------------------- drivers
@@ -616,6 +631,7 @@ class World:
         self.u: list = []
         self.v: list = []
         self.r: list = []
+        self.power: list = []   # motor power drawn over each step (W): what the motor currents' field follows
 
 
 class HumanDriver:
@@ -739,7 +755,7 @@ class Autopilot:
 
     def command(self, tick: int, k: int, w: World) -> tuple[float, float]:
         s = w.sensors
-        hdg, fix = s.latest_heading(k, w.psi, w.r), s.latest_fix(k, w.n, w.e, w.psi)
+        hdg, fix = s.latest_heading(k, w.psi, w.r, w.power), s.latest_fix(k, w.n, w.e, w.psi)
         if hdg is None or fix is None:
             return NEUTRAL_US, NEUTRAL_US
         psi_m, r_m = hdg
@@ -840,7 +856,7 @@ def simulate(v: Vessel, fx: Effects, driver, sensors: Sensors, rng: np.random.Ge
     if x[3:] == (0.0, 0.0, 0.0):   # start drifting with the water, as a boat that has been idle
         c, s = math.cos(x[2]), math.sin(x[2])
         x = x[:3] + (cn_l[0] * c + ce_l[0] * s, -cn_l[0] * s + ce_l[0] * c, 0.0)
-    for lst, val in zip((w.n, w.e, w.psi, w.u, w.v, w.r), x):
+    for lst, val in zip((w.n, w.e, w.psi, w.u, w.v, w.r, w.power), x + (0.0,)):
         lst.append(val)
     cmd_l: list = []
     cmd_r: list = []
@@ -856,6 +872,7 @@ def simulate(v: Vessel, fx: Effects, driver, sensors: Sensors, rng: np.random.Ge
         for k in range(k0, k0 + spt):
             tl, tr = chain.step(k, cmd_l, cmd_r)
             thr.append((tl, tr))
+            w.power.append(motor_power_w(tl, tr))
             sum_l += abs(tl)
             sum_r += abs(tr)
             x = rk4_step(rhs, x, dt_s, forces(tl, tr, k), (cn_l[k], ce_l[k], dcn_l[k], dce_l[k], wn_l[k], we_l[k]))
@@ -911,7 +928,9 @@ def recording_streams(run: Run, s: Sensors, fx: Effects, rng: np.random.Generato
     kh = s.heading_steps()
     jh = np.arange(len(kh))
     psi = x[:, 2] if not fx.heading_lag_s else low_pass(x[:, 2], fx.heading_lag_s, DT_S)
-    hdg = psi[kh] + s.heading_error_rad(psi[kh]) + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
+    before = np.maximum(kh - 1, 0)   # the power drawn over the step that led to the sampled state
+    power = motor_power_w(run.thrust_n[before, 0], run.thrust_n[before, 1])
+    hdg = psi[kh] + s.heading_error_rad(psi[kh], power) + s.hdg_noise_rad[jh] + s.hdg_spike_rad[jh]
     rate = x[kh, 5] + s.gyro_noise_rad_s[jh]
     th = run.t_s[kh]
     keep = gap_mask(th, gaps)
@@ -1274,6 +1293,28 @@ def b_iron(rng, v):
               "(soft iron) are left over, and a single log's compass calibration may take a constant")]
 
 
+def b_motor_field(rng, v):
+    """The motor currents' own field at the compass: a body-fixed offset of 0.08-0.15 of the earth's horizontal
+    field at both thrusters' full forward power, in a random body direction, growing with the power drawn."""
+    mag, ang = rng.uniform(0.08, 0.15), rng.uniform(0, 2 * np.pi)
+    full_w = 2.0 * motor_power_w(curve_thrust_n(pwm_to_unit(v.pwm_max_us, v), v, True), 0.0)
+    per_w = (mag * math.cos(ang) / full_w, mag * math.sin(ang) / full_w)
+    psi = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    peak = float(np.degrees(np.abs(iron_error_rad(psi, (mag * math.cos(ang), mag * math.sin(ang), 0, 0, 0))).max()))
+    return Effects(motor_field=per_w), [effect(
+        "compass_motor_field", "magnetic compass disturbed by the thrusters' currents (ArduPilot's COMPASS_MOT): the "
+        "field read is the earth's plus c·P, a body-fixed vector times the motor power drawn; heading = "
+        "atan2(−m_y, m_x), exact; at idle no error",
+        {"field_at_full_power": r3(mag), "direction_body_deg": r3(math.degrees(ang)), "full_power_w": r3(full_w),
+         "peak_error_at_full_power_deg": r3(peak)},
+        "none (model-form)", {},
+        ["heading_bias (the error's mean where the boat runs under power)",
+         "compass_deviation (its heading-dependent part at the power mostly drawn)"],
+        notes="the library has no heading error that follows the thrust; the per-log compass calibration, made on "
+              "straight runs under way, takes the under-way mean. A hull, thruster or wind effect named would be "
+              "invented; the report should say the heading (or sway) is off under power")]
+
+
 def b_ventilation(rng, v):
     """Forward thrust beyond 40-55 % of full grows at 0.3-0.5 of the map's slope (a propeller near the
     surface drawing air under heavy load): a knee in the thrust curve, not a gain."""
@@ -1395,6 +1436,8 @@ CASES: dict[str, CaseSpec] = {
                                     b_antenna, style="spins"),
     "compass_iron": CaseSpec("magnetic compass with hard and soft iron (deviation 3.5-6°, exact atan2 form), RC",
                              "rc", 900, b_iron),
+    "compass_motor_field": CaseSpec("compass disturbed by the thrusters' currents (0.08-0.15 of the field at full "
+                                    "power, body-fixed direction), RC", "rc", 900, b_motor_field),
     "thrust_ventilation": CaseSpec("forward thrust saturating beyond 40-55 % of full (slope ×0.3-0.5), RC heavy "
                                    "sticks", "rc", 900, b_ventilation, style="heavy"),
     "pwm_clock_offset": CaseSpec("PWM log stamped 0.3-0.5 s late against GNSS/heading, RC", "rc", 900, b_clock),

@@ -249,3 +249,36 @@ def test_vessel_files_with_bad_fields_are_refused_at_load(monkeypatch, capsys, t
     model = vessel_file(tmp_path, name, change)
     err = refused(monkeypatch, capsys, ["params", "--model", model])
     assert message in err, err
+
+
+def test_one_recording_given_twice_is_refused(monkeypatch, capsys, kept):
+    """Its windows would count twice, and a run "left out" of identify's choice would be a copy of one it
+    fitted on (the README's scores on a new run would not be on a new run)."""
+    root, log, _, same = kept
+    copy = root / "copy.csv"
+    copy.write_bytes(log.read_bytes())
+    v = ["--vessel", "yellowfish"]
+    for args, message in [(("identify", log, log, *v, "--out", root / "m.json"), "is given twice"),
+                          (("identify", log, root / "." / "log.csv", *v, "--out", root / "m.json"), "is given twice"),
+                          (("evaluate", log, copy, *v), "holds the same bytes as"),
+                          (("diagnose", copy, log, *v), "holds the same bytes as")]:
+        err = refused(monkeypatch, capsys, args, [log, copy, same])
+        assert message in err, (args, err)
+    assert not (root / "m.json").exists()
+
+
+def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkeypatch, capsys, shared_dir,
+                                                                           tmp_path):
+    """A log that cannot be prepared no longer hides the other logs' calibrations, and a propeller-and-rudder
+    ship's log is not calibrated as a PWM boat's (identify, evaluate and diagnose refuse that pairing too)."""
+    good = shared_dir / "data" / "blueboat" / "fixed_00000225.csv"
+    cut = tmp_path / "cut.csv"
+    cut.write_text("".join(good.read_text().splitlines(keepends=True)[:5]))
+    monkeypatch.setattr(sys, "argv", ["twin", "info", str(good), str(cut), "--vessel", "blueboat"])
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main()
+    out, err = capsys.readouterr()
+    assert exit_info.value.code == 2 and "error: calibration: cut.csv" in err
+    assert "calibration: fixed_00000225.csv: compass offset +6.9°" in out
+    code, err = run(monkeypatch, capsys, ["info", good, "--vessel", "esso_osaka"])
+    assert code == 2 and "is driven by propeller_rudder inputs; the recording holds pwm" in err

@@ -541,3 +541,16 @@ def test_the_summary_says_how_far_the_pack_sagged_and_preparation_holds_it():
     held = supply_voltage(rec, np.array([0.0, 2.5, 4.0, 9.0]))  # before the first reading: the first
     np.testing.assert_array_equal(held, [16.1, 16.1, 15.6, 14.9])
     assert supply_voltage(Recording(source="none.csv", kind="csv"), np.array([0.0])) is None
+
+
+def test_a_log_without_a_gyro_converts_to_a_tlog_without_one(tmp_path):
+    """ATTITUDE carries a yaw rate whether or not the log had one: written as 0, it read back as a
+    gyro that never turns (and `twin info` then judged the heading against it); now NaN, read as none."""
+    from twin.formats import write_recording
+
+    rec = read_recording(write_generic_csv(tmp_path / "g.csv"))
+    assert len(rec.imu) == 0 and len(rec.heading) > 0
+    write_recording(rec, tmp_path / "g.tlog")
+    back = read_recording(tmp_path / "g.tlog")
+    assert len(back.imu) == 0 and len(back.heading) == len(rec.heading)
+    assert not any("imu" in what for what, _ in back.dropped)

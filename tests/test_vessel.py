@@ -52,3 +52,20 @@ def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
     assert again.sensors.heading_rate_window_s == 1.5 and rate_windows(again)["heading_window_s"] == 1.5
     with pytest.raises(TwinError, match="heading_rate_window_s must be positive"):
         vessel_mod.check(replace(boat, sensors=replace(boat.sensors, heading_rate_window_s=0.0)))
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.__setitem__("dampng", d.pop("damping")), "unknown vessel file field.s. dampng"),
+    (lambda d: d.pop("damping"), "needs its damping section"),
+    (lambda d: d.pop("thrusters"), "needs its thrusters section"),
+])
+def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_path, edit, message):
+    """A misspelt or missing section would load as zeros or defaults (a twin with no damping ran with
+    exit 0 and R² r −573): refused in one line instead."""
+    v = vessel_mod.load("blueboat")
+    path = vessel_mod.save(v, tmp_path / "boat.json")
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=message):
+        vessel_mod.load(str(path))

@@ -221,6 +221,11 @@ def _pair(value, what: str, path: Path) -> tuple[float, float]:
     return _typed(value, tuple[float, float], what, path)
 
 
+VESSEL_FILE_KEYS = frozenset({"name", "mjcf", "added_mass", "damping", "thrusters", "wind_load", "environment",
+                              "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression"})
+REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
+
+
 def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if not isinstance(data, dict) or "mjcf" not in data or "name" not in data:
         raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
@@ -230,6 +235,14 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     mjcf = (MODEL_DIR / data["mjcf"][len(PACKAGE_MJCF):]) if shipped else (path.parent / data["mjcf"]).resolve()
     if not mjcf.is_file():
         raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+    unknown = sorted(set(data) - VESSEL_FILE_KEYS)
+    if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
+        raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "
+                        f"(known: {', '.join(sorted(VESSEL_FILE_KEYS))})")
+    missing = [k for k in REQUIRED_SECTIONS if k not in data]
+    if missing:
+        raise TwinError(f"{path.name}: a vessel file needs its {', '.join(missing)} section(s); "
+                        "without them the twin would run with zero or default physics")
     for key in ("cases", "sources"):
         if not isinstance(data.get(key) or {}, dict):
             raise TwinError(f"{path.name}: {key} must be an object, got {_shown(data[key])}")

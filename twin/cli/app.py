@@ -194,6 +194,25 @@ def check_distinct(outputs: dict[str, object], inputs=()) -> None:
                                 "would replace the other")
 
 
+def check_recordings_distinct(recordings) -> None:
+    """Refuse one recording given twice (the same file, or a copy with the same bytes): its windows would
+    count twice, and a run judged "left out" would be a copy of one fitted on."""
+    import hashlib
+
+    seen: dict[str, Path] = {}
+    paths = [Path(p) for p in recordings]
+    for k, path in enumerate(paths):
+        for earlier in paths[:k]:
+            if same_file(path, earlier):
+                raise TwinError(f"'{path}' is given twice (as '{earlier}'): give each recording once")
+        if not path.is_file():
+            continue  # the reader says what is wrong with it
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        if digest in seen:
+            raise TwinError(f"'{path}' holds the same bytes as '{seen[digest]}': give each recording once")
+        seen[digest] = path
+
+
 def _can_create(folder: Path) -> bool:
     """Whether a file can really be created in `folder` (permissions alone do not say: /proc)."""
     import tempfile

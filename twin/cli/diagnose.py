@@ -7,8 +7,9 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, console,
-                  effect_names, positive, progress_bar, say, say_unlogged_supply, vessel_from, write_json)
+from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+                  check_recordings_distinct, console, effect_names, positive, progress_bar, say, say_unlogged_supply,
+                  vessel_from, write_json)
 
 
 @app.command("diagnose")
@@ -48,6 +49,7 @@ def diagnose_command(
         check_outputs([path], formats, option)
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
                    [*recordings, model])
+    check_recordings_distinct(recordings)
     positive(window, "--window")
     if given:
         clash = [o for o, v in (("--report", report), ("--rrd", rrd), ("--write-model", write_model),

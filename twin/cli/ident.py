@@ -9,8 +9,8 @@ import typer
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct, check_outputs,
-                  console, floats, note, positive, progress_bar, say, say_unlogged_supply, seed_from, vessel_from,
-                  write_json)
+                  check_recordings_distinct, console, floats, note, positive, progress_bar, say, say_unlogged_supply,
+                  seed_from, vessel_from, write_json)
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
@@ -109,6 +109,7 @@ def identify_command(
     check_outputs([out], (".json",), "--out")
     check_outputs([json_out], (".json",), "--json")
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
+    check_recordings_distinct(recordings)
     positive(window, "--window")
     at_least(max_evaluations, 1, "--max-evaluations")
     seed_from(seed)
@@ -186,6 +187,7 @@ def evaluate_command(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
     check_distinct({"--json": json_out, "--rrd": rrd}, [*recordings, model])
+    check_recordings_distinct(recordings)
     positive(stride, "--stride")
     seed_from(seed)  # --band's draws: refused before the run, not after it
     v = vessel_from(vessel, model, "nominal")

@@ -57,12 +57,28 @@ def _calibrations(recordings: list, vessel) -> int:
     """Print each log's kinematic compass calibration (twin.fit.calibrate); 1 when it cannot be made."""
     from ..ident.identify import calibrate
 
-    usable = [r for r in recordings if len(r.gnss) and len(r.heading)]
+    from ..prepare import prepare
+
+    usable, failed = [], 0
+    wanted = vessel.thrusters.input_kind
     for r in recordings:
-        if r not in usable:
-            typer.echo(f"calibration: {Path(r.source).name}: no compass calibration (it needs GNSS and heading)")
+        name = Path(r.source).name
+        held = "propeller_rudder" if len(r.prop_rudder) else ("pwm" if len(r.pwm) else None)
+        if not (len(r.gnss) and len(r.heading)):
+            typer.echo(f"calibration: {name}: no compass calibration (it needs GNSS and heading)")
+        elif held is not None and held != wanted:  # another kind of vessel's log: identify would refuse it too
+            typer.echo(f"error: calibration: {name}: vessel '{vessel.name}' is driven by {wanted} inputs; the "
+                       f"recording holds {held}", err=True)
+            failed = 1
+        else:
+            try:  # one log that cannot be prepared must not hide the others' calibrations
+                prepare(r)
+                usable.append(r)
+            except TwinError as exc:
+                typer.echo(f"error: calibration: {exc}", err=True)
+                failed = 1
     if not usable:
-        return 0
+        return failed
     try:
         _, calibrations = calibrate(usable, vessel)
     except TwinError as exc:
@@ -71,7 +87,7 @@ def _calibrations(recordings: list, vessel) -> int:
     typer.echo(f"== each log's compass calibration ({vessel.name}; identify, evaluate and diagnose apply it)")
     for c in calibrations:
         typer.echo(f"calibration: {c.text()}" + (f" [{c.note}]" if c.heading_bias_deg is not None and c.note else ""))
-    return 0
+    return failed
 
 
 @app.command()

@@ -35,7 +35,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from ..errors import TwinError
 from ..files import write_bytes_atomic
-from ..recording import Recording, clean_stream
+from ..recording import Recording, Stream, clean_stream
 from ..run import Run
 from .ardupilot import finish, read_bytes, set_pwm, text, thruster_mapping
 from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, Telemetry, log_parameters,
@@ -171,9 +171,10 @@ def _battery(mav, tel: Telemetry, add: Add) -> None:
 def recording_telemetry(rec: Recording) -> Telemetry:
     """The recording's samples as Telemetry; TwinError where a value does not fit
     its MAVLink field. ATTITUDE carries heading and yaw rate together, so the imu
-    stream is interpolated at the heading times (0 without an imu stream)."""
+    stream is interpolated at the heading times; without an imu stream its yawspeed is NaN, which
+    the reader takes as no gyro (a 0 would read back as a gyro that never turns)."""
     g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
-    r = np.interp(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.zeros(len(h))
+    r = np.interp(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
     _check_range("heading time (ms)", np.round(h.t * 1e3), 0, MAX_BOOT_MS)
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
@@ -298,7 +299,11 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     att = msgs["ATTITUDE"]
     t_att = clock.stamp(att, [m.time_boot_ms * 1e-3 for _, m in att])
     rec.heading = clean_stream("heading", t_att, {"psi_rad": [m.yaw for _, m in att]}, rec.dropped)
-    rec.imu = clean_stream("imu", t_att, {"yaw_rate_rads": [m.yawspeed for _, m in att]}, rec.dropped)
+    rate = np.array([m.yawspeed for _, m in att], float)
+    if len(rate) and np.all(np.isnan(rate)):  # written without a gyro (recording_telemetry): none, not dropped
+        rec.imu = Stream.empty("yaw_rate_rads")
+    else:
+        rec.imu = clean_stream("imu", t_att, {"yaw_rate_rads": rate}, rec.dropped)
     _tlog_pwm(rec, msgs, clock, channels)
     _tlog_battery(rec, msgs, clock)
     rec.meta["clock"] = "vehicle boot time" if len(clock.recv) else "tlog receive time"
