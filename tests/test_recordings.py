@@ -554,3 +554,12 @@ def test_a_log_without_a_gyro_converts_to_a_tlog_without_one(tmp_path):
     back = read_recording(tmp_path / "g.tlog")
     assert len(back.imu) == 0 and len(back.heading) == len(rec.heading)
     assert not any("imu" in what for what, _ in back.dropped)
+
+
+def test_a_grid_step_longer_than_the_recording_is_named_as_the_reason(tmp_path):
+    from twin.prepare.convert import for_conversion
+
+    rec = read_recording(write_generic_csv(tmp_path / "g.csv"))
+    conversion = for_conversion(rec, grid_dt=1e9)
+    assert not conversion.synchronised
+    assert "a 1e+09-s grid step leaves fewer than two samples" in conversion.timing
