@@ -283,6 +283,7 @@ GIVEN_AS = {
     "gnss_latency": ("gnss_latency", ("gnss_latency_s",)),
     "gnss_antenna_offset": ("gnss_lever_arm", ("antenna_offset_x_m", "antenna_offset_y_m")),
     "compass_iron": ("compass_deviation", ("b_deg", "c_deg", "d_deg", "e_deg")),
+    "compass_motor_field": ("compass_motor", ("b_deg", "c_deg")),
     "thrust_ventilation": ("full_thrust", ("share",)),
     "pwm_clock_offset": ("clock_offset", ("pwm_clock_offset_s",)),
     "astern_drag": ("astern_resistance", ("excess",)),

@@ -52,6 +52,7 @@ CASES = {
     "gnss_latency=0.4": ("gnss_latency", {"gnss_latency_s": 0.05}),
     "heading_latency=0.4": ("heading_latency", {"heading_latency_s": 0.05}),
     "compass_deviation=6,-4": ("compass_deviation", {"b_deg": 1.0, "c_deg": 1.0}),
+    "compass_motor=10,-6": ("compass_motor", {"b_deg": 1.5, "c_deg": 1.5}),
     "gnss_lever_arm=0.4,-0.3": ("gnss_lever_arm", {"dx_m": 0.08, "dy_m": 0.08}),
     "quadratic_damping=Xuu:1.5": ("quadratic_damping", {"Xuu": 0.1}),
     "astern_resistance=1.0": ("astern_resistance", {"excess": 0.1}),

@@ -355,3 +355,50 @@ def test_full_thrust_composes_and_a_vessel_file_keeps_it(tmp_path):
         vessel_mod.check(replace(base, thrusters=replace(base.thrusters, full_share=0.0)))
     with pytest.raises(TwinError, match="falls with the PWM"):
         vessel_mod.check(replace(base, thrusters=replace(base.thrusters, forward=(-20.0, 14.97, -0.62))))
+
+
+def test_compass_error_that_follows_the_throttle_and_its_inverse():
+    """δψ = τ·(B_m sin ψ + C_m cos ψ) beside the fixed deviation; τ the mean |pwm − neutral| over its side's
+    range, ahead or astern alike (a battery's current flows one way either way)."""
+    from twin.physics.sensors import motor_throttle
+
+    tau = motor_throttle([[1500, 1500], [1900, 1100], [1700, 1500], [1300, 1600]], (1500, 1500), 1100.0, 1900.0)
+    np.testing.assert_allclose(tau, [0.0, 1.0, 0.25, 0.375])
+    s = Sensors(heading_bias_deg=1.0, compass_deviation_deg=(2.0, 0.0, 0.0, 0.0), compass_motor_deg=(8.0, -5.0))
+    psi = np.linspace(-np.pi, np.pi, 37)
+    throttle = np.linspace(0.0, 1.0, 37)
+    m = measured_heading(s, psi, throttle)
+    expected = psi + np.radians(1 + 2 * np.sin(psi) + throttle * (8 * np.sin(psi) - 5 * np.cos(psi)))
+    np.testing.assert_allclose(m, expected)
+    np.testing.assert_allclose(true_heading(s, m, throttle, iterations=12), psi, atol=1e-9)
+    idle = measured_heading(s, psi, 0.0)  # at idle only the fixed errors are left
+    np.testing.assert_allclose(idle, psi + np.radians(1 + 2 * np.sin(psi)))
+
+
+def test_a_log_is_corrected_with_the_throttle_at_each_heading_sample(tmp_path):
+    """calibrated() reads the PWM in force when each heading sample was taken, on the PWM log's own clock,
+    and a vessel that logs no PWM cannot carry the effect."""
+    from twin.errors import TwinError
+    from twin.fit.calibrate import calibrated
+    from twin.recording import Recording, Stream
+
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, sensors=Sensors(compass_motor_deg=(0.0, 10.0), pwm_clock_offset_s=0.5))
+    t = np.arange(0.0, 10.0, 0.1)
+    rec = Recording(kind="csv", source="x.csv", heading=Stream(t, {"psi_rad": np.zeros_like(t)}),
+                    pwm=Stream(np.array([0.0, 5.5]), {"left_us": np.array([1500.0, 1900.0]),
+                                                      "right_us": np.array([1500.0, 1900.0])}))
+    psi = calibrated(rec, v).heading["psi_rad"]
+    # stamped 0.5 s late: full throttle from heading time 5.0 s, where the true heading ψ ≈ −9.85° reads 0
+    np.testing.assert_allclose(psi[t < 4.95], 0.0, atol=1e-12)
+    after = psi[t > 5.05]
+    assert after == pytest.approx(np.full(len(after), -0.17196), abs=1e-4)
+    np.testing.assert_allclose(measured_heading(v.sensors, after, 1.0), 0.0, atol=1e-6)
+    with pytest.raises(TwinError, match="needs the thrusters' PWM"):
+        calibrated(replace(rec, pwm=Stream.empty("left_us", "right_us")), v)
+    esso = vessel_mod.load("esso_osaka")
+    with pytest.raises(TwinError, match="compass_motor_deg follows the PWM throttle"):
+        vessel_mod.check(replace(esso, sensors=Sensors(compass_motor_deg=(3.0, 0.0))))
+    back = vessel_mod.load(str(vessel_mod.save(v, tmp_path / "motor.json")))
+    assert back.sensors.compass_motor_deg == (0.0, 10.0)
+    assert "compass_motor_deg" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()

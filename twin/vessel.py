@@ -159,6 +159,8 @@ def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
         del d["heading_rate_window_s"]
     if not s.heading_latency_s:  # likewise
         del d["heading_latency_s"]
+    if not s.follows_throttle:  # likewise
+        del d["compass_motor_deg"]
     return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 
@@ -388,6 +390,9 @@ def check(vessel: Vessel) -> None:
     window = vessel.sensors.heading_rate_window_s
     if window is not None and not window > 0:
         raise TwinError(f"vessel '{vessel.name}': sensors.heading_rate_window_s must be positive, got {window}")
+    if vessel.sensors.follows_throttle and t.kind != "t200":
+        raise TwinError(f"vessel '{vessel.name}': sensors.compass_motor_deg follows the PWM throttle; "
+                        f"{t.kind} thrusters log none")
     _check_propeller_rudder(vessel)
     for case in vessel.cases.values():
         for geom, mass in case.geom_mass_kg.items():

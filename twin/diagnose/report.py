@@ -53,6 +53,9 @@ def _png(fig) -> str:
 NEXT = {
     "drift": "straight runs under way on opposite headings, and a few minutes drifting with the thrusters off: "
              "a current or wind pushes the same way whatever the heading, a compass error turns with the boat",
+    "compass": "straight runs on four or more headings, each at a low and at a high throttle (a compass the "
+               "motors' currents disturb turns its error with the throttle; a fixed error does not), or "
+               "ArduPilot's compassmot calibration",
     "timing": "steps of the sticks from rest and back to neutral (the thrust's timing shows at steps), and the "
               "PWM logged on the same clock as GNSS and heading; with the gyro (IMU) logged, `twin info` reads "
               "how late the heading is against it",

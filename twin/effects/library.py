@@ -494,6 +494,20 @@ def _compass_fit(prior: Vessel, logs) -> Candidate:
                      lambda p: effect("compass_deviation", b_deg=p["b_deg"], c_deg=p["c_deg"]), "drift")
 
 
+def compass_motor(vessel: Vessel, b_deg: float, c_deg: float) -> Vessel:
+    """Heading error τ·(B sin ψ + C cos ψ) (deg at full throttle τ = 1): the motors' currents' field at the
+    compass (physics.sensors; ArduPilot's COMPASS_MOT by throttle)."""
+    return _sensors(vessel, compass_motor_deg=(b_deg, c_deg))
+
+
+def _compass_motor_fit(prior: Vessel, logs) -> Candidate | None:
+    if prior.thrusters.kind != "t200":  # the throttle is read from the logged PWM
+        return None
+    qs = tuple(member("sensors", "compass_motor_deg", "deg", -30.0, 30.0, 1.0, name=n, index=i)
+               for i, n in enumerate(("b_deg", "c_deg")))
+    return Candidate("compass_motor", qs, ((0.0, 0.0),), lambda p: effect("compass_motor", **p), "compass")
+
+
 def gnss_lever_arm(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
     """The antenna sits (dx, dy) m, body FRD, off the MJCF gnss site."""
     return _sensors(vessel, antenna_offset_m=(dx_m, dy_m))
@@ -604,6 +618,9 @@ _SPECS = [
                (_v("b_deg", "deg", -45, 45), _v("c_deg", "deg", -45, 45),
                 _v("d_deg", "deg", -45, 45, default=0.0), _v("e_deg", "deg", -45, 45, default=0.0)),
                compass_deviation, "heading error varying with heading", _compass_fit),
+    EffectSpec("compass_motor", "sensors", (_v("b_deg", "deg", -45, 45), _v("c_deg", "deg", -45, 45)),
+               compass_motor, "heading error varying with heading, growing with the throttle (the motors' field, "
+               "deg at full throttle)", _compass_motor_fit),
     EffectSpec("gnss_lever_arm", "sensors", (_v("dx_m", "m", -5, 5), _v("dy_m", "m", -5, 5)), gnss_lever_arm,
                "antenna displaced from the MJCF site",
                _pair_fit("gnss_lever_arm", "sensors", ("antenna_offset_m",), "m", -2.0, 2.0, 0.1, "turning",

@@ -14,7 +14,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..engine.mjcf import CompiledVessel
-from ..physics.sensors import antenna_body_m, true_heading
+from ..errors import TwinError
+from ..physics.sensors import antenna_body_m, motor_throttle, true_heading
 from ..prepare import Prepared, prepare
 from ..recording import Recording, Stream
 from ..vessel import Vessel
@@ -43,8 +44,24 @@ def calibrated(rec: Recording, vessel: Vessel) -> Recording:
     sensors = vessel.sensors.for_log(rec.source)
     if not sensors.has_heading_error or not len(rec.heading):
         return rec
-    psi = true_heading(sensors, np.unwrap(rec.heading["psi_rad"]))
+    throttle = throttle_at_heading(rec, vessel) if sensors.follows_throttle else 0.0
+    psi = true_heading(sensors, np.unwrap(rec.heading["psi_rad"]), throttle)
     return replace(rec, heading=Stream(rec.heading.t, {**rec.heading.columns, "psi_rad": psi}))
+
+
+def throttle_at_heading(rec: Recording, vessel: Vessel) -> np.ndarray:
+    """The motors' throttle τ (physics.sensors.motor_throttle) when each heading sample was taken (a
+    late AHRS stamps it heading_latency_s after): the PWM logged last before then, on the PWM log's
+    clock (stamped pwm_clock_offset_s late)."""
+    if not len(rec.pwm):
+        raise TwinError(f"{rec.source}: the compass error that follows the throttle (sensors.compass_motor_deg) "
+                        "needs the thrusters' PWM, and this recording has none")
+    s = vessel.sensors
+    t = np.asarray(rec.heading.t, float) - s.heading_latency_s + s.pwm_clock_offset_s
+    k = np.clip(np.searchsorted(rec.pwm.t, t, side="right") - 1, 0, len(rec.pwm.t) - 1)
+    pwm = np.column_stack([np.asarray(rec.pwm["left_us"])[k], np.asarray(rec.pwm["right_us"])[k]])
+    th = vessel.thrusters
+    return motor_throttle(pwm, rec.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
 
 
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:

@@ -53,7 +53,8 @@ class Measurements:
     @staticmethod
     def _key(vessel: Vessel) -> tuple:
         s = vessel.sensors
-        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.antenna_offset_m),
+        return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.compass_motor_deg),
+                tuple(s.antenna_offset_m),
                 s.heading_bias_by_log_deg, s.gnss_latency_s, s.heading_latency_s)
 
     def for_vessel(self, vessel: Vessel) -> list[Prepared]:

@@ -7,6 +7,14 @@ two-cycle compass deviation (Bowditch): δψ = A + B sin ψ + C cos ψ + D sin 2
 (ψ stands in for the magnetic heading; the variation between them is a constant
 that the bias absorbs).
 
+The thrusters' own currents add a field of their own at the magnetometer: a body-fixed vector
+that grows with what the motors draw, so a one-cycle deviation that comes and goes with the
+throttle: δψ_motor = τ·(B_m sin ψ + C_m cos ψ), τ the thrusters' mean throttle |pwm − neutral| /
+full range (0 at idle, 1 both at full, ahead or astern: a battery's current flows one way either
+way). ArduPilot calibrates this as COMPASS_MOT with COMPASS_MOT_TYPE = 1 (throttle; = 2 reads
+a current sensor instead, which these logs seldom have); the field's direction and size are the
+wiring's, so B_m and C_m are each boat's own.
+
 A compass calibrated afresh before every outing, or disturbed by what was loaded
 that day, has a bias of its own in each log: `heading_bias_by_log_deg` holds
 (log name, deg) pairs added to the common bias for the recording of that name.
@@ -35,6 +43,7 @@ import numpy as np
 class Sensors:
     heading_bias_deg: float = 0.0
     compass_deviation_deg: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # B, C, D, E
+    compass_motor_deg: tuple[float, float] = (0.0, 0.0)  # B_m, C_m: the motors' deviation at full throttle
     antenna_offset_m: tuple[float, float] = (0.0, 0.0)
     pwm_clock_offset_s: float = 0.0
     gnss_latency_s: float = 0.0
@@ -51,16 +60,26 @@ class Sensors:
         extra = dict(self.heading_bias_by_log_deg).get(log_name(source), 0.0)
         return replace(self, heading_bias_deg=self.heading_bias_deg + extra, heading_bias_by_log_deg=())
 
-    def heading_error_rad(self, psi_rad) -> np.ndarray:
-        """δψ (rad) the AHRS adds to the true heading ψ (rad)."""
+    def heading_error_rad(self, psi_rad, throttle=0.0) -> np.ndarray:
+        """δψ (rad) the AHRS adds to the true heading ψ (rad) at the motors' throttle τ (0-1, motor_throttle)."""
         psi = np.asarray(psi_rad, float)
         b, c, d, e = self.compass_deviation_deg
+        bm, cm = self.compass_motor_deg
+        b, c = b + bm * np.asarray(throttle, float), c + cm * np.asarray(throttle, float)
         deg = self.heading_bias_deg + b * np.sin(psi) + c * np.cos(psi) + d * np.sin(2 * psi) + e * np.cos(2 * psi)
         return np.radians(deg)
 
     @property
     def has_heading_error(self) -> bool:
-        return self.heading_bias_deg != 0.0 or any(x != 0.0 for x in self.compass_deviation_deg)
+        return self.heading_bias_deg != 0.0 or self.varies_with_heading
+
+    @property
+    def varies_with_heading(self) -> bool:
+        return any(x != 0.0 for x in self.compass_deviation_deg) or self.follows_throttle
+
+    @property
+    def follows_throttle(self) -> bool:
+        return any(x != 0.0 for x in self.compass_motor_deg)
 
 
 def log_name(source: str) -> str:
@@ -68,21 +87,30 @@ def log_name(source: str) -> str:
     return PurePath(str(source)).name
 
 
-def measured_heading(sensors: Sensors, psi_rad) -> np.ndarray:
-    """ψ_m = ψ + δψ(ψ)."""
-    return np.asarray(psi_rad, float) + sensors.heading_error_rad(psi_rad)
+def motor_throttle(pwm_us, neutral_us, pwm_min_us: float, pwm_max_us: float) -> np.ndarray:
+    """τ (0-1): the thrusters' mean |pwm − neutral| over the full range on its side (pwm_us (n, k) µs;
+    neutral_us one per thruster), beyond the range as logged (a log past full throttle says so)."""
+    pwm = np.atleast_2d(np.asarray(pwm_us, float))
+    off = pwm - np.asarray(neutral_us, float)
+    full = np.where(off >= 0, pwm_max_us - np.asarray(neutral_us, float), np.asarray(neutral_us, float) - pwm_min_us)
+    return np.mean(np.abs(off) / full, axis=1)
 
 
-def true_heading(sensors: Sensors, psi_measured_rad, iterations: int = 4) -> np.ndarray:
-    """ψ from ψ_m by fixed-point iteration ψ ← ψ_m − δψ(ψ) (converges for |dδψ/dψ| < 1)."""
+def measured_heading(sensors: Sensors, psi_rad, throttle=0.0) -> np.ndarray:
+    """ψ_m = ψ + δψ(ψ, τ)."""
+    return np.asarray(psi_rad, float) + sensors.heading_error_rad(psi_rad, throttle)
+
+
+def true_heading(sensors: Sensors, psi_measured_rad, throttle=0.0, iterations: int = 4) -> np.ndarray:
+    """ψ from ψ_m by fixed-point iteration ψ ← ψ_m − δψ(ψ, τ) (converges for |∂δψ/∂ψ| < 1)."""
     psi_m = np.asarray(psi_measured_rad, float)
     psi = psi_m.copy()
     if not sensors.has_heading_error:
         return psi
-    if not any(x != 0.0 for x in sensors.compass_deviation_deg):  # a bias alone: every iteration gives this
+    if not sensors.varies_with_heading:  # a bias alone: every iteration gives this
         return psi_m - sensors.heading_error_rad(psi)
     for _ in range(iterations):
-        psi = psi_m - sensors.heading_error_rad(psi)
+        psi = psi_m - sensors.heading_error_rad(psi, throttle)
     return psi
 
 

@@ -31,7 +31,7 @@ from ..errors import TwinError
 from ..geodesy import geodetic_from_ned
 from ..drive import InputSeries, SupplySeries
 from ..physics.kinematics import wrap_angle
-from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading
+from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading, motor_throttle
 from ..progress import Progress, steps
 from ..recording import Recording, Stream
 from ..run import Run
@@ -199,6 +199,19 @@ def _logged_part(run: Run, t0: float) -> Run:
 
 # ---------------------------------------------------------------- sensors
 
+def _throttle(vessel: Vessel, run: Run, times_s: np.ndarray) -> np.ndarray | float:
+    """The motors' throttle τ at `times_s` (the segment's clock) for a compass that follows it
+    (physics.sensors.motor_throttle), 0 for one that does not."""
+    if not vessel.sensors.follows_throttle:
+        return 0.0
+    inputs = run.meta["inputs"]
+    if inputs.kind != "pwm":
+        raise TwinError("a compass error that follows the throttle (sensors.compass_motor_deg) needs PWM inputs; "
+                        f"these runs are driven by {inputs.kind}")
+    th = vessel.thrusters
+    return motor_throttle(inputs.at(times_s), (man.NEUTRAL_US, man.NEUTRAL_US), th.pwm_min_us, th.pwm_max_us)
+
+
 def _wander(rng: np.random.Generator, n: int, dt: float, sigma: float, scale_s: float) -> np.ndarray:
     """Smooth random wander of standard deviation σ over time scale scale_s: white noise
     through a Gaussian filter (a first-order Markov process would be rough, and its
@@ -232,7 +245,8 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
         th = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
         psi = np.interp(th - vessel.sensors.heading_latency_s, run.t, run.eta[:, 2])  # a late AHRS: older
         h_t.append(th)
-        h_psi.append(wrap_angle(measured_heading(vessel.sensors.for_log(source), psi)
+        h_psi.append(wrap_angle(measured_heading(vessel.sensors.for_log(source), psi,
+                                                 _throttle(vessel, run, th - vessel.sensors.heading_latency_s - t0))
                                 + np.radians(rng.normal(0.0, noise.heading_deg, len(th)))))
         tp = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.pwm_dt_s)
         p_t.append(tp + vessel.sensors.pwm_clock_offset_s)
