@@ -98,6 +98,8 @@ CASES = [
     ("supply_voltage", ["supply_voltage=1.5,16"], MIXED, "realistic"),
     ("full_thrust", ["full_thrust=0.75"], MIXED, "realistic"),
     ("heading_latency", ["heading_latency=0.3"], MIXED, "realistic"),
+    ("compass_motor", ["compass_motor=8,-5"], MIXED, "realistic"),
+    ("compass_motor-small", ["compass_motor=3,-2"], MIXED, "small"),
 ]
 # Several logs diagnosed together, each with its own heading bias (a compass calibrated afresh
 # before every outing): (case name, bias of each log in deg, manoeuvres). Each log has half the

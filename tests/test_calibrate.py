@@ -172,3 +172,34 @@ def test_gnss_latency_reads_the_fixes_late_on_the_same_grid(blueboat):
     err_plain = np.abs(at(plain, plain.v) - at(truth, truth.v)).max()
     err_read = np.abs(at(read_late, read_late.v) - at(truth, truth.v)).max()
     assert err_plain > 0.05 and err_read < 0.2 * err_plain
+
+
+def _throttle_log(b_deg: float, c_deg: float, seed: int) -> Recording:
+    """Straight legs of 20 s at 0.6-2.0 m/s on headings a turn of 3 s apart, the throttle growing with the
+    speed (τ = u / 2.2), the water drifting (0.15, −0.1) m/s, the compass reading 3° plus τ·(B sin ψ + C cos ψ)."""
+    rng = np.random.default_rng(seed)
+    legs = [(20.0, 0.6 + 0.35 * (k % 5), 0.0) if k % 2 == 0 else (3.0, 1.0, 0.6) for k in range(36)]
+    u = np.concatenate([np.full(int(s / DT), a) for s, a, _ in legs])
+    r = np.concatenate([np.full(int(s / DT), b) for s, _, b in legs])
+    psi = np.cumsum(r) * DT
+    n = np.cumsum(u * np.cos(psi) + 0.15) * DT + rng.normal(0, 0.02, len(u))
+    e = np.cumsum(u * np.sin(psi) - 0.10) * DT + rng.normal(0, 0.02, len(u))
+    t = np.arange(len(u)) * DT
+    lat, lon = geodetic_from_ned(n, e, 63.4, 10.3)
+    tau = u / 2.2
+    error = np.radians(3.0 + tau * (b_deg * np.sin(psi) + c_deg * np.cos(psi)))
+    pwm = 1500.0 + 400.0 * tau
+    return Recording("t.csv", "csv", gnss=Stream(t, {"lat_deg": lat, "lon_deg": lon, "alt_m": np.zeros_like(lat)}),
+                     heading=Stream(t, {"psi_rad": psi + error}), pwm=Stream(t, {"left_us": pwm, "right_us": pwm}))
+
+
+def test_a_compass_error_that_follows_the_throttle_is_told_from_a_drift(blueboat):
+    """A one-cycle error at one speed is a drift; with the throttle growing with the speed the two part:
+    the test recovers B, C beside the log's own offset and drift, and a compass without it is not flagged."""
+    from twin.fit.calibrate import prepare_for, rate_windows, throttle_dependence
+
+    vessel = blueboat.vessel
+    got = throttle_dependence([prepare_for(_throttle_log(8.0, -5.0, 1), blueboat, **rate_windows(vessel))], vessel)
+    assert got.shown and got.b_deg == pytest.approx(8.0, abs=1.0) and got.c_deg == pytest.approx(-5.0, abs=1.0)
+    null = throttle_dependence([prepare_for(_throttle_log(0.0, 0.0, 2), blueboat, **rate_windows(vessel))], vessel)
+    assert not null.shown and abs(null.b_deg) < 1.0 and abs(null.c_deg) < 1.0

@@ -364,6 +364,10 @@ def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable()
     assert any(u.startswith("compass_deviation or current: the blocks prefer current (z 4.3") and
                "may stand in for it" in u for u in unsettled)
     assert any(u.startswith("compass_deviation or wind_shape: this recording cannot tell them apart") for u in unsettled)
+    # a compass that follows the throttle against a fixed deviation: what settles either is recorded next
+    motor = {**kept, "name": "compass_motor", "rivals": [{**close, "name": "compass_deviation", "z": 1.3}]}
+    nxt = answer(SimpleNamespace(**{**vars(d), "effects": [motor]}))["next"]
+    assert [line.split(":")[0] for line in nxt] == ["to settle compass effects", "to settle drift effects"]
 
 
 def test_how_much_more_to_record_for_a_hint():

@@ -80,14 +80,29 @@ def _calibrations(recordings: list, vessel) -> int:
     if not usable:
         return failed
     try:
-        _, calibrations = calibrate(usable, vessel)
+        calibrated_vessel, calibrations = calibrate(usable, vessel)
     except TwinError as exc:
         typer.echo(f"error: calibration: {exc}", err=True)
         return 1
     typer.echo(f"== each log's compass calibration ({vessel.name}; identify, evaluate and diagnose apply it)")
     for c in calibrations:
         typer.echo(f"calibration: {c.text()}" + (f" [{c.note}]" if c.heading_bias_deg is not None and c.note else ""))
+    if wanted == "pwm":
+        typer.echo(f"calibration: {_throttle_line(usable, calibrated_vessel, calibrations)}")
     return failed
+
+
+def _throttle_line(recordings: list, vessel, calibrations) -> str:
+    """Whether the compass error follows the throttle over these logs (twin.fit.calibrate.throttle_dependence)."""
+    from ..fit.calibrate import MIN_THROTTLE_STRETCHES, throttle_dependence
+    from ..ident.identify import prepared
+
+    dep = throttle_dependence(prepared(recordings, vessel), vessel, [c.drift_ned_m_s for c in calibrations])
+    if dep is None:
+        return (f"compass error following the throttle: not told (fewer than {MIN_THROTTLE_STRETCHES} straight stretches "
+                "ahead, or too few pieces of them)")
+    return dep.text() + (" (`twin diagnose` judges `compass_motor` on the dynamics; ArduPilot's compassmot "
+                         "calibration measures it)" if dep.shown else "")
 
 
 @app.command()

@@ -91,11 +91,11 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: the blocks prefer {r['name']} (z "
                                         f"{-r['z']:.1f} between the two), but it does not earn its place by itself: "
                                         f"{e['name']} may stand in for it")
-                families.add(_family(d, r["name"]))
+                families |= {_family(d, r["name"]), _family(d, e["name"])}  # what settles either
             elif not r["separable"]:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {r['z']:.1f})")
-                families.add(_family(d, r["name"]))
+                families |= {_family(d, r["name"]), _family(d, e["name"])}
     if not d.effects:
         out["missing"].append(f"no effect of the library earns its place (z ≥ {Z_MIN:g} over the held-out blocks and "
                               f"≥ {100 * REL_EXCESS:.0f} % of the misfit above the noise removed)")

@@ -343,3 +343,98 @@ def with_log_calibrations(vessel: Vessel, calibrations: list[LogCalibration]) ->
         if c.heading_bias_deg is not None:
             table[c.log] = c.heading_bias_deg
     return replace(vessel, sensors=replace(vessel.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))
+
+
+# ---------------------------------------------------------------- a compass that follows the throttle, from kinematics
+
+@dataclass(frozen=True)
+class ThrottleDependence:
+    """Whether the compass error of straight running ahead follows the throttle (physics.sensors'
+    compass_motor form, τ·(B sin ψ + C cos ψ)), read from the kinematics of a set of logs: the crab angle
+    of each PIECE_S piece (logged heading less the ground track) against each log's own offset and drift
+    over ground ((c_N sin ψ − c_E cos ψ)/U, a log whose straight legs point too few ways taking its
+    calibration's drift instead), the sideslip of gentle turns (∝ r), and τ sin ψ, τ cos ψ. A one-cycle
+    error at one speed is a drift (kinematic_calibration cannot tell them apart); the throttle, which
+    grows with the speed where the drift's angle shrinks with it, can. σ from the residuals with the
+    pieces of one straight stretch counted together (they share its conditions: cluster-robust)."""
+
+    b_deg: float
+    c_deg: float
+    sigma_b_deg: float
+    sigma_c_deg: float
+    chi2: float  # of (B, C) = 0 with its two degrees of freedom
+    pieces: int
+    stretches: int
+    logs: int
+
+    @property
+    def shown(self) -> bool:
+        """(B, C) differs from zero at the 3-σ level of a two-dimensional test (χ²₂ > 13.8, p < 0.001)."""
+        return self.chi2 > 13.8
+
+    def text(self) -> str:
+        return (f"compass error following the throttle: B {self.b_deg:+.1f}° ± {self.sigma_b_deg:.1f}°, C "
+                f"{self.c_deg:+.1f}° ± {self.sigma_c_deg:.1f}° at full throttle (χ² {self.chi2:.1f} on 2 degrees of "
+                f"freedom, {'shown' if self.shown else 'not shown'}) from {self.pieces} pieces of {self.stretches} "
+                f"straight stretches ahead in {self.logs} logs")
+
+
+def _throttle_pieces(prep: Prepared, vessel: Vessel, drift) -> list[tuple]:
+    """(stretch, crab deg, ψ, U m/s, r, τ) of each PIECE_S piece of straight running ahead; crab = logged
+    heading less the track over ground less `drift` (NED m/s)."""
+    th = vessel.thrusters
+    piece = int(round(PIECE_S / prep.settings.grid_dt))
+    out = []
+    for j, sl in enumerate(straight_stretches(prep)):
+        if np.median(prep.u[sl]) <= 0:  # ahead only: astern, the water meets another hull end
+            continue
+        vel, psi = _ground_velocity(prep, sl)
+        tau = motor_throttle(prep.pwm[sl], prep.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+        for k in range(0, len(psi) - piece + 1, piece):
+            w = vel[k:k + piece].mean(axis=0) - drift
+            heading = float(np.angle(np.mean(np.exp(1j * psi[k:k + piece]))))
+            crab = np.degrees(np.angle(np.exp(1j * (heading - np.arctan2(w[1], w[0])))))
+            out.append((j, crab, heading, float(np.hypot(*w)), float(prep.r[sl][k:k + piece].mean()),
+                        float(tau[k:k + piece].mean())))
+    return out
+
+
+MIN_THROTTLE_STRETCHES = 10  # a cluster-robust σ from fewer clusters than this is too optimistic to test on
+
+
+def throttle_dependence(preps: list[Prepared], vessel: Vessel, drifts=None) -> ThrottleDependence | None:
+    """ThrottleDependence of these prepared logs (drifts: each log's calibration drift, NED m/s or None,
+    used where the log cannot fit its own); None with fewer than MIN_THROTTLE_STRETCHES straight
+    stretches ahead or fewer pieces than twice the unknowns."""
+    blocks, y, cluster, common = [], [], [], []
+    for i, prep in enumerate(preps):
+        pieces = _throttle_pieces(prep, vessel, np.zeros(2))
+        if not pieces:
+            continue
+        p = np.array(pieces)
+        own = _heading_spread_deg(p[:, 2]) >= DRIFT_HEADING_SPREAD_DEG
+        if not own and drifts is not None and drifts[i] is not None:
+            p = np.array(_throttle_pieces(prep, vessel, np.asarray(drifts[i], float)))
+        psi, speed = p[:, 2], p[:, 3]
+        cols = [np.ones(len(p))] + ([np.degrees(np.sin(psi) / speed), np.degrees(-np.cos(psi) / speed)] if own else [])
+        blocks.append(np.column_stack(cols))
+        y.append(p[:, 1])
+        cluster.append(i * 10_000 + p[:, 0])
+        common.append(np.column_stack([p[:, 4], p[:, 5] * np.sin(psi), p[:, 5] * np.cos(psi)]))
+    if not y:
+        return None
+    from scipy.linalg import block_diag
+
+    x = np.hstack([block_diag(*blocks), np.vstack(common)])
+    y, cluster = np.concatenate(y), np.concatenate(cluster)
+    if len(np.unique(cluster)) < MIN_THROTTLE_STRETCHES or len(y) < 2 * x.shape[1] or \
+            np.linalg.matrix_rank(x) < x.shape[1]:
+        return None
+    beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+    res = y - x @ beta
+    bread = np.linalg.inv(x.T @ x)
+    scores = [x[cluster == c].T @ res[cluster == c] for c in np.unique(cluster)]
+    cov = bread @ sum(np.outer(g, g) for g in scores) @ bread
+    bc, cbc = beta[-2:], cov[-2:, -2:]
+    return ThrottleDependence(float(bc[0]), float(bc[1]), float(np.sqrt(cbc[0, 0])), float(np.sqrt(cbc[1, 1])),
+                              float(bc @ np.linalg.solve(cbc, bc)), len(y), len(scores), len(blocks))
