@@ -328,6 +328,18 @@ def test_a_parameter_the_data_cannot_excite_is_named_not_returned(yellowfish_ves
     assert res.vessel.thrusters.reverse == yellowfish_vessel.thrusters.reverse
 
 
+def test_a_coefficient_the_data_push_beyond_its_physical_range_is_said_to_be_on_its_bound(yellowfish_vessel):
+    # the truth turns with half the yaw damping; a fit free only in the speed-proportional yaw damping
+    # N_ur (a damping: ≤ 0) would need it positive, so it stops on 0, which is a wall, not a measurement
+    ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.5"], n_segments=3, seed=2, noise=QUIET,
+                  segment_s=(30, 35), manoeuvres=["rc", "zigzag", "circle_varying"])
+    res = simfit.fit(yellowfish_vessel, _truth_preps(ds), ("Nur", "Xuu"), window_s=5.0, prior_weight=1.0)
+    est = {e.name: e for e in res.estimates}
+    assert est["Nur"].on_bound and est["Nur"].value == pytest.approx(0.0, abs=1e-3)
+    assert "on the bound" in est["Nur"].note and est["Nur"].to_dict()["on_bound"] is True
+    assert not est["Xuu"].on_bound and "on_bound" not in est["Xuu"].to_dict()
+
+
 def test_scale_needs_an_anchor(yellowfish_vessel):
     ds = generate(yellowfish_vessel, n_segments=1, seed=1, noise=QUIET, segment_s=(20, 21))
     with pytest.raises(TwinError, match="anchor"):

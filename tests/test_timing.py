@@ -64,3 +64,17 @@ def test_a_gyro_of_the_other_sign_is_not_read_as_a_lag():
     flipped = Recording("x.csv", "csv", heading=rec.heading, imu=port_positive)
     got = heading_lag_behind_gyro(flipped)
     assert got.lag_s is None and "explains only" in got.note
+    gain = float(got.note.split("the gyro turns ")[1].split(" times")[0])
+    assert gain == pytest.approx(-1.0, abs=0.05) and "rad/s, positive turning to starboard" in got.note
+
+
+def test_a_slow_turner_with_a_good_gyro_is_not_told_to_check_its_units():
+    # a ship model turning at about 3°/s under 3° of heading noise: within 10-s pieces the gyro explains
+    # little, over the whole log it turns as far as the heading: units and sign are not the cause
+    rec = _log(turn_rad_s=0.06, seed=3)
+    noisy = Stream(rec.heading.t, {"psi_rad": np.mod(np.unwrap(rec.heading["psi_rad"]) + np.radians(3.0) *
+                                                  np.random.default_rng(4).standard_normal(len(rec.heading)),
+                                                  2 * np.pi)})
+    got = heading_lag_behind_gyro(Recording("ship.csv", "csv", heading=noisy, imu=rec.imu))
+    assert got.lag_s is None and got.fit < 0.9
+    assert "units and sign right" in got.note and "rad/s, positive" not in got.note

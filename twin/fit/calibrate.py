@@ -131,7 +131,8 @@ class LogCalibration:
             (f" (the mean of {self.drift_from_logs} other logs': its own legs point one way)"
              if self.drift_from_logs else "")
         return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
-                f"{self.stretches} straight stretches ({self.seconds:.0f} s under way){drift}")
+                f"{self.stretches} straight stretch{'es' if self.stretches != 1 else ''} ({self.seconds:.0f} s under way)"
+                f"{drift}")
 
 
 def straight_stretches(prep: Prepared, min_speed_m_s: float = STRAIGHT_SPEED_M_S,
@@ -242,9 +243,14 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     stretches = straight_stretches(prep, **limits)
     seconds = sum(sl.stop - sl.start for sl in stretches) * prep.settings.grid_dt
     if seconds < MIN_STRAIGHT_S:
+        speed = limits.get("min_speed_m_s", STRAIGHT_SPEED_M_S)
+        fast = np.abs(prep.u[np.isfinite(prep.u)])
+        top = float(np.percentile(fast, 99)) if len(fast) else 0.0
+        slow = f"; this log's |u| reaches {top:.2f} m/s (99th percentile)" if top <= speed else ""
         return LogCalibration(name, None, None, len(stretches), seconds, None,
-                              f"{seconds:.1f} s of straight running under way (|u| > {STRAIGHT_SPEED_M_S:g} m/s, "
-                              f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s); {MIN_STRAIGHT_S:g} s are needed")
+                              f"{seconds:.1f} s of straight running under way (|u| > {speed:g} m/s, "
+                              f"|r| < {limits.get('max_yaw_rate_rad_s', STRAIGHT_YAW_RATE_RAD_S):g} rad/s); "
+                              f"{MIN_STRAIGHT_S:g} s are needed{slow}")
     legs = [_ground_velocity(prep, sl) for sl in stretches]
     vel = np.concatenate([v for v, _ in legs])
     psi = np.concatenate([p for _, p in legs])

@@ -28,10 +28,11 @@ class Estimate:
     sigma: float | None  # 1-σ from the cluster-robust covariance; None when not identifiable
     identifiable: bool
     note: str = ""
+    on_bound: bool = False  # ended on a bound of its physical range: the data push it beyond
 
     def to_dict(self) -> dict:
         return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
-                "identifiable": self.identifiable, "note": self.note}
+                "identifiable": self.identifiable, "note": self.note, **({"on_bound": True} if self.on_bound else {})}
 
 
 class Measurements:

@@ -316,17 +316,29 @@ def _pinned(obj: Objective, coords: list[Coordinate], cov) -> np.ndarray:
     return sigma < POSTERIOR_RATIO * np.array([c.belief.sigma for c in coords])
 
 
+def _on_bound(obj: Objective, x: np.ndarray) -> np.ndarray:
+    """Which coordinates ended on a bound of their range (trf keeps iterates just inside it)."""
+    lo, hi = obj.bounds()
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    tol = 1e-6 * span
+    return (np.abs(x - lo) <= tol) | (np.abs(hi - x) <= tol)
+
+
 def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray
                    ) -> list[Estimate]:
     out = []
+    edge = _on_bound(obj, x)
     for i, c in enumerate(coords):
         xv = float(x[i] * obj.scale[i])
         value = c.natural(xv)
         sx = float(np.sqrt(max(cov[i, i], 0.0))) if cov is not None else float("nan")
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
-            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True,
-                                f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"))
+            note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
+            if edge[i]:  # the σ of a curvature at a wall says nothing of where the data would put it
+                note = (f"on the bound {value:g} {c.unit} of its physical range: the recordings push it beyond "
+                        "(σ from the fit's curvature inside the range)")
+            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, bool(edge[i])))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,

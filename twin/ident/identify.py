@@ -395,7 +395,8 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
 
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> Vessel:
     v = fit.vessel
-    pinned = ", ".join(e.name for e in fit.estimates if e.identifiable)
+    pinned = ", ".join(e.name for e in fit.estimates if e.identifiable and not e.on_bound)
+    walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
     kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
     files = ", ".join(Path(s).name for s in sources) or "recordings"
@@ -403,17 +404,19 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> 
     text = (f"identified by `twin identify` on {when} from {files}: maximum a posteriori fit by free-run windows of "
             f"{fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
+            + (f"; on a bound of their physical range (the data push beyond): {walled}" if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
     return replace(v, sources={**v.sources, "identification": text})
 
 
 def format_estimates(result: simfit.FitResult) -> str:
     """The simulation fit's parameters as a text table; notes in full (a cut note hides why)."""
-    head = f"{'parameter':14s} {'unit':9s} {'prior':>11s} {'identified':>11s} {'± 1σ':>10s}  note"
+    width = max([9] + [len(e.unit) for e in result.estimates])
+    head = f"{'parameter':14s} {'unit':{width}s} {'prior':>11s} {'identified':>11s} {'± 1σ':>10s}  note"
     lines = [head, "-" * len(head)]
     for e in result.estimates:
         sigma = f"{e.sigma:10.3g}" if e.sigma is not None else f"{'-':>10s}"
-        lines.append(f"{e.name:14s} {e.unit[:9]:9s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
+        lines.append(f"{e.name:14s} {e.unit:{width}s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
                  f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
     return "\n".join(lines)

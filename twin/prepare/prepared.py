@@ -191,6 +191,10 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         valid &= _fresh(s.t, grid, max_gap_s)
     runs = _runs(valid, int(np.ceil(min_segment_s / grid_dt - 1e-9)))
     if not runs:
+        span = float(grid[-1] - grid[0]) if len(grid) else 0.0
+        if span < min_segment_s:  # a truncated log: the streams overlap for less than one stretch
+            raise TwinError(f"{name}: too short: its GNSS, heading and input streams overlap for {span:.1f} s, "
+                            f"less than the {min_segment_s:g} s a stretch needs")
         raise TwinError(f"{name}: no stretch of {min_segment_s:g} s without a dropout > {max_gap_s:g} s")
     dropped = outliers + _dropped_runs(valid, runs)
     idx = np.concatenate([np.arange(a, b) for a, b in runs])

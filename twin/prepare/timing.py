@@ -85,12 +85,29 @@ def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
     k = int(np.argmin(cost))
     fit = float(1.0 - cost[k] / spread)
     if fit < MIN_FIT:  # before the edge: a gyro in deg/s or of the other sign fits nowhere, its best lag is noise's
-        return GyroLag(None, fit, turning_s, f"the gyro's turning explains only {100 * fit:.0f} % of the heading's; "
-                                              f"{100 * MIN_FIT:.0f} % are needed (a gyro in rad/s, positive turning "
-                                              "to starboard, is expected)")
+        short = (f"the gyro's turning explains only {100 * fit:.0f} % of the heading's within {WINDOW_S:g}-s pieces; "
+                 f"{100 * MIN_FIT:.0f} % are needed")
+        gain = _whole_log_gain(psi, t_h, np.interp(t_h, t_g, turned))
+        if gain is not None and 0.8 <= gain <= 1.25:  # units and sign right: a slow turner's pieces are noise
+            return GyroLag(None, fit, turning_s, f"{short}; over the whole log the gyro turns {gain:.2f} times as far "
+                                                  "as the heading (units and sign right): the turning within a piece is "
+                                                  "too slow beside the heading's noise for a delay to be told")
+        told = f"; over the whole log the gyro turns {gain:.2f} times as far as the heading" if gain is not None else ""
+        return GyroLag(None, fit, turning_s, f"{short}{told} (a gyro in rad/s, positive turning to starboard, "
+                                              "is expected)")
     if k in (0, len(lags) - 1):
         return GyroLag(None, fit, turning_s, f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
     return GyroLag(float(lags[k]), fit, turning_s)
+
+
+def _whole_log_gain(psi: np.ndarray, t: np.ndarray, turned: np.ndarray) -> float | None:
+    """How far the gyro's integral turns against the heading over the whole log (least squares with an
+    offset and a gyro bias, as in a piece; about 1 for a gyro in rad/s of the heading's sign); None when
+    the log barely turns."""
+    if np.ptp(psi) < 0.5 or np.ptp(turned) <= 0.0:
+        return None
+    design = np.column_stack([turned, t - t[0], np.ones(len(t))])
+    return float(np.linalg.lstsq(design, psi, rcond=None)[0][0])
 
 
 def _detrended_squares(y: np.ndarray, t: np.ndarray) -> np.ndarray:
