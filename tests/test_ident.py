@@ -340,6 +340,20 @@ def test_a_coefficient_the_data_push_beyond_its_physical_range_is_said_to_be_on_
     assert not est["Xuu"].on_bound and "on_bound" not in est["Xuu"].to_dict()
 
 
+def test_near_bound_tells_on_from_within_sigma_from_clear():
+    class Obj:  # the two things _near_bound reads of an objective
+        scale = np.array([10.0, 10.0, 10.0])
+
+        @staticmethod
+        def bounds():
+            return np.array([-1e3, -1e3, -1e3]), np.array([0.0, 0.0, 0.0])
+
+    x = np.array([-1e-9, -0.005, -0.5])  # on the bound, 0.05 from it (σ 0.2), 5 from it (σ 0.2)
+    cov = np.diag([0.2, 0.2, 0.2]) ** 2
+    got = simfit._near_bound(Obj(), x, cov)
+    assert got[0] == (0.0, True) and got[1] == (0.0, False) and got[2] is None
+
+
 def test_scale_needs_an_anchor(yellowfish_vessel):
     ds = generate(yellowfish_vessel, n_segments=1, seed=1, noise=QUIET, segment_s=(20, 21))
     with pytest.raises(TwinError, match="anchor"):

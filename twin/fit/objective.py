@@ -28,7 +28,7 @@ class Estimate:
     sigma: float | None  # 1-σ from the cluster-robust covariance; None when not identifiable
     identifiable: bool
     note: str = ""
-    on_bound: bool = False  # ended on a bound of its physical range: the data push it beyond
+    on_bound: bool = False  # ended on, or within its σ of, a bound of its physical range
 
     def to_dict(self) -> dict:
         return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,

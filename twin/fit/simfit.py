@@ -316,18 +316,27 @@ def _pinned(obj: Objective, coords: list[Coordinate], cov) -> np.ndarray:
     return sigma < POSTERIOR_RATIO * np.array([c.belief.sigma for c in coords])
 
 
-def _on_bound(obj: Objective, x: np.ndarray) -> np.ndarray:
-    """Which coordinates ended on a bound of their range (trf keeps iterates just inside it)."""
+def _near_bound(obj: Objective, x: np.ndarray, cov) -> list[tuple[float, bool] | None]:
+    """Per coordinate, the bound of its range it ended on or within its σ of (coordinate units) and
+    whether exactly on it (trf keeps iterates just inside); None when clear of both bounds."""
     lo, hi = obj.bounds()
-    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-    tol = 1e-6 * span
-    return (np.abs(x - lo) <= tol) | (np.abs(hi - x) <= tol)
+    out = []
+    for i in range(len(x)):
+        span = hi[i] - lo[i] if np.isfinite(hi[i] - lo[i]) else 1.0
+        sx = float(np.sqrt(max(cov[i, i], 0.0))) / obj.scale[i] if cov is not None else 0.0
+        near = None
+        for bound in (lo[i], hi[i]):
+            gap = abs(x[i] - bound)
+            if np.isfinite(bound) and gap <= max(1e-6 * span, sx):
+                near = (float(bound * obj.scale[i]), gap <= 1e-6 * span)
+        out.append(near)
+    return out
 
 
 def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray
                    ) -> list[Estimate]:
     out = []
-    edge = _on_bound(obj, x)
+    edge = _near_bound(obj, x, cov)
     for i, c in enumerate(coords):
         xv = float(x[i] * obj.scale[i])
         value = c.natural(xv)
@@ -335,10 +344,12 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
             note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
-            if edge[i]:  # the σ of a curvature at a wall says nothing of where the data would put it
-                note = (f"on the bound {value:g} {c.unit} of its physical range: the recordings push it beyond "
-                        "(σ from the fit's curvature inside the range)")
-            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, bool(edge[i])))
+            if edge[i] is not None:  # a curvature's σ at a wall says nothing of where the data would put it
+                bound, on = edge[i]
+                note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
+                        f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
+                        " (σ from the fit's curvature, which the bound cuts)")
+            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,

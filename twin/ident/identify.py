@@ -404,7 +404,8 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> 
     text = (f"identified by `twin identify` on {when} from {files}: maximum a posteriori fit by free-run windows of "
             f"{fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
-            + (f"; on a bound of their physical range (the data push beyond): {walled}" if walled else "")
+            + (f"; on or within their σ of a bound of their physical range: {walled}"
+               if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
     return replace(v, sources={**v.sources, "identification": text})
 
