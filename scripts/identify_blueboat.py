@@ -40,7 +40,7 @@ from twin.fit.metrics import DOFS  # noqa: E402
 from twin.fit.windows import ModelCache  # noqa: E402
 from twin.ident.identify import (calibrate, format_choices, format_estimates, format_needed, identify,  # noqa: E402
                                  prepared, read)
-from twin.ident.seed004.greybox import fit_static  # noqa: E402
+from twin.ident.greybox.models import fit_static  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 TRAIN_RUNS = (216, 218, 220, 221, 222, 223, 224)

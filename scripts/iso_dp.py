@@ -16,7 +16,7 @@ from pathlib import Path
 from twin import vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
-from twin.ident.seed003 import ipd, iso
+from twin.ident.relay import ipd, iso
 from twin.files import write_bytes_atomic, write_text_atomic
 
 ROOT = Path(__file__).resolve().parent.parent

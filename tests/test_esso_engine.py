@@ -196,7 +196,7 @@ def test_inputs_csv_and_bounds_of_a_propeller_and_rudder(esso, tmp_path):
 
 
 def test_iso_with_the_rudder_relay_and_the_ipd_heading_step(esso):
-    from twin.ident.seed003 import ipd, iso
+    from twin.ident.relay import ipd, iso
 
     sweep = iso.ship_sweep(esso, [15.0, 30.0], [10.0], duration_s=300.0)
     alpha, beta = iso.linear_model(sweep, 10.0)

@@ -1,4 +1,4 @@
-"""Seed 004 grey-box identification (twin.ident.seed004: greybox, baseline, splits, physical)
+"""Seed 004 grey-box identification (twin.ident.greybox: greybox, baseline, splits, physical)
 on twin runs with known truth, plus the real BlueBoat files when ../shared exists."""
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import simulate
 from twin.errors import TwinError
-from twin.ident.seed004 import splits as SP
-from twin.ident.seed004.baseline import fit_plain, persistence_one_step
-from twin.ident.seed004.greybox import GreyboxOptions, fit_dynamic, fit_static, shared_alpha
-from twin.ident.seed004.lsq import fit_linear
-from twin.ident.seed004.physical import first_guesses
-from twin.ident.seed004.regressors import normalised_inputs
+from twin.ident.greybox import splits as SP
+from twin.ident.greybox.baseline import fit_plain, persistence_one_step
+from twin.ident.greybox.models import GreyboxOptions, fit_dynamic, fit_static, shared_alpha
+from twin.ident.greybox.lsq import fit_linear
+from twin.ident.greybox.physical import first_guesses
+from twin.ident.greybox.regressors import normalised_inputs
 from twin.physics.thrusters import lag_alpha, lag_time_constant_s
 from twin.prepare.prepared import DEADBAND_US, Preparation, Prepared, Segment
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinError
-from twin.ident.seed003 import ipd, iso
+from twin.ident.relay import ipd, iso
 
 
 def _osc(xm=0.5, w=2.0, x0=0.0, th=1.0, tl=1.0):

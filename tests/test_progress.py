@@ -9,7 +9,7 @@ import pytest
 
 from twin.cli import app as cli_app
 from twin.engine.mjcf import compile_vessel
-from twin.ident.seed003 import iso
+from twin.ident.relay import iso
 from twin.synth.dataset import PROFILES, generate
 from twin.vessel import load
 

@@ -1,5 +1,5 @@
-"""The seeds this project is built from (the bibliography its docstrings cite as "seed NNN"),
-and the published figures the twin is checked against, each with its source.
+"""The bibliography the code and docs cite by short key (`[Yellowfish-TR eq. 27]`), and the
+published figures the twin is checked against, each with its source.
 
 The figures are reference data for validation, not parameters: the twin's parameters live in
 twin/model/*.json and twin/model/*.xml only.
@@ -25,23 +25,39 @@ class Source:
         return f"{who}: {self.title}. {self.published}" + (f", {self.year}" if self.year else "") + "."
 
 
-SEEDS = {
-    "000": Source("000", "The Yellowfish ASV: technical description, modelling and identification (technical report)",
-                  None, "Universidad Loyola Andalucía, research line ASV4Sustainability (Optimization and Control of "
-                  "Distributed Systems group)", None),
-    "002": Source("002", "Autonomous Marine Surface Vessel Model (Simulink model with CyberShip I parameters)",
-                  "Simone Bertoni", "Simone Bertoni Control Lab, github.com/simorxb/autonomous-marine-surface-vessel-"
-                  "model", 2024),
-    "003": Source("003", "Identification by self-oscillations (IS-O) of a small-scale tanker model in surge, sway and "
-                  "yaw, and I-PD dynamic-positioning controllers tuned from it", None,
-                  "University of Zagreb (experiments on lake Jarun)", None),
-    "004": Source("004", "Practical identification approach for the actuation dynamics of autonomous surface vehicles "
-                  "with minimal instrumentation", "Thalia Morel, Luis Orihuela, Christophe Combastel, Guillermo "
-                  "Bejarano", "Ocean Engineering; extended version arXiv:2410.00631", 2024),
-}
+def _bib(*sources: Source) -> dict[str, Source]:
+    return {s.key: s for s in sources}
 
-# Seed 000 (Yellowfish technical report), by mass case.
-SEED000 = {
+
+BIBLIOGRAPHY = _bib(
+    Source("Yellowfish-TR", "The Yellowfish ASV: technical description, modelling and identification (technical "
+           "report)", None, "Universidad Loyola Andalucía, research line ASV4Sustainability (Optimization and "
+           "Control of Distributed Systems group)", None),
+    Source("Bertoni-2024", "Autonomous Marine Surface Vessel Model (Simulink model with CyberShip I parameters)",
+           "Simone Bertoni", "Simone Bertoni Control Lab, github.com/simorxb/autonomous-marine-surface-vessel-model",
+           2024),
+    Source("Relay-ISO", "Identification by self-oscillations (IS-O) of a small-scale tanker model in surge, sway "
+           "and yaw, and I-PD dynamic-positioning controllers tuned from it", None,
+           "University of Zagreb (experiments on lake Jarun)", None),
+    Source("Morel-2024", "Practical identification approach for the actuation dynamics of autonomous surface "
+           "vehicles with minimal instrumentation", "Thalia Morel, Luis Orihuela, Christophe Combastel, "
+           "Guillermo Bejarano", "Ocean Engineering; extended version arXiv:2410.00631", 2024),
+    Source("MMG-2015", "Introduction of MMG standard method for ship maneuvering predictions",
+           "Hironori Yasukawa, Yasuo Yoshimura", "Journal of Marine Science and Technology 20, 37-52", 2015),
+    Source("Fujiwara-1998", "Estimation of wind forces and moments acting on ships",
+           "Toshifumi Fujiwara, Michio Ueno, Tadashi Nimura", "Journal of the Society of Naval Architects of "
+           "Japan 183, 77-90", 1998),
+    Source("Fossen-2021", "Handbook of Marine Craft Hydrodynamics and Motion Control, 2nd edition",
+           "Thor I. Fossen", "John Wiley & Sons", 2021),
+    Source("ESSO-FRT", "Free-running model tests of the VLCC Esso Osaka with on-board anemometer (data set "
+           "FRT-DS-ESSO)", "NAOE 5th laboratory, Osaka University", "github.com/NAOE-5thLab/FRT-DS-ESSO; used in "
+           "Wakita et al., J. Mar. Sci. Technol. (2022), doi 10.1007/s00773-021-00867-1", 2022),
+    Source("BlueBoat-SI", "BlueBoat system identification recordings", "Jan Kristian Andersen",
+           "github.com/jankristia/BlueBoatSystemIdentification", None),
+)
+
+# [Yellowfish-TR], by mass case.
+YELLOWFISH_TR = {
     # Table III: mass distribution (kg)
     "metal_bars_kg": {"min": 2.31, "nominal": 2.31, "max": 2.31},
     "hulls_kg": {"min": 16.12, "nominal": 16.12, "max": 16.12},
@@ -79,8 +95,8 @@ SEED000 = {
     "rho_water_kg_m3": 1000.0,  # reproduces Table VI's nominal Xu̇ and Yv̇
 }
 
-# Seed 002 (CyberShip I): total inertia and linear damping.
-SEED002 = {
+# [Bertoni-2024] (CyberShip I): total inertia and linear damping.
+CYBERSHIP_I = {
     "M": [[26.4272, 0.0, 0.0], [0.0, 51.3671, -0.7372], [0.0, -0.7372, 1.2645]],
     "D": [[4.3411, 0.0, 0.0], [0.0, 6.2983, 0.0], [0.0, 0.0, 1.2577]],
     "d_thrusters_m": 0.4,

@@ -45,9 +45,9 @@ from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
 from ..recording import Recording
 from ..vessel import Vessel
-from .seed004.greybox import fit_dynamic, fit_static
-from .seed004.physical import first_guesses
-from .seed004.splits import render_split_table, render_training_table, split_method_table, training_size_table
+from .greybox.models import fit_dynamic, fit_static
+from .greybox.physical import first_guesses
+from .greybox.splits import render_split_table, render_training_table, split_method_table, training_size_table
 
 PRIOR_WEIGHTS = (0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
 START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it

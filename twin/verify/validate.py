@@ -21,7 +21,7 @@ from ..errors import TwinError
 from ..physics import added_mass as am
 from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_for_mass, waterplane_extent
 from ..physics.thrusters import force_torque_bounds
-from ..references import SEED000, SEED002
+from ..references import YELLOWFISH_TR, CYBERSHIP_I
 from ..vessel import Vessel
 
 FLAG_THRESHOLD = 0.05
@@ -206,7 +206,7 @@ def _engine_bounds(compiled: CompiledVessel) -> dict[str, float]:
 
 
 def _seed000_inertia(compiled: CompiledVessel, case: str, meshes: list[dict]) -> list[Quantity]:
-    S, model = SEED000, compiled.model
+    S, model = YELLOWFISH_TR, compiled.model
     data = _at_rest(model)
     g = compiled.geometry.rigid
     parts = ("metal_bars_kg", "hulls_kg", "electronics_box_kg", "sensors_kg", "battery_kg")
@@ -248,7 +248,7 @@ def _seed000_inertia(compiled: CompiledVessel, case: str, meshes: list[dict]) ->
 
 
 def _i_box_explanation(case: str, I_box_eq19: float, I_box_engine: float) -> str:
-    S = SEED000
+    S = YELLOWFISH_TR
     text = ""
     if abs(I_box_eq19 - S["I_box_kgm2"]) > FLAG_THRESHOLD * S["I_box_kgm2"]:
         text = (f"Table V prints one I_box, {S['I_box_kgm2']} kg m2, for all three cases: eq. 19 with the nominal "
@@ -267,7 +267,7 @@ def _mean(values: list[float]) -> float | None:
 
 def _iz_explanation(case: str, I_box_eq19: float, Iz_eq18: float, hull_izz: float | None,
                     hull_offset_m: float | None) -> str:
-    S = SEED000
+    S = YELLOWFISH_TR
     if hull_izz is None or hull_offset_m is None:
         text = "eq. 18 counts the hulls as point masses at d_g; this MJCF has no hull meshes to compare with."
     else:
@@ -321,7 +321,7 @@ def _printed_column_match(value: float, computed: dict[str, float]) -> str | Non
 
 
 def _seed000_added_mass(compiled: CompiledVessel, case: str) -> list[Quantity]:
-    S, rho = SEED000, SEED000["rho_water_kg_m3"]
+    S, rho = YELLOWFISH_TR, YELLOWFISH_TR["rho_water_kg_m3"]
     per_case = {c: am.ellipsoid_added_mass(S["a_m"][c], S["b_m"][c], S["c_m"][c], rho) for c in S["a_m"]}
     e = per_case[case]
     a, b, c = S["a_m"][case], S["b_m"][case], S["c_m"][case]
@@ -396,7 +396,7 @@ def _swap_note(what: str, unit: str, printed: dict[str, float], computed: dict[s
 
 
 def _seed000_bounds(compiled: CompiledVessel) -> list[Quantity]:
-    S = SEED000
+    S = YELLOWFISH_TR
     t = compiled.vessel.thrusters
     analytic = force_torque_bounds(t, (-S["d_thrusters_m"] / 2, S["d_thrusters_m"] / 2))
     engine = _engine_bounds(compiled)
@@ -415,7 +415,7 @@ def _seed000_bounds(compiled: CompiledVessel) -> list[Quantity]:
 def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tuple[list[Quantity], dict]:
     if not meshes:
         return [], {}
-    S = SEED000 if compiled.vessel.name == "yellowfish" else None
+    S = YELLOWFISH_TR if compiled.vessel.name == "yellowfish" else None
     mass = compiled.geometry.rigid.mass_kg
     placed = [(h["mesh"].vertices, h["mesh"].faces) for h in meshes]
     fl = waterline_for_mass(placed, mass, RHO_FRESH_KG_M3)
@@ -463,10 +463,10 @@ def _seed002(compiled: CompiledVessel) -> list[Quantity]:
     hydro = compiled.hydro()
     M, D = hydro.M, hydro.damping.linear_matrix()
     g = compiled.geometry
-    out = [Quantity(f"M{i + 1}{j + 1}", "kg" if (i, j) != (2, 2) else "kg m2", table=SEED002["M"][i][j],
+    out = [Quantity(f"M{i + 1}{j + 1}", "kg" if (i, j) != (2, 2) else "kg m2", table=CYBERSHIP_I["M"][i][j],
                     engine=float(M[i, j])) for i, j in ((0, 0), (1, 1), (1, 2), (2, 2))]
-    out += [Quantity(f"D{i + 1}{i + 1}", "SI", table=SEED002["D"][i][i], engine=float(D[i, i])) for i in range(3)]
-    out.append(Quantity("thruster spacing d", "m", table=SEED002["d_thrusters_m"],
+    out += [Quantity(f"D{i + 1}{i + 1}", "SI", table=CYBERSHIP_I["D"][i][i], engine=float(D[i, i])) for i in range(3)]
+    out.append(Quantity("thruster spacing d", "m", table=CYBERSHIP_I["d_thrusters_m"],
                         engine=g.thruster_y_m[1] - g.thruster_y_m[0]))
     out.append(Quantity("rigid mass m", "kg", engine=g.rigid.mass_kg, reference="engine",
                         explanation="seed 002 gives only the total M; the rigid/added split is an assumption "
@@ -529,7 +529,7 @@ def validate(vessel: Vessel) -> Validation:
         "hulls": [{"outline_xy": _outline(h), "name": h["name"]} for h in meshes],
         "co": [0.0, 0.0],
         "cg_engine": [g.rigid.xg_m, g.rigid.yg_m],
-        "cg_analytic": [SEED000["xg_mm"][case] / 1e3, 0.0] if vessel.name == "yellowfish" else None,
+        "cg_analytic": [YELLOWFISH_TR["xg_mm"][case] / 1e3, 0.0] if vessel.name == "yellowfish" else None,
         "thrusters": g.thruster_pos_m[:, :2].tolist(),
         "gnss": g.gnss_pos_m[:2].tolist(),
         "imu": g.imu_pos_m[:2].tolist(),

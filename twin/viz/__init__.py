@@ -1,2 +1,2 @@
-"""Visualisation: rerun recordings of runs (rerun_log), report figures and tables (report),
-seed 003's IS-O and I-PD figures (seed003)."""
+"""Visualisation: rerun recordings of runs (rerun_log), report figures and tables (report), the
+relay identification's figures, and result pages written by the study scripts (pages)."""

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from ..ident.seed003.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
+from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
 from .app import (MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, progress_bar, say, vessel_from,
                   write_json)
@@ -25,7 +25,7 @@ def _write_png(path: Optional[Path], data_fn) -> None:
 
 
 def _sweep_table(result) -> Table:
-    from ..ident.seed003.iso import UNITS
+    from ..ident.relay.iso import UNITS
 
     u = UNITS[result.dof]
     ship = any(r.rudder_deg is not None for r in result.rows)
@@ -72,7 +72,7 @@ def iso_command(
     constant-drag and linear-drag models at several relay outputs, compared with the twin's own
     uncoupled inertia and drag. The controller tuned from it runs with `twin dp`."""
     from ..engine.mjcf import compile_vessel
-    from ..ident.seed003 import iso
+    from ..ident.relay import iso
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
@@ -118,7 +118,7 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
                  progress=None):
     """IS-O sweeps with the default settings → (yaw, surge) DofModels for the I-PD (surge None if not asked);
     a ship's yaw from its rudder relay at the propeller speed `rps`. `progress` hears each relay run."""
-    from ..ident.seed003 import ipd, iso
+    from ..ident.relay import ipd, iso
 
     for w in (omega_heading, omega_surge):
         if w is not None and not w > 0:
@@ -155,7 +155,7 @@ def dp_command(
     bearing first, then surge along the line (the vessel has no sway thruster). A propeller-and-rudder ship
     steers its heading step with the rudder at a constant propeller speed (--rps); it has no point move."""
     from ..engine.mjcf import compile_vessel
-    from ..ident.seed003 import ipd
+    from ..ident.relay import ipd
 
     if run not in ("heading", "point"):
         raise TwinError(f"unknown run '{run}' (heading or point)")

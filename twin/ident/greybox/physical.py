@@ -34,7 +34,7 @@ import numpy as np
 from ...engine.mjcf import compile_vessel
 from ...physics.thrusters import lag_time_constant_s
 from ...vessel import Vessel
-from .greybox import DofFit, DynamicModel, StaticModel
+from .models import DofFit, DynamicModel, StaticModel
 
 SLOW_LAG_S = 2.0  # a small propeller spins up in a few tenths of a second
 MAX_SHAPE_MISFIT = 0.3  # yaw and surge see one thrust curve; beyond this they plainly do not

@@ -19,7 +19,7 @@ seed's X vectors do. Usage, scikit-learn style::
     runs = model.predict_windows(prep, starts, n_steps)  # free runs
 
 `rows` (one boolean array per recording; row k = the pair k → k+1) restricts
-the fit to a training selection (see twin.ident.seed004.splits).
+the fit to a training selection (see twin.ident.greybox.splits).
 """
 from __future__ import annotations
 
