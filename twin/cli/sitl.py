@@ -20,7 +20,10 @@ def sitl(
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
     host: str = typer.Option("0.0.0.0", help="address to listen on (127.0.0.1: this machine only)"),
-    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames are split into equal steps"),
+    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames (1200 Hz in Rover SITL) are split "
+                                           "into equal steps no longer than 1/RATE"),
+    esc_arm: float = typer.Option(2.0, help="seconds each ESC must see its stopped signal after power-up before "
+                                           "it drives its thruster, as a Basic ESC does (0: at once)"),
     channels: Optional[str] = typer.Option(None, help="servo outputs LEFT,RIGHT of the thrusters (default 1,3: "
                                                      "SERVO1_FUNCTION=73, SERVO3_FUNCTION=74)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
@@ -31,7 +34,7 @@ def sitl(
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
                                                                        "frame per servo frame (default)"),
     write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "
-                                                           "and --channels (sim_vehicle.py --add-param-file) "
+                                                           "and --channels (ardurover --defaults ...,FILE) "
                                                            "and exit"),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
@@ -48,7 +51,8 @@ def sitl(
 
         text = boat_parameters(v, (pair["left"], pair["right"]) if pair else (1, 3))
         write_text_atomic(write_params, text)
-        say(f"wrote {write_params}: load it with sim_vehicle.py ... --add-param-file {write_params}")
+        say(f"wrote {write_params}: give it to ArduPilot last, e.g. ardurover --defaults "
+            f"rover.parm,rover-skid.parm,{write_params} (or sim_vehicle.py --add-param-file {write_params})")
         return
     if v.thrusters.kind == "propeller_rudder":  # ArduPilot Rover's servo outputs are two thrusters' PWM
         raise TwinError(f"vessel '{v.name}' is a propeller-and-rudder ship: SITL supports twin-thruster vessels only")
@@ -56,6 +60,6 @@ def sitl(
         v, port=port, host=host, rate_hz=rate, record_paths=record,
         realtime=realtime, channels=(pair["left"], pair["right"]) if pair else (1, 3),
         current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"),
-        heading_deg=heading, origin=origin_from(origin), log=note,
+        heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm,
     )
     say(summary.text())

@@ -11,8 +11,9 @@ Choices, and why:
 
 - **Physics step.** A frame lasts 1/frame_rate. The engine steps at least
   `min_rate_hz` times a second and a whole number of times per frame:
-  h = (1/frame_rate) / ceil(min_rate_hz / frame_rate). At 400 Hz frames and the
-  default 400 Hz that is one step of 2.5 ms per frame; at 50 Hz frames, eight. A
+  h = (1/frame_rate) / ceil(min_rate_hz / frame_rate). At Rover SITL's default
+  1200 Hz frames (SIM_RATE_HZ) and the default 400 Hz that is one step of 0.833 ms
+  per frame; at 400 Hz frames one of 2.5 ms; at 50 Hz frames, eight. A
   frame rate change (SIM_RATE_HZ changed in flight) starts a new segment of
   constant step at the current time, so times stay k·h within a segment: the
   same numbers an offline run at that step computes.
@@ -26,6 +27,17 @@ Choices, and why:
   advance-speed loss act in MuJoCo as everywhere else. A twin whose thrust follows the
   supply voltage runs at its reference voltage: SITL sends no battery (ArduPilot simulates
   its own), so the factor is 1.
+- **ESC arming.** A real ESC does not drive its motor until, after power-up, it has
+  seen the stopped signal for a while: the Blue Robotics Basic ESC (BLHeli_S) wants
+  "a stopped signal (1500 microseconds) for a few seconds" [BlueRobotics-BasicESC].
+  ArduPilot, before its outputs are set up, sends 1000 µs on output 1 alone for about
+  20 ms; an ESC that obeyed it would run one thruster full astern before arming. So
+  each thruster gives no thrust until its PWM has stayed within ±25 µs (the ESC's
+  deadband, same source) of its neutral for `esc_arm_s` (2 s by default, the short end
+  of "a few seconds"); a pulse outside that band before then starts the count again.
+  A twin reset (ArduPilot restarted) powers the ESCs up again. `esc_arm_s = 0` drives
+  the thrusters from the first frame. The recording keeps the PWM ArduPilot sent and
+  the thrust the ESCs gave (zero while unarmed).
 - **PWM.** Output 0 (ArduPilot's "no output") is the thruster's neutral: for a
   T200 map the PWM of δ̃ = 0, pwm_offset·pwm_scale_us (1500 µs); for a vessel whose
   thrusters are "direct" (thrust in N, no PWM map) the PWM range
@@ -40,7 +52,9 @@ Choices, and why:
   so that ArduPilot, rotating it back with that attitude and adding gravity, gets
   exactly the velocity change it is told about (the IMU's delta-velocity). It
   holds the centripetal terms of ν̇ + ω×v without differentiating ν. Gravity is
-  the model's (MJCF `gravity`, 9.81 m/s²): about (0, 0, −9.81) at rest.
+  ArduPilot's own (GRAVITY_MSS, 9.80665 m/s², AP_Math/definitions.h), so at rest the
+  IMU reads (0, 0, −9.80665) exactly what ArduPilot subtracts: the planar twin's
+  motion does not depend on gravity, its EKF's vertical channel does.
 - **Sensor calibration** amendments of a vessel file (heading bias, compass
   deviation, antenna offset, log clock offset) describe how a real boat's sensors
   err; SITL simulates its own sensors from the true state, so they are not applied
@@ -66,10 +80,13 @@ from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
 from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_step
 from twin.run import Run
-from twin.sitl.protocol import Reply, channel_pair
+from twin.sitl.protocol import Reply
 from twin.vessel import Vessel
 
 DEFAULT_CHANNELS = (1, 3)  # SERVO1_FUNCTION = 73 (throttle left), SERVO3_FUNCTION = 74 (throttle right)
+GRAVITY_M_S2 = 9.80665  # ArduPilot's GRAVITY_MSS: the specific force at rest is what its EKF expects
+ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seconds" (module docstring)
+ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 _TWO_PI = 2.0 * math.pi
 _ZOH_TOL_S = 1e-9  # as drive.InputSeries.at: an input switching at t holds from t on
@@ -152,10 +169,13 @@ class SitlTwin:
     which installs the native hydrodynamic callback (MuJoCo's callback is process-global)."""
 
     def __init__(self, vessel: Vessel, *, min_rate_hz: float = 400.0,
-                 channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True) -> None:
+                 channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True,
+                 esc_arm_s: float = ESC_ARM_S) -> None:
         check_channels(channels)
         if not (math.isfinite(min_rate_hz) and min_rate_hz > 0):
             raise TwinError(f"the physics rate must be a positive number of Hz, got {min_rate_hz}")
+        check_esc_arm(esc_arm_s)
+        self.esc_arm_s = float(esc_arm_s)
         if not math.isfinite(heading_deg):
             raise TwinError("the initial heading must be a finite number of degrees")
         self.vessel = vessel
@@ -168,6 +188,10 @@ class SitlTwin:
         self.record = record
         self.map = PwmMap.of(vessel.thrusters)
         self._neutral_held = self.map.held(self.map.neutral_us)
+        self._neutral_us = self.map.neutral_us
+        self._outputs = (self.channels[0] - 1, self.channels[1] - 1)  # 0-based indices into the packet
+        self._hysteretic = vessel.thrusters.hysteretic
+        self._thrust_of: dict[float, float] = {}  # PWM (µs) → raw thrust (N): ArduPilot's PWM is whole µs
         self._delay_s = float(vessel.thrusters.delay_s)
         self._decay_per_min = float(vessel.thrusters.decay_per_min)
         t = vessel.thrusters
@@ -181,7 +205,7 @@ class SitlTwin:
         self._act = [_index(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator_actadr") if m.na else -1
                      for a in THRUSTERS]
         self._ctrl_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in THRUSTERS]
-        self._gravity_m_s2 = float(m.opt.gravity[2])  # NED: +z is down
+        self._gravity_m_s2 = GRAVITY_M_S2
         self._active = False
         self._rows = array("d")
         self._record_offset_s = 0.0
@@ -251,6 +275,9 @@ class SitlTwin:
         self._pwm_last = (self.map.neutral_us, self.map.neutral_us)
         self._motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
         self._ramped = (0.0, 0.0)  # where a thrust ramp stands: at rest, the inputs neutral before the session
+        self._escs_ready = self.esc_arm_s == 0.0
+        self._esc_ready = [self._escs_ready, self._escs_ready]
+        self._esc_stopped_since_s: list[float | None] = [None, None]
         self._state = self._read_state()
 
     def _set_rate(self, frame_rate_hz: int) -> None:
@@ -273,12 +300,18 @@ class SitlTwin:
             raise RuntimeError("step the twin inside `with twin.active():` (installs the hydrodynamic callback)")
         if frame_rate_hz != self._rate_hz:
             self._set_rate(frame_rate_hz)
-        pl, pr = channel_pair(pwm_us, self.channels, self.map.neutral_us)
+        # protocol.channel_pair, inlined: this runs once per frame, over a thousand times a second
+        n_out, (i_left, i_right), neutral = len(pwm_us), self._outputs, self._neutral_us
+        a = pwm_us[i_left] if i_left < n_out else 0
+        b = pwm_us[i_right] if i_right < n_out else 0
+        pl = float(a) if a else neutral
+        pr = float(b) if b else neutral
         n = frames * self._nsub
         t0 = self._seg_t0 + self._seg_k * self._h
         time_before = self.data.time
-        # a hysteretic map's motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps the PWM
-        self._motors, driven = self.vessel.thrusters.driven_step(self._motors, (pl, pr))
+        driven = (pl, pr) if self._escs_ready else self._esc_gate(t0, pl, pr)
+        if self._hysteretic:  # the motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps it
+            self._motors, driven = self.vessel.thrusters.driven_step(self._motors, driven)
         if self._plain:
             self._advance_held(t0, (pl, pr), driven, n)
         else:
@@ -287,12 +320,48 @@ class SitlTwin:
         self._pwm_last = (pl, pr)
         return self._reply(t0, n, time_before)
 
+    def _esc_gate(self, t0_s: float, pl: float, pr: float) -> tuple[float, float]:
+        """What the ESCs pass on before they are armed (module docstring): neutral, until a thruster's
+        PWM has stayed within the deadband of its neutral for esc_arm_s; from then on the PWM itself."""
+        out = [pl, pr]
+        for i, p in enumerate(out):
+            if self._esc_ready[i]:
+                continue
+            since = self._esc_stopped_since_s[i]
+            if abs(p - self._neutral_us) <= ESC_DEADBAND_US:
+                if since is None:
+                    self._esc_stopped_since_s[i] = t0_s
+                out[i] = self._neutral_us  # the stopped signal: no thrust either way
+                continue
+            if since is not None and t0_s - since >= self.esc_arm_s - 1e-9:
+                self._esc_ready[i] = True
+                continue
+            self._esc_stopped_since_s[i] = None
+            out[i] = self._neutral_us
+        self._escs_ready = self._esc_ready[0] and self._esc_ready[1]
+        return out[0], out[1]
+
+    @property
+    def escs_armed(self) -> tuple[bool, bool]:
+        """Whether each thruster's ESC (left, right) has armed and follows its PWM."""
+        return self._esc_ready[0], self._esc_ready[1]
+
+    def _thrust(self, pwm_us: float) -> float:
+        """Raw thrust (N) of a PWM, cached: the map's polynomial once per distinct PWM value."""
+        thrust = self._thrust_of.get(pwm_us)
+        if thrust is None:
+            mp = self.map
+            thrust = self._thrust_of[pwm_us] = mp.raw(mp.held(pwm_us))
+        return thrust
+
     def _advance_held(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo."""
-        mp, ctrl, (il, ir) = self.map, self.data.ctrl, self._ctrl_ids
-        ctrl[il] = mp.raw(mp.held(driven[0]))
-        ctrl[ir] = mp.raw(mp.held(driven[1]))
-        self._record(t0_s, *logged)
+        ctrl, (il, ir), cache = self.data.ctrl, self._ctrl_ids, self._thrust_of
+        left, right = cache.get(driven[0]), cache.get(driven[1])
+        ctrl[il] = self._thrust(driven[0]) if left is None else left
+        ctrl[ir] = self._thrust(driven[1]) if right is None else right
+        if self.record:
+            self._record(t0_s, *logged)
         mujoco.mj_step(self.model, self.data, nstep=n)
 
     def _advance_delayed(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
@@ -425,6 +494,12 @@ def delivered_thrust_n(thrusters: ThrusterModel, thruster_y_m, command_n: np.nda
     t_min, t_max = thrusters.bounds()
     static = np.clip(command_n, t_min, t_max) * thrusters.gains()
     return delivered(thrusters.advance_loss, static, nu, thruster_y_m) if thrusters.advance_loss else static
+
+
+def check_esc_arm(esc_arm_s: float) -> None:
+    """A finite, non-negative ESC arming time (s)."""
+    if not (isinstance(esc_arm_s, (int, float)) and math.isfinite(esc_arm_s) and esc_arm_s >= 0):
+        raise TwinError(f"--esc-arm {esc_arm_s}: the ESC arming time is a number of seconds ≥ 0 (0: no arming)")
 
 
 def check_channels(channels: tuple[int, int]) -> None:
