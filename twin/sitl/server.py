@@ -111,7 +111,9 @@ class SitlSummary:
         return (f"{c.frames} frames, {self.physics_time_s:.2f} s of twin time in {self.wall_time_s:.2f} s; "
                 f"{c.duplicates} duplicates answered, {c.crossed} not (crossed a late answer), "
                 f"{c.missed} missed, {c.restarts} restarts, "
-                f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else ""))
+                f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else "")
+                + (f"; the twin's CPU {self.serve_cpu_s:.2f} s ({self.serve_cpu_s / c.frames * 1e6:.0f} µs a frame)"
+                   if c.frames else ""))
 
 
 def bind_udp(host: str, port: int) -> socket.socket:
