@@ -54,6 +54,14 @@ BIBLIOGRAPHY = _bib(
            "Wakita et al., J. Mar. Sci. Technol. (2022), doi 10.1007/s00773-021-00867-1", 2022),
     Source("BlueBoat-SI", "BlueBoat system identification recordings", "Jan Kristian Andersen",
            "github.com/jankristia/BlueBoatSystemIdentification", None),
+    Source("ArduPilot-SITL", "ArduPilot software in the loop: the JSON physics interface (libraries/SITL/SIM_JSON.h, "
+           "SIM_JSON.cpp, examples/JSON/readme.md) and Rover's parameters and default SITL parameter files "
+           "(Tools/autotest/default_params/rover.parm, rover-skid.parm)", "ArduPilot Dev Team",
+           "github.com/ArduPilot/ardupilot (GPLv3); ardupilot.org/rover", 2025),
+    Source("BlueRobotics-BasicESC", "Basic ESC documentation (BESC30-R3, BLHeli_S firmware): quick start (a stopped "
+           "signal of 1500 µs for a few seconds initialises the ESC) and pulse-width signal table (deadband ±25 µs)",
+           "Blue Robotics", "docs.bluerobotics.com/bescr3; source github.com/bluerobotics/bluerobotics.github.io, "
+           "bescr3/index.md", None),
 )
 
 # [Yellowfish-TR], by mass case.

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from twin.errors import TwinError
 from twin.geodesy import geodetic_from_ned
 
@@ -121,15 +123,15 @@ class Rover:
 
         self.mavutil = mavutil
         deadline = time.monotonic() + connect_timeout_s
-        while True:  # SITL opens its TCP port only once it has started: retry until then
+        while True:  # SITL opens its TCP port only once it has started: wait for it quietly
             try:
-                self.link = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255,
-                                                       autoreconnect=False)
+                socket.create_connection(("127.0.0.1", port), timeout=1.0).close()
                 break
             except OSError:
                 if time.monotonic() > deadline:
-                    raise TwinError(f"no MAVLink console on tcp:127.0.0.1:{port}") from None
+                    raise TwinError(f"no MAVLink console on tcp:127.0.0.1:{port} (is SITL running?)") from None
                 time.sleep(0.2)
+        self.link = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255, autoreconnect=False)
         if self.link.wait_heartbeat(timeout=max(1.0, deadline - time.monotonic())) is None:
             raise TwinError("no heartbeat from ArduPilot")
         self.target = (self.link.target_system, self.link.target_component)
@@ -283,3 +285,19 @@ class Rover:
 
     def close(self) -> None:
         self.link.close()
+
+
+def path_deviation_m(track_ne_m, path_ne_m) -> np.ndarray:
+    """Each point's distance (m) from a planned path: the polyline through `path_ne_m` (north, east
+    m), the nearest of its legs. What a steering tune changes: how far the boat strays from the
+    straight line between waypoints."""
+    p = np.asarray(track_ne_m, dtype=float).reshape(-1, 2)
+    legs = np.asarray(path_ne_m, dtype=float).reshape(-1, 2)
+    if len(legs) < 2:
+        raise TwinError("a path needs two points at least")
+    a, b = legs[:-1], legs[1:]
+    ab = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+    s = np.clip(np.einsum("kij,ij->ki", p[:, None, :] - a[None], ab) / length2, 0.0, 1.0)
+    nearest = a[None] + s[..., None] * ab[None]
+    return np.min(np.linalg.norm(p[:, None, :] - nearest, axis=2), axis=1)
