@@ -1,4 +1,4 @@
-"""Issue 16 item 4: the Esso Osaka model ship identified by `twin identify` and judged on tests it
+"""The Esso Osaka model ship identified by `twin identify` and judged on tests it
 did not see.
 
     python scripts/identify_esso.py [--parts turn:none,turn:measured,random:none,random:measured]
@@ -184,7 +184,7 @@ def report(parts: list[dict]) -> str:
     """The markdown report of every part there is."""
     lines = ["# The Esso Osaka model identified, judged on tests it did not see",
              "",
-             "Written by `python scripts/identify_esso.py` (issue 16 item 4). `twin identify` "
+             "Written by `python scripts/identify_esso.py`. `twin identify` "
              "(twin/ident/identify.py) on one family of free-running tests, judged on the other: 30-s free runs "
              "from measured states every 10 s, R² of u / v / r (twin/fit/evaluate.py). Targets: u ≥ 0.9, "
              "v ≥ 0.6, r ≥ 0.9. Prior: the untuned KVLCC2-based twin (docs/esso.md). The duplicate "

@@ -118,7 +118,7 @@ def read_recording(path, channels: dict | None = None):
 
 
 def prepare(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
-    """A recording made ready for fitting (seed 004 §5.1): with a vessel, as its sensors see it (lever
+    """A recording made ready for fitting [Morel-2024 §5.1]: with a vessel, as its sensors see it (lever
     arm, heading corrections) and, when `calibrated`, with the log's own compass offset estimated
     from its GNSS track; without one, the antenna's positions as logged."""
     from .ident.identify import calibrate as calibrate_logs, prepared

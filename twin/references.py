@@ -54,6 +54,23 @@ BIBLIOGRAPHY = _bib(
            "Wakita et al., J. Mar. Sci. Technol. (2022), doi 10.1007/s00773-021-00867-1", 2022),
     Source("BlueBoat-SI", "BlueBoat system identification recordings", "Jan Kristian Andersen",
            "github.com/jankristia/BlueBoatSystemIdentification", None),
+    Source("Fossen-2011", "Handbook of Marine Craft Hydrodynamics and Motion Control, 1st edition",
+           "Thor I. Fossen", "John Wiley & Sons", 2011),
+    Source("NAOE-MMG-SIM", "MMG model simulator for a one-propeller one-rudder ship, with the Esso Osaka model's "
+           "coefficient files", "NAOE 5th laboratory, Osaka University",
+           "github.com/NAOE-5thLab/mmg-1p1r-simulator", None),
+    Source("RTS-1965", "Maximum likelihood estimates of linear dynamic systems",
+           "Herbert E. Rauch, F. Tung, Charlotte T. Striebel", "AIAA Journal 3(8), 1445-1450", 1965),
+    Source("Savitzky-1964", "Smoothing and differentiation of data by simplified least squares procedures",
+           "Abraham Savitzky, Marcel J. E. Golay", "Analytical Chemistry 36(8), 1627-1639", 1964),
+    Source("Wilcoxon-1945", "Individual comparisons by ranking methods", "Frank Wilcoxon",
+           "Biometrics Bulletin 1(6), 80-83", 1945),
+    Source("BlueRobotics-T200", "T200 thruster: technical details and performance charts", "Blue Robotics",
+           "bluerobotics.com, T200 product page and its performance data", None),
+    Source("ArduPilot-SITL", "SITL JSON physics backend interface (libraries/SITL/SIM_JSON.h, SIM_JSON.cpp, "
+           "examples/JSON/readme.md)", "ArduPilot development team", "github.com/ArduPilot/ardupilot", None),
+    Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
+           "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
 )
 
 # [Yellowfish-TR], by mass case.

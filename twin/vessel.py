@@ -32,13 +32,13 @@ from .physics.thrusters import ThrusterModel
 MODEL_DIR = Path(str(resources.files("twin") / "model"))
 PACKAGE_MJCF = "package:"  # "mjcf": "package:blueboat.xml" names an MJCF shipped in twin/model
 CASES = ("min", "nominal", "max")
-# thrusters.kind: PWM thrusters (seed 000 eq. 27), thrusts in N, a propeller and rudder (physics/thrusters.py)
+# thrusters.kind: PWM thrusters [Yellowfish-TR eq. 27], thrusts in N, a propeller and rudder (physics/thrusters.py)
 THRUSTER_KINDS = ("t200", "direct", "propeller_rudder")
 
 
 @dataclass(frozen=True)
 class MassCase:
-    """Changes to the MJCF for one mass case (seed 000 Tables III-IV)."""
+    """Changes to the MJCF for one mass case [Yellowfish-TR Tables III-IV]."""
 
     geom_mass_kg: dict[str, float] = field(default_factory=dict)
     body_x_m: dict[str, float] = field(default_factory=dict)

@@ -105,7 +105,7 @@ def answer(d) -> dict:
             where = _worst_bin(d, u["dof"])
             # a residual that follows no logged signal may be a disturbance the log does not record (short waves,
             # gusts) as well as a form error the signals do not show: the proof's chop and its dead zones leave the
-            # same lines, and no test on the residual told them apart (README, Diagnosis), so both are said
+            # same lines, and no test on the residual tells them apart, so both are said
             cause = ("the twin's form is off there" if follows else
                      f"it follows none of the logged signals (|r| ≤ {FOLLOWS_R:g}): either the twin's form is off in a "
                      "way they do not show, or a disturbance the log does not record acts (short waves, gusts)")

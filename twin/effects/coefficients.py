@@ -1,5 +1,5 @@
 """The coefficients of the vessel description that identification fits one by one, with their
-units, the bounds that keep a fit physical and what is believed about each before any data: damping of seed 004 eq. 7 (Fossen's signs,
+units, the bounds that keep a fit physical and what is believed about each before any data: damping of [Morel-2024 eq. 7] (Fossen's signs,
 so ≤ 0 where a term dissipates), added mass ≤ 0 with M_A symmetric, the thrust curve's
 scales, lag, delay, dead zone and a steady current; for a propeller-and-rudder ship (an `mmg`
 block), the MMG standard's non-dimensional hull derivatives, wake fraction and rudder inflow
@@ -19,9 +19,9 @@ DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
-SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| (seed 004 eq. 7)
+SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| [Morel-2024 eq. 7]
 ADDED_MASS = ("Xudot", "Yvdot", "Yrdot", "Nrdot")
-# what `twin identify` fits unless told otherwise: seed 004 eq. 7's main damping terms, the yaw and sway
+# what `twin identify` fits unless told otherwise: [Morel-2024 eq. 7]'s main damping terms, the yaw and sway
 # added mass, the thrust curve and its lag
 DEFAULT_FIT = ("Xu", "Xuu", "Yv", "Yvv", "Nr", "Nrr", "Yvdot", "Nrdot", "thrust_gain", "reverse_scale", "lag_s")
 # what `twin identify` considers, in groups a choice frees or keeps at the prior together

@@ -158,7 +158,7 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         act.gainprm[0] = gain  # the advance loss is the hydrodynamic callback's (physics/hydrodynamics.py)
         if t.lag_s > 0:
-            # MuJoCo integrates the first-order thrust lag (seed 004 eq. 15) as actuator state.
+            # MuJoCo integrates the first-order thrust lag [Morel-2024 eq. 15] as actuator state.
             # "filter", not "filterexact": under RK4 the latter lags by about half a step
             act.dyntype = mujoco.mjtDyn.mjDYN_FILTER
             act.dynprm[0] = t.lag_s

@@ -4,7 +4,7 @@ on runs left out of the fit.
 1. Calibrate: each log's own compass offset from its kinematics (GNSS track against heading on
    straight runs under way, fit/calibrate.py), applied to every log that has enough straight
    running; the others keep the prior's calibration.
-2. Seed 004 (optional, `greybox=True`): its grey-box least squares and Tables 4-9 in shape, as
+2. [Morel-2024] (optional, `greybox=True`): its grey-box least squares and Tables 4-9 in shape, as
    that paper reports them.
 3. Fit by simulation (fit/simfit.py), maximum a posteriori: the coefficients of FIT_GROUPS, each
    with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
@@ -72,7 +72,7 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
 
 
 def prepared(recordings: list[Recording], vessel: Vessel) -> list[Prepared]:
-    """The recordings prepared (seed 004 §5.1) as the vessel's sensors see them."""
+    """The recordings prepared [Morel-2024 §5.1] as the vessel's sensors see them."""
     compiled = compile_vessel(vessel)
     return [prepare_for(r, compiled, **rate_windows(vessel)) for r in recordings]
 
@@ -166,7 +166,7 @@ class Identification:
 
 def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: str, train: float, repeats: int,
                   seed: int) -> tuple[dict, list[str]]:
-    """Seed 004 tables and the physical quantities they imply; a grey-box failure is a note."""
+    """[Morel-2024] tables and the physical quantities they imply; a grey-box failure is a note."""
     fit = {"static": fit_static, "dynamic": fit_dynamic}[thruster]
     notes: list[str] = []
     out: dict = {"thruster": thruster}
@@ -175,7 +175,7 @@ def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: st
         out["first_guesses"] = first_guesses(model, prior)
         out["model"] = model.to_dict()
     except TwinError as exc:
-        notes.append(f"grey-box ({thruster}, seed 004): {exc}")
+        notes.append(f"grey-box ({thruster}, [Morel-2024]): {exc}")
         return out, notes
     try:
         out["by_split_method"] = split_method_table(fit, preps, train=train, repeats=repeats, seed=seed)
@@ -224,10 +224,10 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     seen = fitted_envelope(vessel, preps).to_dict()  # the logs' span and windows as evaluate counts them
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
-        # seed 004's grey-box is a model of PWM thrusters (dead zone, thrust gain, operating regions)
-        result.notes.append("seed 004's grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
+        # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
+        result.notes.append("the grey-box of [Morel-2024] models PWM thrusters: skipped for a propeller-and-rudder ship")
     elif greybox:
-        say("seed 004 grey-box tables", 1, 4)
+        say("[Morel-2024] grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
         result.notes += notes
     cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S))
