@@ -37,7 +37,7 @@ from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
-from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
+from ..fit.crossval import CrossValidation, beyond_folds, each_folds, held_out_groups, jackknife_vessels, judge
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -202,14 +202,18 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
              anchor: str = "mass", window_s: float = WINDOW_S, start: str = "free", calibrated: bool = True,
              greybox: bool = False, thruster: str = "static", split: str = "segments", train: float = 0.7,
              repeats: int = 20, seed: int = 0, max_evaluations: int = 20, sources: list[str] | None = None,
-             progress: Progress | None = None, wind: str | None = None) -> Identification:
+             progress: Progress | None = None, wind: str | None = None, judged_on: str = "beyond") -> Identification:
     """The whole identification (module docstring). groups: the vessel's fit groups to consider
     (default all), or params: an explicit list of coefficients (then no group is dropped); start:
     each window's initial velocities "free" (estimated with the fit) or "measured"; wind:
-    "measured" to take each recording's measured wind as a known input."""
+    "measured" to take each recording's measured wind as a known input; judged_on: "beyond" (each
+    left-out run predicted by a twin fitted on the runs that go less far, crossval.beyond_folds) or
+    "each" (leave one run out)."""
     started = time.time()
     say = steps(progress)
     _check(start, thruster, split, train, prior_weights)
+    if judged_on not in ("beyond", "each"):
+        raise TwinError(f"judged_on must be 'beyond' or 'each', got {judged_on!r}")
     check_wind(recordings, wind)
     simfit.check_kind(prior)
     supplied = bool(recordings) and all(len(r.battery) for r in recordings)
@@ -252,10 +256,11 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)
     judge_groups, group_names = held_out_groups(every, preps)
+    folds = beyond_folds(every, preps, judge_groups) if judged_on == "beyond" else each_folds(judge_groups)
     configs = {"prior (no fit)": [vessel] * len(group_names)}
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
-                                                            fit_groups)
+                                                            fit_groups, folds=folds)
     judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
@@ -263,7 +268,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     chosen_fit = fits[best.prior_weight]
     if params is None:
         best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
-                                  judge_groups, group_names, cache, wind)
+                                  judge_groups, group_names, cache, wind, folds)
         choices += more
     result.choices, result.chosen = choices, best
     fit_best = chosen_fit
@@ -275,7 +280,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                            prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative,
                            wind=wind)
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
-                                               refit.objective.residuals(refit.x), fit_groups)},
+                                               refit.objective.residuals(refit.x), fit_groups, folds=folds)},
                    preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
         refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
                           _labelled(cv, best.label + " (refitted)"))
@@ -366,7 +371,7 @@ def _informative(prep: Prepared, w) -> bool:
 
 
 def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
-                 group_names, cache, wind: str | None = None) -> tuple[Choice, list[Choice]]:
+                 group_names, cache, wind: str | None = None, folds=None) -> tuple[Choice, list[Choice]]:
     """Backward: the group whose return to its prior most improves the left-out scores goes back,
     while one does (each refit linearised about the fit with every group free)."""
     obj, x, J = fit.objective, fit.x, fit.jacobian
@@ -380,7 +385,7 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             for kept in current.free_groups:
                 if kept != g:
                     fixed[[col[n] for n in names_by_group[kept]]] = False
-            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
+            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed, folds=folds)
         judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
                           tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
