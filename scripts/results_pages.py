@@ -139,12 +139,12 @@ def _scores(obj, path=(), depth=0, out=None) -> list[tuple[str, dict]]:
         if all(isinstance(obj.get(d), dict) and "r2" in obj[d] for d in "uvr"):
             out.append((" / ".join(path) or "all", obj))
             return out
-        if depth < 4:
+        if depth < 6:
             for k, v in obj.items():
                 _scores(v, path + (str(k),), depth + 1, out)
-    elif isinstance(obj, list) and depth < 3:
+    elif isinstance(obj, list) and depth < 5:
         for i, v in enumerate(obj[:40]):
-            label = v.get("case") or v.get("name") or v.get("train") if isinstance(v, dict) else None
+            label = (v.get("case") or v.get("name") or (f"{v['train']} → {v.get('test')}, wind {v.get('wind')}" if "train" in v else None)) if isinstance(v, dict) else None
             _scores(v, path + (str(label or i),), depth + 1, out)
     return out
 
