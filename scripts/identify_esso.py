@@ -266,8 +266,8 @@ def reading(parts: list[dict]) -> list[str]:
             "standard's domain (docs/esso.md, Known limits). The fitted groups are the standard's own coefficients; "
             "the twin's extension of the standard to low speed and astern (U_nd floor, astern propeller, rudder "
             "inflow from astern) is not among them, so a shortfall there cannot be fitted away by these groups.",
-            "* Published figures on this dataset: Wakita et al. (2022) identify a recurrent neural network on "
-            "these free-running tests (low-speed berthing manoeuvres) and Miyauchi et al. (2022) explore MMG "
+            "* Published figures on this dataset: [Wakita-2022] identify a recurrent neural network on "
+            "these free-running tests (low-speed berthing manoeuvres) and [Miyauchi-2022] explore MMG "
             "parameters with CMA-ES for docking; a brief search found no per-DOF R² of 30-s free runs in either "
             "to set beside these numbers, so none is compared here.",
             ""]

@@ -235,8 +235,14 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     _typed(data["mjcf"], str, "mjcf", path)
     shipped = data["mjcf"].startswith(PACKAGE_MJCF)
     mjcf = (MODEL_DIR / data["mjcf"][len(PACKAGE_MJCF):]) if shipped else (path.parent / data["mjcf"]).resolve()
+    if not shipped and not mjcf.is_file() and Path(data["mjcf"]).name == data["mjcf"] \
+            and (MODEL_DIR / data["mjcf"]).is_file():
+        # a shipped vessel file copied elsewhere names its MJCF by a bare file name, as it lies beside it in
+        # the package: found there when the copy's own folder has none (an MJCF of that name beside it wins)
+        mjcf = MODEL_DIR / data["mjcf"]
     if not mjcf.is_file():
-        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found (looked beside the vessel file; "
+                        f"'{PACKAGE_MJCF}NAME.xml' names one shipped with twin)")
     unknown = sorted(set(data) - VESSEL_FILE_KEYS)
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "

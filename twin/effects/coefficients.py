@@ -247,7 +247,7 @@ def belief(name: str, prior: Vessel) -> Belief:
 # Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
 # Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
 # against 5.5). Widths from how far the published full-form ships' derivatives scatter among
-# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of Kijima): the linear ones
+# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of [Kijima-1990]): the linear ones
 # within about 25 %, the nonlinear ones within a factor of 2 or their own size.
 MMG_LOG_BELIEFS = {
     "mmg_R0": (0.3, "resistance from KVLCC2's R'_0 at the Esso model's form: within about 30 % (scale effect, "
