@@ -25,6 +25,7 @@ from .physics.environment import Environment, WindLoad
 from .physics.fujiwara import COEFFICIENTS as WIND_COEFFICIENTS
 from .physics.fujiwara import FujiwaraWind
 from .physics.mmg import MmgHull, MmgModel, MmgPropeller, MmgRudder
+from .physics.priors import Design
 from .physics.sensors import Sensors
 from .physics.thrusters import ThrusterModel
 
@@ -63,6 +64,7 @@ class Vessel:
     uncertainty: dict = field(default_factory=dict)
     mmg: MmgModel | None = None  # MMG standard method of a propeller-and-rudder ship
     wind_regression: FujiwaraWind | None = None  # Fujiwara wind loads, in place of wind_load
+    design: Design | None = None  # what the first-principles estimate needs beyond the MJCF (verify/priors.py)
     path: Path | None = None
 
     def __repr__(self) -> str:
@@ -104,6 +106,7 @@ class Vessel:
             **({"mmg": _mmg_to_dict(self.mmg)} if self.mmg is not None else {}),
             **({"wind_regression": _wind_regression_to_dict(self.wind_regression)}
                if self.wind_regression is not None else {}),
+            **({"design": asdict(self.design)} if self.design is not None else {}),
         }
 
 
@@ -224,7 +227,8 @@ def _pair(value, what: str, path: Path) -> tuple[float, float]:
 
 
 VESSEL_FILE_KEYS = frozenset({"name", "mjcf", "added_mass", "damping", "thrusters", "wind_load", "environment",
-                              "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression"})
+                              "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression",
+                              "design"})
 REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
 
 
@@ -272,6 +276,7 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         uncertainty=_uncertainty(data.get("uncertainty"), path),
         mmg=_mmg(data.get("mmg"), path),
         wind_regression=_wind_regression(data.get("wind_regression"), path),
+        design=_design(data.get("design"), path),
         path=path,
     )
     check(vessel)
@@ -288,6 +293,18 @@ def _mmg(data, path: Path) -> MmgModel | None:
     built = {k: _build(cls, data.get(k), f"mmg.{k}", path) for k, cls in parts.items()}
     top = _build(MmgModel, {k: v for k, v in data.items() if k not in parts}, "mmg", path)
     return replace(top, **built)
+
+
+def _design(data, path: Path) -> Design | None:
+    """The `design` block: top speed and the few hardware figures of the first-principles estimate."""
+    if data is None:
+        return None
+    d = _build(Design, data, "design", path)
+    if not (d.top_speed_m_s > 0 and d.form_factor >= 1 and d.cross_flow_cd > 0 and d.duct_diameter_m >= 0
+            and d.propeller_diameter_m >= 0):
+        raise TwinError(f"{path.name}: design needs top_speed_m_s > 0, form_factor ≥ 1, cross_flow_cd > 0 and "
+                        "diameters ≥ 0")
+    return d
 
 
 def _wind_regression(data, path: Path) -> FujiwaraWind | None:
