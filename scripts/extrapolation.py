@@ -35,6 +35,7 @@ from twin.fit.extrapolation import activities, by_activity, by_family, by_input_
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
+from twin.scale.montecarlo import band_coverage  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
@@ -66,6 +67,7 @@ def _split_of(name: str, recs, preps):
     raise SystemExit(f"unknown split {name}")
 
 
+BAND_DRAWS = 50  # parameter draws of the 90 % band (30-s free runs)
 SPLITS = {"blueboat_activity": ("blueboat", (None,)), "esso_rps": ("esso_osaka", (None, "measured")),
           "esso_random_turn": ("esso_osaka", (None, "measured")),
           "esso_turn_random": ("esso_osaka", (None, "measured"))}
@@ -78,8 +80,13 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
     h, stride = settings["window_s"], settings["stride_s"]
     metrics = evaluate(calibrated, preps, stride_s=stride, horizons={"free_run": h}, wind=wind)["free_run"]
     split = misfit_by_manoeuvre(calibrated, preps, h, stride, wind, fitted=seen)
-    return {"r2": {d: metrics[d]["r2"] for d in DOFS}, "mae": {d: metrics[d]["mae"] for d in DOFS},
-            "n": metrics["u"]["n"], "beyond_fit": split.get("beyond_fit")}
+    out = {"r2": {d: metrics[d]["r2"] for d in DOFS}, "mae": {d: metrics[d]["mae"] for d in DOFS},
+           "n": metrics["u"]["n"], "beyond_fit": split.get("beyond_fit")}
+    if vessel.uncertainty:  # how often the judged runs fall inside the 90 % band, with and without the form error
+        for key, widen in (("band", True), ("band_parameters_only", False)):
+            cov = band_coverage(calibrated, preps, draws=BAND_DRAWS, seed=0, level=0.9, wind=wind, form_error=widen)
+            out[key] = {q: cov.inside[q] for q in ("u", "v", "r", "north", "east", "psi")}
+    return out
 
 
 def run_split(name: str, wind, work: Path) -> dict:
@@ -116,7 +123,7 @@ def _met(r2: dict, targets: dict) -> str:
 
 
 def page(parts: list[dict]) -> ResultPage:
-    rows, beyond_rows = [], []
+    rows, beyond_rows, band_rows = [], [], []
     for p in parts:
         targets = TARGETS[p["vessel"]]
         label = f"{p['split']['name']} ({p['vessel']})"
@@ -126,7 +133,11 @@ def page(parts: list[dict]) -> ResultPage:
                          _met(s["r2"], targets) if twin_name == "identified" else "–"])
         b = p["identified"].get("beyond_fit") or {}
         if b.get("samples"):
-            beyond_rows.append([label, p["wind"], b["share_of_samples"], *[b["share"][d] for d in DOFS]])
+            beyond_rows.append([label, p["wind"], b["share_of_samples"], *[b["share"][d] for d in DOFS],
+                                *[(b.get("r2_beyond") or {}).get(d) for d in DOFS]])
+        for key, name in (("band", "parameters and form error"), ("band_parameters_only", "parameters only")):
+            if key in p["identified"]:
+                band_rows.append([label, p["wind"], name, *[p["identified"][key][d] for d in DOFS]])
     splits = {f"{p['split']['name']} ({p['vessel']})": p["split"] for p in parts}
     notes = [f"{name}: {s['rule']}; fitted {', '.join(s['fitted'])}; judged {', '.join(s['judged'])}."
              for name, s in splits.items()]
@@ -146,8 +157,12 @@ def page(parts: list[dict]) -> ResultPage:
                 "calibration from its own kinematics. The untuned prior is judged the same way.",
         tables=[ResultTable("Free-run R² on the judged runs", ["split", "wind", "twin", "R² u", "R² v", "R² r", "met"],
                             rows),
-                ResultTable("Judged samples beyond the span of u, v, r the fit saw (identified twin)",
-                            ["split", "wind", "share of samples", "share of 1 − R² u", "v", "r"], beyond_rows)],
+                ResultTable("Judged samples beyond the span of u, v, r the fit saw (identified twin): their share, "
+                            "their part of 1 − R², and their own R²",
+                            ["split", "wind", "share of samples", "share of 1 − R² u", "v", "r", "R² beyond u", "v",
+                             "r"], beyond_rows),
+                ResultTable("Share of the judged runs inside the identified twin's 90 % band (30-s free runs, "
+                            f"{BAND_DRAWS} parameter draws)", ["split", "wind", "band", "u", "v", "r"], band_rows)],
         notes=notes, raw={"splits": parts})
 
 

@@ -315,23 +315,28 @@ class Evaluation:
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
 
 
-def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0) -> Evaluation:
+def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
-    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw."""
+    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
+    recording's measured wind a known input (`twin evaluate --wind-measured`)."""
     from .fit.coverage import from_dict
-    from .fit.evaluate import evaluate as run, misfit_by_manoeuvre
-    from .ident.identify import calibrate as calibrate_logs, prepared
+    from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
+    from .fit.windows import ModelCache
+    from .ident.identify import calibrate as calibrate_logs, check_wind, prepared
 
     v = _vessel(vessel)
     recs = _recordings(recordings, v)
+    check_wind(recs, wind)
     if not stride_s > 0:
         raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
         if "fitted_on" in v.uncertainty else None
     calibrated, calibrations = calibrate_logs(recs, v)
     preps = prepared(recs, calibrated)
-    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s), run(v, prepared(recs, v), stride_s=stride_s),
-                      calibrations, misfit_by_manoeuvre(calibrated, preps, 10.0, stride_s, fitted=seen))
+    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
+                      run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
+                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps, 10.0, stride_s,
+                                          vessel=calibrated, fitted=seen))
 
 
 @dataclass(frozen=True)

@@ -133,6 +133,8 @@ def _mmg_to_dict(m) -> dict[str, Any]:
     """The MMG block; the astern side force's coefficients only where some are set (files without
     them stay what they were: dataset fingerprints)."""
     d = asdict(m)
+    if not m.friction_factor:  # only where R'_0 follows the friction line
+        d.pop("friction_factor"), d.pop("reference_speed_m_s")
     for key in ("astern_side_y", "astern_side_n"):
         if not any(getattr(m.propeller, key)):
             del d["propeller"][key]

@@ -37,7 +37,8 @@ from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
-from ..fit.crossval import CrossValidation, beyond_folds, each_folds, held_out_groups, jackknife_vessels, judge
+from ..fit.crossval import (CrossValidation, beyond_folds, each_folds, form_error, held_out_groups,
+                            jackknife_vessels, judge)
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -60,6 +61,9 @@ NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost
 # recordings do not pin stays near its prior anyway (the beliefs hold it), and a smaller difference is
 # within the scatter of the judging itself, so dropping on it would make the choice a coin toss.
 DROP_GAIN = 0.02
+FORM_ERROR_HORIZON_S = 30.0  # the prediction band's free runs (twin evaluate --band)
+FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that go less far (time under way, "
+                         "turning)", "each": "each run predicted by the twin fitted on the other runs"}
 
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
@@ -297,7 +301,14 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
-        result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen})
+        say("measuring the twin's error on left-out runs", 3, 4)
+        folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
+                                   fit_best.objective.residuals(fit_best.x), fit_groups, folds=folds)
+        label = FOLDS_LABEL[judged_on]
+        errors = form_error(folded, preps, label,
+                            max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
+        result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen,
+                                                            **({"form_error": errors} if errors else {})})
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
                             f"{best.cv.cost:.4g} against {result.prior_cv.cost:.4g}): more varied recordings "
