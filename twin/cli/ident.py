@@ -86,12 +86,12 @@ def identify_command(
                                             "parameters) | measured (as the recording gives them)"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
                                      help="estimate each log's compass offset from its own GNSS track (default on)"),
-    greybox: bool = typer.Option(False, "--greybox", help="also run seed 004's grey-box least squares and tables"),
-    thruster: str = typer.Option("static", help="seed 004 thruster model (with --greybox): static | dynamic"),
-    split: str = typer.Option("segments", help="seed 004 tables (with --greybox): split by segments | points"),
-    train: float = typer.Option(0.7, help="training share of the seed 004 splits (with --greybox)"),
-    repeats: int = typer.Option(20, help="random splits for the seed 004 tables (with --greybox)"),
-    seed: int = typer.Option(0, help="random seed of the seed 004 splits"),
+    greybox: bool = typer.Option(False, "--greybox", help="also run [Morel-2024] grey-box least squares and tables"),
+    thruster: str = typer.Option("static", help="[Morel-2024] thruster model (with --greybox): static | dynamic"),
+    split: str = typer.Option("segments", help="[Morel-2024] tables (with --greybox): split by segments | points"),
+    train: float = typer.Option(0.7, help="training share of the [Morel-2024] splits (with --greybox)"),
+    repeats: int = typer.Option(20, help="random splits for the [Morel-2024] tables (with --greybox)"),
+    seed: int = typer.Option(0, help="random seed of the [Morel-2024] splits"),
     max_evaluations: int = typer.Option(20, help="cost evaluations of the first fit (later ones take a third)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
@@ -133,7 +133,7 @@ def identify_command(
     say_unlogged_supply(recs, prior)
     text = ident.format_greybox(result.greybox)
     if text:
-        console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")
+        console.print(f"[bold][Morel-2024] grey-box ({thruster} thruster model), one-step predictions[/]")
         typer.echo(text)
     console.print("[bold]choices, judged on left-out runs (10-s free runs from measured states)[/]")
     typer.echo(ident.format_choices(result))
@@ -172,6 +172,9 @@ def evaluate_command(
     level: float = typer.Option(0.9, help="--band: the band's level"),
     seed: int = typer.Option(0, help="--band: random seed of the draws"),
     ray: Optional[str] = typer.Option(None, help="--band: run the draws on Ray (auto, local or an address)"),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="take each recording's measured wind (its anemometer stream) as a known "
+                                            "input of every free run"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
@@ -182,7 +185,7 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, prepared, read
+    from ..ident.identify import calibrate, check_wind, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -203,21 +206,23 @@ def evaluate_command(
     fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
               if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work
     recs = read(recordings, channels_from(channels))
+    wind = "measured" if wind_measured else None
+    check_wind(recs, wind)  # before any work
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
-           "calibrations": [c.to_dict() for c in calibrations]}
+           "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none"}
     names = ", ".join(p.name for p in recordings)
     used = calibrated if calibration else v
     with progress_bar("evaluate") as progress:
         progress("without calibration", 0, 3)
-        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride)
+        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride, wind=wind)
         progress("with each log's calibration", 1, 3)
         cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
-        out["metrics"] = evaluate(TwinPredictor(calibrated, cache), prepared(recs, calibrated), stride_s=stride) \
-            if calibration else out["metrics_uncalibrated"]
+        out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated),
+                                  stride_s=stride) if calibration else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, 3)
-        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache), prepared(recs, used), 10.0, stride,
-                                                      vessel=used, fitted=fitted)
+        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), 10.0,
+                                                      stride, vessel=used, fitted=fitted)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, v)
@@ -239,7 +244,7 @@ def evaluate_command(
 
         with progress_bar("band") as progress:
             coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,
-                                     executor=executor, progress=progress)
+                                     executor=executor, progress=progress, wind=wind)
         typer.echo(coverage.text())
         out["band"] = coverage.to_dict()
     write_json(json_out, out)

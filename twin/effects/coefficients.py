@@ -1,5 +1,5 @@
 """The coefficients of the vessel description that identification fits one by one, with their
-units, the bounds that keep a fit physical and what is believed about each before any data: damping of seed 004 eq. 7 (Fossen's signs,
+units, the bounds that keep a fit physical and what is believed about each before any data: damping of [Morel-2024 eq. 7] (Fossen's signs,
 so ≤ 0 where a term dissipates), added mass ≤ 0 with M_A symmetric, the thrust curve's
 scales, lag, delay, dead zone and a steady current; for a propeller-and-rudder ship (an `mmg`
 block), the MMG standard's non-dimensional hull derivatives, wake fraction and rudder inflow
@@ -19,9 +19,9 @@ DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
-SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| (seed 004 eq. 7)
+SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| [Morel-2024 eq. 7]
 ADDED_MASS = ("Xudot", "Yvdot", "Yrdot", "Nrdot")
-# what `twin identify` fits unless told otherwise: seed 004 eq. 7's main damping terms, the yaw and sway
+# what `twin identify` fits unless told otherwise: [Morel-2024 eq. 7]'s main damping terms, the yaw and sway
 # added mass, the thrust curve and its lag
 DEFAULT_FIT = ("Xu", "Xuu", "Yv", "Yvv", "Nr", "Nrr", "Yvdot", "Nrdot", "thrust_gain", "reverse_scale", "lag_s")
 # what `twin identify` considers, in groups a choice frees or keeps at the prior together
@@ -197,6 +197,12 @@ def belief(name: str, prior: Vessel) -> Belief:
         return Belief(True, FACTOR_3, "hull damping from a first-principles estimate: right within a factor of 3")
     if name in ("Xudot", "Yvdot", "Nrdot"):
         return Belief(True, FACTOR_2, "added mass from slender-body / ellipsoid theory: right within a factor of 2")
+    if prior.design is not None and name in ("Yuv", "Yur", "Nuv", "Nur") and getattr(d, name) != 0:
+        return Belief(True, FACTOR_2, "first-principles lift of the hulls [Clarke-1983] and momentum of the "
+                                      "thrusters' flow: right within a factor of 2")
+    if prior.design is not None and name in ("Yr", "Nv"):
+        return Belief(False, abs(getattr(d, name)) or 1.0, "the thrusters' own flow at rest, estimated at half "
+                                                           "thrust: zero to twice the estimate")
     if name in ("Yr", "Nv"):
         return Belief(False, 0.3 * math.sqrt(abs(d.Yv * d.Nr)) or 1.0,
                       "sway-yaw coupling: at most about a third of the direct terms' geometric mean")
@@ -247,7 +253,7 @@ def belief(name: str, prior: Vessel) -> Belief:
 # Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
 # Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
 # against 5.5). Widths from how far the published full-form ships' derivatives scatter among
-# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of Kijima): the linear ones
+# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of [Kijima-1990]): the linear ones
 # within about 25 %, the nonlinear ones within a factor of 2 or their own size.
 MMG_LOG_BELIEFS = {
     "mmg_R0": (0.3, "resistance from KVLCC2's R'_0 at the Esso model's form: within about 30 % (scale effect, "

@@ -1,13 +1,13 @@
-"""Judging a model by what it predicts (seed 004 eqs. 40-41, R² and MAE per DOF):
+"""Judging a model by what it predicts ([Morel-2024 eqs. 40-41], R² and MAE per DOF):
 
-  one_step       ν̂(k+1) from the measured state at k (what seed 004 reports; the
+  one_step       ν̂(k+1) from the measured state at k (what [Morel-2024] reports; the
                  persistence model ν(k+1) = ν(k) already scores R² ≈ 0.99 on it)
   free_run_10s   free runs of 10 s from measured states, driven by the recorded PWM
   free_run_30s   the same over 30 s
   full           each whole trajectory segment from its first measured state
 
 Every model is a predictor with `predict_windows(prep, starts, n_steps) -> (W, n+1, 3)`
-(ν̂ with index 0 the measured start): the grey-box models of seed 004 implement it,
+(ν̂ with index 0 the measured start): the grey-box models of [Morel-2024] implement it,
 and `TwinPredictor` wraps a vessel description on the batch engine.
 
 Where a model misses, beside how much: `error_growth` (how each window's error grows, with its
@@ -291,6 +291,10 @@ def beyond_sentence(split: dict) -> str:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
                  "of 1 − R² (the twin extrapolates there)")
+        scores = [f"{d} {b['r2_beyond'][d]:.2f} beyond, {b['r2_within'][d]:.2f} within" for d in DOFS
+                  if (b.get("r2_beyond") or {}).get(d) is not None and (b.get("r2_within") or {}).get(d) is not None]
+        if scores:
+            text += "; R² " + ", ".join(scores)
         reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span "
                  f"{x['low']:+.2f}..{x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
         if reach:

@@ -1,6 +1,4 @@
-"""The MMG standard method for a single-propeller, single-rudder ship (Yasukawa & Yoshimura 2015,
-"Introduction of MMG standard method for ship maneuvering predictions", J. Mar. Sci. Technol.
-20:37-52, doi 10.1007/s00773-014-0293-y): hull, propeller and rudder forces at midship.
+"""The MMG standard method for a single-propeller, single-rudder ship [MMG-2015]: hull, propeller and rudder forces at midship.
 
 Frames and signs as the rest of the twin: body FRD with the origin at MIDSHIP on the waterline
 (the point the MMG equations and every published coefficient refer to), ν = (u, v_m, r) the
@@ -21,7 +19,7 @@ as this project could check it; the paper text itself was not available, docs/es
                        C_2 = C_2⁺ for β_P > 0, C_2⁻ otherwise; β = atan(−v_m/u)
   rudder (eqs. 17-27)  X_R = −(1 − t_R) F_N sin δ,  Y_R = −(1 + a_H) F_N cos δ,
                        N_R = −(x_R + a_H x_H) F_N cos δ,  F_N = ½ρ A_R U_R² f_α sin α_R,
-                       U_R² = u_R² + v_R²,  α_R = δ − atan(v_R/u_R),  f_α = 6.13Λ/(Λ + 2.25) (Fujii),
+                       U_R² = u_R² + v_R²,  α_R = δ − atan(v_R/u_R),  f_α = 6.13Λ/(Λ + 2.25) (Fujii, [MMG-2015 eq. 20]),
                        u_R = ε u_P √(η{1 + κ(√(1 + 8K_T/(πJ_P²)) − 1)}² + (1 − η)),  η = D_P/H_R,
                        v_R = U γ_R β_R,  β_R = β − l'_R r',  γ_R = γ_R⁻ for β_R < 0, γ_R⁺ otherwise
 
@@ -41,12 +39,12 @@ keeping the standard exact inside it (each extension says why; identification ma
   * β = atan2(−v_m, |u|) (the standard's β for u ≥ 0; astern the drift angle is measured from
     the stern), 1 − w_P = 1 for u < 0 (no wake ahead of the propeller when going astern);
   * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
-    clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the NAOE Esso 3 m set's
-    reverse-propeller form; no slipstream on the rudder;
+    clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the Esso 3 m set's
+    reverse-propeller form [NAOE-MMG-SIM]; no slipstream on the rudder;
   * n < 0 also pushes the stern sideways (a single screw backing: the paddle-wheel effect, which
     swings a right-handed ship's bow to starboard): Y_P = ½ρL d (nD_P)² Y*_P(J_s), N_P =
     ½ρL²d (nD_P)² N*_P(J_s), J_s = u/(n D_P), each piecewise linear in J_s with knots at −0.35 and
-    −0.06 (Hachii's form, the NAOE Esso 3 m set's coefficients a0..a4, b0..b4: a0 + a1 J_s between
+    −0.06 (Hachii's form, the Esso 3 m set's coefficients [NAOE-MMG-SIM] a0..a4, b0..b4: a0 + a1 J_s between
     the knots, a2 + a3 J_s below −0.35, a4 above −0.06, continuous at both); zero for n ≥ 0, where
     the standard has none. As published, the lowest piece changes sign near J_s = −0.84 (a ship
     still running ahead fast on a slowly backing screw: bow to port); it is kept as published;
@@ -55,6 +53,13 @@ keeping the standard exact inside it (each extension says why; identification ma
     rudder's effect, as a rudder going astern does.
   * n and δ are clipped to the vessel's input bounds here, so the engine and the analytic model
     see the same inputs.
+
+R'_0 across speeds: a model ship's resistance at these Froude numbers is almost all friction,
+whose coefficient falls with the Reynolds number, so one R'_0 fitted at one speed over-resists a
+faster run and under-resists a slower one. With `friction_factor` F = (1 + k)·S/(L·d) (form factor,
+wetted surface) > 0, R'_0(U) = R'_0 + F·[C_F(U_nd·L/ν) − C_F(U_ref·L/ν)], C_F the ITTC-1957 line
+[ITTC-1957]: R'_0 is the value at `reference_speed_m_s`, and the friction line carries it to other
+speeds. F = 0 keeps the standard's constant R'_0.
 
 Every function is a plain function of floats and one float array of parameters (layout FIELDS),
 so numba compiles the very same code for the native callback (engine/native.py).
@@ -145,6 +150,10 @@ class MmgModel:
     draft_m: float = 0.0
     block_coefficient: float = 0.0
     low_speed_m_s: float = 0.05  # U_nd floor of the module docstring
+    # R'_0 following the ITTC-1957 friction line (module docstring): F = (1 + k)·S/(L·d), 0 = a constant
+    # R'_0; R'_0 then holds at reference_speed_m_s
+    friction_factor: float = 0.0
+    reference_speed_m_s: float = 0.0
     hull: MmgHull = MmgHull()
     propeller: MmgPropeller = MmgPropeller()
     rudder: MmgRudder = MmgRudder()
@@ -157,15 +166,18 @@ FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS,
           "astern_kt0", "astern_kt1", "astern_kt_max",
           "ay0", "ay1", "ay2", "ay3", "ay4", "bn0", "bn1", "bn2", "bn3", "bn4",
           "A_R", "f_alpha", "eta", "tR", "aH", "xH_m", "xR_m", "gamma_minus", "gamma_plus", "lR_nd",
-          "epsilon", "kappa", "n_min", "n_max", "delta_max")
+          "epsilon", "kappa", "n_min", "n_max", "delta_max", "F_fric", "cf_ref", "L_nu")
 INDEX = {name: i for i, name in enumerate(FIELDS)}
 SIZE = len(FIELDS)
 # index constants: numba reads module globals as compile-time constants
 _RHO, _L, _D, _UMIN, _H = 0, 1, 2, 3, 4
 (_DP, _K0, _K1, _K2, _TP, _WP0, _C1, _C2P, _C2M, _XP, _KA0, _KA1, _KAMAX, _AR, _FA, _ETA, _TR, _AH, _XH, _XR,
  _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):]
-                                                      if not k.startswith(("ay", "bn")))
+                                                      if not k.startswith(("ay", "bn"))
+                                                      and k not in ("F_fric", "cf_ref", "L_nu"))
 _AY, _BN = INDEX["ay0"], INDEX["bn0"]
+_FF, _CFREF, _LNU = INDEX["F_fric"], INDEX["cf_ref"], INDEX["L_nu"]
+NU_WATER_M2_S = 1.0e-6  # kinematic viscosity of the water the Reynolds number uses [ITTC-2011]
 JS_SYN, JS_SYN0 = -0.35, -0.06  # the knots of Hachii's astern side force in J_s (module docstring)
 
 
@@ -191,8 +203,18 @@ def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
               "eta": p.diameter_m / span_m if span_m > 0 else 0.0, "tR": r.tR, "aH": r.aH,
               "xH_m": r.xH * model.lpp_m, "xR_m": rudder_x_m, "gamma_minus": r.gamma_minus,
               "gamma_plus": r.gamma_plus, "lR_nd": r.lR, "epsilon": r.epsilon, "kappa": r.kappa,
-              "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad}
+              "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad,
+              "F_fric": model.friction_factor,
+              "cf_ref": ittc57_cf(model.reference_speed_m_s * model.lpp_m / NU_WATER_M2_S)
+              if model.friction_factor > 0 else 0.0,
+              "L_nu": model.lpp_m / NU_WATER_M2_S}
     return np.array([float(values[k]) for k in FIELDS])
+
+
+def ittc57_cf(reynolds: float) -> float:
+    """C_F = 0.075/(log10 Re − 2)² [ITTC-1957] (Re floored at 1e3: the line's own domain starts far above)."""
+    re = max(reynolds, 1e3)
+    return 0.075 / (math.log10(re) - 2.0) ** 2
 
 
 def hull_fields() -> list[str]:
@@ -225,7 +247,10 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         if U > 0.0:
             f = min(max(2.0 * u / U, -1.0), 1.0)
         U2 = Un * Un
-        X += q * (-p[h] * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
+        r0 = p[h]
+        if p[_FF] > 0.0:  # R'_0 along the friction line (ittc57_cf written out: numba compiles this function alone)
+            r0 += p[_FF] * (0.075 / (math.log10(max(Un * p[_LNU], 1e3)) - 2.0) ** 2 - p[_CFREF])
+        X += q * (-r0 * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
                                              + p[h + 4] * vp * vp * vp * vp))
         Y += q * U2 * (p[h + 5] * vp + p[h + 6] * rp + p[h + 7] * vp * vp * vp + p[h + 8] * vp * vp * rp
                        + p[h + 9] * vp * rp * rp + p[h + 10] * rp * rp * rp)

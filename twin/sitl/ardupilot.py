@@ -7,7 +7,7 @@ runs). `Rover` is the MAVLink side: wait for the EKF, arm, change mode, drive wi
 send a GUIDED target, upload and fly a mission, read the EKF's position.
 
 The message and command names are MAVLink's common set and ArduPilot Rover's (mode numbers
-from Rover's mode.h: MANUAL 0, HOLD 4, AUTO 10, GUIDED 15) [ArduPilot-SITL]. Positions are local
+from Rover's mode.h: MANUAL 0, HOLD 4, AUTO 10, GUIDED 15) [ArduPilot-Rover]. Positions are local
 north/east metres from SITL's home, which is the twin's origin.
 """
 from __future__ import annotations

@@ -9,7 +9,7 @@ boat needs of its navigation: a waypoint speed it can hold with thrust to spare 
 speed, and AUTO would then run with both thrusters nearly flat out and nothing left to
 turn with), and the turn rate it can reach (ATC_STR_RAT_MAX, which Rover's steering
 controller limits its demand to). Each figure is the twin's own, in calm water. The names and
-meanings are ArduPilot Rover's [ArduPilot-SITL] (FRAME_CLASS 2 = boat, SERVOn_FUNCTION 73/74 =
+meanings are ArduPilot Rover's [ArduPilot-Rover] (FRAME_CLASS 2 = boat, SERVOn_FUNCTION 73/74 =
 throttle left/right, WP_SPEED 0 = CRUISE_SPEED).
 """
 from __future__ import annotations
