@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -127,21 +129,25 @@ def test_ardupilot_flies_the_twin_manual_guided_and_a_mission(vessel, tmp_path):
 
         rover.sticks(1500, 1500)
         rover.set_mode("GUIDED")
-        here = rover.position
-        target = (here[0] + 15.0, here[1] + 8.0)
+        here, heading = rover.position, rover.yaw_rad
+        target = (here[0] + 15.0 * math.cos(heading), here[1] + 15.0 * math.sin(heading))  # 15 m ahead
         rover.goto(*target)
         t0 = rover.boot_s
         rover.wait(lambda: rover.distance_to(*target) < 2.0, "the GUIDED target", 120,
                    every=lambda: rover.boot_s - t0 > 60 and pytest.fail("GUIDED target not reached in 60 s"))
+        phases = {"ekf+arm": armed_s, "guided": rover.boot_s - t0}
 
         rover.set_mode("HOLD")
         n0, e0 = rover.position
-        rover.upload_mission(HOME, [(n0 + 12.0, e0), (n0 + 12.0, e0 + 12.0), (n0, e0)])
+        c, s = math.cos(rover.yaw_rad), math.sin(rover.yaw_rad)
+        legs = [(12.0, 3.0), (24.0, -1.0), (36.0, 2.0)]  # ahead, left and right of the line: a survey zigzag
+        rover.upload_mission(HOME, [(n0 + a * c - b * s, e0 + a * s + b * c) for a, b in legs])
         rover.set_mode("AUTO")
         t0 = rover.boot_s
         rover.wait(lambda: {1, 2, 3} <= set(rover.reached), "the three waypoints", 150,
                    every=lambda: rover.boot_s - t0 > 120 and pytest.fail("mission not completed in 120 s"))
         rover.wait(lambda: any("Mission Complete" in t for t in rover.texts), "the end of the mission", 30)
+        phases["auto"] = rover.boot_s - t0
         texts = list(rover.texts)
         track = np.array(rover.track)
         rover.set_mode("HOLD")
@@ -156,7 +162,8 @@ def test_ardupilot_flies_the_twin_manual_guided_and_a_mission(vessel, tmp_path):
     assert before.sum() > 1200 * 30 and np.all(run.eta[before, :2] == 0.0), "a disarmed autopilot moved the boat"
     offset_s, median_m, worst_m = track_distance(track[track[:, 0] > armed_s], run)
     print(f"{vessel}: {s['frames']:.0f} frames, {s['twin_s']:.1f} s of twin time in {wall_s:.1f} s; "
-          f"EKF vs twin: clock offset {offset_s * 1e3:.0f} ms, median {median_m:.3f} m, max {worst_m:.3f} m")
+          f"EKF vs twin: clock offset {offset_s * 1e3:.0f} ms, median {median_m:.3f} m, max {worst_m:.3f} m; "
+          f"simulated s per phase {phases}")
     assert abs(offset_s) < 0.2 and worst_m < 0.5, (offset_s, median_m, worst_m)
 
 
@@ -171,3 +178,88 @@ def test_an_ardupilot_restart_under_a_running_twin_resets_it(tmp_path):
     assert len(run.t) == s["frames"] + 1 and np.all(np.diff(run.t) > 0)  # the record clock runs on
     assert run.t[-1] == pytest.approx(s["twin_s"], abs=1e-3) and s["twin_s"] > 10.0
     assert np.all(run.eta[:, :2] == 0.0)  # disarmed throughout, the start-up pulses included: never moved
+
+
+GUIDE = ROOT / "docs" / "guide" / "autopilot.md"
+FENCE = re.compile(r"^```(bash|text)\n(.*?)^```", re.S | re.M)
+
+
+def _port_free(kind: int, port: int) -> bool:
+    with socket.socket(socket.AF_INET, kind) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def test_the_autopilot_guide_runs_as_written(tmp_path):
+    """docs/guide/autopilot.md, block by block in one folder: ```bash lines run in turn; ```text blocks
+    headed `# terminal 1` / `# terminal 2` start in the background as a user's terminals would,
+    `# terminal 3` blocks run in the foreground, and the block headed `# after Ctrl-C in terminals
+    1 and 2` runs after a SIGINT to each (ArduPilot first). Other ```text blocks are output or build
+    notes. ArduPilot comes from ../shared (on PATH, with its parameter files as ROVER_PARAMS); the
+    log the page starts from is made by the command of the page that makes it."""
+    if not (_port_free(socket.SOCK_DGRAM, 9002) and _port_free(socket.SOCK_STREAM, 5760)):
+        pytest.skip("the guide's default ports (udp 9002, tcp 5760) are taken on this machine")
+    env = {**os.environ, "ROVER_PARAMS": str(SITL_DIR),
+           "PATH": os.pathsep.join([str(SITL_DIR), str(Path(sys.executable).parent), os.environ.get("PATH", "")])}
+    make_log = [line for line in (ROOT / "docs" / "guide" / "03-own-log.md").read_text().splitlines()
+                if line.startswith("twin dataset") and "--out my_log.csv" in line]
+    assert make_log, "the own-log page no longer makes my_log.csv"
+
+    def run(line: str, timeout_s: float = 600) -> str:
+        done = subprocess.run(["bash", "-c", line], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=timeout_s, stdin=subprocess.DEVNULL)
+        assert done.returncode == 0, f"`{line}` failed:\n{done.stdout[-1500:]}\n{done.stderr[-1500:]}"
+        return done.stdout
+
+    run(make_log[0])
+    terminals: dict[str, subprocess.Popen] = {}
+    printed = []
+    try:
+        for lang, body in FENCE.findall(GUIDE.read_text()):
+            lines = [line for line in body.splitlines() if line.strip()]
+            commands = [line for line in lines if not line.lstrip().startswith("#")]
+            head = lines[0] if lines else ""
+            if lang == "bash":
+                for line in commands:
+                    run(line)
+            elif head.startswith(("# terminal 1", "# terminal 2")):
+                name = head.split()[2]
+                (command,) = commands
+                log = open(tmp_path / f"terminal{name}.log", "w")
+                terminals[name] = subprocess.Popen(["bash", "-c", command], cwd=tmp_path, env=env, stdout=log,
+                                                   stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                                   start_new_session=True)
+                time.sleep(1.0)  # the twin listening before ArduPilot sends, as a user starts them in turn
+            elif head.startswith("# terminal 3"):
+                printed += [run(line, 900) for line in commands]
+            elif head.startswith("# after Ctrl-C in terminals 1 and 2"):
+                for name in ("2", "1"):
+                    proc = terminals[name]
+                    os.killpg(proc.pid, signal.SIGINT)
+                    try:
+                        proc.wait(60)
+                    except subprocess.TimeoutExpired:
+                        os.killpg(proc.pid, signal.SIGKILL)
+                        proc.wait()
+                assert terminals["1"].returncode == 0, (tmp_path / "terminal1.log").read_text()[-2000:]
+                printed += [run(line) for line in commands]
+    finally:
+        for proc in terminals.values():
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    twin_log = (tmp_path / "terminal1.log").read_text()
+    found = SUMMARY.search(twin_log)
+    assert found and int(found.group(6)) == 0, twin_log[-2000:]  # no frame missed
+    missions = [re.search(r"mission: 4 waypoints, (\d+) m in ([\d.]+) s .*largest ([\d.]+) m, mean ([\d.]+) m", p)
+                for p in printed]
+    missions = [m for m in missions if m]
+    assert len(missions) == 2, printed
+    for m in missions:
+        assert 55 <= int(m.group(1)) <= 70 and float(m.group(2)) < 150 and float(m.group(3)) < 10.0, m.group(0)
+    for name in ("tune.tlog", "tune.png", "tune.rrd", "tune_default.json", "tune_b.json", "boat.parm"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    print("\n".join(m.group(0) for m in missions))

@@ -63,3 +63,47 @@ def sitl(
         heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm,
     )
     say(summary.text())
+
+
+@app.command()
+def mission(
+    home: str = typer.Option(..., help="LAT,LON (deg) of SITL's --home: the waypoints are metres from it"),
+    waypoints: str = typer.Option(..., help='"N,E N,E ...": each waypoint in metres north and east of home'),
+    port: int = typer.Option(5760, help="SITL's MAVLink TCP port (its SERIAL0: 5760, +10 per -I instance)"),
+    set_: list[str] = typer.Option([], "--set", help="NAME=VALUE: an ArduPilot parameter set before the mission "
+                                                   "(repeatable), e.g. --set ATC_STR_RAT_FF=0.5"),
+    timeout: float = typer.Option(600.0, help="wall-clock seconds to wait for each step"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="also write the figures and the EKF track (.json)"),
+):
+    """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
+    time, mean speed and how far the boat strayed from the straight legs."""
+    import json
+
+    from ..sitl.ardupilot import fly_mission
+
+    if json_out is not None:
+        check_outputs([json_out], (".json",), "--json")
+    try:
+        lat_lon = origin_from(home)
+    except TwinError as exc:
+        raise TwinError(str(exc).replace("--origin", "--home")) from None
+    try:
+        points = [tuple(float(x) for x in p.split(",")) for p in waypoints.split()]
+    except ValueError:
+        points = []
+    if not points or any(len(p) != 2 for p in points):
+        raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
+    settings = {}
+    for item in set_:
+        name, _, value = item.partition("=")
+        try:
+            settings[name.strip().upper()] = float(value)
+        except ValueError:
+            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'") from None
+        if not name.strip():
+            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'")
+    result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
+    say(result.text())
+    if json_out is not None:
+        write_text_atomic(json_out, json.dumps(result.to_dict(), indent=1) + "\n")
+        say(f"wrote {json_out}")

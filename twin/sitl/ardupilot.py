@@ -301,3 +301,68 @@ def path_deviation_m(track_ne_m, path_ne_m) -> np.ndarray:
     s = np.clip(np.einsum("kij,ij->ki", p[:, None, :] - a[None], ab) / length2, 0.0, 1.0)
     nearest = a[None] + s[..., None] * ab[None]
     return np.min(np.linalg.norm(p[:, None, :] - nearest, axis=2), axis=1)
+
+
+@dataclass(frozen=True)
+class MissionResult:
+    """How a mission flown by `fly_mission` went: its time on ArduPilot's clock (s), the planned
+    path's length (m), how far the EKF's positions strayed from the straight legs (m), the
+    parameters set before it, and the EKF track (time_boot_s, north_m, east_m rows)."""
+
+    waypoints: int
+    mission_s: float
+    path_m: float
+    deviation_max_m: float
+    deviation_mean_m: float
+    settings: dict
+    track: np.ndarray
+
+    @property
+    def mean_speed_m_s(self) -> float:
+        return self.path_m / self.mission_s
+
+    def text(self) -> str:
+        return (f"mission: {self.waypoints} waypoints, {self.path_m:.0f} m in {self.mission_s:.1f} s (ArduPilot's "
+                f"clock), mean speed {self.mean_speed_m_s:.2f} m/s; off the straight legs: largest "
+                f"{self.deviation_max_m:.2f} m, mean {self.deviation_mean_m:.2f} m")
+
+    def to_dict(self) -> dict:
+        return {"waypoints": self.waypoints, "mission_s": self.mission_s, "path_m": self.path_m,
+                "mean_speed_m_s": self.mean_speed_m_s, "deviation_max_m": self.deviation_max_m,
+                "deviation_mean_m": self.deviation_mean_m, "set": dict(self.settings),
+                "track": {"t_s": self.track[:, 0].tolist(), "north_m": self.track[:, 1].tolist(),
+                          "east_m": self.track[:, 2].tolist()}}
+
+
+def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[tuple[float, float]], *,
+                settings: dict | None = None, timeout_s: float = 600.0) -> MissionResult:
+    """Connect to SITL's MAVLink console on tcp:127.0.0.1:port, wait until its EKF navigates on GPS,
+    set `settings` (ArduPilot parameters), upload the waypoints (north, east m from `home`, which
+    must be SITL's --home), arm, fly them in AUTO, then hold and disarm. The boat starts where it
+    is: a second mission against the same SITL starts where the first ended."""
+    if len(waypoints_ne_m) < 1:
+        raise TwinError("a mission needs one waypoint at least")
+    rover = Rover(port, connect_timeout_s=timeout_s)
+    try:
+        rover.wait_ekf(timeout_s=timeout_s)
+        for name, value in (settings or {}).items():
+            rover.set_param(name, value)
+        rover.set_mode("HOLD")
+        start = rover.position
+        rover.upload_mission(home, waypoints_ne_m)
+        rover.arm(timeout_s=timeout_s)
+        rover.set_mode("AUTO")
+        t0, first = rover.boot_s, len(rover.track)
+        wanted = set(range(1, len(waypoints_ne_m) + 1))
+        rover.wait(lambda: wanted <= set(rover.reached), "the mission", timeout_s)
+        t1 = rover.boot_s
+        rover.set_mode("HOLD")
+        rover.disarm()
+    finally:
+        rover.close()
+    track = np.array(rover.track[first:], dtype=float).reshape(-1, 3)
+    path = [tuple(start)] + [tuple(w) for w in waypoints_ne_m]
+    off = path_deviation_m(track[:, 1:], path) if len(track) else np.zeros(1)
+    length = float(sum(math.dist(a, b) for a, b in zip(path[:-1], path[1:])))
+    return MissionResult(len(waypoints_ne_m), t1 - t0, length, float(off.max()), float(off.mean()),
+                         dict(settings or {}), track)

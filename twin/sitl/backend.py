@@ -267,6 +267,8 @@ class SitlTwin:
 
     def _start(self) -> None:
         mujoco.mj_resetData(self.model, self.data)
+        # the arrays' views, made once: each `data.qpos` access builds a new numpy view (about a µs)
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         initial_state(self.model, self.data, (0.0, 0.0, self.heading_rad), None)
         self._rate_hz = None
         self._seg_t0, self._seg_k, self._h, self._nsub = 0.0, 0, 1.0 / self.min_rate_hz, 1
@@ -359,7 +361,7 @@ class SitlTwin:
 
     def _advance_held(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo."""
-        ctrl, (il, ir), cache = self.data.ctrl, self._ctrl_ids, self._thrust_of
+        ctrl, (il, ir), cache = self._ctrl, self._ctrl_ids, self._thrust_of
         left, right = cache.get(driven[0]), cache.get(driven[1])
         ctrl[il] = self._thrust(driven[0]) if left is None else left
         ctrl[ir] = self._thrust(driven[1]) if right is None else right
@@ -377,7 +379,7 @@ class SitlTwin:
     def _advance_delayed(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
-        mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self.data.ctrl, self._ctrl_ids
+        mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
         self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
         for i in range(n):
@@ -395,8 +397,7 @@ class SitlTwin:
 
     def _at_rest(self) -> bool:
         """No velocity and (with a thruster lag) no thrust still in the lag."""
-        _, _, _, vx, vy, r = self._state
-        if vx != 0.0 or vy != 0.0 or r != 0.0:
+        if any(self._qvel.tolist()):
             return False
         if self.model.na:
             act = self.data.act
@@ -425,7 +426,7 @@ class SitlTwin:
 
     def _read_state(self) -> tuple[float, float, float, float, float, float]:
         """(x, y, ψ, ẋ, ẏ, r): north, east (m), heading (rad, unwrapped) and their rates."""
-        q, w = self.data.qpos.tolist(), self.data.qvel.tolist()  # plain floats: cheaper than numpy scalars
+        q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
         a, b = self._qadr, self._dadr
         return q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]]
 

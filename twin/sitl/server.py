@@ -54,7 +54,7 @@ from twin.errors import TwinError
 from twin.outputs import FORMATS, write
 from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
                                sensor_amendments, with_environment)
-from twin.sitl.protocol import REASONS, PacketError, format_reply, parse_servo_packet
+from twin.sitl.protocol import MAGIC_16, PACKET_16, REASONS, PacketError, format_reply, parse_servo_packet
 from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
@@ -163,6 +163,8 @@ class SitlServer:
         one parse, one step, one formatted line, one send."""
         recv, send = self.sock.recvfrom, self.sock.sendto
         parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
+        # the usual packet (16 outputs) unpacked directly; anything else goes through parse's checks
+        size16, head16, unpack16 = PACKET_16.size, MAGIC_16.to_bytes(2, "little"), PACKET_16.unpack
         c = self.counters
         limit = math.inf if stop_after_frames is None else stop_after_frames
         if c.frames >= limit:
@@ -175,11 +177,15 @@ class SitlServer:
                 data, peer = recv(RECV_BYTES)
             except TimeoutError:
                 continue
-            try:
-                rate, count, pwm = parse(data)
-            except PacketError as exc:
-                self._ignore(exc)
-                continue
+            fields = unpack16(data) if len(data) == size16 and data[:2] == head16 else None
+            if fields is not None and fields[1]:
+                rate, count, pwm = fields[1], fields[2], fields[3:]
+            else:
+                try:
+                    rate, count, pwm = parse(data)
+                except PacketError as exc:
+                    self._ignore(exc)
+                    continue
             last = self._last_count
             if last is None or count != last + 1:
                 if count == last:
