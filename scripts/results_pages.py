@@ -113,6 +113,9 @@ STUDIES = {
                     "draws of an identified twin", "How many simulated seconds per second, locally and on Ray?"),
     "bench_engine": ("Benchmark: the engine", "python scripts/bench.py", "the Yellowfish twin",
                      "How fast do single runs, batches and `simulate` go?"),
+    "bench_sitl": ("Benchmark: `twin sitl` at 1200 Hz frames", "python scripts/bench_sitl.py",
+                   "the Yellowfish twin answering a client process at 1200 Hz frames",
+                   "Is the twin fast enough to be ArduPilot SITL's physics at its default 1200 Hz frames?"),
 }
 
 

@@ -670,3 +670,90 @@ def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_
     assert twin("--write-params", out).returncode == 0 and "SERVO3_FUNCTION 74" in out.read_text()
     refused = twin("--write-params", tmp_path / "b.json")
     assert refused.returncode == 2 and "unknown format" in refused.stderr and not (tmp_path / "b.json").exists()
+
+
+# ---------------------------------------------------------------- ESC arming and a clean stop
+
+def sitl_startup(rate: int = 1200) -> list[list[int]]:
+    """ArduPilot Rover SITL's first frames, as it sends them (servo outputs 1-4 of a real start at 1200 Hz):
+    1500 µs on every output for 2240 frames, then 1000 µs on output 1 alone for 24 frames (20 ms) while
+    its outputs are set up, then the disarmed outputs: trim on the throttle outputs 1 and 3, 0 elsewhere."""
+    return ([[1500] * 16] * 2240 + [[1000] + [0] * 15] * 24 + [[1500, 0, 1500] + [0] * 13] * (3 * rate))
+
+
+def test_a_disarmed_autopilot_does_not_move_the_boat_the_escs_arm_on_a_stopped_signal():
+    calm = load("yellowfish")
+    startup = sitl_startup()
+    twin = SitlTwin(calm, esc_arm_s=2.0)
+    with twin.active():
+        replies = [twin.step(pwm, 1200) for pwm in startup]
+        assert all(r.north_m == r.east_m == r.yaw_rad == 0.0 for r in replies), "the start-up pulse moved the boat"
+        assert twin.escs_armed == (True, True)  # 2 s of neutral after the pulse, within the 3 s of trim
+        ahead = [twin.step([1700, 0, 1700] + [0] * 13, 1200) for _ in range(1200)]
+    run = twin.recording()
+    pulse = (run.t >= 2240 / 1200) & (run.t < 2264 / 1200 - 1e-9)
+    assert pulse.sum() == 24 and np.all(run.pwm_us[pulse, 0] == 1000.0) and np.all(run.thrust_n[pulse] == 0.0)
+    assert ahead[-1].north_m > 0.3 and abs(ahead[-1].east_m) < 1e-9, "armed, both ahead: straight on"
+
+    # an ESC that needs no stopped signal takes the pulse as full astern on the left thruster
+    eager = SitlTwin(calm, esc_arm_s=0.0, record=False)
+    with eager.active():
+        last = [eager.step(pwm, 1200) for pwm in startup][-1]
+    assert math.hypot(last.north_m, last.east_m) > 0.01 and abs(last.yaw_rad) > 1e-3
+
+    # a thrust command before the ESC has seen 2 s of neutral is held back, and starts the count again
+    twin = SitlTwin(calm, esc_arm_s=2.0, record=False)
+    with twin.active():
+        for k in range(int(1.5 * 1200)):
+            twin.step([1500, 0, 1500] + [0] * 13, 1200)
+        early = [twin.step([1800, 0, 1800] + [0] * 13, 1200) for _ in range(600)]
+        assert early[-1].north_m == 0.0 and twin.escs_armed == (False, False)
+        for k in range(int(2.0 * 1200)):
+            twin.step([1520, 0, 1480] + [0] * 13, 1200)  # within the ESC's ±25 µs: the stopped signal
+        moved = [twin.step([1800, 0, 1800] + [0] * 13, 1200) for _ in range(600)]
+    assert twin.escs_armed == (True, True) and moved[-1].north_m > 0.1
+
+
+def test_a_boat_at_rest_in_calm_water_is_stepped_exactly_as_mujoco_would():
+    """The twin skips mj_step when nothing can move the boat (at rest, no thrust, calm water): the
+    replies are the ones of a twin that always steps."""
+    calm = load("yellowfish")
+    frames, _ = pwm_frames(900, seed=12)
+    sequence = [[0] * 16] * 300 + frames + [[1500] * 16] * 300
+    results = []
+    for skip in (True, False):
+        twin = SitlTwin(calm, esc_arm_s=0.0, record=False)
+        twin._calm = skip
+        with twin.active():
+            results.append([twin.step(pwm, 1200) for pwm in sequence])
+    assert results[0] == results[1]
+    assert results[0][299].north_m == 0.0 and results[0][1199].north_m != 0.0
+
+
+def test_sigterm_and_sigint_in_the_background_end_twin_sitl_cleanly_with_its_recording(tmp_path):
+    """`twin sitl &` from a script starts with SIGINT ignored; SIGTERM is what `kill` sends. Either way
+    the session ends, the recording is written and the summary printed once."""
+    import subprocess
+    import sys
+
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        path = tmp_path / f"{sig.name}.csv"
+        proc = subprocess.Popen([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", "--port", "0",
+                                 "--host", "127.0.0.1", "--record", str(path)], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+        try:
+            port = int(re.search(r"udp [\d.]+:(\d+)", proc.stderr.readline()).group(1))
+            client = Client(port)
+            for k in range(50):
+                client.frame(k, [1700, 0, 1700] + [0] * 13, 1200)
+            client.close()
+            proc.send_signal(sig)
+            out, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == 0, err
+        assert f"{sig.name}: ending the session" in err
+        assert out.count("50 frames") == 1 and "frames" not in err.split("ending the session")[-1], (out, err)
+        assert len(read_csv(path).t) == 51

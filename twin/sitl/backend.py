@@ -348,8 +348,15 @@ class SitlTwin:
 
     @property
     def escs_armed(self) -> tuple[bool, bool]:
-        """Whether each thruster's ESC (left, right) has armed and follows its PWM."""
-        return self._esc_ready[0], self._esc_ready[1]
+        """Whether each thruster's ESC (left, right) has armed and follows its PWM: it has, or it has
+        seen the stopped signal for esc_arm_s up to now."""
+        now = self.time_s
+
+        def armed(i):
+            since = self._esc_stopped_since_s[i]
+            return self._esc_ready[i] or (since is not None and now - since >= self.esc_arm_s - 1e-9)
+
+        return armed(0), armed(1)
 
     def _thrust(self, pwm_us: float) -> float:
         """Raw thrust (N) of a PWM, cached: the map's polynomial once per distinct PWM value."""
