@@ -9,10 +9,10 @@ callback is process-global).
 """
 from __future__ import annotations
 
-import _thread
 import contextlib
 import json
 import math
+import os
 import re
 import signal
 import socket
@@ -574,24 +574,25 @@ def test_the_session_is_recorded_in_the_project_formats_also_when_ended_by_ctrl_
                 client.close()
                 time.sleep(0.05)  # the backend back waiting for a frame, as when a user presses Ctrl-C
         finally:
-            _thread.interrupt_main()  # Ctrl-C in the backend's thread
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C: a real SIGINT, which interrupts a blocked receive
 
     box_ready = threading.Event()
     thread = threading.Thread(target=ardupilot, daemon=True)
-    # interrupt_main does nothing when SIGINT is not Python's own handler (something earlier in the
-    # session may have set it): the handler a user's Ctrl-C meets
+    # Python's own handler, as a user's Ctrl-C meets it (run_sitl puts its own in place while it serves)
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     thread.start()
     summary = None
     try:
         summary = run_sitl(full_vessel, port=0, host="127.0.0.1", record_paths=paths, origin=(37.41, -5.98),
                            ready=lambda address: (box.__setitem__("port", address[1]), box_ready.set()))
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "run_sitl restores the handler"
     except KeyboardInterrupt:  # pragma: no cover - a late interrupt outside the session loop
         pytest.fail("Ctrl-C escaped run_sitl")
     finally:
         signal.signal(signal.SIGINT, previous)
     thread.join(10)
-    assert summary.interrupted and summary.counters.frames == 300 and set(summary.written) == set(paths)
+    assert summary.interrupted and summary.signal_name == "SIGINT" and summary.counters.frames == 300
+    assert set(summary.written) == set(paths)
     assert all(p.is_file() and p.stat().st_size > 0 for p in paths)
     assert not list(tmp_path.glob(".*.tmp")), "atomic writes leave no temporary file"
     run = read_csv(paths[0])

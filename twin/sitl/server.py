@@ -59,7 +59,7 @@ from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
 RECV_BYTES = 2048  # larger than any servo packet: a longer datagram is seen whole and refused
-POLL_S = 0.1  # how often a blocked receive looks at the stop event (and lets Ctrl-C through)
+POLL_S = 0.1  # how often the watcher looks at the stop event (and the receive timeout outside the loop)
 MAX_STEP_S = 0.09  # ArduPilot advances its clock only for timestamp steps under 0.1 s (SIM_JSON.cpp)
 # ArduPilot re-sends after about 1 s without an answer: a copy arriving sooner after the answer went
 # out was sent before the answer reached it (the answer was late, not lost)
@@ -159,28 +159,52 @@ class SitlServer:
         return self.sock.getsockname()
 
     def serve(self, stop_after_frames: int | None = None, stop_event: Event | None = None) -> Counters:
-        """Answer frames until told to stop. The hot path is kept lean: one frame is one receive,
-        one parse, one step, one formatted line, one send."""
+        """Answer frames until told to stop. The hot path is kept lean: one frame is one blocking
+        receive, one unpack, one step, one formatted line, one send. A socket with a timeout would
+        poll before every receive (a system call more per frame), so the receive blocks, and a
+        watcher thread wakes it when `stop_event` is set (with an empty datagram to the socket)."""
+        c = self.counters
+        limit = math.inf if stop_after_frames is None else stop_after_frames
+        if c.frames >= limit:
+            return c
+        halt = threading.Event()
+        watcher = threading.Thread(target=self._watch, args=(stop_event, halt), daemon=True)
+        watcher.start()
+        self.sock.settimeout(None)
+        try:
+            self._loop(limit, halt)
+        finally:
+            halt.set()
+            self.sock.settimeout(POLL_S)
+            watcher.join()
+        return c
+
+    def _watch(self, stop_event: Event | None, halt: Event) -> None:
+        """Until the loop ends: when stop_event is set, halt the loop and wake its receive."""
+        while not halt.wait(POLL_S):
+            if stop_event is not None and stop_event.is_set():
+                halt.set()
+                host, port = self.address[:2]
+                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as poke:
+                    poke.sendto(b"", ("127.0.0.1" if host == "0.0.0.0" else host, port))
+                return
+
+    def _loop(self, limit: float, halt: Event) -> None:
         recv, send = self.sock.recvfrom, self.sock.sendto
         parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
         # the usual packet (16 outputs) unpacked directly; anything else goes through parse's checks
         size16, head16, unpack16 = PACKET_16.size, MAGIC_16.to_bytes(2, "little"), PACKET_16.unpack
         c = self.counters
-        limit = math.inf if stop_after_frames is None else stop_after_frames
-        if c.frames >= limit:
-            return c
         realtime = self.realtime
         clock = time.perf_counter
-        stop_event = stop_event or threading.Event()
-        while not stop_event.is_set():
-            try:
-                data, peer = recv(RECV_BYTES)
-            except TimeoutError:
-                continue
+        while not halt.is_set():
+            data, peer = recv(RECV_BYTES)
             fields = unpack16(data) if len(data) == size16 and data[:2] == head16 else None
             if fields is not None and fields[1]:
                 rate, count, pwm = fields[1], fields[2], fields[3:]
             else:
+                if halt.is_set():  # the watcher's wake-up, not ArduPilot's
+                    break
                 try:
                     rate, count, pwm = parse(data)
                 except PacketError as exc:
@@ -210,7 +234,6 @@ class SitlServer:
             self._sent_s = clock()
             if c.frames >= limit:
                 break
-        return c
 
     # ------------------------------------------------------------ the rare cases, off the hot path
 
