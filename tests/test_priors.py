@@ -19,6 +19,7 @@ from twin.physics.priors import (cross_flow_drag, ittc57_cf, lateral_profile, pr
                                  without_added_mass_coriolis)
 from twin.prepare.prepared import prepared_from_run
 from twin.run import Run
+from twin.physics.thrusters import t200_voltage_gain
 from twin.scale.montecarlo import _widened
 from twin.verify.priors import first_principles
 
@@ -72,12 +73,20 @@ def test_the_shipped_blueboat_prior_is_its_first_principles_estimate():
     v = vessel_mod.load("blueboat")
     fp = first_principles(v)
     for name, value in fp.values().items():
-        assert getattr(v.damping, name) == pytest.approx(value, rel=1e-3, abs=1e-3), name
+        held = getattr(v.thrusters if name.startswith("gain") else v.damping, name)
+        assert held == pytest.approx(value, rel=1e-3, abs=1e-3), name
+    assert fp.values()["gain_left"] == pytest.approx(t200_voltage_gain(14.8)) == pytest.approx(1.605, abs=1e-3)
     h = fp.hulls[0]
     assert 0.9 < h.length_m < 1.0 and 0.04 < h.draft_m < 0.06 and 0.6 < h.block_coefficient < 0.8
     assert [round(x.y_m, 3) for x in fp.hulls] == [-0.285, 0.285]
     assert fp.values()["Nur"] < 0 and fp.values()["Yuv"] < 0  # yaw and sway damping grow with the speed
     assert "Clarke-1983" in fp.table() and "ITTC-1957" in fp.table()
+
+
+def test_the_t200_gain_follows_the_published_thrust_by_voltage():
+    assert t200_voltage_gain(10.0) == 1.0
+    assert t200_voltage_gain(16.0) / t200_voltage_gain(12.0) == pytest.approx(5.25 / 3.71)
+    assert t200_voltage_gain(20.0) / t200_voltage_gain(16.0) == pytest.approx(6.70 / 5.25)
 
 
 def test_a_first_principles_estimate_needs_a_design_block():
