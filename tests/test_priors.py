@@ -147,6 +147,9 @@ def test_form_error_interpolates_in_level_and_horizon_and_grows_a_position_beyon
     block = {"horizon_s": [0.0, 10.0, 20.0], "levels": [0.5, 0.9],
              "quantiles": {"u": [[0.0, 0.0], [0.1, 0.3], [0.2, 0.5]], "north": [[0.0, 0.0], [0.5, 1.0], [1.0, 2.0]]}}
     assert form_error_at(block, "u", 0.7, np.array([10.0]))[0] == pytest.approx(0.2)
+    # with 9 windows a 70 % level reads the ⌈10·0.7⌉/9 = 7/9 quantile (split conformal)
+    assert form_error_at({**block, "windows": 9}, "u", 0.7, np.array([10.0]))[0] == pytest.approx(
+        0.1 + 0.2 * (7 / 9 - 0.5) / 0.4)
     assert form_error_at(block, "u", 0.9, np.array([5.0, 40.0])) == pytest.approx([0.15, 0.5])  # a velocity holds
     assert form_error_at(block, "north", 0.9, np.array([30.0]))[0] == pytest.approx(3.0)  # a position grows on
     lo, hi = _widened(np.array([0.9]), np.array([1.3]), np.array([1.0]), np.array([0.4]), False)
