@@ -237,7 +237,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
         # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
-        result.notes.append("the grey-box of [Morel-2024] models PWM thrusters: skipped for a propeller-and-rudder ship")
+        result.notes.append("the [Morel-2024] grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
     elif greybox:
         say("[Morel-2024] grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
