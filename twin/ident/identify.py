@@ -10,13 +10,16 @@ on runs left out of the fit.
    with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
    is right within a factor of 3, an added mass within 2, ...). A coefficient the recordings do
    not pin down stays at its prior with its prior's uncertainty.
-4. Choose on left-out runs (fit/crossval.py, leave one run out; time blocks with fewer than three
-   recordings): how much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of
-   coefficients stay free: a group goes back to its prior while the twins fitted without each run
-   predict that run better so. No choice looks at how well the fit matches its own data.
+4. Choose on left-out runs (fit/crossval.py; time blocks with fewer than three recordings): each
+   run is predicted by a twin fitted on the runs that go less far than it does (time under way,
+   time turning: crossval.beyond_folds), so every choice is judged where the twin extrapolates.
+   How much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of coefficients stay
+   free: a group goes back to its prior while that lowers the left-out cost by DROP_GAIN or more.
+   No choice looks at how well the fit matches its own data.
 5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
-   runs' scores: median and range), and a warning when it predicts the left-out runs worse than
-   the prior did.
+   runs' scores: median and range), the twin's error on the left-out runs' 30-s free runs (which
+   widens its prediction bands: crossval.form_error), and a warning when it predicts the left-out
+   runs worse than the prior did.
 
 A propeller-and-rudder ship (an MMG block) goes through the same steps with its own groups
 (effects.coefficients.fit_groups: MMG hull derivatives, wake, rudder inflow, added mass) and
