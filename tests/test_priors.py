@@ -19,6 +19,7 @@ from twin.physics.priors import (cross_flow_drag, ittc57_cf, lateral_profile, pr
                                  without_added_mass_coriolis)
 from twin.prepare.prepared import prepared_from_run
 from twin.run import Run
+from twin.physics.thrusters import t200_voltage_gain
 from twin.scale.montecarlo import _widened
 from twin.verify.priors import first_principles
 
@@ -72,12 +73,20 @@ def test_the_shipped_blueboat_prior_is_its_first_principles_estimate():
     v = vessel_mod.load("blueboat")
     fp = first_principles(v)
     for name, value in fp.values().items():
-        assert getattr(v.damping, name) == pytest.approx(value, rel=1e-3, abs=1e-3), name
+        held = getattr(v.thrusters if name.startswith("gain") else v.damping, name)
+        assert held == pytest.approx(value, rel=1e-3, abs=1e-3), name
+    assert fp.values()["gain_left"] == pytest.approx(t200_voltage_gain(14.8)) == pytest.approx(1.605, abs=1e-3)
     h = fp.hulls[0]
     assert 0.9 < h.length_m < 1.0 and 0.04 < h.draft_m < 0.06 and 0.6 < h.block_coefficient < 0.8
     assert [round(x.y_m, 3) for x in fp.hulls] == [-0.285, 0.285]
     assert fp.values()["Nur"] < 0 and fp.values()["Yuv"] < 0  # yaw and sway damping grow with the speed
     assert "Clarke-1983" in fp.table() and "ITTC-1957" in fp.table()
+
+
+def test_the_t200_gain_follows_the_published_thrust_by_voltage():
+    assert t200_voltage_gain(10.0) == 1.0
+    assert t200_voltage_gain(16.0) / t200_voltage_gain(12.0) == pytest.approx(5.25 / 3.71)
+    assert t200_voltage_gain(20.0) / t200_voltage_gain(16.0) == pytest.approx(6.70 / 5.25)
 
 
 def test_a_first_principles_estimate_needs_a_design_block():
@@ -138,6 +147,9 @@ def test_form_error_interpolates_in_level_and_horizon_and_grows_a_position_beyon
     block = {"horizon_s": [0.0, 10.0, 20.0], "levels": [0.5, 0.9],
              "quantiles": {"u": [[0.0, 0.0], [0.1, 0.3], [0.2, 0.5]], "north": [[0.0, 0.0], [0.5, 1.0], [1.0, 2.0]]}}
     assert form_error_at(block, "u", 0.7, np.array([10.0]))[0] == pytest.approx(0.2)
+    # with 9 windows a 70 % level reads the ⌈10·0.7⌉/9 = 7/9 quantile (split conformal)
+    assert form_error_at({**block, "windows": 9}, "u", 0.7, np.array([10.0]))[0] == pytest.approx(
+        0.1 + 0.2 * (7 / 9 - 0.5) / 0.4)
     assert form_error_at(block, "u", 0.9, np.array([5.0, 40.0])) == pytest.approx([0.15, 0.5])  # a velocity holds
     assert form_error_at(block, "north", 0.9, np.array([30.0]))[0] == pytest.approx(3.0)  # a position grows on
     lo, hi = _widened(np.array([0.9]), np.array([1.3]), np.array([1.0]), np.array([0.4]), False)

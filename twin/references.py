@@ -95,6 +95,25 @@ BIBLIOGRAPHY = _bib(
            "signal of 1500 µs for a few seconds initialises the ESC) and pulse-width signal table (deadband ±25 µs)",
            "Blue Robotics", "docs.bluerobotics.com/bescr3; source github.com/bluerobotics/bluerobotics.github.io, "
            "bescr3/index.md", None),
+    Source("ITTC-1957", "Skin friction and turbulence stimulation (the ITTC-1957 model-ship correlation line, "
+           "C_F = 0.075/(log10 Re − 2)²)", "International Towing Tank Conference",
+           "Proceedings of the 8th ITTC, Madrid; ITTC Recommended Procedure 7.5-02-02-02", 1957),
+    Source("ITTC-2011", "Fresh water and seawater properties", "International Towing Tank Conference",
+           "ITTC Recommended Procedure 7.5-02-01-03", 2011),
+    Source("Clarke-1983", "The application of manoeuvring criteria in hull design using linear theory",
+           "D. Clarke, P. Gedling, G. Hine", "Transactions of the Royal Institution of Naval Architects 125, 45-68",
+           1983),
+    Source("Glauert-1935", "Airplane propellers (momentum and blade-element theory of a propeller, including its "
+           "normal force in oblique flow)", "Hermann Glauert", "in W. F. Durand (ed.), Aerodynamic Theory, vol. IV, "
+           "Division L, Springer, Berlin", 1935),
+    Source("Newman-1977", "Marine Hydrodynamics (chapter 7: slender-body theory of lifting bodies)",
+           "J. N. Newman", "MIT Press, Cambridge MA", 1977),
+    Source("Hoerner-1965", "Fluid-Dynamic Drag (two-dimensional drag of bluff sections)", "Sighard F. Hoerner",
+           "published by the author, Midland Park NJ", 1965),
+    Source("Holtrop-1982", "An approximate power prediction method", "J. Holtrop, G. G. J. Mennen",
+           "International Shipbuilding Progress 29(335), 166-170", 1982),
+    Source("BlueRobotics-BlueBoat", "BlueBoat: technical details (dimensions, mass, maximum speed 3.0 m/s with two "
+           "batteries)", "Blue Robotics", "bluerobotics.com, BlueBoat product page and its discussion forum", None),
 )
 
 def markdown() -> str:

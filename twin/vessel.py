@@ -348,7 +348,8 @@ def _uncertainty(data, path: Path) -> dict:
     return {"coordinates": [dict(c) for c in data["coordinates"]], "mean": [float(x) for x in data["mean"]],
             "covariance": [[float(x) for x in row] for row in cov],
             **({"source": str(data["source"])} if "source" in data else {}),
-            **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {})}
+            **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {}),
+            **({"form_error": _form_error(data["form_error"], path)} if "form_error" in data else {})}
 
 
 def _uncertainty_coordinates(coordinates, path: Path) -> None:
@@ -368,6 +369,26 @@ def _uncertainty_coordinates(coordinates, path: Path) -> None:
             raise TwinError(f"{path.name}: {where}: a log coordinate needs the coefficient's 'sign' (1 or -1)")
         if "sign" in c:
             _typed(c["sign"], float, f"{where}.sign", path)
+
+
+def _form_error(data, path: Path) -> dict:
+    """The twin's error on left-out runs (twin.fit.crossval.form_error): horizons, levels, and per
+    quantity one row of non-negative quantiles per horizon."""
+    bad = TwinError(f"{path.name}: uncertainty.form_error needs horizon_s (increasing), levels (in (0, 1)) and "
+                    "quantiles: per quantity one row of numbers ≥ 0 per horizon, one per level")
+    if not isinstance(data, dict) or not {"horizon_s", "levels", "quantiles"} <= set(data):
+        raise bad
+    h, levels, q = data["horizon_s"], data["levels"], data["quantiles"]
+    try:
+        ok = (len(h) >= 1 and all(b > a for a, b in zip(h, h[1:])) and all(0 < x < 1 for x in levels)
+              and isinstance(q, dict) and all(len(rows) == len(h) and all(len(r) == len(levels) and
+                                                                       all(x >= 0 for x in r) for r in rows)
+                                              for rows in q.values()))
+    except TypeError:
+        ok = False
+    if not ok:
+        raise bad
+    return dict(data)
 
 
 def _fitted_on(data, path: Path) -> dict:

@@ -78,10 +78,11 @@ def identify_command(
                                                    "keeps those that predict left-out runs better"),
     params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
                                                    "comma separated (e.g. Xu,Xuu,Nr,Nrr,thrust_gain)"),
-    beliefs: str = typer.Option("0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
+    beliefs: str = typer.Option("0.01,0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
                                                  "the values tried (chosen on left-out runs)"),
     anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
-    window: float = typer.Option(10.0, help="free-run window of the simulation fit, s"),
+    window: Optional[float] = typer.Option(None, help="free-run window of the simulation fit, s (default: 10, or "
+                                                     "30 for a vessel whose surge time constant exceeds 10 s)"),
     start: str = typer.Option("free", help="initial velocities of each free run: free (estimated with the "
                                             "parameters) | measured (as the recording gives them)"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
@@ -110,7 +111,8 @@ def identify_command(
     check_outputs([json_out], (".json",), "--json")
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
     check_recordings_distinct(recordings)
-    positive(window, "--window")
+    if window is not None:
+        positive(window, "--window")
     at_least(max_evaluations, 1, "--max-evaluations")
     seed_from(seed)
     prior = vessel_from(vessel, model, "nominal")
@@ -144,7 +146,8 @@ def identify_command(
     seen = result.vessel.uncertainty.get("fitted_on")
     if seen:  # where that expectation holds: beyond this span the twin extrapolates
         windows = ", ".join(f"{k} {n}" for k, n in seen["windows"].items())
-        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); 10-s windows {windows}: "
+        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); "
+            f"{seen['horizon_s']:g}-s windows {windows}: "
             "beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")

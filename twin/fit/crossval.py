@@ -22,6 +22,7 @@ the runs (so runs add up and DOFs weigh alike).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -240,10 +241,15 @@ def form_error(fold_vessels: list[Vessel], preps: list[Prepared], folds_label: s
 
 
 def form_error_at(block: dict, quantity: str, level: float, t_s: np.ndarray) -> np.ndarray:
-    """|error| of `quantity` at `level` (interpolated between the stored levels) at horizons t_s (s):
-    interpolated within the stored horizons; beyond them a velocity's holds its last value (a
-    damped twin's velocity error stops growing) and a position's or heading's grows on at its
-    last slope (it integrates the velocity error)."""
+    """|error| of `quantity` at `level` at horizons t_s (s). The level is raised to the finite-sample
+    quantile of split conformal prediction, ⌈(n + 1)·level⌉/n over the block's n windows (a
+    quantile of a few windows understates the next window's error), then interpolated between the
+    stored levels (at most the highest). Within the stored horizons interpolated; beyond them a
+    velocity's holds its last value (a damped twin's velocity error stops growing) and a
+    position's or heading's grows on at its last slope (it integrates the velocity error)."""
+    n = int(block.get("windows", 0))
+    if n > 0:
+        level = min(1.0, math.ceil((n + 1) * level) / n)
     levels = np.asarray(block["levels"], float)
     table = np.asarray(block["quantiles"][quantity], float)  # (S, L)
     at_level = np.array([np.interp(level, levels, row) for row in table])

@@ -43,8 +43,9 @@ NU_FRESH_M2_S = 1.0e-6  # kinematic viscosity of fresh water near 20 °C [ITTC-2
 class Design:
     """What a vessel's first-principles estimate needs beyond its MJCF (the `design` block of a
     vessel file): the top speed at full thrust in calm water and where that figure comes from,
-    the hull form factor 1 + k, the cross-flow drag coefficient of its sections, and its
-    thrusters' duct and propeller diameters (0 where there is no duct)."""
+    the hull form factor 1 + k, the cross-flow drag coefficient of its sections, its thrusters'
+    duct and propeller diameters (0 where there is no duct) and the battery voltage its T200
+    thrusters run on (None: the map's own)."""
 
     top_speed_m_s: float
     top_speed_source: str = ""
@@ -52,6 +53,7 @@ class Design:
     cross_flow_cd: float = 1.0
     duct_diameter_m: float = 0.0
     propeller_diameter_m: float = 0.0
+    battery_v: float | None = None  # the supply the thrust map is scaled to (T200 curves per voltage)
 
 
 def ittc57_cf(reynolds) -> np.ndarray:

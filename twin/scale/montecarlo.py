@@ -447,18 +447,25 @@ class RecordingCoverage:
     lo: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     hi: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     measured: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    # the share inside the parameters' spread alone, where the band was widened by the twin's form error
+    inside_parameters_only: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"level": self.level, "inside": self.inside, "horizon_s": self.horizon_s,
+        return {"level": self.level, "inside": self.inside, "inside_parameters_only": self.inside_parameters_only,
+                "horizon_s": self.horizon_s,
                 "inside_by_horizon": self.inside_by_horizon, "windows": self.windows, "window_s": self.window_s,
                 "draws": self.draws, "diverged": self.diverged, "rejected": self.rejected}
 
     def text(self) -> str:
         """One line per quantity: how often the recording is inside the band (should be ≈ level)."""
+        widened = bool(self.inside_parameters_only)
         lines = [f"band of {self.draws} draws, {self.windows} free runs of {self.window_s:g} s from measured "
-                 f"states: share of the recording inside the {100 * self.level:g} % band"]
+                 f"states: share of the recording inside the {100 * self.level:g} % band"
+                 + (" (the parameters' spread widened by the twin's error on left-out runs; in brackets the "
+                    "parameters' spread alone)" if widened else "")]
         for q, share in self.inside.items():
-            lines.append(f"  {q:10s} {100 * share:5.1f} %")
+            alone = f"  ({100 * self.inside_parameters_only[q]:5.1f} %)" if widened else ""
+            lines.append(f"  {q:10s} {100 * share:5.1f} %{alone}")
         return "\n".join(lines)
 
 
@@ -563,19 +570,26 @@ def _recording_coverage(tracks: np.ndarray, nominal: np.ndarray, meas: np.ndarra
         lo[q] = np.zeros((W, S)) if q in ONE_SIDED else np.percentile(draws_q, lo_p, axis=0)
         hi[q] = np.percentile(draws_q, hi_p, axis=0)
         got[q] = np.stack([m[q][0] for _, m in per_window])
+    parameters_only = {q: _share_inside(got[q], lo[q], hi[q])[0] for q in RECORDING_QUANTITIES} if widen else {}
+    for q in RECORDING_QUANTITIES:
         if widen and q in widen.get("quantiles", {}):
             lo[q], hi[q] = _widened(lo[q], hi[q], nominal_q(nominal, q), form_error_at(widen, q, level, dt_s *
                                                                                       np.arange(S)), q in ONE_SIDED)
     inside, by_horizon = {}, {}
     for q in RECORDING_QUANTITIES:
-        x = got[q][:, 1:]
-        hit = (x >= lo[q][:, 1:]) & (x <= hi[q][:, 1:])
-        known = np.isfinite(x) & np.isfinite(lo[q][:, 1:]) & np.isfinite(hi[q][:, 1:])
-        inside[q] = float(np.mean(hit[known])) if known.any() else float("nan")
-        by_horizon[q] = np.array([float(np.mean(hit[:, k][known[:, k]])) if known[:, k].any() else np.nan
-                                  for k in range(S - 1)])
+        inside[q], by_horizon[q] = _share_inside(got[q], lo[q], hi[q])
     return RecordingCoverage(level, inside, dt_s * np.arange(1, S), by_horizon, W, window_s, int(ok.sum()),
-                             diverged, rejected, lo, hi, got)
+                             diverged, rejected, lo, hi, got, parameters_only)
+
+
+def _share_inside(got: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The share of the measured samples after each window's start inside [lo, hi], and per horizon."""
+    x = got[:, 1:]
+    hit = (x >= lo[:, 1:]) & (x <= hi[:, 1:])
+    known = np.isfinite(x) & np.isfinite(lo[:, 1:]) & np.isfinite(hi[:, 1:])
+    share = float(np.mean(hit[known])) if known.any() else float("nan")
+    return share, np.array([float(np.mean(hit[:, k][known[:, k]])) if known[:, k].any() else np.nan
+                            for k in range(x.shape[1])])
 
 
 def recording_coverage(vessel: Vessel, recordings, *, calibrated: bool = True, **options) -> RecordingCoverage:

@@ -19,7 +19,7 @@ from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_
 from ..physics.priors import (SpeedDerivatives, cross_flow_drag, lateral_profile, propulsor_at_rest,
                               propulsor_lateral, resistance_curve, slender_hull_derivatives, twin_hull_yaw,
                               without_added_mass_coriolis)
-from ..physics.thrusters import advance_loss
+from ..physics.thrusters import T200_MAP_VOLTAGE_V, advance_loss, t200_voltage_gain
 from ..vessel import Vessel
 from .validate import load_meshes
 
@@ -66,9 +66,12 @@ class FirstPrinciples:
         return "\n".join(lines)
 
     def applied(self, vessel: Vessel) -> Vessel:
-        """`vessel` with these damping values (added mass and thrusters kept)."""
+        """`vessel` with these damping values and thruster gains (added mass and the map kept)."""
+        values = self.values()
         known = set(vessel.damping.__dataclass_fields__)
-        return replace(vessel, damping=replace(vessel.damping, **{k: v for k, v in self.values().items() if k in known}))
+        damping = replace(vessel.damping, **{k: v for k, v in values.items() if k in known})
+        thrusters = replace(vessel.thrusters, **{k: values[k] for k in ("gain_left", "gain_right") if k in values})
+        return replace(vessel, damping=damping, thrusters=thrusters)
 
 
 def _wetted_area_m2(vertices: np.ndarray, faces: np.ndarray, z_waterline_m: float) -> float:
@@ -124,13 +127,18 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
     rho = RHO_FRESH_KG_M3
     g = compile_vessel(vessel).geometry
     t = vessel.thrusters
-    full = float(t.bounds()[1] * np.mean(t.gains()))
+    gain = t200_voltage_gain(d.battery_v) if d.battery_v else float(np.mean(t.gains()))
+    full = float(t.bounds()[1] * gain)
     at_top = full + float(advance_loss(t.advance_loss, full, d.top_speed_m_s))
     thrust_top = 2.0 * at_top
     wetted = sum(h.wetted_m2 for h in hs)
     length = float(np.mean([h.length_m for h in hs]))
     curve = resistance_curve(wetted, length, d.form_factor, d.top_speed_m_s, thrust_top, rho)
-    est = [Estimate("Xu", curve.xu, "N s/m", f"ITTC-1957 friction × (1 + k) {d.form_factor:g} on {wetted:.3f} m² "
+    gain_text = (f"T200 maximum thrust by supply voltage, {d.battery_v:g} V against the map's {T200_MAP_VOLTAGE_V:g} V: "
+                 "a power law through the published 12, 16 and 20 V figures [BlueRobotics-T200]" if d.battery_v
+                 else "the vessel file's own")
+    est = [Estimate("gain_left", gain, "×", gain_text), Estimate("gain_right", gain, "×", "the same"),
+           Estimate("Xu", curve.xu, "N s/m", f"ITTC-1957 friction × (1 + k) {d.form_factor:g} on {wetted:.3f} m² "
                     f"wetted, residuary C_R {curve.residuary_cr:.4f} holding {d.top_speed_m_s:g} m/s at "
                     f"{thrust_top:.1f} N ({d.top_speed_source or 'stated top speed'}); least squares to "
                     "Xu·u + Xuu·u|u| [ITTC-1957]"),
