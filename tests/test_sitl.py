@@ -624,6 +624,8 @@ def test_bad_input_is_a_one_line_error(tmp_path):
         run_sitl("yellowfish", port=0, record_paths=[tmp_path / "x.txt"], stop_after_frames=0)
     with pytest.raises(TwinError, match="two different servo outputs"):
         run_sitl("yellowfish", port=0, channels=(3, 3), stop_after_frames=0)
+    with pytest.raises(TwinError, match=r"^--esc-arm -1: the ESC arming time is a number of seconds ≥ 0"):
+        run_sitl("yellowfish", port=0, esc_arm_s=-1, stop_after_frames=0)
 
 
 def test_the_twin_refuses_to_step_without_its_hydrodynamics():
@@ -758,3 +760,18 @@ def test_sigterm_and_sigint_in_the_background_end_twin_sitl_cleanly_with_its_rec
         assert f"{sig.name}: ending the session" in err
         assert out.count("50 frames") == 1 and "frames" not in err.split("ending the session")[-1], (out, err)
         assert len(read_csv(path).t) == 51
+
+
+def test_the_deviation_from_a_mission_is_the_distance_to_the_nearest_leg():
+    from twin.sitl.ardupilot import offset_position, path_deviation_m
+
+    path = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]
+    points = [(5.0, 1.5), (10.0, 5.0), (12.0, 12.0), (-3.0, -4.0), (9.0, 9.0), (10.0, 0.0)]
+    np.testing.assert_allclose(path_deviation_m(points, path), [1.5, 0.0, math.hypot(2, 2), 5.0, 1.0, 0.0])
+    with pytest.raises(TwinError, match="two points"):
+        path_deviation_m(points, path[:1])
+    lat, lon = offset_position(63.4366, 10.3991, 100.0, -50.0)  # back through twin.geodesy: the same metres
+    from twin.geodesy import ned_from_geodetic
+
+    north, east = ned_from_geodetic(lat, lon, 63.4366, 10.3991)
+    assert north == pytest.approx(100.0, abs=1e-6) and east == pytest.approx(-50.0, abs=1e-6)
