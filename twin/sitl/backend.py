@@ -305,7 +305,8 @@ class SitlTwin:
             raise RuntimeError("step the twin inside `with twin.active():` (installs the hydrodynamic callback)")
         if frame_rate_hz != self._rate_hz:
             self._set_rate(frame_rate_hz)
-        # protocol.channel_pair, inlined: this runs once per frame, over a thousand times a second
+        # the thrusters' outputs (1-based channels): 0, ArduPilot's "no output", or an output beyond the
+        # packet's (17+ in a 16-output packet) is the thruster's neutral
         n_out, (i_left, i_right), neutral = len(pwm_us), self._outputs, self._neutral_us
         a = pwm_us[i_left] if i_left < n_out else 0
         b = pwm_us[i_right] if i_right < n_out else 0

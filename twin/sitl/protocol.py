@@ -116,17 +116,6 @@ def pack_servo_packet(frame_rate_hz: int, frame_count: int, pwm_us: Sequence[int
     raise ValueError(f"a servo packet carries 16 or 32 outputs, not {len(pwm_us)}")
 
 
-def channel_pair(pwm_us: Sequence[int], channels: tuple[int, int], neutral_us: float) -> tuple[float, float]:
-    """(left, right) PWM (µs) from the servo outputs `channels` (1-based, as SERVOn): an output
-    that is 0 (ArduPilot's "no output", e.g. disarmed or not yet configured) or beyond the
-    packet's outputs (channel 17+ in a 16-output packet) is the thruster's neutral."""
-    left, right = channels
-    n = len(pwm_us)
-    a = pwm_us[left - 1] if left <= n else 0
-    b = pwm_us[right - 1] if right <= n else 0
-    return (float(a) if a else neutral_us), (float(b) if b else neutral_us)
-
-
 # ---------------------------------------------------------------- physics → ArduPilot
 
 _TEMPLATE = ('\n{"timestamp":%.17g,"imu":{"gyro":[0.0,0.0,%.17g],"accel_body":[%.17g,%.17g,%.17g]},'
