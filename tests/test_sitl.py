@@ -678,8 +678,8 @@ def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_
 # ---------------------------------------------------------------- ESC arming and a clean stop
 
 def sitl_startup(rate: int = 1200) -> list[list[int]]:
-    """ArduPilot Rover SITL's first frames as a real start at 1200 Hz sent them on outputs 1-4 (the others taken alike here):
-    1500 µs on every output for 2240 frames, then 1000 µs on output 1 alone for 24 frames (20 ms) while
+    """ArduPilot Rover SITL's first frames as a real start at 1200 Hz sent them on outputs 1-4 (the others
+    taken alike here): 1500 µs for 2240 frames, then 1000 µs on output 1 alone for 24 frames (20 ms) while
     its outputs are set up, then the disarmed outputs: trim on the throttle outputs 1 and 3, 0 elsewhere."""
     return ([[1500] * 16] * 2240 + [[1000] + [0] * 15] * 24 + [[1500, 0, 1500] + [0] * 13] * (3 * rate))
 
