@@ -283,9 +283,8 @@ def waterplane(meshes: list[tuple[np.ndarray, np.ndarray]], z_w: float, dz: floa
     # second moments from the section outlines at the waterline
     Ixx = Iyy = 0.0
     for v, f in meshes:
-        xs = np.linspace(v[:, 0].min(), v[:, 0].max(), 241)
-        h = xs[1] - xs[0]
-        for x in xs[1:-1]:
+        h = (v[:, 0].max() - v[:, 0].min()) / 240
+        for x in v[:, 0].min() + h * (np.arange(240) + 0.5):  # the midpoint rule
             poly = section(v, f, x)
             if len(poly) < 3:
                 continue
@@ -390,13 +389,50 @@ def drift_table(segments: np.ndarray, n_headings: int = 72) -> np.ndarray:
     return out
 
 
-def natural_periods(C: dict[str, float], mass_kg: float, Ixx: float, Iyy: float, rad: Radiation) -> dict[str, float]:
-    """T = 2π √((M + A)/C) for heave, roll and pitch: Ixx, Iyy the rigid inertias about the centre of
-    gravity (a free-floating hull turns about it: its surge and sway are free)."""
+def natural_periods(wp: Waterplane, C: dict[str, float], mass_kg: float, cg_m: np.ndarray, inertia_cg: np.ndarray,
+                    rad: Radiation, rho: float = 1000.0) -> dict[str, float]:
+    """Heave, roll and pitch natural periods of the free-floating hull, linear, with the added mass
+    the engine uses (A33 on heave, A44 on roll, A55 on pitch, about the body origin).
+
+    Uncoupled ("heave_uncoupled" ...): T = 2π √((M + A)/C) with C33 = ρ g A_wp, C44 = ρ g V GM_T,
+    C55 = ρ g V GM_L and the rigid inertias about the centre of gravity. Coupled ("heave", "pitch",
+    "roll"): the same stiffness written about the body origin, where heave and pitch couple through
+    the centre of floatation (C35 = −ρ g A_wp x_f, C55 = ρ g (∫x² dA + V (z_G − z_B))) and the rigid
+    body through its centre of gravity, surge and sway free (they have no stiffness):
+    ω² are the non-zero eigenvalues of M⁻¹C on (surge, heave, pitch) and (sway, heave, roll)."""
     def period(m, c):
         return float(2 * np.pi * np.sqrt(m / c)) if c > 0 else float("nan")
-    return {"heave": period(mass_kg + rad.A33, C["C33"]), "roll": period(Ixx + rad.A44, C["C44"]),
-            "pitch": period(Iyy + rad.A55, C["C55"])}
+
+    xg, yg, zg = (float(c) for c in cg_m)
+    rg = rho * G
+    bg = wp.volume * (zg - float(wp.centre[2]))
+    # (surge, heave, pitch) about the origin; pitch positive bow up
+    m = mass_kg
+    M = np.array([[m, 0.0, m * zg], [0.0, m + rad.A33, -m * xg],
+                  [m * zg, -m * xg, inertia_cg[1] + m * (xg * xg + zg * zg) + rad.A55]])
+    Cm = np.zeros((3, 3))
+    Cm[1, 1] = rg * wp.area
+    Cm[1, 2] = Cm[2, 1] = -rg * wp.area * wp.x_f
+    Cm[2, 2] = rg * (wp.Iyy + bg)
+    w2 = np.sort(np.real(np.linalg.eigvals(np.linalg.solve(M, Cm))))[1:]
+    # (sway, heave, roll): roll positive starboard down
+    M = np.array([[m, 0.0, -m * zg], [0.0, m + rad.A33, m * yg],
+                  [-m * zg, m * yg, inertia_cg[0] + m * (yg * yg + zg * zg) + rad.A44]])
+    Cr = np.zeros((3, 3))
+    Cr[1, 1] = rg * wp.area
+    Cr[1, 2] = Cr[2, 1] = rg * wp.area * wp.y_f
+    Cr[2, 2] = rg * (wp.Ixx + bg)
+    w2r = np.sort(np.real(np.linalg.eigvals(np.linalg.solve(M, Cr))))[1:]
+    # name the coupled modes by the uncoupled period they are nearest
+    uncoupled = {"heave": period(m + rad.A33, C["C33"]), "roll": period(inertia_cg[0] + rad.A44, C["C44"]),
+                 "pitch": period(inertia_cg[1] + rad.A55, C["C55"])}
+    hp = sorted(2 * np.pi / np.sqrt(w2))
+    order = sorted(("heave", "pitch"), key=lambda k: uncoupled[k])
+    out = {order[0]: float(hp[0]), order[1]: float(hp[1])}
+    roll_periods = 2 * np.pi / np.sqrt(w2r)
+    out["roll"] = float(min(roll_periods, key=lambda p: abs(p - uncoupled["roll"])))
+    out.update({f"{k}_uncoupled": v for k, v in uncoupled.items()})
+    return out
 
 
 # ---------------------------------------------------------------- the packed sea load (numba)

@@ -129,7 +129,7 @@ def check_sea(sea: Sea, min_period_s: float | None = None, what: str = "") -> No
         raise TwinError(f"--sea: the spreading power must be at least 1 (cos^n, n ≥ 1), got {sea.spread:g}")
     lam = wavelength_m(sea.tp_s)
     if sea.hs_m / lam > BREAKING_STEEPNESS:
-        raise TwinError(f"--sea: a {name} {sea.hs_m:g} m wave of period {sea.tp_s:g} s (wavelength {lam:.2f} m) is "
+        raise TwinError(f"--sea: {name} {sea.hs_m:g} m at a period of {sea.tp_s:g} s (wavelength {lam:.2f} m) is "
                         f"steeper than breaking (H/λ = {sea.hs_m / lam:.3f} > 1/7)")
     if min_period_s is not None and sea.tp_s < min_period_s:
         raise TwinError(f"--sea: a {'' if sea.regular else 'peak '}period of {sea.tp_s:g} s is shorter than the "
