@@ -11,7 +11,11 @@ compiled, the closed-loop scenario at the autopilot rate) written to CSV, as a
 ratio to the one twin's rate (the engine's own speed); the three timed in turn.
 Default integrator and time step of the vessel's MJCF.
 
-    python scripts/bench.py [--vessel yellowfish] [--batch 256] [--json out.json]
+The 6-DOF hull in an irregular sea (`--sea`, default a JONSWAP Hs 0.3 m, Tp 2.5 s short-crested
+sea) against the 3-DOF twin, the two timed in turn in the same run: simulated seconds per wall
+second of one twin on one core (60 s runs under a constant thrust), and their ratio.
+
+    python scripts/bench.py [--vessel yellowfish] [--batch 256] [--sea 0.3,2.5,30,4] [--json out.json]
 """
 from __future__ import annotations
 
@@ -109,6 +113,34 @@ def _throughputs(model, n_twins: int, duration_s: float, nthread: int, repeats: 
     return work / statistics.median(single), work / statistics.median(walls), simulate_s / statistics.median(sims)
 
 
+def _six_dof_pair(cv, sea_text: str, duration_s: float, repeats: int) -> tuple[float, float]:
+    """Simulated seconds per wall second of one 3-DOF twin and one 6-DOF twin in the sea, each a run
+    of duration_s from rest under the same thrust, timed in turn; medians over repeats."""
+    from twin.engine import sixdof
+    from twin.physics.waves import parse_sea
+
+    three = native.with_native_params(cv)
+    six = sixdof.compile_six(cv, parse_sea(sea_text))
+    nstep = int(round(duration_s / three.opt.timestep))
+    d3, d6 = mujoco.MjData(three), mujoco.MjData(six.model)
+    walls3, walls6 = [], []
+    with native.installed_native():
+        mujoco.mj_step(six.model, d6, 10)  # compile and warm outside the timing
+        for _ in range(repeats):
+            mujoco.mj_resetData(three, d3)
+            d3.ctrl[:2] = (10.0, 8.0)
+            t0 = time.perf_counter()
+            mujoco.mj_step(three, d3, nstep)
+            walls3.append(time.perf_counter() - t0)
+            mujoco.mj_resetData(six.model, d6)
+            d6.qpos[:] = six.initial_qpos()
+            d6.ctrl[:2] = (10.0, 8.0)
+            t0 = time.perf_counter()
+            mujoco.mj_step(six.model, d6, nstep)
+            walls6.append(time.perf_counter() - t0)
+    return duration_s / statistics.median(walls3), duration_s / statistics.median(walls6)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--vessel", default="yellowfish")
@@ -117,6 +149,7 @@ def main(argv=None) -> int:
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--batch-duration", type=float, default=60.0)
     ap.add_argument("--simulate-duration", type=float, default=3600.0, help="zig-zag run to CSV, s")
+    ap.add_argument("--sea", default="0.3,2.5,30,4", help="the 6-DOF figure's sea, HS,TP,DIR[,SPREAD]")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
 
@@ -138,6 +171,7 @@ def main(argv=None) -> int:
     single, batch_all, simulate = _throughputs(model, args.batch, args.batch_duration, cores, args.repeats,
                                                args.vessel, args.simulate_duration)
 
+    three_rate, six_rate = _six_dof_pair(cv, args.sea, 60.0, args.repeats)
     result = {
         "vessel": args.vessel, "integrator": mujoco.mjtIntegrator(cv.model.opt.integrator).name, "timestep_s": h,
         "cores": cores, "batch_twins": args.batch, "batch_duration_s": args.batch_duration,
@@ -146,6 +180,8 @@ def main(argv=None) -> int:
         "single_simsec_per_s": single, "batch_simsec_per_s": batch_all, "simulate_simsec_per_s": simulate,
         "native_over_bare": native_us / bare, "python_over_bare": python / bare,
         "batch_speedup": batch_all / single, "simulate_over_single": simulate / single,
+        "six_dof_sea": args.sea, "three_dof_simsec_per_s": three_rate, "six_dof_sea_simsec_per_s": six_rate,
+        "six_dof_over_three_dof": six_rate / three_rate,
     }
     rows = [
         ("bare engine (no callbacks)", f"{bare:8.2f} µs/step", f"{h / (bare * 1e-6):9.0f} sim-s/s", "1.00"),
@@ -158,6 +194,9 @@ def main(argv=None) -> int:
          f"speed-up {batch_all / single:.2f} x one twin"),
         (f"simulate, {args.simulate_duration:g}-s zig-zag to CSV", "", f"{simulate:9.0f} sim-s/s",
          f"{simulate / single:.2f} x one twin"),
+        ("one 3-DOF twin (paired with the next)", "", f"{three_rate:9.0f} sim-s/s", ""),
+        (f"one 6-DOF twin, sea {args.sea}", "", f"{six_rate:9.0f} sim-s/s",
+         f"{six_rate / three_rate:.3f} x the 3-DOF twin"),
     ]
     print(f"{args.vessel}: {result['integrator']}, dt = {h * 1e3:g} ms, {cores} cores")
     print(f"{'':34s} {'per step':>16s} {'throughput':>15s}  ratio to bare")

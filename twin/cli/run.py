@@ -116,6 +116,8 @@ def crosscheck(
     case: str = typer.Option("nominal", help="mass case"),
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
+    six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
+                                                         "meshes, made to float level) against the 3-DOF model"),
 ):
     """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
     from ..engine.mjcf import compile_vessel
@@ -129,7 +131,7 @@ def crosscheck(
     positive(duration, "--duration")
     v = vessel_from(vessel, model, case)
     with progress_bar("crosscheck") as progress:
-        results = run_crosscheck(v, duration, progress=progress)
+        results = run_crosscheck(v, duration, progress=progress, six_dof=six_dof)
     table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
     for col in ("case", "position err (m)", "heading err (deg)", "term effect (m)", "result"):
         table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")

@@ -611,35 +611,26 @@ def sea_load(p, t, qpos, qvel, out):
     if nc > 0 and p[_DRIFT] != 0.0:
         comps = p[o_c:o_w].reshape((nc, 6))
         step = 2.0 * np.pi / nd
-        for dof in range(3):
-            pr = 0.0
-            pi_ = 0.0
-            nr = 0.0
-            ni = 0.0
-            for i in range(nc):
-                rel = np.arctan2(comps[i, 4], comps[i, 3]) - psi
-                u = (rel % (2.0 * np.pi)) / step
-                j = int(u) % nd
-                j1 = (j + 1) % nd
-                f = u - int(u)
-                tab = (1.0 - f) * p[o_d + 3 * j + dof] + f * p[o_d + 3 * j1 + dof]
-                tc = p[o_dc + i] * tab
-                amp = comps[i, 0]
+        acc = np.zeros(12)  # per DOF: Σ⁺ (re, im), Σ⁻ (re, im)
+        for i in range(nc):
+            rel = np.arctan2(comps[i, 4], comps[i, 3]) - psi
+            u = (rel % (2.0 * np.pi)) / step
+            j = int(u) % nd
+            j1 = (j + 1) % nd
+            f = u - int(u)
+            for dof in range(3):
+                tc = p[o_dc + i] * ((1.0 - f) * p[o_d + 3 * j + dof] + f * p[o_d + 3 * j1 + dof])
                 if tc > 0.0:
-                    s = amp * np.sqrt(tc)
-                    pr += s * phase[0, i]
-                    pi_ += s * phase[1, i]
+                    s = comps[i, 0] * np.sqrt(tc)
+                    acc[4 * dof] += s * phase[0, i]
+                    acc[4 * dof + 1] += s * phase[1, i]
                 elif tc < 0.0:
-                    s = amp * np.sqrt(-tc)
-                    nr += s * phase[0, i]
-                    ni += s * phase[1, i]
-            val = pr * pr + pi_ * pi_ - nr * nr - ni * ni
-            if dof == 0:
-                dx_b = val
-            elif dof == 1:
-                dy_b = val
-            else:
-                dn_b = val
+                    s = comps[i, 0] * np.sqrt(-tc)
+                    acc[4 * dof + 2] += s * phase[0, i]
+                    acc[4 * dof + 3] += s * phase[1, i]
+        dx_b = acc[0] ** 2 + acc[1] ** 2 - acc[2] ** 2 - acc[3] ** 2
+        dy_b = acc[4] ** 2 + acc[5] ** 2 - acc[6] ** 2 - acc[7] ** 2
+        dn_b = acc[8] ** 2 + acc[9] ** 2 - acc[10] ** 2 - acc[11] ** 2
         fx += cpsi * dx_b - spsi * dy_b
         fy += spsi * dx_b + cpsi * dy_b
         mz += dn_b
