@@ -199,3 +199,18 @@ def test_mean_drift_against_the_short_wave_asymptote_and_the_barrier_reflection(
     short = [r for r in rows if r["kT"] > 1.5]
     assert all(r["engine"] == pytest.approx(1.0, abs=0.01) for r in short)  # a wall-sided body: ½ρga² per length
     assert rows[2]["engine"] < 0.02  # long waves pass under the box
+
+
+SHARED = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ardupilot"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared absent")
+def test_logs_roll_and_pitch_are_read_beside_the_heading():
+    from twin.formats import read_recording
+
+    tlog = read_recording(SHARED / "ardusub_small.tlog")  # ATTITUDE, rad
+    assert len(tlog.attitude) == len(tlog.heading) > 5000
+    assert 0.01 < np.max(np.abs(tlog.attitude["roll_rad"])) < 0.2  # a BlueROV2 rolls a few degrees
+    df = read_recording(SHARED / "ardusub_small.BIN")  # ATT, degrees → rad
+    assert len(df.attitude) == len(df.heading) and np.max(np.abs(df.attitude["pitch_rad"])) < 0.02
+    assert tlog.summary()["streams"]["attitude"]["samples"] == len(tlog.attitude)

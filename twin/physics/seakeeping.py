@@ -641,3 +641,16 @@ def sea_load(p, t, qpos, qvel, out):
     out[d4] += -spsi * mx + cpsi * my
     out[d5] += R[0, 0] * mx + R[1, 0] * my + R[2, 0] * mz
     return dx_b, dy_b, dn_b
+
+
+def site_ned(eta: np.ndarray, down_m, pitch_rad, roll_rad, site_body_m: np.ndarray):
+    """(north, east, down) m of a body site (FRD, m from the body origin, e.g. a GNSS antenna on a
+    mast) on a 6-DOF hull: p + Rz(ψ) Ry(θ) Rx(φ) r, for arrays of states (η rows, heave, pitch, roll)."""
+    eta = np.asarray(eta, float)
+    psi, th, ph = eta[:, 2], np.asarray(pitch_rad, float), np.asarray(roll_rad, float)
+    x, y, z = (float(c) for c in site_body_m)
+    cp, sp, ct, st, cf, sf = np.cos(psi), np.sin(psi), np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
+    n = cp * ct * x + (-sp * cf + cp * st * sf) * y + (sp * sf + cp * cf * st) * z
+    e = sp * ct * x + (cp * cf + sf * st * sp) * y + (-cp * sf + st * sp * cf) * z
+    d = -st * x + ct * sf * y + ct * cf * z
+    return eta[:, 0] + n, eta[:, 1] + e, np.asarray(down_m, float) + d
