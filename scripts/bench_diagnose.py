@@ -1,4 +1,4 @@
-"""Speed of `twin diagnose` on a 30-minute recording (issue 7's figure: under 60 s on 2 cores).
+"""Speed of `twin diagnose` on a 30-minute recording (target: under 60 s on 2 cores).
 
 A 30-minute synthetic recording (realistic sensors) of the Yellowfish with a current
 and a thrust lag concealed in it is written as .mcap, then diagnosed from the file.

@@ -1,5 +1,5 @@
 """Speed of `twin identify` on the ten shared BlueBoat runs, its choices judged on left-out runs
-included (issue 15's figure: under 60 s on 2 cores).
+included (target: under 60 s on 2 cores).
 
     python scripts/bench_identify.py [--json docs/bench_identify.json] [--repeats 1]
 

@@ -1,5 +1,5 @@
 """Per-log compass calibration where a log's straight legs point one way: read with the drifts other
-logs fitted (as before the fourteenth session) against the same with the log's own drift at rest
+logs fitted alone against the same with the log's own drift at rest
 as one more reading (twin.fit.calibrate.rest_drift), on the multi-log world recordings of
 scripts/world_sim.py (code independent of the package: null outings, compass offsets per log,
 each outing's own wind, a shared current with offsets per log).

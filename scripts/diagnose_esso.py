@@ -1,4 +1,4 @@
-"""Issue 16 item 4: the concealed wind on the Esso Osaka's tests, found by `twin diagnose` without
+"""The concealed wind on the Esso Osaka's tests, found by `twin diagnose` without
 the anemometer, then checked against it.
 
     python scripts/diagnose_esso.py [--only NAME,...] [--out docs] [--hulls /tmp/esso_ident]
@@ -22,7 +22,7 @@ estimate compared with each test's anemometer mean and the day's (--by-day only 
 With --hulls DIR, each test is diagnosed instead from the twin `scripts/identify_esso.py` identified
 on the OTHER family of tests with their measured wind as a known input (DIR/esso_turn_measured.
 vessel.json for a random test, esso_random_measured for a turning one): the hull calibrated on runs
-whose wind was measured, as the issue's `--wind-measured` is meant for, then a new test diagnosed
+whose wind was measured, as `--wind-measured` is meant for, then a new test diagnosed
 without its anemometer. No test's own data, wind or otherwise, reaches the twin it is diagnosed
 from. The report is written to esso_wind_diagnosis_calibrated.{md,json} beside the untuned one.
 """
@@ -54,8 +54,8 @@ DATA = ROOT.parent / "shared" / "data" / "esso"
 DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 HORIZON = {"free_run_30s": 30.0}
 STRIDE_S = 10.0
-WINDY_M_S, CALM_M_S = 1.5, 0.8  # the issue's thresholds on the mean true wind
-DIRECTION_DEG, SPEED_SHARE = 30.0, 0.4  # the issue's tolerances
+WINDY_M_S, CALM_M_S = 1.5, 0.8  # the study's thresholds on the mean true wind
+DIRECTION_DEG, SPEED_SHARE = 30.0, 0.4  # the study's tolerances
 
 
 def anemometer(*preps) -> dict:
@@ -227,7 +227,7 @@ def day_summary(days: list[dict]) -> dict:
 
 def day_markdown(days: list[dict], s: dict) -> str:
     lines = ["", "## A day's tests diagnosed together (what a user with several logs would run)", "",
-             "Not what the issue's target asks (each test alone): `twin diagnose` on all tests of one day at once. "
+             "Not what the study's target asks (each test alone): `twin diagnose` on all tests of one day at once. "
              "It is offered one constant wind for the day (`wind`) and a wind of each test's own (`wind_per_log`: "
              "two numbers per test, fitted together, judged on the day's pooled held-out blocks by the same rule "
              "as any effect); their estimates are compared with each test's anemometer mean (the same tolerances) "
@@ -277,7 +277,7 @@ def day_markdown(days: list[dict], s: dict) -> str:
 
 
 def summary(rows: list[dict]) -> dict:
-    # windy or calm by the mean wind speed (the issue's "mean true wind"); the estimate is compared with
+    # windy or calm by the mean wind speed (the "mean true wind"); the estimate is compared with
     # the vector mean, the one constant wind a test's varying wind averages to
     windy = [r for r in rows if r["anemometer"]["scalar_mean_m_s"] >= WINDY_M_S]
     calm = [r for r in rows if r["anemometer"]["scalar_mean_m_s"] < CALM_M_S]
@@ -301,7 +301,7 @@ def markdown(rows: list[dict], s: dict, hulls: str | None = None) -> str:
               f"{hulls}: a random test from the twin identified on the turning tests, a turning test from the one "
               "identified on the random tests, each with those tests' measured wind as a known input, so that no "
               "test's own data reaches the twin it is diagnosed from")
-    lines = ["# The concealed wind on the Esso Osaka's tests (issue 16 item 4)" + (
+    lines = ["# The concealed wind on the Esso Osaka's tests" + (
              ": from a hull calibrated on other tests" if hulls else ""), "",
              f"Written by `python scripts/diagnose_esso.py{' --hulls DIR' if hulls else ''}`. Each test diagnosed "
              f"alone by `twin diagnose` from {'the ' if not hulls else ''}{source}; the diagnosis reads no wind "
@@ -311,7 +311,7 @@ def markdown(rows: list[dict], s: dict, hulls: str | None = None) -> str:
              f"wind named on ≥ 70 % of the tests whose mean true wind is ≥ {WINDY_M_S} m/s, its direction within "
              f"{DIRECTION_DEG:g}° and speed within {100 * SPEED_SHARE:g} %; nothing wind-like named below "
              f"{CALM_M_S} m/s. The candidates a diagnosis offers this ship: current, wind, and the sensor effects "
-             "(the PWM thruster effects and the seed 004 damping scales do not apply to it).", "",
+             "(the PWM thruster effects and the [Morel-2024] damping scales do not apply to it).", "",
              f"- tests: {s['tests']}; with mean true wind ≥ {WINDY_M_S} m/s: {s['windy']}; below {CALM_M_S} m/s: "
              f"{s['calm']}" + (" (none is that calm, so the calm criterion is untested)" if not s["calm"] else
                                 f", wind named on {s['calm_with_wind_named']} of them"),

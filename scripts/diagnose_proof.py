@@ -105,7 +105,7 @@ CASES = [
 # before every outing): (case name, bias of each log in deg, manoeuvres). Each log has half the
 # segments of a single-log case.
 MULTI_LOG = [("heading_bias per log", [6.0, -4.0, 2.0], MIXED)]
-MULTI_LOG_SEED_OFFSET = 47  # the seeds it has always had (CASES was 47 long): a case added to CASES moves none
+MULTI_LOG_SEED_OFFSET = 47  # random seeds of the multi-log cases start here, so that a case added to CASES moves none
 
 
 def _truth_values(effect) -> dict[str, float]:
@@ -194,11 +194,10 @@ SAME = {"thruster_asymmetry": {"thruster_asymmetry", "thruster_gain_left", "thru
         # a drag growing faster than u²: the quadratic scales, or the surge resistance curve (Xu and Xuu
         # together, the joint change the world's truth file gives beside the quadratic one alone)
         "quadratic_damping": {"quadratic_damping", "surge_resistance"},
-        # a slew limit: the ramp since the library has it; before, the first-order lag was its equivalent,
-        # and is still counted as naming it (docs/diagnose/fresh_seeds_1112 says which of the two was named)
+        # a slew limit: the ramp, or the first-order lag, its nearest equivalent, also counted as naming it
         "thrust_ramp": {"thrust_ramp", "thruster_lag"},
         # a pack that sags: the thrust decaying in time, or following the logged battery voltage (the
-        # world's own form, thrust ∝ (V/V_ref)², since the library has it)
+        # world's own form, thrust ∝ (V/V_ref)²)
         "thrust_decay": {"thrust_decay", "supply_voltage"},
         # each log's own wind, and the load's shape the world's tables give it (as wind_shape is for one wind)
         "wind_per_log": {"wind_per_log", "wind_load_shape"}}

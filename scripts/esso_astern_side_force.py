@@ -1,4 +1,4 @@
-"""Issue 16 items 3-4: what the Esso Osaka's random tests said was missing when the propeller runs
+"""What the Esso Osaka's random tests said was missing when the propeller runs
 astern, the physics put in, and the fit on tests it was not taken from.
 
     python scripts/esso_astern_side_force.py [--out docs]

@@ -1,4 +1,4 @@
-"""Issue 16 item 3: what the Esso twin's yaw lacks on the random tests, checked one suspect at a time.
+"""What the Esso twin's yaw lacks on the random tests, checked one suspect at a time.
 
     python scripts/esso_yaw_checks.py [--out docs]
 

@@ -1,4 +1,4 @@
-"""Issue 16 item 3: how much of the Esso Osaka's R² r the yaw-rate measurement itself takes away.
+"""How much of the Esso Osaka's R² r the yaw-rate measurement itself takes away.
 
     python scripts/esso_yaw_rate_window.py [--out docs]
 

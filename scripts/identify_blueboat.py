@@ -1,4 +1,4 @@
-"""Issue 15 on real data: the BlueBoat identified on seven runs, diagnosed, amended, identified
+"""The BlueBoat identified on seven runs, diagnosed, amended, identified
 again, and judged on three runs it never saw; and what to expect on a new run.
 
     python scripts/identify_blueboat.py [--out docs/identification]
@@ -7,7 +7,7 @@ again, and judged on three runs it never saw; and what to expect on a new run.
    time), from the first-principles prior (model/blueboat.json).
 2. `twin diagnose` of that twin on the same seven runs (evidence by held-out blocks).
 3. The named effects put into the twin, and `twin identify` again from it.
-4. Every twin, and seed 004's grey-boxes (one-step models simulated freely), judged on runs 225,
+4. Every twin, and the grey-boxes of [Morel-2024] (one-step models simulated freely), judged on runs 225,
    226, 228: 10-s free runs from measured states every 2 s, with and without each log's compass
    calibration (estimated from the log's own GNSS track, not from the twin); where the final
    twin's held-out misfit lies, by what the inputs do (idle, ahead, turning, spin, astern), beside
@@ -162,9 +162,9 @@ def main() -> int:
         held_scores[name + " (no calibration)"] = scores(model, held, model, calibrated=False)
     try:
         static = fit_static(prepared(train, prior))
-        held_scores["seed 004 static grey-box"] = scores(static, held, prior, calibrated=True)
+        held_scores["static grey-box [Morel-2024]"] = scores(static, held, prior, calibrated=True)
     except Exception as exc:  # the grey-box refuses data it cannot fit: say so in the report
-        held_scores["seed 004 static grey-box"] = {"error": str(exc)}
+        held_scores["static grey-box [Morel-2024]"] = {"error": str(exc)}
 
     # where the final twin still misses on the held-out runs: the diagnosis's model-form statements
     t0 = time.time()

@@ -1,4 +1,4 @@
-"""Issue 16 item 4: the Esso Osaka model ship identified by `twin identify` and judged on tests it
+"""The Esso Osaka model ship identified by `twin identify` and judged on tests it
 did not see.
 
     python scripts/identify_esso.py [--parts turn:none,turn:measured,random:none,random:measured]
@@ -184,7 +184,7 @@ def report(parts: list[dict]) -> str:
     """The markdown report of every part there is."""
     lines = ["# The Esso Osaka model identified, judged on tests it did not see",
              "",
-             "Written by `python scripts/identify_esso.py` (issue 16 item 4). `twin identify` "
+             "Written by `python scripts/identify_esso.py`. `twin identify` "
              "(twin/ident/identify.py) on one family of free-running tests, judged on the other: 30-s free runs "
              "from measured states every 10 s, R² of u / v / r (twin/fit/evaluate.py). Targets: u ≥ 0.9, "
              "v ≥ 0.6, r ≥ 0.9. Prior: the untuned KVLCC2-based twin (docs/esso.md). The duplicate "
@@ -266,8 +266,8 @@ def reading(parts: list[dict]) -> list[str]:
             "standard's domain (docs/esso.md, Known limits). The fitted groups are the standard's own coefficients; "
             "the twin's extension of the standard to low speed and astern (U_nd floor, astern propeller, rudder "
             "inflow from astern) is not among them, so a shortfall there cannot be fitted away by these groups.",
-            "* Published figures on this dataset: Wakita et al. (2022) identify a recurrent neural network on "
-            "these free-running tests (low-speed berthing manoeuvres) and Miyauchi et al. (2022) explore MMG "
+            "* Published figures on this dataset: [Wakita-2022] identify a recurrent neural network on "
+            "these free-running tests (low-speed berthing manoeuvres) and [Miyauchi-2022] explore MMG "
             "parameters with CMA-ES for docking; a brief search found no per-DOF R² of 30-s free runs in either "
             "to set beside these numbers, so none is compared here.",
             ""]

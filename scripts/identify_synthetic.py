@@ -1,4 +1,4 @@
-"""Identification recovery on synthetic data with a known truth (issue 6's targets).
+"""Identification recovery on synthetic data with a known truth.
 
 A truth Yellowfish differs from the prior twin by damping, added mass, thrust gain and
 a thrust lag; a 20-segment dataset (seed 1) is identified with `twin identify`'s

@@ -1,4 +1,4 @@
-"""Regenerate docs/iso/: IS-O in the twin (seed 003 Table I, Table II layout) for yaw and surge,
+"""Regenerate docs/iso/: IS-O in the twin ([Relay-ISO Table I], in the layout of its Table II) for yaw and surge,
 the I-PD controller of eqs. 9-11 tuned from it, and its heading steps and point move against the
 model function. A propeller-and-rudder ship (--vessel esso_osaka) is identified in yaw with the
 rudder as the relay at several propeller speeds and steered by the rudder; its files are
@@ -64,10 +64,10 @@ def iso_section(r: iso.IsoSweep) -> str:
     s, u = r.spreads(), iso.UNITS[r.dof]
     return (f"## IS-O, {r.dof}\n\n{iso.table_markdown(r)}\n\n"
             f"α = {s['alpha'].mean:.4g} {u['alpha']} against the twin's uncoupled {r.twin.alpha:.4g} "
-            f"({r.alpha_error_percent():+.1f} %), CV {s['alpha'].cv_percent:.1f} % (seed 003: ~10 %). "
+            f"({r.alpha_error_percent():+.1f} %), CV {s['alpha'].cv_percent:.1f} % ([Relay-ISO]: ~10 %). "
             f"Drag CV {s['beta_lin'].cv_percent:.1f} % (constant-drag model) and {s['beta_quad'].cv_percent:.1f} % "
-            f"(linear-drag model, seed 003: 12.5 % for its better model): {r.better_drag_model()} fits better "
-            f"(seed 003 §V-A). The twin's drag is d₁ν + d₂|ν|ν with d₁ = {r.twin.drag_lin:g}, d₂ = "
+            f"(linear-drag model, [Relay-ISO]: 12.5 % for its better model): {r.better_drag_model()} fits better "
+            f"[Relay-ISO §V-A]. The twin's drag is d₁ν + d₂|ν|ν with d₁ = {r.twin.drag_lin:g}, d₂ = "
             f"{r.twin.drag_quad:g}, so neither one-term model is exact: each β is close to the twin's "
             "describing-function equivalent at the experiment's speed amplitude ν_m (last two columns), "
             "not to either coefficient alone.\n\n"
@@ -86,15 +86,15 @@ def dp_section(runs: dict[str, ipd.DpRun], tune: dict) -> str:
               f"IS-O model a 45° step needs {y['model_peak_effort']['45deg']:.1f} N·m of the "
               f"±{y['relay_limit']:.1f} N·m the thrusters give, "
               f"a 90° step {y['model_peak_effort']['90deg']:.1f} N·m, "
-              f"so it saturates (seed 003 Fig. 9). The twin's yaw is fast (α/β = {y['alpha'] / y['beta']:.2f} s), "
-              "so the seed's 0.2 rad/s "
+              f"so it saturates [Relay-ISO Fig. 9]. The twin's yaw is fast (α/β = {y['alpha'] / y['beta']:.2f} s), "
+              "so the paper's 0.2 rad/s "
               "would be needlessly slow; K_D < 0 means the loop cancels part of the hull's own yaw damping, as eq. 11 "
               f"gives whenever ω_n < β/(3α). Surge ω_n = {s['omega_n_rad_s']:g} rad/s: a "
               f"{math.hypot(*TARGET_NE_M):.1f} m move needs at most {list(s['model_peak_effort'].values())[0]:.1f} N "
               f"of ±{s['relay_limit']:.1f} N and peaks near 1 m/s; the heading loop is "
               f"{y['omega_n_rad_s'] / s['omega_n_rad_s']:.1f}× faster.", "",
               "Anti-windup: back-calculation on the delivered (saturated) moment/force, T_t = 1/(3ω_n). "
-              "Allocation: inverse of seed 000 eq. 26 with yaw priority, clipped to each thruster's bounds. "
+              "Allocation: inverse of [Yellowfish-TR eq. 26] with yaw priority, clipped to each thruster's bounds. "
               "The controller uses the twin's η and ν as they are (no Kalman filter: the twin is noise-free).", "",
               "Point move: the vessel has no sway thruster, so it turns to the bearing of the target (a heading step) "
               "and, once the heading model function has settled (8/ω_n,ψ), the surge I-PD drives the along-track "
@@ -110,7 +110,7 @@ def dp_section(runs: dict[str, ipd.DpRun], tune: dict) -> str:
                          f"{lp['peak_delivered']:.2f} |")
     p = runs["point"].summary()
     lines += ["", f"Point move: final distance to the target {p['final_distance_to_target_m']:.3f} m, largest "
-              f"cross-track offset {p['max_cross_track_m']:.3f} m. Seed 003 reports an IAE ratio of about 1.02 "
+              f"cross-track offset {p['max_cross_track_m']:.3f} m. [Relay-ISO] reports an IAE ratio of about 1.02 "
               "for its 45° step.", ""]
     lines += [f"![{dp.name}](dp_{key}.png)" for key, dp in runs.items()]
     return "\n".join(lines) + "\n"
@@ -120,7 +120,7 @@ SHIP_PREFIX = "esso_"
 
 
 def ship_main(cv, out: Path, vessel_name: str) -> None:
-    """IS-O with the rudder relay (seed 003 Table II for its ship model), the heading I-PD steering the rudder."""
+    """IS-O with the rudder relay ([Relay-ISO Table II] for its ship model), the heading I-PD steering the rudder."""
     sweep = iso.ship_sweep(cv)
     stem = out / f"{SHIP_PREFIX}iso_yaw"
     write_text_atomic(stem.with_suffix(".json"), json.dumps(sweep.to_dict(), indent=2) + "\n")
@@ -151,30 +151,30 @@ def ship_main(cv, out: Path, vessel_name: str) -> None:
                        "better_drag_model": sweep.better_drag_model()}}
     write_text_atomic(out / f"{SHIP_PREFIX}dp.json", json.dumps(summary, indent=2) + "\n")
     by_rps = {n: iso.linear_model(sweep, n) for n in sorted({r.rps for r in sweep.rows})}
-    lines = [f"# IS-O and I-PD heading control of the {cv.vessel.name} twin with its rudder (seed 003)", "",
+    lines = [f"# IS-O and I-PD heading control of the {cv.vessel.name} twin with its rudder [Relay-ISO]", "",
              f"Regenerate with `python scripts/iso_dp.py --vessel {vessel_name}` (or `twin iso --vessel {vessel_name} "
-             f"--dof yaw`, `twin dp --vessel {vessel_name}`). Seed 003 §V-A identifies its tanker model's yaw with the "
+             f"--dof yaw`, `twin dp --vessel {vessel_name}`). [Relay-ISO §V-A] identifies its tanker model's yaw with the "
              "rudder (Table II: propeller at 60/75/90 %, rudder 10-45°); here the propeller turns at "
              f"{', '.join(f'{n:g}' for n in by_rps)} rps (the Esso turning tests' speeds), the ship starts from its "
              "straight-running speed u₀ in calm water, and the relay puts the rudder at ±δ_c whenever the heading "
              f"error passes ±{math.degrees(iso.SHIP_XA_RAD):g}° (sampled at {iso.SHIP_CONTROL_DT_S * 1e3:.0f} ms, the "
              "tests' 10 Hz; experiments of "
              f"{iso.SHIP_DURATION_S:g} s, the first third left out). Table I's C is the rudder's yaw moment at ±δ_c "
-             "in straight running (the seed's allocation N = L₁k_Fδτ₁, here the MMG rudder force), so α and β are "
-             "in kg·m² and N·m·s (the seed divides them by its unknown k_F).", "",
+             "in straight running (the paper's allocation N = L₁k_Fδτ₁, here the MMG rudder force), so α and β are "
+             "in kg·m² and N·m·s (the paper divides them by its unknown k_F).", "",
              f"Surge: `twin iso --dof surge` → `error: {summary['surge']}`.  ",
              f"Sway: `error: {summary['sway']}`.", "",
              "## IS-O, yaw, rudder relay", "", iso.table_markdown(sweep), "",
-             f"α = {s['alpha'].mean:.4g} kg·m² (CV {s['alpha'].cv_percent:.1f} %, seed 003: 10 %) against the twin's "
+             f"α = {s['alpha'].mean:.4g} kg·m² (CV {s['alpha'].cv_percent:.1f} %, [Relay-ISO]: 10 %) against the twin's "
              f"uncoupled M₃₃ = {sweep.twin.alpha:.4g} ({sweep.alpha_error_percent():+.1f} %); β_ν CV "
              f"{s['beta_lin'].cv_percent:.1f} %, β_νν CV {s['beta_quad'].cv_percent:.1f} %: "
-             f"{sweep.better_drag_model()} fits better (seed 003 found the linear-drag model better for its model; "
+             f"{sweep.better_drag_model()} fits better ([Relay-ISO] found the linear-drag model better for its model; "
              "the twin's hull yaw damping is linear in r at a given speed, N'_r r' U² = N'_r r L U). Per propeller "
              "speed: " + "; ".join(f"{n:g} rps: α {a:.4g}, β_ν {b:.4g}" for n, (a, b) in by_rps.items()) + ". "
              "α exceeds M₃₃ and β_ν is below the twin's −∂N/∂r (the last row, at the highest speed) because a ship "
              "cannot yaw without swaying: the rudder's side force and the hull's N'_v (which holds the Munk "
              "moment) make the yaw the relay sees slower and less damped than the uncoupled yaw equation. These "
-             "are the effective values the seed's uncoupled model (eq. 6) identifies, and what its I-PD is tuned "
+             "are the effective values the paper's uncoupled model (eq. 6) identifies, and what its I-PD is tuned "
              "with.", "", "![IS-O yaw, rudder](esso_iso_yaw.png)", "",
              "## I-PD heading control with the rudder (eqs. 9-11)", "",
              "| α | β (constant drag) | n [rps] | u₀ [m/s] | ω_n [rad/s] | K_I | K_P | K_D |",
@@ -184,7 +184,7 @@ def ship_main(cv, out: Path, vessel_name: str) -> None:
              f"The model function G_m = 1/(s/ω_n + 1)³ with ω_n = {yaw.model.omega_n_rad_s:g} rad/s: on the IS-O "
              f"model a 45° step needs {tune['model_peak_effort']['45deg']:.2f} N·m of the {limit:.2f} N·m the rudder "
              f"gives at 35° (A = {allocation.gain_nm:.3f} N·m in N_R = A sin δ cos δ at u₀), a 90° step "
-             f"{tune['model_peak_effort']['90deg']:.2f} N·m, so it saturates (seed 003 Fig. 9). Seed 003 used "
+             f"{tune['model_peak_effort']['90deg']:.2f} N·m, so it saturates [Relay-ISO Fig. 9]. [Relay-ISO] used "
              "0.2 rad/s for its 1.2-m tanker; on this ship that would ask more than the rudder's moment for 45°. "
              "The controller allocates the moment to the rudder by inverting N_R at the operating point, the "
              "propeller stays at n; back-calculation anti-windup on the moment of the clipped rudder angle, "
@@ -197,7 +197,7 @@ def ship_main(cv, out: Path, vessel_name: str) -> None:
         lines.append(f"| {dp.name} | {lp['iae_ratio']:.3f} | {lp['max_deviation_from_model']:.3g} deg | "
                      f"{lp['overshoot']:.3g} deg | {lp['saturated_percent_of_time']:.1f} | "
                      f"{lp['peak_command']:.2f} / {lp['peak_delivered']:.2f} |")
-    lines += ["", "Seed 003 reports an IAE ratio of about 1.02 for its 45° step."]
+    lines += ["", "[Relay-ISO] reports an IAE ratio of about 1.02 for its 45° step."]
     with_aw, without = (runs[k].summary()["loops"][0] for k in ("heading90", "heading90_no_antiwindup"))
     if without["iae_ratio"] < with_aw["iae_ratio"]:
         lines += ["", f"At 90° the run without anti-windup has the lower IAE ({without['iae_ratio']:.3f} against "
@@ -205,7 +205,7 @@ def ship_main(cv, out: Path, vessel_name: str) -> None:
                   f"({without['saturated_percent_of_time']:.0f} % of the time saturated against "
                   f"{with_aw['saturated_percent_of_time']:.0f} %), which this slow, well-damped yaw turns into a "
                   f"faster approach with only {without['overshoot']:.2f}° of overshoot; the back-calculation's "
-                  "T_t = 1/(3ω_n) unwinds more than this loop needs. Seed 003 shows its anti-windup on a 90° step "
+                  "T_t = 1/(3ω_n) unwinds more than this loop needs. [Relay-ISO] shows its anti-windup on a 90° step "
                   "(Fig. 9) without a run to compare."]
     lines.append("")
     lines += [f"![{dp.name}]({SHIP_PREFIX}dp_{key}.png)" for key, dp in runs.items()]
@@ -249,7 +249,7 @@ def main() -> None:
                              "cv_percent": {k: v.cv_percent for k, v in r.spreads().items()},
                              "better_drag_model": r.better_drag_model()} for dof, r in sweeps.items()}}
     write_text_atomic(args.out / "dp.json", json.dumps(summary, indent=2) + "\n")
-    md = [f"# IS-O identification and I-PD dynamic positioning of the {cv.vessel.name} twin (seed 003)", "",
+    md = [f"# IS-O identification and I-PD dynamic positioning of the {cv.vessel.name} twin [Relay-ISO]", "",
           f"Regenerate with `python scripts/iso_dp.py --vessel {args.vessel}`. Relay experiments at "
           f"{iso.CONTROL_DT_S * 1e3:.0f} ms, hysteresis {math.degrees(iso.DEFAULT_XA['yaw']):g}° (yaw) and "
           f"{iso.DEFAULT_XA['surge']:g} m (surge); Table I is applied with the switching level the sampled relay "

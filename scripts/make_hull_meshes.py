@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Generate the hull meshes in twin/assets/ reproducibly (trimesh).
 
-Yellowfish: each fibreglass hull is 128 × 25.5 × 30 cm (seed 000 §II-A).
+Yellowfish: each fibreglass hull is 128 × 25.5 × 30 cm [Yellowfish-TR §II-A].
 BlueBoat: 120 × 23 × 25 cm per hull, an approximation of Blue Robotics'
 published 1.2 m length (the hull lines are not published). The shape is a
 simple catamaran demihull: superelliptic sections (exponent 4: flat deck, full
@@ -11,7 +11,7 @@ the mesh origin is the bounding-box centre in x and y and the design
 waterline in z (Yellowfish: deck at z = −0.25 m, keel at z = +0.05 m).
 
 Esso Osaka 3 m model (a single hull, full form) from its principal particulars: L_pp 3.0 m,
-B 0.489 m, draft d 0.201 m, block coefficient C_b 0.830 (NAOE-5thLab/FRT-DS-ESSO). Sections are
+B 0.489 m, draft d 0.201 m, block coefficient C_b 0.830 [ESSO-FRT]. Sections are
 superellipses (exponent 10: flat bottom and sides, a small bilge radius; midship coefficient
 0.986) about the waterline, with a flat keel at the draft and a freeboard of 0.10 m (visual only:
 the depth is not published); the waterline has a parallel middle body, an elliptic bow and a

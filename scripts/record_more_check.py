@@ -1,4 +1,4 @@
-"""Issue 15 item 7: does "record more" settle a hint? Checked on truths the library did not write.
+"""Does "record more" settle a hint? Checked on truths the library did not write.
 
     python scripts/record_more_check.py [--out docs/diagnose] [--cases CASE:SEED:EFFECT,... --name NAME]
 

@@ -201,7 +201,7 @@ class Effects:
     faults: dict | None = None                # outlier_share, outlier_m, dropouts, spike_share, spike_deg
 
 
-# Blendermann-like wind coefficient tables at γ = 0, 20, ..., 180 deg (apparent wind from the bow = 0,
+# Blendermann-like [Blendermann-1994] wind coefficient tables at γ = 0, 20, ..., 180 deg (apparent wind from the bow = 0,
 # symmetric port/starboard); a shape unlike cos γ / sin γ / sin 2γ: a flat head-wind plateau, drag
 # peaking on the quarter, side force broad and skewed aft, a yaw moment changing sign abaft the beam.
 WIND_GAMMA_STEP_DEG = 20.0
@@ -1149,8 +1149,8 @@ def b_slew(rng, v):
         "thruster_rate_limit", "dT/dt = clip((T200(pwm) − T)/dt, ±R): thrust slews at a fixed rate R (ESC ramp), "
         "not a first-order lag", {"rate_n_per_s": rate}, "thrust_ramp",
         {"ramp_s": None, "equivalent_lag_s": None}, ["thruster_lag", "input_delay"],
-        notes="ramp_s: the map's full forward thrust over R (the library's thrust_ramp, since 2026-11-26; "
-              "before it the library had only the first-order lag, which the proof still accepts); "
+        notes="ramp_s: the map's full forward thrust over R (the library's thrust_ramp; "
+              "the proof also accepts the first-order lag as naming it); "
               "equivalent_lag_s: the first-order lag whose response best matches the slewed thrust")]
 
 
@@ -1220,8 +1220,8 @@ def b_astern(rng, v):
         "drawn to go ahead resists going astern more (flat transom, spray rails); ahead unchanged",
         {"factor": k}, "astern_resistance", {"factor": k, "excess": r3(k - 1.0)},
         ["reverse_thrust (astern thrust weaker: the same steady speed astern, not the same coast-down)"],
-        notes="the library's astern_resistance (since 2026-11-27) scales the whole surge curve astern by 1 + excess, "
-              "as this world does; before it the library had one curve for both directions")]
+        notes="the library's astern_resistance scales the whole surge curve astern by 1 + excess, "
+              "as this world does")]
 
 
 def b_sea(rng, v):
@@ -1313,7 +1313,7 @@ def b_motor_field(rng, v):
         "compass_motor", {"b_deg": r3(b), "c_deg": r3(c)},
         ["heading_bias (the error's mean where the boat runs under power)",
          "compass_deviation (its heading-dependent part at the power mostly drawn)"],
-        notes="the library's form (since the nineteenth session) follows the throttle linearly, ArduPilot's "
+        notes="the library's form follows the throttle linearly, ArduPilot's "
               "COMPASS_MOT_TYPE 1; this world's follows the electrical power, about the cube of the throttle for a "
               "T200, so at part throttle the library's form at these full-throttle values overstates the error and "
               "a fitted one comes out smaller. A hull, thruster or wind effect named would be invented")]
@@ -1354,7 +1354,7 @@ def b_heading_lag(rng, v):
         {"tau_s": tau}, "heading_latency", {"heading_latency_s": tau},
         ["gnss_latency (negative, about −τ: the track early against the heading)",
          "clock_offset (negative, about −τ: the PWM early against the heading)"],
-        notes="the library's heading_latency (since 2026-11-28) is a pure delay: a first-order filter's delay at "
+        notes="the library's heading_latency is a pure delay: a first-order filter's delay at "
               "low frequency is τ, and it also damps the heading's faster wiggles, which a delay does not; a "
               "thruster lag or any hull effect named would be invented")]
 

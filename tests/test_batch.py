@@ -139,7 +139,7 @@ def test_models_without_params_are_rejected(compiled):
 
 
 def test_simulate_many_keeps_the_runs_that_did_not_diverge(compiled):
-    """Issue 5: a run that blows up is reported by index and time; the others come back whole.
+    """A run that blows up is reported by index and time; the others come back whole.
     Quadratic damping this stiff is stable at rest and explodes at 1 m/s (explicit damping
     force, 2 ms steps)."""
     yf = compiled["yellowfish"]

@@ -50,7 +50,7 @@ def test_params_json():
     np.testing.assert_allclose(M, M.T, atol=1e-9)
     assert np.all(np.linalg.eigvalsh(M) > 0)
     np.testing.assert_allclose(np.array(data["M_RB"]) + np.array(data["M_A"]), M)
-    # seed 004 eq. 7's names, plus the speed-proportional sway and yaw terms and the astern excess (physics/damping.py)
+    # [Morel-2024 eq. 7]'s names, plus the speed-proportional sway and yaw terms and the astern excess (physics/damping.py)
     assert set(data["damping"]) == {"Xu", "Xuu", "Yv", "Yvv", "Yrv", "Yr", "Yvr", "Yrr", "Nv", "Nvv", "Nrv", "Nr",
                                     "Nvr", "Nrr", "Yuv", "Nur", "Yur", "Nuv", "astern_excess"}
     assert data["gnss_lever_arm_OP_m"] == pytest.approx([0.275, -0.2625])

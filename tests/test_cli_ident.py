@@ -35,7 +35,7 @@ def test_identify_then_evaluate(dataset):
     done = twin("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", model, "--repeats", "2",
                 "--params", "Xuu,thrust_gain", "--window", "5", "--json", dataset / "report.json", "--greybox")
     assert done.returncode == 0, done.stderr
-    assert "seed 004 grey-box" in done.stdout and "identification by simulation" in done.stdout
+    assert "[Morel-2024] grey-box" in done.stdout and "identification by simulation" in done.stdout
     assert "judged on left-out runs" in done.stdout and "on a new run expect" in done.stdout
     assert "fitted on: u " in done.stdout and "the twin extrapolates" in done.stdout
     v = vessel_mod.load(str(model))

@@ -93,7 +93,7 @@ def test_model_smoother_beats_savitzky_golay_on_noisy_gnss():
 
 
 def test_the_twins_own_csv_is_a_recording(sim_tlog, tmp_path):
-    """`twin simulate --out z.csv` (t,x,y,psi,u,v,r,...) used to be refused by info/view/convert: "no GNSS"."""
+    """`twin simulate --out z.csv` (t,x,y,psi,u,v,r,...) is read by info/view/convert, though it has no GNSS."""
     p = twin("info", sim_tlog / "z.csv")
     assert p.returncode == 0, p.stderr
     assert "gnss         401 samples at 10.00 Hz" in p.stdout and "body origin" in p.stdout
@@ -119,8 +119,8 @@ def _no_gnss_recording():
 
 @pytest.mark.parametrize("suffix", [".csv", ".mcap", ".tlog", ".bin"])
 def test_convert_a_log_without_gnss(tmp_path, suffix):
-    """Issue 4: convert needed GNSS and heading, so 3 of the 5 shared ArduPilot logs could not be
-    converted; a log without GNSS is now written with its streams at their own times."""
+    """Convert must not need GNSS and heading, or 3 of the 5 shared ArduPilot logs could not be
+    converted; a log without GNSS is written with its streams at their own times."""
     from twin.formats import write_recording
 
     rec = _no_gnss_recording()

@@ -18,4 +18,4 @@ def test_crosscheck_every_term(name):
     if name == "yellowfish":
         assert results["wind"].effect_m > 100 * POSITION_TOL_M
     else:
-        assert results["wind"].effect_m == 0.0  # seed 002 gives CyberShip I no wind load
+        assert results["wind"].effect_m == 0.0  # [Bertoni-2024] gives CyberShip I no wind load

@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.parametrize("case,mass,xg_mm", [("min", 23.73, -18.7), ("nominal", 24.39, -19.6), ("max", 25.73, -20.5)])
-def test_yellowfish_mass_and_cg_match_seed000_tables_iii_iv(case, mass, xg_mm):
+def test_yellowfish_mass_and_cg_match_yellowfish_report_tables_iii_iv(case, mass, xg_mm):
     g = compile_vessel(vessel_mod.load("yellowfish", case)).geometry
     assert g.rigid.mass_kg == pytest.approx(mass, abs=0.005)
     assert g.rigid.xg_m * 1e3 == pytest.approx(xg_mm, abs=0.15)
@@ -31,7 +31,7 @@ def test_yellowfish_sites(yellowfish):
     g = yellowfish.geometry
     assert g.thruster_pos_m[1, 1] - g.thruster_pos_m[0, 1] == pytest.approx(0.68)
     np.testing.assert_allclose(g.imu_pos_m, 0.0)
-    # seed 000 eq. 29: OP = (0.275, -0.2625) m from the antenna O to CO
+    # [Yellowfish-TR eq. 29]: OP = (0.275, -0.2625) m from the antenna O to CO
     np.testing.assert_allclose(-g.gnss_pos_m[:2], [0.275, -0.2625])
 
 
@@ -50,7 +50,7 @@ def test_hull_meshes_are_watertight_and_reproducible():
         np.testing.assert_allclose(mesh.extents, [1.28, 0.255, 0.30], atol=1e-3)
 
 
-def test_cybership_total_inertia_is_seed002(cybership):
+def test_cybership_total_inertia_is_cybership_bertoni(cybership):
     np.testing.assert_allclose(cybership.hydro().M, [[26.4272, 0, 0], [0, 51.3671, -0.7372], [0, -0.7372, 1.2645]],
                                atol=1e-9)
 
@@ -82,7 +82,7 @@ def test_engine_acceleration_equals_equation_of_motion_instantly(name):
 @pytest.mark.parametrize("name", ["cybership1", "yellowfish", "blueboat"])
 def test_engine_conserves_kinetic_energy_without_damping_and_inputs(name):
     """C(ν) is skew-symmetric, so with damping, thrust and environment removed ½νᵀMν stays put:
-    CyberShip I (M23 from seed 002, sway added mass above the rigid mass), the Yellowfish
+    CyberShip I (M23 from [Bertoni-2024], sway added mass above the rigid mass), the Yellowfish
     (M23 = m·xg, CG 19.6 mm aft of CO) and the BlueBoat (CG at CO)."""
     cv = compile_vessel(vessel_mod.load(name))
     terms = Terms().only("added_mass", "added_mass_coriolis")

@@ -1,6 +1,6 @@
 """The Esso Osaka ship in the engine: native against Python callback, the crosscheck against the analytic
 model for every MMG term, the time-varying wind (engine, analytic model, window predictions), the inputs'
-plumbing and bounds, and seed 003 (rudder relay, I-PD heading control) on this ship."""
+plumbing and bounds, and [Relay-ISO] (rudder relay, I-PD heading control) on this ship."""
 import math
 from dataclasses import replace
 

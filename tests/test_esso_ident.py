@@ -1,4 +1,4 @@
-"""Identification of a propeller-and-rudder ship (issue 16 item 3): its MMG fit groups and beliefs,
+"""Identification of a propeller-and-rudder ship: its MMG fit groups and beliefs,
 simfit on (n, δ) inputs, the measured wind as a known input, and `twin identify --wind-measured`."""
 import subprocess
 import sys

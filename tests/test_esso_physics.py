@@ -25,7 +25,7 @@ def _p(esso) -> dict:
 
 
 def _by_hand(p: dict, u, v, r, n, delta):
-    """Yasukawa & Yoshimura (2015) as printed (valid for u > 0, n > 0, U above the floor)."""
+    """[MMG-2015] as printed (valid for u > 0, n > 0, U above the floor)."""
     L, d, rho = p["L"], p["d"], p["rho"]
     U = math.hypot(u, v)
     vp, rp = v / U, r * L / U
@@ -78,7 +78,7 @@ def test_mmg_hull_propeller_rudder_equal_the_equations(esso, state):
 
 def test_the_vessel_numbers_are_the_ones_the_sources_name(esso):
     p = _p(esso)
-    assert p["f_alpha"] == pytest.approx(6.13 * 1.539 / (1.539 + 2.25))  # Fujii, eq. 20
+    assert p["f_alpha"] == pytest.approx(6.13 * 1.539 / (1.539 + 2.25))  # Fujii, [MMG-2015 eq. 20]
     assert p["eta"] == pytest.approx(0.084 / math.sqrt(0.01063 * 1.539))  # D_P / H_R = 0.657
     assert p["xP_nd"] == pytest.approx(-0.48) and p["xR_m"] == pytest.approx(-1.5)  # the MJCF's sites
     assert p["xH_m"] == pytest.approx(-0.464 * 3.0)
@@ -119,7 +119,7 @@ def test_outside_the_standard_the_forces_stay_finite_continuous_and_resist(esso)
 
 
 def test_fujiwara_regression_gives_the_published_simulator_coefficients(esso):
-    # NAOE-5thLab/mmg-1p1r-simulator's XX0..NN3 for the Esso 3 m model (research note §2.2)
+    # [NAOE-MMG-SIM]'s XX0..NN3 for the Esso 3 m model (research note §2.2)
     published = (-0.010466, -0.821992, 0.060274, 0.044558, 1.058172, 0.002321, -0.015293, -0.030728, 0.104116,
                  -0.000880)
     w = esso.vessel.wind_regression

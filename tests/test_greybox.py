@@ -1,4 +1,4 @@
-"""Seed 004 grey-box identification (twin.ident.greybox: greybox, baseline, splits, physical)
+"""[Morel-2024] grey-box identification (twin.ident.greybox: greybox, baseline, splits, physical)
 on twin runs with known truth, plus the real BlueBoat files when ../shared exists."""
 from __future__ import annotations
 

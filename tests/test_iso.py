@@ -1,4 +1,4 @@
-"""IS-O (seed 003 Table I) and the I-PD controller (eqs. 9-11) with numbers: Table I by hand, a pure
+"""IS-O [Relay-ISO Table I] and the I-PD controller (eqs. 9-11) with numbers: Table I by hand, a pure
 first-order plant, the Yellowfish twin's yaw and surge, the sway error, the controller's runs."""
 import math
 import subprocess
@@ -65,7 +65,7 @@ def test_twin_yaw_alpha_within_10_percent(yaw_sweep, yellowfish):
         # the constant-drag β is the twin's linear + quadratic drag seen at the oscillation's yaw rate
         assert row.estimate.beta_lin == pytest.approx(row.beta_lin_equivalent, rel=0.06)
     s = yaw_sweep.spreads()
-    assert s["alpha"].cv_percent < 10.0 and s["beta_lin"].cv_percent < 12.5  # seed 003 Table II's spread
+    assert s["alpha"].cv_percent < 10.0 and s["beta_lin"].cv_percent < 12.5  # [Relay-ISO Table II]'s spread
     assert yaw_sweep.better_drag_model().startswith("constant")  # Nr = −40 dominates Nrr = −6
 
 
@@ -118,7 +118,7 @@ def yaw_model(yaw_sweep):
 def test_heading_45_follows_the_model_function(yellowfish, yaw_model):
     lp = ipd.heading_step(yellowfish, yaw_model, 45.0).loops[0]
     assert lp.saturated_percent == 0.0
-    assert lp.iae_ratio < 1.05  # measured 0.997 (seed 003: ~1.02)
+    assert lp.iae_ratio < 1.05  # measured 0.997 ([Relay-ISO]: ~1.02)
     assert math.degrees(lp.max_deviation) < 2.0  # measured 0.86°
     assert math.degrees(abs(lp.reference - lp.response[-1])) < 0.05
 

@@ -1,10 +1,10 @@
-"""The force modules against the seeds' equations and basic mechanics."""
+"""The force modules against the published equations and basic mechanics."""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
 from twin.physics.added_mass import AddedMass, RigidBody, total_mass_matrix
-from twin.physics.coriolis import coriolis_force, coriolis_matrix, seed002_printed_coriolis
+from twin.physics.coriolis import coriolis_force, coriolis_matrix, printed_coriolis_bertoni
 from twin.physics.damping import Damping, damping_force, dissipated_power, is_dissipative
 from twin.physics.environment import Environment, WindLoad, current_body, wind_force
 from twin.physics.hydrodynamics import HydroModel, Terms, acceleration, kinetic_energy
@@ -15,7 +15,7 @@ CYBERSHIP_M = np.array([[26.4272, 0, 0], [0, 51.3671, -0.7372], [0, -0.7372, 1.2
 RNG = np.random.default_rng(1234)
 
 
-def test_coriolis_is_skew_and_matches_seed004_eq6():
+def test_coriolis_is_skew_and_matches_morel_eq6():
     m, xg, Xud, Yvd, Yrd, Nrd, Iz = 24.39, -0.0196, -1.0, -10.92, 0.3, -3.95, 1.81
     M = total_mass_matrix(RigidBody(m, xg, 0.0, Iz), AddedMass(Xud, Yvd, Yrd, Yrd, Nrd))
     for nu in RNG.normal(size=(20, 3)):
@@ -29,9 +29,9 @@ def test_coriolis_is_skew_and_matches_seed004_eq6():
         np.testing.assert_allclose(coriolis_force(M, nu), C @ nu, atol=1e-12)
 
 
-def test_seed002_printed_coriolis_is_not_skew_and_does_not_conserve_energy():
+def test_bertoni_printed_coriolis_is_not_skew_and_does_not_conserve_energy():
     nu0 = np.array([0.5, 0.2, 0.3])
-    C = seed002_printed_coriolis(CYBERSHIP_M, nu0)
+    C = printed_coriolis_bertoni(CYBERSHIP_M, nu0)
     assert not np.allclose(C, -C.T)
     assert abs(nu0 @ C @ nu0) > 0.1  # it does work on the vessel
 
@@ -41,7 +41,7 @@ def test_seed002_printed_coriolis_is_not_skew_and_does_not_conserve_energy():
         return kinetic_energy(CYBERSHIP_M, sol.y[:, -1]) / kinetic_energy(CYBERSHIP_M, nu0)
 
     assert energy_after(coriolis_matrix) == pytest.approx(1.0, abs=1e-7)
-    assert abs(energy_after(seed002_printed_coriolis) - 1.0) > 0.05
+    assert abs(energy_after(printed_coriolis_bertoni) - 1.0) > 0.05
 
 
 def test_rigid_coriolis_equals_fossen_3dof_with_yg():

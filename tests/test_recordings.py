@@ -1,4 +1,4 @@
-"""Readers and seed 004 §5.1 preparation of real recordings (twin.formats, twin.prepare).
+"""Readers and [Morel-2024 §5.1] preparation of real recordings (twin.formats, twin.prepare).
 
 The fixtures are generated here from a known trajectory (a constant-speed circle),
 so a fresh clone tests the readers: a MAVLink telemetry log written with
@@ -23,7 +23,7 @@ from twin.prepare.prepared import hold
 from twin.recording import increasing_subsequence
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
-OP = (0.275, -0.2625)  # Yellowfish lever arm, seed 000 eq. 29: antenna O → body origin CO
+OP = (0.275, -0.2625)  # Yellowfish lever arm, [Yellowfish-TR eq. 29]: antenna O → body origin CO
 LAT0, LON0, H0 = 37.3456, -5.9312, 12.0
 U, R, PSI0 = 1.5, 0.2, 2.5  # m/s, rad/s, rad: a circle of radius 7.5 m, crossing ψ = ±π
 T_END = 40.0
@@ -45,7 +45,7 @@ def truth(t):
 
 
 def antenna(t):
-    """Antenna O position: x_O = x_CO − R2(ψ)·OP (seed 000 eq. 32 solved for O)."""
+    """Antenna O position: x_O = x_CO − R2(ψ)·OP ([Yellowfish-TR eq. 32] solved for O)."""
     n, e, psi = truth(t)
     c, s = np.cos(psi), np.sin(psi)
     return n - (c * OP[0] - s * OP[1]), e - (s * OP[0] + c * OP[1]), psi
@@ -511,8 +511,8 @@ def test_shared_blueboat_velocities_match_the_authors():
 
 @pytest.mark.parametrize("suffix", [".mcap", ".csv", ".bin"])
 def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
-    """Issue 4: three of the five shared logs have no GNSS and could not be converted. Every one
-    converts now, and reads back with its heading, IMU, battery (and parameters where kept)."""
+    """Three of the five shared logs have no GNSS; they must still convert. Every one
+    converts, and reads back with its heading, IMU, battery (and parameters where kept)."""
     from twin.formats import write_recording
     from twin.prepare.convert import for_conversion
 
@@ -544,8 +544,8 @@ def test_the_summary_says_how_far_the_pack_sagged_and_preparation_holds_it():
 
 
 def test_a_log_without_a_gyro_converts_to_a_tlog_without_one(tmp_path):
-    """ATTITUDE carries a yaw rate whether or not the log had one: written as 0, it read back as a
-    gyro that never turns (and `twin info` then judged the heading against it); now NaN, read as none."""
+    """ATTITUDE carries a yaw rate whether or not the log had one: written as 0, it would read back as a
+    gyro that never turns (and `twin info` would judge the heading against it); so NaN, read as none."""
     from twin.formats import write_recording
 
     rec = read_recording(write_generic_csv(tmp_path / "g.csv"))

@@ -1,4 +1,4 @@
-"""`twin sitl`: the twin as ArduPilot SITL's JSON physics backend (issue 17).
+"""`twin sitl`: the twin as ArduPilot SITL's JSON physics backend.
 
 No ArduPilot binary here: `Client` plays ArduPilot's side, written from the protocol text
 (libraries/SITL/examples/JSON/readme.md, SIM_JSON.h) with struct and json, not with

@@ -1,4 +1,4 @@
-"""`twin validate`: the seed's hand formulas pinned to its inputs, the engine to the MJCF, bad input."""
+"""`twin validate`: the technical report's hand formulas pinned to its inputs, the engine to the MJCF, bad input."""
 import json
 import subprocess
 import sys
@@ -22,7 +22,7 @@ def nominal():
     return {q.name: q for q in validate(vessel_mod.load("yellowfish")).quantities}
 
 
-def test_seed000_formulas_reproduce_its_tables(nominal):
+def test_yellowfish_report_formulas_reproduce_its_tables(nominal):
     assert nominal["xg (eq. 17)"].analytic == pytest.approx(-19.6, abs=0.05)
     assert nominal["I_box (eq. 19)"].analytic == pytest.approx(0.3586, abs=1e-4)
     assert nominal["Iz (eq. 18)"].analytic == pytest.approx(1.81, abs=0.005)
@@ -80,7 +80,7 @@ def test_hydrostatics_box_floats_at_archimedes_draft():
     assert fl["waterline_length_m"] == pytest.approx(1.0)
 
 
-def test_cybership_against_seed002():
+def test_cybership_against_cybership_bertoni():
     q = {x.name: x for x in validate(vessel_mod.load("cybership1")).quantities}
     for name in ("M11", "M22", "M23", "M33", "D11", "D22", "D33"):
         assert q[name].rel_diff < 1e-9

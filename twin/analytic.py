@@ -1,6 +1,6 @@
 """The independent analytic 3-DOF model (numpy + scipy):
 
-    η̇ = R(ψ)ν,   M ν̇_r + C(ν_r)ν_r + D(ν_r)ν_r = τ + τ_wind   (seed 000 eq. 12)
+    η̇ = R(ψ)ν,   M ν̇_r + C(ν_r)ν_r + D(ν_r)ν_r = τ + τ_wind   [Yellowfish-TR eq. 12]
 
 integrated with an adaptive 8th-order Runge-Kutta (DOP853) at tight
 tolerances, piecewise between input changes. It shares the force functions of

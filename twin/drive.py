@@ -5,7 +5,7 @@ An input series holds PWM (µs) or thrust (N) per thruster, or a propeller-and-r
 propeller speed (rps) and rudder angle (rad) (kind "propeller_rudder"). A controller is a function
 (t, η, ν) → (surge command, yaw command), both normalised to [−1, 1], evaluated at the
 autopilot rate; a positive yaw command speeds the left thruster up and the right one
-down, which turns the vessel to starboard (r > 0, seed 000 eq. 26c); on a propeller-and-rudder
+down, which turns the vessel to starboard (r > 0, [Yellowfish-TR eq. 26c]); on a propeller-and-rudder
 ship the surge command is the propeller speed and the yaw command the rudder angle, as fractions
 of their bounds (δ > 0 turns to starboard too).
 
@@ -238,7 +238,7 @@ class ZigZag:
 
 def random_rc(seed: int = 0, hold_s: tuple[float, float] = (2.0, 6.0)) -> Controller:
     """RC-like driving: two joysticks (surge, yaw) held at random levels for
-    random intervals, as a pilot drives for identification (seed 004 §6.1)."""
+    random intervals, as a pilot drives for identification [Morel-2024 §6.1]."""
     rng = np.random.default_rng(seed)
     state = {"until": -1.0, "cmd": (0.0, 0.0)}
 

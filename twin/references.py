@@ -54,7 +54,50 @@ BIBLIOGRAPHY = _bib(
            "Wakita et al., J. Mar. Sci. Technol. (2022), doi 10.1007/s00773-021-00867-1", 2022),
     Source("BlueBoat-SI", "BlueBoat system identification recordings", "Jan Kristian Andersen",
            "github.com/jankristia/BlueBoatSystemIdentification", None),
+    Source("Fossen-2011", "Handbook of Marine Craft Hydrodynamics and Motion Control, 1st edition",
+           "Thor I. Fossen", "John Wiley & Sons", 2011),
+    Source("NAOE-MMG-SIM", "MMG model simulator for a one-propeller one-rudder ship, with the Esso Osaka model's "
+           "coefficient files", "NAOE 5th laboratory, Osaka University",
+           "github.com/NAOE-5thLab/mmg-1p1r-simulator", None),
+    Source("RTS-1965", "Maximum likelihood estimates of linear dynamic systems",
+           "Herbert E. Rauch, F. Tung, Charlotte T. Striebel", "AIAA Journal 3(8), 1445-1450", 1965),
+    Source("Savitzky-1964", "Smoothing and differentiation of data by simplified least squares procedures",
+           "Abraham Savitzky, Marcel J. E. Golay", "Analytical Chemistry 36(8), 1627-1639", 1964),
+    Source("Wilcoxon-1945", "Individual comparisons by ranking methods", "Frank Wilcoxon",
+           "Biometrics Bulletin 1(6), 80-83", 1945),
+    Source("BlueRobotics-T200", "T200 thruster: technical details and performance charts", "Blue Robotics",
+           "bluerobotics.com, T200 product page and its performance data", None),
+    Source("ArduPilot-SITL", "SITL JSON physics backend interface (libraries/SITL/SIM_JSON.h, SIM_JSON.cpp, "
+           "examples/JSON/readme.md)", "ArduPilot development team", "github.com/ArduPilot/ardupilot", None),
+    Source("CyberShip-I", "CyberShip I, a 1:70 model of a supply ship (Marine Cybernetics Laboratory, NTNU): total "
+           "inertia and linear damping as used by [Bertoni-2024]", None, "Norwegian University of Science and "
+           "Technology; no primary publication of these parameter values was located, so they are cited through "
+           "[Bertoni-2024]", None),
+    Source("Wakita-2022", "On neural network identification for low-speed ship maneuvering model",
+           "Kouki Wakita, Atsuo Maki, Naoya Umeda, Yoshiki Miyauchi, Tohga Shimoji, Dimas M. Rachman, "
+           "Youhei Akimoto", "Journal of Marine Science and Technology 27, 772-785, doi 10.1007/s00773-021-00867-1",
+           2022),
+    Source("Miyauchi-2022", "System parameter exploration of ship maneuvering model for automatic docking/berthing "
+           "using CMA-ES", "Yoshiki Miyauchi, Atsuo Maki, Naoya Umeda, Dimas M. Rachman, Youhei Akimoto",
+           "Journal of Marine Science and Technology 27, 1065-1083", 2022),
+    Source("Kijima-1990", "On the manoeuvring performance of a ship with the parameter of loading condition",
+           "Katsuro Kijima, Toshiyuki Katsuno, Yasuaki Nakiri, Yoshitaka Furukawa",
+           "Journal of the Society of Naval Architects of Japan 168, 141-148", 1990),
+    Source("Blendermann-1994", "Parameter identification of wind loads on ships", "Werner Blendermann",
+           "Journal of Wind Engineering and Industrial Aerodynamics 51(3), 339-351", 1994),
+    Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
+           "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
 )
+
+def markdown() -> str:
+    """docs/bibliography.md: every source by key, as the code and the docs cite it."""
+    lines = ["# Bibliography", "", "Every source the code and these pages cite, by the key they cite it with "
+             "(`[Yellowfish-TR eq. 27]`). Generated from `twin/references.py` "
+             "(`python -m twin.references > docs/bibliography.md`); a test checks the two agree.", ""]
+    for key in sorted(BIBLIOGRAPHY, key=str.lower):
+        lines += [f"- **{key}**: {BIBLIOGRAPHY[key].citation()}"]
+    return "\n".join(lines) + "\n"
+
 
 # [Yellowfish-TR], by mass case.
 YELLOWFISH_TR = {
@@ -101,3 +144,7 @@ CYBERSHIP_I = {
     "D": [[4.3411, 0.0, 0.0], [0.0, 6.2983, 0.0], [0.0, 0.0, 1.2577]],
     "d_thrusters_m": 0.4,
 }
+
+
+if __name__ == "__main__":
+    print(markdown(), end="")

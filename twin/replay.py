@@ -47,7 +47,7 @@ def measured_run(prep: Prepared, sl: slice | None = None) -> Run:
 
 def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.ndarray:
     """(n, 2) thrust (N) the twin's thruster map gives for the recorded PWM, segment by segment:
-    the PWM held delay_s before, seed 000 eq. 27 and the decay, then the range, the left/right
+    the PWM held delay_s before, [Yellowfish-TR eq. 27] and the decay, then the range, the left/right
     gains and the loss with the measured advance speed, as the twin delivers it, through a thrust
     ramp's slew limit on the recording's grid, without the first-order lag (that is the twin's own
     state). NaN without PWM or a PWM thruster model."""

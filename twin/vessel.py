@@ -32,13 +32,13 @@ from .physics.thrusters import ThrusterModel
 MODEL_DIR = Path(str(resources.files("twin") / "model"))
 PACKAGE_MJCF = "package:"  # "mjcf": "package:blueboat.xml" names an MJCF shipped in twin/model
 CASES = ("min", "nominal", "max")
-# thrusters.kind: PWM thrusters (seed 000 eq. 27), thrusts in N, a propeller and rudder (physics/thrusters.py)
+# thrusters.kind: PWM thrusters [Yellowfish-TR eq. 27], thrusts in N, a propeller and rudder (physics/thrusters.py)
 THRUSTER_KINDS = ("t200", "direct", "propeller_rudder")
 
 
 @dataclass(frozen=True)
 class MassCase:
-    """Changes to the MJCF for one mass case (seed 000 Tables III-IV)."""
+    """Changes to the MJCF for one mass case [Yellowfish-TR Tables III-IV]."""
 
     geom_mass_kg: dict[str, float] = field(default_factory=dict)
     body_x_m: dict[str, float] = field(default_factory=dict)
@@ -235,8 +235,14 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     _typed(data["mjcf"], str, "mjcf", path)
     shipped = data["mjcf"].startswith(PACKAGE_MJCF)
     mjcf = (MODEL_DIR / data["mjcf"][len(PACKAGE_MJCF):]) if shipped else (path.parent / data["mjcf"]).resolve()
+    if not shipped and not mjcf.is_file() and Path(data["mjcf"]).name == data["mjcf"] \
+            and (MODEL_DIR / data["mjcf"]).is_file():
+        # a shipped vessel file copied elsewhere names its MJCF by a bare file name, as it lies beside it in
+        # the package: found there when the copy's own folder has none (an MJCF of that name beside it wins)
+        mjcf = MODEL_DIR / data["mjcf"]
     if not mjcf.is_file():
-        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found (looked beside the vessel file; "
+                        f"'{PACKAGE_MJCF}NAME.xml' names one shipped with twin)")
     unknown = sorted(set(data) - VESSEL_FILE_KEYS)
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "

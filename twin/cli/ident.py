@@ -90,12 +90,12 @@ def identify_command(
                                             "parameters) | measured (as the recording gives them)"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
                                      help="estimate each log's compass offset from its own GNSS track (default on)"),
-    greybox: bool = typer.Option(False, "--greybox", help="also run seed 004's grey-box least squares and tables"),
-    thruster: str = typer.Option("static", help="seed 004 thruster model (with --greybox): static | dynamic"),
-    split: str = typer.Option("segments", help="seed 004 tables (with --greybox): split by segments | points"),
-    train: float = typer.Option(0.7, help="training share of the seed 004 splits (with --greybox)"),
-    repeats: int = typer.Option(20, help="random splits for the seed 004 tables (with --greybox)"),
-    seed: int = typer.Option(0, help="random seed of the seed 004 splits"),
+    greybox: bool = typer.Option(False, "--greybox", help="also run [Morel-2024] grey-box least squares and tables"),
+    thruster: str = typer.Option("static", help="[Morel-2024] thruster model (with --greybox): static | dynamic"),
+    split: str = typer.Option("segments", help="[Morel-2024] tables (with --greybox): split by segments | points"),
+    train: float = typer.Option(0.7, help="training share of the [Morel-2024] splits (with --greybox)"),
+    repeats: int = typer.Option(20, help="random splits for the [Morel-2024] tables (with --greybox)"),
+    seed: int = typer.Option(0, help="random seed of the [Morel-2024] splits"),
     max_evaluations: int = typer.Option(20, help="cost evaluations of the first fit (later ones take a third)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
@@ -137,7 +137,7 @@ def identify_command(
     say_unlogged_supply(recs, prior)
     text = ident.format_greybox(result.greybox)
     if text:
-        console.print(f"[bold]seed 004 grey-box ({thruster} thruster model), one-step predictions[/]")
+        console.print(f"[bold][Morel-2024] grey-box ({thruster} thruster model), one-step predictions[/]")
         typer.echo(text)
     console.print("[bold]choices, judged on left-out runs (10-s free runs from measured states)[/]")
     typer.echo(ident.format_choices(result))

@@ -113,7 +113,7 @@ def convert(
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
 ):
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
-    (seed 004 §5.1) when it has GNSS and heading, else every stream at its own times."""
+    [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
     from ..formats import read_recording, write_recording
     from ..prepare.convert import for_conversion, not_kept
 
@@ -140,7 +140,7 @@ def view(
                                                   "input, in the current folder)"),
     png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
-    smoother: str = typer.Option("savgol", help="velocities: savgol (seed 004) or model (EKF+RTS on the vessel model)"),
+    smoother: str = typer.Option("savgol", help="velocities: savgol [Morel-2024] or model (EKF+RTS on the vessel model)"),
 ):
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from ..files import write_bytes_atomic

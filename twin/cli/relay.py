@@ -1,5 +1,5 @@
 """`twin iso` (identification by self-oscillations) and `twin dp` (the I-PD controller tuned
-from it), seed 003 — registered on the main CLI app."""
+from it), [Relay-ISO] — registered on the main CLI app."""
 from __future__ import annotations
 
 import math
@@ -30,7 +30,7 @@ def _sweep_table(result) -> Table:
     u = UNITS[result.dof]
     ship = any(r.rudder_deg is not None for r in result.rows)
     table = Table(title=f"IS-O {result.vessel} {result.dof}{' with the rudder as the relay' if ship else ''} "
-                        "(seed 003 Table I; Table II layout)")
+                        "([Relay-ISO Table I]; Table II layout)")
     if ship:
         for col in ("n [rps]", "δ_c [°]"):
             table.add_column(col, justify="right")
@@ -52,7 +52,7 @@ def _sweep_table(result) -> Table:
 def iso_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    dof: str = typer.Option("yaw", help="yaw (heading feedback, seed 003 Fig. 4) | surge (integrator of u, "
+    dof: str = typer.Option("yaw", help="yaw (heading feedback, [Relay-ISO Fig. 4]) | surge (integrator of u, "
                                         "Fig. 5) | sway (an error: no sway thruster)"),
     xa: Optional[float] = typer.Option(None, help="relay hysteresis: switches at e = ±xa; degrees for yaw, metres "
                                                   "for surge (default 1° / 0.25 m)"),
@@ -94,7 +94,7 @@ def iso_command(
     s = result.spreads()
     console.print(f"α: {s['alpha'].mean:.4g} vs the twin's {result.twin.alpha:.4g} "
                   f"({result.alpha_error_percent():+.1f} %), "
-                  f"CV {s['alpha'].cv_percent:.1f} % (seed 003: ~10 %); drag CV {s['beta_lin'].cv_percent:.1f} % "
+                  f"CV {s['alpha'].cv_percent:.1f} % ([Relay-ISO]: ~10 %); drag CV {s['beta_lin'].cv_percent:.1f} % "
                   f"(constant) / {s['beta_quad'].cv_percent:.1f} % (linear): {result.better_drag_model()} fits better.")
     if v.thrusters.kind == "propeller_rudder":
         console.print("C is the rudder's yaw moment at ±δ_c in straight running (u₀ at n). The ship's yaw is coupled "
@@ -136,7 +136,7 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
 def dp_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    run: str = typer.Option("heading", help="heading (a heading step, seed 003 Figs. 8-9) | point (move to --target)"),
+    run: str = typer.Option("heading", help="heading (a heading step, [Relay-ISO Figs. 8-9]) | point (move to --target)"),
     step: float = typer.Option(45.0, help="heading step, degrees (45 stays inside the thrusters, 90 saturates)"),
     target: str = typer.Option("10,10", help="point to reach, NORTH,EAST in m from the start (heading 0)"),
     omega_heading: Optional[float] = typer.Option(None, help=f"ω_n of the binomial heading model function, rad/s "
@@ -149,7 +149,7 @@ def dp_command(
     json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
     png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
 ):
-    """I-PD control (seed 003 eqs. 9-11) tuned from IS-O run in the twin first (`twin iso` defaults,
+    """I-PD control [Relay-ISO eqs. 9-11] tuned from IS-O run in the twin first (`twin iso` defaults,
     constant-drag model), with anti-windup on the saturated thrust, run in the twin against the
     binomial model function; prints the IAE ratio (twin / model function). Point moves turn to the
     bearing first, then surge along the line (the vessel has no sway thruster). A propeller-and-rudder ship
@@ -186,7 +186,7 @@ def dp_command(
                 else ipd.point_move(cv, yaw, surge, goal)
     summary = dp.summary()
     for lp in summary["loops"]:
-        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} (seed 003: ~1.02 for 45°), "
+        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} ([Relay-ISO]: ~1.02 for 45°), "
                       f"max |twin − model| {lp['max_deviation_from_model']:.3g} {lp['unit']}, "
                       f"saturated {lp['saturated_percent_of_time']:.0f} % of the time")
     if goal is not None:

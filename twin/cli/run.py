@@ -180,7 +180,7 @@ def validate(
     json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
     report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
 ):
-    """Analytic formulas, seed tables, engine, meshes and independent values, side by side."""
+    """Analytic formulas, published tables, engine, meshes and independent values, side by side."""
     from ..files import write_text_atomic
     from ..verify.validate import format_table
     from ..verify.validate import validate as run_validation

@@ -10,7 +10,7 @@ share their conditions and would inflate the count. A block votes with the relat
 the misfit of its AFFECTED windows only: those in which the candidate moves the residual by more
 than AFFECT_SIGMA times the noise pooled over the three DOFs (_moved). Idle windows where both
 twins agree do not vote, so a mostly idle log neither dilutes a real effect nor lets noise decide.
-The test is the Wilcoxon signed-rank test of the blocks' votes (one-sided, z).
+The test is the Wilcoxon signed-rank test [Wilcoxon-1945] of the blocks' votes (one-sided, z).
 
 A candidate earns its place when z ≥ Z_MIN AND it removes at least REL_EXCESS of the held-out
 misfit IN EXCESS OF THE NOISE (the misfit a perfect twin would still show, from the noise
@@ -29,7 +29,9 @@ Which candidates a round judges: each remaining one is first screened (its scan,
 Gauss-Newton step, on at most SCREEN_WINDOWS training windows) and ranked by the training cost
 it reaches; the first FULL_FITS are fitted on every fold and judged as above. A library of at
 most JUDGED_WHOLE candidates is judged whole. (Judging also the screening leader's near ties, up
-to the sixth, was tried on fresh seeds 35-36 and not kept: README, Diagnosis, the bullet on seeds 35 and 36.)
+to the sixth, is not done: judging more near-equal stand-ins gives one of them more chances to be
+preferred by chance, and on recordings it had not been chosen on it changed one verdict, for the
+worse.)
 
 When nothing earns its place but the misfit stays well above the noise, the diagnosis says that
 the twin's form is off (doctor.py: where, how much, what it follows) instead of naming small
@@ -56,7 +58,7 @@ is kept: the one with the larger pooled held-out gain, unless the blocks themsel
 other (z ≤ −Z_PREFER between the two) and it earns its place too. Two effects that explain the
 same misfit gain nearly the same over the pooled windows, and the pooled sum then decides on a
 few windows' worth; the blocks' vote is the test the rule trusts everywhere else. Chosen on the
-proof's recordings of seeds 1-10 (README): wherever the kept effect was the truth's, its rivals had
+proof's recordings of random seeds 1-10: wherever the kept effect was the truth's, its rivals had
 z ≥ −0.7; the rivals at z ≤ −1.8 were the truth beside a stand-in (a u³ drag kept as
 thrust_speed_loss, z −1.8; a slew limit kept as input_delay, z −2.7) or nearer it (input_delay
 rather than added mass for a slew limit, z −2.0). Uncertainty: the
@@ -696,9 +698,9 @@ def _reset(vessel: Vessel, candidate: Candidate, prior: Vessel) -> Vessel:
 def _moved(base: np.ndarray, cand: np.ndarray, dof: np.ndarray, noise_var: np.ndarray) -> bool:
     """A window is affected when the candidate moves its residual RMS by more than AFFECT_SIGMA of
     the noise pooled over the three DOFs in the fit's scale (residuals in noise units, `noise_var`
-    in the fit's scale). Pooled, not per DOF: judged against each DOF's own noise (tried on
-    2026-11-26) a surge change voted from a tenth of the change, and on fresh seeds it named one
-    more true effect per 104 for three more recordings with false physics (README)."""
+    in the fit's scale). Pooled, not per DOF: judged against each DOF's own noise, a surge change votes from a tenth of
+    the change, and on the proof's recordings that named one more true effect per 104 at the price
+    of three more recordings with false physics."""
     if len(base) != len(cand):
         return True
     if not len(base):

@@ -1,5 +1,5 @@
 """The coefficients of the vessel description that identification fits one by one, with their
-units, the bounds that keep a fit physical and what is believed about each before any data: damping of seed 004 eq. 7 (Fossen's signs,
+units, the bounds that keep a fit physical and what is believed about each before any data: damping of [Morel-2024 eq. 7] (Fossen's signs,
 so ≤ 0 where a term dissipates), added mass ≤ 0 with M_A symmetric, the thrust curve's
 scales, lag, delay, dead zone and a steady current; for a propeller-and-rudder ship (an `mmg`
 block), the MMG standard's non-dimensional hull derivatives, wake fraction and rudder inflow
@@ -19,9 +19,9 @@ DAMPING_UNITS = {"Xu": "N s/m", "Xuu": "N s2/m2", "Yv": "N s/m", "Yvv": "N s2/m2
 ADDED_MASS_UNITS = {"Xudot": "kg", "Yvdot": "kg", "Yrdot": "kg m", "Nrdot": "kg m2"}
 QUADRATIC_DAMPING = ("Xuu", "Yvv", "Yrv", "Yvr", "Yrr", "Nvv", "Nrv", "Nvr", "Nrr")
 LINEAR_DAMPING = ("Xu", "Yv", "Yr", "Nv", "Nr")
-SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| (seed 004 eq. 7)
+SURGE_RESISTANCE = ("Xu", "Xuu")  # the surge drag curve R(u) = −Xu·u − Xuu·u|u| [Morel-2024 eq. 7]
 ADDED_MASS = ("Xudot", "Yvdot", "Yrdot", "Nrdot")
-# what `twin identify` fits unless told otherwise: seed 004 eq. 7's main damping terms, the yaw and sway
+# what `twin identify` fits unless told otherwise: [Morel-2024 eq. 7]'s main damping terms, the yaw and sway
 # added mass, the thrust curve and its lag
 DEFAULT_FIT = ("Xu", "Xuu", "Yv", "Yvv", "Nr", "Nrr", "Yvdot", "Nrdot", "thrust_gain", "reverse_scale", "lag_s")
 # what `twin identify` considers, in groups a choice frees or keeps at the prior together
@@ -247,7 +247,7 @@ def belief(name: str, prior: Vessel) -> Belief:
 # Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
 # Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
 # against 5.5). Widths from how far the published full-form ships' derivatives scatter among
-# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of Kijima): the linear ones
+# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of [Kijima-1990]): the linear ones
 # within about 25 %, the nonlinear ones within a factor of 2 or their own size.
 MMG_LOG_BELIEFS = {
     "mmg_R0": (0.3, "resistance from KVLCC2's R'_0 at the Esso model's form: within about 30 % (scale effect, "

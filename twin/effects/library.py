@@ -201,7 +201,7 @@ def _wind_shape_fit(prior: Vessel, logs) -> Candidate | None:
 # ---------------------------------------------------------------- thrusters
 
 def thruster_lag(vessel: Vessel, lag_s: float) -> Vessel:
-    """First-order thrust lag time constant (s), seed 004 eq. 15; 0 = none."""
+    """First-order thrust lag time constant (s), [Morel-2024 eq. 15]; 0 = none."""
     return _thrusters(vessel, lag_s=lag_s)
 
 
@@ -281,7 +281,7 @@ def _full_thrust_fit(prior: Vessel, logs) -> Candidate | None:
 
 
 def dead_zone(vessel: Vessel, fwd: float, rev: float) -> Vessel:
-    """Dead-zone widths (≥ 0) in normalised PWM δ̃ = PWM/400 − offset (seed 000 eq. 27):
+    """Dead-zone widths (≥ 0) in normalised PWM δ̃ = PWM/400 − offset [Yellowfish-TR eq. 27]:
     no thrust for −rev < δ̃ < fwd. 0.0775 = 31 µs."""
     return _thrusters(vessel, deadzone_fwd=fwd, deadzone_rev=-rev)
 
@@ -642,7 +642,7 @@ def effect(name: str, **params) -> Effect:
 
 # what a diagnosis may change of a vessel whose model is not the PWM twin's: a propeller-and-rudder
 # ship has no PWM map (lag, dead zone, gains: thrusters) and its hull is the MMG standard's, not the
-# seed 004 damping those effects scale
+# [Morel-2024] damping those effects scale
 _ACTS_ON = {"propeller_rudder": ("environment", "sensors")}
 
 

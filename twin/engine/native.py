@@ -377,7 +377,7 @@ def _coriolis(M, o, u, v, r):
 
 @njit(inline="always")
 def _damping(p, o, u, v, r):
-    """D(ν)ν of seed 004 eq. 7 and the speed terms, coefficients p[o:o+19] in Damping.names() order."""
+    """D(ν)ν of [Morel-2024 eq. 7] and the speed terms, coefficients p[o:o+19] in Damping.names() order."""
     au, av, ar = abs(u), abs(v), abs(r)
     d00 = -(p[o] + p[o + 1] * au) * (1.0 + p[o + 18] if u < 0.0 else 1.0)
     d11 = -(p[o + 2] + p[o + 3] * av + p[o + 4] * ar + p[o + 14] * au)

@@ -12,7 +12,7 @@ from .mjcf import compile_vessel
 
 
 def effective_parameters(vessel: Vessel) -> dict:
-    """M, M_RB, M_A, damping (seed 004 eq. 7 names, Fossen signs), thrusters, GNSS lever arm."""
+    """M, M_RB, M_A, damping ([Morel-2024 eq. 7] names, Fossen signs), thrusters, GNSS lever arm."""
     cv = compile_vessel(vessel)
     g, hydro = cv.geometry, cv.hydro()
     thrusters = asdict(vessel.thrusters)

@@ -1,4 +1,4 @@
-"""The single-run loop as it was before `sim.simulate` was made fast (issue 13), kept as the
+"""The single-run loop written plainly, without the optimisations of `sim.simulate`: the
 slow, readable reference the fast loop is tested against (tests/test_sim_speed.py).
 
 Every control tick recomputes the thrust command of the whole remaining run through the

@@ -2,7 +2,7 @@
 
 The vessel's `sensors` (twin.physics.sensors) hold the heading bias and compass deviation
 (common and per log), the GNSS antenna's offset from the MJCF site and the PWM log's clock
-offset. `prepare_for` prepares a recording (seed 004 §5.1) as this vessel's sensors see it:
+offset. `prepare_for` prepares a recording [Morel-2024 §5.1] as this vessel's sensors see it:
 heading corrected, lever arm from its antenna. The PWM clock offset acts where the PWM drives
 the twin (twin.fit.windows). Every command that replays a log (view, evaluate, identify,
 diagnose) prepares it here, so they all replay it with the same calibration.
@@ -21,7 +21,7 @@ from ..recording import Recording, Stream
 from ..vessel import Vessel
 
 
-GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities (seed 004 §5.1)
+GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities [Morel-2024 §5.1]
 HEADING_WINDOW_S = 0.5  # an AHRS at 50 Hz affords a shorter one for the yaw rate
 
 
@@ -33,7 +33,7 @@ def rate_windows(vessel: Vessel) -> dict[str, float]:
 
 
 def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
-    """OP = (dx, dy) from the real antenna to CO (seed 000 eq. 28): minus the antenna's
+    """OP = (dx, dy) from the real antenna to CO [Yellowfish-TR eq. 28]: minus the antenna's
     body position, the MJCF gnss site plus the vessel's surveyed offset."""
     a = antenna_body_m(compiled.geometry.gnss_pos_m, compiled.vessel.sensors)
     return float(-a[0]), float(-a[1])
@@ -65,7 +65,7 @@ def throttle_at_heading(rec: Recording, vessel: Vessel) -> np.ndarray:
 
 
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
-    """Seed 004 §5.1 preparation as this vessel's sensors see the recording: heading
+    """[Morel-2024 §5.1] preparation as this vessel's sensors see the recording: heading
     corrected, lever arm from its antenna, each GNSS fix and heading read at the time it was taken. (The PWM
     clock offset acts where the PWM drives the twin: twin.fit.windows.)"""
     sensors = compiled.vessel.sensors.for_log(rec.source)
@@ -77,8 +77,8 @@ def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
 
 STRAIGHT_SPEED_M_S = 0.4  # under way, ahead or astern: slower, the GNSS velocity's direction is mostly noise
 # about 20°/s: a boat weaving under way still holds its offset; the sideslip of such turns (a light hull
-# slips inwards, physics.damping's Y_ur) is fitted with it (x[1]). At 0.1 rad/s, the earlier limit, logs of
-# zig-zags and weaving had no straight running at all
+# slips inwards, physics.damping's Y_ur) is fitted with it (x[1]). At a stricter 0.1 rad/s, logs of
+# zig-zags and weaving would have no straight running at all
 STRAIGHT_YAW_RATE_RAD_S = 0.35
 MIN_STRETCH_S = 1.0  # a GNSS velocity direction needs a few fixes
 PIECE_S = 2.0  # straight running is cut into pieces this long: each gives the offset once
@@ -228,8 +228,7 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     entry the vessel already holds for this log is set aside first), see LogCalibration. borrowed:
     other logs' drifts (NED m/s), at least two, taken where this log's legs cannot fit one: the
     offset read with each in turn and with the log's own drift at rest (rest_drift; at_rest=False
-    leaves it out, as before the fourteenth session: scripts/calibration_borrowing.py compares
-    both), their mean, and their spread added to σ."""
+    leaves it out; scripts/calibration_borrowing.py compares both), their mean, and their spread added to σ."""
     from scipy.optimize import least_squares
 
     from ..physics.sensors import log_name

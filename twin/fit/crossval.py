@@ -1,7 +1,12 @@
-"""Judging a fit's choices on runs left out of it: leave one run out.
+"""Judging a fit's choices on runs left out of it, each predicted by a twin fitted on runs that go
+less far than it does.
 
 Every choice identification makes (how strongly to believe the prior, which coefficients to
-free) is judged by how the twin fitted WITHOUT a run predicts THAT run, run by run. With fewer
+free) is judged by how a twin fitted WITHOUT a run predicts THAT run, run by run. The runs are
+ranked by how far they go (extrapolation.group_order: time under way, time turning), and the twin
+that predicts a run is fitted on the runs ranked below it only (`beyond_folds`): a run left out at
+random is like the runs fitted and proves interpolation, while a twin is wanted beyond its runs,
+so a choice is judged where the twin extrapolates. `each_folds` is plain leave one run out. With fewer
 than MIN_RUNS recordings, blocks of consecutive windows (BLOCKS per recording) stand in for runs:
 an honest second best, since blocks of one log share its conditions. Refitting
 from scratch for every left-out run would cost as many fits as runs; instead each refit is one
@@ -24,6 +29,7 @@ import numpy as np
 from ..physics.sensors import log_name
 from ..prepare import Prepared
 from ..vessel import Vessel
+from .extrapolation import group_order
 from .metrics import DOFS, r2_mae
 from .windows import ModelCache, Window, measured, predict
 
@@ -42,6 +48,21 @@ def held_out_groups(windows: list[Window], preps: list[Prepared]) -> tuple[np.nd
                                           / max(preps[w.rec].t[-1] - preps[w.rec].t[0], 1e-9))) for w in windows])
     names = [f"{log_name(p.settings.source)} part {b + 1}" for p in preps for b in range(BLOCKS)]
     return recs * BLOCKS + blocks, names
+
+
+def beyond_folds(windows: list[Window], preps: list[Prepared], groups: np.ndarray) -> list[np.ndarray]:
+    """Per group k, the groups left out of the twin that predicts k: k and every group that goes at
+    least as far as k (extrapolation.group_order), so the twin is fitted on the groups below k."""
+    order = group_order(preps, windows, groups)
+    rank = {g: i for i, g in enumerate(order)}
+    n = int(groups.max()) + 1
+    return [np.array(sorted(g for g in order if rank[g] >= rank[k])) if k in rank else np.array([k])
+            for k in range(n)]
+
+
+def each_folds(groups: np.ndarray) -> list[np.ndarray]:
+    """Per group k, only k left out (leave one run out)."""
+    return [np.array([k]) for k in range(int(groups.max()) + 1)]
 
 
 def reweighted(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, factor: float
@@ -104,10 +125,11 @@ class CrossValidation:
 
 
 def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,
-                      fixed: np.ndarray | None = None, at: np.ndarray | None = None) -> list[Vessel]:
-    """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels.
-    fixed: coordinates held at `at` (default: the prior) instead of refitted; the step then
-    starts by moving them there."""
+                      fixed: np.ndarray | None = None, at: np.ndarray | None = None,
+                      folds: list[np.ndarray] | None = None) -> list[Vessel]:
+    """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels:
+    fitted without the groups folds[k] (default: k alone). fixed: coordinates held at `at`
+    (default: the prior) instead of refitted; the step then starts by moving them there."""
     n = obj.n_data
     runs = groups[obj.window_index()]
     free = np.ones(len(x), bool) if fixed is None else ~np.asarray(fixed, bool)
@@ -118,9 +140,10 @@ def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: 
     r0 = r + J @ shift  # linearised residuals with the fixed coordinates moved
     lo, hi = obj.bounds()
     out = []
+    folds = folds if folds is not None else each_folds(groups)
     for k in range(int(groups.max()) + 1):
         keep = np.ones(len(r), bool)
-        keep[:n] = runs != k
+        keep[:n] = ~np.isin(runs, folds[k])
         delta = np.zeros(len(x))
         if free.any():
             delta[free] = np.linalg.lstsq(J[keep][:, free], -r0[keep], rcond=None)[0]

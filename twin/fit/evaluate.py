@@ -1,13 +1,13 @@
-"""Judging a model by what it predicts (seed 004 eqs. 40-41, R² and MAE per DOF):
+"""Judging a model by what it predicts ([Morel-2024 eqs. 40-41], R² and MAE per DOF):
 
-  one_step       ν̂(k+1) from the measured state at k (what seed 004 reports; the
+  one_step       ν̂(k+1) from the measured state at k (what [Morel-2024] reports; the
                  persistence model ν(k+1) = ν(k) already scores R² ≈ 0.99 on it)
   free_run_10s   free runs of 10 s from measured states, driven by the recorded PWM
   free_run_30s   the same over 30 s
   full           each whole trajectory segment from its first measured state
 
 Every model is a predictor with `predict_windows(prep, starts, n_steps) -> (W, n+1, 3)`
-(ν̂ with index 0 the measured start): the grey-box models of seed 004 implement it,
+(ν̂ with index 0 the measured start): the grey-box models of [Morel-2024] implement it,
 and `TwinPredictor` wraps a vessel description on the batch engine.
 
 Where a model misses, beside how much: `error_growth` (how each window's error grows, with its

@@ -1,4 +1,4 @@
-"""How well a prediction matches a measurement, per DOF (seed 004 eqs. 40-41): R² and the mean
+"""How well a prediction matches a measurement, per DOF [Morel-2024 eqs. 40-41]: R² and the mean
 absolute error, over the finite pairs; a diverged (infinite) prediction is a failure, not a gap."""
 from __future__ import annotations
 
@@ -40,8 +40,8 @@ def scores(truth: np.ndarray, predicted: np.ndarray) -> dict[str, dict[str, floa
 
 
 def r2_mae(pred: np.ndarray, meas: np.ndarray) -> dict:
-    """{u, v, r} → {r2, mae, n} over every pair with a measurement (eqs. 40-41, seed 004's
-    own definitions in `scores`). A diverged prediction (inf) makes R² and MAE
+    """{u, v, r} → {r2, mae, n} over every pair with a measurement (the definitions of
+    [Morel-2024 eqs. 40-41] in `scores`). A diverged prediction (inf) makes R² and MAE
     unbounded: they are reported as None, with `diverged` counting such samples."""
     p, m = pred.reshape(-1, 3), meas.reshape(-1, 3)
     out = scores(m, p)

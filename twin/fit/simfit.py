@@ -2,15 +2,15 @@
 fitted so that free runs of the twin over short windows (from measured states,
 driven by the recorded PWM) match the measured velocities.
 
-The one-step fit of seed 004 is its starting point, not its end: a model that
+The one-step fit of [Morel-2024] is its starting point, not its end: a model that
 predicts one step well can still drift in a free run. Here the cost is the free
 run itself, the parameters are the physical ones the engine uses (added mass,
-damping of seed 004 eq. 7, thrust curve, lag, asymmetry, dead zone, current),
+damping of [Morel-2024 eq. 7], thrust curve, lag, asymmetry, dead zone, current),
 and the constraints are physical: damping coefficients keep Fossen's negative
 sign (D(ν) dissipative), added-mass derivatives stay ≤ 0 with M_A symmetric
 (M = M_RB + M_A symmetric positive-definite), lag and dead zone ≥ 0.
 
-Scale: GNSS, heading and PWM determine M⁻¹τ and M⁻¹D (seed 004 identifies only
+Scale: GNSS, heading and PWM determine M⁻¹τ and M⁻¹D ([Morel-2024] identifies only
 the input gain G = M⁻¹τ, eq. 4): scaling the inertia, the damping and the thrust
 together changes no trajectory. One absolute anchor is needed. By default it is
 M11 = m − Xu̇: the mass is weighed and a slender hull's surge added mass is a few

@@ -1,4 +1,4 @@
-"""The Esso Osaka 3 m model's free-running tests (Osaka University, NAOE-5thLab/FRT-DS-ESSO, 10 Hz
+"""The Esso Osaka 3 m model's free-running tests (Osaka University, [ESSO-FRT], 10 Hz
 CSV), an adapter onto the generic CSV reader: its columns and conventions into a Recording.
 
 Columns (units in the header): t [s]; x_position_mid, y_position_mid [m] (midship in the pond's

@@ -1,5 +1,5 @@
 """What an ArduPilot boat's sensors would log during a run, at the rates of
-seed 004 §3: GNSS at the antenna (lever arm, seed 000 appendix) every 200 ms,
+[Morel-2024 §3]: GNSS at the antenna (lever arm, [Yellowfish-TR appendix]) every 200 ms,
 AHRS heading every 20 ms, thruster PWM every 100 ms. Shared by the .tlog and
 DataFlash .bin writers."""
 from __future__ import annotations
@@ -64,7 +64,7 @@ class Telemetry:
 
 
 def antenna_ned(run: Run, antenna_body_m) -> tuple[np.ndarray, np.ndarray]:
-    """Antenna position in NED: CO + R(ψ)·r_antenna (the inverse of seed 000 eq. 32)."""
+    """Antenna position in NED: CO + R(ψ)·r_antenna (the inverse of [Yellowfish-TR eq. 32])."""
     c, s = np.cos(run.eta[:, 2]), np.sin(run.eta[:, 2])
     ax, ay = antenna_body_m[0], antenna_body_m[1]
     return run.eta[:, 0] + c * ax - s * ay, run.eta[:, 1] + s * ax + c * ay

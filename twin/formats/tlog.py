@@ -19,7 +19,7 @@ One packet builder (`telemetry_packets`) serves both sources:
 Every message is stamped with its own sample time; the Unix stamp is a fixed start
 plus that time, so the log's boot clock and receive clock agree.
 
-A run is sampled at the rates of seed 004 §3 (telemetry.sample): GNSS at
+A run is sampled at the rates of [Morel-2024 §3] (telemetry.sample): GNSS at
 the antenna every 200 ms, AHRS heading every 20 ms, PWM every 100 ms.
 """
 from __future__ import annotations

@@ -4,7 +4,7 @@ on runs left out of the fit.
 1. Calibrate: each log's own compass offset from its kinematics (GNSS track against heading on
    straight runs under way, fit/calibrate.py), applied to every log that has enough straight
    running; the others keep the prior's calibration.
-2. Seed 004 (optional, `greybox=True`): its grey-box least squares and Tables 4-9 in shape, as
+2. [Morel-2024] (optional, `greybox=True`): its grey-box least squares and Tables 4-9 in shape, as
    that paper reports them.
 3. Fit by simulation (fit/simfit.py), maximum a posteriori: the coefficients of FIT_GROUPS, each
    with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
@@ -37,7 +37,7 @@ from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
-from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
+from ..fit.crossval import CrossValidation, beyond_folds, each_folds, held_out_groups, jackknife_vessels, judge
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -72,7 +72,7 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
 
 
 def prepared(recordings: list[Recording], vessel: Vessel) -> list[Prepared]:
-    """The recordings prepared (seed 004 §5.1) as the vessel's sensors see them."""
+    """The recordings prepared [Morel-2024 §5.1] as the vessel's sensors see them."""
     compiled = compile_vessel(vessel)
     return [prepare_for(r, compiled, **rate_windows(vessel)) for r in recordings]
 
@@ -166,7 +166,7 @@ class Identification:
 
 def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: str, train: float, repeats: int,
                   seed: int) -> tuple[dict, list[str]]:
-    """Seed 004 tables and the physical quantities they imply; a grey-box failure is a note."""
+    """[Morel-2024] tables and the physical quantities they imply; a grey-box failure is a note."""
     fit = {"static": fit_static, "dynamic": fit_dynamic}[thruster]
     notes: list[str] = []
     out: dict = {"thruster": thruster}
@@ -175,7 +175,7 @@ def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: st
         out["first_guesses"] = first_guesses(model, prior)
         out["model"] = model.to_dict()
     except TwinError as exc:
-        notes.append(f"grey-box ({thruster}, seed 004): {exc}")
+        notes.append(f"grey-box ({thruster}, [Morel-2024]): {exc}")
         return out, notes
     try:
         out["by_split_method"] = split_method_table(fit, preps, train=train, repeats=repeats, seed=seed)
@@ -202,14 +202,18 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
              anchor: str = "mass", window_s: float = WINDOW_S, start: str = "free", calibrated: bool = True,
              greybox: bool = False, thruster: str = "static", split: str = "segments", train: float = 0.7,
              repeats: int = 20, seed: int = 0, max_evaluations: int = 20, sources: list[str] | None = None,
-             progress: Progress | None = None, wind: str | None = None) -> Identification:
+             progress: Progress | None = None, wind: str | None = None, judged_on: str = "beyond") -> Identification:
     """The whole identification (module docstring). groups: the vessel's fit groups to consider
     (default all), or params: an explicit list of coefficients (then no group is dropped); start:
     each window's initial velocities "free" (estimated with the fit) or "measured"; wind:
-    "measured" to take each recording's measured wind as a known input."""
+    "measured" to take each recording's measured wind as a known input; judged_on: "beyond" (each
+    left-out run predicted by a twin fitted on the runs that go less far, crossval.beyond_folds) or
+    "each" (leave one run out)."""
     started = time.time()
     say = steps(progress)
     _check(start, thruster, split, train, prior_weights)
+    if judged_on not in ("beyond", "each"):
+        raise TwinError(f"judged_on must be 'beyond' or 'each', got {judged_on!r}")
     check_wind(recordings, wind)
     simfit.check_kind(prior)
     supplied = bool(recordings) and all(len(r.battery) for r in recordings)
@@ -224,10 +228,10 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     seen = fitted_envelope(vessel, preps).to_dict()  # the logs' span and windows as evaluate counts them
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
-        # seed 004's grey-box is a model of PWM thrusters (dead zone, thrust gain, operating regions)
-        result.notes.append("seed 004's grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
+        # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
+        result.notes.append("the grey-box of [Morel-2024] models PWM thrusters: skipped for a propeller-and-rudder ship")
     elif greybox:
-        say("seed 004 grey-box tables", 1, 4)
+        say("[Morel-2024] grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
         result.notes += notes
     cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S))
@@ -252,10 +256,11 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)
     judge_groups, group_names = held_out_groups(every, preps)
+    folds = beyond_folds(every, preps, judge_groups) if judged_on == "beyond" else each_folds(judge_groups)
     configs = {"prior (no fit)": [vessel] * len(group_names)}
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
-                                                            fit_groups)
+                                                            fit_groups, folds=folds)
     judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
@@ -263,7 +268,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     chosen_fit = fits[best.prior_weight]
     if params is None:
         best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
-                                  judge_groups, group_names, cache, wind)
+                                  judge_groups, group_names, cache, wind, folds)
         choices += more
     result.choices, result.chosen = choices, best
     fit_best = chosen_fit
@@ -275,7 +280,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                            prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative,
                            wind=wind)
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
-                                               refit.objective.residuals(refit.x), fit_groups)},
+                                               refit.objective.residuals(refit.x), fit_groups, folds=folds)},
                    preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
         refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
                           _labelled(cv, best.label + " (refitted)"))
@@ -366,7 +371,7 @@ def _informative(prep: Prepared, w) -> bool:
 
 
 def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
-                 group_names, cache, wind: str | None = None) -> tuple[Choice, list[Choice]]:
+                 group_names, cache, wind: str | None = None, folds=None) -> tuple[Choice, list[Choice]]:
     """Backward: the group whose return to its prior most improves the left-out scores goes back,
     while one does (each refit linearised about the fit with every group free)."""
     obj, x, J = fit.objective, fit.x, fit.jacobian
@@ -380,7 +385,7 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             for kept in current.free_groups:
                 if kept != g:
                     fixed[[col[n] for n in names_by_group[kept]]] = False
-            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
+            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed, folds=folds)
         judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
                           tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))

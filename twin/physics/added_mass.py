@@ -1,4 +1,4 @@
-"""Inertia: rigid-body and hydrodynamic added mass (seed 000 eq. 14, seed 004 eq. 5).
+"""Inertia: rigid-body and hydrodynamic added mass ([Yellowfish-TR eq. 14], [Morel-2024 eq. 5]).
 
 The added mass acts through the *relative* acceleration ν̇_r; how it is applied
 exactly inside MuJoCo (no lagged acceleration) is in `hydrodynamics.py`.
@@ -24,7 +24,7 @@ class AddedMass:
     Nrdot: float = 0.0
 
     def matrix(self) -> np.ndarray:
-        """M_A = -[[Xu̇,0,0],[0,Yv̇,Yṙ],[0,Nv̇,Nṙ]] (seed 000 eq. 14)."""
+        """M_A = -[[Xu̇,0,0],[0,Yv̇,Yṙ],[0,Nv̇,Nṙ]] [Yellowfish-TR eq. 14]."""
         return 0.0 - np.array(
             [[self.Xudot, 0.0, 0.0], [0.0, self.Yvdot, self.Yrdot], [0.0, self.Nvdot, self.Nrdot]]
         )
@@ -43,7 +43,7 @@ class RigidBody:
     Iz_kgm2: float
 
     def matrix(self) -> np.ndarray:
-        """M_RB (seed 000 eq. 14, with the yg terms of Fossen's general form)."""
+        """M_RB ([Yellowfish-TR eq. 14], with the yg terms of Fossen's general form)."""
         m = self.mass_kg
         return np.array(
             [
@@ -55,7 +55,7 @@ class RigidBody:
 
 
 def total_mass_matrix(rigid: RigidBody, added: AddedMass) -> np.ndarray:
-    """M = M_RB + M_A (seed 000 eq. 11; seed 004 eq. 5)."""
+    """M = M_RB + M_A ([Yellowfish-TR eq. 11; Morel-2024 eq. 5])."""
     return rigid.matrix() + added.matrix()
 
 
@@ -66,7 +66,7 @@ def is_symmetric_positive_definite(M: np.ndarray, tol: float = 1e-9) -> bool:
 
 
 def ellipsoid_lamb_coefficients(a_m: float, b_m: float, c_m: float) -> tuple[float, float, float]:
-    """α0, β0, γ0 of seed 000 eq. 22-23 by numerical quadrature.
+    """α0, β0, γ0 of [Yellowfish-TR eq. 22-23] by numerical quadrature.
 
     α0 = abc ∫₀^∞ dλ / ((a²+λ)Δ),  Δ = √((a²+λ)(b²+λ)(c²+λ)); β0, γ0 alike.
     Their sum is 2 for any ellipsoid, which the tests use as a check.
@@ -93,7 +93,7 @@ def ellipsoid_lamb_coefficients_closed_form(a_m: float, b_m: float, c_m: float) 
 
 
 def ellipsoid_added_mass(a_m: float, b_m: float, c_m: float, rho_kg_m3: float) -> dict[str, float]:
-    """Xu̇, Yv̇, Nṙ of one submerged ellipsoid (seed 000 eq. 21)."""
+    """Xu̇, Yv̇, Nṙ of one submerged ellipsoid [Yellowfish-TR eq. 21]."""
     alpha, beta, _ = ellipsoid_lamb_coefficients(a_m, b_m, c_m)
     displaced = 4.0 / 3.0 * np.pi * rho_kg_m3 * a_m * b_m * c_m
     d2 = a_m**2 - b_m**2
@@ -109,8 +109,8 @@ def ellipsoid_added_mass(a_m: float, b_m: float, c_m: float, rho_kg_m3: float) -
     }
 
 
-def catamaran_added_mass_seed000(single: dict[str, float], hull_mass_kg: float, hull_spacing_m: float) -> dict:
-    """Seed 000 eq. 25 as printed: Xu̇ = 2Xu̇|e, Yv̇ = 2Yv̇|e, Nṙ = Nṙ|e − m_hull·y_m²."""
+def catamaran_added_mass_as_printed(single: dict[str, float], hull_mass_kg: float, hull_spacing_m: float) -> dict:
+    """[Yellowfish-TR eq. 25] as printed: Xu̇ = 2Xu̇|e, Yv̇ = 2Yv̇|e, Nṙ = Nṙ|e − m_hull·y_m²."""
     return {"Xudot": 2 * single["Xudot"], "Yvdot": 2 * single["Yvdot"],
             "Nrdot": single["Nrdot"] - hull_mass_kg * hull_spacing_m**2}
 

@@ -1,14 +1,14 @@
-"""Coriolis and centripetal terms C(ν)ν (seed 004 eq. 6; Fossen 2011 Thm. 3.2).
+"""Coriolis and centripetal terms C(ν)ν [Morel-2024 eq. 6; Fossen-2011 Thm. 3.2].
 
 One skew-symmetric parameterisation serves the rigid body, the added mass and
 their sum: with p = M ν the momentum and ν = [u, v, r],
 
     C(ν) = [[0, 0, -p_v], [0, 0, p_u], [p_v, -p_u, 0]],  p_u = M[0]·ν, p_v = M[1]·ν
 
-which reduces to seed 004 eq. 6 for the seed's M. Skew symmetry makes νᵀC(ν)ν = 0,
+which reduces to [Morel-2024 eq. 6] for the paper's M. Skew symmetry makes νᵀC(ν)ν = 0,
 so C conserves the kinetic energy ½νᵀMν.
 
-Seed 002 prints C with (m11·u) in row 2, column 2 instead of column 3; that
+[Bertoni-2024] prints C with (m11·u) in row 2, column 2 instead of column 3; that
 matrix is not skew-symmetric and does not conserve energy (see tests), so the
 twin does not use it.
 """
@@ -32,8 +32,8 @@ def coriolis_force(M: np.ndarray, nu: np.ndarray) -> np.ndarray:
     return np.array([-r * p_v, r * p_u, u * p_v - v * p_u])
 
 
-def seed002_printed_coriolis(M: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """C exactly as seed 002 prints it (kept only to show that it is not skew)."""
+def printed_coriolis_bertoni(M: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """C exactly as [Bertoni-2024] prints it (kept only to show that it is not skew)."""
     u, v, r = nu
     return np.array(
         [

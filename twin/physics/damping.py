@@ -1,4 +1,4 @@
-"""Hydrodynamic damping D(ν)ν with linear and quadratic terms (seed 004 eq. 7),
+"""Hydrodynamic damping D(ν)ν with linear and quadratic terms [Morel-2024 eq. 7],
 plus the speed-proportional sway and yaw terms of manoeuvring theory.
 
 Fossen's sign convention: the coefficients of a dissipative hull are negative
@@ -8,7 +8,7 @@ Names: `Xuu` is X_{|u|u}, `Yrv` is Y_{|r|v}, `Yvr` is Y_{|v|r}, and so on.
 `Yuv` (Y_{|u|v}) and `Nur` (N_{|u|r}): a hull moving ahead at u meets sway and yaw
 with lift-like forces, so its linear sway and yaw derivatives grow with the speed
 (Y_v = Y_v'·½ρL²U, N_r = N_r'·½ρL⁴U in non-dimensional manoeuvring form; Fossen
-2011 §6.4). Seed 004 eq. 7 has no such term: it is zero in every vessel file unless
+2011 §6.4). [Morel-2024 eq. 7] has no such term: it is zero in every vessel file unless
 identification asks for it.
 
 `Yur` (Y_{ur}) and `Nuv` (N_{uv}): the sway-yaw coupling of the same lift, Y_r = Y_r'·½ρL³U and
@@ -21,7 +21,7 @@ slips inwards, against the centrifugal (m − X_u̇)·u·r that alone makes it s
 `astern_excess` (dimensionless, 0 in every vessel file unless a diagnosis or identification asks for
 it): going astern (u < 0) the surge damping is (1 + astern_excess)·(Xu + Xuu·|u|)·u. A hull drawn to
 go ahead meets the water with its transom when it backs, and resists more than ahead at the same
-speed; seed 004 eq. 7 has one curve for both directions. Dissipative for astern_excess > −1.
+speed; [Morel-2024 eq. 7] has one curve for both directions. Dissipative for astern_excess > −1.
 """
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ class Damping:
         return [f.name for f in fields(cls)]
 
     def matrix(self, nu: np.ndarray) -> np.ndarray:
-        """D(ν) of seed 004 eq. 7."""
+        """D(ν) of [Morel-2024 eq. 7]."""
         au, av, ar = np.abs(nu)
         u = nu[0]
         return -np.array(

@@ -1,5 +1,4 @@
-"""Wind loads on a ship by the regression of Fujiwara, Ueno & Nimura (1998), "Estimation of wind
-forces and moments acting on ships", J. Soc. Naval Archit. Japan 183: a Fourier series in the
+"""Wind loads on a ship by the regression of [Fujiwara-1998]: a Fourier series in the
 relative wind angle whose ten coefficients follow from the above-water geometry.
 
     X_A = C_X q A_F,  Y_A = C_Y q A_L,  N_A = C_N q A_L L   (about midship),  q = ½ρ_a U_A²
@@ -62,7 +61,7 @@ class FujiwaraWind:
 
 
 def regression(g: FujiwaraWind) -> tuple[float, ...]:
-    """The ten coefficients of Fujiwara et al. (1998) for the geometry g (order COEFFICIENTS)."""
+    """The ten coefficients of [Fujiwara-1998] for the geometry g (order COEFFICIENTS)."""
     L, B, AF, AL = g.length_m, g.breadth_m, g.frontal_area_m2, g.lateral_area_m2
     AOD, C, LCBR = g.superstructure_area_m2, g.centroid_x_m, g.superstructure_x_m
     HBR, HC = g.superstructure_height_m, g.centroid_height_m

@@ -1,10 +1,10 @@
 """The 3-DOF equations of motion, assembled from the force modules:
 
     M ν̇_r + C(ν_r)ν_r + D(ν_r)ν_r = τ_thrust + τ_wind,    ν_r = ν − ν_c,
-    ν̇ = ν̇_r + ν̇_c,  η̇ = R(ψ)ν                     (seed 000 eq. 12; seed 004 eq. 3-7)
+    ν̇ = ν̇_r + ν̇_c,  η̇ = R(ψ)ν                     ([Yellowfish-TR eq. 12; Morel-2024 eq. 3-7])
 
 with M = M_RB + M_A and C = C_RB + C_A. For an irrotational earth-fixed
-current, M_RB ν̇ + C_RB(ν)ν = M_RB ν̇_r + C_RB(ν_r)ν_r (Fossen 2011 Prop. 10.1),
+current, M_RB ν̇ + C_RB(ν)ν = M_RB ν̇_r + C_RB(ν_r)ν_r [Fossen-2011 Prop. 10.1],
 which is what lets the engine keep integrating the true ν while the
 hydrodynamic terms see ν_r.
 
@@ -19,7 +19,7 @@ A propeller-and-rudder ship (physics/mmg.py) adds the MMG hull, propeller and ru
 τ_MMG(ν_r, n, δ) to the right-hand side; its inputs (n, δ) are the `controls` the caller passes
 (the engine's two controls), since its actuators exert no force themselves. Its wind load is
 Fujiwara's regression (physics/fujiwara.py) where the vessel has one, else the simple WindLoad.
-The MMG equations of motion (Yasukawa & Yoshimura 2015, eq. 4) have no Munk moment: it is part
+The MMG equations of motion [MMG-2015 eq. 4] have no Munk moment: it is part
 of the measured N'_v, so such a hull's C_A(ν_r)ν_r drops its yaw row (`munk_moment` False);
 C_A then keeps +m_y v r in X and −m_x u r in Y, exactly eq. 4's added-mass terms.
 

@@ -1,6 +1,4 @@
-"""The MMG standard method for a single-propeller, single-rudder ship (Yasukawa & Yoshimura 2015,
-"Introduction of MMG standard method for ship maneuvering predictions", J. Mar. Sci. Technol.
-20:37-52, doi 10.1007/s00773-014-0293-y): hull, propeller and rudder forces at midship.
+"""The MMG standard method for a single-propeller, single-rudder ship [MMG-2015]: hull, propeller and rudder forces at midship.
 
 Frames and signs as the rest of the twin: body FRD with the origin at MIDSHIP on the waterline
 (the point the MMG equations and every published coefficient refer to), ν = (u, v_m, r) the
@@ -21,7 +19,7 @@ as this project could check it; the paper text itself was not available, docs/es
                        C_2 = C_2⁺ for β_P > 0, C_2⁻ otherwise; β = atan(−v_m/u)
   rudder (eqs. 17-27)  X_R = −(1 − t_R) F_N sin δ,  Y_R = −(1 + a_H) F_N cos δ,
                        N_R = −(x_R + a_H x_H) F_N cos δ,  F_N = ½ρ A_R U_R² f_α sin α_R,
-                       U_R² = u_R² + v_R²,  α_R = δ − atan(v_R/u_R),  f_α = 6.13Λ/(Λ + 2.25) (Fujii),
+                       U_R² = u_R² + v_R²,  α_R = δ − atan(v_R/u_R),  f_α = 6.13Λ/(Λ + 2.25) (Fujii, [MMG-2015 eq. 20]),
                        u_R = ε u_P √(η{1 + κ(√(1 + 8K_T/(πJ_P²)) − 1)}² + (1 − η)),  η = D_P/H_R,
                        v_R = U γ_R β_R,  β_R = β − l'_R r',  γ_R = γ_R⁻ for β_R < 0, γ_R⁺ otherwise
 
@@ -41,12 +39,12 @@ keeping the standard exact inside it (each extension says why; identification ma
   * β = atan2(−v_m, |u|) (the standard's β for u ≥ 0; astern the drift angle is measured from
     the stern), 1 − w_P = 1 for u < 0 (no wake ahead of the propeller when going astern);
   * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
-    clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the NAOE Esso 3 m set's
-    reverse-propeller form; no slipstream on the rudder;
+    clip(c0 + c1 u/(|n| D_P), 0, c_max), X_P = T (no thrust deduction), the Esso 3 m set's
+    reverse-propeller form [NAOE-MMG-SIM]; no slipstream on the rudder;
   * n < 0 also pushes the stern sideways (a single screw backing: the paddle-wheel effect, which
     swings a right-handed ship's bow to starboard): Y_P = ½ρL d (nD_P)² Y*_P(J_s), N_P =
     ½ρL²d (nD_P)² N*_P(J_s), J_s = u/(n D_P), each piecewise linear in J_s with knots at −0.35 and
-    −0.06 (Hachii's form, the NAOE Esso 3 m set's coefficients a0..a4, b0..b4: a0 + a1 J_s between
+    −0.06 (Hachii's form, the Esso 3 m set's coefficients [NAOE-MMG-SIM] a0..a4, b0..b4: a0 + a1 J_s between
     the knots, a2 + a3 J_s below −0.35, a4 above −0.06, continuous at both); zero for n ≥ 0, where
     the standard has none. As published, the lowest piece changes sign near J_s = −0.84 (a ship
     still running ahead fast on a slowly backing screw: bow to port); it is kept as published;

@@ -1,5 +1,4 @@
-"""What the sensors report of the true state: the GNSS antenna position (seed 000
-appendix eqs. 28-32, read backwards) and the AHRS heading with its errors, and the
+"""What the sensors report of the true state: the GNSS antenna position ([Yellowfish-TR appendix eqs. 28-32], read backwards) and the AHRS heading with its errors, and the
 timing of the PWM log against the other streams.
 
 Heading error (deg) at true heading ψ: a constant bias plus the classic one- and
@@ -11,7 +10,7 @@ The thrusters' own currents add a field of their own at the magnetometer: a body
 that grows with what the motors draw, so a one-cycle deviation that comes and goes with the
 throttle: δψ_motor = τ·(B_m sin ψ + C_m cos ψ), τ the thrusters' mean throttle |pwm − neutral| /
 full range (0 at idle, 1 both at full, ahead or astern: a battery's current flows one way either
-way). ArduPilot calibrates this as COMPASS_MOT with COMPASS_MOT_TYPE = 1 (throttle; = 2 reads
+way). ArduPilot calibrates this as COMPASS_MOT [ArduPilot-CompassMot] with COMPASS_MOT_TYPE = 1 (throttle; = 2 reads
 a current sensor instead, which these logs seldom have); the field's direction and size are the
 wiring's, so B_m and C_m are each boat's own.
 
@@ -121,7 +120,7 @@ def antenna_body_m(gnss_site_m, sensors: Sensors) -> np.ndarray:
 
 def antenna_ned(north_m, east_m, psi_rad, antenna_xy_m) -> tuple[np.ndarray, np.ndarray]:
     """Antenna north, east (m) of the vessel at CO (north, east) heading ψ: CO + R2(ψ)·r_a
-    (seed 000 eq. 32 solved for the antenna)."""
+    ([Yellowfish-TR eq. 32] solved for the antenna)."""
     c, s = np.cos(psi_rad), np.sin(psi_rad)
     ax, ay = antenna_xy_m
     return np.asarray(north_m) + c * ax - s * ay, np.asarray(east_m) + s * ax + c * ay

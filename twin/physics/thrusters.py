@@ -1,6 +1,6 @@
 """Twin-thruster actuation: the T200 PWM→thrust map with its dead zone
-(seed 000 eq. 27, Table VII), the allocation (seed 000 eq. 26), the force and
-torque bounds (Table VIII), the first-order thrust lag (seed 004 eq. 15), and
+[Yellowfish-TR eq. 27, Table VII], the allocation [Yellowfish-TR eq. 26], the force and
+torque bounds (Table VIII), the first-order thrust lag [Morel-2024 eq. 15], and
 what real thrusters add to a datasheet curve:
 
 - a transport delay between the logged PWM and the thrust (ESC and autopilot
@@ -44,7 +44,7 @@ what real thrusters add to a datasheet curve:
   acts against the advance whichever way the propeller turns: a propeller is a damper whose
   strength grows with its speed. Going ahead it lowers a forward thrust and strengthens a
   reversed one (crash stop); in a spin it weakens the reversed thruster, which backs into its
-  own jet, and strengthens the forward one. (T0·(1 − k·u_a), which an earlier form used, gets
+  own jet, and strengthens the forward one. (T0·(1 − k·u_a), the simpler form, gets
   every reversed thruster's case the wrong way round.) The engine applies it in the
   hydrodynamic callback from each actuator's force (physics.hydrodynamics).
 
@@ -65,7 +65,7 @@ from numba import njit
 class ThrusterModel:
     """Static map from a PWM pulse (µs) to one thruster's thrust (N).
 
-    `kind = "t200"`: seed 000 eq. 27 with δ̃ = δ/400 − 3.75 and separate forward and
+    `kind = "t200"`: [Yellowfish-TR eq. 27] with δ̃ = δ/400 − 3.75 and separate forward and
     reverse quadratics in δ̃ (coefficients [a, b, c] of a·δ̃² + b·δ̃ + c), zero
     thrust inside the dead zone (deadzone_rev, deadzone_fwd). start_fwd / start_rev (δ̃, None:
     the dead-zone edge): where a stopped motor starts (module docstring); an edge inside the
@@ -152,7 +152,7 @@ class ThrusterModel:
         return self.bounds(), self.bounds()
 
     def normalised(self, pwm_us):
-        """δ̃ = δ/400 − 3.75 (seed 000 §V-B), clipped to the PWM range."""
+        """δ̃ = δ/400 − 3.75 [Yellowfish-TR §V-B], clipped to the PWM range."""
         pwm = np.clip(np.asarray(pwm_us, dtype=float), self.pwm_min_us, self.pwm_max_us)
         return pwm / self.pwm_scale_us - self.pwm_offset
 
@@ -196,7 +196,7 @@ class ThrusterModel:
         return new, tuple(float(p) if s else self.neutral_us for s, p in zip(new, pwm_us))
 
     def thrust_from_pwm(self, pwm_us):
-        """Commanded thrust T(δ) in N (seed 000 eq. 27), before gains and lag."""
+        """Commanded thrust T(δ) in N [Yellowfish-TR eq. 27], before gains and lag."""
         if self.kind != "t200":
             raise ValueError("this vessel has no PWM model: give thrust in N")
         x = self.normalised(pwm_us)
@@ -332,12 +332,12 @@ def delivered(c: float, static_thrust_n, nu_r: np.ndarray, thruster_y_m) -> np.n
 
 
 def advance_force(c: float, static_thrust_n, nu_r: np.ndarray, thruster_y_m) -> np.ndarray:
-    """Body-frame (X, Y, N) of both thrusters' advance loss at one state ν_r (seed 000 eq. 26)."""
+    """Body-frame (X, Y, N) of both thrusters' advance loss at one state ν_r [Yellowfish-TR eq. 26]."""
     return allocation_matrix(thruster_y_m) @ advance_loss(c, static_thrust_n, advance_speed(nu_r, thruster_y_m))
 
 
 def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:
-    """B mapping [T_L, T_R] to τ = [Fu, Fv, τr] (seed 000 eq. 26; seed 002 B).
+    """B mapping [T_L, T_R] to τ = [Fu, Fv, τr] ([Yellowfish-TR eq. 26; Bertoni-2024] B).
 
     Thrusters push along body x at lateral positions y_L (port, < 0 in FRD) and
     y_R; the yaw moment of a force F_x at y is −y·F_x, so for y = ∓d/2 this is
@@ -348,7 +348,7 @@ def allocation_matrix(thruster_y_m: tuple[float, float]) -> np.ndarray:
 
 
 def force_torque_bounds(model: ThrusterModel, thruster_y_m) -> dict[str, float]:
-    """Fu and τr bounds for both thrusters saturated (seed 000 Table VIII); None for an
+    """Fu and τr bounds for both thrusters saturated [Yellowfish-TR Table VIII]; None for an
     unbounded thruster."""
     t_min, t_max = model.bounds()
     if not (np.isfinite(t_min) and np.isfinite(t_max)):
@@ -365,7 +365,7 @@ def force_torque_bounds(model: ThrusterModel, thruster_y_m) -> dict[str, float]:
 
 
 def lag_time_constant_s(alpha: float, sample_s: float) -> float:
-    """Continuous time constant of seed 004 eq. 15, T(k) = αT(k−1) + βT_st(k−1)."""
+    """Continuous time constant of [Morel-2024 eq. 15], T(k) = αT(k−1) + βT_st(k−1)."""
     if not 0.0 < alpha < 1.0:
         raise ValueError("alpha must lie in (0, 1) for a stable first-order lag")
     return -sample_s / np.log(alpha)

@@ -1,4 +1,4 @@
-"""A recording made ready for fitting (seed 004 §5.1): streams synchronised on one grid,
+"""A recording made ready for fitting [Morel-2024 §5.1]: streams synchronised on one grid,
 GNSS in local NED, the lever arm applied, body velocities, segments without dropouts,
 operating regions; and the model-based smoother, and what `twin convert` writes; and how late a
 log's heading is against its gyro (timing.py)."""

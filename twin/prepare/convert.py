@@ -2,8 +2,7 @@
 synchronised onto one grid where that is possible.
 
 Where the recording has GNSS and heading, GNSS (as recorded: lat/lon/alt or
-north/east, no lever arm), heading and PWM are held onto the grid of seed 004
-§5.1 (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a
+north/east, no lever arm), heading and PWM are held onto the grid of [Morel-2024 §5.1] (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a
 CSV holds all three. A log without GNSS or heading (an ROV, a bench test, a
 broken receiver) cannot be prepared: its streams are written at their own times
 instead. IMU and battery always keep their own times, parameters and PWM neutral

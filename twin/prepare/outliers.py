@@ -20,7 +20,7 @@ its first fresh record can be a partial one (turn_14-Oct-2020_14_08_51 at 210.1 
 the track, a 6 m/s jump to the next fix); no chord across the stall is short enough to judge it,
 the next two fixes are. Only there, and only after the centred passes have left out what they
 find: a one-sided chord through an outlier misses its neighbour by twice the outlier's offset (the
-first fix after a dropout of world seed 51, on its track, was flagged so before this order).
+first fix after a dropout, on its track, would be flagged so if the one-sided chords came first).
 
 A receiver can also hold its fix for a second or two, with a few millimetres of dither, while the
 vessel moves on, and then jump to where the vessel is (the Esso Osaka's turn_14-Oct-2020_15_21_57

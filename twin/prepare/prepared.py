@@ -1,30 +1,30 @@
-"""Data preparation of seed 004 §5.1: a Recording → synchronised kinematics and inputs.
+"""Data preparation of [Morel-2024 §5.1]: a Recording → synchronised kinematics and inputs.
 
 1. Synchronisation onto one time grid (step grid_dt): each stream is held
    (zero-order hold) at its latest sample at or before the grid time, never a
-   later one. The seed extrapolates causally with splines; a hold is the simplest
+   later one. [Morel-2024] extrapolates causally with splines; a hold is the simplest
    causal choice and adds no overshoot. The heading is the exception: it is read
    between its two samples around the grid time (`between`), as the velocities are
    read at the grid time (step 4); held, it would turn them into the body frame by
    the heading of up to one heading period earlier, a sway of u·r·lag in every turn.
 2. GNSS latitude/longitude → local NED, flat earth around the first fix with the
    WGS-84 meridian and prime-vertical radii of curvature at that latitude.
-3. Lever arm (seed 000 appendix): the antenna O is not the body origin CO;
+3. Lever arm [Yellowfish-TR appendix]: the antenna O is not the body origin CO;
    OP = (dx, dy) points from O to CO in body axes, x_CO = x_O + R2(ψ)·OP (eqs. 30-32),
    V_CO = V_O + r·S·R2(ψ)·OP (eqs. 33-34), (u, v) = R2(ψ)ᵀ·V_CO (eqs. 35-36).
-4. Velocities: V_O and r = dψ/dt by Savitzky-Golay derivatives (seed 004 §5.1,
+4. Velocities: V_O and r = dψ/dt by Savitzky-Golay derivatives ([Morel-2024 §5.1],
    scipy.signal.savgol_filter, ψ unwrapped first), or plain central differences
    (smoother="none"). Each is taken on the stream's own samples (GNSS at its rate,
    a fix repeated by a faster logger counted once; heading at its rate) and read
    at the grid times, not on the held grid values, whose steps would add ripple and
    half a GNSS period of lag. Savitzky-Golay is a centred window: the smoothing
-   looks ahead by window/2, like the seed's offline filtering; only step 1 is causal.
+   looks ahead by window/2, like the offline filtering of [Morel-2024]; only step 1 is causal.
 5. Segments: the grid is cut wherever a needed stream (GNSS, heading, PWM if any)
    falls silent for more than max_gap_s; no hold bridges such a dropout and
    derivatives never cross a cut. Segments shorter than min_segment_s are dropped.
-6. Operating region of each sample (seed 004 §4.2.1): "ff", "fr", "rf", "rr" with
+6. Operating region of each sample [Morel-2024 §4.2.1]: "ff", "fr", "rf", "rr" with
    the left letter for the left thruster; f when pwm ≥ neutral (forward thrust),
-   r when pwm < neutral. A sample in the dead band (seed 000 Table VII: no thrust
+   r when pwm < neutral. A sample in the dead band ([Yellowfish-TR Table VII]: no thrust
    for δ̃ in (−0.0925, 0.0775), i.e. about −37..+31 µs around the neutral) is
    still classified by its sign, and flagged in `in_deadband` so that an
    identification can leave it out. Region "" when the recording has no PWM.
@@ -32,7 +32,7 @@
    stream: n rps, δ rad). Either is held on the grid as the two input channels `pwm` (n, 2), and
    `input_kind` ("pwm" or "propeller_rudder", as drive.InputSeries and ThrusterModel.command
    name them) says which, so windows, replays and fits take them through the vessel's own
-   thruster model unchanged. A propeller and rudder has no operating regions of seed 004
+   thruster model unchanged. A propeller and rudder has no operating regions of [Morel-2024]
    (region "") and no dead band.
 8. GNSS and heading latency (`gnss_latency_s` L > 0: a fix stamped t was taken at t − L;
    `heading_latency_s` likewise for the heading): the grid and its segments are those of the
@@ -68,7 +68,7 @@ from ..recording import Recording, Stream
 from ..run import Run
 from .outliers import distinct_count, gnss_outliers, heading_spikes, held_fixes
 
-DEADBAND_US = (-37.0, 31.0)  # seed 000 Table VII (experimental): 400·(3.75 + δ̃) − 1500
+DEADBAND_US = (-37.0, 31.0)  # [Yellowfish-TR Table VII] (experimental): 400·(3.75 + δ̃) − 1500
 _EPS_S = 1e-6  # a grid time within this of a sample time counts as "at" the sample
 
 
@@ -149,7 +149,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
             heading_window_s: float | None = None,
             min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US,
             gnss_latency_s: float = 0.0, heading_latency_s: float = 0.0) -> Prepared:
-    """Seed 004 §5.1 data preparation of `rec` (see the module docstring).
+    """[Morel-2024 §5.1] data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the

@@ -1,8 +1,8 @@
 """A velocity estimator that uses the vessel model: an extended Kalman filter
 on the 3-DOF equations of motion, driven by the recorded PWM, followed by a
-Rauch-Tung-Striebel backward pass.
+Rauch-Tung-Striebel backward pass [RTS-1965].
 
-Savitzky-Golay (seed 004 §5.1) differentiates noisy positions and so trades
+Savitzky-Golay [Savitzky-1964; Morel-2024 §5.1] differentiates noisy positions and so trades
 lag against noise. The model knows that a 25 kg hull cannot change speed
 faster than its thrust allows, which lets it follow steps and turns with
 less noise; it is only as good as the model, and the process noise (an

@@ -19,7 +19,7 @@ Choices, and why:
 - **Thruster commands** follow `ThrusterModel.command` exactly, step by step as
   `engine.sim.simulate` does: the input held `delay_s` earlier (a zero-order-hold
   history of the frames' inputs, neutral before the session started), through
-  the PWM map (seed 000 eq. 27 with its dead zone), times the thrust decay at the
+  the PWM map ([Yellowfish-TR eq. 27] with its dead zone), times the thrust decay at the
   step's time, then a thrust ramp's slew limit (each step's mean of the ramp, from rest at
   the session's start). The decay counts from the start of the twin's clock, which starts
   again with ArduPilot (a restart is a new session). Gains, lag and the
@@ -123,7 +123,7 @@ class PwmMap:
         return s * self.thrust_max_n if s >= 0.0 else -s * self.thrust_min_n
 
     def raw(self, held: float) -> float:
-        """Thrust (N) before the decay: seed 000 eq. 27 with its dead zone, or the thrust itself."""
+        """Thrust (N) before the decay: [Yellowfish-TR eq. 27] with its dead zone, or the thrust itself."""
         if self.kind != "pwm":
             return held
         x = min(max(held, self.pwm_min_us), self.pwm_max_us) / self.scale_us - self.offset

@@ -1,7 +1,7 @@
 """ArduPilot SITL's JSON physics interface, both directions, as pure functions.
 
 What the bytes are (checked against ArduPilot's source, ArduPilot/ardupilot
-`libraries/SITL/SIM_JSON.h`, `SIM_JSON.cpp` and `libraries/SITL/examples/JSON/readme.md`):
+[ArduPilot-SITL]: `libraries/SITL/SIM_JSON.h`, `SIM_JSON.cpp` and `libraries/SITL/examples/JSON/readme.md`):
 
 - ArduPilot → physics, one UDP datagram per frame, little-endian: `uint16 magic`,
   `uint16 frame_rate` (Hz, SIM_RATE_HZ), `uint32 frame_count`, then `uint16 pwm[16]`

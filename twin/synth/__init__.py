@@ -1,2 +1,2 @@
 """Synthetic recordings with a known truth: the twin driven through identification
-manoeuvres (seed 004 §6.1), its sensors logged with noise, effects injected by name."""
+manoeuvres [Morel-2024 §6.1], its sensors logged with noise, effects injected by name."""

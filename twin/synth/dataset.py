@@ -1,9 +1,9 @@
-"""Synthetic identification datasets from the twin (seed 004 §6.1 in shape): a truth
+"""Synthetic identification datasets from the twin ([Morel-2024 §6.1] in shape): a truth
 vessel (the vessel description with effects injected by name), trajectory segments
 of identification manoeuvres separated by gaps, and the sensors an ArduPilot boat
-logs at their real rates and noise (seed 004 §3, Table 1):
+logs at their real rates and noise [Morel-2024 §3, Table 1]:
 
-  GNSS     lat/lon of the antenna (MJCF gnss site + the sensors' offset, seed 000
+  GNSS     lat/lon of the antenna (MJCF gnss site + the sensors' offset, [Yellowfish-TR]
            appendix), every 200 ms, a small white jitter plus a smooth slow wander
   heading  AHRS ψ with the sensors' bias/deviation, every 20 ms, white noise
   PWM      the autopilot's output, every 100 ms, integer µs, stamped with the
@@ -48,7 +48,7 @@ class SensorNoise:
     """Noise of the logged sensors. GNSS: white jitter σ per axis plus a smooth wander (σ,
     time scale): a receiver's own filter makes epoch-to-epoch jitter small (cm) while
     the position wanders by decimetres over a minute; heading: white σ. Rates of
-    seed 004 Table 1."""
+    [Morel-2024 Table 1]."""
 
     gnss_white_m: float = 0.02
     gnss_wander_m: float = 0.5

@@ -1,4 +1,4 @@
-"""Identification manoeuvres shaped like seed 004 §6.1: a pilot with two joysticks
+"""Identification manoeuvres shaped like [Morel-2024 §6.1]: a pilot with two joysticks
 (PWM mean δ̄ and difference Δδ, §5.1) drives forward runs at constant and varying
 speed, zig-zags, and circles at constant and varying rate; plus free RC driving
 and an autopilot that holds heading and speed on straight legs (closed loop).
@@ -7,7 +7,7 @@ Open-loop manoeuvres are PWM series at the autopilot's 10 Hz output rate
 (integer µs, forward = higher): the batch engine runs them. Closed-loop ones
 (zig-zag, autopilot) are controllers for `engine.sim.simulate`.
 
-Normalised PWM δ = (PWM − 1500 µs)/400 µs ∈ [−1, 1] (seed 000 §V-B);
+Normalised PWM δ = (PWM − 1500 µs)/400 µs ∈ [−1, 1] [Yellowfish-TR §V-B];
 δL = δ̄ + Δδ/2, δR = δ̄ − Δδ/2. Positive Δδ speeds the left thruster up and
 turns the vessel to starboard.
 """
@@ -73,7 +73,7 @@ def _series(mean: np.ndarray, diff: np.ndarray) -> InputSeries:
 
 def rc(rng: np.random.Generator, duration_s: float) -> InputSeries:
     """Free RC driving: both sticks anywhere forward-ish, regions (f,f), (f,r), (r,f) and a
-    little (r,r) (the seed avoids reversing both)."""
+    little (r,r) ([Morel-2024] avoids reversing both)."""
     n = int(round(duration_s / PWM_DT_S))
     mean = _held(rng, n, lambda: rng.uniform(-0.1, 0.8))
     diff = _held(rng, n, lambda: rng.uniform(-0.9, 0.9) * (rng.uniform() < 0.75))

@@ -1,5 +1,5 @@
 """`twin validate`: the vessel's inertia, added mass, thrust bounds and
-hydrostatics, number by number, from the seed's hand formulas, the seed's
+hydrostatics, number by number, from the report's hand formulas, the report's
 printed tables, the compiled MuJoCo model, the hull meshes (trimesh) and an
 independent computation (MuJoCo's own ellipsoid fluid model, a closed form,
 Archimedes on the meshes).
@@ -203,10 +203,10 @@ def _engine_bounds(compiled: CompiledVessel) -> dict[str, float]:
     return {"Fu_min_n": min(out["Fu"]), "Fu_max_n": max(out["Fu"]), "tau_r_max_nm": max(out["tau"])}
 
 
-# ---------------------------------------------------------------- seed 000: the Yellowfish
+# ---------------------------------------------------------------- [Yellowfish-TR]: the Yellowfish
 
 
-def _seed000_inertia(compiled: CompiledVessel, case: str, meshes: list[dict]) -> list[Quantity]:
+def _yellowfish_tr_inertia(compiled: CompiledVessel, case: str, meshes: list[dict]) -> list[Quantity]:
     S, model = YELLOWFISH_TR, compiled.model
     data = _at_rest(model)
     g = compiled.geometry.rigid
@@ -215,7 +215,7 @@ def _seed000_inertia(compiled: CompiledVessel, case: str, meshes: list[dict]) ->
     m_hull, x_hull, x_box = S["m_hull_kg"][case], S["x_hull_mm"][case], S["x_box_mm"][case]
     m_box, d_g = S["m_box_kg"][case], S["d_g_m"][case]
     xg_eq17 = (2 * x_hull * m_hull + x_box * m_box) / (2 * m_hull + m_box)
-    # the analytic column follows the seed's own chain, eq. 19 into eq. 18; the table column keeps what it printed
+    # the analytic column follows the report's own chain, eq. 19 into eq. 18; the table column keeps what it printed
     I_box_eq19 = m_box * (S["a_box_m"] ** 2 + S["b_box_m"] ** 2) / 12.0
     Iz_eq18 = I_box_eq19 + 2 * m_hull * d_g**2
     elec = _body_id(model, "electronics")
@@ -321,7 +321,7 @@ def _printed_column_match(value: float, computed: dict[str, float]) -> str | Non
     return None
 
 
-def _seed000_added_mass(compiled: CompiledVessel, case: str) -> list[Quantity]:
+def _yellowfish_tr_added_mass(compiled: CompiledVessel, case: str) -> list[Quantity]:
     S, rho = YELLOWFISH_TR, YELLOWFISH_TR["rho_water_kg_m3"]
     per_case = {c: am.ellipsoid_added_mass(S["a_m"][c], S["b_m"][c], S["c_m"][c], rho) for c in S["a_m"]}
     e = per_case[case]
@@ -329,7 +329,7 @@ def _seed000_added_mass(compiled: CompiledVessel, case: str) -> list[Quantity]:
     vm, vi = _mujoco_ellipsoid(a, b, c)
     volume = 4 / 3 * np.pi * a * b * c
     closed = am.ellipsoid_lamb_coefficients_closed_form(a, b, c)
-    printed = am.catamaran_added_mass_seed000(e, S["m_hull_kg"][case], S["y_m_m"])
+    printed = am.catamaran_added_mass_as_printed(e, S["m_hull_kg"][case], S["y_m_m"])
     mj_single = {"Xudot": -rho * vm[0], "Yvdot": -rho * vm[1], "Nrdot": -rho * vi[2]}
     consistent = am.catamaran_added_mass_consistent(mj_single, S["y_m_m"], S["x_hull_mm"][case] / 1e3)
     used = compiled.vessel.added_mass
@@ -362,7 +362,7 @@ def _seed000_added_mass(compiled: CompiledVessel, case: str) -> list[Quantity]:
         out.append(q)
     out.append(Quantity("Nr_dot one ellipsoid (eq. 21)", "kg m2", analytic=e["Nrdot"],
                         independent=mj_single["Nrdot"], reference="analytic"))
-    eq25 = {k: am.catamaran_added_mass_seed000(v, S["m_hull_kg"][k], S["y_m_m"])["Nrdot"] for k, v in per_case.items()}
+    eq25 = {k: am.catamaran_added_mass_as_printed(v, S["m_hull_kg"][k], S["y_m_m"])["Nrdot"] for k, v in per_case.items()}
     out.append(Quantity(
         "Nr_dot (2 hulls, eq. 25)", "kg m2", analytic=printed["Nrdot"], table=S["Nrdot_kgm2"][case],
         engine=used.Nrdot, independent=consistent["Nrdot"],
@@ -396,7 +396,7 @@ def _swap_note(what: str, unit: str, printed: dict[str, float], computed: dict[s
             f"case's semi-axes ({computed[case]:.2f} {unit}). ")
 
 
-def _seed000_bounds(compiled: CompiledVessel) -> list[Quantity]:
+def _yellowfish_tr_bounds(compiled: CompiledVessel) -> list[Quantity]:
     S = YELLOWFISH_TR
     t = compiled.vessel.thrusters
     analytic = force_torque_bounds(t, (-S["d_thrusters_m"] / 2, S["d_thrusters_m"] / 2))
@@ -428,7 +428,7 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
                   f"displace {design_l:.1f} L; they float {mass:.2f} kg at a {fl['draft_m'] * 1e3:.1f} mm draft.")
     if S is not None:
         ell_l = 1e3 * 2 * (2 / 3) * np.pi * S["a_m"][case] * S["b_m"][case] * S["c_m"][case]
-        why = ("the seed's semi-axis c is a chosen ellipsoid depth, not a flotation draft: two half-submerged "
+        why = ("the report's semi-axis c is a chosen ellipsoid depth, not a flotation draft: two half-submerged "
                f"ellipsoids of Table VI displace {ell_l:.1f} L, not the {floats_l:.1f} L that float {mass:.2f} kg "
                f"in fresh water. {meshes_say} The hull meshes are an assumed shape with the report's overall "
                "dimensions. The twin keeps the ellipsoid added mass of Table VI's semi-axes until identification.")
@@ -448,11 +448,11 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
             Quantity("waterline half-length a", "mm", table=1e3 * S["a_m"][case],
                      mesh=0.5e3 * fl["waterline_length_m"], reference="table",
                      explanation="at its flotation draft the assumed hull shape (raked bow, transom) has a "
-                                 "shorter waterline than Table VI's 2a; the seed does not give the hull lines."),
+                                 "shorter waterline than Table VI's 2a; the report does not give the hull lines."),
             Quantity("waterline half-breadth b", "mm", table=1e3 * S["b_m"][case],
                      mesh=0.5e3 * fl["waterline_breadth_m"], reference="table",
                      explanation="Table VI's b for this case is a chosen ellipsoid semi-axis; the hull mesh's "
-                                 "waterplane breadth at flotation follows from the 25.5 cm hull (seed 000 §II-A)."),
+                                 "waterplane breadth at flotation follows from the 25.5 cm hull [Yellowfish-TR §II-A]."),
         ]
     return out, fl
 
@@ -476,10 +476,10 @@ def _floating_free(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantit
             Quantity("heel, free", "deg", mesh=float(np.rad2deg(heel)), reference="mesh", explanation=why)]
 
 
-# ---------------------------------------------------------------- seed 002: CyberShip I
+# ---------------------------------------------------------------- [Bertoni-2024]: CyberShip I
 
 
-def _seed002(compiled: CompiledVessel) -> list[Quantity]:
+def _cybership_bertoni(compiled: CompiledVessel) -> list[Quantity]:
     hydro = compiled.hydro()
     M, D = hydro.M, hydro.damping.linear_matrix()
     g = compiled.geometry
@@ -489,7 +489,7 @@ def _seed002(compiled: CompiledVessel) -> list[Quantity]:
     out.append(Quantity("thruster spacing d", "m", table=CYBERSHIP_I["d_thrusters_m"],
                         engine=g.thruster_y_m[1] - g.thruster_y_m[0]))
     out.append(Quantity("rigid mass m", "kg", engine=g.rigid.mass_kg, reference="engine",
-                        explanation="seed 002 gives only the total M; the rigid/added split is an assumption "
+                        explanation="[Bertoni-2024] gives only the total M; the rigid/added split is an assumption "
                                     "of model/cybership1.json"))
     return out
 
@@ -535,10 +535,10 @@ def validate(vessel: Vessel) -> Validation:
     meshes = load_meshes(vessel)
     case = vessel.case
     if vessel.name == "yellowfish":
-        qs = _seed000_inertia(compiled, case, meshes) + _seed000_added_mass(compiled, case)
-        qs += _seed000_bounds(compiled)
+        qs = _yellowfish_tr_inertia(compiled, case, meshes) + _yellowfish_tr_added_mass(compiled, case)
+        qs += _yellowfish_tr_bounds(compiled)
     elif vessel.name == "cybership1":
-        qs = _seed002(compiled)
+        qs = _cybership_bertoni(compiled)
     else:
         qs = _generic(compiled) + _ship_particulars(compiled, meshes)
     qs += _mesh_quantities(compiled, meshes)

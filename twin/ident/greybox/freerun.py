@@ -1,6 +1,6 @@
 """Free-run (multi-step) simulation of an identified discrete model from measured
 states: the test the project judges models by, where one-step predictors that
-look excellent can drift or diverge (seed 004's Table 10 static model does)."""
+look excellent can drift or diverge (the static model of [Morel-2024 Table 10] does)."""
 from __future__ import annotations
 
 from typing import Any, Callable

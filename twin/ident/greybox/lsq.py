@@ -16,7 +16,7 @@ from ...errors import TwinError
 
 MIN_ROWS_PER_COEF = 2
 # Condition number of the column-equilibrated regressor beyond which coefficients are not
-# reported. The seed's static regressors stay near 1e2 on twin and BlueBoat data; its dynamic ones
+# reported. The paper's static regressors stay near 1e2 on twin and BlueBoat data; its dynamic ones
 # put ν_j(k) next to ν_j(k−1) and reach 1e5-1e6 on noise-free twin runs, where they are still
 # exactly determined. Beyond 1e8, the rounding of float32 log fields (6e-8 relative) alone can
 # move a coefficient by its own size: the fit is numerically rank-deficient.

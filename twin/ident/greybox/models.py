@@ -1,4 +1,4 @@
-"""Seed 004 grey-box identification of the input gain G = h·M⁻¹·τ from GNSS,
+"""[Morel-2024] grey-box identification of the input gain G = h·M⁻¹·τ from GNSS,
 heading and PWM: the second-order static thruster model (Props. 1-2, eqs.
 19-28) and the first-order dynamic one (Prop. 3, eqs. 29-39), as fit
 functions returning models that predict.
@@ -12,7 +12,7 @@ dynamic:  G_j(k) = α·G_j(k−1) + C_j(k−1)·γ_j           (eqs. 37-39)
 
 φ_j are the σ regressors (regressors.STATE_TERMS), C_j the input columns of
 the chosen thrust form (regressors.INPUT_TERMS). θ and γ include h, as the
-seed's X vectors do. Usage, scikit-learn style::
+paper's X vectors do. Usage, scikit-learn style::
 
     model = fit_static(preps)                 # or fit_dynamic(preps)
     nu_hat = model.predict_one_step(prep)     # (n, 3), NaN where no prediction
@@ -38,7 +38,7 @@ from .lsq import MAX_CONDITION, LinearFit, fit_linear
 
 ALPHA_DOFS = ("u", "r")  # DOFs whose eq. 35 rows set α by default (fit_dynamic)
 ALPHA_BOUND = 1.0 - 1e-6  # α this close to 1 is an integrator, not a lag: refused
-SEED_NAMES = {"u": "Xu", "v": "Xv", "r": "Xr"}
+PAPER_NAMES = {"u": "Xu", "v": "Xv", "r": "Xr"}
 DOF_WORD = {"u": "surge", "v": "sway", "r": "yaw"}
 
 
@@ -145,7 +145,7 @@ class StaticModel:
     dofs: dict[str, DofFit]
 
     def X(self, dof: str) -> np.ndarray:
-        """The seed's X_u (eq. 20), X_v (eq. 26) or X_r (eq. 27), h included."""
+        """The paper's X_u (eq. 20), X_v (eq. 26) or X_r (eq. 27), h included."""
         return self.dofs[dof].fit.coef.copy()
 
     def drift(self, nu: np.ndarray) -> np.ndarray:
@@ -187,7 +187,7 @@ def fit_static(data: Prepared | Sequence[Prepared], rows: Sequence[np.ndarray] |
     for dof in R.DOFS:
         regions = options.regions_for(dof)
         names = R.STATE_TERMS[dof] + R.INPUT_TERMS[options.thrust_form][dof]
-        what = f"{DOF_WORD[dof]} {SEED_NAMES[dof]} (static)"
+        what = f"{DOF_WORD[dof]} {PAPER_NAMES[dof]} (static)"
         blocks = []
         for a, s in zip(arrays, sel):
             k = np.flatnonzero(s & a.pair & a.valid[dof])
@@ -205,11 +205,11 @@ def fit_static(data: Prepared | Sequence[Prepared], rows: Sequence[np.ndarray] |
 class DynamicModel:
     """First-order dynamic thruster model, eqs. 29-39.
 
-    unconstrained: the seed's X_dyn,u/v/r (eqs. 32-34), each DOF with its own
+    unconstrained: the paper's X_dyn,u/v/r (eqs. 32-34), each DOF with its own
     implicit α (alpha_roots_by_dof: its candidates). alpha: the one α of eq. 35
     (see `shared_alpha`); eq35_rms its residual. dofs: θ_j and
     γ_j re-estimated with that α fixed, so that σ_j has one value (Remark 4
-    lets the seed's X_dyn carry two) and eqs. 37-39 can be iterated.
+    lets the paper's X_dyn carry two) and eqs. 37-39 can be iterated.
     gain_start: how a free run initialises the input-gain state G(s):
     "history" from the measured ν(s−1), ν(s) (falls back to "steady" at a
     segment start), "steady" the fixed point C(s−1)·γ/(1 − α) of eq. 37 for
@@ -227,7 +227,7 @@ class DynamicModel:
     gain_start: str = "history"
 
     def X(self, dof: str) -> np.ndarray:
-        """The seed's X_dyn (eqs. 32-34) from the unconstrained regression, h included."""
+        """The paper's X_dyn (eqs. 32-34) from the unconstrained regression, h included."""
         return self.unconstrained[dof].coef.copy()
 
     def drift(self, nu: np.ndarray) -> np.ndarray:
@@ -235,7 +235,7 @@ class DynamicModel:
 
     def predict_one_step(self, prep: Prepared) -> np.ndarray:
         """ν̂(k+1) = ν(k) + α·G(k−1) + C(k−1)·γ + h·σ(ν(k)) with the measured
-        G(k−1) = ν(k) − ν(k−1) − h·σ(ν(k−1)): the seed's one-step predictor,
+        G(k−1) = ν(k) − ν(k−1) − h·σ(ν(k−1)): the paper's one-step predictor,
         using the measured ν(k−1) and ν(k); at index k+1."""
         a = _arrays(prep, self.options)
         out = np.full_like(a.nu, np.nan)
@@ -288,7 +288,7 @@ def fit_dynamic(data: Prepared | Sequence[Prepared], rows: Sequence[np.ndarray] 
                 options: GreyboxOptions = GreyboxOptions(), alpha_dofs: Sequence[str] = ALPHA_DOFS,
                 alpha_weighting: str = "equal", alpha: float | None = None,
                 gain_start: str = "history") -> DynamicModel:
-    """Prop. 3 in three steps: (1) the seed's unconstrained regressions A_dyn,j·X_dyn,j =
+    """Prop. 3 in three steps: (1) the paper's unconstrained regressions A_dyn,j·X_dyn,j =
     Δν_j(k+1) (eqs. 29-34) per DOF; (2) one α from eq. 35 over alpha_dofs (`shared_alpha`);
     (3) with α fixed, Δν_j(k+1) − α·Δν_j(k) = [φ_j(k) − α·φ_j(k−1), C_j(k−1)]·[θ_j, γ_j],
     which is eq. 9 with eq. 37 after eliminating G(k−1) = Δν(k) − h·σ(k−1), and is
@@ -298,14 +298,14 @@ def fit_dynamic(data: Prepared | Sequence[Prepared], rows: Sequence[np.ndarray] 
     the thrusters reach sway only through M⁻¹(2,3)·τr (M23 = m·x_g − Y_ṙ, small for
     a catamaran), so X_dyn,v(1) and X_dyn,v(8) describe the sway hull pole, not the
     thruster's, and pull α there (on the Yellowfish twin with a 1 s lag at h = 0.1 s,
-    α = 0.88 with sway, 0.908 without, truth 0.905). ("u", "v", "r") is the seed's
-    literal eq. 35. alpha_weighting: "equal" (the seed's equations as written) or
+    α = 0.88 with sway, 0.908 without, truth 0.905). ("u", "v", "r") is the paper's
+    literal eq. 35. alpha_weighting: "equal" (the paper's equations as written) or
     "covariance" (generalised least squares, see `shared_alpha`). alpha: a known
     pole (e.g. lag_alpha(τ, h) for a measured spin-up time τ) instead of eq. 35.
 
     Raises TwinError when eq. 35 puts α at the stability bound 1: no stable lag
     fits, typically because smoothing (Savitzky-Golay over window_s) makes
-    successive Δν nearly equal, which eq. 35 reads as α → 1 (the seed's 0.998).
+    successive Δν nearly equal, which eq. 35 reads as α → 1 (the paper's 0.998).
     """
     if not alpha_dofs or set(alpha_dofs) - set(R.DOFS):
         raise TwinError(f"alpha_dofs must be a non-empty subset of u, v, r, got {tuple(alpha_dofs)}")
@@ -346,7 +346,7 @@ def _own_lag_index(dof: str) -> int:
 
 
 def _dynamic_columns(dof: str, nu: np.ndarray, k: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """The seed's A_dyn,j(k) (Appendix B order): ν_j(k), σ terms at k−1, σ terms at k
+    """The paper's A_dyn,j(k) (Appendix B order): ν_j(k), σ terms at k−1, σ terms at k
     without ν_j(k), 1, input columns at k−1."""
     terms = list(R.STATE_TERMS[dof])
     body = [i for i, t in enumerate(terms) if t != "1"]
@@ -359,7 +359,7 @@ def _dynamic_columns(dof: str, nu: np.ndarray, k: np.ndarray, inputs: np.ndarray
 
 
 def _fit_unconstrained(dof: str, arrays: list[_Arrays], rows: list[np.ndarray], options: GreyboxOptions) -> LinearFit:
-    what = f"{DOF_WORD[dof]} {SEED_NAMES[dof]},dyn (eq. {29 + R.DOFS.index(dof)})"
+    what = f"{DOF_WORD[dof]} {PAPER_NAMES[dof]},dyn (eq. {29 + R.DOFS.index(dof)})"
     input_names = [f"{n}(k−1)" for n in R.INPUT_TERMS[options.thrust_form][dof]]
     blocks, names = [], None
     j = R.DOFS.index(dof)
@@ -407,7 +407,7 @@ def shared_alpha(first: dict[str, float], last: dict[str, float],
     covariance: per DOF the 2×2 covariance of (X_j(1), X_j(last)) from its
     regression; when given, each pair is weighted by its inverse (generalised
     least squares), which discounts a DOF whose pair is poorly determined. None:
-    all six equations weigh the same, as the seed writes them. Returns (α, RMS
+    all six equations weigh the same, as the paper writes them. Returns (α, RMS
     residual of the equations; whitened, ≈ 1 at agreement, when weighted).
     """
     dofs = tuple(first)

@@ -1,6 +1,6 @@
 """Physical first guesses from an identified grey-box model, for a simulation-based fit.
 
-Seed 004 identifies input gains h·M⁻¹·τ and the lumped σ = M⁻¹(…), never a force:
+[Morel-2024] identifies input gains h·M⁻¹·τ and the lumped σ = M⁻¹(…), never a force:
 every coefficient is known only up to the inertia it is divided by. One absolute
 anchor is therefore taken from the vessel description, M11 = m − X_u̇ (compiled
 MJCF plus added mass), and everything else follows from it:

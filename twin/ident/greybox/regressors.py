@@ -1,11 +1,11 @@
-"""Seed 004 regressors: prepared recordings → the columns of eqs. 21, 26-27 (App. A)
+"""[Morel-2024] regressors: prepared recordings → the columns of eqs. 21, 26-27 (App. A)
 and 32-34 (App. B), with the sample masks that keep every one-step pair inside
 one segment and inside the operating regions a model is valid for.
 
 Conventions shared by the grey-box models and the baseline:
 
-- δ_i = (pwm_i − neutral_i)/400 per thruster (seed 000 §V-B: δ̃ = PWM/400 − 3.75
-  for a 1500 µs neutral), δ̄ = (δL + δR)/2, Δδ = δL − δR (seed 004 §5.1).
+- δ_i = (pwm_i − neutral_i)/400 per thruster ([Yellowfish-TR §V-B]: δ̃ = PWM/400 − 3.75
+  for a 1500 µs neutral), δ̄ = (δL + δR)/2, Δδ = δL − δR [Morel-2024 §5.1].
 - Row k of a recording is the one-step pair (k, k+1); it exists only when k+1
   lies in the same segment. The dynamic model's row k also needs k−1 there.
 - Dead band: with `deadband_as_zero`, a thruster inside `Prepared.in_deadband`
@@ -14,7 +14,7 @@ Conventions shared by the grey-box models and the baseline:
   this, a 1512/1510 µs idle around a 1511 µs neutral reads as (f,r) and every
   coast-down (where surge damping shows) is lost to the surge regression.
 - Two input parametrisations ("thrust forms"):
-  "seed": the seed's columns. Surge: δ̄² + Δδ²/4 and δ̄, valid in (f,f) only
+  "seed": the columns of [Morel-2024]. Surge: δ̄² + Δδ²/4 and δ̄, valid in (f,f) only
   (eq. 21). Sway/yaw: s·(δ̄² + Δδ²/4), δ̄Δδ, s·δ̄, Δδ/2 with s = +1 in (f,r),
   −1 in (r,f), 0 in (f,f) (eq. 28), valid in (f,f), (f,r), (r,f). One
   coefficient is shared between (f,f), where it is 2a_f, and (f,r)/(r,f),
@@ -23,8 +23,8 @@ Conventions shared by the grey-box models and the baseline:
   Σ_i s_i·[δ_i ≥ 0]·(δ_i², δ_i) and Σ_i s_i·[δ_i < 0]·(δ_i², δ_i), with
   s = (+1, +1) for surge and (+1, −1) for sway and yaw. The coefficients are
   h·M⁻¹(j,·)·(a_f, b_f, a_r, b_r) (times d/2 for sway and yaw) in every region.
-  It reduces to the seed's surge columns in (f,f) and to an invertible
-  recombination of the seed's sway/yaw columns in (f,r) and (r,f).
+  It reduces to the paper's surge columns in (f,f) and to an invertible
+  recombination of the paper's sway/yaw columns in (f,r) and (r,f).
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ REGIONS = ("ff", "fr", "rf", "rr")
 THRUST_FORMS = ("seed", "thruster")
 
 # Terms of the lumped disturbance σ_j of eq. 12 that survive the P, Q, R patterns,
-# in the order of the seed's regressors A_u (eq. 21) and A_v, A_r (Appendix A).
+# in the order of the regressors of [Morel-2024] A_u (eq. 21) and A_v, A_r (Appendix A).
 STATE_TERMS: dict[str, tuple[str, ...]] = {
     "u": ("u|u|", "v·r", "r²", "u", "1"),
     "v": ("v|v|", "v|r|", "r|v|", "r|r|", "u·v", "u·r", "v", "r", "1"),
@@ -123,13 +123,13 @@ def state_columns(nu: np.ndarray, dof: str) -> np.ndarray:
 def input_columns(inputs: Inputs, dof: str, form: str) -> np.ndarray:
     """Input-gain regressors (n, p) in INPUT_TERMS[form][dof] order (module docstring)."""
     if form == "seed":
-        return _seed_input_columns(inputs, dof)
+        return _paper_input_columns(inputs, dof)
     if form == "thruster":
         return _thruster_input_columns(inputs, dof)
     raise TwinError(f"thrust form must be one of {', '.join(THRUST_FORMS)}, got {form!r}")
 
 
-def _seed_input_columns(inputs: Inputs, dof: str) -> np.ndarray:
+def _paper_input_columns(inputs: Inputs, dof: str) -> np.ndarray:
     mean, diff = inputs.mean, inputs.difference
     power = mean ** 2 + diff ** 2 / 4  # (δL² + δR²)/2
     if dof == "u":

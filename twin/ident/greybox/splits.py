@@ -1,4 +1,4 @@
-"""Validation of seed 004 §6: R² and MAE per DOF (eqs. 40-41), training/validation
+"""Validation of [Morel-2024 §6]: R² and MAE per DOF (eqs. 40-41), training/validation
 splits by segments or by independent points (Table 3), the tables of mean and SD
 over repeated splits (Tables 4, 7) and by training percentage with a fixed
 validation share (Tables 5-6, 8-9), and free-run scores from measured states.

@@ -1,4 +1,4 @@
-"""I-PD dynamic-positioning control tuned from IS-O (seed 003 §IV, eqs. 9-11, Fig. 6).
+"""I-PD dynamic-positioning control tuned from IS-O [Relay-ISO §IV, eqs. 9-11, Fig. 6].
 
 Per DOF, with the IS-O linear (constant-drag) model α ν̇ + β ν = τ:
 
@@ -8,7 +8,7 @@ Per DOF, with the IS-O linear (constant-drag) model α ν̇ + β ν = τ:
 
 so that the loop follows the model function G_m = 1/(a3 s³ + a2 s² + a1 s + 1),
 here binomial, 1/(s/ω_n + 1)³. The reference enters only through the integral,
-so a step never kicks the thrusters (seed 003 §IV).
+so a step never kicks the thrusters [Relay-ISO §IV].
 
 Anti-windup (Fig. 6): the thrusters saturate, so the integrator is driven back
 by what the allocation could not deliver (back-calculation),
@@ -26,7 +26,7 @@ offset y* is not controlled; it is reported.
 The controller uses the twin's η and ν as measured (no estimator: the twin's
 state is noise-free, and a Kalman filter would only add its lag).
 
-A propeller-and-rudder ship (seed 003's "cruising" mode, §II-A.2: X = τ₁, N = L₁ k_F δ τ₁) steers
+A propeller-and-rudder ship (the "cruising" mode of [Relay-ISO §II-A.2]: X = τ₁, N = L₁ k_F δ τ₁) steers
 with the rudder alone at a constant propeller speed: the heading I-PD's moment N is allocated to
 the rudder angle by inverting the rudder's moment at the straight-running operating point,
 N_R(δ) = A sin δ cos δ (α_R = δ there, so F_N ∝ sin δ and N_R ∝ F_N cos δ; A from the MMG rudder
@@ -47,14 +47,14 @@ from ...physics.kinematics import wrap_angle
 from ...physics.thrusters import allocation_matrix
 
 CONTROL_DT_S = 0.02
-# Binomial ω_n for the Yellowfish (seed 003 used 0.2 heading / 0.1 surge for a slower tanker model).
+# Binomial ω_n for the Yellowfish ([Relay-ISO] used 0.2 heading / 0.1 surge for a slower tanker model).
 # Heading: the fastest round value whose 45° step needs ~80 % of the ±15.4 N·m the thrusters give
 # (a margin for model error and the quadratic drag the linear model leaves out); a 90° step then needs
-# ~1.6× the limit, so it saturates as in seed 003 Fig. 9. Surge: a 14 m move peaks near 1 m/s and
+# ~1.6× the limit, so it saturates as in [Relay-ISO Fig. 9]. Surge: a 14 m move peaks near 1 m/s and
 # 10 N (a fifth of the thrust), and the heading loop is 5.6× faster, so the bow is on the line first.
 HEADING_OMEGA_RAD_S = 1.4
 SURGE_OMEGA_RAD_S = 0.25
-# Binomial ω_n for the Esso Osaka ship (rudder, 10 rps): the seed's own 0.2 rad/s for its tanker model would ask
+# Binomial ω_n for the Esso Osaka ship (rudder, 10 rps): the paper's own 0.2 rad/s for its tanker model would ask
 # more than the rudder's moment for a 45° step; 0.15 rad/s needs about 80 % of it on the IS-O model (as the
 # Yellowfish's choice), so a 45° step stays inside and a 90° step saturates (docs/iso/esso_summary.md).
 SHIP_HEADING_OMEGA_RAD_S = 0.15
@@ -93,7 +93,7 @@ def binomial(omega_n_rad_s: float) -> ModelFunction:
 
 @dataclass(frozen=True)
 class IpdGains:
-    """Seed 003 eq. 11 from the IS-O α, β and the model function."""
+    """[Relay-ISO eq. 11] from the IS-O α, β and the model function."""
 
     ki: float
     kp: float
@@ -134,7 +134,7 @@ def _range_for(coefs: np.ndarray, offsets: np.ndarray, bounds_n: tuple[float, fl
 
 def allocate(force_n: float, moment_nm: float, thruster_y_m: tuple[float, float],
              bounds_n: tuple[float, float]) -> tuple[np.ndarray, float, float]:
-    """Inverse of seed 000 eq. 26 with yaw priority: (T_L, T_R), the delivered X and N.
+    """Inverse of [Yellowfish-TR eq. 26] with yaw priority: (T_L, T_R), the delivered X and N.
 
     The yaw moment is clipped to what the thrusters give at X = 0, then X to what is left:
     a heading error is never traded for speed.
@@ -156,7 +156,7 @@ class LoopLog:
 
 
 class DpController:
-    """Seed 003 Fig. 6 for a twin-thruster vessel: heading I-PD (yaw moment) and, if a target
+    """[Relay-ISO Fig. 6] for a twin-thruster vessel: heading I-PD (yaw moment) and, if a target
     distance is given, surge I-PD on the along-track distance x* (force), yaw first in the
     allocation. Returns thrusts in N. Called every CONTROL_DT_S; the integrals advance by
     forward Euler after the command is formed."""
@@ -227,7 +227,7 @@ class RudderAllocation:
 
 
 class ShipHeadingController:
-    """Seed 003 Fig. 6, heading only, for a propeller-and-rudder ship: the heading I-PD's moment as a
+    """[Relay-ISO Fig. 6], heading only, for a propeller-and-rudder ship: the heading I-PD's moment as a
     rudder angle (RudderAllocation), the propeller at n. Returns (n rps, δ rad); called every control_dt_s."""
 
     output = "propeller_rudder"
@@ -259,7 +259,7 @@ class ShipHeadingController:
 def ship_heading_step(compiled, yaw: DofModel, step_deg: float, n_rps: float = SHIP_RPS,
                       duration_s: float | None = None, anti_windup: bool = True) -> DpRun:
     """Heading step of `step_deg` at t = 0 steered by the rudder (module docstring), from straight running
-    at the propeller speed n in calm water (seed 003 Figs. 8-9 for the ship)."""
+    at the propeller speed n in calm water ([Relay-ISO Figs. 8-9] for the ship)."""
     from ...engine.sim import simulate
     from .iso import SHIP_CONTROL_DT_S, calm_water, straight_speed
 
@@ -281,7 +281,7 @@ def iae(t_s: np.ndarray, error: np.ndarray) -> float:
 
 @dataclass
 class LoopResponse:
-    """One controlled DOF against its model function (seed 003 Figs. 8, 9, 11)."""
+    """One controlled DOF against its model function [Relay-ISO Figs. 8, 9, 11]."""
 
     name: str
     unit: str
@@ -294,7 +294,7 @@ class LoopResponse:
 
     @property
     def iae_ratio(self) -> float:
-        """IAE of the twin / IAE of the model function (seed 003 §V-B: about 1.02 for 45°)."""
+        """IAE of the twin / IAE of the model function ([Relay-ISO §V-B]: about 1.02 for 45°)."""
         return iae(self.t_s, self.reference - self.response) / iae(self.t_s, self.reference - self.model)
 
     @property
@@ -374,7 +374,7 @@ def settle_s(model: ModelFunction) -> float:
 
 def heading_step(compiled, yaw: DofModel, step_deg: float, duration_s: float | None = None,
                  anti_windup: bool = True) -> DpRun:
-    """Heading reference stepped by `step_deg` at t = 0 (seed 003 Figs. 8-9)."""
+    """Heading reference stepped by `step_deg` at t = 0 [Relay-ISO Figs. 8-9]."""
     from ...engine.sim import simulate
 
     duration_s = duration_s or settle_s(yaw.model)
@@ -402,7 +402,7 @@ def point_move(compiled, yaw: DofModel, surge: DofModel, target_ne_m: tuple[floa
 
 
 def response_png(dp: DpRun, title: str) -> bytes:
-    """Seed 003 Fig. 8 layout per loop: response and model function, controller output, difference;
+    """[Relay-ISO Fig. 8] layout per loop: response and model function, controller output, difference;
     for a point move also the path (Fig. 10)."""
     import matplotlib
 
@@ -455,4 +455,4 @@ def _path_axes(fig, column, dp: DpRun) -> None:
     ax.set_ylabel("north [m]")
     ax.set_aspect("equal")
     ax.legend(fontsize=8)
-    ax.set_title("path (seed 003 Fig. 10)")
+    ax.set_title("path [Relay-ISO Fig. 10]")

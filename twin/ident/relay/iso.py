@@ -1,4 +1,4 @@
-"""Identification by self-oscillations, IS-O (seed 003 §III, Figs. 4-5, Table I).
+"""Identification by self-oscillations, IS-O [Relay-ISO §III, Figs. 4-5, Table I].
 
 A relay with hysteresis (output ±C, switching at e = ±xa) closes the loop on
 an astatic signal: the heading error e = ψ_ref − ψ for yaw (Fig. 4), the
@@ -26,13 +26,13 @@ exact: the describing-function equivalents at the measured speed amplitude
 d₁ = −Nr (−Xu), d₂ = −Nrr (−Xuu).
 
 A propeller-and-rudder ship (the Esso Osaka twin) is identified in yaw with the rudder as the
-relay, as seed 003 §V-A does its tanker model (Table II: "IS-O results for the ship model yaw
+relay, as [Relay-ISO §V-A] does its tanker model (Table II: "IS-O results for the ship model yaw
 DOF using the rudder", at several propeller speeds and rudder angles): the propeller turns at a
 constant n, the ship starts from its straight-running speed u₀(n) (δ = 0, no wind), and the
 relay puts the rudder at ±δ_c, switching when the heading error passes ±xa. The relay output C
-of Table I is the yaw moment that rudder angle gives: the seed's allocation N = L₁ k_F δ τ₁
+of Table I is the yaw moment that rudder angle gives: the paper's allocation N = L₁ k_F δ τ₁
 (eq. 4), here the MMG rudder moment N_R(δ_c) at the operating point (u₀, 0, 0) and n, so α and
-β come out in kg·m² and N·m·s (the seed reports them divided by its unknown k_F). Surge and
+β come out in kg·m² and N·m·s (the paper reports them divided by its unknown k_F). Surge and
 sway make no sense for it here: the ship has no sway actuator, and its one propeller's thrust
 depends on the advance speed and is not symmetric astern (K_T(J)), so a relay in rps is no
 relay in force. The twin's own uncoupled yaw values to compare with are M₃₃ (I_z about midship
@@ -57,7 +57,7 @@ CONTROL_DT_S = 0.02  # autopilot rate of the relay, s
 SHIP_CONTROL_DT_S = 0.1  # a ship's relay at the Esso tests' 10 Hz, s
 SHIP_XA_RAD = math.radians(1.0)
 SHIP_DURATION_S = 900.0  # its yaw period is tens of seconds: enough for ~10 periods after the transient
-SHIP_RUDDER_DEG = (10.0, 15.0, 20.0, 25.0, 30.0, 35.0)  # seed 003 Table II's range of rudder angles
+SHIP_RUDDER_DEG = (10.0, 15.0, 20.0, 25.0, 30.0, 35.0)  # [Relay-ISO Table II]'s range of rudder angles
 SHIP_RPS = (8.0, 10.0)  # the Esso turning tests' propeller speeds
 DEFAULT_XA = {"yaw": math.radians(1.0), "surge": 0.25}  # rad, m: ωα/β ≈ 1 on the Yellowfish (see module doc)
 DEFAULT_DURATION_S = {"yaw": 30.0, "surge": 150.0}
@@ -82,7 +82,7 @@ class Oscillation:
 
 @dataclass(frozen=True)
 class TableI:
-    """Seed 003 Table I applied to one oscillation."""
+    """[Relay-ISO Table I] applied to one oscillation."""
 
     alpha: float
     beta_lin: float  # β_ν, constant drag (linear model)
@@ -91,7 +91,7 @@ class TableI:
 
 
 def table_i(relay_c: float, xa: float, osc: Oscillation) -> TableI:
-    """Seed 003 Table I for relay output C and hysteresis xa (module docstring for the sign of Δ)."""
+    """[Relay-ISO Table I] for relay output C and hysteresis xa (module docstring for the sign of Δ)."""
     xm, w, x0 = osc.amplitude_xm, osc.frequency_rad_s, osc.bias_x0
     if abs(xa) + abs(x0) >= xm:
         raise TwinError(f"oscillation amplitude {xm:.4g} does not exceed the hysteresis {xa:.4g} plus bias "
@@ -281,7 +281,7 @@ def straight_speed(compiled, n_rps: float) -> float:
 
 def rudder_moment(compiled, speed_m_s: float, n_rps: float, rudder_rad: float) -> float:
     """N_R (N·m): the MMG rudder moment at the straight-running state (u₀, 0, 0): the relay's C and the
-    I-PD's allocation (seed 003 eq. 4's N = L₁ k_F δ τ₁)."""
+    I-PD's allocation ([Relay-ISO eq. 4]'s N = L₁ k_F δ τ₁)."""
     from ...physics.hydrodynamics import Terms, mmg_forces
 
     hydro = compiled.hydro(Terms().only("rudder"))
@@ -298,7 +298,7 @@ def ship_twin_uncoupled(compiled, n_rps: float) -> TwinUncoupled:
 
 
 class RudderRelayExperiment:
-    """Seed 003 Fig. 4 with the rudder: e = ψ_ref − ψ (wrapped), rudder ±δ_c (the relay), propeller at n;
+    """[Relay-ISO Fig. 4] with the rudder: e = ψ_ref − ψ (wrapped), rudder ±δ_c (the relay), propeller at n;
     returns (n rps, δ rad) and logs (t, e, C·sign) with C the rudder moment of ±δ_c (N·m)."""
 
     output = "propeller_rudder"
@@ -335,7 +335,7 @@ def run_ship_experiment(compiled, n_rps: float, rudder_deg: float, xa: float, du
 
 
 def calm_water(compiled):
-    """The compiled vessel in calm water (IS-O in the seed is run without disturbances)."""
+    """The compiled vessel in calm water (IS-O in [Relay-ISO] is run without disturbances)."""
     from dataclasses import replace
 
     from ...engine.mjcf import CompiledVessel
@@ -375,7 +375,7 @@ def ship_sweep(compiled, rudder_deg: list[float] | None = None, rps: list[float]
 
 def run_experiment(compiled, dof: str, relay_c: float, xa: float, duration_s: float,
                    twin: TwinUncoupled | None = None) -> IsoRow:
-    """One relay experiment in the twin (seed 003 Fig. 4 or 5), from rest; the first third is transient."""
+    """One relay experiment in the twin ([Relay-ISO Fig. 4] or 5), from rest; the first third is transient."""
     from ...engine.sim import simulate
 
     controller = RelayExperiment(dof, relay_c, xa, compiled.geometry.thruster_y_m)
@@ -414,7 +414,7 @@ class IsoSweep:
         return 100 * (self.spreads()["alpha"].mean / self.twin.alpha - 1)
 
     def better_drag_model(self) -> str:
-        """Seed 003 §V-A: the drag form whose estimates scatter less over the experiments fits better."""
+        """[Relay-ISO §V-A]: the drag form whose estimates scatter less over the experiments fits better."""
         s = self.spreads()
         return "constant drag (linear model)" if s["beta_lin"].cv_percent <= s["beta_quad"].cv_percent \
             else "linear drag (nonlinear model)"
@@ -561,7 +561,7 @@ def sweep_png(result: IsoSweep) -> bytes:
         ax.set_ylabel(f"{name} [{unit}]")
         ax.legend(fontsize=7)
     relay = " with the rudder as the relay" if ship else ""
-    fig.suptitle(f"IS-O {result.vessel} {result.dof}{relay} (seed 003 Table I): α {result.alpha_error_percent():+.1f} % "
+    fig.suptitle(f"IS-O {result.vessel} {result.dof}{relay} [Relay-ISO Table I]: α {result.alpha_error_percent():+.1f} % "
                  "from the twin's")
     fig.tight_layout()
     buf = io.BytesIO()
