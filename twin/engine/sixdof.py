@@ -1,7 +1,7 @@
 """The 6-DOF hull: the vessel's MJCF with heave, roll and pitch freed, floating on its own meshes.
 
 The planar joints stay (north, east, yaw) and three more join them in the vessel body, so that the
-body frame is R = Rz(ψ) Ry(θ) Rx(φ) [Fossen-2021 eq. 2.18] and the 3-DOF code finds η = (x, y,
+body frame is R = Rz(ψ) Ry(θ) Rx(φ) [Fossen-2021] (zyx Euler angles) and the 3-DOF code finds η = (x, y,
 ψ) where it always did: north, east (slides), down (slide, z), yaw (hinge about z), pitch (hinge
 about the yawed y) and roll (hinge about the body x). The horizontal model is today's,
 unchanged: the 3-DOF callback computes surge, sway and yaw forces from (u, v, r) in the heading

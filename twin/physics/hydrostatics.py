@@ -11,7 +11,7 @@ surface: the pressure (hydrostatic plus the incident wave's, physics/waves.py) i
 wetted part of the hull mesh, triangle by triangle, at every call of the engine's callback. In
 calm water it is Archimedes' force and moment exactly (the pressure ρ g z over the clipped
 surface, whose missing waterplane cap carries no pressure); in waves it is the Froude-Krylov load
-over the instantaneous wetted surface [Faltinsen-1990 §3.3], [Journee-Massie-2001 §6.3].
+over the instantaneous wetted surface [Faltinsen-1990], [Journee-Massie-2001].
 """
 from __future__ import annotations
 

@@ -11,9 +11,9 @@ catamarans and the ship shipped here it floats the vessel's mass within half a m
 full mesh (tests/test_sea.py), at a fifth of the triangles.
 
 Added mass (infinite frequency, the constant of a time-domain model [Cummins-1962]) by strip
-theory [Journee-Massie-2001 §6.3.1]: each section's heave added mass per unit length from its
-Lewis form (beam B, draft T, area coefficient σ) [Lewis-1929], [Journee-Massie-2001 §6.3.1, eqs.
-for a1, a3 and M33(∞)]; the hull's A33 = Σ∫a33 dx, A55 = Σ∫a33 x² dx and A44 = Σ∫(a33 y_c² + a44)
+theory [Journee-Massie-2001] (strip theory): each section's heave added mass per unit length from its
+Lewis form (beam B, draft T, area coefficient σ) [Lewis-1929], [Journee-Massie-2001] (the Lewis
+form's a1, a3 and M33(∞)); the hull's A33 = Σ∫a33 dx, A55 = Σ∫a33 x² dx and A44 = Σ∫(a33 y_c² + a44)
 dx with y_c the section's centreline and a44 = ρπB⁴/256 the roll added moment of a floating flat
 section (half that of a plate of width B rotating in infinite fluid, ρπ(B/2)⁴/8 [Newman-1977 Table
 4.2], the free surface a rigid lid at infinite frequency).
@@ -22,7 +22,7 @@ Damping (radiation, linear, at the mode's natural frequency ω_n) per section fr
 wave: b33 = ρ g² Ā²/ω³ [Faltinsen-1990] with the low-frequency wave-amplitude ratio
 Ā = ω² B/(2g) of a section displacing B per unit heave (its flux leaves as waves on both sides),
 so b33 = ρ ω B²/4. It is applied per section on the section's velocity relative to the water
-(the relative-motion principle [Journee-Massie-2001 §6.3.2]).
+(the relative-motion principle [Journee-Massie-2001]).
 
 Diffraction correction: the relative-motion principle with the Smith effect [Journee-Massie-2001
 §6.3.2]: each section feels a33 ζ̈* + b33 ζ̇* beside the Froude-Krylov pressure, ζ̈* and ζ̇* the
@@ -142,7 +142,7 @@ def _signed_volume(v: np.ndarray, f: np.ndarray) -> float:
 
 def lewis_heave(beam_m: float, draft_m: float, sigma: float, rho: float) -> float:
     """Infinite-frequency heave added mass per unit length (kg/m) of a Lewis section of beam B,
-    draft T and area coefficient σ = A/(BT) [Journee-Massie-2001 §6.3.1]:
+    draft T and area coefficient σ = A/(BT) [Journee-Massie-2001]:
         H0 = B/(2T), C1 = (3 + 4σ/π) + (1 − 4σ/π)((H0 − 1)/(H0 + 1))²,
         a3 = (−C1 + 3 + √(9 − 2C1))/C1, a1 = (1 + a3)(H0 − 1)/(H0 + 1),
         M = B/(2(1 + a1 + a3)), a33 = ρ π/2 M² ((1 + a1)² + 3 a3²).
@@ -494,7 +494,7 @@ def pack_sea(verts: np.ndarray, faces: np.ndarray, comps: np.ndarray, weights: n
 
 @njit(cache=True)
 def rotation(psi, theta, phi):
-    """R = Rz(ψ) Ry(θ) Rx(φ): body (FRD) → NED [Fossen-2021 eq. 2.18]."""
+    """R = Rz(ψ) Ry(θ) Rx(φ): body (FRD) → NED [Fossen-2021] (zyx Euler angles)."""
     cp, sp = np.cos(psi), np.sin(psi)
     ct, st = np.cos(theta), np.sin(theta)
     cf, sf = np.cos(phi), np.sin(phi)

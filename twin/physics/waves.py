@@ -10,13 +10,13 @@ wave travels *to*) and phase ε_i. In the NED frame (z down) at a point (x, y, z
     u_h = Σ ω_i a_i e^{−k_i z} cos θ_i (cos β_i, sin β_i)  (horizontal particle velocity)
     w   = Σ ω_i a_i e^{−k_i z} sin θ_i                 (vertical particle velocity, up)
 
-[Faltinsen-1990 Table 2.1], [DNV-RP-C205 §3.2]. Above the mean level (z < 0, under a crest) the
+[Faltinsen-1990], [DNV-RP-C205] (its wave-theory section). Above the mean level (z < 0, under a crest) the
 pressure is continued hydrostatically from the local surface, p = ρ g (z + ζ) (a common
-stretching of linear theory, [DNV-RP-C205 §3.2.3]).
+stretching of linear theory [DNV-RP-C205]).
 
 Spectra: JONSWAP with peak enhancement γ (3.3 by default) and Pierson-Moskowitz (γ = 1), in the
-form of [DNV-RP-C205 §3.5.5] (ITTC's two-parameter spectrum is the PM case [ITTC-7.5-02-07-02.1]);
-directional spreading D(θ) ∝ cos^n(θ − θ_mean) for |θ − θ_mean| < π/2 [DNV-RP-C205 §3.5.8].
+form of [DNV-RP-C205] (its wave-spectrum section; the Pierson-Moskowitz spectrum is γ = 1);
+directional spreading D(θ) ∝ cos^n(θ − θ_mean) for |θ − θ_mean| < π/2 [DNV-RP-C205].
 Directions of a `Sea` are given as where the waves come *from* (like the wind), degrees clockwise
 from north.
 
@@ -38,7 +38,7 @@ from numba import njit
 from ..errors import TwinError
 
 G = 9.81
-BREAKING_STEEPNESS = 1.0 / 7.0  # H/λ of the steepest regular wave in deep water (Michell 1893)
+BREAKING_STEEPNESS = 1.0 / 7.0  # H/λ of the steepest regular wave in deep water [Michell-1893]
 N_COMPONENTS = 48  # components of an irregular sea
 BAND = (0.55, 3.0)  # the frequency band of an irregular sea, in units of the peak frequency
 
@@ -137,7 +137,7 @@ def check_sea(sea: Sea, min_period_s: float | None = None, what: str = "") -> No
 
 
 def jonswap(omega: np.ndarray, hs_m: float, tp_s: float, gamma: float = 3.3) -> np.ndarray:
-    """JONSWAP spectral density S(ω) (m² s/rad) [DNV-RP-C205 eq. 3.5.5.1-2]; γ = 1 is Pierson-Moskowitz."""
+    """JONSWAP spectral density S(ω) (m² s/rad) [DNV-RP-C205]; γ = 1 is Pierson-Moskowitz."""
     omega = np.asarray(omega, float)
     wp = 2.0 * np.pi / tp_s
     s_pm = 5.0 / 16.0 * hs_m ** 2 * wp ** 4 * omega ** -5.0 * np.exp(-1.25 * (omega / wp) ** -4.0)
@@ -149,12 +149,12 @@ def jonswap(omega: np.ndarray, hs_m: float, tp_s: float, gamma: float = 3.3) -> 
 
 
 def pierson_moskowitz(omega: np.ndarray, hs_m: float, tp_s: float) -> np.ndarray:
-    """Pierson-Moskowitz spectral density S(ω) (m² s/rad) [DNV-RP-C205 eq. 3.5.5.1]."""
+    """Pierson-Moskowitz spectral density S(ω) (m² s/rad) [DNV-RP-C205]."""
     return jonswap(omega, hs_m, tp_s, 1.0)
 
 
 def spreading(theta_rad: np.ndarray, n: float) -> np.ndarray:
-    """D(θ) = Γ(1 + n/2)/(√π Γ(1/2 + n/2)) cos^n θ for |θ| < π/2, else 0 [DNV-RP-C205 eq. 3.5.8.4];
+    """D(θ) = Γ(1 + n/2)/(√π Γ(1/2 + n/2)) cos^n θ for |θ| < π/2, else 0 [DNV-RP-C205];
     ∫ D dθ = 1."""
     theta = np.asarray(theta_rad, float)
     c = math.gamma(1.0 + n / 2.0) / (math.sqrt(math.pi) * math.gamma(0.5 + n / 2.0))
