@@ -146,11 +146,14 @@ class Recording:
                 "gaps": len(gaps),
                 "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
             }
-        if len(self.attitude):
-            streams["attitude"] = {"samples": len(self.attitude), "rate_hz": round(self.attitude.median_rate_hz(), 3),
-                                   "roll_max_deg": round(float(np.degrees(np.max(np.abs(self.attitude["roll_rad"])))), 3),
-                                   "pitch_max_deg": round(float(np.degrees(np.max(np.abs(self.attitude["pitch_rad"])))),
-                                                          3)}
+        if len(self.attitude):  # read beside the heading, summarised like the streams
+            s, gaps = self.attitude, self.attitude.gaps()
+            streams["attitude"] = {
+                "samples": len(s), "rate_hz": round(s.median_rate_hz(), 3), "t_first_s": round(float(s.t[0]), 3),
+                "t_last_s": round(float(s.t[-1]), 3), "gaps": len(gaps),
+                "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
+                "roll_max_deg": round(float(np.degrees(np.max(np.abs(s["roll_rad"])))), 3),
+                "pitch_max_deg": round(float(np.degrees(np.max(np.abs(s["pitch_rad"])))), 3)}
         if len(self.battery):  # how far the pack sagged: what a thrust that follows it would feel
             volt = self.battery["voltage_v"]
             streams["battery"].update({"voltage_first_v": round(float(volt[0]), 3),

@@ -468,7 +468,12 @@ def _floating_free(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantit
     cg = _in_vessel_frame(model, data, data.subtree_com[_body_id(model, "vessel")])
     rho = RHO_FRESH_KG_M3 if compiled.vessel.mmg is None else compiled.vessel.mmg.rho_kg_m3
     placed = [(h["mesh"].vertices, h["mesh"].faces) for h in meshes]
-    z, trim, heel = equilibrium(placed, compiled.geometry.rigid.mass_kg, cg, rho)
+    try:
+        z, trim, heel = equilibrium(placed, compiled.geometry.rigid.mass_kg, cg, rho)
+    except (ValueError, np.linalg.LinAlgError):  # meshes that cannot float it: the draft row says so
+        return []
+    if not all(np.isfinite([z, trim, heel])):
+        return []
     why = ("the rest of the 6-DOF hull: buoyancy equal to the weight, the centre of buoyancy under the centre of "
            f"gravity (z_G = {1e3 * cg[2]:.0f} mm); the 3-DOF twin assumes a level hull")
     return [Quantity("CO below the surface, free", "mm", mesh=1e3 * z, reference="mesh", explanation=why),
