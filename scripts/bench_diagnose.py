@@ -3,7 +3,7 @@
 A 30-minute synthetic recording (realistic sensors) of the Yellowfish with a current
 and a thrust lag concealed in it is written as .mcap, then diagnosed from the file.
 
-    python scripts/bench_diagnose.py [--json docs/bench_diagnose.json]
+    python scripts/bench_diagnose.py [--json out/NAME.json]
 """
 from __future__ import annotations
 

@@ -310,7 +310,7 @@ def main() -> int:
     ap.add_argument("--beliefs", default=",".join(f"{b:g}" for b in BELIEFS),
                     help="the beliefs' weights identify chooses between (windows of data each)")
     ap.add_argument("--work", type=Path, default=Path("/tmp/esso_ident"))
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--out", type=Path, default=ROOT / "out")
     ap.add_argument("--report-only", action="store_true", help="write the report from the parts in --work")
     ap.add_argument("--manoeuvres", action="store_true",
                     help="add each part's held-out misfit by manoeuvre to the parts already in --work (no part is "

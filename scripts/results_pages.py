@@ -1,9 +1,12 @@
 """The pages of docs/results: one per study, written from the raw figures its script left in
-docs/results/data/NAME.json (twin.viz.pages.ResultPage). A study script writes its raw figures;
-this script turns them into the page, with the date and commit of the run they come from.
+docs/results/data/NAME.json (twin.viz.pages.ResultPage). A study script writes its raw figures
+under out/ (its --out or --json); this script takes them into docs/results/data/NAME.json
+(`--collect`, from the paths in COLLECT) and turns them into the page, with the date and commit of
+the run they come from.
 
-    python scripts/results_pages.py            # every page
-    python scripts/results_pages.py NAME ...   # some pages (names: the data files' stems)
+    python scripts/diagnose_proof.py                       # a study: raw figures into out/
+    python scripts/results_pages.py --collect diagnosis_proof
+    python scripts/results_pages.py                        # every page from docs/results/data
 
 A page is never edited by hand: run the study again, then this script.
 """
@@ -116,6 +119,25 @@ STUDIES = {
 }
 
 
+# where each study script writes its raw figures by default (its --out / --json)
+COLLECT = {
+    "diagnosis_proof": "out/diagnose/proof.json", "blueboat_diagnosis": "out/diagnose/blueboat.json",
+    "record_more": "out/diagnose/record_more.json", "record_more_astern": "out/diagnose/record_more_astern.json",
+    "blueboat_identification": "out/identification/blueboat.json",
+    "blueboat_heldout_band": "out/identification/blueboat_heldout_band.json",
+    "synthetic_identification": "out/identification/synthetic.json",
+    "esso_identification": "out/esso_identification.json", "esso_wind_diagnosis": "out/esso_wind_diagnosis.json",
+    "esso_wind_diagnosis_calibrated": "out/esso_wind_diagnosis_calibrated.json",
+    "esso_astern_side_force": "out/esso_astern_side_force.json", "esso_yaw_checks": "out/esso_yaw_checks.json",
+    "esso_yaw_rate_window": "out/esso_yaw_rate_window.json", "compass_throttle": "out/compass_throttle.json",
+    "calibration_borrowing": "out/calibration_borrowing.json", "iso_yaw": "out/iso/iso_yaw.json",
+    "iso_surge": "out/iso/iso_surge.json", "dp": "out/iso/dp.json", "esso_iso_yaw": "out/iso/esso_iso_yaw.json",
+    "esso_dp": "out/iso/esso_dp.json", "bench_diagnose": "out/bench_diagnose.json",
+    "bench_identify": "out/bench_identify.json", "bench_recordings": "out/bench_recordings.json",
+    "bench_scale": "out/bench_scale.json",
+}
+
+
 def provenance() -> dict:
     path = DATA / "provenance.json"
     return json.loads(path.read_text()) if path.exists() else {}
@@ -215,7 +237,15 @@ def page(name: str) -> ResultPage:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("names", nargs="*", help="pages to write (default: every study with a data file)")
+    parser.add_argument("--collect", action="store_true",
+                        help="first copy each study's fresh raw figures from out/ (COLLECT) into docs/results/data")
     args = parser.parse_args()
+    if args.collect:
+        for n in args.names or COLLECT:
+            src = ROOT / COLLECT.get(n, f"out/{n}.json")
+            if src.exists():
+                (DATA / f"{n}.json").write_bytes(src.read_bytes())
+                print(f"collected {src.relative_to(ROOT)}")
     names = args.names or [n for n in STUDIES if (DATA / f"{n}.json").exists()]
     unknown = [n for n in names if n not in STUDIES]
     if unknown:

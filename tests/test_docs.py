@@ -75,7 +75,7 @@ def test_every_key_cited_is_in_the_bibliography():
     cited = set()
     files = [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "twin").rglob("*.py"), *(ROOT / "twin" / "model").glob("*")]
     for path in files:
-        cited |= set(re.findall(r"\[([A-Z][A-Za-z]+(?:-[A-Za-z0-9]+)+)[\] ;]", path.read_text(errors="ignore")))
+        cited |= set(re.findall(r"\[([A-Z][A-Za-z]+(?:-[A-Z0-9][A-Za-z0-9]*)+)[\] ;]", path.read_text(errors="ignore")))
     unknown = sorted(k for k in cited if k not in BIBLIOGRAPHY)
     assert not unknown, f"cited but not in twin/references.py: {unknown}"
 

@@ -321,23 +321,28 @@ class Evaluation:
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
 
 
-def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0) -> Evaluation:
+def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
-    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw."""
+    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
+    recording's measured wind a known input (`twin evaluate --wind-measured`)."""
     from .fit.coverage import from_dict
-    from .fit.evaluate import evaluate as run, misfit_by_manoeuvre
-    from .ident.identify import calibrate as calibrate_logs, prepared
+    from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
+    from .fit.windows import ModelCache
+    from .ident.identify import calibrate as calibrate_logs, check_wind, prepared
 
     v = _vessel(vessel)
     recs = _recordings(recordings, v)
+    check_wind(recs, wind)
     if not stride_s > 0:
         raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
         if "fitted_on" in v.uncertainty else None
     calibrated, calibrations = calibrate_logs(recs, v)
     preps = prepared(recs, calibrated)
-    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s), run(v, prepared(recs, v), stride_s=stride_s),
-                      calibrations, misfit_by_manoeuvre(calibrated, preps, 10.0, stride_s, fitted=seen))
+    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
+                      run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
+                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps, 10.0, stride_s,
+                                          vessel=calibrated, fitted=seen))
 
 
 @dataclass(frozen=True)
@@ -358,34 +363,45 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Judgement:
-    """How the held-out blocks judge a change of the twin (the diagnosis's rule): `earns_its_place`
-    when z ≥ its threshold and it removes enough of the misfit above the noise; z of the blocks'
-    votes, the share of the held-out misfit removed (`held_out_gain`) and of the misfit above the
-    noise (`excess_gain`), the blocks for and against, parameters fitted to an unphysical edge."""
+    """How the held-out blocks judge a change of the twin (the diagnosis's rule): `verdict` in words
+    ("earns its place", "does not earn its place", "contradicted"), z of the blocks' votes, the share
+    of the held-out misfit removed (`held_out_gain`) and of the misfit above the noise
+    (`excess_gain`), the blocks for and against, the windows it changed (`affected`), parameters
+    fitted to an unphysical edge; `str()` says it in a sentence. The diagnosis's own Evidence is
+    `evidence` (its other figures, e.g. `dof_rel`, are read through)."""
 
     effects: tuple[str, ...]
-    earns_its_place: bool
+    verdict: str
     z: float
     held_out_gain: float
     excess_gain: float
     blocks_for: int
     blocks_against: int
+    affected: int = 0
     at_edge: tuple[str, ...] = ()
     sentence: str = ""
+    evidence: object = field(default=None, repr=False, compare=False)
+
+    def earns_its_place(self) -> bool:
+        return self.verdict == "earns its place"
+
+    def __getattr__(self, name):
+        if name == "evidence" or self.__dict__.get("evidence") is None:
+            raise AttributeError(name)
+        return getattr(self.__dict__["evidence"], name)
 
     def __repr__(self) -> str:
-        verdict = "earns its place" if self.earns_its_place else "does not earn its place"
-        return (f"Judgement({', '.join(self.effects) or 'no change'}: {verdict}; z {self.z:.2f}, held-out gain "
+        return (f"Judgement({', '.join(self.effects) or 'no change'}: {self.verdict}; z {self.z:.2f}, held-out gain "
                 f"{100 * self.held_out_gain:.1f} %, blocks {self.blocks_for} for / {self.blocks_against} against)")
 
     def __str__(self) -> str:
         return self.sentence or repr(self)
 
     def to_dict(self) -> dict:
-        return {"effects": list(self.effects), "earns_its_place": self.earns_its_place, "z": round(self.z, 2),
+        return {"effects": list(self.effects), "verdict": self.verdict, "z": round(self.z, 2),
                 "held_out_gain": round(self.held_out_gain, 4), "excess_gain": round(self.excess_gain, 4),
-                "blocks_for": self.blocks_for, "blocks_against": self.blocks_against, "at_edge": list(self.at_edge),
-                "sentence": self.sentence}
+                "blocks_for": self.blocks_for, "blocks_against": self.blocks_against, "affected": self.affected,
+                "at_edge": list(self.at_edge), "sentence": self.sentence}
 
 
 class Effect(dict):
@@ -418,10 +434,11 @@ class Effect(dict):
     @property
     def evidence(self) -> Judgement:
         e = self.get("evidence", {})
-        return Judgement((self["text"],), True, float(e.get("z", self.get("z", 0.0))),
+        return Judgement((self["text"],), "earns its place", float(e.get("z", self.get("z", 0.0))),
                          float(e.get("held_out_gain", self.get("held_out_gain", 0.0))),
                          float(e.get("excess_gain", self.get("excess_gain", 0.0))),
-                         int(e.get("blocks_for", 0)), int(e.get("blocks_against", 0)), tuple(e.get("at_edge", ())))
+                         int(e.get("blocks_for", 0)), int(e.get("blocks_against", 0)),
+                         int(e.get("affected_windows", 0)), tuple(e.get("at_edge", ())))
 
     def __repr__(self) -> str:
         return f"Effect({self.name}: {', '.join(map(repr, self.parameters))}; z {self.evidence.z:.2f})"
@@ -466,11 +483,14 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     nothing fitted, judged by the diagnosis's rule on the blocks a diagnosis of these recordings
     uses: a Judgement (`earns_its_place`, `z`, `held_out_gain`, ...; `str()` says it in a sentence)."""
     from .diagnose.doctor import given_evidence, given_text
+    from .diagnose.search import Z_MIN
 
     effects = [effects] if isinstance(effects, str) else list(effects)
     if not effects:
         raise TwinError("no effects given: give one or more effect texts (e.g. 'current=0.1,90'; `twin effects` lists them)")
     v = _vessel(vessel)
     e = given_evidence(_recordings(recordings, v), v, effects, **options)
-    return Judgement(tuple(effects), bool(e.earns_its_place()), float(e.z), float(e.rel), float(e.rel_excess),
-                     int(e.blocks_for), int(e.blocks_against), tuple(e.at_edge), str(given_text(effects, e)))
+    verdict = ("earns its place" if e.earns_its_place() else "contradicted" if e.z <= -Z_MIN
+               else "does not earn its place")
+    return Judgement(tuple(effects), verdict, float(e.z), float(e.rel), float(e.rel_excess), int(e.blocks_for),
+                     int(e.blocks_against), int(e.affected), tuple(e.at_edge), str(given_text(effects, e)), e)

@@ -87,6 +87,25 @@ BIBLIOGRAPHY = _bib(
            "Journal of Wind Engineering and Industrial Aerodynamics 51(3), 339-351", 1994),
     Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
            "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
+    Source("ITTC-1957", "Skin friction and turbulence stimulation (the ITTC-1957 model-ship correlation line, "
+           "C_F = 0.075/(log10 Re − 2)²)", "International Towing Tank Conference",
+           "Proceedings of the 8th ITTC, Madrid; ITTC Recommended Procedure 7.5-02-02-02", 1957),
+    Source("ITTC-2011", "Fresh water and seawater properties", "International Towing Tank Conference",
+           "ITTC Recommended Procedure 7.5-02-01-03", 2011),
+    Source("Clarke-1983", "The application of manoeuvring criteria in hull design using linear theory",
+           "D. Clarke, P. Gedling, G. Hine", "Transactions of the Royal Institution of Naval Architects 125, 45-68",
+           1983),
+    Source("Glauert-1935", "Airplane propellers (momentum and blade-element theory of a propeller, including its "
+           "normal force in oblique flow)", "Hermann Glauert", "in W. F. Durand (ed.), Aerodynamic Theory, vol. IV, "
+           "Division L, Springer, Berlin", 1935),
+    Source("Newman-1977", "Marine Hydrodynamics (chapter 7: slender-body theory of lifting bodies)",
+           "J. N. Newman", "MIT Press, Cambridge MA", 1977),
+    Source("Hoerner-1965", "Fluid-Dynamic Drag (two-dimensional drag of bluff sections)", "Sighard F. Hoerner",
+           "published by the author, Midland Park NJ", 1965),
+    Source("Holtrop-1982", "An approximate power prediction method", "J. Holtrop, G. G. J. Mennen",
+           "International Shipbuilding Progress 29(335), 166-170", 1982),
+    Source("BlueRobotics-BlueBoat", "BlueBoat: technical details (dimensions, mass, maximum speed 3.0 m/s with two "
+           "batteries)", "Blue Robotics", "bluerobotics.com, BlueBoat product page and its discussion forum", None),
     Source("Faltinsen-1990", "Sea Loads on Ships and Offshore Structures", "Odd M. Faltinsen",
            "Cambridge University Press", 1990),
     Source("DNV-RP-C205", "Environmental Conditions and Environmental Loads (Recommended Practice DNV-RP-C205)",
@@ -97,7 +116,6 @@ BIBLIOGRAPHY = _bib(
            "Transactions of the Society of Naval Architects and Marine Engineers 37, 1-20", 1929),
     Source("Cummins-1962", "The impulse response function and ship motions", "W. E. Cummins",
            "Schiffstechnik 9, 101-109", 1962),
-    Source("Newman-1977", "Marine Hydrodynamics", "J. N. Newman", "MIT Press", 1977),
     Source("Newman-1974", "Second-order, slowly-varying forces on vessels in irregular waves", "J. N. Newman",
            "Proceedings of the International Symposium on the Dynamics of Marine Vehicles and Structures in Waves, "
            "University College London, 182-186", 1974),

@@ -157,10 +157,22 @@ def params(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: str = typer.Option("nominal", help="mass case"),
     as_json: bool = typer.Option(False, "--json", help="print JSON"),
+    first_principles: bool = typer.Option(False, "--first-principles",
+                                          help="the hull and propulsor coefficients from the vessel's own geometry, "
+                                               "each with its method"),
 ):
     """Print the effective 3-DOF parameters of a vessel."""
     from ..engine.parameters import effective_parameters
 
+    if first_principles:
+        from ..verify.priors import first_principles as estimate
+
+        fp = estimate(vessel_from(vessel, model, case))
+        if as_json:
+            typer.echo(json.dumps({"vessel": fp.vessel, "estimates": [e.__dict__ for e in fp.estimates]}, indent=2))
+        else:
+            typer.echo(fp.table())
+        return
     p = effective_parameters(vessel_from(vessel, model, case))
     if as_json:
         typer.echo(json.dumps(p, indent=2))

@@ -22,16 +22,18 @@ the runs (so runs add up and DOFs weigh alike).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..physics.kinematics import wrap_angle
 from ..physics.sensors import log_name
 from ..prepare import Prepared
 from ..vessel import Vessel
 from .extrapolation import group_order
 from .metrics import DOFS, r2_mae
-from .windows import ModelCache, Window, measured, predict
+from .windows import ModelCache, Window, as_measured, make_windows, measured, predict
 
 MIN_RUNS = 3
 BLOCKS = 4
@@ -188,3 +190,74 @@ def score_run(log: str, pred: np.ndarray, meas: np.ndarray, sigma: np.ndarray) -
     diverged = np.isinf(pred) & ok
     cost = float(np.sum(np.where(ok & ~diverged, err, 0.0) ** 2) + 100.0 * np.sum(diverged))
     return RunScore(log, metrics, cost)
+
+
+FORM_QUANTITIES = ("north", "east", "psi", "u", "v", "r", "deviation")
+FORM_LEVELS = (0.5, 0.68, 0.8, 0.9, 0.95, 0.99)
+
+
+def form_error(fold_vessels: list[Vessel], preps: list[Prepared], folds_label: str, horizon_s: float = 30.0,
+               sample_dt_s: float = 1.0, cache: ModelCache | None = None, wind: str | None = None) -> dict:
+    """How far free runs of the twins fitted without each group miss that group: per quantity
+    (north, east m; psi rad; u, v m/s; r rad/s; deviation m) and horizon into the run, the
+    quantiles FORM_LEVELS of |measured − predicted| over non-overlapping windows of horizon_s, every
+    sample_dt_s (velocities through the recording's own smoother, as a band compares them).
+
+    This is the twin's error where it was not fitted, form error and all: what a prediction band
+    must add to the spread of its parameters. `fold_vessels[k]` predicts group k (held_out_groups
+    of the windows); `folds_label` says how the folds were chosen."""
+    windows = make_windows(preps, horizon_s, horizon_s, min_length_s=horizon_s)
+    if not windows:
+        return {}
+    groups, _ = held_out_groups(windows, preps)
+    every = max(1, int(round(sample_dt_s / preps[0].settings.grid_dt)))
+    cache = cache or ModelCache()
+    errors = []
+    for k in range(int(groups.max()) + 1):
+        mine = [w for w, g in zip(windows, groups) if g == k]
+        if not mine or k >= len(fold_vessels):
+            continue
+        pred = predict(fold_vessels[k], preps, mine, cache, wind=wind)[0]
+        eta_m, nu_m = measured(preps, mine)
+        nu_p = as_measured(pred.nu, preps, mine)
+        d_pos = eta_m[..., :2] - pred.eta[..., :2]
+        d_psi = wrap_angle(eta_m[..., 2] - pred.eta[..., 2])
+        e = np.concatenate([d_pos, d_psi[..., None], nu_m - nu_p, np.hypot(*np.moveaxis(d_pos, -1, 0))[..., None]],
+                           axis=-1)
+        for j, _ in pred.diverged:
+            e[j] = np.nan
+        errors.append(np.abs(e[:, ::every]))
+    if not errors:
+        return {}
+    e = np.concatenate(errors)  # (W, S, 7)
+    t = preps[0].settings.grid_dt * every * np.arange(e.shape[1])
+    quantiles = {}
+    for i, q in enumerate(FORM_QUANTITIES):
+        col = e[..., i]
+        quantiles[q] = [[float(np.nanquantile(col[:, s], lv)) if np.isfinite(col[:, s]).any() else 0.0
+                         for lv in FORM_LEVELS] for s in range(e.shape[1])]
+    return {"horizon_s": [float(x) for x in t], "levels": list(FORM_LEVELS), "quantiles": quantiles,
+            "windows": int(e.shape[0]), "judged_on": folds_label}
+
+
+def form_error_at(block: dict, quantity: str, level: float, t_s: np.ndarray) -> np.ndarray:
+    """|error| of `quantity` at `level` at horizons t_s (s). The level is raised to the finite-sample
+    quantile of split conformal prediction, ⌈(n + 1)·level⌉/n over the block's n windows (a
+    quantile of a few windows understates the next window's error), then interpolated between the
+    stored levels (at most the highest). Within the stored horizons interpolated; beyond them a
+    velocity's holds its last value (a damped twin's velocity error stops growing) and a
+    position's or heading's grows on at its last slope (it integrates the velocity error)."""
+    n = int(block.get("windows", 0))
+    if n > 0:
+        level = min(1.0, math.ceil((n + 1) * level) / n)
+    levels = np.asarray(block["levels"], float)
+    table = np.asarray(block["quantiles"][quantity], float)  # (S, L)
+    at_level = np.array([np.interp(level, levels, row) for row in table])
+    h = np.asarray(block["horizon_s"], float)
+    t = np.asarray(t_s, float)
+    out = np.interp(t, h, at_level)
+    beyond = t > h[-1]
+    if beyond.any() and quantity in ("north", "east", "psi", "deviation") and len(h) > 1:
+        slope = (at_level[-1] - at_level[-2]) / (h[-1] - h[-2])
+        out[beyond] = at_level[-1] + max(slope, 0.0) * (t[beyond] - h[-1])
+    return out

@@ -19,6 +19,8 @@ Each function is one published method, pure (no MuJoCo, no files), in Fossen's s
   theory [Glauert-1935]) and its duct sheds lift as a slender ring (the lateral added mass of a
   ring of outer diameter D, ρπD²/4 per unit length, carried past its trailing edge at U:
   ρπD²U/4·v_lat [Newman-1977 §7.9]). At a thruster at (x_t, y_t), v_lat = v + x_t·r.
+- `propulsor_at_rest`: the same momentum turned by a thruster working at rest, whose disc
+  passes its own induced flow: linear Yv, Yr, Nv, Nr at a stated thrust.
 - `cross_flow_drag`: the hull's quadratic sway and yaw damping by strip theory,
   Y = −½ρC_D∫T(x)|v + xr|(v + xr)dx and N its moment [Fossen-2021 §6.4.4; Hoerner-1965 for C_D]:
   Yvv and Nrr along each axis exactly; the cross terms are not estimated.
@@ -35,6 +37,23 @@ from dataclasses import dataclass
 import numpy as np
 
 NU_FRESH_M2_S = 1.0e-6  # kinematic viscosity of fresh water near 20 °C [ITTC-2011]
+
+
+@dataclass(frozen=True)
+class Design:
+    """What a vessel's first-principles estimate needs beyond its MJCF (the `design` block of a
+    vessel file): the top speed at full thrust in calm water and where that figure comes from,
+    the hull form factor 1 + k, the cross-flow drag coefficient of its sections, its thrusters'
+    duct and propeller diameters (0 where there is no duct) and the battery voltage its T200
+    thrusters run on (None: the map's own)."""
+
+    top_speed_m_s: float
+    top_speed_source: str = ""
+    form_factor: float = 1.2
+    cross_flow_cd: float = 1.0
+    duct_diameter_m: float = 0.0
+    propeller_diameter_m: float = 0.0
+    battery_v: float | None = None  # the supply the thrust map is scaled to (T200 curves per voltage)
 
 
 def ittc57_cf(reynolds) -> np.ndarray:
@@ -127,6 +146,16 @@ def propulsor_lateral(x_m: float, duct_diameter_m: float, propeller_diameter_m: 
     ρπD_p²/4)·U·(v + x·r) (module docstring), as Yuv, Yur, Nuv, Nur."""
     c = rho_kg_m3 * math.pi / 4.0 * (duct_diameter_m ** 2 + propeller_diameter_m ** 2)
     return SpeedDerivatives(-c, -c * x_m, -c * x_m, -c * x_m ** 2)
+
+
+def propulsor_at_rest(x_m: float, propeller_diameter_m: float, thrust_n: float, rho_kg_m3: float = 1000.0
+                      ) -> tuple[float, float, float, float]:
+    """(Yv N s/m, Yr N s, Nv N s, Nr N m s): the lateral momentum a thruster at x_m turns when it
+    works at rest, its disc passing ṁ = ρA_p·w with w = √(T/(2ρA_p)) the actuator disc's induced
+    velocity at thrust T [Glauert-1935]: −ṁ·(v + x·r) at its site."""
+    area = math.pi * propeller_diameter_m ** 2 / 4.0
+    mdot = rho_kg_m3 * area * math.sqrt(max(thrust_n, 0.0) / (2.0 * rho_kg_m3 * area))
+    return -mdot, -mdot * x_m, -mdot * x_m, -mdot * x_m ** 2
 
 
 def cross_flow_drag(x_m: np.ndarray, draft_m: np.ndarray, c_d: float, rho_kg_m3: float = 1000.0
