@@ -113,34 +113,6 @@ def _throughputs(model, n_twins: int, duration_s: float, nthread: int, repeats: 
     return work / statistics.median(single), work / statistics.median(walls), simulate_s / statistics.median(sims)
 
 
-def _six_dof_pair(cv, sea_text: str, duration_s: float, repeats: int) -> tuple[float, float]:
-    """Simulated seconds per wall second of one 3-DOF twin and one 6-DOF twin in the sea, each a run
-    of duration_s from rest under the same thrust, timed in turn; medians over repeats."""
-    from twin.engine import sixdof
-    from twin.physics.waves import parse_sea
-
-    three = native.with_native_params(cv)
-    six = sixdof.compile_six(cv, parse_sea(sea_text))
-    nstep = int(round(duration_s / three.opt.timestep))
-    d3, d6 = mujoco.MjData(three), mujoco.MjData(six.model)
-    walls3, walls6 = [], []
-    with native.installed_native():
-        mujoco.mj_step(six.model, d6, 10)  # compile and warm outside the timing
-        for _ in range(repeats):
-            mujoco.mj_resetData(three, d3)
-            d3.ctrl[:2] = (10.0, 8.0)
-            t0 = time.perf_counter()
-            mujoco.mj_step(three, d3, nstep)
-            walls3.append(time.perf_counter() - t0)
-            mujoco.mj_resetData(six.model, d6)
-            d6.qpos[:] = six.initial_qpos()
-            d6.ctrl[:2] = (10.0, 8.0)
-            t0 = time.perf_counter()
-            mujoco.mj_step(six.model, d6, nstep)
-            walls6.append(time.perf_counter() - t0)
-    return duration_s / statistics.median(walls3), duration_s / statistics.median(walls6)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--vessel", default="yellowfish")
@@ -171,7 +143,10 @@ def main(argv=None) -> int:
     single, batch_all, simulate = _throughputs(model, args.batch, args.batch_duration, cores, args.repeats,
                                                args.vessel, args.simulate_duration)
 
-    three_rate, six_rate = _six_dof_pair(cv, args.sea, 60.0, args.repeats)
+    from twin.verify.sea import speed_pair
+
+    pair = speed_pair(vessel_mod.load(args.vessel), args.sea, args.repeats)
+    three_rate, six_rate = pair["three_dof_simsec_per_s"], pair["six_dof_simsec_per_s"]
     result = {
         "vessel": args.vessel, "integrator": mujoco.mjtIntegrator(cv.model.opt.integrator).name, "timestep_s": h,
         "cores": cores, "batch_twins": args.batch, "batch_duration_s": args.batch_duration,

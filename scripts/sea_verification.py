@@ -8,53 +8,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-import mujoco
-
 import twin.vessel as vessel_mod
-from twin.engine import native, sixdof
-from twin.engine.mjcf import compile_vessel
+from twin.engine import sixdof
 from twin.files import json_default, write_text_atomic
-from twin.physics.waves import parse_sea
 from twin.verify import sea as checks
 from twin.viz.pages import ResultPage, ResultTable
 
 SEA = "0.3,2.5,30,4"
-
-
-def speed(vessel_name: str, sea_text: str, repeats: int, duration_s: float = 60.0) -> dict:
-    """Simulated seconds per wall second of one 3-DOF twin and one 6-DOF twin in the sea, on one core,
-    timed in turn (medians over `repeats`)."""
-    cv = compile_vessel(vessel_mod.load(vessel_name))
-    three = native.with_native_params(cv)
-    six = sixdof.compile_six(cv, parse_sea(sea_text))
-    nstep = int(round(duration_s / three.opt.timestep))
-    d3, d6 = mujoco.MjData(three), mujoco.MjData(six.model)
-    w3, w6 = [], []
-    with native.installed_native():
-        mujoco.mj_step(six.model, d6, 10)
-        for _ in range(repeats):
-            mujoco.mj_resetData(three, d3)
-            d3.ctrl[:2] = (10.0, 8.0)
-            t0 = time.perf_counter()
-            mujoco.mj_step(three, d3, nstep)
-            w3.append(time.perf_counter() - t0)
-            mujoco.mj_resetData(six.model, d6)
-            d6.qpos[:] = six.initial_qpos()
-            d6.ctrl[:2] = (10.0, 8.0)
-            t0 = time.perf_counter()
-            mujoco.mj_step(six.model, d6, nstep)
-            w6.append(time.perf_counter() - t0)
-    r3, r6 = duration_s / statistics.median(w3), duration_s / statistics.median(w6)
-    return {"vessel": vessel_name, "sea": sea_text, "components": len(six.components),
-            "grid_nodes": six.grid.nx * six.grid.ny, "triangles": six.hull.to_dict()["triangles"],
-            "three_dof_simsec_per_s": r3, "six_dof_simsec_per_s": r6, "ratio": r6 / r3,
-            "three_dof_runs_s": w3, "six_dof_runs_s": w6}
 
 
 def main(argv=None) -> int:
@@ -77,7 +41,7 @@ def main(argv=None) -> int:
     raw["heave_rao"] = checks.barge_rao(barge, "heave", [8.0, 4.0, 2.5, 2.0, 1.73, 1.5, 1.2])
     raw["roll_rao"] = checks.barge_rao(barge, "roll", [8.0, 4.0, 3.0, 2.2, 1.45], cycles=24)
     raw["drift"] = checks.drift(barge)
-    raw["speed"] = speed("yellowfish", SEA, args.repeats)
+    raw["speed"] = checks.speed_pair(yf, SEA, args.repeats)
     raw["hulls"] = {n: sixdof.hull_model(v).to_dict() for n, v in (("yellowfish", yf), ("blueboat", bb),
                                                                    ("barge", barge))}
 

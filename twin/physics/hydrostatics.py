@@ -74,16 +74,22 @@ def waterline_for_mass(meshes: list[tuple[np.ndarray, np.ndarray]], mass_kg: flo
             "waterline_length_m": length, "waterline_breadth_m": breadth}
 
 
-def waterplane_extent(vertices: np.ndarray, faces: np.ndarray, z_m: float) -> tuple[float, float]:
-    """Length and breadth (m) of one hull's section by the plane z = z_m."""
+def plane_crossings(vertices: np.ndarray, faces: np.ndarray, axis: int, value: float) -> np.ndarray:
+    """(n, 3) points where the mesh's edges cross the plane coordinate[axis] = value (each edge once
+    per triangle that holds it)."""
     tris = vertices[faces]
-    d = tris[:, :, 2] - z_m
+    d = tris[:, :, axis] - value
     pts = []
     for a, b in ((0, 1), (1, 2), (2, 0)):
         cross = (d[:, a] > 0) != (d[:, b] > 0)
         s = d[cross, a] / (d[cross, a] - d[cross, b])
         pts.append(tris[cross, a] + s[:, None] * (tris[cross, b] - tris[cross, a]))
-    p = np.concatenate(pts)
+    return np.concatenate(pts)
+
+
+def waterplane_extent(vertices: np.ndarray, faces: np.ndarray, z_m: float) -> tuple[float, float]:
+    """Length and breadth (m) of one hull's section by the plane z = z_m."""
+    p = plane_crossings(vertices, faces, 2, z_m)
     if len(p) == 0:
         return 0.0, 0.0
     return float(np.ptp(p[:, 0])), float(np.ptp(p[:, 1]))

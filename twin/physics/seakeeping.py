@@ -49,7 +49,7 @@ from scipy.special import i1, k1
 
 from . import waves
 from .hydrostatics import pressure_load as _pressure
-from .hydrostatics import submerged_volume
+from .hydrostatics import plane_crossings, submerged_volume
 
 G = 9.81
 N_STATIONS, N_RING = 25, 24
@@ -61,14 +61,7 @@ N_STATIONS, N_RING = 25, 24
 def section(vertices: np.ndarray, faces: np.ndarray, x: float) -> np.ndarray:
     """The closed outline (y, z) of the mesh cut by the plane x = const, ordered by angle about its
     centroid (a hull section is star-shaped about it); empty when the plane misses the mesh."""
-    tris = vertices[faces]
-    d = tris[:, :, 0] - x
-    pts = []
-    for a, b in ((0, 1), (1, 2), (2, 0)):
-        cross = (d[:, a] > 0) != (d[:, b] > 0)
-        s = d[cross, a] / (d[cross, a] - d[cross, b])
-        pts.append(tris[cross, a, 1:] + s[:, None] * (tris[cross, b, 1:] - tris[cross, a, 1:]))
-    p = np.concatenate(pts)
+    p = plane_crossings(vertices, faces, 0, x)[:, 1:]
     if len(p) < 3:
         return np.zeros((0, 2))
     c = p.mean(axis=0)

@@ -271,3 +271,41 @@ def drift(vessel: Vessel, height_m: float = 0.02) -> list[dict]:
                     "engine": along / unit, "short_wave_asymptote": 1.0,
                     "with_reflection": float(sk.reflection_squared(np.array([k]), draft)[0])})
     return out
+
+
+# ---------------------------------------------------------------- speed
+
+
+def speed_pair(vessel: Vessel, sea_text: str, repeats: int = 5, duration_s: float = 60.0) -> dict:
+    """Simulated seconds per wall second of one 3-DOF twin and one 6-DOF twin in the sea, each a run of
+    duration_s from rest under the same thrust, on one core, timed in turn (medians over repeats):
+    a machine's background load comes and goes, and the pair sees the same."""
+    import statistics
+    import time
+
+    import mujoco
+
+    from ..engine import native
+
+    cv = compile_vessel(vessel)
+    three = native.with_native_params(cv)
+    six = sixdof.compile_six(cv, waves.parse_sea(sea_text))
+    nstep = int(round(duration_s / three.opt.timestep))
+    d3, d6 = mujoco.MjData(three), mujoco.MjData(six.model)
+    w3, w6 = [], []
+    with native.installed_native():
+        mujoco.mj_step(six.model, d6, 10)  # compile and warm outside the timing
+        for _ in range(repeats):
+            for model, data, walls, q0 in ((three, d3, w3, None), (six.model, d6, w6, six.initial_qpos())):
+                mujoco.mj_resetData(model, data)
+                if q0 is not None:
+                    data.qpos[:] = q0
+                data.ctrl[:2] = (10.0, 8.0)
+                t0 = time.perf_counter()
+                mujoco.mj_step(model, data, nstep)
+                walls.append(time.perf_counter() - t0)
+    r3, r6 = duration_s / statistics.median(w3), duration_s / statistics.median(w6)
+    return {"vessel": vessel.name, "sea": sea_text, "components": len(six.components),
+            "grid_nodes": six.grid.nx * six.grid.ny, "triangles": six.hull.to_dict()["triangles"],
+            "three_dof_simsec_per_s": r3, "six_dof_simsec_per_s": r6, "ratio": r6 / r3,
+            "three_dof_runs_s": w3, "six_dof_runs_s": w6}
