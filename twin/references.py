@@ -114,6 +114,24 @@ BIBLIOGRAPHY = _bib(
            "International Shipbuilding Progress 29(335), 166-170", 1982),
     Source("BlueRobotics-BlueBoat", "BlueBoat: technical details (dimensions, mass, maximum speed 3.0 m/s with two "
            "batteries)", "Blue Robotics", "bluerobotics.com, BlueBoat product page and its discussion forum", None),
+    Source("Faltinsen-1990", "Sea Loads on Ships and Offshore Structures", "Odd M. Faltinsen",
+           "Cambridge University Press", 1990),
+    Source("DNV-RP-C205", "Environmental Conditions and Environmental Loads (Recommended Practice DNV-RP-C205)",
+           "Det Norske Veritas", "DNV, Høvik; the 2010 edition and its revisions", 2010),
+    Source("Journee-Massie-2001", "Offshore Hydromechanics, first edition", "J. M. J. Journée, W. W. Massie",
+           "Delft University of Technology", 2001),
+    Source("Lewis-1929", "The inertia of the water surrounding a vibrating ship", "Frank M. Lewis",
+           "Transactions of the Society of Naval Architects and Marine Engineers 37, 1-20", 1929),
+    Source("Cummins-1962", "The impulse response function and ship motions", "W. E. Cummins",
+           "Schiffstechnik 9, 101-109", 1962),
+    Source("Newman-1974", "Second-order, slowly-varying forces on vessels in irregular waves", "J. N. Newman",
+           "Proceedings of the International Symposium on the Dynamics of Marine Vehicles and Structures in Waves, "
+           "University College London, 182-186", 1974),
+    Source("Maruo-1960", "The drift of a body floating on waves", "Hajime Maruo", "Journal of Ship Research 4, 1-10",
+           1960),
+    Source("Ursell-1947", "The effect of a fixed vertical barrier on surface waves in deep water", "F. Ursell",
+           "Proceedings of the Cambridge Philosophical Society 43, 374-382", 1947),
+    Source("Michell-1893", "The highest waves in water", "J. H. Michell", "Philosophical Magazine 36, 430-437", 1893),
 )
 
 def markdown() -> str:
