@@ -89,6 +89,7 @@ ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seco
 ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 _TWO_PI = 2.0 * math.pi
+_new_tuple = tuple.__new__  # a Reply from a tuple without NamedTuple's Python-level __new__ (once a frame)
 _ZOH_TOL_S = 1e-9  # as drive.InputSeries.at: an input switching at t holds from t on
 
 
@@ -192,6 +193,7 @@ class SitlTwin:
         self._outputs = (self.channels[0] - 1, self.channels[1] - 1)  # 0-based indices into the packet
         self._hysteretic = vessel.thrusters.hysteretic
         self._thrust_of: dict[float, float] = {}  # PWM (µs) → raw thrust (N): ArduPilot's PWM is whole µs
+        self._raw_of: dict[float, float] = {}  # held input → raw thrust (N), for the delayed path
         self._delay_s = float(vessel.thrusters.delay_s)
         self._decay_per_min = float(vessel.thrusters.decay_per_min)
         t = vessel.thrusters
@@ -226,6 +228,7 @@ class SitlTwin:
                 yield self
             finally:
                 self._active = False
+                self._rate_checked = None  # a step after this raises: the callback is gone
 
     @property
     def time_s(self) -> float:
@@ -270,20 +273,34 @@ class SitlTwin:
         # the arrays' views, made once: each `data.qpos` access builds a new numpy view (about a µs)
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         initial_state(self.model, self.data, (0.0, 0.0, self.heading_rad), None)
-        self._rate_hz = None
+        self._rate_hz = self._rate_checked = None
         self._seg_t0, self._seg_k, self._h, self._nsub = 0.0, 0, 1.0 / self.min_rate_hz, 1
         self.model.opt.timestep = self._h
+        self._mj_time_s = self.data.time
         self._hist_t = [-math.inf]  # zero-order hold of the inputs: neutral before the session
         self._hist_l = [self._neutral_held]
         self._hist_r = [self._neutral_held]
         self._hist_i = 0
         self._pwm_last = (self.map.neutral_us, self.map.neutral_us)
+        self._driven = None  # the thrusters' inputs last written to the controls (none yet)
+        self._thrust_off = True  # both controls zero
         self._motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
         self._ramped = (0.0, 0.0)  # where a thrust ramp stands: at rest, the inputs neutral before the session
         self._escs_ready = self.esc_arm_s == 0.0
         self._esc_ready = [self._escs_ready, self._escs_ready]
         self._esc_stopped_since_s: list[float | None] = [None, None]
-        self._state = self._read_state()
+        q, w = self._qpos.tolist(), self._qvel.tolist()
+        a, b = self._qadr, self._dadr
+        self._state = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
+
+    def _check_rate(self, frame_rate_hz: int) -> None:
+        """The first frame after a start, a reset or a rate change: the callback must be installed, and
+        a new frame rate starts a new segment."""
+        if not self._active:
+            raise RuntimeError("step the twin inside `with twin.active():` (installs the hydrodynamic callback)")
+        if frame_rate_hz != self._rate_hz:
+            self._set_rate(frame_rate_hz)
+        self._rate_checked = frame_rate_hz
 
     def _set_rate(self, frame_rate_hz: int) -> None:
         """A new constant-step segment from now: h = frame period / ceil(min_rate / frame rate)."""
@@ -300,31 +317,35 @@ class SitlTwin:
     def step(self, pwm_us: Sequence[int], frame_rate_hz: int, frames: int = 1) -> Reply:
         """Apply one frame's servo outputs (16 or 32, µs) for `frames` frame periods (1 in
         lock-step; more when a real-time session catches up with the wall clock) and return
-        the state at the end of the frame."""
-        if not self._active:
-            raise RuntimeError("step the twin inside `with twin.active():` (installs the hydrodynamic callback)")
-        if frame_rate_hz != self._rate_hz:
-            self._set_rate(frame_rate_hz)
-        # the thrusters' outputs (1-based channels): 0, ArduPilot's "no output", or an output beyond the
-        # packet's (17+ in a 16-output packet) is the thruster's neutral
-        n_out, (i_left, i_right), neutral = len(pwm_us), self._outputs, self._neutral_us
-        a = pwm_us[i_left] if i_left < n_out else 0
-        b = pwm_us[i_right] if i_right < n_out else 0
-        pl = float(a) if a else neutral
-        pr = float(b) if b else neutral
+        the state at the end of the frame. The thrusters' outputs (1-based channels): 0,
+        ArduPilot's "no output", or an output beyond the packet's (17+ in a 16-output packet) is
+        the thruster's neutral."""
+        n_out, (i_left, i_right) = len(pwm_us), self._outputs
+        return self.step_pair(pwm_us[i_left] if i_left < n_out else 0, pwm_us[i_right] if i_right < n_out else 0,
+                              frame_rate_hz, frames)
+
+    def step_pair(self, pwm_left_us: int, pwm_right_us: int, frame_rate_hz: int, frames: int = 1) -> Reply:
+        """`step` given the two thrusters' PWM (µs, 0: no output) instead of the packet's outputs: the
+        frame loop's call. Kept lean, as it runs at every frame: the rare cases (a new rate, unarmed
+        ESCs, a hysteretic motor) branch off, everything else is local arithmetic."""
+        if frame_rate_hz != self._rate_checked:
+            self._check_rate(frame_rate_hz)
+        neutral = self._neutral_us
+        pl = float(pwm_left_us) if pwm_left_us else neutral
+        pr = float(pwm_right_us) if pwm_right_us else neutral
         n = frames * self._nsub
-        t0 = self._seg_t0 + self._seg_k * self._h
-        time_before = self.data.time
+        k0 = self._seg_k
+        t0 = self._seg_t0 + k0 * self._h
         driven = (pl, pr) if self._escs_ready else self._esc_gate(t0, pl, pr)
         if self._hysteretic:  # the motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps it
             self._motors, driven = self.vessel.thrusters.driven_step(self._motors, driven)
         if self._plain:
-            self._advance_held(t0, (pl, pr), driven, n)
+            self._advance_held(t0, pl, pr, driven, n)
         else:
-            self._advance_delayed(t0, (pl, pr), driven, n)
-        self._seg_k += n
+            self._advance_delayed(t0, pl, pr, driven, n)
+        self._seg_k = k0 + n
         self._pwm_last = (pl, pr)
-        return self._reply(t0, n, time_before)
+        return self._reply(t0, n)
 
     def _esc_gate(self, t0_s: float, pl: float, pr: float) -> tuple[float, float]:
         """What the ESCs pass on before they are armed (module docstring): neutral, until a thruster's
@@ -367,40 +388,55 @@ class SitlTwin:
             thrust = self._thrust_of[pwm_us] = mp.raw(mp.held(pwm_us))
         return thrust
 
-    def _advance_held(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
-        """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo."""
-        ctrl, (il, ir), cache = self._ctrl, self._ctrl_ids, self._thrust_of
-        left, right = cache.get(driven[0]), cache.get(driven[1])
-        ctrl[il] = self._thrust(driven[0]) if left is None else left
-        ctrl[ir] = self._thrust(driven[1]) if right is None else right
+    def _raw(self, held: float) -> float:
+        """PwmMap.raw of a held input, cached like `_thrust` (the delayed path looks it up every step)."""
+        thrust = self._raw_of.get(held)
+        if thrust is None:
+            thrust = self._raw_of[held] = self.map.raw(held)
+        return thrust
+
+    def _advance_held(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
+        """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo. The
+        controls are written only when the inputs change (ArduPilot's outputs change at its 50 Hz
+        loop rate, its frames come at 1200 Hz)."""
+        if driven != self._driven:
+            left, right = self._thrust(driven[0]), self._thrust(driven[1])
+            ctrl, (il, ir) = self._ctrl, self._ctrl_ids
+            ctrl[il] = left
+            ctrl[ir] = right
+            self._driven = driven
+            self._thrust_off = left == 0.0 and right == 0.0
         if self.record:
-            self._record(t0_s, *logged)
-        if self._calm and ctrl[il] == 0.0 and ctrl[ir] == 0.0 and self._at_rest():
+            self._record(t0_s, pl, pr)
+        if self._calm and self._thrust_off and self._at_rest():
             # what mj_step would compute, exactly (every force and acceleration is zero): only the clock
             # moves. ArduPilot's boot and EKF alignment, tens of seconds of frames, cost almost nothing
             d, h = self.data, self._h
             for _ in range(n):
                 d.time += h
             return
-        mujoco.mj_step(self.model, self.data, nstep=n)
+        mujoco.mj_step(self.model, self.data, n)
 
-    def _advance_delayed(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
+    def _advance_delayed(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
         mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
         self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
+        decay_per_min, raw, slew = self._decay_per_min, self._raw, self._slew_n_per_s is not None
         for i in range(n):
             t = t_seg + (k0 + i) * h
             held_left, held_right = self._delayed(t - delay_s)
-            f = self._decay(t)
-            left, right = mp.raw(held_left) * f, mp.raw(held_right) * f
-            if self._slew_n_per_s is not None:
+            f = 1.0 - decay_per_min * t / 60.0  # ThrusterModel.decay_factor on a float (same operations, same bits)
+            if f < 0.0:
+                f = 0.0
+            left, right = raw(held_left) * f, raw(held_right) * f
+            if slew:
                 left, right = self._ramp(left, right)
             ctrl[il] = left
             ctrl[ir] = right
-            if i == 0:
-                self._record(t0_s, *logged)
+            if i == 0 and self.record:
+                self._record(t0_s, pl, pr)
             mujoco.mj_step(m, d)
 
     def _at_rest(self) -> bool:
@@ -412,31 +448,31 @@ class SitlTwin:
             return act[self._act[0]] == 0.0 and act[self._act[1]] == 0.0
         return True
 
-    def _reply(self, t0_s: float, n: int, time_before_s: float) -> Reply:
-        """The state after the frame, checked for divergence, with the frame's mean specific force."""
-        _, _, _, vx0, vy0, _ = self._state
-        state = self._read_state()
-        x, y, psi, vx, vy, r = state
-        h = self._h
-        t1 = self._seg_t0 + self._seg_k * h
+    def _diverged(self, t0_s: float, n: int, finite_sum: float) -> None:
+        """MuJoCo resets a diverged state (its clock too) and carries on: a clock that did not move on, a
+        NaN in the state (a last step) or, at the first step, MuJoCo's warning counters tell."""
         d = self.data
-        # MuJoCo resets a diverged state (its clock too) and carries on; the NaN test catches a last step
-        total = x + y + psi + vx + vy + r
-        if d.time < time_before_s + 0.5 * n * h or total - total != 0.0 or (time_before_s == 0.0 and flagged(d)):
-            raise TwinError(f"the twin diverged between t = {t0_s:.3f} s and {t1:.3f} s: MuJoCo found its "
+        now_s, before_s = d.time, self._mj_time_s
+        if now_s < before_s + 0.5 * n * self._h or finite_sum - finite_sum != 0.0 or (before_s == 0.0 and flagged(d)):
+            raise TwinError(f"the twin diverged between t = {t0_s:.3f} s and {self.time_s:.3f} s: MuJoCo found its "
                             f"{what_diverged(d)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable parameters)")
-        self._state = state
-        c, s = math.cos(psi), math.sin(psi)
-        dt = n * h
-        an, ae = (vx - vx0) / dt, (vy - vy0) / dt
-        return Reply(t1, x, y, math.remainder(psi, _TWO_PI), vx, vy, r,
-                     c * an + s * ae, -s * an + c * ae, -self._gravity_m_s2)
+        self._mj_time_s = now_s
 
-    def _read_state(self) -> tuple[float, float, float, float, float, float]:
-        """(x, y, ψ, ẋ, ẏ, r): north, east (m), heading (rad, unwrapped) and their rates."""
+    def _reply(self, t0_s: float, n: int) -> Reply:
+        """The state after the frame, checked for divergence, with the frame's mean specific force."""
+        vx0, vy0 = self._state[3], self._state[4]
         q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
         a, b = self._qadr, self._dadr
-        return q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]]
+        x, y, psi, vx, vy, r = q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]]
+        self._diverged(t0_s, n, x + y + psi + vx + vy + r)
+        self._state = (x, y, psi, vx, vy, r)
+        h = self._h
+        dt = n * h
+        an, ae = (vx - vx0) / dt, (vy - vy0) / dt
+        c, s = math.cos(psi), math.sin(psi)
+        return _new_tuple(Reply, (self._seg_t0 + self._seg_k * h, x, y, math.remainder(psi, _TWO_PI), vx, vy, r,
+                                  c * an + s * ae, -s * an + c * ae, -self._gravity_m_s2, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                  0.0))
 
     def _hold(self, t_s: float, left: float, right: float) -> None:
         """Append a frame's inputs to the hold history; drop what no delayed lookup can reach."""
@@ -468,18 +504,11 @@ class SitlTwin:
         self._ramped = (end_l, end_r)
         return mean_l, mean_r
 
-    def _decay(self, t_s: float) -> float:
-        """ThrusterModel.decay_factor at t_s, on a float (same operations, same bits)."""
-        left = 1.0 - self._decay_per_min * t_s / 60.0
-        return left if left > 0.0 else 0.0
-
     # ------------------------------------------------------------ recording
 
     def _record(self, t_s: float, pwm_left: float, pwm_right: float) -> None:
         """One row at the frame's start: the state then, the PWM held over the frame and the thrust
         command in force (the lagged thrust when there is a lag), as engine.sim records a sample."""
-        if not self.record:
-            return
         x, y, psi, vx, vy, r = self._state
         c, s = math.cos(psi), math.sin(psi)
         cl, cr = self._command_now()

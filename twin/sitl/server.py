@@ -54,7 +54,8 @@ from twin.errors import TwinError
 from twin.outputs import FORMATS, write
 from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
                                sensor_amendments, with_environment)
-from twin.sitl.protocol import MAGIC_16, PACKET_16, REASONS, PacketError, format_reply, parse_servo_packet
+from twin.sitl.protocol import (HEADER, MAGIC_16, PACKET_16, REASONS, PacketError, format_reply, pair_reader,
+                                parse_servo_packet)
 from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
@@ -190,50 +191,65 @@ class SitlServer:
                 return
 
     def _loop(self, limit: float, halt: Event) -> None:
-        recv, send = self.sock.recvfrom, self.sock.sendto
-        parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
-        # the usual packet (16 outputs) unpacked directly; anything else goes through parse's checks
-        size16, head16, unpack16 = PACKET_16.size, MAGIC_16.to_bytes(2, "little"), PACKET_16.unpack
+        # what a frame touches, bound to locals once: the datagram lands in one preallocated buffer, the
+        # usual packet (16 outputs) gives up only its header and the thrusters' two outputs, the twin is
+        # stepped with those two, the reply is formatted by the twin's own template
+        recv_into, send = self.sock.recvfrom_into, self.sock.sendto
+        buffer = bytearray(RECV_BYTES)
+        twin = self.twin
+        step, fmt = twin.step_pair, format_reply
+        reader = pair_reader(*twin.channels)
+        unpack, swapped = (reader[0].unpack_from, reader[1]) if reader else (None, False)
+        size16 = PACKET_16.size
+        outputs = (twin.channels[0] - 1, twin.channels[1] - 1)
         c = self.counters
         realtime = self.realtime
         clock = time.perf_counter
-        while not halt.is_set():
-            data, peer = recv(RECV_BYTES)
-            fields = unpack16(data) if len(data) == size16 and data[:2] == head16 else None
-            if fields is not None and fields[1]:
-                rate, count, pwm = fields[1], fields[2], fields[3:]
-            else:
-                if halt.is_set():  # the watcher's wake-up, not ArduPilot's
+        last, last_reply, sent_s, frames = self._last_count, self._last_reply, self._sent_s, c.frames
+        try:
+            while True:  # the watcher halts the loop with an empty datagram, read below
+                n, peer = recv_into(buffer)
+                fields = unpack(buffer) if n == size16 and unpack is not None else None
+                if fields is not None and fields[0] == MAGIC_16 and fields[1]:
+                    _, rate, count, a, b = fields
+                    if swapped:
+                        a, b = b, a
+                else:
+                    if halt.is_set():  # the watcher's wake-up, not ArduPilot's
+                        break
+                    try:
+                        rate, count, pwm = parse_servo_packet(bytes(buffer[:n]))
+                    except PacketError as exc:
+                        self._ignore(exc)
+                        continue
+                    a = pwm[outputs[0]] if outputs[0] < len(pwm) else 0
+                    b = pwm[outputs[1]] if outputs[1] < len(pwm) else 0
+                if last is None or count != last + 1:
+                    if count == last:
+                        if clock() - sent_s >= RESEND_AFTER_S:
+                            c.duplicates += 1
+                            send(last_reply, peer)
+                        else:
+                            c.crossed += 1
+                        continue
+                    self._last_count = last
+                    self._irregular(count, peer, (n - HEADER.size) // 2)
+                if rate != self._rate_hz:
+                    self._new_rate(rate)
+                if realtime:
+                    reply = step(a, b, rate, self._frames_due(rate))
+                    self._wait_for(reply.timestamp_s)
+                else:
+                    reply = step(a, b, rate)
+                last_reply = fmt(reply)
+                send(last_reply, peer)
+                sent_s = clock()
+                last = count
+                frames += 1
+                if frames >= limit:
                     break
-                try:
-                    rate, count, pwm = parse(data)
-                except PacketError as exc:
-                    self._ignore(exc)
-                    continue
-            last = self._last_count
-            if last is None or count != last + 1:
-                if count == last:
-                    if clock() - self._sent_s >= RESEND_AFTER_S:
-                        c.duplicates += 1
-                        send(self._last_reply, peer)
-                    else:
-                        c.crossed += 1
-                    continue
-                self._irregular(count, peer, len(pwm))
-            if rate != self._rate_hz:
-                self._new_rate(rate)
-            if realtime:
-                reply = step(pwm, rate, self._frames_due(rate))
-                self._wait_for(reply.timestamp_s)
-            else:
-                reply = step(pwm, rate)
-            c.frames += 1
-            line = fmt(reply)
-            self._last_reply, self._last_count = line, count
-            send(line, peer)
-            self._sent_s = clock()
-            if c.frames >= limit:
-                break
+        finally:
+            self._last_count, self._last_reply, self._sent_s, c.frames = last, last_reply, sent_s, frames
 
     # ------------------------------------------------------------ the rare cases, off the hot path
 
