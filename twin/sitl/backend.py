@@ -89,7 +89,9 @@ ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seco
 ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 _TWO_PI = 2.0 * math.pi
-_new_tuple = tuple.__new__  # a Reply from a tuple without NamedTuple's Python-level __new__ (once a frame)
+# bound once for the frame loop: module globals, not attribute lookups; a Reply from a tuple without
+# NamedTuple's Python-level __new__
+_new_tuple, _cos, _sin, _remainder, _mj_step = tuple.__new__, math.cos, math.sin, math.remainder, mujoco.mj_step
 _ZOH_TOL_S = 1e-9  # as drive.InputSeries.at: an input switching at t holds from t on
 
 
@@ -210,7 +212,7 @@ class SitlTwin:
         self._act = [_index(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator_actadr") if m.na else -1
                      for a in THRUSTERS]
         self._ctrl_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in THRUSTERS]
-        self._gravity_m_s2 = GRAVITY_M_S2
+        self._az = -GRAVITY_M_S2  # the specific force down of a hull that stays level: gravity's reaction
         self._active = False
         self._rows = array("d")
         self._record_offset_s = 0.0
@@ -326,26 +328,74 @@ class SitlTwin:
 
     def step_pair(self, pwm_left_us: int, pwm_right_us: int, frame_rate_hz: int, frames: int = 1) -> Reply:
         """`step` given the two thrusters' PWM (µs, 0: no output) instead of the packet's outputs: the
-        frame loop's call. Kept lean, as it runs at every frame: the rare cases (a new rate, unarmed
-        ESCs, a hysteretic motor) branch off, everything else is local arithmetic."""
+        frame loop's call. It runs over a thousand times a second, so the usual frame (rate known,
+        ESCs armed, no hysteresis, no delay or decay) is one function of local arithmetic around
+        mj_step; the rare cases branch off."""
         if frame_rate_hz != self._rate_checked:
             self._check_rate(frame_rate_hz)
         neutral = self._neutral_us
         pl = float(pwm_left_us) if pwm_left_us else neutral
         pr = float(pwm_right_us) if pwm_right_us else neutral
         n = frames * self._nsub
-        k0 = self._seg_k
-        t0 = self._seg_t0 + k0 * self._h
+        k0, h, seg_t0 = self._seg_k, self._h, self._seg_t0
+        t0 = seg_t0 + k0 * h
         driven = (pl, pr) if self._escs_ready else self._esc_gate(t0, pl, pr)
         if self._hysteretic:  # the motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps it
             self._motors, driven = self.vessel.thrusters.driven_step(self._motors, driven)
         if self._plain:
-            self._advance_held(t0, pl, pr, driven, n)
+            # no delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo. The
+            # controls are written only when the inputs change (ArduPilot's outputs change at its loop
+            # rate, 50 Hz, its frames come at 1200 Hz)
+            if driven != self._driven:
+                self._drive(driven)
+            if self.record:
+                self._record(t0, pl, pr)
+            if self._calm and self._thrust_off and self._at_rest():
+                # what mj_step would compute, exactly (every force and acceleration is zero): only the clock
+                # moves. ArduPilot's boot and EKF alignment, tens of seconds of frames, cost almost nothing
+                d = self.data
+                for _ in range(n):
+                    d.time += h
+            else:
+                _mj_step(self.model, self.data, n)
         else:
             self._advance_delayed(t0, pl, pr, driven, n)
-        self._seg_k = k0 + n
+        k1 = self._seg_k = k0 + n
         self._pwm_last = (pl, pr)
-        return self._reply(t0, n)
+        # the state after the frame, checked for divergence, with the frame's mean specific force
+        _, _, _, vx0, vy0, _ = self._state
+        q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
+        a, b = self._qadr, self._dadr
+        x, y, psi, vx, vy, r = state = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
+        total = x + y + psi + vx + vy + r
+        # MuJoCo resets a diverged state (its clock too) and carries on: a clock that did not move on, a
+        # NaN in the state (a last step) or, at the first step, MuJoCo's warning counters tell
+        now_s, before_s = self.data.time, self._mj_time_s
+        if now_s < before_s + 0.5 * n * h or total - total != 0.0 or before_s == 0.0:
+            self._check_diverged(t0, now_s, before_s, n, total)
+        self._mj_time_s = now_s
+        self._state = state
+        dt = n * h
+        an, ae = (vx - vx0) / dt, (vy - vy0) / dt
+        c, s = _cos(psi), _sin(psi)
+        return _new_tuple(Reply, (seg_t0 + k1 * h, x, y, _remainder(psi, _TWO_PI), vx, vy, r,
+                                  c * an + s * ae, -s * an + c * ae, self._az))
+
+    def _drive(self, driven: tuple[float, float]) -> None:
+        """Write the thrusters' controls for these (ESC-passed) inputs."""
+        left, right = self._thrust(driven[0]), self._thrust(driven[1])
+        ctrl, (il, ir) = self._ctrl, self._ctrl_ids
+        ctrl[il] = left
+        ctrl[ir] = right
+        self._driven = driven
+        self._thrust_off = left == 0.0 and right == 0.0
+
+    def _check_diverged(self, t0_s: float, now_s: float, before_s: float, n: int, total: float) -> None:
+        """Raise if the frame diverged (step_pair's tests; at the first step MuJoCo's warnings too)."""
+        if now_s < before_s + 0.5 * n * self._h or total - total != 0.0 or (before_s == 0.0 and flagged(self.data)):
+            raise TwinError(f"the twin diverged between t = {t0_s:.3f} s and {self.time_s:.3f} s: MuJoCo found its "
+                            f"{what_diverged(self.data)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable "
+                            f"parameters)")
 
     def _esc_gate(self, t0_s: float, pl: float, pr: float) -> tuple[float, float]:
         """What the ESCs pass on before they are armed (module docstring): neutral, until a thruster's
@@ -395,28 +445,6 @@ class SitlTwin:
             thrust = self._raw_of[held] = self.map.raw(held)
         return thrust
 
-    def _advance_held(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
-        """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo. The
-        controls are written only when the inputs change (ArduPilot's outputs change at its 50 Hz
-        loop rate, its frames come at 1200 Hz)."""
-        if driven != self._driven:
-            left, right = self._thrust(driven[0]), self._thrust(driven[1])
-            ctrl, (il, ir) = self._ctrl, self._ctrl_ids
-            ctrl[il] = left
-            ctrl[ir] = right
-            self._driven = driven
-            self._thrust_off = left == 0.0 and right == 0.0
-        if self.record:
-            self._record(t0_s, pl, pr)
-        if self._calm and self._thrust_off and self._at_rest():
-            # what mj_step would compute, exactly (every force and acceleration is zero): only the clock
-            # moves. ArduPilot's boot and EKF alignment, tens of seconds of frames, cost almost nothing
-            d, h = self.data, self._h
-            for _ in range(n):
-                d.time += h
-            return
-        mujoco.mj_step(self.model, self.data, n)
-
     def _advance_delayed(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
@@ -437,7 +465,7 @@ class SitlTwin:
             ctrl[ir] = right
             if i == 0 and self.record:
                 self._record(t0_s, pl, pr)
-            mujoco.mj_step(m, d)
+            _mj_step(m, d)
 
     def _at_rest(self) -> bool:
         """No velocity and (with a thruster lag) no thrust still in the lag."""
@@ -447,32 +475,6 @@ class SitlTwin:
             act = self.data.act
             return act[self._act[0]] == 0.0 and act[self._act[1]] == 0.0
         return True
-
-    def _diverged(self, t0_s: float, n: int, finite_sum: float) -> None:
-        """MuJoCo resets a diverged state (its clock too) and carries on: a clock that did not move on, a
-        NaN in the state (a last step) or, at the first step, MuJoCo's warning counters tell."""
-        d = self.data
-        now_s, before_s = d.time, self._mj_time_s
-        if now_s < before_s + 0.5 * n * self._h or finite_sum - finite_sum != 0.0 or (before_s == 0.0 and flagged(d)):
-            raise TwinError(f"the twin diverged between t = {t0_s:.3f} s and {self.time_s:.3f} s: MuJoCo found its "
-                            f"{what_diverged(d)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable parameters)")
-        self._mj_time_s = now_s
-
-    def _reply(self, t0_s: float, n: int) -> Reply:
-        """The state after the frame, checked for divergence, with the frame's mean specific force."""
-        vx0, vy0 = self._state[3], self._state[4]
-        q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
-        a, b = self._qadr, self._dadr
-        x, y, psi, vx, vy, r = q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]]
-        self._diverged(t0_s, n, x + y + psi + vx + vy + r)
-        self._state = (x, y, psi, vx, vy, r)
-        h = self._h
-        dt = n * h
-        an, ae = (vx - vx0) / dt, (vy - vy0) / dt
-        c, s = math.cos(psi), math.sin(psi)
-        return _new_tuple(Reply, (self._seg_t0 + self._seg_k * h, x, y, math.remainder(psi, _TWO_PI), vx, vy, r,
-                                  c * an + s * ae, -s * an + c * ae, -self._gravity_m_s2, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                  0.0))
 
     def _hold(self, t_s: float, left: float, right: float) -> None:
         """Append a frame's inputs to the hold history; drop what no delayed lookup can reach."""
