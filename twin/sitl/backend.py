@@ -447,18 +447,27 @@ class SitlTwin:
 
     def _advance_delayed(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
-        delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
+        delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does). Every
+        physics step runs this loop, so the hold lookup (`_delayed`) and the map's cache (`_raw`) are
+        inlined."""
         mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
         self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
-        decay_per_min, raw, slew = self._decay_per_min, self._raw, self._slew_n_per_s is not None
+        decay_per_min, slew = self._decay_per_min, self._slew_n_per_s is not None
+        times, lefts, rights, j = self._hist_t, self._hist_l, self._hist_r, self._hist_i
+        last, raw_of, raw = len(times) - 1, self._raw_of, self._raw
         for i in range(n):
             t = t_seg + (k0 + i) * h
-            held_left, held_right = self._delayed(t - delay_s)
+            x = t - delay_s + _ZOH_TOL_S  # the last frame that started at or before t − delay (InputSeries.at)
+            while j < last and times[j + 1] <= x:
+                j += 1
+            held_left, held_right = lefts[j], rights[j]
             f = 1.0 - decay_per_min * t / 60.0  # ThrusterModel.decay_factor on a float (same operations, same bits)
             if f < 0.0:
                 f = 0.0
-            left, right = raw(held_left) * f, raw(held_right) * f
+            left, right = raw_of.get(held_left), raw_of.get(held_right)
+            left = (raw(held_left) if left is None else left) * f
+            right = (raw(held_right) if right is None else right) * f
             if slew:
                 left, right = self._ramp(left, right)
             ctrl[il] = left
@@ -466,6 +475,7 @@ class SitlTwin:
             if i == 0 and self.record:
                 self._record(t0_s, pl, pr)
             _mj_step(m, d)
+        self._hist_i = j
 
     def _at_rest(self) -> bool:
         """No velocity and (with a thruster lag) no thrust still in the lag."""
@@ -485,17 +495,6 @@ class SitlTwin:
         if i > 4096:
             del self._hist_t[:i], self._hist_l[:i], self._hist_r[:i]
             self._hist_i = 0
-
-    def _delayed(self, t_s: float) -> tuple[float, float]:
-        """The inputs held at t_s (zero-order hold, as InputSeries.at): the last frame that
-        started at or before t_s. Lookups only go forward in time, so a moving index does."""
-        times, i = self._hist_t, self._hist_i
-        x = t_s + _ZOH_TOL_S
-        last = len(times) - 1
-        while i < last and times[i + 1] <= x:
-            i += 1
-        self._hist_i = i
-        return self._hist_l[i], self._hist_r[i]
 
     def _ramp(self, left: float, right: float) -> tuple[float, float]:
         """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
