@@ -109,20 +109,24 @@ KEYS = ("frames_per_s", "x_real_time", "twin_cpu_us_per_frame", "twin_x_real_tim
 
 
 def compute_only(vessel, frames: int, rate: int) -> float:
-    """CPU µs per frame of the same frames without the socket: unpack, step, format, in this thread."""
+    """CPU µs per frame of the same frames without the socket: what the server's loop does with a
+    packet (unpack the two thrusters' outputs, step, format), in this thread."""
     from twin.sitl.backend import SitlTwin
-    from twin.sitl.protocol import PACKET_16, format_reply, pack_servo_packet
+    from twin.sitl.protocol import format_reply, pack_servo_packet, pair_reader
 
     twin = SitlTwin(with_environment(vessel, (0.3, 40.0), (6.0, 100.0)), record=False, esc_arm_s=0.0)
-    packets = [pack_servo_packet(rate, k, [int(1500 + 350 * math.sin(2 * math.pi * k / (10 * rate))), 0,
-                                           int(1500 + 350 * math.cos(2 * math.pi * k / (6.5 * rate)))] + [0] * 13)
+    packets = [bytearray(pack_servo_packet(rate, k, [int(1500 + 350 * math.sin(2 * math.pi * k / (10 * rate))), 0,
+                                                     int(1500 + 350 * math.cos(2 * math.pi * k / (6.5 * rate)))]
+                                           + [0] * 13))
                for k in range(frames)]
+    unpack = pair_reader(*twin.channels)[0].unpack_from
+    step = twin.step_pair
     with twin.active():
         twin.warm_up()
         start = time.thread_time()
         for packet in packets:
-            fields = PACKET_16.unpack(packet)
-            format_reply(twin.step(fields[3:], fields[1]))
+            _, frame_rate, _, a, b = unpack(packet)
+            format_reply(step(a, b, frame_rate))
         return (time.thread_time() - start) / frames * 1e6
 
 
