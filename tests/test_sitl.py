@@ -17,6 +17,8 @@ import re
 import signal
 import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import replace
@@ -32,6 +34,7 @@ from twin.engine.sim import delivered_thrust, initial_state, simulate
 from twin.errors import TwinError
 from twin.formats import read_recording
 from twin.physics.hydrodynamics import Terms
+from twin.physics.waves import parse_sea
 from twin.run import read_csv
 from twin.sitl.backend import PwmMap, SitlTwin, delivered_thrust_n, with_environment
 from twin.sitl.protocol import (PacketError, Reply, ServoFrame, format_reply, pack_servo_packet,
@@ -775,3 +778,71 @@ def test_the_deviation_from_a_mission_is_the_distance_to_the_nearest_leg():
 
     north, east = ned_from_geodetic(lat, lon, 63.4366, 10.3991)
     assert north == pytest.approx(100.0, abs=1e-6) and east == pytest.approx(-50.0, abs=1e-6)
+
+
+# ---------------------------------------------------------------- in a seaway
+
+def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll): body FRD → NED, as ArduPilot's from_euler."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return (np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]]) @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+            @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]))
+
+
+def quaternion_rotation(w: float, x: float, y: float, z: float) -> np.ndarray:
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def test_in_a_sea_the_6dof_hull_is_the_offline_twin_and_its_states_are_consistent(full_vessel, tmp_path):
+    """`twin sitl --sea`: lock-step at 50 Hz frames (the 6-DOF model's own 20 ms step) gives the offline
+    `simulate(sea=...)` to the bit, heave, roll and pitch included, and a recording holds them as the
+    offline run does; the attitude, quaternion, body rates and specific force sent agree."""
+    sea = parse_sea("0.3,3,45", 0)
+    frames, pairs = pwm_frames(300, seed=13)
+    path = tmp_path / "sea.csv"
+    replies, summary, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)], rate_hz=50, sea=sea,
+                               record_paths=[path])
+    assert summary.counters.frames == 300
+    n = len(pairs)
+    series = InputSeries(np.concatenate([[-1.0], np.arange(n) / 50]), np.vstack([[NEUTRAL, NEUTRAL], pairs]), "pwm")
+    run = simulate(compile_vessel(full_vessel), series, n / 50, sample_dt_s=1 / 50, sea=sea)
+    a = arrays(replies)
+    six = run.meta["six_dof"]
+    np.testing.assert_array_equal(a["t"], run.t[1:n + 1])
+    np.testing.assert_array_equal(a["pos"][:, :2], run.eta[1:n + 1, :2])
+    np.testing.assert_array_equal(a["att"][:, 2], [math.remainder(p, 2 * math.pi) for p in run.eta[1:n + 1, 2]])
+    np.testing.assert_allclose(a["vel"][:, :2], ned_velocity(run)[1:n + 1], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a["pos"][:, 2], six["down_m"][1:n + 1])
+    np.testing.assert_array_equal(a["vel"][:, 2], six["down_rate_m_s"][1:n + 1])
+    np.testing.assert_array_equal(a["att"][:, 0], six["roll_rad"][1:n + 1])
+    np.testing.assert_array_equal(a["att"][:, 1], six["pitch_rad"][1:n + 1])
+    assert np.ptp(a["att"][:, 0]) > 0.01 and np.ptp(a["att"][:, 1]) > 0.01 and np.ptp(a["pos"][:, 2]) > 0.01, \
+        "the hull must roll, pitch and heave for the comparison to mean anything"
+    for r, q in zip(replies, a["quat"]):
+        assert q[0] >= 0
+        np.testing.assert_allclose(quaternion_rotation(*q), rotation(*r["attitude"]), atol=1e-12)
+    # body rates: the Euler angles' rates turned into the body frame, at the frame's end
+    phi, theta = six["roll_rad"][1:n + 1], six["pitch_rad"][1:n + 1]
+    dphi, dtheta, dpsi = six["roll_rate_rad_s"][1:n + 1], six["pitch_rate_rad_s"][1:n + 1], run.nu[1:n + 1, 2]
+    p = dphi - dpsi * np.sin(theta)
+    q = dtheta * np.cos(phi) + dpsi * np.cos(theta) * np.sin(phi)
+    r = dpsi * np.cos(theta) * np.cos(phi) - dtheta * np.sin(phi)
+    np.testing.assert_allclose(a["gyro"], np.column_stack([p, q, r]), atol=1e-12)
+    # the specific force, rotated to NED with the attitude sent, plus gravity, is the velocity change
+    dt = np.diff(a["t"])
+    for k in range(1, n):
+        ned = rotation(*a["att"][k]) @ a["acc"][k] + [0.0, 0.0, GRAVITY]
+        np.testing.assert_allclose(ned, (a["vel"][k] - a["vel"][k - 1]) / dt[k - 1], atol=1e-9)
+    table = np.genfromtxt(path, delimiter=",", names=True)
+    assert table.dtype.names[-3:] == ("down", "roll", "pitch") and len(table) == n + 1
+    for column, name in (("down", "down_m"), ("roll", "roll_rad"), ("pitch", "pitch_rad")):
+        np.testing.assert_allclose(table[column], six[name], rtol=1e-8, atol=1e-12)
+
+
+def test_a_sea_on_the_command_line_is_checked_in_one_line(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", "--sea", "0.3,-3,45",
+                             "--port", "0"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "sea" in result.stderr.lower()

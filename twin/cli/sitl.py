@@ -9,8 +9,8 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
-                  speed_direction, vessel_from)
-from .run import RUN_OUTPUTS, origin_from
+                  seed_from, speed_direction, vessel_from)
+from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
 
 @app.command()
@@ -29,6 +29,8 @@ def sitl(
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
     heading: float = typer.Option(0.0, help="initial heading, deg"),
+    sea: Optional[str] = typer.Option(None, help=SEA_HELP),
+    seed: int = typer.Option(0, help="random seed of the sea's components"),
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the origin, SITL's home, for map positions"),
     record: list[Path] = typer.Option([], help="record the session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
@@ -56,11 +58,12 @@ def sitl(
         return
     if v.thrusters.kind == "propeller_rudder":  # ArduPilot Rover's servo outputs are two thrusters' PWM
         raise TwinError(f"vessel '{v.name}' is a propeller-and-rudder ship: SITL supports twin-thruster vessels only")
+    sea_state = sea_from(sea, seed_from(seed))
     summary = run_sitl(
         v, port=port, host=host, rate_hz=rate, record_paths=record,
         realtime=realtime, channels=(pair["left"], pair["right"]) if pair else (1, 3),
         current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"),
-        heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm,
+        heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm, sea=sea_state,
     )
     say(summary.text())
 

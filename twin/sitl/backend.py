@@ -55,6 +55,13 @@ Choices, and why:
   ArduPilot's own (GRAVITY_MSS, 9.80665 m/s², AP_Math/definitions.h), so at rest the
   IMU reads (0, 0, −9.80665) exactly what ArduPilot subtracts: the planar twin's
   motion does not depend on gravity, its EKF's vertical channel does.
+- **In a seaway** (`sea`): the 6-DOF hull of `engine.sixdof` (heave, roll and pitch freed,
+  floating on its meshes, the 3-DOF horizontal model unchanged), started at rest on its
+  equilibrium. The reply carries the body origin's six degrees of freedom: down position and
+  velocity, roll and pitch (zyx Euler angles, R = Rz(ψ) Ry(θ) Rx(φ)), the body rates (p, q, r)
+  from the Euler angles' rates, and the specific force as above in all three axes, Rᵀ (Δv/Δt −
+  g). SITL places its own IMU and GPS at their offsets from that motion. A floating hull is
+  never "at rest" to the bit, so it is always stepped.
 - **Sensor calibration** amendments of a vessel file (heading bias, compass
   deviation, antenna offset, log clock offset) describe how a real boat's sensors
   err; SITL simulates its own sensors from the true state, so they are not applied
@@ -75,10 +82,12 @@ from twin.engine.divergence import flagged, quiet_log, what_diverged
 from twin.engine.mjcf import JOINTS, THRUSTERS, compile_vessel
 from twin.engine.native import installed_native, with_native_params
 from twin.engine.sim import initial_state
+from twin.engine.sixdof import SIX_JOINTS, compile_six
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
 from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_step
+from twin.physics.waves import Sea
 from twin.run import Run
 from twin.sitl.protocol import Reply
 from twin.vessel import Vessel
@@ -88,6 +97,7 @@ GRAVITY_M_S2 = 9.80665  # ArduPilot's GRAVITY_MSS: the specific force at rest is
 ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seconds" (module docstring)
 ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
+SIX_NAMES = ("down_m", "pitch_rad", "roll_rad", "down_rate_m_s", "pitch_rate_rad_s", "roll_rate_rad_s")  # and in a sea
 _TWO_PI = 2.0 * math.pi
 # bound once for the frame loop: module globals, not attribute lookups; a Reply from a tuple without
 # NamedTuple's Python-level __new__
@@ -169,11 +179,12 @@ def _index(model: mujoco.MjModel, obj, name: str, field: str) -> int:
 class SitlTwin:
     """The vessel's twin advanced frame by frame (module docstring): `reset()`, `step()`, and
     `recording()` of everything it did as a twin Run. Step only inside `with twin.active():`,
-    which installs the native hydrodynamic callback (MuJoCo's callback is process-global)."""
+    which installs the native hydrodynamic callback (MuJoCo's callback is process-global).
+    `sea` (physics.waves.Sea) runs the 6-DOF hull in that sea (module docstring, "In a seaway")."""
 
     def __init__(self, vessel: Vessel, *, min_rate_hz: float = 400.0,
                  channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True,
-                 esc_arm_s: float = ESC_ARM_S) -> None:
+                 esc_arm_s: float = ESC_ARM_S, sea: Sea | None = None) -> None:
         check_channels(channels)
         if not (math.isfinite(min_rate_hz) and min_rate_hz > 0):
             raise TwinError(f"the physics rate must be a positive number of Hz, got {min_rate_hz}")
@@ -183,7 +194,9 @@ class SitlTwin:
             raise TwinError("the initial heading must be a finite number of degrees")
         self.vessel = vessel
         self.compiled = compile_vessel(vessel)
-        self.model = with_native_params(self.compiled, Terms())
+        self.sea = sea
+        self._six = None if sea is None else compile_six(self.compiled, sea, Terms())
+        self.model = with_native_params(self.compiled, Terms()) if self._six is None else self._six.model
         self.data = mujoco.MjData(self.model)
         self.min_rate_hz = float(min_rate_hz)
         self.channels = (int(channels[0]), int(channels[1]))
@@ -204,11 +217,16 @@ class SitlTwin:
         self._bounds = t.bounds()
         self._plain = self._delay_s == 0.0 and self._decay_per_min == 0.0 and self._slew_n_per_s is None
         env = vessel.environment
-        # calm water and no wind: a boat at rest with no thrust feels no force, and stays as it is
-        self._calm = env.current_speed_m_s == 0.0 and env.wind_speed_m_s == 0.0
+        # calm water and no wind: a boat at rest with no thrust feels no force, and stays as it is (a
+        # floating hull's buoyancy and weight balance only to round-off: in a sea it is always stepped)
+        self._calm = env.current_speed_m_s == 0.0 and env.wind_speed_m_s == 0.0 and sea is None
         m = self.model
         self._qadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_qposadr") for j in JOINTS]
         self._dadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_dofadr") for j in JOINTS]
+        if self._six is not None:
+            self._qadr_six = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_qposadr") for j in SIX_JOINTS]
+            self._dadr_six = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_dofadr") for j in SIX_JOINTS]
+        self._row = ROW if self._six is None else ROW + len(SIX_NAMES)
         self._act = [_index(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator_actadr") if m.na else -1
                      for a in THRUSTERS]
         self._ctrl_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in THRUSTERS]
@@ -246,6 +264,11 @@ class SitlTwin:
     def substeps(self) -> int:
         return self._nsub
 
+    @property
+    def six_dof(self) -> bool:
+        """Whether the hull moves in heave, roll and pitch too (a sea was given)."""
+        return self._six is not None
+
     def reset(self) -> None:
         """Back to the start: at the origin, heading `heading_deg`, at rest, thrusters neutral, clock 0.
         What was recorded so far stays; the record clock goes on from where it was, so a
@@ -274,7 +297,8 @@ class SitlTwin:
         mujoco.mj_resetData(self.model, self.data)
         # the arrays' views, made once: each `data.qpos` access builds a new numpy view (about a µs)
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
-        initial_state(self.model, self.data, (0.0, 0.0, self.heading_rad), None)
+        eta0 = (0.0, 0.0, self.heading_rad)
+        initial_state(self.model, self.data, eta0, None, None if self._six is None else self._six.initial_qpos(eta0))
         self._rate_hz = self._rate_checked = None
         self._seg_t0, self._seg_k, self._h, self._nsub = 0.0, 0, 1.0 / self.min_rate_hz, 1
         self.model.opt.timestep = self._h
@@ -294,6 +318,9 @@ class SitlTwin:
         q, w = self._qpos.tolist(), self._qvel.tolist()
         a, b = self._qadr, self._dadr
         self._state = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
+        if self._six is not None:
+            a, b = self._qadr_six, self._dadr_six
+            self._state_six = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
 
     def _check_rate(self, frame_rate_hz: int) -> None:
         """The first frame after a start, a reset or a rate change: the callback must be installed, and
@@ -362,6 +389,8 @@ class SitlTwin:
             self._advance_delayed(t0, pl, pr, driven, n)
         k1 = self._seg_k = k0 + n
         self._pwm_last = (pl, pr)
+        if self._six is not None:
+            return self._reply_six(t0, n)
         # the state after the frame, checked for divergence, with the frame's mean specific force
         _, _, _, vx0, vy0, _ = self._state
         q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
@@ -379,7 +408,28 @@ class SitlTwin:
         an, ae = (vx - vx0) / dt, (vy - vy0) / dt
         c, s = _cos(psi), _sin(psi)
         return _new_tuple(Reply, (seg_t0 + k1 * h, x, y, _remainder(psi, _TWO_PI), vx, vy, r,
-                                  c * an + s * ae, -s * an + c * ae, self._az))
+                                  c * an + s * ae, -s * an + c * ae, self._az, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+
+    def _reply_six(self, t0_s: float, n: int) -> Reply:
+        """step_pair's reply for the 6-DOF hull (module docstring, "In a seaway")."""
+        q, w = self._qpos.tolist(), self._qvel.tolist()
+        a, b = self._qadr, self._dadr
+        x, y, psi, vx, vy, dpsi = planar = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
+        a, b = self._qadr_six, self._dadr_six
+        z, theta, phi, vz, dtheta, dphi = six = (q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]])
+        total = sum(planar) + sum(six)
+        now_s, before_s = self.data.time, self._mj_time_s
+        self._check_diverged(t0_s, now_s, before_s, n, total)
+        self._mj_time_s = now_s
+        vx0, vy0, vz0 = self._state[3], self._state[4], self._state_six[3]
+        self._state, self._state_six = planar, six
+        rot, (p, q_rate, r) = attitude(psi, theta, phi, dpsi, dtheta, dphi)
+        dt = n * self._h
+        # the mean acceleration over the frame minus gravity (NED, down +), in the body frame at its end: Rᵀ f
+        fn, fe, fd = (vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt - GRAVITY_M_S2
+        return Reply(self.time_s, x, y, math.remainder(psi, _TWO_PI), vx, vy, r,
+                     rot[0] * fn + rot[3] * fe + rot[6] * fd, rot[1] * fn + rot[4] * fe + rot[7] * fd,
+                     rot[2] * fn + rot[5] * fe + rot[8] * fd, z, vz, math.remainder(phi, _TWO_PI), theta, p, q_rate)
 
     def _drive(self, driven: tuple[float, float]) -> None:
         """Write the thrusters' controls for these (ESC-passed) inputs."""
@@ -515,6 +565,8 @@ class SitlTwin:
         cl, cr = self._command_now()
         self._rows.extend((self._record_offset_s + t_s, x, y, psi, c * vx + s * vy, -s * vx + c * vy, r,
                            pwm_left, pwm_right, cl, cr))
+        if self._six is not None:  # then heave, pitch and roll and their rates
+            self._rows.extend(self._state_six)
 
     def _command_now(self) -> tuple[float, float]:
         if self.model.na:
@@ -525,17 +577,21 @@ class SitlTwin:
 
     @property
     def frames_recorded(self) -> int:
-        return len(self._rows) // ROW
+        return len(self._rows) // self._row
 
     def recording(self, meta: dict | None = None) -> Run:
         """Everything recorded as a twin Run (one row per frame at its start time, and the state
-        after the last frame), times on the record clock that runs on across restarts."""
-        rows = np.frombuffer(self._rows, dtype=float).reshape(-1, ROW).copy() if self._rows else np.zeros((0, ROW))
+        after the last frame), times on the record clock that runs on across restarts; in a sea the
+        heave, pitch, roll and their rates in meta["six_dof"], as engine.sim.simulate gives them."""
+        width = self._row
+        rows = (np.frombuffer(self._rows, dtype=float).reshape(-1, width).copy() if self._rows
+                else np.zeros((0, width)))
         if len(rows) and self.time_s > 0:
             x, y, psi, vx, vy, r = self._state
             c, s = math.cos(psi), math.sin(psi)
             end = [self._record_offset_s + self.time_s, x, y, psi, c * vx + s * vy, -s * vx + c * vy, r,
-                   *self._pwm_last, *self._command_now()]
+                   *self._pwm_last, *self._command_now(),
+                   *(self._state_six if self._six is not None else ())]
             rows = np.vstack([rows, end])
         nu = rows[:, 4:7]
         thrust = delivered_thrust_n(self.vessel.thrusters, self.compiled.geometry.thruster_y_m, rows[:, 9:11], nu)
@@ -543,7 +599,23 @@ class SitlTwin:
                 "backend": "native", "integrator": mujoco.mjtIntegrator(self.model.opt.integrator).name,
                 "min_rate_hz": self.min_rate_hz, "channels": f"{self.channels[0]},{self.channels[1]}",
                 "restarts_s": ",".join(f"{t:.6f}" for t in self.restarts_s)}
+        if self._six is not None:
+            info["six_dof"] = {**{name: rows[:, ROW + i] for i, name in enumerate(SIX_NAMES)},
+                               "equilibrium": self._six.hull.equilibrium, "sea": self.sea.to_dict(),
+                               "components": self._six.components}
         return Run(rows[:, 0], rows[:, 1:4], nu, rows[:, 7:9], thrust, meta={**info, **(meta or {})})
+
+
+def attitude(psi: float, theta: float, phi: float, dpsi: float, dtheta: float,
+             dphi: float) -> tuple[tuple[float, ...], tuple[float, float, float]]:
+    """The hull's rotation R = Rz(ψ) Ry(θ) Rx(φ) (body FRD → NED, nine numbers row by row) and its body
+    rates (p, q, r) from the Euler angles and their rates [Fossen-2021] (the 6-DOF joints, engine/sixdof.py)."""
+    cps, sps, cth, sth, cph, sph = (math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta),
+                                    math.cos(phi), math.sin(phi))
+    rot = (cps * cth, cps * sth * sph - sps * cph, cps * sth * cph + sps * sph,
+           sps * cth, sps * sth * sph + cps * cph, sps * sth * cph - cps * sph,
+           -sth, cth * sph, cth * cph)
+    return rot, (dphi - dpsi * sth, dtheta * cph + dpsi * cth * sph, dpsi * cth * cph - dtheta * sph)
 
 
 def delivered_thrust_n(thrusters: ThrusterModel, thruster_y_m, command_n: np.ndarray, nu: np.ndarray) -> np.ndarray:

@@ -65,8 +65,9 @@ class ServoFrame(NamedTuple):
 class Reply(NamedTuple):
     """The state the physics sends back, in the units and frames of the protocol.
 
-    The twin is planar (north, east, yaw), so roll, pitch, their rates, the down
-    position and down velocity are zero and are not carried here."""
+    The planar twin (north, east, yaw) leaves the down position and velocity, roll, pitch and
+    the gyro's x and y at zero (their defaults); the 6-DOF hull in a sea fills them. The gyro is
+    (gyro_x, gyro_y, yaw_rate): the body rates p, q, r."""
 
     timestamp_s: float
     north_m: float
@@ -78,6 +79,12 @@ class Reply(NamedTuple):
     ax_m_s2: float  # specific force, body FRD
     ay_m_s2: float
     az_m_s2: float
+    down_m: float = 0.0
+    vd_m_s: float = 0.0
+    roll_rad: float = 0.0  # in [−π, π]
+    pitch_rad: float = 0.0
+    gyro_x_rad_s: float = 0.0
+    gyro_y_rad_s: float = 0.0
 
     def as_dict(self) -> dict:
         """The reply as the JSON object it is sent as (nested as ArduPilot reads it)."""
@@ -135,14 +142,42 @@ _TEMPLATE = (b'\n{"timestamp":%.17g,"imu":{"gyro":[0.0,0.0,%.17g],"accel_body":[
              b'"quaternion":[%.17g,0.0,0.0,%.17g]}\n')
 
 
-def format_reply(r: Reply, _cos=math.cos, _sin=math.sin) -> bytes:
-    """The JSON line ArduPilot reads ("\\n" before and after; see the module docstring).
+_TEMPLATE_SIX = (b'\n{"timestamp":%.17g,"imu":{"gyro":[%.17g,%.17g,%.17g],"accel_body":[%.17g,%.17g,%.17g]},'
+                 b'"position":[%.17g,%.17g,%.17g],"velocity":[%.17g,%.17g,%.17g],"attitude":[%.17g,%.17g,%.17g],'
+                 b'"quaternion":[%.17g,%.17g,%.17g,%.17g]}\n')
+
+
+def format_reply(r: Reply) -> bytes:
+    """The JSON line ArduPilot reads ("\\n" before and after; see the module docstring): `format_planar`
+    for a reply without heave, roll or pitch, `format_six` for any other."""
+    planar = not (r.down_m or r.vd_m_s or r.roll_rad or r.pitch_rad or r.gyro_x_rad_s or r.gyro_y_rad_s)
+    return format_planar(r) if planar else format_six(r)
+
+
+def format_planar(r: Reply, _cos=math.cos, _sin=math.sin) -> bytes:
+    """The reply of the planar twin, its zeros written as constants.
 
     A bytes %-template rather than json.dumps: this runs once per frame, over a thousand times a
     second, and a template is several times faster than building and serialising a dict (a bytes
     one saves the encoding, the tuple's indices the attribute lookups)."""
     half = 0.5 * r[3]
     return _TEMPLATE % (r[0], r[6], r[7], r[8], r[9], r[1], r[2], r[4], r[5], r[3], _cos(half), _sin(half))
+
+
+def format_six(r: Reply) -> bytes:
+    """The reply of a hull that heaves, rolls and pitches: the attitude as zyx Euler angles (the
+    twin's and ArduPilot's from_euler) and the same rotation as a quaternion, w ≥ 0."""
+    roll, pitch, yaw = r.roll_rad, r.pitch_rad, r.yaw_rad
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    w, x, y, z = (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                  cr * cp * sy - sr * sp * cy)
+    if w < 0.0:  # the same rotation
+        w, x, y, z = -w, -x, -y, -z
+    return _TEMPLATE_SIX % (r.timestamp_s, r.gyro_x_rad_s, r.gyro_y_rad_s, r.yaw_rate_rad_s, r.ax_m_s2, r.ay_m_s2,
+                            r.az_m_s2, r.north_m, r.east_m, r.down_m, r.vn_m_s, r.ve_m_s, r.vd_m_s, roll, pitch, yaw,
+                            w, x, y, z)
 
 
 def parse_reply(data: bytes) -> dict:

@@ -54,8 +54,9 @@ from twin.errors import TwinError
 from twin.outputs import FORMATS, write
 from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
                                sensor_amendments, with_environment)
-from twin.sitl.protocol import (HEADER, MAGIC_16, PACKET_16, REASONS, PacketError, format_reply, pair_reader,
-                                parse_servo_packet)
+from twin.sitl.protocol import (HEADER, MAGIC_16, PACKET_16, REASONS, PacketError, format_planar, format_six,
+                                pair_reader, parse_servo_packet)
+from twin.physics.waves import Sea
 from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
@@ -197,7 +198,7 @@ class SitlServer:
         recv_into, send = self.sock.recvfrom_into, self.sock.sendto
         buffer = bytearray(RECV_BYTES)
         twin = self.twin
-        step, fmt = twin.step_pair, format_reply
+        step, fmt = twin.step_pair, format_six if twin.six_dof else format_planar
         reader = pair_reader(*twin.channels)
         unpack, swapped = (reader[0].unpack_from, reader[1]) if reader else (None, False)
         size16 = PACKET_16.size
@@ -326,6 +327,7 @@ def run_sitl(
     origin: tuple[float, float] | None = None,
     ready: Callable[[tuple[str, int]], None] | None = None,
     esc_arm_s: float = ESC_ARM_S,
+    sea: Sea | None = None,
 ) -> SitlSummary:
     """Serve ArduPilot SITL's JSON interface with the vessel's twin until stopped (module docstring).
 
@@ -337,8 +339,9 @@ def run_sitl(
     origin: (lat, lon) deg of the twin's origin for the map positions of .mcap/.tlog/.bin
     recordings (set it to SITL's home). ready: called with the bound (host, port) once frames
     are answered. esc_arm_s: how long each ESC must see its stopped signal before it drives its
-    thruster (twin.sitl.backend; 0: from the first frame). SIGINT and SIGTERM end the session
-    normally (`interrupted`, `signal_name`); what was recorded is written.
+    thruster (twin.sitl.backend; 0: from the first frame). sea (physics.waves.Sea): the 6-DOF hull
+    in that sea, heaving, rolling and pitching (twin.sitl.backend, "In a seaway"). SIGINT and SIGTERM
+    end the session normally (`interrupted`, `signal_name`); what was recorded is written.
     """
     log = log or (lambda text: None)
     paths = check_record_paths(record_paths)
@@ -361,7 +364,7 @@ def run_sitl(
     with _stopped_by_signals(stop, caught):
         try:
             twin = SitlTwin(v, min_rate_hz=rate_hz, channels=channels, heading_deg=heading_deg,
-                            record=bool(paths), esc_arm_s=esc_arm_s)
+                            record=bool(paths), esc_arm_s=esc_arm_s, sea=sea)
             with twin.active():
                 twin.warm_up()
                 server = SitlServer(sock, twin, realtime=realtime, log=log)
@@ -415,7 +418,8 @@ def _announce(server: SitlServer, vessel: Vessel, log: Log) -> None:
     log(f"twin sitl: {vessel.name} on udp {host}:{port}, {mode}, thrusters on servo outputs "
         f"{twin.channels[0]} (left) and {twin.channels[1]} (right), physics ≥ {twin.min_rate_hz:g} Hz; "
         f"current {env.current_speed_m_s:g} m/s towards {env.current_dir_deg:g}°, "
-        f"wind {env.wind_speed_m_s:g} m/s from {env.wind_dir_deg:g}°")
+        f"wind {env.wind_speed_m_s:g} m/s from {env.wind_dir_deg:g}°"
+        + (f"; 6-DOF hull in {twin.sea.text()}" if twin.six_dof else ""))
     amended = sensor_amendments(vessel)
     if amended:
         log(f"note: the vessel file's sensor calibration ({', '.join(amended)}) is not applied: "
