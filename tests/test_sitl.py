@@ -846,3 +846,24 @@ def test_a_sea_on_the_command_line_is_checked_in_one_line(tmp_path):
                              "--port", "0"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "sea" in result.stderr.lower()
+
+
+def test_a_6dof_reply_is_read_exactly_by_ardupilots_parser():
+    rng = np.random.default_rng(6)
+    for _ in range(50):
+        values = rng.normal(size=16) * 10.0 ** rng.integers(-9, 4, 16)
+        r = Reply(*(float(x) for x in values))
+        r = r._replace(yaw_rad=math.remainder(r.yaw_rad, 2 * math.pi), roll_rad=math.remainder(r.roll_rad, 2 * math.pi),
+                       pitch_rad=math.remainder(r.pitch_rad, math.pi), timestamp_s=abs(r.timestamp_s))
+        line = format_reply(r).decode("ascii")
+        seen = _ardupilot_parse(line)
+        assert seen["timestamp"] == [r.timestamp_s]
+        assert seen["position"] == [r.north_m, r.east_m, r.down_m] and seen["velocity"] == [r.vn_m_s, r.ve_m_s, r.vd_m_s]
+        assert seen["gyro"] == [r.gyro_x_rad_s, r.gyro_y_rad_s, r.yaw_rate_rad_s]
+        assert seen["accel_body"] == [r.ax_m_s2, r.ay_m_s2, r.az_m_s2]
+        assert seen["attitude"] == [r.roll_rad, r.pitch_rad, r.yaw_rad]
+        w, x, y, z = seen["quaternion"]
+        assert w >= 0 and math.isclose(w * w + x * x + y * y + z * z, 1.0, abs_tol=1e-12)
+        np.testing.assert_allclose(quaternion_rotation(w, x, y, z), rotation(r.roll_rad, r.pitch_rad, r.yaw_rad),
+                                   atol=1e-12)
+        assert r.as_dict() == decode(line.encode())
