@@ -64,6 +64,8 @@ def cases(root):
         ("diagnose", root / "not_a_log.csv", *v, "--report", root / "r.pdf"),
         ("sitl", *v, "--port", "99999"),
         ("sitl", *v, "--record", root / "s.txt"),
+        ("sitl", *v, "--sea", "0.3,-3,45"),
+        ("sitl", *v, "--sea", "0.3,3,45", "--seed", "-1"),
         ("nosuchcommand",),
     ]
 

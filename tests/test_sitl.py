@@ -17,8 +17,6 @@ import re
 import signal
 import socket
 import struct
-import subprocess
-import sys
 import threading
 import time
 from dataclasses import replace
@@ -839,13 +837,6 @@ def test_in_a_sea_the_6dof_hull_is_the_offline_twin_and_its_states_are_consisten
     assert table.dtype.names[-3:] == ("down", "roll", "pitch") and len(table) == n + 1
     for column, name in (("down", "down_m"), ("roll", "roll_rad"), ("pitch", "pitch_rad")):
         np.testing.assert_allclose(table[column], six[name], rtol=1e-8, atol=1e-12)
-
-
-def test_a_sea_on_the_command_line_is_checked_in_one_line(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", "--sea", "0.3,-3,45",
-                             "--port", "0"], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert len(result.stderr.strip().splitlines()) == 1 and "sea" in result.stderr.lower()
 
 
 def test_a_6dof_reply_is_read_exactly_by_ardupilots_parser():
