@@ -498,8 +498,8 @@ class SitlTwin:
     def _advance_delayed(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does). Every
-        physics step runs this loop, so the hold lookup (`_delayed`) and the map's cache (`_raw`) are
-        inlined."""
+        physics step runs this loop, so the hold lookup (a moving index: lookups only go forward in
+        time) and the map's cache are inlined."""
         mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
         self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s

@@ -52,11 +52,11 @@ from typing import Callable, Iterator, Sequence
 
 from twin.errors import TwinError
 from twin.outputs import FORMATS, write
+from twin.physics.waves import Sea
 from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
                                sensor_amendments, with_environment)
 from twin.sitl.protocol import (HEADER, MAGIC_16, PACKET_16, REASONS, PacketError, format_planar, format_six,
                                 pair_reader, parse_servo_packet)
-from twin.physics.waves import Sea
 from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
@@ -194,7 +194,7 @@ class SitlServer:
     def _loop(self, limit: float, halt: Event) -> None:
         # what a frame touches, bound to locals once: the datagram lands in one preallocated buffer, the
         # usual packet (16 outputs) gives up only its header and the thrusters' two outputs, the twin is
-        # stepped with those two, the reply is formatted by the twin's own template
+        # stepped with those two, the reply is formatted by the template of its kind (planar or 6-DOF)
         recv_into, send = self.sock.recvfrom_into, self.sock.sendto
         buffer = bytearray(RECV_BYTES)
         twin = self.twin
