@@ -70,7 +70,6 @@ from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import norm, wilcoxon
 
 from ..effects import Candidate
 from ..errors import TwinError
@@ -719,6 +718,7 @@ def _signed_rank_z(votes: np.ndarray) -> float:
     # few blocks: the exact null distribution (the normal approximation understates how unlikely ten
     # blocks out of ten are by chance: z 2.8 instead of 3.1)
     method = "exact" if len(d) <= 50 else "approx"
+    from scipy.stats import norm, wilcoxon  # not at the top: see prepare.prepared.derivative
     p = float(wilcoxon(d, zero_method="wilcox", alternative="greater", method=method).pvalue)
     return float(norm.isf(min(max(p, 1e-300), 1.0 - 1e-12)))  # finite at both ends (JSON)
 
