@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -90,6 +91,14 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
     return out
 
 
+def _commit_of_run() -> str:
+    """The commit a split is computed at (splits are computed one by one; the page names each)."""
+    done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
+                           text=True).stdout.strip()
+    return (done.stdout.strip() or "unknown") + ("+" if dirty else "")
+
+
 def run_split(name: str, wind, work: Path) -> dict:
     vessel_name, _ = SPLITS[name]
     settings = SETTINGS[vessel_name]
@@ -107,6 +116,7 @@ def run_split(name: str, wind, work: Path) -> dict:
     ident = identify(fit_recs, prior, wind=wind)
     seconds = time.time() - started
     out = {"split": split.to_dict(), "vessel": vessel_name, "wind": wind or "none", "settings": settings,
+           "commit": _commit_of_run(),
            "activity": [a.to_dict() for a in activities(preps)], "identify_seconds": round(seconds, 1),
            "chosen": ident.chosen.label if ident.chosen else None,
            "free_groups": list(ident.chosen.free_groups) if ident.chosen else [],
@@ -146,7 +156,7 @@ def page(parts: list[dict]) -> ResultPage:
               f"r ≥ {TARGETS['blueboat']['r']}; Esso Osaka 30-s R² u ≥ {TARGETS['esso_osaka']['u']}, "
               f"v ≥ {TARGETS['esso_osaka']['v']}, r ≥ {TARGETS['esso_osaka']['r']}."]
     notes += [f"{p['split']['name']} ({p['vessel']}, wind {p['wind']}): identify chose {p['chosen']} "
-              f"in {p['identify_seconds']:.0f} s." for p in parts]
+              f"in {p['identify_seconds']:.0f} s, computed at commit {p.get('commit', 'not recorded')}." for p in parts]
     return ResultPage(
         name="extrapolation", title="The twin beyond its training runs",
         ran="python scripts/extrapolation.py",
