@@ -18,6 +18,7 @@ and its horizontal motion is the 3-DOF twin's (tests/test_sea.py, `twin crossche
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -261,6 +262,13 @@ def sea_components(hull: HullModel, sea: waves.Sea, timestep_s: float) -> waves.
     return waves.components(sea, omega_max=2 * math.pi / t_min)
 
 
+def check_sea_for(vessel: Vessel, sea: waves.Sea) -> None:
+    """TwinError (one line) unless the vessel can run in `sea`: hull meshes, and a sea its time step
+    and wave grid resolve. What a command checks before any work."""
+    spec = _spec(vessel, False)
+    sea_components(hull_model(vessel), sea, spec.option.timestep)
+
+
 @dataclass
 class SixModel:
     """A compiled 6-DOF model and what it was built from."""
@@ -283,9 +291,11 @@ class SixModel:
 
 
 def compile_six(compiled: CompiledVessel, sea: waves.Sea | None = None, terms: Terms | None = None,
-                sea_terms: SeaTerms | None = None, wind_inputs: bool | None = None) -> SixModel:
+                sea_terms: SeaTerms | None = None, wind_inputs: bool | None = None,
+                slots: int | None = None) -> SixModel:
     """The vessel's 6-DOF model with the native callback's parameters (3-DOF horizontal model first,
-    the packed sea second), in calm water without `sea`."""
+    the packed sea second), in calm water without `sea`. `slots`: room for that many wave components
+    (the unused ones of zero height), so that another draw of the sea fits in a copy (`reseeded`)."""
     vessel = compiled.vessel
     hull = hull_model(vessel)
     sea_terms = sea_terms or SeaTerms()
@@ -298,21 +308,42 @@ def compile_six(compiled: CompiledVessel, sea: waves.Sea | None = None, terms: T
     for n in list(spec.numerics):
         spec.delete(n)
     spec.add_numeric(name=native.PARAMS_NAME, data=np.zeros(native.NPARAM), size=native.NPARAM)
-    packed = _pack(hull, comps, sea_terms, (0,) * 6, (0,) * 6, compiled, h)
+    packed = _pack(hull, comps, sea_terms, (0,) * 6, (0,) * 6, compiled, h, slots)
     spec.add_numeric(name=SEA_NAME, data=np.zeros(len(packed)), size=len(packed))
     for name, data, size in others:
         spec.add_numeric(name=name, data=data, size=size)
     model = spec.compile()
     native.set_params(model, compiled.hydro(terms))
     qpos, dof = joint_addresses(model)
-    packed = _pack(hull, comps, sea_terms, qpos, dof, compiled, h)
+    packed = _pack(hull, comps, sea_terms, qpos, dof, compiled, h, slots)
     adr = int(model.numeric_adr[1])
     model.numeric_data[adr:adr + len(packed)] = packed
     grid = None if comps is None else wave_grid(hull, comps)
     return SixModel(model, hull, comps, grid, sea)
 
 
-def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: CompiledVessel, h: float) -> np.ndarray:
+def reseeded(six: SixModel, compiled: CompiledVessel, sea: waves.Sea, sea_terms: SeaTerms | None = None
+             ) -> mujoco.MjModel:
+    """A copy of six.model in `sea` (typically six.sea drawn from another seed), with the horizontal
+    added mass of `compiled` in its diffraction load; six compiled with room for the components
+    (`compile_six(..., slots=...)`). The native parameters stay six.model's (set them per copy)."""
+    model = copy.copy(six.model)
+    h = model.opt.timestep
+    comps = sea_components(six.hull, sea, h)
+    qpos, dof = joint_addresses(model)
+    view = sea_view(model)
+    slots = int(view[sk._NC])
+    if len(comps) > slots:
+        raise TwinError(f"a sea of {len(comps)} components does not fit a model made for {slots}")
+    packed = _pack(six.hull, comps, sea_terms or SeaTerms(), qpos, dof, compiled, h, slots)
+    if len(packed) != len(view):
+        raise TwinError("the sea does not fit this model's packed sea")
+    view[:] = packed
+    return model
+
+
+def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: CompiledVessel, h: float,
+          slots: int | None = None) -> np.ndarray:
     verts, faces, off = [], [], 0
     for v, f in hull.meshes:
         verts.append(v)
@@ -334,6 +365,11 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
         packed_c = comps.pack()
         weights = waves.field_weights(comps, (0.0, zh / 2, zh), strip_depth)
         drift_c = 0.5 * hull.rho * waves.G * sk.reflection_squared(comps.k_rad_m, hull.draft_m)
+        if slots is not None and slots > len(comps):  # zero-height components: they add nothing
+            pad = slots - len(comps)
+            packed_c = np.vstack([packed_c, np.zeros((pad, 6))])
+            weights = np.hstack([weights, np.zeros((7, pad))])
+            drift_c = np.concatenate([drift_c, np.zeros(pad)])
     switches = (sea_terms.waves, sea_terms.diffraction, sea_terms.damping, sea_terms.drift)
     return sk.pack_sea(verts, faces, packed_c, weights, drift_c, rows, hull.drift, grid, switches, qpos, dof,
                        hull.rho, (am.Xudot, am.Yvdot))
