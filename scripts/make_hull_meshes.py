@@ -10,6 +10,16 @@ depth tapering to a raked bow. Body frame FRD (x forward, y starboard, z down);
 the mesh origin is the bounding-box centre in x and y and the design
 waterline in z (Yellowfish: deck at z = −0.25 m, keel at z = +0.05 m).
 
+The hull lines are assumed; the mass distribution is not (the Yellowfish's is published: hulls of
+uniform density with their centroids at x_hull, the rest at x_box [Yellowfish-TR Tables III-IV]).
+A keel that only rises towards the bow puts the centre of buoyancy at the flotation draft far aft
+of the centre of gravity, and the boat would float bow down. So the keel also rises over the aft
+55 % of the length (a rocker, quadratic towards the transom, mirroring the bow's taper), by the
+amount that puts the centre of buoyancy at the nominal mass's flotation over the centre of
+gravity (bisection, 60 halvings): the vessel floats level, its published centre of gravity and
+hull centroid where its sources put them. The MJCF places each hull at x_hull − (the mesh's
+centroid), which this script prints.
+
 Esso Osaka 3 m model (a single hull, full form) from its principal particulars: L_pp 3.0 m,
 B 0.489 m, draft d 0.201 m, block coefficient C_b 0.830 [ESSO-FRT]. Sections are
 superellipses (exponent 10: flat bottom and sides, a small bilge radius; midship coefficient
@@ -36,6 +46,21 @@ HULLS = {  # length, breadth, deck z, keel z (m)
     "blueboat": (1.20, 0.23, -0.18, 0.07),
 }
 STATIONS, RING_POINTS, EXPONENT = 65, 48, 4.0
+BOW_RISE, STERN_RUN = 0.55, 0.55  # keel rise at the bow (share of the depth); aft share of the length with rocker
+
+
+def _mass_distribution(vessel: str) -> tuple[float, float, float]:
+    """(total mass kg, x of the centre of gravity m, x of each hull's centroid m) of the nominal case:
+    the Yellowfish's from [Yellowfish-TR] Tables III-IV (eq. 17), the BlueBoat's as blueboat.xml
+    assumes it (hulls, frame and battery all centred on x = 0)."""
+    if vessel == "yellowfish":
+        from twin.references import YELLOWFISH_TR as S
+
+        m_hull, m_box = S["m_hull_kg"]["nominal"], S["m_box_kg"]["nominal"]
+        x_hull, x_box = S["x_hull_mm"]["nominal"] / 1e3, S["x_box_mm"]["nominal"] / 1e3
+        mass = 2 * m_hull + m_box
+        return mass, (2 * m_hull * x_hull + m_box * x_box) / mass, x_hull
+    return 15.0, 0.0, 0.0
 ASSETS = Path(__file__).resolve().parent.parent / "twin" / "assets"
 SHIPS = {  # L_pp, B, draft, C_b, freeboard (m)
     "esso_osaka": (3.0, 0.489, 0.201, 0.830, 0.10),
@@ -43,19 +68,24 @@ SHIPS = {  # L_pp, B, draft, C_b, freeboard (m)
 SHIP_STATIONS, SHIP_RING_POINTS, SHIP_EXPONENT, BOW_TO_STERN_RUN, END_WIDTH = 121, 64, 10.0, 0.6, 0.02
 
 
-def _section_scale(x_m: np.ndarray, length_m: float) -> tuple[np.ndarray, np.ndarray]:
+def _section_scale(x_m: np.ndarray, length_m: float, stern_rise: float) -> tuple[np.ndarray, np.ndarray]:
     """Relative half-breadth and keel depth along the hull (1 amidships)."""
     s = (x_m + length_m / 2) / length_m  # 0 at transom, 1 at bow
     taper = np.clip((s - 0.45) / 0.55, 0.0, 1.0)
+    rocker = np.clip((STERN_RUN - s) / STERN_RUN, 0.0, 1.0)
     breadth = np.sqrt(np.clip(1.0 - taper**2, 0.0, 1.0)) * 0.96 + 0.04
-    depth = 1.0 - 0.55 * taper**2  # keel rises towards the raked bow
+    depth = 1.0 - BOW_RISE * taper**2 - stern_rise * rocker**2  # keel rises towards the raked bow and the transom
     return breadth, depth
 
 
-def hull_mesh(vessel: str = "yellowfish") -> trimesh.Trimesh:
+def hull_mesh(vessel: str = "yellowfish", stern_rise: float | None = None) -> trimesh.Trimesh:
+    """The demihull; `stern_rise` (share of the depth the keel rises at the transom) by default the
+    one that floats the vessel level (`level_stern_rise`)."""
+    if stern_rise is None:
+        stern_rise = level_stern_rise(vessel)
     length_m, breadth_m, deck_z_m, keel_z_m = HULLS[vessel]
     xs = np.linspace(-length_m / 2, length_m / 2, STATIONS)
-    breadth, depth = _section_scale(xs, length_m)
+    breadth, depth = _section_scale(xs, length_m, stern_rise)
     theta = np.linspace(0.0, 2 * np.pi, RING_POINTS, endpoint=False)
     c, s = np.cos(theta), np.sin(theta)
     ring_y = np.sign(c) * np.abs(c) ** (2 / EXPONENT)
@@ -66,6 +96,31 @@ def hull_mesh(vessel: str = "yellowfish") -> trimesh.Trimesh:
         zc, half_h = 0.5 * (deck_z_m + keel), 0.5 * (keel - deck_z_m)
         rings.append(np.array([(x, 0.5 * breadth_m * breadth[i] * y, zc + half_h * z) for y, z in zip(ring_y, ring_z)]))
     return _closed_mesh(rings, RING_POINTS)
+
+
+def buoyancy_offset_m(vessel: str, mesh: trimesh.Trimesh) -> float:
+    """x of the centre of buoyancy minus x of the centre of gravity (m) of the vessel's two hulls,
+    each placed with its centroid at x_hull, floating the nominal mass level."""
+    from twin.physics.hydrostatics import submerged_volume, waterline_for_mass
+
+    mass, x_g, x_hull = _mass_distribution(vessel)
+    v = np.asarray(mesh.vertices) + [x_hull - mesh.center_mass[0], 0.0, 0.0]
+    f = np.asarray(mesh.faces)
+    z_w = waterline_for_mass([(v, f)], mass / 2)["waterline_z_m"]  # each hull floats half
+    return float(submerged_volume(v, f, z_w)[1][0] - x_g)
+
+
+def level_stern_rise(vessel: str) -> float:
+    """The keel's rise at the transom (share of the depth) that floats the vessel level (bisection,
+    60 halvings): more rise, less buoyancy aft."""
+    lo, hi = 0.0, 0.9
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if buoyancy_offset_m(vessel, hull_mesh(vessel, mid)) < 0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def _closed_mesh(stations: list[np.ndarray], ring_points: int) -> trimesh.Trimesh:
@@ -142,12 +197,16 @@ def _write_stl(mesh: trimesh.Trimesh, out: Path) -> None:
 def main() -> int:
     ASSETS.mkdir(exist_ok=True)
     for vessel in HULLS:
-        mesh = hull_mesh(vessel)
+        rise = level_stern_rise(vessel)
+        mesh = hull_mesh(vessel, rise)
         for side in ("port", "starboard"):
             _write_stl(mesh, ASSETS / f"{vessel}_hull_{side}.stl")
         ext = mesh.bounds[1] - mesh.bounds[0]
+        x_hull = _mass_distribution(vessel)[2]
         print(f"{vessel} hull: {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m, volume {mesh.volume * 1e3:.2f} L, "
-              f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}")
+              f"centroid x {mesh.center_mass[0] * 1e3:+.2f} mm, watertight {mesh.is_watertight}; keel rise at the "
+              f"transom {rise:.4f} of the depth, centre of buoyancy {buoyancy_offset_m(vessel, mesh) * 1e3:+.4f} mm "
+              f"from the centre of gravity; MJCF hull body x = {x_hull - mesh.center_mass[0]:.5f} m")
     for vessel in SHIPS:
         mesh = ship_hull(vessel)
         _write_stl(mesh, ASSETS / f"{vessel}_hull.stl")

@@ -178,6 +178,10 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, ca
     (("convert", "LOG", "OUT.csv", "--grid-dt", "1e-9"), "samples, more than this machine's memory"),
     (("convert", "LOG", "OUT.csv", "--grid-dt", "0"), "--grid-dt must be a positive number"),
     (("dataset-shards", "--seed", "-1", "--out", "OUT"), "--seed must be a whole number ≥ 0"),
+    (("montecarlo", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "1,1,30"), "steeper than breaking"),
+    (("montecarlo", "--vessel", "cybership1", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "0.2,2.5,30"),
+     "has no hull meshes"),
+    (("dataset-shards", "--sea", "0.3,2.5", "--out", "OUT"), "--sea expects HS,TP,DIR"),
     (("sitl", "--vessel", "esso_osaka"), "propeller-and-rudder ship"),
     (("params", "--model", "."), "is a folder, not a vessel file"),
 ])

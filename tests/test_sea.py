@@ -20,8 +20,8 @@ def yellowfish():
 
 
 @pytest.fixture(scope="module")
-def level_yellowfish(yellowfish):
-    return sixdof.level_floating(yellowfish)[0]
+def blueboat():
+    return vessel_mod.load("blueboat")
 
 
 @pytest.fixture(scope="module")
@@ -127,13 +127,17 @@ def test_pressure_integration_is_archimedes_at_any_attitude(yellowfish):
 
 
 def test_hydrodynamic_mesh_floats_the_vessel_as_the_full_mesh(yellowfish):
-    from twin.physics.hydrostatics import waterline_for_mass
+    from twin.physics.hydrostatics import submerged_volume, waterline_for_mass
 
     hull = sixdof.hull_model(yellowfish)
     full = sixdof._mass_properties(yellowfish)[3]
     z_full = waterline_for_mass(full, hull.mass_kg)["waterline_z_m"]
-    z_hydro = waterline_for_mass(hull.meshes, hull.mass_kg)["waterline_z_m"]
-    assert abs(z_hydro - z_full) < 0.5e-3
+    resampled = [sk.hydro_mesh(v, f) for v, f in full]
+    assert abs(waterline_for_mass(resampled, hull.mass_kg)["waterline_z_m"] - z_full) < 1e-3
+    # placed: the full mesh's waterline and centre of buoyancy
+    assert abs(waterline_for_mass(hull.meshes, hull.mass_kg)["waterline_z_m"] - z_full) < 1e-9
+    for (hv, hf), (fv, ff) in zip(hull.meshes, full):
+        assert np.allclose(submerged_volume(hv, hf, z_full)[1][:2], submerged_volume(fv, ff, z_full)[1][:2], atol=1e-9)
     assert sum(len(ff) for _, ff in hull.meshes) < 0.2 * sum(len(ff) for _, ff in full)
 
 
@@ -153,7 +157,7 @@ def test_lewis_form_of_a_semicircle_and_of_a_box():
     assert c == pytest.approx(1.51, rel=0.06)
 
 
-@pytest.mark.parametrize("which", ["level_yellowfish", "barge"])
+@pytest.mark.parametrize("which", ["yellowfish", "blueboat", "barge"])
 def test_natural_periods_equal_the_closed_forms(which, request):
     result = checks.natural_periods(request.getfixturevalue(which))
     for mode, r in result.items():
@@ -166,10 +170,15 @@ def test_undamped_roll_decay_conserves_energy(yellowfish):
     assert r["roll_amplitude_end_deg"] == pytest.approx(3.0, rel=0.02)
 
 
+@pytest.mark.parametrize("which", ["yellowfish", "blueboat"])
+def test_the_shipped_hulls_float_level(which, request):
+    z, trim, heel = sixdof.hull_model(request.getfixturevalue(which)).equilibrium
+    assert abs(math.degrees(trim)) < 1e-3 and abs(math.degrees(heel)) < 1e-3
+
+
 def test_calm_water_six_dof_follows_the_three_dof_twin(yellowfish):
     r = checks.calm_water(yellowfish)
-    assert r["level"]["position_err_m"] < 0.01 and r["level"]["heading_err_deg"] < 0.1
-    assert abs(r["level"]["trim_deg"]) < 0.01
+    assert r["position_err_m"] < 0.01 and r["heading_err_deg"] < 0.1
 
 
 # ---------------------------------------------------------------- the barge in waves
@@ -214,3 +223,74 @@ def test_logs_roll_and_pitch_are_read_beside_the_heading():
     df = read_recording(SHARED / "ardusub_small.BIN")  # ATT, degrees → rad
     assert len(df.attitude) == len(df.heading) and np.max(np.abs(df.attitude["pitch_rad"])) < 0.02
     assert tlog.summary()["streams"]["attitude"]["samples"] == len(tlog.attitude)
+
+
+# ---------------------------------------------------------------- many twins in a sea
+
+
+def test_montecarlo_in_a_sea_draws_each_twin_its_own_sea_from_its_seed(yellowfish):
+    from dataclasses import replace
+
+    from twin.engine.mjcf import compile_vessel
+    from twin.engine.sim import simulate
+    from twin.scale import montecarlo as mc
+    from twin.scale.draws import Variation, parse_factor
+
+    sea = waves.parse_sea("0.3,2.5,30,4", seed=5)
+    mission = mc.scenario_mission(yellowfish, "step", 10.0, 0.5, sea=sea)
+    variation = Variation(factors=(parse_factor("Xu=0.999..1.001", yellowfish),))
+    a = mc.run(yellowfish, mission, 4, seed=1, variation=variation, batch_size=2)
+    b = mc.run(yellowfish, mission, 4, seed=1, variation=variation, batch_size=2)
+    assert np.array_equal(a.sample_tracks, b.sample_tracks)  # seeded
+    calm = mc.run(yellowfish, replace(mission, sea=None), 4, seed=1, variation=variation, batch_size=2)
+    spread_sea = np.max(np.ptp(a.sample_tracks[:, -1, :2], axis=0))
+    spread_calm = np.max(np.ptp(calm.sample_tracks[:, -1, :2], axis=0))
+    assert spread_sea > 0.05 and spread_sea > 20 * spread_calm  # the seas differ, not the Xu factors
+    seeds = [s.seed for b_ in mc.plan(4, 2, 1) for s in mc.sea_draws(sea, b_)]
+    assert len(set(seeds)) == 4
+    # the nominal twin runs its own 6-DOF hull in the mission's realisation of the sea
+    run = simulate(compile_vessel(yellowfish), mission.inputs, 10.0, sample_dt_s=0.5, sea=sea)
+    assert np.max(np.abs(a.nominal[:, :3] - run.eta)) < 1e-6
+
+
+def test_dataset_shards_in_a_sea_give_each_vessel_its_own_realisation(yellowfish, tmp_path):
+    from twin.formats import read_recording
+    from twin.scale import datasets
+    from twin.scale.draws import Variation, parse_factor
+
+    settings = datasets.Settings(2, per_shard=2, segments=1, manoeuvres=("forward_constant",), seed=4,
+                                 variation=Variation(factors=(parse_factor("Xu=0.9..1.1", yellowfish),)),
+                                 sea=waves.parse_sea("0.2,2.5,60,4"))
+    index = datasets.generate_shards(yellowfish, settings, tmp_path / "shards")
+    seas = [e["sea"] for e in index.entries]
+    assert seas[0]["seed"] == index.entries[0]["seed"] and seas[0]["seed"] != seas[1]["seed"]
+    assert index.index["settings"]["sea"]["hs_m"] == 0.2
+    rec = read_recording(tmp_path / "shards" / index.entries[0]["file"])
+    assert 0.2 < np.degrees(np.std(rec.attitude["pitch_rad"])) < 5  # the hull pitched in the waves
+
+
+def test_logs_written_from_a_run_in_a_sea_carry_its_roll_and_pitch(yellowfish, tmp_path):
+    from twin.engine.mjcf import compile_vessel
+    from twin.engine.sim import simulate
+    from twin.formats import read_recording, write_recording, write_run
+    from twin.drive import get
+
+    run = simulate(compile_vessel(yellowfish), get("step", 0), 8.0, sample_dt_s=0.02,
+                   sea=waves.parse_sea("0.3,2.5,45,4", seed=2))
+    six = run.meta["six_dof"]
+    assert np.degrees(np.ptp(six["pitch_rad"])) > 0.5  # the hull moves: there is something to log
+    for suffix, tol_deg in ((".tlog", 1e-5), (".bin", 0.006)):  # float32 rad; int16 centidegrees
+        write_run(run, tmp_path / f"run{suffix}")
+        rec = read_recording(tmp_path / f"run{suffix}")
+        att = rec.attitude
+        assert len(att) == len(rec.heading) > 300
+        t = att.t - att.t[0]
+        for col in ("roll_rad", "pitch_rad"):
+            assert np.degrees(np.max(np.abs(att[col] - np.interp(t, run.t, six[col])))) < tol_deg, (suffix, col)
+        # and a recording written on to another format keeps them
+        write_recording(rec, tmp_path / f"again{suffix}.mcap")
+        again = read_recording(tmp_path / f"again{suffix}.mcap")
+        assert np.allclose(again.attitude["pitch_rad"], att["pitch_rad"], atol=1e-12)
+    calm = simulate(compile_vessel(yellowfish), get("step", 0), 4.0, sample_dt_s=0.02)
+    write_run(calm, tmp_path / "calm.tlog")
+    assert np.max(np.abs(read_recording(tmp_path / "calm.tlog").attitude["roll_rad"])) == 0.0  # a level hull

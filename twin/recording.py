@@ -21,9 +21,9 @@ Streams and their columns (SI units, NED, ψ from north towards east):
            measured stream that nothing uses unless asked (fit.windows.predict(..., wind="measured"))
 The last two are summarised only when present, so other recordings read as before.
 
-  attitude roll_rad, pitch_rad (ArduPilot ATTITUDE / ATT): read and summarised, not one of the
-           STREAMS the file writers keep; the twin's horizontal model does not use it, the 6-DOF
-           hull's roll and pitch can be compared with it
+  attitude roll_rad, pitch_rad (ArduPilot ATTITUDE / ATT, a 6-DOF hull's): read, summarised and
+           written to .tlog, .bin and .mcap, not one of the STREAMS (prepare and the fits take the
+           horizontal model's streams; the 6-DOF hull's roll and pitch can be compared with it)
 """
 from __future__ import annotations
 

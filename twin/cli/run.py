@@ -117,7 +117,7 @@ def crosscheck(
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
     six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
-                                                         "meshes, made to float level) against the 3-DOF model"),
+                                                         "meshes) against the 3-DOF model"),
 ):
     """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
     from ..engine.mjcf import compile_vessel

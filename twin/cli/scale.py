@@ -11,6 +11,7 @@ import typer
 from ..errors import TwinError
 from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, effect_names, memory_for, note,
                   positive, progress_bar, samples_fit, say, seed_from, vessel_from, write_json)
+from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
             "this machine), ray://HOST:10001 or HOST:6379; default: this machine's cores, no Ray")
@@ -57,6 +58,8 @@ def montecarlo_command(
     ray: Optional[str] = typer.Option(None, help=RAY_HELP),
     cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
     retries: int = typer.Option(3, help=RETRIES_HELP),
+    sea: Optional[str] = typer.Option(None, help=SEA_HELP + "; every draw in its own realisation of the sea "
+                                                 "(seeded from --seed)"),
 ):
     """Prediction bands of an identified twin: draws from its covariance through a mission."""
     from ..drive import read_inputs_csv
@@ -74,6 +77,7 @@ def montecarlo_command(
     variation = _variation(v, vary, effect, covariance)
     mc.check_variation(v, variation)
     mc.level_percentiles(level)
+    sea_state = _sea_for(v, sea, seed)
     executor = _executor(ray, cpus_per_task, retries)
     if inputs is not None:
         series = read_inputs_csv(inputs)
@@ -81,17 +85,28 @@ def montecarlo_command(
         if not length > 0:
             raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {series.t[-1]:g} s)")
         samples_fit(length, sample_dt, "--duration at --sample-dt")
-        mission = mc.inputs_mission(series, length, sample_dt, source=f"inputs {inputs.name}")
+        mission = mc.inputs_mission(series, length, sample_dt, source=f"inputs {inputs.name}", sea=sea_state)
     else:
         samples_fit(duration or 120.0, sample_dt, "--duration at --sample-dt")
         with memory_for(f"--duration {duration or 120.0:g} at --sample-dt {sample_dt:g}"):
-            mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed)
+            mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed, sea_state)
     with progress_bar("montecarlo") as progress, memory_for("--draws at --duration and --sample-dt"):
         result = mc.run(v, mission, draws, seed=seed, variation=variation, level=level, batch_size=batch_size,
                         executor=executor, progress=progress)
     for path in out:
         _write_band(result, path)
     _report(result)
+
+
+def _sea_for(vessel, text: Optional[str], seed: int):
+    """--sea → physics.waves.Sea, refused on one line before any work when the vessel cannot run in it."""
+    if text is None:
+        return None
+    from ..engine.sixdof import check_sea_for
+
+    sea = sea_from(text, seed)
+    check_sea_for(vessel, sea)
+    return sea
 
 
 def _write_band(result, path: Path) -> None:
@@ -117,7 +132,9 @@ def _report(result) -> None:
     b = result.band
     lo_p, hi_p = level_percentiles(b.level)
     rate = result.simulated_s / result.seconds if result.seconds > 0 else float("nan")
-    say(f"{result.vessel.name}: {result.draws} draws of {result.mission.duration_s:g} s ({result.mission.source}) "
+    sea = result.mission.sea
+    say(f"{result.vessel.name}: {result.draws} draws of {result.mission.duration_s:g} s ({result.mission.source}"
+        f"{'' if sea is None else '; in ' + sea.text() + ', each draw its own realisation'}) "
         f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
         f"{result.rejected} unphysical draws redrawn")
     k = 180.0 / math.pi
@@ -149,6 +166,8 @@ def dataset_shards_command(
     seed: int = typer.Option(0, help="root seed (shard i draws from its i-th child)"),
     resume: bool = typer.Option(False, "--resume", help="keep the shards a cut-short run with the same settings "
                                                         "completed in --out"),
+    sea: Optional[str] = typer.Option(None, help=SEA_HELP + "; every vessel in its own realisation of the sea "
+                                                 "(seeded by its recording's seed)"),
     ray: Optional[str] = typer.Option(None, help=RAY_HELP),
     cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
     retries: int = typer.Option(3, help=RETRIES_HELP),
@@ -162,7 +181,8 @@ def dataset_shards_command(
     noise_profile(noise)  # a bad profile fails now, not in every worker
     names = tuple(m.strip() for m in manoeuvres.split(",") if m.strip())
     variation = _variation(v, vary, effect, covariance, effect_share)
-    settings = Settings(vessels, per_shard, segments, names, noise, "." + fmt.lower().lstrip("."), seed, variation)
+    settings = Settings(vessels, per_shard, segments, names, noise, "." + fmt.lower().lstrip("."), seed, variation,
+                        _sea_for(v, sea, seed))
     executor = _executor(ray, cpus_per_task, retries)
     with progress_bar("dataset-shards") as progress:
         result = generate_shards(v, settings, out, executor=executor, resume=resume, progress=progress)

@@ -18,6 +18,7 @@ and its horizontal motion is the 3-DOF twin's (tests/test_sea.py, `twin crossche
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -28,7 +29,7 @@ from ..errors import TwinError
 from ..physics import seakeeping as sk
 from ..physics import waves
 from ..physics.hydrodynamics import Terms
-from ..physics.hydrostatics import RHO_FRESH_KG_M3, equilibrium, waterline_for_mass
+from ..physics.hydrostatics import RHO_FRESH_KG_M3, equilibrium, submerged_volume, waterline_for_mass
 from ..vessel import Vessel
 from . import native
 from .mjcf import JOINTS, CompiledVessel, edited_spec
@@ -153,7 +154,7 @@ def _hull(vessel: Vessel) -> HullModel:
     if not full:
         raise TwinError(f"vessel '{vessel.name}' has no hull meshes: a sea (the 6-DOF hull) needs them")
     rho = RHO_FRESH_KG_M3 if vessel.mmg is None else vessel.mmg.rho_kg_m3
-    hydro = [sk.hydro_mesh(v, f) for v, f in full]
+    hydro = _centred_on_full([sk.hydro_mesh(v, f) for v, f in full], full, mass, rho)
     level = waterline_for_mass(hydro, mass, rho)
     z_w = level["waterline_z_m"]
     strips = [s for v, f in hydro for s in sk.strips(v, f, z_w, N_STRIPS)]
@@ -172,6 +173,22 @@ def _hull(vessel: Vessel) -> HullModel:
     return HullModel(hydro, mass, cg, i_cg, strips, rad, wp, restoring, periods, omega, eq, sk.drift_table(segs),
                      draft, (float(allv[:, 0].min()), float(allv[:, 0].max()), float(allv[:, 1].min()),
                              float(allv[:, 1].max())), float(allv[:, 2].max()), rho)
+
+
+def _centred_on_full(hydro: list, full: list, mass_kg: float, rho: float) -> list:
+    """The hydrodynamic meshes placed where they float the vessel as its full meshes do: each moved
+    horizontally so that its centre of buoyancy at the level flotation is its full mesh's, and all
+    vertically so that they float the mass at the full meshes' waterline. Resampling moves the
+    centre of buoyancy by a fraction of a millimetre, which trims and heels the hull by hundredths
+    of a degree and so moves its centre of gravity in the heading frame: placed, a vessel whose full
+    meshes float it level floats level on its hydrodynamic meshes too."""
+    z_full = waterline_for_mass(full, mass_kg, rho)["waterline_z_m"]
+    z_hydro = waterline_for_mass(hydro, mass_kg, rho)["waterline_z_m"]
+    out = []
+    for (hv, hf), (fv, ff) in zip(hydro, full):
+        shift = submerged_volume(fv, ff, z_full)[1] - submerged_volume(hv, hf, z_hydro)[1]
+        out.append((hv + [shift[0], shift[1], z_full - z_hydro], hf))
+    return out
 
 
 def hull_model(vessel: Vessel) -> HullModel:
@@ -245,6 +262,13 @@ def sea_components(hull: HullModel, sea: waves.Sea, timestep_s: float) -> waves.
     return waves.components(sea, omega_max=2 * math.pi / t_min)
 
 
+def check_sea_for(vessel: Vessel, sea: waves.Sea) -> None:
+    """TwinError (one line) unless the vessel can run in `sea`: hull meshes, and a sea its time step
+    and wave grid resolve. What a command checks before any work."""
+    spec = _spec(vessel, False)
+    sea_components(hull_model(vessel), sea, spec.option.timestep)
+
+
 @dataclass
 class SixModel:
     """A compiled 6-DOF model and what it was built from."""
@@ -267,9 +291,11 @@ class SixModel:
 
 
 def compile_six(compiled: CompiledVessel, sea: waves.Sea | None = None, terms: Terms | None = None,
-                sea_terms: SeaTerms | None = None, wind_inputs: bool | None = None) -> SixModel:
+                sea_terms: SeaTerms | None = None, wind_inputs: bool | None = None,
+                slots: int | None = None) -> SixModel:
     """The vessel's 6-DOF model with the native callback's parameters (3-DOF horizontal model first,
-    the packed sea second), in calm water without `sea`."""
+    the packed sea second), in calm water without `sea`. `slots`: room for that many wave components
+    (the unused ones of zero height), so that another draw of the sea fits in a copy (`reseeded`)."""
     vessel = compiled.vessel
     hull = hull_model(vessel)
     sea_terms = sea_terms or SeaTerms()
@@ -282,21 +308,42 @@ def compile_six(compiled: CompiledVessel, sea: waves.Sea | None = None, terms: T
     for n in list(spec.numerics):
         spec.delete(n)
     spec.add_numeric(name=native.PARAMS_NAME, data=np.zeros(native.NPARAM), size=native.NPARAM)
-    packed = _pack(hull, comps, sea_terms, (0,) * 6, (0,) * 6, compiled, h)
+    packed = _pack(hull, comps, sea_terms, (0,) * 6, (0,) * 6, compiled, h, slots)
     spec.add_numeric(name=SEA_NAME, data=np.zeros(len(packed)), size=len(packed))
     for name, data, size in others:
         spec.add_numeric(name=name, data=data, size=size)
     model = spec.compile()
     native.set_params(model, compiled.hydro(terms))
     qpos, dof = joint_addresses(model)
-    packed = _pack(hull, comps, sea_terms, qpos, dof, compiled, h)
+    packed = _pack(hull, comps, sea_terms, qpos, dof, compiled, h, slots)
     adr = int(model.numeric_adr[1])
     model.numeric_data[adr:adr + len(packed)] = packed
     grid = None if comps is None else wave_grid(hull, comps)
     return SixModel(model, hull, comps, grid, sea)
 
 
-def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: CompiledVessel, h: float) -> np.ndarray:
+def reseeded(six: SixModel, compiled: CompiledVessel, sea: waves.Sea, sea_terms: SeaTerms | None = None
+             ) -> mujoco.MjModel:
+    """A copy of six.model in `sea` (typically six.sea drawn from another seed), with the horizontal
+    added mass of `compiled` in its diffraction load; six compiled with room for the components
+    (`compile_six(..., slots=...)`). The native parameters stay six.model's (set them per copy)."""
+    model = copy.copy(six.model)
+    h = model.opt.timestep
+    comps = sea_components(six.hull, sea, h)
+    qpos, dof = joint_addresses(model)
+    view = sea_view(model)
+    slots = int(view[sk._NC])
+    if len(comps) > slots:
+        raise TwinError(f"a sea of {len(comps)} components does not fit a model made for {slots}")
+    packed = _pack(six.hull, comps, sea_terms or SeaTerms(), qpos, dof, compiled, h, slots)
+    if len(packed) != len(view):
+        raise TwinError("the sea does not fit this model's packed sea")
+    view[:] = packed
+    return model
+
+
+def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: CompiledVessel, h: float,
+          slots: int | None = None) -> np.ndarray:
     verts, faces, off = [], [], 0
     for v, f in hull.meshes:
         verts.append(v)
@@ -318,6 +365,11 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
         packed_c = comps.pack()
         weights = waves.field_weights(comps, (0.0, zh / 2, zh), strip_depth)
         drift_c = 0.5 * hull.rho * waves.G * sk.reflection_squared(comps.k_rad_m, hull.draft_m)
+        if slots is not None and slots > len(comps):  # zero-height components: they add nothing
+            pad = slots - len(comps)
+            packed_c = np.vstack([packed_c, np.zeros((pad, 6))])
+            weights = np.hstack([weights, np.zeros((7, pad))])
+            drift_c = np.concatenate([drift_c, np.zeros(pad)])
     switches = (sea_terms.waves, sea_terms.diffraction, sea_terms.damping, sea_terms.drift)
     return sk.pack_sea(verts, faces, packed_c, weights, drift_c, rows, hull.drift, grid, switches, qpos, dof,
                        hull.rho, (am.Xudot, am.Yvdot))
@@ -348,40 +400,6 @@ def potential_energy(hull: HullModel, qpos6: np.ndarray) -> float:
         vol, c = submerged_volume(w, f, 0.0)
         total += vol * c[2]
     return hull.rho * waves.G * total
-
-
-def level_floating(vessel: Vessel) -> tuple[Vessel, float]:
-    """The vessel with its heaviest part that is not a hull mesh moved fore or aft so that its centre
-    of gravity stands over the level flotation's centre of buoyancy: a vessel that floats without
-    trim (a mass case 'level'). Returns it and the move (m). The 3-DOF twin assumes a level hull;
-    a hull whose assumed lines trim it differs from it in the ways a trimmed hull does (its
-    thrust tilted, its centre of gravity moved in the heading frame)."""
-    from ..physics.hydrostatics import submerged_volume
-    from ..vessel import MassCase
-
-    hull = hull_model(vessel)
-    z_w = waterline_for_mass(hull.meshes, hull.mass_kg, hull.rho)["waterline_z_m"]
-    vol, mom = 0.0, np.zeros(3)
-    for v, f in hull.meshes:
-        a, c = submerged_volume(v, f, z_w)
-        vol, mom = vol + a, mom + a * c
-    x_b = mom[0] / vol
-    model = _spec(vessel, False).compile()
-    vessel_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "vessel")
-    parts = [b for b in range(model.nbody) if model.body_parentid[b] == vessel_body and b != vessel_body
-             and not any(model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH
-                         for g in range(model.ngeom) if model.geom_bodyid[g] == b)]
-    if not parts:
-        raise TwinError(f"vessel '{vessel.name}': no part besides the hulls to move")
-    part = max(parts, key=lambda b: model.body_subtreemass[b])
-    name = model.body(part).name
-    move = (x_b - hull.cg_m[0]) * hull.mass_kg / float(model.body_subtreemass[part])
-    base = vessel.cases.get(vessel.case, MassCase())
-    x_new = float(model.body_pos[part][0] + move)
-    case = MassCase(dict(base.geom_mass_kg), {**base.body_x_m, name: x_new})
-    from dataclasses import replace as _replace
-
-    return _replace(vessel, cases={**vessel.cases, "level": case}, case="level"), float(move)
 
 
 def free_run(six: SixModel, duration_s: float, offset=(0.0, 0.0, 0.0), qvel0=None, sample_every: int = 1,

@@ -194,7 +194,7 @@ def file_ready(rec: Recording, origin: tuple[float, float] | None, geodetic: boo
     shift_s = min(0.0, float(min(firsts)))
     streams = {name: Stream(np.asarray(s.t, dtype=float) - shift_s,
                             {k: np.asarray(v, dtype=float) for k, v in s.columns.items()})
-               for name, s in rec.streams().items()}
+               for name, s in {**rec.streams(), "attitude": rec.attitude}.items()}
     heading = streams["heading"]
     if len(heading):
         heading.columns["psi_rad"] = np.angle(np.exp(1j * heading["psi_rad"]))

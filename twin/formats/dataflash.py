@@ -5,7 +5,7 @@ A DataFlash log is a sequence of messages [0xA3 0x95 type][payload]; the
 first messages are FMT records that describe every type, FMT included.
 Written here: PARM (a recording's own parameters, then the thruster functions
 73/74 on channels 1/3 as ArduRover, and their trims), GPS (lat/lon 1e-7 deg,
-alt cm), ATT (heading, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s) and
+alt cm), ATT (heading, roll and pitch, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s) and
 BAT (Volt), each message at its own sample time (TimeUS, µs).
 A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
 the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
@@ -64,7 +64,8 @@ def dataflash_bytes(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, 
     timed = _parameters(THRUSTER_PARAMS)
     timed += _gps(tel.gnss_t, tel.lat_deg, tel.lon_deg, np.zeros(len(tel.gnss_t)), tel.speed_m_s, start_unix_s,
                   tel.course_deg())
-    timed += _attitude(tel.heading_t, tel.psi_rad) + _imu(tel.heading_t, tel.r_rad_s) + _rcou(tel.pwm_t, tel.pwm_us)
+    timed += (_attitude(tel.heading_t, tel.psi_rad, *tel.attitude()) + _imu(tel.heading_t, tel.r_rad_s)
+              + _rcou(tel.pwm_t, tel.pwm_us))
     return _log_bytes(timed)
 
 
@@ -85,7 +86,10 @@ def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
         alt = g["alt_m"] if g.has("alt_m") else np.zeros(len(g))
         timed += _gps(g.t, g["lat_deg"], g["lon_deg"], alt, np.zeros(len(g)), start_unix_s)
     if len(h):
-        timed += _attitude(h.t, h["psi_rad"])
+        att = rec.attitude  # roll and pitch where the recording has them, at the heading's times
+        level = np.zeros(len(h))
+        timed += _attitude(h.t, h["psi_rad"], np.interp(h.t, att.t, att["roll_rad"]) if len(att) else level,
+                           np.interp(h.t, att.t, att["pitch_rad"]) if len(att) else level)
     if len(imu):
         timed += _imu(imu.t, imu["yaw_rate_rads"])
     if len(bat):
@@ -120,9 +124,15 @@ def _gps(t_s, lat_deg, lon_deg, alt_m, speed_m_s, start_unix_s: float, course_de
     return out
 
 
-def _attitude(t_s, psi_rad) -> list[tuple[int, bytes]]:
-    return [(_us(t), _message("ATT", _us(t), 0, 0, 0, 0, 0, int(round(np.degrees(psi) % 360.0 * 100)) % 36000, 0, 0))
-            for t, psi in zip(t_s, psi_rad)]
+def _attitude(t_s, psi_rad, roll_rad, pitch_rad) -> list[tuple[int, bytes]]:
+    return [(_us(t), _message("ATT", _us(t), 0, _cdeg(phi), 0, _cdeg(theta), 0,
+                              int(round(np.degrees(psi) % 360.0 * 100)) % 36000, 0, 0))
+            for t, psi, phi, theta in zip(t_s, psi_rad, roll_rad, pitch_rad)]
+
+
+def _cdeg(angle_rad: float) -> int:
+    """An angle in ATT's int16 centidegrees."""
+    return int(round(np.degrees(angle_rad) * 100))
 
 
 def _imu(t_s, yaw_rate_rads) -> list[tuple[int, bytes]]:

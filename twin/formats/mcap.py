@@ -21,6 +21,7 @@ A sensor recording, each message logged at its own stream's sample time (s → n
   /sensors/wind     twin.Wind             speed_m_s, from_deg (true wind, FROM, clockwise from north) and
                                           relative_speed_m_s, relative_from_deg (apparent, FROM, clockwise
                                           from the bow; where measured)                (if recorded)
+  /sensors/attitude twin.Attitude         roll_rad, pitch_rad (rad; a 6-DOF hull's or a log's)  (if recorded)
 Metadata record "twin.recording": origin_s (the recording's origin, s, repr), pwm_neutral_us
 (JSON [left, right]), source, kind (of the recording written), meta (JSON, plain entries),
 parameters (JSON {name: value}, the autopilot's parameters when the source had them).
@@ -344,6 +345,9 @@ SENSORS = {
         "apparent relative_speed_m_s, relative_from_deg (FROM, deg clockwise from the bow) where measured",
         ("speed_m_s", "from_deg", "relative_speed_m_s", "relative_from_deg")), "required": ["speed_m_s", "from_deg"]},
         {k: k for k in ("speed_m_s", "from_deg", "relative_speed_m_s", "relative_from_deg")}),
+    "attitude": ("/sensors/attitude", _project_schema(
+        "twin.Attitude", "Roll (starboard down) and pitch (bow up) of the hull (rad)", ("roll_rad", "pitch_rad")),
+        {"roll_rad": "roll_rad", "pitch_rad": "pitch_rad"}),
 }
 
 
@@ -361,7 +365,7 @@ def _write_sensors(fh, rec: Recording) -> None:
         "source": str(rec.source), "kind": str(rec.kind), "meta": json.dumps(_plain(rec.meta), sort_keys=True),
         "parameters": json.dumps({str(k): float(v) for k, v in rec.parameters.items()}, sort_keys=True)})
     timed = []
-    for name, stream in rec.streams().items():
+    for name, stream in {**rec.streams(), "attitude": rec.attitude}.items():
         if not len(stream):
             continue
         topic, schema, _ = SENSORS[name]

@@ -1,7 +1,7 @@
 """What an ArduPilot boat's sensors would log during a run, at the rates of
 [Morel-2024 §3]: GNSS at the antenna (lever arm, [Yellowfish-TR appendix]) every 200 ms,
-AHRS heading every 20 ms, thruster PWM every 100 ms. Shared by the .tlog and
-DataFlash .bin writers."""
+AHRS heading every 20 ms (with the roll and pitch of a 6-DOF hull), thruster PWM every 100 ms.
+Shared by the .tlog and DataFlash .bin writers."""
 from __future__ import annotations
 
 import re
@@ -52,6 +52,14 @@ class Telemetry:
     battery_t: np.ndarray = field(default_factory=_empty)
     voltage_v: np.ndarray = field(default_factory=_empty)
     velocity_ned_m_s: np.ndarray | None = None  # (n, 2) north, east at gnss_t; None: unknown
+    roll_rad: np.ndarray | None = None  # at heading_t; None: a level hull (the 3-DOF twin)
+    pitch_rad: np.ndarray | None = None
+
+    def attitude(self) -> tuple[np.ndarray, np.ndarray]:
+        """(roll, pitch) rad at heading_t, zeros for a level hull."""
+        if self.roll_rad is None or self.pitch_rad is None:
+            return np.zeros(len(self.heading_t)), np.zeros(len(self.heading_t))
+        return self.roll_rad, self.pitch_rad
 
     def course_deg(self) -> np.ndarray:
         """Course over ground at gnss_t (deg in [0, 360), the direction of motion, not the heading);
@@ -86,5 +94,8 @@ def sample(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, gnss_dt: 
     r = np.interp(th, run.t, run.nu[:, 2])
     tp = np.arange(0.0, t_end + 1e-9, pwm_dt) if np.all(np.isfinite(run.pwm_us)) else np.zeros(0)
     idx = np.clip(np.searchsorted(run.t, tp + 1e-9, side="right") - 1, 0, len(run.t) - 1)
+    six = run.meta.get("six_dof")  # a 6-DOF hull's roll and pitch, beside the heading
+    roll = None if six is None else np.interp(th, run.t, six["roll_rad"])
+    pitch = None if six is None else np.interp(th, run.t, six["pitch_rad"])
     return Telemetry(tg, lat, lon, speed, th, psi, r, tp, run.pwm_us[idx] if len(tp) else np.zeros((0, 2)),
-                     velocity_ned_m_s=velocity)
+                     velocity_ned_m_s=velocity, roll_rad=roll, pitch_rad=pitch)

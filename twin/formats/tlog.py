@@ -13,7 +13,8 @@ One packet builder (`telemetry_packets`) serves both sources:
                      and course over ground (cog, 65535 when unknown or below 5 cm/s)
   GLOBAL_POSITION_INT  (a simulated run) position, NED velocity and heading at the GNSS times:
                      what ground stations draw the vehicle from
-  ATTITUDE           yaw (rad, float32), yawspeed, time_boot_ms = log time (ms)
+  ATTITUDE           yaw (rad, float32), yawspeed, time_boot_ms = log time (ms); roll and pitch
+                     (rad, float32) of a 6-DOF hull or a recording's attitude stream, else 0
   SERVO_OUTPUT_RAW   port 0, PWM (integer µs) on channels 1 and 3, time_usec (32-bit µs)
   SYS_STATUS         battery voltage (mV), only where the source has a battery stream
 Every message is stamped with its own sample time; the Unix stamp is a fixed start
@@ -149,8 +150,9 @@ def _global_position(mav, tel: Telemetry, alt: np.ndarray, add: Add) -> None:
 
 
 def _attitude(mav, tel: Telemetry, add: Add) -> None:
-    for t, p, r in zip(tel.heading_t, tel.psi_rad, tel.r_rad_s):
-        add(t, mav.attitude_encode(int(round(t * 1e3)), 0.0, 0.0, float(p), 0.0, 0.0, float(r)))
+    roll, pitch = tel.attitude()
+    for t, p, r, phi, theta in zip(tel.heading_t, tel.psi_rad, tel.r_rad_s, roll, pitch):
+        add(t, mav.attitude_encode(int(round(t * 1e3)), float(phi), float(theta), float(p), 0.0, 0.0, float(r)))
 
 
 def _servo(mav, tel: Telemetry, add: Add) -> None:
@@ -172,9 +174,13 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     """The recording's samples as Telemetry; TwinError where a value does not fit
     its MAVLink field. ATTITUDE carries heading and yaw rate together, so the imu
     stream is interpolated at the heading times; without an imu stream its yawspeed is NaN, which
-    the reader takes as no gyro (a 0 would read back as a gyro that never turns)."""
+    the reader takes as no gyro (a 0 would read back as a gyro that never turns). The attitude
+    stream (roll, pitch) likewise, exactly where it shares the heading's times."""
     g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
     r = np.interp(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
+    att = rec.attitude
+    roll = np.interp(h.t, att.t, att["roll_rad"]) if len(att) else None
+    pitch = np.interp(h.t, att.t, att["pitch_rad"]) if len(att) else None
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
     _check_range("heading time (ms)", np.round(h.t * 1e3), 0, MAX_BOOT_MS)
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
@@ -182,7 +188,8 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     return Telemetry(g.t, g["lat_deg"] if len(g) else np.zeros(0), g["lon_deg"] if len(g) else np.zeros(0),
                      np.full(len(g), np.nan), h.t, h["psi_rad"] if len(h) else np.zeros(0), r, p.t, pwm,
                      alt_m=g["alt_m"] if g.has("alt_m") else None,
-                     battery_t=bat.t, voltage_v=bat["voltage_v"] if len(bat) else np.zeros(0))
+                     battery_t=bat.t, voltage_v=bat["voltage_v"] if len(bat) else np.zeros(0),
+                     roll_rad=roll, pitch_rad=pitch)
 
 
 def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:

@@ -389,43 +389,68 @@ def natural_periods(wp: Waterplane, C: dict[str, float], mass_kg: float, cg_m: n
 
     Uncoupled ("heave_uncoupled" ...): T = 2π √((M + A)/C) with C33 = ρ g A_wp, C44 = ρ g V GM_T,
     C55 = ρ g V GM_L and the rigid inertias about the centre of gravity. Coupled ("heave", "pitch",
-    "roll"): the same stiffness written about the body origin, where heave and pitch couple through
-    the centre of floatation (C35 = −ρ g A_wp x_f, C55 = ρ g (∫x² dA + V (z_G − z_B))) and the rigid
-    body through its centre of gravity, surge and sway free (they have no stiffness):
-    ω² are the non-zero eigenvalues of M⁻¹C on (surge, heave, pitch) and (sway, heave, roll)."""
+    "roll"): the periods of `coupled_modes`."""
+    modes = coupled_modes(wp, C, mass_kg, cg_m, inertia_cg, rad, rho)
+    out = {k: period for k, (period, _) in modes.items()}
+    out.update({f"{k}_uncoupled": v for k, v in _uncoupled(C, mass_kg, inertia_cg, rad).items()})
+    return out
+
+
+def _uncoupled(C: dict[str, float], mass_kg: float, inertia_cg: np.ndarray, rad: Radiation) -> dict[str, float]:
     def period(m, c):
         return float(2 * np.pi * np.sqrt(m / c)) if c > 0 else float("nan")
 
+    return {"heave": period(mass_kg + rad.A33, C["C33"]), "roll": period(inertia_cg[0] + rad.A44, C["C44"]),
+            "pitch": period(inertia_cg[1] + rad.A55, C["C55"])}
+
+
+def coupled_modes(wp: Waterplane, C: dict[str, float], mass_kg: float, cg_m: np.ndarray, inertia_cg: np.ndarray,
+                  rad: Radiation, rho: float = 1000.0) -> dict[str, tuple[float, np.ndarray]]:
+    """The heave, pitch and roll modes of the free-floating hull: per mode its period (s) and its
+    shape, the displacement (down m, pitch rad, roll rad) it oscillates along, scaled to a largest
+    component of 1. The stiffness is written about the body origin, where heave and pitch couple
+    through the centre of floatation (C35 = −ρ g A_wp x_f, C55 = ρ g (∫x² dA + V (z_G − z_B))) and
+    the rigid body through its centre of gravity, surge and sway free (they have no stiffness):
+    ω² are the non-zero eigenvalues of M⁻¹C on (surge, heave, pitch) and (sway, heave, roll), each
+    mode named by the uncoupled period it is nearest. A hull whose heave and pitch periods are close
+    and coupled through x_f answers a pure heave or pitch displacement in both modes at once."""
     xg, yg, zg = (float(c) for c in cg_m)
     rg = rho * G
     bg = wp.volume * (zg - float(wp.centre[2]))
-    # (surge, heave, pitch) about the origin; pitch positive bow up
     m = mass_kg
+    # (surge, heave, pitch) about the origin; pitch positive bow up
     M = np.array([[m, 0.0, m * zg], [0.0, m + rad.A33, -m * xg],
                   [m * zg, -m * xg, inertia_cg[1] + m * (xg * xg + zg * zg) + rad.A55]])
     Cm = np.zeros((3, 3))
     Cm[1, 1] = rg * wp.area
     Cm[1, 2] = Cm[2, 1] = -rg * wp.area * wp.x_f
     Cm[2, 2] = rg * (wp.Iyy + bg)
-    w2 = np.sort(np.real(np.linalg.eigvals(np.linalg.solve(M, Cm))))[1:]
     # (sway, heave, roll): roll positive starboard down
-    M = np.array([[m, 0.0, -m * zg], [0.0, m + rad.A33, m * yg],
-                  [-m * zg, m * yg, inertia_cg[0] + m * (yg * yg + zg * zg) + rad.A44]])
+    Mr = np.array([[m, 0.0, -m * zg], [0.0, m + rad.A33, m * yg],
+                   [-m * zg, m * yg, inertia_cg[0] + m * (yg * yg + zg * zg) + rad.A44]])
     Cr = np.zeros((3, 3))
     Cr[1, 1] = rg * wp.area
     Cr[1, 2] = Cr[2, 1] = rg * wp.area * wp.y_f
     Cr[2, 2] = rg * (wp.Ixx + bg)
-    w2r = np.sort(np.real(np.linalg.eigvals(np.linalg.solve(M, Cr))))[1:]
-    # name the coupled modes by the uncoupled period they are nearest
-    uncoupled = {"heave": period(m + rad.A33, C["C33"]), "roll": period(inertia_cg[0] + rad.A44, C["C44"]),
-                 "pitch": period(inertia_cg[1] + rad.A55, C["C55"])}
-    hp = sorted(2 * np.pi / np.sqrt(w2))
-    order = sorted(("heave", "pitch"), key=lambda k: uncoupled[k])
-    out = {order[0]: float(hp[0]), order[1]: float(hp[1])}
-    roll_periods = 2 * np.pi / np.sqrt(w2r)
-    out["roll"] = float(min(roll_periods, key=lambda p: abs(p - uncoupled["roll"])))
-    out.update({f"{k}_uncoupled": v for k, v in uncoupled.items()})
-    return out
+    uncoupled = _uncoupled(C, m, inertia_cg, rad)
+
+    def oscillating(Mb, Cb, third: int):
+        w2, vec = np.linalg.eig(np.linalg.solve(Mb, Cb))
+        order = np.argsort(np.real(w2))[1:]  # the zero of the free surge or sway left out
+        out = []
+        for i in order:
+            v = np.real(vec[:, i])
+            shape = np.zeros(3)
+            shape[0], shape[third] = v[1], v[2]
+            shape /= shape[np.argmax(np.abs(shape))]
+            out.append((float(2 * np.pi / np.sqrt(np.real(w2[i]))), shape))
+        return out
+
+    pair = sorted(oscillating(M, Cm, 1), key=lambda ps: ps[0])
+    names = sorted(("heave", "pitch"), key=lambda k: uncoupled[k])
+    modes = {names[0]: pair[0], names[1]: pair[1]}
+    modes["roll"] = min(oscillating(Mr, Cr, 2), key=lambda ps: abs(ps[0] - uncoupled["roll"]))
+    return modes
 
 
 # ---------------------------------------------------------------- the packed sea load (numba)

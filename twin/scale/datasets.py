@@ -11,6 +11,10 @@ Layout of the output folder:
   index.json, index.csv             one row per vessel: file, shard, seed, factors, effects and
                                     the truth's coefficients (the labels a learner needs)
 
+In a sea (`Settings.sea`, a physics.waves.Sea) every recording is made by the 6-DOF hull in its
+own realisation of it, drawn from that vessel's seed (as `twin dataset --sea` draws it from its
+seed); the index and the truth carry the sea each vessel saw.
+
 A shard is one batch: its vessels are drawn from the batch's own seed, so a shard is the same
 file whoever made it. Shards are written (recordings first, the truth last, each atomically) as
 they come back; a shard whose truth file exists with the same settings is complete, which is
@@ -24,7 +28,7 @@ import hashlib
 import io
 import json
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +59,7 @@ class Settings:
     fmt: str = ".mcap"
     seed: int = 0
     variation: Variation = field(default_factory=Variation)
+    sea: object = None  # physics.waves.Sea: each vessel in its own realisation of it
 
     def __post_init__(self):
         if self.fmt not in FORMATS:
@@ -69,7 +74,7 @@ class Settings:
     def to_dict(self) -> dict:
         return {"vessels": self.vessels, "per_shard": self.per_shard, "segments": self.segments,
                 "manoeuvres": list(self.manoeuvres), "noise": self.noise, "format": self.fmt, "seed": self.seed,
-                "variation": self.variation.to_dict()}
+                "variation": self.variation.to_dict(), **({} if self.sea is None else {"sea": self.sea.to_dict()})}
 
 
 def fingerprint(vessel: Vessel, settings: Settings) -> str:
@@ -116,15 +121,16 @@ def run_shard(job: _Job, b: Batch, extra=None) -> ShardResult:
     files, truths, entries = [], [], []
     for k, (d, seed) in enumerate(zip(drawn, seeds)):
         i = b.start + k
+        sea = None if s.sea is None else replace(s.sea, seed=int(seed))
         ds = generate(d.vessel, effects=d.effects, n_segments=s.segments, manoeuvres=list(s.manoeuvres),
-                      seed=int(seed), noise=noise_profile(s.noise))
+                      seed=int(seed), noise=noise_profile(s.noise), sea=sea)
         name = f"{shard_name(b.index)}/vessel-{i:06d}{s.fmt}"
         files.append((name, _serialised(ds.recording, s.fmt)))
         entry = {"vessel_index": i, "shard": b.index, "file": name, "seed": int(seed),
                  "mass_kg": round(job.mass_kg * d.factors.get(MASS, 1.0), 6), "segments": len(ds.runs),
                  "logged_s": round(float(sum(r.t[-1] - r.t[0] for r in ds.runs)), 3),
                  "factors": d.factors, "effects": [e.text for e in d.effects],
-                 "labels": _labels(labels, ds.truth_vessel)}
+                 "labels": _labels(labels, ds.truth_vessel), **({} if sea is None else {"sea": sea.to_dict()})}
         entries.append(entry)
         truths.append({"vessel_index": i, "file": name, **ds.truth()})
     truth = {"fingerprint": job.fingerprint, "shard": b.index, "entries": entries, "truths": truths}

@@ -16,6 +16,11 @@ evaluate` asks of a recording, whose PWM is also given. Closing the loop per dra
 the controller hide the model error it corrects (a heading hold keeps every heading band
 narrow), and would need the single-run path, at half the batch engine's speed.
 
+In a sea (`Mission.sea`) every twin runs the 6-DOF hull in it (engine/sixdof.py), each draw in
+its own realisation of the sea (the mission's sea drawn from a seed of the draw's own, from the
+batch's seed): the band then holds what the waves do to the mission beside what the
+identification left uncertain. The nominal twin runs in the mission's own realisation.
+
 `recording_coverage` asks the same of real data: free runs of every draw from a recording's
 measured states, driven by its PWM; the share of the measured samples inside the band.
 """
@@ -29,6 +34,7 @@ import numpy as np
 
 from ..drive import InputSeries
 from ..engine import batch as engine
+from ..engine import native
 from ..engine.callbacks import _joint_indices
 from ..effects import coefficients
 from ..errors import TwinError
@@ -63,6 +69,7 @@ class Mission:
     eta0: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nu0: tuple[float, float, float] = (0.0, 0.0, 0.0)
     source: str = ""
+    sea: object = None  # physics.waves.Sea: every twin in its own realisation of it
 
     def __post_init__(self):
         if not (self.duration_s > 0 and self.sample_dt_s > 0 and math.isfinite(self.duration_s)):
@@ -73,35 +80,42 @@ class Mission:
     def to_dict(self) -> dict:
         return {"source": self.source, "duration_s": self.duration_s, "sample_dt_s": self.sample_dt_s,
                 "eta0": list(self.eta0), "nu0": list(self.nu0), "inputs": self.inputs.kind,
-                "input_samples": len(self.inputs.t)}
+                "input_samples": len(self.inputs.t), "sea": None if self.sea is None else self.sea.to_dict()}
 
 
 def scenario_mission(vessel: Vessel, scenario: str, duration_s: float, sample_dt_s: float = 0.5,
-                     seed: int = 0) -> Mission:
-    """A scenario run once closed loop by the nominal twin; its applied inputs become the mission
-    (module docstring: why open loop for the draws)."""
+                     seed: int = 0, sea=None) -> Mission:
+    """A scenario run once closed loop by the nominal twin (in `sea`, a physics.waves.Sea, when
+    given); its applied inputs become the mission (module docstring: why open loop for the draws)."""
     from ..drive import get
     from ..engine.mjcf import compile_vessel
     from ..engine.sim import simulate
 
-    run = simulate(compile_vessel(vessel), get(scenario, seed), duration_s, sample_dt_s=sample_dt_s)
+    run = simulate(compile_vessel(vessel), get(scenario, seed), duration_s, sample_dt_s=sample_dt_s, sea=sea)
     return Mission(run.meta["inputs"], duration_s, sample_dt_s,
-                   source=f"scenario {scenario} (closed loop by the nominal twin, its inputs replayed open loop)")
+                   source=f"scenario {scenario} (closed loop by the nominal twin, its inputs replayed open loop)",
+                   sea=sea)
 
 
-def inputs_mission(series: InputSeries, duration_s: float, sample_dt_s: float = 0.5, source: str = "") -> Mission:
-    return Mission(series, duration_s, sample_dt_s, source=source or "inputs")
+def inputs_mission(series: InputSeries, duration_s: float, sample_dt_s: float = 0.5, source: str = "",
+                   sea=None) -> Mission:
+    return Mission(series, duration_s, sample_dt_s, source=source or "inputs", sea=sea)
 
 
 # ---------------------------------------------------------------- many twins through it
 
-def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache | None = None
-                    ) -> tuple[np.ndarray, list[int]]:
+def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache | None = None,
+                    seas: list | None = None) -> tuple[np.ndarray, list[int]]:
     """(n, samples, 6) north, east, ψ, u, v, r of every twin at the mission's sample times, and
     the indices of the twins that diverged (their samples NaN). Batch engine, in chunks of time
-    so that memory stays bounded however long the mission."""
+    so that memory stays bounded however long the mission. In the mission's sea, twin i runs the
+    6-DOF hull in seas[i] (default: the mission's sea itself)."""
     cache = cache or ModelCache()
-    models = [cache.model(v) for v in vessels]
+    if mission.sea is None:
+        models = [cache.model(v) for v in vessels]
+        states0 = _start_states(models, mission)
+    else:
+        models, states0 = _sea_twins(vessels, seas or [mission.sea] * len(vessels), mission, cache)
     h = models[0].opt.timestep
     if any(m.opt.timestep != h for m in models):
         raise TwinError("the twins of one Monte Carlo must share the time step")
@@ -114,7 +128,6 @@ def simulate_tracks(vessels: list[Vessel], mission: Mission, cache: ModelCache |
     n_samples = nstep // every + 1
     out = np.full((len(vessels), n_samples, len(STATE)), np.nan)
     diverged: list[int] = []
-    states0 = _start_states(models, mission)
     for rows in _by_state_size(states0).values():
         sub = [models[i] for i in rows]
         traj, bad = _sampled_rollout(sub, np.array([states0[i] for i in rows]), controls[rows], every)
@@ -147,6 +160,46 @@ def _start_states(models, mission: Mission) -> list[np.ndarray]:
             layouts[key] = engine.initial_state(m, mission.eta0, mission.nu0)
         out.append(layouts[key])
     return out
+
+
+_six_bases: dict[tuple, object] = {}  # per worker process: 6-DOF models by structure and hull
+
+
+def _sea_twins(vessels: list[Vessel], seas: list, mission: Mission, cache: ModelCache
+               ) -> tuple[list[mujoco.MjModel], list[np.ndarray]]:
+    """Each twin's 6-DOF model in its own sea and its start at rest on its hull's equilibrium: a
+    model compiled once per structure (room for every component a sea may have), copied per twin
+    with its sea, its parameters and its thrusters' gains, range and lag (as ModelCache sets them)."""
+    from ..engine import sixdof
+    from ..engine.mjcf import CompiledVessel
+    from ..engine.sim import initial_state
+    from ..physics.waves import N_COMPONENTS
+
+    models, states = [], []
+    for v, sea in zip(vessels, seas):
+        cv = cache.compiled(v)
+        key = (id(cv), str(v.mjcf), v.case, repr(v.cases.get(v.case)), tuple(v.cg_offset_m), sea.regular,
+               mission.eta0, mission.nu0)
+        if key not in _six_bases:
+            if len(_six_bases) > 64:
+                _six_bases.pop(next(iter(_six_bases)))
+            six = sixdof.compile_six(cv, sea, slots=1 if sea.regular else N_COMPONENTS)
+            data = mujoco.MjData(six.model)
+            initial_state(six.model, data, mission.eta0, mission.nu0, six.initial_qpos(mission.eta0))
+            state = np.empty(engine.state_size(six.model))
+            mujoco.mj_getState(six.model, data, state, engine.FULL)
+            _six_bases[key] = (six, state)
+        six, state = _six_bases[key]
+        own = CompiledVessel(v, cv.model, cv.geometry)
+        m = sixdof.reseeded(six, own, sea)
+        native.set_params(m, own.hydro())
+        three = cache.model(v)
+        m.actuator_gainprm[:2] = three.actuator_gainprm[:2]
+        m.actuator_ctrlrange[:2] = three.actuator_ctrlrange[:2]
+        m.actuator_dynprm[:2] = three.actuator_dynprm[:2]
+        models.append(m)
+        states.append(state)
+    return models, states
 
 
 def _by_state_size(states: list[np.ndarray]) -> dict[int, list[int]]:
@@ -223,10 +276,20 @@ def _cache(job: _Job) -> ModelCache:
     return _caches[key]
 
 
+def sea_draws(sea, b: Batch) -> list:
+    """The batch's realisations of `sea`, one per draw, each from a seed of its own (a stream of the
+    batch's seed apart from the one the draws of the parameters take)."""
+    from dataclasses import replace as _with
+
+    rng = np.random.default_rng(np.random.SeedSequence(b.seed, spawn_key=(b.index, 1)))
+    return [_with(sea, seed=int(s)) for s in rng.integers(0, 2 ** 31 - 1, size=b.size)]
+
+
 def run_batch(job: _Job, b: Batch, extra=None) -> BatchResult:
     """A batch of draws through the mission (the task a worker runs)."""
     drawn, rejected = job.variation.draw(job.vessel, b.size, b.rng())
-    tracks, diverged = simulate_tracks([d.truth() for d in drawn], job.mission, _cache(job))
+    seas = None if job.mission.sea is None else sea_draws(job.mission.sea, b)
+    tracks, diverged = simulate_tracks([d.truth() for d in drawn], job.mission, _cache(job), seas)
     names = job.vessel.uncertainty.get("coordinates", []) if job.variation.covariance else []
     known = coefficients(job.vessel)
     coords = np.array([d.coordinates(names, known) for d in drawn], float).reshape(len(drawn), len(names))

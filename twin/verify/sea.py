@@ -104,15 +104,21 @@ def crossing_period(t: np.ndarray, x: np.ndarray) -> float:
 
 def natural_periods(vessel: Vessel, cycles: float = 6.0) -> dict:
     """Free decay in heave, roll and pitch, undamped (sea loads off but hydrostatics; no horizontal
-    hydrodynamics), each mode's period from its up-crossings against the closed form."""
+    hydrodynamics), each mode started along its own shape (sk.coupled_modes: a pure heave or pitch
+    displacement of a hull whose two periods are close rings in both and beats), its period from
+    the up-crossings of its own coordinate, against the closed form."""
     cv = compile_vessel(vessel)
     six = sixdof.compile_six(cv, terms=Terms().only(), sea_terms=sixdof.SeaTerms(False, False, False, False))
-    closed = six.hull.periods
+    hull = six.hull
+    closed = hull.periods
+    modes = sk.coupled_modes(hull.waterplane, hull.restoring, hull.mass_kg, hull.cg_m, hull.inertia_cg,
+                             hull.radiation, hull.rho)
     out = {}
-    for mode, offset, col in (("heave", (0.004, 0.0, 0.0), 2), ("pitch", (0.0, math.radians(0.5), 0.0), 4),
-                              ("roll", (0.0, 0.0, math.radians(1.0)), 5)):
-        t, q, _ = sixdof.free_run(six, cycles * closed[mode], offset=offset)
-        measured = crossing_period(t, q[:, col])
+    for mode, amplitude, col in (("heave", 0.004, 0), ("pitch", math.radians(0.5), 1),
+                                 ("roll", math.radians(1.0), 2)):
+        shape = modes[mode][1]
+        t, q, _ = sixdof.free_run(six, cycles * closed[mode], offset=tuple(amplitude / shape[col] * shape))
+        measured = crossing_period(t, q[:, (2, 4, 5)[col]])
         out[mode] = {"engine_s": measured, "closed_form_s": closed[mode],
                      "uncoupled_s": closed[f"{mode}_uncoupled"], "error": measured / closed[mode] - 1.0}
     return out
@@ -152,20 +158,19 @@ def roll_energy(vessel: Vessel, duration_s: float = 10.0, roll_deg: float = 3.0)
 
 
 def calm_water(vessel: Vessel, duration_s: float = 120.0) -> dict:
-    """The 6-DOF horizontal track against the 3-DOF twin's over the crosscheck zig-zag, on the vessel
-    made to float level (sixdof.level_floating); and on the vessel as it is, for the record."""
-    out = {}
-    level, move = sixdof.level_floating(vessel)
-    for name, v in (("level", level), ("as_is", vessel)):
-        cv = compile_vessel(v)
-        r3 = simulate(cv, drive.get("zigzag"), duration_s)
-        r6 = simulate(cv, drive.get("zigzag"), duration_s, six_dof=True)
-        out[name] = {"position_err_m": float(np.max(np.hypot(*(r6.eta[:, :2] - r3.eta[:, :2]).T))),
-                     "heading_err_deg": float(np.rad2deg(np.max(np.abs(r6.eta[:, 2] - r3.eta[:, 2])))),
-                     "trim_deg": math.degrees(sixdof.hull_model(v).equilibrium[1]),
-                     "roll_max_deg": float(np.rad2deg(np.max(np.abs(r6.meta["six_dof"]["roll_rad"]))))}
-    out["level"]["moved_m"] = move
-    return out
+    """The 6-DOF horizontal track against the 3-DOF twin's over the crosscheck zig-zag, and how far
+    the hull heaves, rolls and pitches in it."""
+    cv = compile_vessel(vessel)
+    r3 = simulate(cv, drive.get("zigzag"), duration_s)
+    r6 = simulate(cv, drive.get("zigzag"), duration_s, six_dof=True)
+    six = r6.meta["six_dof"]
+    return {"position_err_m": float(np.max(np.hypot(*(r6.eta[:, :2] - r3.eta[:, :2]).T))),
+            "heading_err_deg": float(np.rad2deg(np.max(np.abs(r6.eta[:, 2] - r3.eta[:, 2])))),
+            "trim_deg": math.degrees(sixdof.hull_model(vessel).equilibrium[1]),
+            "heel_deg": math.degrees(sixdof.hull_model(vessel).equilibrium[2]),
+            "roll_max_deg": float(np.rad2deg(np.max(np.abs(six["roll_rad"])))),
+            "pitch_range_deg": float(np.rad2deg(np.ptp(six["pitch_rad"]))),
+            "heave_range_mm": float(1e3 * np.ptp(six["down_m"]))}
 
 
 # ---------------------------------------------------------------- the barge in regular waves

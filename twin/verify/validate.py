@@ -447,7 +447,7 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
         out += [
             Quantity("waterline half-length a", "mm", table=1e3 * S["a_m"][case],
                      mesh=0.5e3 * fl["waterline_length_m"], reference="table",
-                     explanation="at its flotation draft the assumed hull shape (raked bow, transom) has a "
+                     explanation="at its flotation draft the assumed hull shape (raked bow, keel rising to the transom) has a "
                                  "shorter waterline than Table VI's 2a; the report does not give the hull lines."),
             Quantity("waterline half-breadth b", "mm", table=1e3 * S["b_m"][case],
                      mesh=0.5e3 * fl["waterline_breadth_m"], reference="table",
