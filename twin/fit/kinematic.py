@@ -7,8 +7,11 @@ Antenna (lever_arm). A point p of the hull (body x forward, y to starboard) move
 the hull's reference point plus R(ψ)·p. Within a few seconds the reference point's track is smooth
 (a position, a velocity and an acceleration: the hull's mass bounds how fast its velocity changes),
 while R(ψ)·p swings round with every large change of heading: in windows of WINDOW_S in which the
-heading turns by MIN_TURN_DEG or more (spins, tight turns), the antenna's fixes less a quadratic in
-time per window leave R(ψ)·p, one p for the whole recording. What is measured is the antenna
+heading turns by MIN_TURN_DEG or more at under SPIN_SPEED_M_S over ground (spins), the antenna's fixes
+less a quadratic in
+time per window leave R(ψ)·p, one p for the whole recording. Only windows in which the hull turns
+nearly on the spot count: under way it turns on a circle of radius U/r, which a quadratic follows only
+to about (U/r)·Δψ³/120 (kept under TRACK_TOLERANCE_M). What is measured is the antenna
 against the point the hull turns about at those rates, which for a hull that is symmetric fore and
 aft and spins on its thrusters is its middle: the twin's reference point. A hull that creeps ahead
 while it spins (a thruster's reverse thrust weaker than its forward) moves by a body velocity that
@@ -31,7 +34,8 @@ has one. An input log late by d moves both answers by +d; a heading late by L mo
 answer by −L and not the surge's; the gyro, where there is one, tells the heading's lateness
 directly (prepare.timing) and its answer then carries the input's timing alone. Relative timing is
 all a log can tell: a heading late by L is the GNSS and the input early by as much, so the reading
-is the one that explains the answers with one late stream.
+is the one that explains the answers with one late stream. A heading is named late, never early: a
+heading filter delays, it cannot lead.
 
 A shift is named only when it exceeds TIMING_FLOOR_SAMPLES sample periods of the streams compared
 and three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
@@ -54,18 +58,21 @@ from ..recording import Recording
 from ..vessel import Vessel
 from .calibrate import calibrated
 
-WINDOW_S = 4.0  # a spin's window: long enough to swing the heading, short enough for a quadratic track
-WINDOW_STEP_S = 2.0
-MIN_TURN_DEG = 45.0
+WINDOW_S = 3.0  # a spin's window: long enough to swing the heading, short enough for a quadratic track
+WINDOW_STEP_S = 1.5
+MIN_TURN_DEG = 30.0
+SPIN_SPEED_M_S = 0.5  # turning on the spot: faster over ground, a window's track is metres long and its
+# curvature, not the antenna, decides what a quadratic leaves
 GROUP_S = 8.0  # windows are left out together within this span (jackknife): overlapping neighbours share fixes
 MIN_GROUPS = 4
 MIN_WINDOWS_EACH_HAND = 3
 MIN_ARM_M = 0.10  # an antenna closer than this to where the twin has it moves a 0.5-rad/s spin's fix by 5 cm/s
+TRACK_TOLERANCE_M = MIN_ARM_M / 2
 TIMING_FLOOR_SAMPLES = 1.5
-PRE_S, POST_S = 1.5, 3.0  # an event's window around the input step
+PRE_S, POST_S = 1.5, 1.5  # an event's window around the input step: short after it, where the onset decides
 SHIFT_MAX_S, SHIFT_STEP_S = 1.2, 0.02
 FINE_S = 0.01
-TIME_CONSTANTS_S = (0.4, 0.8, 1.6, 3.2, math.inf)
+TIME_CONSTANTS_S = tuple(round(0.05 * 2 ** (k / 2), 3) for k in range(13)) + (math.inf,)  # 0.05-3.2 s, steps of √2
 STEP_SHARE = 0.15  # an input step: a change of this share of the input's largest force in one sample
 MIN_EVENT_GAIN = 0.8
 MIN_EVENTS = 5
@@ -142,6 +149,13 @@ def _spin_windows(rec: Recording, vessel: Vessel) -> list[tuple]:
         if abs(turned) < math.radians(MIN_TURN_DEG) or np.ptp(psi[m]) < math.radians(MIN_TURN_DEG):
             continue
         tt = t[m] - a
+        # a hull under way turns on a circle of radius U/r, which a quadratic in time follows to about
+        # (U/r)·Δψ³/120 (the cubic's part a quadratic leaves over the window): the window is kept
+        # where that is well under the smallest antenna told
+        speed = float(np.sum(np.hypot(np.diff(n[m]), np.diff(e[m])))) / WINDOW_S
+        swing = abs(turned)
+        if speed > SPIN_SPEED_M_S or speed / (swing / WINDOW_S) * swing ** 3 / 120.0 > TRACK_TOLERANCE_M:
+            continue
         poly = np.column_stack([np.ones_like(tt), tt, tt * tt])
         proj = np.eye(len(tt)) - poly @ np.linalg.pinv(poly)
         c, sn = np.cos(psi[m]), np.sin(psi[m])
@@ -221,10 +235,11 @@ class Answer:
     sigma_s: float | None
     events: int
     steps: int
+    time_constant_s: float | None = None  # the events' median best time constant of the response
 
     def to_dict(self) -> dict:
         return {"dof": self.dof, "shift_s": self.shift_s, "sigma_s": self.sigma_s, "events": self.events,
-                "steps": self.steps}
+                "steps": self.steps, "time_constant_s": self.time_constant_s}
 
 
 def _input_force(rec: Recording, vessel: Vessel) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -275,67 +290,81 @@ def _steps(t: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def _lowpass(x: np.ndarray, tau_s: float) -> np.ndarray:
+    """A first-order lag of time constant tau_s along the last axis, from rest at the first value."""
     if not math.isfinite(tau_s):
         return x
     a = 1.0 - math.exp(-FINE_S / tau_s)
-    return lfilter([a], [1.0, a - 1.0], x, zi=[(1 - a) * x[0]])[0]
+    zi = (1 - a) * x[..., :1]
+    return lfilter([a], [1.0, a - 1.0], x, axis=-1, zi=zi)[0]
 
 
 def _event_costs(t_obs: np.ndarray, obs: np.ndarray, t_in: np.ndarray, drive: np.ndarray, event: float,
                  shifts: np.ndarray, direction: np.ndarray | None) -> tuple[np.ndarray, float] | None:
-    """Residual sums of squares of one event's template for every shift, and of the state before the
-    step alone (a constant acceleration). obs: (n,) heading, or (n, 2) north and east with `direction`
-    the heading on the fine grid (the thrust pushes along it)."""
+    """Residual sums of squares of one event's template for every time constant and shift (rows,
+    columns), and of the state before the step alone (a constant acceleration). obs: (n,) heading,
+    or (n, 2) north and east with `direction` the heading on the fine grid (the thrust pushes along
+    it)."""
     m = (t_obs >= event - PRE_S) & (t_obs <= event + POST_S)
     if m.sum() < 8 or event - PRE_S - SHIFT_MAX_S < t_in[0] or event + POST_S + SHIFT_MAX_S > t_in[-1]:
         return None
     grid = np.arange(event - PRE_S, event + POST_S + FINE_S / 2, FINE_S)
     tg = grid - grid[0]
     t = t_obs[m] - grid[0]
-    two = direction is not None
-    if two:
+    # linear interpolation from the fine grid to the observation times
+    k = np.clip(np.searchsorted(tg, t, side="right") - 1, 0, len(tg) - 2)
+    w = (t - tg[k]) / FINE_S
+
+    def at(x):  # rows of x on the fine grid, at the observation times
+        return x[:, k] * (1.0 - w) + x[:, k + 1] * w
+    if direction is not None:
         c, sn = np.cos(direction), np.sin(direction)
         y = np.r_[obs[m, 0], obs[m, 1]]
         ones, zeros = np.ones_like(t), np.zeros_like(t)
         nuisance = [np.r_[ones, zeros], np.r_[zeros, ones], np.r_[t, zeros], np.r_[zeros, t]]
 
-        def along(x):  # the track of a speed x along the heading
-            return np.r_[np.interp(t, tg, np.cumsum(x * c) * FINE_S), np.interp(t, tg, np.cumsum(x * sn) * FINE_S)]
+        def along(x):  # the track of speeds x (rows) along the heading
+            x = np.atleast_2d(x)
+            return np.hstack([at(np.cumsum(x * c, axis=1) * FINE_S), at(np.cumsum(x * sn, axis=1) * FINE_S)])
     else:
         y = obs[m]
         nuisance = [np.ones_like(t)]
 
-        def along(x):  # the heading of a yaw rate x
-            return np.interp(t, tg, np.cumsum(x) * FINE_S)
+        def along(x):  # the heading of yaw rates x (rows)
+            return at(np.cumsum(np.atleast_2d(x), axis=1) * FINE_S)
 
-    def rss(cols) -> float:
-        x = np.column_stack(cols)
-        r = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
-        return float(r @ r)
+    def projector(cols):
+        b = np.column_stack(cols)
+        return np.eye(len(y)) - b @ np.linalg.pinv(b)
 
-    steady, ramp = along(np.ones_like(tg)), along(tg)
-    quad = rss(nuisance + [steady, ramp])
-    costs = np.full(len(shifts), np.inf)
-    for tau in TIME_CONSTANTS_S:
-        state = [steady, along(np.exp(-tg / tau)) if math.isfinite(tau) else ramp]
-        for k, s in enumerate(shifts):
-            f = np.interp(grid + s, t_in, drive)
-            f = f - f[0]
-            response = _lowpass(f, tau) if math.isfinite(tau) else np.cumsum(f) * FINE_S
-            costs[k] = min(costs[k], rss(nuisance + state + [along(response)]))
+    steady, ramp = along(np.ones_like(tg))[0], along(tg)[0]
+    q = projector(nuisance + [steady, ramp])
+    quad = float(y @ q @ y)
+    drives = np.interp(grid[None, :] + shifts[:, None], t_in, drive)
+    drives -= drives[:, :1]
+    costs = np.full((len(TIME_CONSTANTS_S), len(shifts)), np.inf)
+    for j, tau in enumerate(TIME_CONSTANTS_S):
+        q = projector(nuisance + [steady, along(np.exp(-tg / tau))[0] if math.isfinite(tau) else ramp])
+        qy = q @ y
+        response = _lowpass(drives, tau) if math.isfinite(tau) else np.cumsum(drives, axis=1) * FINE_S
+        a = along(response) @ q
+        norm = np.einsum("ij,ij->i", a, a)
+        costs[j] = float(qy @ qy) - np.where(norm > 0, (a @ qy) ** 2 / np.where(norm > 0, norm, 1.0), 0.0)
     return costs, quad
 
 
 def _answer(dof: str, per_event: list[tuple[np.ndarray, float]], shifts: np.ndarray, steps: int) -> Answer:
-    best = [float(shifts[int(np.argmin(c))]) for c, quad in per_event
-            if quad > 0 and 1.0 - float(np.min(c)) / quad >= MIN_EVENT_GAIN]
-    if len(best) < MIN_EVENTS:
-        return Answer(dof, None, None, len(best), steps)
+    """The median of the events' best shifts, each at its own best time constant: a controller that
+    limits the turn rate or the speed makes the response's time differ from event to event."""
+    clear = [(c, quad) for c, quad in per_event if quad > 0 and 1.0 - float(np.min(c)) / quad >= MIN_EVENT_GAIN]
+    if len(clear) < MIN_EVENTS:
+        return Answer(dof, None, None, len(clear), steps)
+    best = [float(shifts[int(np.argmin(np.min(c, axis=0)))]) for c, _ in clear]
+    shared = int(np.median([np.argmin(np.min(c, axis=1)) for c, _ in clear]))
     b = np.array(best)
     med = float(np.median(b))
     mad = float(np.median(np.abs(b - med)))
     sigma = max(1.2533 * 1.4826 * mad / math.sqrt(len(b)), SHIFT_STEP_S / 2)
-    return Answer(dof, med, sigma, len(b), steps)
+    return Answer(dof, med, sigma, len(b), steps, TIME_CONSTANTS_S[shared])
 
 
 def _answers(recordings: list[Recording], vessel: Vessel) -> tuple[Answer, Answer, bool, float]:
@@ -415,6 +444,9 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     def sure(x, sig):
         return x is not None and abs(x) >= floor and abs(x) >= 3 * sig
 
+    def later(x, sig):  # a heading filter delays, it never leads: an early heading is not named
+        return sure(x, sig) and x > 0
+
     def nil(x, sig):
         return x is not None and abs(x) + 3 * sig < floor
 
@@ -447,9 +479,9 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
                 late(diff, sig_d, False, nil(diff, sig_d), text))
     if on_time_surge:
         return (clock(surge.shift_s, surge.sigma_s, False, nil(surge.shift_s, surge.sigma_s), text),
-                late(diff, sig_d, sure(diff, sig_d), False, text))
+                late(diff, sig_d, later(diff, sig_d), False, text))
     return (clock(surge.shift_s, surge.sigma_s, sure(surge.shift_s, surge.sigma_s), False, text),
-            late(diff, sig_d, sure(diff, sig_d), False, text))
+            late(diff, sig_d, later(diff, sig_d), False, text))
 
 
 def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> KinematicFinding:
@@ -467,7 +499,7 @@ def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> 
     lag = float(np.sum(w * [g.lag_s for g in got]) / w.sum())
     sig = float(1 / math.sqrt(w.sum()))
     change = lag - s.heading_latency_s
-    told = abs(change) >= floor and abs(change) >= 3 * sig
+    told = abs(change) >= floor and abs(change) >= 3 * sig and lag > 0
     absent = abs(change) + 3 * sig < floor
     return KinematicFinding("heading_latency", {"heading_latency_s": lag}, {"heading_latency_s": change},
                             {"heading_latency_s": sig}, told, absent,
