@@ -139,6 +139,12 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
     settled = {f.effect for f in findings if f.told or f.absent}
+    if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
+        # each log's compass offset was measured from its own straight running (applied where it is
+        # clear): a constant heading bias has a kinematic signature, and where the kinematics show none
+        # the dynamics' would be a stand-in for another term (a decay, a wind of another shape)
+        settled |= {"heading_bias", "heading_bias_per_log"}
+    unsearched = sorted(k for k in lib if k in settled)
     lib = {k: v for k, v in lib.items() if k not in settled}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
     core, core_names, search_prior = _core(prior, refit)
@@ -167,6 +173,9 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
     diagnosis.notes += [f.text() for f in findings if not f.told]
+    if unsearched:
+        diagnosis.notes.append(f"not searched, as the kinematics settle them (step 0, each log's compass offset): "
+                               f"{', '.join(unsearched)}")
     diagnosis.notes += _gyro_timing(recordings)
     if core:
         diagnosis.amended = replace(diagnosis.amended, uncertainty={})  # the prior's covariance is not the refit's
