@@ -155,16 +155,18 @@ class Hull:
 
 
 def inputs(rng: np.random.Generator, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Sticks held for 2-7 s: straight runs at several throttles, turns, spins both ways, now and then
-    astern; PWM every 0.1 s, short ramps between holds."""
+    """Sticks held for 2-7 s: straight runs at several throttles (slow ones near the thrusters' dead
+    zones among them), turns, spins both ways, now and then astern; PWM every 0.1 s, short ramps
+    between holds."""
     t, mean, diff = [], [], []
     now, m, d = 0.0, 0.0, 0.0
     while now < duration_s:
-        kind = rng.choice(["straight", "turn", "spin", "astern", "idle"], p=[0.4, 0.25, 0.2, 0.08, 0.07])
-        target = {"straight": (rng.uniform(0.25, 0.9), 0.0), "turn": (rng.uniform(0.3, 0.8), rng.uniform(-0.4, 0.4)),
+        kind = rng.choice(["straight", "slow", "turn", "spin", "astern", "idle"], p=[0.3, 0.2, 0.2, 0.15, 0.08, 0.07])
+        target = {"straight": (rng.uniform(0.25, 0.9), 0.0), "slow": (rng.uniform(0.1, 0.3), rng.uniform(-0.2, 0.2)),
+                  "turn": (rng.uniform(0.3, 0.8), rng.uniform(-0.4, 0.4)),
                   "spin": (0.0, rng.choice([-1, 1]) * rng.uniform(0.5, 0.9)), "astern": (rng.uniform(-0.4, -0.15), 0.0),
                   "idle": (0.0, 0.0)}[kind]
-        hold = rng.uniform(2.0, 7.0) if kind != "straight" else rng.uniform(5.0, 10.0)
+        hold = rng.uniform(2.0, 7.0) if kind not in ("straight", "slow") else rng.uniform(5.0, 10.0)
         ramp = rng.uniform(0.1, 0.6)
         for s in np.arange(0.0, hold + ramp, 0.1):
             a = min(1.0, s / ramp)

@@ -80,7 +80,7 @@ def test_an_antenna_the_twin_already_carries_is_read_against_it(blueboat):
     assert not got.told and abs(got.change["dx_m"]) < 0.05
 
 
-def _answers(vessel, clock_s=0.0, heading_late_s=0.0, seed=0) -> Recording:
+def _answers(vessel, clock_s=0.0, heading_late_s=0.0, seed=0, gnss_late_s=0.0) -> Recording:
     """A hull answering its thrusters as a first-order surge (τ 1 s) and yaw (τ 0.3 s) model through the
     twin's thrust map, driven by PWM held between random steps; PWM logged clock_s late, heading
     heading_late_s late, GNSS on time."""
@@ -109,7 +109,8 @@ def _answers(vessel, clock_s=0.0, heading_late_s=0.0, seed=0) -> Recording:
                                                      + np.radians(0.3) * rng.standard_normal(len(log_t)), 2 * np.pi)})
     pwm_idx = np.searchsorted(t, log_t - clock_s, side="right") - 1
     pwm = Stream(log_t.copy(), {"left_us": left[pwm_idx], "right_us": right[pwm_idx]})
-    rec = Recording("steps.csv", "csv", gnss=_gnss(log_t, at(north, log_t), at(east, log_t), rng), heading=heading,
+    rec = Recording("steps.csv", "csv", gnss=_gnss(log_t, at(north, log_t - gnss_late_s), at(east, log_t - gnss_late_s),
+                                                   rng), heading=heading,
                     pwm=pwm)
     rec.pwm_neutral_us = (NEUTRAL, NEUTRAL)
     return rec
@@ -117,27 +118,33 @@ def _answers(vessel, clock_s=0.0, heading_late_s=0.0, seed=0) -> Recording:
 
 @pytest.mark.parametrize("late", [0.3, 0.5, -0.3])
 def test_an_input_log_late_moves_both_answers_and_is_named_a_clock_offset(blueboat, late):
-    clock, heading = input_timing([_answers(blueboat, clock_s=late, seed=4)], blueboat)
+    clock, heading, fixes = input_timing([_answers(blueboat, clock_s=late, seed=4)], blueboat)
     assert clock.told and clock.values["pwm_clock_offset_s"] == pytest.approx(late, abs=0.06)
-    assert not heading.told
+    assert not heading.told and not fixes.told
 
 
 @pytest.mark.parametrize("late", [0.3, 0.5])
 def test_a_late_heading_moves_the_yaw_answer_alone_and_is_named(blueboat, late):
-    clock, heading = input_timing([_answers(blueboat, heading_late_s=late, seed=5)], blueboat)
+    clock, heading, fixes = input_timing([_answers(blueboat, heading_late_s=late, seed=5)], blueboat)
     assert heading.told and heading.values["heading_latency_s"] == pytest.approx(late, abs=0.08)
-    assert not clock.told
+    assert not clock.told and not fixes.told
+
+
+def test_late_gnss_fixes_move_the_surge_answer_alone_and_are_named(blueboat):
+    clock, heading, fixes = input_timing([_answers(blueboat, gnss_late_s=0.4, seed=10)], blueboat)
+    assert fixes.told and fixes.values["gnss_latency_s"] == pytest.approx(0.4, abs=0.08)
+    assert not clock.told and not heading.told
 
 
 def test_on_time_streams_name_nothing_and_rule_the_timing_effects_out(blueboat):
-    clock, heading = input_timing([_answers(blueboat, seed=6)], blueboat)
-    assert not clock.told and not heading.told
-    assert clock.absent and abs(clock.change["pwm_clock_offset_s"]) < 0.06
+    clock, heading, fixes = input_timing([_answers(blueboat, seed=6)], blueboat)
+    assert not clock.told and not heading.told and not fixes.told
+    assert clock.absent and heading.absent and fixes.absent and abs(clock.change["pwm_clock_offset_s"]) < 0.06
 
 
 def test_an_early_heading_is_not_named(blueboat):
     """A heading filter delays: a heading that seems early is a clock's matter, not a latency."""
-    _, heading = input_timing([_answers(blueboat, heading_late_s=-0.4, seed=7)], blueboat)
+    _, heading, _ = input_timing([_answers(blueboat, heading_late_s=-0.4, seed=7)], blueboat)
     assert not heading.told and heading.change["heading_latency_s"] < -0.25
 
 
@@ -147,7 +154,7 @@ def test_findings_are_put_into_the_twin_as_the_library_applies_them(blueboat):
     amended = with_findings(blueboat, found)
     assert amended.sensors.pwm_clock_offset_s == pytest.approx(0.4, abs=0.06)
     # read against the amended twin, the clock has nothing left to tell
-    again, _ = input_timing([rec], amended)
+    again = input_timing([rec], amended)[0]
     assert not again.told and abs(again.change["pwm_clock_offset_s"]) < 0.06
 
 

@@ -1,5 +1,5 @@
 """What a recording's own kinematics and timing tell of its sensors and clocks, without a dynamic
-model: where the GNSS antenna sits, whether the input log or the heading is late. A twin's form
+model: where the GNSS antenna sits, whether the input log, the heading or the GNSS fixes are late. A twin's form
 error cannot reach these estimates, so a diagnosis can name such effects, and put them in before it
 fits anything, where its dynamic search would find them buried under that error.
 
@@ -32,10 +32,11 @@ where the input follows the motion rather than leading it. The surge answers thr
 (forward thrust, projected on the heading), the yaw through the heading, or the gyro where the log
 has one. An input log late by d moves both answers by +d; a heading late by L moves the heading's
 answer by −L and not the surge's; the gyro, where there is one, tells the heading's lateness
-directly (prepare.timing) and its answer then carries the input's timing alone. Relative timing is
+directly (prepare.timing) and its answer then carries the input's timing alone. GNSS fixes stamped
+late move the surge's answer alone. Relative timing is
 all a log can tell: a heading late by L is the GNSS and the input early by as much, so the reading
-is the one that explains the answers with one late stream. A heading is named late, never early: a
-heading filter delays, it cannot lead.
+is the one that explains the answers with one late stream. A heading or a fix is named late, never
+early: a filter or a receiver delays, it cannot lead.
 
 A shift is named only when it exceeds TIMING_FLOOR_SAMPLES sample periods of the streams compared
 and three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
@@ -419,9 +420,9 @@ def _period(t) -> float:
     return float(np.median(np.diff(t))) if len(t) > 2 else 0.0
 
 
-def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[KinematicFinding, KinematicFinding]:
-    """(clock_offset, heading_latency) as the timing of the hull's answers to the input steps tells
-    them (module docstring), relative to the twin's own timing."""
+def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[KinematicFinding, ...]:
+    """(clock_offset, heading_latency, gnss_latency) as the timing of the hull's answers to the input
+    steps tells them (module docstring), relative to the twin's own timing."""
     surge, yaw, gyro, periods = _answers(recordings, vessel)
     # a stamp is good to a sample period of its own stream: the input log's for the clock, the
     # heading's for its lateness
@@ -431,57 +432,64 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
              f"{yaw.events} of {yaw.steps}")
     detail = {"surge": surge.to_dict(), "yaw": yaw.to_dict(), "gyro": gyro, "floor_s": floor}
 
-    def clock(change, sigma, told, absent, why):
-        return KinematicFinding("clock_offset", {"pwm_clock_offset_s": s.pwm_clock_offset_s + change},
-                                {"pwm_clock_offset_s": change}, {"pwm_clock_offset_s": sigma}, told, absent, why,
-                                basis, detail)
+    def finding(effect, key, now, change, sigma, told, absent, why):
+        return KinematicFinding(effect, {key: now + change}, {key: change}, {key: sigma}, told, absent, why, basis,
+                                detail)
 
-    def late(change, sigma, told, absent, why, basis_=basis, detail_=detail):
-        return KinematicFinding("heading_latency", {"heading_latency_s": s.heading_latency_s + change},
-                                {"heading_latency_s": change}, {"heading_latency_s": sigma}, told, absent, why,
-                                basis_, detail_)
+    def clock(change, sigma, told, absent, why):
+        return finding("clock_offset", "pwm_clock_offset_s", s.pwm_clock_offset_s, change, sigma, told, absent, why)
+
+    def late(change, sigma, told, absent, why):
+        return finding("heading_latency", "heading_latency_s", s.heading_latency_s, change, sigma, told, absent, why)
+
+    def fix_late(change, sigma, told, absent, why):
+        return finding("gnss_latency", "gnss_latency_s", s.gnss_latency_s, change, sigma, told, absent, why)
 
     def sure(x, sig):
         return x is not None and abs(x) >= floor and abs(x) >= 3 * sig
 
-    def later(x, sig):  # a heading filter delays, it never leads: an early heading is not named
+    def later(x, sig):  # a filter or a receiver delays, it never leads: an early stream is not named
         return sure(x, sig) and x > 0
 
     def nil(x, sig):
         return x is not None and abs(x) + 3 * sig < floor
 
-    if gyro:
-        heading = _gyro_heading(recordings, vessel, floor)
-        answers = [a for a in (surge, yaw) if a.shift_s is not None]
-        if not answers:
-            return clock(0.0, None, False, False, "too few input steps answered clearly"), heading
-        w = np.array([1 / a.sigma_s ** 2 for a in answers])
-        x = float(np.sum(w * [a.shift_s for a in answers]) / w.sum())
-        sig = float(1 / math.sqrt(w.sum()))
-        told = sure(x, sig) and all(abs(a.shift_s - x) < max(floor, 3 * a.sigma_s) for a in answers)
-        return clock(x, sig, told, nil(x, sig), f"the answers move by {x:+.2f} ± {sig:.2f} s "
-                     f"(floor {floor:.2f} s)"), heading
+    heading = _gyro_heading(recordings, vessel, floor) if gyro else None
     if surge.shift_s is None or yaw.shift_s is None:
         why = "too few input steps answered clearly in " + " and ".join(
-            a.dof for a in (surge, yaw) if a.shift_s is None) + ": a late heading and a late input log cannot be told apart"
-        return clock(0.0, None, False, False, why), late(0.0, None, False, False, why)
+            a.dof for a in (surge, yaw) if a.shift_s is None) + ": which stream is late cannot be told"
+        answer = next((a for a in (surge, yaw) if a.shift_s is not None), None)
+        if gyro and answer is yaw:  # the gyro's answer is the input's timing alone
+            return (clock(yaw.shift_s, yaw.sigma_s, sure(yaw.shift_s, yaw.sigma_s), nil(yaw.shift_s, yaw.sigma_s),
+                          f"the yaw (gyro) answers {yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s (floor {floor:.2f} s)"),
+                    heading, fix_late(0.0, None, False, False, why))
+        return (clock(0.0, None, False, False, why), heading or late(0.0, None, False, False, why),
+                fix_late(0.0, None, False, False, why))
+    # the surge answers through the GNSS, the yaw through the heading (or the gyro): an input log late
+    # moves both, a late heading the yaw's alone (not with a gyro), a late receiver the surge's alone
     diff = surge.shift_s - yaw.shift_s
     sig_d = math.hypot(surge.sigma_s, yaw.sigma_s)
-    on_time_surge = abs(surge.shift_s) < max(floor, 3 * surge.sigma_s)
     agree = abs(diff) < max(floor, 3 * sig_d)
     w = np.array([1 / surge.sigma_s ** 2, 1 / yaw.sigma_s ** 2])
     both = float((w[0] * surge.shift_s + w[1] * yaw.shift_s) / w.sum())
     sig_b = float(1 / math.sqrt(w.sum()))
-    text = (f"surge answers {surge.shift_s:+.2f} ± {surge.sigma_s:.2f} s, yaw {yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s "
-            f"(floor {floor:.2f} s)")
+    text = (f"surge answers {surge.shift_s:+.2f} ± {surge.sigma_s:.2f} s, yaw ({'gyro' if gyro else 'heading'}) "
+            f"{yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s (floor {floor:.2f} s)")
     if agree:
         return (clock(both, sig_b, sure(both, sig_b), nil(both, sig_b), text),
-                late(diff, sig_d, False, nil(diff, sig_d), text))
-    if on_time_surge:
+                heading or late(diff, sig_d, False, nil(diff, sig_d), text),
+                fix_late(-diff, sig_d, False, nil(diff, sig_d), text))
+    on_time_surge = abs(surge.shift_s) < max(floor, 3 * surge.sigma_s)
+    on_time_yaw = abs(yaw.shift_s) < max(floor, 3 * yaw.sigma_s)
+    if diff > 0 and on_time_surge and not gyro:  # the yaw answers late: the heading is
         return (clock(surge.shift_s, surge.sigma_s, False, nil(surge.shift_s, surge.sigma_s), text),
-                late(diff, sig_d, later(diff, sig_d), False, text))
+                late(diff, sig_d, later(diff, sig_d), False, text), fix_late(0.0, None, False, False, text))
+    if diff < 0 and on_time_yaw:  # the surge answers late: the GNSS fixes are
+        return (clock(yaw.shift_s, yaw.sigma_s, False, nil(yaw.shift_s, yaw.sigma_s), text),
+                heading or late(0.0, None, False, False, text), fix_late(-diff, sig_d, later(-diff, sig_d), False, text))
     return (clock(surge.shift_s, surge.sigma_s, sure(surge.shift_s, surge.sigma_s), False, text),
-            late(diff, sig_d, later(diff, sig_d), False, text))
+            heading or late(diff, sig_d, later(diff, sig_d) and not gyro, False, text),
+            fix_late(0.0, None, False, False, text))
 
 
 def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> KinematicFinding:
@@ -509,8 +517,8 @@ def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> 
 
 def kinematic_findings(recordings: list[Recording], vessel: Vessel) -> list[KinematicFinding]:
     """Every sensor and timing effect the recordings' kinematics can tell, against the twin `vessel`:
-    the antenna, the input log's clock, the heading's lateness (each finding's values are the
-    vessel's own plus what it lacks)."""
+    the antenna, the input log's clock, the heading's and the GNSS fixes' lateness (each finding's
+    values are the vessel's own plus what it lacks)."""
     timing = list(input_timing(recordings, vessel))
     # the antenna is read with the heading and the clocks as the timing tells them: a late heading
     # turns every spin's fixes by the turn of its lateness
