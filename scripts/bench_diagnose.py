@@ -3,7 +3,7 @@
 A 30-minute synthetic recording (realistic sensors) of the Yellowfish with a current
 and a thrust lag concealed in it is written as .mcap, then diagnosed from the file.
 
-    python scripts/bench_diagnose.py [--json docs/bench_diagnose.json] [--pair CHECKOUT]
+    python scripts/bench_diagnose.py [--json out/NAME.json] [--pair CHECKOUT]
 
 With --pair, the same benchmark of another checkout of the project (e.g. main's HEAD in a temporary
 worktree) runs back to back with this one, each in its own process, alternating (`--repeats` pairs),

@@ -1,7 +1,7 @@
 """Speed of `twin identify` on the ten shared BlueBoat runs, its choices judged on left-out runs
 included (target: under 60 s on 2 cores).
 
-    python scripts/bench_identify.py [--json docs/bench_identify.json] [--repeats 1]
+    python scripts/bench_identify.py [--json out/NAME.json] [--repeats 1]
 
 Times what `twin identify RUNS... --vessel blueboat` does after reading the files (calibration,
 windows, the leave-one-run-out choices, the final fit), and reports the machine's load average

@@ -5,8 +5,8 @@ files' own columns (surge, sway, yaw_rate).
 
     python scripts/bench_recordings.py [--shared ../shared] [--json out.json]
 
-The figures in docs/: python scripts/bench_recordings.py --json docs/bench_recordings.json
-> docs/bench_recordings.txt
+The figures in docs/: python scripts/bench_recordings.py --json out/NAME.json
+
 
 Needs ../shared (not part of the project; never copied into it).
 """

@@ -9,7 +9,7 @@ per task (no-op tasks), the bytes a batch sends back and what every batch shares
 start of a Ray run (workers importing twin and compiling the native callback), and a check that
 (ii) and (iii) give the same band bit for bit.
 
-    python scripts/bench_scale.py [--model id.json] [--draws 10000] [--mission-s 10] [--json docs/bench_scale.json]
+    python scripts/bench_scale.py [--model id.json] [--draws 10000] [--mission-s 10] [--json out/NAME.json]
 
 Without --model, the vessel is the yellowfish with a hand-written uncertainty block: the speed
 does not depend on the numbers in it.

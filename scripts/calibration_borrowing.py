@@ -4,7 +4,7 @@ as one more reading (twin.fit.calibrate.rest_drift), on the multi-log world reco
 scripts/world_sim.py (code independent of the package: null outings, compass offsets per log,
 each outing's own wind, a shared current with offsets per log).
 
-    python scripts/calibration_borrowing.py --seeds 39-78 --work DIR [--json docs/...json] [--md docs/...md]
+    python scripts/calibration_borrowing.py --seeds 39-78 --work DIR [--json out/NAME.json] 
 
 Recordings are written to DIR (kept: a second run reads them); each log is calibrated both ways
 and compared with the world's truth (its compass offset; 0 where it has none).

@@ -1,7 +1,7 @@
 """Does a compass error follow the throttle? The kinematic test (twin.fit.calibrate.throttle_dependence)
 on the independent simulator's recordings, where the answer is known, and then on the real BlueBoat runs.
 
-    python scripts/compass_throttle.py [--seeds 1,2,3,4,5,6] [--json docs/compass_throttle.json]
+    python scripts/compass_throttle.py [--seeds 1,2,3,4,5,6] [--json out/NAME.json]
 
 World recordings (scripts/world_sim.py, code that never calls the library): `compass_motor_field` (the
 magnetometer's field disturbed by c·P, the motors' electrical power: the library's form follows the
@@ -91,7 +91,7 @@ def markdown(doc: dict) -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1,2,3,4,5,6")
-    ap.add_argument("--json", type=Path, default=ROOT / "docs" / "compass_throttle.json")
+    ap.add_argument("--json", type=Path, default=ROOT / "out" / "compass_throttle.json")
     a = ap.parse_args()
     seeds = [int(s) for s in a.seeds.split(",") if s]
     doc = {"world": [], "blueboat": None}

@@ -5,7 +5,7 @@ untuned one. Then the same with the twin's own coefficients of identify's core g
 refitted beside every candidate (`twin diagnose --refit`): each candidate judged against the twin
 as these runs would identify it, not against the untuned one.
 
-    python scripts/diagnose_blueboat.py [--out docs/diagnose]
+    python scripts/diagnose_blueboat.py [--out out/...]
 
 Writes blueboat.md, blueboat.json and blueboat.html under --out. The recordings
 (../shared/data/blueboat) have no licence: they are read in place, never copied; without them
@@ -49,7 +49,7 @@ def held_out(vessel, recordings) -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnose")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "diagnose")
     args = ap.parse_args()
     if any(not p.is_file() for p in paths(TRAIN_RUNS + HELD_OUT_RUNS)):
         print(f"the BlueBoat recordings are not in {DATA}: nothing to do")

@@ -346,7 +346,7 @@ def markdown(rows: list[dict], s: dict, hulls: str | None = None) -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated test file names")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--out", type=Path, default=ROOT / "out")
     ap.add_argument("--render", type=Path, help="only write the report again from this script's JSON")
     ap.add_argument("--measured-evidence", action="store_true",
                     help="only each test's measured wind judged by the diagnosis's rule (rows and days kept from "

@@ -3,7 +3,7 @@ diagnosis never sees (each effect alone at a realistic and a small magnitude, pa
 closed-loop runs where an autopilot hides the effect, and null cases), with the twin's
 realistic sensors (GNSS 5 Hz at the antenna with noise, heading 50 Hz, PWM 10 Hz).
 
-    python scripts/diagnose_proof.py [--only NAME,...] [--segments 8] [--world-seeds 1,2] [--out docs/diagnose]
+    python scripts/diagnose_proof.py [--only NAME,...] [--segments 8] [--world-seeds 1,2] [--out out/...]
                                      [--refit GROUPS --refit-weight 1] [--add-given]
 
 Two kinds of truth. The library's cases are made by `twin dataset` from the library's own effect
@@ -487,7 +487,7 @@ def main() -> None:
     ap.add_argument("--no-library", action="store_true", help="only the world_sim cases")
     ap.add_argument("--append", action="store_true",
                     help="keep the cases already in OUT/proof.json and add these (same case and seed: replaced)")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnose")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "diagnose")
     ap.add_argument("--refit", default="", help="identification groups refitted beside every candidate (comma separated)")
     ap.add_argument("--refit-weight", type=float, default=1.0)
     ap.add_argument("--add-given", action="store_true",

@@ -102,7 +102,7 @@ def score(vessel, recordings) -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--out", type=Path, default=ROOT / "out")
     args = ap.parse_args()
     paths = sorted(DATA.glob("random_*.csv"))
     if not paths:

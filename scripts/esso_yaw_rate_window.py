@@ -112,7 +112,7 @@ def markdown(rows: list[dict], seconds: float) -> str:
 def esso_arguments(doc: str) -> argparse.Namespace | None:
     """--out of an Esso script; None (said) when the recordings are not beside the project."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--out", type=Path, default=ROOT / "out")
     args = ap.parse_args()
     if not DATA.is_dir():
         print(f"the Esso recordings are not here ({DATA}): nothing to do")

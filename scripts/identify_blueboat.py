@@ -1,7 +1,7 @@
 """The BlueBoat identified on seven runs, diagnosed, amended, identified
 again, and judged on three runs it never saw; and what to expect on a new run.
 
-    python scripts/identify_blueboat.py [--out docs/identification]
+    python scripts/identify_blueboat.py [--out out/...]
 
 1. `twin identify` on runs 216-224 (its own choices judged by leaving one of those runs out at a
    time), from the first-principles prior (model/blueboat.json).
@@ -124,7 +124,7 @@ def per_run_table(models: dict[str, dict]) -> list[str]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "identification")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "identification")
     args = ap.parse_args()
     missing = [p for p in paths(TRAIN_RUNS + HELD_OUT_RUNS) if not p.is_file()]
     if missing:

@@ -266,8 +266,8 @@ def reading(parts: list[dict]) -> list[str]:
             "standard's domain (docs/esso.md, Known limits). The fitted groups are the standard's own coefficients; "
             "the twin's extension of the standard to low speed and astern (U_nd floor, astern propeller, rudder "
             "inflow from astern) is not among them, so a shortfall there cannot be fitted away by these groups.",
-            "* Published figures on this dataset: Wakita et al. (2022) identify a recurrent neural network on "
-            "these free-running tests (low-speed berthing manoeuvres) and Miyauchi et al. (2022) explore MMG "
+            "* Published figures on this dataset: [Wakita-2022] identify a recurrent neural network on "
+            "these free-running tests (low-speed berthing manoeuvres) and [Miyauchi-2022] explore MMG "
             "parameters with CMA-ES for docking; a brief search found no per-DOF R² of 30-s free runs in either "
             "to set beside these numbers, so none is compared here.",
             ""]
@@ -310,7 +310,7 @@ def main() -> int:
     ap.add_argument("--beliefs", default=",".join(f"{b:g}" for b in BELIEFS),
                     help="the beliefs' weights identify chooses between (windows of data each)")
     ap.add_argument("--work", type=Path, default=Path("/tmp/esso_ident"))
-    ap.add_argument("--out", type=Path, default=ROOT / "docs")
+    ap.add_argument("--out", type=Path, default=ROOT / "out")
     ap.add_argument("--report-only", action="store_true", help="write the report from the parts in --work")
     ap.add_argument("--manoeuvres", action="store_true",
                     help="add each part's held-out misfit by manoeuvre to the parts already in --work (no part is "

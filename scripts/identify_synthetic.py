@@ -6,7 +6,7 @@ pipeline, then judged on a held-out dataset from another seed (seed 2): paramete
 against the truth, and 10-s free-run R² of u and r. Done noise-free and with the
 realistic sensor noise.
 
-    python scripts/identify_synthetic.py [--segments 20] [--out docs/identification]
+    python scripts/identify_synthetic.py [--segments 20] [--out out/...]
 """
 from __future__ import annotations
 
@@ -96,7 +96,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--segments", type=int, default=20)
     ap.add_argument("--noise", default="none,realistic")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "identification")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "identification")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     results = []

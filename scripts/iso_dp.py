@@ -4,7 +4,7 @@ model function. A propeller-and-rudder ship (--vessel esso_osaka) is identified 
 rudder as the relay at several propeller speeds and steered by the rudder; its files are
 docs/iso/esso_*.
 
-    python scripts/iso_dp.py [--vessel yellowfish | esso_osaka] [--out docs/iso]
+    python scripts/iso_dp.py [--vessel yellowfish | esso_osaka] [--out out/...]
 """
 from __future__ import annotations
 
@@ -224,7 +224,7 @@ def dof_message(cv, dof: str) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vessel", default="yellowfish")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "iso")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "iso")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     cv = compile_vessel(vessel_mod.load(args.vessel))

@@ -1,6 +1,6 @@
 """Does "record more" settle a hint? Checked on truths the library did not write.
 
-    python scripts/record_more_check.py [--out docs/diagnose] [--cases CASE:SEED:EFFECT,... --name NAME]
+    python scripts/record_more_check.py [--out out/...] [--cases CASE:SEED:EFFECT,... --name NAME]
 
 `twin diagnose` reports an effect that removes misfit on held-out blocks but acts in too few of them
 for z ≥ 3 as a hint, with how much more recording of the same kind would reach z 3 if the further
@@ -109,7 +109,7 @@ def markdown(rows: list[dict], seconds: float, command: str = "python scripts/re
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnose")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "diagnose")
     ap.add_argument("--work", type=Path, default=None, help="folder for the recordings (default: a temporary one)")
     ap.add_argument("--cases", default="", help="CASE:SEED:EFFECT,... instead of the proof's four hints")
     ap.add_argument("--name", default="record_more", help="stem of the .md and .json written in --out")

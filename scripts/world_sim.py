@@ -201,7 +201,7 @@ class Effects:
     faults: dict | None = None                # outlier_share, outlier_m, dropouts, spike_share, spike_deg
 
 
-# Blendermann-like wind coefficient tables at γ = 0, 20, ..., 180 deg (apparent wind from the bow = 0,
+# Blendermann-like [Blendermann-1994] wind coefficient tables at γ = 0, 20, ..., 180 deg (apparent wind from the bow = 0,
 # symmetric port/starboard); a shape unlike cos γ / sin γ / sin 2γ: a flat head-wind plateau, drag
 # peaking on the quarter, side force broad and skewed aft, a yaw moment changing sign abaft the beam.
 WIND_GAMMA_STEP_DEG = 20.0

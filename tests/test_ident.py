@@ -211,7 +211,8 @@ def test_the_api_evaluation_says_where_the_twin_misses_and_beyond_what_its_fit_s
     rows = ev.table()  # a list for code, aligned columns for a person at the prompt
     assert rows[0]["dof"] == "u" and len(rows) == 2 * 3 * len(ev.metrics)
     text = str(rows).splitlines()
-    assert text[0].split() == ["horizon", "dof", "r2", "mae", "n", "calibrated"] and len(text) == len(rows) + 1
+    assert rows.title == text[0] and "predicts" in text[0]  # a title, then the columns
+    assert text[1].split() == ["horizon", "dof", "r2", "mae", "n", "calibrated"] and len(text) == len(rows) + 2
     assert f"{pooled['u']['r2']:.4g}" in repr(rows) and "{" not in repr(rows)
 
 

@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "twin"
 
-# the README's layout section, floor by floor: a module may import from its own floor or below
+# the layout of docs/method/architecture.md, floor by floor: a module may import from its own floor or below
 FLOORS = {
     0: ("errors", "files", "geodesy", "references", "progress"),
     1: ("physics",),
@@ -61,7 +61,7 @@ def _floor(module: str) -> int:
     parts = module.split(".")
     key = parts[1] if len(parts) > 1 else "__init__"
     if key not in FLOOR_OF:
-        pytest.fail(f"{module}: its folder or file '{key}' is not on a floor of the README's layout")
+        pytest.fail(f"{module}: its folder or file '{key}' is not on a floor of the layout (docs/method/architecture.md)")
     return FLOOR_OF[key]
 
 

@@ -1,15 +1,20 @@
-"""The Python API: what the `twin` command does, as functions returning typed results with short
-reprs (and `to_dict()` / `table()` where a table is what one wants to look at).
+"""The Python API: what the `twin` command does, as functions returning typed results with short,
+rounded reprs, `to_dict()` for JSON and a titled `table()` where a table is what one looks at.
 
     import twin
     v = twin.load_vessel("blueboat")
-    recs = [twin.read_recording(p) for p in paths]         # Recording (twin info)
-    prep = twin.prepare(recs[0], v)                        # Prepared: as the vessel's sensors see it
-    ident = twin.identify(recs[:7], v)                     # Identification (twin identify)
-    score = twin.evaluate(ident.vessel, recs[7:])          # Evaluation (twin evaluate)
-    found = twin.diagnose(recs[:7], ident.vessel)          # Diagnosis (twin diagnose)
-    e = twin.judge(recs[:7], ident.vessel, "current=0.1,90")  # Evidence (twin diagnose --given)
+    recs = [twin.read_recording(p) for p in paths]            # Recording (twin info)
+    prep = twin.prepare_recording(recs[0], v)                 # Prepared: as the vessel's sensors see it
+    ident = twin.identify(recs[:7], v)                        # Identification (twin identify)
+    score = twin.evaluate(ident.vessel, recs[7:])             # Evaluation (twin evaluate)
+    found = twin.diagnose_recordings(recs[:7], ident.vessel)  # Diagnosis (twin diagnose)
+    j = twin.judge(recs[:7], ident.vessel, "current=0.1,90")  # Judgement (twin diagnose --given)
     run = twin.simulate(ident.vessel, "zigzag", duration_s=120)
+
+Every function checks its input as the command does and raises `twin.TwinError` with one
+sentence saying what is wrong (no recordings, a recording the vessel cannot be driven by, ...).
+No exported name is also the name of a subpackage (`twin.prepare`, `twin.diagnose` are
+packages), so importing any part of the package never replaces a function.
 """
 from __future__ import annotations
 
@@ -20,6 +25,7 @@ from .drive import InputSeries, get as get_scenario, read_inputs_csv
 from .engine.limits import Limited, beyond_bounds
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.parameters import effective_parameters
+from .diagnose.doctor import Diagnosis as _Found
 from .engine.sim import simulate as _simulate
 from .errors import TwinError
 from .run import Run
@@ -27,9 +33,10 @@ from .verify.crosscheck import crosscheck
 from .verify.validate import Validation, validate as _validate
 from .vessel import Vessel, load as load_vessel, save as save_vessel
 
-__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "Evaluation", "load_vessel", "save_vessel",
-           "simulate", "simulate_run", "crosscheck", "effective_parameters", "compile_vessel", "validate",
-           "read_recording", "prepare", "calibrate", "identify", "evaluate", "diagnose", "judge"]
+__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "Evaluation", "Score", "Effect", "Parameter",
+           "Judgement", "Diagnosis", "Table", "TwinError", "load_vessel", "save_vessel", "simulate", "simulate_run",
+           "crosscheck", "effective_parameters", "compile_vessel", "validate", "read_recording",
+           "prepare_recording", "calibrate", "identify", "evaluate", "diagnose_recordings", "judge"]
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
@@ -38,7 +45,19 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
         vessel = load_vessel(vessel)
     if isinstance(drive, str):
         drive = get_scenario(drive, kwargs.pop("seed", 0))
+    _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
     return _simulate(compile_vessel(vessel), drive, duration_s, **kwargs)
+
+
+def _check_run(duration_s: float, sample_dt_s: float) -> None:
+    """The checks `twin simulate` makes on a run's length and sample step."""
+    if not duration_s > 0:
+        raise TwinError(f"the duration must be a positive number of seconds, got {duration_s:g}")
+    if not sample_dt_s > 0:
+        raise TwinError(f"the sample step must be a positive number of seconds, got {sample_dt_s:g}")
+    if sample_dt_s > duration_s:
+        raise TwinError(f"the sample step ({sample_dt_s:g} s) is longer than the run ({duration_s:g} s): "
+                        "give a shorter step or a longer run")
 
 
 @dataclass
@@ -52,7 +71,7 @@ class Simulation:
 
     def __repr__(self) -> str:
         r = self.run
-        return (f"Simulation({self.compiled.vessel.name}, {r.t[-1] - r.t[0]:g} s, final position "
+        return (f"Simulation({self.compiled.vessel.name}, {r.t[-1] - r.t[0]:.4g} s, final position "
                 f"({r.eta[-1, 0]:.2f}, {r.eta[-1, 1]:.2f}) m, {len(self.limits)} input limits hit)")
 
     def write(self, path, origin: tuple[float, float] | None = None) -> None:
@@ -71,6 +90,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     (speed m/s, direction deg it flows towards) and wind (speed m/s, direction deg it blows from)."""
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
+    _check_run(duration_s, sample_dt_s)
     env = vessel.environment
     if current is not None:
         env = replace(env, current_speed_m_s=current[0], current_dir_deg=current[1])
@@ -98,15 +118,43 @@ def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
 
 
 def _vessel(vessel: Vessel | str) -> Vessel:
-    return load_vessel(vessel) if isinstance(vessel, str) else vessel
+    if isinstance(vessel, (str, Path)):
+        return load_vessel(str(vessel))
+    if not isinstance(vessel, Vessel):
+        raise TwinError(f"expected a vessel (a twin.Vessel, a shipped vessel's name or a vessel file), "
+                        f"got {type(vessel).__name__}")
+    return vessel
 
 
-def _recordings(recordings) -> list:
+def _recordings(recordings, vessel: Vessel | None = None) -> list:
+    """Recordings from paths or Recording objects, checked as the command checks them: at least one,
+    each one at most once, and each one able to drive `vessel`."""
     from .formats import read_recording as read
     from .recording import Recording
 
     items = [recordings] if isinstance(recordings, (str, Path, Recording)) else list(recordings)
-    return [r if isinstance(r, Recording) else read(r) for r in items]
+    if not items:
+        raise TwinError("no recordings given: give one or more recordings (paths or twin.read_recording(...))")
+    recs = [r if isinstance(r, Recording) else read(r) for r in items]
+    seen: dict[int, int] = {}
+    for i, r in enumerate(recs):
+        if id(r) in seen:
+            raise TwinError(f"recording {i} is recording {seen[id(r)]} again ('{r.source}'): give each recording once")
+        seen[id(r)] = i
+    if vessel is not None:
+        for r in recs:
+            _drivable(r, vessel)
+    return recs
+
+
+def _drivable(rec, vessel: Vessel) -> None:
+    """A recording whose inputs cannot drive the vessel (PWM for a propeller-and-rudder ship, a
+    ship's propeller and rudder for a PWM boat) is refused, as `twin identify` refuses it."""
+    kind = "pwm" if len(rec.pwm) else ("propeller_rudder" if len(rec.prop_rudder) else None)
+    wants = {"t200": "pwm", "propeller_rudder": "propeller_rudder"}.get(vessel.thrusters.kind)
+    if kind is not None and wants is not None and kind != wants:
+        raise TwinError(f"'{rec.source}' is a recording of another kind of vessel: it holds {kind} inputs, and "
+                        f"vessel '{vessel.name}' is driven by {wants.replace('_', ' and ')} inputs")
 
 
 def read_recording(path, channels: dict | None = None):
@@ -117,17 +165,17 @@ def read_recording(path, channels: dict | None = None):
     return read(path, channels=channels)
 
 
-def prepare(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
+def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
     """A recording made ready for fitting [Morel-2024 §5.1]: with a vessel, as its sensors see it (lever
     arm, heading corrections) and, when `calibrated`, with the log's own compass offset estimated
     from its GNSS track; without one, the antenna's positions as logged."""
     from .ident.identify import calibrate as calibrate_logs, prepared
     from .prepare import prepare as bare
 
-    rec = _recordings(recording)[0]
     if vessel is None:
-        return bare(rec)
+        return bare(_recordings(recording)[0])
     v = _vessel(vessel)
+    rec = _recordings(recording, v)[0]
     if calibrated:
         v, _ = calibrate_logs([rec], v)
     return prepared([rec], v)[0]
@@ -137,7 +185,8 @@ def calibrate(recordings, vessel: Vessel | str) -> list:
     """Each log's compass offset from its kinematics (twin.fit.calibrate.LogCalibration)."""
     from .ident.identify import calibrate as calibrate_logs
 
-    return calibrate_logs(_recordings(recordings), _vessel(vessel))[1]
+    v = _vessel(vessel)
+    return calibrate_logs(_recordings(recordings, v), v)[1]
 
 
 def identify(recordings, vessel: Vessel | str, **options):
@@ -145,23 +194,33 @@ def identify(recordings, vessel: Vessel | str, **options):
     twin.ident.identify.identify)."""
     from .ident.identify import identify as run
 
-    return run(_recordings(recordings), _vessel(vessel), **options)
+    v = _vessel(vessel)
+    return run(_recordings(recordings, v), v, **options)
 
 
 class Table(list):
-    """Rows (dicts with the same keys) that print as aligned columns; still a list for code."""
+    """Rows (dicts with the same keys) under a title, printed as aligned columns with numbers to 4
+    significant figures; still a list of dicts for code (`to_dict()` for JSON)."""
+
+    def __init__(self, rows=(), title: str = ""):
+        super().__init__(rows)
+        self.title = title
 
     def __str__(self) -> str:
+        head = [self.title] if self.title else []
         if not self:
-            return "(no rows)"
+            return "\n".join(head + ["(no rows)"])
         keys = list(self[0])
         cells = [[_cell(row.get(k)) for k in keys] for row in self]
         widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
-        lines = ["  ".join(k.ljust(w) for k, w in zip(keys, widths))]
+        lines = head + ["  ".join(k.ljust(w) for k, w in zip(keys, widths))]
         lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells]
         return "\n".join(lines)
 
     __repr__ = __str__
+
+    def to_dict(self) -> dict:
+        return {"title": self.title, "rows": [dict(r) for r in self]}
 
 
 def _cell(value) -> str:
@@ -172,11 +231,56 @@ def _cell(value) -> str:
     return str(value)
 
 
+# units of the velocities and the yaw rate in every score: r in degrees per second, as in the reports
+UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}
+
+
+@dataclass(frozen=True)
+class Score:
+    """How well the twin predicts one velocity at one horizon: R² and the mean absolute error (in
+    `unit`: m/s for u and v, °/s for r) over `n` samples; `calibrated`: with each log's compass
+    offset applied."""
+
+    horizon: str
+    dof: str
+    r2: float | None
+    mae: float | None
+    n: int
+    calibrated: bool = True
+
+    @property
+    def unit(self) -> str:
+        return UNITS[self.dof]
+
+    def __repr__(self) -> str:
+        r2 = "-" if self.r2 is None else f"{self.r2:.3f}"
+        mae = "-" if self.mae is None else f"{self.mae:.3g} {self.unit}"
+        return f"Score({self.horizon} {self.dof}: R² {r2}, MAE {mae}, n {self.n})"
+
+    def to_dict(self) -> dict:
+        return {"horizon": self.horizon, "dof": self.dof, "r2": self.r2, "mae": self.mae, "unit": self.unit,
+                "n": self.n, "calibrated": self.calibrated}
+
+
+def _scores(metrics: dict, calibrated: bool) -> list[Score]:
+    import math
+
+    out = []
+    for horizon, m in metrics.items():
+        for d in "uvr":
+            row = m.get(d) or {}
+            mae = row.get("mae")
+            if mae is not None and d == "r":
+                mae = math.degrees(mae)
+            out.append(Score(horizon, d, row.get("r2"), mae, int(row.get("n") or 0), calibrated))
+    return out
+
+
 @dataclass
 class Evaluation:
-    """`twin evaluate`: R² and MAE per DOF and horizon, with and without each log's compass
-    calibration, and the calibrations; by_manoeuvre: where the 10-s free runs miss
-    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
+    """`twin evaluate`: R² and MAE per DOF and horizon (`scores`; `score("u")`), with and without
+    each log's compass calibration, and the calibrations; by_manoeuvre: where the 10-s free runs
+    miss (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
 
     vessel: str
     metrics: dict
@@ -184,54 +288,203 @@ class Evaluation:
     calibrations: list
     by_manoeuvre: dict = field(default_factory=dict)
 
+    @property
+    def scores(self) -> list[Score]:
+        """Every score: calibrated first, then without the calibrations."""
+        return _scores(self.metrics, True) + _scores(self.metrics_uncalibrated, False)
+
+    def score(self, dof: str, horizon: str = "free_run_10s", calibrated: bool = True) -> Score:
+        """One score: `dof` u, v or r; `horizon` one_step, free_run_10s, free_run_30s or full."""
+        for s in self.scores:
+            if (s.dof, s.horizon, s.calibrated) == (dof, horizon, calibrated):
+                return s
+        raise TwinError(f"no score for {dof} at {horizon} (horizons: {', '.join(self.metrics)}; dof u, v, r)")
+
     def __repr__(self) -> str:
-        m = self.metrics.get("free_run_10s", {})
-        cells = ", ".join(f"{d} {m[d]['r2']:.3f}" for d in "uvr" if m.get(d, {}).get("r2") is not None)
-        return f"Evaluation({self.vessel}: 10-s free runs R² {cells})"
+        cells = ", ".join(f"{s.dof} {s.r2:.3f}" for s in _scores(self.metrics, True)
+                          if s.horizon == "free_run_10s" and s.r2 is not None)
+        return f"Evaluation({self.vessel}: 10-s free runs R² {cells or '-'})"
 
     def table(self) -> Table:
-        """One row per horizon and DOF: {horizon, dof, r2, mae, n, calibrated} (prints as columns)."""
-        rows = Table()
-        for calibrated, metrics in ((True, self.metrics), (False, self.metrics_uncalibrated)):
-            for horizon, m in metrics.items():
-                rows += [{"horizon": horizon, "dof": d, **{k: m[d].get(k) for k in ("r2", "mae", "n")},
-                          "calibrated": calibrated} for d in "uvr"]
-        return rows
+        """One row per horizon and DOF: horizon, dof, r2, mae (m/s; r in °/s), n, calibrated."""
+        rows = [{k: v for k, v in s.to_dict().items() if k != "unit"} for s in self.scores]
+        return Table(rows, f"{self.vessel}: how the twin predicts the recordings (MAE in m/s, r in °/s)")
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
 
 
-def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0) -> Evaluation:
+def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
-    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw."""
+    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
+    recording's measured wind a known input (`twin evaluate --wind-measured`)."""
     from .fit.coverage import from_dict
-    from .fit.evaluate import evaluate as run, misfit_by_manoeuvre
-    from .ident.identify import calibrate as calibrate_logs, prepared
+    from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
+    from .fit.windows import ModelCache
+    from .ident.identify import calibrate as calibrate_logs, check_wind, prepared
 
-    v, recs = _vessel(vessel), _recordings(recordings)
+    v = _vessel(vessel)
+    recs = _recordings(recordings, v)
+    check_wind(recs, wind)
+    if not stride_s > 0:
+        raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
         if "fitted_on" in v.uncertainty else None
     calibrated, calibrations = calibrate_logs(recs, v)
     preps = prepared(recs, calibrated)
-    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s), run(v, prepared(recs, v), stride_s=stride_s),
-                      calibrations, misfit_by_manoeuvre(calibrated, preps, 10.0, stride_s, fitted=seen))
+    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
+                      run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
+                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps, 10.0, stride_s,
+                                          vessel=calibrated, fitted=seen))
 
 
-def diagnose(recordings, vessel: Vessel | str, **options):
-    """`twin diagnose`: a Diagnosis (.effects, .amended, .fit_before/.fit_after, .unexplained)."""
+@dataclass(frozen=True)
+class Parameter:
+    """One value of a named effect: name, value, unit and its 95 % interval (None where the fit
+    holds it)."""
+
+    name: str
+    value: float
+    unit: str
+    ci95: tuple[float, float] | None = None
+
+    def __repr__(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        ci = f" [{self.ci95[0]:.3g}, {self.ci95[1]:.3g}]" if self.ci95 else ""
+        return f"{self.name} {self.value:.4g}{unit}{ci}"
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """How the held-out blocks judge a change of the twin (the diagnosis's rule): `verdict` in words
+    ("earns its place", "does not earn its place", "contradicted"), z of the blocks' votes, the share
+    of the held-out misfit removed (`held_out_gain`) and of the misfit above the noise
+    (`excess_gain`), the blocks for and against, the windows it changed (`affected`), parameters
+    fitted to an unphysical edge; `str()` says it in a sentence. The diagnosis's own Evidence is
+    `evidence` (its other figures, e.g. `dof_rel`, are read through)."""
+
+    effects: tuple[str, ...]
+    verdict: str
+    z: float
+    held_out_gain: float
+    excess_gain: float
+    blocks_for: int
+    blocks_against: int
+    affected: int = 0
+    at_edge: tuple[str, ...] = ()
+    sentence: str = ""
+    evidence: object = field(default=None, repr=False, compare=False)
+
+    def earns_its_place(self) -> bool:
+        return self.verdict == "earns its place"
+
+    def __getattr__(self, name):
+        if name == "evidence" or self.__dict__.get("evidence") is None:
+            raise AttributeError(name)
+        return getattr(self.__dict__["evidence"], name)
+
+    def __repr__(self) -> str:
+        return (f"Judgement({', '.join(self.effects) or 'no change'}: {self.verdict}; z {self.z:.2f}, held-out gain "
+                f"{100 * self.held_out_gain:.1f} %, blocks {self.blocks_for} for / {self.blocks_against} against)")
+
+    def __str__(self) -> str:
+        return self.sentence or repr(self)
+
+    def to_dict(self) -> dict:
+        return {"effects": list(self.effects), "verdict": self.verdict, "z": round(self.z, 2),
+                "held_out_gain": round(self.held_out_gain, 4), "excess_gain": round(self.excess_gain, 4),
+                "blocks_for": self.blocks_for, "blocks_against": self.blocks_against, "affected": self.affected,
+                "at_edge": list(self.at_edge), "sentence": self.sentence}
+
+
+class Effect(dict):
+    """An effect a diagnosis named: `name`, `parameters` (with units and 95 % intervals), `evidence`
+    (a Judgement) and `text` (as `twin effects` and `--given` take it). Still the dict of the
+    diagnosis's JSON (`e["text"]`, `to_dict()`), so code written against the JSON keeps working."""
+
+    @property
+    def name(self) -> str:
+        return self["name"]
+
+    @property
+    def text(self) -> str:
+        return self["text"]
+
+    @property
+    def parameters(self) -> list[Parameter]:
+        from .effects import EFFECTS
+
+        spec = EFFECTS.get(self["name"])
+        units = {v.name: v.unit for v in spec.values} if spec else {}
+        ci = self.get("ci") or {}
+        out = []
+        for key, value in self.get("parameters", {}).items():
+            unit = units.get(key.split(" ")[-1], units.get(key, "×" if spec and spec.keys else ""))
+            interval = tuple(ci[key]) if key in ci else None
+            out.append(Parameter(key, float(value), unit, interval))
+        return out
+
+    @property
+    def evidence(self) -> Judgement:
+        e = self.get("evidence", {})
+        return Judgement((self["text"],), "earns its place", float(e.get("z", self.get("z", 0.0))),
+                         float(e.get("held_out_gain", self.get("held_out_gain", 0.0))),
+                         float(e.get("excess_gain", self.get("excess_gain", 0.0))),
+                         int(e.get("blocks_for", 0)), int(e.get("blocks_against", 0)),
+                         int(e.get("affected_windows", 0)), tuple(e.get("at_edge", ())))
+
+    def __repr__(self) -> str:
+        return f"Effect({self.name}: {', '.join(map(repr, self.parameters))}; z {self.evidence.z:.2f})"
+
+    def to_dict(self) -> dict:
+        return dict(self)
+
+
+class Diagnosis(_Found):
+    """`twin diagnose`: the effects named (`effects`, each an Effect), the amended twin (`amended`),
+    the fit before and after, what stays unexplained and where (`unexplained`); `to_dict()` is the
+    JSON `twin diagnose --json` writes."""
+
+    def __repr__(self) -> str:
+        named = "; ".join(repr(e) for e in self.effects) or "nothing named"
+        return f"Diagnosis({self.prior.name}: {named}; {len(self.unexplained)} unexplained regions)"
+
+    def table(self) -> Table:
+        """One row per parameter of every effect named (no rows when nothing is named)."""
+        rows = [{"effect": e.name, "parameter": p.name, "value": p.value, "unit": p.unit,
+                 "ci95_low": p.ci95[0] if p.ci95 else None, "ci95_high": p.ci95[1] if p.ci95 else None,
+                 "z": e.evidence.z} for e in self.effects for p in e.parameters]
+        return Table(rows, f"{self.prior.name}: effects named by the diagnosis" + ("" if rows else " (nothing named)"))
+
+
+def diagnose_recordings(recordings, vessel: Vessel | str, **options):
+    """`twin diagnose`: a Diagnosis (.effects as Effect objects, .amended, .fit_before/.fit_after,
+    .unexplained); options as twin.diagnose.doctor.diagnose."""
+    from dataclasses import fields
+
     from .diagnose.doctor import diagnose as run
 
-    return run(_recordings(recordings), _vessel(vessel), **options)
+    v = _vessel(vessel)
+    found = run(_recordings(recordings, v), v, **options)
+    typed = Diagnosis(**{f.name: getattr(found, f.name) for f in fields(found)})
+    typed.effects = [Effect(e) for e in found.effects]
+    return typed
 
 
-def judge(recordings, vessel: Vessel | str, effects, **options):
+def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     """`twin diagnose --given`: the effects at the values given (texts as `twin effects` lists them),
     nothing fitted, judged by the diagnosis's rule on the blocks a diagnosis of these recordings
-    uses. An Evidence (.earns_its_place(), .z, .rel_excess, .blocks_for/.blocks_against, .to_dict());
-    `str(twin.diagnose.doctor.given_text(effects, e))` says it in a sentence."""
-    from .diagnose.doctor import given_evidence
+    uses: a Judgement (`earns_its_place`, `z`, `held_out_gain`, ...; `str()` says it in a sentence)."""
+    from .diagnose.doctor import given_evidence, given_text
+    from .diagnose.search import Z_MIN
 
     effects = [effects] if isinstance(effects, str) else list(effects)
-    return given_evidence(_recordings(recordings), _vessel(vessel), effects, **options)
+    if not effects:
+        raise TwinError("no effects given: give one or more effect texts (e.g. 'current=0.1,90'; `twin effects` lists them)")
+    v = _vessel(vessel)
+    e = given_evidence(_recordings(recordings, v), v, effects, **options)
+    verdict = ("earns its place" if e.earns_its_place() else "contradicted" if e.z <= -Z_MIN
+               else "does not earn its place")
+    return Judgement(tuple(effects), verdict, float(e.z), float(e.rel), float(e.rel_excess), int(e.blocks_for),
+                     int(e.blocks_against), int(e.affected), tuple(e.at_edge), str(given_text(effects, e)), e)

@@ -69,9 +69,54 @@ BIBLIOGRAPHY = _bib(
            "bluerobotics.com, T200 product page and its performance data", None),
     Source("ArduPilot-SITL", "SITL JSON physics backend interface (libraries/SITL/SIM_JSON.h, SIM_JSON.cpp, "
            "examples/JSON/readme.md)", "ArduPilot development team", "github.com/ArduPilot/ardupilot", None),
+    Source("CyberShip-I", "CyberShip I, a 1:70 model of a supply ship (Marine Cybernetics Laboratory, NTNU): total "
+           "inertia and linear damping as used by [Bertoni-2024]", None, "Norwegian University of Science and "
+           "Technology; no primary publication of these parameter values was located, so they are cited through "
+           "[Bertoni-2024]", None),
+    Source("Wakita-2022", "On neural network identification for low-speed ship maneuvering model",
+           "Kouki Wakita, Atsuo Maki, Naoya Umeda, Yoshiki Miyauchi, Tohga Shimoji, Dimas M. Rachman, "
+           "Youhei Akimoto", "Journal of Marine Science and Technology 27, 772-785, doi 10.1007/s00773-021-00867-1",
+           2022),
+    Source("Miyauchi-2022", "System parameter exploration of ship maneuvering model for automatic docking/berthing "
+           "using CMA-ES", "Yoshiki Miyauchi, Atsuo Maki, Naoya Umeda, Dimas M. Rachman, Youhei Akimoto",
+           "Journal of Marine Science and Technology 27, 1065-1083", 2022),
+    Source("Kijima-1990", "On the manoeuvring performance of a ship with the parameter of loading condition",
+           "Katsuro Kijima, Toshiyuki Katsuno, Yasuaki Nakiri, Yoshitaka Furukawa",
+           "Journal of the Society of Naval Architects of Japan 168, 141-148", 1990),
+    Source("Blendermann-1994", "Parameter identification of wind loads on ships", "Werner Blendermann",
+           "Journal of Wind Engineering and Industrial Aerodynamics 51(3), 339-351", 1994),
     Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
            "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
+    Source("ITTC-1957", "Skin friction and turbulence stimulation (the ITTC-1957 model-ship correlation line, "
+           "C_F = 0.075/(log10 Re − 2)²)", "International Towing Tank Conference",
+           "Proceedings of the 8th ITTC, Madrid; ITTC Recommended Procedure 7.5-02-02-02", 1957),
+    Source("ITTC-2011", "Fresh water and seawater properties", "International Towing Tank Conference",
+           "ITTC Recommended Procedure 7.5-02-01-03", 2011),
+    Source("Clarke-1983", "The application of manoeuvring criteria in hull design using linear theory",
+           "D. Clarke, P. Gedling, G. Hine", "Transactions of the Royal Institution of Naval Architects 125, 45-68",
+           1983),
+    Source("Glauert-1935", "Airplane propellers (momentum and blade-element theory of a propeller, including its "
+           "normal force in oblique flow)", "Hermann Glauert", "in W. F. Durand (ed.), Aerodynamic Theory, vol. IV, "
+           "Division L, Springer, Berlin", 1935),
+    Source("Newman-1977", "Marine Hydrodynamics (chapter 7: slender-body theory of lifting bodies)",
+           "J. N. Newman", "MIT Press, Cambridge MA", 1977),
+    Source("Hoerner-1965", "Fluid-Dynamic Drag (two-dimensional drag of bluff sections)", "Sighard F. Hoerner",
+           "published by the author, Midland Park NJ", 1965),
+    Source("Holtrop-1982", "An approximate power prediction method", "J. Holtrop, G. G. J. Mennen",
+           "International Shipbuilding Progress 29(335), 166-170", 1982),
+    Source("BlueRobotics-BlueBoat", "BlueBoat: technical details (dimensions, mass, maximum speed 3.0 m/s with two "
+           "batteries)", "Blue Robotics", "bluerobotics.com, BlueBoat product page and its discussion forum", None),
 )
+
+def markdown() -> str:
+    """docs/bibliography.md: every source by key, as the code and the docs cite it."""
+    lines = ["# Bibliography", "", "Every source the code and these pages cite, by the key they cite it with "
+             "(`[Yellowfish-TR eq. 27]`). Generated from `twin/references.py` "
+             "(`python -m twin.references > docs/bibliography.md`); a test checks the two agree.", ""]
+    for key in sorted(BIBLIOGRAPHY, key=str.lower):
+        lines += [f"- **{key}**: {BIBLIOGRAPHY[key].citation()}"]
+    return "\n".join(lines) + "\n"
+
 
 # [Yellowfish-TR], by mass case.
 YELLOWFISH_TR = {
@@ -118,3 +163,7 @@ CYBERSHIP_I = {
     "D": [[4.3411, 0.0, 0.0], [0.0, 6.2983, 0.0], [0.0, 0.0, 1.2577]],
     "d_thrusters_m": 0.4,
 }
+
+
+if __name__ == "__main__":
+    print(markdown(), end="")

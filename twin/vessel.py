@@ -25,6 +25,7 @@ from .physics.environment import Environment, WindLoad
 from .physics.fujiwara import COEFFICIENTS as WIND_COEFFICIENTS
 from .physics.fujiwara import FujiwaraWind
 from .physics.mmg import MmgHull, MmgModel, MmgPropeller, MmgRudder
+from .physics.priors import Design
 from .physics.sensors import Sensors
 from .physics.thrusters import ThrusterModel
 
@@ -63,6 +64,7 @@ class Vessel:
     uncertainty: dict = field(default_factory=dict)
     mmg: MmgModel | None = None  # MMG standard method of a propeller-and-rudder ship
     wind_regression: FujiwaraWind | None = None  # Fujiwara wind loads, in place of wind_load
+    design: Design | None = None  # what the first-principles estimate needs beyond the MJCF (verify/priors.py)
     path: Path | None = None
 
     def __repr__(self) -> str:
@@ -104,6 +106,7 @@ class Vessel:
             **({"mmg": _mmg_to_dict(self.mmg)} if self.mmg is not None else {}),
             **({"wind_regression": _wind_regression_to_dict(self.wind_regression)}
                if self.wind_regression is not None else {}),
+            **({"design": asdict(self.design)} if self.design is not None else {}),
         }
 
 
@@ -135,6 +138,8 @@ def _mmg_to_dict(m) -> dict[str, Any]:
     """The MMG block; the astern side force's coefficients only where some are set (files without
     them stay what they were: dataset fingerprints)."""
     d = asdict(m)
+    if not m.friction_factor:  # only where R'_0 follows the friction line
+        d.pop("friction_factor"), d.pop("reference_speed_m_s")
     for key in ("astern_side_y", "astern_side_n"):
         if not any(getattr(m.propeller, key)):
             del d["propeller"][key]
@@ -229,7 +234,8 @@ def _pair(value, what: str, path: Path) -> tuple[float, float]:
 
 
 VESSEL_FILE_KEYS = frozenset({"name", "mjcf", "added_mass", "damping", "thrusters", "wind_load", "environment",
-                              "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression"})
+                              "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression",
+                              "design"})
 REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
 
 
@@ -240,8 +246,14 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     _typed(data["mjcf"], str, "mjcf", path)
     shipped = data["mjcf"].startswith(PACKAGE_MJCF)
     mjcf = (MODEL_DIR / data["mjcf"][len(PACKAGE_MJCF):]) if shipped else (path.parent / data["mjcf"]).resolve()
+    if not shipped and not mjcf.is_file() and Path(data["mjcf"]).name == data["mjcf"] \
+            and (MODEL_DIR / data["mjcf"]).is_file():
+        # a shipped vessel file copied elsewhere names its MJCF by a bare file name, as it lies beside it in
+        # the package: found there when the copy's own folder has none (an MJCF of that name beside it wins)
+        mjcf = MODEL_DIR / data["mjcf"]
     if not mjcf.is_file():
-        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found")
+        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found (looked beside the vessel file; "
+                        f"'{PACKAGE_MJCF}NAME.xml' names one shipped with twin)")
     unknown = sorted(set(data) - VESSEL_FILE_KEYS)
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "
@@ -271,6 +283,7 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         uncertainty=_uncertainty(data.get("uncertainty"), path),
         mmg=_mmg(data.get("mmg"), path),
         wind_regression=_wind_regression(data.get("wind_regression"), path),
+        design=_design(data.get("design"), path),
         path=path,
     )
     check(vessel)
@@ -287,6 +300,18 @@ def _mmg(data, path: Path) -> MmgModel | None:
     built = {k: _build(cls, data.get(k), f"mmg.{k}", path) for k, cls in parts.items()}
     top = _build(MmgModel, {k: v for k, v in data.items() if k not in parts}, "mmg", path)
     return replace(top, **built)
+
+
+def _design(data, path: Path) -> Design | None:
+    """The `design` block: top speed and the few hardware figures of the first-principles estimate."""
+    if data is None:
+        return None
+    d = _build(Design, data, "design", path)
+    if not (d.top_speed_m_s > 0 and d.form_factor >= 1 and d.cross_flow_cd > 0 and d.duct_diameter_m >= 0
+            and d.propeller_diameter_m >= 0):
+        raise TwinError(f"{path.name}: design needs top_speed_m_s > 0, form_factor ≥ 1, cross_flow_cd > 0 and "
+                        "diameters ≥ 0")
+    return d
 
 
 def _wind_regression(data, path: Path) -> FujiwaraWind | None:
@@ -328,7 +353,8 @@ def _uncertainty(data, path: Path) -> dict:
     return {"coordinates": [dict(c) for c in data["coordinates"]], "mean": [float(x) for x in data["mean"]],
             "covariance": [[float(x) for x in row] for row in cov],
             **({"source": str(data["source"])} if "source" in data else {}),
-            **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {})}
+            **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {}),
+            **({"form_error": _form_error(data["form_error"], path)} if "form_error" in data else {})}
 
 
 def _uncertainty_coordinates(coordinates, path: Path) -> None:
@@ -348,6 +374,26 @@ def _uncertainty_coordinates(coordinates, path: Path) -> None:
             raise TwinError(f"{path.name}: {where}: a log coordinate needs the coefficient's 'sign' (1 or -1)")
         if "sign" in c:
             _typed(c["sign"], float, f"{where}.sign", path)
+
+
+def _form_error(data, path: Path) -> dict:
+    """The twin's error on left-out runs (twin.fit.crossval.form_error): horizons, levels, and per
+    quantity one row of non-negative quantiles per horizon."""
+    bad = TwinError(f"{path.name}: uncertainty.form_error needs horizon_s (increasing), levels (in (0, 1)) and "
+                    "quantiles: per quantity one row of numbers ≥ 0 per horizon, one per level")
+    if not isinstance(data, dict) or not {"horizon_s", "levels", "quantiles"} <= set(data):
+        raise bad
+    h, levels, q = data["horizon_s"], data["levels"], data["quantiles"]
+    try:
+        ok = (len(h) >= 1 and all(b > a for a, b in zip(h, h[1:])) and all(0 < x < 1 for x in levels)
+              and isinstance(q, dict) and all(len(rows) == len(h) and all(len(r) == len(levels) and
+                                                                       all(x >= 0 for x in r) for r in rows)
+                                              for rows in q.values()))
+    except TypeError:
+        ok = False
+    if not ok:
+        raise bad
+    return dict(data)
 
 
 def _fitted_on(data, path: Path) -> dict:

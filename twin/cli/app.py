@@ -25,29 +25,61 @@ from ..files import json_default, same_file, write_text_atomic
 from ..progress import Progress
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
-                  help="MuJoCo digital twin of twin-thruster surface vessels.")
+                  help="MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, "
+                       "diagnose.")
 console = Console(width=None if sys.stdout.isatty() else 100)
 # listed from the package's model folder so that a vessel added there is offered without an edit here
 SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
                            if p.name.endswith(".json")))
 VESSEL_HELP = f"vessel name (one shipped with twin: {SHIPPED})"
-MODEL_HELP = "vessel description file (e.g. written by `twin identify`); replaces --vessel"
+MODEL_HELP = "vessel description file (e.g. written by `twin identify`), instead of --vessel"
 CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"
 _settings = {"quiet": False}
 
 
+QUIET = ("--quiet", "-q")
+# one line each for `twin --help`; the command's docstring is its description
+SUMMARIES = {
+    "simulate": "Run the twin headless and write the run (CSV, MCAP, rerun, tlog, bin).",
+    "view": "Show a recording and the twin's replay of it in rerun.",
+    "info": "Summarise recordings; with a vessel, each log's compass calibration.",
+    "convert": "Convert a recording to another format.",
+    "validate": "Check a vessel's masses, inertia, added mass and meshes against their sources.",
+    "crosscheck": "Check the engine against the analytic 3-DOF model (exit 1 over tolerance).",
+    "params": "Print a vessel's effective 3-DOF parameters.",
+    "identify": "Identify a vessel from recordings and write its twin.",
+    "evaluate": "Score how well a twin predicts recordings (R², MAE per velocity).",
+    "diagnose": "Find what a twin lacks against recordings and write the amended twin.",
+    "dataset": "Write a synthetic recording with a known truth.",
+    "effects": "List the effects a dataset can inject and a diagnosis can name.",
+    "iso": "Identify by self-oscillation (relay with hysteresis) in the twin.",
+    "dp": "Run the I-PD controller tuned from the self-oscillation in the twin.",
+    "sitl": "Serve the twin as ArduPilot SITL's physics (JSON interface).",
+    "montecarlo": "Prediction bands of an identified twin by Monte Carlo.",
+    "dataset-shards": "Write many synthetic recordings of randomised vessels, sharded.",
+    "fleet": "Diagnose every log of a fleet: a report per log and a summary.",
+}
+# the order `twin --help` lists the commands in: the order of the work they do
+WORKFLOW = ("simulate", "view", "info", "convert", "validate", "crosscheck", "params", "identify", "evaluate",
+            "diagnose", "dataset", "effects", "iso", "dp", "sitl", "montecarlo", "dataset-shards", "fleet")
+
+
 @app.callback()
-def _options(quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or notes on stderr")) -> None:
-    """MuJoCo digital twin of twin-thruster surface vessels."""
-    _settings["quiet"] = quiet
+def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or notes on stderr (also after "
+                                                            "the command)")) -> None:
+    """MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, diagnose."""
+    _settings["quiet"] = _settings["quiet"] or quiet
 
 
 # ---------------------------------------------------------------- arguments
 
 def vessel_from(vessel: Optional[str], model: Optional[Path], case: str = "nominal"):
-    """The vessel of --vessel NAME or --model FILE (FILE wins)."""
+    """The vessel of --vessel NAME or --model FILE; both at once is refused (which one was meant
+    cannot be known)."""
     from ..vessel import load
 
+    if model is not None and vessel is not None:
+        raise TwinError(f"give --vessel NAME or --model FILE, not both (--vessel {vessel} --model {model})")
     if model is not None:
         if Path(model).is_dir():  # else taken for a shipped vessel's name and called unknown
             raise TwinError(f"--model '{model}' is a folder, not a vessel file: give the .json file")
@@ -277,14 +309,71 @@ def progress_bar(title: str) -> Iterator[Progress]:
 
 
 def flow_help() -> None:
-    """Each command's help from its docstring, paragraphs kept and lines within one joined: rich
-    prints a docstring's line breaks as they stand, so the list of commands came out ragged."""
+    """Each command's help from its docstring: its first sentence is the one-line summary of
+    `twin --help`, the rest its description (paragraphs kept, lines within one joined: rich prints
+    a docstring's line breaks as they stand); commands in the order of the workflow; options
+    shown with a plain word for their value (none for a flag) instead of type tags."""
     import inspect
 
     for info in app.registered_commands:
         doc = info.help or inspect.getdoc(info.callback) or ""
         paragraphs = [" ".join(part.split()) for part in doc.split("\n\n")]
-        info.help = "\n\n".join(p for p in paragraphs if p)
+        paragraphs = [p for p in paragraphs if p]
+        name = info.name or info.callback.__name__.replace("_", "-")
+        info.short_help = SUMMARIES.get(name, _first_sentence(paragraphs[0]) if paragraphs else "")
+        info.help = "\n\n".join(paragraphs)
+    order = {name: i for i, name in enumerate(WORKFLOW)}
+    app.registered_commands.sort(key=lambda info: order.get(info.name or info.callback.__name__, len(order)))
+
+
+def _first_sentence(text: str) -> str:
+    """Up to the first full stop followed by a space (not one inside a parenthesis or an abbreviation)."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if ch in ".;:" and depth == 0 and text[i + 1:i + 2] == " " and not text[max(0, i - 3):i].endswith(
+                ("e.g", "i.e", "eq", "eqs", "vs", "Fig", "cf")):
+            return text[:i] if ch != "." else text[:i + 1]
+    return text
+
+
+def _plain_types() -> None:
+    """Typer 0.2x's rich help puts a type tag (`<bool>`, `<float>`) beside every option and has no
+    setting to leave it out: a flag gets none, a value a plain word (FLOAT, PATH). Older Typer
+    shows no such tags and has no `display_type_rich`, so nothing is changed there."""
+    for kind in ("TyperOption", "TyperArgument"):
+        cls = getattr(getattr(typer, "core", None), kind, None)
+        shown = getattr(cls, "display_type_rich", None)
+        if shown is None or getattr(shown, "_plain", False):
+            continue
+
+        def display_type_rich(self, ctx, shown=shown):
+            if getattr(self, "is_flag", False) and not getattr(self, "count", False):
+                return None
+            tag = shown(self, ctx)
+            if isinstance(tag, str) and tag.startswith("<"):
+                tag = tag.replace("<list[", "<").replace("]>", ">").replace(">...", "...>")
+                return tag.strip("<>").upper()
+            return tag
+
+        display_type_rich._plain = True
+        cls.display_type_rich = display_type_rich
+
+
+_plain_types()
+
+
+def quiet_anywhere(argv: list[str]) -> list[str]:
+    """The command line with --quiet/-q taken out wherever it stands before a `--` (the app's
+    option, accepted after the command too), the setting made."""
+    out, passed = [], False
+    for arg in argv:
+        if not passed and arg in QUIET:
+            _settings["quiet"] = True
+            continue
+        passed = passed or arg == "--"
+        out.append(arg)
+    return out
 
 
 # ---------------------------------------------------------------- errors
@@ -306,7 +395,7 @@ def main() -> None:
     """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
     try:
         # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
-        code = app(standalone_mode=False)
+        code = app(args=quiet_anywhere(sys.argv[1:]), prog_name="twin", standalone_mode=False)
     except TwinError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)

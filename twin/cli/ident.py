@@ -78,10 +78,11 @@ def identify_command(
                                                    "keeps those that predict left-out runs better"),
     params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
                                                    "comma separated (e.g. Xu,Xuu,Nr,Nrr,thrust_gain)"),
-    beliefs: str = typer.Option("0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
+    beliefs: str = typer.Option("0.01,0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
                                                  "the values tried (chosen on left-out runs)"),
     anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
-    window: float = typer.Option(10.0, help="free-run window of the simulation fit, s"),
+    window: Optional[float] = typer.Option(None, help="free-run window of the simulation fit, s (default: 10, or "
+                                                     "30 for a vessel whose surge time constant exceeds 10 s)"),
     start: str = typer.Option("free", help="initial velocities of each free run: free (estimated with the "
                                             "parameters) | measured (as the recording gives them)"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
@@ -110,7 +111,8 @@ def identify_command(
     check_outputs([json_out], (".json",), "--json")
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
     check_recordings_distinct(recordings)
-    positive(window, "--window")
+    if window is not None:
+        positive(window, "--window")
     at_least(max_evaluations, 1, "--max-evaluations")
     seed_from(seed)
     prior = vessel_from(vessel, model, "nominal")
@@ -144,7 +146,8 @@ def identify_command(
     seen = result.vessel.uncertainty.get("fitted_on")
     if seen:  # where that expectation holds: beyond this span the twin extrapolates
         windows = ", ".join(f"{k} {n}" for k, n in seen["windows"].items())
-        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); 10-s windows {windows}: "
+        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); "
+            f"{seen['horizon_s']:g}-s windows {windows}: "
             "beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")
@@ -172,6 +175,9 @@ def evaluate_command(
     level: float = typer.Option(0.9, help="--band: the band's level"),
     seed: int = typer.Option(0, help="--band: random seed of the draws"),
     ray: Optional[str] = typer.Option(None, help="--band: run the draws on Ray (auto, local or an address)"),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="take each recording's measured wind (its anemometer stream) as a known "
+                                            "input of every free run"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
@@ -182,7 +188,7 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, prepared, read
+    from ..ident.identify import calibrate, check_wind, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -203,21 +209,23 @@ def evaluate_command(
     fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
               if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work
     recs = read(recordings, channels_from(channels))
+    wind = "measured" if wind_measured else None
+    check_wind(recs, wind)  # before any work
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
-           "calibrations": [c.to_dict() for c in calibrations]}
+           "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none"}
     names = ", ".join(p.name for p in recordings)
     used = calibrated if calibration else v
     with progress_bar("evaluate") as progress:
         progress("without calibration", 0, 3)
-        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride)
+        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride, wind=wind)
         progress("with each log's calibration", 1, 3)
         cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
-        out["metrics"] = evaluate(TwinPredictor(calibrated, cache), prepared(recs, calibrated), stride_s=stride) \
-            if calibration else out["metrics_uncalibrated"]
+        out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated),
+                                  stride_s=stride) if calibration else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, 3)
-        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache), prepared(recs, used), 10.0, stride,
-                                                      vessel=used, fitted=fitted)
+        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), 10.0,
+                                                      stride, vessel=used, fitted=fitted)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, v)
@@ -239,7 +247,7 @@ def evaluate_command(
 
         with progress_bar("band") as progress:
             coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,
-                                     executor=executor, progress=progress)
+                                     executor=executor, progress=progress, wind=wind)
         typer.echo(coverage.text())
         out["band"] = coverage.to_dict()
     write_json(json_out, out)

@@ -132,10 +132,22 @@ def params(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: str = typer.Option("nominal", help="mass case"),
     as_json: bool = typer.Option(False, "--json", help="print JSON"),
+    first_principles: bool = typer.Option(False, "--first-principles",
+                                          help="the hull and propulsor coefficients from the vessel's own geometry, "
+                                               "each with its method"),
 ):
     """Print the effective 3-DOF parameters of a vessel."""
     from ..engine.parameters import effective_parameters
 
+    if first_principles:
+        from ..verify.priors import first_principles as estimate
+
+        fp = estimate(vessel_from(vessel, model, case))
+        if as_json:
+            typer.echo(json.dumps({"vessel": fp.vessel, "estimates": [e.__dict__ for e in fp.estimates]}, indent=2))
+        else:
+            typer.echo(fp.table())
+        return
     p = effective_parameters(vessel_from(vessel, model, case))
     if as_json:
         typer.echo(json.dumps(p, indent=2))
@@ -155,7 +167,7 @@ def validate(
     json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
     report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
 ):
-    """Analytic formulas, seed tables, engine, meshes and independent values, side by side."""
+    """Analytic formulas, published tables, engine, meshes and independent values, side by side."""
     from ..files import write_text_atomic
     from ..verify.validate import format_table
     from ..verify.validate import validate as run_validation

@@ -175,7 +175,7 @@ def dataset_shards_command(
 
 @app.command("fleet")
 def fleet_command(
-    recordings: list[Path] = typer.Argument(None, help="recordings: .tlog, .bin, .csv, .mcap (or --manifest)"),
+    recordings: list[Path] = typer.Argument(None, help="recordings: .tlog, .bin, .csv, .mcap, or folders of them (or --manifest)"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     manifest: Optional[Path] = typer.Option(None, help="CSV with a recording column and optional vessel, day columns"),
@@ -206,7 +206,7 @@ def fleet_command(
             raise TwinError("give recordings to diagnose, or --manifest FILE")
         if default is None:
             raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
-        logs = [Log(p, default) for p in recordings]
+        logs = [Log(p, default) for p in _in_folders(recordings)]
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=_executor(ray, cpus_per_task, retries), progress=progress)
@@ -214,3 +214,20 @@ def fleet_command(
     say(f"wrote {len(fleet.reports)} reports, {out / 'fleet.json'} and {out / 'fleet.md'}")
     if fleet.summary["failed"]:
         note(f"note: {len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed")
+
+
+RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")
+
+
+def _in_folders(paths: list[Path]) -> list[Path]:
+    """The recordings given, a folder standing for the recordings in it (an empty one is an error)."""
+    out = []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in RECORDING_SUFFIXES)
+            if not found:
+                raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)})")
+            out += found
+        else:
+            out.append(p)
+    return out

@@ -20,7 +20,13 @@ from ..run import Run
 from ..files import write_text_atomic
 from ..replay import stitched_runs
 
-DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
+DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
+
+
+def _shown(dof: str, value):
+    """A residual, noise or error of `dof` in the report's unit (None stays None)."""
+    return None if value is None else value * DOF_SCALE.get(dof, 1.0)
 
 
 def runs(d) -> dict[str, Run]:
@@ -233,10 +239,13 @@ def format_text(d) -> str:
     noise = d.noise
     lines.append(f"noise estimated from the recording: GNSS {noise.get('gnss_m', float('nan')):.3f} m, heading "
                  f"{noise.get('heading_deg', float('nan')):.2f}° → u {noise.get('u', float('nan')):.3f} m/s, "
-                 f"v {noise.get('v', float('nan')):.3f} m/s, r {noise.get('r', float('nan')):.4f} rad/s")
-    lines.append(f"{'held-out fit':14s}" + "".join(f"{'R2 ' + k:>9s}{'MAE ' + k:>10s}" for k in "uvr"))
-    for name, fit in (("before", d.fit_before), ("after", d.fit_after)):
-        lines.append(f"{name:14s}" + "".join(f"{_num(fit[k]['r2']):>9s}{_num(fit[k]['mae'], 4):>10s}" for k in "uvr"))
+                 f"v {noise.get('v', float('nan')):.3f} m/s, r {_shown('r', noise.get('r', float('nan'))):.3f} °/s")
+    lines.append(f"{'held-out fit':14s}" + "".join(f"{'R2 ' + k:>9s}{'MAE ' + k:>10s}" for k in "uvr")
+                 + "   (MAE: u, v m/s; r °/s)")
+    fits = (("before", d.fit_before), ("after", d.fit_after)) if d.effects else (("twin", d.fit_before),)
+    for name, fit in fits:
+        lines.append(f"{name:14s}" + "".join(f"{_num(fit[k]['r2']):>9s}{_num(_shown(k, fit[k]['mae']), 4):>10s}"
+                                             for k in "uvr"))
     growth = ", ".join(f"{k}: {v.get('verdict')}" for k, v in d.growth.items())
     lines.append(f"along the free runs the residual is (dynamics: grows; measurement: there from the start): {growth}")
     lines += [f"note: {n}" for n in d.notes]
@@ -244,16 +253,22 @@ def format_text(d) -> str:
 
 
 def _telling(d, most: int) -> list[int]:
-    """The windows where the amendment changed the twin most (all alike without one)."""
+    """The windows where the amendment changed the twin most; with nothing amended, those where the
+    twin misses the measurement most (in noise units, so that u, v and r weigh alike)."""
     rp = d.replay
-    change = np.nanmean(np.abs(rp["after"].pred_nu - rp["before"].pred_nu), axis=(1, 2))
+    if not d.effects:
+        noise = np.array([d.noise.get(k) or 1.0 for k in "uvr"])
+        change = np.nanmean(np.abs(rp["before"].pred_nu - rp["before"].meas_nu) / noise, axis=(1, 2))
+    else:
+        change = np.nanmean(np.abs(rp["after"].pred_nu - rp["before"].pred_nu), axis=(1, 2))
     order = np.argsort(-np.nan_to_num(change))
     return sorted(order[:most].tolist())
 
 
 def series_png(d, max_windows: int = 8) -> str:
     """u, v, r of the windows the amendment changed most: measured, twin before (red), twin after
-    (green, dashed, drawn over it: where they agree the red shows through)."""
+    (green, dashed, drawn over it: where they agree the red shows through). With nothing amended:
+    measured and twin on the windows where the twin misses most, no "after"."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -268,18 +283,21 @@ def series_png(d, max_windows: int = 8) -> str:
         n = w.n + 1
         x = offset + np.arange(n) * 0.1
         for k, ax in enumerate(axes):
-            ax.plot(x, rp["before"].meas_nu[j, :n, k], color="k", lw=1.4, label="measured" if i == 0 else None)
-            ax.plot(x, rp["before"].pred_nu[j, :n, k], color="tab:red", lw=2.2, alpha=0.7,
-                    label="twin before" if i == 0 else None)
-            ax.plot(x, rp["after"].pred_nu[j, :n, k], color="tab:green", lw=1.2, ls="--",
-                    label="twin after" if i == 0 else None)
+            scale = DOF_SCALE["uvr"[k]]
+            ax.plot(x, scale * rp["before"].meas_nu[j, :n, k], color="k", lw=1.4, label="measured" if i == 0 else None)
+            ax.plot(x, scale * rp["before"].pred_nu[j, :n, k], color="tab:red", lw=2.2, alpha=0.7,
+                    label=("twin before" if d.effects else "twin") if i == 0 else None)
+            if d.effects:
+                ax.plot(x, scale * rp["after"].pred_nu[j, :n, k], color="tab:green", lw=1.2, ls="--",
+                        label="twin after" if i == 0 else None)
         offset = x[-1] + 1.0
     for ax, dof in zip(axes, "uvr"):
         ax.set_ylabel(f"{dof} ({DOF_UNITS[dof]})")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=3)
     axes[-1].set_xlabel("free runs of 10 s from measured states, one after another (s)")
-    fig.suptitle(f"{d.prior.name}: the windows the amendment changed most", fontsize=10)
+    fig.suptitle(f"{d.prior.name}: the windows the amendment changed most" if d.effects else
+                 f"{d.prior.name}: nothing named; the windows where the twin misses most", fontsize=10)
     fig.tight_layout()
     return _png(fig)
 
@@ -296,9 +314,11 @@ def track_png(d, max_windows: int = 8) -> str:
     fig, ax = plt.subplots(figsize=(7, 7))
     for i, j in enumerate(_telling(d, max_windows)):
         n = rp["windows"][j].n + 1
-        for eta, style, label in ((rp["before"].meas_eta, dict(color="k", lw=1.4), "real"),
-                                  (rp["before"].pred_eta, dict(color="tab:red", lw=2.0, alpha=0.7), "twin before"),
-                                  (rp["after"].pred_eta, dict(color="tab:green", lw=1.2, ls="--"), "twin after")):
+        lines = [(rp["before"].meas_eta, dict(color="k", lw=1.4), "real"),
+                 (rp["before"].pred_eta, dict(color="tab:red", lw=2.0, alpha=0.7), "twin before" if d.effects else "twin")]
+        if d.effects:
+            lines.append((rp["after"].pred_eta, dict(color="tab:green", lw=1.2, ls="--"), "twin after"))
+        for eta, style, label in lines:
             ax.plot(eta[j, :n, 1], eta[j, :n, 0], label=label if i == 0 else None, **style)
         ax.plot(rp["before"].meas_eta[j, 0, 1], rp["before"].meas_eta[j, 0, 0], "k.", ms=6)
     ax.set_aspect("equal")
@@ -331,20 +351,23 @@ def write_html(d, path: Path) -> None:
                            for r in e["rivals"]) or "-"
         gain = ", ".join(f"{k} {100 * v:.0f} %" for k, v in e["improvement"].items())
         eff_rows.append([e["name"], params, f"{100 * e.get('excess_gain', 0):.0f} % (z {e['z']})", gain, rivals])
-    fit_rows = [[name] + [f"{_num(fit[k]['r2'])} / {_num(fit[k]['mae'], 4)}" for k in "uvr"]
-                for name, fit in (("before", d.fit_before), ("after", d.fit_after))]
-    loc_rows = [[e["dimension"], e["bin"], e["dof"], e["kind"], e["n"], _num(e["rms"], 4), _num(e["bias"], 4),
-                 _num(e.get("rms_over_noise"), 1), _num(e.get("z"), 1)] for e in d.located[:15]]
-    grow_rows = [[k, v.get("verdict"), _num(v.get("rms_early"), 4), _num(v.get("rms_late"), 4)]
-                 for k, v in d.growth.items()]
+    fits = (("before", d.fit_before), ("after", d.fit_after)) if d.effects else (("twin (nothing amended)", d.fit_before),)
+    fit_rows = [[name] + [f"{_num(fit[k]['r2'])} / {_num(_shown(k, fit[k]['mae']), 4)}" for k in "uvr"]
+                for name, fit in fits]
+    loc_rows = [[e["dimension"], e["bin"], e["dof"], e["kind"], e["n"], _num(_shown(e["dof"], e["rms"]), 4),
+                 _num(_shown(e["dof"], e["bias"]), 4), DOF_UNITS.get(e["dof"], ""), _num(e.get("rms_over_noise"), 1),
+                 _num(e.get("z"), 1)] for e in d.located[:15]]
+    grow_rows = [[k, v.get("verdict"), _num(_shown(k, v.get("rms_early")), 4), _num(_shown(k, v.get("rms_late")), 4),
+                  DOF_UNITS.get(k, "")] for k, v in d.growth.items()]
     corr_rows = [[k] + [f"{c['signal']} ({c['r']:+.2f})" for c in v[:3]] for k, v in d.correlations.items()]
-    unexpl = [[u["dof"], u["dimension"], u["bin"], _num(u["rms"], 4), _num(u.get("rms_over_noise"), 1),
+    unexpl = [[u["dof"], u["dimension"], u["bin"], _num(_shown(u["dof"], u["rms"]), 4), DOF_UNITS.get(u["dof"], ""),
+               _num(u.get("rms_over_noise"), 1),
                ", ".join(f"{c['signal']} ({c['r']:+.2f})" for c in u.get("correlates_with", []))]
               for u in d.unexplained]
     noise_rows = [["GNSS position", _num(d.noise.get("gnss_m"), 3), "m"],
                   ["heading", _num(d.noise.get("heading_deg"), 2), "deg"],
                   ["u (from GNSS)", _num(d.noise.get("u"), 3), "m/s"], ["v (from GNSS)", _num(d.noise.get("v"), 3), "m/s"],
-                  ["r (from heading)", _num(d.noise.get("r"), 4), "rad/s"]]
+                  ["r (from heading)", _num(_shown("r", d.noise.get("r")), 3), "°/s"]]
     lead = ("<ul>" + "".join(f"<li><b>Missing</b>: {html.escape(x)}</li>" for x in a["missing"])
             + "".join(f"<li><b>The twin's form</b>: {html.escape(x)}</li>" for x in a["form"])
             + (f"<li><b>What it changes</b>: {html.escape(a['changes'])}</li>" if a["changes"] else "")
@@ -356,19 +379,21 @@ def write_html(d, path: Path) -> None:
         f"blocks of 30 s, every block judged once by fits that did not see it ({d.windows.get('folds')} folds); "
         f"{d.seconds:.0f} s.</p>",
         "<h2>Effects named</h2>", _table(["effect", "parameters [95 % CI]", "misfit above noise removed",
-                                          "per DOF (held-out)", "rivals"], eff_rows) if eff_rows else "<p>none</p>",
-        "<h2>Held-out fit (R² / MAE)</h2>", _table(["twin", "u", "v", "r"], fit_rows),
+                                          "per DOF (held-out)", "rivals"], eff_rows) if eff_rows else
+        "<p><b>Nothing named</b>: no effect of the library earns its place, so the twin is not amended. The "
+        "residual and where it concentrates are below.</p>",
+        "<h2>Held-out fit (R² / MAE; u, v in m/s, r in °/s)</h2>", _table(["twin", "u", "v", "r"], fit_rows),
         f'<img src="data:image/png;base64,{series_png(d)}" alt="free runs before and after">',
         f'<img src="data:image/png;base64,{track_png(d)}" alt="tracks before and after">',
         "<h2>Noise estimated from the recording</h2>", _table(["signal", "σ", "unit"], noise_rows),
-        "<h2>Where the twin before disagreed</h2>",
-        _table(["dimension", "bin", "DOF", "kind", "n", "RMS", "bias", "RMS/noise", "z"], loc_rows)
+        "<h2>Where the residual concentrates</h2>",
+        _table(["dimension", "bin", "DOF", "kind", "n", "RMS", "bias", "unit", "RMS/noise", "z"], loc_rows)
         if loc_rows else "<p>no part of the data stands out from the rest (the misfit, if any, is everywhere: "
                          "see what is left)</p>",
-        _table(["DOF", "residual along the free run", "RMS early", "RMS late"], grow_rows),
+        _table(["DOF", "residual along the free run", "RMS early", "RMS late", "unit"], grow_rows),
         _table(["DOF", "follows", "", ""], corr_rows),
-        "<h2>What is left after the amendment</h2>",
-        _table(["DOF", "dimension", "bin", "RMS", "RMS/noise", "follows"], unexpl) if unexpl else "<p>nothing</p>",
+        "<h2>What is left after the amendment</h2>" if d.effects else "<h2>What is left unexplained</h2>",
+        _table(["DOF", "dimension", "bin", "RMS", "unit", "RMS/noise", "follows"], unexpl) if unexpl else "<p>nothing</p>",
         "".join(f"<p>note: {html.escape(n)}</p>" for n in d.notes),
     ]
     style = ("<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"

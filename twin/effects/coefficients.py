@@ -197,6 +197,12 @@ def belief(name: str, prior: Vessel) -> Belief:
         return Belief(True, FACTOR_3, "hull damping from a first-principles estimate: right within a factor of 3")
     if name in ("Xudot", "Yvdot", "Nrdot"):
         return Belief(True, FACTOR_2, "added mass from slender-body / ellipsoid theory: right within a factor of 2")
+    if prior.design is not None and name in ("Yuv", "Yur", "Nuv", "Nur") and getattr(d, name) != 0:
+        return Belief(True, FACTOR_2, "first-principles lift of the hulls [Clarke-1983] and momentum of the "
+                                      "thrusters' flow: right within a factor of 2")
+    if prior.design is not None and name in ("Yr", "Nv"):
+        return Belief(False, abs(getattr(d, name)) or 1.0, "the thrusters' own flow at rest, estimated at half "
+                                                           "thrust: zero to twice the estimate")
     if name in ("Yr", "Nv"):
         return Belief(False, 0.3 * math.sqrt(abs(d.Yv * d.Nr)) or 1.0,
                       "sway-yaw coupling: at most about a third of the direct terms' geometric mean")
@@ -247,7 +253,7 @@ def belief(name: str, prior: Vessel) -> Belief:
 # Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
 # Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
 # against 5.5). Widths from how far the published full-form ships' derivatives scatter among
-# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of Kijima): the linear ones
+# themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of [Kijima-1990]): the linear ones
 # within about 25 %, the nonlinear ones within a factor of 2 or their own size.
 MMG_LOG_BELIEFS = {
     "mmg_R0": (0.3, "resistance from KVLCC2's R'_0 at the Esso model's form: within about 30 % (scale effect, "

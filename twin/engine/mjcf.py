@@ -17,6 +17,7 @@ reads them in place of the environment's constant wind.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from dataclasses import dataclass
 
 import mujoco
@@ -26,7 +27,9 @@ from ..errors import TwinError
 from ..physics import fujiwara, mmg
 from ..physics.added_mass import RigidBody, is_symmetric_positive_definite
 from ..physics.hydrodynamics import HydroModel, Terms
-from ..vessel import Vessel
+from ..vessel import MODEL_DIR, Vessel
+
+ASSETS_DIR = MODEL_DIR.parent / "assets"  # the hull meshes shipped with the package
 
 JOINTS = ("north", "east", "yaw")
 THRUSTERS = ("thruster_left", "thruster_right")
@@ -70,9 +73,21 @@ class CompiledVessel:
 
 def _spec(vessel: Vessel) -> mujoco.MjSpec:
     try:
-        return mujoco.MjSpec.from_file(str(vessel.mjcf))
+        spec = mujoco.MjSpec.from_file(str(vessel.mjcf))
     except Exception as exc:  # MuJoCo raises ValueError with the parser message
         raise TwinError(f"{vessel.mjcf.name}{mujoco_message(exc, 'malformed MJCF')}") from None
+    _shipped_meshes(spec, Path(vessel.mjcf).parent)
+    return spec
+
+
+def _shipped_meshes(spec: mujoco.MjSpec, folder: Path) -> None:
+    """A shipped MJCF copied elsewhere still finds its hull meshes: when a mesh file is missing from
+    the MJCF's own mesh folder (meshdir, relative to the MJCF) and the package ships one of that
+    name, the package's folder is used."""
+    own = folder / (spec.meshdir or "")
+    files = [m.file for m in spec.meshes if m.file]
+    if files and not all((own / f).is_file() for f in files) and all((ASSETS_DIR / f).is_file() for f in files):
+        spec.meshdir = str(ASSETS_DIR)
 
 
 def mujoco_message(exc: Exception, what: str) -> str:

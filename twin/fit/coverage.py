@@ -106,7 +106,8 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
     predicted samples, sq their squared errors (0 where none), total the pooled Σ(y − ȳ)² per DOF
     (evaluate._squares). {"samples", "outside", "share_of_samples", "share": {u, v, r} of 1 − R², "dofs":
     {each DOF the judged samples leave the span in: "share_of_samples", and "low", "high": the judged
-    samples' own 1st and 99th percentiles}}."""
+    samples' own 1st and 99th percentiles}, "r2_beyond", "r2_within": {u, v, r} the score of the
+    samples beyond the span and within it, each about its own mean}."""
     paired = np.isfinite(meas).any(axis=-1)
     out_mask = env.outside(meas) & paired
     n, k = int(paired.sum()), int(out_mask.sum())
@@ -122,4 +123,17 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
             per_dof[d] = {"share_of_samples": float(beyond_d.sum() / n), "low": float(low), "high": float(high)}
     return {"samples": n, "outside": k, "share_of_samples": k / n if n else None,
             "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)},
-            "dofs": per_dof}
+            "dofs": per_dof, "r2_beyond": _subset_r2(meas, sq, out_mask), "r2_within": _subset_r2(meas, sq, paired & ~out_mask)}
+
+
+def _subset_r2(meas: np.ndarray, sq: np.ndarray, mask: np.ndarray) -> dict:
+    """R² per DOF of the samples in `mask` about their own mean (None with fewer than 10 samples or no spread)."""
+    out = {}
+    for i, d in enumerate(DOFS):
+        y = meas[..., i][mask]
+        e = sq[..., i][mask]
+        ok = np.isfinite(y)
+        y, e = y[ok], e[ok]
+        ss = float(np.sum((y - y.mean()) ** 2)) if y.size >= 10 else 0.0
+        out[d] = 1.0 - float(e.sum()) / ss if ss > 0 else None
+    return out

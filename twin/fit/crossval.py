@@ -1,7 +1,12 @@
-"""Judging a fit's choices on runs left out of it: leave one run out.
+"""Judging a fit's choices on runs left out of it, each predicted by a twin fitted on runs that go
+less far than it does.
 
 Every choice identification makes (how strongly to believe the prior, which coefficients to
-free) is judged by how the twin fitted WITHOUT a run predicts THAT run, run by run. With fewer
+free) is judged by how a twin fitted WITHOUT a run predicts THAT run, run by run. The runs are
+ranked by how far they go (extrapolation.group_order: time under way, time turning), and the twin
+that predicts a run is fitted on the runs ranked below it only (`beyond_folds`): a run left out at
+random is like the runs fitted and proves interpolation, while a twin is wanted beyond its runs,
+so a choice is judged where the twin extrapolates. `each_folds` is plain leave one run out. With fewer
 than MIN_RUNS recordings, blocks of consecutive windows (BLOCKS per recording) stand in for runs:
 an honest second best, since blocks of one log share its conditions. Refitting
 from scratch for every left-out run would cost as many fits as runs; instead each refit is one
@@ -17,15 +22,18 @@ the runs (so runs add up and DOFs weigh alike).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..physics.kinematics import wrap_angle
 from ..physics.sensors import log_name
 from ..prepare import Prepared
 from ..vessel import Vessel
+from .extrapolation import group_order
 from .metrics import DOFS, r2_mae
-from .windows import ModelCache, Window, measured, predict
+from .windows import ModelCache, Window, as_measured, make_windows, measured, predict
 
 MIN_RUNS = 3
 BLOCKS = 4
@@ -42,6 +50,21 @@ def held_out_groups(windows: list[Window], preps: list[Prepared]) -> tuple[np.nd
                                           / max(preps[w.rec].t[-1] - preps[w.rec].t[0], 1e-9))) for w in windows])
     names = [f"{log_name(p.settings.source)} part {b + 1}" for p in preps for b in range(BLOCKS)]
     return recs * BLOCKS + blocks, names
+
+
+def beyond_folds(windows: list[Window], preps: list[Prepared], groups: np.ndarray) -> list[np.ndarray]:
+    """Per group k, the groups left out of the twin that predicts k: k and every group that goes at
+    least as far as k (extrapolation.group_order), so the twin is fitted on the groups below k."""
+    order = group_order(preps, windows, groups)
+    rank = {g: i for i, g in enumerate(order)}
+    n = int(groups.max()) + 1
+    return [np.array(sorted(g for g in order if rank[g] >= rank[k])) if k in rank else np.array([k])
+            for k in range(n)]
+
+
+def each_folds(groups: np.ndarray) -> list[np.ndarray]:
+    """Per group k, only k left out (leave one run out)."""
+    return [np.array([k]) for k in range(int(groups.max()) + 1)]
 
 
 def reweighted(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, factor: float
@@ -104,10 +127,11 @@ class CrossValidation:
 
 
 def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,
-                      fixed: np.ndarray | None = None, at: np.ndarray | None = None) -> list[Vessel]:
-    """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels.
-    fixed: coordinates held at `at` (default: the prior) instead of refitted; the step then
-    starts by moving them there."""
+                      fixed: np.ndarray | None = None, at: np.ndarray | None = None,
+                      folds: list[np.ndarray] | None = None) -> list[Vessel]:
+    """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels:
+    fitted without the groups folds[k] (default: k alone). fixed: coordinates held at `at`
+    (default: the prior) instead of refitted; the step then starts by moving them there."""
     n = obj.n_data
     runs = groups[obj.window_index()]
     free = np.ones(len(x), bool) if fixed is None else ~np.asarray(fixed, bool)
@@ -118,9 +142,10 @@ def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: 
     r0 = r + J @ shift  # linearised residuals with the fixed coordinates moved
     lo, hi = obj.bounds()
     out = []
+    folds = folds if folds is not None else each_folds(groups)
     for k in range(int(groups.max()) + 1):
         keep = np.ones(len(r), bool)
-        keep[:n] = runs != k
+        keep[:n] = ~np.isin(runs, folds[k])
         delta = np.zeros(len(x))
         if free.any():
             delta[free] = np.linalg.lstsq(J[keep][:, free], -r0[keep], rcond=None)[0]
@@ -165,3 +190,74 @@ def score_run(log: str, pred: np.ndarray, meas: np.ndarray, sigma: np.ndarray) -
     diverged = np.isinf(pred) & ok
     cost = float(np.sum(np.where(ok & ~diverged, err, 0.0) ** 2) + 100.0 * np.sum(diverged))
     return RunScore(log, metrics, cost)
+
+
+FORM_QUANTITIES = ("north", "east", "psi", "u", "v", "r", "deviation")
+FORM_LEVELS = (0.5, 0.68, 0.8, 0.9, 0.95, 0.99)
+
+
+def form_error(fold_vessels: list[Vessel], preps: list[Prepared], folds_label: str, horizon_s: float = 30.0,
+               sample_dt_s: float = 1.0, cache: ModelCache | None = None, wind: str | None = None) -> dict:
+    """How far free runs of the twins fitted without each group miss that group: per quantity
+    (north, east m; psi rad; u, v m/s; r rad/s; deviation m) and horizon into the run, the
+    quantiles FORM_LEVELS of |measured − predicted| over non-overlapping windows of horizon_s, every
+    sample_dt_s (velocities through the recording's own smoother, as a band compares them).
+
+    This is the twin's error where it was not fitted, form error and all: what a prediction band
+    must add to the spread of its parameters. `fold_vessels[k]` predicts group k (held_out_groups
+    of the windows); `folds_label` says how the folds were chosen."""
+    windows = make_windows(preps, horizon_s, horizon_s, min_length_s=horizon_s)
+    if not windows:
+        return {}
+    groups, _ = held_out_groups(windows, preps)
+    every = max(1, int(round(sample_dt_s / preps[0].settings.grid_dt)))
+    cache = cache or ModelCache()
+    errors = []
+    for k in range(int(groups.max()) + 1):
+        mine = [w for w, g in zip(windows, groups) if g == k]
+        if not mine or k >= len(fold_vessels):
+            continue
+        pred = predict(fold_vessels[k], preps, mine, cache, wind=wind)[0]
+        eta_m, nu_m = measured(preps, mine)
+        nu_p = as_measured(pred.nu, preps, mine)
+        d_pos = eta_m[..., :2] - pred.eta[..., :2]
+        d_psi = wrap_angle(eta_m[..., 2] - pred.eta[..., 2])
+        e = np.concatenate([d_pos, d_psi[..., None], nu_m - nu_p, np.hypot(*np.moveaxis(d_pos, -1, 0))[..., None]],
+                           axis=-1)
+        for j, _ in pred.diverged:
+            e[j] = np.nan
+        errors.append(np.abs(e[:, ::every]))
+    if not errors:
+        return {}
+    e = np.concatenate(errors)  # (W, S, 7)
+    t = preps[0].settings.grid_dt * every * np.arange(e.shape[1])
+    quantiles = {}
+    for i, q in enumerate(FORM_QUANTITIES):
+        col = e[..., i]
+        quantiles[q] = [[float(np.nanquantile(col[:, s], lv)) if np.isfinite(col[:, s]).any() else 0.0
+                         for lv in FORM_LEVELS] for s in range(e.shape[1])]
+    return {"horizon_s": [float(x) for x in t], "levels": list(FORM_LEVELS), "quantiles": quantiles,
+            "windows": int(e.shape[0]), "judged_on": folds_label}
+
+
+def form_error_at(block: dict, quantity: str, level: float, t_s: np.ndarray) -> np.ndarray:
+    """|error| of `quantity` at `level` at horizons t_s (s). The level is raised to the finite-sample
+    quantile of split conformal prediction, ⌈(n + 1)·level⌉/n over the block's n windows (a
+    quantile of a few windows understates the next window's error), then interpolated between the
+    stored levels (at most the highest). Within the stored horizons interpolated; beyond them a
+    velocity's holds its last value (a damped twin's velocity error stops growing) and a
+    position's or heading's grows on at its last slope (it integrates the velocity error)."""
+    n = int(block.get("windows", 0))
+    if n > 0:
+        level = min(1.0, math.ceil((n + 1) * level) / n)
+    levels = np.asarray(block["levels"], float)
+    table = np.asarray(block["quantiles"][quantity], float)  # (S, L)
+    at_level = np.array([np.interp(level, levels, row) for row in table])
+    h = np.asarray(block["horizon_s"], float)
+    t = np.asarray(t_s, float)
+    out = np.interp(t, h, at_level)
+    beyond = t > h[-1]
+    if beyond.any() and quantity in ("north", "east", "psi", "deviation") and len(h) > 1:
+        slope = (at_level[-1] - at_level[-2]) / (h[-1] - h[-2])
+        out[beyond] = at_level[-1] + max(slope, 0.0) * (t[beyond] - h[-1])
+    return out

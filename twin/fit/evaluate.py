@@ -291,6 +291,10 @@ def beyond_sentence(split: dict) -> str:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
                  "of 1 − R² (the twin extrapolates there)")
+        scores = [f"{d} {b['r2_beyond'][d]:.2f} beyond, {b['r2_within'][d]:.2f} within" for d in DOFS
+                  if (b.get("r2_beyond") or {}).get(d) is not None and (b.get("r2_within") or {}).get(d) is not None]
+        if scores:
+            text += "; R² " + ", ".join(scores)
         reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span "
                  f"{x['low']:+.2f}..{x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
         if reach:

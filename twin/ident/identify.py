@@ -10,13 +10,16 @@ on runs left out of the fit.
    with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
    is right within a factor of 3, an added mass within 2, ...). A coefficient the recordings do
    not pin down stays at its prior with its prior's uncertainty.
-4. Choose on left-out runs (fit/crossval.py, leave one run out; time blocks with fewer than three
-   recordings): how much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of
-   coefficients stay free: a group goes back to its prior while the twins fitted without each run
-   predict that run better so. No choice looks at how well the fit matches its own data.
+4. Choose on left-out runs (fit/crossval.py; time blocks with fewer than three recordings): each
+   run is predicted by a twin fitted on the runs that go less far than it does (time under way,
+   time turning: crossval.beyond_folds), so every choice is judged where the twin extrapolates.
+   How much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of coefficients stay
+   free: a group goes back to its prior while that lowers the left-out cost by DROP_GAIN or more.
+   No choice looks at how well the fit matches its own data.
 5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
-   runs' scores: median and range), and a warning when it predicts the left-out runs worse than
-   the prior did.
+   runs' scores: median and range), the twin's error on the left-out runs' 30-s free runs (which
+   widens its prediction bands: crossval.form_error), and a warning when it predicts the left-out
+   runs worse than the prior did.
 
 A propeller-and-rudder ship (an MMG block) goes through the same steps with its own groups
 (effects.coefficients.fit_groups: MMG hull derivatives, wake, rudder inflow, added mass) and
@@ -37,7 +40,8 @@ from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
-from ..fit.crossval import CrossValidation, held_out_groups, jackknife_vessels, judge
+from ..fit.crossval import (CrossValidation, beyond_folds, each_folds, form_error, held_out_groups,
+                            jackknife_vessels, judge)
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -49,13 +53,22 @@ from .greybox.models import fit_dynamic, fit_static
 from .greybox.physical import first_guesses
 from .greybox.splits import render_split_table, render_training_table, split_method_table, training_size_table
 
-PRIOR_WEIGHTS = (0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
+PRIOR_WEIGHTS = (0.01, 0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
 START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it
 IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all three a window is a drift
 IDLE_RPS = 1.0  # a propeller turning slower than this drives a 3-m model at a few cm/s at most
 FIT_H_LAMBDA, FIT_TIMESTEP_S = 1.5, 0.05  # the candidate twins' RK4 step (the final scores use the vessel's)
 WINDOW_S = 10.0
+SLOW_WINDOW_S = 30.0  # for a vessel whose surge time constant exceeds WINDOW_S
+TYPICAL_SPEED_M_S = 1.0  # a small ASV's cruising speed, where its surge time constant is read
 NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost this much is physics the runs need
+# A group goes back to its prior only when that lowers the left-out cost by this share: a free group the
+# recordings do not pin stays near its prior anyway (the beliefs hold it), and a smaller difference is
+# within the scatter of the judging itself, so dropping on it would make the choice a coin toss.
+DROP_GAIN = 0.02
+FORM_ERROR_HORIZON_S = 30.0  # the prediction band's free runs (twin evaluate --band)
+FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that go less far (time under way, "
+                         "turning)", "each": "each run predicted by the twin fitted on the other runs"}
 
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
@@ -199,17 +212,22 @@ def _check_judged(informative: list, every: list, preps: list[Prepared], window_
 
 def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, ...] | None = None,
              params: tuple[str, ...] | None = None, prior_weights: tuple[float, ...] = PRIOR_WEIGHTS,
-             anchor: str = "mass", window_s: float = WINDOW_S, start: str = "free", calibrated: bool = True,
+             anchor: str = "mass", window_s: float | None = None, start: str = "free", calibrated: bool = True,
              greybox: bool = False, thruster: str = "static", split: str = "segments", train: float = 0.7,
              repeats: int = 20, seed: int = 0, max_evaluations: int = 20, sources: list[str] | None = None,
-             progress: Progress | None = None, wind: str | None = None) -> Identification:
+             progress: Progress | None = None, wind: str | None = None, judged_on: str = "beyond") -> Identification:
     """The whole identification (module docstring). groups: the vessel's fit groups to consider
     (default all), or params: an explicit list of coefficients (then no group is dropped); start:
     each window's initial velocities "free" (estimated with the fit) or "measured"; wind:
-    "measured" to take each recording's measured wind as a known input."""
+    "measured" to take each recording's measured wind as a known input; judged_on: "beyond" (each
+    left-out run predicted by a twin fitted on the runs that go less far, crossval.beyond_folds) or
+    "each" (leave one run out)."""
     started = time.time()
     say = steps(progress)
+    window_s = default_window_s(prior) if window_s is None else window_s
     _check(start, thruster, split, train, prior_weights)
+    if judged_on not in ("beyond", "each"):
+        raise TwinError(f"judged_on must be 'beyond' or 'each', got {judged_on!r}")
     check_wind(recordings, wind)
     simfit.check_kind(prior)
     supplied = bool(recordings) and all(len(r.battery) for r in recordings)
@@ -225,7 +243,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
         # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
-        result.notes.append("the grey-box of [Morel-2024] models PWM thrusters: skipped for a propeller-and-rudder ship")
+        result.notes.append("the [Morel-2024] grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
     elif greybox:
         say("[Morel-2024] grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
@@ -252,10 +270,11 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)
     judge_groups, group_names = held_out_groups(every, preps)
+    folds = beyond_folds(every, preps, judge_groups) if judged_on == "beyond" else each_folds(judge_groups)
     configs = {"prior (no fit)": [vessel] * len(group_names)}
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
-                                                            fit_groups)
+                                                            fit_groups, folds=folds)
     judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
@@ -263,7 +282,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     chosen_fit = fits[best.prior_weight]
     if params is None:
         best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
-                                  judge_groups, group_names, cache, wind)
+                                  judge_groups, group_names, cache, wind, folds)
         choices += more
     result.choices, result.chosen = choices, best
     fit_best = chosen_fit
@@ -275,7 +294,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                            prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative,
                            wind=wind)
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
-                                               refit.objective.residuals(refit.x), fit_groups)},
+                                               refit.objective.residuals(refit.x), fit_groups, folds=folds)},
                    preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
         refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
                           _labelled(cv, best.label + " (refitted)"))
@@ -288,7 +307,14 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
-        result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen})
+        say("measuring the twin's error on left-out runs", 3, 4)
+        folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
+                                   fit_best.objective.residuals(fit_best.x), fit_groups, folds=folds)
+        label = FOLDS_LABEL[judged_on]
+        errors = form_error(folded, preps, label,
+                            max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
+        result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen,
+                                                            **({"form_error": errors} if errors else {})})
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
                             f"{best.cv.cost:.4g} against {result.prior_cv.cost:.4g}): more varied recordings "
@@ -296,6 +322,25 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result.seconds = time.time() - started
     say("done", 4, 4)
     return result
+
+
+def surge_time_constant_s(vessel: Vessel) -> float:
+    """(m − X_u̇)/(∂R/∂u): how long the vessel takes to settle in surge, at a typical speed (a propeller-
+    and-rudder ship's MMG reference speed, else TYPICAL_SPEED_M_S), R its surge resistance."""
+    mass = compile_vessel(vessel).geometry.rigid.mass_kg - vessel.added_mass.Xudot
+    if vessel.mmg is not None:
+        m = vessel.mmg
+        u = m.reference_speed_m_s or 0.5 * TYPICAL_SPEED_M_S
+        slope = m.rho_kg_m3 * m.lpp_m * m.draft_m * m.hull.R0 * u
+    else:
+        slope = -(vessel.damping.Xu + 2.0 * vessel.damping.Xuu * TYPICAL_SPEED_M_S)
+    return float(mass / slope) if slope > 0 else float("inf")
+
+
+def default_window_s(vessel: Vessel) -> float:
+    """The fit's free-run window: WINDOW_S, or SLOW_WINDOW_S for a vessel whose surge time constant
+    exceeds WINDOW_S (a 10-s window of a slow ship is mostly its initial state)."""
+    return WINDOW_S if surge_time_constant_s(vessel) <= WINDOW_S else SLOW_WINDOW_S
 
 
 def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
@@ -366,9 +411,9 @@ def _informative(prep: Prepared, w) -> bool:
 
 
 def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
-                 group_names, cache, wind: str | None = None) -> tuple[Choice, list[Choice]]:
+                 group_names, cache, wind: str | None = None, folds=None) -> tuple[Choice, list[Choice]]:
     """Backward: the group whose return to its prior most improves the left-out scores goes back,
-    while one does (each refit linearised about the fit with every group free)."""
+    while one does by DROP_GAIN or more (each refit linearised about the fit with every group free)."""
     obj, x, J = fit.objective, fit.x, fit.jacobian
     r = obj.residuals(x)
     col = {n: i for i, n in enumerate(all_names)}
@@ -380,14 +425,14 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             for kept in current.free_groups:
                 if kept != g:
                     fixed[[col[n] for n in names_by_group[kept]]] = False
-            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed)
+            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed, folds=folds)
         judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
                           tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
                    for g, cv in judged.items()]
         tried += options
         best = min(options, key=lambda c: c.cv.cost)
-        if best.cv.cost >= current.cv.cost:
+        if best.cv.cost >= (1.0 - DROP_GAIN) * current.cv.cost:
             break
         current = best
     return current, tried

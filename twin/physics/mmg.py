@@ -54,6 +54,13 @@ keeping the standard exact inside it (each extension says why; identification ma
   * n and δ are clipped to the vessel's input bounds here, so the engine and the analytic model
     see the same inputs.
 
+R'_0 across speeds: a model ship's resistance at these Froude numbers is almost all friction,
+whose coefficient falls with the Reynolds number, so one R'_0 fitted at one speed over-resists a
+faster run and under-resists a slower one. With `friction_factor` F = (1 + k)·S/(L·d) (form factor,
+wetted surface) > 0, R'_0(U) = R'_0 + F·[C_F(U_nd·L/ν) − C_F(U_ref·L/ν)], C_F the ITTC-1957 line
+[ITTC-1957]: R'_0 is the value at `reference_speed_m_s`, and the friction line carries it to other
+speeds. F = 0 keeps the standard's constant R'_0.
+
 Every function is a plain function of floats and one float array of parameters (layout FIELDS),
 so numba compiles the very same code for the native callback (engine/native.py).
 """
@@ -143,6 +150,10 @@ class MmgModel:
     draft_m: float = 0.0
     block_coefficient: float = 0.0
     low_speed_m_s: float = 0.05  # U_nd floor of the module docstring
+    # R'_0 following the ITTC-1957 friction line (module docstring): F = (1 + k)·S/(L·d), 0 = a constant
+    # R'_0; R'_0 then holds at reference_speed_m_s
+    friction_factor: float = 0.0
+    reference_speed_m_s: float = 0.0
     hull: MmgHull = MmgHull()
     propeller: MmgPropeller = MmgPropeller()
     rudder: MmgRudder = MmgRudder()
@@ -155,15 +166,18 @@ FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS,
           "astern_kt0", "astern_kt1", "astern_kt_max",
           "ay0", "ay1", "ay2", "ay3", "ay4", "bn0", "bn1", "bn2", "bn3", "bn4",
           "A_R", "f_alpha", "eta", "tR", "aH", "xH_m", "xR_m", "gamma_minus", "gamma_plus", "lR_nd",
-          "epsilon", "kappa", "n_min", "n_max", "delta_max")
+          "epsilon", "kappa", "n_min", "n_max", "delta_max", "F_fric", "cf_ref", "L_nu")
 INDEX = {name: i for i, name in enumerate(FIELDS)}
 SIZE = len(FIELDS)
 # index constants: numba reads module globals as compile-time constants
 _RHO, _L, _D, _UMIN, _H = 0, 1, 2, 3, 4
 (_DP, _K0, _K1, _K2, _TP, _WP0, _C1, _C2P, _C2M, _XP, _KA0, _KA1, _KAMAX, _AR, _FA, _ETA, _TR, _AH, _XH, _XR,
  _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):]
-                                                      if not k.startswith(("ay", "bn")))
+                                                      if not k.startswith(("ay", "bn"))
+                                                      and k not in ("F_fric", "cf_ref", "L_nu"))
 _AY, _BN = INDEX["ay0"], INDEX["bn0"]
+_FF, _CFREF, _LNU = INDEX["F_fric"], INDEX["cf_ref"], INDEX["L_nu"]
+NU_WATER_M2_S = 1.0e-6  # kinematic viscosity of the water the Reynolds number uses [ITTC-2011]
 JS_SYN, JS_SYN0 = -0.35, -0.06  # the knots of Hachii's astern side force in J_s (module docstring)
 
 
@@ -189,8 +203,18 @@ def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
               "eta": p.diameter_m / span_m if span_m > 0 else 0.0, "tR": r.tR, "aH": r.aH,
               "xH_m": r.xH * model.lpp_m, "xR_m": rudder_x_m, "gamma_minus": r.gamma_minus,
               "gamma_plus": r.gamma_plus, "lR_nd": r.lR, "epsilon": r.epsilon, "kappa": r.kappa,
-              "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad}
+              "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad,
+              "F_fric": model.friction_factor,
+              "cf_ref": ittc57_cf(model.reference_speed_m_s * model.lpp_m / NU_WATER_M2_S)
+              if model.friction_factor > 0 else 0.0,
+              "L_nu": model.lpp_m / NU_WATER_M2_S}
     return np.array([float(values[k]) for k in FIELDS])
+
+
+def ittc57_cf(reynolds: float) -> float:
+    """C_F = 0.075/(log10 Re − 2)² [ITTC-1957] (Re floored at 1e3: the line's own domain starts far above)."""
+    re = max(reynolds, 1e3)
+    return 0.075 / (math.log10(re) - 2.0) ** 2
 
 
 def hull_fields() -> list[str]:
@@ -223,7 +247,10 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         if U > 0.0:
             f = min(max(2.0 * u / U, -1.0), 1.0)
         U2 = Un * Un
-        X += q * (-p[h] * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
+        r0 = p[h]
+        if p[_FF] > 0.0:  # R'_0 along the friction line (ittc57_cf written out: numba compiles this function alone)
+            r0 += p[_FF] * (0.075 / (math.log10(max(Un * p[_LNU], 1e3)) - 2.0) ** 2 - p[_CFREF])
+        X += q * (-r0 * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
                                              + p[h + 4] * vp * vp * vp * vp))
         Y += q * U2 * (p[h + 5] * vp + p[h + 6] * rp + p[h + 7] * vp * vp * vp + p[h + 8] * vp * vp * rp
                        + p[h + 9] * vp * rp * rp + p[h + 10] * rp * rp * rp)

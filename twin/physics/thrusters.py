@@ -55,6 +55,7 @@ hydrodynamic callback's (physics/mmg.py), not the actuators'.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -333,6 +334,28 @@ def motor_state_step(state: int, x: float, start_fwd: float, stop_fwd: float, st
     if state == 0:
         state = 1 if x >= start_fwd else (-1 if x <= start_rev else 0)
     return state
+
+
+# Published maximum thrust of a T200 by supply voltage (kgf, forward and reverse) [BlueRobotics-T200], and
+# the voltage [Yellowfish-TR eq. 27]'s map holds at: its 28.7 N forward per thruster is the 12 V figure
+# scaled down the same power law, which puts it at 10 V.
+T200_MAX_KGF = {12.0: (3.71, 2.92), 16.0: (5.25, 4.10), 20.0: (6.70, 5.05)}
+T200_MAP_VOLTAGE_V = 10.0
+
+
+def t200_voltage_gain(volts: float) -> float:
+    """The T200's forward thrust at `volts` over its thrust at the map's 10 V: a power law through
+    the published maximum thrusts (log-log interpolation between 12, 16 and 20 V, the 12-16 V law
+    below 12 V and the 16-20 V law above 20 V)."""
+    vs = sorted(T200_MAX_KGF)
+    fwd = [T200_MAX_KGF[v][0] for v in vs]
+
+    def thrust(v: float) -> float:
+        i = 0 if v <= vs[1] else 1
+        k = math.log(fwd[i + 1] / fwd[i]) / math.log(vs[i + 1] / vs[i])
+        return fwd[i] * (v / vs[i]) ** k
+
+    return thrust(float(volts)) / thrust(T200_MAP_VOLTAGE_V)
 
 
 def advance_speed(nu_r: np.ndarray, thruster_y_m) -> np.ndarray:

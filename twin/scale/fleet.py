@@ -7,8 +7,8 @@ submitted, and reports come back as data, so a cluster needs no shared file syst
 driver writes every report atomically as it arrives. A log that cannot be diagnosed (no PWM,
 too short, or an unexpected error in its diagnosis) is reported with its one-line reason and
 the others go on: one bad log must not end a month's job. A run in which no log could be
-diagnosed writes nothing (an earlier run's reports in the same folder stay) and is an error; a
-log that fails where an earlier run diagnosed it keeps that report (its failure is written beside
+diagnosed writes nothing (the reports a previous run left in the folder stay) and is an error; a
+log that fails where a previous run diagnosed it keeps that report (its failure is written beside
 it as <name>.failed.json).
 
 Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manifest CSV with a
@@ -201,7 +201,7 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     results: list[dict | None] = [None] * len(logs)
     reports = {}
     # failure records wait until a log of this run is diagnosed: a run in which every log fails (a bad
-    # option, a wrong vessel) must not replace an earlier run's reports in the same folder
+    # option, a wrong vessel) must not replace the reports a previous run left in the folder
     waiting: list[dict] = []
 
     def items(b: Batch) -> list[_Item]:
@@ -268,7 +268,7 @@ def _report_names(logs: list[Log]) -> list[str]:
 
 
 def _write_report(out: Path, name: str, r: dict) -> Path:
-    """OUT/<name>.json (and .html). A log that fails now, whose earlier run in this folder was
+    """OUT/<name>.json (and .html). A log that fails now, whose previous run in this folder was
     diagnosed, keeps that report: its failure goes to OUT/<name>.failed.json beside it."""
     page = r.pop("html", None)
     if page is not None:

@@ -33,6 +33,7 @@ from ..engine.callbacks import _joint_indices
 from ..effects import coefficients
 from ..errors import TwinError
 from ..fit.windows import ModelCache, Window, as_measured, make_windows, measured, predict
+from ..fit.crossval import form_error_at
 from ..physics.kinematics import wrap_angle
 from ..prepare import Prepared
 from ..progress import Progress
@@ -423,6 +424,7 @@ class _RecordingJob:
     windows: list
     variation: Variation
     every: int
+    wind: str | None = None
 
 
 @dataclass
@@ -445,18 +447,25 @@ class RecordingCoverage:
     lo: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     hi: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     measured: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    # the share inside the parameters' spread alone, where the band was widened by the twin's form error
+    inside_parameters_only: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"level": self.level, "inside": self.inside, "horizon_s": self.horizon_s,
+        return {"level": self.level, "inside": self.inside, "inside_parameters_only": self.inside_parameters_only,
+                "horizon_s": self.horizon_s,
                 "inside_by_horizon": self.inside_by_horizon, "windows": self.windows, "window_s": self.window_s,
                 "draws": self.draws, "diverged": self.diverged, "rejected": self.rejected}
 
     def text(self) -> str:
         """One line per quantity: how often the recording is inside the band (should be ≈ level)."""
+        widened = bool(self.inside_parameters_only)
         lines = [f"band of {self.draws} draws, {self.windows} free runs of {self.window_s:g} s from measured "
-                 f"states: share of the recording inside the {100 * self.level:g} % band"]
+                 f"states: share of the recording inside the {100 * self.level:g} % band"
+                 + (" (the parameters' spread widened by the twin's error on left-out runs; in brackets the "
+                    "parameters' spread alone)" if widened else "")]
         for q, share in self.inside.items():
-            lines.append(f"  {q:10s} {100 * share:5.1f} %")
+            alone = f"  ({100 * self.inside_parameters_only[q]:5.1f} %)" if widened else ""
+            lines.append(f"  {q:10s} {100 * share:5.1f} %{alone}")
         return "\n".join(lines)
 
 
@@ -485,7 +494,7 @@ def _recording_cache(job: _RecordingJob) -> ModelCache:
 def _free_runs(vessel: Vessel, job: _RecordingJob, cache: ModelCache) -> np.ndarray:
     """(W, S, 6) one twin's free runs, velocities as the recording's smoother sees them, every
     `every`-th grid sample; a diverged window is NaN throughout."""
-    pred = predict(vessel, job.preps, job.windows, cache)[0]
+    pred = predict(vessel, job.preps, job.windows, cache, wind=job.wind)[0]
     nu = as_measured(pred.nu, job.preps, job.windows)
     out = np.concatenate([pred.eta, nu], axis=-1)[:, ::job.every]
     for j, _ in pred.diverged:
@@ -496,12 +505,18 @@ def _free_runs(vessel: Vessel, job: _RecordingJob, cache: ModelCache) -> np.ndar
 def band_coverage(vessel: Vessel, preps: list[Prepared], *, draws: int = 200, seed: int = 0, level: float = 0.9,
                   window_s: float = 30.0, sample_dt_s: float = 1.0, variation: Variation | None = None,
                   batch_size: int = 16, executor: Executor | None = None,
-                  progress: Progress | None = None) -> RecordingCoverage:
+                  progress: Progress | None = None, wind: str | None = None,
+                  form_error: bool = True) -> RecordingCoverage:
     """How often prepared recordings fall inside the Monte Carlo band of free runs of window_s
-    from their measured states, driven by their PWM (non-overlapping windows); `vessel` as the
-    recordings' sensors see it (e.g. with each log's compass calibration). The band holds the
-    model's uncertainty only: measurement noise and the error of the measured start state are
-    not in it, so at short horizons the recording is inside less often than `level`."""
+    from their measured states, driven by their inputs (non-overlapping windows); `vessel` as the
+    recordings' sensors see it (e.g. with each log's compass calibration); wind "measured": each
+    recording's measured wind a known input.
+
+    The draws spread the identified parameters only. Where the vessel file carries the twin's
+    error on runs left out of its fit (uncertainty["form_error"], written by identify:
+    crossval.form_error), the band is widened by it, in quadrature at each horizon, unless
+    `form_error` is False: a twin is wrong in its form as well as in its numbers, and a band without
+    that covers new runs far less often than its level says."""
     variation = variation or Variation(covariance=True)
     if variation.covariance and not vessel.uncertainty:
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty (identify it first)")
@@ -511,20 +526,38 @@ def band_coverage(vessel: Vessel, preps: list[Prepared], *, draws: int = 200, se
         raise TwinError(f"the recordings have no segment of {window_s:g} s with PWM for a free run")
     grid = preps[0].settings.grid_dt
     every = max(1, int(round(sample_dt_s / grid)))
-    job = _RecordingJob(vessel, preps, windows, variation, every)
+    job = _RecordingJob(vessel, preps, windows, variation, every, wind)
     results = gather(executor or LocalExecutor(), run_recording_batch, job, plan(draws, batch_size, seed),
                      progress=progress)
     tracks = np.concatenate([r.tracks for r in results])  # (n, W, S, 6)
     nominal = _free_runs(vessel, job, ModelCache())
     eta, nu = measured(preps, windows)
     meas = np.concatenate([eta, nu], axis=-1)[:, ::every]
+    widen = vessel.uncertainty.get("form_error") if form_error else None
     return _recording_coverage(tracks, nominal, meas, level, windows, window_s, every * grid,
-                               sum(len(r.diverged) for r in results), sum(r.rejected for r in results))
+                               sum(len(r.diverged) for r in results), sum(r.rejected for r in results), widen)
+
+
+def nominal_q(nominal: np.ndarray, q: str) -> np.ndarray:
+    """(W, S) the nominal free runs' own value of quantity q (0 for the distance from them)."""
+    if q == "deviation":
+        return np.zeros(nominal.shape[:2])
+    return nominal[..., STATE.index(q)]
+
+
+def _widened(lo: np.ndarray, hi: np.ndarray, nom: np.ndarray, half: np.ndarray, one_sided: bool
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The band [lo, hi] around nom widened by a form-error half-width (per horizon), in quadrature
+    on each side."""
+    up = nom + np.sqrt(np.clip(hi - nom, 0.0, None) ** 2 + half ** 2)
+    if one_sided:
+        return lo, up
+    return nom - np.sqrt(np.clip(nom - lo, 0.0, None) ** 2 + half ** 2), up
 
 
 def _recording_coverage(tracks: np.ndarray, nominal: np.ndarray, meas: np.ndarray, level: float,
                         windows: list[Window], window_s: float, dt_s: float, diverged: int,
-                        rejected: int) -> RecordingCoverage:
+                        rejected: int, widen: dict | None = None) -> RecordingCoverage:
     ok = np.all(np.isfinite(tracks) | np.isnan(nominal)[None], axis=(1, 2, 3))
     if not ok.any():
         raise TwinError("every draw diverged on the recording: no band")
@@ -537,16 +570,26 @@ def _recording_coverage(tracks: np.ndarray, nominal: np.ndarray, meas: np.ndarra
         lo[q] = np.zeros((W, S)) if q in ONE_SIDED else np.percentile(draws_q, lo_p, axis=0)
         hi[q] = np.percentile(draws_q, hi_p, axis=0)
         got[q] = np.stack([m[q][0] for _, m in per_window])
+    parameters_only = {q: _share_inside(got[q], lo[q], hi[q])[0] for q in RECORDING_QUANTITIES} if widen else {}
+    for q in RECORDING_QUANTITIES:
+        if widen and q in widen.get("quantiles", {}):
+            lo[q], hi[q] = _widened(lo[q], hi[q], nominal_q(nominal, q), form_error_at(widen, q, level, dt_s *
+                                                                                      np.arange(S)), q in ONE_SIDED)
     inside, by_horizon = {}, {}
     for q in RECORDING_QUANTITIES:
-        x = got[q][:, 1:]
-        hit = (x >= lo[q][:, 1:]) & (x <= hi[q][:, 1:])
-        known = np.isfinite(x) & np.isfinite(lo[q][:, 1:]) & np.isfinite(hi[q][:, 1:])
-        inside[q] = float(np.mean(hit[known])) if known.any() else float("nan")
-        by_horizon[q] = np.array([float(np.mean(hit[:, k][known[:, k]])) if known[:, k].any() else np.nan
-                                  for k in range(S - 1)])
+        inside[q], by_horizon[q] = _share_inside(got[q], lo[q], hi[q])
     return RecordingCoverage(level, inside, dt_s * np.arange(1, S), by_horizon, W, window_s, int(ok.sum()),
-                             diverged, rejected, lo, hi, got)
+                             diverged, rejected, lo, hi, got, parameters_only)
+
+
+def _share_inside(got: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, np.ndarray]:
+    """The share of the measured samples after each window's start inside [lo, hi], and per horizon."""
+    x = got[:, 1:]
+    hit = (x >= lo[:, 1:]) & (x <= hi[:, 1:])
+    known = np.isfinite(x) & np.isfinite(lo[:, 1:]) & np.isfinite(hi[:, 1:])
+    share = float(np.mean(hit[known])) if known.any() else float("nan")
+    return share, np.array([float(np.mean(hit[:, k][known[:, k]])) if known[:, k].any() else np.nan
+                            for k in range(x.shape[1])])
 
 
 def recording_coverage(vessel: Vessel, recordings, *, calibrated: bool = True, **options) -> RecordingCoverage:

@@ -21,7 +21,7 @@ Choices, and why:
   history of the frames' inputs, neutral before the session started), through
   the PWM map ([Yellowfish-TR eq. 27] with its dead zone), times the thrust decay at the
   step's time, then a thrust ramp's slew limit (each step's mean of the ramp, from rest at
-  the session's start). The decay counts from the start of the twin's clock, which starts
+  the start of the SITL session). The decay counts from the start of the twin's clock, which starts
   again with ArduPilot (a restart is a new session). Gains, lag and the
   advance-speed loss act in MuJoCo as everywhere else. A twin whose thrust follows the
   supply voltage runs at its reference voltage: SITL sends no battery (ArduPilot simulates

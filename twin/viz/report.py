@@ -103,8 +103,8 @@ def comparison_png(runs: dict, title: str) -> bytes:
     for (name, run), colour in zip(runs.items(), ("k", "tab:orange", "tab:blue", "tab:green")):
         track.plot(run.eta[:, 1], run.eta[:, 0], color=colour, lw=1.2, label=name)
         track.plot(run.eta[0, 1], run.eta[0, 0], "o", color=colour, ms=4)
-        for ax, (k, label) in zip(axes, ((0, "u (m/s)"), (2, "r (rad/s)"))):
-            ax.plot(run.t, run.nu[:, k], color=colour, lw=1, label=name)
+        for ax, (k, label, scale) in zip(axes, ((0, "u (m/s)", 1.0), (2, "r (°/s)", 180.0 / np.pi))):
+            ax.plot(run.t, scale * run.nu[:, k], color=colour, lw=1, label=name)
             ax.set_ylabel(label)
         if np.any(np.isfinite(run.pwm_us)):
             axes[2].plot(run.t, run.pwm_us[:, 0], color=colour, lw=0.8, ls="-")

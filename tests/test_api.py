@@ -1,0 +1,107 @@
+"""The Python API: no exported name is replaced by a subpackage once every part of the package is
+imported, every exported function checks its input as the command does, results are typed with
+short reprs."""
+import importlib
+import pkgutil
+
+import pytest
+
+import twin
+
+FAST_CALLS = {
+    "load_vessel": lambda: twin.load_vessel("blueboat"),
+    "simulate": lambda: twin.simulate("blueboat", "step", duration_s=2.0),
+    "simulate_run": lambda: twin.simulate_run("blueboat", scenario="turn", duration_s=2.0),
+    "validate": lambda: twin.validate("cybership1"),
+    "effective_parameters": lambda: twin.effective_parameters(twin.load_vessel("blueboat")),
+    "compile_vessel": lambda: twin.compile_vessel(twin.load_vessel("blueboat")),
+}
+
+
+@pytest.fixture(scope="module")
+def everything_imported():
+    for m in pkgutil.walk_packages(twin.__path__, "twin."):
+        if not m.name.endswith("__main__"):
+            importlib.import_module(m.name)
+    return twin
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("api") / "run.csv"
+    twin.simulate_run("blueboat", scenario="zigzag", duration_s=40.0).write(path)
+    return path
+
+
+def test_no_export_is_a_subpackage_or_module(everything_imported):
+    for name in twin.__all__ if hasattr(twin, "__all__") else twin.api.__all__:
+        value = getattr(twin, name)
+        assert not isinstance(value, type(twin)), f"twin.{name} is a module"
+    for name in twin.api.__all__:
+        assert not isinstance(getattr(twin, name), type(twin)), f"twin.{name} is a module"
+
+
+@pytest.mark.parametrize("name", sorted(FAST_CALLS))
+def test_each_exported_function_works_twice_after_every_subpackage_is_imported(name, everything_imported):
+    for _ in range(2):
+        assert FAST_CALLS[name]() is not None
+
+
+def test_recording_functions_work_twice_after_every_subpackage_is_imported(everything_imported, log):
+    for _ in range(2):
+        rec = twin.read_recording(log)
+        assert twin.prepare_recording(rec, "blueboat") is not None
+        assert twin.prepare_recording(rec) is not None
+        assert isinstance(twin.calibrate([rec], "blueboat"), list)
+        assert twin.evaluate("blueboat", [rec]).score("u").r2 > 0.9
+
+
+def test_every_export_is_covered_by_a_call():
+    slow = {"identify", "diagnose_recordings", "judge", "crosscheck", "save_vessel"}  # tested in their own files
+    called = set(FAST_CALLS) | {"read_recording", "prepare_recording", "calibrate", "evaluate"} | slow
+    functions = {n for n in twin.api.__all__ if callable(getattr(twin, n)) and not isinstance(getattr(twin, n), type)}
+    assert functions <= called, functions - called
+
+
+@pytest.mark.parametrize("call, says", [
+    (lambda: twin.evaluate("blueboat", []), "no recordings"),
+    (lambda: twin.identify([], "blueboat"), "no recordings"),
+    (lambda: twin.diagnose_recordings([], "blueboat"), "no recordings"),
+    (lambda: twin.calibrate([], "blueboat"), "no recordings"),
+    (lambda: twin.judge([], "blueboat", "current=0.1,90"), "no recordings"),
+    (lambda: twin.simulate_run("blueboat", duration_s=5.0, sample_dt_s=10.0), "longer than the run"),
+    (lambda: twin.simulate("blueboat", duration_s=-1.0), "positive"),
+    (lambda: twin.evaluate(42, []), "expected a vessel"),
+])
+def test_bad_input_is_a_twin_error_saying_so(call, says):
+    with pytest.raises(twin.TwinError, match=says):
+        call()
+
+
+def test_a_recording_of_another_kind_of_vessel_is_refused(log):
+    with pytest.raises(twin.TwinError, match="another kind of vessel"):
+        twin.evaluate("esso_osaka", [log])
+    with pytest.raises(twin.TwinError, match="another kind of vessel"):
+        twin.identify([log], "esso_osaka")
+
+
+def test_results_are_typed_with_short_rounded_reprs(log):
+    ev = twin.evaluate("blueboat", [log])
+    assert len(repr(ev)) < 120 and "0.9" in repr(ev)
+    s = ev.score("r", "free_run_10s")
+    assert isinstance(s, twin.Score) and s.unit == "°/s" and s.n > 0
+    assert not any(len(tok) > 8 for tok in repr(s).replace(",", " ").split() if tok[:1].isdigit())
+    table = ev.table()
+    assert table.title and "horizon" in str(table).splitlines()[1] and table.to_dict()["rows"]
+    assert ev.to_dict()["vessel"] == "blueboat"
+
+
+def test_an_effect_has_parameters_with_units_and_evidence():
+    e = twin.Effect({"name": "current", "text": "current=0.1,90", "parameters": {"speed_m_s": 0.1, "dir_deg": 90.0},
+                     "ci": {"speed_m_s": [0.08, 0.12]}, "z": 4.2, "evidence": {"z": 4.2, "held_out_gain": 0.1,
+                                                                               "blocks_for": 9, "blocks_against": 1}})
+    units = {p.name: p.unit for p in e.parameters}
+    assert units["speed_m_s"] and units["dir_deg"]
+    assert e.parameters[0].ci95 == (0.08, 0.12)
+    assert e.evidence.z == 4.2 and e.evidence.blocks_for == 9
+    assert e["text"] == "current=0.1,90" and "current" in repr(e) and len(repr(e)) < 120

@@ -1,0 +1,71 @@
+"""What a user meets first in the command: the help, and one line and exit 2 for each input that
+cannot be meant (tests/test_cli_errors.py has the rest)."""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def twin(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
+                          timeout=300, cwd=cwd, env={"COLUMNS": "120", "PATH": "/usr/bin:/bin"})
+
+
+def test_help_lists_commands_in_workflow_order_with_one_line_each_and_no_type_tags():
+    from twin.cli.app import WORKFLOW
+
+    done = twin("--help")
+    assert done.returncode == 0
+    listed = [line.split()[1] for line in done.stdout.splitlines()
+              if line.startswith("│ ") and len(line.split()) > 2 and line.split()[1] in WORKFLOW]
+    assert listed == list(WORKFLOW)
+    assert "<bool>" not in done.stdout
+    ident = twin("identify", "--help").stdout
+    assert "<bool>" not in ident and "<str>" not in ident and "<float>" not in ident
+
+
+def test_quiet_is_accepted_after_the_command(tmp_path):
+    done = twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", tmp_path / "a.csv", "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+
+
+def test_vessel_and_model_together_are_refused(tmp_path):
+    model = tmp_path / "m.json"
+    shutil.copy(ROOT / "twin" / "model" / "blueboat.json", model)
+    done = twin("params", "--vessel", "yellowfish", "--model", model)
+    assert done.returncode == 2 and done.stderr.startswith("error: ") and "not both" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_copied_vessel_file_loads_with_its_mjcf_and_meshes(tmp_path):
+    shutil.copy(ROOT / "twin" / "model" / "blueboat.json", tmp_path / "copy.json")
+    assert twin("params", "--model", tmp_path / "copy.json").returncode == 0
+    shutil.copy(ROOT / "twin" / "model" / "blueboat.xml", tmp_path / "blueboat.xml")  # its meshes are not beside it
+    assert twin("params", "--model", tmp_path / "copy.json").returncode == 0
+    data = json.loads((tmp_path / "copy.json").read_text())
+    data["mjcf"] = "nowhere.xml"
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    done = twin("params", "--model", tmp_path / "bad.json")
+    assert done.returncode == 2 and "package:" in done.stderr
+
+
+def test_a_sample_step_longer_than_the_run_is_refused(tmp_path):
+    done = twin("simulate", "--vessel", "blueboat", "--duration", "5", "--sample-dt", "10", "--out", tmp_path / "a.csv")
+    assert done.returncode == 2 and "longer than the run" in done.stderr
+    assert not (tmp_path / "a.csv").exists()
+
+
+@pytest.mark.parametrize("empty", [True, False])
+def test_fleet_names_an_empty_folder(tmp_path, empty):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    if not empty:
+        (folder / "notes.txt").write_text("not a recording")
+    done = twin("fleet", folder, "--vessel", "blueboat", "--out", tmp_path / "out")
+    assert done.returncode == 2 and "folder with no recordings" in done.stderr

@@ -1,0 +1,125 @@
+"""The documentation: the site builds with --strict, the bibliography page is the code's, the README
+stays short and free of development history, and every example of the README and the Guide runs.
+
+Examples are the ```bash and ```python blocks (```text blocks are shown, not run). A page's blocks run
+in order in one folder, and the Guide's pages in their order in one folder, since a tutorial builds on
+the files the pages before it made. Lines that install or run the suite itself (pip, git clone, cd,
+python -m pytest) are not run. A block whose first line is `# needs ../shared/...` skips when that
+path is absent.
+"""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+GUIDE = sorted((DOCS / "guide").glob("*.md"))
+NOT_RUN = re.compile(r"^\s*(pip |git clone|cd |python -m pytest)")
+BLOCK = re.compile(r"^```(bash|python)\n(.*?)^```", re.S | re.M)
+
+
+def blocks(page: Path) -> list[tuple[str, str]]:
+    return [(lang, body) for lang, body in BLOCK.findall(page.read_text())]
+
+
+def run_block(lang: str, body: str, where: Path, page: Path) -> None:
+    first = body.splitlines()[0] if body.strip() else ""
+    if first.startswith("# needs "):
+        needed = (ROOT / first[len("# needs "):].strip()).resolve()
+        if not needed.exists():
+            pytest.skip(f"{page.name}: needs {needed}")
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    if lang == "python":
+        done = subprocess.run([sys.executable, "-c", body], cwd=where, capture_output=True, text=True, env=env,
+                              timeout=600)
+        assert done.returncode == 0, f"{page.name}: python block failed:\n{body}\n{done.stderr[-2000:]}"
+        return
+    for line in body.splitlines():
+        if not line.strip() or line.lstrip().startswith("#") or NOT_RUN.match(line):
+            continue
+        done = subprocess.run(["bash", "-c", line], cwd=where, capture_output=True, text=True, env=env,
+                              timeout=600)
+        assert done.returncode == 0, f"{page.name}: `{line}` failed:\n{done.stderr[-2000:]}"
+
+
+def test_the_readme_is_short_and_has_no_development_history():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 250
+    for word in ("session", "fresh seed", "tried and reverted", "seed 00"):
+        assert word not in text.lower(), word
+
+
+def test_the_docs_speak_of_sessions_only_as_ardupilot_sitl_sessions():
+    wrong = []
+    for path in [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "twin").rglob("*.py")]:
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            if re.search(r"session", line, re.I) and not re.search(r"sitl|ardupilot", path.as_posix() + line, re.I):
+                wrong.append(f"{path.relative_to(ROOT)}:{n}: {line.strip()}")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_bibliography_page_is_the_codes():
+    from twin.references import markdown
+
+    assert (DOCS / "bibliography.md").read_text() == markdown(), \
+        "docs/bibliography.md is out of date: python -m twin.references > docs/bibliography.md"
+
+
+def test_every_key_cited_is_in_the_bibliography():
+    from twin.references import BIBLIOGRAPHY
+
+    cited = set()
+    files = [ROOT / "README.md", *DOCS.rglob("*.md"), *(ROOT / "twin").rglob("*.py"), *(ROOT / "twin" / "model").glob("*")]
+    for path in files:
+        cited |= set(re.findall(r"\[([A-Z][A-Za-z]+(?:-[A-Z0-9][A-Za-z0-9]*)+)[\] ;]", path.read_text(errors="ignore")))
+    unknown = sorted(k for k in cited if k not in BIBLIOGRAPHY)
+    assert not unknown, f"cited but not in twin/references.py: {unknown}"
+
+
+def test_the_site_builds_strictly(tmp_path):
+    pytest.importorskip("mkdocs", reason="the docs extra is not installed (pip install -e '.[docs]')")
+    pytest.importorskip("mkdocstrings", reason="the docs extra is not installed (pip install -e '.[docs]')")
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "twin identify" in (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
+
+
+def test_the_readme_examples_run(tmp_path):
+    for lang, body in blocks(ROOT / "README.md"):
+        run_block(lang, body, tmp_path, ROOT / "README.md")
+
+
+@pytest.fixture(scope="module")
+def guide_folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("guide")
+
+
+@pytest.mark.parametrize("page", GUIDE, ids=[p.stem for p in GUIDE])
+def test_the_guide_examples_run(page, guide_folder):
+    """In the Guide's order, in one folder: a page uses what the pages before it made."""
+    for lang, body in blocks(page):
+        run_block(lang, body, guide_folder, page)
+
+
+def test_every_guide_page_has_an_example_or_says_why_not():
+    for page in GUIDE:
+        assert blocks(page) or "```text" in page.read_text(), page.name
+
+
+def test_results_pages_name_their_data_and_run():
+    pages = [p for p in (DOCS / "results").glob("*.md") if p.name != "index.md"]
+    assert pages
+    for page in pages:
+        text = page.read_text()
+        assert "Generated by" in text and "commit" in text, page.name
+        assert (DOCS / "results" / "data" / f"{page.stem}.json").exists(), page.name
+
+
+def test_no_proof_run_folders_in_docs():
+    assert not [p for p in DOCS.rglob("*") if p.is_dir() and re.search(r"fresh_seeds|nulls_\d", p.name)]

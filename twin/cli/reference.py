@@ -1,0 +1,43 @@
+"""The command reference as Markdown, from the typer app itself (the docs site's reference page
+is made from it at build time, so it cannot drift from `twin COMMAND --help`)."""
+from __future__ import annotations
+
+import inspect
+
+import typer
+
+
+def _commands():
+    from . import app as app_module
+
+    group = typer.main.get_command(app_module.app)
+    ctx = typer.Context(group, info_name="twin")
+    return group, ctx, [(name, group.get_command(ctx, name)) for name in group.list_commands(ctx)]
+
+
+def _option_row(param) -> str:
+    names = ", ".join(f"`{o}`" for o in (*param.opts, *param.secondary_opts))
+    if param.param_type_name == "argument":
+        names = f"`{(param.metavar or param.name).upper()}`"
+    default = param.default
+    shown = "" if default in (None, False, (), []) or getattr(param, "is_flag", False) else f" (default: `{default}`)"
+    text = " ".join((getattr(param, "help", None) or "").split()).replace("|", "\\|")
+    return f"| {names} | {text}{shown} |"
+
+
+def markdown() -> str:
+    """Every command in the order `twin --help` lists them: its summary, its description and a
+    table of its arguments and options."""
+    group, _, commands = _commands()
+    out = ["Every command of `twin`, in the order of the workflow. Every bad input ends in one "
+           "`error: ...` line on stderr and exit code 2; `--quiet` (before or after the command) turns "
+           "off progress bars and notes.", ""]
+    for name, cmd in commands:
+        out += [f"## twin {name}", "", cmd.short_help or "", ""]
+        doc = inspect.cleandoc(cmd.help or "")
+        paragraphs = [" ".join(p.split()) for p in doc.split("\n\n")[1:]]
+        out += [p for par in paragraphs for p in (par, "")]
+        params = [p for p in cmd.params if p.name not in ("help",)]
+        if params:
+            out += ["| argument or option | meaning |", "| --- | --- |", *map(_option_row, params), ""]
+    return "\n".join(out)
