@@ -342,6 +342,19 @@ def write_page(stages: dict, out: Path) -> Path:
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
         {"stages": stages, "proof": [c.name for c in PROOF]})
+    return _write(page, out)
+
+
+def _write(page: ResultPage, out: Path) -> Path:
+    """The page, and its raw figures in out/data/ (the results' folder of raw figures)."""
+    import datetime
+
+    from twin.files import json_default, write_text_atomic
+
+    page.raw_file = f"data/{page.name}.json"
+    meta = {"title": page.title, "ran": page.ran, "data": page.data, "date": datetime.date.today().isoformat(),
+            "commit": _commit()}
+    write_text_atomic(out / page.raw_file, json.dumps({"meta": meta, **page.raw}, indent=1, default=json_default) + "\n")
     return page.write(out)
 
 
@@ -392,7 +405,7 @@ def main() -> int:
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
     rows = [json.loads((stage_dir / f"{c.name}.json").read_text()) for c in PROOF
             if (stage_dir / f"{c.name}.json").is_file()]
-    raw_path = args.out / "concealed_effects.json"
+    raw_path = args.out / "data" / "concealed_effects.json"
     stages = json.loads(raw_path.read_text()).get("stages", {}) if raw_path.is_file() else {}
     stages[args.stage] = {"commit": _commit(), "rows": rows, "summary": summary_of(rows)}
     print(write_page(stages, args.out))

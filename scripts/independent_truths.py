@@ -294,6 +294,19 @@ def write_page(stages: dict, out: Path) -> Path:
                  "that thruster (forward and astern alike); the u² loss's: the thrust_speed_loss coefficient that "
                  "matches it over the log's own samples, added to the prior's."],
         {"stages": stages, "cases": [c.__dict__ for c in CASES]})
+    return _write(page, out)
+
+
+def _write(page: ResultPage, out: Path) -> Path:
+    """The page, and its raw figures in out/data/ (the results' folder of raw figures)."""
+    import datetime
+
+    from twin.files import json_default, write_text_atomic
+
+    page.raw_file = f"data/{page.name}.json"
+    meta = {"title": page.title, "ran": page.ran, "data": page.data, "date": datetime.date.today().isoformat(),
+            "commit": _commit()}
+    write_text_atomic(out / page.raw_file, json.dumps({"meta": meta, **page.raw}, indent=1, default=json_default) + "\n")
     return page.write(out)
 
 
@@ -332,7 +345,7 @@ def main() -> int:
                   f"({row['seconds']} s)", flush=True)
     rows = [json.loads((stage_dir / f"{c.name}.json").read_text()) for c in CASES
             if (stage_dir / f"{c.name}.json").is_file()]
-    raw = args.out / "independent_truths.json"
+    raw = args.out / "data" / "independent_truths.json"
     stages = json.loads(raw.read_text()).get("stages", {}) if raw.is_file() else {}
     stages[args.stage] = {"commit": _commit(), "rows": rows, "summary": summary_of(rows)}
     print(write_page(stages, args.out))

@@ -86,8 +86,9 @@ GYRO_PIECE_S, GYRO_TURNING_RAD_S, GYRO_MIN_FIT = 60.0, 0.01, 0.5
 class KinematicFinding:
     """One effect as the kinematics or timing tell it: `values` in the library's terms for the
     twin (its current value plus what it lacks), `change` what the twin lacks, their 1-σ; `told`:
-    named; `absent`: the effect is told not to be there beyond the floor (a diagnosis need not
-    search for it); `why`: how, or why not; `basis`: what it rests on."""
+    named; `absent`: not told, though the kinematics would have told it at the floor (3 σ within
+    it): a diagnosis need not search for it, as its dynamics would measure it worse; `why`: how, or
+    why not; `basis`: what it rests on."""
 
     effect: str
     values: dict[str, float]
@@ -218,7 +219,7 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
     if chi2 >= limit and size >= MIN_ARM_M:
         return finding(change, sigma, True, False, f"χ² {chi2:.1f} against the twin's antenna{one_hand}", detail)
     spread = float(np.sqrt(max(np.max(np.diag(cov)[:len(change)]), 0.0)))
-    absent = both and size + 3 * spread < MIN_ARM_M
+    absent = both and 3 * spread <= MIN_ARM_M  # an antenna MIN_ARM_M off would have been told
     return finding(change, sigma, False, absent, f"χ² {chi2:.1f}, {size:.2f} m: within the noise or under "
                    f"{MIN_ARM_M:g} m{one_hand}", detail)
 
@@ -451,8 +452,8 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     def later(x, sig):  # a filter or a receiver delays, it never leads: an early stream is not named
         return sure(x, sig) and x > 0
 
-    def nil(x, sig):
-        return x is not None and abs(x) + 3 * sig < floor
+    def nil(x, sig):  # not told, though the answers would have told a shift of the floor's size
+        return x is not None and sig is not None and 3 * sig <= floor and not sure(x, sig)
 
     heading = _gyro_heading(recordings, vessel, floor) if gyro else None
     if surge.shift_s is None or yaw.shift_s is None:
@@ -508,7 +509,7 @@ def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> 
     sig = float(1 / math.sqrt(w.sum()))
     change = lag - s.heading_latency_s
     told = abs(change) >= floor and abs(change) >= 3 * sig and lag > 0
-    absent = abs(change) + 3 * sig < floor
+    absent = not told and 3 * sig <= floor
     return KinematicFinding("heading_latency", {"heading_latency_s": lag}, {"heading_latency_s": change},
                             {"heading_latency_s": sig}, told, absent,
                             f"the heading is {lag:+.2f} ± {sig:.2f} s late against the gyro (floor {floor:.2f} s)",
