@@ -36,7 +36,9 @@ directly (prepare.timing) and its answer then carries the input's timing alone. 
 late move the surge's answer alone. Relative timing is
 all a log can tell: a heading late by L is the GNSS and the input early by as much, so the reading
 is the one that explains the answers with one late stream. A heading or a fix is named late, never
-early: a filter or a receiver delays, it cannot lead.
+early: a filter or a receiver delays, it cannot lead. An input log is named late only: motion that
+answers later than the twin expects may as well be a thrust lag or an ESC's delay the twin lacks,
+which the diagnosis's search tells apart.
 
 A shift is named only when it exceeds TIMING_FLOOR_SAMPLES sample periods of the streams compared
 and three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
@@ -452,6 +454,11 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     def later(x, sig):  # a filter or a receiver delays, it never leads: an early stream is not named
         return sure(x, sig) and x > 0
 
+    def leads(x, sig):
+        # the motion answering before the logged input: only a late log does that, while an answer
+        # that comes late is as well a thrust lag or an ESC's delay the twin lacks (the search's to tell)
+        return sure(x, sig) and x > 0
+
     def nil(x, sig):  # not told, though the answers would have told a shift of the floor's size
         return x is not None and sig is not None and 3 * sig <= floor and not sure(x, sig)
 
@@ -461,7 +468,7 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
             a.dof for a in (surge, yaw) if a.shift_s is None) + ": which stream is late cannot be told"
         answer = next((a for a in (surge, yaw) if a.shift_s is not None), None)
         if gyro and answer is yaw:  # the gyro's answer is the input's timing alone
-            return (clock(yaw.shift_s, yaw.sigma_s, sure(yaw.shift_s, yaw.sigma_s), nil(yaw.shift_s, yaw.sigma_s),
+            return (clock(yaw.shift_s, yaw.sigma_s, leads(yaw.shift_s, yaw.sigma_s), nil(yaw.shift_s, yaw.sigma_s),
                           f"the yaw (gyro) answers {yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s (floor {floor:.2f} s)"),
                     heading, fix_late(0.0, None, False, False, why))
         return (clock(0.0, None, False, False, why), heading or late(0.0, None, False, False, why),
@@ -477,7 +484,7 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     text = (f"surge answers {surge.shift_s:+.2f} ± {surge.sigma_s:.2f} s, yaw ({'gyro' if gyro else 'heading'}) "
             f"{yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s (floor {floor:.2f} s)")
     if agree:
-        return (clock(both, sig_b, sure(both, sig_b), nil(both, sig_b), text),
+        return (clock(both, sig_b, leads(both, sig_b), nil(both, sig_b), text),
                 heading or late(diff, sig_d, False, nil(diff, sig_d), text),
                 fix_late(-diff, sig_d, False, nil(diff, sig_d), text))
     on_time_surge = abs(surge.shift_s) < max(floor, 3 * surge.sigma_s)
@@ -488,7 +495,7 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     if diff < 0 and on_time_yaw:  # the surge answers late: the GNSS fixes are
         return (clock(yaw.shift_s, yaw.sigma_s, False, nil(yaw.shift_s, yaw.sigma_s), text),
                 heading or late(0.0, None, False, False, text), fix_late(-diff, sig_d, later(-diff, sig_d), False, text))
-    return (clock(surge.shift_s, surge.sigma_s, sure(surge.shift_s, surge.sigma_s), False, text),
+    return (clock(surge.shift_s, surge.sigma_s, leads(surge.shift_s, surge.sigma_s), False, text),
             heading or late(diff, sig_d, later(diff, sig_d) and not gyro, False, text),
             fix_late(0.0, None, False, False, text))
 
