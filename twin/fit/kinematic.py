@@ -467,10 +467,14 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
         why = "too few input steps answered clearly in " + " and ".join(
             a.dof for a in (surge, yaw) if a.shift_s is None) + ": which stream is late cannot be told"
         answer = next((a for a in (surge, yaw) if a.shift_s is not None), None)
-        if gyro and answer is yaw:  # the gyro's answer is the input's timing alone
-            return (clock(yaw.shift_s, yaw.sigma_s, leads(yaw.shift_s, yaw.sigma_s), nil(yaw.shift_s, yaw.sigma_s),
-                          f"the yaw (gyro) answers {yaw.shift_s:+.2f} ± {yaw.sigma_s:.2f} s (floor {floor:.2f} s)"),
-                    heading, fix_late(0.0, None, False, False, why))
+        # one answer alone still tells an input log late where the motion leads it (no stream's
+        # lateness makes the motion lead), and the gyro's answer is the input's timing alone
+        if answer is not None and (leads(answer.shift_s, answer.sigma_s) or (gyro and answer is yaw)):
+            text = (f"the {answer.dof} ({'gyro' if gyro and answer is yaw else 'heading' if answer is yaw else 'GNSS'}) "
+                    f"answers {answer.shift_s:+.2f} ± {answer.sigma_s:.2f} s (floor {floor:.2f} s); {why}")
+            return (clock(answer.shift_s, answer.sigma_s, leads(answer.shift_s, answer.sigma_s),
+                          gyro and answer is yaw and nil(answer.shift_s, answer.sigma_s), text),
+                    heading or late(0.0, None, False, False, why), fix_late(0.0, None, False, False, why))
         return (clock(0.0, None, False, False, why), heading or late(0.0, None, False, False, why),
                 fix_late(0.0, None, False, False, why))
     # the surge answers through the GNSS, the yaw through the heading (or the gyro): an input log late
