@@ -20,7 +20,8 @@ the effect library does not have:
 - nulls.
 
 Each recording is written as the generic CSV (lat/lon at 5 Hz logged at 10 Hz, heading 10 Hz,
-PWM 10 Hz) and diagnosed from the untuned BlueBoat prior, as a user would feed a log. A case is
+PWM 10 Hz; the rows' times are floating-point multiples of 0.1 s, and where one falls a hair short of a
+fix's time the fix reaches the log one row late, about one fix in twenty, as a logger's jitter) and diagnosed from the untuned BlueBoat prior, as a user would feed a log. A case is
 exact when the truth is named in the library's terms with its values within 30 % (30° for a
 direction) and nothing else is named; a heading bias the compass calibration applies is not an
 effect named. The library's terms of a form it does not have: the one-thruster dead zone's edge is
@@ -187,7 +188,7 @@ def recording_csv(case: Case, hull: Hull, path: Path, duration_s: float = 420.0)
     t, x = hull.run(pwm_t, pwm, case)
     log_t = np.arange(0.0, t[-1], 0.1)
     at = lambda col: np.interp(log_t, t, x[:, col])  # noqa: E731
-    fix_t = np.floor(log_t / 0.2) * 0.2  # a 5-Hz receiver's fix, logged on every row
+    fix_t = np.floor(log_t / 0.2) * 0.2  # a 5-Hz receiver's fix, logged on every row (module docstring: jitter)
     north = np.interp(fix_t, t, x[:, 0]) + rng.normal(0, 0.02, len(log_t))[(fix_t / 0.2).astype(int) % len(log_t)]
     east = np.interp(fix_t, t, x[:, 1]) + rng.normal(0, 0.02, len(log_t))[(fix_t / 0.2).astype(int) % len(log_t)]
     lat = ORIGIN[0] + np.degrees(north / 6_371_000.0)

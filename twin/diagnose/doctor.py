@@ -471,7 +471,11 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
     J = np.zeros((len(keys), len(names)))
     for j, p in enumerate(cand.params):
         h = max(1e-6, 1e-4 * max(1.0, abs(values[p.name])))
-        moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
+        try:
+            moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
+        except TwinError:  # a value on the upper bound of its range: the step the other way
+            h = -h
+            moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
         for i, key in enumerate(keys):
             d = moved[key] - base[key]
             if key.endswith("dir_deg"):  # an angle: the short way round
