@@ -11,7 +11,11 @@ compiled, the closed-loop scenario at the autopilot rate) written to CSV, as a
 ratio to the one twin's rate (the engine's own speed); the three timed in turn.
 Default integrator and time step of the vessel's MJCF.
 
-    python scripts/bench.py [--vessel yellowfish] [--batch 256] [--json out.json]
+The 6-DOF hull in an irregular sea (`--sea`, default a JONSWAP Hs 0.3 m, Tp 2.5 s short-crested
+sea) against the 3-DOF twin, the two timed in turn in the same run: simulated seconds per wall
+second of one twin on one core (60 s runs under a constant thrust), and their ratio.
+
+    python scripts/bench.py [--vessel yellowfish] [--batch 256] [--sea 0.3,2.5,30,4] [--json out.json]
 """
 from __future__ import annotations
 
@@ -117,6 +121,7 @@ def main(argv=None) -> int:
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--batch-duration", type=float, default=60.0)
     ap.add_argument("--simulate-duration", type=float, default=3600.0, help="zig-zag run to CSV, s")
+    ap.add_argument("--sea", default="0.3,2.5,30,4", help="the 6-DOF figure's sea, HS,TP,DIR[,SPREAD]")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
 
@@ -138,6 +143,10 @@ def main(argv=None) -> int:
     single, batch_all, simulate = _throughputs(model, args.batch, args.batch_duration, cores, args.repeats,
                                                args.vessel, args.simulate_duration)
 
+    from twin.verify.sea import speed_pair
+
+    pair = speed_pair(vessel_mod.load(args.vessel), args.sea, args.repeats)
+    three_rate, six_rate = pair["three_dof_simsec_per_s"], pair["six_dof_simsec_per_s"]
     result = {
         "vessel": args.vessel, "integrator": mujoco.mjtIntegrator(cv.model.opt.integrator).name, "timestep_s": h,
         "cores": cores, "batch_twins": args.batch, "batch_duration_s": args.batch_duration,
@@ -146,6 +155,8 @@ def main(argv=None) -> int:
         "single_simsec_per_s": single, "batch_simsec_per_s": batch_all, "simulate_simsec_per_s": simulate,
         "native_over_bare": native_us / bare, "python_over_bare": python / bare,
         "batch_speedup": batch_all / single, "simulate_over_single": simulate / single,
+        "six_dof_sea": args.sea, "three_dof_simsec_per_s": three_rate, "six_dof_sea_simsec_per_s": six_rate,
+        "six_dof_over_three_dof": six_rate / three_rate,
     }
     rows = [
         ("bare engine (no callbacks)", f"{bare:8.2f} µs/step", f"{h / (bare * 1e-6):9.0f} sim-s/s", "1.00"),
@@ -158,6 +169,9 @@ def main(argv=None) -> int:
          f"speed-up {batch_all / single:.2f} x one twin"),
         (f"simulate, {args.simulate_duration:g}-s zig-zag to CSV", "", f"{simulate:9.0f} sim-s/s",
          f"{simulate / single:.2f} x one twin"),
+        ("one 3-DOF twin (paired with the next)", "", f"{three_rate:9.0f} sim-s/s", ""),
+        (f"one 6-DOF twin, sea {args.sea}", "", f"{six_rate:9.0f} sim-s/s",
+         f"{six_rate / three_rate:.3f} x the 3-DOF twin"),
     ]
     print(f"{args.vessel}: {result['integrator']}, dt = {h * 1e3:g} ms, {cores} cores")
     print(f"{'':34s} {'per step':>16s} {'throughput':>15s}  ratio to bare")

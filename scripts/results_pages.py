@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, write_index  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results"
 DATA = RESULTS / "data"
@@ -116,6 +116,9 @@ STUDIES = {
                     "draws of an identified twin", "How many simulated seconds per second, locally and on Ray?"),
     "bench_engine": ("Benchmark: the engine", "python scripts/bench.py", "the Yellowfish twin",
                      "How fast do single runs, batches and `simulate` go?"),
+    "bench_sitl": ("Benchmark: `twin sitl` at 1200 Hz frames", "python scripts/bench_sitl.py",
+                   "the Yellowfish twin answering a client process at 1200 Hz frames",
+                   "Is the twin fast enough to be ArduPilot SITL's physics at its default 1200 Hz frames?"),
 }
 
 
@@ -252,10 +255,7 @@ def main() -> None:
         parser.error(f"unknown stud{'y' if len(unknown) == 1 else 'ies'}: {', '.join(unknown)}")
     for n in names:
         print(page(n).write(RESULTS))
-    index = ["# Results", "", "One page per study, each written by its script from the raw figures beside it "
-             "(`data/`); nothing here is edited by hand.", "", "| study | page |", "| --- | --- |"]
-    index += [f"| {STUDIES[n][3]} | [{STUDIES[n][0]}]({n}.md) |" for n in STUDIES if (DATA / f"{n}.json").exists()]
-    (RESULTS / "index.md").write_text("\n".join(index) + "\n")
+    write_index(RESULTS)
 
 
 if __name__ == "__main__":

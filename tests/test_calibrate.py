@@ -75,7 +75,7 @@ def test_a_log_under_its_own_wind_is_not_read_with_the_other_logs_drifts(blueboa
     turning = [(15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0), (1.5, 0.0, 1.047), (15, 1.2, 0.0)]
     logs = [_log(turning, off, seed=i, drift=(0.06, -0.24), name=f"log{i}.csv")
             for i, off in enumerate((3.0, -2.0, 4.0))]
-    legs = [(20, 1.2, 0.0), (60, 0.0, 0.0), (20, 1.2, 0.0)]
+    legs = [(20, 1.2, 0.0), (120, 0.0, 0.0), (20, 1.2, 0.0)]  # idle long enough to coast to rest (settle_s)
     windy = _log(legs, 0.0, seed=5, drift=(0.30, 0.20), name="log3.csv")
     assert rest_drift(prepare_for(windy, blueboat), settle_s(blueboat)) == pytest.approx((0.30, 0.20), abs=0.03)
     cal = kinematic_calibrations(logs + [windy], blueboat)[3]

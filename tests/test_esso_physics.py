@@ -25,12 +25,15 @@ def _p(esso) -> dict:
 
 
 def _by_hand(p: dict, u, v, r, n, delta):
-    """[MMG-2015] as printed (valid for u > 0, n > 0, U above the floor)."""
+    """[MMG-2015] as printed (valid for u > 0, n > 0, U above the floor), R'_0 on the friction line."""
     L, d, rho = p["L"], p["d"], p["rho"]
     U = math.hypot(u, v)
     vp, rp = v / U, r * L / U
     q = 0.5 * rho * L * d * U**2
-    X_H = q * (-p["R0"] + p["Xvv"] * vp**2 + p["Xvr"] * vp * rp + p["Xrr"] * rp**2 + p["Xvvvv"] * vp**4)
+    # R'_0 carried along the ITTC-1957 friction line from its reference speed (the twin's extension, module
+    # docstring of physics/mmg.py; F = 0 is the standard's constant R'_0)
+    r0 = p["R0"] + p["F_fric"] * (0.075 / (math.log10(U * p["L_nu"]) - 2.0) ** 2 - p["cf_ref"])
+    X_H = q * (-r0 + p["Xvv"] * vp**2 + p["Xvr"] * vp * rp + p["Xrr"] * rp**2 + p["Xvvvv"] * vp**4)
     Y_H = q * (p["Yv"] * vp + p["Yr"] * rp + p["Yvvv"] * vp**3 + p["Yvvr"] * vp**2 * rp + p["Yvrr"] * vp * rp**2
                + p["Yrrr"] * rp**3)
     N_H = q * L * (p["Nv"] * vp + p["Nr"] * rp + p["Nvvv"] * vp**3 + p["Nvvr"] * vp**2 * rp + p["Nvrr"] * vp * rp**2

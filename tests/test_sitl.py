@@ -9,10 +9,10 @@ callback is process-global).
 """
 from __future__ import annotations
 
-import _thread
 import contextlib
 import json
 import math
+import os
 import re
 import signal
 import socket
@@ -39,7 +39,7 @@ from twin.sitl.protocol import (PacketError, Reply, ServoFrame, format_reply, pa
 from twin.sitl.server import run_sitl
 from twin.vessel import MODEL_DIR, load
 
-GRAVITY = 9.81
+GRAVITY = 9.80665  # ArduPilot's GRAVITY_MSS
 NEUTRAL = 1500.0  # yellowfish: pwm_offset·pwm_scale_us
 
 
@@ -95,7 +95,10 @@ def decode(data: bytes) -> dict:
 
 @contextlib.contextmanager
 def sitl(vessel, **kwargs):
-    """run_sitl in a thread on an ephemeral port; yields (client, box); box["summary"] after the block."""
+    """run_sitl in a thread on an ephemeral port; yields (client, box); box["summary"] after the block.
+    The ESCs arm at once unless a test says otherwise, so that replies compare with offline runs that
+    have no ESC."""
+    kwargs.setdefault("esc_arm_s", 0.0)
     box: dict = {}
     ready, stop = threading.Event(), threading.Event()
 
@@ -327,7 +330,7 @@ def test_the_t200_pwm_map_gives_the_bits_of_the_thruster_model_and_direct_thrust
     assert direct.kind == "thrust" and direct.neutral_us == 1500.0
     assert [direct.raw(direct.held(p)) for p in (1100.0, 1300.0, 1500.0, 1700.0, 1900.0, 2100.0, 900.0)] == \
         [-2.0, -1.0, 0.0, 1.0, 2.0, 2.0, -2.0]
-    twin = SitlTwin(load("cybership1"))
+    twin = SitlTwin(load("cybership1"), esc_arm_s=0.0)
     with twin.active():
         for _ in range(50):
             twin.step([1900, 0, 1700] + [0] * 13, 50)
@@ -414,12 +417,15 @@ def test_duplicates_are_answered_again_without_stepping_and_missed_frames_are_co
         replies = []
         for k in counts:
             replies.append(client.frame(k, frames[k]))
-            if k in (10, 50):
-                client.send(k, frames[k])  # ArduPilot re-sends a frame it got no answer to
-                again = client.receive()
-                assert decode(again) == replies[-1]
+            if k in (10, 50):  # the answer was lost: ArduPilot re-sends after about a second
+                time.sleep(0.6)
+                client.send(k, frames[k])
+                assert decode(client.receive()) == replies[-1]
+            if k in (20, 60, 90):  # the copy crossed a late answer: one answer only
+                client.send(k, frames[k])
+                assert client.nothing_pending(0.3), "a copy that crossed the answer must not be answered"
     counters = box["summary"].counters
-    assert (counters.frames, counters.duplicates, counters.missed) == (117, 2, 3)
+    assert (counters.frames, counters.duplicates, counters.crossed, counters.missed) == (117, 2, 3, 3)
     clean, _, _ = play(full_vessel, [(i, frames[k], 400) for i, k in enumerate(counts)])
     assert replies == clean  # one step per frame answered, whatever the counter did
     np.testing.assert_allclose(np.diff(arrays(replies)["t"]), 1 / 400, rtol=1e-9)
@@ -568,24 +574,25 @@ def test_the_session_is_recorded_in_the_project_formats_also_when_ended_by_ctrl_
                 client.close()
                 time.sleep(0.05)  # the backend back waiting for a frame, as when a user presses Ctrl-C
         finally:
-            _thread.interrupt_main()  # Ctrl-C in the backend's thread
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C: a real SIGINT, which interrupts a blocked receive
 
     box_ready = threading.Event()
     thread = threading.Thread(target=ardupilot, daemon=True)
-    # interrupt_main does nothing when SIGINT is not Python's own handler (something earlier in the
-    # session may have set it): the handler a user's Ctrl-C meets
+    # Python's own handler, as a user's Ctrl-C meets it (run_sitl puts its own in place while it serves)
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     thread.start()
     summary = None
     try:
         summary = run_sitl(full_vessel, port=0, host="127.0.0.1", record_paths=paths, origin=(37.41, -5.98),
                            ready=lambda address: (box.__setitem__("port", address[1]), box_ready.set()))
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "run_sitl restores the handler"
     except KeyboardInterrupt:  # pragma: no cover - a late interrupt outside the session loop
         pytest.fail("Ctrl-C escaped run_sitl")
     finally:
         signal.signal(signal.SIGINT, previous)
     thread.join(10)
-    assert summary.interrupted and summary.counters.frames == 300 and set(summary.written) == set(paths)
+    assert summary.interrupted and summary.signal_name == "SIGINT" and summary.counters.frames == 300
+    assert set(summary.written) == set(paths)
     assert all(p.is_file() and p.stat().st_size > 0 for p in paths)
     assert not list(tmp_path.glob(".*.tmp")), "atomic writes leave no temporary file"
     run = read_csv(paths[0])
@@ -617,6 +624,8 @@ def test_bad_input_is_a_one_line_error(tmp_path):
         run_sitl("yellowfish", port=0, record_paths=[tmp_path / "x.txt"], stop_after_frames=0)
     with pytest.raises(TwinError, match="two different servo outputs"):
         run_sitl("yellowfish", port=0, channels=(3, 3), stop_after_frames=0)
+    with pytest.raises(TwinError, match=r"^--esc-arm -1: the ESC arming time is a number of seconds ≥ 0"):
+        run_sitl("yellowfish", port=0, esc_arm_s=-1, stop_after_frames=0)
 
 
 def test_the_twin_refuses_to_step_without_its_hydrodynamics():
@@ -626,7 +635,7 @@ def test_the_twin_refuses_to_step_without_its_hydrodynamics():
 
 
 def test_a_diverging_twin_is_a_one_line_error_not_a_silent_reset():
-    twin = SitlTwin(load("yellowfish"), record=False)
+    twin = SitlTwin(load("yellowfish"), record=False, esc_arm_s=0.0)
     with twin.active():
         for k in range(10):
             twin.step([1700, 0, 1700] + [0] * 13, 400)
@@ -664,3 +673,105 @@ def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_
     assert twin("--write-params", out).returncode == 0 and "SERVO3_FUNCTION 74" in out.read_text()
     refused = twin("--write-params", tmp_path / "b.json")
     assert refused.returncode == 2 and "unknown format" in refused.stderr and not (tmp_path / "b.json").exists()
+
+
+# ---------------------------------------------------------------- ESC arming and a clean stop
+
+def sitl_startup(rate: int = 1200) -> list[list[int]]:
+    """ArduPilot Rover SITL's first frames as a real start at 1200 Hz sent them on outputs 1-4 (the others
+    taken alike here): 1500 µs for 2240 frames, then 1000 µs on output 1 alone for 24 frames (20 ms) while
+    its outputs are set up, then the disarmed outputs: trim on the throttle outputs 1 and 3, 0 elsewhere."""
+    return ([[1500] * 16] * 2240 + [[1000] + [0] * 15] * 24 + [[1500, 0, 1500] + [0] * 13] * (3 * rate))
+
+
+def test_a_disarmed_autopilot_does_not_move_the_boat_the_escs_arm_on_a_stopped_signal():
+    calm = load("yellowfish")
+    startup = sitl_startup()
+    twin = SitlTwin(calm, esc_arm_s=2.0)
+    with twin.active():
+        replies = [twin.step(pwm, 1200) for pwm in startup]
+        assert all(r.north_m == r.east_m == r.yaw_rad == 0.0 for r in replies), "the start-up pulse moved the boat"
+        assert twin.escs_armed == (True, True)  # 2 s of neutral after the pulse, within the 3 s of trim
+        ahead = [twin.step([1700, 0, 1700] + [0] * 13, 1200) for _ in range(1200)]
+    run = twin.recording()
+    pulse = (run.t >= 2240 / 1200) & (run.t < 2264 / 1200 - 1e-9)
+    assert pulse.sum() == 24 and np.all(run.pwm_us[pulse, 0] == 1000.0) and np.all(run.thrust_n[pulse] == 0.0)
+    assert ahead[-1].north_m > 0.3 and abs(ahead[-1].east_m) < 1e-9, "armed, both ahead: straight on"
+
+    # an ESC that needs no stopped signal takes the pulse as full astern on the left thruster
+    eager = SitlTwin(calm, esc_arm_s=0.0, record=False)
+    with eager.active():
+        last = [eager.step(pwm, 1200) for pwm in startup][-1]
+    assert math.hypot(last.north_m, last.east_m) > 0.01 and abs(last.yaw_rad) > 1e-3
+
+    # a thrust command before the ESC has seen 2 s of neutral is held back, and starts the count again
+    twin = SitlTwin(calm, esc_arm_s=2.0, record=False)
+    with twin.active():
+        for k in range(int(1.5 * 1200)):
+            twin.step([1500, 0, 1500] + [0] * 13, 1200)
+        early = [twin.step([1800, 0, 1800] + [0] * 13, 1200) for _ in range(600)]
+        assert early[-1].north_m == 0.0 and twin.escs_armed == (False, False)
+        for k in range(int(2.0 * 1200)):
+            twin.step([1520, 0, 1480] + [0] * 13, 1200)  # within the ESC's ±25 µs: the stopped signal
+        moved = [twin.step([1800, 0, 1800] + [0] * 13, 1200) for _ in range(600)]
+    assert twin.escs_armed == (True, True) and moved[-1].north_m > 0.1
+
+
+def test_a_boat_at_rest_in_calm_water_is_stepped_exactly_as_mujoco_would():
+    """The twin skips mj_step when nothing can move the boat (at rest, no thrust, calm water): the
+    replies are the ones of a twin that always steps."""
+    calm = load("yellowfish")
+    frames, _ = pwm_frames(900, seed=12)
+    sequence = [[0] * 16] * 300 + frames + [[1500] * 16] * 300
+    results = []
+    for skip in (True, False):
+        twin = SitlTwin(calm, esc_arm_s=0.0, record=False)
+        twin._calm = skip
+        with twin.active():
+            results.append([twin.step(pwm, 1200) for pwm in sequence])
+    assert results[0] == results[1]
+    assert results[0][299].north_m == 0.0 and results[0][1199].north_m != 0.0
+
+
+def test_sigterm_and_sigint_in_the_background_end_twin_sitl_cleanly_with_its_recording(tmp_path):
+    """`twin sitl &` from a script starts with SIGINT ignored; SIGTERM is what `kill` sends. Either way
+    the session ends, the recording is written and the summary printed once."""
+    import subprocess
+    import sys
+
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        path = tmp_path / f"{sig.name}.csv"
+        proc = subprocess.Popen([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", "--port", "0",
+                                 "--host", "127.0.0.1", "--record", str(path)], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+        try:
+            port = int(re.search(r"udp [\d.]+:(\d+)", proc.stderr.readline()).group(1))
+            client = Client(port)
+            for k in range(50):
+                client.frame(k, [1700, 0, 1700] + [0] * 13, 1200)
+            client.close()
+            proc.send_signal(sig)
+            out, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == 0, err
+        assert f"{sig.name}: ending the session" in err
+        assert out.count("50 frames") == 1 and "frames" not in err.split("ending the session")[-1], (out, err)
+        assert len(read_csv(path).t) == 51
+
+
+def test_the_deviation_from_a_mission_is_the_distance_to_the_nearest_leg():
+    from twin.sitl.ardupilot import offset_position, path_deviation_m
+
+    path = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]
+    points = [(5.0, 1.5), (10.0, 5.0), (12.0, 12.0), (-3.0, -4.0), (9.0, 9.0), (10.0, 0.0)]
+    np.testing.assert_allclose(path_deviation_m(points, path), [1.5, 0.0, math.hypot(2, 2), 5.0, 1.0, 0.0])
+    with pytest.raises(TwinError, match="two points"):
+        path_deviation_m(points, path[:1])
+    lat, lon = offset_position(63.4366, 10.3991, 100.0, -50.0)  # back through twin.geodesy: the same metres
+    from twin.geodesy import ned_from_geodetic
+
+    north, east = ned_from_geodetic(lat, lon, 63.4366, 10.3991)
+    assert north == pytest.approx(100.0, abs=1e-6) and east == pytest.approx(-50.0, abs=1e-6)

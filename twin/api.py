@@ -85,9 +85,11 @@ class Simulation:
 
 def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None, duration_s: float = 120.0,
                  seed: int = 0, sample_dt_s: float = 0.1, current: tuple[float, float] | None = None,
-                 wind: tuple[float, float] | None = None) -> Simulation:
+                 wind: tuple[float, float] | None = None, sea=None, six_dof: bool = False) -> Simulation:
     """`twin simulate`: a scenario (or an inputs CSV path / InputSeries) with an optional current
-    (speed m/s, direction deg it flows towards) and wind (speed m/s, direction deg it blows from)."""
+    (speed m/s, direction deg it flows towards) and wind (speed m/s, direction deg it blows from);
+    `sea` (a physics.waves.Sea, or its text 'HS,TP,DIR[,SPREAD]' / 'regular,H,T,DIR', drawn with
+    `seed`) runs the 6-DOF hull in waves, `six_dof` the 6-DOF hull in calm water."""
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     _check_run(duration_s, sample_dt_s)
@@ -102,8 +104,12 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     drive = inputs if inputs is not None else get_scenario(scenario, seed)
     if isinstance(drive, InputSeries) and drive.kind == "pwm" and vessel.thrusters.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}' has no PWM model: give thrust_left,thrust_right in N")
+    if isinstance(sea, str):
+        from .physics.waves import parse_sea
+
+        sea = parse_sea(sea, seed)
     compiled = compile_vessel(vessel)
-    run = _simulate(compiled, drive, duration_s, sample_dt_s=sample_dt_s)
+    run = _simulate(compiled, drive, duration_s, sample_dt_s=sample_dt_s, sea=sea, six_dof=six_dof)
     run.meta["scenario"] = "inputs" if inputs is not None else scenario
     limits = beyond_bounds(vessel, run.meta["inputs"], duration_s)
     run.meta["limits"] = [lim.to_dict() for lim in limits]

@@ -20,6 +20,10 @@ Streams and their columns (SI units, NED, ψ from north towards east):
            (the apparent wind on board: direction FROM, degrees clockwise from the bow). A
            measured stream that nothing uses unless asked (fit.windows.predict(..., wind="measured"))
 The last two are summarised only when present, so other recordings read as before.
+
+  attitude roll_rad, pitch_rad (ArduPilot ATTITUDE / ATT): read and summarised, not one of the
+           STREAMS the file writers keep; the twin's horizontal model does not use it, the 6-DOF
+           hull's roll and pitch can be compared with it
 """
 from __future__ import annotations
 
@@ -103,6 +107,7 @@ class Recording:
     battery: Stream = field(default_factory=lambda: Stream.empty("voltage_v"))
     prop_rudder: Stream = field(default_factory=lambda: Stream.empty("n_rps", "delta_rad"))
     wind: Stream = field(default_factory=lambda: Stream.empty("speed_m_s", "from_deg"))
+    attitude: Stream = field(default_factory=lambda: Stream.empty("roll_rad", "pitch_rad"))
     parameters: dict[str, float] = field(default_factory=dict)
     pwm_neutral_us: tuple[float, float] = (1500.0, 1500.0)
     channels: dict = field(default_factory=dict)
@@ -141,6 +146,14 @@ class Recording:
                 "gaps": len(gaps),
                 "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
             }
+        if len(self.attitude):  # read beside the heading, summarised like the streams
+            s, gaps = self.attitude, self.attitude.gaps()
+            streams["attitude"] = {
+                "samples": len(s), "rate_hz": round(s.median_rate_hz(), 3), "t_first_s": round(float(s.t[0]), 3),
+                "t_last_s": round(float(s.t[-1]), 3), "gaps": len(gaps),
+                "longest_gap_s": round(float(gaps.max()), 3) if len(gaps) else 0.0,
+                "roll_max_deg": round(float(np.degrees(np.max(np.abs(s["roll_rad"])))), 3),
+                "pitch_max_deg": round(float(np.degrees(np.max(np.abs(s["pitch_rad"])))), 3)}
         if len(self.battery):  # how far the pack sagged: what a thrust that follows it would feel
             volt = self.battery["voltage_v"]
             streams["battery"].update({"voltage_first_v": round(float(volt[0]), 3),
@@ -268,5 +281,6 @@ def with_common_origin(rec: Recording) -> Recording:
         t0 = float(min(firsts))
         for name, s in rec.streams().items():
             setattr(rec, name, s.shifted(t0))
+        rec.attitude = rec.attitude.shifted(t0)
         rec.origin_s += t0
     return rec

@@ -87,6 +87,14 @@ BIBLIOGRAPHY = _bib(
            "Journal of Wind Engineering and Industrial Aerodynamics 51(3), 339-351", 1994),
     Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
            "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
+    Source("ArduPilot-Rover", "Rover parameters (FRAME_CLASS, SERVOn_FUNCTION, CRUISE_SPEED, CRUISE_THROTTLE, "
+           "WP_SPEED, ATC_STR_RAT_*, ATC_SPEED_*) and the default Rover SITL parameter files "
+           "(Tools/autotest/default_params/rover.parm, rover-skid.parm)", "ArduPilot development team",
+           "github.com/ArduPilot/ardupilot; ardupilot.org/rover", None),
+    Source("BlueRobotics-BasicESC", "Basic ESC documentation (BESC30-R3, BLHeli_S firmware): quick start (a stopped "
+           "signal of 1500 µs for a few seconds initialises the ESC) and pulse-width signal table (deadband ±25 µs)",
+           "Blue Robotics", "docs.bluerobotics.com/bescr3; source github.com/bluerobotics/bluerobotics.github.io, "
+           "bescr3/index.md", None),
     Source("ITTC-1957", "Skin friction and turbulence stimulation (the ITTC-1957 model-ship correlation line, "
            "C_F = 0.075/(log10 Re − 2)²)", "International Towing Tank Conference",
            "Proceedings of the 8th ITTC, Madrid; ITTC Recommended Procedure 7.5-02-02-02", 1957),
@@ -106,6 +114,24 @@ BIBLIOGRAPHY = _bib(
            "International Shipbuilding Progress 29(335), 166-170", 1982),
     Source("BlueRobotics-BlueBoat", "BlueBoat: technical details (dimensions, mass, maximum speed 3.0 m/s with two "
            "batteries)", "Blue Robotics", "bluerobotics.com, BlueBoat product page and its discussion forum", None),
+    Source("Faltinsen-1990", "Sea Loads on Ships and Offshore Structures", "Odd M. Faltinsen",
+           "Cambridge University Press", 1990),
+    Source("DNV-RP-C205", "Environmental Conditions and Environmental Loads (Recommended Practice DNV-RP-C205)",
+           "Det Norske Veritas", "DNV, Høvik; the 2010 edition and its revisions", 2010),
+    Source("Journee-Massie-2001", "Offshore Hydromechanics, first edition", "J. M. J. Journée, W. W. Massie",
+           "Delft University of Technology", 2001),
+    Source("Lewis-1929", "The inertia of the water surrounding a vibrating ship", "Frank M. Lewis",
+           "Transactions of the Society of Naval Architects and Marine Engineers 37, 1-20", 1929),
+    Source("Cummins-1962", "The impulse response function and ship motions", "W. E. Cummins",
+           "Schiffstechnik 9, 101-109", 1962),
+    Source("Newman-1974", "Second-order, slowly-varying forces on vessels in irregular waves", "J. N. Newman",
+           "Proceedings of the International Symposium on the Dynamics of Marine Vehicles and Structures in Waves, "
+           "University College London, 182-186", 1974),
+    Source("Maruo-1960", "The drift of a body floating on waves", "Hajime Maruo", "Journal of Ship Research 4, 1-10",
+           1960),
+    Source("Ursell-1947", "The effect of a fixed vertical barrier on surface waves in deep water", "F. Ursell",
+           "Proceedings of the Cambridge Philosophical Society 43, 374-382", 1947),
+    Source("Michell-1893", "The highest waves in water", "J. H. Michell", "Philosophical Magazine 36, 430-437", 1893),
 )
 
 def markdown() -> str:

@@ -10,6 +10,7 @@ import numpy as np
 from .errors import TwinError
 
 CSV_COLUMNS = ("t", "x", "y", "psi", "u", "v", "r", "pwm_left", "pwm_right", "thrust_left", "thrust_right")
+SIX_DOF_COLUMNS = ("down", "roll", "pitch")  # a 6-DOF run's body origin below the mean surface (m), rad
 
 
 @dataclass
@@ -40,12 +41,18 @@ class Run:
         }
 
     def to_csv_text(self) -> str:
-        """The run layout: a header of CSV_COLUMNS, then one row per sample, each value '{:.9g}'
-        and an empty cell for NaN (or infinity). Formatted a column at a time, not a cell at a
-        time through csv.writer (a 1-h run has 400 000 cells); the cells need no quoting."""
+        """The run layout: a header of CSV_COLUMNS (and SIX_DOF_COLUMNS after them for a 6-DOF run),
+        then one row per sample, each value '{:.9g}' and an empty cell for NaN (or infinity).
+        Formatted a column at a time, not a cell at a time through csv.writer (a 1-h run has 400 000
+        cells); the cells need no quoting."""
         cols = self.columns()
-        cells = [_cells(cols[c]) for c in CSV_COLUMNS]
-        return "".join([",".join(CSV_COLUMNS), "\n", *(",".join(row) + "\n" for row in zip(*cells))])
+        names = list(CSV_COLUMNS)
+        six = self.meta.get("six_dof")
+        if six is not None:
+            cols.update({"down": six["down_m"], "roll": six["roll_rad"], "pitch": six["pitch_rad"]})
+            names += list(SIX_DOF_COLUMNS)
+        cells = [_cells(cols[c]) for c in names]
+        return "".join([",".join(names), "\n", *(",".join(row) + "\n" for row in zip(*cells))])
 
 
 def _cells(values) -> list[str]:

@@ -55,13 +55,14 @@ SUMMARIES = {
     "iso": "Identify by self-oscillation (relay with hysteresis) in the twin.",
     "dp": "Run the I-PD controller tuned from the self-oscillation in the twin.",
     "sitl": "Serve the twin as ArduPilot SITL's physics (JSON interface).",
+    "mission": "Fly a waypoint mission with ArduPilot SITL and say how it went.",
     "montecarlo": "Prediction bands of an identified twin by Monte Carlo.",
     "dataset-shards": "Write many synthetic recordings of randomised vessels, sharded.",
     "fleet": "Diagnose every log of a fleet: a report per log and a summary.",
 }
 # the order `twin --help` lists the commands in: the order of the work they do
 WORKFLOW = ("simulate", "view", "info", "convert", "validate", "crosscheck", "params", "identify", "evaluate",
-            "diagnose", "dataset", "effects", "iso", "dp", "sitl", "montecarlo", "dataset-shards", "fleet")
+            "diagnose", "dataset", "effects", "iso", "dp", "sitl", "mission", "montecarlo", "dataset-shards", "fleet")
 
 
 @app.callback()

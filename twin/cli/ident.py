@@ -31,6 +31,8 @@ def dataset_command(
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
     seed: int = typer.Option(0, help="random seed (manoeuvres, start states, noise)"),
     case: str = typer.Option("nominal", help="mass case"),
+    sea: Optional[str] = typer.Option(None, help="sea state HS,TP,DIR[,SPREAD] (or regular,H,T,DIR): every segment "
+                                                 "runs the 6-DOF hull in it"),
 ):
     """Synthetic identification dataset from the twin, with its truth in a separate file."""
     from ..synth.dataset import generate, noise_profile
@@ -43,8 +45,10 @@ def dataset_command(
     seed_from(seed)
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
     with progress_bar("dataset") as progress:
+        from .run import sea_from
+
         ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names,
-                      seed=seed, noise=noise_profile(noise), progress=progress)
+                      seed=seed, noise=noise_profile(noise), progress=progress, sea=sea_from(sea, seed))
         for k, path in enumerate(out):
             progress(f"writing {path.name}", k, len(out))
             write_recording(ds.recording, path)

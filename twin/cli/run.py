@@ -14,6 +14,18 @@ from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, c
                   progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
+SEA_HELP = ("sea state HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come "
+            "from (deg), cosine-power spreading n (none: long-crested); or regular,H,T,DIR (one wave); runs the "
+            "6-DOF hull")
+
+
+def sea_from(text: Optional[str], seed: int):
+    """--sea text → physics.waves.Sea (checked: positive, not breaking), None without it."""
+    if text is None:
+        return None
+    from ..physics.waves import parse_sea
+
+    return parse_sea(text, seed)
 
 
 def origin_from(text: Optional[str]) -> Optional[tuple[float, float]]:
@@ -50,8 +62,11 @@ def simulate(
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the start, for the map positions of .mcap, "
                                                    ".tlog and .bin (default 37.4136,-5.9786, Seville)"),
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
-    seed: int = typer.Option(0, help="random seed (scenario 'random')"),
+    seed: int = typer.Option(0, help="random seed (scenario 'random', the sea's components)"),
     sample_dt: float = typer.Option(0.1, help="output sample period, s"),
+    sea: Optional[str] = typer.Option(None, help=SEA_HELP),
+    six_dof: bool = typer.Option(False, "--six-dof", help="the 6-DOF hull (heave, roll, pitch) in calm water; "
+                                                         "implied by --sea"),
 ):
     """Run the twin headless and write the run."""
     from ..api import simulate_run
@@ -63,6 +78,7 @@ def simulate(
     start = origin_from(origin)
     v = vessel_from(vessel, model, case)
     flows = speed_direction(current, "current"), speed_direction(wind, "wind")
+    sea_state = sea_from(sea, seed)
     # a long run (hours of simulated time, an .rrd or .mcap of it) takes a while: say which part is running
     written = []
     try:
@@ -70,7 +86,8 @@ def simulate(
             progress(f"simulating {duration:g} s of {v.name}")
             with memory_for(f"--duration {duration:g} at --sample-dt {sample_dt:g}"):
                 result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed,
-                                      sample_dt_s=sample_dt, current=flows[0], wind=flows[1])
+                                      sample_dt_s=sample_dt, current=flows[0], wind=flows[1], sea=sea_state,
+                                      six_dof=six_dof)
             for k, path in enumerate(out):
                 progress(f"writing {path.name}", k, len(out))
                 result.write(path, origin=start)
@@ -83,6 +100,12 @@ def simulate(
     run = result.run
     say(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
         f"heading {run.eta[-1, 2] * 57.29578:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
+    six = run.meta.get("six_dof")
+    if six is not None:
+        deg = 57.29578
+        say(f"6-DOF{'' if sea_state is None else ' in ' + sea_state.text()}: heave σ "
+            f"{float(six['down_m'].std()) * 100:.1f} cm, roll σ {float(six['roll_rad'].std()) * deg:.2f}°, "
+            f"pitch σ {float(six['pitch_rad'].std()) * deg:.2f}°")
 
 
 @app.command()
@@ -93,6 +116,8 @@ def crosscheck(
     case: str = typer.Option("nominal", help="mass case"),
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
+    six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
+                                                         "meshes, made to float level) against the 3-DOF model"),
 ):
     """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
     from ..engine.mjcf import compile_vessel
@@ -106,7 +131,7 @@ def crosscheck(
     positive(duration, "--duration")
     v = vessel_from(vessel, model, case)
     with progress_bar("crosscheck") as progress:
-        results = run_crosscheck(v, duration, progress=progress)
+        results = run_crosscheck(v, duration, progress=progress, six_dof=six_dof)
     table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
     for col in ("case", "position err (m)", "heading err (deg)", "term effect (m)", "result"):
         table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")

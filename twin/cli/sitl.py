@@ -20,7 +20,10 @@ def sitl(
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
     host: str = typer.Option("0.0.0.0", help="address to listen on (127.0.0.1: this machine only)"),
-    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames are split into equal steps"),
+    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames (1200 Hz in Rover SITL) are split "
+                                           "into equal steps no longer than 1/RATE"),
+    esc_arm: float = typer.Option(2.0, help="seconds each ESC must see its stopped signal after power-up before "
+                                           "it drives its thruster, as a Basic ESC does (0: at once)"),
     channels: Optional[str] = typer.Option(None, help="servo outputs LEFT,RIGHT of the thrusters (default 1,3: "
                                                      "SERVO1_FUNCTION=73, SERVO3_FUNCTION=74)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
@@ -31,7 +34,7 @@ def sitl(
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
                                                                        "frame per servo frame (default)"),
     write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "
-                                                           "and --channels (sim_vehicle.py --add-param-file) "
+                                                           "and --channels (ardurover --defaults ...,FILE) "
                                                            "and exit"),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
@@ -48,7 +51,8 @@ def sitl(
 
         text = boat_parameters(v, (pair["left"], pair["right"]) if pair else (1, 3))
         write_text_atomic(write_params, text)
-        say(f"wrote {write_params}: load it with sim_vehicle.py ... --add-param-file {write_params}")
+        say(f"wrote {write_params}: give it to ArduPilot last, e.g. ardurover --defaults "
+            f"rover.parm,rover-skid.parm,{write_params} (or sim_vehicle.py --add-param-file {write_params})")
         return
     if v.thrusters.kind == "propeller_rudder":  # ArduPilot Rover's servo outputs are two thrusters' PWM
         raise TwinError(f"vessel '{v.name}' is a propeller-and-rudder ship: SITL supports twin-thruster vessels only")
@@ -56,6 +60,50 @@ def sitl(
         v, port=port, host=host, rate_hz=rate, record_paths=record,
         realtime=realtime, channels=(pair["left"], pair["right"]) if pair else (1, 3),
         current=speed_direction(current, "current"), wind=speed_direction(wind, "wind"),
-        heading_deg=heading, origin=origin_from(origin), log=note,
+        heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm,
     )
     say(summary.text())
+
+
+@app.command()
+def mission(
+    home: str = typer.Option(..., help="LAT,LON (deg) of SITL's --home: the waypoints are metres from it"),
+    waypoints: str = typer.Option(..., help='"N,E N,E ...": each waypoint in metres north and east of home'),
+    port: int = typer.Option(5760, help="SITL's MAVLink TCP port (its SERIAL0: 5760, +10 per -I instance)"),
+    set_: list[str] = typer.Option([], "--set", help="NAME=VALUE: an ArduPilot parameter set before the mission "
+                                                   "(repeatable), e.g. --set ATC_STR_RAT_FF=0.5"),
+    timeout: float = typer.Option(600.0, help="wall-clock seconds to wait for each step"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="also write the figures and the EKF track (.json)"),
+):
+    """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
+    time, mean speed and how far the boat strayed from the straight legs."""
+    import json
+
+    from ..sitl.ardupilot import fly_mission
+
+    if json_out is not None:
+        check_outputs([json_out], (".json",), "--json")
+    try:
+        lat_lon = origin_from(home)
+    except TwinError as exc:
+        raise TwinError(str(exc).replace("--origin", "--home")) from None
+    try:
+        points = [tuple(float(x) for x in p.split(",")) for p in waypoints.split()]
+    except ValueError:
+        points = []
+    if not points or any(len(p) != 2 for p in points):
+        raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
+    settings = {}
+    for item in set_:
+        name, _, value = item.partition("=")
+        try:
+            settings[name.strip().upper()] = float(value)
+        except ValueError:
+            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'") from None
+        if not name.strip():
+            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'")
+    result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
+    say(result.text())
+    if json_out is not None:
+        write_text_atomic(json_out, json.dumps(result.to_dict(), indent=1) + "\n")
+        say(f"wrote {json_out}")

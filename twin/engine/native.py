@@ -41,7 +41,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..errors import TwinError
-from ..physics import environment, fujiwara, mmg
+from ..physics import environment, fujiwara, hydrostatics, mmg, seakeeping, waves
 from ..physics.environment import RHO_AIR_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from . import callbacks
@@ -302,7 +302,22 @@ def offsets() -> dict[str, int]:
     out.update({f"m.{n}": m_ptr[n] for n in ("numeric_adr", "numeric_size", "numeric_data")})
     out.update({f"d.{n}": d_ptr[n] for n in ("qpos", "qvel", "ctrl", "qfrc_passive", "qfrc_actuator",
                                                "actuator_force")})
+    out["d.time"] = _time_offset(data)
     return out
+
+
+def _time_offset(data: mujoco.MjData) -> int:
+    """Byte offset of mjData.time (a double, not a pointer): the word that holds a value set through
+    the bindings, checked with a second value."""
+    for first in (1234.5678125, 8765.4321875):
+        data.time = first
+        bits = int(np.array(first).view(np.int64))
+        off = _scan(data._address, bits)
+        data.time = first + 1.0
+        if _word(data._address + off) == int(np.array(first + 1.0).view(np.int64)):
+            data.time = 0.0
+            return off
+    raise TwinError("native callback: mjData.time not found in memory")
 
 
 # ---------------------------------------------------------------- native code
@@ -469,7 +484,8 @@ def _source_key() -> int:
     """A positive integer that changes with the source of every module compiled into the callback
     and with the MuJoCo version: part of the disk cache's key."""
     digest = hashlib.sha256(mujoco.__version__.encode())
-    for module in (__file__, mmg.__file__, fujiwara.__file__, environment.__file__):
+    for module in (__file__, mmg.__file__, fujiwara.__file__, environment.__file__, waves.__file__,
+                   hydrostatics.__file__, seakeeping.__file__):
         digest.update(Path(module).read_bytes())
     return int(digest.hexdigest()[:15], 16) | 1
 
@@ -484,6 +500,19 @@ def _params(mb, o_nnum, o_nsize, o_ndata, o_nadr, n, magic0, magic1):
     return p[0] == magic0 and p[1] == magic1 and p[2] == n, p
 
 
+@njit(inline="always")
+def _sea(mb, o_nsize, o_ndata, o_nadr, magic, header, nq, nv):
+    """The packed sea of numeric 1 when it is one (magic, size, joint addresses in range), else empty."""
+    size = carray(_i32_ptr(_field(mb, o_nsize)), 2)[1]
+    p = carray(_f64_ptr(_field(mb, o_ndata) + 8 * carray(_i32_ptr(_field(mb, o_nadr)), 2)[1]), max(size, 0))
+    if size < header or p[0] != magic or p[1] != size:
+        return p[:0]
+    for i in range(6):
+        if p[26 + i] < 0 or p[26 + i] >= nq or p[32 + i] < 0 or p[32 + i] >= nv:
+            return p[:0]
+    return p
+
+
 def _build_callback():
     """Compile the cfunc with the struct offsets baked in as constants."""
     off = offsets()
@@ -495,6 +524,7 @@ def _build_callback():
     o_nu, o_ctrl, o_afrc = off["m.nu"], off["d.ctrl"], off["d.actuator_force"]
     o_q, o_d, n, magic0, magic1 = LAYOUT["qpos_adr"].start, LAYOUT["dof_adr"].start, NPARAM, *MAGIC
     o_flags, o_adv = LAYOUT["flags"].start, LAYOUT["advance"].start
+    o_time, sea_magic, sea_header = off["d.time"], seakeeping.SEA_MAGIC, seakeeping.HEADER
 
     # cached on disk: numba keys a closure's cache by the values it closes over, so other offsets
     # (another MuJoCo) or other physics sources (`source`; numba itself sees only this file's date)
@@ -543,6 +573,10 @@ def _build_callback():
         qfrc[dx] += c * x0 - s * x1
         qfrc[dy] += s * x0 + c * x1
         qfrc[dpsi] += x2
+        if _field(mb, o_nnum) >= 2:  # a 6-DOF hull carries its sea as the second numeric (engine/sixdof.py)
+            sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
+            if sp.shape[0] > 0:
+                seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, qfrc)
 
     signature = types.void(types.voidptr, types.voidptr)
     try:

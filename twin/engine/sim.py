@@ -49,7 +49,10 @@ def _steps(interval_s: float, timestep_s: float, what: str) -> int:
     return n
 
 
-def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0) -> None:
+def initial_state(model: mujoco.MjModel, data: mujoco.MjData, eta0, nu0, qpos0=None) -> None:
+    """η0, ν0 on the planar joints (a 6-DOF model's other joints from qpos0, its rest)."""
+    if qpos0 is not None:
+        data.qpos[:] = qpos0
     eta0 = np.zeros(3) if eta0 is None else np.asarray(eta0, float)
     nu0 = np.zeros(3) if nu0 is None else np.asarray(nu0, float)
     qpos, dof = callbacks._joint_indices(model)
@@ -270,6 +273,9 @@ def simulate(
     backend: str = "native",
     wind: WindSeries | None = None,
     supply: SupplySeries | None = None,
+    sea=None,
+    six_dof: bool = False,
+    sea_terms=None,
 ) -> Run:
     """Run the engine twin for `duration_s` and return samples every `sample_dt_s`.
 
@@ -287,18 +293,30 @@ def simulate(
     replaces the vessel environment's constant wind and is returned in `run.meta["wind"]`.
     `supply`: the battery voltage on the run's clock, for thrusters that follow it (an input series
     may carry its own instead); without either they act as at their reference voltage.
+    `sea` (physics.waves.Sea) runs the 6-DOF hull in that sea (engine/sixdof.py), `six_dof` the
+    6-DOF hull in calm water; `sea_terms` switches its sea loads. Its heave, roll and pitch (and
+    their rates) are returned in `run.meta["six_dof"]`.
     """
     if not duration_s > 0:
         raise TwinError("duration must be positive")
     vessel = compiled.vessel
     terms = terms or Terms()
-    model, hydrodynamics = _backend(compiled, terms, backend, wind is not None)
+    six = None
+    if sea is not None or six_dof:
+        if backend != "native":
+            raise TwinError("the 6-DOF hull runs on the native backend only")
+        from . import native, sixdof
+
+        six = sixdof.compile_six(compiled, sea, terms, sea_terms, wind_inputs=wind is not None or compiled.wind_inputs)
+        model, hydrodynamics = six.model, native.installed_native()
+    else:
+        model, hydrodynamics = _backend(compiled, terms, backend, wind is not None)
     h = model.opt.timestep
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
     n_sample = _steps(sample_dt_s, h, "sample period")
     data = mujoco.MjData(model)
-    initial_state(model, data, eta0, nu0)
+    initial_state(model, data, eta0, nu0, None if six is None else six.initial_qpos(eta0))
     layout = _Layout(model)
     # a propeller and rudder's controls are inputs to the MMG forces, which their own terms switch
     inputs_on = terms.thrust or vessel.thrusters.kind == "propeller_rudder"
@@ -327,8 +345,26 @@ def simulate(
             "inputs": loop.inputs(), "start_s": start_s}
     if wind is not None:
         meta["wind"] = wind
+    if six is not None:
+        meta["six_dof"] = six_dof_samples(six, states)
     return Run(start_s + sample_steps * h, eta, nu, loop.held(sample_steps),
                delivered_forces(compiled, command_n, nu, terms), meta=meta)
+
+
+def six_dof_samples(six, states: np.ndarray) -> dict:
+    """Heave (down, m), roll and pitch (rad) and their rates at the samples of a 6-DOF run, with the
+    hull and the sea it ran in."""
+    from .sixdof import joint_addresses
+
+    qpos, dof = joint_addresses(six.model)
+    nq = six.model.nq
+    col = {name: states[:, 1 + q] for name, q in zip(("down_m", "pitch_rad", "roll_rad"), (qpos[2], qpos[4], qpos[5]))}
+    col.update({name: states[:, 1 + nq + d] for name, d in zip(("down_rate_m_s", "pitch_rate_rad_s", "roll_rate_rad_s"),
+                                                               (dof[2], dof[4], dof[5]))})
+    col["equilibrium"] = six.hull.equilibrium
+    col["sea"] = None if six.sea is None else six.sea.to_dict()
+    col["components"] = six.components
+    return col
 
 
 def delivered_forces(compiled: CompiledVessel, commands: np.ndarray, nu: np.ndarray,

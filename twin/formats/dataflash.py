@@ -171,6 +171,9 @@ def read_dataflash(path: Path, channels: dict | None) -> Recording:
     att = rows["ATT"]
     rec.heading = clean_stream("heading", [m._timestamp for m in att],
                                {"psi_rad": [np.radians(m.Yaw) for m in att]}, rec.dropped)
+    if att and hasattr(att[0], "Roll") and hasattr(att[0], "Pitch"):
+        rec.attitude = clean_stream("attitude", [m._timestamp for m in att], {
+            "roll_rad": [np.radians(m.Roll) for m in att], "pitch_rad": [np.radians(m.Pitch) for m in att]}, [])
     imu = [m for m in rows["IMU"] if _instance(m) == 0 and hasattr(m, "GyrZ")]
     rec.imu = clean_stream("imu", [m._timestamp for m in imu], {"yaw_rate_rads": [m.GyrZ for m in imu]}, rec.dropped)
     _df_pwm(rec, rows["RCOU"], channels)

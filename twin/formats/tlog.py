@@ -299,6 +299,8 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     att = msgs["ATTITUDE"]
     t_att = clock.stamp(att, [m.time_boot_ms * 1e-3 for _, m in att])
     rec.heading = clean_stream("heading", t_att, {"psi_rad": [m.yaw for _, m in att]}, rec.dropped)
+    rec.attitude = clean_stream("attitude", t_att, {"roll_rad": [m.roll for _, m in att],
+                                                    "pitch_rad": [m.pitch for _, m in att]}, [])
     rate = np.array([m.yawspeed for _, m in att], float)
     if len(rate) and np.all(np.isnan(rate)):  # written without a gyro (recording_telemetry): none, not dropped
         rec.imu = Stream.empty("yaw_rate_rads")

@@ -11,8 +11,9 @@ Choices, and why:
 
 - **Physics step.** A frame lasts 1/frame_rate. The engine steps at least
   `min_rate_hz` times a second and a whole number of times per frame:
-  h = (1/frame_rate) / ceil(min_rate_hz / frame_rate). At 400 Hz frames and the
-  default 400 Hz that is one step of 2.5 ms per frame; at 50 Hz frames, eight. A
+  h = (1/frame_rate) / ceil(min_rate_hz / frame_rate). At Rover SITL's default
+  1200 Hz frames (SIM_RATE_HZ) and the default 400 Hz that is one step of 0.833 ms
+  per frame; at 400 Hz frames one of 2.5 ms; at 50 Hz frames, eight. A
   frame rate change (SIM_RATE_HZ changed in flight) starts a new segment of
   constant step at the current time, so times stay k·h within a segment: the
   same numbers an offline run at that step computes.
@@ -26,6 +27,17 @@ Choices, and why:
   advance-speed loss act in MuJoCo as everywhere else. A twin whose thrust follows the
   supply voltage runs at its reference voltage: SITL sends no battery (ArduPilot simulates
   its own), so the factor is 1.
+- **ESC arming.** A real ESC does not drive its motor until, after power-up, it has
+  seen the stopped signal for a while: the Blue Robotics Basic ESC (BLHeli_S) wants
+  "a stopped signal (1500 microseconds) for a few seconds" [BlueRobotics-BasicESC].
+  ArduPilot, before its outputs are set up, sends 1000 µs on output 1 alone for about
+  20 ms; an ESC that obeyed it would run one thruster full astern before arming. So
+  each thruster gives no thrust until its PWM has stayed within ±25 µs (the ESC's
+  deadband, same source) of its neutral for `esc_arm_s` (2 s by default, the short end
+  of "a few seconds"); a pulse outside that band before then starts the count again.
+  A twin reset (ArduPilot restarted) powers the ESCs up again. `esc_arm_s = 0` drives
+  the thrusters from the first frame. The recording keeps the PWM ArduPilot sent and
+  the thrust the ESCs gave (zero while unarmed).
 - **PWM.** Output 0 (ArduPilot's "no output") is the thruster's neutral: for a
   T200 map the PWM of δ̃ = 0, pwm_offset·pwm_scale_us (1500 µs); for a vessel whose
   thrusters are "direct" (thrust in N, no PWM map) the PWM range
@@ -40,7 +52,9 @@ Choices, and why:
   so that ArduPilot, rotating it back with that attitude and adding gravity, gets
   exactly the velocity change it is told about (the IMU's delta-velocity). It
   holds the centripetal terms of ν̇ + ω×v without differentiating ν. Gravity is
-  the model's (MJCF `gravity`, 9.81 m/s²): about (0, 0, −9.81) at rest.
+  ArduPilot's own (GRAVITY_MSS, 9.80665 m/s², AP_Math/definitions.h), so at rest the
+  IMU reads (0, 0, −9.80665) exactly what ArduPilot subtracts: the planar twin's
+  motion does not depend on gravity, its EKF's vertical channel does.
 - **Sensor calibration** amendments of a vessel file (heading bias, compass
   deviation, antenna offset, log clock offset) describe how a real boat's sensors
   err; SITL simulates its own sensors from the true state, so they are not applied
@@ -66,10 +80,13 @@ from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
 from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_step
 from twin.run import Run
-from twin.sitl.protocol import Reply, channel_pair
+from twin.sitl.protocol import Reply
 from twin.vessel import Vessel
 
 DEFAULT_CHANNELS = (1, 3)  # SERVO1_FUNCTION = 73 (throttle left), SERVO3_FUNCTION = 74 (throttle right)
+GRAVITY_M_S2 = 9.80665  # ArduPilot's GRAVITY_MSS: the specific force at rest is what its EKF expects
+ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seconds" (module docstring)
+ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 _TWO_PI = 2.0 * math.pi
 _ZOH_TOL_S = 1e-9  # as drive.InputSeries.at: an input switching at t holds from t on
@@ -152,10 +169,13 @@ class SitlTwin:
     which installs the native hydrodynamic callback (MuJoCo's callback is process-global)."""
 
     def __init__(self, vessel: Vessel, *, min_rate_hz: float = 400.0,
-                 channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True) -> None:
+                 channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True,
+                 esc_arm_s: float = ESC_ARM_S) -> None:
         check_channels(channels)
         if not (math.isfinite(min_rate_hz) and min_rate_hz > 0):
             raise TwinError(f"the physics rate must be a positive number of Hz, got {min_rate_hz}")
+        check_esc_arm(esc_arm_s)
+        self.esc_arm_s = float(esc_arm_s)
         if not math.isfinite(heading_deg):
             raise TwinError("the initial heading must be a finite number of degrees")
         self.vessel = vessel
@@ -168,6 +188,10 @@ class SitlTwin:
         self.record = record
         self.map = PwmMap.of(vessel.thrusters)
         self._neutral_held = self.map.held(self.map.neutral_us)
+        self._neutral_us = self.map.neutral_us
+        self._outputs = (self.channels[0] - 1, self.channels[1] - 1)  # 0-based indices into the packet
+        self._hysteretic = vessel.thrusters.hysteretic
+        self._thrust_of: dict[float, float] = {}  # PWM (µs) → raw thrust (N): ArduPilot's PWM is whole µs
         self._delay_s = float(vessel.thrusters.delay_s)
         self._decay_per_min = float(vessel.thrusters.decay_per_min)
         t = vessel.thrusters
@@ -175,13 +199,16 @@ class SitlTwin:
         self._slew_n_per_s = t.slew_n_per_s if t.ramping else None
         self._bounds = t.bounds()
         self._plain = self._delay_s == 0.0 and self._decay_per_min == 0.0 and self._slew_n_per_s is None
+        env = vessel.environment
+        # calm water and no wind: a boat at rest with no thrust feels no force, and stays as it is
+        self._calm = env.current_speed_m_s == 0.0 and env.wind_speed_m_s == 0.0
         m = self.model
         self._qadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_qposadr") for j in JOINTS]
         self._dadr = [_index(m, mujoco.mjtObj.mjOBJ_JOINT, j, "jnt_dofadr") for j in JOINTS]
         self._act = [_index(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator_actadr") if m.na else -1
                      for a in THRUSTERS]
         self._ctrl_ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in THRUSTERS]
-        self._gravity_m_s2 = float(m.opt.gravity[2])  # NED: +z is down
+        self._gravity_m_s2 = GRAVITY_M_S2
         self._active = False
         self._rows = array("d")
         self._record_offset_s = 0.0
@@ -240,6 +267,8 @@ class SitlTwin:
 
     def _start(self) -> None:
         mujoco.mj_resetData(self.model, self.data)
+        # the arrays' views, made once: each `data.qpos` access builds a new numpy view (about a µs)
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         initial_state(self.model, self.data, (0.0, 0.0, self.heading_rad), None)
         self._rate_hz = None
         self._seg_t0, self._seg_k, self._h, self._nsub = 0.0, 0, 1.0 / self.min_rate_hz, 1
@@ -251,6 +280,9 @@ class SitlTwin:
         self._pwm_last = (self.map.neutral_us, self.map.neutral_us)
         self._motors = (0, 0)  # a hysteretic map's motor states (+1 ahead, −1 astern, 0 stopped)
         self._ramped = (0.0, 0.0)  # where a thrust ramp stands: at rest, the inputs neutral before the session
+        self._escs_ready = self.esc_arm_s == 0.0
+        self._esc_ready = [self._escs_ready, self._escs_ready]
+        self._esc_stopped_since_s: list[float | None] = [None, None]
         self._state = self._read_state()
 
     def _set_rate(self, frame_rate_hz: int) -> None:
@@ -273,12 +305,19 @@ class SitlTwin:
             raise RuntimeError("step the twin inside `with twin.active():` (installs the hydrodynamic callback)")
         if frame_rate_hz != self._rate_hz:
             self._set_rate(frame_rate_hz)
-        pl, pr = channel_pair(pwm_us, self.channels, self.map.neutral_us)
+        # the thrusters' outputs (1-based channels): 0, ArduPilot's "no output", or an output beyond the
+        # packet's (17+ in a 16-output packet) is the thruster's neutral
+        n_out, (i_left, i_right), neutral = len(pwm_us), self._outputs, self._neutral_us
+        a = pwm_us[i_left] if i_left < n_out else 0
+        b = pwm_us[i_right] if i_right < n_out else 0
+        pl = float(a) if a else neutral
+        pr = float(b) if b else neutral
         n = frames * self._nsub
         t0 = self._seg_t0 + self._seg_k * self._h
         time_before = self.data.time
-        # a hysteretic map's motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps the PWM
-        self._motors, driven = self.vessel.thrusters.driven_step(self._motors, (pl, pr))
+        driven = (pl, pr) if self._escs_ready else self._esc_gate(t0, pl, pr)
+        if self._hysteretic:  # the motors answer the PWM as it comes (ThrusterModel.driven_step); the log keeps it
+            self._motors, driven = self.vessel.thrusters.driven_step(self._motors, driven)
         if self._plain:
             self._advance_held(t0, (pl, pr), driven, n)
         else:
@@ -287,18 +326,68 @@ class SitlTwin:
         self._pwm_last = (pl, pr)
         return self._reply(t0, n, time_before)
 
+    def _esc_gate(self, t0_s: float, pl: float, pr: float) -> tuple[float, float]:
+        """What the ESCs pass on before they are armed (module docstring): neutral, until a thruster's
+        PWM has stayed within the deadband of its neutral for esc_arm_s; from then on the PWM itself."""
+        out = [pl, pr]
+        for i, p in enumerate(out):
+            if self._esc_ready[i]:
+                continue
+            since = self._esc_stopped_since_s[i]
+            if abs(p - self._neutral_us) <= ESC_DEADBAND_US:
+                if since is None:
+                    self._esc_stopped_since_s[i] = t0_s
+                out[i] = self._neutral_us  # the stopped signal: no thrust either way
+                continue
+            if since is not None and t0_s - since >= self.esc_arm_s - 1e-9:
+                self._esc_ready[i] = True
+                continue
+            self._esc_stopped_since_s[i] = None
+            out[i] = self._neutral_us
+        self._escs_ready = self._esc_ready[0] and self._esc_ready[1]
+        return out[0], out[1]
+
+    @property
+    def escs_armed(self) -> tuple[bool, bool]:
+        """Whether each thruster's ESC (left, right) has armed and follows its PWM: it has, or it has
+        seen the stopped signal for esc_arm_s up to now."""
+        now = self.time_s
+
+        def armed(i):
+            since = self._esc_stopped_since_s[i]
+            return self._esc_ready[i] or (since is not None and now - since >= self.esc_arm_s - 1e-9)
+
+        return armed(0), armed(1)
+
+    def _thrust(self, pwm_us: float) -> float:
+        """Raw thrust (N) of a PWM, cached: the map's polynomial once per distinct PWM value."""
+        thrust = self._thrust_of.get(pwm_us)
+        if thrust is None:
+            mp = self.map
+            thrust = self._thrust_of[pwm_us] = mp.raw(mp.held(pwm_us))
+        return thrust
+
     def _advance_held(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """No delay and no decay: one thrust command for the whole frame, n steps inside MuJoCo."""
-        mp, ctrl, (il, ir) = self.map, self.data.ctrl, self._ctrl_ids
-        ctrl[il] = mp.raw(mp.held(driven[0]))
-        ctrl[ir] = mp.raw(mp.held(driven[1]))
-        self._record(t0_s, *logged)
+        ctrl, (il, ir), cache = self._ctrl, self._ctrl_ids, self._thrust_of
+        left, right = cache.get(driven[0]), cache.get(driven[1])
+        ctrl[il] = self._thrust(driven[0]) if left is None else left
+        ctrl[ir] = self._thrust(driven[1]) if right is None else right
+        if self.record:
+            self._record(t0_s, *logged)
+        if self._calm and ctrl[il] == 0.0 and ctrl[ir] == 0.0 and self._at_rest():
+            # what mj_step would compute, exactly (every force and acceleration is zero): only the clock
+            # moves. ArduPilot's boot and EKF alignment, tens of seconds of frames, cost almost nothing
+            d, h = self.data, self._h
+            for _ in range(n):
+                d.time += h
+            return
         mujoco.mj_step(self.model, self.data, nstep=n)
 
     def _advance_delayed(self, t0_s: float, logged: tuple[float, float], driven: tuple[float, float], n: int) -> None:
         """A transport delay or a decay: the command at each step's start, from the input held
         delay_s before and the decay at that time (ThrusterModel.command, as engine.sim does)."""
-        mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self.data.ctrl, self._ctrl_ids
+        mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
         self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
         for i in range(n):
@@ -313,6 +402,15 @@ class SitlTwin:
             if i == 0:
                 self._record(t0_s, *logged)
             mujoco.mj_step(m, d)
+
+    def _at_rest(self) -> bool:
+        """No velocity and (with a thruster lag) no thrust still in the lag."""
+        if any(self._qvel.tolist()):
+            return False
+        if self.model.na:
+            act = self.data.act
+            return act[self._act[0]] == 0.0 and act[self._act[1]] == 0.0
+        return True
 
     def _reply(self, t0_s: float, n: int, time_before_s: float) -> Reply:
         """The state after the frame, checked for divergence, with the frame's mean specific force."""
@@ -336,7 +434,7 @@ class SitlTwin:
 
     def _read_state(self) -> tuple[float, float, float, float, float, float]:
         """(x, y, ψ, ẋ, ẏ, r): north, east (m), heading (rad, unwrapped) and their rates."""
-        q, w = self.data.qpos.tolist(), self.data.qvel.tolist()  # plain floats: cheaper than numpy scalars
+        q, w = self._qpos.tolist(), self._qvel.tolist()  # plain floats: cheaper than numpy scalars
         a, b = self._qadr, self._dadr
         return q[a[0]], q[a[1]], q[a[2]], w[b[0]], w[b[1]], w[b[2]]
 
@@ -425,6 +523,12 @@ def delivered_thrust_n(thrusters: ThrusterModel, thruster_y_m, command_n: np.nda
     t_min, t_max = thrusters.bounds()
     static = np.clip(command_n, t_min, t_max) * thrusters.gains()
     return delivered(thrusters.advance_loss, static, nu, thruster_y_m) if thrusters.advance_loss else static
+
+
+def check_esc_arm(esc_arm_s: float) -> None:
+    """A finite, non-negative ESC arming time (s)."""
+    if not (isinstance(esc_arm_s, (int, float)) and math.isfinite(esc_arm_s) and esc_arm_s >= 0):
+        raise TwinError(f"--esc-arm {esc_arm_s}: the ESC arming time is a number of seconds ≥ 0 (0: no arming)")
 
 
 def check_channels(channels: tuple[int, int]) -> None:

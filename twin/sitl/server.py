@@ -7,10 +7,13 @@ speed-up. What the loop does with each datagram (twin.sitl.protocol has the byte
 
 - not a servo packet (too short, too long, unknown magic, frame rate 0): ignored and
   counted by reason; the first of each kind is logged once;
-- the frame just answered again (same frame_count): ArduPilot re-sends a frame only
-  when no answer came within a second (SIM_JSON.cpp recv_fdm), so the answer is sent
-  again unchanged and the twin is not stepped twice; with the same timestamp ArduPilot's
-  clock does not move;
+- the frame just answered again (same frame_count): ArduPilot re-sends a frame when no
+  answer came within about a second (SIM_JSON.cpp recv_fdm). The twin is never stepped
+  twice. If the answer went out at least RESEND_AFTER_S before the copy arrived, it was
+  lost, and it is sent again unchanged. If it went out just before, the copy crossed a
+  late answer that ArduPilot is about to read: answering again would leave one answer
+  too many in ArduPilot's socket, and since it reads one datagram per frame it would read
+  every later answer one frame late; so the copy is counted (`crossed`) and not answered;
 - frame_count lower than the last: ArduPilot restarted (the readme: "This count will be
   reset when SITL is re-started allowing the physics backend to reset the vehicle"): the
   twin is reset to the origin, at rest, clock 0 (ArduPilot takes a timestamp going
@@ -24,41 +27,56 @@ twin's time (at least one, and under ArduPilot's 0.1 s limit on one step, beyond
 the lost time is given up), and the answer waits until the wall clock reaches its
 timestamp. Realtime sessions are not reproducible; lock-step ones are.
 
+Stopping: SIGINT (Ctrl-C) and SIGTERM end a session cleanly, also when the process runs
+in the background (a shell starts background jobs with SIGINT ignored): `run_sitl`, when
+called from the main thread, installs handlers for both while it serves and restores the
+previous ones after.
+
 Recording (`record_paths`): every frame's state, PWM and thrust as a twin Run, written
 with twin.outputs.write when the session ends, however it ends (frame limit, stop event,
-Ctrl-C, a diverged twin), each file atomically.
+SIGINT, SIGTERM, a diverged twin), each file atomically.
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import math
+import signal
 import socket
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from threading import Event
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 from twin.errors import TwinError
 from twin.outputs import FORMATS, write
-from twin.sitl.backend import DEFAULT_CHANNELS, SitlTwin, check_channels, sensor_amendments, with_environment
-from twin.sitl.protocol import REASONS, PacketError, format_reply, parse_servo_packet
+from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
+                               sensor_amendments, with_environment)
+from twin.sitl.protocol import MAGIC_16, PACKET_16, REASONS, PacketError, format_reply, parse_servo_packet
 from twin.vessel import Vessel, load
 
 Log = Callable[[str], None]
 RECV_BYTES = 2048  # larger than any servo packet: a longer datagram is seen whole and refused
-POLL_S = 0.1  # how often a blocked receive looks at the stop event (and lets Ctrl-C through)
+POLL_S = 0.1  # how often the watcher looks at the stop event (and the receive timeout outside the loop)
 MAX_STEP_S = 0.09  # ArduPilot advances its clock only for timestamp steps under 0.1 s (SIM_JSON.cpp)
+# ArduPilot re-sends after about 1 s without an answer: a copy arriving sooner after the answer went
+# out was sent before the answer reached it (the answer was late, not lost)
+RESEND_AFTER_S = 0.5
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 @dataclass
 class Counters:
-    """What a session did: frames stepped and answered, duplicates answered again, restarts,
-    frames skipped by the frame counter, frame rate changes, datagrams ignored by reason,
-    and (real time only) wall-clock time given up because the twin fell too far behind."""
+    """What a session did: frames stepped and answered, duplicates answered again (the answer was
+    lost), duplicates not answered (they crossed a late answer), restarts, frames skipped by the
+    frame counter, frame rate changes, datagrams ignored by reason, and (real time only)
+    wall-clock time given up because the twin fell too far behind."""
 
     frames: int = 0
     duplicates: int = 0
+    crossed: int = 0
     restarts: int = 0
     missed: int = 0
     rate_changes: int = 0
@@ -66,7 +84,8 @@ class Counters:
     lag_dropped_s: float = 0.0
 
     def to_dict(self) -> dict:
-        return {"frames": self.frames, "duplicates": self.duplicates, "restarts": self.restarts,
+        return {"frames": self.frames, "duplicates": self.duplicates, "crossed": self.crossed,
+                "restarts": self.restarts,
                 "missed": self.missed, "rate_changes": self.rate_changes, "ignored": dict(self.ignored),
                 "lag_dropped_s": self.lag_dropped_s}
 
@@ -74,21 +93,27 @@ class Counters:
 @dataclass(frozen=True)
 class SitlSummary:
     """How a `run_sitl` session ended: its counters, the twin's time over all ArduPilot sessions (s),
-    the wall time (s), whether Ctrl-C ended it, and the files written."""
+    the wall time (s), whether a signal ended it (and which: "SIGINT", "SIGTERM"), the files
+    written, and the CPU time (s) the serving thread used while it answered frames."""
 
     counters: Counters
     physics_time_s: float
     wall_time_s: float
     interrupted: bool
     written: tuple[Path, ...]
+    signal_name: str | None = None
+    serve_cpu_s: float = 0.0
 
     def text(self) -> str:
         c = self.counters
         ignored = sum(c.ignored.values())
         why = ", ".join(f"{n} {reason}" for reason, n in c.ignored.items() if n)
         return (f"{c.frames} frames, {self.physics_time_s:.2f} s of twin time in {self.wall_time_s:.2f} s; "
-                f"{c.duplicates} duplicates, {c.missed} missed, {c.restarts} restarts, "
-                f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else ""))
+                f"{c.duplicates} duplicates answered, {c.crossed} not (crossed a late answer), "
+                f"{c.missed} missed, {c.restarts} restarts, "
+                f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else "")
+                + (f"; the twin's CPU {self.serve_cpu_s:.2f} s ({self.serve_cpu_s / c.frames * 1e6:.0f} µs a frame)"
+                   if c.frames else ""))
 
 
 def bind_udp(host: str, port: int) -> socket.socket:
@@ -123,6 +148,7 @@ class SitlServer:
         self.counters = Counters()
         self._last_count: int | None = None
         self._last_reply = b""
+        self._sent_s = 0.0
         self._rate_hz: int | None = None
         self._peer = None
         self._wall0 = 0.0
@@ -133,30 +159,65 @@ class SitlServer:
         return self.sock.getsockname()
 
     def serve(self, stop_after_frames: int | None = None, stop_event: Event | None = None) -> Counters:
-        """Answer frames until told to stop. The hot path is kept lean: one frame is one receive,
-        one parse, one step, one formatted line, one send."""
-        recv, send = self.sock.recvfrom, self.sock.sendto
-        parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
+        """Answer frames until told to stop. The hot path is kept lean: one frame is one blocking
+        receive, one unpack, one step, one formatted line, one send. A socket with a timeout would
+        poll before every receive (a system call more per frame), so the receive blocks, and a
+        watcher thread wakes it when `stop_event` is set (with an empty datagram to the socket)."""
         c = self.counters
         limit = math.inf if stop_after_frames is None else stop_after_frames
         if c.frames >= limit:
             return c
+        halt = threading.Event()
+        watcher = threading.Thread(target=self._watch, args=(stop_event, halt), daemon=True)
+        watcher.start()
+        self.sock.settimeout(None)
+        try:
+            self._loop(limit, halt)
+        finally:
+            halt.set()
+            self.sock.settimeout(POLL_S)
+            watcher.join()
+        return c
+
+    def _watch(self, stop_event: Event | None, halt: Event) -> None:
+        """Until the loop ends: when stop_event is set, halt the loop and wake its receive."""
+        while not halt.wait(POLL_S):
+            if stop_event is not None and stop_event.is_set():
+                halt.set()
+                host, port = self.address[:2]
+                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as poke:
+                    poke.sendto(b"", ("127.0.0.1" if host == "0.0.0.0" else host, port))
+                return
+
+    def _loop(self, limit: float, halt: Event) -> None:
+        recv, send = self.sock.recvfrom, self.sock.sendto
+        parse, step, fmt = parse_servo_packet, self.twin.step, format_reply
+        # the usual packet (16 outputs) unpacked directly; anything else goes through parse's checks
+        size16, head16, unpack16 = PACKET_16.size, MAGIC_16.to_bytes(2, "little"), PACKET_16.unpack
+        c = self.counters
         realtime = self.realtime
-        while stop_event is None or not stop_event.is_set():
-            try:
-                data, peer = recv(RECV_BYTES)
-            except TimeoutError:
-                continue
-            try:
-                rate, count, pwm = parse(data)
-            except PacketError as exc:
-                self._ignore(exc)
-                continue
+        clock = time.perf_counter
+        while not halt.is_set():
+            data, peer = recv(RECV_BYTES)
+            fields = unpack16(data) if len(data) == size16 and data[:2] == head16 else None
+            if fields is not None and fields[1]:
+                rate, count, pwm = fields[1], fields[2], fields[3:]
+            else:
+                if halt.is_set():  # the watcher's wake-up, not ArduPilot's
+                    break
+                try:
+                    rate, count, pwm = parse(data)
+                except PacketError as exc:
+                    self._ignore(exc)
+                    continue
             last = self._last_count
             if last is None or count != last + 1:
                 if count == last:
-                    c.duplicates += 1
-                    send(self._last_reply, peer)
+                    if clock() - self._sent_s >= RESEND_AFTER_S:
+                        c.duplicates += 1
+                        send(self._last_reply, peer)
+                    else:
+                        c.crossed += 1
                     continue
                 self._irregular(count, peer, len(pwm))
             if rate != self._rate_hz:
@@ -170,9 +231,9 @@ class SitlServer:
             line = fmt(reply)
             self._last_reply, self._last_count = line, count
             send(line, peer)
+            self._sent_s = clock()
             if c.frames >= limit:
                 break
-        return c
 
     # ------------------------------------------------------------ the rare cases, off the hot path
 
@@ -248,6 +309,7 @@ def run_sitl(
     heading_deg: float = 0.0,
     origin: tuple[float, float] | None = None,
     ready: Callable[[tuple[str, int]], None] | None = None,
+    esc_arm_s: float = ESC_ARM_S,
 ) -> SitlSummary:
     """Serve ArduPilot SITL's JSON interface with the vessel's twin until stopped (module docstring).
 
@@ -258,11 +320,14 @@ def run_sitl(
     vessel file's (current flowing towards, wind blowing from). heading_deg: the initial heading.
     origin: (lat, lon) deg of the twin's origin for the map positions of .mcap/.tlog/.bin
     recordings (set it to SITL's home). ready: called with the bound (host, port) once frames
-    are answered. Ctrl-C ends the session normally (`interrupted`); what was recorded is written.
+    are answered. esc_arm_s: how long each ESC must see its stopped signal before it drives its
+    thruster (twin.sitl.backend; 0: from the first frame). SIGINT and SIGTERM end the session
+    normally (`interrupted`, `signal_name`); what was recorded is written.
     """
     log = log or (lambda text: None)
     paths = check_record_paths(record_paths)
     check_channels(channels)
+    check_esc_arm(esc_arm_s)
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
         raise TwinError(f"--rate {rate_hz}: the physics rate must be a positive number of Hz (e.g. 400)")
     if stop_after_frames is not None and stop_after_frames < 0:
@@ -271,31 +336,59 @@ def run_sitl(
     v = with_environment(v, current, wind)
     sock = bind_udp(host, port)  # first: a port in use fails before the twin is built
     started = time.perf_counter()
-    interrupted = False
+    stop = stop_event or threading.Event()
+    caught: list[str] = []
     twin = server = None
     written: tuple[Path, ...] = ()
+    cpu_s = 0.0
+    # the handlers stay while the recordings are written: a second Ctrl-C does not cut the writing short
+    with _stopped_by_signals(stop, caught):
+        try:
+            twin = SitlTwin(v, min_rate_hz=rate_hz, channels=channels, heading_deg=heading_deg,
+                            record=bool(paths), esc_arm_s=esc_arm_s)
+            with twin.active():
+                twin.warm_up()
+                server = SitlServer(sock, twin, realtime=realtime, log=log)
+                _announce(server, v, log)
+                if ready is not None:
+                    ready(server.address)
+                cpu0 = time.thread_time()
+                try:
+                    server.serve(stop_after_frames, stop)
+                except KeyboardInterrupt:  # SIGINT with Python's own handler (run_sitl off the main thread)
+                    caught.append("SIGINT")
+                cpu_s = time.thread_time() - cpu0
+                if caught:
+                    log(f"{caught[0]}: ending the session")
+        finally:
+            sock.close()
+            if server is not None and paths:  # the session began: write what it did, however it ends
+                written = write_recording(twin, paths, origin, log)
+    summary = SitlSummary(server.counters, twin.total_time_s, time.perf_counter() - started,
+                          bool(caught), written, caught[0] if caught else None, cpu_s)
+    return summary  # not logged: the caller shows it once (the CLI on stdout)
+
+
+@contextlib.contextmanager
+def _stopped_by_signals(stop: Event, caught: list[str]) -> Iterator[None]:
+    """SIGINT and SIGTERM set `stop` (and name themselves in `caught`) while the block runs, whatever
+    their handlers were before (a background job starts with SIGINT ignored, SIGTERM would kill the
+    process before it writes its recordings). Only the main thread can install handlers: elsewhere
+    the block runs with the handlers as they are."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, _frame):
+        caught.append(signal.Signals(signum).name)
+        stop.set()
+
+    previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
-        twin = SitlTwin(v, min_rate_hz=rate_hz, channels=channels, heading_deg=heading_deg, record=bool(paths))
-        with twin.active():
-            twin.warm_up()
-            server = SitlServer(sock, twin, realtime=realtime, log=log)
-            _announce(server, v, log)
-            if ready is not None:
-                ready(server.address)
-            try:
-                server.serve(stop_after_frames, stop_event)
-            except KeyboardInterrupt:
-                interrupted = True
-                log("interrupted: ending the session")
+        yield
     finally:
-        sock.close()
-        if server is not None and paths:  # the session began: write what it did, however it ends
-            written = write_recording(twin, paths, origin, log)
-    counters = server.counters
-    summary = SitlSummary(counters, twin.total_time_s, time.perf_counter() - started,
-                          interrupted, written)
-    log(summary.text())
-    return summary
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def _announce(server: SitlServer, vessel: Vessel, log: Log) -> None:

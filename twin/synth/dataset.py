@@ -31,6 +31,7 @@ from ..errors import TwinError
 from ..geodesy import geodetic_from_ned
 from ..drive import InputSeries, SupplySeries
 from ..physics.kinematics import wrap_angle
+from ..physics.seakeeping import site_ned
 from ..physics.sensors import antenna_body_m, antenna_ned, measured_heading, motor_throttle
 from ..progress import Progress, steps
 from ..recording import Recording, Stream
@@ -107,10 +108,13 @@ def _rounded(a: np.ndarray, digits: int = 6) -> list[float]:
 
 def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: list[str] | None = None, seed: int = 0,
              noise: SensorNoise = SensorNoise(), gap_s: float = 6.0,
-             segment_s: tuple[float, float] = (40.0, 90.0), progress: Progress | None = None) -> Dataset:
+             segment_s: tuple[float, float] = (40.0, 90.0), progress: Progress | None = None,
+             sea=None) -> Dataset:
     """A dataset of `n_segments` manoeuvres of the vessel with `effects` injected (see
     twin.effects), logged by noisy sensors; reproducible from `seed`. `progress` hears which
-    segment (k of n) is simulated, then logged."""
+    segment (k of n) is simulated, then logged. `sea` (physics.waves.Sea): every segment runs the
+    6-DOF hull in it (one run each), the GNSS antenna at its site on the mast follows the hull's
+    roll and pitch, and the log holds the attitude (roll, pitch) and the sea in its meta."""
     truth = apply_effects(vessel, effects)
     if truth.thrusters.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a dataset logs PWM")
@@ -127,8 +131,10 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     eta0 = [(float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-np.pi, np.pi)))
             for _ in plan]
     supplies = _supplies(truth, plan, rng)
-    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress), supplies)
+    runs = _simulate(compiled, plan, starts, eta0, noise.heading_dt_s, steps(progress), supplies, sea)
     recording = _log(compiled, runs, noise, rng, source, steps(progress))
+    if sea is not None:
+        recording.meta["sea"] = sea.to_dict()
     return Dataset(recording, truth, [as_effect(e) for e in effects], noise, seed, plan, runs)
 
 
@@ -153,9 +159,9 @@ def _supplies(truth: Vessel, plan, rng: np.random.Generator) -> list[SupplySerie
 
 
 def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, progress: Progress,
-              supplies: list[SupplySeries | None]) -> list[Run]:
+              supplies: list[SupplySeries | None], sea=None) -> list[Run]:
     runs: list[Run | None] = [None] * len(plan)
-    open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)]
+    open_idx = [i for i, m in enumerate(plan) if isinstance(m.drive, InputSeries)] if sea is None else []
     if open_idx:
         # open-loop segments run together in one batch: one report for all of them
         progress(f"simulating {len(open_idx)} open-loop segments in one batch", 0, len(plan))
@@ -175,9 +181,10 @@ def _simulate(compiled: CompiledVessel, plan, starts, eta0, sample_dt_s: float, 
         if runs[i] is None:
             progress(f"simulating segment {i + 1} of {len(plan)} ({m.name}, closed loop)", done, len(plan))
             done += 1
-            runs[i] = simulate(compiled, m.drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
+            drive = _led_in(m.drive, supplies[i]) if isinstance(m.drive, InputSeries) else m.drive
+            runs[i] = simulate(compiled, drive, m.duration_s + LEAD_IN_S, control_dt_s=man.PWM_DT_S,
                                sample_dt_s=sample_dt_s, eta0=eta0[i], start_s=float(starts[i]) - LEAD_IN_S,
-                               supply=supplies[i])
+                               supply=None if isinstance(m.drive, InputSeries) else supplies[i], sea=sea)
     return [_logged_part(r, float(t0)) for r, t0 in zip(runs, starts)]
 
 
@@ -193,8 +200,11 @@ def _logged_part(run: Run, t0: float) -> Run:
     keep = run.t >= t0 - 1e-9
     inputs = run.meta["inputs"]
     shifted = InputSeries(inputs.t - LEAD_IN_S, inputs.values, inputs.kind, inputs.supply_v)  # the segment's clock
-    return Run(run.t[keep], run.eta[keep], run.nu[keep], run.pwm_us[keep], run.thrust_n[keep],
-               meta={**run.meta, "inputs": shifted, "start_s": t0})
+    meta = {**run.meta, "inputs": shifted, "start_s": t0}
+    if "six_dof" in meta:
+        meta["six_dof"] = {k: (v[keep] if isinstance(v, np.ndarray) and v.shape[:1] == keep.shape else v)
+                           for k, v in meta["six_dof"].items()}
+    return Run(run.t[keep], run.eta[keep], run.nu[keep], run.pwm_us[keep], run.thrust_n[keep], meta=meta)
 
 
 # ---------------------------------------------------------------- sensors
@@ -231,11 +241,22 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
     vessel = compiled.vessel
     antenna = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
     g_t, g_n, g_e, h_t, h_psi, p_t, p_v, b_t, b_v = [], [], [], [], [], [], [], [], []
+    a_t, a_roll, a_pitch = [], [], []
     for k, run in enumerate(runs):
         progress(f"logging segment {k + 1} of {len(runs)} (sensors and noise)", k, len(runs))
         t0, t1 = float(run.t[0]), float(run.t[-1])
         tg = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.gnss_dt_s)
         n_a, e_a = antenna_ned(run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], antenna)
+        six = run.meta.get("six_dof")
+        if six is not None:  # the antenna on its mast swings with the hull's roll and pitch
+            n_a, e_a, _ = site_ned(run.eta, six["down_m"], six["pitch_rad"], six["roll_rad"],
+                                   np.array([antenna[0], antenna[1], compiled.geometry.gnss_pos_m[2]]))
+            th_a = t0 + np.arange(0.0, t1 - t0 + 1e-9, noise.heading_dt_s)
+            a_t.append(th_a)
+            a_roll.append(np.interp(th_a, run.t, six["roll_rad"]) + np.radians(rng.normal(0.0, noise.heading_deg,
+                                                                                        len(th_a))))
+            a_pitch.append(np.interp(th_a, run.t, six["pitch_rad"]) + np.radians(rng.normal(0.0, noise.heading_deg,
+                                                                                          len(th_a))))
         wander = [_wander(rng, len(tg), noise.gnss_dt_s, noise.gnss_wander_m, noise.gnss_wander_s)
                   for _ in range(2)]
         g_t.append(tg)
@@ -264,5 +285,8 @@ def _log(compiled: CompiledVessel, runs: list[Run], noise: SensorNoise, rng: np.
     rec.pwm_neutral_us = (man.NEUTRAL_US, man.NEUTRAL_US)
     if b_t:
         rec.battery = Stream(np.concatenate(b_t), {"voltage_v": np.concatenate(b_v)})
+    if a_t:
+        rec.attitude = Stream(np.concatenate(a_t), {"roll_rad": np.concatenate(a_roll),
+                                                    "pitch_rad": np.concatenate(a_pitch)})
     rec.notes.append(f"synthetic dataset: {len(runs)} segments, seed and truth in the separate truth file")
     return rec

@@ -150,9 +150,31 @@ def run_case(compiled: CompiledVessel, case: Case, duration_s: float, inputs=Non
     return Result(case.name, pos, head, effect, eng, ana)
 
 
+def six_dof_case(vessel: Vessel, duration_s: float, inputs=None) -> Result:
+    """The 6-DOF hull in calm water (engine/sixdof.py) against the analytic 3-DOF model, full physics,
+    over the zig-zag: on the vessel made to float level (sixdof.level_floating: the 3-DOF model is a
+    level hull's; a trimmed one tilts its thrust and moves its centre of gravity in the heading
+    frame). "effect" is how far the 6-DOF hull of the vessel as it is, trim and all, ends from it."""
+    from ..engine import sixdof
+
+    level, _ = sixdof.level_floating(vessel)
+    cv = compile_vessel(level)
+    drive = inputs if inputs is not None else zigzag_for(vessel)
+    try:
+        eng = simulate(cv, drive, duration_s, six_dof=True)
+    except TwinError as exc:
+        raise TwinError(f"crosscheck case 'six_dof_calm': {exc}") from None
+    ana = analytic.simulate(cv.hydro(), level.thrusters, cv.geometry.thruster_y_m, eng.meta["inputs"], eng.t,
+                            nu0=np.zeros(3))
+    pos, head = _compare(eng, ana)
+    as_is = simulate(compile_vessel(vessel), eng.meta["inputs"], duration_s, six_dof=True)
+    return Result("six_dof_calm", pos, head, _compare(as_is, ana)[0], eng, ana)
+
+
 def crosscheck(vessel: Vessel, duration_s: float = 120.0, only: list[str] | None = None,
-               progress: Progress | None = None) -> list[Result]:
-    """All cases over the same zig-zag inputs (those of the full-physics engine run)."""
+               progress: Progress | None = None, six_dof: bool = False) -> list[Result]:
+    """All cases over the same zig-zag inputs (those of the full-physics engine run); `six_dof`: and
+    the 6-DOF hull in calm water (`six_dof_case`), for a vessel with hull meshes."""
     compiled = compile_vessel(vessel)
     results: list[Result] = []
     inputs = None
@@ -163,4 +185,7 @@ def crosscheck(vessel: Vessel, duration_s: float = 120.0, only: list[str] | None
         if case.name == "full":
             inputs = res.engine.meta["inputs"]
         results.append(res)
+    if six_dof:
+        steps(progress)("case six_dof_calm", len(chosen), len(chosen) + 1)
+        results.append(six_dof_case(vessel, duration_s, inputs))
     return results

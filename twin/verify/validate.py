@@ -19,7 +19,8 @@ import numpy as np
 from ..engine.mjcf import CompiledVessel, compile_vessel, edited_spec
 from ..errors import TwinError
 from ..physics import added_mass as am
-from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_for_mass, waterplane_extent
+from ..physics.hydrostatics import (RHO_FRESH_KG_M3, equilibrium, submerged_volume, waterline_for_mass,
+                                    waterplane_extent)
 from ..physics.thrusters import force_torque_bounds
 from ..references import YELLOWFISH_TR, CYBERSHIP_I
 from ..vessel import Vessel
@@ -456,6 +457,30 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
     return out, fl
 
 
+def _floating_free(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantity]:
+    """Where the hull meshes float the vessel free in heave, trim and heel (centre of buoyancy under
+    the centre of gravity): the rest of the 6-DOF twin (engine/sixdof.py), from the full meshes."""
+    if not meshes:
+        return []
+    model = compiled.model
+    data = _at_rest(model)
+    mujoco.mj_comPos(model, data)
+    cg = _in_vessel_frame(model, data, data.subtree_com[_body_id(model, "vessel")])
+    rho = RHO_FRESH_KG_M3 if compiled.vessel.mmg is None else compiled.vessel.mmg.rho_kg_m3
+    placed = [(h["mesh"].vertices, h["mesh"].faces) for h in meshes]
+    try:
+        z, trim, heel = equilibrium(placed, compiled.geometry.rigid.mass_kg, cg, rho)
+    except (ValueError, np.linalg.LinAlgError):  # meshes that cannot float it: the draft row says so
+        return []
+    if not all(np.isfinite([z, trim, heel])):
+        return []
+    why = ("the rest of the 6-DOF hull: buoyancy equal to the weight, the centre of buoyancy under the centre of "
+           f"gravity (z_G = {1e3 * cg[2]:.0f} mm); the 3-DOF twin assumes a level hull")
+    return [Quantity("CO below the surface, free", "mm", mesh=1e3 * z, reference="mesh", explanation=why),
+            Quantity("trim, free (bow down −)", "deg", mesh=float(np.rad2deg(trim)), reference="mesh", explanation=why),
+            Quantity("heel, free", "deg", mesh=float(np.rad2deg(heel)), reference="mesh", explanation=why)]
+
+
 # ---------------------------------------------------------------- [Bertoni-2024]: CyberShip I
 
 
@@ -523,7 +548,7 @@ def validate(vessel: Vessel) -> Validation:
         qs = _generic(compiled) + _ship_particulars(compiled, meshes)
     qs += _mesh_quantities(compiled, meshes)
     hydro_qs, flotation = _hydrostatics(compiled, case, meshes)
-    qs += hydro_qs
+    qs += hydro_qs + _floating_free(compiled, meshes)
     g = compiled.geometry
     drawing = {
         "hulls": [{"outline_xy": _outline(h), "name": h["name"]} for h in meshes],

@@ -66,11 +66,30 @@ class ResultPage:
         page = folder / f"{self.name}.md"
         write_text_atomic(page, self.markdown(date, commit))
         if self.raw_file:
+            write_index(folder)
             return page
         meta = {"title": self.title, "ran": self.ran, "data": self.data, "date": date, "commit": commit}
         write_text_atomic(folder / f"{self.name}.json",
                           json.dumps({"meta": meta, **self.raw}, indent=1, default=json_default) + "\n")
+        write_index(folder)
         return page
+
+
+def write_index(folder: Path | str = "docs/results") -> Path:
+    """The folder's index.md: every page in it (but the index) by its title, in name order, so a page a
+    study script writes is listed without an edit here."""
+    folder = Path(folder)
+    rows = []
+    for page in sorted(folder.glob("*.md")):
+        if page.name == "index.md":
+            continue
+        title = next((line[2:].strip() for line in page.read_text().splitlines() if line.startswith("# ")), page.stem)
+        rows.append(f"- [{title}]({page.name})")
+    text = "\n".join(["# Results", "", "One page per study, each written by its script with its data, command, date and "
+                      "commit; nothing here is edited by hand.", "", *rows]) + "\n"
+    index = folder / "index.md"
+    write_text_atomic(index, text)
+    return index
 
 
 def _cell(value, digits: int) -> str:

@@ -8,6 +8,10 @@ Entity paths, for each run name:
   world/<name>/vessel/sites      Points3D of thrusters, GNSS, IMU (when a Geometry is given), static
   plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs),
                                  the series named after the run or run.meta["series_labels"][quantity]
+  world/<name>/sea               Mesh3D of the sea surface around the vessel over "time" (a 6-DOF run
+                                 in waves: every SEA_EVERY_S, at most SEA_FRAMES frames), and the
+                                 vessel's transform then carries its heave, roll and pitch; plots of
+                                 heave (m), roll and pitch (deg)
 All runs share the timeline "time" (duration, s), so runs line up in plots and in 3D.
 """
 from __future__ import annotations
@@ -30,6 +34,8 @@ TIMELINE = "time"
 BOX_SIZE_M = (1.28, 0.98, 0.3)
 BOX_CENTER_M = (0.0, 0.0, -0.10)  # the hull meshes span z = -0.25 .. 0.05 m (z down)
 PLOTS = ("u", "v", "r", "thrust_left", "thrust_right", "pwm_left", "pwm_right")
+SIX_PLOTS = ("heave", "roll", "pitch")
+SEA_EVERY_S, SEA_FRAMES, SEA_NODES, SEA_HALF_M = 0.25, 1200, 33, 4.0
 PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
 
 HullMeshes = Sequence[str | Path] | Mapping[str | Path, Sequence[float]]
@@ -76,7 +82,7 @@ def rrd_file(path: str | Path, application_id: str, blueprint: rrb.Blueprint) ->
 
 def _blueprint() -> rrb.Blueprint:
     # one plot per quantity, so the same quantity from every run shares axes
-    plots = [rrb.TimeSeriesView(origin=f"plots/{q}", name=q) for q in PLOTS]
+    plots = [rrb.TimeSeriesView(origin=f"plots/{q}", name=q) for q in PLOTS + SIX_PLOTS]
     return rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="water"), rrb.Grid(*plots)))
 
 
@@ -109,13 +115,23 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
     times = [rr.TimeColumn(TIMELINE, duration=np.asarray(run.t, dtype=float))]
     xyz = np.column_stack([run.eta[:, 0], run.eta[:, 1], np.zeros(len(run.t))])
     rec.log(f"world/{key}/path", rr.LineStrips3D([xyz], colors=[color], radii=[0.03]), static=True)
-    half = run.eta[:, 2] / 2
-    quat = np.column_stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)])  # xyzw, yaw about z
+    six = run.meta.get("six_dof")
+    if six is not None:
+        xyz[:, 2] = six["down_m"]
+        quat = _quaternions(run.eta[:, 2], six["pitch_rad"], six["roll_rad"])
+    else:
+        half = run.eta[:, 2] / 2
+        quat = np.column_stack([np.zeros_like(half), np.zeros_like(half), np.sin(half), np.cos(half)])  # xyzw, yaw
     rec.send_columns(f"world/{key}/vessel", indexes=times,
                      columns=rr.Transform3D.columns(translation=xyz, quaternion=quat))
     _log_hull(rec, f"world/{key}/vessel", color, geometry, meshes)
     cols = run.columns()
-    for q in PLOTS:
+    if six is not None:
+        cols = {**cols, "heave": np.asarray(six["down_m"]) - six["equilibrium"][0],
+                "roll": np.rad2deg(six["roll_rad"]), "pitch": np.rad2deg(six["pitch_rad"])}
+        if six.get("components") is not None:
+            _log_sea(rec, f"world/{key}/sea", run, six["components"])
+    for q in PLOTS + (SIX_PLOTS if six is not None else ()):
         if np.all(np.isnan(cols[q])):
             continue  # e.g. PWM of a thrust-driven run
         entity = f"plots/{q}/{key}"
@@ -127,6 +143,36 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
         rec.log(f"log/{key}", rr.TextLog(f"{lim['thruster']} thruster {lim['quantity']} requested beyond the bound "
                                          f"{lim['bound']:g} {lim['unit']} for {lim['seconds']:.2f} s (by up to "
                                          f"{abs(lim['worst_excess']):.3g} {lim['unit']})", level="WARN"))
+
+
+def _quaternions(psi, theta, phi) -> np.ndarray:
+    """xyzw quaternions of R = Rz(ψ) Ry(θ) Rx(φ)."""
+    cy, sy = np.cos(psi / 2), np.sin(psi / 2)
+    cp, sp = np.cos(np.asarray(theta) / 2), np.sin(np.asarray(theta) / 2)
+    cr, sr = np.cos(np.asarray(phi) / 2), np.sin(np.asarray(phi) / 2)
+    return np.column_stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy])
+
+
+def _log_sea(rec: rr.RecordingStream, entity: str, run: Run, components) -> None:
+    """The incident sea surface on a square around the vessel (NED, z = −ζ), every SEA_EVERY_S."""
+    from ..physics.waves import elevation
+
+    u = np.linspace(-SEA_HALF_M, SEA_HALF_M, SEA_NODES)
+    gx, gy = np.meshgrid(u, u)
+    n = SEA_NODES
+    tri = [(i * n + j, i * n + j + 1, (i + 1) * n + j) for i in range(n - 1) for j in range(n - 1)]
+    tri += [(i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j) for i in range(n - 1) for j in range(n - 1)]
+    tri = np.array(tri)
+    step = max(1, int(round(SEA_EVERY_S / max(float(np.median(np.diff(run.t))), 1e-9)))) if len(run.t) > 1 else 1
+    start = float(run.meta.get("start_s", run.t[0]))
+    for k in list(range(0, len(run.t), step))[:SEA_FRAMES]:
+        x = run.eta[k, 0] + gx.ravel()
+        y = run.eta[k, 1] + gy.ravel()
+        z = -elevation(components, x, y, float(run.t[k]) - start)
+        rec.set_time(TIMELINE, duration=float(run.t[k]))
+        rec.log(entity, rr.Mesh3D(vertex_positions=np.column_stack([x, y, z]), triangle_indices=tri,
+                                  albedo_factor=(40, 110, 200, 140)))
 
 
 def _log_hull(rec: rr.RecordingStream, vessel: str, color, geometry, meshes) -> None:

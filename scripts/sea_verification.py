@@ -1,0 +1,120 @@
+#!/usr/bin/env python3
+"""The 6-DOF hull's checks (twin.verify.sea) and its speed, written to docs/results/sea_verification.md
+with the raw figures in docs/results/data/sea_verification.json.
+
+    python scripts/sea_verification.py [--out docs/results] [--repeats 5]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import twin.vessel as vessel_mod
+from twin.engine import sixdof
+from twin.files import json_default, write_text_atomic
+from twin.verify import sea as checks
+from twin.viz.pages import ResultPage, ResultTable
+
+SEA = "0.3,2.5,30,4"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=Path("docs/results"))
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    raw: dict = {}
+    yf, bb = vessel_mod.load("yellowfish"), vessel_mod.load("blueboat")
+    barge = checks.barge(Path(tempfile.mkdtemp(prefix="twin-barge-")))
+    level = {"yellowfish": sixdof.level_floating(yf)[0], "blueboat": sixdof.level_floating(bb)[0]}
+
+    raw["rest"] = {n: checks.rest(v) for n, v in (("yellowfish", yf), ("blueboat", bb))}
+    raw["natural_periods"] = {**{f"{n} (level)": checks.natural_periods(v) for n, v in level.items()},
+                              "barge": checks.natural_periods(barge),
+                              **{f"{n} (as it is)": checks.natural_periods(v) for n, v in (("yellowfish", yf),
+                                                                                         ("blueboat", bb))}}
+    raw["roll_energy"] = {n: checks.roll_energy(v) for n, v in (("yellowfish", yf), ("barge", barge))}
+    raw["calm_water"] = {n: checks.calm_water(v) for n, v in (("yellowfish", yf), ("blueboat", bb))}
+    raw["heave_rao"] = checks.barge_rao(barge, "heave", [8.0, 4.0, 2.5, 2.0, 1.73, 1.5, 1.2])
+    raw["roll_rao"] = checks.barge_rao(barge, "roll", [8.0, 4.0, 3.0, 2.2, 1.45], cycles=24)
+    raw["drift"] = checks.drift(barge)
+    raw["speed"] = checks.speed_pair(yf, SEA, args.repeats)
+    raw["hulls"] = {n: sixdof.hull_model(v).to_dict() for n, v in (("yellowfish", yf), ("blueboat", bb),
+                                                                   ("barge", barge))}
+
+    tables = [
+        ResultTable("Rest: the engine settled from the design waterline against twin validate's full meshes",
+                    ["vessel", "CO down, engine mm", "validate mm", "trim engine °", "validate °"],
+                    [[n, r["engine_down_mm"], r["validate_down_mm"], r["engine_trim_deg"], r["validate_trim_deg"]]
+                     for n, r in raw["rest"].items()], digits=4),
+        ResultTable("Natural periods: free decay against the closed forms with the added mass used (s)",
+                    ["hull", "mode", "engine", "closed form", "error %", "uncoupled closed form"],
+                    [[h, m, r["engine_s"], r["closed_form_s"], 100 * r["error"], r["uncoupled_s"]]
+                     for h, modes in raw["natural_periods"].items() for m, r in modes.items()], digits=4),
+        ResultTable("Undamped roll decay (3°, 10 s): energy", ["hull", "roll energy J", "largest change J", "relative"],
+                    [[n, r["initial_J"], r["largest_change_J"], r["relative"]] for n, r in raw["roll_energy"].items()]),
+        ResultTable("Calm water: the 6-DOF horizontal track against the 3-DOF twin's, 120-s zig-zag",
+                    ["vessel", "hull", "trim °", "position error m", "heading error °", "roll max °"],
+                    [[n, k, r[k]["trim_deg"], r[k]["position_err_m"], r[k]["heading_err_deg"], r[k]["roll_max_deg"]]
+                     for n, r in raw["calm_water"].items() for k in ("level", "as_is")]),
+        ResultTable("Barge heave RAO in head seas, |z|/a: engine against the linear strip solution",
+                    ["period s", "kL", "engine", "reference", "error %"],
+                    [[r["period_s"], r["kL"], r["engine"], r["reference"], 100 * (r["engine"] / r["reference"] - 1)]
+                     for r in raw["heave_rao"]], digits=4),
+        ResultTable("Barge roll RAO in beam seas, |φ|/(ka): engine against the linear Froude-Krylov solution",
+                    ["period s", "kL", "engine", "reference", "error %"],
+                    [[r["period_s"], r["kL"], r["engine"], r["reference"], 100 * (r["engine"] / r["reference"] - 1)]
+                     for r in raw["roll_rao"]], digits=4),
+        ResultTable("Mean drift on the barge per ½ρga² × the lit side's length",
+                    ["waves", "period s", "kT", "engine", "short-wave asymptote", "× Ursell R²"],
+                    [[r["heading"], r["period_s"], r["kT"], r["engine"], r["short_wave_asymptote"],
+                      r["with_reflection"]] for r in raw["drift"]], digits=4),
+        ResultTable(f"Speed on one core: the Yellowfish, sea {SEA} (JONSWAP Hs, Tp, from, cos-power), 60-s runs",
+                    ["twin", "simulated s per wall s"],
+                    [["3-DOF (timed in turn with the next)", raw["speed"]["three_dof_simsec_per_s"]],
+                     ["6-DOF in the sea", raw["speed"]["six_dof_simsec_per_s"]]], digits=4),
+    ]
+    s = raw["speed"]
+    page = ResultPage(
+        name="sea_verification", title="The 6-DOF hull in waves: verification and speed",
+        ran="python scripts/sea_verification.py",
+        data="the Yellowfish and the BlueBoat (their hull meshes; a copy of each made to float level where the "
+             "3-DOF twin is its reference), and a 2 × 1 × 0.5 m box barge of 500 kg floating at 0.25 m "
+             "(twin.verify.sea.barge)",
+        summary=("The engine floats each hull where twin validate floats its full meshes (within "
+                 f"{max(abs(r['engine_down_mm'] - r['validate_down_mm']) for r in raw['rest'].values()):.2f} mm and "
+                 f"{max(abs(r['engine_trim_deg'] - r['validate_trim_deg']) for r in raw['rest'].values()):.3f}°). "
+                 "Free heave, roll and pitch decays keep the closed-form periods of hulls that float level; an "
+                 "undamped roll keeps its energy; in calm water the 6-DOF horizontal track stays on the 3-DOF "
+                 "twin's. The barge's heave follows the linear strip solution of the same model, its roll the "
+                 "linear Froude-Krylov solution, and its mean drift the short-wave asymptote for a wall-sided hull "
+                 "[Faltinsen-1990] times the reflection of a fixed barrier of its draft [Ursell-1947]. The 6-DOF "
+                 f"twin in an irregular short-crested sea ran {s['six_dof_simsec_per_s']:.0f}× real time on one "
+                 f"core, paired with the 3-DOF twin at {s['three_dof_simsec_per_s']:.0f}× in the same run."),
+        tables=tables,
+        notes=["The RAO references are computed from the same added mass, damping and Smith factor the engine "
+               "uses (closed forms, twin.verify.sea): they check the time-domain pressure integration, the wave "
+               "grid and the strip loads, not the strip theory itself.",
+               "The drift check evaluates the engine's own drift load (Ursell-Maruo reflection on the short-wave "
+               "waterline integral) on the barge's mesh: it checks the waterline, the heading table and Newman's "
+               "sums against the published asymptote and Ursell's closed form, not against a measured drift.",
+               "The stock Yellowfish and BlueBoat meshes float trimmed by about 3-4° bow down (their assumed lines' "
+               "centre of buoyancy lies aft of the centre of gravity): the closed forms at the level waterplane "
+               "do not apply to them and their 6-DOF tracks differ from the 3-DOF twin's as a trimmed hull does "
+               "(rows 'as it is').",
+               "Speed figures are of a shared two-core machine; the ratio of the two twins, timed in turn, is the "
+               "steadier figure."],
+        raw_file="data/sea_verification.json")
+    page.write(args.out)
+    write_text_atomic(args.out / "data" / "sea_verification.json",
+                      json.dumps(raw, indent=1, default=json_default) + "\n")
+    print(f"wrote {args.out / 'sea_verification.md'}")
+    print(json.dumps(raw["speed"], indent=1, default=json_default))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

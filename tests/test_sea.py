@@ -1,0 +1,216 @@
+"""Sea state and the 6-DOF hull (physics/waves.py, physics/seakeeping.py, engine/sixdof.py,
+verify/sea.py): each test asserts physics with numbers, against closed forms or published figures."""
+import math
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.engine import sixdof
+from twin.errors import TwinError
+from twin.physics import seakeeping as sk
+from twin.physics import waves
+from twin.physics.hydrostatics import pressure_load
+from twin.verify import sea as checks
+
+
+@pytest.fixture(scope="module")
+def yellowfish():
+    return vessel_mod.load("yellowfish")
+
+
+@pytest.fixture(scope="module")
+def level_yellowfish(yellowfish):
+    return sixdof.level_floating(yellowfish)[0]
+
+
+@pytest.fixture(scope="module")
+def barge(tmp_path_factory):
+    return checks.barge(tmp_path_factory.mktemp("barge"))
+
+
+# ---------------------------------------------------------------- waves
+
+
+def test_jonswap_carries_the_significant_height_and_pm_is_gamma_one():
+    w = np.linspace(0.05, 30.0, 200001)
+    for gamma in (1.0, 3.3):
+        m0 = np.trapezoid(waves.jonswap(w, 2.0, 8.0, gamma), w)
+        assert 4 * math.sqrt(m0) == pytest.approx(2.0, rel=0.01)
+    assert np.allclose(waves.pierson_moskowitz(w, 2.0, 8.0), waves.jonswap(w, 2.0, 8.0, 1.0))
+    wp = 2 * math.pi / 8.0
+    assert w[np.argmax(waves.jonswap(w, 2.0, 8.0))] == pytest.approx(wp, rel=1e-3)  # the peak at Tp
+
+
+def test_spreading_integrates_to_one_and_draws_are_seeded():
+    th = np.linspace(-math.pi / 2, math.pi / 2, 20001)
+    for n in (1.0, 2.0, 10.0):
+        assert np.trapezoid(waves.spreading(th, n), th) == pytest.approx(1.0, abs=1e-6)
+    sea = waves.Sea(0.4, 3.0, 45.0, spread=4.0, seed=7)
+    a, b = waves.components(sea), waves.components(sea)
+    assert np.array_equal(a.phase_rad, b.phase_rad) and np.array_equal(a.beta_rad, b.beta_rad)
+    assert a.hs_m == pytest.approx(0.4, rel=1e-12)
+    other = waves.components(waves.Sea(0.4, 3.0, 45.0, spread=4.0, seed=8))
+    assert not np.array_equal(a.phase_rad, other.phase_rad)
+    mean_dir = math.degrees(math.atan2(np.sum(a.amplitude_m ** 2 * np.sin(a.beta_rad)),
+                                       np.sum(a.amplitude_m ** 2 * np.cos(a.beta_rad))))
+    assert abs((mean_dir - 225.0 + 180) % 360 - 180) < 15  # travels towards 225° (from 45°)
+
+
+def test_grid_fields_equal_the_direct_sums():
+    c = waves.components(waves.Sea(0.3, 2.5, 30.0, spread=2.0, seed=3))
+    weights = waves.field_weights(c, (0.0, 0.25, 0.5), 0.04)
+    nx, ny, dx, dy, psi = 9, 7, 0.11, 0.13, 0.4
+    fields = np.empty((7, nx * ny))
+    phase = np.empty((2, len(c)))
+    waves.grid_fields(c.pack(), weights, 1.7, 3.0, -2.0, math.cos(psi), math.sin(psi), dx, dy, nx, ny, fields, phase,
+                      4, 3)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    x = 3.0 + i.ravel() * dx * math.cos(psi) - j.ravel() * dy * math.sin(psi)
+    y = -2.0 + i.ravel() * dx * math.sin(psi) + j.ravel() * dy * math.cos(psi)
+    assert np.max(np.abs(fields[0] - waves.elevation(c, x, y, 1.7))) < 1e-12
+    p = waves.pressure(c, x, y, np.full(x.shape, 0.5), 1.7, rho=1.0) / waves.G - 0.5  # under the troughs
+    assert np.max(np.abs(fields[2] - p)) < 1e-12
+    acc = waves.acceleration(c, x, y, np.full(x.shape, 0.04), 1.7)
+    assert np.max(np.abs(fields[3] - acc[:, 2])) < 1e-12 and np.max(np.abs(fields[5] - acc[:, 0])) < 1e-12
+    vel = waves.velocity(c, x, y, np.full(x.shape, 0.04), 1.7)
+    assert np.max(np.abs(fields[4] - vel[:, 2])) < 1e-12
+    th = waves.phases(c, x[3 * nx + 4], y[3 * nx + 4], 1.7)
+    assert np.allclose(phase, [np.cos(th), np.sin(th)], atol=1e-12)
+
+
+def test_pressure_is_zero_at_the_surface_and_hydrostatic_in_calm_water():
+    c = waves.components(waves.Sea(0.2, 3.0, 0.0, regular=True))
+    x = np.linspace(0, 14, 50)
+    zeta = waves.elevation(c, x, 0 * x, 0.3)
+    at_surface = np.abs(waves.pressure(c, x, 0 * x, -zeta + 1e-9, 0.3))
+    a, k = c.amplitude_m[0], c.k_rad_m[0]
+    assert np.max(at_surface[zeta > 0]) < 1e-3  # Pa: under a crest continued hydrostatically
+    assert np.max(at_surface) <= 1.01 * 1000 * 9.81 * k * a * a  # in a trough linear theory is off by O(ρgka²)
+    assert waves.pressure(c, 0.0, 0.0, 50.0, 0.0) == pytest.approx(1000 * 9.81 * 50, rel=1e-9)  # deep: hydrostatic
+
+
+def test_bad_seas_are_refused_on_one_line():
+    for text, words in (("1.0,1.0,30", "steeper than breaking"), ("0.3,2.5", "expects HS,TP,DIR"),
+                        ("0.3,-2,0", "positive"), ("0.3,2.5,0,0.5", "spreading"), ("regular,0.3,2.5", "expects")):
+        with pytest.raises(TwinError, match=words):
+            waves.parse_sea(text)
+
+
+def test_a_period_the_engine_cannot_resolve_and_a_vessel_without_meshes(yellowfish):
+    hull = sixdof.hull_model(yellowfish)
+    with pytest.raises(TwinError, match="shorter than the .* the twin resolves"):
+        sixdof.sea_components(hull, waves.Sea(0.02, 0.4, 0.0, regular=True), 0.02)
+    with pytest.raises(TwinError, match="no hull meshes"):
+        sixdof.hull_model(vessel_mod.load("cybership1"))
+
+
+# ---------------------------------------------------------------- hydrostatics and the hull
+
+
+def test_pressure_integration_is_archimedes_at_any_attitude(yellowfish):
+    hull = sixdof.hull_model(yellowfish)
+    v = np.vstack([m[0] for m in hull.meshes])
+    f = np.vstack([hull.meshes[0][1], hull.meshes[1][1] + len(hull.meshes[0][0])])
+    R = sk.rotation(0.3, 0.04, -0.06)
+    out = np.zeros(6)
+    pressure_load(v, f, 1.0, 2.0, 0.03, R, np.zeros((7, 1)), 0, 0, 1, 0, 1, 1, 0, 0, 0.1, 9810.0,
+                  np.empty((len(v), 5)), out)
+    vol, centre = 0.0, np.zeros(3)
+    for vv, ff in hull.meshes:
+        a, c = sk.submerged_volume(vv @ R.T + [0, 0, 0.03], ff, 0.0)
+        vol, centre = vol + a, centre + a * c
+    centre /= vol
+    assert out[2] == pytest.approx(-9810.0 * vol, rel=1e-12)
+    assert np.max(np.abs(out[:2])) < 1e-9 * abs(out[2])
+    assert out[3:] == pytest.approx(np.cross(centre, [0, 0, out[2]]), rel=1e-10, abs=1e-10)
+
+
+def test_hydrodynamic_mesh_floats_the_vessel_as_the_full_mesh(yellowfish):
+    from twin.physics.hydrostatics import waterline_for_mass
+
+    hull = sixdof.hull_model(yellowfish)
+    full = sixdof._mass_properties(yellowfish)[3]
+    z_full = waterline_for_mass(full, hull.mass_kg)["waterline_z_m"]
+    z_hydro = waterline_for_mass(hull.meshes, hull.mass_kg)["waterline_z_m"]
+    assert abs(z_hydro - z_full) < 0.5e-3
+    assert sum(len(ff) for _, ff in hull.meshes) < 0.2 * sum(len(ff) for _, ff in full)
+
+
+def test_rest_equals_validates_free_floating_draft_and_trim(yellowfish):
+    r = checks.rest(yellowfish)
+    assert abs(r["engine_down_mm"] - r["validate_down_mm"]) <= 1.0
+    assert abs(r["engine_trim_deg"] - r["validate_trim_deg"]) <= 0.1
+    assert abs(r["engine_heel_deg"] - r["validate_heel_deg"]) <= 0.1
+
+
+def test_lewis_form_of_a_semicircle_and_of_a_box():
+    # a semicircle: ρπr²/2 exactly. A box section B = 2T: its double body is a square, whose added mass
+    # moving across a side is 1.51 ρπ(B/2)² [DNV-RP-C205 Table D-1], so C = a33/(ρπB²/8) = 1.51 at
+    # infinite frequency; the Lewis form (a smooth section of the same B, T and area) comes within 6 %
+    assert sk.lewis_heave(2.0, 1.0, math.pi / 4, 1000.0) == pytest.approx(1000 * math.pi / 2, rel=1e-5)
+    c = sk.lewis_heave(2.0, 1.0, 1.0, 1000.0) / (1000 * math.pi * 4 / 8)
+    assert c == pytest.approx(1.51, rel=0.06)
+
+
+@pytest.mark.parametrize("which", ["level_yellowfish", "barge"])
+def test_natural_periods_equal_the_closed_forms(which, request):
+    result = checks.natural_periods(request.getfixturevalue(which))
+    for mode, r in result.items():
+        assert abs(r["error"]) <= 0.03, (mode, r)
+
+
+def test_undamped_roll_decay_conserves_energy(yellowfish):
+    r = checks.roll_energy(yellowfish)
+    assert r["relative"] < 2e-3  # of the roll's energy, over 10 s (13 periods)
+    assert r["roll_amplitude_end_deg"] == pytest.approx(3.0, rel=0.02)
+
+
+def test_calm_water_six_dof_follows_the_three_dof_twin(yellowfish):
+    r = checks.calm_water(yellowfish)
+    assert r["level"]["position_err_m"] < 0.01 and r["level"]["heading_err_deg"] < 0.1
+    assert abs(r["level"]["trim_deg"]) < 0.01
+
+
+# ---------------------------------------------------------------- the barge in waves
+
+
+def test_barge_heave_rao_against_the_linear_strip_solution(barge):
+    rows = checks.barge_rao(barge, "heave", [6.0, 2.5, 1.73])
+    assert rows[0]["engine"] == pytest.approx(1.0, abs=0.01)  # long waves: the box follows the surface
+    for r in rows:
+        assert r["engine"] == pytest.approx(r["reference"], rel=0.03), r
+    hull = sixdof.hull_model(barge)
+    assert rows[2]["period_s"] == pytest.approx(hull.periods["heave"], rel=0.01)  # at resonance
+
+
+def test_barge_roll_rao_long_wave_limit_and_below_resonance(barge):
+    rows = checks.barge_rao(barge, "roll", [8.0, 2.2])
+    for r in rows:
+        assert r["engine"] == pytest.approx(r["reference"], rel=0.02), r
+    assert checks.roll_rao_closed_form(sixdof.hull_model(barge), 60.0) == pytest.approx(1.0, abs=0.002)
+    assert rows[1]["engine"] > 1.8  # amplified near the 1.73-s roll period
+
+
+def test_mean_drift_against_the_short_wave_asymptote_and_the_barrier_reflection(barge):
+    rows = checks.drift(barge)
+    for r in rows:
+        assert r["engine"] == pytest.approx(r["with_reflection"], rel=0.01, abs=0.002), r
+    short = [r for r in rows if r["kT"] > 1.5]
+    assert all(r["engine"] == pytest.approx(1.0, abs=0.01) for r in short)  # a wall-sided body: ½ρga² per length
+    assert rows[2]["engine"] < 0.02  # long waves pass under the box
+
+
+SHARED = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ardupilot"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared absent")
+def test_logs_roll_and_pitch_are_read_beside_the_heading():
+    from twin.formats import read_recording
+
+    tlog = read_recording(SHARED / "ardusub_small.tlog")  # ATTITUDE, rad
+    assert len(tlog.attitude) == len(tlog.heading) > 5000
+    assert 0.01 < np.max(np.abs(tlog.attitude["roll_rad"])) < 0.2  # a BlueROV2 rolls a few degrees
+    df = read_recording(SHARED / "ardusub_small.BIN")  # ATT, degrees → rad
+    assert len(df.attitude) == len(df.heading) and np.max(np.abs(df.attitude["pitch_rad"])) < 0.02
+    assert tlog.summary()["streams"]["attitude"]["samples"] == len(tlog.attitude)
