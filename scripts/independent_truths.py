@@ -330,7 +330,11 @@ def main() -> int:
     ap.add_argument("--only", default="")
     ap.add_argument("--work", type=Path, default=Path("/tmp/independent_truths"))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    ap.add_argument("--page-only", action="store_true", help="rewrite the page from the raw figures there are")
     args = ap.parse_args()
+    if args.page_only:
+        print(write_page(json.loads((args.out / "data" / "independent_truths.json").read_text())["stages"], args.out))
+        return 0
     prior = vessel_mod.load("blueboat")
     hull = Hull(prior)
     only = {x for x in args.only.split(",") if x}
