@@ -5,7 +5,9 @@ how much of it, and the amended twin, judged on data it did not fit.
    without a dynamic model (fit/kinematic.py: where the GNSS antenna sits, whether the input log
    or the heading is late). A finding told there is named with its kinematic evidence and put into
    the twin before anything is fitted, so the twin's form error does not have to carry it; an
-   effect the kinematics tell is not there is not searched for.
+   effect the kinematics tell is not there is not searched for. The antenna is not searched for
+   at all: a dynamic fit's lever arm moves the point the twin's sway is read at, which takes up a
+   sway-yaw form error the twin has, so only the kinematics can name it.
 1. Replay: the twin over 10-s free-run windows from measured states, driven by the
    recorded PWM, after each log's compass calibration. The noise of every signal is
    estimated so that "significant" has a scale.
@@ -138,7 +140,8 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
-    settled = {f.effect for f in findings if f.told or f.absent}
+    # the antenna is the kinematics' alone (module docstring, step 0)
+    settled = {f.effect for f in findings if f.told or f.absent or f.effect == "gnss_lever_arm"}
     if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
         # each log's compass offset was measured from its own straight running (applied where it is
         # clear): a constant heading bias has a kinematic signature, and where the kinematics show none

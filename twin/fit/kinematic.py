@@ -17,8 +17,12 @@ aft and spins on its thrusters is its middle: the twin's reference point. A hull
 while it spins (a thruster's reverse thrust weaker than its forward) moves by a body velocity that
 is the same for spins of either hand, which looks like an antenna to one side whose side flips
 with the hand of the spin: with spins of both hands (MIN_WINDOWS_EACH_HAND each) it is fitted beside
-p (as u_c per unit of the turn's sign); with spins of one hand only, the antenna's across-ship
-position is not told.
+p (as u_c per unit of the turn's sign). A creep also carries a sideslip (the sway balance of the
+Munk term, v ≈ −m11·u·r/|Yv|), and the point the hull turns about moves along it by −v/r, of the
+creep's own size for a small boat at spin rates: that is the same for spins of either hand, as an
+antenna is, and no kinematics tell them apart. So the antenna is named only from spins of both hands
+in which the creep is shown (its 3-σ bound) under MIN_ARM_M, the smallest antenna told; with spins of one hand only, or
+a hull that creeps, it is not told. It is never named from the dynamics (diagnose).
 
 Timing (input_timing). After a step of the inputs the hull answers at once with an acceleration
 (a thruster's known lag aside): the heading (or the integrated gyro) and the GNSS fixes in a short
@@ -192,10 +196,12 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
 
     if len(groups) < MIN_GROUPS:
         return finding({}, {}, False, False, f"{len(groups)} groups of large heading changes; {MIN_GROUPS} are needed")
-    cols = [0, 1, 2] if both else [0, 1]
+    if not both:
+        return finding({}, {}, False, False, f"spins of one hand only ({MIN_WINDOWS_EACH_HAND} of each are needed): "
+                       "a creep through the water cannot be told from the antenna")
 
     def solve(items):
-        d = np.vstack([w[2][:, cols] for w in items])
+        d = np.vstack([w[2] for w in items])
         y = np.concatenate([w[3] for w in items])
         return np.linalg.lstsq(d, y, rcond=None)[0]
 
@@ -203,27 +209,29 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
     left_out = np.array([solve([w for w in windows if w[0] != g]) for g in groups])
     m = len(groups)
     cov = (m - 1) / m * (left_out - left_out.mean(0)).T @ (left_out - left_out.mean(0))
+    sig = np.sqrt(np.diag(cov))
     delta = p[:2] - have
-    if both:
-        sig = np.sqrt(np.diag(cov)[:2])
-        chi2 = float(delta @ np.linalg.solve(cov[:2, :2], delta))
-        change = {"dx_m": float(delta[0]), "dy_m": float(delta[1])}
-        sigma = {"dx_m": float(sig[0]), "dy_m": float(sig[1])}
-        size, limit = float(np.hypot(*delta)), 13.8  # χ²₂ at p 0.001
-    else:
-        sig0 = float(np.sqrt(cov[0, 0]))
-        chi2 = float(delta[0] ** 2 / cov[0, 0]) if cov[0, 0] > 0 else 0.0
-        change, sigma = {"dx_m": float(delta[0])}, {"dx_m": sig0}
-        size, limit = abs(float(delta[0])), 9.0
+    chi2 = float(delta @ np.linalg.solve(cov[:2, :2], delta))
+    change = {"dx_m": float(delta[0]), "dy_m": float(delta[1])}
+    sigma = {"dx_m": float(sig[0]), "dy_m": float(sig[1])}
+    size = float(np.hypot(*delta))
+    # a hull creeping through the water while it spins sideslips by the Munk moment's partner (sway
+    # m11·u·r/|Yv|), which moves the point it turns about along it by about as much as the creep per
+    # unit rate: the antenna is read against the hull's middle only where the creep is shown smaller
+    # than the smallest antenna told (its 3-σ bound)
+    creep_bound = abs(float(p[2])) + 3 * float(sig[2])
+    still = creep_bound <= MIN_ARM_M
     detail = {"antenna_body_m": [float(p[0]), float(p[1])], "twin_antenna_body_m": [float(have[0]), float(have[1])],
-              "creep_m_s_per_rad_s": float(p[2]) if both else None, "chi2": chi2, "hands_both": both}
-    one_hand = "" if both else "; spins of one hand only: the across-ship position is not told"
-    if chi2 >= limit and size >= MIN_ARM_M:
-        return finding(change, sigma, True, False, f"χ² {chi2:.1f} against the twin's antenna{one_hand}", detail)
-    spread = float(np.sqrt(max(np.max(np.diag(cov)[:len(change)]), 0.0)))
-    absent = both and 3 * spread <= MIN_ARM_M  # an antenna MIN_ARM_M off would have been told
+              "creep_m_s_per_rad_s": float(p[2]), "creep_bound_m": creep_bound, "chi2": chi2}
+    if not still:
+        return finding(change, sigma, False, False, f"{size:.2f} m, but the hull creeps while it spins "
+                       f"({float(p[2]):+.2f} ± {float(sig[2]):.2f} m/s per rad/s): its sideslip moves the point it "
+                       "turns about", detail)
+    if chi2 >= 13.8 and size >= MIN_ARM_M:  # χ²₂ at p 0.001
+        return finding(change, sigma, True, False, f"χ² {chi2:.1f} against the twin's antenna", detail)
+    absent = 3 * float(max(sig[0], sig[1])) <= MIN_ARM_M  # an antenna MIN_ARM_M off would have been told
     return finding(change, sigma, False, absent, f"χ² {chi2:.1f}, {size:.2f} m: within the noise or under "
-                   f"{MIN_ARM_M:g} m{one_hand}", detail)
+                   f"{MIN_ARM_M:g} m", detail)
 
 
 # ---------------------------------------------------------------- input and heading timing
