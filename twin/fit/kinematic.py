@@ -18,9 +18,10 @@ while it spins (a thruster's reverse thrust weaker than its forward) moves by a 
 is the same for spins of either hand, which looks like an antenna to one side whose side flips
 with the hand of the spin: with spins of both hands (MIN_WINDOWS_EACH_HAND each) it is fitted beside
 p (as u_c per unit of the turn's sign). A creep also carries a sideslip (the sway balance of the
-Munk term, v ≈ −m11·u·r/|Yv|), and the point the hull turns about moves along it by −v/r, of the
-creep's own size for a small boat at spin rates: that is the same for spins of either hand, as an
-antenna is, and no kinematics tell them apart. So the antenna is named only from spins of both hands
+Munk term, v ≈ −m11·u·r/|Yv| in a steady turn), and the point the hull turns about moves along it
+by −v/r, the creep per unit rate times m11·r/|Yv|, which rests on a sway damping the kinematics do
+not know: that is the same for spins of either hand, as an antenna is, and no kinematics tell them
+apart. So the antenna is named only from spins of both hands
 in which the creep is shown (its 3-σ bound) under MIN_ARM_M, the smallest antenna told; with spins of one hand only, or
 a hull that creeps, it is not told. It is never named from the dynamics (diagnose).
 
@@ -216,9 +217,9 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
     sigma = {"dx_m": float(sig[0]), "dy_m": float(sig[1])}
     size = float(np.hypot(*delta))
     # a hull creeping through the water while it spins sideslips by the Munk moment's partner (sway
-    # m11·u·r/|Yv|), which moves the point it turns about along it by about as much as the creep per
-    # unit rate: the antenna is read against the hull's middle only where the creep is shown smaller
-    # than the smallest antenna told (its 3-σ bound)
+    # m11·u·r/|Yv|), which moves the point it turns about along it by the creep per unit rate times
+    # m11·r/|Yv|, a sway damping the kinematics do not know: the antenna is read against the hull's
+    # middle only where the creep is shown smaller than the smallest antenna told (its 3-σ bound)
     creep_bound = abs(float(p[2])) + 3 * float(sig[2])
     still = creep_bound <= MIN_ARM_M
     detail = {"antenna_body_m": [float(p[0]), float(p[1])], "twin_antenna_body_m": [float(have[0]), float(have[1])],
