@@ -316,7 +316,8 @@ def boat_antenna(work: Path) -> dict:
     twin = blueboat_twin(work)
     most = tuple(sorted(sum(OUTINGS.values(), ())))
     out = {}
-    for key, runs in (("least active", FIT_BLUEBOAT), ("most active", most), ("all ten", tuple(sorted(FIT_BLUEBOAT + most)))):
+    halves = (("least active", FIT_BLUEBOAT), ("most active", most), ("all ten", tuple(sorted(FIT_BLUEBOAT + most))))
+    for key, runs in halves:
         f = lever_arm(read([BLUEBOAT / f"fixed_00000{n}.csv" for n in runs]), twin)
         out[key] = {"runs": list(runs), "told": f.told, "change": f.change, "sigma": f.sigma, "basis": f.basis,
                     "why": f.why}
