@@ -22,8 +22,9 @@ def test_the_ship_is_offered_only_effects_its_model_has():
                          "gnss_latency", "heading_latency"}
     boat = candidates(vessel_mod.load("yellowfish"))
     assert {"thruster_lag", "thrust_ramp", "dead_zone", "motor_start", "quadratic_damping", "surge_resistance", "wind_shape",
-            "speed_coupling", "full_thrust", "astern_resistance", "compass_motor"} <= set(boat)
-    assert len(boat) == 32
+            "speed_coupling", "full_thrust", "astern_resistance", "compass_motor", "dead_zone_left",
+            "dead_zone_right"} <= set(boat)
+    assert len(boat) == 34
 
 
 def test_wind_acts_through_the_ships_regression_and_is_refused_without_a_load_model():

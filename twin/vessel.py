@@ -120,6 +120,11 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
     for key in ("start_fwd", "start_rev"):  # only where a motor starts late: other files stay as they were
         if d[key] is None:
             d.pop(key)
+    for key in ("deadzone_left", "deadzone_right"):  # only where a thruster has a dead zone of its own
+        if d[key] is None:
+            d.pop(key)
+        else:
+            d[key] = list(d[key])
     if not d["ramp_s"]:  # only where the thrust is slew-limited
         d.pop("ramp_s")
     if not d["supply_exponent"] and d["supply_ref_v"] is None:  # only where the thrust follows the supply

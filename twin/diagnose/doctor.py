@@ -1,6 +1,13 @@
 """`twin diagnose`: where the twin and a recording disagree, which physics is missing,
 how much of it, and the amended twin, judged on data it did not fit.
 
+0. Kinematics: what the recordings' own kinematics and timing tell of the sensors and clocks
+   without a dynamic model (fit/kinematic.py: where the GNSS antenna sits, whether the input log
+   or the heading is late). A finding told there is named with its kinematic evidence and put into
+   the twin before anything is fitted, so the twin's form error does not have to carry it; an
+   effect the kinematics tell is not there is not searched for. The antenna is not searched for
+   at all: a dynamic fit's lever arm moves the point the twin's sway is read at, which takes up a
+   sway-yaw form error the twin has, so only the kinematics can name it.
 1. Replay: the twin over 10-s free-run windows from measured states, driven by the
    recorded PWM, after each log's compass calibration. The noise of every signal is
    estimated so that "significant" has a scale.
@@ -69,6 +76,7 @@ class Diagnosis:
     replay: dict = field(default_factory=dict)  # window predictions for plots and rerun
     overall: dict = field(default_factory=dict)  # residual bias and RMS per DOF over every window
     calibrations: list = field(default_factory=list)  # each log's compass offset from its kinematics (applied)
+    kinematic: list = field(default_factory=list)  # sensor and timing effects from kinematics (fit/kinematic.py)
     refit: dict = field(default_factory=dict)  # the core refitted with every candidate (search.py), if any
 
     def __repr__(self) -> str:
@@ -80,7 +88,8 @@ class Diagnosis:
                 "correlations": self.correlations, "fit_before": self.fit_before, "fit_after": self.fit_after,
                 "unexplained": self.unexplained, "overall": self.overall, "noise": self.noise, "rounds": self.rounds,
                 "windows": self.windows, "seconds": round(self.seconds, 1), "notes": self.notes,
-                "calibrations": [c.to_dict() for c in self.calibrations], "answer": _answer(self),
+                "calibrations": [c.to_dict() for c in self.calibrations],
+                "kinematic": [k.to_dict() for k in self.kinematic], "answer": _answer(self),
                 **({"refit": self.refit} if self.refit else {})}
 
 
@@ -106,9 +115,10 @@ def _check_library(prior: Vessel, recordings: list[Recording], library: list[str
 
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
              library: list[str] | None = None, calibrated: bool = True,
-             refit: tuple[str, ...] | None = None, refit_weight: float = 1.0) -> Diagnosis:
+             refit: tuple[str, ...] | None = None, refit_weight: float = 1.0, kinematic: bool = True) -> Diagnosis:
     """The whole diagnosis (module docstring); `library` restricts the candidates by name;
     `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py);
+    `kinematic`: sensor and timing effects told from the kinematics first (step 0, fit/kinematic.py);
     `refit`: identification groups (`twin identify`'s, e.g. "surge", "yaw") whose coefficients are
     refitted with every candidate (search.py, CORE), for a twin whose own coefficients are not yet
     identified; `refit_weight`: how many windows' worth of data each of their beliefs counts (as
@@ -119,6 +129,9 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if library:
         _check_library(prior, recordings, library)
     log = log or (lambda msg: None)
+    findings = []
+    if kinematic:
+        prior, findings = _kinematic(recordings, prior, calibrated, library, log)
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
     before = _residuals(prior, preps, every, exact)  # locating fits nothing: every window may speak
@@ -127,6 +140,15 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
+    # the antenna is the kinematics' alone (module docstring, step 0)
+    settled = {f.effect for f in findings if f.told or f.absent or f.effect == "gnss_lever_arm"}
+    if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
+        # each log's compass offset was measured from its own straight running (applied where it is
+        # clear): a constant heading bias has a kinematic signature, and where the kinematics show none
+        # the dynamics' would be a stand-in for another term (a decay, a wind of another shape)
+        settled |= {"heading_bias", "heading_bias_per_log"}
+    unsearched = sorted(k for k in lib if k in settled)
+    lib = {k: v for k, v in lib.items() if k not in settled}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
     core, core_names, search_prior = _core(prior, refit)
     search = Search(search_prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
@@ -141,16 +163,22 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     after_located, _, after_corr, after_overall = _locate(after, amended_preps, every, noise)
     held_before, held_after = _held_out_fits(search, prior, kept, data, exact)
     diagnosis = Diagnosis(
-        prior, amended, _effects(kept, search), located, growth, corr, held_before, held_after,
+        prior, amended, [_kinematic_effect(f) for f in findings if f.told] + _effects(kept, search), located,
+        growth, corr, held_before, held_after,
         _unexplained(after_located, after_corr, after_overall), noise, rounds,
         {"length_s": window_s, "windows": len(every), "folds": len(search.folds), "blocks": int(search.blocks.max()) + 1},
         time.time() - started)
     diagnosis.overall = {"before": overall, "after": after_overall}
     diagnosis.calibrations = calibrations
+    diagnosis.kinematic = findings
     diagnosis.replay = {"windows": every, "preps": preps, "amended_preps": amended_preps, "before": before,
                         "after": after}
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
+    diagnosis.notes += [f.text() for f in findings if not f.told]
+    if unsearched:
+        diagnosis.notes.append(f"not searched, as the kinematics settle them (step 0, each log's compass offset): "
+                               f"{', '.join(unsearched)}")
     diagnosis.notes += _gyro_timing(recordings)
     if core:
         diagnosis.amended = replace(diagnosis.amended, uncertainty={})  # the prior's covariance is not the refit's
@@ -164,6 +192,34 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                if search.overlapping else ""))
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def _kinematic(recordings: list[Recording], prior: Vessel, calibrated: bool, library, log):
+    """Step 0 (module docstring): the findings, and the prior with the told ones put in. Read against
+    the twin with each log's compass calibration, as everything after reads the logs."""
+    from ..fit.kinematic import kinematic_findings, with_findings
+
+    seen = _calibrated(recordings, prior)[0] if calibrated else prior
+    findings = [f for f in kinematic_findings(recordings, seen) if not library or f.effect in library]
+    for f in findings:
+        if f.told:
+            log(f.text())
+    return with_findings(prior, findings), findings
+
+
+def _kinematic_effect(f) -> dict:
+    """A kinematic finding as an entry of Diagnosis.effects: its values with 95 % intervals, its
+    evidence the kinematics' own (no held-out blocks: nothing was fitted to the dynamics)."""
+    from ..effects import effect
+
+    eff = effect(f.effect, **f.values)
+    ci = {k: [v - 1.96 * f.sigma[k2], v + 1.96 * f.sigma[k2]] for k, v in eff.flat().items()
+          for k2 in [k] if f.sigma.get(k2)}
+    z = max((abs(f.change[k]) / f.sigma[k] for k in f.change if f.sigma.get(k)), default=0.0)
+    return {"name": f.effect, "parameters": eff.flat(), "ci": ci, "text": eff.text, "fitted": dict(f.values),
+            "fitted_sigma": dict(f.sigma), "improvement": {}, "held_out_gain": 0.0, "excess_gain": 0.0,
+            "z": round(float(z), 2), "evidence": {"kind": "kinematic", "why": f.why, "basis": f.basis},
+            "kind": "kinematic", "rivals": [], "separable": True}
 
 
 def _check_refit(prior: Vessel, refit: tuple[str, ...], weight: float) -> None:
@@ -418,7 +474,11 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
     J = np.zeros((len(keys), len(names)))
     for j, p in enumerate(cand.params):
         h = max(1e-6, 1e-4 * max(1.0, abs(values[p.name])))
-        moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
+        try:
+            moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
+        except TwinError:  # a value on the upper bound of its range: the step the other way
+            h = -h
+            moved = cand.to_effect({**values, p.name: values[p.name] + h}).flat()
         for i, key in enumerate(keys):
             d = moved[key] - base[key]
             if key.endswith("dir_deg"):  # an angle: the short way round

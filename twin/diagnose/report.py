@@ -87,6 +87,10 @@ def answer(d) -> dict:
         params = ", ".join(f"{k} {v:.3g}" + (f" [{e['ci'][k][0]:.3g}, {e['ci'][k][1]:.3g}]" if k in e["ci"] else "")
                            for k, v in e["parameters"].items())
         ev = e.get("evidence", {})
+        if e.get("kind") == "kinematic":
+            out["missing"].append(f"{e['name']} ({params}): told from the kinematics, before any fit ({ev.get('why', '')}; "
+                                  f"{ev.get('basis', '')})")
+            continue
         out["missing"].append(
             f"{e['name']} ({params}): removes {100 * e.get('excess_gain', 0):.0f} % of the held-out misfit above the "
             f"noise, z {e['z']:.1f} over {ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "

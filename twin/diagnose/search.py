@@ -52,6 +52,12 @@ own one step on the same windows. Scanned candidates (time
 shifts, dead zones) are scanned with the core held, then the core is refitted around the scanned
 value; backward elimination refits the core without the effect put back.
 
+A constant thrust scale (thrust_gain) is judged beside the thrust loss with advance speed
+(thrust_speed_loss) whenever it is judged at all, and where it wins but, refitted on each fold's
+faster half of the training windows, wants at least SPEED_SHARE less thrust than on the slower half
+on every fold, the loss with speed is kept in its place if it earns its place itself: a thrust that
+falls with speed is what such a scale stands in for, and the speed dependence is what tells them apart.
+
 A candidate that does nearly as well as the one kept (the blocks' votes between the two: z <
 Z_SEPARABLE) is reported as not separable from it by this recording. Which of two such candidates
 is kept: the one with the larger pooled held-out gain, unless the blocks themselves lean to the
@@ -97,6 +103,9 @@ MAX_EFFECTS = 5
 T_PIN = 3.0  # a separable candidate's quantity is fitted when its training windows move it this many σ
 MIN_CLUSTERS = 8  # training blocks that σ must come from for T_PIN to decide
 CORE_NFEV = 20  # solver steps of every fit with the core (module docstring)
+# a constant thrust scale that a loss growing with the speed could stand in for (module docstring)
+SPEED_STAND_INS = {"thrust_gain": "thrust_speed_loss"}
+SPEED_SHARE = 0.10  # the scale fitted on the fast half of the windows this much below the slow half's, on every fold
 
 
 @dataclass
@@ -475,8 +484,30 @@ class Search:
         # (a wind of each log's own, offered when several logs are diagnosed, does not lengthen it)
         length = sum(not f.candidate.log_of_param for f in screened)
         shortlist = screened if length <= JUDGED_WHOLE else screened[:FULL_FITS]
+        # a constant thrust scale is judged beside the loss with speed it may stand in for
+        names = {f.candidate.name for f in shortlist}
+        shortlist += [f for f in screened if f.candidate.name not in names and
+                      f.candidate.name in {SPEED_STAND_INS[n] for n in names if n in SPEED_STAND_INS}]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
+
+    def grows_with_speed(self, trial: Trial, bases: list[Vessel]) -> list[tuple[float, float]] | None:
+        """(slow, fast) scales of a constant-scale trial refitted on each fold's slower and faster half
+        of its training windows (by the window's mean |u|), when every fold's fast half wants at least
+        SPEED_SHARE less than its slow half; else None."""
+        pairs = []
+        for fit, base, (train, _) in zip(trial.fits, bases, self.folds):
+            speed = np.array([np.nanmean(np.abs(self.data.preps[w.rec].u[w.start:w.start + w.n])) for w in train])
+            order = np.argsort(speed)
+            half = len(train) // 2
+            if half < 4:
+                return None
+            slow, fast = ([train[i] for i in sorted(order[:half])], [train[i] for i in sorted(order[half:])])
+            scale = trial.candidate.names[0]
+            pairs.append(tuple(self.refine(base, fit, part).values[scale] for part in (slow, fast)))
+        if all(s > 0 and (s - f) / s >= SPEED_SHARE for s, f in pairs):
+            return pairs
+        return None
 
     def joint(self, kept: list[Kept], windows: list[Window], start: Vessel | None = None,
               max_nfev: int = 12) -> tuple[Vessel, Objective, np.ndarray]:
@@ -516,6 +547,7 @@ class Search:
             winner = next((t for t in trials if t.evidence.earns_its_place()), None)
             if winner is None:
                 break
+            winner = self._speed_form(winner, trials, bases)
             rivals = self._rivals(winner, trials, base_costs)
             preferred = self._preferred(winner, trials, rivals)
             if preferred is not winner:
@@ -574,6 +606,20 @@ class Search:
         self.cov_names = names
         self.sigma_values = {n: (float(np.sqrt(self.cov[i, i])) if self.cov is not None and self.cov[i, i] >= 0
                                  else None) for i, n in enumerate(names)}
+
+    def _speed_form(self, winner: Trial, trials: list[Trial], bases: list[Vessel]) -> Trial:
+        """The loss with speed in place of a constant thrust scale that wants less thrust the faster the
+        boat goes (grows_with_speed), where that loss earns its place itself."""
+        other = SPEED_STAND_INS.get(winner.name)
+        rival = next((t for t in trials if t.name == other), None)
+        if rival is None or not rival.evidence.earns_its_place():
+            return winner
+        pairs = self.grows_with_speed(winner, bases)
+        if pairs is None:
+            return winner
+        self.log(f"{winner.name} wants less thrust the faster the boat goes (slow, fast per fold: "
+                 + ", ".join(f"{a:.2f}/{b:.2f}" for a, b in pairs) + f"): {other} kept instead")
+        return rival
 
     @staticmethod
     def _preferred(winner: Trial, trials: list[Trial], rivals: list[dict]) -> Trial:

@@ -30,7 +30,7 @@ from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
                            SURGE_RESISTANCE, mmg_sway_added_mass)
 from .quantity import (Quantity, dead_zone_edge, gain_mean, gain_ratio, log_heading_bias, log_wind, member,
-                       ned_component, reverse_scale, scale_of, start_edge)
+                       ned_component, reverse_scale, scale_of, side_dead_zone_edge, start_edge)
 from .spec import ALL, PER_KEY_SEP, Candidate, Effect, EffectSpec, Value, checked
 
 _SCALE = ("scale", "×", 0.0, 100.0, True)
@@ -304,6 +304,33 @@ def _dead_zone_scan(now: tuple[float, float]) -> tuple[tuple[float, float], ...]
     return (now,) + both + fwd + rev
 
 
+def dead_zone_left(vessel: Vessel, fwd: float, rev: float) -> Vessel:
+    """The left thruster's own dead-zone widths (≥ 0, δ̃ as dead_zone's), the right keeping the shared:
+    an ESC of its own, or a motor that needs more current to turn."""
+    return _thrusters(vessel, deadzone_left=(float(fwd), -float(rev)))
+
+
+def dead_zone_right(vessel: Vessel, fwd: float, rev: float) -> Vessel:
+    """The right thruster's own dead-zone widths (≥ 0, δ̃), the left keeping the shared."""
+    return _thrusters(vessel, deadzone_right=(float(fwd), -float(rev)))
+
+
+def _side_dead_zone_fit(side: str):
+    """Scanned as dead_zone is, one thruster's edges from where they are (the shared ones): a dead zone
+    of one thruster turns the boat where the PWM sits between its edge and the other's."""
+    def fit(prior: Vessel, logs) -> Candidate | None:
+        t = prior.thrusters
+        if t.kind != "t200":
+            return None
+        edges = t.edges_of(0 if side == "left" else 1)
+        now = (edges[0], -edges[1])
+        name = f"dead_zone_{side}"
+        return Candidate(name, (side_dead_zone_edge(side, "fwd"), side_dead_zone_edge(side, "rev")), (now,),
+                         lambda p: effect(name, fwd=p["fwd"], rev=p["rev"]), "thrust",
+                         scan=_dead_zone_scan(now), scan_step=(0.0125, 0.0125))
+    return fit
+
+
 def motor_start(vessel: Vessel, fwd: float, rev: float) -> Vessel:
     """Start edges (widths ≥ 0 in δ̃, as dead_zone's) of a motor with start/stop hysteresis: a
     stopped motor starts only beyond them, a running one stops inside the dead zone (physics/thrusters.py);
@@ -556,6 +583,12 @@ _SPECS = [
                _full_thrust_fit),
     EffectSpec("dead_zone", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone,
                "dead-zone widths in normalised PWM", _dead_zone_fit),
+    EffectSpec("dead_zone_left", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone_left,
+               "the left thruster's own dead-zone widths in normalised PWM (one ESC or motor)",
+               _side_dead_zone_fit("left")),
+    EffectSpec("dead_zone_right", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), dead_zone_right,
+               "the right thruster's own dead-zone widths in normalised PWM (one ESC or motor)",
+               _side_dead_zone_fit("right")),
     EffectSpec("motor_start", "thrusters", (_v("fwd", "δ̃", 0, 0.9), _v("rev", "δ̃", 0, 0.9)), motor_start,
                "start edges of a motor with start/stop hysteresis (a stopped motor starts late)", _motor_start_fit),
     EffectSpec("thrust_decay", "thrusters", (_v("decay_per_min", "1/min", 0, 0.99),), thrust_decay,

@@ -154,6 +154,24 @@ def dead_zone_edge(which: str) -> Quantity:
     return Quantity(which, "δ̃", get, put, 0.0, 0.3, 0.05, fd_abs=0.005)
 
 
+def side_dead_zone_edge(side: str, which: str) -> Quantity:
+    """One thruster's own dead-zone edge as a width ≥ 0 in δ̃ (`ThrusterModel.deadzone_left` or
+    `_right`): read from the shared edges until the thruster has its own."""
+    key = f"deadzone_{side}"
+    k = 0 if which == "fwd" else 1
+    sign = 1.0 if which == "fwd" else -1.0
+
+    def get(v: Vessel) -> float:
+        return sign * v.thrusters.edges_of(0 if side == "left" else 1)[k]
+
+    def put(v: Vessel, x: float) -> Vessel:
+        edges = list(v.thrusters.edges_of(0 if side == "left" else 1))
+        edges[k] = sign * x
+        return replace(v, thrusters=replace(v.thrusters, **{key: (float(edges[0]), float(edges[1]))}))
+
+    return Quantity(which, "δ̃", get, put, 0.0, 0.3, 0.05, fd_abs=0.005)
+
+
 def start_edge(which: str) -> Quantity:
     """Where a stopped motor starts, as a width ≥ 0 in normalised PWM δ̃ (never inside the dead zone:
     ThrusterModel.start_edges)."""

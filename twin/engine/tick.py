@@ -97,19 +97,20 @@ class TickMap:
             left, right = np.broadcast_to(np.asarray(held, float), (2,)).tolist()
             return left, right
         if isinstance(held, tuple) and (kind != "pwm" or self.thrusters.kind == "t200"):
-            return (self._thrust(held[0]), self._thrust(held[1])) if kind == "pwm" else held
+            return (self._thrust(held[0], 0), self._thrust(held[1], 1)) if kind == "pwm" else held
         raw = self.thrusters.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
         left, right = np.broadcast_to(raw, (2,)).tolist()  # shape (1,) drives both, as the array path did
         return left, right
 
-    def _thrust(self, pwm_us: float) -> float:
-        """`ThrusterModel.thrust_from_pwm` for one pulse."""
+    def _thrust(self, pwm_us: float, side: int) -> float:
+        """`ThrusterModel.thrust_from_pwm` for one pulse of thruster `side` (0 left, 1 right)."""
         t = self.thrusters
         x = _clip(pwm_us, t.pwm_min_us, t.pwm_max_us) / t.pwm_scale_us - t.pwm_offset
-        if x >= t.deadzone_fwd:
+        edge_fwd, edge_rev = t.edges_of(side)
+        if x >= edge_fwd:
             fwd = _horner(t.forward, x)
             return fwd if t.full_share == 1.0 else saturated(fwd, t.full_forward_n, t.full_share)
-        if x <= t.deadzone_rev:
+        if x <= edge_rev:
             return _horner(t.reverse, x)
         return 0.0
 

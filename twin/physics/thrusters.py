@@ -108,6 +108,10 @@ class ThrusterModel:
     supply_exponent: float = 0.0  # k of (V/V_ref)^k, the thrust's answer to the supply voltage; 0 = none
     supply_ref_v: float | None = None  # V_ref, V: the supply voltage the map holds at
     full_share: float = 1.0  # forward thrust at full PWM as a share of the map's, a smooth saturation
+    # one thruster's own dead-zone edges (forward, reverse δ̃), in place of the shared ones for it: an ESC
+    # or a motor of its own; None: the shared edges (the start edges stay the shared ones)
+    deadzone_left: tuple[float, float] | None = None
+    deadzone_right: tuple[float, float] | None = None
 
     @property
     def ramping(self) -> bool:
@@ -197,7 +201,8 @@ class ThrusterModel:
         return new, tuple(float(p) if s else self.neutral_us for s, p in zip(new, pwm_us))
 
     def thrust_from_pwm(self, pwm_us):
-        """Commanded thrust T(δ) in N [Yellowfish-TR eq. 27], before gains and lag."""
+        """Commanded thrust T(δ) in N [Yellowfish-TR eq. 27], before gains and lag; a last axis of
+        two is (left, right), each with its own dead zone where it has one."""
         if self.kind != "t200":
             raise ValueError("this vessel has no PWM model: give thrust in N")
         x = self.normalised(pwm_us)
@@ -205,7 +210,21 @@ class ThrusterModel:
         if self.full_share != 1.0:
             fwd = saturated(fwd, self.full_forward_n, self.full_share)
         rev = np.polyval(self.reverse, x)
-        return np.where(x >= self.deadzone_fwd, fwd, np.where(x <= self.deadzone_rev, rev, 0.0))
+        edge_fwd, edge_rev = self.deadzone_edges(np.shape(x))
+        return np.where(x >= edge_fwd, fwd, np.where(x <= edge_rev, rev, 0.0))
+
+    def edges_of(self, side: int) -> tuple[float, float]:
+        """(forward, reverse) dead-zone edges (δ̃) of thruster `side` (0 left, 1 right)."""
+        own = self.deadzone_left if side == 0 else self.deadzone_right
+        return (self.deadzone_fwd, self.deadzone_rev) if own is None else (float(own[0]), float(own[1]))
+
+    def deadzone_edges(self, shape: tuple = ()):
+        """The dead-zone edges to compare inputs of `shape` with: per thruster along a last axis of two
+        where a thruster has edges of its own, else the shared ones."""
+        if (self.deadzone_left is None and self.deadzone_right is None) or not shape or shape[-1] != 2:
+            return self.deadzone_fwd, self.deadzone_rev
+        left, right = self.edges_of(0), self.edges_of(1)
+        return np.array([left[0], right[0]]), np.array([left[1], right[1]])
 
     @property
     def full_forward_n(self) -> float:

@@ -44,6 +44,7 @@ class GyroLag:
     fit: float | None = None
     turning_s: float = 0.0
     note: str = ""
+    sigma_s: float | None = None  # the lag's 1-σ: each piece left out in turn (jackknife)
 
     def text(self) -> str:
         if self.lag_s is None:
@@ -53,8 +54,12 @@ class GyroLag:
                 "describes it if the gyro is on time)")
 
 
-def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
-    """The heading's delay against the gyro of `rec` (module docstring)."""
+def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turning_rad_s: float = TURNING_RAD_S,
+                            min_fit: float = MIN_FIT) -> GyroLag:
+    """The heading's delay against the gyro of `rec` (module docstring); window_s: the pieces' length,
+    turning_rad_s: the yaw rate that counts as turning, min_fit: the share of the heading's variance
+    the shifted gyro must explain (a slow ship's turns need longer pieces and a lower rate: its
+    heading within 10 s is a straight line whose offset and slope take any lag)."""
     if not len(rec.imu) or not len(rec.heading):
         return GyroLag(None, note="the log has no gyro" if not len(rec.imu) else "the log has no heading")
     psi = np.unwrap(rec.heading["psi_rad"])
@@ -66,27 +71,28 @@ def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
     if len(t_h) < 3 or len(t_g) < 3:
         return GyroLag(None, note="too few heading or gyro samples")
     turned = np.r_[0.0, cumulative_trapezoid(r_g, t_g)]  # the heading the gyro alone gives (rad), from 0
-    pieces = list(_pieces(t_h, t_g))
-    spin = np.abs(np.interp(t_h, t_g, r_g)) >= TURNING_RAD_S
+    pieces = list(_pieces(t_h, t_g, window_s))
+    spin = np.abs(np.interp(t_h, t_g, r_g)) >= turning_rad_s
     dt = float(np.median(np.diff(t_h)))
     turning_s = sum(float(np.sum(spin[m])) for m in pieces) * dt
     if turning_s < MIN_TURNING_S:
         return GyroLag(None, turning_s=turning_s,
                        note=f"{turning_s:.0f} s of turning beside a running gyro; {MIN_TURNING_S:.0f} s are needed")
     lags = np.round(np.arange(-MAX_LAG_S, MAX_LAG_S + STEP_S / 2, STEP_S), 4)
-    cost, spread = np.zeros(len(lags)), 0.0
+    per_piece, spread = [], 0.0
     for m in pieces:
         t = t_h[m]
         shifted = np.interp((t[None, :] - lags[:, None]).ravel(), t_g, turned).reshape(len(lags), len(t))
-        cost += _detrended_squares(psi[m][None, :] - shifted, t)
+        per_piece.append(_detrended_squares(psi[m][None, :] - shifted, t))
         spread += float(_detrended_squares(psi[m][None, :], t)[0])
+    cost = np.sum(per_piece, axis=0)
     if not (np.all(np.isfinite(cost)) and spread > 0.0):
         return GyroLag(None, turning_s=turning_s, note="the heading or the gyro has values that are not numbers")
     k = int(np.argmin(cost))
     fit = float(1.0 - cost[k] / spread)
-    if fit < MIN_FIT:  # before the edge: a gyro in deg/s or of the other sign fits nowhere, its best lag is noise's
-        short = (f"the gyro's turning explains only {100 * fit:.0f} % of the heading's within {WINDOW_S:g}-s pieces; "
-                 f"{100 * MIN_FIT:.0f} % are needed")
+    if fit < min_fit:  # before the edge: a gyro in deg/s or of the other sign fits nowhere, its best lag is noise's
+        short = (f"the gyro's turning explains only {100 * fit:.0f} % of the heading's within {window_s:g}-s pieces; "
+                 f"{100 * min_fit:.0f} % are needed")
         gain = _whole_log_gain(psi, t_h, np.interp(t_h, t_g, turned))
         if gain is not None and 0.8 <= gain <= 1.25:  # units and sign right: a slow turner's pieces are noise
             return GyroLag(None, fit, turning_s, f"{short}; over the whole log the gyro turns {gain:.2f} times as far "
@@ -97,7 +103,17 @@ def heading_lag_behind_gyro(rec: Recording) -> GyroLag:
                                               "is expected)")
     if k in (0, len(lags) - 1):
         return GyroLag(None, fit, turning_s, f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
-    return GyroLag(float(lags[k]), fit, turning_s)
+    return GyroLag(float(lags[k]), fit, turning_s, sigma_s=_jackknife(lags, per_piece))
+
+
+def _jackknife(lags: np.ndarray, per_piece: list[np.ndarray]) -> float | None:
+    """The 1-σ of the best lag, each piece left out in turn (None from fewer than three pieces)."""
+    n = len(per_piece)
+    if n < 3:
+        return None
+    total = np.sum(per_piece, axis=0)
+    left_out = np.array([lags[int(np.argmin(total - c))] for c in per_piece])
+    return float(max(np.sqrt((n - 1) / n * np.sum((left_out - left_out.mean()) ** 2)), STEP_S))
 
 
 def _whole_log_gain(psi: np.ndarray, t: np.ndarray, turned: np.ndarray) -> float | None:
@@ -119,16 +135,16 @@ def _detrended_squares(y: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.sum((yc - slope[:, None] * tc[None, :]) ** 2, axis=1)
 
 
-def _pieces(t_h: np.ndarray, t_g: np.ndarray):
-    """Masks of the heading samples in WINDOW_S pieces where neither stream (the gyro over the scan's
+def _pieces(t_h: np.ndarray, t_g: np.ndarray, window_s: float = WINDOW_S):
+    """Masks of the heading samples in window_s pieces where neither stream (the gyro over the scan's
     reach too) is silent for more than MAX_GAP_S."""
-    for a in np.arange(t_h[0] + MAX_LAG_S, t_h[-1] - MAX_LAG_S - WINDOW_S, WINDOW_S):
-        m = (t_h >= a) & (t_h < a + WINDOW_S)
+    for a in np.arange(t_h[0] + MAX_LAG_S, t_h[-1] - MAX_LAG_S - window_s, window_s):
+        m = (t_h >= a) & (t_h < a + window_s)
         if np.sum(m) < 10 or np.max(np.diff(t_h[m])) > MAX_GAP_S:
             continue
-        g = (t_g >= a - MAX_LAG_S) & (t_g <= a + WINDOW_S + MAX_LAG_S)
+        g = (t_g >= a - MAX_LAG_S) & (t_g <= a + window_s + MAX_LAG_S)
         tg = t_g[g]
-        if len(tg) < 10 or tg[0] > a - MAX_LAG_S + MAX_GAP_S or tg[-1] < a + WINDOW_S + MAX_LAG_S - MAX_GAP_S \
+        if len(tg) < 10 or tg[0] > a - MAX_LAG_S + MAX_GAP_S or tg[-1] < a + window_s + MAX_LAG_S - MAX_GAP_S \
                 or np.max(np.diff(tg)) > MAX_GAP_S:
             continue
         yield m
