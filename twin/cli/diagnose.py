@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  check_recordings_distinct, console, effect_names, positive, progress_bar, say, say_unlogged_supply,
+                  check_recordings_distinct, effect_names, positive, progress_bar, say, say_unlogged_supply,
                   vessel_from, write_json)
 
 

@@ -59,7 +59,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..engine.mjcf import CompiledVessel, compile_vessel
-from ..physics.sensors import antenna_body_m, log_name
+from ..physics.sensors import antenna_body_m
 from ..prepare.prepared import local_ned
 from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
