@@ -58,6 +58,9 @@ def main() -> int:
         old = Path(tmp) / "before"
         subprocess.run(["git", "worktree", "add", "--detach", str(old), before], cwd=ROOT, check=True,
                        capture_output=True)
+        shared = ROOT.parent / "shared"
+        if shared.exists():  # the benchmarks read ../shared beside their checkout
+            (Path(tmp) / "shared").symlink_to(shared)
         try:
             for tree in (old, ROOT):  # warm-up: numba compiles and caches each tree's callbacks once
                 for b in benches:
