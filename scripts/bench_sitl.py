@@ -42,7 +42,7 @@ from twin.files import write_text_atomic  # noqa: E402
 from twin.sitl.backend import with_environment  # noqa: E402
 from twin.sitl.server import run_sitl  # noqa: E402
 from twin.vessel import load  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, _commit  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 TARGET_X_REAL_TIME = 20.0
 NAME = "bench_sitl"
@@ -203,7 +203,7 @@ def main() -> None:
                "hydrodynamic callback per step) and to formatting the reply's twelve numbers.",
                "The effects twin recomputes the thrust command (delay, decay, lag) at every physics step."],
         raw_file=f"data/{NAME}.json")
-    date, commit = time.strftime("%Y-%m-%d"), _commit()
+    date, commit = time.strftime("%Y-%m-%d"), checkout_commit(ROOT)
     results = ROOT / "docs" / "results"
     meta = {"title": page.title, "ran": page.ran, "data": page.data, "date": date, "commit": commit}
     write_text_atomic(results / "data" / f"{NAME}.json",

@@ -45,7 +45,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -63,7 +62,7 @@ from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from twin.ident.identify import identify, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.recording import Recording, Stream  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 BLUEBOAT = SHARED / "blueboat"
@@ -366,31 +365,7 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None) -> Path:
                 f"{key} ({', '.join(map(str, a['runs']))}): " + ("named" if a["told"] else "not named") + " ("
                 + ", ".join(f"{k} {v:+.2f} ± {a['sigma'].get(k) or float('nan'):.2f}" for k, v in a["change"].items())
                 + ("; " if a["change"] else "") + f"{a['why']}; {a['basis']})" for key, a in antenna.items()) + ".")
-    return _write(page, out)
-
-
-def _write(page: ResultPage, out: Path) -> Path:
-    """The page, and its raw figures in out/data/ (the results' folder of raw figures)."""
-    import datetime
-
-    from twin.files import json_default, write_text_atomic
-
-    page.raw_file = f"data/{page.name}.json"
-    meta = {"title": page.title, "ran": page.ran, "data": page.data, "date": datetime.date.today().isoformat(),
-            "commit": _commit()}
-    write_text_atomic(out / page.raw_file, json.dumps({"meta": meta, **page.raw}, indent=1, default=json_default) + "\n")
     return page.write(out)
-
-
-def _commit() -> str:
-    try:
-        sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
-                             cwd=ROOT).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=ROOT).stdout.strip()
-        return sha + ("+" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 def main() -> int:
@@ -436,7 +411,7 @@ def main() -> int:
             if (stage_dir / f"{c.name}.json").is_file()]
     raw_path = args.out / "data" / "concealed_effects.json"
     stages = json.loads(raw_path.read_text()).get("stages", {}) if raw_path.is_file() else {}
-    stages[args.stage] = {"commit": _commit(), "rows": rows, "summary": summary_of(rows)}
+    stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": rows, "summary": summary_of(rows)}
     print(write_page(stages, args.out, boat_antenna(args.work)))
     return 0
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -37,7 +36,7 @@ from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.scale.montecarlo import band_coverage  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 ESSO_DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"  # the first 287 s of turn_14-Sep-2020_15_58_08
@@ -91,14 +90,6 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
     return out
 
 
-def _commit_of_run() -> str:
-    """The commit a split is computed at (splits are computed one by one; the page names each)."""
-    done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
-    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
-                           text=True).stdout.strip()
-    return (done.stdout.strip() or "unknown") + ("+" if dirty else "")
-
-
 def run_split(name: str, wind, work: Path) -> dict:
     vessel_name, _ = SPLITS[name]
     settings = SETTINGS[vessel_name]
@@ -116,7 +107,7 @@ def run_split(name: str, wind, work: Path) -> dict:
     ident = identify(fit_recs, prior, wind=wind)
     seconds = time.time() - started
     out = {"split": split.to_dict(), "vessel": vessel_name, "wind": wind or "none", "settings": settings,
-           "commit": _commit_of_run(),
+           "commit": checkout_commit(ROOT),
            "activity": [a.to_dict() for a in activities(preps)], "identify_seconds": round(seconds, 1),
            "chosen": ident.chosen.label if ident.chosen else None,
            "free_groups": list(ident.chosen.free_groups) if ident.chosen else [],

@@ -48,7 +48,7 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 DT_S = 0.02
 RHO_AIR = 1.225
@@ -299,33 +299,7 @@ def write_page(stages: dict, out: Path) -> Path:
                  "that thruster (forward and astern alike); the u² loss's: the thrust_speed_loss coefficient that "
                  "matches it over the log's own samples, added to the prior's."],
         {"stages": stages, "cases": [c.__dict__ for c in CASES]})
-    return _write(page, out)
-
-
-def _write(page: ResultPage, out: Path) -> Path:
-    """The page, and its raw figures in out/data/ (the results' folder of raw figures)."""
-    import datetime
-
-    from twin.files import json_default, write_text_atomic
-
-    page.raw_file = f"data/{page.name}.json"
-    meta = {"title": page.title, "ran": page.ran, "data": page.data, "date": datetime.date.today().isoformat(),
-            "commit": _commit()}
-    write_text_atomic(out / page.raw_file, json.dumps({"meta": meta, **page.raw}, indent=1, default=json_default) + "\n")
     return page.write(out)
-
-
-def _commit() -> str:
-    import subprocess
-
-    try:
-        sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
-                             cwd=ROOT).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=ROOT).stdout.strip()
-        return sha + ("+" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 def main() -> int:
@@ -358,7 +332,7 @@ def main() -> int:
             if (stage_dir / f"{c.name}.json").is_file()]
     raw = args.out / "data" / "independent_truths.json"
     stages = json.loads(raw.read_text()).get("stages", {}) if raw.is_file() else {}
-    stages[args.stage] = {"commit": _commit(), "rows": rows, "summary": summary_of(rows)}
+    stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": rows, "summary": summary_of(rows)}
     print(write_page(stages, args.out))
     return 0
 
