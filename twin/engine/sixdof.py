@@ -390,8 +390,6 @@ def set_sea_terms(model: mujoco.MjModel, sea_terms: SeaTerms) -> None:
 def potential_energy(hull: HullModel, qpos6: np.ndarray) -> float:
     """Hydrostatic potential ρ g ∫_V z dV of the displaced water (J), z down, in calm water: with the
     gravity potential −m g z_G it is the energy the pressure and gravity forces conserve."""
-    from ..physics.hydrostatics import submerged_volume
-
     x, y, z, psi, theta, phi = qpos6
     R = sk.rotation(psi, theta, phi)
     total = 0.0

@@ -24,7 +24,7 @@ from .waves import bilinear, cell
 RHO_FRESH_KG_M3 = 1000.0
 
 
-def _clip_triangle(tri: np.ndarray, depth: np.ndarray) -> list[np.ndarray]:
+def clip_triangle(tri: np.ndarray, depth: np.ndarray) -> list[np.ndarray]:
     """Part of one triangle with depth > 0, as 0, 1 or 2 triangles (vertex order kept)."""
     inside = depth > 0
     poly = []
@@ -45,7 +45,7 @@ def submerged_volume(vertices: np.ndarray, faces: np.ndarray, z_waterline_m: flo
     apex = np.array([0.0, 0.0, z_waterline_m])
     full = np.all(depth > 0, axis=1)
     cut = ~full & np.any(depth > 0, axis=1)
-    pieces = [tris[full]] + [np.array(_clip_triangle(t, d)) for t, d in zip(tris[cut], depth[cut])]
+    pieces = [tris[full]] + [np.array(clip_triangle(t, d)) for t, d in zip(tris[cut], depth[cut])]
     pieces = [p for p in pieces if len(p)]
     if not pieces:
         return 0.0, apex.copy()

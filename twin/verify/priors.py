@@ -15,7 +15,8 @@ import numpy as np
 
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
-from ..physics.hydrostatics import RHO_FRESH_KG_M3, submerged_volume, waterline_for_mass, waterplane_extent
+from ..physics.hydrostatics import (RHO_FRESH_KG_M3, clip_triangle, submerged_volume, waterline_for_mass,
+                                    waterplane_extent)
 from ..physics.priors import (SpeedDerivatives, cross_flow_drag, lateral_profile, propulsor_at_rest,
                               propulsor_lateral, resistance_curve, slender_hull_derivatives, twin_hull_yaw,
                               without_added_mass_coriolis)
@@ -80,19 +81,8 @@ def _wetted_area_m2(vertices: np.ndarray, faces: np.ndarray, z_waterline_m: floa
     depth = tris[:, :, 2] - z_waterline_m
     total = 0.0
     for tri, d in zip(tris, depth):
-        inside = d > 0
-        if inside.all():
-            total += 0.5 * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
-        elif inside.any():
-            poly = []
-            for i in range(3):
-                j = (i + 1) % 3
-                if inside[i]:
-                    poly.append(tri[i])
-                if inside[i] != inside[j]:
-                    poly.append(tri[i] + d[i] / (d[i] - d[j]) * (tri[j] - tri[i]))
-            for k in range(1, len(poly) - 1):
-                total += 0.5 * np.linalg.norm(np.cross(poly[k] - poly[0], poly[k + 1] - poly[0]))
+        for piece in clip_triangle(tri, d):
+            total += 0.5 * np.linalg.norm(np.cross(piece[1] - piece[0], piece[2] - piece[0]))
     return float(total)
 
 
