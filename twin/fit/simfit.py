@@ -56,6 +56,7 @@ from .objective import SETTLE_S, Estimate, Objective, cluster_covariance, estima
 from .windows import ModelCache, make_windows
 
 
+STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.0)  # of the step that returns unpinned coordinates to their prior
 POSTERIOR_RATIO = 0.7  # a posterior σ above this share of the belief's: the data did not pin it down
 MAP_FTOL = 1e-4  # relative cost change at which a maximum a posteriori fit stops
 
@@ -114,11 +115,13 @@ def check_kind(prior: Vessel) -> None:
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
         cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True,
-        prior_weight: float | None = None, start: Vessel | None = None, windows: list | None = None,
+        prior_weight: float | None = None, start: Vessel | list[Vessel] | None = None,
+        windows: list | None = None,
         wind: str | None = None) -> FitResult:
     """Identify `names` (see `coefficients`) by free-run windows of window_s every stride_s s,
     each window's initial velocities estimated with them unless free_start is False; with
-    prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior),
+    prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior;
+    several candidates: the one the objective finds lowest),
     on `windows` if given; wind "measured": the recordings' wind a known input."""
     if prior_weight is not None:
         return _fit_map(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
@@ -232,8 +235,8 @@ def coordinates(prior: Vessel, names) -> list[Coordinate]:
 
 def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window_s: float, stride_s: float,
              max_evaluations: int, cache: ModelCache | None, settle_s: float, free_start: bool,
-             prior_weight: float, start: Vessel | None, windows: list | None, wind: str | None = None
-             ) -> FitResult:
+             prior_weight: float, start: Vessel | list[Vessel] | None, windows: list | None,
+             wind: str | None = None) -> FitResult:
     started = time.time()
     names = check_names(prior, names, anchor)
     check_kind(prior)
@@ -245,9 +248,8 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     coords = coordinates(prior, names)
     obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
                         wind)
-    x0 = obj.x_prior if start is None else np.clip(np.array([c.quantity.get(start) for c in coords]) / obj.scale,
-                                                    *obj.bounds())
     cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
+    x0 = obj.x_prior if start is None else _lowest_start(obj, coords, [start] if isinstance(start, Vessel) else start)
     # ftol 1e-4: on the BlueBoat's runs the last ten of twenty steps moved the cost by 0.01 % and the
     # coefficients by a fraction of their posterior σ, at half the time of the fit
     sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
@@ -258,16 +260,20 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     for _ in range(3):  # until what is called pinned is pinned at the solution returned
         if all(free):
             break
-        # not pinned by the data: back to the prior exactly, and the rest moved to where that puts
-        # their optimum: one Gauss-Newton step on the Jacobian already at hand (the unpinned ones
-        # barely move the fit, or the data would have pinned them)
+        # not pinned by the data: back to the prior exactly, and the rest moved toward where that puts
+        # their optimum: a Gauss-Newton step on the Jacobian already at hand (the unpinned ones
+        # barely move the fit, or the data would have pinned them), shortened where the full step
+        # lands in windows that diverge
         reset = np.where(free, x, obj.x_prior)
         r0 = r + J @ (reset - x)
         step = np.zeros(len(x))
         if any(free):
             step[free] = np.linalg.lstsq(J[:, free], -r0, rcond=None)[0]
-        x = np.clip(reset + step, *obj.bounds())
-        x, J, r, cov = _solution(obj, x)
+        moved = _solution(obj, _lowest_on_line(obj, reset, step))
+        if moved[3] is None:  # no curvature to say what is pinned there: the set stands, σ from before
+            x, J, r = moved[:3]
+            break
+        x, J, r, cov = moved
         still = free & _pinned(obj, coords, cov)
         if np.array_equal(still, free):
             break
@@ -283,6 +289,24 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
                      objective=obj, x=x, jacobian=J, covariance=cov)
     result.vessel = replace(result.vessel, uncertainty=block(result, coords, free))
     return result
+
+
+def _lowest_on_line(obj: Objective, x: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """x + a·step for the a in STEP_FRACTIONS the objective finds lowest (a step of 0 included)."""
+    lo, hi = obj.bounds()
+    xs = [np.clip(x + a * step, lo, hi) for a in STEP_FRACTIONS]
+    costs = np.array([float(np.sum(obj.residuals(c) ** 2)) for c in xs])
+    return xs[int(np.argmin(np.where(np.isfinite(costs), costs, np.inf)))]
+
+
+def _lowest_start(obj: Objective, coords: list[Coordinate], starts: list[Vessel]) -> np.ndarray:
+    """Of the candidate starts, the one the objective finds lowest: a trust-region fit from a start
+    whose windows diverge sees a Jacobian of overflows and never takes a step."""
+    xs = [np.clip(np.array([c.quantity.get(v) for c in coords]) / obj.scale, *obj.bounds()) for v in starts]
+    if len(xs) == 1:
+        return xs[0]
+    costs = [float(np.sum(obj.residuals(x) ** 2)) for x in xs]
+    return xs[int(np.nanargmin(np.where(np.isfinite(costs), costs, np.nan)))] if np.isfinite(costs).any() else xs[0]
 
 
 def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache, settle_s: float, free_start: bool,

@@ -41,7 +41,7 @@ from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
 from ..fit.crossval import (CrossValidation, beyond_folds, each_folds, form_error, held_out_groups,
-                            jackknife_vessels, judge)
+                            jackknife_vessels, judge, linearised_vessel)
 from ..fit.evaluate import fitted_envelope
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
@@ -274,7 +274,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     configs = {"prior (no fit)": [vessel] * len(group_names)}
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
-                                                            fit_groups, folds=folds)
+                                                            fit_groups, fixed=_unpinned(f), folds=folds)
     judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
@@ -291,10 +291,12 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         names = tuple(n for g in best.free_groups for n in names_by_group[g])
         refit = simfit.fit(vessel, preps, names, anchor=anchor, window_s=window_s, stride_s=window_s,
                            max_evaluations=max(6, max_evaluations // 3), cache=cache, free_start=start == "free",
-                           prior_weight=best.prior_weight, start=chosen_fit.vessel, windows=informative,
+                           prior_weight=best.prior_weight, start=[_linearised(chosen_fit, names), chosen_fit.vessel],
+                           windows=informative,
                            wind=wind)
         cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
-                                               refit.objective.residuals(refit.x), fit_groups, folds=folds)},
+                                               refit.objective.residuals(refit.x), fit_groups, fixed=_unpinned(refit),
+                                               folds=folds)},
                    preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
         refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
                           _labelled(cv, best.label + " (refitted)"))
@@ -309,7 +311,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
         say("measuring the twin's error on left-out runs", 3, 4)
         folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
-                                   fit_best.objective.residuals(fit_best.x), fit_groups, folds=folds)
+                                   fit_best.objective.residuals(fit_best.x), fit_groups, fixed=_unpinned(fit_best),
+                                   folds=folds)
         label = FOLDS_LABEL[judged_on]
         errors = form_error(folded, preps, label,
                             max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
@@ -417,6 +420,7 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
     obj, x, J = fit.objective, fit.x, fit.jacobian
     r = obj.residuals(x)
     col = {n: i for i, n in enumerate(all_names)}
+    held = _unpinned(fit)
     current, tried = start, []
     while len(current.free_groups) > 1:
         configs = {}
@@ -425,7 +429,7 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             for kept in current.free_groups:
                 if kept != g:
                     fixed[[col[n] for n in names_by_group[kept]]] = False
-            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed, folds=folds)
+            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed | held, folds=folds)
         judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
         options = [Choice(f"{current.label} without {g}", current.prior_weight,
                           tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
@@ -436,6 +440,19 @@ def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fi
             break
         current = best
     return current, tried
+
+
+def _unpinned(fit: simfit.FitResult) -> np.ndarray:
+    """The coordinates the fit kept at their prior (not pinned by the data): the twins that judge a
+    fit on left-out runs hold them there too, as the twin written does."""
+    return np.array([not e.identifiable for e in fit.estimates])
+
+
+def _linearised(fit: simfit.FitResult, names: tuple[str, ...]) -> Vessel:
+    """The fit with only `names` free, linearised about it (crossval.linearised_vessel): the twin
+    the choice of those names was judged as."""
+    fixed = np.array([e.name not in names for e in fit.estimates])  # estimates: one per coordinate, in order
+    return linearised_vessel(fit.objective, fit.x, fit.jacobian, fit.objective.residuals(fit.x), fixed)
 
 
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> Vessel:
