@@ -348,6 +348,18 @@ def test_a_residual_that_follows_no_signal_is_not_blamed_on_the_form_alone():
     assert "and follows u (+0.48): the twin's form is off there" in followed and "disturbance" not in followed
 
 
+def test_the_answer_states_a_yaw_rate_residual_in_degrees_per_second():
+    """The diagnosis computes in SI; the report has one unit for r, °/s, in its text as in its tables."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+
+    off = {"dimension": "all", "dof": "r", "rms": 0.1, "rms_over_noise": 40.0, "correlates_with": []}
+    d = SimpleNamespace(effects=[], rounds=[], unexplained=[off], located=[], fit_before={}, fit_after={},
+                        prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 90})
+    assert "(RMS 5.73 °/s)" in answer(d)["form"][0]
+
+
 def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable():
     """Seed 23's tidal current: compass_deviation kept, current preferred by the blocks (z 4.3 between
     the two) but short of its own place; the answer must not say the two cannot be told apart."""

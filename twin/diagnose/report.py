@@ -120,7 +120,7 @@ def answer(d) -> dict:
                      f"it follows none of the logged signals (|r| ≤ {FOLLOWS_R:g}): either the twin's form is off in a "
                      "way they do not show, or a disturbance the log does not record acts (short waves, gusts)")
             out["form"].append(f"{u['dof']} is still {u['rms_over_noise']:.0f}× the noise off (RMS "
-                               f"{u['rms']:.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
+                               f"{_shown(u['dof'], u['rms']):.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
                                + (f", and follows {follows}" if follows else "")
                                + f": {cause}, and no effect of the library explains it on held-out blocks")
     for c in at_edge(d):
