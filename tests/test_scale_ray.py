@@ -20,9 +20,17 @@ ray = pytest.importorskip("ray")
 
 @pytest.fixture(scope="module")
 def cluster():
+    # Ray starts its workers at niceness 15: beside the suite's other worker they would wait most of
+    # the time for a core, which measures the scheduler and not the twin
+    before = os.environ.get("RAY_worker_niceness")
+    os.environ["RAY_worker_niceness"] = "0"
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.WARNING)
     yield batches.RayExecutor("auto", max_retries=2)
     ray.shutdown()
+    if before is None:
+        os.environ.pop("RAY_worker_niceness")
+    else:
+        os.environ["RAY_worker_niceness"] = before
 
 
 @pytest.fixture(scope="module")
