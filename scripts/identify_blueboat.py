@@ -1,7 +1,7 @@
 """The BlueBoat identified on seven runs, diagnosed, amended, identified
 again, and judged on three runs it never saw; and what to expect on a new run.
 
-    python scripts/identify_blueboat.py [--out out/...]
+    python scripts/identify_blueboat.py [--out out/...] [--pages docs/results] [--page-only]
 
 1. `twin identify` on runs 216-224 (its own choices judged by leaving one of those runs out at a
    time), from the first-principles prior (model/blueboat.json).
@@ -16,7 +16,8 @@ again, and judged on three runs it never saw; and what to expect on a new run.
 
 The recordings (../shared/data/blueboat) have no licence: they are read in place, never copied;
 without them the script says so and exits 0. Everything it reports is computed by the package
-(twin.ident, twin.diagnose, twin.fit); the script only runs it and writes the report.
+(twin.ident, twin.diagnose, twin.fit); the script only runs it and writes the report (--out) and the
+result page (docs/results/blueboat_identification.md, its raw figures beside it).
 """
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ from twin.fit.windows import ModelCache  # noqa: E402
 from twin.ident.identify import (calibrate, format_choices, format_estimates, format_needed, identify,  # noqa: E402
                                  prepared, read)
 from twin.ident.greybox.models import fit_static  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 TRAIN_RUNS = (216, 218, 220, 221, 222, 223, 224)
@@ -125,7 +127,12 @@ def per_run_table(models: dict[str, dict]) -> list[str]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "identification")
+    ap.add_argument("--pages", type=Path, default=ROOT / "docs" / "results", help="where the result page goes")
+    ap.add_argument("--page-only", action="store_true", help="write the page from --out/blueboat.json")
     args = ap.parse_args()
+    if args.page_only:
+        print(page(json.loads((args.out / "blueboat.json").read_text())).write(args.pages))
+        return 0
     missing = [p for p in paths(TRAIN_RUNS + HELD_OUT_RUNS) if not p.is_file()]
     if missing:
         print(f"the BlueBoat recordings are not here ({missing[0]}): nothing to do")
@@ -186,7 +193,7 @@ def main() -> int:
     write_text_atomic(args.out / "blueboat.md", markdown(ctx))
     write_text_atomic(args.out / "blueboat.json", json.dumps(summary(ctx), indent=1, default=str) + "\n")
     vessel_mod.save(final, args.out / "blueboat_identified.json")
-    say(f"wrote {args.out / 'blueboat.md'} ({ctx['seconds']:.0f} s)")
+    say(f"wrote {args.out / 'blueboat.md'} ({ctx['seconds']:.0f} s), {page(summary(ctx)).write(args.pages)}")
     return 0
 
 
@@ -197,7 +204,54 @@ def summary(ctx: dict) -> dict:
             "held_out_residual": ctx["residual"].to_dict(),
             "held_out_calibrations": [c.to_dict() for c in ctx["held_calibrations"]],
             "held_out_by_manoeuvre": ctx["manoeuvres"]["held"], "train_by_manoeuvre": ctx["manoeuvres"]["train"],
-            "seconds": ctx["seconds"], "targets": TARGETS}
+            "seconds": ctx["seconds"], "targets": TARGETS,
+            "date": time.strftime("%Y-%m-%d"), "commit": checkout_commit(ROOT)}
+
+
+def page(raw: dict) -> ResultPage:
+    """The study's result page, from its raw figures (`summary`)."""
+    held = {name: s for name, s in raw["held_out"].items() if "error" not in s}
+    final_name = "amended and re-identified" if "amended and re-identified" in held else "identified"
+    final = held[final_name]["pooled"]
+    first, ten = raw["identify_first"], raw["all_ten_runs"]
+    met = [d for d, t in TARGETS.items() if final[d]["r2"] is not None and final[d]["r2"] >= t]
+    runs = list(next(iter(held.values()))["runs"])
+    residual = raw["held_out_residual"]["answer"]
+    named = [e.get("text") or e.get("name") for e in raw["diagnosis"]["effects"]]
+    return ResultPage(
+        "blueboat_identification", "BlueBoat: identified on seven runs, judged on three it never saw",
+        "python scripts/identify_blueboat.py",
+        f"ten BlueBoat recordings [BlueBoat-SI]: runs {', '.join(map(str, TRAIN_RUNS))} to identify, "
+        f"{', '.join(map(str, HELD_OUT_RUNS))} held out; the first-principles prior (twin/model/blueboat.json)",
+        f"`twin identify` with its defaults on the seven runs chose {first['chosen']}; `twin diagnose` of that twin "
+        f"on the same runs named {', '.join(named) if named else 'nothing'}. The {final_name} twin predicts the three "
+        "held-out runs (10-s free runs from measured states, each log's compass calibration from its own GNSS "
+        "track) at R² " + ", ".join(f"{d} {final[d]['r2']:.3f}" for d in DOFS) + "; targets "
+        + ", ".join(f"{d} ≥ {t}" for d, t in TARGETS.items()) + f": {', '.join(met) if met else 'none'} met.",
+        [ResultTable("Held-out runs, pooled: 10-s free-run R² and MAE (m/s, m/s, rad/s)",
+                     ["twin", *[f"R² {d}" for d in DOFS], *[f"MAE {d}" for d in DOFS], "samples"],
+                     [[name, *[s["pooled"][d]["r2"] for d in DOFS], *[s["pooled"][d]["mae"] for d in DOFS],
+                       s["pooled"]["u"]["n"]] for name, s in held.items()]),
+         ResultTable("Held-out runs, one by one: R²", ["twin", *[f"{n} {d}" for n in runs for d in DOFS]],
+                     [[name, *[s["runs"][n][d]["r2"] for n in runs for d in DOFS]] for name, s in held.items()],
+                     digits=2),
+         ResultTable("`twin identify`'s choices on the seven runs, each run predicted by the twin fitted on the runs "
+                     "that go less far: cost and pooled R²",
+                     ["configuration", "cost", *[f"R² {d}" for d in DOFS]],
+                     [[c["label"] + (" *" if c["label"] == first["chosen"] else ""), c["cost"],
+                       *[c["pooled"][d]["r2"] for d in DOFS]] for c in first["choices"]]),
+         ResultTable("The identified coefficients", ["coefficient", "unit", "prior", "identified", "σ", "pinned"],
+                     [[e["name"], e["unit"], e["prior"], e["value"], e["sigma"], "yes" if e["identifiable"] else "no"]
+                      for e in first["fit"]["estimates"]]),
+         ResultTable("What to expect on a new run: `twin identify` on all ten runs, each run predicted by the twin "
+                     f"fitted without it ({ten['chosen']})", ["run", *[f"R² {d}" for d in DOFS]],
+                     [[r["log"], *[r["metrics"][d]["r2"] for d in DOFS]]
+                      for r in ten["expected_on_a_new_run"]["runs"]], digits=2)],
+        [*[f"Held-out residual of the final twin (`twin diagnose`, twin fixed): {x}"
+           for x in residual["missing"] + residual["form"]],
+         "A run's own R² is low where it barely moves in that DOF (226 and 228 idle most of the time): the pooled "
+         "figure is the one the targets are set on."],
+        raw, figures_of=(raw["date"], raw["commit"]) if "commit" in raw else None)
 
 
 def markdown(ctx: dict) -> str:

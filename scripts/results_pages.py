@@ -33,10 +33,6 @@ STUDIES = {
                         "synthetic recordings: effects injected by the library's own functions, and recordings of "
                         "an independent simulator (scripts/world_sim.py) with physics the library does not write",
                         "Does `twin diagnose` name the effect a recording hides, and nothing when it hides none?"),
-    "blueboat_identification": ("BlueBoat: identified, diagnosed, judged on runs it never saw",
-                                "python scripts/identify_blueboat.py",
-                                "ten BlueBoat recordings [BlueBoat-SI]: seven to identify, three held out",
-                                "How well does a twin identified from a real log predict runs it was not fitted on?"),
     "blueboat_diagnosis": ("BlueBoat: diagnosis of the untuned twin", "python scripts/diagnose_blueboat.py",
                            "BlueBoat recordings [BlueBoat-SI]", "What does the diagnosis name on a real boat?"),
     "blueboat_heldout_band": ("BlueBoat: prediction band on held-out runs", "python scripts/identify_blueboat.py",
@@ -126,7 +122,6 @@ STUDIES = {
 COLLECT = {
     "diagnosis_proof": "out/diagnose/proof.json", "blueboat_diagnosis": "out/diagnose/blueboat.json",
     "record_more": "out/diagnose/record_more.json", "record_more_astern": "out/diagnose/record_more_astern.json",
-    "blueboat_identification": "out/identification/blueboat.json",
     "blueboat_heldout_band": "out/identification/blueboat_heldout_band.json",
     "synthetic_identification": "out/identification/synthetic.json",
     "esso_identification": "out/esso_identification.json", "esso_wind_diagnosis": "out/esso_wind_diagnosis.json",

@@ -97,7 +97,9 @@ def _cell(value, digits: int) -> str:
     if value is None:
         return "–"
     if isinstance(value, float):
-        return f"{value:.{digits}g}" if abs(value) < 10 ** digits else f"{value:.0f}"
+        if abs(value) < 10 ** digits or abs(value) >= 1e7:  # past 10⁷ the digits are noise: powers of ten instead
+            return f"{value:.{digits}g}"
+        return f"{value:.0f}"
     return str(value)
 
 
