@@ -62,7 +62,7 @@ from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from twin.ident.identify import identify, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.recording import Recording, Stream  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, staged  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 BLUEBOAT = SHARED / "blueboat"
@@ -407,11 +407,8 @@ def main() -> int:
         path.write_text(json.dumps(row, indent=1, default=float))
         print(f"{c.name}: named {', '.join(e['name'] for e in row['named']) or 'nothing'}; "
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
-    rows = [json.loads((stage_dir / f"{c.name}.json").read_text()) for c in PROOF
-            if (stage_dir / f"{c.name}.json").is_file()]
-    raw_path = args.out / "data" / "concealed_effects.json"
-    stages = json.loads(raw_path.read_text()).get("stages", {}) if raw_path.is_file() else {}
-    stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": rows, "summary": summary_of(rows)}
+    stages = staged(args.out / "data" / "concealed_effects.json", args.stage, stage_dir, [c.name for c in PROOF],
+                    summary_of, checkout_commit(ROOT))
     print(write_page(stages, args.out, boat_antenna(args.work)))
     return 0
 

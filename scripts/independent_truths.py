@@ -48,7 +48,7 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, staged  # noqa: E402
 
 DT_S = 0.02
 RHO_AIR = 1.225
@@ -328,11 +328,8 @@ def main() -> int:
             (stage_dir / f"{c.name}.json").write_text(json.dumps(row, indent=1, default=float))
             print(f"{c.name}: named {', '.join(e['name'] for e in row['named']) or 'nothing'}; exact {row['exact']} "
                   f"({row['seconds']} s)", flush=True)
-    rows = [json.loads((stage_dir / f"{c.name}.json").read_text()) for c in CASES
-            if (stage_dir / f"{c.name}.json").is_file()]
-    raw = args.out / "data" / "independent_truths.json"
-    stages = json.loads(raw.read_text()).get("stages", {}) if raw.is_file() else {}
-    stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": rows, "summary": summary_of(rows)}
+    stages = staged(args.out / "data" / "independent_truths.json", args.stage, stage_dir, [c.name for c in CASES],
+                    summary_of, checkout_commit(ROOT))
     print(write_page(stages, args.out))
     return 0
 

@@ -76,6 +76,17 @@ class ResultPage:
         return page
 
 
+def staged(raw_path: Path, stage: str, stage_dir: Path, cases: list[str], summary_of, commit: str) -> dict:
+    """The stages a study has recorded in its raw figures (raw_path's "stages"), with `stage` set to
+    the rows its cases left in stage_dir (one NAME.json each, in the order of `cases`; a case
+    not run is left out), their summary_of(rows) and the commit they ran at."""
+    rows = [json.loads((stage_dir / f"{name}.json").read_text()) for name in cases
+            if (stage_dir / f"{name}.json").is_file()]
+    stages = json.loads(raw_path.read_text()).get("stages", {}) if raw_path.is_file() else {}
+    stages[stage] = {"commit": commit, "rows": rows, "summary": summary_of(rows)}
+    return stages
+
+
 def write_index(folder: Path | str = "docs/results") -> Path:
     """The folder's index.md: every page in it (but the index) by its title, in name order, so a page a
     study script writes is listed without an edit here."""
