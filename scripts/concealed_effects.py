@@ -1,10 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--stage before|after] [--only CASE,...] [--work /tmp/concealed_effects]
+    python scripts/concealed_effects.py [--set first|second] [--stage before|after] [--only CASE,...]
+                                        [--work /tmp/concealed_effects]
 
-The proof set (PROOF below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. Each effect is put into the logs as a sensor or a clock would have put it there,
+Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
+which magnitudes. The second set regroups the same active BlueBoat runs into other outings (C, D)
+and takes two other Esso turning tests (T3, T4), with other magnitudes and directions: a change of
+method chosen while looking at the first set is judged on the second. Each effect is put into the logs as a sensor or a clock would have put it there,
 by rewriting the logged streams alone:
 
 - current: every GNSS fix moved by c·t (NED), t the time the fix was first logged: the ground
@@ -38,7 +41,8 @@ logged PWM.
 
 The recordings (../shared/data) are read in place, never copied; without them the script says so
 and exits 0. `--stage before` and `--stage after` keep their results side by side in
-docs/results/concealed_effects.json; the page shows every stage there is.
+docs/results/data/concealed_effects.json (the second set: concealed_effects_second.json); the page
+shows every stage there is.
 """
 from __future__ import annotations
 
@@ -68,8 +72,9 @@ SHARED = ROOT.parent / "shared" / "data"
 BLUEBOAT = SHARED / "blueboat"
 ESSO = SHARED / "esso"
 FIT_BLUEBOAT = (218, 221, 222, 223, 226)
-OUTINGS = {"A": (216, 220, 228), "B": (224, 225)}
-ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv"}
+OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228)}
+ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
+              "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv"}
 ESSO_DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 TOLERANCE = 0.30  # relative
 TOLERANCE_DEG = 30.0
@@ -116,6 +121,21 @@ PROOF = [
     Case("esso", "T1", "input_late", (0.5,)), Case("esso", "T2", "input_late", (1.0,)),
     Case("esso", "T1", "heading_late", (0.3,)), Case("esso", "T2", "heading_late", (0.6,)),
 ]
+PROOF_SECOND = [
+    Case("blueboat", "C", "null"), Case("blueboat", "D", "null"),
+    Case("blueboat", "C", "current", (0.15, 300.0)), Case("blueboat", "D", "current", (0.12, 150.0)),
+    Case("blueboat", "C", "antenna", (0.25, -0.20)), Case("blueboat", "D", "antenna", (-0.30, 0.0)),
+    Case("blueboat", "C", "input_late", (0.4,)), Case("blueboat", "D", "input_late", (0.6,)),
+    Case("blueboat", "C", "thruster_scaled", ("left", 0.75)), Case("blueboat", "D", "thruster_scaled", ("right", 0.8)),
+    Case("blueboat", "C", "heading_late", (0.4,)), Case("blueboat", "D", "heading_late", (0.25,)),
+    Case("esso", "T3", "null"), Case("esso", "T4", "null"),
+    Case("esso", "T3", "current", (0.08, 100.0)), Case("esso", "T4", "current", (0.06, 330.0)),
+    Case("esso", "T3", "antenna", (0.40, -0.20)), Case("esso", "T4", "antenna", (-0.40, 0.0)),
+    Case("esso", "T3", "input_late", (0.7,)), Case("esso", "T4", "input_late", (0.5,)),
+    Case("esso", "T3", "heading_late", (0.4,)), Case("esso", "T4", "heading_late", (0.5,)),
+]
+PROOFS = {"first": PROOF, "second": PROOF_SECOND}
+PAGES = {"first": "concealed_effects", "second": "concealed_effects_second"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
@@ -313,7 +333,7 @@ def boat_antenna(work: Path) -> dict:
     from twin.fit.kinematic import lever_arm
 
     twin = blueboat_twin(work)
-    most = tuple(sorted(sum(OUTINGS.values(), ())))
+    most = tuple(sorted(set(sum(OUTINGS.values(), ()))))
     out = {}
     halves = (("least active", FIT_BLUEBOAT), ("most active", most), ("all ten", tuple(sorted(FIT_BLUEBOAT + most))))
     for key, runs in halves:
@@ -323,7 +343,7 @@ def boat_antenna(work: Path) -> dict:
     return out
 
 
-def write_page(stages: dict, out: Path, antenna: dict | None = None) -> Path:
+def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first") -> Path:
     tables, lines = [], []
     for stage, res in stages.items():
         rows = res["rows"]
@@ -339,14 +359,19 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None) -> Path:
               "nothing" if r["truth"] is None else f"{r['truth']} ({_values_text(r['truth_values'])})",
               "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
               "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]] for r in rows]))
+    proof = PROOFS[proof_set]
     page = ResultPage(
-        "concealed_effects", "Effects concealed in real logs, found by `twin diagnose` with an identified twin",
-        "python scripts/concealed_effects.py --stage STAGE",
-        "BlueBoat: twin identified on runs 218, 221, 222, 223, 226 (the least active); effects concealed in runs "
-        "216 + 220 + 228 (outing A) and 224 + 225 (outing B), diagnosed as two outings. Esso Osaka: twin identified "
-        "on the nine random tests with their measured wind; effects concealed in turning tests "
-        f"{ESSO_TESTS['T1']} (T1) and {ESSO_TESTS['T2']} (T2), each diagnosed alone with its mean measured wind "
-        "given. Every figure is on runs the twin was not fitted on.",
+        PAGES[proof_set], "Effects concealed in real logs, found by `twin diagnose` with an identified twin"
+        + ("" if proof_set == "first" else f" (proof set: {proof_set})"),
+        f"python scripts/concealed_effects.py --set {proof_set} --stage STAGE",
+        f"Proof set: {proof_set}. BlueBoat: twin identified on runs 218, 221, 222, 223, 226 (the least active); "
+        "effects concealed in runs " + " and ".join(f"{' + '.join(map(str, OUTINGS[w]))} (outing {w})" for w in
+                                                    sorted({c.where for c in proof if c.vessel == 'blueboat'}))
+        + ", each outing diagnosed as one. Esso Osaka: twin identified on the nine random tests with their measured "
+        "wind; effects concealed in turning tests " + " and ".join(
+            f"{ESSO_TESTS[w]} ({w})" for w in sorted({c.where for c in proof if c.vessel == 'esso'}))
+        + ", each diagnosed alone with its mean measured wind given. Every figure is on runs the twin was not "
+        "fitted on.",
         "Each effect is put into the logs by rewriting the logged streams (no model): a current moves every GNSS "
         "fix by c·t, an antenna offset by R(ψ)·Δp, an input or heading log late moves that stream's stamps, one "
         "thruster's PWM is scaled about its neutral. Exact: the effect named with its values within 30 % (30° for "
@@ -357,7 +382,7 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None) -> Path:
          "the logged one.",
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
-        {"stages": stages, "proof": [c.name for c in PROOF], **({"boat_antenna": antenna} if antenna else {})})
+        {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {})})
     if antenna:
         page.notes.append(
             "The BlueBoat's own antenna from the kinematics, nothing concealed, against where the identified twin "
@@ -370,6 +395,7 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None) -> Path:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", dest="proof_set", choices=sorted(PROOFS), default="first", help="which proof set")
     ap.add_argument("--stage", default="after", help="label of this run's results (before, after)")
     ap.add_argument("--only", default="", help="comma-separated case names (default: the whole proof set)")
     ap.add_argument("--work", type=Path, default=Path("/tmp/concealed_effects"),
@@ -379,16 +405,17 @@ def main() -> int:
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the raw figures there are")
     args = ap.parse_args()
     if args.page_only:
-        raw_path = args.out / "data" / "concealed_effects.json"
-        print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work)))
+        raw_path = args.out / "data" / f"{PAGES[args.proof_set]}.json"
+        print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work), args.proof_set))
         return 0
+    proof = PROOFS[args.proof_set]
     needed = [BLUEBOAT / f"fixed_00000{n}.csv" for n in FIT_BLUEBOAT + sum(OUTINGS.values(), ())] + \
         [ESSO / f for f in ESSO_TESTS.values()]
     if any(not p.is_file() for p in needed):
         print(f"the shared recordings are not in {SHARED}: nothing to do")
         return 0
     only = {x for x in args.only.split(",") if x}
-    cases = [c for c in PROOF if not only or c.name in only]
+    cases = [c for c in proof if not only or c.name in only]
     vessels = {c.vessel for c in cases} if not args.identify_only else {"blueboat", "esso"}
     twins = {}
     if "blueboat" in vessels:
@@ -397,7 +424,7 @@ def main() -> int:
         twins["esso"] = esso_twin(args.work)
     if args.identify_only:
         return 0
-    stage_dir = args.work / args.stage
+    stage_dir = args.work / args.proof_set / args.stage
     stage_dir.mkdir(parents=True, exist_ok=True)
     for c in cases:
         path = stage_dir / f"{c.name}.json"
@@ -407,9 +434,9 @@ def main() -> int:
         path.write_text(json.dumps(row, indent=1, default=float))
         print(f"{c.name}: named {', '.join(e['name'] for e in row['named']) or 'nothing'}; "
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
-    stages = staged(args.out / "data" / "concealed_effects.json", args.stage, stage_dir, [c.name for c in PROOF],
-                    summary_of, checkout_commit(ROOT))
-    print(write_page(stages, args.out, boat_antenna(args.work)))
+    stages = staged(args.out / "data" / f"{PAGES[args.proof_set]}.json", args.stage, stage_dir,
+                    [c.name for c in proof], summary_of, checkout_commit(ROOT))
+    print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set))
     return 0
 
 

@@ -19,7 +19,7 @@ FLOORS = {
     2: ("vessel", "recording", "run", "drive", "effects"),
     3: ("formats",),
     4: ("engine", "analytic", "prepare"),
-    5: ("fit", "verify", "replay", "viz", "outputs"),
+    5: ("fit", "verify", "replay", "viz", "outputs", "simulation"),
     6: ("ident", "synth", "sitl"),
     7: ("diagnose",),
     8: ("api", "__init__", "scale"),

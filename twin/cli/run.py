@@ -69,7 +69,7 @@ def simulate(
                                                          "implied by --sea"),
 ):
     """Run the twin headless and write the run."""
-    from ..api import simulate_run
+    from ..simulation import simulate_run
 
     check_outputs(out, RUN_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model])
