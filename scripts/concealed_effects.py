@@ -343,7 +343,26 @@ def boat_antenna(work: Path) -> dict:
     return out
 
 
-def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first") -> Path:
+def boat_timing(work: Path) -> list[dict]:
+    """What the kinematics tell of the BlueBoat's PWM clock against the identified twin (its thrust map
+    and lag), with nothing concealed: each run alone, each outing of the proof sets, and the runs the
+    twin was fitted on. The same offset on runs nothing was concealed in is the logs' own timing."""
+    from twin.fit.kinematic import input_timing
+
+    twin = blueboat_twin(work)
+    groups = [("fitted on", FIT_BLUEBOAT)] + [(f"outing {w}", runs) for w, runs in OUTINGS.items()] + \
+        [(f"run {n}", (n,)) for n in sorted(FIT_BLUEBOAT + tuple(set(sum(OUTINGS.values(), ()))))]
+    out = []
+    for key, runs in groups:
+        (f,) = [f for f in input_timing(read([BLUEBOAT / f"fixed_00000{n}.csv" for n in runs]), twin)
+                if f.effect == "clock_offset"]
+        out.append({"group": key, "runs": list(runs), "told": f.told, "offset_s": f.change.get("pwm_clock_offset_s"),
+                    "sigma_s": f.sigma.get("pwm_clock_offset_s"), "basis": f.basis})
+    return out
+
+
+def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first",
+               timing: list[dict] | None = None) -> Path:
     tables, lines = [], []
     for stage, res in stages.items():
         rows = res["rows"]
@@ -382,7 +401,16 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "the logged one.",
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
-        {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {})})
+        {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
+         **({"boat_pwm_timing": timing} if timing else {})})
+    if timing:
+        page.tables.append(ResultTable(
+            "The BlueBoat's PWM clock from the kinematics, nothing concealed (fit/kinematic.input_timing against the "
+            "identified twin's thrust map and lag; positive: the PWM log late against heading and GNSS)",
+            ["runs", "offset (s)", "σ (s)", "named", "evidence"],
+            [[f"{t['group']} ({', '.join(map(str, t['runs']))})" if len(t["runs"]) > 1 else t["group"],
+              "-" if t["sigma_s"] is None else t["offset_s"], "-" if t["sigma_s"] is None else t["sigma_s"],
+              "yes" if t["told"] else "no", t["basis"]] for t in timing]))
     if antenna:
         page.notes.append(
             "The BlueBoat's own antenna from the kinematics, nothing concealed, against where the identified twin "
@@ -406,7 +434,8 @@ def main() -> int:
     args = ap.parse_args()
     if args.page_only:
         raw_path = args.out / "data" / f"{PAGES[args.proof_set]}.json"
-        print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work), args.proof_set))
+        print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work), args.proof_set,
+                         boat_timing(args.work)))
         return 0
     proof = PROOFS[args.proof_set]
     needed = [BLUEBOAT / f"fixed_00000{n}.csv" for n in FIT_BLUEBOAT + sum(OUTINGS.values(), ())] + \
@@ -436,7 +465,7 @@ def main() -> int:
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
     stages = staged(args.out / "data" / f"{PAGES[args.proof_set]}.json", args.stage, stage_dir,
                     [c.name for c in proof], summary_of, checkout_commit(ROOT))
-    print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set))
+    print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set, boat_timing(args.work)))
     return 0
 
 
