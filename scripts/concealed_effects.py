@@ -1,14 +1,16 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|second] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|second|third] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second set regroups the same active BlueBoat runs into other outings (C, D)
-and takes two other Esso turning tests (T3, T4), with other magnitudes and directions: a change of
-method chosen while looking at the first set is judged on the second. Each effect is put into the logs as a sensor or a clock would have put it there,
-by rewriting the logged streams alone:
+which magnitudes. The second and third sets regroup the same active BlueBoat runs into other outings
+(C, D; E, F) and take other Esso turning tests (T3, T4; T5, T6), with other magnitudes and
+directions: a change of method chosen while looking at one set is judged on a set it never saw.
+
+Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
+logged streams alone:
 
 - current: every GNSS fix moved by c·t (NED), t the time the fix was first logged: the ground
   track drifts with the water;
@@ -41,7 +43,7 @@ logged PWM.
 
 The recordings (../shared/data) are read in place, never copied; without them the script says so
 and exits 0. `--stage before` and `--stage after` keep their results side by side in
-docs/results/data/concealed_effects.json (the second set: concealed_effects_second.json); the page
+docs/results/data/concealed_effects.json (the other sets: concealed_effects_second.json, ..._third.json); the page
 shows every stage there is.
 """
 from __future__ import annotations
@@ -72,9 +74,11 @@ SHARED = ROOT.parent / "shared" / "data"
 BLUEBOAT = SHARED / "blueboat"
 ESSO = SHARED / "esso"
 FIT_BLUEBOAT = (218, 221, 222, 223, 226)
-OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228)}
+OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228), "E": (216, 220),
+           "F": (224, 225, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
-              "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv"}
+              "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
+              "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv"}
 ESSO_DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 TOLERANCE = 0.30  # relative
 TOLERANCE_DEG = 30.0
@@ -134,8 +138,21 @@ PROOF_SECOND = [
     Case("esso", "T3", "input_late", (0.7,)), Case("esso", "T4", "input_late", (0.5,)),
     Case("esso", "T3", "heading_late", (0.4,)), Case("esso", "T4", "heading_late", (0.5,)),
 ]
-PROOFS = {"first": PROOF, "second": PROOF_SECOND}
-PAGES = {"first": "concealed_effects", "second": "concealed_effects_second"}
+PROOF_THIRD = [
+    Case("blueboat", "E", "null"), Case("blueboat", "F", "null"),
+    Case("blueboat", "E", "current", (0.18, 20.0)), Case("blueboat", "F", "current", (0.10, 240.0)),
+    Case("blueboat", "E", "antenna", (0.20, 0.25)), Case("blueboat", "F", "antenna", (-0.25, -0.25)),
+    Case("blueboat", "E", "input_late", (0.5,)), Case("blueboat", "F", "input_late", (0.35,)),
+    Case("blueboat", "E", "thruster_scaled", ("right", 0.7)), Case("blueboat", "F", "thruster_scaled", ("left", 0.85)),
+    Case("blueboat", "E", "heading_late", (0.35,)), Case("blueboat", "F", "heading_late", (0.45,)),
+    Case("esso", "T5", "null"), Case("esso", "T6", "null"),
+    Case("esso", "T5", "current", (0.07, 200.0)), Case("esso", "T6", "current", (0.09, 45.0)),
+    Case("esso", "T5", "antenna", (0.30, 0.30)), Case("esso", "T6", "antenna", (-0.50, 0.20)),
+    Case("esso", "T5", "input_late", (0.6,)), Case("esso", "T6", "input_late", (0.8,)),
+    Case("esso", "T5", "heading_late", (0.35,)), Case("esso", "T6", "heading_late", (0.45,)),
+]
+PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD}
+PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
