@@ -15,8 +15,12 @@ each engine step, so their cost is a staircase in the shift: they are scanned on
 followed down a gradient. A dead zone is a staircase too, and a flat one near the prior:
 widening it changes the thrust only where the PWM sits between the old and the new edge, so the
 gradient at the prior says nothing about a dead zone twice as wide. It is scanned along equal
-widths, then each edge on its own. Families group effects that can imitate each other in a
-recording: the diagnosis checks them against each other before it names one.
+widths, then each edge on its own. A heading's or a GNSS fix's latency is fitted late only (from
+zero up): a filter or a receiver delays a sample, it cannot stamp it before it was taken, and a
+negative latency fitted to a recording stands in for something else (as the kinematic step, which
+names them late only, fit/kinematic.py). A PWM clock offset is fitted both ways: two clocks can
+differ either way. Families group effects that can imitate each other in a recording: the
+diagnosis checks them against each other before it names one.
 """
 from __future__ import annotations
 
@@ -635,12 +639,12 @@ _SPECS = [
                        "timing", scan=_grid(-0.96, 0.96, 0.12), scan_step=(0.01,), time_shift=True)),
     EffectSpec("gnss_latency", "sensors", (_v("gnss_latency_s", "s", -2, 5),), gnss_latency,
                "GNSS fixes stamped late",
-               _single("gnss_latency", member("sensors", "gnss_latency_s", "s", -0.5, 1.5, 0.1), ((0.0,),),
-                       "timing", scan=_grid(-0.2, 1.2, 0.1), scan_step=(0.02,))),
+               _single("gnss_latency", member("sensors", "gnss_latency_s", "s", 0.0, 1.5, 0.1), ((0.0,),),
+                       "timing", scan=_grid(0.0, 1.2, 0.1), scan_step=(0.02,))),
     EffectSpec("heading_latency", "sensors", (_v("heading_latency_s", "s", -2, 5),), heading_latency,
                "heading samples stamped late (an AHRS filter)",
-               _single("heading_latency", member("sensors", "heading_latency_s", "s", -0.5, 1.5, 0.1), ((0.0,),),
-                       "timing", scan=_grid(-0.2, 1.0, 0.1), scan_step=(0.02,))),
+               _single("heading_latency", member("sensors", "heading_latency_s", "s", 0.0, 1.5, 0.1), ((0.0,),),
+                       "timing", scan=_grid(0.0, 1.0, 0.1), scan_step=(0.02,))),
     EffectSpec("heading_bias", "sensors", (_v("heading_bias_deg", *_DEG),), heading_bias, "constant heading error",
                _single("heading_bias", member("sensors", "heading_bias_deg", "deg", -30.0, 30.0, 1.0), ((0.0,),),
                        "drift")),
