@@ -78,3 +78,17 @@ def test_a_slow_turner_with_a_good_gyro_is_not_told_to_check_its_units():
     got = heading_lag_behind_gyro(Recording("ship.csv", "csv", heading=noisy, imu=rec.imu))
     assert got.lag_s is None and got.fit < 0.9
     assert "units and sign right" in got.note and "rad/s, positive" not in got.note
+
+
+def test_the_search_fits_a_heading_or_a_fix_late_only_and_a_pwm_clock_both_ways():
+    """A filter or a receiver delays a sample: the diagnosis's candidates for a heading's and a fix's
+    latency start at zero and never scan or fit below it; two clocks can differ either way."""
+    import twin.vessel as vessel_mod
+    from twin.effects import EFFECTS
+
+    prior = vessel_mod.load("blueboat")
+    for name, lowest in (("heading_latency", 0.0), ("gnss_latency", 0.0), ("clock_offset", -0.9)):
+        cand = EFFECTS[name].fit(prior, ["a.csv"])
+        (q,) = cand.params
+        assert q.lo == lowest if lowest == 0.0 else q.lo < lowest, name
+        assert min(v[0] for v in cand.scan) == pytest.approx(lowest, abs=0.1), name
