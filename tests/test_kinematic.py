@@ -2,12 +2,13 @@
 here from a known truth: a hull spinning both ways with its antenna off the twin's site, and a hull
 answering input steps with the input log or the heading late."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.fit.kinematic import input_timing, kinematic_findings, lever_arm, with_findings
+from twin.fit.kinematic import input_answers, input_timing, kinematic_findings, lever_arm, with_findings
 from twin.geodesy import geodetic_from_ned
 from twin.recording import Recording, Stream
 
@@ -172,6 +173,20 @@ def test_findings_are_put_into_the_twin_as_the_library_applies_them(blueboat):
     # read against the amended twin, the clock has nothing left to tell
     again = input_timing([rec], amended)[0]
     assert not again.told and abs(again.change["pwm_clock_offset_s"]) < 0.06
+
+
+def test_the_twins_own_runs_set_the_zero_other_runs_are_timed_against(blueboat):
+    """Runs whose logs answer 0.25 s ahead of the twin's timing (a template that is not the twin's
+    dynamics does that too) make the zero: another such run is on time, and a run 0.4 s later still
+    is named 0.4 s late."""
+    own = _answers(blueboat, clock_s=0.25, seed=11)
+    surge_s, yaw_s = input_answers([own], blueboat)
+    assert surge_s == pytest.approx(0.25, abs=0.05) and yaw_s == pytest.approx(0.25, abs=0.05)
+    zeroed = replace(blueboat, sensors=replace(blueboat.sensors, input_answer_s=(surge_s, yaw_s)))
+    clock, heading, fixes = input_timing([_answers(blueboat, clock_s=0.25, seed=12)], zeroed)
+    assert not clock.told and not heading.told and not fixes.told and clock.absent
+    clock, _, _ = input_timing([_answers(blueboat, clock_s=0.65, seed=13)], zeroed)
+    assert clock.told and clock.change["pwm_clock_offset_s"] == pytest.approx(0.4, abs=0.06)
 
 
 def test_without_spins_both_ways_the_antenna_is_not_told_and_not_ruled_out(blueboat):

@@ -171,6 +171,8 @@ def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
         del d["heading_latency_s"]
     if not s.follows_throttle:  # likewise
         del d["compass_motor_deg"]
+    if not any(s.input_answer_s):  # likewise
+        del d["input_answer_s"]
     return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 

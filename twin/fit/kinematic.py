@@ -48,7 +48,10 @@ which the diagnosis's search tells apart.
 A shift is named only when it exceeds TIMING_FLOOR_SAMPLES sample periods of the streams compared
 and three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
 relative to the twin given: its antenna offset, thrust lag, input delay and sensor latencies are
-taken as they are, and what is found is what they lack.
+taken as they are, and what is found is what they lack. The template is not the twin's dynamics
+(a free first-order response against its thrust lag), so even on the runs a twin was fitted on the
+answers need not come at zero: `twin identify` measures them there (Sensors.input_answer_s, per
+degree of freedom) and other runs are read against that zero.
 """
 from __future__ import annotations
 
@@ -254,6 +257,10 @@ class Answer:
         return {"dof": self.dof, "shift_s": self.shift_s, "sigma_s": self.sigma_s, "events": self.events,
                 "steps": self.steps, "time_constant_s": self.time_constant_s}
 
+    def against(self, zero_s: float) -> "Answer":
+        """The answer read against `zero_s` (the twin's own runs' answer) rather than against 0."""
+        return self if self.shift_s is None else replace(self, shift_s=self.shift_s - zero_s)
+
 
 def _input_force(rec: Recording, vessel: Vessel) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(t on a FINE_S grid of the input log's clock, surge force, yaw moment) in the twin's terms, up
@@ -432,10 +439,25 @@ def _period(t) -> float:
     return float(np.median(np.diff(t))) if len(t) > 2 else 0.0
 
 
+def input_answers(recordings: list[Recording], vessel: Vessel) -> tuple[float, float]:
+    """(surge, yaw) s: how far the hull's answers to the input steps of `recordings` lead the twin's
+    own timing, as Sensors.input_answer_s keeps them for the runs a twin is identified on. A degree of
+    freedom with too few clear answers takes the other's (the input's timing is common to both);
+    with neither, (0, 0)."""
+    surge, yaw = _answers(recordings, vessel)[:2]
+    a, b = surge.shift_s, yaw.shift_s
+    if a is None and b is None:
+        return 0.0, 0.0
+    return round(float(b if a is None else a), 3), round(float(a if b is None else b), 3)
+
+
 def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[KinematicFinding, ...]:
     """(clock_offset, heading_latency, gnss_latency) as the timing of the hull's answers to the input
-    steps tells them (module docstring), relative to the twin's own timing."""
+    steps tells them (module docstring), relative to the twin's own timing and read against its own
+    runs' answers (Sensors.input_answer_s)."""
     surge, yaw, gyro, periods = _answers(recordings, vessel)
+    zero_surge, zero_yaw = vessel.sensors.input_answer_s
+    surge, yaw = surge.against(zero_surge), yaw.against(zero_yaw)
     # a stamp is good to a sample period of its own stream: the input log's for the clock, the
     # heading's for its lateness
     floor = TIMING_FLOOR_SAMPLES * (max(periods["input"], periods["heading"]) or 0.1)

@@ -20,6 +20,9 @@ on runs left out of the fit.
    runs' scores: median and range), the twin's error on the left-out runs' 30-s free runs (which
    widens its prediction bands: crossval.form_error), and a warning when it predicts the left-out
    runs worse than the prior did.
+6. Measure when the hull answers the input steps of these runs, as the kinematics read it against
+   the written twin (fit/kinematic.input_answers): the zero against which a diagnosis reads the
+   timing of other runs (Sensors.input_answer_s).
 
 A propeller-and-rudder ship (an MMG block) goes through the same steps with its own groups
 (effects.coefficients.fit_groups: MMG hull derivatives, wake, rudder inflow, added mass) and
@@ -43,6 +46,7 @@ from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for,
 from ..fit.crossval import (CrossValidation, beyond_folds, each_folds, form_error, held_out_groups,
                             jackknife_vessels, judge, linearised_vessel)
 from ..fit.evaluate import fitted_envelope
+from ..fit.kinematic import input_answers
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
 from ..prepare import Prepared, supply_reference
@@ -318,6 +322,9 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                             max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
         result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen,
                                                             **({"form_error": errors} if errors else {})})
+    say("timing the hull's answers to the input steps", 3, 4)
+    result.vessel = replace(result.vessel, sensors=replace(
+        result.vessel.sensors, input_answer_s=input_answers(recordings, result.vessel)))
     if result.worse_than_prior:
         result.notes.append(f"the identified twin predicts the left-out runs worse than the prior did (cost "
                             f"{best.cv.cost:.4g} against {result.prior_cv.cost:.4g}): more varied recordings "

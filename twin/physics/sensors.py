@@ -52,6 +52,10 @@ class Sensors:
     # package's default for a fast AHRS (fit.calibrate.HEADING_WINDOW_S). A slower or noisier heading
     # needs a longer one, or its derivative is mostly noise (a vessel file's sources say why)
     heading_rate_window_s: float | None = None
+    # (surge, yaw): how far (s, > 0: ahead) the hull's answers to input steps led this twin's own
+    # timing on the runs it was identified on (fit/kinematic.py). The kinematics' response template is
+    # not the twin's dynamics, so their zero is measured on those runs; other runs are read against it
+    input_answer_s: tuple[float, float] = (0.0, 0.0)
 
     def for_log(self, source: str) -> "Sensors":
         """The sensors of the recording from `source` (a path or name): its own heading bias
