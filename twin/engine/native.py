@@ -356,6 +356,33 @@ def _fwd_actuation(typingctx, m, d):
     return types.void(types.voidptr, types.voidptr), codegen
 
 
+@intrinsic
+def _rne(typingctx, m, d, result):
+    """mj_rne(m, d, 0, result): the bias forces (Coriolis, centrifugal, gravity) into the nv doubles at
+    address `result`, linked by name as `_fwd_actuation` is."""
+    def codegen(context, builder, signature, args):
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fn = cgutils.get_or_insert_function(builder.module,
+                                            ir.FunctionType(ir.VoidType(), [vp, vp, ir.IntType(32), dp]), "mj_rne")
+        builder.call(fn, [args[0], args[1], ir.Constant(ir.IntType(32), 0), builder.inttoptr(args[2], dp)])
+        return context.get_dummy_value()
+    return types.void(types.voidptr, types.voidptr, types.intp), codegen
+
+
+@intrinsic
+def _mul_m(typingctx, m, d, result, vec):
+    """mj_mulM(m, d, result, vec): the mass matrix times the nv doubles at `vec`, into `result`."""
+    def codegen(context, builder, signature, args):
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [vp, vp, dp, dp]),
+                                            "mj_mulM")
+        builder.call(fn, [args[0], args[1], builder.inttoptr(args[2], dp), builder.inttoptr(args[3], dp)])
+        return context.get_dummy_value()
+    return types.void(types.voidptr, types.voidptr, types.intp, types.intp), codegen
+
+
 _f64_ptr = _pointer_intrinsic(types.float64)
 _i64_ptr = _pointer_intrinsic(types.int64)
 _i32_ptr = _pointer_intrinsic(types.int32)
@@ -412,7 +439,8 @@ _fujiwara_force = njit(fujiwara.wind_force)
 
 @njit
 def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0, thrust_l=0.0, thrust_r=0.0):
-    """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`.
+    """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`, and the
+    twin's body-frame acceleration ν̇_r (m/s², m/s², rad/s²) those forces give.
 
     ν = (u, v, r) in m/s, rad/s; τ = (t0, t1, t2) the actuator force the engine
     applies by itself (it enters only through the exact ν̇_r of added mass); (n, δ)
@@ -453,18 +481,19 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0
                                       p[_O_MSW + 1] != 0.0, p[_O_MSW + 2] != 0.0)
         e0, e1, e2 = e0 + m0, e1 + m1, e2 + m2
     f0, f1, f2 = (e0 - t0, e1 - t1, e2 - t2) if th else (e0, e1, e2)
-    if p[_SW] != 0.0:  # added mass with the exact ν̇_r = M⁻¹(external − C_RB(ν_r)ν_r)
-        k0, k1, k2 = _coriolis(p, _O_MRB, ur, vr, rr)
-        b0, b1, b2 = e0 - k0, e1 - k1, e2 - k2
-        m = _O_MINV
-        a0 = p[m] * b0 + p[m + 1] * b1 + p[m + 2] * b2
-        a1 = p[m + 3] * b0 + p[m + 4] * b1 + p[m + 5] * b2
-        a2 = p[m + 6] * b0 + p[m + 7] * b1 + p[m + 8] * b2
+    # the twin's ν̇_r = M⁻¹(external − C_RB(ν_r)ν_r), M = M_RB + M_A (M_RB alone without added mass)
+    k0, k1, k2 = _coriolis(p, _O_MRB, ur, vr, rr)
+    b0, b1, b2 = e0 - k0, e1 - k1, e2 - k2
+    m = _O_MINV
+    a0 = p[m] * b0 + p[m + 1] * b1 + p[m + 2] * b2
+    a1 = p[m + 3] * b0 + p[m + 4] * b1 + p[m + 5] * b2
+    a2 = p[m + 6] * b0 + p[m + 7] * b1 + p[m + 8] * b2
+    if p[_SW] != 0.0:  # added mass with the exact ν̇_r
         m = _O_MA
         f0 = f0 - (p[m] * a0 + p[m + 1] * a1 + p[m + 2] * a2)
         f1 = f1 - (p[m + 3] * a0 + p[m + 4] * a1 + p[m + 5] * a2)
         f2 = f2 - (p[m + 6] * a0 + p[m + 7] * a1 + p[m + 8] * a2)
-    return f0, f1, f2
+    return f0, f1, f2, a0, a1, a2
 
 
 def _libmujoco() -> ctypes.CDLL:
@@ -547,7 +576,17 @@ def _build_callback():
         u, v = c * qvel[dx] + s * qvel[dy], -s * qvel[dx] + c * qvel[dy]
         _fwd_actuation(m, d)  # actuation comes after passive forces in MuJoCo's pipeline
         fa = carray(_f64_ptr(_field(db, o_act)), nv)
-        t0, t1 = c * fa[dx] + s * fa[dy], -s * fa[dx] + c * fa[dy]
+        fn, fe, fy = fa[dx], fa[dy], fa[dpsi]
+        # a 6-DOF hull carries its sea as the second numeric (engine/sixdof.py); its thrusters' load
+        # on the horizontal joints is put back to the level one the 3-DOF twin applies
+        sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv) if _field(mb, o_nnum) >= 2 \
+            else np.empty(0)
+        level_n, level_e, level_y = fn, fe, fy
+        if sp.shape[0] > 0:
+            ok, ln, le, ly = seakeeping.level_thrust(sp, psi, carray(_f64_ptr(_field(db, o_afrc)), _field(mb, o_nu)))
+            if ok:
+                level_n, level_e, level_y = ln, le, ly
+        t0, t1 = c * level_n + s * level_e, -s * level_n + c * level_e
         n_rps, delta, wn, we = 0.0, 0.0, 0.0, 0.0
         uses_mmg, wind_ctrl = p[o_flags + 1] != 0.0, int(p[o_flags + 2])
         if uses_mmg or wind_ctrl >= 0:
@@ -567,16 +606,31 @@ def _build_callback():
                 return
             afrc = carray(_f64_ptr(_field(db, o_afrc)), nu_act)
             thrust_l, thrust_r = afrc[i_l], afrc[i_r]
-        x0, x1, x2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, fa[dpsi], n_rps, delta, wn, we,
+        x0, x1, x2, a0, a1, a2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, level_y, n_rps, delta, wn, we,
                                       thrust_l, thrust_r)
         qfrc = carray(_f64_ptr(_field(db, o_pas)), nv)
-        qfrc[dx] += c * x0 - s * x1
-        qfrc[dy] += s * x0 + c * x1
-        qfrc[dpsi] += x2
-        if _field(mb, o_nnum) >= 2:  # a 6-DOF hull carries its sea as the second numeric (engine/sixdof.py)
-            sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
-            if sp.shape[0] > 0:
-                seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, qfrc)
+        qfrc[dx] += c * x0 - s * x1 + level_n - fn
+        qfrc[dy] += s * x0 + c * x1 + level_e - fe
+        qfrc[dpsi] += x2 + level_y - fy
+        if sp.shape[0] > 0:
+            # the horizontal joints keep the 3-DOF hull's rigid-body inertia: the 6-DOF body's own
+            # on them (its centre of gravity moved fore or aft as it trims, the rates of heave, pitch
+            # and roll) is taken off at the 3-DOF twin's own acceleration, a function of the state
+            # (MuJoCo solves for the step's after this callback), so that in calm water the 6-DOF
+            # hull moves as the 3-DOF twin. The vertical modes keep their coupling to the horizontal
+            bias, inertial, acc = np.empty(nv), np.empty(nv), np.zeros(nv)
+            _rne(m, d, bias.ctypes.data)
+            r = qvel[dpsi]
+            an, ae = c * a0 - s * a1 - r * qvel[dy], s * a0 + c * a1 + r * qvel[dx]
+            acc[dx], acc[dy], acc[dpsi] = an, ae, a2
+            _mul_m(m, d, inertial.ctypes.data, acc.ctypes.data)
+            mass = p[_O_MRB]
+            xg, yg = p[_O_MRB + 5] / mass, -p[_O_MRB + 2] / mass
+            gn, ge = c * xg - s * yg, s * xg + c * yg
+            qfrc[dx] += bias[dx] + mass * r * r * gn + inertial[dx] - mass * (an - ge * a2)
+            qfrc[dy] += bias[dy] + mass * r * r * ge + inertial[dy] - mass * (ae + gn * a2)
+            qfrc[dpsi] += bias[dpsi] + inertial[dpsi] - (mass * (gn * ae - ge * an) + p[_O_MRB + 8] * a2)
+            seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, qfrc)
 
     signature = types.void(types.voidptr, types.voidptr)
     try:

@@ -5,7 +5,13 @@ body frame is R = Rz(ψ) Ry(θ) Rx(φ) [Fossen-2021] (zyx Euler angles) and the 
 ψ) where it always did: north, east (slides), down (slide, z), yaw (hinge about z), pitch (hinge
 about the yawed y) and roll (hinge about the body x). The horizontal model is today's,
 unchanged: the 3-DOF callback computes surge, sway and yaw forces from (u, v, r) in the heading
-frame and applies them to the north, east and yaw joints. The engine adds (physics/seakeeping.py):
+frame and applies them to the north, east and yaw joints. Two things a trimmed or heeled hull
+would change there are kept level (engine/native.py), as the 3-DOF twin was identified level:
+the thrusters' load on the horizontal joints is the 3-DOF model's (a thruster tilted with the
+hull still pushes it along its tilted axis in heave, pitch and roll), and the horizontal joints
+see the 3-DOF rigid body's inertia, the 6-DOF body's own (its centre of gravity moved as it trims,
+the rates of heave, pitch and roll) taken off them at the twin's own acceleration. The vertical
+modes keep their full coupling. The engine adds (physics/seakeeping.py):
 
 - the pressure load over the wetted hydrodynamic mesh (hydrostatics, and Froude-Krylov in waves);
 - heave, roll and pitch added mass A33, A44, A55 as the joints' armature (the added inertia on
@@ -372,7 +378,35 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
             drift_c = np.concatenate([drift_c, np.zeros(pad)])
     switches = (sea_terms.waves, sea_terms.diffraction, sea_terms.damping, sea_terms.drift)
     return sk.pack_sea(verts, faces, packed_c, weights, drift_c, rows, hull.drift, grid, switches, qpos, dof,
-                       hull.rho, (am.Xudot, am.Yvdot))
+                       hull.rho, (am.Xudot, am.Yvdot), thrust_arms=level_thrust_arms(compiled))
+
+
+def level_thrust_arms(compiled: CompiledVessel) -> np.ndarray:
+    """(actuator, a_x, a_y, a_N) per thruster: the 3-DOF model's generalised force on north, east and
+    yaw per newton of each site-driven actuator, at heading 0 (seakeeping.level_thrust)."""
+    model = compiled.model
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    _, dof = joint_addresses3(model)
+    rows = []
+    for i in range(model.nu):
+        if model.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_SITE:
+            continue
+        site = int(model.actuator_trnid[i, 0])
+        jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+        mujoco.mj_jacSite(model, data, jacp, jacr, site)
+        rot = data.site_xmat[site].reshape(3, 3)
+        gear = model.actuator_gear[i]
+        q = jacp.T @ (rot @ gear[:3]) + jacr.T @ (rot @ gear[3:])
+        rows.append((float(i), *(float(q[d]) for d in dof)))
+    return np.array(rows).reshape(-1, 4)
+
+
+def joint_addresses3(model: mujoco.MjModel) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """qpos and dof addresses of the 3-DOF model's north, east and yaw joints."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in JOINTS]
+    return tuple(int(model.jnt_qposadr[j]) for j in ids), tuple(int(model.jnt_dofadr[j]) for j in ids)
 
 
 def sea_view(model: mujoco.MjModel) -> np.ndarray:

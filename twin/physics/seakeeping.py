@@ -461,6 +461,7 @@ HEADER = 48
 (_MAGIC, _SIZE, _NV, _NF, _NC, _NS, _NX, _NY, _GX0, _GY0, _DX, _DY, _ZH, _RHOG, _FK, _DIFF, _DAMP, _DRIFT,
  _ND, _I0, _J0, _ZBOUND, _XU, _YV, _ON) = range(25)
 _QADR, _DADR = 26, 32  # qpos and dof addresses of north, east, down, yaw, pitch, roll
+_NTHR, _THR, MAX_THRUSTERS = 25, 38, 2  # the thrusters' level load: count, then (actuator, a_x, a_y, a_N) each
 
 
 def sea_layout(nv: int, nf: int, nc: int, ns: int, nd: int) -> dict[str, slice]:
@@ -478,11 +479,12 @@ def sea_layout(nv: int, nf: int, nc: int, ns: int, nd: int) -> dict[str, slice]:
 def pack_sea(verts: np.ndarray, faces: np.ndarray, comps: np.ndarray, weights: np.ndarray, drift_c: np.ndarray,
              strip_rows: np.ndarray, drift: np.ndarray, grid: dict, switches: tuple[bool, bool, bool, bool],
              qpos_adr: tuple[int, ...], dof_adr: tuple[int, ...], rho: float, added_xy: tuple[float, float],
-             active: bool = True) -> np.ndarray:
+             active: bool = True, thrust_arms: np.ndarray | None = None) -> np.ndarray:
     """The float64 vector `sea_load` reads. strip_rows (ns, 6): x, y (m), a33·dx (kg), b33·dx (N s/m),
     the strip's share of the surge and of the sway added mass; drift (nd, 3) the table of
     `drift_table`; drift_c (nc) ½ρg R²(k_i T) per component; grid: nx, ny, gx0, gy0, dx, dy, zh,
-    i0, j0 (`grid_fields`); switches: Froude-Krylov waves, diffraction, damping, drift."""
+    i0, j0 (`grid_fields`); switches: Froude-Krylov waves, diffraction, damping, drift;
+    thrust_arms (≤ MAX_THRUSTERS, 4): actuator index and its level load per newton (`level_thrust`)."""
     nv, nf, nc, ns, nd = len(verts), len(faces), len(comps), len(strip_rows), len(drift)
     lay = sea_layout(nv, nf, nc, ns, nd)
     p = np.zeros(lay["end"].start)
@@ -497,6 +499,11 @@ def pack_sea(verts: np.ndarray, faces: np.ndarray, comps: np.ndarray, weights: n
     p[_ZBOUND] = float(np.sum(np.abs(comps[:, 0]))) if nc else 0.0
     p[_XU], p[_YV] = added_xy
     p[_ON] = float(active)
+    arms = np.zeros((0, 4)) if thrust_arms is None else np.asarray(thrust_arms, float).reshape(-1, 4)
+    if len(arms) > MAX_THRUSTERS:
+        raise ValueError(f"at most {MAX_THRUSTERS} thrusters have a level load, got {len(arms)}")
+    p[_NTHR] = len(arms)
+    p[_THR:_THR + arms.size] = np.ravel(arms)
     p[_QADR:_QADR + 6] = qpos_adr
     p[_DADR:_DADR + 6] = dof_adr
     p[lay["verts"]] = np.ravel(verts)
@@ -527,6 +534,29 @@ def rotation(psi, theta, phi):
     R[2, 1] = ct * sf
     R[2, 2] = ct * cf
     return R
+
+
+@njit(cache=True)
+def level_thrust(p, psi, actuator_force):
+    """The thrusters' generalised force on (north, east, yaw) as the 3-DOF twin applies it: each
+    actuator's force times its arms (a_x, a_y) forward and to starboard and a_N about the yaw axis,
+    taken with the hull level, turned by the heading ψ alone. A thruster tilted with a trimmed or
+    heeled hull pushes along its tilted axis; the horizontal model is the calm-water twin's, whose
+    thrust map was identified level, so the level part is put back while heave, pitch and roll keep
+    the tilted force and its moments. Returns (ok, north, east, yaw)."""
+    n = int(p[_NTHR])
+    fn, fe, fy = 0.0, 0.0, 0.0
+    c, s = np.cos(psi), np.sin(psi)
+    for k in range(n):
+        i = int(p[_THR + 4 * k])
+        if i < 0 or i >= actuator_force.shape[0]:
+            return False, 0.0, 0.0, 0.0
+        f = actuator_force[i]
+        ax, ay, an = p[_THR + 4 * k + 1], p[_THR + 4 * k + 2], p[_THR + 4 * k + 3]
+        fn += f * (c * ax - s * ay)
+        fe += f * (s * ax + c * ay)
+        fy += f * an
+    return n > 0, fn, fe, fy
 
 
 @njit(cache=True)
