@@ -99,9 +99,9 @@ def main(argv=None) -> int:
                "The drift check evaluates the engine's own drift load (Ursell-Maruo reflection on the short-wave "
                "waterline integral) on the barge's mesh: it checks the waterline, the heading table and Newman's "
                "sums against the published asymptote and Ursell's closed form, not against a measured drift.",
-               "The calm-water difference is the 6-DOF hull's own: under thrust it trims (its thrusters sit below "
-               "the centre of gravity) and in turns it heels, which moves its centre of gravity and its thrust "
-               "line in the heading frame by millimetres; the 3-DOF twin holds it level.",
+               "Under thrust the hull trims (its thrusters sit below the centre of gravity) and in turns it heels; "
+               "the horizontal joints keep the level thrust and the 3-DOF rigid body's inertia (engine/sixdof.py), "
+               "so the calm-water difference left is the vertical modes' coupling to the horizontal.",
                "Speed figures are of a shared two-core machine; the ratio of the two twins, timed in turn, is the "
                "steadier figure."],
         raw_file="data/sea_verification.json")
