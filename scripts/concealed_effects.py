@@ -393,8 +393,42 @@ def boat_timing(work: Path) -> list[dict]:
     return out
 
 
+IDLE_AFTER_S = (5.0, 10.0)  # idle this long: little of the hull's own way is left (the two show how little)
+
+
+def boat_drift(work: Path) -> list[dict]:
+    """The BlueBoat's ground velocity while idle, nothing concealed: each run's mean GNSS velocity over the
+    samples at which both thrusters have given no thrust (the identified twin's map: inside its dead zone)
+    for IDLE_AFTER_S. What the water and the wind do to an idle hull on that day: the background a
+    concealed current is added to."""
+    th = blueboat_twin(work).thrusters
+    out = []
+    for n in sorted(FIT_BLUEBOAT + tuple(set(sum(OUTINGS.values(), ())))):
+        (rec,) = read([BLUEBOAT / f"fixed_00000{n}.csv"])
+        idle = np.all(th.thrust_from_pwm(np.column_stack([rec.pwm["left_us"], rec.pwm["right_us"]])) == 0.0, axis=1)
+        t = np.asarray(rec.gnss.t, float)
+        north, east = ned_from_geodetic(rec.gnss["lat_deg"], rec.gnss["lon_deg"], rec.gnss["lat_deg"][0],
+                                        rec.gnss["lon_deg"][0])[:2]
+        idle_at = np.interp(t, np.asarray(rec.pwm.t, float), idle.astype(float)) > 0.999
+        since = np.zeros(len(t))
+        for i in range(1, len(t)):
+            since[i] = since[i - 1] + (t[i] - t[i - 1]) if idle_at[i] else 0.0
+        vn, ve = np.gradient(north, t), np.gradient(east, t)
+        row = {"run": n, "idle_share": float(np.mean(idle))}
+        for after in IDLE_AFTER_S:
+            sel = since > after
+            key = f"after_{after:g}_s"
+            row[key] = {"seconds": float(np.sum(np.diff(t, prepend=t[0])[sel]))}
+            if sel.sum() >= 2:
+                mn, me = float(np.mean(vn[sel])), float(np.mean(ve[sel]))
+                row[key].update({"north_m_s": mn, "east_m_s": me, "speed_m_s": float(np.hypot(mn, me)),
+                                 "towards_deg": float(np.degrees(np.arctan2(me, mn)) % 360.0)})
+        out.append(row)
+    return out
+
+
 def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first",
-               timing: list[dict] | None = None) -> Path:
+               timing: list[dict] | None = None, drift: list[dict] | None = None) -> Path:
     tables, lines = [], []
     for stage, res in stages.items():
         rows = res["rows"]
@@ -434,15 +468,34 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
         {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
-         **({"boat_pwm_timing": timing} if timing else {})})
+         **({"boat_pwm_timing": timing} if timing else {}), **({"boat_idle_drift": drift} if drift else {})})
     if timing:
         page.tables.append(ResultTable(
             "The BlueBoat's PWM clock from the kinematics, nothing concealed (fit/kinematic.input_timing against the "
-            "identified twin's thrust map and lag; positive: the PWM log late against heading and GNSS)",
+            "identified twin's thrust map and lag, read against the answers on its own runs where the twin file "
+            "keeps them; positive: the PWM log late against heading and GNSS)",
             ["runs", "offset (s)", "σ (s)", "named", "evidence"],
             [[f"{t['group']} ({', '.join(map(str, t['runs']))})" if len(t["runs"]) > 1 else t["group"],
               "-" if t["sigma_s"] is None else t["offset_s"], "-" if t["sigma_s"] is None else t["sigma_s"],
               "yes" if t["told"] else "no", t["basis"]] for t in timing]))
+    if drift:
+        def cells(d: dict) -> list:
+            return ([round(d["speed_m_s"], 3), round(d["towards_deg"]), round(d["seconds"])] if "speed_m_s" in d
+                    else ["-", "-", round(d["seconds"])])
+        page.tables.append(ResultTable(
+            "The BlueBoat's ground velocity while idle, nothing concealed (each run's mean over the GNSS samples at "
+            "which both thrusters have given no thrust, by the identified twin's map, for 5 s or for 10 s): the "
+            "day's water and wind, which a concealed current adds to",
+            ["run", "idle share", "speed after 5 s (m/s)", "towards (°)", "samples (s)", "speed after 10 s (m/s)",
+             "towards (°)", "samples (s)"],
+            [[d["run"], round(d["idle_share"], 2), *cells(d["after_5_s"]), *cells(d["after_10_s"])] for d in drift]))
+        speeds = [d["after_10_s"]["speed_m_s"] for d in drift if "speed_m_s" in d["after_10_s"]]
+        currents = [c.values[0] for c in proof if c.vessel == "blueboat" and c.kind == "current"]
+        page.notes.append(
+            f"Nothing concealed, the idle BlueBoat drifts over ground at {min(speeds):.2f}-{max(speeds):.2f} m/s, in "
+            "directions that differ from run to run: the concealed currents "
+            f"({min(currents):g}-{max(currents):g} m/s) are added to a background of their own size, which the "
+            "proof counts as nothing.")
     if antenna:
         page.notes.append(
             "The BlueBoat's own antenna from the kinematics, nothing concealed, against where the identified twin "
@@ -467,7 +520,7 @@ def main() -> int:
     if args.page_only:
         raw_path = args.out / "data" / f"{PAGES[args.proof_set]}.json"
         print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work), args.proof_set,
-                         boat_timing(args.work)))
+                         boat_timing(args.work), boat_drift(args.work)))
         return 0
     proof = PROOFS[args.proof_set]
     needed = [BLUEBOAT / f"fixed_00000{n}.csv" for n in FIT_BLUEBOAT + sum(OUTINGS.values(), ())] + \
@@ -497,7 +550,8 @@ def main() -> int:
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
     stages = staged(args.out / "data" / f"{PAGES[args.proof_set]}.json", args.stage, stage_dir,
                     [c.name for c in proof], summary_of, checkout_commit(ROOT))
-    print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set, boat_timing(args.work)))
+    print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set, boat_timing(args.work),
+                     boat_drift(args.work)))
     return 0
 
 
