@@ -6,6 +6,16 @@ import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared"
+# the files that take longest, first: xdist hands whole files to its workers in the order collected
+# (--no-loadscope-reorder), and a long file started last keeps one worker busy alone after the other
+# has finished
+LONGEST_FIRST = ("test_sitl_ardupilot.py", "test_diagnose.py", "test_docs.py", "test_esso_engine.py",
+                 "test_esso_diagnose.py", "test_wind_per_log.py")
+
+
+def pytest_collection_modifyitems(items):
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONGEST_FIRST)))  # stable: a file's own order kept
 
 
 @pytest.fixture(scope="session")

@@ -1,6 +1,5 @@
 """The `twin` command end to end, including bad input."""
 import json
-import subprocess
 import sys
 
 import numpy as np
@@ -11,13 +10,13 @@ from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.drive import read_inputs_csv
 from twin.run import read_csv
+import twin_command
 
 MODEL = vessel_mod.MODEL_DIR
 
 
 def twin(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)
+    return twin_command.twin(*args, cwd=cwd)
 
 
 def test_simulate_writes_csv(tmp_path):

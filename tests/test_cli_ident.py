@@ -1,16 +1,15 @@
 """The identification commands end to end: dataset → identify → evaluate, and their errors."""
 import json
-import subprocess
 import sys
 
 import pytest
 
 import twin.vessel as vessel_mod
+import twin_command
 
 
 def twin(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return twin_command.twin(*args)
 
 
 @pytest.fixture(scope="module")

@@ -1,19 +1,18 @@
 """What a user meets first in the command: the help, and one line and exit 2 for each input that
 cannot be meant (tests/test_cli_errors.py has the rest)."""
 import json
+import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+import twin_command
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def twin(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                          timeout=300, cwd=cwd, env={"COLUMNS": "120", "PATH": "/usr/bin:/bin"})
+    return twin_command.twin(*args, cwd=cwd, env={**os.environ, "COLUMNS": "120"})
 
 
 def test_help_lists_commands_in_workflow_order_with_one_line_each_and_no_type_tags():

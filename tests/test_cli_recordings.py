@@ -1,5 +1,4 @@
 """`twin info`, `twin convert`, `twin view` on recordings the twin writes itself (fresh clone)."""
-import subprocess
 import sys
 
 import numpy as np
@@ -7,11 +6,11 @@ import pytest
 
 from twin.prepare import prepare
 from twin.formats import read_recording
+import twin_command
 
 
 def twin(*args):
-    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                          timeout=600)
+    return twin_command.twin(*args)
 
 
 @pytest.fixture(scope="module")
@@ -184,8 +183,7 @@ def test_view_writes_into_the_working_folder_not_beside_the_input(sim_tlog, tmp_
     (data / "z.tlog").write_bytes((sim_tlog / "z.tlog").read_bytes())
     work = tmp_path / "work"
     work.mkdir()
-    p = subprocess.run([sys.executable, "-m", "twin", "view", str(data / "z.tlog")], capture_output=True,
-                       text=True, timeout=600, cwd=work)
+    p = twin_command.twin("view", data / "z.tlog", cwd=work)
     assert p.returncode == 0, p.stderr
     assert sorted(x.name for x in data.iterdir()) == ["z.tlog"] and (work / "z.rrd").stat().st_size > 1000
 

@@ -2,13 +2,12 @@
 injected in, the whole diagnosis on a concealed effect and on the twin's own data,
 and the command's outputs."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
+import twin_command
 from twin.effects import candidates
 from twin.diagnose.doctor import diagnose
 from twin.prepare import supply_reference
@@ -253,10 +252,10 @@ def test_diagnose_command_writes_everything(tmp_path, prior):
     write_recording(ds.recording, rec)
     out = {k: tmp_path / f"d.{k}" for k in ("json", "html", "rrd")}
     amended = tmp_path / "amended.json"
-    cmd = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish", "--json",
+    cmd = ["diagnose", str(rec), "--vessel", "yellowfish", "--json",
            str(out["json"]), "--report", str(out["html"]), "--rrd", str(out["rrd"]), "--write-model", str(amended),
            "--effects", "thruster_asymmetry,thruster_gain_left,thruster_gain_right,thrust_gain,current"]  # its rivals
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    done = twin_command.twin(*cmd)
     assert done.returncode == 0, done.stderr
     d = json.loads(out["json"].read_text())
     assert set(d) >= {"effects", "located", "fit_before", "fit_after", "unexplained", "noise"}
@@ -276,9 +275,8 @@ def test_diagnose_given_judges_an_effect_as_given_without_a_search(tmp_path, pri
                   manoeuvres=MIXED)
     rec = tmp_path / "run.csv"
     write_recording(ds.recording, rec)
-    base = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"]
-    right = subprocess.run(base + ["--given", "thruster_asymmetry=0.85", "--json", str(tmp_path / "g.json")],
-                           capture_output=True, text=True, timeout=120)
+    base = ["diagnose", str(rec), "--vessel", "yellowfish"]
+    right = twin_command.twin(*(base + ["--given", "thruster_asymmetry=0.85", "--json", str(tmp_path / "g.json")]))
     assert right.returncode == 0, right.stderr
     assert right.stdout.startswith("thruster_asymmetry=0.85 earns its place as given: z ")
     g = json.loads((tmp_path / "g.json").read_text())
@@ -290,7 +288,7 @@ def test_diagnose_given_judges_an_effect_as_given_without_a_search(tmp_path, pri
     assert wrong.z <= -3 and "is contradicted by these recordings" in given_text(["thruster_asymmetry=1.15"], wrong)
     for extra, message in ((["--report", str(tmp_path / "r.html")], "--report does not apply"),
                            (["--given", "current=0.2"], "expected 2 value(s)")):
-        bad = subprocess.run(base + ["--given", "current=0.1,0"] + extra, capture_output=True, text=True, timeout=60)
+        bad = twin_command.twin(*(base + ["--given", "current=0.1,0"] + extra))
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "r.html").exists()
 
@@ -301,8 +299,7 @@ def test_bad_recordings_get_one_line_errors(tmp_path, prior):
         diagnose([short.recording], prior)
     rec = tmp_path / "nopwm.csv"
     rec.write_text("t,lat,lon,heading_deg\n" + "".join(f"{i * 0.2:.1f},37.4,-5.97,10\n" for i in range(900)))
-    done = subprocess.run([sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"],
-                          capture_output=True, text=True, timeout=120)
+    done = twin_command.twin("diagnose", rec, "--vessel", "yellowfish")
     assert done.returncode == 2 and done.stderr.startswith("error:") and len(done.stderr.strip().splitlines()) == 1
     assert "PWM" in done.stderr
 
@@ -452,17 +449,16 @@ def test_diagnose_command_refits_the_core_with_each_candidate(tmp_path, prior):
     rec = tmp_path / "run.tlog"
     write_recording(ds.recording, rec)
     out, amended = tmp_path / "d.json", tmp_path / "amended.json"
-    base = [sys.executable, "-m", "twin", "diagnose", str(rec), "--vessel", "yellowfish"]
-    done = subprocess.run(base + ["--refit", "yaw", "--refit-weight", "0.1", "--effects", "current,speed_coupling",
-                                  "--json", str(out), "--write-model", str(amended)],
-                          capture_output=True, text=True, timeout=600)
+    base = ["diagnose", str(rec), "--vessel", "yellowfish"]
+    done = twin_command.twin(*(base + ["--refit", "yaw", "--refit-weight", "0.1", "--effects", "current,speed_coupling",
+                             "--json", str(out), "--write-model", str(amended)]))
     assert done.returncode == 0, done.stderr
     d = json.loads(out.read_text())
     assert d["refit"]["coefficients"] == ["Nr", "Nrr", "Nrdot"] and d["refit"]["beliefs_weight"] == 0.1
     assert [e["name"] for e in d["effects"]] == ["current"]
     assert abs(d["effects"][0]["parameters"]["dir_deg"] - 120) < 10
     assert vessel_mod.load(str(amended)).damping.Nr == pytest.approx(0.6 * prior.damping.Nr, rel=0.2)
-    bad = subprocess.run(base + ["--refit", "hull"], capture_output=True, text=True, timeout=120)
+    bad = twin_command.twin(*(base + ["--refit", "hull"]))
     assert bad.returncode == 2 and bad.stderr.startswith("error:") and len(bad.stderr.strip().splitlines()) == 1
     assert "unknown group" in bad.stderr
 

@@ -5,7 +5,8 @@ Examples are the ```bash and ```python blocks (```text blocks are shown, not run
 in order in one folder, and the Guide's pages in their order in one folder, since a tutorial builds on
 the files the pages before it made. Lines that install or run the suite itself (pip, git clone, cd,
 python -m pytest) are not run. A block whose first line is `# needs ../shared/...` skips when that
-path is absent.
+path is absent. The Guide's plain `twin ...` lines run in the test process (the same entry point,
+without a new interpreter's imports), the README's through the shell.
 """
 import os
 import re
@@ -14,6 +15,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+import twin_command
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -26,7 +29,9 @@ def blocks(page: Path) -> list[tuple[str, str]]:
     return [(lang, body) for lang, body in BLOCK.findall(page.read_text())]
 
 
-def run_block(lang: str, body: str, where: Path, page: Path) -> None:
+def run_block(lang: str, body: str, where: Path, page: Path, in_process: bool = True) -> None:
+    """A block's lines in turn; a plain `twin ...` line in this process (tests/twin_command.py) unless
+    `in_process` is False, as the README's are: they show the console script on PATH works."""
     first = body.splitlines()[0] if body.strip() else ""
     if first.startswith("# needs "):
         needed = (ROOT / first[len("# needs "):].strip()).resolve()
@@ -41,8 +46,12 @@ def run_block(lang: str, body: str, where: Path, page: Path) -> None:
     for line in body.splitlines():
         if not line.strip() or line.lstrip().startswith("#") or NOT_RUN.match(line):
             continue
-        done = subprocess.run(["bash", "-c", line], cwd=where, capture_output=True, text=True, env=env,
-                              timeout=600)
+        args = twin_command.in_process(line) if in_process else None
+        if args is not None:
+            done = twin_command.twin(*args, cwd=where)
+        else:
+            done = subprocess.run(["bash", "-c", line], cwd=where, capture_output=True, text=True, env=env,
+                                  timeout=600)
         assert done.returncode == 0, f"{page.name}: `{line}` failed:\n{done.stderr[-2000:]}"
 
 
@@ -92,7 +101,7 @@ def test_the_site_builds_strictly(tmp_path):
 
 def test_the_readme_examples_run(tmp_path):
     for lang, body in blocks(ROOT / "README.md"):
-        run_block(lang, body, tmp_path, ROOT / "README.md")
+        run_block(lang, body, tmp_path, ROOT / "README.md", in_process=False)
 
 
 @pytest.fixture(scope="module")

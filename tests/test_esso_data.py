@@ -3,8 +3,6 @@ streams through `twin info/convert/view`, and bad input. Tests reading ../shared
 synthetic ones build their own files (no data row of the dataset is copied here)."""
 import csv
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +12,7 @@ from twin.errors import TwinError
 from twin.formats import read_recording, write_recording
 from twin.prepare import prepare
 from twin.prepare.convert import for_conversion
+import twin_command
 
 TURNS = ["turn_14-Sep-2020_13_39_32", "turn_14-Oct-2020_14_56_07", "turn_14-Sep-2020_15_47_33",
          "turn_14-Oct-2020_14_29_49"]
@@ -138,8 +137,7 @@ def test_twin_info_convert_view_on_an_esso_layout(tmp_path):
     src = _write(tmp_path / "run.csv", _rows(60))
 
     def twin(*args):
-        return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                              cwd=tmp_path, timeout=300)
+        return twin_command.twin(*args, cwd=tmp_path)
 
     info = twin("info", src)
     assert info.returncode == 0 and "prop_rudder" in info.stdout and "wind" in info.stdout

@@ -1,7 +1,5 @@
 """Identification of a propeller-and-rudder ship: its MMG fit groups and beliefs,
 simfit on (n, δ) inputs, the measured wind as a known input, and `twin identify --wind-measured`."""
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +15,7 @@ from twin.fit.objective import Objective
 from twin.fit.windows import make_windows
 from twin.ident.identify import prepared
 from twin.recording import Recording, clean_stream
+import twin_command
 
 ESSO = Path(__file__).resolve().parents[2] / "shared" / "data" / "esso"
 PWM_ONLY = {"thrust_gain", "reverse_scale", "asymmetry", "lag_s", "delay_s", "deadzone_fwd", "Xu", "Xuu", "Yvv",
@@ -126,9 +125,8 @@ def esso_csv_without_wind(path: Path) -> Path:
 
 def test_identify_wind_measured_without_a_wind_stream_is_a_one_line_error(tmp_path):
     csv = esso_csv_without_wind(tmp_path / "no_wind.csv")
-    done = subprocess.run([sys.executable, "-m", "twin", "identify", str(csv), "--vessel", "esso_osaka",
-                           "--out", str(tmp_path / "out.json"), "--wind-measured"],
-                          capture_output=True, text=True, timeout=120)
+    done = twin_command.twin("identify", str(csv), "--vessel", "esso_osaka",
+                             "--out", str(tmp_path / "out.json"), "--wind-measured")
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "no measured wind" in done.stderr
     assert not (tmp_path / "out.json").exists()
@@ -153,11 +151,10 @@ def test_the_measured_wind_enters_the_fit_objective(esso):
 @pytest.mark.skipif(not ESSO.is_dir(), reason="no ../shared/data/esso")
 def test_twin_identify_on_the_ship_with_its_measured_wind(tmp_path):
     out = tmp_path / "esso.json"
-    done = subprocess.run([sys.executable, "-m", "twin", "identify", str(ESSO / "turn_14-Oct-2020_14_29_49.csv"),
-                           "--vessel", "esso_osaka", "--out", str(out), "--params", "mmg_Nr,mmg_epsilon",
-                           "--beliefs", "0.1", "--max-evaluations", "3", "--window", "30", "--wind-measured",
-                           "--greybox", "--json", str(tmp_path / "report.json")],
-                          capture_output=True, text=True, timeout=300)
+    done = twin_command.twin("identify", str(ESSO / "turn_14-Oct-2020_14_29_49.csv"),
+                             "--vessel", "esso_osaka", "--out", str(out), "--params", "mmg_Nr,mmg_epsilon",
+                             "--beliefs", "0.1", "--max-evaluations", "3", "--window", "30", "--wind-measured",
+                             "--greybox", "--json", str(tmp_path / "report.json"))
     assert done.returncode == 0, done.stderr
     assert "grey-box models PWM thrusters: skipped" in done.stderr + done.stdout
     identified = vessel_mod.load(str(out))

@@ -1,14 +1,13 @@
 """IS-O [Relay-ISO Table I] and the I-PD controller (eqs. 9-11) with numbers: Table I by hand, a pure
 first-order plant, the Yellowfish twin's yaw and surge, the sway error, the controller's runs."""
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from twin.errors import TwinError
 from twin.ident.relay import ipd, iso
+import twin_command
 
 
 def _osc(xm=0.5, w=2.0, x0=0.0, th=1.0, tl=1.0):
@@ -79,8 +78,7 @@ def test_twin_surge_alpha_and_better_model(yellowfish):
 def test_sway_is_a_clear_error(yellowfish):
     with pytest.raises(TwinError, match="no sway actuator"):
         iso.sweep(yellowfish, "sway")
-    p = subprocess.run([sys.executable, "-m", "twin", "iso", "--vessel", "yellowfish", "--dof", "sway"],
-                       capture_output=True, text=True, timeout=120)
+    p = twin_command.twin("iso", "--vessel", "yellowfish", "--dof", "sway")
     assert p.returncode == 2
     assert p.stderr.startswith("error: sway:") and p.stderr.count("\n") == 1
 

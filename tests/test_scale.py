@@ -1,7 +1,6 @@
 """twin/scale on this machine: seeded batches, the Monte Carlo band and its coverage, sharded
 datasets, fleet diagnoses, and their commands (the Ray executor: test_scale_ray.py)."""
 import json
-import subprocess
 import sys
 from dataclasses import replace
 from types import SimpleNamespace
@@ -14,11 +13,11 @@ from scale_fixtures import identified
 from twin.errors import TwinError
 from twin.scale import batches, datasets, fleet, montecarlo as mc
 from twin.scale.draws import Variation, parse_effect_range, parse_factor, with_mass_scale
+import twin_command
 
 
 def twin(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "twin", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return twin_command.twin(*args)
 
 
 @pytest.fixture(scope="module")

@@ -38,6 +38,7 @@ from twin.sitl.backend import PwmMap, SitlTwin, delivered_thrust_n, with_environ
 from twin.sitl.protocol import (PacketError, Reply, ServoFrame, format_reply, pack_servo_packet,
                                 parse_servo_packet)
 from twin.sitl.server import run_sitl
+import twin_command
 from twin.vessel import MODEL_DIR, load
 
 GRAVITY = 9.80665  # ArduPilot's GRAVITY_MSS
@@ -647,9 +648,6 @@ def test_a_diverging_twin_is_a_one_line_error_not_a_silent_reset():
 
 
 def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_the_twin_cruises_at(tmp_path):
-    import subprocess
-    import sys
-
     from twin.sitl.params import boat_parameters, cruise_speed_m_s
 
     boat = load("blueboat")
@@ -668,8 +666,7 @@ def test_the_parameter_file_gives_ardupilot_the_vessels_pwm_range_and_the_speed_
         boat_parameters(load("esso_osaka"))
     out = tmp_path / "boat.parm"
     def twin(*args):
-        return subprocess.run([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", *args],
-                              capture_output=True, text=True, timeout=120)
+        return twin_command.twin("sitl", "--vessel", "yellowfish", *args)
 
     assert twin("--write-params", out).returncode == 0 and "SERVO3_FUNCTION 74" in out.read_text()
     refused = twin("--write-params", tmp_path / "b.json")

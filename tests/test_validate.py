@@ -1,7 +1,5 @@
 """`twin validate`: the technical report's hand formulas pinned to its inputs, the engine to the MJCF, bad input."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,6 +11,7 @@ from twin.errors import TwinError
 from twin.physics import added_mass as am
 from twin.physics.hydrostatics import submerged_volume, waterline_for_mass
 from twin.verify.validate import validate
+import twin_command
 
 MODEL = vessel_mod.MODEL_DIR
 
@@ -103,8 +102,8 @@ def _vessel_with_mjcf(tmp_path, body_xml, asset_xml=""):
 
 def _run_validate(path, tmp_path):
     report = tmp_path / "r.html"
-    p = subprocess.run([sys.executable, "-m", "twin", "validate", "--model", str(path), "--report", str(report),
-                        "--json", str(tmp_path / "r.json")], capture_output=True, text=True)
+    p = twin_command.twin("validate", "--model", str(path), "--report", str(report),
+                          "--json", str(tmp_path / "r.json"))
     return p, report
 
 
@@ -133,8 +132,8 @@ def test_open_mesh_is_named(tmp_path):
 
 
 def test_cli_writes_json_and_report(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "twin", "validate", "--vessel", "yellowfish", "--json",
-                        str(tmp_path / "v.json"), "--report", str(tmp_path / "v.md")], capture_output=True, text=True)
+    p = twin_command.twin("validate", "--vessel", "yellowfish", "--json",
+                          str(tmp_path / "v.json"), "--report", str(tmp_path / "v.md"))
     assert p.returncode == 0, p.stderr
     rows = json.loads((tmp_path / "v.json").read_text())["quantities"]
     assert set(rows[0]) >= {"name", "unit", "analytic", "table", "engine", "mesh", "independent", "rel_diff", "flag",
@@ -221,7 +220,7 @@ def test_simulate_refuses_a_massless_hull(tmp_path):
     path = _vessel_with_mjcf(tmp_path, '<geom type="box" size="0.1 0.1 0.1" mass="5"/><body name="hull_port">'
                                        '<geom name="hull_port" type="box" size="0.5 0.2 0.1" mass="0"/></body>')
     out = tmp_path / "run.csv"
-    p = subprocess.run([sys.executable, "-m", "twin", "simulate", "--model", str(path), "--duration", "1",
-                        "--out", str(out)], capture_output=True, text=True)
+    p = twin_command.twin("simulate", "--model", str(path), "--duration", "1",
+                          "--out", str(out))
     assert p.returncode == 2 and "geom 'hull_port' has mass 0" in p.stderr and not out.exists(), p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
