@@ -83,7 +83,7 @@ def diagnose_command(
     typer.echo(format_located(result.located[:12]))
     if write_model is not None:
         save(result.amended, write_model)
-        say(f"wrote {write_model}")
+        say(f"wrote {write_model}" + ("" if result.effects else " (nothing named: the twin unchanged)"))
     write_json(json_out, result.to_dict())
     if report is not None:
         from ..diagnose.report import write_html

@@ -381,7 +381,7 @@ class ThrottleDependence:
         return (f"compass error following the throttle: B {self.b_deg:+.1f}° ± {self.sigma_b_deg:.1f}°, C "
                 f"{self.c_deg:+.1f}° ± {self.sigma_c_deg:.1f}° at full throttle (χ² {self.chi2:.1f} on 2 degrees of "
                 f"freedom, {'shown' if self.shown else 'not shown'}) from {self.pieces} pieces of {self.stretches} "
-                f"straight stretches ahead in {self.logs} logs")
+                f"straight stretches ahead in {self.logs} log{'' if self.logs == 1 else 's'}")
 
 
 def _throttle_pieces(prep: Prepared, vessel: Vessel, drift) -> list[tuple]:

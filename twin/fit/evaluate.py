@@ -16,6 +16,7 @@ manoeuvre's share of 1 − R²: idle, ahead, turning, spin, astern, read from th
 """
 from __future__ import annotations
 
+import math
 import textwrap
 from dataclasses import dataclass
 from typing import Protocol
@@ -312,13 +313,15 @@ def beyond_text(split: dict) -> list[str]:
 
 
 def format_metrics(metrics: dict, title: str = "") -> str:
-    """Rows per horizon, R² and MAE per DOF, ≤ 100 columns."""
+    """Rows per horizon, R² and MAE per DOF, ≤ 100 columns; r's MAE in °/s, as the diagnosis and the
+    Python API's tables print it (the metrics themselves are SI)."""
     head = f"{'horizon':14s}" + "".join(f"{'R2 ' + d:>9s}{'MAE ' + d:>10s}" for d in DOFS)
-    lines = ([title] if title else []) + [head, "-" * len(head)]
+    lines = ([title] if title else []) + [head + "   (MAE: u, v m/s; r °/s)", "-" * len(head)]
     for name, m in metrics.items():
         cells = []
         for d in DOFS:
             r2, mae = m[d]["r2"], m[d]["mae"]
-            cells.append(f"{'-' if r2 is None else f'{r2:.3f}':>9s}{'-' if mae is None else f'{mae:.4f}':>10s}")
+            shown = None if mae is None else (math.degrees(mae) if d == "r" else mae)
+            cells.append(f"{'-' if r2 is None else f'{r2:.3f}':>9s}{'-' if shown is None else f'{shown:.4f}':>10s}")
         lines.append(f"{name:14s}" + "".join(cells))
     return "\n".join(lines)

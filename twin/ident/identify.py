@@ -142,7 +142,8 @@ class Identification:
 
     def __repr__(self) -> str:
         free = ", ".join(self.chosen.free_groups) if self.chosen else "-"
-        return (f"Identification({self.vessel.name}: {len(self.calibrations)} logs, free groups {free}, "
+        n = len(self.calibrations)
+        return (f"Identification({self.vessel.name}: {n} log{'' if n == 1 else 's'}, free groups {free}, "
                 f"{self.seconds:.0f} s)")
 
     def needed(self) -> list[tuple[str, float]]:
