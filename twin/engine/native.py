@@ -578,14 +578,17 @@ def _build_callback():
         fa = carray(_f64_ptr(_field(db, o_act)), nv)
         fn, fe, fy = fa[dx], fa[dy], fa[dpsi]
         # a 6-DOF hull carries its sea as the second numeric (engine/sixdof.py); its thrusters' load
-        # on the horizontal joints is put back to the level one the 3-DOF twin applies
-        sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv) if _field(mb, o_nnum) >= 2 \
-            else np.empty(0)
+        # on the horizontal joints is put back to the level one the 3-DOF twin applies. A model
+        # with a single numeric (the 3-DOF twin) reads and allocates nothing more per step
+        six = _field(mb, o_nnum) >= 2
         level_n, level_e, level_y = fn, fe, fy
-        if sp.shape[0] > 0:
-            ok, ln, le, ly = seakeeping.level_thrust(sp, psi, carray(_f64_ptr(_field(db, o_afrc)), _field(mb, o_nu)))
-            if ok:
-                level_n, level_e, level_y = ln, le, ly
+        if six:
+            sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
+            if sp.shape[0] > 0:
+                ok, ln, le, ly = seakeeping.level_thrust(sp, psi, carray(_f64_ptr(_field(db, o_afrc)),
+                                                                         _field(mb, o_nu)))
+                if ok:
+                    level_n, level_e, level_y = ln, le, ly
         t0, t1 = c * level_n + s * level_e, -s * level_n + c * level_e
         n_rps, delta, wn, we = 0.0, 0.0, 0.0, 0.0
         uses_mmg, wind_ctrl = p[o_flags + 1] != 0.0, int(p[o_flags + 2])
@@ -612,6 +615,9 @@ def _build_callback():
         qfrc[dx] += c * x0 - s * x1 + level_n - fn
         qfrc[dy] += s * x0 + c * x1 + level_e - fe
         qfrc[dpsi] += x2 + level_y - fy
+        if not six:
+            return
+        sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
         if sp.shape[0] > 0:
             # the horizontal joints keep the 3-DOF hull's rigid-body inertia: the 6-DOF body's own
             # on them (its centre of gravity moved fore or aft as it trims, the rates of heave, pitch
