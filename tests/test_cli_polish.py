@@ -34,6 +34,17 @@ def test_quiet_is_accepted_after_the_command(tmp_path):
     assert done.stderr == ""
 
 
+def test_quiet_holds_for_its_own_run_only(tmp_path):
+    """The command run twice in one process (as the tests and the Python API do): --quiet on the first
+    does not silence the second's notes."""
+    inputs = tmp_path / "big.csv"
+    inputs.write_text("t,thrust_left,thrust_right\n0,500,500\n")  # over the thrusters' bound: a note each
+    args = ("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "2", "--out", tmp_path / "a.csv")
+    quiet, loud = twin(*args, "--quiet"), twin(*args)
+    assert quiet.returncode == loud.returncode == 0
+    assert quiet.stderr == "" and loud.stderr.count("note: ") == 2 and "above the vessel file's bound" in loud.stderr
+
+
 def test_vessel_and_model_together_are_refused(tmp_path):
     model = tmp_path / "m.json"
     shutil.copy(ROOT / "twin" / "model" / "blueboat.json", model)

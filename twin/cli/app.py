@@ -394,6 +394,7 @@ def _os_error(exc: OSError) -> str:
 
 def main() -> None:
     """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
+    _settings["quiet"] = False  # each run's own: a caller may run the command more than once
     try:
         # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
         code = app(args=quiet_anywhere(sys.argv[1:]), prog_name="twin", standalone_mode=False)

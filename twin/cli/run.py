@@ -100,7 +100,7 @@ def simulate(
         note(f"note: {limit.text()}")
     run = result.run
     say(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
-        f"heading {math.degrees(run.eta[-1, 2]) % 360.0:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
+        f"heading {round(math.degrees(run.eta[-1, 2]), 1) % 360.0:.1f}°, u {run.nu[-1, 0]:.3f} m/s")
     six = run.meta.get("six_dof")
     if six is not None:
         deg = 57.29578
