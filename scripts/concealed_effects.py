@@ -1,12 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|second|third|fourth|fifth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|second|third|fourth|fifth|sixth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to fifth sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10), with other magnitudes and
+which magnitudes. The second to sixth sets regroup the same active BlueBoat runs into other
+outings (C, D; E, F; G, H; I, J; K, L) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
+T11, T12), with other magnitudes and
 directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -75,12 +76,14 @@ BLUEBOAT = SHARED / "blueboat"
 ESSO = SHARED / "esso"
 FIT_BLUEBOAT = (218, 221, 222, 223, 226)
 OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228), "E": (216, 220),
-           "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225)}
+           "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225),
+           "K": (225, 228), "L": (220, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
               "T7": "turn_14-Oct-2020_14_17_39.csv", "T8": "turn_14-Sep-2020_14_16_04.csv",
-              "T9": "turn_14-Oct-2020_14_39_54.csv", "T10": "turn_14-Sep-2020_13_39_32.csv"}
+              "T9": "turn_14-Oct-2020_14_39_54.csv", "T10": "turn_14-Sep-2020_13_39_32.csv",
+              "T11": "turn_14-Oct-2020_14_56_07.csv", "T12": "turn_14-Oct-2020_15_21_57.csv"}
 ESSO_DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 TOLERANCE = 0.30  # relative
 TOLERANCE_DEG = 30.0
@@ -179,9 +182,24 @@ PROOF_FIFTH = [
     Case("esso", "T9", "input_late", (0.7,)), Case("esso", "T10", "input_late", (1.0,)),
     Case("esso", "T9", "heading_late", (0.45,)), Case("esso", "T10", "heading_late", (0.35,)),
 ]
-PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH}
+PROOF_SIXTH = [
+    Case("blueboat", "K", "null"), Case("blueboat", "L", "null"),
+    Case("blueboat", "K", "current", (0.15, 130.0)), Case("blueboat", "L", "current", (0.13, 260.0)),
+    Case("blueboat", "K", "antenna", (0.20, -0.25)), Case("blueboat", "L", "antenna", (-0.30, -0.15)),
+    Case("blueboat", "K", "input_late", (0.5,)), Case("blueboat", "L", "input_late", (0.4,)),
+    Case("blueboat", "K", "thruster_scaled", ("left", 0.75)), Case("blueboat", "L", "thruster_scaled", ("right", 0.8)),
+    Case("blueboat", "K", "heading_late", (0.3,)), Case("blueboat", "L", "heading_late", (0.5,)),
+    Case("esso", "T11", "null"), Case("esso", "T12", "null"),
+    Case("esso", "T11", "current", (0.09, 300.0)), Case("esso", "T12", "current", (0.06, 110.0)),
+    Case("esso", "T11", "antenna", (-0.40, -0.20)), Case("esso", "T12", "antenna", (0.35, 0.25)),
+    Case("esso", "T11", "input_late", (0.8,)), Case("esso", "T12", "input_late", (0.5,)),
+    Case("esso", "T11", "heading_late", (0.4,)), Case("esso", "T12", "heading_late", (0.6,)),
+]
+PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
+          "sixth": PROOF_SIXTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
-         "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth"}
+         "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
+         "sixth": "concealed_effects_sixth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
