@@ -546,6 +546,23 @@ def test_fit_on_an_unphysical_edge_is_not_named():
     assert not strong.earns_its_place()
 
 
+def test_a_recording_too_short_for_any_dynamic_finding_says_so():
+    """Seven blocks, every one for a candidate, reach z 2.4 at best in the exact signed-rank test: the
+    answer says that nothing can be named from the dynamics and how much more to record, not that
+    no effect earns its place."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+    from twin.diagnose.search import _signed_rank_z
+
+    assert _signed_rank_z(np.full(9, 0.2)) < 3.0 <= _signed_rank_z(np.full(10, 0.2))
+    d = SimpleNamespace(effects=[], rounds=[], unexplained=[], located=[], fit_before={}, fit_after={},
+                        prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 20, "blocks": 7})
+    (line,) = answer(d)["missing"]
+    assert line.startswith("nothing can be named from the dynamics with 7 blocks of 30 s")
+    assert "at least 1.5 min more" in line
+
+
 def test_the_report_says_the_form_is_off_where_an_edge_fit_was_refused():
     from types import SimpleNamespace
 

@@ -79,7 +79,7 @@ FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates w
 def answer(d) -> dict:
     """What the diagnosis concludes, in the order a user needs it: {"missing": [...], "form": [...],
     "changes": str, "unsettled": [...], "next": [...]} (lines of plain text)."""
-    from .search import REL_EXCESS, Z_MIN, Z_PREFER
+    from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
 
     out = {"missing": [], "form": [], "changes": "", "unsettled": [], "next": []}
     families = set()
@@ -106,7 +106,15 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {r['z']:.1f})")
                 families |= {_family(d, r["name"]), _family(d, e["name"])}
-    if not d.effects:
+    blocks = int(d.windows.get("blocks", (d.windows.get("windows") or 0) // BLOCK_WINDOWS))
+    if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
+        block_s = BLOCK_WINDOWS * float(d.windows.get("length_s") or 0.0)
+        out["missing"].append(
+            f"nothing can be named from the dynamics with {blocks} blocks of {block_s:.0f} s: z {Z_MIN:g} needs "
+            f"{MIN_UNANIMOUS_BLOCKS} blocks or more in which an effect changes the prediction, even with every one "
+            f"for it; at least {(MIN_UNANIMOUS_BLOCKS - blocks) * block_s / 60:.1f} min more of recording with inputs "
+            "(only what the kinematics tell can be named here)")
+    elif not d.effects:
         out["missing"].append(f"no effect of the library earns its place (z ≥ {Z_MIN:g} over the held-out blocks and "
                               f"≥ {100 * REL_EXCESS:.0f} % of the misfit above the noise removed)")
     for u in d.unexplained:

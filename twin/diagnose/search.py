@@ -205,7 +205,9 @@ class Search:
         self.held_order = [w for _, held in self.folds for w in held]  # pooled held-out windows, fold by fold
         index = {id(w): i for i, w in enumerate(windows)}
         self.held_blocks = np.array([self.blocks[index[id(w)]] for w in self.held_order])
-        self.sigma = Objective(prior, [], data, windows, cache).sigma  # one scale for every fold
+        signal_sd = Objective(prior, [], data, windows, cache).sigma
+        horizon_s = data.preps[0].settings.grid_dt * max(w.n for w in windows)
+        self.sigma = dof_scale(prior, np.asarray(noise_sd, float), signal_sd, horizon_s)  # one scale for every fold
         self.noise_var = (np.asarray(noise_sd, float) / self.sigma) ** 2
         self.screening = _spread(self.folds[0][0], SCREEN_WINDOWS)
         self._screen_costs: dict = {}
@@ -752,6 +754,32 @@ def _moved(base: np.ndarray, cand: np.ndarray, dof: np.ndarray, noise_var: np.nd
         return False
     diff2 = (base - cand) ** 2 * noise_var[dof]
     return bool(np.sqrt(np.mean(diff2)) > AFFECT_SIGMA * np.sqrt(np.mean(noise_var)))
+
+
+FORM_LEVEL = 0.68  # the form error's quantile taken as its 1-σ (|error| of a normal variable)
+
+
+def dof_scale(prior: Vessel, noise_sd: np.ndarray, signal_sd: np.ndarray, horizon_s: float) -> np.ndarray:
+    """The scale of each DOF's residual (u, v, r): for a twin that carries its form error (`twin
+    identify` measures it on runs it left out: Vessel.uncertainty["form_error"]), what a residual of
+    that twin is expected to be, √(noise² + form error²), the form error its FORM_LEVEL quantile
+    averaged over the horizons of a window; for one that does not, the spread of the measured
+    signal. Residuals scaled by what is expected of them make every DOF count by what it can tell: a
+    DOF the twin predicts poorly (a catamaran's sway) would otherwise outweigh, with misfit no
+    candidate can remove, the DOFs where an effect shows."""
+    block = (prior.uncertainty or {}).get("form_error") or {}
+    table = block.get("quantiles", {})
+    if not all(k in table for k in "uvr"):
+        return signal_sd
+    h = np.asarray(block["horizon_s"], float)
+    inside = (h > 0) & (h <= horizon_s + 1e-9)
+    if not inside.any():
+        return signal_sd
+    levels = np.asarray(block["levels"], float)
+    form = np.array([np.mean([np.interp(FORM_LEVEL, levels, row) for row in np.asarray(table[k], float)[inside]])
+                     for k in "uvr"])
+    scale = np.sqrt(np.nan_to_num(noise_sd) ** 2 + form ** 2)
+    return np.where(np.isfinite(scale) & (scale > 1e-9), scale, signal_sd)
 
 
 def _signed_rank_z(votes: np.ndarray) -> float:
