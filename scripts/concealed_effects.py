@@ -371,7 +371,7 @@ def run_case(case: Case, twins: dict) -> dict:
             "magnitude": case.magnitude(), "truth": truth_name, "truth_values": truth, "named": named,
             "hit": hit is not None, "within": close, "others": [e["name"] for e in others],
             "exact": (not named) if truth_name is None else (close and not others),
-            "notes": list(d.notes), "seconds": round(seconds, 1)}
+            "notes": list(d.notes), "seconds": round(seconds, 1), "blocks": d.windows.get("blocks")}
 
 
 # ---------------------------------------------------------------- the page
@@ -462,6 +462,8 @@ def boat_drift(work: Path) -> list[dict]:
 def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first",
                timing: list[dict] | None = None, drift: list[dict] | None = None) -> Path:
     tables, lines = [], []
+    # an outing's blocks are its windows' alone, whatever the stage: filled in where a stage did not keep them
+    blocks = {(r["vessel"], r["where"]): r["blocks"] for res in stages.values() for r in res["rows"] if r.get("blocks")}
     for stage, res in stages.items():
         rows = res["rows"]
         s = summary_of(rows)
@@ -471,8 +473,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
                      f"{s['nulls']}")
         tables.append(ResultTable(
             f"{stage}: each case (commit {res['commit']})",
-            ["vessel", "where", "effect", "magnitude", "truth", "named (values)", "exact", "else named", "s"],
-            [[r["vessel"], r["where"], r["kind"], r["magnitude"],
+            ["vessel", "where", "blocks", "effect", "magnitude", "truth", "named (values)", "exact", "else named", "s"],
+            [[r["vessel"], r["where"], blocks.get((r["vessel"], r["where"]), "-"), r["kind"], r["magnitude"],
               "nothing" if r["truth"] is None else f"{r['truth']} ({_values_text(r['truth_values'])})",
               "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
               "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]] for r in rows]))
@@ -497,6 +499,9 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
         ["One thruster's PWM scaled has no one number in the library's form: its truth is the thrust scale of that "
          "thruster that best matches, over the outing's samples, the twin's thrust for the true PWM to its thrust for "
          "the logged one.",
+         "Blocks: the 30-s blocks of windows the diagnosis judges on. With fewer than ten, no effect can earn its "
+         "place from the dynamics (z 3 needs ten blocks or more, every one for it): there only what the kinematics "
+         "tell can be named.",
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
         {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
