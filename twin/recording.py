@@ -175,8 +175,9 @@ class Recording:
 
 def format_summary(summary: dict) -> str:
     """The summary as a few human-readable lines (what `twin info` prints)."""
-    lines = [f"{summary['source']} ({summary['kind']}): {summary['duration_s']:.1f} s, "
-             f"{summary['parameters']} parameters"]
+    # only a log that carries the autopilot's parameters (a DataFlash .bin, an MCAP) says how many
+    params = f", {summary['parameters']} parameters" if summary["parameters"] else ""
+    lines = [f"{summary['source']} ({summary['kind']}): {summary['duration_s']:.1f} s{params}"]
     for name, s in summary["streams"].items():
         if s["samples"]:
             gap = f", {s['gaps']} gaps > {GAP_S:g} s (longest {s['longest_gap_s']:.1f} s)" if s["gaps"] else ""
