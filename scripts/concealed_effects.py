@@ -64,6 +64,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.report import MIN_UNANIMOUS_BLOCKS as MIN_BLOCKS  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from twin.ident.identify import identify, read  # noqa: E402
@@ -200,6 +201,16 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth"}
+
+# what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
+STAGE_METHODS = {
+    ("fifth", "before"): "each velocity's residual scaled by the spread of its measured signal",
+    ("fifth", "after"): "an identified twin's velocities scaled by its own misfit on the recordings (search.dof_scale)",
+    ("sixth", "before"): "each velocity's residual scaled by the spread of its measured signal",
+    ("sixth", "weighed by the form error (not kept)"): "an identified twin's velocities scaled by √(noise² + the form "
+                                                       "error `twin identify` measured on its own runs)",
+    ("sixth", "after"): "an identified twin's velocities scaled by its own misfit on the recordings (search.dof_scale)",
+}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
@@ -376,6 +387,23 @@ def run_case(case: Case, twins: dict) -> dict:
 
 # ---------------------------------------------------------------- the page
 
+def limited_by(row: dict) -> str:
+    """For a concealed effect not named: what the diagnosis said kept it from naming it (its
+    kinematic step's reason for the sensor and timing effects, or too few blocks for the dynamics);
+    "-" where it was named or the case is a null."""
+    if row["truth"] is None or row["hit"]:
+        return "-"
+    kinematic = {"gnss_lever_arm": "gnss_lever_arm", "clock_offset": "clock_offset",
+                 "heading_latency": "heading_latency"}.get(row["truth"])
+    if kinematic:
+        note = next((n for n in row["notes"] if n.startswith(f"{kinematic} from kinematics")), "")
+        if note:
+            return note.split("(", 1)[-1].removesuffix(")").split("; ", 1)[-1]
+    if (row.get("blocks") or 0) < MIN_BLOCKS:
+        return f"{row.get('blocks')} blocks: the dynamics can name nothing"
+    return "did not earn its place in the dynamic search"
+
+
 def _values_text(values: dict) -> str:
     return ", ".join(f"{k} {v:.3g}" for k, v in values.items())
 
@@ -473,11 +501,14 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
                      f"{s['nulls']}")
         tables.append(ResultTable(
             f"{stage}: each case (commit {res['commit']})",
-            ["vessel", "where", "blocks", "effect", "magnitude", "truth", "named (values)", "exact", "else named", "s"],
+            ["vessel", "where", "blocks", "effect", "magnitude", "truth", "named (values)", "exact", "else named",
+             "not named for", "s"],
             [[r["vessel"], r["where"], blocks.get((r["vessel"], r["where"]), "-"), r["kind"], r["magnitude"],
               "nothing" if r["truth"] is None else f"{r['truth']} ({_values_text(r['truth_values'])})",
               "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
-              "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]] for r in rows]))
+              "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
+              limited_by({**r, "blocks": r.get("blocks") or blocks.get((r["vessel"], r["where"]))}),
+              r["seconds"]] for r in rows]))
     proof = PROOFS[proof_set]
     page = ResultPage(
         PAGES[proof_set], "Effects concealed in real logs, found by `twin diagnose` with an identified twin"
@@ -506,6 +537,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
         {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
          **({"boat_pwm_timing": timing} if timing else {}), **({"boat_idle_drift": drift} if drift else {})})
+    page.notes += [f"Stage '{stage}': {STAGE_METHODS[(proof_set, stage)]}." for stage in stages
+                   if (proof_set, stage) in STAGE_METHODS]
     if timing:
         page.tables.append(ResultTable(
             "The BlueBoat's PWM clock from the kinematics, nothing concealed (fit/kinematic.input_timing against the "

@@ -137,6 +137,37 @@ def test_a_scale_effect_frees_only_the_scales_its_training_blocks_pin(prior):
     assert few.fixed == ()
 
 
+def test_an_identified_twin_weighs_each_dof_by_its_own_misfit_there(prior):
+    """A twin that carries its form error (identified on other runs) scales each DOF's residual by
+    √(noise² + its RMS misfit on the recordings): every DOF then costs about as much per sample,
+    however poorly the twin predicts it; a prior keeps the spread of the measured signal."""
+    from dataclasses import replace
+
+    from twin.diagnose.search import dof_scale
+    from twin.fit.objective import Objective
+
+    ds = generate(prior, effects=["linear_damping=Yv:0.4"], n_segments=3, seed=5, noise=PROFILES["realistic"],
+                  segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    preps = [prepare_for(ds.recording, cv, **PREP)]
+    windows = make_windows(preps, 10.0, 10.0, min_length_s=10.0)
+    whole = Objective(prior, [], Measurements(preps, [ds.recording], cv, PREP), windows, ModelCache(0.05))
+    noise = np.array([0.02, 0.02, 0.005])
+    assert np.array_equal(dof_scale(prior, whole, noise), whole.sigma)
+    identified = replace(prior, uncertainty={"form_error": {"quantiles": {}}})
+    scale = dof_scale(identified, whole, noise)
+    r = whole.residuals_of([prior])[0] * whole.sigma[np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]]
+    dof = np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]
+    for k in range(3):
+        assert scale[k] == pytest.approx(np.sqrt(noise[k] ** 2 + np.mean(r[dof == k] ** 2)), rel=1e-9)
+    # sway damping at 0.4 of the twin's: sway is the DOF it misses most against its signal's spread,
+    # and the scale takes that spread's place for it
+    share = np.array([np.mean(r[dof == k] ** 2) for k in range(3)]) / whole.sigma ** 2
+    assert int(np.argmax(share)) == 1
+    per_dof = np.array([np.mean(r[dof == k] ** 2) / scale[k] ** 2 for k in range(3)])
+    assert np.all((per_dof > 0.5) & (per_dof < 1.0))
+
+
 @pytest.mark.parametrize("text", list(CASES))
 def test_candidate_recovers_its_effect(prior, text):
     name, tolerance = CASES[text]

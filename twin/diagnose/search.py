@@ -33,6 +33,14 @@ to the sixth, is not done: judging more near-equal stand-ins gives one of them m
 preferred by chance, and on recordings it had not been chosen on it changed one verdict, for the
 worse.)
 
+Every cost is a sum of squared residuals, each DOF's in units of a scale of its own (dof_scale). For
+a twin identified on other runs (it carries its form error), the scale is what its residual on the
+recordings diagnosed is, √(noise² + its RMS misfit there), so that every DOF costs about as much per
+sample: on runs beyond a twin's own, a DOF it predicts poorly (a catamaran's sway, at R² 0.1-0.2 on
+the BlueBoat's most active runs) would otherwise carry most of every cost, and a block's vote would
+follow that DOF's misfit, which no candidate removes, rather than the DOFs where an effect shows. For
+a prior (no form error) the scale is the spread of each measured signal.
+
 When nothing earns its place but the misfit stays well above the noise, the diagnosis says that
 the twin's form is off (doctor.py: where, how much, what it follows) instead of naming small
 compensating effects.
@@ -205,7 +213,7 @@ class Search:
         self.held_order = [w for _, held in self.folds for w in held]  # pooled held-out windows, fold by fold
         index = {id(w): i for i, w in enumerate(windows)}
         self.held_blocks = np.array([self.blocks[index[id(w)]] for w in self.held_order])
-        self.sigma = Objective(prior, [], data, windows, cache).sigma  # one scale for every fold
+        self.sigma = dof_scale(prior, Objective(prior, [], data, windows, cache), np.asarray(noise_sd, float))
         self.noise_var = (np.asarray(noise_sd, float) / self.sigma) ** 2
         self.screening = _spread(self.folds[0][0], SCREEN_WINDOWS)
         self._screen_costs: dict = {}
@@ -752,6 +760,23 @@ def _moved(base: np.ndarray, cand: np.ndarray, dof: np.ndarray, noise_var: np.nd
         return False
     diff2 = (base - cand) ** 2 * noise_var[dof]
     return bool(np.sqrt(np.mean(diff2)) > AFFECT_SIGMA * np.sqrt(np.mean(noise_var)))
+
+
+def dof_scale(prior: Vessel, whole: Objective, noise_sd: np.ndarray) -> np.ndarray:
+    """The scale of each DOF's residual (u, v, r) in every cost of the search. For a twin identified
+    on other runs (it carries the form error `twin identify` measured: Vessel.uncertainty), what its
+    residual on these recordings is, √(noise² + the twin's RMS misfit²) over every window (`whole`);
+    else the spread of the measured signal. Residuals scaled by what is expected of them count
+    every DOF by what it can tell: on runs beyond a twin's own a DOF it predicts poorly (a
+    catamaran's sway, a misfit no candidate removes) would otherwise outweigh the DOFs where an
+    effect shows, and each block's vote would follow that DOF's misfit."""
+    if not (prior.uncertainty or {}).get("form_error"):
+        return whole.sigma
+    r = whole.residuals_of([prior])[0] * whole.sigma[np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]]
+    dof = np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]
+    misfit = np.array([np.sqrt(np.mean(r[dof == k] ** 2)) if np.any(dof == k) else np.nan for k in range(3)])
+    scale = np.sqrt(np.nan_to_num(noise_sd) ** 2 + misfit ** 2)
+    return np.where(np.isfinite(scale) & (scale > 1e-9), scale, whole.sigma)
 
 
 def _signed_rank_z(votes: np.ndarray) -> float:
