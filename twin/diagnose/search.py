@@ -772,8 +772,8 @@ def dof_scale(prior: Vessel, whole: Objective, noise_sd: np.ndarray) -> np.ndarr
     effect shows, and each block's vote would follow that DOF's misfit."""
     if not (prior.uncertainty or {}).get("form_error"):
         return whole.sigma
-    r = whole.residuals_of([prior])[0] * whole.sigma[np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]]
     dof = np.broadcast_to(np.arange(3), whole.meas.shape)[whole.valid]
+    r = whole.residuals_of([prior])[0] * whole.sigma[dof]  # m/s, m/s, rad/s
     misfit = np.array([np.sqrt(np.mean(r[dof == k] ** 2)) if np.any(dof == k) else np.nan for k in range(3)])
     scale = np.sqrt(np.nan_to_num(noise_sd) ** 2 + misfit ** 2)
     return np.where(np.isfinite(scale) & (scale > 1e-9), scale, whole.sigma)
