@@ -213,6 +213,115 @@ def test_mean_drift_against_the_short_wave_asymptote_and_the_barrier_reflection(
     assert rows[2]["engine"] < 0.02  # long waves pass under the box
 
 
+def test_a_free_hull_drifts_along_the_waves_near_their_stokes_drift(yellowfish, blueboat):
+    for v in (yellowfish, blueboat):  # long waves (λ 25 m): a small hull rides the orbits
+        long = checks.free_drift(v, waves.parse_sea("regular,0.25,4,30"))
+        assert long["stokes_m_s"] == pytest.approx(0.0061, abs=3e-4)
+        assert long["along_m_s"] == pytest.approx(long["stokes_m_s"], abs=0.012), long
+        assert abs(long["across_m_s"]) < 0.003, long
+    short = checks.free_drift(blueboat, waves.parse_sea("0.3,2.5,30,4", 1))
+    # the waves' way, at the order of their Stokes drift, not along the hull's own heading
+    assert 0.5 * short["stokes_m_s"] < short["along_m_s"] < 3.0 * short["stokes_m_s"], short
+    assert abs(short["across_m_s"]) < 0.1 * short["along_m_s"], short
+
+
+def test_a_known_seas_drift_is_the_stokes_drift_a_flow_the_3dof_twin_goes_with(blueboat, tmp_path):
+    from dataclasses import replace
+
+    from twin.drive import InputSeries
+    from twin.engine.mjcf import compile_vessel
+    from twin.engine.sim import simulate
+
+    sea = waves.parse_sea("regular,0.25,4,30")
+    n, e = sixdof.known_sea_drift(blueboat, sea)
+    omega = 2 * math.pi / 4.0
+    k = omega ** 2 / waves.G
+    depth = sixdof.strip_depth_m(sixdof.hull_model(blueboat))
+    assert math.hypot(n, e) == pytest.approx(omega * k * 0.125 ** 2 * math.exp(-2 * k * depth), rel=1e-9)
+    assert math.degrees(math.atan2(e, n)) % 360 == pytest.approx(210.0)  # where the waves go
+    drifting = blueboat.with_environment(replace(blueboat.environment, wave_drift_ned=(n, e)))
+    t = np.arange(0.0, 401.0)
+    idle = InputSeries(t, np.zeros((len(t), 2)), "thrust")
+    run = simulate(compile_vessel(drifting), idle, 400.0, sample_dt_s=1.0)
+    drift = (run.eta[-1, :2] - run.eta[-101, :2]) / (run.t[-1] - run.t[-101])
+    # a free twin goes with the water (its heading still turning slowly in the flow)
+    assert math.hypot(*drift) == pytest.approx(math.hypot(n, e), rel=0.03)
+    assert abs(math.degrees(math.atan2(drift[1], drift[0]) - math.atan2(e, n))) < 5.0
+    vessel_mod.save(drifting, tmp_path / "known.json")
+    assert vessel_mod.load(str(tmp_path / "known.json")).environment.wave_drift_ned == pytest.approx((n, e))
+    vessel_mod.save(blueboat, tmp_path / "plain.json")
+    assert "wave_" not in (tmp_path / "plain.json").read_text()  # files without a sea stay as they were
+    assert sixdof.without_known_sea(drifting).environment.wave_drift_ned == (0.0, 0.0)
+    with pytest.raises(TwinError, match="known flow"):  # the 6-DOF twin takes the sea itself, not twice
+        sixdof.compile_six(compile_vessel(drifting), sea)
+
+
+def test_a_known_load_is_read_by_heading_and_speed_alike_in_both_engines(yellowfish):
+    from dataclasses import replace
+
+    from twin.drive import InputSeries
+    from twin.engine.mjcf import compile_vessel
+    from twin.engine.sim import simulate
+
+    table = np.zeros((sk.KNOWN_HEADINGS, 3, 3))
+    table[0, :, 0] = (-1.0, -4.0, -6.0)  # head seas: the added resistance grows with speed
+    table[2, :, 1] = (-2.0, -2.0, -3.0)  # from starboard: pushed to port
+    block = sk.pack_known_load(math.radians(30.0), (0.0, 1.0, 2.0), table)
+    head = math.radians(30.0)
+    assert sk.known_load(block, head, 0.5) == pytest.approx((-2.5, 0.0, 0.0))
+    assert sk.known_load(block, head, 5.0) == pytest.approx((-6.0, 0.0, 0.0))  # held at the ends
+    assert sk.known_load(block, head, -1.0) == pytest.approx((-1.0, 0.0, 0.0))  # astern as at rest
+    assert sk.known_load(block, head - math.radians(67.5), 1.0) == pytest.approx((0.0, -1.0, 0.0))  # 45°-90°
+    with pytest.raises(ValueError):
+        sk.pack_known_load(0.0, (1.0, 0.0), np.zeros((sk.KNOWN_HEADINGS, 2, 3)))
+    loaded = yellowfish.with_environment(replace(yellowfish.environment, wave_load=tuple(block)))
+    t = np.arange(0.0, 31.0)
+    idle = InputSeries(t, np.zeros((len(t), 2)), "thrust")
+    runs = [simulate(compile_vessel(loaded), idle, 30.0, eta0=(0.0, 0.0, head), backend=b) for b in ("native", "python")]
+    assert np.max(np.abs(runs[0].eta - runs[1].eta)) < 1e-6
+    back = runs[0].eta[-1, :2] @ np.array([math.cos(head), math.sin(head)])
+    assert back < -1.0  # pushed astern by the head seas' load
+    assert abs(runs[0].eta[-1, 2] - head) < 1e-9  # no moment in pure head seas
+
+
+def test_the_mean_load_of_regular_waves_on_the_hull(blueboat):
+    block = sixdof.mean_sea_load(blueboat, waves.parse_sea("regular,0.15,2.5,30"), run_s=10.0)
+    speeds, table = sk.known_table(block)
+    assert tuple(speeds) == sixdof.KNOWN_SPEEDS_M_S
+    head, beam = table[0], table[2]
+    assert head[1, 0] < head[0, 0] - 0.2 and head[2, 0] < head[1, 0]  # an added resistance growing with speed
+    assert abs(beam[0, 1]) < 0.01 and abs(head[0, 1]) < 1e-3  # at rest the Stokes flow carries the hull's drift
+    assert np.allclose(table[6], table[2] * [1.0, -1.0, -1.0])  # from port: the mirror of from starboard
+
+
+def test_identify_evaluate_and_diagnose_take_the_sea_a_log_was_made_in(tmp_path):
+    import json
+
+    from twin_command import twin
+
+    sea = "regular,0.15,2.5,30"
+    done = twin("dataset", "--vessel", "yellowfish", "--segments", "5", "--seed", "3", "--noise", "none",
+                "--sea", sea, "--manoeuvres", "forward_varying,circle_varying", "--out", tmp_path / "waves.csv")
+    assert done.returncode == 0, done.stderr
+    done = twin("evaluate", tmp_path / "waves.csv", "--vessel", "yellowfish", "--sea", sea,
+                "--json", tmp_path / "e.json")
+    assert done.returncode == 0, done.stderr
+    assert "its Stokes drift at the hull, 0.009 m/s towards 210°, a known flow" in done.stdout
+    assert "its mean load on the hull" in done.stdout
+    assert math.hypot(*json.loads((tmp_path / "e.json").read_text())["sea_drift_ned_m_s"]) > 0.005
+    done = twin("identify", tmp_path / "waves.csv", "--vessel", "yellowfish", "--sea", sea, "--params", "Xu",
+                "--max-evaluations", "2", "--out", tmp_path / "twin.json")
+    assert done.returncode == 0, done.stderr
+    assert "wave_" not in (tmp_path / "twin.json").read_text()  # the twin, not the recording's sea
+    done = twin("diagnose", tmp_path / "waves.csv", "--vessel", "yellowfish", "--sea", sea,
+                "--given", "current=0.05,210")
+    assert done.returncode == 0, done.stderr
+    for args, words in ((("--vessel", "cybership1", "--sea", sea), "no hull meshes"),
+                        (("--vessel", "yellowfish", "--sea", "1.0,1.0,30"), "steeper than breaking")):
+        done = twin("evaluate", tmp_path / "waves.csv", *args)
+        assert done.returncode == 2 and words in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
 SHARED = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ardupilot"
 
 

@@ -18,7 +18,7 @@ packages), so importing any part of the package never replaces a function.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .drive import InputSeries
@@ -117,13 +117,28 @@ def calibrate(recordings, vessel: Vessel | str) -> list:
     return calibrate_logs(_recordings(recordings, v), v)[1]
 
 
-def identify(recordings, vessel: Vessel | str, **options):
+def _in_sea(vessel: Vessel, sea) -> Vessel:
+    """The vessel with the steady drift of `sea` (a Sea, `--sea` text or None) a known flow."""
+    from .engine.sixdof import check_sea_for, with_known_sea
+    from .physics.waves import Sea, parse_sea
+
+    if sea is None:
+        return vessel
+    sea = sea if isinstance(sea, Sea) else parse_sea(str(sea))
+    check_sea_for(vessel, sea)
+    return with_known_sea(vessel, sea)
+
+
+def identify(recordings, vessel: Vessel | str, sea=None, **options):
     """`twin identify`: an Identification (.vessel is the identified twin; options as
-    twin.ident.identify.identify)."""
+    twin.ident.identify.identify); sea (a physics.waves.Sea or `--sea` text): the sea the
+    recordings were made in, its steady drift a known flow (`twin identify --sea`)."""
+    from .engine.sixdof import without_known_sea
     from .ident.identify import identify as run
 
-    v = _vessel(vessel)
-    return run(_recordings(recordings, v), v, **options)
+    v = _in_sea(_vessel(vessel), sea)
+    result = run(_recordings(recordings, v), v, **options)
+    return replace(result, vessel=without_known_sea(result.vessel)) if sea is not None else result
 
 
 class Table(list):
@@ -243,16 +258,18 @@ class Evaluation:
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
 
 
-def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None) -> Evaluation:
+def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
+             sea=None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
     where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
-    recording's measured wind a known input (`twin evaluate --wind-measured`)."""
+    recording's measured wind a known input (`twin evaluate --wind-measured`); sea: the sea they
+    were made in, its steady drift a known flow (`--sea`)."""
     from .fit.coverage import from_dict
     from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
     from .fit.windows import ModelCache
     from .ident.identify import calibrate as calibrate_logs, check_wind, prepared
 
-    v = _vessel(vessel)
+    v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
     check_wind(recs, wind)
     if not stride_s > 0:
@@ -386,16 +403,20 @@ class Diagnosis(_Found):
         return Table(rows, f"{self.prior.name}: effects named by the diagnosis" + ("" if rows else " (nothing named)"))
 
 
-def diagnose_recordings(recordings, vessel: Vessel | str, **options):
+def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, **options):
     """`twin diagnose`: a Diagnosis (.effects as Effect objects, .amended, .fit_before/.fit_after,
-    .unexplained); options as twin.diagnose.doctor.diagnose."""
+    .unexplained); options as twin.diagnose.doctor.diagnose; sea: the sea the recordings were made
+    in, its steady drift a known flow (`twin diagnose --sea`; .amended is the twin without it)."""
     from dataclasses import fields
 
     from .diagnose.doctor import diagnose as run
+    from .engine.sixdof import without_known_sea
 
-    v = _vessel(vessel)
+    v = _in_sea(_vessel(vessel), sea)
     found = run(_recordings(recordings, v), v, **options)
     typed = Diagnosis(**{f.name: getattr(found, f.name) for f in fields(found)})
+    if sea is not None:
+        typed.amended = without_known_sea(typed.amended)
     typed.effects = [Effect(e) for e in found.effects]
     return typed
 

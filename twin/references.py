@@ -131,6 +131,8 @@ BIBLIOGRAPHY = _bib(
            1960),
     Source("Ursell-1947", "The effect of a fixed vertical barrier on surface waves in deep water", "F. Ursell",
            "Proceedings of the Cambridge Philosophical Society 43, 374-382", 1947),
+    Source("Stokes-1847", "On the theory of oscillatory waves (the mean drift of a particle under a progressive "
+           "wave)", "G. G. Stokes", "Transactions of the Cambridge Philosophical Society 8, 441-455", 1847),
     Source("Michell-1893", "The highest waves in water", "J. H. Michell", "Philosophical Magazine 36, 430-437", 1893),
 )
 

@@ -160,6 +160,14 @@ def environment_to_dict(env: Environment) -> dict[str, Any]:
     d = asdict(env)
     if not env.wind_by_log:
         del d["wind_by_log"]
+    if not any(env.wave_drift_ned):  # likewise: only a twin given a sea as a known input carries one
+        del d["wave_drift_ned"]
+    else:
+        d["wave_drift_ned"] = list(env.wave_drift_ned)
+    if not env.wave_load:
+        del d["wave_load"]
+    else:
+        d["wave_load"] = list(env.wave_load)
     return d
 
 

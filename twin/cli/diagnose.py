@@ -10,6 +10,7 @@ from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, effect_names, positive, progress_bar, say, say_unlogged_supply,
                   vessel_from, write_json)
+from .run import KNOWN_SEA_HELP, known_sea
 
 
 @app.command("diagnose")
@@ -36,11 +37,13 @@ def diagnose_command(
                                                         "(`twin effects` syntax, e.g. current=0.2,90; repeat for "
                                                         "several, judged together) by the same rule on the same "
                                                         "blocks: can these recordings prove it?"),
+    sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     from ..diagnose.doctor import diagnose
     from ..diagnose.locate import format_located
     from ..diagnose.report import format_text
+    from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
     from ..vessel import save
 
@@ -58,7 +61,9 @@ def diagnose_command(
             raise TwinError(f"--given judges the effects as given, without a search: {', '.join(clash)} does not "
                             "apply (use --json for the figures)")
     library = effect_names(effects)
-    prior = vessel_from(vessel, model, "nominal")
+    prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
+    if sea_line:
+        say(sea_line)
     if given:
         from ..effects import apply_effects
 
@@ -82,7 +87,7 @@ def diagnose_command(
     typer.echo("\nwhere the residual concentrates (every window, twin before):")
     typer.echo(format_located(result.located[:12]))
     if write_model is not None:
-        save(result.amended, write_model)
+        save(without_known_sea(result.amended), write_model)  # the twin, not the recordings' sea
         say(f"wrote {write_model}" + ("" if result.effects else " (nothing named: the twin unchanged)"))
     write_json(json_out, result.to_dict())
     if report is not None:

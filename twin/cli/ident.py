@@ -11,6 +11,7 @@ from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, console, floats, note, positive, progress_bar, say, say_unlogged_supply,
                   seed_from, vessel_from, write_json)
+from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
@@ -103,9 +104,11 @@ def identify_command(
     wind_measured: bool = typer.Option(False, "--wind-measured",
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
+    sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
 ):
     """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
     prior's beliefs, every choice judged on runs left out of the fit."""
+    from ..engine.sixdof import without_known_sea
     from ..fit import simfit
     from ..fit.coverage import span_text
     from ..ident import identify as ident
@@ -119,7 +122,7 @@ def identify_command(
         positive(window, "--window")
     at_least(max_evaluations, 1, "--max-evaluations")
     seed_from(seed)
-    prior = vessel_from(vessel, model, "nominal")
+    prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     weights = tuple(floats(beliefs, "beliefs"))
     chosen_params = tuple(p.strip() for p in params.split(",") if p.strip()) if params else None
     chosen_groups = tuple(g.strip() for g in groups.split(",") if g.strip()) if groups else None
@@ -134,6 +137,8 @@ def identify_command(
                                 greybox=greybox, thruster=thruster, split=split, train=train, repeats=repeats,
                                 seed=seed, max_evaluations=max_evaluations,
                                 sources=[str(r) for r in recordings], progress=progress, wind=wind)
+    if sea_line:
+        say(sea_line)
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, prior)
@@ -157,7 +162,7 @@ def identify_command(
         note(f"note: {text}")
     if result.worse_than_prior:
         note("warning: the twin written predicts runs left out of the fit worse than the prior did")
-    save(result.vessel, out)
+    save(without_known_sea(result.vessel), out)  # the twin, not the sea these recordings were made in
     say(f"wrote {out} (use: twin simulate --model {out}, twin evaluate --model {out} ...)")
     write_json(json_out, result.to_dict())
 
@@ -182,6 +187,7 @@ def evaluate_command(
     wind_measured: bool = typer.Option(False, "--wind-measured",
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
+    sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
@@ -200,7 +206,7 @@ def evaluate_command(
     check_recordings_distinct(recordings)
     positive(stride, "--stride")
     seed_from(seed)  # --band's draws: refused before the run, not after it
-    v = vessel_from(vessel, model, "nominal")
+    v, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     if band and not v.uncertainty:  # said before any work is done
         raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "
                         f"write one with twin identify)")
@@ -217,7 +223,8 @@ def evaluate_command(
     check_wind(recs, wind)  # before any work
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
-           "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none"}
+           "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",
+           "sea_drift_ned_m_s": list(v.environment.wave_drift_ned)}
     names = ", ".join(p.name for p in recordings)
     used = calibrated if calibration else v
     with progress_bar("evaluate") as progress:
@@ -230,6 +237,8 @@ def evaluate_command(
         progress("by manoeuvre", 2, 3)
         out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), 10.0,
                                                       stride, vessel=used, fitted=fitted)
+    if sea_line:
+        say(sea_line)
     for c in calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, v)

@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import typer
 from rich.table import Table
 
@@ -18,6 +19,31 @@ RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 SEA_HELP = ("sea state HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come "
             "from (deg), cosine-power spreading n (none: long-crested); or regular,H,T,DIR (one wave); runs the "
             "6-DOF hull")
+
+
+KNOWN_SEA_HELP = ("the sea the recordings were made in, HS,TP,DIR[,SPREAD] (JONSWAP) or regular,H,T,DIR: its steady "
+                  "drift at the hull (the waves' Stokes drift) is a known flow of every free run, so that a current "
+                  "is only what lies beyond it")
+
+
+def known_sea(vessel, text: Optional[str]):
+    """`--sea` of identify, evaluate and diagnose → (the vessel with the sea's drift a known flow, a
+    line saying so or None); refused on one line for a vessel without hull meshes."""
+    if text is None:
+        return vessel, None
+    from ..engine.sixdof import check_sea_for, with_known_sea
+    from ..physics.seakeeping import known_table
+
+    sea = sea_from(text, 0)
+    check_sea_for(vessel, sea)
+    known = with_known_sea(vessel, sea)
+    n, e = known.environment.wave_drift_ned
+    speeds, table = known_table(known.environment.wave_load)
+    return known, (f"sea {sea.text()}: its Stokes drift at the hull, {math.hypot(n, e):.3f} m/s towards "
+                   f"{math.degrees(math.atan2(e, n)) % 360:.0f}°, a known flow; its mean load on the hull "
+                   f"(measured on its 6-DOF hull at up to {speeds[-1]:g} m/s), up to "
+                   f"{np.max(np.abs(table[..., 0])):.2f} N in surge and {np.max(np.abs(table[..., 1])):.2f} N in "
+                   "sway, a known force")
 
 
 def sea_from(text: Optional[str], seed: int):

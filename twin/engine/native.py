@@ -62,6 +62,7 @@ _FIELDS = (  # (name, number of doubles), in storage order
     ("mmg", mmg.SIZE),  # physics.mmg.FIELDS
     ("fujiwara", fujiwara.SIZE),  # physics.fujiwara.pack
     ("advance", 5),  # advance loss c (√N·s/m, 0: none), thruster y_L, y_R (m), their actuator ids
+    ("sea_load", seakeeping.KNOWN_SIZE),  # a known sea's mean load (physics.seakeeping.pack_known_load; 0: none)
 )
 
 
@@ -90,7 +91,7 @@ def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
     t, env = hydro.terms, hydro.environment
     wind_ctrl = wind_control(model)
     switches = (t.added_mass, t.added_mass_coriolis, t.damping, t.thrust,
-                t.current and env.current_speed_m_s != 0.0,
+                t.current and env.has_flow,
                 t.wind and (env.wind_speed_m_s != 0.0 or wind_ctrl >= 0))
     w = hydro.wind_load
     values = {
@@ -99,13 +100,14 @@ def pack_params(hydro: HydroModel, model: mujoco.MjModel) -> np.ndarray:
         "M_RB": np.ravel(hydro.M_RB), "M_A": np.ravel(hydro.M_A), "M_inv": np.ravel(hydro.M_inv),
         "damping": [getattr(hydro.damping, n) for n in type(hydro.damping).names()],
         "wind_load": (w.frontal_area_m2, w.lateral_area_m2, w.length_m, w.cx, w.cy, w.cn),
-        "current_ned": env.current_ned, "wind_ned": env.wind_ned,
+        "current_ned": env.flow_ned, "wind_ned": env.wind_ned,
         "flags": (float(hydro.munk_moment), float(hydro.mmg is not None), float(wind_ctrl),
                   float(hydro.wind_regression is not None)),
         "mmg_switches": (float(t.mmg_hull), float(t.propeller), float(t.rudder)),
         "mmg": np.zeros(mmg.SIZE) if hydro.mmg is None else hydro.mmg,
         "fujiwara": np.zeros(fujiwara.SIZE) if hydro.wind_regression is None else hydro.wind_regression,
         "advance": _advance(hydro, model),
+        "sea_load": np.asarray(env.wave_load, float) if env.wave_load else np.zeros(seakeeping.KNOWN_SIZE),
     }
     p = np.zeros(NPARAM)
     for name, sl in LAYOUT.items():
@@ -433,12 +435,14 @@ _O_CUR, _O_WIND = LAYOUT["current_ned"].start, LAYOUT["wind_ned"].start
 _O_FLAGS, _O_MSW = LAYOUT["flags"].start, LAYOUT["mmg_switches"].start
 _O_MMG, _O_FUJI, _O_ADV = LAYOUT["mmg"].start, LAYOUT["fujiwara"].start, LAYOUT["advance"].start
 _E_MMG, _E_FUJI = _O_MMG + mmg.SIZE, _O_FUJI + fujiwara.SIZE
+_O_SEAL, _E_SEAL = LAYOUT["sea_load"].start, LAYOUT["sea_load"].stop
 _mmg_force = njit(mmg.mmg_force)  # the physics functions themselves, compiled
 _fujiwara_force = njit(fujiwara.wind_force)
 
 
 @njit
-def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0, thrust_l=0.0, thrust_r=0.0):
+def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0.0, thrust_l=0.0, thrust_r=0.0,
+                     water_u=0.0, water_v=0.0, sea0=0.0, sea1=0.0, sea2=0.0):
     """Body-frame X of `hydrodynamic_force` (N, N, N m) from the packed parameters `p`, and the
     twin's body-frame acceleration ν̇_r (m/s², m/s², rad/s²) those forces give.
 
@@ -446,18 +450,25 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0
     applies by itself (it enters only through the exact ν̇_r of added mass); (n, δ)
     the MMG inputs (rps, rad) and (wn, we) the air's NED velocity when the wind comes
     from the controls (flags, see LAYOUT); thrust_l, thrust_r each thruster's actuator force
-    (N), on which the advance loss acts.
+    (N), on which the advance loss acts. In waves (the 6-DOF hull): (water_u, water_v) the orbital
+    velocity of the water at the hull in the body frame (m/s), which damping, the added mass's
+    Coriolis and the propellers see the hull move through as they see a current, and (sea0, sea1,
+    sea2) the sea's load on surge, sway and yaw (N, N m), which the acceleration the added mass
+    answers includes.
     """
     c, s = np.cos(psi), np.sin(psi)
     ur, vr, rr = u, v, r
     if p[_SW + 4] != 0.0:  # current: ν_r = ν − ν_c
         ur = u - (c * p[_O_CUR] + s * p[_O_CUR + 1])
         vr = v - (-s * p[_O_CUR] + c * p[_O_CUR + 1])
+    # the rigid body's own Coriolis keeps ν_r (the current); the water's orbital motion is not a
+    # steady current and enters where the hull meets the water: damping, C_A, the propellers
+    uw, vw = ur - water_u, vr - water_v
     th = p[_SW + 3] != 0.0
     e0, e1, e2 = (t0, t1, t2) if th else (0.0, 0.0, 0.0)
     if th and p[_O_ADV] != 0.0:  # advance loss −c·√|T0|·(u_r − r·y_i), physics/thrusters.py
-        loss_l = -p[_O_ADV] * np.sqrt(abs(thrust_l)) * (ur - rr * p[_O_ADV + 1])
-        loss_r = -p[_O_ADV] * np.sqrt(abs(thrust_r)) * (ur - rr * p[_O_ADV + 2])
+        loss_l = -p[_O_ADV] * np.sqrt(abs(thrust_l)) * (uw - rr * p[_O_ADV + 1])
+        loss_r = -p[_O_ADV] * np.sqrt(abs(thrust_r)) * (uw - rr * p[_O_ADV + 2])
         e0 = e0 + loss_l + loss_r
         e2 = e2 - p[_O_ADV + 1] * loss_l - p[_O_ADV + 2] * loss_r
     if p[_SW + 5] != 0.0:  # wind sees the true velocity ν
@@ -468,22 +479,25 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0
         else:
             w0, w1, w2 = _wind(p, _O_WL, wn, we, c, s, u, v)
         e0, e1, e2 = e0 + w0, e1 + w1, e2 + w2
+    if p[_O_SEAL] != 0.0:  # a sea known by its mean load (a 3-DOF twin of a log made in waves)
+        k0, k1, k2 = seakeeping.known_load(p[_O_SEAL:_E_SEAL], psi, uw)
+        e0, e1, e2 = e0 + k0, e1 + k1, e2 + k2
     if p[_SW + 2] != 0.0:
-        d0, d1, d2 = _damping(p, _O_DAMP, ur, vr, rr)
+        d0, d1, d2 = _damping(p, _O_DAMP, uw, vw, rr)
         e0, e1, e2 = e0 - d0, e1 - d1, e2 - d2
     if p[_SW + 1] != 0.0:
-        k0, k1, k2 = _coriolis(p, _O_MA, ur, vr, rr)
+        k0, k1, k2 = _coriolis(p, _O_MA, uw, vw, rr)
         if p[_O_FLAGS] == 0.0:  # no Munk moment: the MMG hull's N'_v holds it
             k2 = 0.0
         e0, e1, e2 = e0 - k0, e1 - k1, e2 - k2
     if p[_O_FLAGS + 1] != 0.0:
-        m0, m1, m2, _, _ = _mmg_force(p[_O_MMG:_E_MMG], ur, vr, rr, n, delta, p[_O_MSW] != 0.0,
+        m0, m1, m2, _, _ = _mmg_force(p[_O_MMG:_E_MMG], uw, vw, rr, n, delta, p[_O_MSW] != 0.0,
                                       p[_O_MSW + 1] != 0.0, p[_O_MSW + 2] != 0.0)
         e0, e1, e2 = e0 + m0, e1 + m1, e2 + m2
     f0, f1, f2 = (e0 - t0, e1 - t1, e2 - t2) if th else (e0, e1, e2)
     # the twin's ν̇_r = M⁻¹(external − C_RB(ν_r)ν_r), M = M_RB + M_A (M_RB alone without added mass)
     k0, k1, k2 = _coriolis(p, _O_MRB, ur, vr, rr)
-    b0, b1, b2 = e0 - k0, e1 - k1, e2 - k2
+    b0, b1, b2 = e0 - k0 + sea0, e1 - k1 + sea1, e2 - k2 + sea2
     m = _O_MINV
     a0 = p[m] * b0 + p[m + 1] * b1 + p[m + 2] * b2
     a1 = p[m + 3] * b0 + p[m + 4] * b1 + p[m + 5] * b2
@@ -602,6 +616,17 @@ def _build_callback():
             if wind_ctrl >= 0:
                 wn, we = ctrl[wind_ctrl], ctrl[wind_ctrl + 1]
         thrust_l, thrust_r = 0.0, 0.0
+        # in waves the sea's load comes first: the horizontal model sees the water's orbital
+        # velocity and accelerates its added mass with the sea's load
+        uw, vw, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0, 0.0
+        sea_q = np.zeros(0)
+        if six:
+            sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
+            if sp.shape[0] > 0:
+                sea_q, water = np.zeros(nv), np.zeros(2)
+                seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, sea_q, water)
+                uw, vw = c * water[0] + s * water[1], -s * water[0] + c * water[1]
+                s0, s1, s2 = c * sea_q[dx] + s * sea_q[dy], -s * sea_q[dx] + c * sea_q[dy], sea_q[dpsi]
         if p[o_adv] != 0.0:
             nu_act = _field(mb, o_nu)
             i_l, i_r = int(p[o_adv + 3]), int(p[o_adv + 4])
@@ -610,15 +635,12 @@ def _build_callback():
             afrc = carray(_f64_ptr(_field(db, o_afrc)), nu_act)
             thrust_l, thrust_r = afrc[i_l], afrc[i_r]
         x0, x1, x2, a0, a1, a2 = hydro_force_body(p, psi, u, v, qvel[dpsi], t0, t1, level_y, n_rps, delta, wn, we,
-                                      thrust_l, thrust_r)
+                                                  thrust_l, thrust_r, uw, vw, s0, s1, s2)
         qfrc = carray(_f64_ptr(_field(db, o_pas)), nv)
         qfrc[dx] += c * x0 - s * x1 + level_n - fn
         qfrc[dy] += s * x0 + c * x1 + level_e - fe
         qfrc[dpsi] += x2 + level_y - fy
-        if not six:
-            return
-        sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
-        if sp.shape[0] > 0:
+        if sea_q.shape[0] > 0:
             # the horizontal joints keep the 3-DOF hull's rigid-body inertia: the 6-DOF body's own
             # on them (its centre of gravity moved fore or aft as it trims, the rates of heave, pitch
             # and roll) is taken off at the 3-DOF twin's own acceleration, a function of the state
@@ -636,7 +658,8 @@ def _build_callback():
             qfrc[dx] += bias[dx] + mass * r * r * gn + inertial[dx] - mass * (an - ge * a2)
             qfrc[dy] += bias[dy] + mass * r * r * ge + inertial[dy] - mass * (ae + gn * a2)
             qfrc[dpsi] += bias[dpsi] + inertial[dpsi] - (mass * (gn * ae - ge * an) + p[_O_MRB + 8] * a2)
-            seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, qfrc)
+            for i in range(nv):
+                qfrc[i] += sea_q[i]
 
     signature = types.void(types.voidptr, types.voidptr)
     try:

@@ -25,8 +25,9 @@ and its horizontal motion is the 3-DOF twin's (tests/test_sea.py, `twin crossche
 from __future__ import annotations
 
 import copy
+import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -38,7 +39,7 @@ from ..physics.hydrodynamics import Terms
 from ..physics.hydrostatics import RHO_FRESH_KG_M3, equilibrium, submerged_volume, waterline_for_mass
 from ..vessel import Vessel
 from . import native
-from .mjcf import JOINTS, CompiledVessel, edited_spec
+from .mjcf import JOINTS, CompiledVessel, compile_vessel, edited_spec
 
 SIX_JOINTS = ("down", "pitch", "roll")
 ORDER = ("north", "east", "down", "yaw", "pitch", "roll")
@@ -268,6 +269,140 @@ def sea_components(hull: HullModel, sea: waves.Sea, timestep_s: float) -> waves.
     return waves.components(sea, omega_max=2 * math.pi / t_min)
 
 
+def strip_depth_m(hull: HullModel) -> float:
+    """The strips' mean depth below the waterline (m): where the hull meets the waves' orbits."""
+    return float(np.mean([s.mean_depth for s in hull.strips if s.beam > 0]))
+
+
+def known_sea_drift(vessel: Vessel, sea: waves.Sea) -> tuple[float, float]:
+    """The steady drift (north, east, m/s) a 3-DOF twin takes as a known flow for a sea it is not
+    simulated in (environment.Environment.wave_drift_ned): the Stokes drift [Stokes-1847] of the
+    components the 6-DOF engine would resolve on this hull, at its strips' mean depth. A free 6-DOF
+    hull drifts at about this speed in long waves and faster in short ones (twin.verify.sea.free_drift;
+    docs/results/sea_verification.md), where its own pressure and diffraction loads add to it."""
+    hull = hull_model(vessel)
+    comps = sea_components(hull, sea, _spec(vessel, False).option.timestep)
+    n, e = waves.stokes_drift(comps, strip_depth_m(hull))
+    return float(n), float(e)
+
+
+KNOWN_SPEEDS_M_S = (0.0, 1.0, 2.0, 3.0)  # speeds through the water of the mean-load table
+KNOWN_SETTLE_S = 6.0  # the heave, roll and pitch settle into the waves before the mean is taken
+KNOWN_RUN_S = 30.0  # each run's averaging time: two antithetic runs in an irregular sea, one in a regular
+_KNOWN_SAMPLE_EVERY = 5  # steps between the samples of the mean
+_MEAN_LOADS: dict[str, np.ndarray] = {}
+
+
+def mean_sea_load(vessel: Vessel, sea: waves.Sea, speeds_m_s=KNOWN_SPEEDS_M_S, run_s: float = KNOWN_RUN_S
+                  ) -> np.ndarray:
+    """The mean load of `sea` on the vessel's 6-DOF hull by the waves' heading off the bow (every
+    45°) and its speed through the water: the block of physics.seakeeping.pack_known_load.
+
+    Each entry is a run of the 6-DOF hull driven at that speed and heading without thrust, free in
+    heave, roll and pitch: the mean over the run of the forces that accelerate its surge, sway and
+    yaw in the waves (the sea's load, and damping, added-mass Coriolis and propellers seeing the
+    orbital velocity), after KNOWN_SETTLE_S, less those of the 3-DOF twin moving through the known
+    flow (`known_sea_drift`): the flow and this load together give the 3-DOF twin the mean forces of
+    the 6-DOF hull. An irregular sea is run twice, the second with every
+    component's phase turned by π, so that the first-order load, which changes sign, cancels from
+    the mean and the second-order load, which does not, stays. The hull is taken as port-starboard
+    symmetric (the shipped hulls are): the waves from port are those from starboard mirrored."""
+    vessel = without_known_sea(vessel)
+    key = json.dumps([vessel.to_dict(), sea.to_dict(), list(speeds_m_s), run_s], sort_keys=True, default=str)
+    if key not in _MEAN_LOADS:
+        _MEAN_LOADS[key] = _mean_sea_load(vessel, sea, tuple(float(u) for u in speeds_m_s), run_s)
+    return _MEAN_LOADS[key].copy()
+
+
+def _mean_sea_load(vessel: Vessel, sea: waves.Sea, speeds: tuple[float, ...], run_s: float) -> np.ndarray:
+    flow_n, flow_e = known_sea_drift(vessel, sea)
+    six = compile_six(compile_vessel(vessel), sea)
+    model = six.model
+    data = mujoco.MjData(model)
+    qa, da = (list(a) for a in joint_addresses(model))
+    p = native._params_view(model).copy()
+    inertia = np.linalg.inv(p[native._O_MINV:native._O_MINV + 9].reshape(3, 3))  # M_RB + M_A
+    view = sea_view(model)
+    layout = sk.sea_layout(*(int(view[i]) for i in (sk._NV, sk._NF, sk._NC, sk._NS, sk._ND)))
+    phases = view[layout["comps"]].reshape(-1, 6)[:, 5].copy()
+    h = model.opt.timestep
+    settle = int(round(KNOWN_SETTLE_S / h))
+    half = sk.KNOWN_HEADINGS // 2
+    table = np.zeros((sk.KNOWN_HEADINGS, len(speeds), 3))
+    frm = math.radians(sea.dir_deg)
+    with native.installed_native():
+        for j in range(half + 1):
+            psi = frm - j * 2.0 * math.pi / sk.KNOWN_HEADINGS
+            c, s = math.cos(psi), math.sin(psi)
+            flow = (c * flow_n + s * flow_e, -s * flow_n + c * flow_e)
+            for k, speed in enumerate(speeds):
+                steps = settle + int(round(_averaging_s(sea, j * 2.0 * math.pi / sk.KNOWN_HEADINGS, speed, run_s) / h))
+                samples = []
+                for turn in ((0.0,) if sea.regular else (0.0, math.pi)):
+                    view[layout["comps"]].reshape(-1, 6)[:, 5] = phases + turn
+                    view_now = view.copy()
+                    mujoco.mj_resetData(model, data)
+                    data.qpos[:] = six.initial_qpos((0.0, 0.0, psi))
+                    vn, ve = speed * c, speed * s
+                    for i in range(steps):
+                        data.qvel[da[0]], data.qvel[da[1]], data.qvel[da[3]] = vn, ve, 0.0
+                        mujoco.mj_step(model, data)
+                        data.qpos[qa[0]], data.qpos[qa[1]], data.qpos[qa[3]] = vn * data.time, ve * data.time, psi
+                        data.qvel[da[0]], data.qvel[da[1]], data.qvel[da[3]] = vn, ve, 0.0
+                        if i >= settle and i % _KNOWN_SAMPLE_EVERY == 0:
+                            samples.append(_added_load(view_now, p, inertia, data, da, psi, speed, flow))
+                table[j, k] = np.mean(samples, axis=0)
+    view[layout["comps"]].reshape(-1, 6)[:, 5] = phases
+    for j in range(1, half):  # from port: the mirror of from starboard
+        table[sk.KNOWN_HEADINGS - j] = table[j] * np.array([1.0, -1.0, -1.0])
+    return sk.pack_known_load(frm, speeds, table)
+
+
+def _averaging_s(sea: waves.Sea, off_bow_rad: float, speed: float, run_s: float) -> float:
+    """How long to average a run: `run_s` in an irregular sea; in a regular wave whole periods of
+    encounter, at least three and six seconds, at most `run_s` (following waves nearly at the hull's
+    speed are met too seldom for more)."""
+    if not sea.regular:
+        return run_s
+    omega = 2.0 * math.pi / sea.tp_s
+    met = abs(omega + omega * omega / waves.G * speed * math.cos(off_bow_rad))
+    period = 2.0 * math.pi / max(met, 1e-9)
+    whole = max(3, math.ceil(6.0 / period)) * period
+    return whole if whole <= run_s else run_s
+
+
+def _added_load(sea_packed: np.ndarray, p: np.ndarray, inertia: np.ndarray, data, da, psi: float, speed: float,
+                flow: tuple[float, float]) -> np.ndarray:
+    """What the waves add to the force accelerating surge, sway and yaw of a hull at heading ψ and
+    `speed` over ground (body frame) beyond the 3-DOF twin's in the steady `flow` (body frame, m/s):
+    the sea's load and the 3-DOF forces with the orbital velocity, less those through the flow."""
+    load, water = np.zeros(len(data.qvel)), np.zeros(2)
+    sk.sea_load(sea_packed, data.time, data.qpos, data.qvel, load, water)
+    c, s = math.cos(psi), math.sin(psi)
+    uw, vw = c * water[0] + s * water[1], -s * water[0] + c * water[1]
+    sx, sy, sn = c * load[da[0]] + s * load[da[1]], -s * load[da[0]] + c * load[da[1]], load[da[3]]
+    wet = native.hydro_force_body(p, psi, speed, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, uw, vw,
+                                  sx, sy, sn)
+    calm = native.hydro_force_body(p, psi, speed, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                   flow[0], flow[1])
+    return inertia @ (np.array(wet[3:]) - np.array(calm[3:]))
+
+
+def with_known_sea(vessel: Vessel, sea: waves.Sea | None) -> Vessel:
+    """The 3-DOF twin of a recording made in `sea`: its steady drift (`known_sea_drift`) a known flow
+    and its mean load (`mean_sea_load`) a known force (unchanged without a sea)."""
+    if sea is None:
+        return vessel
+    env = replace(vessel.environment, wave_drift_ned=known_sea_drift(vessel, sea),
+                  wave_load=tuple(float(x) for x in mean_sea_load(vessel, sea)))
+    return vessel.with_environment(env)
+
+
+def without_known_sea(vessel: Vessel) -> Vessel:
+    """The twin without a recording's sea: what identification and diagnosis write."""
+    return vessel.with_environment(replace(vessel.environment, wave_drift_ned=(0.0, 0.0), wave_load=()))
+
+
 def check_sea_for(vessel: Vessel, sea: waves.Sea) -> None:
     """TwinError (one line) unless the vessel can run in `sea`: hull meshes, and a sea its time step
     and wave grid resolve. What a command checks before any work."""
@@ -303,6 +438,9 @@ def compile_six(compiled: CompiledVessel, sea: waves.Sea | None = None, terms: T
     the packed sea second), in calm water without `sea`. `slots`: room for that many wave components
     (the unused ones of zero height), so that another draw of the sea fits in a copy (`reseeded`)."""
     vessel = compiled.vessel
+    if any(vessel.environment.wave_drift_ned) or vessel.environment.wave_load:
+        raise TwinError(f"'{vessel.name}' carries a sea's drift as a known flow of the 3-DOF twin; the 6-DOF twin "
+                        "takes the sea itself (--sea)")
     hull = hull_model(vessel)
     sea_terms = sea_terms or SeaTerms()
     wind_inputs = compiled.wind_inputs if wind_inputs is None else wind_inputs
@@ -357,7 +495,7 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
         off += len(v)
     verts, faces = np.vstack(verts), np.vstack(faces)
     zh = max(hull.z_keel_m - hull.equilibrium[0], 0.02) * 1.5  # below the keel at rest, and some
-    strip_depth = float(np.mean([s.mean_depth for s in hull.strips if s.beam > 0]))
+    strip_depth = strip_depth_m(hull)
     dxs = np.array([s.dx for s in hull.strips])
     a22 = np.array([s.beam * s.draft for s in hull.strips]) * dxs  # the sway share follows the lateral area
     rows = np.column_stack([[s.x for s in hull.strips], [s.y for s in hull.strips], hull.radiation.a33 * dxs,
@@ -378,7 +516,8 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
             drift_c = np.concatenate([drift_c, np.zeros(pad)])
     switches = (sea_terms.waves, sea_terms.diffraction, sea_terms.damping, sea_terms.drift)
     return sk.pack_sea(verts, faces, packed_c, weights, drift_c, rows, hull.drift, grid, switches, qpos, dof,
-                       hull.rho, (am.Xudot, am.Yvdot), thrust_arms=level_thrust_arms(compiled))
+                       hull.rho, (am.Xudot, am.Yvdot), thrust_arms=level_thrust_arms(compiled),
+                       rest_down_m=hull.equilibrium[0])
 
 
 def level_thrust_arms(compiled: CompiledVessel) -> np.ndarray:
@@ -435,13 +574,14 @@ def potential_energy(hull: HullModel, qpos6: np.ndarray) -> float:
 
 
 def free_run(six: SixModel, duration_s: float, offset=(0.0, 0.0, 0.0), qvel0=None, sample_every: int = 1,
-             thrust=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Step the 6-DOF model from its rest displaced by `offset` (down m, pitch rad, roll rad) under a
-    constant thrust command: (times, qpos rows, qvel rows) every `sample_every` steps, in ORDER."""
+             thrust=(0.0, 0.0), eta0=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step the 6-DOF model from its rest at η0 (north m, east m, heading rad) displaced by `offset`
+    (down m, pitch rad, roll rad) under a constant thrust command: (times, qpos rows, qvel rows)
+    every `sample_every` steps, in ORDER."""
     model = six.model
     data = mujoco.MjData(model)
     qpos, dof = joint_addresses(model)
-    data.qpos[:] = six.initial_qpos()
+    data.qpos[:] = six.initial_qpos(eta0)
     for adr, d in zip((qpos[2], qpos[4], qpos[5]), offset):
         data.qpos[adr] += d
     if qvel0 is not None:

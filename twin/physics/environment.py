@@ -6,6 +6,13 @@ Direction conventions, as in each field: the current's direction is where the
 water flows *to* (oceanographic); the wind's is where it blows *from*
 (meteorological). Both in degrees clockwise from north.
 
+A sea the recording was made in moves the water too: `wave_drift_ned` holds its steady drift
+at the hull (the Stokes drift of the waves [Stokes-1847], engine/sixdof.py `known_sea_drift`), a
+known flow the hull moves through beside the current, so that a current fitted or diagnosed is the
+one beyond the waves' own; `wave_load` holds the mean load the waves put on the hull by their
+heading off the bow and the hull's speed (its added resistance and drift force), measured on the
+vessel's own 6-DOF hull (engine/sixdof.py `mean_sea_load`).
+
 The wind of one outing is not that of another: `wind_by_log` holds (log name, speed m/s, from
 deg) triples that replace the constant wind for the recording of that name (a twin replaying
 several logs sees each log's own wind; one without an entry sees the constant wind).
@@ -28,6 +35,8 @@ class Environment:
     wind_speed_m_s: float = 0.0
     wind_dir_deg: float = 0.0
     wind_by_log: tuple[tuple[str, float, float], ...] = ()
+    wave_drift_ned: tuple[float, float] = (0.0, 0.0)  # m/s, a known sea's steady drift (module docstring)
+    wave_load: tuple[float, ...] = ()  # a known sea's mean load (physics.seakeeping.pack_known_load)
 
     def for_log(self, source: str) -> "Environment":
         """The environment of the recording from `source` (a path or name): its own wind, if
@@ -41,6 +50,15 @@ class Environment:
     def current_ned(self) -> np.ndarray:
         a = np.deg2rad(self.current_dir_deg)
         return self.current_speed_m_s * np.array([np.cos(a), np.sin(a)])
+
+    @property
+    def flow_ned(self) -> np.ndarray:
+        """The water's steady velocity the hull moves through (NED, m/s): current and wave drift."""
+        return self.current_ned + np.asarray(self.wave_drift_ned, float)
+
+    @property
+    def has_flow(self) -> bool:
+        return self.current_speed_m_s != 0.0 or any(x != 0.0 for x in self.wave_drift_ned)
 
     @property
     def wind_ned(self) -> np.ndarray:

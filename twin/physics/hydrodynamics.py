@@ -43,6 +43,7 @@ from .damping import Damping, damping_force
 from .environment import Environment, WindLoad, current_body, current_body_rate, wind_force
 from .fujiwara import wind_force as fujiwara_wind_force
 from .mmg import mmg_force
+from .seakeeping import known_load
 from .thrusters import advance_force
 
 
@@ -108,8 +109,8 @@ class HydroModel:
 
 def relative_velocity(model: HydroModel, psi_rad: float, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(ν_r, ν_c) with the current switched by `terms.current`."""
-    if model.terms.current and model.environment.current_speed_m_s != 0.0:
-        nu_c = current_body(psi_rad, model.environment.current_ned)
+    if model.terms.current and model.environment.has_flow:
+        nu_c = current_body(psi_rad, model.environment.flow_ned)
     else:
         nu_c = np.zeros(3)
     return nu - nu_c, nu_c
@@ -129,6 +130,8 @@ def _external_force(model: HydroModel, psi_rad: float, nu: np.ndarray, nu_r: np.
             force = force + np.array(fujiwara_wind_force(model.wind_regression, c, s, nu[0], nu[1], air[0], air[1]))
         else:
             force = force + wind_force(model.wind_load, psi_rad, nu, air)
+    if model.environment.wave_load:
+        force = force + np.array(known_load(np.asarray(model.environment.wave_load, float), psi_rad, nu_r[0]))
     if t.damping:
         force = force - damping_force(model.damping, nu_r)
     if t.added_mass_coriolis:

@@ -462,6 +462,7 @@ HEADER = 48
  _ND, _I0, _J0, _ZBOUND, _XU, _YV, _ON) = range(25)
 _QADR, _DADR = 26, 32  # qpos and dof addresses of north, east, down, yaw, pitch, roll
 _NTHR, _THR, MAX_THRUSTERS = 25, 38, 2  # the thrusters' level load: count, then (actuator, a_x, a_y, a_N) each
+_ZREST = 46  # the body origin's down at rest (m)
 
 
 def sea_layout(nv: int, nf: int, nc: int, ns: int, nd: int) -> dict[str, slice]:
@@ -479,12 +480,13 @@ def sea_layout(nv: int, nf: int, nc: int, ns: int, nd: int) -> dict[str, slice]:
 def pack_sea(verts: np.ndarray, faces: np.ndarray, comps: np.ndarray, weights: np.ndarray, drift_c: np.ndarray,
              strip_rows: np.ndarray, drift: np.ndarray, grid: dict, switches: tuple[bool, bool, bool, bool],
              qpos_adr: tuple[int, ...], dof_adr: tuple[int, ...], rho: float, added_xy: tuple[float, float],
-             active: bool = True, thrust_arms: np.ndarray | None = None) -> np.ndarray:
+             active: bool = True, thrust_arms: np.ndarray | None = None, rest_down_m: float = 0.0) -> np.ndarray:
     """The float64 vector `sea_load` reads. strip_rows (ns, 6): x, y (m), a33·dx (kg), b33·dx (N s/m),
     the strip's share of the surge and of the sway added mass; drift (nd, 3) the table of
     `drift_table`; drift_c (nc) ½ρg R²(k_i T) per component; grid: nx, ny, gx0, gy0, dx, dy, zh,
     i0, j0 (`grid_fields`); switches: Froude-Krylov waves, diffraction, damping, drift;
-    thrust_arms (≤ MAX_THRUSTERS, 4): actuator index and its level load per newton (`level_thrust`)."""
+    thrust_arms (≤ MAX_THRUSTERS, 4): actuator index and its level load per newton (`level_thrust`);
+    rest_down_m: the body origin's down at rest, from which the hull's heave is measured."""
     nv, nf, nc, ns, nd = len(verts), len(faces), len(comps), len(strip_rows), len(drift)
     lay = sea_layout(nv, nf, nc, ns, nd)
     p = np.zeros(lay["end"].start)
@@ -499,6 +501,7 @@ def pack_sea(verts: np.ndarray, faces: np.ndarray, comps: np.ndarray, weights: n
     p[_ZBOUND] = float(np.sum(np.abs(comps[:, 0]))) if nc else 0.0
     p[_XU], p[_YV] = added_xy
     p[_ON] = float(active)
+    p[_ZREST] = rest_down_m
     arms = np.zeros((0, 4)) if thrust_arms is None else np.asarray(thrust_arms, float).reshape(-1, 4)
     if len(arms) > MAX_THRUSTERS:
         raise ValueError(f"at most {MAX_THRUSTERS} thrusters have a level load, got {len(arms)}")
@@ -560,11 +563,16 @@ def level_thrust(p, psi, actuator_force):
 
 
 @njit(cache=True)
-def sea_load(p, t, qpos, qvel, out):
+def sea_load(p, t, qpos, qvel, out, water):
     """Generalised forces of the hull in waves on (north, east, down, yaw, pitch, roll), added to
     out at the packed dof addresses: the pressure load over the wetted mesh (hydrostatics and
     Froude-Krylov), the strips' diffraction and radiation damping, and the wave drift (module
-    docstring). Returns the body-frame drift force (X, Y, N) for the record."""
+    docstring). water (2,) receives the incident wave's horizontal particle velocity (north, east,
+    m/s) at the body origin, at the strips' mean depth below the hull as it heaves: the water the
+    horizontal model sees the hull move through, so that a small hull rides the orbits and drifts
+    with their Stokes drift [Stokes-1847]. Returns the body-frame drift force (X, Y, N) for the record."""
+    water[0] = 0.0
+    water[1] = 0.0
     if p[_ON] == 0.0:
         return 0.0, 0.0, 0.0
     nv, nf, nc, ns, nd = int(p[_NV]), int(p[_NF]), int(p[_NC]), int(p[_NS]), int(p[_ND])
@@ -597,9 +605,21 @@ def sea_load(p, t, qpos, qvel, out):
         weights = p[o_w:o_dc].reshape((7, nc))
         waves.grid_fields(comps, weights, t, ox, oy, cpsi, spsi, dx, dy, nx, ny, fields, phase, int(p[_I0]),
                           int(p[_J0]))
+        # at the strip depth below the heaving hull: the orbits a surface-following body rides
+        heave = z - p[_ZREST]
+        wn_ = 0.0
+        we_ = 0.0
+        for i in range(nc):
+            e = -weights[4, i] * np.exp(-comps[i, 2] * heave) * phase[0, i]
+            wn_ += e * comps[i, 3]
+            we_ += e * comps[i, 4]
+        water[0] = wn_
+        water[1] = we_
     else:
         fields = np.zeros((7, 1))
         phase = np.zeros((2, 1))
+        water[0] = 0.0
+        water[1] = 0.0
     work = np.empty((nv, 5))
     load = np.zeros(6)
     _pressure(verts, faces, x, y, z, R, fields, ox, oy, cpsi, spsi, dx, dy, nx if waves_on else 0, ny,
@@ -702,3 +722,68 @@ def site_ned(eta: np.ndarray, down_m, pitch_rad, roll_rad, site_body_m: np.ndarr
     e = sp * ct * x + (cp * cf + sf * st * sp) * y + (-cp * sf + st * sp * cf) * z
     d = -st * x + ct * sf * y + ct * cf * z
     return eta[:, 0] + n, eta[:, 1] + e, np.asarray(down_m, float) + d
+
+
+# ---------------------------------------------------------------- a sea's mean load, known (3-DOF)
+
+KNOWN_HEADINGS = 8  # waves from every 45° off the bow
+KNOWN_SPEEDS = 6  # at most this many speeds through the water
+KNOWN_SIZE = 3 + KNOWN_SPEEDS + KNOWN_HEADINGS * KNOWN_SPEEDS * 3
+
+
+def pack_known_load(from_rad: float, speeds_m_s, load) -> np.ndarray:
+    """The block `known_load` reads: on, the waves' mean direction (from, rad, NED), the number of
+    speeds, the speeds (m/s, rising, padded) and the mean load (X, Y N; N N m, body frame) per
+    heading of the waves off the bow (0, 45°, ... clockwise: 90° from starboard) and speed; `load`
+    (KNOWN_HEADINGS, n, 3)."""
+    speeds = np.asarray(speeds_m_s, float)
+    load = np.asarray(load, float)
+    n = len(speeds)
+    if not 1 <= n <= KNOWN_SPEEDS or load.shape != (KNOWN_HEADINGS, n, 3) or np.any(np.diff(speeds) <= 0):
+        raise ValueError(f"a known load needs 1-{KNOWN_SPEEDS} rising speeds and a ({KNOWN_HEADINGS}, n, 3) table")
+    out = np.zeros(KNOWN_SIZE)
+    out[0], out[1], out[2] = 1.0, from_rad, n
+    out[3:3 + n] = speeds
+    table = np.zeros((KNOWN_HEADINGS, KNOWN_SPEEDS, 3))
+    table[:, :n] = load
+    out[3 + KNOWN_SPEEDS:] = table.ravel()
+    return out
+
+
+def known_table(block) -> tuple[np.ndarray, np.ndarray]:
+    """(speeds m/s, load (KNOWN_HEADINGS, speeds, 3)) of a `pack_known_load` block."""
+    block = np.asarray(block, float)
+    n = int(block[2])
+    table = block[3 + KNOWN_SPEEDS:].reshape(KNOWN_HEADINGS, KNOWN_SPEEDS, 3)[:, :n]
+    return block[3:3 + n].copy(), table.copy()
+
+
+@njit(cache=True)
+def known_load(block, psi, u_r):
+    """The sea's mean load on surge, sway and yaw (body frame) of a hull heading ψ at u_r through the
+    water, from the block of `pack_known_load`: linear in the waves' heading off the bow and in the
+    speed (held at the ends; astern as at rest)."""
+    if block.shape[0] < 3 or block[0] == 0.0:
+        return 0.0, 0.0, 0.0
+    n = int(block[2])
+    rel = (block[1] - psi) % (2.0 * np.pi)
+    h = rel / (2.0 * np.pi / KNOWN_HEADINGS)
+    j0 = int(h) % KNOWN_HEADINGS
+    j1 = (j0 + 1) % KNOWN_HEADINGS
+    fh = h - int(h)
+    k0, k1, fs = 0, 0, 0.0
+    if n > 1 and u_r > block[3]:
+        k0 = n - 1
+        k1 = n - 1
+        for k in range(n - 1):
+            if u_r <= block[3 + k + 1]:
+                k0, k1 = k, k + 1
+                fs = (u_r - block[3 + k]) / (block[3 + k + 1] - block[3 + k])
+                break
+    base = 3 + KNOWN_SPEEDS
+    out = np.zeros(3)
+    for d in range(3):
+        a = (1.0 - fs) * block[base + (j0 * KNOWN_SPEEDS + k0) * 3 + d] + fs * block[base + (j0 * KNOWN_SPEEDS + k1) * 3 + d]
+        b = (1.0 - fs) * block[base + (j1 * KNOWN_SPEEDS + k0) * 3 + d] + fs * block[base + (j1 * KNOWN_SPEEDS + k1) * 3 + d]
+        out[d] = (1.0 - fh) * a + fh * b
+    return out[0], out[1], out[2]

@@ -238,6 +238,13 @@ def acceleration(c: Components, x, y, z, t: float) -> np.ndarray:
                      np.sum(e * np.cos(th), axis=-1)], axis=-1)
 
 
+def stokes_drift(c: Components, depth_m: float) -> np.ndarray:
+    """The Stokes drift (north, east, m/s) of the components at a depth in deep water [Stokes-1847]:
+    Σ ω k a² e^{−2kz} along each component's direction of travel."""
+    speed = c.omega_rad_s * c.k_rad_m * c.amplitude_m ** 2 * np.exp(-2.0 * c.k_rad_m * depth_m)
+    return np.array([np.sum(speed * np.cos(c.beta_rad)), np.sum(speed * np.sin(c.beta_rad))])
+
+
 # ---------------------------------------------------------------- fields on a grid (numba)
 
 N_FIELDS = 7  # grid_fields: pressure heads at three depths, then at the strip depth: vertical

@@ -13,7 +13,9 @@ on a result page (docs/results/sea_verification.md).
   diffraction and damping [Journee-Massie-2001]), roll RAO's long-wave limit (the hull follows the
   wave slope) and resonance at the natural period;
 - mean drift on the barge against the short-wave asymptote of a wall-sided body [Faltinsen-1990]
-  and the reflection of a fixed barrier [Ursell-1947].
+  and the reflection of a fixed barrier [Ursell-1947];
+- a free hull in waves drifts along them at about the Stokes drift of the water it floats in
+  [Stokes-1847], not along its own heading.
 """
 from __future__ import annotations
 
@@ -263,7 +265,8 @@ def drift(vessel: Vessel, height_m: float = 0.02) -> list[dict]:
         force = np.zeros(six.model.nv)
         samples = []
         for t in np.linspace(0.0, period, 8, endpoint=False):
-            fx, fy, fn = sk.sea_load(sixdof.sea_view(six.model), t, qpos, np.zeros(six.model.nv), force)
+            fx, fy, fn = sk.sea_load(sixdof.sea_view(six.model), t, qpos, np.zeros(six.model.nv), force,
+                                     np.zeros(2))
             samples.append((fx, fy))
         fx, fy = np.mean(samples, axis=0)
         a = height_m / 2
@@ -276,6 +279,28 @@ def drift(vessel: Vessel, height_m: float = 0.02) -> list[dict]:
                     "engine": along / unit, "short_wave_asymptote": 1.0,
                     "with_reflection": float(sk.reflection_squared(np.array([k]), draft)[0])})
     return out
+
+
+def free_drift(vessel: Vessel, sea: waves.Sea, duration_s: float = 150.0, settle_s: float = 20.0) -> dict:
+    """A free hull without thrust in `sea`, from rest heading into the waves: its mean velocity after
+    `settle_s` (a line through its track) along and across the waves' mean direction, against the
+    Stokes drift at the strips' mean depth (waves.stokes_drift): the known flow a 3-DOF twin given
+    this sea moves through (sixdof.known_sea_drift)."""
+    cv = compile_vessel(vessel)
+    six = sixdof.compile_six(cv, sea)
+    depth = sixdof.strip_depth_m(six.hull)
+    stokes = waves.stokes_drift(six.components, depth)
+    toward = math.atan2(stokes[1], stokes[0])
+    t, q, _ = sixdof.free_run(six, duration_s, sample_every=10, eta0=(0.0, 0.0, toward + math.pi))
+    keep = t >= settle_s
+    vn, ve = (float(np.polyfit(t[keep], q[keep, i], 1)[0]) for i in (0, 1))
+    c, s = math.cos(toward), math.sin(toward)
+    x0, x1, _, _ = six.hull.footprint
+    return {"sea": sea.text(), "strip_depth_m": depth, "stokes_m_s": float(np.hypot(*stokes)),
+            "wavelength_over_length": waves.wavelength_m(sea.tp_s) / (x1 - x0),
+            "along_m_s": c * vn + s * ve, "across_m_s": -s * vn + c * ve,
+            "heading_end_deg": float(np.rad2deg(q[-1, 3]) % 360.0),
+            "waves_toward_deg": float(np.rad2deg(toward) % 360.0)}
 
 
 # ---------------------------------------------------------------- speed
