@@ -596,6 +596,10 @@ def _build_callback():
         # with a single numeric (the 3-DOF twin) reads and allocates nothing more per step
         six = _field(mb, o_nnum) >= 2
         level_n, level_e, level_y = fn, fe, fy
+        # in waves the sea's load comes first: the horizontal model sees the water's orbital
+        # velocity and accelerates its added mass with the sea's load
+        uw, vw, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0, 0.0
+        in_sea = False
         if six:
             sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
             if sp.shape[0] > 0:
@@ -603,6 +607,11 @@ def _build_callback():
                                                                          _field(mb, o_nu)))
                 if ok:
                     level_n, level_e, level_y = ln, le, ly
+                sea_q, water = np.zeros(nv), np.zeros(2)
+                seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, sea_q, water)
+                uw, vw = c * water[0] + s * water[1], -s * water[0] + c * water[1]
+                s0, s1, s2 = c * sea_q[dx] + s * sea_q[dy], -s * sea_q[dx] + c * sea_q[dy], sea_q[dpsi]
+                in_sea = True
         t0, t1 = c * level_n + s * level_e, -s * level_n + c * level_e
         n_rps, delta, wn, we = 0.0, 0.0, 0.0, 0.0
         uses_mmg, wind_ctrl = p[o_flags + 1] != 0.0, int(p[o_flags + 2])
@@ -616,17 +625,6 @@ def _build_callback():
             if wind_ctrl >= 0:
                 wn, we = ctrl[wind_ctrl], ctrl[wind_ctrl + 1]
         thrust_l, thrust_r = 0.0, 0.0
-        # in waves the sea's load comes first: the horizontal model sees the water's orbital
-        # velocity and accelerates its added mass with the sea's load
-        uw, vw, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0, 0.0
-        sea_q = np.zeros(0)
-        if six:
-            sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
-            if sp.shape[0] > 0:
-                sea_q, water = np.zeros(nv), np.zeros(2)
-                seakeeping.sea_load(sp, carray(_f64_ptr(db + o_time), 1)[0], qpos, qvel, sea_q, water)
-                uw, vw = c * water[0] + s * water[1], -s * water[0] + c * water[1]
-                s0, s1, s2 = c * sea_q[dx] + s * sea_q[dy], -s * sea_q[dx] + c * sea_q[dy], sea_q[dpsi]
         if p[o_adv] != 0.0:
             nu_act = _field(mb, o_nu)
             i_l, i_r = int(p[o_adv + 3]), int(p[o_adv + 4])
@@ -640,7 +638,7 @@ def _build_callback():
         qfrc[dx] += c * x0 - s * x1 + level_n - fn
         qfrc[dy] += s * x0 + c * x1 + level_e - fe
         qfrc[dpsi] += x2 + level_y - fy
-        if sea_q.shape[0] > 0:
+        if in_sea:
             # the horizontal joints keep the 3-DOF hull's rigid-body inertia: the 6-DOF body's own
             # on them (its centre of gravity moved fore or aft as it trims, the rates of heave, pitch
             # and roll) is taken off at the 3-DOF twin's own acceleration, a function of the state
