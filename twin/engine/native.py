@@ -435,7 +435,7 @@ _O_CUR, _O_WIND = LAYOUT["current_ned"].start, LAYOUT["wind_ned"].start
 _O_FLAGS, _O_MSW = LAYOUT["flags"].start, LAYOUT["mmg_switches"].start
 _O_MMG, _O_FUJI, _O_ADV = LAYOUT["mmg"].start, LAYOUT["fujiwara"].start, LAYOUT["advance"].start
 _E_MMG, _E_FUJI = _O_MMG + mmg.SIZE, _O_FUJI + fujiwara.SIZE
-_O_SEAL, _E_SEAL = LAYOUT["sea_load"].start, LAYOUT["sea_load"].stop
+_O_SEAL = LAYOUT["sea_load"].start
 _mmg_force = njit(mmg.mmg_force)  # the physics functions themselves, compiled
 _fujiwara_force = njit(fujiwara.wind_force)
 
@@ -480,7 +480,7 @@ def hydro_force_body(p, psi, u, v, r, t0, t1, t2, n=0.0, delta=0.0, wn=0.0, we=0
             w0, w1, w2 = _wind(p, _O_WL, wn, we, c, s, u, v)
         e0, e1, e2 = e0 + w0, e1 + w1, e2 + w2
     if p[_O_SEAL] != 0.0:  # a sea known by its mean load (a 3-DOF twin of a log made in waves)
-        k0, k1, k2 = seakeeping.known_load(p[_O_SEAL:_E_SEAL], psi, uw)
+        k0, k1, k2 = seakeeping.known_load(p, psi, uw, _O_SEAL)
         e0, e1, e2 = e0 + k0, e1 + k1, e2 + k2
     if p[_SW + 2] != 0.0:
         d0, d1, d2 = _damping(p, _O_DAMP, uw, vw, rr)

@@ -759,31 +759,35 @@ def known_table(block) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def known_load(block, psi, u_r):
+def known_load(block, psi, u_r, at=0):
     """The sea's mean load on surge, sway and yaw (body frame) of a hull heading ψ at u_r through the
-    water, from the block of `pack_known_load`: linear in the waves' heading off the bow and in the
-    speed (held at the ends; astern as at rest)."""
-    if block.shape[0] < 3 or block[0] == 0.0:
+    water, from the block of `pack_known_load` starting at block[at]: linear in the waves' heading
+    off the bow and in the speed (held at the ends; astern as at rest)."""
+    if block.shape[0] < at + KNOWN_SIZE or block[at] == 0.0:
         return 0.0, 0.0, 0.0
-    n = int(block[2])
-    rel = (block[1] - psi) % (2.0 * np.pi)
+    n = int(block[at + 2])
+    rel = (block[at + 1] - psi) % (2.0 * np.pi)
     h = rel / (2.0 * np.pi / KNOWN_HEADINGS)
     j0 = int(h) % KNOWN_HEADINGS
     j1 = (j0 + 1) % KNOWN_HEADINGS
     fh = h - int(h)
     k0, k1, fs = 0, 0, 0.0
-    if n > 1 and u_r > block[3]:
+    if n > 1 and u_r > block[at + 3]:
         k0 = n - 1
         k1 = n - 1
         for k in range(n - 1):
-            if u_r <= block[3 + k + 1]:
+            if u_r <= block[at + 4 + k]:
                 k0, k1 = k, k + 1
-                fs = (u_r - block[3 + k]) / (block[3 + k + 1] - block[3 + k])
+                fs = (u_r - block[at + 3 + k]) / (block[at + 4 + k] - block[at + 3 + k])
                 break
-    base = 3 + KNOWN_SPEEDS
-    out = np.zeros(3)
-    for d in range(3):
-        a = (1.0 - fs) * block[base + (j0 * KNOWN_SPEEDS + k0) * 3 + d] + fs * block[base + (j0 * KNOWN_SPEEDS + k1) * 3 + d]
-        b = (1.0 - fs) * block[base + (j1 * KNOWN_SPEEDS + k0) * 3 + d] + fs * block[base + (j1 * KNOWN_SPEEDS + k1) * 3 + d]
-        out[d] = (1.0 - fh) * a + fh * b
-    return out[0], out[1], out[2]
+    base = at + 3 + KNOWN_SPEEDS
+    a0 = base + (j0 * KNOWN_SPEEDS + k0) * 3
+    a1 = base + (j0 * KNOWN_SPEEDS + k1) * 3
+    b0 = base + (j1 * KNOWN_SPEEDS + k0) * 3
+    b1 = base + (j1 * KNOWN_SPEEDS + k1) * 3
+    x = (1.0 - fh) * ((1.0 - fs) * block[a0] + fs * block[a1]) + fh * ((1.0 - fs) * block[b0] + fs * block[b1])
+    y = (1.0 - fh) * ((1.0 - fs) * block[a0 + 1] + fs * block[a1 + 1]) + fh * ((1.0 - fs) * block[b0 + 1]
+                                                                               + fs * block[b1 + 1])
+    z = (1.0 - fh) * ((1.0 - fs) * block[a0 + 2] + fs * block[a1 + 2]) + fh * ((1.0 - fs) * block[b0 + 2]
+                                                                               + fs * block[b1 + 2])
+    return x, y, z
