@@ -3,9 +3,10 @@
 The planar joints stay (north, east, yaw) and three more join them in the vessel body, so that the
 body frame is R = Rz(ψ) Ry(θ) Rx(φ) [Fossen-2021] (zyx Euler angles) and the 3-DOF code finds η = (x, y,
 ψ) where it always did: north, east (slides), down (slide, z), yaw (hinge about z), pitch (hinge
-about the yawed y) and roll (hinge about the body x). The horizontal model is today's,
-unchanged: the 3-DOF callback computes surge, sway and yaw forces from (u, v, r) in the heading
-frame and applies them to the north, east and yaw joints. Two things a trimmed or heeled hull
+about the yawed y) and roll (hinge about the body x). The horizontal model is the 3-DOF twin's:
+its callback computes surge, sway and yaw forces from (u, v, r) in the heading frame and applies
+them to the north, east and yaw joints; in waves it sees the hull's velocity relative to the
+water's orbital velocity and accelerates its added mass with the sea's load (docs/method/sea-state.md). Two things a trimmed or heeled hull
 would change there are kept level (engine/native.py), as the 3-DOF twin was identified level:
 the thrusters' load on the horizontal joints is the 3-DOF model's (a thruster tilted with the
 hull still pushes it along its tilted axis in heave, pitch and roll), and the horizontal joints
