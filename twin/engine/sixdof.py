@@ -304,9 +304,9 @@ def mean_sea_load(vessel: Vessel, sea: waves.Sea, speeds_m_s=KNOWN_SPEEDS_M_S, r
     yaw in the waves (the sea's load, and damping, added-mass Coriolis and propellers seeing the
     orbital velocity), after KNOWN_SETTLE_S, less those of the 3-DOF twin moving through the known
     flow (`known_sea_drift`): the flow and this load together give the 3-DOF twin the mean forces of
-    the 6-DOF hull. An irregular sea is run twice, the second with every
-    component's phase turned by π, so that the first-order load, which changes sign, cancels from
-    the mean and the second-order load, which does not, stays. The hull is taken as port-starboard
+    the 6-DOF hull. An irregular sea is run twice, the second time with every component's phase
+    turned by π, so that the first-order load, which changes sign, cancels from the mean and the
+    second-order load, which does not, stays; a regular wave once, over whole periods of encounter. The hull is taken as port-starboard
     symmetric (the shipped hulls are): the waves from port are those from starboard mirrored."""
     vessel = without_known_sea(vessel)
     key = json.dumps([vessel.to_dict(), sea.to_dict(), list(speeds_m_s), run_s], sort_keys=True, default=str)
