@@ -68,6 +68,9 @@ class Sensors:
         psi = np.asarray(psi_rad, float)
         b, c, d, e = self.compass_deviation_deg
         bm, cm = self.compass_motor_deg
+        if not self.varies_with_heading:  # a constant bias: no trigonometry over a whole log
+            shape = np.broadcast_shapes(psi.shape, np.shape(throttle))
+            return np.full(shape, np.radians(self.heading_bias_deg))
         b, c = b + bm * np.asarray(throttle, float), c + cm * np.asarray(throttle, float)
         deg = self.heading_bias_deg + b * np.sin(psi) + c * np.cos(psi) + d * np.sin(2 * psi) + e * np.cos(2 * psi)
         return np.radians(deg)
