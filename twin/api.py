@@ -131,8 +131,9 @@ def _in_sea(vessel: Vessel, sea) -> Vessel:
 
 def identify(recordings, vessel: Vessel | str, sea=None, **options):
     """`twin identify`: an Identification (.vessel is the identified twin; options as
-    twin.ident.identify.identify); sea (a physics.waves.Sea or `--sea` text): the sea the
-    recordings were made in, its steady drift a known flow (`twin identify --sea`)."""
+    twin.ident.identify.identify); sea (a physics.waves.Sea or `--sea` text such as
+    "0.3,2.5,30,4"): the sea the recordings were made in, its Stokes drift a known flow and its mean
+    load on the hull a known force (`twin identify --sea`; .vessel carries neither)."""
     from .engine.sixdof import without_known_sea
     from .ident.identify import identify as run
 
@@ -262,8 +263,9 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
              sea=None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
     where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
-    recording's measured wind a known input (`twin evaluate --wind-measured`); sea: the sea they
-    were made in, its steady drift a known flow (`--sea`)."""
+    recording's measured wind a known input (`twin evaluate --wind-measured`); sea (a
+    physics.waves.Sea or `--sea` text): the sea they were made in, its Stokes drift a known flow and
+    its mean load on the hull a known force (`--sea`)."""
     from .fit.coverage import from_dict
     from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
     from .fit.windows import ModelCache
@@ -405,8 +407,9 @@ class Diagnosis(_Found):
 
 def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, **options):
     """`twin diagnose`: a Diagnosis (.effects as Effect objects, .amended, .fit_before/.fit_after,
-    .unexplained); options as twin.diagnose.doctor.diagnose; sea: the sea the recordings were made
-    in, its steady drift a known flow (`twin diagnose --sea`; .amended is the twin without it)."""
+    .unexplained); options as twin.diagnose.doctor.diagnose; sea (a physics.waves.Sea or `--sea`
+    text): the sea the recordings were made in, its Stokes drift a known flow and its mean load a
+    known force (`twin diagnose --sea`; .amended is the twin without them)."""
     from dataclasses import fields
 
     from .diagnose.doctor import diagnose as run

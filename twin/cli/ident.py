@@ -58,7 +58,7 @@ def dataset_command(
     write_json(truth, ds.truth())
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
     console.print(f"{len(ds.runs)} segments, {total:.0f} s logged ({', '.join(m.name for m in ds.manoeuvres)}); "
-                  f"effects: {', '.join(e.text for e in ds.effects) or 'none'}")
+                  f"effects: {', '.join(e.text for e in ds.effects) or 'none'}", soft_wrap=True)
 
 
 @app.command("effects")

@@ -110,9 +110,9 @@ def answer(d) -> dict:
     if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
         block_s = BLOCK_WINDOWS * float(d.windows.get("length_s") or 0.0)
         out["missing"].append(
-            f"nothing can be named from the dynamics with {blocks} blocks of {block_s:.0f} s: z {Z_MIN:g} needs "
-            f"{MIN_UNANIMOUS_BLOCKS} blocks or more in which an effect changes the prediction, even with every one "
-            f"for it; at least {(MIN_UNANIMOUS_BLOCKS - blocks) * block_s / 60:.1f} min more of recording with inputs "
+            f"nothing can be named from the dynamics with {blocks} blocks of {block_s:.0f} s: the held-out test "
+            f"(z ≥ {Z_MIN:g}) needs {MIN_UNANIMOUS_BLOCKS} blocks or more in which an effect changes the prediction, "
+            "even with every one for it; at least {(MIN_UNANIMOUS_BLOCKS - blocks) * block_s / 60:.1f} min more of recording with inputs "
             "(only what the kinematics tell can be named here)")
     elif not d.effects:
         out["missing"].append(f"no effect of the library earns its place (z ≥ {Z_MIN:g} over the held-out blocks and "

@@ -168,7 +168,8 @@ class Identification:
 
     @property
     def worse_than_prior(self) -> bool:
-        return bool(self.chosen and self.prior_cv and self.chosen.cv.cost > self.prior_cv.cost)
+        # a tenth of a per cent is the cost's own scatter between two fits, not a worse twin
+        return bool(self.chosen and self.prior_cv and self.chosen.cv.cost > self.prior_cv.cost * (1.0 + 1e-3))
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel.name, "calibrations": [c.to_dict() for c in self.calibrations],

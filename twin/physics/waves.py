@@ -97,7 +97,7 @@ def parse_sea(text: str, seed: int = 0) -> Sea:
     parts = [p.strip() for p in text.split(",")]
     regular = parts[0].lower() == "regular"
     numbers = parts[1:] if regular else parts
-    want = "regular,H,T,DIR" if regular else "HS,TP,DIR[,SPREAD]"
+    want = "regular,H,T,DIR" if regular else "HS,TP,DIR[,SPREAD] (or regular,H,T,DIR)"
     if len(numbers) not in ((3,) if regular else (3, 4)):
         raise TwinError(f"--sea expects {want}, got '{text}'")
     try:
