@@ -112,8 +112,8 @@ def answer(d) -> dict:
         out["missing"].append(
             f"nothing can be named from the dynamics with {blocks} blocks of {block_s:.0f} s: the held-out test "
             f"(z ≥ {Z_MIN:g}) needs {MIN_UNANIMOUS_BLOCKS} blocks or more in which an effect changes the prediction, "
-            "even with every one for it; at least {(MIN_UNANIMOUS_BLOCKS - blocks) * block_s / 60:.1f} min more of recording with inputs "
-            "(only what the kinematics tell can be named here)")
+            f"even with every one for it; at least {(MIN_UNANIMOUS_BLOCKS - blocks) * block_s / 60:.1f} min more of "
+            "recording with inputs (only what the kinematics tell can be named here)")
     elif not d.effects:
         out["missing"].append(f"no effect of the library earns its place (z ≥ {Z_MIN:g} over the held-out blocks and "
                               f"≥ {100 * REL_EXCESS:.0f} % of the misfit above the noise removed)")
