@@ -214,12 +214,27 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
                 break
             rows[m.get_type()].append(m)
     text = out.getvalue()
-    dropped = [(reason, n) for reason, n in (
-        ("dataflash: bad message headers skipped", text.count("bad header")),
-        ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
-        ("dataflash: unreadable rest of the log", stopped),
-        ("dataflash: last message cut short (the log is truncated)", int(_ends_inside_a_message(log)))) if n]
+    try:
+        dropped = [(reason, n) for reason, n in (
+            ("dataflash: bad message headers skipped", text.count("bad header")),
+            ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
+            ("dataflash: unreadable rest of the log", stopped),
+            ("dataflash: last message cut short (the log is truncated)", int(_ends_inside_a_message(log)))) if n]
+    finally:
+        _close(log)
     return rows, dropped
+
+
+def _close(log) -> None:
+    """DFReader keeps its file and its memory map open and has no close: both closed here, so that
+    reading a log leaves nothing open."""
+    for name in ("data_map", "filehandle"):
+        handle = getattr(log, name, None)
+        if handle is not None:
+            try:
+                handle.close()
+            except (OSError, ValueError, BufferError):  # already closed, or still viewed: the collector's
+                pass
 
 
 def _ends_inside_a_message(log) -> bool:
