@@ -1,13 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|second|third|fourth|fifth|sixth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|second|third|fourth|fifth|sixth|seventh] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to sixth sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J; K, L) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
-T11, T12), with other magnitudes and
+which magnitudes. The second to seventh sets regroup the same active BlueBoat runs into other
+outings (C, D; E, F; G, H; I, J; K, L; M, N) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
+T11, T12; T13, T14), with other magnitudes and
 directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -78,13 +78,14 @@ ESSO = SHARED / "esso"
 FIT_BLUEBOAT = (218, 221, 222, 223, 226)
 OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228), "E": (216, 220),
            "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225),
-           "K": (216, 224, 225), "L": (220, 224, 228)}
+           "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
               "T7": "turn_14-Oct-2020_14_17_39.csv", "T8": "turn_14-Sep-2020_14_16_04.csv",
               "T9": "turn_14-Oct-2020_14_39_54.csv", "T10": "turn_14-Sep-2020_13_39_32.csv",
-              "T11": "turn_14-Oct-2020_14_56_07.csv", "T12": "turn_14-Oct-2020_15_21_57.csv"}
+              "T11": "turn_14-Oct-2020_14_56_07.csv", "T12": "turn_14-Oct-2020_15_21_57.csv",
+              "T13": "turn_14-Sep-2020_15_58_08.csv", "T14": "turn_cut_14-Sep-2020_16_09_02.csv"}
 ESSO_DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"
 TOLERANCE = 0.30  # relative
 TOLERANCE_DEG = 30.0
@@ -196,11 +197,25 @@ PROOF_SIXTH = [
     Case("esso", "T11", "input_late", (0.8,)), Case("esso", "T12", "input_late", (0.5,)),
     Case("esso", "T11", "heading_late", (0.4,)), Case("esso", "T12", "heading_late", (0.6,)),
 ]
+# T14 runs 270 s (9 blocks of 30 s, under the 10 the dynamics need): both Esso currents go in T13
+PROOF_SEVENTH = [
+    Case("blueboat", "M", "null"), Case("blueboat", "N", "null"),
+    Case("blueboat", "M", "current", (0.11, 340.0)), Case("blueboat", "N", "current", (0.16, 170.0)),
+    Case("blueboat", "M", "antenna", (-0.20, 0.30)), Case("blueboat", "N", "antenna", (0.40, 0.10)),
+    Case("blueboat", "M", "input_late", (0.6,)), Case("blueboat", "N", "input_late", (0.3,)),
+    Case("blueboat", "M", "thruster_scaled", ("right", 0.75)), Case("blueboat", "N", "thruster_scaled", ("left", 0.85)),
+    Case("blueboat", "M", "heading_late", (0.45,)), Case("blueboat", "N", "heading_late", (0.35,)),
+    Case("esso", "T13", "null"), Case("esso", "T14", "null"),
+    Case("esso", "T13", "current", (0.08, 70.0)), Case("esso", "T13", "current", (0.10, 200.0)),
+    Case("esso", "T13", "antenna", (0.40, 0.25)), Case("esso", "T14", "antenna", (-0.30, 0.35)),
+    Case("esso", "T13", "input_late", (0.6,)), Case("esso", "T14", "input_late", (0.9,)),
+    Case("esso", "T13", "heading_late", (0.5,)), Case("esso", "T14", "heading_late", (0.3,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
-          "sixth": PROOF_SIXTH}
+          "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
-         "sixth": "concealed_effects_sixth"}
+         "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
