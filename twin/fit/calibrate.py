@@ -70,7 +70,8 @@ def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
     clock offset acts where the PWM drives the twin: twin.fit.windows.)"""
     sensors = compiled.vessel.sensors.for_log(rec.source)
     return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled),
-                   gnss_latency_s=sensors.gnss_latency_s, heading_latency_s=sensors.heading_latency_s, **kwargs)
+                   gnss_latency_s=sensors.gnss_latency_s, heading_latency_s=sensors.heading_latency_s,
+                   logged_heading=rec.heading if len(rec.heading) else None, **kwargs)
 
 
 # ---------------------------------------------------------------- a log's own calibration, from its kinematics

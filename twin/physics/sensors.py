@@ -72,7 +72,8 @@ class Sensors:
             shape = np.broadcast_shapes(psi.shape, np.shape(throttle))
             return np.full(shape, np.radians(self.heading_bias_deg))
         b, c = b + bm * np.asarray(throttle, float), c + cm * np.asarray(throttle, float)
-        deg = self.heading_bias_deg + b * np.sin(psi) + c * np.cos(psi) + d * np.sin(2 * psi) + e * np.cos(2 * psi)
+        sn, cs = np.sin(psi), np.cos(psi)  # the double angle's from these: half the trigonometry over a log
+        deg = self.heading_bias_deg + b * sn + c * cs + d * (2 * sn * cs) + e * (cs * cs - sn * sn)
         return np.radians(deg)
 
     @property

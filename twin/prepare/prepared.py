@@ -43,7 +43,9 @@
    a dropout took fixes from before it (u off by 2.4 m/s for 0.3 s at L = −0.43 s); held, the
    error is the motion of |L| seconds at the edge.
 0. Outliers (outliers.py): GNSS fixes off their neighbours' track and heading spikes are left out
-   of their streams before anything else, and counted in `dropped`. Fixes a receiver held while
+   of their streams before anything else, and counted in `dropped` (heading spikes found on the
+   heading as logged, before a compass calibration, which moves samples smoothly and makes or removes
+   none). Fixes a receiver held while
    the vessel moved on (outliers.held_fixes) stay in the stream, so they open no dropout, but the
    velocities are taken across them, from the fresh fixes, as across a repeated fix (step 4).
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
@@ -147,14 +149,17 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
             heading_window_s: float | None = None,
             min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US,
-            gnss_latency_s: float = 0.0, heading_latency_s: float = 0.0) -> Prepared:
+            gnss_latency_s: float = 0.0, heading_latency_s: float = 0.0,
+            logged_heading: Stream | None = None) -> Prepared:
     """[Morel-2024 §5.1] data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
     body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
-    fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring."""
+    fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring.
+    logged_heading: the heading as logged, where `rec`'s has been calibrated (same stamps): its
+    spikes are the sensor's, found there (step 0)."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
     for what, latency in (("gnss_latency_s", gnss_latency_s), ("heading_latency_s", heading_latency_s)):
         if not np.isfinite(latency):
@@ -166,7 +171,13 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     north_o, east_o, origin = local_ned(rec.gnss)
     psi_h = np.unwrap(rec.heading["psi_rad"])
     off_track = _flagged(gnss_outliers, north_o, east_o, rec.gnss.t)
-    spiked = _flagged(heading_spikes, psi_h, rec.heading.t)
+    # a spike is the sensor's: a calibration moves every sample by a smooth function of the heading,
+    # which makes or removes none, so spikes are found on the heading as logged (one mask for every
+    # calibration a diagnosis tries) and on a bias's heading less its first sample
+    logged = psi_h
+    if logged_heading is not None and np.array_equal(logged_heading.t, rec.heading.t):
+        logged = np.unwrap(logged_heading["psi_rad"])
+    spiked = _flagged(heading_spikes, logged, rec.heading.t, key=(_offset_free(logged), rec.heading.t))
     if off_track.all() or spiked.all():
         raise TwinError(f"{name}: every GNSS fix or heading sample is an outlier of its neighbours")
     outliers = [(why, n) for why, n in (
@@ -221,8 +232,9 @@ _FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibratio
 # it was (the GNSS under a compass calibration) leaves its outliers as they were
 
 
-def _flagged(rule, *arrays: np.ndarray) -> np.ndarray:
-    key = (rule.__name__, *(_digest(a) for a in arrays))
+def _flagged(rule, *arrays: np.ndarray, key: tuple | None = None) -> np.ndarray:
+    """rule(*arrays), kept by the content of `key` (default: the arrays themselves)."""
+    key = (rule.__name__, *(_digest(a) for a in (arrays if key is None else key)))
     if key not in _FLAGGED:
         if len(_FLAGGED) >= 64:
             _FLAGGED.pop(next(iter(_FLAGGED)))
@@ -358,8 +370,9 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
     its latency later, inside the segment (step 8; latencies: GNSS, heading)."""
     vn, ve, r = (np.full(len(t), np.nan) for _ in range(3))
     # content keys, each array hashed once (a diagnosis prepares one recording hundreds of times)
+    # (a yaw rate is the same for every constant heading bias: the heading is keyed less its first sample)
     keys = {k: _digest(a) for k, a in (("gnss_t", pos.t), ("north", pos["north"]), ("east", pos["east"]),
-                                        ("hdg_t", hdg.t), ("psi", hdg["psi"]), ("grid", t))}
+                                        ("hdg_t", hdg.t), ("psi", _offset_free(hdg["psi"])), ("grid", t))}
     lat_g, lat_h = map(float, latencies_s)
     read_g, read_h = read_times(t, segments, lat_g), read_times(t, segments, lat_h)
     for seg in segments:
@@ -381,6 +394,13 @@ _rates_held = [0]
 def _digest(a: np.ndarray) -> tuple:
     a = np.ascontiguousarray(a)
     return a.shape, a.dtype.str, hash(a.tobytes())
+
+
+def _offset_free(x: np.ndarray) -> np.ndarray:
+    """x less its first value, rounded to 1e-9 (a bias added and taken away differs in the last bits),
+    for keys of results that a constant offset leaves as they were."""
+    x = np.asarray(x, float)
+    return np.round(x - x[0], 9) if len(x) else x
 
 
 def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
