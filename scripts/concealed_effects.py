@@ -1,13 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|second|third|fourth|fifth|sixth|seventh] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|eighth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to seventh sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J; K, L; M, N) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
-T11, T12; T13, T14), with other magnitudes and
+which magnitudes. The second to eighth sets regroup the same active BlueBoat runs into other
+outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
+T11, T12; T13, T14; T13, T14 again), with other magnitudes and
 directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -78,7 +78,8 @@ ESSO = SHARED / "esso"
 FIT_BLUEBOAT = (218, 221, 222, 223, 226)
 OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228), "E": (216, 220),
            "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225),
-           "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228)}
+           "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228),
+           "O": (216, 224, 228), "P": (220, 224, 225)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
@@ -211,11 +212,28 @@ PROOF_SEVENTH = [
     Case("esso", "T13", "input_late", (0.6,)), Case("esso", "T14", "input_late", (0.9,)),
     Case("esso", "T13", "heading_late", (0.5,)), Case("esso", "T14", "heading_late", (0.3,)),
 ]
+# the eighth set takes the last unused BlueBoat outings; no Esso turning test is left unseen, so its Esso
+# cases reuse T13 and T14 with other values
+PROOF_EIGHTH = [
+    Case("blueboat", "O", "null"), Case("blueboat", "P", "null"),
+    Case("blueboat", "O", "current", (0.14, 225.0)), Case("blueboat", "P", "current", (0.12, 30.0)),
+    Case("blueboat", "O", "antenna", (0.25, 0.25)), Case("blueboat", "P", "antenna", (-0.35, -0.10)),
+    Case("blueboat", "O", "input_late", (0.45,)), Case("blueboat", "P", "input_late", (0.35,)),
+    Case("blueboat", "O", "thruster_scaled", ("left", 0.7)), Case("blueboat", "P", "thruster_scaled", ("right", 0.85)),
+    Case("blueboat", "O", "heading_late", (0.3,)), Case("blueboat", "P", "heading_late", (0.55,)),
+    Case("esso", "T13", "null"), Case("esso", "T14", "null"),
+    Case("esso", "T13", "current", (0.12, 310.0)), Case("esso", "T13", "current", (0.07, 120.0)),
+    Case("esso", "T13", "antenna", (-0.35, -0.30)), Case("esso", "T14", "antenna", (0.45, -0.15)),
+    Case("esso", "T13", "input_late", (0.8,)), Case("esso", "T14", "input_late", (0.5,)),
+    Case("esso", "T13", "heading_late", (0.35,)), Case("esso", "T14", "heading_late", (0.6,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
-          "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH}
+          "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
+          "eighth": PROOF_EIGHTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
-         "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh"}
+         "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
+         "eighth": "concealed_effects_eighth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
