@@ -3,15 +3,19 @@ left out of preparation and counted where the user sees them."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from twin.engine.mjcf import compile_vessel
+from twin.fit.calibrate import prepare_for
 from twin.prepare import prepare
 from twin.prepare.outliers import FLOOR_GNSS_M, describe, gnss_outliers, heading_spikes, held_fixes
 from twin.prepare.prepared import local_ned, outlier_counts as counted
 from twin.recording import Recording, Stream
+from twin.vessel import load
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -217,3 +221,20 @@ def test_the_esso_osaka_held_fix_is_found():
     held_t = rec.gnss.t[held_fixes(n, e, rec.gnss.t)]
     stand = held_t[(held_t > 79.0) & (held_t < 82.0)]
     assert stand.min() == pytest.approx(79.5, abs=0.05) and stand.max() == pytest.approx(81.3, abs=0.05)
+
+
+def test_a_compass_calibration_leaves_the_heading_spikes_of_the_log():
+    """Spikes are found on the heading as logged: under a strong compass deviation the calibrated
+    heading is prepared without the logged spike, and its velocities are those of the spike-free log
+    under the same calibration (a spike left in would move r by its jump over the derivative window)."""
+    t, north, east, psi = manoeuvring_track(120.0, 5.0)
+    spiked = psi.copy()
+    spiked[300] += np.radians(30.0)
+    vessel = load("yellowfish")
+    vessel = replace(vessel, sensors=replace(vessel.sensors, compass_deviation_deg=(6.0, -4.0, 2.0, 1.0)))
+    compiled = compile_vessel(vessel)
+    faulty = prepare_for(_recording(t, north, east, spiked), compiled)
+    clean = prepare_for(_recording(t, north, east, psi), compiled)
+    assert dict(faulty.dropped)["heading spikes (outliers)"] == 1
+    assert np.nanmax(np.abs(faulty.r - clean.r)) < 0.02
+    assert np.nanmax(np.abs(faulty.psi - clean.psi)) < 0.02  # the spike left in: about 0.5 rad
