@@ -160,6 +160,8 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, ca
     (("crosscheck", "--duration", "inf"), "--duration must be a positive number"),
     (("montecarlo", "--duration", "inf"), "--duration must be a positive number"),
     (("montecarlo", "--sample-dt", "nan"), "--sample-dt must be a positive number"),
+    (("montecarlo", "--draws", "0"), "--draws must be a whole number of 1 or more"),
+    (("montecarlo", "--draws", "-5"), "--draws must be a whole number of 1 or more"),
     (("dataset", "--seed", "-1"), "--seed must be a whole number ≥ 0"),
     (("identify", "LOG", "--window", "0"), "--window must be a positive number"),
     (("identify", "LOG", "--window", "-1"), "--window must be a positive number"),
@@ -184,11 +186,14 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, ca
     (("dataset-shards", "--sea", "0.3,2.5", "--out", "OUT"), "--sea expects HS,TP,DIR"),
     (("sitl", "--vessel", "esso_osaka"), "propeller-and-rudder ship"),
     (("params", "--model", "."), "is a folder, not a vessel file"),
+    (("simulate", "--out", "."), "is a folder: give a file name"),
+    (("simulate", "--out", "LOG/a.csv"), "is a file, not a folder"),
 ])
 def test_bad_numbers_are_refused_before_any_work(monkeypatch, capsys, kept, args, message):
     root, log, inputs, same = kept
     command, *rest = args
-    rest = [str(log) if a == "LOG" else str(root / a) if a.startswith("OUT") else a for a in rest]
+    rest = [str(log) if a == "LOG" else str(log) + a[3:] if a.startswith("LOG/") else str(root / a)
+            if a.startswith("OUT") else a for a in rest]
     rest = [str(root) if a == "." else a for a in rest]
     outputs = {"simulate": ["--out", root / "a.csv"], "montecarlo": ["--out", root / "m.json"],
                "dataset": ["--out", root / "d.csv"], "identify": ["--out", root / "m.json"]}.get(command, [])

@@ -18,6 +18,7 @@ from twin.fit.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
 from twin.formats import read_recording, write_recording
 from twin.fit.calibrate import prepare_for
+from twin.fit.crossval import each_folds, jackknife_vessels
 from twin.prepare.prepared import prepared_from_run
 from twin.run import Run
 
@@ -417,3 +418,39 @@ def test_identify_fits_the_thrusts_answer_to_the_logged_pack(yellowfish_vessel):
                      manoeuvres=["rc"])
     with pytest.raises(TwinError, match="pack voltage"):
         identify([ds.recording, plain.recording], yellowfish_vessel, groups=("pack voltage",), prior_weights=(1.0,))
+
+
+class _LinearObjective:
+    """The least an objective offers jackknife_vessels: two data per window, a line y = a + b·x."""
+
+    def __init__(self, windows: int):
+        self.n_data = 2 * windows
+        self.x_prior = np.zeros(2)
+
+    def window_index(self):
+        return np.repeat(np.arange(self.n_data // 2), 2)
+
+    def bounds(self):
+        return np.full(2, -np.inf), np.full(2, np.inf)
+
+    def vessel(self, x):
+        return x
+
+
+def test_a_left_out_group_with_no_fitted_window_gets_the_fit_on_every_window():
+    """A log whose windows are all idle is judged, not fitted on: its fold's twin is the whole fit,
+    and every other fold's leaves its own group out (a refusal here once stopped identify on two logs)."""
+    rng = np.random.default_rng(3)
+    obj = _LinearObjective(windows=6)
+    xs = rng.uniform(-1, 1, obj.n_data)
+    jac = np.column_stack([np.ones(obj.n_data), xs])
+    truth = np.array([0.5, -2.0])
+    residual = -(jac @ truth) + 0.1 * rng.standard_normal(obj.n_data)  # r(0) = J·0 − y
+    fit_groups = np.array([0, 0, 0, 1, 1, 1])  # the fitted windows' groups; group 2 (idle) has none
+    twins = jackknife_vessels(obj, np.zeros(2), jac, residual, fit_groups, folds=each_folds(np.array([0, 1, 2])))
+    assert len(twins) == 3
+    whole = np.linalg.lstsq(jac, -residual, rcond=None)[0]
+    assert np.allclose(twins[2], whole)
+    without_first = np.linalg.lstsq(jac[6:], -residual[6:], rcond=None)[0]
+    assert np.allclose(twins[0], without_first)
+    assert not np.allclose(twins[0], whole)

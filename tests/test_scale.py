@@ -1,6 +1,7 @@
 """twin/scale on this machine: seeded batches, the Monte Carlo band and its coverage, sharded
 datasets, fleet diagnoses, and their commands (the Ray executor: test_scale_ray.py)."""
 import json
+import re
 import sys
 from dataclasses import replace
 from types import SimpleNamespace
@@ -277,6 +278,11 @@ def test_montecarlo_command_writes_every_output(vessel, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "40 draws of 10 s" in done.stdout and "distance from nominal" in done.stdout
     band = json.loads(outs[1].read_text())
+    # the heading's band is printed as headings, like u's (not against the nominal): the band's own ends
+    low, high, nominal = map(float, re.search(r"heading \[([-\d.]+), ([-\d.]+)\]° \(nominal ([-\d.]+)°\)",
+                                              done.stdout).groups())
+    ends = np.degrees([band["band"]["psi"]["p05"][-1], band["band"]["psi"]["p95"][-1], band["nominal"]["psi"][-1]])
+    assert np.allclose([low, high, nominal], ends, atol=0.051)
     assert band["draws"] == 40 and len(band["t_s"]) == 21 and band["variation"]["covariance"]
     assert all(p.stat().st_size > 1000 for p in outs)
 

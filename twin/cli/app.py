@@ -198,13 +198,15 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
         if p is None:
             continue
         p = Path(p)
+        if p.is_dir():
+            raise TwinError(f"{option} '{p}' is a folder: give a file name")
         if p.suffix.lower() not in formats:
             raise TwinError(f"{option} '{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
         folder = p.parent
+        if folder.exists() and not folder.is_dir():
+            raise TwinError(f"{option} '{p}': '{folder}' is a file, not a folder")
         if not folder.is_dir():
             raise TwinError(f"{option} '{p}': folder '{folder}' does not exist (create it first)")
-        if p.is_dir():
-            raise TwinError(f"{option} '{p}' is a folder: give a file name")
         if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)) or not _can_create(folder):
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
 

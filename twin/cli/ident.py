@@ -242,8 +242,10 @@ def evaluate_command(
     for c in calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, v)
-    typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"))
-    if calibration:
+    applied = calibration and any(c.heading_bias_deg is not None for c in calibrations)
+    typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"
+                              + ("" if applied or not calibration else " (no log's compass offset was applied)")))
+    if applied:
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre_10s"], "where the 10-s free runs miss, by what the inputs ask "
                                                             "(each group's share of 1 − R²)"))

@@ -166,6 +166,9 @@ def view(
         write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
     say(f"wrote {out} (open with: rerun {out})")
     if png is not None:
+        # a propeller-and-rudder ship's two input channels are its propeller speed and rudder angle
+        ship = all(len(r.prop_rudder) and not len(r.pwm) for r in recordings)
+        label = "propeller n (rps) —\nrudder δ (rad) --" if ship else "PWM (µs)\nleft — right --"
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
-                                                     + (f": real vs twin ({v.name})" if sim else "")))
+                                                     + (f": real vs twin ({v.name})" if sim else ""), label))
         say(f"wrote {png}")

@@ -72,6 +72,8 @@ def montecarlo_command(
     if duration is not None:
         positive(duration, "--duration")
     positive(sample_dt, "--sample-dt")
+    if draws < 1:
+        raise TwinError(f"--draws must be a whole number of 1 or more, got {draws}")
     seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
     variation = _variation(v, vary, effect, covariance)
@@ -141,8 +143,8 @@ def _report(result) -> None:
     dev = b.values["deviation"]
     psi = b.nominal["psi"][-1]
     say(f"at t = {b.t_s[-1]:g} s: distance from nominal median {dev[b.percentiles.index(50.0), -1]:.2f} m, "
-        f"{100 * b.level:g} % within {b.interval('deviation')[1][-1]:.2f} m; heading nominal "
-        f"{k * psi:.1f}° ({k * (b.at('psi', lo_p)[-1] - psi):+.1f}° to {k * (b.at('psi', hi_p)[-1] - psi):+.1f}°), "
+        f"{100 * b.level:g} % within {b.interval('deviation')[1][-1]:.2f} m; heading "
+        f"[{k * b.at('psi', lo_p)[-1]:.1f}, {k * b.at('psi', hi_p)[-1]:.1f}]° (nominal {k * psi:.1f}°), "
         f"u [{b.at('u', lo_p)[-1]:.3f}, {b.at('u', hi_p)[-1]:.3f}] m/s ({100 * b.level:g} % band)")
 
 

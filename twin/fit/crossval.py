@@ -144,7 +144,8 @@ def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: 
                       fixed: np.ndarray | None = None, at: np.ndarray | None = None,
                       folds: list[np.ndarray] | None = None) -> list[Vessel]:
     """θ₋ₖ for each held-out group k of the objective's windows (module docstring), as vessels:
-    fitted without the groups folds[k] (default: k alone). fixed: coordinates held at `at`
+    fitted without the groups folds[k] (default: k alone), one per fold: a group none of whose windows
+    the objective fits (all idle) gets the twin fitted on every window. fixed: coordinates held at `at`
     (default: the prior) instead of refitted; the step then starts by moving them there."""
     n = obj.n_data
     runs = groups[obj.window_index()]
@@ -157,7 +158,7 @@ def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: 
     lo, hi = obj.bounds()
     out = []
     folds = folds if folds is not None else each_folds(groups)
-    for k in range(int(groups.max()) + 1):
+    for k in range(len(folds)):
         keep = np.ones(len(r), bool)
         keep[:n] = ~np.isin(runs, folds[k])
         delta = np.zeros(len(x))

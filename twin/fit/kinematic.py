@@ -117,7 +117,7 @@ class KinematicFinding:
         vals = ", ".join(f"{k} {v:+.3g}" + (f" ± {self.sigma[k]:.2g}" if self.sigma.get(k) else "")
                          for k, v in self.change.items())
         state = "named" if self.told else ("not there" if self.absent else "not told")
-        return f"{self.effect} from kinematics: {state} ({vals}; {self.why})"
+        return f"{self.effect} from kinematics: {state} ({'; '.join(x for x in (vals, self.why) if x)})"
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "values": self.values, "change": self.change, "sigma": self.sigma,
@@ -199,7 +199,8 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
         return KinematicFinding("gnss_lever_arm", values, change, sigma, told, absent, why, basis, detail or {})
 
     if len(groups) < MIN_GROUPS:
-        return finding({}, {}, False, False, f"{len(groups)} groups of large heading changes; {MIN_GROUPS} are needed")
+        return finding({}, {}, False, False, f"{len(groups)} group{'' if len(groups) == 1 else 's'} of large heading changes; "
+                       f"{MIN_GROUPS} are needed")
     if not both:
         return finding({}, {}, False, False, f"spins of one hand only ({MIN_WINDOWS_EACH_HAND} of each are needed): "
                        "a creep through the water cannot be told from the antenna")

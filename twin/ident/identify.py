@@ -204,18 +204,6 @@ def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: st
     return out, notes
 
 
-def _check_judged(informative: list, every: list, preps: list[Prepared], window_s: float) -> None:
-    """Refuse, before the fits, windows too few to judge on left-out runs: the fit leaves out the
-    groups of its (informative) windows and the judging those of every window, so a last group
-    with no informative window would have no twin fitted without it."""
-    fit_groups, _ = held_out_groups(informative, preps)
-    judge_groups, names = held_out_groups(every, preps)
-    if int(fit_groups.max()) < int(judge_groups.max()):
-        raise TwinError(f"too few windows: only {len(informative)} of the {len(every)} windows of {window_s:g} s have "
-                        f"the thrusters working or the boat moving, none in {names[int(judge_groups.max())]}, so the "
-                        "fit cannot be judged on left-out runs (record more driving)")
-
-
 def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, ...] | None = None,
              params: tuple[str, ...] | None = None, prior_weights: tuple[float, ...] = PRIOR_WEIGHTS,
              anchor: str = "mass", window_s: float | None = None, start: str = "free", calibrated: bool = True,
@@ -262,7 +250,6 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     if len(informative) < 3:
         raise TwinError(f"only {len(informative)} windows of {window_s:g} s with the thrusters working or the boat "
                         "moving: nothing to identify (record some driving)")
-    _check_judged(informative, every, preps, window_s)
     fits, previous = {}, None
     for k, weight in enumerate(sorted(prior_weights, key=lambda w: abs(np.log(w / START_WEIGHT)))):
         say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {weight:g} windows",

@@ -88,7 +88,7 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
-def comparison_png(runs: dict, title: str) -> bytes:
+def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft — right --") -> bytes:
     """Track on the water (east vs north) and u, r against time, one colour per run."""
     import matplotlib
 
@@ -109,7 +109,7 @@ def comparison_png(runs: dict, title: str) -> bytes:
         if np.any(np.isfinite(run.pwm_us)):
             axes[2].plot(run.t, run.pwm_us[:, 0], color=colour, lw=0.8, ls="-")
             axes[2].plot(run.t, run.pwm_us[:, 1], color=colour, lw=0.8, ls="--")
-    axes[2].set_ylabel("PWM (µs)\nleft — right --")
+    axes[2].set_ylabel(inputs_label)
     axes[2].set_xlabel("t (s)")
     track.set_xlabel("east (m)")
     track.set_ylabel("north (m)")
