@@ -625,12 +625,11 @@ def sea_load(p, t, qpos, qvel, out, water):
     _pressure(verts, faces, x, y, z, R, fields, ox, oy, cpsi, spsi, dx, dy, nx if waves_on else 0, ny,
               p[_ZH], p[_RHOG], work, load)
     fx, fy, fz, mx, my, mz = load[0], load[1], load[2], load[3], load[4], load[5]
-    # angular velocity (NED) from the joint rates: ψ̇ e_z + θ̇ Rz(ψ) e_y + φ̇ R e_x
-    wpsi, wth, wphi = qvel[d3], qvel[d4], qvel[d5]
+    # angular velocity (NED) from the joint rates, ψ̇ e_z + θ̇ Rz(ψ) e_y + φ̇ R e_x: its horizontal part
+    wth, wphi = qvel[d4], qvel[d5]
     wx_ = -spsi * wth + R[0, 0] * wphi
     wy_ = cpsi * wth + R[1, 0] * wphi
-    wz_ = wpsi + R[2, 0] * wphi
-    vx, vy, vz = qvel[d0], qvel[d1], qvel[d2]
+    vz = qvel[d2]
     diff_on = nc > 0 and p[_DIFF] != 0.0
     damp_on = p[_DAMP] != 0.0
     if diff_on or damp_on:
