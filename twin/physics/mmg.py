@@ -36,6 +36,12 @@ keeping the standard exact inside it (each extension says why; identification ma
   * resistance −R'_0 U² is multiplied by f = clip(2u/U, −1, 1): 1 (the standard) for drift
     angles up to 60°, no surge resistance when moving broadside, opposing the motion astern
     (the standard's −R'_0U² would push a ship going astern further astern);
+  * astern the hull meets the water stern first. Taken fore-aft symmetric, its forces at (u, v, r)
+    with u < 0 are the forward ones at (|u|, v, −r) with X and N reversed: the terms of X even in v'
+    and r', of Y odd in r' and of N odd in v' change sign. They are multiplied by f as R'_0 is, so
+    the standard stands ahead up to 60° of drift, and moving broadside a hull turns no sway into yaw
+    nor yaw into sway, as a symmetric hull does not. (The standard's polynomial, taken as it is
+    astern, turns the Munk moment's sign: a hull backing with a drift yawed the wrong way.);
   * β = atan2(−v_m, |u|) (the standard's β for u ≥ 0; astern the drift angle is measured from
     the stern), 1 − w_P = 1 for u < 0 (no wake ahead of the propeller when going astern);
   * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
@@ -250,12 +256,14 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
         r0 = p[h]
         if p[_FF] > 0.0:  # R'_0 along the friction line (ittc57_cf written out: numba compiles this function alone)
             r0 += p[_FF] * (0.075 / (math.log10(max(Un * p[_LNU], 1e3)) - 2.0) ** 2 - p[_CFREF])
-        X += q * (-r0 * U * U * f + U2 * (p[h + 1] * vp * vp + p[h + 2] * vp * rp + p[h + 3] * rp * rp
-                                             + p[h + 4] * vp * vp * vp * vp))
-        Y += q * U2 * (p[h + 5] * vp + p[h + 6] * rp + p[h + 7] * vp * vp * vp + p[h + 8] * vp * vp * rp
-                       + p[h + 9] * vp * rp * rp + p[h + 10] * rp * rp * rp)
-        N += q * L * U2 * (p[h + 11] * vp + p[h + 12] * rp + p[h + 13] * vp * vp * vp + p[h + 14] * vp * vp * rp
-                           + p[h + 15] * vp * rp * rp + p[h + 16] * rp * rp * rp)
+        # astern the hull meets the water stern first (module docstring): the terms even in v and r of
+        # X, odd in r of Y and odd in v of N change sign with f, as R'_0's does
+        X += q * (-r0 * U * U * f + U2 * (f * (p[h + 1] * vp * vp + p[h + 3] * rp * rp + p[h + 4] * vp * vp * vp * vp)
+                                             + p[h + 2] * vp * rp))
+        Y += q * U2 * (p[h + 5] * vp + f * p[h + 6] * rp + p[h + 7] * vp * vp * vp + f * p[h + 8] * vp * vp * rp
+                       + p[h + 9] * vp * rp * rp + f * p[h + 10] * rp * rp * rp)
+        N += q * L * U2 * (f * p[h + 11] * vp + p[h + 12] * rp + f * p[h + 13] * vp * vp * vp + p[h + 14] * vp * vp * rp
+                           + f * p[h + 15] * vp * rp * rp + p[h + 16] * rp * rp * rp)
     # propeller, eqs. 10-16: the wake in manoeuvring motion (eqs. 15-16), the thrust multiplied
     # through by n² so that it stays finite at n = 0
     D = p[_DP]
