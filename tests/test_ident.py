@@ -454,3 +454,22 @@ def test_a_left_out_group_with_no_fitted_window_gets_the_fit_on_every_window():
     without_first = np.linalg.lstsq(jac[6:], -residual[6:], rcond=None)[0]
     assert np.allclose(twins[0], without_first)
     assert not np.allclose(twins[0], whole)
+
+
+def test_a_free_run_that_runs_away_is_scored_as_diverged_and_the_table_says_so(yellowfish_vessel):
+    """A candidate whose free runs grow to 1e9 m/s stays below MuJoCo's own bound; scored by its
+    finite error it would show a cost of about 1e21 and no reason."""
+    from twin.fit.crossval import CrossValidation, score_run
+    from twin.ident.identify import Choice, Identification, format_choices
+
+    meas = np.zeros((2, 5, 3))
+    sane = score_run("calm", meas + 0.1, meas, np.ones(3))
+    wild = meas + 0.1
+    wild[1, 3:, 0] = 1e9
+    runaway = score_run("wild", wild, meas, np.ones(3))
+    assert runaway.metrics["u"]["diverged"] == 2 and runaway.metrics["u"]["r2"] is None
+    assert runaway.cost == pytest.approx(100.0 * 2 + 0.01 * 28) and sane.cost == pytest.approx(0.01 * 30)
+    ident = Identification(yellowfish_vessel, yellowfish_vessel, None, choices=[
+        Choice("beliefs ×1", 1.0, ("surge",), CrossValidation("beliefs ×1", [sane, runaway]))])
+    row = format_choices(ident).splitlines()[-1]
+    assert "ran away on 1 of 2 left-out runs" in row and "e+2" not in row

@@ -37,6 +37,9 @@ from .windows import ModelCache, Window, as_measured, make_windows, measured, pr
 
 MIN_RUNS = 3
 BLOCKS = 4
+# a free run past this speed (m/s, or rad/s of yaw) has run away, though it stays below MuJoCo's
+# own divergence bound (1e10): scored as its finite error it would swamp every other run's cost
+RUNAWAY = 1e3
 
 
 def held_out_groups(windows: list[Window], preps: list[Prepared]) -> tuple[np.ndarray, list[str]]:
@@ -198,7 +201,9 @@ def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], window
 
 
 def score_run(log: str, pred: np.ndarray, meas: np.ndarray, sigma: np.ndarray) -> RunScore:
-    """R²/MAE per DOF and the σ-scaled squared error of one run's free runs."""
+    """R²/MAE per DOF and the σ-scaled squared error of one run's free runs (a free run beyond
+    RUNAWAY counts as diverged)."""
+    pred = np.where(np.abs(pred) > RUNAWAY, np.inf, pred)
     metrics = r2_mae(pred, meas)
     err = (pred - meas) / sigma
     ok = np.isfinite(meas)

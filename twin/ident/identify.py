@@ -497,8 +497,10 @@ def format_choices(ident: Identification) -> str:
     head = f"{'configuration':{width}s} {'cost':>9s} " + " ".join(f"{'R2 ' + d + ' med':>9s}" for d in "uvr")
     lines = [head, "-" * len(head)]
     for label, cv in marked:
-        cells = " ".join(f"{(s[0] if (s := cv.spread(d)) else float('nan')):9.3f}" for d in "uvr")
-        lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}")
+        cells = " ".join(f"{s[0]:9.3f}" if (s := cv.spread(d)) else f"{'-':>9s}" for d in "uvr")
+        ran_away = sum(any(m.get("diverged", 0) for m in r.metrics.values()) for r in cv.runs)
+        note = f"  (ran away on {ran_away} of {len(cv.runs)} left-out runs)" if ran_away else ""
+        lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}{note}")
     return "\n".join(lines)
 
 
