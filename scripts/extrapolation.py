@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import evaluate, fitted_envelope, misfit_by_manoeuvre  # noqa: E402
-from twin.fit.extrapolation import activities, by_activity, by_family, by_input_level  # noqa: E402
+from twin.fit.extrapolation import activities, by_activity, by_day, by_family, by_input_level  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
@@ -63,13 +63,16 @@ def _split_of(name: str, recs, preps):
         return by_family([log_name(r.source) for r in recs], "random")
     if name == "esso_turn_random":
         return by_family([log_name(r.source) for r in recs], "turn")
+    if name == "esso_turn_day":
+        return by_day([log_name(r.source) for r in recs], "14-Sep-2020", family="turn")
     raise SystemExit(f"unknown split {name}")
 
 
 BAND_DRAWS = 50  # parameter draws of the 90 % band (30-s free runs)
 SPLITS = {"blueboat_activity": ("blueboat", (None,)), "esso_rps": ("esso_osaka", (None, "measured")),
           "esso_random_turn": ("esso_osaka", (None, "measured")),
-          "esso_turn_random": ("esso_osaka", (None, "measured"))}
+          "esso_turn_random": ("esso_osaka", (None, "measured")),
+          "esso_turn_day": ("esso_osaka", (None, "measured"))}
 
 
 def scores(vessel, recs, settings: dict, wind, seen) -> dict:
@@ -154,7 +157,7 @@ def page(parts: list[dict]) -> ResultPage:
         data="the ten shared BlueBoat runs [BlueBoat-SI] and 23 Esso Osaka free-running tests [ESSO-FRT] "
              "(turn_cut_14-Sep-2020_15_58_08 left out: it repeats the first 287 s of another test)",
         summary="`twin identify` with its defaults on the runs of each split that go least far (fewer minutes under way and fewer "
-                "turns, a lower propeller speed, or another family of manoeuvres), judged on the runs that go "
+                "turns, a lower propeller speed, another family of manoeuvres, or another day), judged on the runs that go "
                 "further: R² of free runs from measured states, pooled over the judged runs, each log's compass "
                 "calibration from its own kinematics. The untuned prior is judged the same way.",
         tables=[ResultTable("Free-run R² on the judged runs", ["split", "wind", "twin", "R² u", "R² v", "R² r", "met"],

@@ -11,7 +11,7 @@ import trimesh
 
 import twin.vessel as vessel_mod
 from twin.fit.crossval import beyond_folds, form_error_at
-from twin.fit.extrapolation import activities, activity_order, by_activity, by_family, by_input_level
+from twin.fit.extrapolation import activities, activity_order, by_activity, by_day, by_family, by_input_level
 from twin.fit.windows import make_windows
 from twin.physics import mmg
 from twin.physics.priors import (cross_flow_drag, ittc57_cf, lateral_profile, propulsor_at_rest, propulsor_lateral,
@@ -141,6 +141,12 @@ def test_splits_by_input_level_and_by_family_and_their_refusals():
         by_input_level(preps, 500.0)
     with pytest.raises(TwinError, match="at least two"):
         by_activity(preps[:1])
+    days = ["turn_14-Sep-2020_1.csv", "turn_14-Oct-2020_2.csv", "random_14-Sep-2020_3.csv", "turn_cut_14-Sep-2020_4.csv"]
+    split = by_day(days, "14-Sep-2020", family="turn")
+    assert split.fitted == ("turn_14-Sep-2020_1.csv", "turn_cut_14-Sep-2020_4.csv")
+    assert split.judged == ("turn_14-Oct-2020_2.csv",)  # another family's run is on neither side
+    with pytest.raises(TwinError, match="every such run is on one side"):
+        by_day(days, "31-Jul-2020", family="turn")
 
 
 def test_form_error_interpolates_in_level_and_horizon_and_grows_a_position_beyond_it():

@@ -12,6 +12,9 @@ manoeuvre. These splits put the runs that go further on the judged side:
   are judged (a propeller at ≤ 8 rps fitted, at 10 rps judged).
 - `by_family`: runs whose file names start with one prefix are fitted, the others judged (random
   manoeuvres against steady turns).
+- `by_day`: runs of one family recorded on one day are fitted, the family's runs of other days
+  judged (the same manoeuvres a month later: another wind, another water temperature, the model
+  ballasted again).
 
 Every function works on prepared recordings and names runs by their log name
 (physics.sensors.log_name), so a split can be stated in a report and repeated.
@@ -180,3 +183,16 @@ def by_family(names: list[str], fitted_prefix: str) -> Split:
     if not fitted or not judged:
         raise TwinError(f"no split by family '{fitted_prefix}': every run is on one side")
     return Split(f"{fitted_prefix} → other", f"runs named {fitted_prefix}* fitted, the others judged", fitted, judged)
+
+
+def by_day(names: list[str], fitted_day: str, family: str = "") -> Split:
+    """Runs whose log names start with `family` and carry `fitted_day` (a date as the names write
+    it, e.g. "14-Sep-2020") fitted, the family's other runs judged; other families left out."""
+    among = [n for n in names if n.startswith(family)]
+    fitted = tuple(sorted(n for n in among if fitted_day in n))
+    judged = tuple(sorted(n for n in among if fitted_day not in n))
+    if not fitted or not judged:
+        raise TwinError(f"no split by day '{fitted_day}' among runs named {family or ''}*: every such run is on one side")
+    what = f"runs named {family}*" if family else "runs"
+    return Split(f"{fitted_day} → other days", f"{what} of {fitted_day} fitted, those of other days judged",
+                 fitted, judged)
