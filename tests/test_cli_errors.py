@@ -151,6 +151,41 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, ca
     assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]
 
 
+def test_a_read_only_output_is_kept_even_for_a_user_who_could_replace_it(monkeypatch, capsys, kept):
+    """A file marked read-only is refused as an output before any work, whoever runs the command
+    (a superuser's os.access says yes; the rename would need only the folder's permission)."""
+    import stat
+
+    from twin.errors import TwinError
+    from twin.files import write_text_atomic
+
+    root, log, inputs, same = kept
+    log.chmod(stat.S_IRUSR | stat.S_IRGRP | stat.S_IROTH)
+    same.chmod(stat.S_IRUSR)
+    try:
+        for args in (("simulate", "--vessel", "yellowfish", "--duration", "1", "--out", log),
+                     ("identify", inputs, "--vessel", "yellowfish", "--out", same)):
+            assert "is read-only: it is kept" in refused(monkeypatch, capsys, args, [log, same])
+        with pytest.raises(TwinError, match="read-only"):
+            write_text_atomic(same, "replaced")
+        assert same.read_text() == '{"kept": true}\n' and stat.S_IMODE(same.stat().st_mode) == stat.S_IRUSR
+    finally:
+        log.chmod(0o644)
+        same.chmod(0o644)
+
+
+def test_json_figures_write_a_non_finite_number_as_null():
+    """Strict JSON has no inf: a result holding one (a yaw that never decays) is written, not refused."""
+    import json
+
+    import numpy as np
+
+    from twin.cli.app import json_text
+
+    text = json_text({"time_constant_s": float("inf"), "rows": [np.float64(np.nan), 1.5], "a": np.array([np.inf, 2.0])})
+    assert json.loads(text) == {"time_constant_s": None, "rows": [None, 1.5], "a": [None, 2.0]}
+
+
 @pytest.mark.parametrize("args, message", [
     (("simulate", "--duration", "inf"), "--duration must be a positive number"),
     (("simulate", "--duration", "0"), "--duration must be a positive number"),

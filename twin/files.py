@@ -2,14 +2,32 @@
 a temporary name in the same folder (same file system), then an atomic rename."""
 from __future__ import annotations
 
+import math
 import os
+import stat
 import tempfile
 from pathlib import Path
 
+from .errors import TwinError
+
+
+def read_only(path) -> bool:
+    """Whether `path` is a file its owner has marked read-only (no write permission for anyone).
+    By the mode bits, not os.access: a superuser may write anything, yet a file marked so was
+    meant to be kept."""
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError:
+        return False
+    return stat.S_ISREG(mode) and not mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH)
+
 
 def write_bytes_atomic(path, data: bytes) -> None:
-    """`data` to `path` atomically, with the usual permissions (umask)."""
+    """`data` to `path` atomically, with the usual permissions (umask). A read-only file there is
+    refused (TwinError), not replaced: the rename would need only the folder's permission."""
     path = Path(path)
+    if read_only(path):
+        raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -57,3 +75,18 @@ def json_default(x):
     if hasattr(x, "to_dict"):
         return x.to_dict()
     return str(x)
+
+
+def finite_json(x):
+    """`x` (dicts, lists, numbers, numpy values, objects with to_dict()) as plain JSON values with
+    every non-finite number as None: strict JSON has no inf or NaN, and a result may hold one (a
+    time constant of a motion that never decays)."""
+    if isinstance(x, dict):
+        return {str(k) if not isinstance(k, str) else k: finite_json(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [finite_json(v) for v in x]
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, (str, int, bool)) or x is None:
+        return x
+    return finite_json(json_default(x))

@@ -21,7 +21,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import json_default, same_file, write_text_atomic
+from ..files import finite_json, read_only, same_file, write_text_atomic
 from ..progress import Progress
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
@@ -207,6 +207,8 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}': '{folder}' is a file, not a folder")
         if not folder.is_dir():
             raise TwinError(f"{option} '{p}': folder '{folder}' does not exist (create it first)")
+        if read_only(p):
+            raise TwinError(f"{option} '{p}' is read-only: it is kept (give another output name)")
         if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)) or not _can_create(folder):
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
 
@@ -259,10 +261,15 @@ def _can_create(folder: Path) -> bool:
         return False
 
 
+def json_text(data: dict) -> str:
+    """`data` as the JSON text write_json writes (non-finite numbers as null)."""
+    return json.dumps(finite_json(data), indent=2, allow_nan=False) + "\n"
+
+
 def write_json(path: Optional[Path], data: dict) -> None:
     """`data` as JSON, atomically; numpy numbers and arrays become plain JSON."""
     if path is not None:
-        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False, default=json_default) + "\n")
+        write_text_atomic(path, json_text(data))
         say(f"wrote {path}")
 
 

@@ -7,9 +7,10 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
+from ..files import write_text_atomic
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  check_recordings_distinct, effect_names, positive, progress_bar, say, say_unlogged_supply,
-                  vessel_from, write_json)
+                  check_recordings_distinct, effect_names, json_text, positive, progress_bar, say,
+                  say_unlogged_supply, vessel_from, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 
@@ -38,6 +39,9 @@ def diagnose_command(
                                                         "several, judged together) by the same rule on the same "
                                                         "blocks: can these recordings prove it?"),
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="take each recording's measured wind (its anemometer stream) as a known "
+                                            "input of every free run, the twin's and every candidate's"),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     from ..diagnose.doctor import diagnose
@@ -45,6 +49,7 @@ def diagnose_command(
     from ..diagnose.report import format_text
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
+    from ..ident.identify import check_wind
     from ..vessel import save
 
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
@@ -69,27 +74,33 @@ def diagnose_command(
 
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
+    wind = "measured" if wind_measured else None
+    check_wind(recs, wind)  # before any work
     if given:
         from ..diagnose.doctor import given_evidence, given_text
 
-        e = given_evidence(recs, prior, given, window_s=window, calibrated=calibration)
+        e = given_evidence(recs, prior, given, window_s=window, calibrated=calibration, known_wind=wind)
         typer.echo(given_text(given, e))
         write_json(json_out, {"given": list(given), "earns_its_place": bool(e.earns_its_place()), **e.to_dict()})
         return
     groups = tuple(g.strip() for g in refit.split(",") if g.strip()) if refit is not None else None
     with progress_bar("diagnose") as progress:
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,
-                          refit_weight=refit_weight, log=lambda m: progress(m))
+                          refit_weight=refit_weight, log=lambda m: progress(m), wind=wind)
     for c in result.calibrations:
         say(f"calibration: {c.text()}")
     say_unlogged_supply(recs, result.amended)
     typer.echo(format_text(result))
     typer.echo("\nwhere the residual concentrates (every window, twin before):")
     typer.echo(format_located(result.located[:12]))
+    # every output's content first, so a result that cannot be written leaves no output half replaced
+    figures = json_text(result.to_dict()) if json_out is not None else None
     if write_model is not None:
         save(without_known_sea(result.amended), write_model)  # the twin, not the recordings' sea
         say(f"wrote {write_model}" + ("" if result.effects else " (nothing named: the twin unchanged)"))
-    write_json(json_out, result.to_dict())
+    if figures is not None:
+        write_text_atomic(json_out, figures)
+        say(f"wrote {json_out}")
     if report is not None:
         from ..diagnose.report import write_html
 

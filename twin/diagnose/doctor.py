@@ -44,6 +44,7 @@ from ..prepare.prepared import supply_voltage
 from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
 from ..fit.calibrate import prepare_for, rate_windows
+from ..ident.identify import check_wind
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
@@ -51,6 +52,9 @@ from .report import FOLLOWS_R
 from .search import BLOCK_WINDOWS, Z_MIN, Search
 
 WINDOW_S = 10.0
+# the effects a recording's measured wind, given as a known input, takes the place of (their constant
+# wind acts on no free run then; `wind_shape` stays: it reshapes the load the measured wind makes)
+MEASURED_WIND_REPLACES = ("wind", "wind_per_log")
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
 # Screening only ranks candidates: it may step at the recording's grid where RK4 stays well
 # inside its stability limit (|hλ| < 2.8) for the prior's fastest dynamics.
@@ -115,15 +119,19 @@ def _check_library(prior: Vessel, recordings: list[Recording], library: list[str
 
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
              library: list[str] | None = None, calibrated: bool = True,
-             refit: tuple[str, ...] | None = None, refit_weight: float = 1.0, kinematic: bool = True) -> Diagnosis:
+             refit: tuple[str, ...] | None = None, refit_weight: float = 1.0, kinematic: bool = True,
+             wind: str | None = None) -> Diagnosis:
     """The whole diagnosis (module docstring); `library` restricts the candidates by name;
     `calibrated`: each log's compass offset estimated from its kinematics first (fit/calibrate.py);
     `kinematic`: sensor and timing effects told from the kinematics first (step 0, fit/kinematic.py);
     `refit`: identification groups (`twin identify`'s, e.g. "surge", "yaw") whose coefficients are
     refitted with every candidate (search.py, CORE), for a twin whose own coefficients are not yet
     identified; `refit_weight`: how many windows' worth of data each of their beliefs counts (as
-    `twin identify`'s beliefs ×1)."""
+    `twin identify`'s beliefs ×1); `wind` "measured": each recording's measured wind a known input of
+    every free run, the twin's and every candidate's (`twin diagnose --wind-measured`): a constant wind
+    is then not searched for, as the measured one takes its place."""
     started = time.time()
+    check_wind(recordings, wind)
     if refit is not None:
         _check_refit(prior, refit, refit_weight)
     if library:
@@ -134,7 +142,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
         prior, findings = _kinematic(recordings, prior, calibrated, library, log)
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
-    before = _residuals(prior, preps, every, exact)  # locating fits nothing: every window may speak
+    before = _residuals(prior, preps, every, exact, wind)  # locating fits nothing: every window may speak
     located, growth, corr, overall = _locate(before, preps, every, noise)
     log(f"replayed {len(every)} windows of {window_s:g} s; {len(located)} significant residual regions")
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
@@ -148,20 +156,21 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
         # the dynamics' would be a stand-in for another term (a decay, a wind of another shape)
         settled |= {"heading_bias", "heading_bias_per_log"}
     unsearched = sorted(k for k in lib if k in settled)
-    lib = {k: v for k, v in lib.items() if k not in settled}
+    replaced = sorted(k for k in lib if wind == "measured" and k in MEASURED_WIND_REPLACES)
+    lib = {k: v for k, v in lib.items() if k not in settled and k not in replaced}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
     core, core_names, search_prior = _core(prior, refit)
     search = Search(search_prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
                     screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)),
-                    core=core, core_weight=refit_weight)
+                    core=core, core_weight=refit_weight, wind=wind)
     if core and not search.library:
         raise TwinError(f"with {', '.join(refit)} refitted no candidate is left to judge (each one moves a refitted "
                         "coefficient itself)")
     amended, kept, rounds = search.run()
     amended_preps = data.for_vessel(amended)
-    after = _residuals(amended, amended_preps, every, exact)
+    after = _residuals(amended, amended_preps, every, exact, wind)
     after_located, _, after_corr, after_overall = _locate(after, amended_preps, every, noise)
-    held_before, held_after = _held_out_fits(search, prior, kept, data, exact)
+    held_before, held_after = _held_out_fits(search, prior, kept, data, exact, wind)
     diagnosis = Diagnosis(
         prior, amended, [_kinematic_effect(f) for f in findings if f.told] + _effects(kept, search), located,
         growth, corr, held_before, held_after,
@@ -179,6 +188,8 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if unsearched:
         diagnosis.notes.append(f"not searched, as the kinematics settle them (step 0, each log's compass offset): "
                                f"{', '.join(unsearched)}")
+    if replaced:
+        diagnosis.notes.append(f"not searched, as each recording's measured wind is a known input: {', '.join(replaced)}")
     diagnosis.notes += _gyro_timing(recordings)
     if core:
         diagnosis.amended = replace(diagnosis.amended, uncertainty={})  # the prior's covariance is not the refit's
@@ -274,16 +285,20 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
 
 
 def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wind: str | None = None,
-                   window_s: float = WINDOW_S, calibrated: bool = True):
+                   window_s: float = WINDOW_S, calibrated: bool = True, known_wind: str | None = None):
     """Physics given, not fitted: the effects at the values given (`apply_effects` texts) and, with
     wind="measured", the recordings' measured wind as a known input, judged by the diagnosis's rule
     against the twin without them (each log's compass calibration applied to both unless calibrated
     is False), on the blocks a diagnosis of these recordings judges on: what the recordings can
-    prove of that physics as given, whatever a fit of it would find. An Evidence (search.py)."""
+    prove of that physics as given, whatever a fit of it would find. known_wind "measured": the
+    recordings' measured wind a known input of both (`twin diagnose --given ... --wind-measured`).
+    An Evidence (search.py)."""
     from ..effects import apply_effects
 
+    check_wind(recordings, known_wind)
     prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
-    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]))
+    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]),
+                    wind=known_wind)
     given = apply_effects(prior, effects)
     return search.evidence(search.held_costs([prior] * len(search.folds)),
                            search.held_costs([given] * len(search.folds), wind=wind))
@@ -361,21 +376,23 @@ class _Replay:
     meas_eta: np.ndarray
 
 
-def _residuals(vessel: Vessel, preps: list[Prepared], windows: list[Window], cache: ModelCache) -> _Replay:
-    pred = predict(vessel, preps, windows, cache)[0]
+def _residuals(vessel: Vessel, preps: list[Prepared], windows: list[Window], cache: ModelCache,
+               wind: str | None = None) -> _Replay:
+    pred = predict(vessel, preps, windows, cache, wind=wind)[0]
     eta, nu = measured(preps, windows)
     return _Replay(pred.nu, pred.eta, nu, eta)
 
 
-def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cache: ModelCache) -> tuple[dict, dict]:
+def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cache: ModelCache,
+                   wind: str | None = None) -> tuple[dict, dict]:
     """R² and MAE per DOF on every fold's held-out windows: the twin before (the prior, or with a
     core its core refitted without those windows) and the kept effects as fitted without those
     windows (each fold's own fit), pooled."""
     pred0, pred1, meas0, meas1 = [], [], [], []
     for start, base, (_, held) in zip(search.initial_bases, search.final_bases, search.folds):
         preps0, preps1 = data.for_vessel(start), data.for_vessel(base)
-        pred0.append(predict(start, preps0, held, cache)[0].nu[:, 1:])
-        pred1.append(predict(base, preps1, held, cache)[0].nu[:, 1:])
+        pred0.append(predict(start, preps0, held, cache, wind=wind)[0].nu[:, 1:])
+        pred1.append(predict(base, preps1, held, cache, wind=wind)[0].nu[:, 1:])
         meas0.append(measured(preps0, held)[1][:, 1:])
         meas1.append(measured(preps1, held)[1][:, 1:])
     n = max(a.shape[1] for a in pred0)

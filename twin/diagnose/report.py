@@ -72,6 +72,19 @@ NEXT = {
     "drag": "coast-downs from full speed with the thrusters at neutral, and runs at several steady speeds",
     "inertia": "zig-zags and sharp throttle steps",
 }
+# the same for a propeller-and-rudder ship, where the advice above speaks of what it has not
+NEXT_SHIP = {
+    "drift": "straight runs under way on opposite headings, and a few minutes drifting with the propeller "
+             "stopped: a current or wind pushes the same way whatever the heading, a compass error turns with "
+             "the ship",
+    "timing": "steps of the propeller speed and of the rudder from steady running (the answer's timing shows at "
+              "steps), and the inputs logged on the same clock as GNSS and heading; with the gyro logged, "
+              "`twin info` reads how late the heading is against it",
+    "thrust": "straight runs at several fixed propeller speeds ahead and astern, and turns both ways at one "
+              "rudder angle",
+    "turning": "turns both ways at several rudder angles, and zig-zags",
+    "drag": "coast-downs from full speed with the propeller stopped, and runs at several steady propeller speeds",
+}
 MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment: the twin's form is off there
 FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates with beyond this
 
@@ -149,7 +162,8 @@ def answer(d) -> dict:
     candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
     if not d.effects and out["form"]:
         families |= {_family(d, n) for n in candidates_tried}
-    out["next"] = [f"to settle {fam} effects: {NEXT[fam]}" for fam in sorted(families) if fam in NEXT]
+    advice = NEXT | (NEXT_SHIP if d.prior.thrusters.kind == "propeller_rudder" else {})
+    out["next"] = [f"to settle {fam} effects: {advice[fam]}" for fam in sorted(families) if fam in advice]
     return out
 
 

@@ -189,13 +189,16 @@ class _Costs:
 class Search:
     def __init__(self, prior: Vessel, data: Measurements, windows: list[Window], cache: ModelCache,
                  library: dict[str, Candidate], noise_sd: np.ndarray, log=None,
-                 screen_cache: ModelCache | None = None, core: list | None = None, core_weight: float = 1.0):
+                 screen_cache: ModelCache | None = None, core: list | None = None, core_weight: float = 1.0,
+                 wind: str | None = None):
         """windows: every (non-overlapping) window of the recordings, in time order per log;
         noise_sd: the measurement noise of u, v, r (m/s, m/s, rad/s) estimated from the recordings;
         screen_cache: models at a coarser step for screening the candidates that are not scanned;
         core: simfit Coordinates of the twin's own coefficients refitted with every candidate (module
-        docstring), their beliefs counted as core_weight windows' worth of data each."""
+        docstring), their beliefs counted as core_weight windows' worth of data each; wind "measured":
+        each recording's measured wind a known input of every free run (windows.predict)."""
         self.prior, self.data, self.windows, self.cache = prior, data, windows, cache
+        self.wind = wind
         self.screen_cache = screen_cache or cache
         self.core, self.core_weight = list(core or []), core_weight
         self.overlapping = sorted(n for n, c in library.items() if self.core and _moves_core(c, self.core, prior))
@@ -213,7 +216,7 @@ class Search:
         self.held_order = [w for _, held in self.folds for w in held]  # pooled held-out windows, fold by fold
         index = {id(w): i for i, w in enumerate(windows)}
         self.held_blocks = np.array([self.blocks[index[id(w)]] for w in self.held_order])
-        self.sigma = dof_scale(prior, Objective(prior, [], data, windows, cache), np.asarray(noise_sd, float))
+        self.sigma = dof_scale(prior, Objective(prior, [], data, windows, cache, wind=wind), np.asarray(noise_sd, float))
         self.noise_var = (np.asarray(noise_sd, float) / self.sigma) ** 2
         self.screening = _spread(self.folds[0][0], SCREEN_WINDOWS)
         self._screen_costs: dict = {}
@@ -232,7 +235,7 @@ class Search:
         params = list(params)
         core = self.core if with_core else []
         obj = Objective(base, params + [c.quantity for c in core], self.data, windows, cache or self.cache,
-                        wind=wind)
+                        wind=wind or self.wind)
         obj.sigma = self.sigma
         if core:
             mean = np.r_[np.zeros(len(params)), [c.mean for c in core]]

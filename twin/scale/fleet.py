@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TwinError
-from ..files import json_default, same_file, write_bytes_atomic, write_text_atomic
+from ..files import finite_json, json_default, same_file, write_bytes_atomic, write_text_atomic
 from ..progress import Progress
 from ..vessel import load
 from .batches import Batch, Executor, LocalExecutor, plan
@@ -221,7 +221,7 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
             out.rmdir()
         raise _all_failed([r for r in results if r is not None], out)
     summary = summarise([r for r in results if r is not None])
-    write_text_atomic(out / "fleet.json", json.dumps(summary, indent=1, allow_nan=False, default=json_default) + "\n")
+    write_text_atomic(out / "fleet.json", json.dumps(finite_json(summary), indent=1, allow_nan=False) + "\n")
     write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
     return Fleet(results, summary, reports)
 
