@@ -563,3 +563,22 @@ def test_a_grid_step_longer_than_the_recording_is_named_as_the_reason(tmp_path):
     conversion = for_conversion(rec, grid_dt=1e9)
     assert not conversion.synchronised
     assert "a 1e+09-s grid step leaves fewer than two samples" in conversion.timing
+
+
+def test_a_local_position_no_place_on_earth_can_have_is_dropped_and_counted(tmp_path):
+    """A twin run's CSV (x, y in metres) with fixes at 1e308 m: counted as dropped, not prepared
+    into overflow warnings."""
+    import twin
+
+    path = tmp_path / "run.csv"
+    twin.simulate_run("blueboat", scenario="turn", duration_s=20).write(path)
+    rows = path.read_text().splitlines()
+    x = rows[0].split(",").index("x")
+    for k in (50, 51, 120):
+        cells = rows[k].split(",")
+        cells[x] = "1e308"
+        rows[k] = ",".join(cells)
+    path.write_text("\n".join(rows) + "\n")
+    rec = read_recording(path)
+    assert dict(rec.dropped)["gnss: position beyond 20 000 km"] == 3
+    assert np.abs(rec.gnss["north_m"]).max() < 1e3

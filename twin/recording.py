@@ -42,6 +42,9 @@ OPTIONAL_STREAMS = ("prop_rudder", "wind")  # summarised only when they have sam
 PLAUSIBLE = {
     "lat_deg": (-90.0, 90.0, "latitude outside ±90°"),
     "lon_deg": (-180.0, 180.0, "longitude outside ±180°"),
+    # local positions: half the earth's circumference is as far as a point on it can be
+    "north_m": (-2.0e7, 2.0e7, "position beyond 20 000 km"),
+    "east_m": (-2.0e7, 2.0e7, "position beyond 20 000 km"),
     "left_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),  # servo outputs span about 800-2200 µs
     "right_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),
     "n_rps": (-500.0, 500.0, "propeller speed beyond ±500 rps"),

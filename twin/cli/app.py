@@ -13,6 +13,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from importlib import resources
 from pathlib import Path
 from typing import Iterator, Optional
@@ -165,17 +166,34 @@ def seed_from(seed: int, option: str = "--seed") -> int:
     return seed
 
 
+def _memory_bytes() -> int | None:
+    """This machine's physical memory (bytes), None where the system does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not a POSIX system: the allocation itself will say
+        return None
+
+
 def samples_fit(duration_s: float, period_s: float, what: str) -> None:
     """Refuse a run whose sample count (duration / period) could not be held in this machine's memory
     even at one 8-byte number per sample: the arrays would fail to allocate only once the work began."""
     n = duration_s / period_s
-    try:
-        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):  # not a POSIX system: the allocation itself will say
-        return
-    if n * 8 > memory:
+    memory = _memory_bytes()
+    if memory is not None and n * 8 > memory:
         raise TwinError(f"{what}: {duration_s:g} s at {period_s:g} s is {n:.3g} samples, more than this machine's "
                         f"memory ({memory / 2**30:.0f} GiB) holds")
+
+
+def draws_fit(draws: int, samples: float, numbers_per_sample: int, what: str) -> None:
+    """Refuse, before any work, `draws` runs of `samples` samples whose states (numbers_per_sample
+    8-byte numbers each) are all kept for the band and could not be held in this machine's memory:
+    the run would otherwise work for hours and fail at the end."""
+    need = float(draws) * samples * numbers_per_sample * 8
+    memory = _memory_bytes()
+    if memory is not None and need > memory:
+        raise TwinError(f"{what}: {draws} draws of {samples:.0f} samples keep {need / 2**30:.3g} GiB, more than this "
+                        f"machine's memory ({memory / 2**30:.0f} GiB) holds (fewer draws, a shorter run or a longer "
+                        "sample period)")
 
 
 @contextlib.contextmanager
@@ -405,8 +423,13 @@ def main() -> None:
     """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
     _settings["quiet"] = False  # each run's own: a caller may run the command more than once
     try:
-        # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
-        code = app(args=quiet_anywhere(sys.argv[1:]), prog_name="twin", standalone_mode=False)
+        with warnings.catch_warnings():
+            if not os.environ.get("TWIN_DEBUG"):
+                # numpy's overflow and invalid-value warnings on wild samples (a fix at 1e308 m) speak
+                # of arrays, not of the log: the outlier rules and the notes say what was wrong
+                warnings.simplefilter("ignore", RuntimeWarning)
+            # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
+            code = app(args=quiet_anywhere(sys.argv[1:]), prog_name="twin", standalone_mode=False)
     except TwinError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)

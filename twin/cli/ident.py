@@ -121,6 +121,8 @@ def identify_command(
     if window is not None:
         positive(window, "--window")
     at_least(max_evaluations, 1, "--max-evaluations")
+    if greybox:
+        at_least(repeats, 1, "--repeats")
     seed_from(seed)
     prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     weights = tuple(floats(beliefs, "beliefs"))

@@ -28,6 +28,7 @@ def info(
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
     from ..prepare.timing import heading_lag_behind_gyro
+    from ..fit.kinematic import GYRO_MIN_FIT, GYRO_PIECE_S, GYRO_TURNING_RAD_S
     from ..recording import format_summary
 
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
@@ -45,7 +46,12 @@ def info(
         for line in describe(counted(rec)):
             typer.echo(f"  {line}")
         if len(rec.imu) and len(rec.heading):
-            typer.echo(f"  {heading_lag_behind_gyro(rec).text()}")
+            lag = heading_lag_behind_gyro(rec)
+            if lag.lag_s is None and len(rec.prop_rudder):
+                # a ship turns at 1-3°/s: read on longer pieces and slower turning, as the diagnosis reads it
+                lag = heading_lag_behind_gyro(rec, window_s=GYRO_PIECE_S, turning_rad_s=GYRO_TURNING_RAD_S,
+                                              min_fit=GYRO_MIN_FIT)
+            typer.echo(f"  {lag.text()}")
         read.append(rec)
     if v is not None:
         failed += _calibrations(read, v)

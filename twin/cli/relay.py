@@ -133,12 +133,15 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
                              ipd.binomial(omega_surge))
 
 
+DEFAULT_TARGET = "10,10"
+
+
 def dp_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     run: str = typer.Option("heading", help="heading (a heading step, [Relay-ISO Figs. 8-9]) | point (move to --target)"),
     step: float = typer.Option(45.0, help="heading step, degrees (45 stays inside the thrusters, 90 saturates)"),
-    target: str = typer.Option("10,10", help="point to reach, NORTH,EAST in m from the start (heading 0)"),
+    target: str = typer.Option(DEFAULT_TARGET, help="point to reach, NORTH,EAST in m from the start (heading 0)"),
     omega_heading: Optional[float] = typer.Option(None, help=f"ω_n of the binomial heading model function, rad/s "
                                                             f"(default {HEADING_OMEGA_RAD_S:g}; a propeller-and-rudder "
                                                             f"ship {SHIP_HEADING_OMEGA_RAD_S:g})"),
@@ -161,7 +164,9 @@ def dp_command(
         raise TwinError(f"unknown run '{run}' (heading or point)")
     if not math.isfinite(step) or step == 0 or abs(step) > 180:
         raise TwinError("--step must be a non-zero angle within ±180°")
-    goal = _target(target) if run == "point" else None
+    goal = _target(target)  # a bad --target is refused whichever run is asked for
+    if run == "heading" and target != DEFAULT_TARGET:
+        raise TwinError("--target is the point of --run point; a heading step (--run heading) has none")
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
     cv = compile_vessel(vessel_from(vessel, model, case))

@@ -9,8 +9,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, effect_names, memory_for, note,
-                  positive, progress_bar, samples_fit, say, seed_from, vessel_from, write_json)
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, draws_fit, effect_names, memory_for,
+                  note, positive, progress_bar, samples_fit, say, seed_from, vessel_from, write_json)
 from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
@@ -92,6 +92,9 @@ def montecarlo_command(
         samples_fit(duration or 120.0, sample_dt, "--duration at --sample-dt")
         with memory_for(f"--duration {duration or 120.0:g} at --sample-dt {sample_dt:g}"):
             mission = mc.scenario_mission(v, scenario or "zigzag", duration or 120.0, sample_dt, seed, sea_state)
+    # every draw's six states are kept for the band, then gathered and compared with the nominal: about
+    # three copies of them
+    draws_fit(draws, mission.duration_s / sample_dt + 1, 18, "--draws at --duration and --sample-dt")
     with progress_bar("montecarlo") as progress, memory_for("--draws at --duration and --sample-dt"):
         result = mc.run(v, mission, draws, seed=seed, variation=variation, level=level, batch_size=batch_size,
                         executor=executor, progress=progress)
