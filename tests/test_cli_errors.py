@@ -295,6 +295,7 @@ def _unc(**fields):
     ("mean", _unc(mean=["abc"]), "uncertainty.mean[0] must be a number"),
     ("meanobj", _unc(mean={"a": 1}), "uncertainty.mean must be a list of numbers"),
     ("negvar", _unc(covariance=[[-1.0]]), "covariance[0][0] is a variance and must be ≥ 0"),
+    ("noxu", lambda d: (_unc()(d), d["damping"].pop("Xu")), "the identification fitted Xu"),
 ])
 def test_vessel_files_with_bad_fields_are_refused_at_load(monkeypatch, capsys, tmp_path, name, change, message):
     model = vessel_file(tmp_path, name, change)

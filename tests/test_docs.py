@@ -153,3 +153,11 @@ def test_the_tour_notebook_runs_and_names_the_current_it_conceals(tmp_path, monk
     values = {p.name: p.value for p in named["current"].parameters}
     assert values["speed_m_s"] == pytest.approx(0.15, rel=0.1) and values["dir_deg"] == pytest.approx(90.0, abs=10.0)
     assert space["before"].score("v").r2 < 0.5 < 0.9 < space["after"].score("v").r2
+
+
+def test_the_command_reference_page_is_the_commands_own_help():
+    """docs/reference/cli.md is generated from the typer app; regenerate it with
+    `python -m twin.cli.reference > docs/reference/cli.md` after changing a command's help."""
+    from twin.cli.reference import page
+
+    assert (DOCS / "reference" / "cli.md").read_text() == page(), "regenerate docs/reference/cli.md"

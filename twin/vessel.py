@@ -296,8 +296,24 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         design=_design(data.get("design"), path),
         path=path,
     )
-    check(vessel)
+    _fitted_coefficients_given(data, vessel.uncertainty, path)
+    try:
+        check(vessel)
+    except TwinError as exc:  # the file a user gave, not only the vessel's name, so they know what to edit
+        raise TwinError(f"{path.name}: {exc}") from None
     return vessel
+
+
+def _fitted_coefficients_given(data: dict, uncertainty: dict, path: Path) -> None:
+    """A coefficient the identification fitted (named in the uncertainty block) must be in the file:
+    left out, it would load as 0, and the twin would run without a term its fit found (a hand edit
+    that deleted one line)."""
+    for c in uncertainty.get("coordinates", []):
+        name = c["name"]
+        for section, cls in (("damping", Damping), ("added_mass", AddedMass)):
+            if name in {f.name for f in fields(cls)} and name not in (data.get(section) or {}):
+                raise TwinError(f"{path.name}: the identification fitted {name} (uncertainty.coordinates), but the "
+                                f"{section} section does not give it: it would run as 0 (write its value back)")
 
 
 def _mmg(data, path: Path) -> MmgModel | None:

@@ -68,7 +68,7 @@ WORKFLOW = ("simulate", "view", "info", "convert", "validate", "crosscheck", "pa
 
 @app.callback()
 def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or notes on stderr (also after "
-                                                            "the command)")) -> None:
+                                                            "the command); what is written is still said")) -> None:
     """MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, diagnose."""
     _settings["quiet"] = _settings["quiet"] or quiet
 

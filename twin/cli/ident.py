@@ -91,7 +91,7 @@ def identify_command(
     start: str = typer.Option("free", help="initial velocities of each free run: free (estimated with the "
                                             "parameters) | measured (as the recording gives them)"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
-                                     help="estimate each log's compass offset from its own GNSS track (default on)"),
+                                     help="estimate each log's compass offset from its own GNSS track"),
     greybox: bool = typer.Option(False, "--greybox", help="also run [Morel-2024] grey-box least squares and tables"),
     thruster: str = typer.Option("static", help="[Morel-2024] thruster model (with --greybox): static | dynamic"),
     split: str = typer.Option("segments", help="[Morel-2024] tables (with --greybox): split by segments | points"),

@@ -1,5 +1,6 @@
-"""The command reference as Markdown, from the typer app itself (the docs site's reference page
-is made from it at build time, so it cannot drift from `twin COMMAND --help`)."""
+"""The command reference as Markdown, from the typer app itself: docs/reference/cli.md is its output
+(`python -m twin.cli.reference > docs/reference/cli.md`), and a test keeps the two the same, so the
+page, read on the site or in the checkout, cannot drift from `twin COMMAND --help`."""
 from __future__ import annotations
 
 import inspect
@@ -41,3 +42,12 @@ def markdown() -> str:
         if params:
             out += ["| argument or option | meaning |", "| --- | --- |", *map(_option_row, params), ""]
     return "\n".join(out)
+
+
+def page() -> str:
+    """docs/reference/cli.md as it must read."""
+    return "# Commands\n\n" + markdown().rstrip("\n") + "\n"
+
+
+if __name__ == "__main__":
+    print(page(), end="")

@@ -32,7 +32,7 @@ def sitl(
     sea: Optional[str] = typer.Option(None, help=SEA_HELP),
     seed: int = typer.Option(0, help="random seed of the sea's components"),
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the origin, SITL's home, for map positions"),
-    record: list[Path] = typer.Option([], help="record the session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
+    record: list[Path] = typer.Option([], help="record the SITL session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
                                                                        "frame per servo frame (default)"),
     write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "

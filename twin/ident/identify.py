@@ -363,7 +363,7 @@ def check_wind(recordings: list[Recording], wind: str | None) -> None:
         for rec in recordings:
             if not len(rec.wind):
                 raise TwinError(f"{Path(rec.source).name}: no measured wind (the recording has no wind stream): "
-                                "--wind-measured needs an anemometer's")
+                                "--wind-measured needs an anemometer's wind stream")
 
 
 def _with_supply_reference(vessel: Vessel, preps: list[Prepared]) -> Vessel:
