@@ -65,6 +65,8 @@ def _split_of(name: str, recs, preps):
         return by_family([log_name(r.source) for r in recs], "turn")
     if name == "esso_turn_day":
         return by_day([log_name(r.source) for r in recs], "14-Sep-2020", family="turn")
+    if name == "esso_turn_day_back":
+        return by_day([log_name(r.source) for r in recs], "14-Oct-2020", family="turn")
     raise SystemExit(f"unknown split {name}")
 
 
@@ -72,7 +74,8 @@ BAND_DRAWS = 50  # parameter draws of the 90 % band (30-s free runs)
 SPLITS = {"blueboat_activity": ("blueboat", (None,)), "esso_rps": ("esso_osaka", (None, "measured")),
           "esso_random_turn": ("esso_osaka", (None, "measured")),
           "esso_turn_random": ("esso_osaka", (None, "measured")),
-          "esso_turn_day": ("esso_osaka", (None, "measured"))}
+          "esso_turn_day": ("esso_osaka", (None, "measured")),
+          "esso_turn_day_back": ("esso_osaka", (None, "measured"))}
 
 
 def scores(vessel, recs, settings: dict, wind, seen) -> dict:
