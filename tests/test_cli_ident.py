@@ -53,7 +53,7 @@ def test_identify_then_evaluate(dataset):
     assert set(metrics) == {"one_step", "free_run_10s", "free_run_30s", "full"}
     assert metrics["free_run_10s"]["u"]["r2"] > 0.95 and set(metrics["full"]["r"]) >= {"r2", "mae"}
     # where the 10-s free runs miss: the groups' shares add up to 1 − R² of the 10-s free runs
-    split = report["by_manoeuvre_10s"]
+    split = report["by_manoeuvre"]
     assert "where the 10-s free runs miss" in done.stdout and split["groups"]
     for d in ("u", "v", "r"):
         total = sum(g["share"][d] for g in split["groups"].values())

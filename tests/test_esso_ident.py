@@ -165,3 +165,14 @@ def test_twin_identify_on_the_ship_with_its_measured_wind(tmp_path):
 
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["fit"]["wind"] == "measured" and report["expected_on_a_new_run"]["pooled"]["u"]["r2"] > 0.5
+
+
+def test_evaluate_splits_a_slow_ships_free_runs_by_manoeuvre_at_its_own_window(esso):
+    """A slow ship's misfit by manoeuvre is read on free runs as long as its fit's (30 s), a small boat's on
+    10 s; a twin written by identify carries the horizon its envelope counted."""
+    from types import SimpleNamespace
+
+    from twin.ident.identify import manoeuvre_horizon_s
+
+    assert manoeuvre_horizon_s(esso) == 30.0 and manoeuvre_horizon_s(vessel_mod.load("blueboat")) == 10.0
+    assert manoeuvre_horizon_s(esso, SimpleNamespace(horizon_s=20.0)) == 20.0

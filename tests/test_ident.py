@@ -207,7 +207,7 @@ def test_the_api_evaluation_says_where_the_twin_misses_and_beyond_what_its_fit_s
     split, pooled = ev.by_manoeuvre, ev.metrics["free_run_10s"]
     for d in ("u", "v", "r"):
         assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
-    assert split["beyond_fit"]["share_of_samples"] > 0.1 and ev.to_dict()["by_manoeuvre_10s"] is split
+    assert split["beyond_fit"]["share_of_samples"] > 0.1 and ev.to_dict()["by_manoeuvre"] is split
     assert "beyond_fit" not in twin.evaluate(wrong, [ds.recording]).by_manoeuvre  # no record of a fit: none
     rows = ev.table()  # a list for code, aligned columns for a person at the prompt
     assert rows[0]["dof"] == "u" and len(rows) == 2 * 3 * len(ev.metrics)

@@ -223,8 +223,9 @@ def _scores(metrics: dict, calibrated: bool) -> list[Score]:
 @dataclass
 class Evaluation:
     """`twin evaluate`: R² and MAE per DOF and horizon (`scores`; `score("u")`), with and without
-    each log's compass calibration, and the calibrations; by_manoeuvre: where the 10-s free runs
-    miss (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
+    each log's compass calibration, and the calibrations; by_manoeuvre: where the free runs of the
+    fit's window (10 s for a small boat, 30 s for a slow ship: its `horizon_s`) miss
+    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
 
     vessel: str
     metrics: dict
@@ -256,20 +257,20 @@ class Evaluation:
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
-                "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre_10s": self.by_manoeuvre}
+                "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre": self.by_manoeuvre}
 
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
              sea=None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
-    where its 10-s free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
+    where its free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
     recording's measured wind a known input (`twin evaluate --wind-measured`); sea (a
     physics.waves.Sea or `--sea` text): the sea they were made in, its Stokes drift a known flow and
     its mean load on the hull a known force (`--sea`)."""
     from .fit.coverage import from_dict
     from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
     from .fit.windows import ModelCache
-    from .ident.identify import calibrate as calibrate_logs, check_wind, prepared
+    from .ident.identify import calibrate as calibrate_logs, check_wind, manoeuvre_horizon_s, prepared
 
     v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
@@ -282,8 +283,8 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     preps = prepared(recs, calibrated)
     return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
                       run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
-                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps, 10.0, stride_s,
-                                          vessel=calibrated, fitted=seen))
+                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps,
+                                          manoeuvre_horizon_s(v, seen), stride_s, vessel=calibrated, fitted=seen))
 
 
 @dataclass(frozen=True)

@@ -148,7 +148,8 @@ def identify_command(
     if text:
         console.print(f"[bold][Morel-2024] grey-box ({thruster} thruster model), one-step predictions[/]")
         typer.echo(text)
-    console.print("[bold]choices, judged on left-out runs (10-s free runs from measured states)[/]")
+    console.print(f"[bold]choices, judged on left-out runs ({result.fit.meta.get('window_s', 10.0):g}-s free runs "
+                  "from measured states)[/]")
     typer.echo(ident.format_choices(result))
     say(ident.format_needed(result))
     console.print("[bold]identification by simulation[/]")
@@ -192,7 +193,7 @@ def evaluate_command(
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
-    log's own compass calibration; where the 10-s free runs miss, by manoeuvre (idle, ahead, turning,
+    log's own compass calibration; where the free runs miss, by manoeuvre (idle, ahead, turning,
     spin, astern: each one's share of 1 − R²), and for a twin written by `twin identify` how many
     windows of each its fit saw and how much of the misfit lies beyond the speeds and turn rates it
     was fitted on; with --band, the share of the recording inside the
@@ -200,7 +201,7 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, check_wind, prepared, read
+    from ..ident.identify import calibrate, check_wind, manoeuvre_horizon_s, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -237,8 +238,9 @@ def evaluate_command(
         out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated),
                                   stride_s=stride) if calibration else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, 3)
-        out["by_manoeuvre_10s"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), 10.0,
-                                                      stride, vessel=used, fitted=fitted)
+        horizon = manoeuvre_horizon_s(v, fitted)
+        out["by_manoeuvre"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), horizon,
+                                                  stride, vessel=used, fitted=fitted)
     if sea_line:
         say(sea_line)
     for c in calibrations:
@@ -249,8 +251,8 @@ def evaluate_command(
                               + ("" if applied or not calibration else " (no log's compass offset was applied)")))
     if applied:
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
-    typer.echo(format_by_manoeuvre(out["by_manoeuvre_10s"], "where the 10-s free runs miss, by what the inputs ask "
-                                                            "(each group's share of 1 − R²)"))
+    typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
+                                                        "ask (each group's share of 1 − R²)"))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel
         from ..outputs import write

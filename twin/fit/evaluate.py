@@ -200,7 +200,8 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     if vessel is None:
         raise TwinError("misfit_by_manoeuvre needs the vessel whose thrusters drive the predictor")
     wins = horizon_windows(preps, horizon_s, stride_s)
-    out: dict = {"windows": len(wins), "diverged": 0, "r2": {d: None for d in DOFS}, "groups": {}}
+    out: dict = {"horizon_s": float(horizon_s), "windows": len(wins), "diverged": 0, "r2": {d: None for d in DOFS},
+                 "groups": {}}
     if not wins:
         return out
     pred, meas = _predictions(model, preps, wins)

@@ -233,7 +233,9 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     preps = prepared(recordings, vessel)
     if "supply_exponent" in all_names:
         vessel = _with_supply_reference(vessel, preps)
-    seen = fitted_envelope(vessel, preps).to_dict()  # the logs' span and windows as evaluate counts them
+    # the logs' span and windows as evaluate counts them: free runs of the vessel's own window (10 s for a
+    # small boat, 30 s for a slow ship), one of evaluate's horizons, whatever window this fit was given
+    seen = fitted_envelope(vessel, preps, horizon_s=default_window_s(vessel)).to_dict()
     result = Identification(vessel, prior, None, calibrations)
     if greybox and prior.thrusters.kind != "t200":
         # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
@@ -340,6 +342,13 @@ def default_window_s(vessel: Vessel) -> float:
     """The fit's free-run window: WINDOW_S, or SLOW_WINDOW_S for a vessel whose surge time constant
     exceeds WINDOW_S (a 10-s window of a slow ship is mostly its initial state)."""
     return WINDOW_S if surge_time_constant_s(vessel) <= WINDOW_S else SLOW_WINDOW_S
+
+
+def manoeuvre_horizon_s(vessel: Vessel, fitted=None) -> float:
+    """The free runs whose misfit `twin evaluate` splits by manoeuvre: as long as those the fit's
+    envelope counted (`fitted`, a coverage.Envelope), else the vessel's own fit window (10 s for a
+    small boat, 30 s for a slow ship): a slow ship's 10-s run is mostly its initial state."""
+    return float(fitted.horizon_s) if fitted is not None else default_window_s(vessel)
 
 
 def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
