@@ -100,6 +100,11 @@ def test_the_twins_own_csv_is_a_recording(sim_tlog, tmp_path):
     assert p.returncode == 0, p.stderr
     p = twin("view", sim_tlog / "z.csv", "--out", tmp_path / "z.rrd")
     assert p.returncode == 0 and (tmp_path / "z.rrd").stat().st_size > 1000, p.stderr
+    # by default beside a simulation's own z.rrd in the working folder, never over it
+    kept = (tmp_path / "z.rrd").read_bytes()
+    p = twin("view", sim_tlog / "z.csv", cwd=tmp_path)
+    assert p.returncode == 0 and (tmp_path / "z.view.rrd").stat().st_size > 1000, p.stderr
+    assert (tmp_path / "z.rrd").read_bytes() == kept
 
 
 def _no_gnss_recording():

@@ -142,8 +142,8 @@ def view(
     sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (for --sim and the sensors' calibration)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: ./STEM.rrd, STEM of the first "
-                                                  "input, in the current folder)"),
+    out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: ./STEM.view.rrd, STEM of the "
+                                                  "first input, in the current folder)"),
     png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     smoother: str = typer.Option("savgol", help="velocities: savgol [Morel-2024] or model (EKF+RTS on the vessel model)"),
@@ -155,7 +155,9 @@ def view(
     from ..replay import view_runs
     from ..viz.report import comparison_png
 
-    out = out or Path(files[0].stem + ".rrd")  # the working folder: never beside the input (a shared data folder)
+    # the working folder, never beside the input (a shared data folder); .view.rrd, not the STEM.rrd that
+    # `twin simulate --out STEM.csv --out STEM.rrd` may have written there
+    out = out or Path(files[0].stem + ".view.rrd")
     check_outputs([out], (".rrd",), "--out")
     check_outputs([png], (".png",), "--png")
     check_distinct({"--out": out, "--png": png}, [*files, model])
