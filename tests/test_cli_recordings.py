@@ -102,7 +102,7 @@ def test_the_twins_own_csv_is_a_recording(sim_tlog, tmp_path):
     assert p.returncode == 0 and (tmp_path / "z.rrd").stat().st_size > 1000, p.stderr
     # by default beside a simulation's own z.rrd in the working folder, never over it
     kept = (tmp_path / "z.rrd").read_bytes()
-    p = twin("view", sim_tlog / "z.csv", cwd=tmp_path)
+    p = twin_command.twin("view", sim_tlog / "z.csv", cwd=tmp_path)
     assert p.returncode == 0 and (tmp_path / "z.view.rrd").stat().st_size > 1000, p.stderr
     assert (tmp_path / "z.rrd").read_bytes() == kept
 
@@ -190,7 +190,7 @@ def test_view_writes_into_the_working_folder_not_beside_the_input(sim_tlog, tmp_
     work.mkdir()
     p = twin_command.twin("view", data / "z.tlog", cwd=work)
     assert p.returncode == 0, p.stderr
-    assert sorted(x.name for x in data.iterdir()) == ["z.tlog"] and (work / "z.rrd").stat().st_size > 1000
+    assert sorted(x.name for x in data.iterdir()) == ["z.tlog"] and (work / "z.view.rrd").stat().st_size > 1000
 
 
 def test_view_replay_without_pwm_names_the_file(tmp_path):
