@@ -359,6 +359,17 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     assert any(line.startswith("to settle timing effects") for line in a["next"])
 
 
+def test_a_share_beyond_the_whole_excess_over_the_noise_is_not_printed_as_a_percentage():
+    """A candidate that removes more than the misfit above the noise (the noise estimate is high) is
+    said so in words, never as e.g. 16883373999 %; a share within it stays a percentage."""
+    from twin.diagnose.report import excess_share
+
+    assert excess_share(0.079) == "8 % of the held-out misfit above the noise"
+    assert excess_share(1.0) == "100 % of the held-out misfit above the noise"
+    big = excess_share(1.7e8)
+    assert "%" not in big and big.startswith("more than all of the held-out misfit above the noise")
+
+
 def test_a_residual_that_follows_no_signal_is_not_blamed_on_the_form_alone():
     """A DOF still far off after the amendment: with signals it follows, the twin's form is blamed; with none
     (the proof's chop, a random force the log does not record), the answer says it may be either."""

@@ -329,6 +329,20 @@ def test_generic_csv(tmp_path, latlon):
     assert_recovers_circle(p, skip=(5.0, 12.0))
 
 
+def test_csv_cells_read_as_missing_are_counted_by_kind(tmp_path):
+    """A text cell, an infinite cell and an empty row are each counted apart from a written NaN or a
+    blank cell (a multi-rate log's "no sample"), which are not counted at all."""
+    path = tmp_path / "cells.csv"
+    path.write_text("t,lat,lon,heading_deg,pwm_left,pwm_right\n0,63.4,10.3,10,1500,1500\n,,,,,\n"
+                    "0.1,63.4,10.3,NaN,1500,1500\n0.2,63.4,inf,10,1500,1500\n0.3,63.4,10.3,x,1500,1500\n"
+                    "0.4,63.4,10.3,,1500,1500\n")
+    dropped = dict(read_recording(path).dropped)
+    assert dropped["csv: rows with no value in any column"] == 1
+    assert dropped["csv: cells that are not numbers (text), read as missing"] == 1
+    assert dropped["csv: infinite cells, read as missing"] == 1
+    assert dropped["gnss: samples with NaN or missing values"] == 1  # lat without its lon
+
+
 def test_blueboat_like_csv(tmp_path):
     rec = read_recording(write_blueboat_csv(tmp_path / "fixed_00000001.csv"))
     assert rec.kind == "blueboat-csv" and rec.pwm_neutral_us == (1511.0, 1511.0)

@@ -48,7 +48,7 @@ from ..ident.identify import check_wind
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
-from .report import FOLLOWS_R
+from .report import FOLLOWS_R, excess_share
 from .search import BLOCK_WINDOWS, Z_MIN, Search
 
 WINDOW_S = 10.0
@@ -312,7 +312,9 @@ def given_text(effects, e) -> str:
         return (f"{what} changes no window's prediction on these recordings: nothing to judge (a per-log effect "
                 "names its log by file name)")
     blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
-    change = (f"held-out misfit {-100 * e.rel:+.1f} % ({-100 * e.rel_excess:+.1f} % of the misfit above the noise; "
+    share = (f"removes {excess_share(e.rel_excess)}" if e.rel_excess >= 0
+             else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise")
+    change = (f"held-out misfit {-100 * e.rel:+.1f} % ({share}; "
               + ", ".join(f"{k} {-100 * v:+.1f} %" for k, v in e.dof_rel.items()) + ")")
     if e.earns_its_place():
         return f"{what} earns its place as given: {blocks}; {change}"

@@ -24,6 +24,15 @@ DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the 
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
 
 
+def excess_share(share: float) -> str:
+    """A candidate's share of the held-out misfit above the noise, as the report says it. Beyond 100 %
+    the candidate fits the held-out blocks closer than the noise estimated for the recording allows:
+    that estimate is high there (or the twin was already within it), and a percentage would mislead."""
+    if share > 1.0:
+        return "more than all of the held-out misfit above the noise (the recording's noise estimate is high)"
+    return f"{100 * share:.0f} % of the held-out misfit above the noise"
+
+
 def _shown(dof: str, value):
     """A residual, noise or error of `dof` in the report's unit (None stays None)."""
     return None if value is None else value * DOF_SCALE.get(dof, 1.0)
@@ -105,8 +114,8 @@ def answer(d) -> dict:
                                   f"{ev.get('basis', '')})")
             continue
         out["missing"].append(
-            f"{e['name']} ({params}): removes {100 * e.get('excess_gain', 0):.0f} % of the held-out misfit above the "
-            f"noise, z {e['z']:.1f} over {ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
+            f"{e['name']} ({params}): removes {excess_share(e.get('excess_gain', 0))}, z {e['z']:.1f} over "
+            f"{ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
             f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)")
         for r in e["rivals"]:
             if not r["separable"] and r["z"] <= -Z_PREFER:
@@ -146,16 +155,16 @@ def answer(d) -> dict:
                                + f": {cause}, and no effect of the library explains it on held-out blocks")
     for c in at_edge(d):
         edges = ", ".join(f"{k} {np.median([f[k] for f in c['fold_values']]):.3g}" for k in c["at_edge"])
-        out["form"].append(f"{c['name']} would remove {100 * c['excess_gain']:.0f} % of the held-out misfit above the "
-                           f"noise (z {c['z']:.1f}), but only at the edge of what is physical ({edges}, on every "
+        out["form"].append(f"{c['name']} would remove {excess_share(c['excess_gain'])} (z {c['z']:.1f}), "
+                           f"but only at the edge of what is physical ({edges}, on every "
                            f"fold): not named; the twin's form is off where {c['name']} acts")
     if d.effects:
         b, a = d.fit_before, d.fit_after
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
     for c in promising(d):
         out["unsettled"].append(
-            f"{c['name']} may be missing but is not proven: it removes {100 * c['excess_gain']:.0f} % of the held-out "
-            f"misfit above the noise, z {c['z']:.1f} from the {c['blocks_for'] + c['blocks_against']} blocks in which "
+            f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, z {c['z']:.1f} "
+            f"from the {c['blocks_for'] + c['blocks_against']} blocks in which "
             f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
             f"such blocks{_more_to_record(d, c)})")
         families.add(_family(d, c["name"]))
@@ -372,7 +381,7 @@ def write_html(d, path: Path) -> None:
         rivals = "; ".join(f"{r['name']}: {'told apart' if r['separable'] else 'not separable'} (z {r['z']})"
                            for r in e["rivals"]) or "-"
         gain = ", ".join(f"{k} {100 * v:.0f} %" for k, v in e["improvement"].items())
-        eff_rows.append([e["name"], params, f"{100 * e.get('excess_gain', 0):.0f} % (z {e['z']})", gain, rivals])
+        eff_rows.append([e["name"], params, (f"{100 * e.get('excess_gain', 0):.0f} %" if e.get('excess_gain', 0) <= 1 else "> 100 %") + f" (z {e['z']})", gain, rivals])
     fits = (("before", d.fit_before), ("after", d.fit_after)) if d.effects else (("twin (nothing amended)", d.fit_before),)
     fit_rows = [[name] + [f"{_num(fit[k]['r2'])} / {_num(_shown(k, fit[k]['mae']), 4)}" for k in "uvr"]
                 for name, fit in fits]

@@ -51,7 +51,7 @@ def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Cal
              ) -> Recording:
     """Read a CSV recording: the first adapter whose `matches(header)` holds reads the columns
     (a dataset's own layout, e.g. blueboat_csv), else the generic layout (module docstring)."""
-    header, cols, malformed = table(path)
+    header, cols, defects = table(path)
     reader = next((read for matches, read in adapters if matches(header)), None)
     if reader is not None:
         rec = reader(path, header, cols, channels)
@@ -59,15 +59,15 @@ def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Cal
         rec = _generic(path, header, cols, channels)
     else:
         raise TwinError(f"{path.name}: CSV layout not recognised (need a 't' column or a known dataset's columns)")
-    if malformed:
-        rec.dropped.insert(0, ("csv: rows with the wrong number of fields", malformed))
+    rec.dropped[:0] = [(what, n) for what, n in defects if n]
     if not any(len(s) for s in rec.streams().values()):
         raise TwinError(f"{path.name}: no usable rows")
     return with_common_origin(rec)
 
 
-def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], int]:
-    """Header, float columns (non-numbers → NaN) and the number of malformed rows."""
+def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str, int]]]:
+    """Header, float columns (a cell that is not a finite number → NaN) and what was read as missing
+    though the file had something there: (what, count) for the recording's `dropped`."""
     try:
         text = path.read_text(encoding="utf-8-sig", errors="replace")  # -sig: a spreadsheet's BOM
     except OSError as exc:
@@ -78,8 +78,19 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], int]:
     header = [h.strip() for h in rows[0]]
     good = [r for r in rows[1:] if len(r) == len(header)]
     malformed = sum(1 for r in rows[1:] if r and len(r) != len(header))
-    cols = {name: np.array([_float(r[i]) for r in good], dtype=float) for i, name in enumerate(header) if name}
-    return header, cols, malformed
+    named = [i for i, name in enumerate(header) if name]
+    cells = np.array([[_float(r[i]) for i in named] for r in good], dtype=float).reshape(len(good), len(named))
+    # a blank cell or a written NaN is a logger's "no sample": not something misread
+    blank = np.array([[r[i].strip().lower() in ("", "nan") for i in named] for r in good], bool).reshape(cells.shape)
+    text_cells = int(np.sum(np.isnan(cells) & ~blank))
+    infinite = int(np.sum(np.isinf(cells)))
+    empty_rows = int(np.sum(blank.all(axis=1))) if len(named) else 0
+    cells[np.isinf(cells)] = np.nan
+    cols = {header[i]: cells[:, j] for j, i in enumerate(named)}
+    return header, cols, [("csv: rows with the wrong number of fields", malformed),
+                          ("csv: rows with no value in any column", empty_rows),
+                          ("csv: cells that are not numbers (text), read as missing", text_cells),
+                          ("csv: infinite cells, read as missing", infinite)]
 
 
 def _float(s: str) -> float:
