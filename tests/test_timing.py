@@ -92,3 +92,61 @@ def test_the_search_fits_a_heading_or_a_fix_late_only_and_a_pwm_clock_both_ways(
         (q,) = cand.params
         assert q.lo == lowest if lowest == 0.0 else q.lo < lowest, name
         assert min(v[0] for v in cand.scan) == pytest.approx(lowest, abs=0.1), name
+
+
+# ---------------------------------------------------------------- heading samples the gyro contradicts
+
+def _contradicted(rec: Recording):
+    from twin.prepare.timing import gyro_contradicts
+
+    return gyro_contradicts(rec.heading.t, np.unwrap(rec.heading["psi_rad"]), rec.imu.t, rec.imu["yaw_rate_rads"])
+
+
+@pytest.mark.parametrize("delay, tau", [(0.0, 0.0), (0.6, 0.0), (0.0, 0.4)])
+def test_a_weaving_boat_with_a_late_heading_has_nothing_the_gyro_contradicts(delay, tau):
+    """Turning at up to 0.6 rad/s with the heading 0.6 s late or filtered: the offset track is read
+    against the gyro shifted by the heading's own delay, so no turn reads as a step."""
+    got = _contradicted(_log(heading_delay_s=delay, tau_s=tau))
+    assert got.stale.sum() == 0 and got.stepped.sum() == 0 and got.steps == ()
+
+
+def test_a_stalled_logger_and_a_step_of_the_heading_are_left_out():
+    rec = _log(seed=3)
+    t, psi = rec.heading.t, np.unwrap(rec.heading["psi_rad"])
+    stall = (t > 100.0) & (t < 101.5)
+    psi = np.where(stall, psi[np.flatnonzero(t > 100.0)[0] - 1], psi)  # the last value before, repeated
+    psi = psi + np.where(t >= 200.0, np.radians(6.0), 0.0)  # the compass's offset steps by 6°
+    rec.heading = Stream(t, {"psi_rad": np.mod(psi, 2 * np.pi)})
+    got = _contradicted(rec)
+    # the weave turns at 0.1-0.6 rad/s there: every repeat but the first few hundredths of a second is stale
+    assert 25 <= got.stale.sum() <= int(stall.sum()) and not got.stale[~stall].any()
+    assert len(got.steps) == 1 and 199.0 <= got.steps[0][0] <= 200.0
+    assert np.degrees(got.steps[0][1]) == pytest.approx(6.0, abs=0.5)
+    assert got.stepped[(t > 199.2) & (t < 199.9)].all() and not got.stepped[(t < 198.5) | (t > 201.5)].any()
+
+
+def test_a_gyro_in_other_units_contradicts_nothing():
+    rec = _log()
+    rec.imu = Stream(rec.imu.t, {"yaw_rate_rads": np.degrees(rec.imu["yaw_rate_rads"])})
+    got = _contradicted(rec)
+    assert got.stale.sum() == 0 and got.stepped.sum() == 0 and "does not match" in got.note
+
+
+def test_the_esso_osakas_heading_steps_and_stalls_are_left_out_by_preparation():
+    from pathlib import Path
+
+    from twin.formats import read_recording
+    from twin.prepare import prepare
+
+    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "esso" / "random_31-Jul-2020_12_48_39.csv"
+    if not path.exists():
+        pytest.skip("the shared Esso Osaka data are not beside the project")
+    rec = read_recording(path)
+    got = _contradicted(rec)
+    t0 = rec.heading.t[0]
+    # two steps of the heading that the gyro (turning at 1.1 °/s) does not make
+    assert [round(a - t0) for a, _ in got.steps] == [747, 761]
+    assert [round(float(np.degrees(b))) for _, b in got.steps] == [5, 8]
+    dropped = dict(prepare(rec).dropped)
+    assert dropped["heading samples within a step of the heading the gyro does not turn (left out)"] == int(got.stepped.sum())
+    assert dropped["heading samples a stalled logger repeated while the gyro turned on (left out)"] > 50

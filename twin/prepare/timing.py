@@ -148,3 +148,110 @@ def _pieces(t_h: np.ndarray, t_g: np.ndarray, window_s: float = WINDOW_S):
                 or np.max(np.diff(tg)) > MAX_GAP_S:
             continue
         yield m
+
+
+# ---------------------------------------------------------------- heading samples the gyro contradicts
+
+STEP_SPAN_S = 1.0  # the heading's turn against the gyro's over this span: a compass's step and its settling
+STEP_FLANK_S = 1.0  # the offset before and after a step: the median over this long on either side
+STEP_FLOOR_RAD = float(np.radians(3.0))  # ten times the span's mismatch on the Esso Osaka's tests (0.13-0.30°)
+STEP_K_SCALE = 10.0
+STEP_TURN_SHARE = 0.1  # a step is this share of the gyro's own turn over the span, at least: beyond what is left of its
+# scale error once the whole log's scale is taken out
+STEP_LAGS_S = np.round(np.arange(0.0, MAX_LAG_S + 1e-9, 0.05), 3)
+STALE_FLOOR_RAD = float(np.radians(0.2))  # a repeat is stale once the gyro has turned this far (and two steps
+# of the heading's resolution) since the value was fresh
+
+
+@dataclass(frozen=True)
+class GyroContradicts:
+    """Heading samples that the log's gyro contradicts: `stale` (a stalled logger's repeats of a
+    heading the gyro has turned away from), `stepped` (the samples within a step of the heading's
+    offset), `steps` ((time s, step rad) each: the offset after against before), `note` (why nothing
+    was looked for)."""
+
+    stale: np.ndarray
+    stepped: np.ndarray
+    steps: tuple[tuple[float, float], ...] = ()
+    note: str = ""
+
+
+def gyro_contradicts(t_s: np.ndarray, psi_unwrapped_rad: np.ndarray, gyro_t_s: np.ndarray,
+                     gyro_rad_s: np.ndarray) -> GyroContradicts:
+    """Heading samples (t_s, psi_unwrapped_rad) that the gyro (gyro_t_s, gyro_rad_s) shows wrong, to be
+    left out; nothing is corrected. Only beside a gyro whose whole-log turning matches the heading's
+    (units and sign: 0.8-1.25 times as far).
+
+    Stale: a logger that stalls repeats its last heading for seconds while the vessel turns on (the
+    Esso Osaka's tests: 0.4-2.7 s, about 1 % of their records, the gyro logged on), and a yaw rate
+    taken across the stall reads nothing and then a jump. A repeated value is stale once the gyro
+    has turned more than STALE_FLOOR_RAD, and two steps of the heading's resolution, since the value
+    was fresh; a coarse compass's honest repeats on a steady course stay.
+
+    Stepped: a compass re-levelling or a heading source's re-fix steps the sensor's offset, which no
+    hull does between two gyro samples. The offset track ψ − (k∫r + b·t) over the fresh samples (the
+    gyro's scale k and bias b fitted over the whole log, shifted by the heading's own delay against
+    it, the one that keeps the track steadiest) is smooth but for such steps; a step is where it moves over STEP_SPAN_S by more than STEP_FLOOR_RAD,
+    STEP_K_SCALE times its robust spread and STEP_TURN_SHARE of the gyro's own turn there. The
+    samples within it are left out, so the yaw rate is not taken across it; the step's size (the
+    track's median STEP_FLANK_S after against before) is reported, and a log's compass offset is
+    measured across it as before."""
+    t = np.asarray(t_s, float)
+    psi = np.asarray(psi_unwrapped_rad, float)
+    nothing = np.zeros(len(t), bool)
+    tg, rg = np.asarray(gyro_t_s, float), np.asarray(gyro_rad_s, float)
+    ok = np.isfinite(rg)
+    tg, rg = tg[ok], rg[ok]
+    if len(tg) < 10 or len(t) < 10:
+        return GyroContradicts(nothing, nothing, note="no gyro beside the heading")
+    covered = (t >= tg[0]) & (t <= tg[-1])
+    turned = np.r_[0.0, cumulative_trapezoid(rg, tg)]
+    fresh_mask = np.r_[True, np.diff(psi) != 0]
+    fresh = np.flatnonzero(fresh_mask & covered)
+    if len(fresh) < 10:
+        return GyroContradicts(nothing, nothing, note="no gyro beside the heading")
+    tf, pf = t[fresh], psi[fresh]
+    gain = _whole_log_gain(pf, tf, np.interp(tf, tg, turned))
+    if gain is None or not 0.8 <= gain <= 1.25:
+        return GyroContradicts(nothing, nothing, note="the gyro's turning does not match the heading's over the log")
+    steps_of = np.abs(np.diff(pf))
+    resolution = float(np.min(steps_of[steps_of > 0])) if np.any(steps_of > 0) else 0.0
+    since = np.maximum.accumulate(np.where(fresh_mask, np.arange(len(t)), 0))  # the fresh sample each repeats
+    gyro_at = np.interp(t, tg, turned)
+    stale = ~fresh_mask & covered & (np.abs(gyro_at - gyro_at[since]) > max(STALE_FLOOR_RAD, 2 * resolution))
+    stepped, steps = _offset_steps(t, tf, pf, tg, turned)
+    return GyroContradicts(stale, stepped, steps)
+
+
+def _offset_steps(t: np.ndarray, tf: np.ndarray, pf: np.ndarray, tg: np.ndarray, turned: np.ndarray
+                  ) -> tuple[np.ndarray, tuple[tuple[float, float], ...]]:
+    """gyro_contradicts' steps: (mask over t of the samples within one, (start s, step rad) each)."""
+    later = np.searchsorted(tf, tf + STEP_SPAN_S)  # the first fresh sample a span on
+    i = np.flatnonzero(later < len(tf))
+    j = later[i]
+    keep = tf[j] - tf[i] <= 1.5 * STEP_SPAN_S  # no dropout across the span
+    i, j = i[keep], j[keep]
+    inside = np.zeros(len(t), bool)
+    if not len(i):
+        return inside, ()
+    tracks, gyros = [], []
+    for lag in STEP_LAGS_S:
+        gyro_at = np.interp(tf - lag, tg, turned)
+        # the gyro's own scale and bias, over the whole log, so that neither reads as a step in a turn
+        design = np.column_stack([gyro_at, tf - tf[0], np.ones(len(tf))])
+        scale, bias, _ = np.linalg.lstsq(design, pf, rcond=None)[0]
+        gyros.append(scale * gyro_at + bias * (tf - tf[0]))
+        tracks.append(pf - gyros[-1])
+    best = int(np.argmin([np.median(np.abs(m[j] - m[i])) for m in tracks]))
+    track, gyro_at = tracks[best], gyros[best]
+    moved, gyro_turn = track[j] - track[i], gyro_at[j] - gyro_at[i]
+    limit = max(STEP_FLOOR_RAD, STEP_K_SCALE * 1.4826 * float(np.median(np.abs(moved - np.median(moved)))))
+    flagged = np.flatnonzero((np.abs(moved) > limit) & (np.abs(moved) > STEP_TURN_SHARE * np.abs(gyro_turn)))
+    steps = []
+    for run in np.split(flagged, np.flatnonzero(np.diff(i[flagged]) > 1) + 1) if len(flagged) else []:
+        start, end = tf[i[run[0]]], tf[j[run[-1]]]
+        before = (tf >= start - STEP_FLANK_S) & (tf <= start)
+        after = (tf >= end) & (tf <= end + STEP_FLANK_S)
+        inside |= (t > start) & (t < end)
+        steps.append((float(start), float(np.median(track[after]) - np.median(track[before]))))
+    return inside, tuple(steps)
