@@ -131,20 +131,14 @@ def test_preparation_leaves_outliers_out_and_counts_them():
 
 
 def test_shared_real_logs_have_no_outliers():
-    """The real BlueBoat and Esso Osaka logs: no sample is off its neighbours (the rule changes nothing
-    there). The Esso Osaka's logger stalls now and then while its gyro logs on: those repeats of the
-    heading are left out by the gyro (test_timing), a few dozen a test."""
+    """The real BlueBoat and Esso Osaka logs: nothing is left out (the rule changes nothing there)."""
     if not SHARED.is_dir():
         pytest.skip("../shared/data not present")
     from twin.formats import read_recording
 
-    for path in sorted((SHARED / "blueboat").glob("*.csv"))[:4]:
+    paths = sorted((SHARED / "blueboat").glob("*.csv"))[:4] + sorted((SHARED / "esso").glob("turn_14-Sep*.csv"))[:2]
+    for path in paths:
         assert counted(read_recording(path)) == {"gnss": 0, "gnss_held": 0, "heading": 0}, path.name
-    for path in sorted((SHARED / "esso").glob("turn_14-Sep*.csv"))[:2]:
-        got = counted(read_recording(path))
-        assert {k: got[k] for k in ("gnss", "gnss_held", "heading", "heading_stepped")} == \
-            {"gnss": 0, "gnss_held": 0, "heading": 0, "heading_stepped": 0}, path.name
-        assert 10 <= got["heading_stale"] <= 60, path.name
 
 
 def test_after_a_dropout_a_good_fix_beside_an_outlier_stays():

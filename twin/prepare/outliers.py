@@ -178,8 +178,6 @@ def describe(counts: dict[str, int]) -> list[str]:
     """`twin info`'s lines for prepared.outlier_counts()."""
     what = {"gnss": f"GNSS fixes off their neighbours' track by more than {FLOOR_GNSS_M:g} m",
             "gnss_held": "GNSS fixes held while the vessel moved on (velocities taken across them)",
-            "heading": f"heading samples off their neighbours by more than {np.degrees(FLOOR_HEADING_RAD):.0f}°",
-            "heading_stale": "heading samples a stalled logger repeated while the gyro turned on",
-            "heading_stepped": "heading samples within a step of the heading the gyro does not turn"}
+            "heading": f"heading samples off their neighbours by more than {np.degrees(FLOOR_HEADING_RAD):.0f}°"}
     return [f"{'held' if k == 'gnss_held' else 'outliers'}: {what[k]}"
             f"{'' if k == 'gnss_held' else ' (left out by preparation)'}: {n}" for k, n in counts.items() if n]

@@ -48,10 +48,6 @@
    none). Fixes a receiver held while
    the vessel moved on (outliers.held_fixes) stay in the stream, so they open no dropout, but the
    velocities are taken across them, from the fresh fixes, as across a repeated fix (step 4).
-   Where the log has a gyro, heading samples it shows wrong are left out too (timing.gyro_contradicts):
-   a stalled logger's repeats of a heading the gyro has turned away from, and the samples within a
-   step of the heading's offset that the gyro does not turn; the yaw rate is then not taken across
-   them, and a dropout longer than max_gap_s ends the segment as any other does.
 9. A measured wind (the wind stream) is held on the grid as the air's velocity over ground
    (`wind_ned`, north, east m/s where the air goes; NaN before its first sample), carried for
    whoever asks for it (fit.windows.predict(..., wind="measured")) and used by nothing else.
@@ -72,7 +68,6 @@ from ..geodesy import ned_from_geodetic as geodetic_to_ned
 from ..recording import Recording, Stream
 from ..run import Run
 from .outliers import distinct_count, gnss_outliers, heading_spikes, held_fixes
-from .timing import gyro_contradicts
 
 DEADBAND_US = (-37.0, 31.0)  # [Yellowfish-TR Table VII] (experimental): 400·(3.75 + δ̃) − 1500
 _EPS_S = 1e-6  # a grid time within this of a sample time counts as "at" the sample
@@ -183,16 +178,13 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     if logged_heading is not None and np.array_equal(logged_heading.t, rec.heading.t):
         logged = np.unwrap(logged_heading["psi_rad"])
     spiked = _flagged(heading_spikes, logged, rec.heading.t, key=(_offset_free(logged), rec.heading.t))
-    stale, stepped = _gyro_shows_wrong(rec, logged, spiked)
-    if off_track.all() or (spiked | stale | stepped).all():
+    if off_track.all() or spiked.all():
         raise TwinError(f"{name}: every GNSS fix or heading sample is an outlier of its neighbours")
     outliers = [(why, n) for why, n in (
         ("GNSS fixes off their neighbours' track (outliers)", distinct_count(off_track, np.column_stack([north_o, east_o]))),
-        ("heading spikes (outliers)", distinct_count(spiked, psi_h)),
-        (HEADING_STALE, int(stale.sum())), (HEADING_STEPPED, int(stepped.sum()))) if n]
+        ("heading spikes (outliers)", distinct_count(spiked, psi_h))) if n]
     pos = Stream(rec.gnss.t[~off_track], {"north": north_o[~off_track], "east": east_o[~off_track]})
-    kept = ~(spiked | stale | stepped)
-    hdg = Stream(rec.heading.t[kept], {"psi": psi_h[kept]})
+    hdg = Stream(rec.heading.t[~spiked], {"psi": psi_h[~spiked]})
     north_o, east_o = pos["north"], pos["east"]
     held = _flagged(held_fixes, north_o, east_o, pos.t)  # no new fixes, yet not a dropout (step 0)
     if held.any():
@@ -236,28 +228,6 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
                     supply_voltage(rec, t))
 
 
-HEADING_STALE = "heading samples a stalled logger repeated while the gyro turned on (left out)"
-HEADING_STEPPED = "heading samples within a step of the heading the gyro does not turn (left out)"
-
-
-def _gyro_shows_wrong(rec: Recording, logged: np.ndarray, spiked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(stale, stepped): the heading samples (as logged, spikes already out) that the log's gyro
-    shows wrong (timing.gyro_contradicts), over all of the heading's samples; none without a gyro."""
-    if not len(rec.imu):
-        return np.zeros(len(logged), bool), np.zeros(len(logged), bool)
-    masks = _flagged(_gyro_masks, rec.heading.t, logged, spiked, rec.imu.t, rec.imu["yaw_rate_rads"],
-                     key=(rec.heading.t, _offset_free(logged), spiked, rec.imu.t, rec.imu["yaw_rate_rads"]))
-    return masks[0], masks[1]
-
-
-def _gyro_masks(t: np.ndarray, psi: np.ndarray, spiked: np.ndarray, gyro_t: np.ndarray, gyro: np.ndarray
-                ) -> np.ndarray:
-    found = gyro_contradicts(t[~spiked], psi[~spiked], gyro_t, gyro)
-    out = np.zeros((2, len(t)), bool)
-    out[0, ~spiked], out[1, ~spiked] = found.stale, found.stepped
-    return out
-
-
 _FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibration that leaves a stream as
 # it was (the GNSS under a compass calibration) leaves its outliers as they were
 
@@ -282,11 +252,7 @@ def outlier_counts(rec: Recording) -> dict[str, int]:
         out["gnss_held"] = int(held_fixes(n[~off], e[~off], rec.gnss.t[~off]).sum())
     if len(rec.heading):
         psi = np.unwrap(rec.heading["psi_rad"])
-        spiked = heading_spikes(psi, rec.heading.t)
-        out["heading"] = distinct_count(spiked, psi)
-        if len(rec.imu):  # only a gyro can show a heading wrong this way
-            stale, stepped = _gyro_shows_wrong(rec, psi, spiked)
-            out["heading_stale"], out["heading_stepped"] = int(stale.sum()), int(stepped.sum())
+        out["heading"] = distinct_count(heading_spikes(psi, rec.heading.t), psi)
     return out
 
 
