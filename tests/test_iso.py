@@ -139,3 +139,15 @@ def test_point_move_reaches_the_target(yellowfish, yaw_model):
     assert summary["final_distance_to_target_m"] < 0.1  # measured 0.02 m
     assert summary["max_cross_track_m"] < 0.05
     assert dp.loops[0].iae_ratio < 1.1  # measured 0.998
+
+
+def test_dp_runs_its_default_heading_step_and_writes_its_json(tmp_path):
+    """The default run is a heading step: no target, so no distance to one is asked of its summary."""
+    import json
+
+    out = tmp_path / "dp.json"
+    p = twin_command.twin("dp", "--vessel", "yellowfish", "--json", str(out))
+    assert p.returncode == 0, p.stderr
+    got = json.loads(out.read_text())
+    assert got["run"] and got["loops"] and "final_distance_to_target_m" not in got
+    assert 0.8 < got["loops"][0]["iae_ratio"] < 1.3

@@ -194,7 +194,7 @@ def dp_command(
         console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} ([Relay-ISO]: ~1.02 for 45°), "
                       f"max |twin − model| {lp['max_deviation_from_model']:.3g} {lp['unit']}, "
                       f"saturated {lp['saturated_percent_of_time']:.0f} % of the time")
-    if goal is not None:
+    if "final_distance_to_target_m" in summary:  # a point move's; a heading step has no target
         console.print(f"final distance to the target {summary['final_distance_to_target_m']:.3f} m")
     models = {"yaw": yaw, "surge": surge}
     write_json(json_out, {"vessel": cv.vessel.name, **summary, "tuning": {

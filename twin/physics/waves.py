@@ -157,7 +157,8 @@ def spreading(theta_rad: np.ndarray, n: float) -> np.ndarray:
     """D(θ) = Γ(1 + n/2)/(√π Γ(1/2 + n/2)) cos^n θ for |θ| < π/2, else 0 [DNV-RP-C205];
     ∫ D dθ = 1."""
     theta = np.asarray(theta_rad, float)
-    c = math.gamma(1.0 + n / 2.0) / (math.sqrt(math.pi) * math.gamma(0.5 + n / 2.0))
+    # the gammas' ratio through their logarithms: each alone overflows beyond n ≈ 340
+    c = math.exp(math.lgamma(1.0 + n / 2.0) - math.lgamma(0.5 + n / 2.0)) / math.sqrt(math.pi)
     return np.where(np.abs(theta) < np.pi / 2, c * np.abs(np.cos(theta)) ** n, 0.0)
 
 
