@@ -246,7 +246,7 @@ STAGE_METHODS = {
     ("sixth", "after"): "an identified twin's velocities scaled by its own misfit on the recordings (search.dof_scale)",
     ("eighth", "before"): "the Esso tests diagnosed with their measured wind a known input of every free run",
     ("eighth", "mean wind (control)"): "the Esso tests diagnosed with each test's mean wind given as a constant "
-                                       "wind_per_log, as the sets before the eighth were (--esso-mean-wind); the "
+                                       "wind_per_log (--esso-mean-wind), as on the pages of the first to seventh sets; the "
                                        "BlueBoat cases as in 'before'",
 }
 
@@ -630,7 +630,7 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--identify-only", action="store_true")
     ap.add_argument("--esso-mean-wind", action="store_true",
-                    help="give each Esso test its mean wind as the sets before the eighth did (a control stage)")
+                    help="give each Esso test its mean wind as a constant wind_per_log (a control stage)")
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the raw figures there are")
     args = ap.parse_args()
     if args.page_only:
