@@ -203,3 +203,16 @@ def test_a_compass_error_that_follows_the_throttle_is_told_from_a_drift(blueboat
     assert got.shown and got.b_deg == pytest.approx(8.0, abs=1.0) and got.c_deg == pytest.approx(-5.0, abs=1.0)
     null = throttle_dependence([prepare_for(_throttle_log(0.0, 0.0, 2), blueboat, **rate_windows(vessel))], vessel)
     assert not null.shown and abs(null.b_deg) < 1.0 and abs(null.c_deg) < 1.0
+
+
+def test_a_log_without_thruster_outputs_tells_no_throttle_dependence(blueboat):
+    """A log whose throttle is not logged (no PWM: the prepared inputs are NaN) has pieces of straight
+    running but no throttle to fit: no answer, not a least-squares failure on NaN."""
+    from dataclasses import replace
+
+    from twin.fit.calibrate import prepare_for, rate_windows, throttle_dependence
+    from twin.recording import Stream
+
+    vessel = blueboat.vessel
+    log = replace(_throttle_log(8.0, -5.0, 1), pwm=Stream.empty("left_us", "right_us"))
+    assert throttle_dependence([prepare_for(log, blueboat, **rate_windows(vessel))], vessel) is None

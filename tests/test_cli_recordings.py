@@ -251,3 +251,14 @@ def test_info_with_a_vessel_reports_each_logs_compass_calibration(shared_dir, tm
     assert p.returncode == 0 and "ardusub_small.BIN: no compass calibration (it needs GNSS and heading)" in p.stdout
     p = twin("info", runs / "fixed_00000225.csv", "--vessel", "nosuch")
     assert p.returncode == 2 and p.stderr.startswith("error: unknown vessel") and "==" not in p.stdout
+
+
+def test_info_with_a_vessel_on_a_log_without_thruster_outputs_names_it(shared_dir):
+    """The SITL boat's log maps no servo output to the thrusters (no SERVOn_FUNCTION 73/74): its
+    calibration is told, and the throttle test names the log and --channels instead of failing."""
+    p = twin("info", shared_dir / "data" / "ardupilot" / "sitl_motorboat.tlog", "--vessel", "blueboat")
+    assert p.returncode == 0, p.stderr
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("calibration:")]
+    assert lines[-1] == ("calibration: compass error following the throttle: not told (sitl_motorboat.tlog: no "
+                         "thruster outputs logged (give --channels LEFT,RIGHT if its servo outputs drive the "
+                         "thrusters))")

@@ -103,12 +103,20 @@ def _throttle_line(recordings: list, vessel, calibrations) -> str:
     from ..fit.calibrate import MIN_THROTTLE_STRETCHES, throttle_dependence
     from ..ident.identify import prepared
 
-    dep = throttle_dependence(prepared(recordings, vessel), vessel, [c.drift_ned_m_s for c in calibrations])
+    throttled = [k for k, r in enumerate(recordings) if len(r.pwm)]
+    unthrottled = [Path(r.source).name for r in recordings if not len(r.pwm)]
+    missing = (f"{', '.join(unthrottled)}: no thruster outputs logged (give --channels LEFT,RIGHT if its servo "
+               "outputs drive the thrusters)") if unthrottled else ""
+    if not throttled:
+        return f"compass error following the throttle: not told ({missing})"
+    dep = throttle_dependence(prepared([recordings[k] for k in throttled], vessel), vessel,
+                              [calibrations[k].drift_ned_m_s for k in throttled])
+    left_out = f"; left out: {missing}" if missing else ""
     if dep is None:
         return (f"compass error following the throttle: not told (fewer than {MIN_THROTTLE_STRETCHES} straight stretches "
-                "ahead, or too few pieces of them)")
+                f"ahead, or too few pieces of them{left_out})")
     return dep.text() + (" (`twin diagnose` judges `compass_motor` on the dynamics; ArduPilot's compassmot "
-                         "calibration measures it)" if dep.shown else "")
+                         "calibration measures it)" if dep.shown else "") + (f" ({left_out[2:]})" if missing else "")
 
 
 @app.command()

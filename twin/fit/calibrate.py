@@ -405,6 +405,13 @@ def _throttle_pieces(prep: Prepared, vessel: Vessel, drift) -> list[tuple]:
     return out
 
 
+def _finite_rows(pieces: list[tuple]) -> np.ndarray:
+    """The pieces as an array, those with a value missing (a throttle not logged: NaN) left out: one
+    NaN would leave the least squares without a solution."""
+    p = np.array(pieces, float).reshape(-1, 6)
+    return p[np.all(np.isfinite(p), axis=1)]
+
+
 MIN_THROTTLE_STRETCHES = 10  # a cluster-robust σ from fewer clusters than this is too optimistic to test on
 
 
@@ -414,13 +421,12 @@ def throttle_dependence(preps: list[Prepared], vessel: Vessel, drifts=None) -> T
     stretches ahead or fewer pieces than twice the unknowns."""
     blocks, y, cluster, common = [], [], [], []
     for i, prep in enumerate(preps):
-        pieces = _throttle_pieces(prep, vessel, np.zeros(2))
-        if not pieces:
+        p = _finite_rows(_throttle_pieces(prep, vessel, np.zeros(2)))
+        if not len(p):  # no straight running ahead, or no throttle logged (a log without thruster outputs)
             continue
-        p = np.array(pieces)
         own = _heading_spread_deg(p[:, 2]) >= DRIFT_HEADING_SPREAD_DEG
         if not own and drifts is not None and drifts[i] is not None:
-            p = np.array(_throttle_pieces(prep, vessel, np.asarray(drifts[i], float)))
+            p = _finite_rows(_throttle_pieces(prep, vessel, np.asarray(drifts[i], float)))
         psi, speed = p[:, 2], p[:, 3]
         cols = [np.ones(len(p))] + ([np.degrees(np.sin(psi) / speed), np.degrees(-np.cos(psi) / speed)] if own else [])
         blocks.append(np.column_stack(cols))
