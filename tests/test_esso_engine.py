@@ -212,3 +212,31 @@ def test_iso_with_the_rudder_relay_and_the_ipd_heading_step(esso):
     assert abs(loop.reference - loop.response[-1]) < math.radians(0.5)
     alloc = ipd.RudderAllocation.at(esso, iso.straight_speed(esso, 10.0), 10.0)
     assert alloc.rudder(alloc.moment(0.3)) == pytest.approx(0.3) and alloc.rudder(1e3) == pytest.approx(alloc.max_rad)
+
+
+def test_a_simulated_run_written_as_csv_is_replayed_by_its_own_twin(tmp_path):
+    from twin import api
+    from twin.formats import read_recording
+    from twin.simulation import simulate_run
+
+    sim = simulate_run("esso_osaka", scenario="turn", duration_s=60.0)
+    path = tmp_path / "run.csv"
+    sim.write(path)
+    rec = read_recording(path)
+    # the turn scenario: 0.6 of rps_max ahead, then 0.3 of rudder_max_deg to starboard from 10 s
+    pr = rec.prop_rudder
+    assert np.allclose(pr["n_rps"], 6.0)
+    assert np.allclose(np.degrees(pr["delta_rad"][pr.t >= 10.05]), 12.0)
+    assert np.allclose(pr["delta_rad"][pr.t < 9.95], 0.0)
+    metrics = api.evaluate("esso_osaka", [path]).metrics
+    for horizon in ("free_run_10s", "free_run_30s"):
+        for dof in ("u", "v", "r"):
+            assert metrics[horizon][dof]["r2"] > 0.999, (horizon, dof, metrics[horizon][dof])
+
+
+def test_a_spin_refuses_a_propeller_and_rudder_ship():
+    from twin.simulation import simulate_run
+
+    with pytest.raises(TwinError, match=r"esso_osaka.*propeller_rudder.*step, turn, zigzag, random"):
+        simulate_run("esso_osaka", scenario="spin", duration_s=5.0)
+    assert simulate_run("cybership1", scenario="spin", duration_s=5.0).run.nu[-1, 2] != 0.0

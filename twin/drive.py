@@ -256,9 +256,27 @@ SCENARIOS: dict[str, Callable[..., Controller]] = {
 }
 
 
-def get(name: str, seed: int = 0) -> Controller:
+# a spin turns on the spot by differential thrust, which a single screw and rudder cannot give: driven
+# by one, it asks for rudder with the propeller stopped and the ship lies still
+NEEDS_TWO_THRUSTERS = ("spin",)
+
+
+def applicable(kind: str) -> tuple[str, ...]:
+    """The scenarios that can drive thrusters of this kind (vessel.thrusters.kind)."""
+    if kind == "propeller_rudder":
+        return tuple(name for name in SCENARIOS if name not in NEEDS_TWO_THRUSTERS)
+    return tuple(SCENARIOS)
+
+
+def get(name: str, seed: int = 0, kind: str | None = None, vessel_name: str = "") -> Controller:
+    """The scenario `name`'s controller; with `kind` (the thrusters' kind of the vessel it will
+    drive), refused when it cannot drive them."""
     if name not in SCENARIOS:
         raise TwinError(f"unknown scenario '{name}' (known: {', '.join(SCENARIOS)})")
+    if kind is not None and name not in applicable(kind):
+        who = f"vessel '{vessel_name}' " if vessel_name else "a vessel "
+        raise TwinError(f"scenario '{name}' needs two thrusters to turn on the spot; {who}has one propeller and "
+                        f"a rudder (thrusters.kind '{kind}'): use {', '.join(applicable(kind))}")
     return SCENARIOS[name](seed=seed) if name == "random" else SCENARIOS[name]()
 
 

@@ -11,6 +11,8 @@ from .errors import TwinError
 
 CSV_COLUMNS = ("t", "x", "y", "psi", "u", "v", "r", "pwm_left", "pwm_right", "thrust_left", "thrust_right")
 SIX_DOF_COLUMNS = ("down", "roll", "pitch")  # a 6-DOF run's body origin below the mean surface (m), rad
+# a propeller-and-rudder ship's inputs, in the columns the recording readers take (formats/csv.py)
+PROPELLER_RUDDER_COLUMNS = ("prop_rps", "rudder_deg")
 
 
 @dataclass
@@ -40,13 +42,28 @@ class Run:
             "thrust_left": self.thrust_n[:, 0], "thrust_right": self.thrust_n[:, 1],
         }
 
+    def propeller_rudder(self) -> np.ndarray | None:
+        """(n, 2) a propeller-and-rudder ship's inputs held at the samples: propeller speed (rps) and
+        rudder angle (rad), as the run's input series gave them (before the thrusters' delay, as
+        pwm_us is); None for a run driven by PWM or thrust, or one without its inputs."""
+        inputs = self.meta.get("inputs")
+        if getattr(inputs, "kind", None) != "propeller_rudder":
+            return None
+        return np.asarray(inputs.at(np.asarray(self.t, float) - float(self.meta.get("start_s", 0.0))), float)
+
     def to_csv_text(self) -> str:
-        """The run layout: a header of CSV_COLUMNS (and SIX_DOF_COLUMNS after them for a 6-DOF run),
-        then one row per sample, each value '{:.9g}' and an empty cell for NaN (or infinity).
+        """The run layout: a header of CSV_COLUMNS (then PROPELLER_RUDDER_COLUMNS, rps and degrees, for
+        a propeller-and-rudder ship: its pwm columns are empty and its thrust columns hold the
+        propeller thrust and the rudder normal force, so without them nothing could replay the
+        run; and SIX_DOF_COLUMNS for a 6-DOF run), then one row per sample, each value '{:.9g}' and an empty cell for NaN (or infinity).
         Formatted a column at a time, not a cell at a time through csv.writer (a 1-h run has 400 000
         cells); the cells need no quoting."""
         cols = self.columns()
         names = list(CSV_COLUMNS)
+        held = self.propeller_rudder()
+        if held is not None:
+            cols.update({"prop_rps": held[:, 0], "rudder_deg": np.degrees(held[:, 1])})
+            names += list(PROPELLER_RUDDER_COLUMNS)
         six = self.meta.get("six_dof")
         if six is not None:
             cols.update({"down": six["down_m"], "roll": six["roll_rad"], "pitch": six["pitch_rad"]})
@@ -66,7 +83,8 @@ def _cells(values) -> list[str]:
 
 
 def read_csv(path: str | Path) -> Run:
-    """Read a run written by `Run.to_csv_text` (empty cells are NaN)."""
+    """Read a run written by `Run.to_csv_text` (empty cells are NaN); a propeller-and-rudder ship's
+    inputs come back as the run's input series (meta "inputs", "start_s")."""
     path = Path(path)
     try:
         rows = list(csv.DictReader(path.read_text().splitlines()))
@@ -74,8 +92,17 @@ def read_csv(path: str | Path) -> Run:
         raise TwinError(f"{path.name}: cannot read ({exc})") from None
     if not rows or set(CSV_COLUMNS) - set(rows[0]):
         raise TwinError(f"{path.name}: not a run CSV (needs columns {', '.join(CSV_COLUMNS)})")
-    a = {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows]) for c in CSV_COLUMNS}
+    names = CSV_COLUMNS + tuple(c for c in PROPELLER_RUDDER_COLUMNS if c in rows[0])
+    a = {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows]) for c in names}
+    meta = {}
+    if set(PROPELLER_RUDDER_COLUMNS) <= set(a) and len(a["t"]):
+        from .drive import InputSeries
+
+        start = float(a["t"][0])
+        meta = {"start_s": start, "inputs": InputSeries(a["t"] - start, np.column_stack(
+            [a["prop_rps"], np.radians(a["rudder_deg"])]), "propeller_rudder")}
     return Run(
         a["t"], np.column_stack([a["x"], a["y"], a["psi"]]), np.column_stack([a["u"], a["v"], a["r"]]),
         np.column_stack([a["pwm_left"], a["pwm_right"]]), np.column_stack([a["thrust_left"], a["thrust_right"]]),
+        meta=meta,
     )

@@ -21,7 +21,7 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     if isinstance(drive, str):
-        drive = get_scenario(drive, kwargs.pop("seed", 0))
+        drive = get_scenario(drive, kwargs.pop("seed", 0), vessel.thrusters.kind, vessel.name)
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
     return _simulate(compile_vessel(vessel), drive, duration_s, **kwargs)
 
@@ -78,7 +78,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     vessel = vessel.with_environment(env)
     if inputs is not None and not isinstance(inputs, InputSeries):
         inputs = read_inputs_csv(inputs)
-    drive = inputs if inputs is not None else get_scenario(scenario, seed)
+    drive = inputs if inputs is not None else get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name)
     if isinstance(drive, InputSeries) and drive.kind == "pwm" and vessel.thrusters.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}' has no PWM model: give thrust_left,thrust_right in N")
     if isinstance(sea, str):
