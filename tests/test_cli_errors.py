@@ -3,6 +3,7 @@ traceback, never a file left behind."""
 import sys
 
 import pytest
+import twin_command
 
 import twin.cli as cli
 
@@ -334,3 +335,64 @@ def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkey
     assert "calibration: fixed_00000225.csv: compass offset +6.9°" in out
     code, err = run(monkeypatch, capsys, ["info", good, "--vessel", "esso_osaka"])
     assert code == 2 and "is driven by propeller_rudder inputs; the recording holds pwm" in err
+
+
+def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_path):
+    """A link given as an output stays a link: the file it names gets the run (the rename would otherwise
+    replace the link with a file of its own and leave its target stale), for each kind of writer
+    (files.write_bytes_atomic, MCAP's writer, rerun's)."""
+    data = tmp_path / "data"
+    data.mkdir()
+    links = []
+    for ext in ("csv", "mcap", "rrd"):
+        (data / f"run.{ext}").write_text("old")
+        link = tmp_path / f"link.{ext}"
+        link.symlink_to(data / f"run.{ext}")
+        links.append(link)
+    p = twin_command.twin("simulate", "--vessel", "yellowfish", "--duration", "1",
+                          *[a for link in links for a in ("--out", link)])
+    assert p.returncode == 0, p.stderr
+    for link in links:
+        assert link.is_symlink() and link.resolve() == data / f"run.{link.suffix[1:]}"
+        assert link.resolve().stat().st_size > 500
+    assert (data / "run.csv").read_text().startswith("t,")
+    assert sorted(p.name for p in data.iterdir()) == ["run.csv", "run.mcap", "run.rrd"]  # no temporary left
+
+
+def test_a_failed_write_names_the_file_and_keeps_the_old_one(monkeypatch, capsys, tmp_path):
+    """A full disk while writing: one line naming the output, the file already there kept whole."""
+    import errno
+
+    from twin import files
+
+    out = tmp_path / "run.csv"
+    out.write_text("old\n")
+
+    class Full:
+        def __init__(self, fd, mode):
+            self.fh = open(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "fdopen", Full)
+    err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--out", out], [out])
+    assert err == f"error: cannot write '{out}': No space left on device (the file there, if any, is kept)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+
+
+def test_the_api_refuses_an_output_into_a_missing_folder(tmp_path):
+    """As the CLI does: an output into a mistyped folder is refused, not written into a new one."""
+    from twin.api import simulate_run
+    from twin.errors import TwinError
+
+    sim = simulate_run("yellowfish", duration_s=1.0)
+    with pytest.raises(TwinError, match=f"folder '{tmp_path / 'typo'}' does not exist"):
+        sim.write(tmp_path / "typo" / "run.csv")
+    assert list(tmp_path.iterdir()) == []

@@ -172,6 +172,7 @@ def test_rrd_with_meshes_and_geometry(tmp_path):
 
     meshes = [ASSETS / "yellowfish_hull_port.stl", ASSETS / "yellowfish_hull_starboard.stl"]
     out = tmp_path / "sub" / "real_twin.rrd"
+    out.parent.mkdir()
     write_runs_rrd({"real": synthetic_run(9, n=300), "twin": synthetic_run(10, n=300)}, out,
                    geometry=Geometry(), hull_mesh_paths=meshes, application_id="twin_test")
     assert out.read_bytes().startswith(RRD_MAGIC)
@@ -201,3 +202,35 @@ def test_rrd_bad_mesh_is_twin_error(tmp_path):
         write_runs_rrd({"engine": synthetic_run(14, n=10)}, tmp_path / "x.rrd",
                        hull_mesh_paths=[tmp_path / "nope.stl"])
     assert listing(tmp_path) == []
+
+
+def test_rrd_on_a_full_disk_keeps_the_older_file(tmp_path, monkeypatch):
+    """rerun's file sink writes on its own thread and says nothing of a failed write: the recording is
+    made in memory and written as every output is, so a full disk is an error naming the file and the
+    good recording already there stays whole."""
+    import errno
+
+    from twin import files
+
+    out = tmp_path / "runs.rrd"
+    write_runs_rrd({"engine": synthetic_run(15, n=50)}, out)
+    good = out.read_bytes()
+
+    class Full:
+        def __init__(self, fd, mode):
+            self.fh = open(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            self.fh.write(data[: len(data) // 3])
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "fdopen", Full)
+    with pytest.raises(TwinError, match=f"cannot write '{out}': No space left on device"):
+        write_runs_rrd({"engine": synthetic_run(16, n=50)}, out)
+    assert out.read_bytes() == good and listing(tmp_path) == ["runs.rrd"]

@@ -22,27 +22,56 @@ def read_only(path) -> bool:
     return stat.S_ISREG(mode) and not mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH)
 
 
-def write_bytes_atomic(path, data: bytes) -> None:
-    """`data` to `path` atomically, with the usual permissions (umask). A read-only file there is
-    refused (TwinError), not replaced: the rename would need only the folder's permission."""
+def link_target(path) -> Path:
+    """`path`, or where it points if it is a symbolic link (through a chain of links; a dangling link's
+    target too, which a write creates)."""
     path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def written_path(path, make_folder: bool = False) -> Path:
+    """The file a write to `path` replaces: a symbolic link's target (through a chain of links), so
+    that the rename replaces the file the link names and the link stays. Its folder must exist
+    (TwinError naming it) unless `make_folder`: an output into a mistyped folder is refused, not
+    written into a new one nobody looks in; a writer filling its own folder tree makes its subfolders."""
+    target = link_target(path)
+    folder = target.parent
+    if folder.exists() and not folder.is_dir():
+        raise TwinError(f"'{path}': '{folder}' is a file, not a folder")
+    if not folder.is_dir():
+        if not make_folder:
+            raise TwinError(f"'{path}': folder '{folder}' does not exist (create it first)")
+        folder.mkdir(parents=True, exist_ok=True)
+    return target
+
+
+def write_bytes_atomic(path, data: bytes, make_folder: bool = False) -> None:
+    """`data` to `path` (through a link: written_path) atomically, with the usual permissions (umask).
+    A read-only file there is refused (TwinError), not replaced: the rename would need only the
+    folder's permission. A failed write (a full disk) names the file and leaves the old one whole."""
     if read_only(path):
         raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    target = written_path(path, make_folder)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise TwinError(f"cannot write '{path}': {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
+        os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
 
 
-def write_text_atomic(path, text: str) -> None:
+def write_text_atomic(path, text: str, make_folder: bool = False) -> None:
     """`text` (UTF-8) to `path` atomically."""
-    write_bytes_atomic(path, text.encode("utf-8"))
+    write_bytes_atomic(path, text.encode("utf-8"), make_folder)
 
 
 def _umask() -> int:

@@ -22,7 +22,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import finite_json, read_only, same_file, write_text_atomic
+from ..files import finite_json, link_target, read_only, same_file, write_text_atomic
 from ..progress import Progress
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
@@ -220,7 +220,7 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}' is a folder: give a file name")
         if p.suffix.lower() not in formats:
             raise TwinError(f"{option} '{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
-        folder = p.parent
+        folder = link_target(p).parent  # a link is written through: its target's folder is written
         if folder.exists() and not folder.is_dir():
             raise TwinError(f"{option} '{p}': '{folder}' is a file, not a folder")
         if not folder.is_dir():

@@ -49,6 +49,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from ..errors import TwinError
+from ..files import read_only, written_path
 from ..geodesy import geodetic_from_ned
 from ..physics.sensors import antenna_ned
 from ..recording import Recording, Stream, clean_stream, with_common_origin
@@ -119,12 +120,19 @@ def write_run_mcap(run: Run, path: str | Path, vessel_name: str = "", *, origin:
 
 
 def write_atomic(path: Path, fill: Callable[[IO[bytes]], None]) -> None:
-    """fill(file) into a temporary file next to `path`, then rename it to `path`."""
-    tmp = temp_path(path)
+    """fill(file) into a temporary file next to `path` (through a link: files.written_path), then
+    rename it to `path`; a failed write (a full disk) names the file and leaves the old one whole."""
+    if read_only(path):
+        raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
+    target = written_path(path)
+    tmp = temp_path(target)
     try:
         with open(tmp, "xb") as fh:
             fill(fh)
-        os.replace(tmp, path)
+        os.replace(tmp, target)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -134,7 +142,6 @@ def temp_path(path: Path) -> Path:
     """A fresh hidden name next to `path` (same file system, so os.replace is atomic).
 
     Unlike mkstemp, the file is created later with the usual permissions (umask)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
     return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
 
 

@@ -244,9 +244,10 @@ def _complete_shard(folder: Path, index: int, fp: str) -> list[dict] | None:
 
 def _write_shard(folder: Path, result: ShardResult) -> int:
     for name, data in result.files:
-        write_bytes_atomic(folder / name, data)
+        write_bytes_atomic(folder / name, data, make_folder=True)
     shard = shard_name(result.truth["shard"])
-    write_text_atomic(folder / shard / "truth.json", json.dumps(result.truth, allow_nan=False) + "\n")
+    write_text_atomic(folder / shard / "truth.json", json.dumps(result.truth, allow_nan=False) + "\n",
+                      make_folder=True)
     return result.nbytes
 
 

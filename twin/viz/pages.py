@@ -65,13 +65,14 @@ class ResultPage:
         folder = Path(folder)
         date, commit = _dt.date.today().isoformat(), checkout_commit()
         page = folder / f"{self.name}.md"
-        write_text_atomic(page, self.markdown(date, commit))
+        write_text_atomic(page, self.markdown(date, commit), make_folder=True)
         if self.raw_file:
             write_index(folder)
             return page
         meta = {"title": self.title, "ran": self.ran, "data": self.data, "date": date, "commit": commit}
         write_text_atomic(folder / "data" / f"{self.name}.json",
-                          json.dumps({"meta": meta, **self.raw}, indent=1, default=json_default) + "\n")
+                          json.dumps({"meta": meta, **self.raw}, indent=1, default=json_default) + "\n",
+                          make_folder=True)
         write_index(folder)
         return page
 

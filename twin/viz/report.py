@@ -6,7 +6,7 @@ import html
 import io
 from pathlib import Path
 
-from ..files import write_text_atomic
+from ..files import write_bytes_atomic, write_text_atomic
 
 
 def top_view_png(drawing: dict, title: str) -> bytes:
@@ -78,9 +78,7 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
         write_text_atomic(path, text)
         return
     png_path = path.with_name(path.stem + "_topview.png")
-    tmp = png_path.with_name("." + png_path.name + ".tmp")
-    tmp.write_bytes(png)
-    tmp.replace(png_path)
+    write_bytes_atomic(png_path, png)
     lines = [f"# {title}", "", f"![top view]({png_path.name})", "",
              "| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     lines += ["| " + " | ".join(row) + " |" for row in _rows(rows)]

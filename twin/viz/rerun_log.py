@@ -16,7 +16,6 @@ All runs share the timeline "time" (duration, s), so runs line up in plots and i
 """
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -26,8 +25,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..errors import TwinError
+from ..files import write_bytes_atomic
+from ..formats.mcap import check_run
 from ..run import Run
-from ..formats.mcap import check_run, temp_path
 
 TIMELINE = "time"
 # hull body positions in model/yellowfish.xml (m, body FRD); other meshes sit at the body origin
@@ -60,24 +60,23 @@ def write_runs_rrd(runs: dict[str, Run], path: str | Path, *, geometry=None,
 
 @contextmanager
 def rrd_file(path: str | Path, application_id: str, blueprint: rrb.Blueprint) -> Iterator[rr.RecordingStream]:
-    """A private recording stream (never the global one, never a viewer) saving to `path`
-    atomically: logged under a temporary name with the NED "world" view coordinates, renamed
-    when the block ends, removed if it fails."""
-    path = Path(path)
-    tmp = temp_path(path)
+    """A private recording stream (never the global one, never a viewer) saved to `path` when the
+    block ends, with the NED "world" view coordinates. Logged into memory, not through rerun's file
+    sink: that sink writes on its own thread and a failed write there (a full disk) is not raised,
+    so its file could be truncated yet renamed over a good one. The bytes are then written as any
+    output is (files.write_bytes_atomic: through a link, the old file kept on a failed write)."""
     rec = rr.RecordingStream(application_id)
+    stream = rec.binary_stream()
     try:
-        rec.save(str(tmp), default_blueprint=blueprint)
+        rec.send_blueprint(blueprint, make_active=False, make_default=True)
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
         yield rec
-        rec.disconnect()  # flushes and closes the file sink
-        if not tmp.is_file() or tmp.stat().st_size == 0:  # the sink writes on its own thread
-            raise TwinError(f"{path.name}: rerun did not write the recording")
-        os.replace(tmp, path)
-    except BaseException:
+        data = stream.read(flush=True) or b""
+    finally:
         rec.disconnect()
-        tmp.unlink(missing_ok=True)
-        raise
+    if not data:
+        raise TwinError(f"{Path(path).name}: rerun did not write the recording")
+    write_bytes_atomic(path, data)
 
 
 def _blueprint() -> rrb.Blueprint:
