@@ -389,6 +389,33 @@ def test_twin_run_csv_reads_as_a_recording(tmp_path):
     assert_recovers_circle(prepare(rec, lever_arm_OP_m=None))
 
 
+def test_a_body_origin_track_takes_no_lever_arm(tmp_path):
+    """A twin run's x, y are the body origin's: the vessel's antenna arm, which evaluate and identify
+    pass for every log, must not move them (it made a sway of r·dx = 0.055 m/s on this circle)."""
+    from twin.run import Run
+
+    t = grid_times()
+    n, e, psi = truth(t)
+    run = Run(t, np.column_stack([n, e, psi]), np.column_stack([np.full_like(t, U), 0 * t, np.full_like(t, R)]),
+              np.column_stack(pwm_truth(t)), np.zeros((len(t), 2)))
+    (tmp_path / "run.csv").write_text(run.to_csv_text())
+    p = prepare(read_recording(tmp_path / "run.csv"), lever_arm_OP_m=OP)
+    assert p.settings.lever_arm_OP_m is None
+    assert_recovers_circle(p)
+
+
+def test_the_twins_own_run_evaluates_at_r2_one(tmp_path):
+    """Simulated, written and evaluated by the same vessel: every velocity predicted as it was (the
+    Yellowfish's antenna is 0.38 m off its body origin; moved by it, v scored 0.69 on this run)."""
+    from twin import api
+    from twin.simulation import simulate_run
+
+    path = tmp_path / "run.csv"
+    simulate_run("yellowfish", scenario="random", duration_s=60.0, seed=1).write(path)
+    metrics = api.evaluate("yellowfish", [path]).metrics["free_run_10s"]
+    assert all(metrics[dof]["r2"] > 0.99 for dof in ("u", "v", "r")), metrics
+
+
 @pytest.mark.parametrize("text", [
     "t,lat,lon,heading_deg\n3,37.1,-5.9,10\n2,37.1,-5.9,11\n1,37.1,-5.9,12\n0,37.1,-5.9,13\n",  # time reversed
     "t,lat,lon,heading_deg,pwm_left,pwm_right\n0,37.1,-5.9,10,1500,1500\n",  # one row
@@ -421,6 +448,27 @@ def test_out_of_range_samples_are_dropped_and_counted(tmp_path):
     assert len(rec.gnss) == len(grid_times()) - 4  # the NaN row, the backwards one and the two out of range
     assert np.all(np.abs(rec.gnss["lat_deg"]) <= 90) and rec.pwm["right_us"].max() < 2500
     assert "latitude outside ±90°: 1" in format_summary(rec.summary())
+
+
+def test_an_absurd_heading_is_dropped_and_a_heading_in_radians_is_warned_of(tmp_path):
+    """A heading of 1e308° is no compass reading: dropped and counted. A heading_deg column holding
+    radians (it spans 2π while the circle's track turns through R·T_END = 8 rad) reads as a vessel
+    pointing one way: warned of, naming the column; the column in degrees is not."""
+    path = write_generic_csv(tmp_path / "run.csv")
+    rec = read_recording(path)
+    assert rec.warnings == []
+    rows = [r.split(",") for r in path.read_text().splitlines()]
+    rows[31][3] = "1e308"
+    path.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    rec = read_recording(path)
+    assert dict(rec.dropped)["heading: heading beyond ±1e6°"] == 1 and np.abs(rec.heading["psi_rad"]).max() < 7
+    for r in rows[1:]:
+        r[3] = f"{math.radians(float(r[3])) % (2 * math.pi):.6f}" if r[3] != "1e308" else "1.0"
+    path.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    rec = read_recording(path)
+    assert len(rec.warnings) == 1 and rec.warnings[0].startswith("heading_deg spans only 6.2")
+    assert "the column looks like radians (name it psi for radians, or give degrees)" in rec.warnings[0]
+    assert f"warning: {rec.warnings[0]}" in format_summary(rec.summary())
 
 
 def test_a_directory_is_not_a_missing_file(tmp_path):

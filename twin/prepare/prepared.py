@@ -155,7 +155,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
-    body origin's. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
+    body origin's, and not applied to a recording that says they are (meta "positions"
+    = "body origin": a twin's run, an Esso file), whatever antenna the vessel has. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
     fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring.
     logged_heading: the heading as logged, where `rec`'s has been calibrated (same stamps): its
@@ -165,6 +166,9 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         if not np.isfinite(latency):
             raise TwinError(f"{what} must be a finite number of seconds, got {latency}")
     name = Path(rec.source).name
+    if rec.meta.get("positions") == "body origin":
+        # moved by the antenna's arm, the track would turn every r into a sway of r·dx
+        lever_arm_OP_m = None
     if not len(rec.gnss) or not len(rec.heading):
         missing = " and ".join(s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower())))
         raise TwinError(f"{name}: cannot prepare without {missing} samples")
