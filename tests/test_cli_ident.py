@@ -108,3 +108,21 @@ def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys
         assert code == 2, (args, err)
         assert err.startswith("error:") and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "x.tlog").exists() and not (tmp_path / "m.json").exists()
+
+
+def test_identify_refuses_a_twin_that_ran_away_on_every_left_out_run(dataset, tmp_path):
+    """A prior whose thrust is a billion times too strong runs away on every window, whatever is fitted:
+    nothing is written, and a model file already there is kept byte for byte."""
+    from dataclasses import replace
+
+    base = vessel_mod.load("yellowfish")
+    wild = vessel_mod.save(replace(base, thrusters=replace(base.thrusters, forward=(1e9, 1e9, -0.6),
+                                                           reverse=(-1e9, 1e9, -0.3))), tmp_path / "wild.json")
+    out, report = tmp_path / "model.json", tmp_path / "report.json"
+    out.write_text('{"kept": true}\n')
+    done = twin("identify", dataset / "train.csv", "--model", wild, "--out", out, "--json", report,
+                "--params", "Xuu", "--beliefs", "1", "--max-evaluations", "1", "--window", "5")
+    assert done.returncode == 2 and done.stderr.startswith("error: the identified twin ran away (diverged) on all ")
+    assert "left-out runs: nothing written (check the prior" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert out.read_text() == '{"kept": true}\n' and not report.exists()

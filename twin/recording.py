@@ -47,6 +47,8 @@ PLAUSIBLE = {
     "east_m": (-2.0e7, 2.0e7, "position beyond 20 000 km"),
     "left_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),  # servo outputs span about 800-2200 µs
     "right_us": (500.0, 2500.0, "PWM outside 500-2500 µs"),
+    # a compass reads within a turn; a million degrees is no heading, even one unwrapped over a long log
+    "psi_rad": (-np.radians(1e6), np.radians(1e6), "heading beyond ±1e6°"),
     "n_rps": (-500.0, 500.0, "propeller speed beyond ±500 rps"),
     "delta_rad": (-np.pi / 2, np.pi / 2, "rudder angle beyond ±90°"),
     "speed_m_s": (0.0, 100.0, "wind speed outside 0-100 m/s"),
@@ -97,7 +99,8 @@ class Recording:
 
     `dropped` lists (reason, count) of what the reader skipped or found missing
     (bad-CRC packets, NaN rows, backwards time, GNSS without fix, dropouts > 1 s);
-    `notes` are one-line remarks (no GNSS in this log, how the thrusters were mapped).
+    `notes` are one-line remarks (no GNSS in this log, how the thrusters were mapped); `warnings`
+    say the data may be misread (a heading in degrees that looks like radians).
     `pwm_neutral_us` is the (left, right) PWM of zero thrust after mirroring.
     """
 
@@ -117,6 +120,7 @@ class Recording:
     origin_s: float = 0.0
     dropped: list[tuple[str, int]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # the data may be misread (a unit): every command says so
     meta: dict = field(default_factory=dict)
 
     def streams(self) -> dict[str, Stream]:
@@ -173,6 +177,7 @@ class Recording:
             "parameters": len(self.parameters),
             "dropped": [[reason, int(n)] for reason, n in self.dropped],
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
 
 
@@ -191,6 +196,7 @@ def format_summary(summary: dict) -> str:
             lines.append(f"  {name:8s}       - none")
     lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"]]
     lines += [f"  note: {note}" for note in summary["notes"]]
+    lines += [f"  warning: {text}" for text in summary.get("warnings", [])]
     return "\n".join(lines)
 
 

@@ -308,6 +308,14 @@ def say_unlogged_supply(recordings, vessel) -> None:
                 f"(its map as at {t.supply_ref_v:g} V)")
 
 
+def warn_recordings(recordings) -> None:
+    """Each recording's warnings (Recording.warnings: data that may be misread), named by file, before
+    the work that would take the data as read."""
+    for rec in recordings:
+        for text in rec.warnings:
+            note(f"warning: {Path(rec.source).name}: {text}")
+
+
 def note(text: str) -> None:
     """A side remark on stderr: hidden by --quiet."""
     if not _settings["quiet"]:

@@ -10,7 +10,7 @@ from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, effect_names, json_text, positive, progress_bar, say,
-                  say_unlogged_supply, vessel_from, write_json)
+                  say_unlogged_supply, vessel_from, warn_recordings, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 
@@ -74,6 +74,7 @@ def diagnose_command(
 
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
+    warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind(recs, wind)  # before any work
     if given:

@@ -10,7 +10,7 @@ from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, console, floats, note, positive, progress_bar, say, say_unlogged_supply,
-                  seed_from, vessel_from, write_json)
+                  seed_from, vessel_from, warn_recordings, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -131,6 +131,7 @@ def identify_command(
     if chosen_params:
         simfit.check_names(prior, chosen_params, anchor)  # before any work
     recs = ident.read(recordings, channels_from(channels))
+    warn_recordings(recs)
     wind = "measured" if wind_measured else None
     ident.check_wind(recs, wind)  # before any work
     with progress_bar("identify") as progress:
@@ -163,6 +164,10 @@ def identify_command(
             "beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")
+    if result.ran_away:  # before any file is written: a model that cannot predict must not replace one that may
+        runs = len(result.chosen.cv.runs)
+        raise TwinError(f"the identified twin ran away (diverged) on all {runs} left-out runs: nothing written (check "
+                        f"the prior '{model or vessel}' — its thrust, damping and masses — against the recordings)")
     if result.worse_than_prior:
         note("warning: the twin written predicts runs left out of the fit worse than the prior did")
     save(without_known_sea(result.vessel), out)  # the twin, not the sea these recordings were made in
@@ -222,6 +227,7 @@ def evaluate_command(
     fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
               if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work
     recs = read(recordings, channels_from(channels))
+    warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind(recs, wind)  # before any work
     calibrated, calibrations = calibrate(recs, v)

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import TwinError
 from ..files import write_bytes_atomic
+from ..geodesy import ned_from_geodetic
 from ..recording import Recording, clean_stream, with_common_origin
 
 CSV_NEUTRAL_US = 1500.0
@@ -123,6 +124,10 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.heading = stream("heading", t, {"psi_rad": psi}, rec.dropped)
     else:
         rec.notes.append("no heading: no heading_deg or psi column")
+    if "heading_deg" in c and len(rec.heading) and len(rec.gnss):
+        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss)
+        if looks:
+            rec.warnings.append(looks)
     if {"pwm_left", "pwm_right"} <= set(header):
         neutral_us = tuple(neutral(c.get(f"pwm_neutral_{side}"), 1500.0) for side in ("left", "right"))
         csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], neutral_us, {"left": False, "right": False}, channels)
@@ -140,6 +145,43 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
             cols |= {"relative_speed_m_s": c["wind_rel_speed"], "relative_from_deg": c["wind_rel_from_deg"]}
         rec.wind = stream("wind", t, cols, rec.dropped)
     return rec
+
+
+RADIANS_SPAN = 7.0  # a heading in radians spans at most 2π (6.28), in [0, 2π) or in ±π
+TRACK_TURN_DEG = 90.0  # a track turning through more than this shows a turning vessel, beyond its noise
+TRACK_STEP_M = 2.0  # course over ground from fixes this far apart: closer ones are the receiver's noise
+
+
+def radians_as_degrees(heading_deg: np.ndarray, gnss) -> str | None:
+    """A warning when a heading_deg column looks like radians: its values span less than RADIANS_SPAN
+    while the GNSS track turns through more than TRACK_TURN_DEG (a heading in degrees that turns
+    with it spans as much); None when nothing suggests it."""
+    span = float(np.ptp(heading_deg))
+    if span >= RADIANS_SPAN:
+        return None
+    turned = track_turn_deg(gnss)
+    if turned <= TRACK_TURN_DEG:
+        return None
+    return (f"heading_deg spans only {span:.2f} while the GNSS track turns through {turned:.0f}°: the column looks "
+            "like radians (name it psi for radians, or give degrees)")
+
+
+def track_turn_deg(gnss) -> float:
+    """How far (deg) the course over ground turns, end to end of its unwrapped range, from fixes at
+    least TRACK_STEP_M apart."""
+    if gnss.has("lat_deg", "lon_deg"):
+        north, east = ned_from_geodetic(gnss["lat_deg"], gnss["lon_deg"], float(gnss["lat_deg"][0]),
+                                        float(gnss["lon_deg"][0]))
+    else:
+        north, east = gnss["north_m"], gnss["east_m"]
+    keep = [0]
+    for k in range(1, len(north)):  # thin the fixes to steps longer than the receiver's noise
+        if np.hypot(north[k] - north[keep[-1]], east[k] - east[keep[-1]]) >= TRACK_STEP_M:
+            keep.append(k)
+    if len(keep) < 3:
+        return 0.0
+    course = np.unwrap(np.arctan2(np.diff(east[keep]), np.diff(north[keep])))
+    return float(np.degrees(np.ptp(course)))
 
 
 def stream(name: str, t: np.ndarray, cols: dict, dropped: list):

@@ -167,6 +167,13 @@ class Identification:
         return sorted(out, key=lambda gr: -gr[1])
 
     @property
+    def ran_away(self) -> bool:
+        """Whether the chosen twin ran away (diverged) on every left-out run: it predicts none of them,
+        so there is no twin to write, only a prior that does not fit these recordings."""
+        runs = self.chosen.cv.runs if self.chosen else []
+        return bool(runs) and all(any(m.get("diverged", 0) for m in r.metrics.values()) for r in runs)
+
+    @property
     def worse_than_prior(self) -> bool:
         # a tenth of a per cent is the cost's own scatter between two fits, not a worse twin
         return bool(self.chosen and self.prior_cv and self.chosen.cv.cost > self.prior_cv.cost * (1.0 + 1e-3))
