@@ -775,6 +775,24 @@ def test_the_deviation_from_a_mission_is_the_distance_to_the_nearest_leg():
     assert north == pytest.approx(100.0, abs=1e-6) and east == pytest.approx(-50.0, abs=1e-6)
 
 
+def test_mission_set_refuses_what_cannot_be_an_ardupilot_parameter_before_connecting():
+    """--set is checked before any connection: a name ArduPilot could not have (17 characters, a digit
+    first) and a value that is no finite number; a name it lacks is told with its closest ones."""
+    from twin.cli.sitl import param_settings
+    from twin.sitl.ardupilot import unknown_params_text
+
+    assert param_settings(["atc_str_rat_ff=0.5", "WP_SPEED = 2"]) == {"ATC_STR_RAT_FF": 0.5, "WP_SPEED": 2.0}
+    for item, message in [("ATC_STR_RAT_FF_XX=1", "--set ATC_STR_RAT_FF_XX: not an ArduPilot parameter name"),
+                          ("1WP=1", "--set 1WP: not an ArduPilot parameter name"),
+                          ("WP_SPEED=nan", "--set expects NAME=VALUE with a finite number, got 'WP_SPEED=nan'"),
+                          ("WP_SPEED", "--set expects NAME=VALUE with a finite number, got 'WP_SPEED'")]:
+        with pytest.raises(TwinError, match=re.escape(message)):
+            param_settings([item])
+    known = ["WP_SPEED", "WP_RADIUS", "ATC_STR_RAT_FF", "CRUISE_SPEED"]
+    assert unknown_params_text(["WP_SPD", "ZZZ"], known) == ("--set: ArduPilot has no parameter WP_SPD (did you mean "
+                                                            "WP_SPEED?); ZZZ: nothing was set")
+
+
 # ---------------------------------------------------------------- in a seaway
 
 def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:

@@ -118,6 +118,10 @@ def test_ardupilot_flies_the_twin_manual_guided_and_a_mission(tmp_path):
     with twin_sitl(vessel, tmp_path) as (port, box):
         with ardupilot(port, box["params"], tmp_path) as rover:
             rover.wait_ekf(timeout_s=120)
+            # a mission's --set: ArduPilot's own list is the table of names (it ignores an unknown one)
+            rover.check_params(["ATC_STR_RAT_FF", "WP_SPEED"])
+            with pytest.raises(TwinError, match=r"no parameter WP_SPD \(did you mean WP_SPEED\?\): nothing was set"):
+                rover.check_params(["WP_SPEED", "WP_SPD"])
             rover.set_mode("MANUAL")
             rover.arm()
             armed_s = rover.boot_s

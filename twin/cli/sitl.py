@@ -1,6 +1,8 @@
 """`twin sitl`: the twin as ArduPilot SITL's physics backend (JSON interface)."""
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 from typing import Optional
 
@@ -19,7 +21,8 @@ def sitl(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
-    host: str = typer.Option("0.0.0.0", help="address to listen on (127.0.0.1: this machine only)"),
+    host: str = typer.Option("127.0.0.1", help="address to listen on (0.0.0.0: every interface, for an ArduPilot "
+                                               "on another machine)"),
     rate: float = typer.Option(400.0, help="least physics rate, Hz: frames (1200 Hz in Rover SITL) are split "
                                            "into equal steps no longer than 1/RATE"),
     esc_arm: float = typer.Option(2.0, help="seconds each ESC must see its stopped signal after power-up before "
@@ -68,6 +71,29 @@ def sitl(
     say(summary.text())
 
 
+PARAM_NAME = re.compile(r"[A-Z][A-Z0-9_]{0,15}")  # ArduPilot's names: 16 characters at most, upper case
+
+
+def param_settings(items: list[str]) -> dict[str, float]:
+    """--set NAME=VALUE items as {NAME: value}; a name that cannot be an ArduPilot parameter's is refused
+    here (whether ArduPilot has it, only the running autopilot can say: sitl.ardupilot.Rover.check_params)."""
+    settings = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        name = name.strip().upper()
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not name or not math.isfinite(number):
+            raise TwinError(f"--set expects NAME=VALUE with a finite number, got '{item}'")
+        if not PARAM_NAME.fullmatch(name):
+            raise TwinError(f"--set {name}: not an ArduPilot parameter name (letters, digits and _, starting with a "
+                            "letter, 16 characters at most)")
+        settings[name] = number
+    return settings
+
+
 @app.command()
 def mission(
     home: str = typer.Option(..., help="LAT,LON (deg) of SITL's --home: the waypoints are metres from it"),
@@ -96,15 +122,7 @@ def mission(
         points = []
     if not points or any(len(p) != 2 for p in points):
         raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
-    settings = {}
-    for item in set_:
-        name, _, value = item.partition("=")
-        try:
-            settings[name.strip().upper()] = float(value)
-        except ValueError:
-            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'") from None
-        if not name.strip():
-            raise TwinError(f"--set expects NAME=VALUE with a number, got '{item}'")
+    settings = param_settings(set_)
     result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
     say(result.text())
     if json_out is not None:

@@ -147,6 +147,8 @@ class Rover:
         self.mode = None
         self.reached: list[int] = []
         self.mission_current = -1
+        self.params: dict[str, float] = {}  # PARAM_VALUE: what ArduPilot says it has
+        self.param_count = 0
         self.link.mav.request_data_stream_send(*self.target, mavutil.mavlink.MAV_DATA_STREAM_ALL, stream_hz, 1)
 
     # ------------------------------------------------------------ receiving
@@ -182,6 +184,10 @@ class Rover:
                 self.reached.append(msg.seq)
             elif kind == "MISSION_CURRENT":
                 self.mission_current = msg.seq
+            elif kind == "PARAM_VALUE":
+                name = msg.param_id.decode() if isinstance(msg.param_id, bytes) else str(msg.param_id)
+                self.params[name.rstrip("\x00")] = float(msg.param_value)
+                self.param_count = max(self.param_count, int(msg.param_count))
 
     def wait(self, condition, what: str, timeout_s: float, every=None) -> None:
         """Pump messages until condition() holds; `every` is called on each pass (e.g. to resend)."""
@@ -211,6 +217,32 @@ class Rover:
     def set_param(self, name: str, value: float) -> None:
         self.link.mav.param_set_send(*self.target, name.encode(), float(value),
                                      self.mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+
+    def check_params(self, names, timeout_s: float = 60.0) -> None:
+        """Refuse (TwinError, before any is set) names ArduPilot has no parameter of: it ignores a
+        PARAM_SET of an unknown name without a word, so a typo would fly the mission on the default.
+        Its own list is the table: asked for in full, and each name missing from it asked for alone
+        (a list can lose a message) before it is called unknown."""
+        names = list(names)
+        if not names:
+            return
+        self.link.mav.param_request_list_send(*self.target)
+        quiet = [time.monotonic(), len(self.params)]
+
+        def listed() -> bool:  # all of them, or nothing new for two seconds
+            if len(self.params) != quiet[1]:
+                quiet[:] = [time.monotonic(), len(self.params)]
+            return (self.param_count > 0 and len(self.params) >= self.param_count) or time.monotonic() - quiet[0] > 2.0
+
+        self.wait(listed, "the parameter list", timeout_s)
+        for name in [n for n in names if n not in self.params]:
+            self.link.mav.param_request_read_send(*self.target, name.encode(), -1)
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end and any(n not in self.params for n in names):
+            self.pump()
+        unknown = [n for n in names if n not in self.params]
+        if unknown:
+            raise TwinError(unknown_params_text(unknown, self.params))
 
     def wait_ekf(self, timeout_s: float = 120.0) -> None:
         """Until the EKF navigates on GPS (position, velocity, attitude flags) with a 3-D fix."""
@@ -334,6 +366,17 @@ class MissionResult:
                           "east_m": self.track[:, 2].tolist()}}
 
 
+def unknown_params_text(unknown: list[str], known) -> str:
+    """One line naming the parameters ArduPilot does not have, each with its closest names (difflib)."""
+    import difflib
+
+    parts = []
+    for name in unknown:
+        close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+        parts.append(f"{name}" + (f" (did you mean {', '.join(close)}?)" if close else ""))
+    return f"--set: ArduPilot has no parameter {'; '.join(parts)}: nothing was set"
+
+
 def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[tuple[float, float]], *,
                 settings: dict | None = None, timeout_s: float = 600.0) -> MissionResult:
     """Connect to SITL's MAVLink console on tcp:127.0.0.1:port, wait until its EKF navigates on GPS,
@@ -345,6 +388,7 @@ def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[t
     rover = Rover(port, connect_timeout_s=timeout_s)
     try:
         rover.wait_ekf(timeout_s=timeout_s)
+        rover.check_params(settings or {}, timeout_s=timeout_s)
         for name, value in (settings or {}).items():
             rover.set_param(name, value)
         rover.set_mode("HOLD")

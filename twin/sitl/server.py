@@ -322,7 +322,7 @@ def run_sitl(
     log: Log | None = None,
     stop_after_frames: int | None = None,
     stop_event: Event | None = None,
-    host: str = "0.0.0.0",
+    host: str = "127.0.0.1",
     heading_deg: float = 0.0,
     origin: tuple[float, float] | None = None,
     ready: Callable[[tuple[str, int]], None] | None = None,
