@@ -235,8 +235,11 @@ def test_a_simulated_run_written_as_csv_is_replayed_by_its_own_twin(tmp_path):
 
 
 def test_a_spin_refuses_a_propeller_and_rudder_ship():
+    from twin.scale.montecarlo import scenario_mission
     from twin.simulation import simulate_run
 
     with pytest.raises(TwinError, match=r"esso_osaka.*propeller_rudder.*step, turn, zigzag, random"):
         simulate_run("esso_osaka", scenario="spin", duration_s=5.0)
+    with pytest.raises(TwinError, match=r"scenario 'spin'.*esso_osaka"):  # `twin montecarlo --scenario spin`
+        scenario_mission(vessel_mod.load("esso_osaka"), "spin", 5.0)
     assert simulate_run("cybership1", scenario="spin", duration_s=5.0).run.nu[-1, 2] != 0.0

@@ -91,7 +91,8 @@ def scenario_mission(vessel: Vessel, scenario: str, duration_s: float, sample_dt
     from ..engine.mjcf import compile_vessel
     from ..engine.sim import simulate
 
-    run = simulate(compile_vessel(vessel), get(scenario, seed), duration_s, sample_dt_s=sample_dt_s, sea=sea)
+    run = simulate(compile_vessel(vessel), get(scenario, seed, vessel.thrusters.kind, vessel.name), duration_s,
+                   sample_dt_s=sample_dt_s, sea=sea)
     return Mission(run.meta["inputs"], duration_s, sample_dt_s,
                    source=f"scenario {scenario} (closed loop by the nominal twin, its inputs replayed open loop)",
                    sea=sea)
