@@ -105,3 +105,15 @@ def test_an_effect_has_parameters_with_units_and_evidence():
     assert e.parameters[0].ci95 == (0.08, 0.12)
     assert e.evidence.z == 4.2 and e.evidence.blocks_for == 9
     assert e["text"] == "current=0.1,90" and "current" in repr(e) and len(repr(e)) < 120
+
+
+def test_the_api_refuses_a_negative_current_and_a_recording_that_is_no_path():
+    """A negative speed is a flow the other way said twice (the direction carries the sense), and a
+    reader given None says what it wants: TwinError, not a TypeError from deep inside."""
+    from twin.api import read_recording, simulate_run
+    from twin.errors import TwinError
+
+    with pytest.raises(TwinError, match=r"current_speed_m_s must be a finite number ≥ 0, got -0.5"):
+        simulate_run("yellowfish", duration_s=1.0, current=(-0.5, 10.0))
+    with pytest.raises(TwinError, match=r"a recording is read from a file path \(str or Path\), got NoneType"):
+        read_recording(None)

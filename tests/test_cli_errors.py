@@ -259,10 +259,10 @@ def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys
     assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "0"], files)
     assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "nan"], files)
     # every log failing (an empty file) is bad input, exit 2, and replaces nothing
-    assert "none of the 1 logs could be diagnosed" in refused(monkeypatch, capsys, base, files)
+    assert "the log could not be diagnosed (" in refused(monkeypatch, capsys, base, files)
     assert sorted(p.name for p in out.iterdir()) == sorted(earlier)
-    assert "none of the 1 logs" in refused(monkeypatch, capsys, ["fleet", empty, "--vessel", "yellowfish",
-                                                                 "--out", root / "new"])
+    assert "the log could not be diagnosed" in refused(monkeypatch, capsys, ["fleet", empty, "--vessel", "yellowfish",
+                                                                            "--out", root / "new"])
     assert not (root / "new").exists()
 
 
@@ -396,3 +396,30 @@ def test_the_api_refuses_an_output_into_a_missing_folder(tmp_path):
     with pytest.raises(TwinError, match=f"folder '{tmp_path / 'typo'}' does not exist"):
         sim.write(tmp_path / "typo" / "run.csv")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_options_that_do_not_apply_or_say_nothing_are_refused_before_any_work(monkeypatch, capsys, kept):
+    """An option that would be ignored without a word, an empty list read as "all", a NaN noise level
+    that would fail only while writing, a malformed effect: one line naming the option and the value."""
+    root, log, inputs, same = kept
+    v = ["--vessel", "yellowfish"]
+    out = root / "out.csv"
+    cases = [
+        (("info", log, "--channels", "1,3"),
+         "log.csv: --channels LEFT,RIGHT does not apply to a CSV recording: it has no servo outputs"),
+        (("dataset", *v, "--out", out, "--noise", "nan,nan"),
+         "--noise expects realistic, rtk, noisy, none or GNSS_M,HEADING_DEG (two finite numbers ≥ 0: m, degrees), "
+         "got 'nan,nan'"),
+        (("simulate", *v, "--scenario", "turn", "--inputs", inputs, "--out", out),
+         "give --scenario or --inputs, not both (--scenario turn --inputs"),
+        (("identify", log, *v, "--out", same, "--params", ""), "--params is empty: name at least one coefficient"),
+        (("identify", log, *v, "--out", same, "--groups", " , "), "--groups is empty: name at least one group"),
+        (("evaluate", log, *v, "--draws", "5"), "error: --draws applies only with --band"),
+        (("evaluate", log, *v, "--level", "0.5", "--seed", "1"), "error: --level, --seed apply only with --band"),
+        (("diagnose", log, *v, "--given", "current=abc"),
+         "effect 'current=abc': expected current=speed_m_s,dir_deg (2 numbers), got 1 value 'abc'"),
+    ]
+    for args, message in cases:
+        err = refused(monkeypatch, capsys, args, [log, inputs, same])
+        assert message in err, (args, err)
+    assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]

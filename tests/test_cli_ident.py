@@ -64,6 +64,7 @@ def test_identify_then_evaluate(dataset):
     assert seen["logs"] == 1 and seen == v.uncertainty["fitted_on"]
     assert seen["windows"] == {name: g["windows"] for name, g in split["groups"].items()}
     assert 0.0 < split["beyond_fit"]["share_of_samples"] <= 0.06 and "beyond that span" in done.stdout
+    assert "of the 1 log the twin was fitted on" in done.stdout
     # a vessel file whose record of the fit is damaged is refused in one line, before any work
     broken = json.loads(model.read_text())
     broken["uncertainty"]["fitted_on"] = {"ranges": {"u": [1.0, 0.0]}}

@@ -79,3 +79,19 @@ def test_fleet_names_an_empty_folder(tmp_path, empty):
         (folder / "notes.txt").write_text("not a recording")
     done = twin("fleet", folder, "--vessel", "blueboat", "--out", tmp_path / "out")
     assert done.returncode == 2 and "folder with no recordings" in done.stderr
+
+
+def test_version_mass_cases_and_the_sitl_address_are_said_in_the_help():
+    """`twin --version` prints the installed version; every --case lists its cases; `twin sitl` listens
+    on this machine only unless told otherwise."""
+    from importlib.metadata import version
+
+    from twin.cli.reference import _commands
+
+    done = twin("--version")
+    assert done.returncode == 0 and done.stdout == f"twin {version('asv-twin')}\n"
+    _, _, commands = _commands()
+    cases = {name: p.help for name, cmd in commands for p in cmd.params if p.name == "case"}
+    assert len(cases) >= 7 and all(h.startswith("mass case: min | nominal | max") for h in cases.values()), cases
+    host = next(p for name, cmd in commands if name == "sitl" for p in cmd.params if p.name == "host")
+    assert host.default == "127.0.0.1"

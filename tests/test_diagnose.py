@@ -318,7 +318,8 @@ def test_diagnose_given_judges_an_effect_as_given_without_a_search(tmp_path, pri
     wrong = twin.judge([ds.recording], prior, "thruster_asymmetry=1.15")  # in process: the same rule
     assert wrong.z <= -3 and "is contradicted by these recordings" in given_text(["thruster_asymmetry=1.15"], wrong)
     for extra, message in ((["--report", str(tmp_path / "r.html")], "--report does not apply"),
-                           (["--given", "current=0.2"], "expected 2 value(s)")):
+                           (["--given", "current=0.2"],
+                            "effect 'current=0.2': expected current=speed_m_s,dir_deg (2 numbers), got 1 value '0.2'")):
         bad = twin_command.twin(*(base + ["--given", "current=0.1,0"] + extra))
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "r.html").exists()

@@ -200,6 +200,8 @@ def _build(cls, data: dict | None, what: str, path: Path):
         return cls(**data)
     except TypeError as exc:
         raise TwinError(f"{path.name}: bad {what}: {exc}") from None
+    except TwinError as exc:  # a field's own check: said with the file it is in
+        raise TwinError(f"{path.name}: {exc}") from None
 
 
 def _typed(value, hint, where: str, path: Path):

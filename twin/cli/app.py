@@ -34,6 +34,7 @@ SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath
                            if p.name.endswith(".json")))
 VESSEL_HELP = f"vessel name (one shipped with twin: {SHIPPED})"
 MODEL_HELP = "vessel description file (e.g. written by `twin identify`), instead of --vessel"
+CASE_HELP = "mass case: min | nominal | max (min and max where the vessel file has them, e.g. yellowfish)"
 CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"
 _settings = {"quiet": False}
 
@@ -66,9 +67,30 @@ WORKFLOW = ("simulate", "view", "info", "convert", "validate", "crosscheck", "pa
             "diagnose", "dataset", "effects", "iso", "dp", "sitl", "mission", "montecarlo", "dataset-shards", "fleet")
 
 
+def package_version() -> str:
+    """The installed distribution's version; the package's own where it is run from a checkout that was
+    never installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("asv-twin")
+    except PackageNotFoundError:
+        from .. import __version__
+
+        return __version__
+
+
+def _show_version(shown: bool) -> None:
+    if shown:
+        typer.echo(f"twin {package_version()}")
+        raise typer.Exit(0)
+
+
 @app.callback()
 def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or notes on stderr (also after "
-                                                            "the command); what is written is still said")) -> None:
+                                                            "the command); what is written is still said"),
+             version: bool = typer.Option(False, "--version", is_eager=True, callback=_show_version,
+                                          help="print the version and exit")) -> None:
     """MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, diagnose."""
     _settings["quiet"] = _settings["quiet"] or quiet
 
@@ -140,6 +162,23 @@ def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     if not values or not all(math.isfinite(x) for x in values):
         raise TwinError(f"--{option} expects comma-separated finite numbers, got '{text}'")
     return values
+
+
+def sensor_noise(text: str):
+    """--noise: a profile's name or GNSS_M,HEADING_DEG, finite levels ≥ 0 (a NaN level would only fail once
+    the recording is being written, as NaN positions)."""
+    from ..synth.dataset import PROFILES, noise_profile
+
+    if text not in PROFILES:
+        parts = text.split(",")
+        try:
+            levels = [float(x) for x in parts]
+        except ValueError:
+            levels = []
+        if len(levels) != 2 or not all(math.isfinite(x) and x >= 0 for x in levels):
+            raise TwinError(f"--noise expects {', '.join(PROFILES)} or GNSS_M,HEADING_DEG (two finite numbers ≥ 0: "
+                            f"m, degrees), got '{text}'")
+    return noise_profile(text)
 
 
 # ---------------------------------------------------------------- numbers

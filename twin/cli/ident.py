@@ -8,9 +8,9 @@ import typer
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct, check_outputs,
-                  check_recordings_distinct, console, floats, note, positive, progress_bar, say, say_unlogged_supply,
-                  seed_from, vessel_from, warn_recordings, write_json)
+from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
+                  check_outputs, check_recordings_distinct, console, floats, note, positive, progress_bar, say,
+                  say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -31,12 +31,12 @@ def dataset_command(
                                               "`twin effects` lists them)"),
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
     seed: int = typer.Option(0, help="random seed (manoeuvres, start states, noise)"),
-    case: str = typer.Option("nominal", help="mass case"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     sea: Optional[str] = typer.Option(None, help="sea state HS,TP,DIR[,SPREAD] (or regular,H,T,DIR): every segment "
                                                  "runs the 6-DOF hull in it"),
 ):
     """Synthetic identification dataset from the twin, with its truth in a separate file."""
-    from ..synth.dataset import generate, noise_profile
+    from ..synth.dataset import generate
     from ..formats import write_recording
 
     check_outputs(out, RECORDING_FORMATS)
@@ -44,12 +44,13 @@ def dataset_command(
     check_outputs([truth], (".json",))
     check_distinct({"--out": out, "--truth": truth}, [model])
     seed_from(seed)
+    profile = sensor_noise(noise)  # before any work
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
     with progress_bar("dataset") as progress:
         from .run import sea_from
 
         ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names,
-                      seed=seed, noise=noise_profile(noise), progress=progress, sea=sea_from(sea, seed))
+                      seed=seed, noise=profile, progress=progress, sea=sea_from(sea, seed))
         for k, path in enumerate(out):
             progress(f"writing {path.name}", k, len(out))
             write_recording(ds.recording, path)
@@ -67,6 +68,17 @@ def effects_command():
     from ..effects import describe
 
     typer.echo(describe())
+
+
+def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] | None:
+    """A comma-separated list of names; None when the option is not given. Given empty it is refused:
+    read as "all" it would fit what the user meant to leave out."""
+    if text is None:
+        return None
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if not names:
+        raise TwinError(f"{option} is empty: name at least one {what} (leave {option} out for the default)")
+    return names
 
 
 @app.command("identify")
@@ -126,8 +138,8 @@ def identify_command(
     seed_from(seed)
     prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     weights = tuple(floats(beliefs, "beliefs"))
-    chosen_params = tuple(p.strip() for p in params.split(",") if p.strip()) if params else None
-    chosen_groups = tuple(g.strip() for g in groups.split(",") if g.strip()) if groups else None
+    chosen_params = names_list(params, "--params", "coefficient")
+    chosen_groups = names_list(groups, "--groups", "group")
     if chosen_params:
         simfit.check_names(prior, chosen_params, anchor)  # before any work
     recs = ident.read(recordings, channels_from(channels))
@@ -188,9 +200,10 @@ def evaluate_command(
     rrd: Optional[Path] = typer.Option(None, help="write the recording and the twin's 10-s free runs to rerun"),
     band: bool = typer.Option(False, "--band", help="also: how often the recording falls inside the Monte Carlo band "
                                                     "of the identified uncertainty (30-s free runs)"),
-    draws: int = typer.Option(200, help="--band: parameter draws from the identification's covariance"),
-    level: float = typer.Option(0.9, help="--band: the band's level"),
-    seed: int = typer.Option(0, help="--band: random seed of the draws"),
+    draws: Optional[int] = typer.Option(None, help="--band: parameter draws from the identification's covariance "
+                                                   "(default 200)"),
+    level: Optional[float] = typer.Option(None, help="--band: the band's level (default 0.9)"),
+    seed: Optional[int] = typer.Option(None, help="--band: random seed of the draws (default 0)"),
     ray: Optional[str] = typer.Option(None, help="--band: run the draws on Ray (auto, local or an address)"),
     wind_measured: bool = typer.Option(False, "--wind-measured",
                                        help="take each recording's measured wind (its anemometer stream) as a known "
@@ -213,7 +226,11 @@ def evaluate_command(
     check_distinct({"--json": json_out, "--rrd": rrd}, [*recordings, model])
     check_recordings_distinct(recordings)
     positive(stride, "--stride")
-    seed_from(seed)  # --band's draws: refused before the run, not after it
+    given = [o for o, x in (("--draws", draws), ("--level", level), ("--seed", seed), ("--ray", ray)) if x is not None]
+    if given and not band:  # they would be ignored without a word
+        raise TwinError(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} only with --band")
+    draws, level, seed = (200 if draws is None else draws, 0.9 if level is None else level,
+                          seed_from(0 if seed is None else seed))  # --band's draws: refused before the run
     v, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     if band and not v.uncertainty:  # said before any work is done
         raise TwinError(f"--band needs a vessel file with the identification's uncertainty ('{v.name}' has none: "

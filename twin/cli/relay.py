@@ -12,8 +12,8 @@ from rich.table import Table
 from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, progress_bar, say, vessel_from,
-                  write_json)
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, progress_bar, say,
+                  vessel_from, write_json)
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -64,7 +64,7 @@ def iso_command(
                                                  "(default 8,10)"),
     duration: Optional[float] = typer.Option(None, help="length of each relay experiment, s "
                                                         "(default 30 yaw, 150 surge; 900 for a ship)"),
-    case: str = typer.Option("nominal", help="mass case"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the table, CVs and the twin's values as JSON"),
     png: Optional[Path] = typer.Option(None, help="write α, β_ν, β_νν against C as PNG"),
 ):
@@ -148,7 +148,7 @@ def dp_command(
     rps: float = typer.Option(SHIP_RPS, help="a propeller-and-rudder ship's constant propeller speed, rps"),
     omega_surge: float = typer.Option(SURGE_OMEGA_RAD_S, help="ω_n of the binomial surge model function, rad/s"),
     no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
-    case: str = typer.Option("nominal", help="mass case"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
     png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
 ):

@@ -12,8 +12,8 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, memory_for, note, positive,
-                  progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, memory_for, note,
+                  positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 SEA_HELP = ("sea state HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come "
@@ -80,7 +80,8 @@ def check_run_length(duration: float, sample_dt: float) -> None:
 def simulate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    scenario: str = typer.Option("zigzag", help="step | turn | zigzag | spin | random"),
+    scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag; not "
+                                                      "with --inputs)"),
     inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
     out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
@@ -88,7 +89,7 @@ def simulate(
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the start, for the map positions of .mcap, "
                                                    ".tlog and .bin (default 37.4136,-5.9786, Seville)"),
-    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     seed: int = typer.Option(0, help="random seed (scenario 'random', the sea's components)"),
     sample_dt: float = typer.Option(0.1, help="output sample period, s"),
     sea: Optional[str] = typer.Option(None, help=SEA_HELP),
@@ -100,6 +101,9 @@ def simulate(
 
     check_outputs(out, RUN_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model])
+    if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
+        raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")
+    scenario = scenario or "zigzag"
     check_run_length(duration, sample_dt)
     seed_from(seed)
     start = origin_from(origin)
@@ -140,7 +144,7 @@ def crosscheck(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     duration: float = typer.Option(120.0, help="zig-zag duration, s"),
-    case: str = typer.Option("nominal", help="mass case"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
     six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
@@ -182,7 +186,7 @@ def crosscheck(
 def params(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help="mass case"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     as_json: bool = typer.Option(False, "--json", help="print JSON"),
     first_principles: bool = typer.Option(False, "--first-principles",
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
@@ -215,7 +219,7 @@ def params(
 def validate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
     report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
 ):

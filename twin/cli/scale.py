@@ -10,7 +10,8 @@ import typer
 
 from ..errors import TwinError
 from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, draws_fit, effect_names, memory_for,
-                  note, positive, progress_bar, samples_fit, say, seed_from, vessel_from, write_json)
+                  note, positive, progress_bar, samples_fit, say, seed_from, sensor_noise, vessel_from,
+                  write_json)
 from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
@@ -179,11 +180,10 @@ def dataset_shards_command(
 ):
     """Synthetic identification datasets at scale: randomised vessels, sharded files, one truth index."""
     from ..scale.datasets import Settings, generate_shards
-    from ..synth.dataset import noise_profile
 
     seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
-    noise_profile(noise)  # a bad profile fails now, not in every worker
+    sensor_noise(noise)  # a bad profile fails now, not in every worker
     names = tuple(m.strip() for m in manoeuvres.split(",") if m.strip())
     variation = _variation(v, vary, effect, covariance, effect_share)
     settings = Settings(vessels, per_shard, segments, names, noise, "." + fmt.lower().lstrip("."), seed, variation,

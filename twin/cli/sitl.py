@@ -10,7 +10,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
                   seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
@@ -19,7 +19,7 @@ from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 def sitl(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help="mass case: min | nominal | max"),
+    case: str = typer.Option("nominal", help=CASE_HELP),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
     host: str = typer.Option("127.0.0.1", help="address to listen on (0.0.0.0: every interface, for an ArduPilot "
                                                "on another machine)"),

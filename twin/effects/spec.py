@@ -210,7 +210,9 @@ def parse(s: EffectSpec, text: str, values: str) -> Effect:
     if not required <= len(items) <= len(s.values):
         count = f"{required}" if required == len(s.values) else f"{required} to {len(s.values)}"
         want = ",".join(p.name for p in s.values)
-        raise TwinError(f"effect '{s.name}': expected {count} value(s) {want}, got {len(items)}")
+        got = f"{len(items)} value{'' if len(items) == 1 else 's'}"
+        raise TwinError(f"effect '{text}': expected {s.name}={want} ({count} number{'' if count == '1' else 's'}), "
+                        f"got {got} '{values}'")
     return checked(s, {p.name: v for p, v in zip(s.values, items)})
 
 

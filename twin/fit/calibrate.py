@@ -319,7 +319,7 @@ def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: flo
     drift = tuple(float(x) for x in np.mean(np.asarray(borrowed, float), axis=0))
     own = "" if at_rest is None else f" and its own at rest (N {at_rest[0]:+.3f}, E {at_rest[1]:+.3f} m/s)"
     note = (f"straight legs within {spread:.0f}° of each other: read with the drifts of {len(borrowed)} other "
-            f"logs{own} (offsets {min(offsets):+.1f}° to {max(offsets):+.1f}°)")
+            f"log{'' if len(borrowed) == 1 else 's'}{own} (offsets {min(offsets):+.1f}° to {max(offsets):+.1f}°)")
     if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):
         return LogCalibration(name, None, sigma_deg, stretches, seconds, drift,
                               f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "

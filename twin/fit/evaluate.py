@@ -287,8 +287,9 @@ def beyond_sentence(split: dict) -> str:
     """What the fit saw and how much of the judged data lies beyond it, with its misfit, in one sentence."""
     fit, b = split["fitted_on"], split.get("beyond_fit")
     spans = span_text(fit["ranges"])
-    text = (f"in fit: {fit['horizon_s']:g}-s windows, one every {fit.get('stride_s', 2.0):g} s, of the {fit['logs']} "
-            f"logs the twin was fitted on, whose samples (1st-99th percentile) span {spans}")
+    logs = f"{fit['logs']} log{'' if fit['logs'] == 1 else 's'}"
+    text = (f"in fit: {fit['horizon_s']:g}-s windows, one every {fit.get('stride_s', 2.0):g} s, of the {logs} the "
+            f"twin was fitted on, whose samples (1st-99th percentile) span {spans}")
     if b and b["samples"]:
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "

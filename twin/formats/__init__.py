@@ -62,6 +62,7 @@ and leaves no file behind.
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 from typing import Callable
 
@@ -90,6 +91,8 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
 
     channels: thruster output mapping for logs (see ardupilot.py), or
     reversal/trim overrides for CSV files."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TwinError(f"a recording is read from a file path (str or Path), got {type(path).__name__}")
     path = Path(path)
     if path.is_dir():
         raise TwinError(f"{path}: is a directory, not a recording file")
@@ -98,9 +101,14 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
     head = _head(path)
     if not head:
         raise TwinError(f"{path.name}: empty file")
-    reader = READERS.get(sniff(head, path.suffix.lower()))
+    kind = sniff(head, path.suffix.lower())
+    reader = READERS.get(kind)
     if reader is None:
         raise TwinError(f"{path.name}: not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
+    if kind in ("csv", "mcap") and isinstance(channels, dict) and {"left", "right"} & set(channels):
+        raise TwinError(f"{path.name}: --channels LEFT,RIGHT does not apply to a{'n' if kind == 'mcap' else ''} "
+                        f"{kind.upper()} recording: it has no servo outputs to choose from (only ArduPilot .tlog "
+                        "and .bin logs do)")
     rec = reader(path, channels)
     check_usable(rec, path.name)
     return rec

@@ -19,10 +19,12 @@ several logs sees each log's own wind; one without an entry sees the constant wi
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..errors import TwinError
 from .sensors import log_name
 
 RHO_AIR_KG_M3 = 1.225
@@ -37,6 +39,14 @@ class Environment:
     wind_by_log: tuple[tuple[str, float, float], ...] = ()
     wave_drift_ned: tuple[float, float] = (0.0, 0.0)  # m/s, a known sea's steady drift (module docstring)
     wave_load: tuple[float, ...] = ()  # a known sea's mean load (physics.seakeeping.pack_known_load)
+
+    def __post_init__(self) -> None:
+        # the direction carries the sense: a negative speed would be a flow the other way, said twice
+        for name in ("current_speed_m_s", "wind_speed_m_s", "current_dir_deg", "wind_dir_deg"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or (name.endswith("speed_m_s") and value < 0):
+                raise TwinError(f"environment: {name} must be a finite number{' ≥ 0' if 'speed' in name else ''}, "
+                                f"got {value!r}")
 
     def for_log(self, source: str) -> "Environment":
         """The environment of the recording from `source` (a path or name): its own wind, if

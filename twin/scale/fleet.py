@@ -230,7 +230,8 @@ def _all_failed(results: list[dict], out: Path) -> Exception:
     """The error of a run in which no log could be diagnosed: bad input (TwinError) when some log's
     reason is one, else an unexpected error; either way nothing in `out` was replaced."""
     first = results[0]
-    text = (f"none of the {len(results)} logs could be diagnosed (first: {Path(first['log']).name}: "
+    which = "the log could not" if len(results) == 1 else f"none of the {len(results)} logs could"
+    text = (f"{which} be diagnosed ({'' if len(results) == 1 else 'first: '}{Path(first['log']).name}: "
             f"{first.get('error', '')}); nothing written in {out}")
     if all(r.get("unexpected") for r in results):
         return RuntimeError(text)
