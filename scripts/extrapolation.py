@@ -11,7 +11,10 @@ other judged (30-s free runs), each without and with the measured wind as a know
 R² of u, v, r of the untuned prior and of the identified twin, pooled over the judged runs (each
 log's compass calibration from its own kinematics), the share of judged samples beyond what the fit
 saw and the misfit they carry, and, where the identified twin has an uncertainty, how often the
-recording falls inside its 90 % prediction band.
+recording falls inside its 90 % prediction band. With --reach, `twin identify` is also run on the
+judged runs themselves and scored on them: what the twin's form reaches there when nothing has to
+be extrapolated, so a miss of a target reads as extrapolation (the split falls short of the reach)
+or as form (the reach itself falls short).
 
 Each split is saved in --work as JSON, so splits can run in separate processes; the page is written
 from whatever splits are there. The recordings (../shared/data, no or non-commercial licences) are
@@ -125,12 +128,36 @@ def run_split(name: str, wind, work: Path) -> dict:
     return out
 
 
+def run_reach(name: str, wind, work: Path) -> dict:
+    """`twin identify` on a split's judged runs, scored on them (no band): the form's reach there."""
+    vessel_name, _ = SPLITS[name]
+    settings = SETTINGS[vessel_name]
+    paths = blueboat_paths() if vessel_name == "blueboat" else esso_paths()
+    prior = vessel_mod.load(vessel_name)
+    recs = read(paths)
+    preps = prepared(recs, calibrate(recs, prior)[0])
+    split = _split_of(name, recs, preps)
+    _, judged_recs = split.pick(recs, [log_name(r.source) for r in recs])
+    started = time.time()
+    ident = identify(judged_recs, prior, wind=wind)
+    seconds = time.time() - started
+    calibrated = calibrate(judged_recs, ident.vessel)[0]
+    metrics = evaluate(calibrated, prepared(judged_recs, calibrated), stride_s=settings["stride_s"],
+                       horizons={"free_run": settings["window_s"]}, wind=wind)["free_run"]
+    out = {"split": name, "split_name": split.to_dict()["name"], "wind": wind or "none", "commit": checkout_commit(ROOT), "identify_seconds": round(seconds, 1),
+           "chosen": ident.chosen.label if ident.chosen else None, "r2": {d: metrics[d]["r2"] for d in DOFS}}
+    write_text_atomic(work / f"{name}_{wind or 'none'}.reach", json.dumps(out, indent=1, default=float) + "\n")
+    return out
+
+
 def _met(r2: dict, targets: dict) -> str:
     ok = [d for d in DOFS if r2[d] is not None and r2[d] >= targets[d]]
     return "all" if len(ok) == 3 else (", ".join(ok) if ok else "none")
 
 
-def page(parts: list[dict]) -> ResultPage:
+def page(parts: list[dict], reach: dict | None = None) -> ResultPage:
+    """reach: {(split, wind): run_reach's record} for the splits whose reach was measured."""
+    reach = reach or {}
     rows, beyond_rows, band_rows = [], [], []
     for p in parts:
         targets = TARGETS[p["vessel"]]
@@ -139,6 +166,10 @@ def page(parts: list[dict]) -> ResultPage:
             s = p[twin_name]
             rows.append([label, p["wind"], twin_name, *[s["r2"][d] for d in DOFS],
                          _met(s["r2"], targets) if twin_name == "identified" else "–"])
+        got = reach.get((p["split"]["name"], p["wind"]))
+        if got:
+            rows.append([label, p["wind"], "identified on the judged runs (reach)", *[got["r2"][d] for d in DOFS],
+                         _met(got["r2"], targets)])
         b = p["identified"].get("beyond_fit") or {}
         if b.get("samples"):
             beyond_rows.append([label, p["wind"], b["share_of_samples"], *[b["share"][d] for d in DOFS],
@@ -154,6 +185,11 @@ def page(parts: list[dict]) -> ResultPage:
               f"v ≥ {TARGETS['esso_osaka']['v']}, r ≥ {TARGETS['esso_osaka']['r']}."]
     notes += [f"{p['split']['name']} ({p['vessel']}, wind {p['wind']}): identify chose {p['chosen']} "
               f"in {p['identify_seconds']:.0f} s, computed at commit {p.get('commit', 'not recorded')}." for p in parts]
+    if reach:
+        notes += ["Reach: `twin identify` with its defaults on the judged runs themselves, scored on them the same way "
+                  "(in-sample: an upper mark for what the twin's form does on those runs, not a prediction)."]
+        notes += [f"reach of {name} (wind {wind}): identify chose {got['chosen']} in {got['identify_seconds']:.0f} s, "
+                  f"computed at commit {got['commit']}." for (name, wind), got in sorted(reach.items())]
     return ResultPage(
         name="extrapolation", title="The twin beyond its training runs",
         ran="python scripts/extrapolation.py",
@@ -171,7 +207,7 @@ def page(parts: list[dict]) -> ResultPage:
                              "r"], beyond_rows),
                 ResultTable("Share of the judged runs inside the identified twin's 90 % band (30-s free runs, "
                             f"{BAND_DRAWS} parameter draws)", ["split", "wind", "band", "u", "v", "r"], band_rows)],
-        notes=notes, raw={"splits": parts})
+        notes=notes, raw={"splits": parts, "reach": list(reach.values())})
 
 
 def main() -> int:
@@ -180,12 +216,20 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("/tmp/extrapolation"))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--page-only", action="store_true", help="write the page from the splits in --work")
+    ap.add_argument("--reach", action="store_true", help="identify on the judged runs of the --only splits and score "
+                                                          "them there, instead of running the splits")
     args = ap.parse_args()
     if not blueboat_paths() or not esso_paths():
         print(f"the shared recordings are not in {DATA}: nothing to do")
         return 0
     args.work.mkdir(parents=True, exist_ok=True)
-    if not args.page_only:
+    if args.reach and not args.page_only:
+        for name in args.only.split(","):
+            for wind in SPLITS[name][1]:
+                got = run_reach(name, wind, args.work)
+                print(f"{name} wind {wind or 'none'}: reach R² " + ", ".join(f"{d} {got['r2'][d]:.3f}" for d in DOFS)
+                      + f" ({got['identify_seconds']:.0f} s to identify)", flush=True)
+    elif not args.page_only:
         for name in args.only.split(","):
             for wind in SPLITS[name][1]:
                 t0 = time.time()
@@ -195,7 +239,8 @@ def main() -> int:
                       + f" ({time.time() - t0:.0f} s)", flush=True)
     parts = [json.loads(p.read_text()) for p in sorted(args.work.glob("*.json")) if not p.name.endswith(".vessel.json")]
     parts.sort(key=lambda p: (p["vessel"], p["split"]["name"], p["wind"]))
-    print(f"wrote {page(parts).write(args.out)}")
+    reach = {(g["split_name"], g["wind"]): g for g in (json.loads(p.read_text()) for p in args.work.glob("*.reach"))}
+    print(f"wrote {page(parts, reach).write(args.out)}")
     return 0
 
 

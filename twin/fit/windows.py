@@ -467,53 +467,106 @@ def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window
     fit that compares it with the raw prediction mistakes the smoothing for physics
     (more lag, less added mass). Smoothing the prediction the same way removes that
     bias; before the window's start the measured velocities stand in for the prediction,
-    past its end the kernel is truncated and renormalised. u, v use the GNSS window,
-    r the heading window of the preparation."""
+    past its end a straight line through its last two samples. r uses the heading window of the
+    preparation. u, v use the GNSS window and are smoothed where the estimator smooths them:
+    over ground (north, east), then turned into the body by the heading at the sample
+    (prepare's eqs. 35-36). Smoothed in the body frame instead, a turning hull's velocity would
+    keep a sway that the ground track's smoothing turns away (u·r over the window): the fit then
+    reads it as sway physics (on a simulated BlueBoat run, Yuv −91 for −48). The turn uses the
+    measured heading, as the estimator does; the antenna's arm is left out of the smoothing (its
+    part, r·arm averaged over the window, is of second order)."""
     settings = preps[0].settings
     if settings.smoother != "savgol":
         return nu_pred
-    window_s, heading_s = settings.window_s, settings.yaw_rate_window_s
-    return np.concatenate([_smoothed(nu_pred, preps, windows, window_s)[..., :2],
-                           _smoothed(nu_pred, preps, windows, heading_s)[..., 2:]], axis=-1)
+    h = settings.grid_dt
+    gnss_half = int(np.floor(settings.window_s / 2 / h + 1e-9))
+    heading_half = int(np.floor(settings.yaw_rate_window_s / 2 / h + 1e-9))
+    r = _smoothed(nu_pred[..., 2:], _past(preps, windows, heading_half)[..., 2:], settings.yaw_rate_window_s, h)
+    if gnss_half < 1:
+        return np.concatenate([nu_pred[..., :2], r], axis=-1)
+    psi = _headings(preps, windows, gnss_half, nu_pred.shape[1])
+    c, s = np.cos(psi), np.sin(psi)
+    body = np.concatenate([_past(preps, windows, gnss_half)[..., :2], nu_pred[..., :2]], axis=1)
+    ground = np.stack([c * body[..., 0] - s * body[..., 1], s * body[..., 0] + c * body[..., 1]], axis=-1)
+    g = _smoothed(ground[:, gnss_half:], ground[:, :gnss_half], settings.window_s, h)
+    c, s = c[:, gnss_half:], s[:, gnss_half:]
+    uv = np.stack([c * g[..., 0] + s * g[..., 1], -s * g[..., 0] + c * g[..., 1]], axis=-1)
+    return np.concatenate([uv, r], axis=-1)
 
 
-def _smoothed(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window], window_s: float) -> np.ndarray:
-    """All windows at once: [measured past | prediction | nothing] convolved with the kernel,
-    missing samples left out of both the weighted sum and the weights."""
+def _smoothed(series: np.ndarray, past: np.ndarray, window_s: float, h: float) -> np.ndarray:
+    """All windows at once: [measured past | series | its last slope] convolved with the kernel,
+    missing samples left out of both the weighted sum and the weights. series (W, n1, k), past
+    (W, half, k) with half the kernel's half-width in samples."""
     from scipy.ndimage import correlate1d
 
-    h = preps[0].settings.grid_dt
-    half = int(np.floor(window_s / 2 / h + 1e-9))
+    half = past.shape[1]
     if half < 1:
-        return nu_pred
+        return series
     s = np.arange(-half, half + 1) * h
     kernel = np.maximum(0.0, (window_s / 2) ** 2 - s ** 2)
-    W, n1, _ = nu_pred.shape
-    padded = np.full((W, half + n1 + half, 3), np.nan)
-    padded[:, half: half + n1] = nu_pred
-    past = _past(preps, windows, half)
+    W, n1, k = series.shape
+    padded = np.full((W, half + n1 + half, k), np.nan)
+    padded[:, half: half + n1] = series
     padded[:, :half] = past
+    # past each row's last sample the estimator saw the hull go on; a straight line through the
+    # last two samples stands in for it (a kernel cut off there would lag by a third of its width)
+    last = n1 - 1 - np.argmax(np.isfinite(series[..., 0])[:, ::-1], axis=1)
+    rows = np.flatnonzero(last >= 1)
+    end = series[rows, last[rows]]
+    slope = end - series[rows, last[rows] - 1]
+    steps = np.arange(1, half + 1)
+    cols = half + last[rows, None] + steps
+    padded[rows[:, None], cols] = end[:, None] + steps[None, :, None] * slope[:, None]
     ok = np.isfinite(padded)
     num = correlate1d(np.where(ok, padded, 0.0), kernel, axis=1, mode="constant")
     den = correlate1d(ok.astype(float), kernel, axis=1, mode="constant")
     out = num[:, half: half + n1] / np.where(den[:, half: half + n1] > 0, den[:, half: half + n1], np.nan)
-    return np.where(np.isfinite(nu_pred), out, np.nan)
+    return np.where(np.isfinite(series), out, np.nan)
 
 
-def _past(preps: list[Prepared], windows: list[Window], half: int) -> np.ndarray:
-    """(W, half, 3) measured ν of the `half` samples before each window (NaN outside its segment)."""
-    out = np.full((len(windows), half, 3), np.nan)
+def _rows_before(preps: list[Prepared], windows: list[Window], half: int, n_after: int):
+    """Per recording: (rows of `windows`, the prepared recording, grid indices (rows, half + n_after)
+    from `half` samples before each window's start, and whether each lies in the window's segment
+    and recording)."""
     recs = np.array([w.rec for w in windows])
     starts = np.array([w.start for w in windows])
     for rec in np.unique(recs):  # the windows of one recording at once
         p, rows = preps[rec], np.flatnonzero(recs == rec)
         first = np.array([s.start for s in p.segments])[p.segment[starts[rows]].astype(int)]
-        idx = starts[rows, None] + np.arange(-half, 0)
-        keep = idx >= first[:, None]
-        idx = np.where(keep, idx, 0)
+        idx = starts[rows, None] + np.arange(-half, n_after)
+        keep = (idx >= first[:, None]) & (idx < len(p.t))
+        yield rows, p, np.where(keep, idx, 0), keep
+
+
+def _past(preps: list[Prepared], windows: list[Window], half: int) -> np.ndarray:
+    """(W, half, 3) measured ν of the `half` samples before each window (NaN outside its segment)."""
+    out = np.full((len(windows), half, 3), np.nan)
+    for rows, p, idx, keep in _rows_before(preps, windows, half, 0):
         past = np.stack([p.u[idx], p.v[idx], p.r[idx]], axis=-1)
         out[rows] = np.where(keep[..., None], past, np.nan)
     return out
+
+
+def _headings(preps: list[Prepared], windows: list[Window], half: int, n1: int) -> np.ndarray:
+    """(W, half + n1) measured heading (rad) from `half` samples before each window's start to n1
+    samples into it; where none was measured (outside the segment) the nearest one stands in, so
+    a turn by it is a turn by the heading the hull had."""
+    out = np.zeros((len(windows), half + n1))
+    for rows, p, idx, keep in _rows_before(preps, windows, half, n1):
+        psi = np.where(keep, p.psi[idx], np.nan)
+        first = np.argmax(keep, axis=1)
+        lead = np.take_along_axis(psi, first[:, None], axis=1)
+        psi = np.where(np.arange(psi.shape[1]) < first[:, None], lead, psi)
+        out[rows] = _fill_forward(psi)
+    return out
+
+
+def _fill_forward(x: np.ndarray) -> np.ndarray:
+    """Each row's NaN replaced by the last finite value before it."""
+    ok = np.isfinite(x)
+    last = np.maximum.accumulate(np.where(ok, np.arange(x.shape[1]), 0), axis=1)
+    return np.take_along_axis(x, last, axis=1)
 
 
 def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallback_s: float) -> float:
