@@ -200,3 +200,16 @@ def test_a_diverging_twin_is_one_line_exit_2_and_no_litter(tmp_path):
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert p.stderr.startswith("error: z.tlog: replay: the twin diverged at t = ")
     assert not (tmp_path / "v.rrd").exists() and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_simulate_says_a_twins_sensor_errors_are_not_in_its_run(tmp_path):
+    """A twin identified with sensor errors (a heading bias, a late PWM log) simulates the hull as it
+    moved; the run says it does not carry them, naming them, and a perfect twin's says nothing."""
+    data = json.loads((MODEL / "yellowfish.json").read_text())
+    sensors = {**data.get("sensors", {}), "heading_bias_deg": 3.0, "pwm_clock_offset_s": 0.2}
+    biased = _vessel_file(tmp_path, sensors=sensors)
+    p = twin("simulate", "--model", biased, "--scenario", "turn", "--duration", "5", "--out", tmp_path / "b.csv")
+    assert p.returncode == 0, p.stderr
+    assert "without this twin's sensor errors (heading_bias_deg, pwm_clock_offset_s)" in p.stdout + p.stderr
+    p = twin("simulate", "--vessel", "yellowfish", "--scenario", "turn", "--duration", "5", "--out", tmp_path / "y.csv")
+    assert p.returncode == 0 and "sensor errors" not in p.stdout + p.stderr

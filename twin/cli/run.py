@@ -128,6 +128,10 @@ def simulate(
             say(f"wrote {path}")
     for limit in result.limits:
         note(f"note: {limit.text()}")
+    if v.sensors.errors():
+        note(f"note: the run is written as the hull moved, without this twin's sensor errors "
+             f"({', '.join(v.sensors.errors())}): a twin that carries them reads it through them; "
+             f"`twin dataset` writes logs through the sensors")
     run = result.run
     say(f"{v.name}: {duration:g} s, final position ({run.eta[-1, 0]:.2f}, {run.eta[-1, 1]:.2f}) m, "
         f"heading {round(math.degrees(run.eta[-1, 2]), 1) % 360.0:.1f}°, u {run.nu[-1, 0]:.3f} m/s")

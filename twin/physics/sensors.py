@@ -32,7 +32,7 @@ rate taken from the heading lags the thrust; late heading ≡ GNSS and PWM both 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import PurePath
 
 import numpy as np
@@ -75,6 +75,13 @@ class Sensors:
         sn, cs = np.sin(psi), np.cos(psi)  # the double angle's from these: half the trigonometry over a log
         deg = self.heading_bias_deg + b * sn + c * cs + d * (2 * sn * cs) + e * (cs * cs - sn * sn)
         return np.radians(deg)
+
+    def errors(self) -> list[str]:
+        """The names of this sensor model's errors (fields off a perfect sensor's value); the yaw
+        rate's window and the input answers' zero are how the logs are read, not errors."""
+        perfect = Sensors()
+        return [f.name for f in fields(self) if f.name not in ("heading_rate_window_s", "input_answer_s")
+                and getattr(self, f.name) != getattr(perfect, f.name)]
 
     @property
     def has_heading_error(self) -> bool:
