@@ -117,3 +117,20 @@ def test_the_api_refuses_a_negative_current_and_a_recording_that_is_no_path():
         simulate_run("yellowfish", duration_s=1.0, current=(-0.5, 10.0))
     with pytest.raises(TwinError, match=r"a recording is read from a file path \(str or Path\), got NoneType"):
         read_recording(None)
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"current": "abc"}, r"current must be \(speed m/s, direction deg\), two numbers, got 'abc'"),
+    ({"current": (0.1,)}, r"current must be \(speed m/s, direction deg\), two numbers"),
+    ({"wind": "5,45"}, r"wind must be \(speed m/s, direction deg\)"),
+    ({"wind": (5, 45, 1)}, r"wind must be \(speed m/s, direction deg\), two numbers, got \(5, 45, 1\)"),
+    ({"wind": ("5", 45)}, r"wind's speed must be a number, got '5'"),
+    ({"seed": "x"}, r"the seed must be a whole number, got 'x'"),
+    ({"duration_s": "10"}, r"the duration must be a number, got '10'"),
+])
+def test_simulate_run_refuses_arguments_of_the_wrong_kind_with_a_twin_error(kwargs, message):
+    from twin.api import simulate_run
+    from twin.errors import TwinError
+
+    with pytest.raises(TwinError, match=message):
+        simulate_run("yellowfish", **{"duration_s": 1.0, **kwargs})

@@ -4,6 +4,7 @@ identification and diagnosis libraries (scipy.optimize, scipy.signal, ...): meas
 a second of CPU saved on every `twin simulate`."""
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -20,14 +21,37 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
     """Run the engine twin; `drive` is a scenario name, an InputSeries or a controller."""
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
-    if isinstance(drive, str):
-        drive = get_scenario(drive, kwargs.pop("seed", 0), vessel.thrusters.kind, vessel.name)
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
+    if isinstance(drive, str):
+        drive = get_scenario(drive, _seed(kwargs.pop("seed", 0)), vessel.thrusters.kind, vessel.name)
     return _simulate(compile_vessel(vessel), drive, duration_s, **kwargs)
+
+
+def _number(value, what: str) -> float:
+    """A real number given as an argument (not text, not a flag), else TwinError naming it."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TwinError(f"{what} must be a number, got {value!r}")
+    return float(value)
+
+
+def _flow(value, what: str) -> tuple[float, float] | None:
+    """A current or wind argument: None, or (speed m/s, direction deg)."""
+    if value is None:
+        return None
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise TwinError(f"{what} must be (speed m/s, direction deg), two numbers, got {value!r}")
+    return _number(value[0], f"{what}'s speed"), _number(value[1], f"{what}'s direction")
+
+
+def _seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
+        raise TwinError(f"the seed must be a whole number, got {seed!r}")
+    return int(seed)
 
 
 def _check_run(duration_s: float, sample_dt_s: float) -> None:
     """The checks `twin simulate` makes on a run's length and sample step."""
+    duration_s, sample_dt_s = _number(duration_s, "the duration"), _number(sample_dt_s, "the sample step")
     if not duration_s > 0:
         raise TwinError(f"the duration must be a positive number of seconds, got {duration_s:g}")
     if not sample_dt_s > 0:
@@ -70,6 +94,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     _check_run(duration_s, sample_dt_s)
+    current, wind, seed = _flow(current, "current"), _flow(wind, "wind"), _seed(seed)
     env = vessel.environment
     if current is not None:
         env = replace(env, current_speed_m_s=current[0], current_dir_deg=current[1])
