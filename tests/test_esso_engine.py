@@ -243,3 +243,15 @@ def test_a_spin_refuses_a_propeller_and_rudder_ship():
     with pytest.raises(TwinError, match=r"scenario 'spin'.*esso_osaka"):  # `twin montecarlo --scenario spin`
         scenario_mission(vessel_mod.load("esso_osaka"), "spin", 5.0)
     assert simulate_run("cybership1", scenario="spin", duration_s=5.0).run.nu[-1, 2] != 0.0
+
+
+@pytest.mark.parametrize("columns,given", [("pwm_left,pwm_right", "pwm_left,pwm_right"),
+                                           ("thrust_left,thrust_right", "thrust_left,thrust_right")])
+def test_a_ship_given_thruster_inputs_is_told_the_columns_it_takes(tmp_path, columns, given):
+    from twin.errors import TwinError
+    from twin.simulation import simulate_run
+
+    path = tmp_path / "in.csv"
+    path.write_text(f"t,{columns}\n0,1600,1600\n5,1600,1600\n")
+    with pytest.raises(TwinError, match=rf"vessel 'esso_osaka' is driven by prop_rps,rudder_deg .*, not {given}$"):
+        simulate_run("esso_osaka", inputs=path, duration_s=5.0)

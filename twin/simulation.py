@@ -43,6 +43,18 @@ def _flow(value, what: str) -> tuple[float, float] | None:
     return _number(value[0], f"{what}'s speed"), _number(value[1], f"{what}'s direction")
 
 
+def _check_inputs(vessel: Vessel, kind: str) -> None:
+    """An input series of `kind` ('pwm', 'thrust', 'propeller_rudder') can drive `vessel`, else a
+    TwinError naming the columns it takes."""
+    ship = vessel.thrusters.kind == "propeller_rudder"
+    if ship != (kind == "propeller_rudder") or (kind == "pwm" and vessel.thrusters.kind != "t200"):
+        takes = ("prop_rps,rudder_deg (rps; degrees, > 0 turns to starboard)" if ship else
+                 "pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)" if vessel.thrusters.kind == "t200" else
+                 "thrust_left,thrust_right (N)")
+        given = {"pwm": "pwm_left,pwm_right", "thrust": "thrust_left,thrust_right"}.get(kind, "prop_rps,rudder_deg")
+        raise TwinError(f"vessel '{vessel.name}' is driven by {takes}, not {given}")
+
+
 def _seed(seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
         raise TwinError(f"the seed must be a whole number, got {seed!r}")
@@ -104,8 +116,8 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     if inputs is not None and not isinstance(inputs, InputSeries):
         inputs = read_inputs_csv(inputs)
     drive = inputs if inputs is not None else get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name)
-    if isinstance(drive, InputSeries) and drive.kind == "pwm" and vessel.thrusters.kind != "t200":
-        raise TwinError(f"vessel '{vessel.name}' has no PWM model: give thrust_left,thrust_right in N")
+    if isinstance(drive, InputSeries):
+        _check_inputs(vessel, drive.kind)
     if isinstance(sea, str):
         from .physics.waves import parse_sea
 

@@ -82,7 +82,8 @@ def simulate(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag; not "
                                                       "with --inputs)"),
-    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,thrust_right (N)"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs), thrust_left,thrust_right (N) or, for "
+                                                  "a propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg)"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
     out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
