@@ -81,6 +81,14 @@ def test_fleet_names_an_empty_folder(tmp_path, empty):
     assert done.returncode == 2 and "folder with no recordings" in done.stderr
 
 
+def test_fleet_refuses_a_file_that_is_no_recording_before_any_log_is_diagnosed(tmp_path):
+    (tmp_path / "pic.png").write_bytes(b"\x89PNG")
+    (tmp_path / "a.csv").write_text("t,x,y,psi\n0,0,0,0\n")
+    done = twin("fleet", tmp_path / "a.csv", tmp_path / "pic.png", "--vessel", "blueboat", "--out", tmp_path / "out")
+    assert done.returncode == 2 and "pic.png' is not a recording (.tlog, .bin, .csv, .mcap)" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
 def test_version_mass_cases_and_the_sitl_address_are_said_in_the_help():
     """`twin --version` prints the installed version; every --case lists its cases; `twin sitl` listens
     on this machine only unless told otherwise."""

@@ -236,7 +236,13 @@ def fleet_command(
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=_executor(ray, cpus_per_task, retries), progress=progress)
     typer.echo(format_summary(fleet.summary))
-    say(f"wrote {len(fleet.reports)} reports, {out / 'fleet.json'} and {out / 'fleet.md'}")
+    say(f"wrote {len(fleet.reports)} report{'' if len(fleet.reports) == 1 else 's'}, {out / 'fleet.json'} and "
+        f"{out / 'fleet.md'}")
+    written = {Path(r).name for r in fleet.reports.values()} | {"fleet.json"}
+    older = sorted(q.name for q in out.glob("*.json") if q.name not in written)
+    if older:
+        note(f"note: {out} also holds {len(older)} report{'' if len(older) == 1 else 's'} of logs not in this fleet "
+             f"(kept, not in fleet.json): {', '.join(older[:3])}{' …' if len(older) > 3 else ''}")
     if fleet.summary["failed"]:
         note(f"note: {len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed")
 
@@ -253,6 +259,10 @@ def _in_folders(paths: list[Path]) -> list[Path]:
             if not found:
                 raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)})")
             out += found
+        elif not p.is_file():
+            raise TwinError(f"'{p}' not found")
+        elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
+            raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
         else:
             out.append(p)
     return out
