@@ -644,3 +644,25 @@ def test_a_local_position_no_place_on_earth_can_have_is_dropped_and_counted(tmp_
     rec = read_recording(path)
     assert dict(rec.dropped)["gnss: position beyond 20 000 km"] == 3
     assert np.abs(rec.gnss["north_m"]).max() < 1e3
+
+
+def test_a_column_twice_is_refused_and_columns_read_in_place_of_others_or_a_time_in_ms_are_warned_of(tmp_path):
+    """Which of two heading_deg columns a reader took would be a guess: refused. Positions given as
+    lat, lon and as north, east, or a heading as heading_deg and psi: the one read is named. A t in
+    milliseconds (10 Hz steps of 100 'seconds') is warned of."""
+    path = write_generic_csv(tmp_path / "run.csv")
+    rows = [r.split(",") for r in path.read_text().splitlines()]
+    twice = tmp_path / "twice.csv"
+    twice.write_text("\n".join(",".join(r + [r[3]]) for r in rows) + "\n")
+    with pytest.raises(TwinError, match=r"twice.csv: column heading_deg appears more than once in the header"):
+        read_recording(twice)
+    both = tmp_path / "both.csv"
+    both.write_text("\n".join(",".join(r + (["north", "east", "psi"] if i == 0 else ["0", "0", "0"]))
+                              for i, r in enumerate(rows)) + "\n")
+    assert read_recording(both).warnings == ["both lat, lon and north, east columns: lat, lon read, north, east not",
+                                             "both heading_deg and psi columns: heading_deg read, psi not"]
+    ms = tmp_path / "ms.csv"
+    ms.write_text("\n".join(",".join([r[0] if i == 0 else f"{float(r[0]) * 1000:.0f}"] + r[1:])
+                            for i, r in enumerate(rows)) + "\n")
+    assert any(w.startswith("t steps by 100 s (median): the generic CSV's t is in seconds")
+               for w in read_recording(ms).warnings)

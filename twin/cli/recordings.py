@@ -80,9 +80,8 @@ def _calibrations(recordings: list, vessel) -> int:
             try:  # one log that cannot be prepared must not hide the others' calibrations
                 prepare(r)
                 usable.append(r)
-            except TwinError as exc:
-                typer.echo(f"error: calibration: {exc}", err=True)
-                failed = 1
+            except TwinError as exc:  # what the log holds is said above; that it gives no calibration is a finding
+                typer.echo(f"calibration: {name}: no compass calibration ({str(exc).removeprefix(name + ': ')})")
     if not usable:
         return failed
     try:

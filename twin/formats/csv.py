@@ -77,6 +77,10 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str,
     if not rows:
         raise TwinError(f"{path.name}: empty CSV file")
     header = [h.strip() for h in rows[0]]
+    twice = sorted({h for h in header if h and header.count(h) > 1})
+    if twice:  # which of the two a reader took would be a guess
+        raise TwinError(f"{path.name}: column{'s' if len(twice) > 1 else ''} {', '.join(twice)} "
+                        f"{'appear' if len(twice) > 1 else 'appears'} more than once in the header")
     good = [r for r in rows[1:] if len(r) == len(header)]
     malformed = sum(1 for r in rows[1:] if r and len(r) != len(header))
     named = [i for i, name in enumerate(header) if name]
@@ -124,6 +128,15 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.heading = stream("heading", t, {"psi_rad": psi}, rec.dropped)
     else:
         rec.notes.append("no heading: no heading_deg or psi column")
+    for used, also in (("lat, lon", "north, east" if {"north", "east"} <= set(header) else "x, y"),
+                       ("north, east", "x, y"), ("heading_deg", "psi")):
+        first = set(used.split(", "))
+        if first <= set(header) and set(also.split(", ")) <= set(header):
+            rec.warnings.append(f"both {used} and {also} columns: {used} read, {also} not")
+    steps = np.diff(np.unique(t[np.isfinite(t)]))
+    if len(steps) >= 100 and np.median(steps) > 5.0:
+        rec.warnings.append(f"t steps by {np.median(steps):g} s (median): the generic CSV's t is in seconds; "
+                            "milliseconds would read as this")
     if "heading_deg" in c and len(rec.heading) and len(rec.gnss):
         looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss)
         if looks:
