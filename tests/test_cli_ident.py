@@ -127,3 +127,14 @@ def test_identify_refuses_a_twin_that_ran_away_on_every_left_out_run(dataset, tm
     assert "left-out runs: nothing written (check the prior" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
     assert out.read_text() == '{"kept": true}\n' and not report.exists()
+
+
+def test_identify_says_a_log_too_short_for_any_window_is_not_in_the_fit(dataset, tmp_path):
+    rows = (dataset / "train.csv").read_text().splitlines(keepends=True)
+    short = tmp_path / "short.csv"
+    start = float(rows[1].split(",")[0])
+    short.write_text("".join([rows[0]] + [r for r in rows[1:] if float(r.split(",")[0]) < start + 4.0]))
+    done = twin("identify", dataset / "train.csv", short, "--vessel", "yellowfish", "--out", tmp_path / "m.json",
+                "--params", "thrust_gain", "--beliefs", "1", "--max-evaluations", "2", "--window", "5")
+    assert done.returncode == 0, done.stderr
+    assert "short.csv: no stretch of 5 s without a dropout, so not in the fit" in done.stdout + done.stderr

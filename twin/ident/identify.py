@@ -255,6 +255,11 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if not every:
         raise TwinError(f"no stretch of {window_s:g} s without a dropout to fit on")
+    unused = sorted(set(range(len(preps))) - {w.rec for w in every})
+    if unused:
+        names = ", ".join(Path(recordings[i].source).name for i in unused)
+        result.notes.append(f"{names}: no stretch of {window_s:g} s without a dropout, so not in the fit "
+                            "(its compass calibration is of no consequence)")
     informative = [w for w in every if _informative(preps[w.rec], w)]
     if len(informative) < 3:
         raise TwinError(f"only {len(informative)} windows of {window_s:g} s with the thrusters working or the boat "
