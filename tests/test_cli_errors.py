@@ -423,6 +423,8 @@ def test_options_that_do_not_apply_or_say_nothing_are_refused_before_any_work(mo
         (("evaluate", log, *v, "--level", "0.5", "--seed", "1"), "error: --level, --seed apply only with --band"),
         (("diagnose", log, *v, "--given", "current=abc"),
          "effect 'current=abc': expected current=speed_m_s,dir_deg (2 numbers), got 1 value 'abc'"),
+        (("diagnose", log, *v, "--refit-weight", "-1"), "--refit-weight must be a positive number, got -1"),
+        (("diagnose", log, *v, "--refit-weight", "5"), "--refit-weight weighs the beliefs of the coefficients --refit"),
     ]
     for args, message in cases:
         err = refused(monkeypatch, capsys, args, [log, inputs, same])

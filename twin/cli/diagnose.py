@@ -59,6 +59,9 @@ def diagnose_command(
                    [*recordings, model])
     check_recordings_distinct(recordings)
     positive(window, "--window")
+    positive(refit_weight, "--refit-weight")
+    if refit is None and refit_weight != 1.0:  # it weighs the refitted coefficients' beliefs, and none are
+        raise TwinError("--refit-weight weighs the beliefs of the coefficients --refit names: give --refit GROUPS")
     if given:
         clash = [o for o, v in (("--report", report), ("--rrd", rrd), ("--write-model", write_model),
                                 ("--effects", effects), ("--refit", refit)) if v is not None]
