@@ -255,3 +255,12 @@ def test_a_ship_given_thruster_inputs_is_told_the_columns_it_takes(tmp_path, col
     path.write_text(f"t,{columns}\n0,1600,1600\n5,1600,1600\n")
     with pytest.raises(TwinError, match=rf"vessel 'esso_osaka' is driven by prop_rps,rudder_deg .*, not {given}$"):
         simulate_run("esso_osaka", inputs=path, duration_s=5.0)
+
+
+def test_simulate_refuses_to_write_a_ships_run_where_its_inputs_would_be_lost(tmp_path):
+    import twin_command
+
+    done = twin_command.twin("simulate", "--vessel", "esso_osaka", "--scenario", "turn", "--duration", "5",
+                             "--out", tmp_path / "a.csv", "--out", tmp_path / "a.tlog")
+    assert done.returncode == 2 and "a.tlog: a propeller-and-rudder ship's run keeps its propeller speed" in done.stderr
+    assert not (tmp_path / "a.csv").exists()

@@ -109,6 +109,10 @@ def simulate(
     seed_from(seed)
     start = origin_from(origin)
     v = vessel_from(vessel, model, case)
+    lossy = [str(p) for p in out if p.suffix.lower() in (".tlog", ".bin", ".mcap")]
+    if v.thrusters.kind == "propeller_rudder" and lossy:  # the run would be written without its inputs
+        raise TwinError(f"{', '.join(lossy)}: a propeller-and-rudder ship's run keeps its propeller speed and rudder "
+                        "angle in .csv only (and shows in .rrd): write .csv")
     flows = speed_direction(current, "current"), speed_direction(wind, "wind")
     sea_state = sea_from(sea, seed)
     # a long run (hours of simulated time, an .rrd or .mcap of it) takes a while: say which part is running

@@ -82,8 +82,8 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
     for path in paths:
         rec = read_recording(path, channels=channels)
         if not len(rec.pwm) and not len(rec.prop_rudder):
-            raise TwinError(f"{Path(path).name}: no thruster PWM: nothing can be identified without the inputs "
-                            "(for an ArduPilot log, give the thruster channels with --channels LEFT,RIGHT)")
+            raise TwinError(f"{Path(path).name}: no inputs (thruster PWM, or propeller and rudder): the twin cannot "
+                            "be run on it (an ArduPilot log: give the thruster channels with --channels LEFT,RIGHT)")
         out.append(rec)
     return out
 
