@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import struct
 from pathlib import Path
 
@@ -666,3 +667,15 @@ def test_a_column_twice_is_refused_and_columns_read_in_place_of_others_or_a_time
                             for i, r in enumerate(rows)) + "\n")
     assert any(w.startswith("t steps by 100 s (median): the generic CSV's t is in seconds")
                for w in read_recording(ms).warnings)
+
+
+@pytest.mark.parametrize("data,why", [
+    (b"t,lat,lon,heading_deg\n0,1,2,caf\xe9\n", "not UTF-8 text: byte 0xe9 on line 2 (save it as UTF-8)"),
+    (b"t;lat;lon;heading_deg\n0;1;2;3\n", "its columns are separated by ';' or tabs"),
+    (b"\x1f\x8b\x08\x00\x00\x00", "gzip-compressed: uncompress it first"),
+])
+def test_a_csv_that_cannot_be_read_says_why(tmp_path, data, why):
+    path = tmp_path / "log.csv"
+    path.write_bytes(data)
+    with pytest.raises(TwinError, match=rf"log.csv: not a recognised recording \({re.escape(why)}"):
+        read_recording(path)

@@ -104,7 +104,8 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
     kind = sniff(head, path.suffix.lower())
     reader = READERS.get(kind)
     if reader is None:
-        raise TwinError(f"{path.name}: not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
+        why = _not_csv(head) if path.suffix.lower() == ".csv" else ""
+        raise TwinError(f"{path.name}: not a recognised recording ({why or 'expected .tlog, DataFlash .bin, .csv or .mcap'})")
     if kind in ("csv", "mcap") and isinstance(channels, dict) and {"left", "right"} & set(channels):
         raise TwinError(f"{path.name}: --channels LEFT,RIGHT does not apply to a{'n' if kind == 'mcap' else ''} "
                         f"{kind.upper()} recording: it has no servo outputs to choose from (only ArduPilot .tlog "
@@ -135,6 +136,23 @@ def _head(path: Path, n: int = 4096) -> bytes:
             return fh.read(n)
     except OSError as exc:
         raise TwinError(f"{path.name}: cannot read ({exc.strerror or exc})") from None
+
+
+def _not_csv(head: bytes) -> str:
+    """Why a file named .csv is not read as one (the start of it, `head`), or ""."""
+    if head.startswith(b"\x1f\x8b"):
+        return "gzip-compressed: uncompress it first"
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = head[: exc.start].count(b"\n") + 1
+        return f"not UTF-8 text: byte 0x{head[exc.start]:02x} on line {line} (save it as UTF-8)"
+    if b"\x00" in head:
+        return "binary data, not text"
+    first = head.split(b"\n", 1)[0]
+    if b";" in first or b"\t" in first:
+        return "its columns are separated by ';' or tabs: a CSV recording's by commas"
+    return "no comma in its first line: the header names the columns, comma-separated"
 
 
 def _is_text(head: bytes) -> bool:
