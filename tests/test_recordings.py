@@ -670,7 +670,7 @@ def test_a_column_twice_is_refused_and_columns_read_in_place_of_others_or_a_time
 
 
 @pytest.mark.parametrize("data,why", [
-    (b"t,lat,lon,heading_deg\n0,1,2,caf\xe9\n", "not UTF-8 text: byte 0xe9 on line 2 (save it as UTF-8)"),
+    (b"t,lat,lon,heading_deg\n0,1,2,caf\xe9\n1,1,2,3\n", "not UTF-8 text: byte 0xe9 on line 2 (save it as UTF-8)"),
     (b"t;lat;lon;heading_deg\n0;1;2;3\n", "its columns are separated by ';' or tabs"),
     (b"\x1f\x8b\x08\x00\x00\x00", "gzip-compressed: uncompress it first"),
 ])
