@@ -260,7 +260,7 @@ def _in_folders(paths: list[Path]) -> list[Path]:
                 raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)})")
             out += found
         elif not p.is_file():
-            raise TwinError(f"'{p}' not found")
+            raise TwinError(f"{p}: no such file")
         elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
             raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
         else:
