@@ -213,3 +213,13 @@ def test_simulate_says_a_twins_sensor_errors_are_not_in_its_run(tmp_path):
     assert "without this twin's sensor errors (heading_bias_deg, pwm_clock_offset_s)" in p.stdout + p.stderr
     p = twin("simulate", "--vessel", "yellowfish", "--scenario", "turn", "--duration", "5", "--out", tmp_path / "y.csv")
     assert p.returncode == 0 and "sensor errors" not in p.stdout + p.stderr
+
+
+def test_simulate_says_inputs_that_end_before_the_run_are_held(tmp_path):
+    inputs = tmp_path / "in.csv"
+    inputs.write_text("t,pwm_left,pwm_right\n0,1600,1600\n4,1700,1500\n")
+    p = twin("simulate", "--vessel", "yellowfish", "--inputs", inputs, "--duration", "10", "--out", tmp_path / "r.csv")
+    assert p.returncode == 0, p.stderr
+    assert "the inputs end at 4 s: their last row is held to the end of the run (10 s)" in p.stdout + p.stderr
+    read = read_csv(tmp_path / "r.csv")
+    assert read.t[-1] == pytest.approx(10.0)

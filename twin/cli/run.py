@@ -133,6 +133,9 @@ def simulate(
             say(f"wrote {path}")
     for limit in result.limits:
         note(f"note: {limit.text()}")
+    end = result.run.meta.get("inputs_end_s")
+    if end is not None:
+        note(f"note: the inputs end at {end:g} s: their last row is held to the end of the run ({duration:g} s)")
     if v.sensors.errors():
         note(f"note: the run is written as the hull moved, without this twin's sensor errors "
              f"({', '.join(v.sensors.errors())}): a twin that carries them reads it through them; "
