@@ -315,3 +315,12 @@ def test_blueboat_seven_to_three(shared_dir):
     assert 0.0 < literal.alpha < 1.0
     guesses = first_guesses(fit_static(train), vessel, pwm_neutral_us=train[0].pwm_neutral_us[0])
     assert guesses["M11"]["value"] > 0 and all(e["note"] for e in guesses.values())
+
+
+def test_a_training_share_that_failed_is_said_whole_within_100_columns():
+    error = ("sway Xv (static): Yv, Yvv cannot be separated: nearly collinear on the 11 usable samples "
+             "(condition number 3.2e+09 > 1e+08)")
+    text = SP.render_training_table({"model": "m", "method": "points", "seed": 0,
+                                     "rows": [{"train": 0.6, "validation": 0.3, "error": error}]})
+    assert max(len(line) for line in text.splitlines()) <= 100
+    assert " ".join(line.strip() for line in text.splitlines() if "Train" not in line)[-60:] == error[-60:]

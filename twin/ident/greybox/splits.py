@@ -12,6 +12,7 @@ than 100 columns.
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass
 from typing import Callable, Protocol, Sequence
 
@@ -306,7 +307,9 @@ def render_training_table(table: dict) -> str:
         lines.append(f"{'Train %':>8}{head}  {'Valid. %':>8}{head}")
         for row in table["rows"]:
             if "error" in row:
-                lines.append(f"{row['train'] * 100:8.0f}  {row['error'][:86]}")
+                wrapped = textwrap.wrap(row["error"], 88)  # whole, in ≤ 100 columns
+                lines.append(f"{row['train'] * 100:8.0f}  {wrapped[0]}")
+                lines += [f"{'':10}{more}" for more in wrapped[1:]]
                 continue
             tr = "".join(f"{_num(row['train_scores'][d][metric]):>10}" for d in R.DOFS)
             va = "".join(f"{_num(row['validation_scores'][d][metric]):>10}" for d in R.DOFS)
