@@ -99,16 +99,20 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
     return out
 
 
-def run_split(name: str, wind, work: Path) -> dict:
+def _split_runs(name: str):
+    """The split's vessel name, settings, prior, recordings, their preparation as the prior's
+    calibration reads them, the split and the recordings' names."""
     vessel_name, _ = SPLITS[name]
-    settings = SETTINGS[vessel_name]
-    paths = blueboat_paths() if vessel_name == "blueboat" else esso_paths()
     prior = vessel_mod.load(vessel_name)
-    recs = read(paths)
+    recs = read(blueboat_paths() if vessel_name == "blueboat" else esso_paths())
     calibrated = calibrate(recs, prior)[0]
     preps = prepared(recs, calibrated)
-    split = _split_of(name, recs, preps)
-    names = [log_name(r.source) for r in recs]
+    return vessel_name, SETTINGS[vessel_name], prior, recs, calibrated, preps, _split_of(name, recs, preps), \
+        [log_name(r.source) for r in recs]
+
+
+def run_split(name: str, wind, work: Path) -> dict:
+    vessel_name, settings, prior, recs, calibrated, preps, split, names = _split_runs(name)
     fit_recs, judged_recs = split.pick(recs, names)
     fit_preps, _ = split.pick(preps, names)
     seen = fitted_envelope(calibrated, fit_preps, settings["window_s"], settings["stride_s"])
@@ -130,14 +134,8 @@ def run_split(name: str, wind, work: Path) -> dict:
 
 def run_reach(name: str, wind, work: Path) -> dict:
     """`twin identify` on a split's judged runs, scored on them (no band): the form's reach there."""
-    vessel_name, _ = SPLITS[name]
-    settings = SETTINGS[vessel_name]
-    paths = blueboat_paths() if vessel_name == "blueboat" else esso_paths()
-    prior = vessel_mod.load(vessel_name)
-    recs = read(paths)
-    preps = prepared(recs, calibrate(recs, prior)[0])
-    split = _split_of(name, recs, preps)
-    _, judged_recs = split.pick(recs, [log_name(r.source) for r in recs])
+    _, settings, prior, recs, _, _, split, names = _split_runs(name)
+    _, judged_recs = split.pick(recs, names)
     started = time.time()
     ident = identify(judged_recs, prior, wind=wind)
     seconds = time.time() - started

@@ -1,3 +1,4 @@
+import errno
 from pathlib import Path
 
 import pytest
@@ -33,3 +34,29 @@ def shared_dir():
     if not SHARED.is_dir():
         pytest.skip("../shared is not present")
     return SHARED
+
+
+@pytest.fixture
+def full_disk(monkeypatch):
+    """files.write_bytes_atomic on a disk that fills up: `full_disk(share)` makes every write put down
+    that share of its bytes and fail with ENOSPC."""
+    from twin import files
+
+    def fill(written_share: float = 0.0) -> None:
+        class Full:
+            def __init__(self, fd, mode):
+                self.fh = open(fd, mode)  # os.fdopen is the one replaced
+
+            def __enter__(self):
+                return self
+
+            def __exit__(self, *exc):
+                self.fh.close()
+
+            def write(self, data):
+                self.fh.write(data[: int(len(data) * written_share)])
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+        monkeypatch.setattr(files.os, "fdopen", Full)
+
+    return fill

@@ -364,29 +364,11 @@ def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_pa
     assert sorted(p.name for p in data.iterdir()) == ["run.csv", "run.mcap", "run.rrd"]  # no temporary left
 
 
-def test_a_failed_write_names_the_file_and_keeps_the_old_one(monkeypatch, capsys, tmp_path):
+def test_a_failed_write_names_the_file_and_keeps_the_old_one(monkeypatch, capsys, tmp_path, full_disk):
     """A full disk while writing: one line naming the output, the file already there kept whole."""
-    import errno
-
-    from twin import files
-
     out = tmp_path / "run.csv"
     out.write_text("old\n")
-
-    class Full:
-        def __init__(self, fd, mode):
-            self.fh = open(fd, mode)
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.fh.close()
-
-        def write(self, data):
-            raise OSError(errno.ENOSPC, "No space left on device")
-
-    monkeypatch.setattr(files.os, "fdopen", Full)
+    full_disk(0.0)
     err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--out", out], [out])
     assert err == f"error: cannot write '{out}': No space left on device (the file there, if any, is kept)\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]

@@ -204,33 +204,15 @@ def test_rrd_bad_mesh_is_twin_error(tmp_path):
     assert listing(tmp_path) == []
 
 
-def test_rrd_on_a_full_disk_keeps_the_older_file(tmp_path, monkeypatch):
+def test_rrd_on_a_full_disk_keeps_the_older_file(tmp_path, full_disk):
     """rerun's file sink writes on its own thread and says nothing of a failed write: the recording is
     made in memory and written as every output is, so a full disk is an error naming the file and the
     good recording already there stays whole."""
-    import errno
-
-    from twin import files
-
     out = tmp_path / "runs.rrd"
     write_runs_rrd({"engine": synthetic_run(15, n=50)}, out)
     good = out.read_bytes()
 
-    class Full:
-        def __init__(self, fd, mode):
-            self.fh = open(fd, mode)
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.fh.close()
-
-        def write(self, data):
-            self.fh.write(data[: len(data) // 3])
-            raise OSError(errno.ENOSPC, "No space left on device")
-
-    monkeypatch.setattr(files.os, "fdopen", Full)
+    full_disk(1 / 3)
     with pytest.raises(TwinError, match=f"cannot write '{out}': No space left on device"):
         write_runs_rrd({"engine": synthetic_run(16, n=50)}, out)
     assert out.read_bytes() == good and listing(tmp_path) == ["runs.rrd"]
