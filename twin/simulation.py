@@ -127,6 +127,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     run.meta["scenario"] = "inputs" if inputs is not None else scenario
     limits = beyond_bounds(vessel, run.meta["inputs"], duration_s)
     run.meta["limits"] = [lim.to_dict() for lim in limits]
-    if inputs is not None and float(inputs.t[-1]) < duration_s:
-        run.meta["inputs_end_s"] = float(inputs.t[-1])  # its last row held from there to the end
+    if inputs is not None and len(inputs.t) > 1 and float(inputs.t[-1]) < duration_s:
+        # its last row held from there to the end (one row alone is plainly a constant input)
+        run.meta["inputs_end_s"] = float(inputs.t[-1])
     return Simulation(run, compiled, limits)
