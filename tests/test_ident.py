@@ -500,3 +500,14 @@ def test_the_fits_model_of_the_measurement_smooths_over_ground_as_the_estimator_
     assert rms(body[..., 1] - meas[..., 1]) > 2 * rms(seen[..., 1] - meas[..., 1])
     for k in (0, 2):  # u and r: a third of the raw prediction's difference or less, the window's end included
         assert rms(seen[..., k] - meas[..., k]) < rms(nu[..., k] - meas[..., k]) / 3
+
+
+def test_a_horizon_with_no_window_is_said_why_its_row_is_empty():
+    from twin.fit.evaluate import format_metrics
+
+    none = {d: {"r2": None, "mae": None, "n": 0} for d in "uvr"}
+    some = {d: {"r2": 0.9, "mae": 0.01, "n": 40} for d in "uvr"}
+    text = format_metrics({"one_step": some, "free_run_10s": none, "free_run_30s": none})
+    assert text.splitlines()[-1] == ("-: no window of free_run_10s, free_run_30s fits in a stretch of the recording "
+                                     "without a dropout")
+    assert "no window" not in format_metrics({"one_step": some})

@@ -326,4 +326,7 @@ def format_metrics(metrics: dict, title: str = "") -> str:
             shown = None if mae is None else (math.degrees(mae) if d == "r" else mae)
             cells.append(f"{'-' if r2 is None else f'{r2:.3f}':>9s}{'-' if shown is None else f'{shown:.4f}':>10s}")
         lines.append(f"{name:14s}" + "".join(cells))
+    empty = [name for name, m in metrics.items() if all(m[d].get("n") == 0 for d in DOFS)]
+    if empty:  # a dash with no reason reads as a failure of the twin
+        lines.append(f"-: no window of {', '.join(empty)} fits in a stretch of the recording without a dropout")
     return "\n".join(lines)
