@@ -620,3 +620,15 @@ def test_the_report_says_the_form_is_off_where_an_edge_fit_was_refused():
     form = [f for f in a["form"] if f.startswith("added_mass")]
     assert len(form) == 1 and "Nrdot_scale 20" in form[0] and "20 %" in form[0]
     assert not any("added_mass may be missing" in u for u in a["unsettled"])
+
+
+def test_a_twins_own_noise_free_run_is_not_read_as_the_twins_form():
+    # against the raw prediction and the white noise alone (≈ 0 here) the smoothing of the measured
+    # velocities and the input log's 0.1-s sampling read as u, v, r 27-57× the noise off
+    boat = vessel_mod.load("blueboat")
+    ds = generate(boat, n_segments=6, seed=8, noise=PROFILES["none"])
+    d = diagnose([ds.recording], boat)
+    over = {dof: o["rms_over_noise"] for dof, o in d.overall["before"].items()}
+    assert over["u"] < 3.0 and over["r"] < 3.0, over
+    assert d.noise["replay_u"] > 3 * d.noise["u"] and d.noise["input_period_s"] > 0
+    assert not [u for u in d.unexplained if u["dof"] in ("u", "r")]

@@ -172,3 +172,26 @@ def test_the_ships_yaw_rate_window_takes_the_noise_out_not_the_turn(esso_dir):
             rms[w] = float(np.sqrt(np.mean((prep.r - gyro)[20:-20] ** 2)))
         assert rms[1.0] < 0.65 * rms[0.5] and rms[4.0] < rms[1.0], (name, rms)
     assert rms[16.0] > 1.3 * rms[4.0], rms  # on the random test a long window smooths its turns away
+
+
+def test_view_shows_a_ships_inputs_as_propeller_and_rudder_and_replays_with_its_measured_wind(tmp_path):
+    import twin.vessel as vessel_mod
+    from twin.replay import view_runs
+
+    rows = []
+    for k in range(300):  # 30 s north at 0.2 m/s, the rudder at 0.05 rad, a 6-m/s wind from the east
+        t = 0.1 * k
+        rows.append(f"{t:.1f},{0.2 * t:.4f},0.2,0.0,0.0,0.0,0.0,10,0.05,6.0,1.57,6.0,1.57")
+    rec = read_recording(_write(tmp_path / "run.csv", rows))
+    ship = vessel_mod.load("esso_osaka")
+    calm = view_runs([rec], ship, sim=True)
+    windy = view_runs([rec], ship, sim=True, wind="measured")
+    real = calm["real"]
+    assert np.all(np.isnan(real.pwm_us))  # no 10-µs "PWM" line
+    held = real.propeller_rudder()
+    assert held[:, 0] == pytest.approx(10.0) and held[:, 1] == pytest.approx(0.05)
+    # a beam wind from the east pushes the ship west: its replay drifts further that way with it
+    assert windy["twin"].eta[-1, 1] < calm["twin"].eta[-1, 1] - 0.05
+    out = twin_command.twin("view", tmp_path / "run.csv", "--vessel", "esso_osaka", "--wind-measured",
+                            "--out", tmp_path / "v.rrd", cwd=tmp_path)
+    assert out.returncode == 2 and "--sim" in out.stderr and not (tmp_path / "v.rrd").exists()

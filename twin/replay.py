@@ -16,7 +16,7 @@ from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import delivered_thrust, simulate
 from .errors import TwinError
 from .prepare import Prepared
-from .prepare.prepared import hold
+from .prepare.prepared import hold, wind_series
 from .run import Run
 from .vessel import Vessel
 
@@ -39,10 +39,15 @@ def logged_pwm(vessel: Vessel, prep: Prepared, sl: slice) -> InputSeries:
 def measured_run(prep: Prepared, sl: slice | None = None) -> Run:
     """The prepared measurements as a Run (thrust unknown: NaN)."""
     sl = sl or slice(None)
-    n = len(prep.t[sl])
-    return Run(prep.t[sl].copy(), np.column_stack([prep.north[sl], prep.east[sl], prep.psi[sl]]),
-               np.column_stack([prep.u[sl], prep.v[sl], prep.r[sl]]), prep.pwm[sl].astype(float),
-               np.full((n, 2), np.nan), meta={"engine": "recording"})
+    t = prep.t[sl].copy()
+    n = len(t)
+    meta = {"engine": "recording"}
+    pwm = prep.pwm[sl].astype(float)
+    if prep.input_kind != "pwm" and n:  # a ship's propeller speed and rudder angle are no PWM
+        meta |= {"inputs": InputSeries(t - t[0], pwm, prep.input_kind), "start_s": float(t[0])}
+        pwm = np.full((n, 2), np.nan)
+    return Run(t, np.column_stack([prep.north[sl], prep.east[sl], prep.psi[sl]]),
+               np.column_stack([prep.u[sl], prep.v[sl], prep.r[sl]]), pwm, np.full((n, 2), np.nan), meta=meta)
 
 
 def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.ndarray:
@@ -71,8 +76,9 @@ def _source_name(prep: Prepared) -> str:
     return Path(str(prep.settings.source or "the recording")).name
 
 
-def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
-    """Free run of the twin over one segment from its first measured state."""
+def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice, wind: str | None = None) -> Run:
+    """Free run of the twin over one segment from its first measured state; `wind` "measured": the
+    recording's measured wind a known input (in place of the vessel's constant wind)."""
     t = prep.t[sl]
     if len(t) < 2:
         raise TwinError(f"{_source_name(prep)}: segment too short to replay")
@@ -85,16 +91,17 @@ def replay_segment(compiled: CompiledVessel, prep: Prepared, sl: slice) -> Run:
     nu0 = (prep.u[sl][0], prep.v[sl][0], prep.r[sl][0])
     try:
         return simulate(compiled, inputs, float(t[-1] - t[0]), sample_dt_s=dt, control_dt_s=dt, eta0=eta0, nu0=nu0,
-                        start_s=float(t[0]))
+                        start_s=float(t[0]), wind=wind_series(prep, sl) if wind == "measured" else None)
     except TwinError as exc:  # a divergence: say which recording (its time is on the recording's clock)
         raise TwinError(f"{_source_name(prep)}: replay: {exc}") from None
 
 
-def replay(vessel: Vessel, prep: Prepared) -> Run:
+def replay(vessel: Vessel, prep: Prepared, wind: str | None = None) -> Run:
     """All segments replayed and concatenated on the recording's timeline, in the recording's own
-    environment (its wind, where the vessel holds one per log)."""
+    environment (its wind, where the vessel holds one per log; with `wind` "measured", the wind it
+    measured)."""
     compiled = compile_vessel(replace(vessel, environment=vessel.environment.for_log(prep.settings.source)))
-    runs = [replay_segment(compiled, prep, seg.slice) for seg in prep.segments if seg.stop - seg.start >= 2]
+    runs = [replay_segment(compiled, prep, seg.slice, wind) for seg in prep.segments if seg.stop - seg.start >= 2]
     if not runs:
         raise TwinError(f"{_source_name(prep)}: no segment long enough to replay")
     return Run(np.concatenate([r.t for r in runs]), np.concatenate([r.eta for r in runs]),
@@ -103,7 +110,7 @@ def replay(vessel: Vessel, prep: Prepared) -> Run:
 
 
 def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = False,
-              smoother: str = "savgol") -> dict[str, Run]:
+              smoother: str = "savgol", wind: str | None = None) -> dict[str, Run]:
     """What `twin view` shows: each recording prepared as the vessel's sensors see it (the same
     calibration identify, evaluate and diagnose use: heading corrections, antenna position), its
     thrust through the vessel's thruster map, and with `sim` the twin's replay of each segment.
@@ -135,7 +142,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
             runs[label].meta["series_labels"] = {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
                                                  for q in ("thrust_left", "thrust_right")}
         if sim:
-            runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep)
+            runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep, wind)
     return runs
 
 

@@ -154,10 +154,14 @@ def view(
     png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     smoother: str = typer.Option("savgol", help="velocities: savgol [Morel-2024] or model (EKF+RTS on the vessel model)"),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="--sim: take each recording's measured wind (its anemometer stream) as a "
+                                            "known input of the replay"),
 ):
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from ..files import write_bytes_atomic
     from ..formats import read_recording
+    from ..ident.identify import check_wind
     from ..outputs import write
     from ..replay import view_runs
     from ..viz.report import comparison_png
@@ -169,21 +173,23 @@ def view(
     check_outputs([png], (".png",), "--png")
     check_distinct({"--out": out, "--png": png}, [*files, model])
     v = vessel_from(vessel, model) if (vessel or model) else None
+    if wind_measured and not sim:
+        raise TwinError("--wind-measured is a known input of the twin's replay: give it with --sim")
     mapping = channels_from(channels)
     with progress_bar("view") as progress:
         recordings = []
         for k, path in enumerate(files):
             progress(f"reading {path.name}", k, len(files))
             recordings.append(read_recording(path, channels=mapping))
+        wind = "measured" if wind_measured else None
+        check_wind(recordings, wind)
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
-        runs = view_runs(recordings, v, sim=sim, smoother=smoother)
+        runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")
         write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
     say(f"wrote {out} (open with: rerun {out})")
     if png is not None:
-        # a propeller-and-rudder ship's two input channels are its propeller speed and rudder angle
-        ship = all(len(r.prop_rudder) and not len(r.pwm) for r in recordings)
-        label = "propeller n (rps) —\nrudder δ (rad) --" if ship else "PWM (µs)\nleft — right --"
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
-                                                     + (f": real vs twin ({v.name})" if sim else ""), label))
+                                                     + (f": real vs twin ({v.name}"
+                                                        + (", measured wind" if wind else "") + ")" if sim else "")))
         say(f"wrote {png}")

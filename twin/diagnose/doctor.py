@@ -38,7 +38,7 @@ from ..errors import TwinError
 from ..fit.metrics import r2_mae
 from ..physics.sensors import log_name
 from ..fit.objective import Measurements
-from ..fit.windows import ModelCache, Window, comfortable_timestep, make_windows, measured, predict
+from ..fit.windows import ModelCache, Window, as_measured, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared, supply_reference
 from ..prepare.prepared import supply_voltage
 from ..prepare.timing import heading_lag_behind_gyro
@@ -143,6 +143,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     exact = ModelCache()
     before = _residuals(prior, preps, every, exact, wind)  # locating fits nothing: every window may speak
+    noise = noise | _replay_floor(prior, recordings, preps, every, exact, wind)
     located, growth, corr, overall = _locate(before, preps, every, noise)
     log(f"replayed {len(every)} windows of {window_s:g} s; {len(located)} significant residual regions")
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
@@ -382,7 +383,30 @@ def _residuals(vessel: Vessel, preps: list[Prepared], windows: list[Window], cac
                wind: str | None = None) -> _Replay:
     pred = predict(vessel, preps, windows, cache, wind=wind)[0]
     eta, nu = measured(preps, windows)
-    return _Replay(pred.nu, pred.eta, nu, eta)
+    return _Replay(as_measured(pred.nu, preps, windows), pred.eta, nu, eta)
+
+
+def _replay_floor(vessel: Vessel, recordings: list[Recording], preps: list[Prepared], windows: list[Window],
+                  cache: ModelCache, wind: str | None) -> dict:
+    """What a perfect twin leaves because the input log is sampled: a log stamped every dt places
+    each change of the inputs anywhere within dt of its stamp, so the replay's timing is uncertain by
+    a uniform ±dt/2 (RMS dt/√12). Per DOF (`replay_u`, `replay_v`, `replay_r`, and `input_period_s`):
+    the RMS of the prediction's change over one sample period of the input log's clock, /√12, seen
+    through the measurement's estimator. The residual is judged against this and the white noise
+    together (`_locate`): on a noise-free log the sampling alone would otherwise read as the twin's form."""
+    periods = [float(np.median(np.diff(np.unique(np.asarray(s.t, float))))) for r in recordings
+               for s in (r.pwm if len(r.pwm) else r.prop_rudder,) if len(s) > 2]
+    dt = float(max(periods)) if periods else 0.0
+    if not dt > 0:
+        return {"replay_u": 0.0, "replay_v": 0.0, "replay_r": 0.0, "input_period_s": 0.0}
+    offset = vessel.sensors.pwm_clock_offset_s
+
+    def shifted(by: float) -> np.ndarray:
+        v = replace(vessel, sensors=replace(vessel.sensors, pwm_clock_offset_s=offset + by))
+        return as_measured(predict(v, preps, windows, cache, wind=wind)[0].nu, preps, windows)[:, 1:]
+    change = (shifted(dt / 2) - shifted(-dt / 2)).reshape(-1, 3) / math.sqrt(12.0)
+    rms = np.sqrt(np.nanmean(change ** 2, axis=0))
+    return {"replay_u": float(rms[0]), "replay_v": float(rms[1]), "replay_r": float(rms[2]), "input_period_s": dt}
 
 
 def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cache: ModelCache,
@@ -454,7 +478,8 @@ def _locate(rep: _Replay, preps, windows, noise) -> tuple[list[dict], dict, dict
     n = res_w.shape[1]
     context, window, tiw = _context(preps, windows, n)
     res = res_w.reshape(-1, 3)
-    sd = np.array([noise.get("u", np.nan), noise.get("v", np.nan), noise.get("r", np.nan)])
+    # the white noise and the input log's sampling together (_replay_floor)
+    sd = np.array([math.hypot(noise.get(k, np.nan), noise.get(f"replay_{k}", 0.0)) for k in "uvr"])
     located = loc.locate(res, sd, window, context)
     growth = loc.growth(res_w, tiw[:n], sd)
     psi = np.radians(context["heading_deg"])

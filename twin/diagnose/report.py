@@ -271,6 +271,10 @@ def format_text(d) -> str:
     lines.append(f"noise estimated from the recording: GNSS {noise.get('gnss_m', float('nan')):.3f} m, heading "
                  f"{noise.get('heading_deg', float('nan')):.2f}° → u {noise.get('u', float('nan')):.3f} m/s, "
                  f"v {noise.get('v', float('nan')):.3f} m/s, r {_shown('r', noise.get('r', float('nan'))):.3f} °/s")
+    if noise.get("input_period_s"):
+        lines.append(f"replay's own resolution (inputs logged every {noise['input_period_s']:.2g} s, judged with the "
+                     f"noise): u {noise.get('replay_u', 0.0):.3f} m/s, v {noise.get('replay_v', 0.0):.3f} m/s, "
+                     f"r {_shown('r', noise.get('replay_r', 0.0)):.3f} °/s")
     lines.append(f"{'held-out fit':14s}" + "".join(f"{'R2 ' + k:>9s}{'MAE ' + k:>10s}" for k in "uvr")
                  + "   (MAE: u, v m/s; r °/s)")
     fits = (("before", d.fit_before), ("after", d.fit_after)) if d.effects else (("twin", d.fit_before),)

@@ -86,6 +86,9 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
+SHIP_INPUTS_LABEL = "rudder (°) —\npropeller (rps) --"
+
+
 def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft — right --") -> bytes:
     """Track on the water (east vs north) and u, r against time, one colour per run."""
     import matplotlib
@@ -94,6 +97,7 @@ def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft 
     import matplotlib.pyplot as plt
     import numpy as np
 
+    ship = False
     fig = plt.figure(figsize=(11, 6), dpi=100)
     grid = fig.add_gridspec(3, 2, width_ratios=(1.1, 1.4))
     track = fig.add_subplot(grid[:, 0])
@@ -104,10 +108,15 @@ def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft 
         for ax, (k, label, scale) in zip(axes, ((0, "u (m/s)", 1.0), (2, "r (°/s)", 180.0 / np.pi))):
             ax.plot(run.t, scale * run.nu[:, k], color=colour, lw=1, label=name)
             ax.set_ylabel(label)
-        if np.any(np.isfinite(run.pwm_us)):
+        held = run.propeller_rudder()
+        if held is not None:  # a ship: rudder (deg) and propeller speed (rps) share the panel
+            ship = True
+            axes[2].plot(run.t, np.rad2deg(held[:, 1]), color=colour, lw=0.8, ls="-")
+            axes[2].plot(run.t, held[:, 0], color=colour, lw=0.8, ls="--")
+        elif np.any(np.isfinite(run.pwm_us)):
             axes[2].plot(run.t, run.pwm_us[:, 0], color=colour, lw=0.8, ls="-")
             axes[2].plot(run.t, run.pwm_us[:, 1], color=colour, lw=0.8, ls="--")
-    axes[2].set_ylabel(inputs_label)
+    axes[2].set_ylabel(SHIP_INPUTS_LABEL if ship else inputs_label)
     axes[2].set_xlabel("t (s)")
     track.set_xlabel("east (m)")
     track.set_ylabel("north (m)")

@@ -6,7 +6,8 @@ Entity paths, for each run name:
   world/<name>/vessel            Transform3D over "time": translation (x, y, 0) m, yaw ψ about z
   world/<name>/vessel/<hull>     Mesh3D per hull mesh (body FRD, m), or a Boxes3D "hull", static
   world/<name>/vessel/sites      Points3D of thrusters, GNSS, IMU (when a Geometry is given), static
-  plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs),
+  plots/<quantity>/<name>        Scalars over "time" for u, v (m/s), r (rad/s), thrust (N), PWM (µs)
+                                 or a ship's propeller speed (rps) and rudder angle (deg),
                                  the series named after the run or run.meta["series_labels"][quantity]
   world/<name>/sea               Mesh3D of the sea surface around the vessel over "time" (a 6-DOF run
                                  in waves: every SEA_EVERY_S, at most SEA_FRAMES frames), and the
@@ -33,7 +34,7 @@ TIMELINE = "time"
 # hull body positions in model/yellowfish.xml (m, body FRD); other meshes sit at the body origin
 BOX_SIZE_M = (1.28, 0.98, 0.3)
 BOX_CENTER_M = (0.0, 0.0, -0.10)  # the hull meshes span z = -0.25 .. 0.05 m (z down)
-PLOTS = ("u", "v", "r", "thrust_left", "thrust_right", "pwm_left", "pwm_right")
+PLOTS = ("u", "v", "r", "thrust_left", "thrust_right", "pwm_left", "pwm_right", "propeller_rps", "rudder_deg")
 SIX_PLOTS = ("heave", "roll", "pitch")
 SEA_EVERY_S, SEA_FRAMES, SEA_NODES, SEA_HALF_M = 0.25, 1200, 33, 4.0
 PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
@@ -125,6 +126,10 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
                      columns=rr.Transform3D.columns(translation=xyz, quaternion=quat))
     _log_hull(rec, f"world/{key}/vessel", color, geometry, meshes)
     cols = run.columns()
+    held = run.propeller_rudder()
+    nothing = np.full(len(run.t), np.nan)
+    cols |= {"propeller_rps": nothing if held is None else held[:, 0],
+             "rudder_deg": nothing if held is None else np.rad2deg(held[:, 1])}
     if six is not None:
         cols = {**cols, "heave": np.asarray(six["down_m"]) - six["equilibrium"][0],
                 "roll": np.rad2deg(six["roll_rad"]), "pitch": np.rad2deg(six["pitch_rad"])}
@@ -132,7 +137,7 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
             _log_sea(rec, f"world/{key}/sea", run, six["components"])
     for q in PLOTS + (SIX_PLOTS if six is not None else ()):
         if np.all(np.isnan(cols[q])):
-            continue  # e.g. PWM of a thrust-driven run
+            continue  # e.g. PWM of a thrust-driven run, a ship's propeller beside a PWM boat's
         entity = f"plots/{q}/{key}"
         label = run.meta.get("series_labels", {}).get(q, name)  # e.g. a thrust that was derived, not measured
         rec.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
