@@ -1,13 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|ninth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|tenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to ninth sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
-T11, T12; T13, T14; T13, T14 again; T5, T6 again), with other magnitudes and
+which magnitudes. The second to tenth sets regroup the same active BlueBoat runs into other
+outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
+T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again), with other magnitudes and
 directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -80,7 +80,8 @@ FIT_BLUEBOAT = (218, 221, 222, 223, 226)
 OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 225, 228), "E": (216, 220),
            "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225),
            "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228),
-           "O": (216, 224, 228), "P": (220, 224, 225), "Q": (216, 220, 225), "R": (216, 220, 224, 225, 228)}
+           "O": (216, 224, 228), "P": (220, 224, 225), "Q": (216, 220, 225), "R": (216, 220, 224, 225, 228),
+           "S": (216, 220, 224, 228), "T": (220, 224, 225, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
@@ -243,13 +244,29 @@ PROOF_NINTH = [
     Case("esso", "T5", "input_late", (0.7,)), Case("esso", "T6", "input_late", (0.9,)),
     Case("esso", "T5", "heading_late", (0.55,)), Case("esso", "T6", "heading_late", (0.4,)),
 ]
+# the tenth set takes two groupings of four active BlueBoat runs; its Esso cases reuse T7 and T8 (the
+# fourth set's tests) with other values
+PROOF_TENTH = [
+    Case("blueboat", "S", "null"), Case("blueboat", "T", "null"),
+    Case("blueboat", "S", "current", (0.11, 200.0)), Case("blueboat", "T", "current", (0.14, 50.0)),
+    Case("blueboat", "S", "antenna", (-0.30, -0.20)), Case("blueboat", "T", "antenna", (0.35, 0.15)),
+    Case("blueboat", "S", "input_late", (0.5,)), Case("blueboat", "T", "input_late", (0.3,)),
+    Case("blueboat", "S", "thruster_scaled", ("left", 0.8)), Case("blueboat", "T", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "S", "heading_late", (0.4,)), Case("blueboat", "T", "heading_late", (0.6,)),
+    Case("esso", "T7", "null"), Case("esso", "T8", "null"),
+    Case("esso", "T7", "current", (0.09, 250.0)), Case("esso", "T8", "current", (0.12, 80.0)),
+    Case("esso", "T7", "antenna", (-0.40, 0.25)), Case("esso", "T8", "antenna", (0.30, 0.30)),
+    Case("esso", "T7", "input_late", (0.6,)), Case("esso", "T8", "input_late", (1.0,)),
+    Case("esso", "T7", "heading_late", (0.45,)), Case("esso", "T8", "heading_late", (0.3,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
-          "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH}
+          "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
-         "eighth": "concealed_effects_eighth", "ninth": "concealed_effects_ninth"}
+         "eighth": "concealed_effects_eighth", "ninth": "concealed_effects_ninth",
+         "tenth": "concealed_effects_tenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -261,6 +278,7 @@ STAGE_METHODS = {
     ("sixth", "after"): "an identified twin's velocities scaled by its own misfit on the recordings (search.dof_scale)",
     ("eighth", "before"): "the Esso tests diagnosed with their measured wind a known input of every free run",
     ("ninth", "before"): "the diagnosis as it was when the set was fixed",
+    ("tenth", "before"): "the diagnosis as it was when the set was fixed",
     ("eighth", "mean wind (control)"): "the Esso tests diagnosed with each test's mean wind given as a constant "
                                        "wind_per_log (--esso-mean-wind), as on the pages of the first to seventh sets; the "
                                        "BlueBoat cases as in 'before'",
@@ -268,7 +286,7 @@ STAGE_METHODS = {
 
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
-ESSO_WIND_MEASURED = {"eighth", "ninth"}
+ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
