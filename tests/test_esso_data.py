@@ -195,3 +195,31 @@ def test_view_shows_a_ships_inputs_as_propeller_and_rudder_and_replays_with_its_
     out = twin_command.twin("view", tmp_path / "run.csv", "--vessel", "esso_osaka", "--wind-measured",
                             "--out", tmp_path / "v.rrd", cwd=tmp_path)
     assert out.returncode == 2 and "--sim" in out.stderr and not (tmp_path / "v.rrd").exists()
+
+
+def test_the_yaw_rate_is_read_from_the_gyro_less_its_bias_where_the_vessel_says_so(tmp_path):
+    from twin.fit.windows import as_measured, make_windows
+
+    rows = []
+    for k in range(600):  # a weave: heading 0.3·sin(0.5 t) rad, the gyro 0.01 rad/s high
+        t = 0.1 * k
+        psi, r = 0.3 * math.sin(0.5 * t), 0.15 * math.cos(0.5 * t)
+        rows.append(f"{t:.1f},{0.2 * t:.4f},0.2,0.0,0.0,{psi:.6f},{r + 0.01:.6f},10,0.05,1.5,1.4,1.52,1.57")
+    rec = read_recording(_write(tmp_path / "weave.csv", rows))
+    heading = prepare(rec, heading_window_s=1.0)
+    gyro = prepare(rec, heading_window_s=1.0, yaw_rate_source="gyro")
+    truth = 0.15 * np.cos(0.5 * gyro.t)
+    assert heading.settings.yaw_rate_source == "heading" and gyro.settings.yaw_rate_source == "gyro"
+    assert np.max(np.abs(gyro.r - truth)) < 1e-3  # the gyro's 0.01-rad/s offset taken out
+    rec.imu = rec.imu.__class__.empty("yaw_rate_rads")
+    assert prepare(rec, yaw_rate_source="gyro").settings.yaw_rate_source == "heading"  # no gyro: the heading
+    # the fit sees a gyro's r as it is, a heading's slope smoothed
+    wins = make_windows([gyro, heading], 5.0, 5.0, min_length_s=5.0)
+    nu = np.zeros((len(wins), wins[0].n + 1, 3))
+    nu[..., 2] = np.sin(np.arange(wins[0].n + 1))  # a rate the 1-s window would smooth away
+    seen = as_measured(nu, [gyro, heading], wins)
+    own = np.array([w.rec == 0 for w in wins])
+    assert np.array_equal(seen[own, :, 2], nu[own, :, 2])
+    assert np.max(np.abs(seen[~own, 5:-5, 2])) < 0.5
+    with pytest.raises(TwinError, match="yaw_rate_source"):
+        prepare(rec, yaw_rate_source="compass")

@@ -52,6 +52,14 @@ def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
     assert again.sensors.heading_rate_window_s == 1.5 and rate_windows(again)["heading_window_s"] == 1.5
     with pytest.raises(TwinError, match="heading_rate_window_s must be positive"):
         vessel_mod.check(replace(boat, sensors=replace(boat.sensors, heading_rate_window_s=0.0)))
+    # where the yaw rate is read likewise: absent means the heading's slope, the Esso's file says gyro
+    assert "yaw_rate_source" not in boat.to_dict()["sensors"] and rate_windows(boat)["yaw_rate_source"] == "heading"
+    ship = vessel_mod.load("esso_osaka")
+    assert rate_windows(ship)["yaw_rate_source"] == "gyro" and not ship.sensors.errors()
+    path = vessel_mod.save(ship, tmp_path / "ship.json")
+    assert vessel_mod.load(str(path)).sensors.yaw_rate_source == "gyro"
+    with pytest.raises(TwinError, match="yaw_rate_source must be heading or gyro"):
+        vessel_mod.check(replace(boat, sensors=replace(boat.sensors, yaw_rate_source="compass")))
 
 
 @pytest.mark.parametrize("edit, message", [

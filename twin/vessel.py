@@ -175,6 +175,8 @@ def _sensors_to_dict(s: Sensors) -> dict[str, Any]:
     d = asdict(s)
     if s.heading_rate_window_s is None:  # files without it stay what they were (dataset fingerprints)
         del d["heading_rate_window_s"]
+    if s.yaw_rate_source == "heading":  # likewise
+        del d["yaw_rate_source"]
     if not s.heading_latency_s:  # likewise
         del d["heading_latency_s"]
     if not s.follows_throttle:  # likewise
@@ -469,6 +471,9 @@ def check(vessel: Vessel) -> None:
     window = vessel.sensors.heading_rate_window_s
     if window is not None and not window > 0:
         raise TwinError(f"vessel '{vessel.name}': sensors.heading_rate_window_s must be positive, got {window}")
+    if vessel.sensors.yaw_rate_source not in ("heading", "gyro"):
+        raise TwinError(f"vessel '{vessel.name}': sensors.yaw_rate_source must be heading or gyro, got "
+                        f"{vessel.sensors.yaw_rate_source!r}")
     if vessel.sensors.follows_throttle and t.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}': sensors.compass_motor_deg follows the PWM throttle; "
                         f"{t.kind} thrusters log none")

@@ -25,11 +25,13 @@ GNSS_WINDOW_S = 1.0  # Savitzky-Golay window of the GNSS velocities [Morel-2024 
 HEADING_WINDOW_S = 0.5  # an AHRS at 50 Hz affords a shorter one for the yaw rate
 
 
-def rate_windows(vessel: Vessel) -> dict[str, float]:
+def rate_windows(vessel: Vessel) -> dict:
     """prepare()'s derivative windows for this vessel's sensors: the GNSS velocities' and the yaw
-    rate's (the vessel's own `sensors.heading_rate_window_s` where its heading sensor needs one)."""
+    rate's (the vessel's own `sensors.heading_rate_window_s` where its heading sensor needs one), and
+    where the yaw rate is read (`sensors.yaw_rate_source`)."""
     own = vessel.sensors.heading_rate_window_s
-    return {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S if own is None else own}
+    return {"window_s": GNSS_WINDOW_S, "heading_window_s": HEADING_WINDOW_S if own is None else own,
+            "yaw_rate_source": vessel.sensors.yaw_rate_source}
 
 
 def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:

@@ -468,7 +468,7 @@ def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window
     (more lag, less added mass). Smoothing the prediction the same way removes that
     bias; before the window's start the measured velocities stand in for the prediction,
     past its end a straight line through its last two samples. r uses the heading window of the
-    preparation. u, v use the GNSS window and are smoothed where the estimator smooths them:
+    preparation (none where r was read from a rate gyro). u, v use the GNSS window and are smoothed where the estimator smooths them:
     over ground (north, east), then turned into the body by the heading at the sample
     (prepare's eqs. 35-36). Smoothed in the body frame instead, a turning hull's velocity would
     keep a sway that the ground track's smoothing turns away (u·r over the window): the fit then
@@ -482,6 +482,10 @@ def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window
     gnss_half = int(np.floor(settings.window_s / 2 / h + 1e-9))
     heading_half = int(np.floor(settings.yaw_rate_window_s / 2 / h + 1e-9))
     r = _smoothed(nu_pred[..., 2:], _past(preps, windows, heading_half)[..., 2:], settings.yaw_rate_window_s, h)
+    # a rate gyro measures r itself: where a recording's r was read from one, nothing smooths it
+    gyro = np.array([preps[w.rec].settings.yaw_rate_source == "gyro" for w in windows], bool)
+    if gyro.any():
+        r = np.where(gyro[:, None, None], nu_pred[..., 2:], r)
     if gnss_half < 1:
         return np.concatenate([nu_pred[..., :2], r], axis=-1)
     psi = _headings(preps, windows, gnss_half, nu_pred.shape[1])

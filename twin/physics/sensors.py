@@ -52,6 +52,10 @@ class Sensors:
     # package's default for a fast AHRS (fit.calibrate.HEADING_WINDOW_S). A slower or noisier heading
     # needs a longer one, or its derivative is mostly noise (a vessel file's sources say why)
     heading_rate_window_s: float | None = None
+    # where the yaw rate r is read: "heading" (the heading's Savitzky-Golay slope) or "gyro" (the log's
+    # rate gyro, where it has one, less its mean offset from the heading's slope over the log). A gyro
+    # measures r itself; the heading's slope needs a window that both lags and leaves noise
+    yaw_rate_source: str = "heading"
     # (surge, yaw): how far (s, > 0: ahead) the hull's answers to input steps led this twin's own
     # timing on the runs it was identified on (fit/kinematic.py). The kinematics' response template is
     # not the twin's dynamics, so their zero is measured on those runs; other runs are read against it
@@ -78,9 +82,10 @@ class Sensors:
 
     def errors(self) -> list[str]:
         """The names of this sensor model's errors (fields off a perfect sensor's value); the yaw
-        rate's window and the input answers' zero are how the logs are read, not errors."""
+        rate's window and source and the input answers' zero are how the logs are read, not errors."""
         perfect = Sensors()
-        return [f.name for f in fields(self) if f.name not in ("heading_rate_window_s", "input_answer_s")
+        return [f.name for f in fields(self) if f.name not in ("heading_rate_window_s", "yaw_rate_source",
+                                                                 "input_answer_s")
                 and getattr(self, f.name) != getattr(perfect, f.name)]
 
     @property

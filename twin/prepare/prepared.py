@@ -19,6 +19,9 @@
    at the grid times, not on the held grid values, whose steps would add ripple and
    half a GNSS period of lag. Savitzky-Golay is a centred window: the smoothing
    looks ahead by window/2, like the offline filtering of [Morel-2024]; only step 1 is causal.
+   With yaw_rate_source="gyro" (a vessel's `sensors.yaw_rate_source`), r is the log's rate gyro
+   read at the grid times instead, less its median offset from the heading's slope (a gyro's
+   bias); a log without a gyro keeps the heading's slope.
 5. Segments: the grid is cut wherever a needed stream (GNSS, heading, PWM if any)
    falls silent for more than max_gap_s; no hold bridges such a dropout and
    derivatives never cross a cut. Segments shorter than min_segment_s are dropped.
@@ -104,6 +107,7 @@ class Preparation:
     source: str = ""
     gnss_latency_s: float = 0.0
     heading_latency_s: float = 0.0
+    yaw_rate_source: str = "heading"  # where r was read: the heading's slope, or the log's rate gyro
 
     @property
     def yaw_rate_window_s(self) -> float:
@@ -150,7 +154,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
             heading_window_s: float | None = None,
             min_segment_s: float = 1.0, deadband_us: tuple[float, float] = DEADBAND_US,
             gnss_latency_s: float = 0.0, heading_latency_s: float = 0.0,
-            logged_heading: Stream | None = None) -> Prepared:
+            logged_heading: Stream | None = None, yaw_rate_source: str = "heading") -> Prepared:
     """[Morel-2024 §5.1] data preparation of `rec` (see the module docstring).
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
@@ -160,8 +164,11 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
     fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring.
     logged_heading: the heading as logged, where `rec`'s has been calibrated (same stamps): its
-    spikes are the sensor's, found there (step 0)."""
+    spikes are the sensor's, found there (step 0). yaw_rate_source "gyro": r is the log's rate gyro
+    where it has one (_gyro_rate), else the heading's slope; Prepared.settings says which was read."""
     _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s)
+    if yaw_rate_source not in ("heading", "gyro"):
+        raise TwinError(f"yaw_rate_source must be heading or gyro, got {yaw_rate_source!r}")
     for what, latency in (("gnss_latency_s", gnss_latency_s), ("heading_latency_s", heading_latency_s)):
         if not np.isfinite(latency):
             raise TwinError(f"{what} must be a finite number of seconds, got {latency}")
@@ -195,7 +202,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         outliers.append(("GNSS fixes held while the vessel moved on (velocities taken across them)", int(held.sum())))
     fresh = Stream(pos.t[~held], {"north": north_o[~held], "east": east_o[~held]})
     inputs = rec.pwm if len(rec.pwm) else rec.prop_rudder
-    needed = [pos, hdg] + ([inputs] if len(inputs) else [])
+    gyro = _gyro(rec) if yaw_rate_source == "gyro" else None
+    needed = [pos, hdg] + ([inputs] if len(inputs) else []) + ([gyro] if gyro is not None else [])
     grid = _grid(needed, grid_dt)
     if grid is None:
         raise TwinError(f"{name}: the GNSS, heading and {'PWM' if inputs is rec.pwm else 'input'} streams "
@@ -222,14 +230,35 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     _check_settings(grid_dt, smoother, heading_window_s, polyorder, max_gap_s)
     rates = _stream_rates(fresh, hdg, t, segments, smoother, (window_s, heading_window_s), polyorder,
                           (gnss_latency_s, heading_latency_s))
+    if gyro is not None:
+        rates = (rates[0], rates[1], _gyro_rate(gyro, t, rates[2]))
     north, east, u, v, r = _kinematics(n_o, e_o, psi, rates, lever_arm_OP_m)
     pwm, region, dead, input_kind = _inputs(rec, t, deadband_us)
     settings = Preparation(grid_dt, smoother, window_s, heading_window_s, polyorder, max_gap_s, min_segment_s,
                            tuple(deadband_us), None if lever_arm_OP_m is None else tuple(map(float, lever_arm_OP_m)),
-                           rec.source, float(gnss_latency_s), float(heading_latency_s))
+                           rec.source, float(gnss_latency_s), float(heading_latency_s),
+                           "heading" if gyro is None else "gyro")
     return Prepared(t, north, east, psi, u, v, r, pwm, seg_id, region, dead, segments,
                     tuple(rec.pwm_neutral_us), origin, settings, dropped, input_kind, measured_wind(rec, t),
                     supply_voltage(rec, t))
+
+
+def _gyro(rec: Recording) -> Stream | None:
+    """The log's rate gyro, its finite samples; None without one (fewer than 3)."""
+    if not len(rec.imu):
+        return None
+    rate = np.asarray(rec.imu["yaw_rate_rads"], float)
+    ok = np.isfinite(rate)
+    return Stream(np.asarray(rec.imu.t, float)[ok], {"r": rate[ok]}) if ok.sum() >= 3 else None
+
+
+def _gyro_rate(gyro: Stream, t: np.ndarray, heading_rate: np.ndarray) -> np.ndarray:
+    """The gyro's yaw rate at the grid times t (read on time: a heading's lateness is measured against
+    it), less its offset from the heading's slope (the median over the samples: a rate gyro's bias,
+    which the heading does not have)."""
+    r = np.interp(t, gyro.t, gyro["r"])
+    both = np.isfinite(r) & np.isfinite(heading_rate)
+    return r - (float(np.median(r[both] - heading_rate[both])) if both.any() else 0.0)
 
 
 _FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibration that leaves a stream as
