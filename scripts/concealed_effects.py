@@ -279,6 +279,8 @@ STAGE_METHODS = {
     ("eighth", "before"): "the Esso tests diagnosed with their measured wind a known input of every free run",
     ("ninth", "before"): "the diagnosis as it was when the set was fixed",
     ("tenth", "before"): "the diagnosis as it was when the set was fixed",
+    ("tenth", "after"): "the Esso's yaw rate read from its gyro (sensors.yaw_rate_source), its twin identified so; "
+                        "the BlueBoat (no gyro in its logs) as before",
     ("eighth", "mean wind (control)"): "the Esso tests diagnosed with each test's mean wind given as a constant "
                                        "wind_per_log (--esso-mean-wind), as on the pages of the first to seventh sets; the "
                                        "BlueBoat cases as in 'before'",

@@ -181,6 +181,10 @@ def page(parts: list[dict], reach: dict | None = None) -> ResultPage:
     notes += [f"Targets: BlueBoat 10-s R² u ≥ {TARGETS['blueboat']['u']}, v ≥ {TARGETS['blueboat']['v']}, "
               f"r ≥ {TARGETS['blueboat']['r']}; Esso Osaka 30-s R² u ≥ {TARGETS['esso_osaka']['u']}, "
               f"v ≥ {TARGETS['esso_osaka']['v']}, r ≥ {TARGETS['esso_osaka']['r']}."]
+    sources = {name: vessel_mod.load(name).sensors.yaw_rate_source for name in sorted({p["vessel"] for p in parts})}
+    read_from = {"gyro": "the log's rate gyro (sensors.yaw_rate_source)",
+                 "heading": "the heading's Savitzky-Golay slope"}
+    notes += ["Measured r: " + "; ".join(f"{name} from {read_from[src]}" for name, src in sources.items()) + "."]
     notes += [f"{p['split']['name']} ({p['vessel']}, wind {p['wind']}): identify chose {p['chosen']} "
               f"in {p['identify_seconds']:.0f} s, computed at commit {p.get('commit', 'not recorded')}." for p in parts]
     if reach:
