@@ -14,7 +14,9 @@ saw and the misfit they carry, and, where the identified twin has an uncertainty
 recording falls inside its 90 % prediction band. With --reach, `twin identify` is also run on the
 judged runs themselves and scored on them: what the twin's form reaches there when nothing has to
 be extrapolated, so a miss of a target reads as extrapolation (the split falls short of the reach)
-or as form (the reach itself falls short).
+or as form (the reach itself falls short). With --slope, the saved splits whose twin reads r from a
+gyro (the Esso Osaka) are scored also against the heading's slope, so the page tells what the gyro
+changes in the yardstick from what it changes in the twin.
 
 Each split is saved in --work as JSON, so splits can run in separate processes; the page is written
 from whatever splits are there. The recordings (../shared/data, no or non-commercial licences) are
@@ -26,6 +28,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -90,6 +93,8 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
     split = misfit_by_manoeuvre(calibrated, preps, h, stride, wind, fitted=seen)
     out = {"r2": {d: metrics[d]["r2"] for d in DOFS}, "mae": {d: metrics[d]["mae"] for d in DOFS},
            "n": metrics["u"]["n"], "beyond_fit": split.get("beyond_fit")}
+    if vessel.sensors.yaw_rate_source == "gyro":
+        out["r2_r_heading_slope"] = slope_r2(vessel, recs, settings, wind)
     if vessel.uncertainty:  # how often the judged runs fall inside the 90 % band, with and without the form error
         cov = band_coverage(calibrated, preps, draws=BAND_DRAWS, seed=0, level=0.9, wind=wind)
         out["band"] = {q: cov.inside[q] for q in ("u", "v", "r", "north", "east", "psi")}
@@ -97,6 +102,35 @@ def scores(vessel, recs, settings: dict, wind, seen) -> dict:
             out["band_parameters_only"] = {q: cov.inside_parameters_only[q] for q in ("u", "v", "r", "north", "east",
                                                                                       "psi")}
     return out
+
+
+def slope_r2(vessel, recs, settings: dict, wind) -> float:
+    """R² of r against the heading's slope (the yaw rate before a gyro was read), the same twin's
+    free runs: what a gyro's r changes in the yardstick rather than in the twin."""
+    slope = replace(vessel, sensors=replace(vessel.sensors, yaw_rate_source="heading"))
+    calibrated = calibrate(recs, slope)[0]
+    metrics = evaluate(calibrated, prepared(recs, calibrated), stride_s=settings["stride_s"],
+                       horizons={"free_run": settings["window_s"]}, wind=wind)["free_run"]
+    return metrics["r"]["r2"]
+
+
+def add_slope_scores(work: Path) -> None:
+    """Each saved split whose identified twin reads r from a gyro, scored also against the heading's
+    slope (its r2_r_heading_slope), in place."""
+    for path in sorted(work.glob("*.json")):
+        if path.name.endswith(".vessel.json"):
+            continue
+        part = json.loads(path.read_text())
+        vessel = vessel_mod.load(str(work / f"{path.stem}.vessel.json"))
+        if vessel.sensors.yaw_rate_source != "gyro":
+            continue
+        name, wind = path.stem.rsplit("_", 1)
+        *_, recs, _, preps, split, names = _split_runs(name)
+        judged = split.pick(recs, names)[1]
+        part["identified"]["r2_r_heading_slope"] = slope_r2(vessel, judged, part["settings"],
+                                                            None if wind == "none" else wind)
+        write_text_atomic(path, json.dumps(part, indent=1, default=float) + "\n")
+        print(f"{path.stem}: r against the heading's slope {part['identified']['r2_r_heading_slope']:.3f}", flush=True)
 
 
 def _split_runs(name: str):
@@ -175,6 +209,8 @@ def page(parts: list[dict], reach: dict | None = None) -> ResultPage:
         for key, name in (("band", "parameters and form error"), ("band_parameters_only", "parameters only")):
             if key in p["identified"]:
                 band_rows.append([label, p["wind"], name, *[p["identified"][key][d] for d in DOFS]])
+    slope_rows = [[f"{p['split']['name']} ({p['vessel']})", p["wind"], p["identified"]["r2"]["r"],
+                   p["identified"]["r2_r_heading_slope"]] for p in parts if "r2_r_heading_slope" in p["identified"]]
     splits = {f"{p['split']['name']} ({p['vessel']})": p["split"] for p in parts}
     notes = [f"{name}: {s['rule']}; fitted {', '.join(s['fitted'])}; judged {', '.join(s['judged'])}."
              for name, s in splits.items()]
@@ -208,7 +244,11 @@ def page(parts: list[dict], reach: dict | None = None) -> ResultPage:
                             ["split", "wind", "share of samples", "share of 1 − R² u", "v", "r", "R² beyond u", "v",
                              "r"], beyond_rows),
                 ResultTable("Share of the judged runs inside the identified twin's 90 % band (30-s free runs, "
-                            f"{BAND_DRAWS} parameter draws)", ["split", "wind", "band", "u", "v", "r"], band_rows)],
+                            f"{BAND_DRAWS} parameter draws)", ["split", "wind", "band", "u", "v", "r"], band_rows)]
+        + ([ResultTable("The identified twin's R² r against the log's gyro (as scored above) and against the heading's "
+                        "slope (`--slope`): what the gyro changes in the yardstick", ["split", "wind", "R² r (gyro)",
+                                                                                   "R² r (heading's slope)"],
+                        slope_rows)] if slope_rows else []),
         notes=notes, raw={"splits": parts, "reach": list(reach.values())})
 
 
@@ -218,6 +258,8 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("/tmp/extrapolation"))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--page-only", action="store_true", help="write the page from the splits in --work")
+    ap.add_argument("--slope", action="store_true", help="score the saved splits whose twin reads r from a gyro "
+                                                          "also against the heading's slope, then write the page")
     ap.add_argument("--reach", action="store_true", help="identify on the judged runs of the --only splits and score "
                                                           "them there, instead of running the splits")
     args = ap.parse_args()
@@ -225,7 +267,9 @@ def main() -> int:
         print(f"the shared recordings are not in {DATA}: nothing to do")
         return 0
     args.work.mkdir(parents=True, exist_ok=True)
-    if args.reach and not args.page_only:
+    if args.slope:
+        add_slope_scores(args.work)
+    elif args.reach and not args.page_only:
         for name in args.only.split(","):
             for wind in SPLITS[name][1]:
                 got = run_reach(name, wind, args.work)
