@@ -158,7 +158,7 @@ def stitched_runs(windows, series: dict) -> dict[str, Run]:
             t.append(p.t[sl] + 1e5 * w.rec)
             e.append(eta[j, : w.n + 1])
             v.append(nu[j, : w.n + 1])
-            pwm.append(p.pwm[sl])
+            pwm.append(p.pwm[sl] if p.input_kind == "pwm" else np.full((len(p.t[sl]), 2), np.nan))
         order = np.argsort(np.concatenate(t), kind="stable")
         tt = np.concatenate(t)[order]
         out[label] = Run(tt, np.concatenate(e)[order], np.concatenate(v)[order], np.concatenate(pwm)[order],

@@ -373,7 +373,7 @@ def _noise(recordings: list[Recording], preps: list[Prepared]) -> dict:
 
 @dataclass
 class _Replay:
-    pred_nu: np.ndarray
+    pred_nu: np.ndarray  # the free runs' velocities as the measurement's estimator sees them (as_measured)
     pred_eta: np.ndarray
     meas_nu: np.ndarray
     meas_eta: np.ndarray
