@@ -195,6 +195,8 @@ def test_view_shows_a_ships_inputs_as_propeller_and_rudder_and_replays_with_its_
     out = twin_command.twin("view", tmp_path / "run.csv", "--vessel", "esso_osaka", "--wind-measured",
                             "--out", tmp_path / "v.rrd", cwd=tmp_path)
     assert out.returncode == 2 and "--sim" in out.stderr and not (tmp_path / "v.rrd").exists()
+    with pytest.raises(TwinError, match="driven by pwm inputs; the recording holds propeller_rudder"):
+        view_runs([rec], vessel_mod.load("blueboat"))
 
 
 def test_the_yaw_rate_is_read_from_the_gyro_less_its_bias_where_the_vessel_says_so(tmp_path):
@@ -211,6 +213,10 @@ def test_the_yaw_rate_is_read_from_the_gyro_less_its_bias_where_the_vessel_says_
     truth = 0.15 * np.cos(0.5 * gyro.t)
     assert heading.settings.yaw_rate_source == "heading" and gyro.settings.yaw_rate_source == "gyro"
     assert np.max(np.abs(gyro.r - truth)) < 1e-3  # the gyro's 0.01-rad/s offset taken out
+    from twin.replay import view_runs
+    import twin.vessel as vessel_mod
+    shown = view_runs([rec], vessel_mod.load("esso_osaka"))["real"]  # `twin view` reads it as identify does
+    assert np.max(np.abs(shown.nu[:, 2] - 0.15 * np.cos(0.5 * shown.t))) < 1e-3
     rec.imu = rec.imu.__class__.empty("yaw_rate_rads")
     assert prepare(rec, yaw_rate_source="gyro").settings.yaw_rate_source == "heading"  # no gyro: the heading
     # the fit sees a gyro's r as it is, a heading's slope smoothed

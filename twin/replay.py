@@ -126,8 +126,10 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
     runs: dict[str, Run] = {}
     for rec in recordings:
         name = Path(rec.source).stem
-        if compiled is None or rec.meta.get("positions") == "body origin":  # a twin's run: no antenna
+        if compiled is None:
             prep = prepare(rec)
+        elif rec.meta.get("positions") == "body origin":  # no antenna; read with the vessel's yaw-rate settings
+            prep = prepare(rec, **rate_windows(vessel))
         else:
             prep = prepare_for(rec, compiled, **rate_windows(vessel))  # as identify and diagnose see it
         if smoother == "model":
@@ -135,6 +137,9 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
 
             own = replace(vessel, environment=vessel.environment.for_log(rec.source))
             prep = model_smoothed(compiled if own == vessel else compile_vessel(own), prep)
+        if compiled is not None and prep.input_kind != vessel.thrusters.input_kind:
+            raise TwinError(f"{Path(rec.source).name}: vessel '{vessel.name}' is driven by "
+                            f"{vessel.thrusters.input_kind} inputs; the recording holds {prep.input_kind}")
         label = name if len(recordings) > 1 else "real"
         runs[label] = measured_run(prep)
         if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r

@@ -115,13 +115,16 @@ def _fractions(ts: np.ndarray, tg: np.ndarray) -> np.ndarray:
 def estimate_noise(rec: Recording, prep: Prepared) -> dict:
     """White-noise σ of the GNSS position (gnss_m, per axis) and heading (heading_deg)
     streams of `rec`, and the σ they imply for the prepared u, v (m/s) and r (rad/s)
-    through prepare()'s derivative (settings of `prep`; r's from the gyro's own scatter where prepare
-    read r from it), plus the streams' rates and a one-sentence `method`. NaN where a stream is too short to tell.
+    through prepare()'s derivative (settings of `prep`), plus the streams' rates and a
+    one-sentence `method`. NaN where a stream is too short to tell.
 
     u and v carry the GNSS rate noise; on top, what prepare() adds: the lever arm
     moves yaw-rate noise into them (u − r·dy, v + r·dx) and the held heading's noise
     rotates the velocity (δv = −u·δψ, δu = v·δψ), counted at the recording's mean
-    square speeds. `gnss_rate_m_s` is the GNSS part alone."""
+    square speeds. `gnss_rate_m_s` is the GNSS part alone. r's is the heading slope's even where
+    prepare() read r from a rate gyro: a gyro stream may come smoothed at its source (the Esso
+    Osaka's steps by 0.004-0.012 °/s between samples), and its scatter about local fits then says
+    nothing of its error (it read 1e-6 rad/s there)."""
     s = prep.settings
     smoother, polyorder = s.smoother, s.polyorder
     window_s, heading_window_s = s.window_s, s.yaw_rate_window_s
@@ -132,10 +135,6 @@ def estimate_noise(rec: Recording, prep: Prepared) -> dict:
     g, h = white_noise(tg, pos), white_noise(th, psi)
     sg = rate_sigma(g.sigma, g.dt_s, smoother, window_s, polyorder, _fractions(tg, prep.t))
     sr = rate_sigma(h.sigma, h.dt_s, smoother, heading_window_s, polyorder, _fractions(th, prep.t))
-    if s.yaw_rate_source == "gyro" and len(rec.imu):  # r read from the rate gyro: its own scatter
-        tr, rate = distinct(np.asarray(rec.imu.t, float), np.asarray(rec.imu["yaw_rate_rads"], float))
-        ok = np.isfinite(rate)
-        sr = white_noise(tr[ok], rate[ok]).sigma
     dx, dy = s.lever_arm_OP_m or (0.0, 0.0)
     ms_u = float(np.nanmean(prep.u ** 2)) if len(prep.u) else 0.0
     ms_v = float(np.nanmean(prep.v ** 2)) if len(prep.v) else 0.0
