@@ -229,3 +229,19 @@ def test_the_yaw_rate_is_read_from_the_gyro_less_its_bias_where_the_vessel_says_
     assert np.max(np.abs(seen[~own, 5:-5, 2])) < 0.5
     with pytest.raises(TwinError, match="yaw_rate_source"):
         prepare(rec, yaw_rate_source="compass")
+
+
+def test_a_measured_wind_is_refused_for_a_vessel_it_cannot_act_on(tmp_path):
+    from dataclasses import replace
+
+    import twin.vessel as vessel_mod
+    from twin.ident.identify import check_wind
+    from twin.physics.environment import WindLoad
+
+    rec = read_recording(_write(tmp_path / "run.csv", _rows()))
+    ship = vessel_mod.load("esso_osaka")
+    check_wind([rec], "measured", ship)  # the Esso has Fujiwara's regression
+    bare = replace(ship, wind_load=WindLoad(), wind_regression=None)
+    with pytest.raises(TwinError, match="no wind load model"):
+        check_wind([rec], "measured", bare)
+    check_wind([rec], None, bare)

@@ -274,7 +274,7 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
 
     v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
-    check_wind(recs, wind)
+    check_wind(recs, wind, v)
     if not stride_s > 0:
         raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \

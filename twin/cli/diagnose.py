@@ -79,7 +79,7 @@ def diagnose_command(
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    check_wind(recs, wind)  # before any work
+    check_wind(recs, wind, prior)  # before any work
     if given:
         from ..diagnose.doctor import given_evidence, given_text
 

@@ -145,7 +145,7 @@ def identify_command(
     recs = ident.read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    ident.check_wind(recs, wind)  # before any work
+    ident.check_wind(recs, wind, prior)  # before any work
     with progress_bar("identify") as progress:
         result = ident.identify(recs, prior, groups=chosen_groups, params=chosen_params, prior_weights=weights,
                                 anchor=anchor, window_s=window, start=start, calibrated=calibration,
@@ -246,7 +246,7 @@ def evaluate_command(
     recs = read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    check_wind(recs, wind)  # before any work
+    check_wind(recs, wind, v)  # before any work
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",

@@ -182,7 +182,7 @@ def view(
             progress(f"reading {path.name}", k, len(files))
             recordings.append(read_recording(path, channels=mapping))
         wind = "measured" if wind_measured else None
-        check_wind(recordings, wind)
+        check_wind(recordings, wind, v)
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
         runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")

@@ -131,7 +131,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     every free run, the twin's and every candidate's (`twin diagnose --wind-measured`): a constant wind
     is then not searched for, as the measured one takes its place."""
     started = time.time()
-    check_wind(recordings, wind)
+    check_wind(recordings, wind, prior)
     if refit is not None:
         _check_refit(prior, refit, refit_weight)
     if library:

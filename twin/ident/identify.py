@@ -229,7 +229,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     _check(start, thruster, split, train, prior_weights)
     if judged_on not in ("beyond", "each"):
         raise TwinError(f"judged_on must be 'beyond' or 'each', got {judged_on!r}")
-    check_wind(recordings, wind)
+    check_wind(recordings, wind, prior)
     simfit.check_kind(prior)
     supplied = bool(recordings) and all(len(r.battery) for r in recordings)
     names_by_group = _groups(groups, params, prior, supplied)
@@ -376,10 +376,16 @@ def _check(start: str, thruster: str, split: str, train: float, prior_weights) -
         raise TwinError("the beliefs' weights must be positive numbers")
 
 
-def check_wind(recordings: list[Recording], wind: str | None) -> None:
-    """wind None or "measured"; measured needs every recording's wind stream (TwinError naming one without)."""
+def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | None = None) -> None:
+    """wind None or "measured"; measured needs every recording's wind stream (TwinError naming one
+    without) and, where `vessel` is given, a wind load model for it to act through."""
     if wind not in (None, "measured"):
         raise TwinError(f"wind must be None or 'measured', got {wind!r}")
+    if wind == "measured" and vessel is not None:
+        load = vessel.wind_load
+        if not (load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None):
+            raise TwinError(f"vessel '{vessel.name}' has no wind load model (wind_load areas or wind_regression): "
+                            "a measured wind would act on nothing")
     if wind == "measured":
         for rec in recordings:
             if not len(rec.wind):
