@@ -245,3 +245,17 @@ def test_a_measured_wind_is_refused_for_a_vessel_it_cannot_act_on(tmp_path):
     with pytest.raises(TwinError, match="no wind load model"):
         check_wind([rec], "measured", bare)
     check_wind([rec], None, bare)
+
+
+def test_a_measured_wind_with_long_gaps_is_noted(tmp_path):
+    from twin.ident.identify import wind_gaps
+
+    rows = _rows(100)
+    patchy = [r if k < 20 else r.rsplit(",", 4)[0] + ",nan,nan,nan,nan" for k, r in enumerate(rows)]
+    full, gappy = (read_recording(_write(tmp_path / f"{n}.csv", r)) for n, r in (("full", rows), ("gappy", patchy)))
+    assert wind_gaps([full]) == []
+    notes = wind_gaps([gappy])
+    assert len(notes) == 1 and "gappy.csv: the measured wind covers 19 % of the log" in notes[0]
+    out = twin_command.twin("view", tmp_path / "gappy.csv", "--vessel", "esso_osaka", "--sim", "--wind-measured",
+                            "--out", tmp_path / "v.rrd", cwd=tmp_path)
+    assert out.returncode == 0 and "covers 19 %" in out.stdout + out.stderr, out.stderr

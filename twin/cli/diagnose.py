@@ -49,7 +49,7 @@ def diagnose_command(
     from ..diagnose.report import format_text
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
-    from ..ident.identify import check_wind
+    from ..ident.identify import check_wind, wind_gaps
     from ..vessel import save
 
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
@@ -80,6 +80,8 @@ def diagnose_command(
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind(recs, wind, prior)  # before any work
+    for line in wind_gaps(recs) if wind else []:
+        say(f"note: {line}")
     if given:
         from ..diagnose.doctor import given_evidence, given_text
 

@@ -146,6 +146,8 @@ def identify_command(
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     ident.check_wind(recs, wind, prior)  # before any work
+    for line in ident.wind_gaps(recs) if wind else []:
+        say(f"note: {line}")
     with progress_bar("identify") as progress:
         result = ident.identify(recs, prior, groups=chosen_groups, params=chosen_params, prior_weights=weights,
                                 anchor=anchor, window_s=window, start=start, calibrated=calibration,
@@ -219,7 +221,7 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, check_wind, manoeuvre_horizon_s, prepared, read
+    from ..ident.identify import calibrate, check_wind, manoeuvre_horizon_s, prepared, read, wind_gaps
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -247,6 +249,8 @@ def evaluate_command(
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind(recs, wind, v)  # before any work
+    for line in wind_gaps(recs) if wind else []:
+        say(f"note: {line}")
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",

@@ -161,7 +161,7 @@ def view(
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from ..files import write_bytes_atomic
     from ..formats import read_recording
-    from ..ident.identify import check_wind
+    from ..ident.identify import check_wind, wind_gaps
     from ..outputs import write
     from ..replay import view_runs
     from ..viz.report import comparison_png
@@ -183,6 +183,8 @@ def view(
             recordings.append(read_recording(path, channels=mapping))
         wind = "measured" if wind_measured else None
         check_wind(recordings, wind, v)
+        for line in wind_gaps(recordings) if wind else []:
+            say(f"note: {line}")
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
         runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")

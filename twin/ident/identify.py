@@ -393,6 +393,26 @@ def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | N
                                 "--wind-measured needs an anemometer's wind stream")
 
 
+MIN_WIND_COVER = 0.5
+
+
+def wind_gaps(recordings: list[Recording]) -> list[str]:
+    """A note for each recording whose measured wind covers under MIN_WIND_COVER of its GNSS time
+    (gaps longer than three of its sample periods): the free runs hold the last wind across them."""
+    out = []
+    for rec in recordings:
+        if not len(rec.wind) or len(rec.gnss) < 2:
+            continue
+        t = np.asarray(rec.wind.t, float)
+        span = float(np.ptp(np.asarray(rec.gnss.t, float)))
+        steps = np.diff(t)
+        covered = float(steps[steps <= 3 * np.median(steps)].sum()) if len(steps) else 0.0
+        if span > 0 and covered / span < MIN_WIND_COVER:
+            out.append(f"{Path(rec.source).name}: the measured wind covers {100 * covered / span:.0f} % of the log; "
+                       "the free runs hold its last value across the gaps")
+    return out
+
+
 def _with_supply_reference(vessel: Vessel, preps: list[Prepared]) -> Vessel:
     """The vessel with the voltage its thrust map holds at (the logs' fullest pack,
     prepare.supply_reference) where it states none: fitting the thrust's answer to the pack needs
