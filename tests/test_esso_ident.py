@@ -165,6 +165,14 @@ def test_twin_identify_on_the_ship_with_its_measured_wind(tmp_path):
 
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["fit"]["wind"] == "measured" and report["expected_on_a_new_run"]["pooled"]["u"]["r2"] > 0.5
+    # the twin says how it was fitted, and evaluate reminds a user who scores it otherwise
+    assert report["wind"] == "measured" and "on a new run expect (with its measured wind)" in done.stdout
+    assert identified.uncertainty["fitted_on"]["wind"] == "measured"
+    assert "measured wind a known input" in identified.sources["identification"]
+    calm = twin_command.twin("evaluate", str(ESSO / "turn_14-Oct-2020_14_29_49.csv"), "--model", str(out))
+    assert calm.returncode == 0, calm.stderr
+    assert "identified with the measured wind" in calm.stderr + calm.stdout
+    assert "with the measured wind" not in calm.stdout
 
 
 def test_evaluate_splits_a_slow_ships_free_runs_by_manoeuvre_at_its_own_window(esso):

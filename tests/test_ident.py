@@ -511,3 +511,17 @@ def test_a_horizon_with_no_window_is_said_why_its_row_is_empty():
     assert text.splitlines()[-1] == ("-: no window of free_run_10s, free_run_30s fits in a stretch of the recording "
                                      "without a dropout")
     assert "no window" not in format_metrics({"one_step": some})
+
+
+def test_the_parameter_table_keeps_its_columns_for_long_names(yellowfish_vessel):
+    """An MMG name as long as mmg_gamma_minus must not push its row's numbers out from under their heads."""
+    from twin.fit.objective import Estimate
+    from twin.ident.identify import format_estimates
+
+    estimates = [Estimate("Xuu", "kg/m", 1.0, 2.0, 0.1, True),
+                 Estimate("mmg_gamma_minus", "-", 0.395, 0.41, None, False, "kept at the prior")]
+    text = format_estimates(simfit.FitResult(yellowfish_vessel, estimates, 2.0, 1.0, 4, 10, 1.0))
+    head, _, *rows = text.splitlines()[:4]
+    for row in rows:  # every value ends where its head ends
+        assert row.index(" kg/m" if "Xuu" in row else " -    ") == head.index(" unit")
+        assert row[:head.index("identified") + len("identified")].endswith(("2", "0.41"))

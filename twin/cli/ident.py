@@ -169,7 +169,7 @@ def identify_command(
     say(ident.format_needed(result))
     console.print("[bold]identification by simulation[/]")
     typer.echo(ident.format_estimates(result.fit))
-    say(f"on a new run expect: {result.chosen.cv.summary()}")
+    say(f"on a new run expect{' (with its measured wind)' if wind else ''}: {result.chosen.cv.summary()}")
     seen = result.vessel.uncertainty.get("fitted_on")
     if seen:  # where that expectation holds: beyond this span the twin extrapolates
         windows = ", ".join(f"{k} {n}" for k, n in seen["windows"].items())
@@ -251,11 +251,15 @@ def evaluate_command(
     check_wind(recs, wind, v)  # before any work
     for line in wind_gaps(recs) if wind else []:
         say(f"note: {line}")
+    fitted_wind = v.uncertainty.get("fitted_on", {}).get("wind")
+    if fitted_wind == "measured" and not wind:
+        note("note: this twin was identified with the measured wind as a known input; add --wind-measured to "
+             "score it the way it was fitted")
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",
            "sea_drift_ned_m_s": list(v.environment.wave_drift_ned)}
-    names = ", ".join(p.name for p in recordings)
+    names = ", ".join(p.name for p in recordings) + (", with the measured wind" if wind else "")
     used = calibrated if calibration else v
     with progress_bar("evaluate") as progress:
         progress("without calibration", 0, 3)

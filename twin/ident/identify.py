@@ -139,6 +139,7 @@ class Identification:
     greybox: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    wind: str | None = None  # "measured": each recording's measured wind was a known input of the fit
 
     def __repr__(self) -> str:
         free = ", ".join(self.chosen.free_groups) if self.chosen else "-"
@@ -187,7 +188,7 @@ class Identification:
                 "prior_on_left_out_runs": self.prior_cv.to_dict() if self.prior_cv else None,
                 "needed_by_left_out_runs": [{"group": g, "cost_ratio_without": round(r, 3)} for g, r in self.needed()],
                 "worse_than_prior": self.worse_than_prior, "greybox": self.greybox, "notes": self.notes,
-                "seconds": round(self.seconds, 1)}
+                "wind": self.wind or "none", "seconds": round(self.seconds, 1)}
 
 
 def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: str, train: float, repeats: int,
@@ -242,8 +243,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         vessel = _with_supply_reference(vessel, preps)
     # the logs' span and windows as evaluate counts them: free runs of the vessel's own window (10 s for a
     # small boat, 30 s for a slow ship), one of evaluate's horizons, whatever window this fit was given
-    seen = fitted_envelope(vessel, preps, horizon_s=default_window_s(vessel)).to_dict()
-    result = Identification(vessel, prior, None, calibrations)
+    seen = {**fitted_envelope(vessel, preps, horizon_s=default_window_s(vessel)).to_dict(), "wind": wind or "none"}
+    result = Identification(vessel, prior, None, calibrations, wind=wind)
     if greybox and prior.thrusters.kind != "t200":
         # the grey-box of [Morel-2024] is a model of PWM thrusters (dead zone, thrust gain, operating regions)
         result.notes.append("the [Morel-2024] grey-box models PWM thrusters: skipped for a propeller-and-rudder ship")
@@ -314,7 +315,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
             best = min((c for c in choices if c.free_groups == tuple(names_by_group)), key=lambda c: c.cv.cost)
             result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
-    result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings])
+    result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings], wind)
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
         say("measuring the twin's error on left-out runs", 3, 4)
         folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
@@ -498,7 +499,7 @@ def _linearised(fit: simfit.FitResult, names: tuple[str, ...]) -> Vessel:
     return linearised_vessel(fit.objective, fit.x, fit.jacobian, fit.objective.residuals(fit.x), fixed)
 
 
-def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> Vessel:
+def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], wind: str | None = None) -> Vessel:
     v = fit.vessel
     pinned = ", ".join(e.name for e in fit.estimates if e.identifiable and not e.on_bound)
     walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
@@ -506,8 +507,9 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> 
     when = _dt.date.today().isoformat()
     files = ", ".join(Path(s).name for s in sources) or "recordings"
     expected = choice.cv.summary()
-    text = (f"identified by `twin identify` on {when} from {files}: maximum a posteriori fit by free-run windows of "
-            f"{fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
+    wind_text = ", each recording's measured wind a known input" if wind == "measured" else ""
+    text = (f"identified by `twin identify` on {when} from {files}{wind_text}: maximum a posteriori fit by free-run "
+            f"windows of {fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
             + (f"; on or within their σ of a bound of their physical range: {walled}"
                if walled else "")
@@ -518,11 +520,12 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str]) -> 
 def format_estimates(result: simfit.FitResult) -> str:
     """The simulation fit's parameters as a text table; notes in full (a cut note hides why)."""
     width = max([9] + [len(e.unit) for e in result.estimates])
-    head = f"{'parameter':14s} {'unit':{width}s} {'prior':>11s} {'identified':>11s} {'± 1σ':>10s}  note"
+    name_width = max([14] + [len(e.name) for e in result.estimates])  # mmg_gamma_minus is 15 wide
+    head = f"{'parameter':{name_width}s} {'unit':{width}s} {'prior':>11s} {'identified':>11s} {'± 1σ':>10s}  note"
     lines = [head, "-" * len(head)]
     for e in result.estimates:
         sigma = f"{e.sigma:10.3g}" if e.sigma is not None else f"{'-':>10s}"
-        lines.append(f"{e.name:14s} {e.unit:{width}s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
+        lines.append(f"{e.name:{name_width}s} {e.unit:{width}s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
                  f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
     return "\n".join(lines)

@@ -86,16 +86,17 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
-SHIP_INPUTS_LABEL = "rudder (°) —\npropeller (rps) --"
+INPUT_KEYS = {"pwm": ("PWM (µs)", "left", "right"), "ship": ("rudder °, propeller rps", "rudder (°)", "propeller (rps)")}
 
 
-def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft — right --") -> bytes:
+def comparison_png(runs: dict, title: str) -> bytes:
     """Track on the water (east vs north) and u, r against time, one colour per run."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.lines import Line2D
 
     ship = False
     fig = plt.figure(figsize=(11, 6), dpi=100)
@@ -116,7 +117,11 @@ def comparison_png(runs: dict, title: str, inputs_label: str = "PWM (µs)\nleft 
         elif np.any(np.isfinite(run.pwm_us)):
             axes[2].plot(run.t, run.pwm_us[:, 0], color=colour, lw=0.8, ls="-")
             axes[2].plot(run.t, run.pwm_us[:, 1], color=colour, lw=0.8, ls="--")
-    axes[2].set_ylabel(SHIP_INPUTS_LABEL if ship else inputs_label)
+    label, solid, dashed = INPUT_KEYS["ship" if ship else "pwm"]
+    axes[2].set_ylabel(label)
+    if axes[2].lines:  # the line styles' key, in grey: the colours already name the runs
+        axes[2].legend([Line2D([], [], color="grey", ls="-"), Line2D([], [], color="grey", ls="--")],
+                       [solid, dashed], fontsize=8, loc="upper right")
     axes[2].set_xlabel("t (s)")
     track.set_xlabel("east (m)")
     track.set_ylabel("north (m)")
