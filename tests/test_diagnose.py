@@ -629,6 +629,8 @@ def test_a_twins_own_noise_free_run_is_not_read_as_the_twins_form():
     ds = generate(boat, n_segments=6, seed=8, noise=PROFILES["none"])
     d = diagnose([ds.recording], boat)
     over = {dof: o["rms_over_noise"] for dof, o in d.overall["before"].items()}
-    assert over["u"] < 3.0 and over["r"] < 3.0, over
+    # the first second, where the run starts from the estimator's smoothed state, read as v 3.1×
+    assert max(over.values()) < 2.0, over
     assert d.noise["replay_u"] > 3 * d.noise["u"] and d.noise["input_period_s"] > 0
-    assert not [u for u in d.unexplained if u["dof"] in ("u", "r")]
+    assert not d.unexplained
+    assert d.overall["before"]["v"]["n"] < 0.9 * 3600  # the judged span leaves out each window's edges
