@@ -1,6 +1,6 @@
 """A late heading told against the log's own rate gyro, on real logs with the lateness put in exactly.
 
-    python scripts/gyro_lag.py [--stage before|after] [--work /tmp/gyro_lag]
+    python scripts/gyro_lag.py [--stage NAME] [--page-only]
 
 Every Esso Osaka free-running test [ESSO-FRT] (23; turn_cut_14-Sep-2020_15_58_08 left out: it repeats
 the first 287 s of another test) carries a heading (psi_hat) and a rate gyro (r_angvelo). Each test's
@@ -8,13 +8,14 @@ heading stamps are moved later by L = 0, 0.2, 0.4 and 0.6 s (no model: the strea
 late) and each log is read alone by the diagnosis's kinematics (twin.fit.kinematic.kinematic_findings
 against the shipped esso_osaka twin, whose heading latency is 0): its `heading_latency` finding.
 
-Fixed before the reading was changed: the logs, the lateness values and the rule. A lateness is told
+Fixed before the study was run: the logs, the lateness values and the rule. A lateness is told
 when the finding is told; it is exact when told with its value within 30 % of L; at L = 0 a told
 lateness is a false discovery. The Esso heading may carry a small lateness of its own (the random
 tests read about +0.05 s before any is put in); the rule does not subtract it.
 
-`--stage before` and `--stage after` keep their results side by side in docs/results/data/gyro_lag.json;
-the page shows every stage there is. Without ../shared/data the script says so and exits 0.
+Each `--stage` (default "reading") keeps its results beside the others in docs/results/data/gyro_lag.json,
+so that a change of the reading is judged on the same logs; the page shows every stage there is.
+`--page-only` rewrites the page from that file. Without ../shared/data the script says so and exits 0.
 """
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ def judged(row: dict) -> dict:
     return {**row, "exact": bool(exact), "false": bool(row["told"] and not lateness)}
 
 
-def run_stage(work: Path) -> list[dict]:
+def run_stage() -> list[dict]:
     vessel = vessel_mod.load("esso_osaka")
     rows = []
     for path in sorted(p for p in DATA.glob("*.csv") if p.name != DUPLICATE):
@@ -106,12 +107,12 @@ def page(stages: dict) -> ResultPage:
                  "periods, 0.15 s here), ≥ 3 σ and > 0.")
     return ResultPage(
         name="gyro_lag", title="A late heading told against the gyro, on the Esso Osaka's logs",
-        ran="python scripts/gyro_lag.py --stage STAGE",
+        ran="python scripts/gyro_lag.py",
         data="the 23 Esso Osaka free-running tests [ESSO-FRT] (turn_cut_14-Sep-2020_15_58_08 left out: it repeats the "
              "first 287 s of another test), their heading stamped L s late, read against their own rate gyro",
         summary="Each test's heading stamps moved later by L (0, 0.2, 0.4, 0.6 s) and the log read alone by the "
                 "diagnosis's kinematics against the shipped twin (heading latency 0). Exact: told with its value "
-                "within 30 % of L. The logs, the values and the rule were fixed before the reading was changed.",
+                "within 30 % of L. The logs, the values and the rule were fixed before the study was run.",
         tables=tables, notes=notes, raw={"stages": stages})
 
 
@@ -124,18 +125,17 @@ def _cell(rows: list[dict], log: str, lateness: float) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--stage", default="before", help="a name for this run's results (before, after)")
-    ap.add_argument("--work", type=Path, default=Path("/tmp/gyro_lag"))
+    ap.add_argument("--stage", default="reading", help="a name for this run's results")
+    ap.add_argument("--page-only", action="store_true", help="rewrite the page from docs/results/data/gyro_lag.json")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     args = ap.parse_args()
     if not DATA.is_dir():
         print(f"the Esso Osaka recordings are not in {DATA}: nothing to do")
         return 0
-    args.work.mkdir(parents=True, exist_ok=True)
-    rows = run_stage(args.work)
     raw = args.out / "data" / "gyro_lag.json"
     stages = json.loads(raw.read_text())["stages"] if raw.is_file() else {}
-    stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": rows}
+    if not args.page_only:
+        stages[args.stage] = {"commit": checkout_commit(ROOT), "rows": run_stage()}
     print(f"wrote {page(stages).write(args.out)}")
     return 0
 
