@@ -211,10 +211,33 @@ def proof_tables(raw: dict) -> list[ResultTable]:
     return tables
 
 
+def compass_tables(raw: dict) -> list[ResultTable]:
+    """The compass-throttle study: each independent-simulator recording's truth against what the
+    calibration read, and the BlueBoat's reading."""
+    def truth(r):
+        return "none" if not r.get("truth") else f"B {r['truth']['b_deg']:+.1f}°, C {r['truth']['c_deg']:+.1f}°"
+
+    def read(r):
+        x = r.get("result")
+        if not x:
+            return "not told"
+        return (f"B {x['b_deg']:+.1f}° ± {x['sigma_b_deg']:.1f}, C {x['c_deg']:+.1f}° ± {x['sigma_c_deg']:.1f}"
+                f" (χ² {x['chi2']:.1f})")
+    rows = [[r["case"], r["seed"], truth(r), read(r), "yes" if (r.get("result") or {}).get("shown") else "no"]
+            for r in raw.get("world", [])]
+    tables = [ResultTable("Each independent-simulator recording: the motors' compass deviation at full throttle, "
+                          "true and read", ["case", "seed", "truth", "read (± 1σ)", "shown"], rows)]
+    boat = raw.get("blueboat")
+    if boat:
+        tables.append(ResultTable("The BlueBoat's ten runs", ["logs", "read"],
+                                  [[len(boat.get("logs", [])), boat.get("text", "")]]))
+    return tables
+
+
 def page(name: str) -> ResultPage:
     title, ran, data, question = STUDIES[name]
     raw = json.loads((DATA / f"{name}.json").read_text())
-    tables = proof_tables(raw) if name == "diagnosis_proof" else []
+    tables = proof_tables(raw) if name == "diagnosis_proof" else compass_tables(raw) if name == "compass_throttle" else []
     scores = score_table(raw)
     if scores and name != "diagnosis_proof":
         tables.append(scores)
