@@ -211,6 +211,54 @@ def proof_tables(raw: dict) -> list[ResultTable]:
     return tables
 
 
+MAX_COLUMNS = 14
+
+
+def _flat(obj, prefix: str = "", depth: int = 0) -> dict:
+    """A record's scalars, nested dicts' scalars under dotted keys (three levels), lists of words
+    joined and other lists counted."""
+    out = {}
+    for k, v in obj.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and depth < 2:
+            out.update(_flat(v, f"{key}.", depth + 1))
+        elif isinstance(v, list):
+            out[key] = ", ".join(map(str, v)) if all(isinstance(x, (str, int, float)) for x in v) else len(v)
+        elif not isinstance(v, dict):
+            out[key] = v
+    return out
+
+
+def _records(title: str, items: list, label: str | None = None) -> ResultTable | None:
+    """A list of records as one table, a column per key (the first MAX_COLUMNS met)."""
+    rows = [_flat(x) for x in items if isinstance(x, dict)]
+    if not rows:
+        return None
+    columns = list(dict.fromkeys(k for r in rows for k in r))[:MAX_COLUMNS]
+    return ResultTable(title, columns, [[r.get(c, "–") for c in columns] for r in rows])
+
+
+def record_tables(raw) -> list[ResultTable]:
+    """The figures of a study whose raw file is records: a list of records is one table; a mapping
+    gives a table per entry that holds records (a list of them, or records under names)."""
+    if isinstance(raw, list):
+        table = _records("Each record", raw)
+        return [table] if table else []
+    tables = []
+    for key, value in raw.items() if isinstance(raw, dict) else ():
+        if isinstance(value, list):
+            table = _records(str(key), value)
+        elif isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+            table = _records(str(key), [{"": name, **v} for name, v in value.items()])
+        elif isinstance(value, dict) and value and all(isinstance(v, list) for v in value.values()):
+            table = _records(str(key), [{"": name, **x} for name, v in value.items() for x in v if isinstance(x, dict)])
+        else:
+            table = None
+        if table:
+            tables.append(table)
+    return tables
+
+
 def compass_tables(raw: dict) -> list[ResultTable]:
     """The compass-throttle study: each independent-simulator recording's truth against what the
     calibration read, and the BlueBoat's reading."""
@@ -241,6 +289,8 @@ def page(name: str) -> ResultPage:
     scores = score_table(raw)
     if scores and name != "diagnosis_proof":
         tables.append(scores)
+    if not tables:
+        tables = record_tables(raw)
     figures = _figures(raw)
     if figures and not tables:
         tables.append(ResultTable("Figures", ["figure", "value"], [[k, v] for k, v in figures[:60]]))
