@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--work /tmp/blind_truths] [--only CASE,...] [--page-only]
+    python scripts/blind_truths.py [--set first|second] [--work DIR] [--only CASE,...] [--page-only]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -75,7 +75,7 @@ WIND_CX, WIND_CY, WIND_CN = 0.6, 0.8, -0.1
 class Case:
     """One recording's concealed effect. kind: null, dead_zone (one thruster's PWM band of no thrust,
     smoothstep from inner_us to outer_us off neutral; hard where they are equal), speed_loss
-    (T·(1 − k·u^power) ahead), sag_exp (T·(0.7 + 0.3·exp(−t/tau_s))), sag_square (T·(1 − k·(t/T_log)²)),
+    (T·(1 − k·u^power) ahead), sag_exp (T·(1 − k + k·exp(−t/tau_s))), sag_square (T·(1 − k·(t/T_log)²)),
     wind (mean speed from a direction, with first-order gusts of gust_sigma_m_s and gust_tau_s)."""
 
     name: str
@@ -93,7 +93,7 @@ class Case:
     gust_tau_s: float = 15.0
 
 
-CASES = [
+FIRST = [
     Case("null-a", "null", 31),
     Case("null-b", "null", 32),
     Case("dead_zone-left-hard-70us", "dead_zone", 33, side="left", inner_us=70.0, outer_us=70.0),
@@ -105,6 +105,19 @@ CASES = [
     Case("wind-gusty-5-130", "wind", 39, wind_speed_m_s=5.0, wind_from_deg=130.0, gust_sigma_m_s=0.8, gust_tau_s=15.0),
     Case("wind-steady-6.5-300", "wind", 40, wind_speed_m_s=6.5, wind_from_deg=300.0),
 ]
+SECOND = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-c", "null", 41),
+    Case("null-d", "null", 42),
+    Case("dead_zone-left-soft-40-100us", "dead_zone", 43, side="left", inner_us=40.0, outer_us=100.0),
+    Case("dead_zone-right-hard-80us", "dead_zone", 44, side="right", inner_us=80.0, outer_us=80.0),
+    Case("speed_loss-0.10u", "speed_loss", 45, k=0.10, power=1),
+    Case("speed_loss-0.12u2", "speed_loss", 46, k=0.12, power=2),
+    Case("sag-exp-400s", "sag_exp", 47, k=0.25, tau_s=400.0),
+    Case("sag-square-0.3", "sag_square", 48, k=0.3),
+    Case("wind-gusty-6-40", "wind", 49, wind_speed_m_s=6.0, wind_from_deg=40.0, gust_sigma_m_s=1.0, gust_tau_s=15.0),
+    Case("wind-steady-5-220", "wind", 50, wind_speed_m_s=5.0, wind_from_deg=220.0),
+]
+SETS = {"first": FIRST, "second": SECOND}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}
@@ -538,15 +551,37 @@ def _calibration_text(calibrations: list[dict]) -> str:
                      for c in calibrations) or "-"
 
 
-def write_page(rows: list[dict], commit: str, out: Path) -> Path:
+def case_text(case: Case) -> str:
+    """One case's concealed effect in words."""
+    if case.kind == "null":
+        return "nothing"
+    if case.kind == "dead_zone":
+        edge = (f"hard at {case.inner_us:g} µs" if case.inner_us == case.outer_us
+                else f"soft from {case.inner_us:g} to {case.outer_us:g} µs")
+        return f"{case.side} thruster's dead zone, {edge}"
+    if case.kind == "speed_loss":
+        return f"thrust × (1 − {case.k:g}·u{'²' if case.power == 2 else ''})"
+    if case.kind == "sag_exp":
+        return f"thrust × ({1 - case.k:g} + {case.k:g}·exp(−t/{case.tau_s:g} s))"
+    if case.kind == "sag_square":
+        return f"thrust × (1 − {case.k:g}·(t/{DURATION_S:g} s)²)"
+    if case.kind == "wind":
+        gusts = f", gusts σ {case.gust_sigma_m_s:g} m/s over {case.gust_tau_s:g} s" if case.gust_sigma_m_s else ", steady"
+        return f"wind {case.wind_speed_m_s:g} m/s from {case.wind_from_deg:g}°{gusts}"
+    raise ValueError(case.kind)
+
+
+def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first") -> Path:
     s = summary_of(rows)
     line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false discoveries; "
             f"nulls clean {s['nulls_clean']} of {s['nulls']}"
             + (f"; {s['failed']} diagnoses failed" if s["failed"] else "")
             + f" (diagnoses {s['seconds']:.0f} s in all).")
+    by_name = {c.name: c for c in SETS[proof_set]}
     cases = ResultTable("Each truth and what the diagnosis named",
-                        ["case", "seed", "truth (library's terms)", "named (values)", "exact", "else named", "s"],
-                        [[r["case"], r["seed"], "nothing" if r["truth"] is None else
+                        ["case", "seed", "concealed", "truth (library's terms)", "named (values)", "exact", "else named",
+                         "s"],
+                        [[r["case"], r["seed"], case_text(by_name[r["case"]]), "nothing" if r["truth"] is None else
                           f"{r['truth']} ({_values_text(r['truth_values'])})",
                           "diagnosis failed" if r["failed"] else
                           "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
@@ -562,18 +597,22 @@ def write_page(rows: list[dict], commit: str, out: Path) -> Path:
                                   ["throttle µs", "2·T N", "u balance m/s", "u simulated m/s", "samples"],
                                   [[x["throttle_us"], x["thrust_n"], x["u_balance_m_s"], x["u_sim_m_s"], x["samples"]]
                                    for x in null["steady"]], digits=4))
+    seeds = [c.seed for c in SETS[proof_set]]
     page = ResultPage(
-        "blind_truths",
-        "Effect truths of forms the library lacks, from a simulator of the study's own, diagnosed by the CLI",
-        "python scripts/blind_truths.py",
-        "Ten recordings of 10 minutes (seeds 31-40) written by scripts/blind_truths.py's own three-degree-of-freedom "
+        "blind_truths" if proof_set == "first" else f"blind_truths_{proof_set}",
+        "Effect truths of forms the library lacks, from a simulator of the study's own, diagnosed by the CLI"
+        + ("" if proof_set == "first" else f" (proof set: {proof_set})"),
+        "python scripts/blind_truths.py" + ("" if proof_set == "first" else f" --set {proof_set}"),
+        f"Ten recordings of 10 minutes (seeds {min(seeds)}-{max(seeds)}) written by scripts/blind_truths.py's own three-degree-of-freedom "
         "simulator (RK4 at 0.02 s) from the shipped Yellowfish's numbers: a survey mission (legs at 1650, 1750 and "
         "1850 µs held by a heading controller on the PWM difference, 90° turns and a short cross leg at each end, "
         "spins of both hands twice, a stop and a short astern), logged as the generic CSV (GNSS antenna 5 Hz with "
         "2 cm noise, heading 10 Hz with 0.3° noise, PWM 10 Hz, every sample at its true time). Each diagnosed with "
         "`twin diagnose LOG.csv --vessel yellowfish --json OUT.json` from the shipped, untuned Yellowfish "
         f"(commit {commit}).",
-        "One concealed effect per recording, in forms the effect library does not have but for the hard dead zone "
+        ("" if proof_set == "first" else f"Proof set {proof_set}, fixed before it was run: the same kinds as the "
+                                          "first set at other seeds, magnitudes, sides and directions. ")
+        + "One concealed effect per recording, in forms the effect library does not have but for the hard dead zone "
         "and the steady wind's load (notes), and two nulls. Exact: the "
         "truth named in the library's terms with its values within 30 % (30° for a direction) and nothing else; a "
         "null is exact when nothing is named; a compass offset the calibration applies is not an effect named. "
@@ -585,19 +624,19 @@ def write_page(rows: list[dict], commit: str, out: Path) -> Path:
          "−0.0925 in normalised PWM), thrust along body x at the thrusters' y, the GNSS antenna at its site; PWM held "
          "over each 0.1 s tick. It refuses a prior with a term it leaves out (cross damping, thrust lag, decay).",
          "Dead zone of one thruster: no thrust within ±inner µs of neutral, the map's thrust from ±outer µs, "
-         "smoothstep between (hard: inner = outer = 70 µs, left; soft: 50 and 90 µs, right), ahead and astern alike. "
+         "smoothstep between (hard where inner = outer), ahead and astern alike. "
          "In the library's terms dead_zone_left / dead_zone_right with fwd = rev = the hard edge or the soft edge's "
-         "middle (70 µs) over pwm_scale_us (400 µs): 0.175. The hard one is the library's own form but for the "
-         "edge pulse itself (the library gives thrust at 0.175, this simulator none at 70 µs off neutral).",
-         "Thrust loss with speed: each thruster's static thrust T × (1 − 0.12·u) or × (1 − 0.15·u²), u the hull's "
+         "middle over pwm_scale_us (400 µs). The hard one is the library's own form but for the "
+         "edge pulse itself (the library gives thrust at the edge, this simulator none).",
+         "Thrust loss with speed: each thruster's static thrust T × (1 − k·u) or × (1 − k·u²), u the hull's "
          "surge speed, only where T > 0 and u > 0. In the library's terms thrust_speed_loss with advance_loss = the "
          "prior's (0) + c, c the least-squares match over every 0.1-s row of the log and both thrusters of the "
          "loss taken off by c·√|T0|·u_a, u_a = u − r·y_i (rows without loss count as zero loss).",
-         "Thrust sag: every thrust × (0.7 + 0.3·exp(−t/300 s)) or × (1 − 0.25·(t/600 s)²). In the library's terms "
+         "Thrust sag: every thrust × (1 − k + k·exp(−t/τ)) or × (1 − k·(t/600 s)²). In the library's terms "
          "thrust_decay with decay_per_min = k, the least-squares line through the start, 1 − k·t/60 s, over every "
          "0.1-s row of the log (Σ(1 − f)·t_min / Σ t_min²).",
-         "Wind: from the given direction, its speed steady or with first-order gusts (15 s correlation time, "
-         "σ 0.8 m/s, drawn at every RK4 step), its load this script's own: X = −0.6·cos γ·A_F·q, Y = 0.8·sin γ·A_L·q, "
+         "Wind: from the given direction, its speed steady or with first-order gusts (the correlation time and σ "
+         "of the table, drawn at every RK4 step), its load this script's own: X = −0.6·cos γ·A_F·q, Y = 0.8·sin γ·A_L·q, "
          "N = −0.1·sin 2γ·A_L·L·q on the relative wind (γ = 0 a head wind; the shipped load's yaw moment has the "
          "other sign), on the vessel's wind areas. X and Y are the shipped load's form and coefficients, so the "
          "steady wind's load is wind_shape's form with cy 0.8 and cn −0.1; the gusts are no form of the library. "
@@ -605,22 +644,26 @@ def write_page(rows: list[dict], commit: str, out: Path) -> Path:
          "blows from.",
          "Named: every entry of the CLI's JSON `effects` (kinematic findings among them). False discoveries: every "
          "name but the truth's on an effect case, and every name on a null."],
-        {"commit": commit, "summary": s, "rows": rows, "cases": [asdict(c) for c in CASES]})
+        {"commit": commit, "summary": s, "rows": rows, "cases": [asdict(c) for c in SETS[proof_set]]})
     return page.write(out)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, default=Path("/tmp/blind_truths"), help="logs, the CLI's JSON and console")
+    ap.add_argument("--set", default="first", choices=list(SETS), help="the proof set (each fixed before it was run)")
+    ap.add_argument("--work", type=Path, default=None, help="logs, the CLI's JSON and console (default "
+                                                           "/tmp/blind_truths, /tmp/blind_truths_SET)")
     ap.add_argument("--only", default="", help="these cases only (comma separated); the page is not rewritten")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the rows in --work")
     args = ap.parse_args()
+    cases = SETS[args.set]
+    args.work = args.work or Path("/tmp/blind_truths" + ("" if args.set == "first" else f"_{args.set}"))
     args.work.mkdir(parents=True, exist_ok=True)
     if not args.page_only:
         hull = hull_of(vessel_mod.load(VESSEL))
         only = {x for x in args.only.split(",") if x}
-        for case in CASES:
+        for case in cases:
             if only and case.name not in only:
                 continue
             row = run_case(case, hull, args.work)
@@ -630,10 +673,10 @@ def main() -> int:
         if only:
             return 0
         (args.work / "commit.txt").write_text(checkout_commit(ROOT))
-    rows = [json.loads((args.work / f"{c.name}.row.json").read_text()) for c in CASES]
+    rows = [json.loads((args.work / f"{c.name}.row.json").read_text()) for c in cases]
     commit_file = args.work / "commit.txt"
     commit = commit_file.read_text().strip() if commit_file.is_file() else checkout_commit(ROOT)
-    print(write_page(rows, commit, args.out))
+    print(write_page(rows, commit, args.out, args.set))
     return 0
 
 
