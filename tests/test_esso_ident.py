@@ -173,6 +173,15 @@ def test_twin_identify_on_the_ship_with_its_measured_wind(tmp_path):
     assert calm.returncode == 0, calm.stderr
     assert "identified with the measured wind" in calm.stderr + calm.stdout
     assert "with the measured wind" not in calm.stdout
+    # the replay and the diagnosis remind the user too; a log of another kind of vessel gets the error alone
+    seen = twin_command.twin("view", str(ESSO / "turn_14-Oct-2020_14_29_49.csv"), "--model", str(out), "--sim",
+                             "--out", str(tmp_path / "v.rrd"))
+    assert seen.returncode == 0 and "identified with the measured wind" in seen.stderr, seen.stderr
+    boat = next((ESSO.parent / "blueboat").glob("*.csv"), None)
+    if boat is not None:
+        wrong = twin_command.twin("evaluate", str(boat), "--model", str(out))
+        assert wrong.returncode == 2 and "identified with the measured wind" not in wrong.stderr
+        assert "is driven by propeller_rudder inputs" in wrong.stderr
 
 
 def test_evaluate_splits_a_slow_ships_free_runs_by_manoeuvre_at_its_own_window(esso):

@@ -508,8 +508,8 @@ def test_a_horizon_with_no_window_is_said_why_its_row_is_empty():
     none = {d: {"r2": None, "mae": None, "n": 0} for d in "uvr"}
     some = {d: {"r2": 0.9, "mae": 0.01, "n": 40} for d in "uvr"}
     text = format_metrics({"one_step": some, "free_run_10s": none, "free_run_30s": none})
-    assert text.splitlines()[-1] == ("-: no window of free_run_10s, free_run_30s fits in a stretch of the recording "
-                                     "without a dropout")
+    assert text.splitlines()[-1] == ("-: no window of free_run_10s, free_run_30s fits in the recording: every "
+                                     "stretch without a dropout (or the whole log) is shorter")
     assert "no window" not in format_metrics({"one_step": some})
 
 
@@ -525,3 +525,11 @@ def test_the_parameter_table_keeps_its_columns_for_long_names(yellowfish_vessel)
     for row in rows:  # every value ends where its head ends
         assert row.index(" kg/m" if "Xuu" in row else " -    ") == head.index(" unit")
         assert row[:head.index("identified") + len("identified")].endswith(("2", "0.41"))
+
+
+def test_a_span_near_zero_keeps_its_digits():
+    """A ship's yaw rate spans a few hundredths of a rad/s: two decimals would print it as 0.00."""
+    from twin.fit.coverage import span_text
+
+    assert span_text({"r": (-0.004, 0.05)}) == "r -0.004..+0.05 rad/s"
+    assert span_text({"u": (-0.12, 1.5)}) == "u -0.12..+1.50 m/s"

@@ -221,7 +221,8 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, check_wind, manoeuvre_horizon_s, prepared, read, wind_gaps
+    from ..ident.identify import (calibrate, check_inputs, check_wind, fitted_wind_note, manoeuvre_horizon_s, prepared,
+                                  read, wind_gaps)
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -251,10 +252,10 @@ def evaluate_command(
     check_wind(recs, wind, v)  # before any work
     for line in wind_gaps(recs) if wind else []:
         say(f"note: {line}")
-    fitted_wind = v.uncertainty.get("fitted_on", {}).get("wind")
-    if fitted_wind == "measured" and not wind:
-        note("note: this twin was identified with the measured wind as a known input; add --wind-measured to "
-             "score it the way it was fitted")
+    check_inputs(recs, v)
+    wind_note = fitted_wind_note(v, wind)
+    if wind_note:
+        note(f"note: {wind_note}")
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",

@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  memory_for, positive, progress_bar, samples_fit, say, vessel_from)
+                  memory_for, note, positive, progress_bar, samples_fit, say, vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
 
@@ -161,7 +161,7 @@ def view(
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from ..files import write_bytes_atomic
     from ..formats import read_recording
-    from ..ident.identify import check_wind, wind_gaps
+    from ..ident.identify import check_inputs, check_wind, fitted_wind_note, wind_gaps
     from ..outputs import write
     from ..replay import view_runs
     from ..viz.report import comparison_png
@@ -183,8 +183,13 @@ def view(
             recordings.append(read_recording(path, channels=mapping))
         wind = "measured" if wind_measured else None
         check_wind(recordings, wind, v)
+        if sim:
+            check_inputs(recordings, v)
         for line in wind_gaps(recordings) if wind else []:
             say(f"note: {line}")
+        wind_note = fitted_wind_note(v, wind) if sim else None
+        if wind_note:
+            note(f"note: {wind_note}")
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
         runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")

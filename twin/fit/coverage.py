@@ -58,7 +58,12 @@ UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
 
 def span_text(ranges: dict) -> str:
     """"u −0.10..+0.27 m/s, v …, r …" of a {dof: (low, high)} span (an Envelope's or its dict's)."""
-    return ", ".join(f"{d} {lo:+.2f}..{hi:+.2f} {UNITS[d]}" for d, (lo, hi) in ranges.items())
+    return ", ".join(f"{d} {_signed(lo)}..{_signed(hi)} {UNITS[d]}" for d, (lo, hi) in ranges.items())
+
+
+def _signed(x: float) -> str:
+    """Two decimals, or two significant digits where that shows a small span as more than 0.00."""
+    return f"{x:+.2f}" if abs(x) >= 0.1 or x == 0 else f"{x:+.2g}"
 
 
 def from_dict(data, where: str = "fitted_on") -> Envelope:

@@ -328,5 +328,6 @@ def format_metrics(metrics: dict, title: str = "") -> str:
         lines.append(f"{name:14s}" + "".join(cells))
     empty = [name for name, m in metrics.items() if all(m[d].get("n") == 0 for d in DOFS)]
     if empty:  # a dash with no reason reads as a failure of the twin
-        lines.append(f"-: no window of {', '.join(empty)} fits in a stretch of the recording without a dropout")
+        lines.append(f"-: no window of {', '.join(empty)} fits in the recording: every stretch without a dropout "
+                     "(or the whole log) is shorter")
     return "\n".join(lines)

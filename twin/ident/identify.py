@@ -142,10 +142,14 @@ class Identification:
     wind: str | None = None  # "measured": each recording's measured wind was a known input of the fit
 
     def __repr__(self) -> str:
-        free = ", ".join(self.chosen.free_groups) if self.chosen else "-"
+        # a --params fit has one group of its own ("chosen"): its coefficients say more than the name
+        groups = self.chosen.free_groups if self.chosen else ()
+        free = ", ".join(e.name for e in self.fit.estimates) if groups == ("chosen",) and self.fit else \
+            ", ".join(groups) or "-"
         n = len(self.calibrations)
-        return (f"Identification({self.vessel.name}: {n} log{'' if n == 1 else 's'}, free groups {free}, "
-                f"{self.seconds:.0f} s)")
+        return (f"Identification({self.vessel.name}: {n} log{'' if n == 1 else 's'}, "
+                f"{'free' if groups == ('chosen',) else 'free groups'} {free}"
+                f"{', measured wind' if self.wind == 'measured' else ''}, {self.seconds:.0f} s)")
 
     def needed(self) -> list[tuple[str, float]]:
         """The groups the left-out runs need: (group, left-out cost without it ÷ with it) for each group
@@ -392,6 +396,26 @@ def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | N
             if not len(rec.wind):
                 raise TwinError(f"{Path(rec.source).name}: no measured wind (the recording has no wind stream): "
                                 "--wind-measured needs an anemometer's wind stream")
+
+
+def check_inputs(recordings: list[Recording], vessel: Vessel) -> None:
+    """TwinError naming the first recording whose inputs are not the kind that drives `vessel` (PWM
+    against a propeller and rudder): before any work, and before any advice on how to run it."""
+    wanted = vessel.thrusters.input_kind
+    for rec in recordings:
+        held = "propeller_rudder" if len(rec.prop_rudder) else ("pwm" if len(rec.pwm) else None)
+        if held is not None and held != wanted:
+            raise TwinError(f"{Path(rec.source).name}: vessel '{vessel.name}' is driven by {wanted} inputs; the "
+                            f"recording holds {held}")
+
+
+def fitted_wind_note(vessel: Vessel, wind: str | None) -> str | None:
+    """A note when `vessel` was identified with the measured wind as a known input and is now run
+    without it (its uncertainty.fitted_on says how it was fitted)."""
+    if wind is None and (vessel.uncertainty.get("fitted_on") or {}).get("wind") == "measured":
+        return ("this twin was identified with the measured wind as a known input; add --wind-measured to run it "
+                "the way it was fitted")
+    return None
 
 
 MIN_WIND_COVER = 0.5

@@ -121,7 +121,7 @@ def comparison_png(runs: dict, title: str) -> bytes:
     axes[2].set_ylabel(label)
     if axes[2].lines:  # the line styles' key, in grey: the colours already name the runs
         axes[2].legend([Line2D([], [], color="grey", ls="-"), Line2D([], [], color="grey", ls="--")],
-                       [solid, dashed], fontsize=8, loc="upper right")
+                       [solid, dashed], fontsize=8, loc="best")
     axes[2].set_xlabel("t (s)")
     track.set_xlabel("east (m)")
     track.set_ylabel("north (m)")
