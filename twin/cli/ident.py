@@ -250,9 +250,9 @@ def evaluate_command(
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind(recs, wind, v)  # before any work
+    check_inputs(recs, v)
     for line in wind_gaps(recs) if wind else []:
         say(f"note: {line}")
-    check_inputs(recs, v)
     wind_note = fitted_wind_note(v, wind)
     if wind_note:
         note(f"note: {wind_note}")

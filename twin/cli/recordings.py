@@ -61,15 +61,14 @@ def info(
 
 def _calibrations(recordings: list, vessel) -> int:
     """Print each log's kinematic compass calibration (twin.fit.calibrate); 1 when it cannot be made."""
-    from ..ident.identify import calibrate
-
+    from ..ident.identify import calibrate, held_inputs
     from ..prepare import prepare
 
     usable, failed = [], 0
     wanted = vessel.thrusters.input_kind
     for r in recordings:
         name = Path(r.source).name
-        held = "propeller_rudder" if len(r.prop_rudder) else ("pwm" if len(r.pwm) else None)
+        held = held_inputs(r)
         if not (len(r.gnss) and len(r.heading)):
             typer.echo(f"calibration: {name}: no compass calibration (it needs GNSS and heading)")
         elif held is not None and held != wanted:  # another kind of vessel's log: identify would refuse it too

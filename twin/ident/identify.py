@@ -398,12 +398,17 @@ def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | N
                                 "--wind-measured needs an anemometer's wind stream")
 
 
+def held_inputs(rec: Recording) -> str | None:
+    """The kind of inputs a recording holds: "propeller_rudder", "pwm", or None (neither)."""
+    return "propeller_rudder" if len(rec.prop_rudder) else ("pwm" if len(rec.pwm) else None)
+
+
 def check_inputs(recordings: list[Recording], vessel: Vessel) -> None:
     """TwinError naming the first recording whose inputs are not the kind that drives `vessel` (PWM
     against a propeller and rudder): before any work, and before any advice on how to run it."""
     wanted = vessel.thrusters.input_kind
     for rec in recordings:
-        held = "propeller_rudder" if len(rec.prop_rudder) else ("pwm" if len(rec.pwm) else None)
+        held = held_inputs(rec)
         if held is not None and held != wanted:
             raise TwinError(f"{Path(rec.source).name}: vessel '{vessel.name}' is driven by {wanted} inputs; the "
                             f"recording holds {held}")
