@@ -494,8 +494,10 @@ def steady_speeds(run: dict[str, np.ndarray], hull: Hull) -> list[dict]:
         idx = np.flatnonzero(steady)
         if not len(idx):
             continue
-        runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
-        last = np.concatenate([r[-int(10.0 / TICK_S):] for r in runs if len(r) * TICK_S >= 30.0])
+        runs = [r for r in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1) if len(r) * TICK_S >= 30.0]
+        if not runs:  # a gusty wind keeps the heading controller's throttle from ever holding 30 s
+            continue
+        last = np.concatenate([r[-int(10.0 / TICK_S):] for r in runs])
         thrust_n = sum(map_thrust_n(hull, throttle_us, i) for i in (0, 1))
         xu, xuu = -hull.linear[0], -hull.quadratic[0]
         balance = (-xu + math.sqrt(xu * xu + 4.0 * xuu * thrust_n)) / (2.0 * xuu)
