@@ -355,6 +355,22 @@ def warn_recordings(recordings) -> None:
             note(f"warning: {Path(rec.source).name}: {text}")
 
 
+def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: bool = True) -> None:
+    """Before any work: the measured wind's checks (twin.ident.identify.check_wind) and, where the
+    vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes on the
+    wind: its gaps, and a twin identified with it that is run without it."""
+    from ..ident.identify import check_inputs, check_wind, fitted_wind_note, wind_gaps
+
+    check_wind(recordings, wind, vessel)
+    if replayed:
+        check_inputs(recordings, vessel)
+    for line in wind_gaps(recordings) if wind else []:
+        say(f"note: {line}")
+    wind_note = fitted_wind_note(vessel, wind) if replayed else None
+    if wind_note:
+        note(f"note: {wind_note}")
+
+
 def note(text: str) -> None:
     """A side remark on stderr: hidden by --quiet."""
     if not _settings["quiet"]:

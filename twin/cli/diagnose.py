@@ -9,7 +9,7 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  check_recordings_distinct, effect_names, json_text, note, positive, progress_bar, say,
+                  check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar, say,
                   say_unlogged_supply, vessel_from, warn_recordings, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
@@ -49,7 +49,6 @@ def diagnose_command(
     from ..diagnose.report import format_text
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
-    from ..ident.identify import check_inputs, check_wind, fitted_wind_note, wind_gaps
     from ..vessel import save
 
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
@@ -79,13 +78,7 @@ def diagnose_command(
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    check_wind(recs, wind, prior)  # before any work
-    check_inputs(recs, prior)
-    for line in wind_gaps(recs) if wind else []:
-        say(f"note: {line}")
-    wind_note = fitted_wind_note(prior, wind)
-    if wind_note:
-        note(f"note: {wind_note}")
+    check_wind_and_inputs(recs, wind, prior)  # before any work
     if given:
         from ..diagnose.doctor import given_evidence, given_text
 

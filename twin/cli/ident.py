@@ -9,8 +9,9 @@ import typer
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
-                  check_outputs, check_recordings_distinct, console, floats, note, positive, progress_bar, say,
-                  say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings, write_json)
+                  check_outputs, check_recordings_distinct, check_wind_and_inputs, console, floats, note, positive,
+                  progress_bar, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings,
+                  write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -145,9 +146,7 @@ def identify_command(
     recs = ident.read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    ident.check_wind(recs, wind, prior)  # before any work
-    for line in ident.wind_gaps(recs) if wind else []:
-        say(f"note: {line}")
+    check_wind_and_inputs(recs, wind, prior)  # before any work
     with progress_bar("identify") as progress:
         result = ident.identify(recs, prior, groups=chosen_groups, params=chosen_params, prior_weights=weights,
                                 anchor=anchor, window_s=window, start=start, calibrated=calibration,
@@ -221,8 +220,7 @@ def evaluate_command(
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
     from ..fit.windows import ModelCache
-    from ..ident.identify import (calibrate, check_inputs, check_wind, fitted_wind_note, manoeuvre_horizon_s, prepared,
-                                  read, wind_gaps)
+    from ..ident.identify import calibrate, manoeuvre_horizon_s, prepared, read
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
@@ -249,13 +247,7 @@ def evaluate_command(
     recs = read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
-    check_wind(recs, wind, v)  # before any work
-    check_inputs(recs, v)
-    for line in wind_gaps(recs) if wind else []:
-        say(f"note: {line}")
-    wind_note = fitted_wind_note(v, wind)
-    if wind_note:
-        note(f"note: {wind_note}")
+    check_wind_and_inputs(recs, wind, v)  # before any work
     calibrated, calibrations = calibrate(recs, v)
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",

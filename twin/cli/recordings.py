@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  memory_for, note, positive, progress_bar, samples_fit, say, vessel_from)
+                  check_wind_and_inputs, memory_for, positive, progress_bar, samples_fit, say, vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
 
@@ -160,7 +160,6 @@ def view(
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
     from ..files import write_bytes_atomic
     from ..formats import read_recording
-    from ..ident.identify import check_inputs, check_wind, fitted_wind_note, wind_gaps
     from ..outputs import write
     from ..replay import view_runs
     from ..viz.report import comparison_png
@@ -181,14 +180,7 @@ def view(
             progress(f"reading {path.name}", k, len(files))
             recordings.append(read_recording(path, channels=mapping))
         wind = "measured" if wind_measured else None
-        check_wind(recordings, wind, v)
-        if sim:
-            check_inputs(recordings, v)
-        for line in wind_gaps(recordings) if wind else []:
-            say(f"note: {line}")
-        wind_note = fitted_wind_note(v, wind) if sim else None
-        if wind_note:
-            note(f"note: {wind_note}")
+        check_wind_and_inputs(recordings, wind, v, replayed=sim)
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
         runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")
