@@ -264,3 +264,23 @@ def test_simulate_refuses_to_write_a_ships_run_where_its_inputs_would_be_lost(tm
                              "--out", tmp_path / "a.csv", "--out", tmp_path / "a.tlog")
     assert done.returncode == 2 and "a.tlog: a propeller-and-rudder ship's run keeps its propeller speed" in done.stderr
     assert not (tmp_path / "a.csv").exists()
+
+
+def test_a_faster_test_than_the_vessel_files_bound_is_replayed_as_logged(esso, tmp_path):
+    """The shipped Esso's rps_max (10) is the shared tests' fastest; a run of the same twin at 17 rps,
+    written as a log, is replayed by evaluate at its logged speed: the twin predicts its own run
+    exactly. Clipped to the bound, the 30-s free runs' R² u was 0.04."""
+    import twin
+
+    fast = replace(esso.vessel, thrusters=replace(esso.vessel.thrusters, rps_max=20.0))
+    t = np.arange(0.0, 120.0, 0.1)
+    rudder = np.where((t > 40) & (t < 80), np.radians(35.0) * np.sign(np.sin(2 * np.pi * t / 20) + 1e-9), 0.0)
+    inputs = InputSeries(t, np.column_stack([np.minimum(17.0 * t / 5.0, 17.0), rudder]), "propeller_rudder")
+    twin.simulate_run(fast, inputs=inputs, duration_s=120.0).write(tmp_path / "fast.csv")
+    scored = twin.evaluate(esso.vessel, [tmp_path / "fast.csv"])
+    assert min(scored.score(dof, "free_run_30s", calibrated=False).r2 for dof in "uvr") > 0.99
+    assert esso.vessel.as_logged().thrusters.rps_max is None and esso.vessel.thrusters.rps_max == 10.0
+    from twin.ident.identify import beyond_command_bounds, read
+
+    notes = beyond_command_bounds(read([tmp_path / "fast.csv"]), esso.vessel)
+    assert len(notes) == 1 and "propeller speed reaches 17 rps" in notes[0] and "replayed as logged" in notes[0]

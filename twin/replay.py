@@ -100,7 +100,7 @@ def replay(vessel: Vessel, prep: Prepared, wind: str | None = None) -> Run:
     """All segments replayed and concatenated on the recording's timeline, in the recording's own
     environment (its wind, where the vessel holds one per log; with `wind` "measured", the wind it
     measured)."""
-    compiled = compile_vessel(replace(vessel, environment=vessel.environment.for_log(prep.settings.source)))
+    compiled = compile_vessel(replace(vessel, environment=vessel.environment.for_log(prep.settings.source)).as_logged())
     runs = [replay_segment(compiled, prep, seg.slice, wind) for seg in prep.segments if seg.stop - seg.start >= 2]
     if not runs:
         raise TwinError(f"{_source_name(prep)}: no segment long enough to replay")
@@ -122,6 +122,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
     if smoother not in ("savgol", "model"):
         raise TwinError(f"unknown smoother '{smoother}' (savgol or model)")
+    vessel = vessel.as_logged() if vessel is not None else None
     compiled = compile_vessel(vessel) if vessel is not None else None
     runs: dict[str, Run] = {}
     for rec in recordings:

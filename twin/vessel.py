@@ -80,6 +80,12 @@ class Vessel:
     def with_environment(self, environment: Environment) -> "Vessel":
         return replace(self, environment=environment)
 
+    def as_logged(self) -> "Vessel":
+        """The vessel as a recording's replay drives it (ThrusterModel.as_logged): a logged
+        propeller speed or rudder angle is not clipped to the bounds of the twin's own commands."""
+        thrusters = self.thrusters.as_logged()
+        return self if thrusters is self.thrusters else replace(self, thrusters=thrusters)
+
     def to_dict(self) -> dict[str, Any]:
         mjcf = self.mjcf
         if Path(self.mjcf).resolve().parent == MODEL_DIR.resolve():

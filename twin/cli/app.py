@@ -357,13 +357,16 @@ def warn_recordings(recordings) -> None:
 
 def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: bool = True) -> None:
     """Before any work: the measured wind's checks (twin.ident.identify.check_wind) and, where the
-    vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes on the
-    wind: its gaps, and a twin identified with it that is run without it."""
-    from ..ident.identify import check_inputs, check_wind, fitted_wind_note, wind_gaps
+    vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes: inputs
+    beyond the vessel file's bounds (replayed as logged), the wind's gaps, and a twin identified with
+    the wind that is run without it."""
+    from ..ident.identify import beyond_command_bounds, check_inputs, check_wind, fitted_wind_note, wind_gaps
 
     check_wind(recordings, wind, vessel)
     if replayed:
         check_inputs(recordings, vessel)
+        for line in beyond_command_bounds(recordings, vessel):
+            note(f"note: {line}")
     for line in wind_gaps(recordings) if wind else []:
         say(f"note: {line}")
     wind_note = fitted_wind_note(vessel, wind) if replayed else None

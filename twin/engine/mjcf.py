@@ -50,6 +50,7 @@ class Geometry:
     thruster_pos_m: np.ndarray  # (2, 3): left, right thrusters, or the propeller and the rudder
     gnss_pos_m: np.ndarray  # (3,)
     imu_pos_m: np.ndarray  # (3,)
+    length_m: float = 0.0  # length overall, the geoms' fore-and-aft extent
 
     @property
     def thruster_y_m(self) -> tuple[float, float]:
@@ -305,7 +306,20 @@ def read_geometry(model: mujoco.MjModel, vessel: Vessel) -> Geometry:
         raise TwinError(f"{vessel.mjcf.name}: the vessel has no mass")
     rigid = RigidBody(mass_kg=float(m), xg_m=float(M[1, 2] / m), yg_m=float(-M[0, 2] / m), Iz_kgm2=float(M[2, 2]))
     thrusters = np.array([_site(model, data, n, vessel) for n in actuator_names(vessel)])
-    return Geometry(rigid, thrusters, _site(model, data, "gnss", vessel), _site(model, data, "imu", vessel))
+    return Geometry(rigid, thrusters, _site(model, data, "gnss", vessel), _site(model, data, "imu", vessel),
+                    _length_m(model, data))
+
+
+def _length_m(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """The hull's length overall (m): the fore-and-aft extent of every geom of the vessel's bodies (each
+    geom's bounding box turned into the body frame, which at q = 0 is the world frame)."""
+    ends = []
+    for g in np.flatnonzero(model.geom_bodyid > 0):
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        corners = centre + half * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        x = data.geom_xpos[g, 0] + corners @ data.geom_xmat[g].reshape(3, 3)[0]
+        ends += [float(x.min()), float(x.max())]
+    return max(ends) - min(ends) if ends else 0.0
 
 
 def hydro_model(vessel: Vessel, geometry: Geometry, terms: Terms | None = None) -> HydroModel:

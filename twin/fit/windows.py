@@ -87,7 +87,8 @@ def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
 
 class ModelCache:
     """Compiled native models by structure; per vessel a cheap copy with its own
-    hydrodynamic parameters, thruster gains, advance loss, lag and range.
+    hydrodynamic parameters, thruster gains, advance loss, lag and range. Every model replays
+    recordings, so a propeller and rudder's inputs are taken as logged (Vessel.as_logged).
 
     timestep_s overrides the MJCF's time step (a coarser RK4 step for the many
     candidate runs of a diagnosis; it must divide the recordings' grid)."""
@@ -142,7 +143,7 @@ class ModelCache:
     def _base(self, vessel: Vessel, wind: bool = False) -> tuple[CompiledVessel, mujoco.MjModel]:
         key = _structure_key(vessel, wind)
         if key not in self._compiled:
-            cv = compile_vessel(vessel)
+            cv = compile_vessel(vessel.as_logged())
             model = native.with_native_params(cv, wind_inputs=wind, lean=True)
             if self.timestep_s is not None:
                 model.opt.timestep = self.timestep_s
@@ -154,7 +155,7 @@ class ModelCache:
         `wind`: with the measured wind as controls 2 and 3."""
         cv, base = self._base(vessel, wind)
         m = copy.copy(base)
-        native.set_params(m, CompiledVessel(vessel, cv.model, cv.geometry).hydro())
+        native.set_params(m, CompiledVessel(vessel.as_logged(), cv.model, cv.geometry).hydro())
         t = vessel.thrusters
         if t.kind == "propeller_rudder":  # its actuators carry (n, δ) and exert no force: nothing to set
             return m

@@ -423,6 +423,23 @@ def fitted_wind_note(vessel: Vessel, wind: str | None) -> str | None:
     return None
 
 
+def beyond_command_bounds(recordings: list[Recording], vessel: Vessel) -> list[str]:
+    """A note for each recording whose propeller speed or rudder angle goes beyond the vessel file's
+    bounds: a replay takes them as logged (Vessel.as_logged), where the twin's own commands stop."""
+    t = vessel.thrusters
+    out = []
+    for rec in recordings:
+        if t.kind != "propeller_rudder" or not len(rec.prop_rudder):
+            continue
+        for column, bound, unit, scale, what in (("n_rps", t.rps_max, "rps", 1.0, "propeller speed"),
+                                                  ("delta_rad", t.rudder_max_deg, "°", 180.0 / np.pi, "rudder angle")):
+            top = float(np.nanmax(np.abs(np.asarray(rec.prop_rudder[column], float)), initial=0.0)) * scale
+            if bound is not None and top > bound * (1 + 1e-9):
+                out.append(f"{Path(rec.source).name}: the {what} reaches {top:.3g} {unit}, beyond the vessel file's "
+                           f"{bound:g} {unit} (the bound of the twin's own commands): replayed as logged")
+    return out
+
+
 MIN_WIND_COVER = 0.5
 
 

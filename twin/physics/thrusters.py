@@ -56,7 +56,7 @@ hydrodynamic callback's (physics/mmg.py), not the actuators'.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -155,6 +155,16 @@ class ThrusterModel:
             d = np.inf if self.rudder_max_deg is None else float(np.radians(self.rudder_max_deg))
             return (-n, n), (-d, d)
         return self.bounds(), self.bounds()
+
+    def as_logged(self) -> "ThrusterModel":
+        """These thrusters as a recording's replay drives them. A propeller and rudder's logged
+        speed and angle are what the ship did: its bounds (rps_max, rudder_max_deg) are what the
+        twin's own scenarios and controllers may command, and a replay clipped to them would run a
+        faster test at the bound's speed. A PWM stays bounded by the ESC's range, which clips the
+        real pulse too."""
+        if self.kind != "propeller_rudder" or (self.rps_max is None and self.rudder_max_deg is None):
+            return self
+        return replace(self, rps_max=None, rudder_max_deg=None)
 
     def normalised(self, pwm_us):
         """δ̃ = δ/400 − 3.75 [Yellowfish-TR §V-B], clipped to the PWM range."""
