@@ -39,24 +39,21 @@ def blueboat():
     return compile_vessel(vessel_mod.load("blueboat"))
 
 
-def test_straight_running_gives_the_offset_and_weaving_is_read_only_without_it(blueboat):
+def test_astern_running_and_gentle_turns_give_the_offset(blueboat):
     # astern on a straight line, then ahead weaving at ±0.25 rad/s: a turn rate of 0.17 per ship length
-    # (1.2 m at 1.8 m/s), whose sideslip (here 0.2·u·r: 5°) is not the compass's; the astern leg alone counts
+    # (1.2 m at 1.8 m/s), where the BlueBoat's own drift angle stays under 0.03 rad; its sideslip
+    # (here 0.2·u·r) is fitted beside the offset
     log = _log([(15, -1.5, 0.0), (3, 0.0, 0.0), (8, 1.8, 0.25), (8, 1.8, -0.25), (8, 1.8, 0.25)], 7.0)
     cal = kinematic_calibration(log, blueboat)
-    assert cal.heading_bias_deg == pytest.approx(7.0, abs=0.5)
-    assert cal.sigma_deg < 1.0 and cal.stretches == 1 and 13 < cal.seconds < 16 and "straight stretch" in cal.text()
-    # weaving alone: read on its gentle turns, settled between the rudder's reversals, their sideslip fitted
-    weaving = kinematic_calibration(_log([(3, 0.0, 0.0), (8, 1.8, 0.25), (8, 1.8, -0.25), (8, 1.8, 0.25)], 7.0), blueboat)
-    assert weaving.heading_bias_deg == pytest.approx(7.0, abs=1.0) and weaving.turn_rate == 0.2
-    assert "gently turning" in weaving.text()
+    assert cal.heading_bias_deg == pytest.approx(7.0, abs=1.0)
+    assert cal.sigma_deg < 2.0 and cal.seconds > 20
 
 
 def test_a_ships_turns_and_zigzags_are_not_read_as_a_compass_offset():
     """The Esso Osaka's own noise-free runs at 17 rps, heading exact: a turning circle (its drift
     angle steady) and zig-zags of ±35° every 10 s (the yaw rate passing zero while the drift angle is
     largest) give no offset; a dimensional yaw-rate bound (0.35 rad/s) took both for straight running
-    and read the zig-zags' drift as an offset of 1.8°."""
+    and read the zig-zags' drift as an offset of 7.8°."""
     from dataclasses import replace
 
     shipped = vessel_mod.load("esso_osaka")  # its bound, 10 rps, is the shared tests' fastest

@@ -80,26 +80,19 @@ def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
 # ---------------------------------------------------------------- a log's own calibration, from its kinematics
 
 STRAIGHT_SPEED_M_S = 0.4  # under way, ahead or astern: slower, the GNSS velocity's direction is mostly noise
-# Straight is judged in the hull's own units, the turn rate per ship length r' = |r|·L/U: a hull's drift
-# angle in a steady turn is about a quarter (a catamaran, the BlueBoat's sway balance Y_v·v = (m_11·u −
-# Y_r)·r) to a half (a full-form ship, [MMG-2015]'s KVLCC2 derivatives (m' + m'_x − Y'_r)/|Y'_v|) of a
-# radian per unit r', so at r' ≤ STRAIGHT_TURN_RATE it stays under a degree and a half, the smallest
-# offset applied (a gentle turn's remainder is fitted beside the offset, x[1]). The sway of a turn
-# outlasts it: a ship's drift angle decays over a few of its lengths run, so the rate must have stayed
-# that low over the last SETTLE_LENGTHS lengths run too; between the legs of a zig-zag, where the yaw
-# rate passes zero while the drift angle is at its largest, it never has. A dimensional yaw-rate bound
-# (20°/s) read a slow ship's every turn as straight, and its drift angle as a compass offset
-STRAIGHT_TURN_RATE = 0.05
-SETTLE_LENGTHS = 2.0
-# A log with too little such running (a boat weaving under way) is read on gentle turns instead, settled
-# as straight running is, with their sideslip fitted beside the offset where the yaw rate varies: a
-# compass offset of 5-10°, a BlueBoat's between outings, left unapplied costs more than a degree or two
-# of sideslip read with it. Gentle is as far as the hull's own drift angle (drift_per_turn_rate: about
-# 0.15 rad per unit r' for the BlueBoat, 0.6 for the Esso Osaka) stays under GENTLE_DRIFT_RAD, and
-# never beyond GENTLE_TURN_RATE: a full-form ship has no gentle turns to read
-GENTLE_TURN_RATE = 0.2
-GENTLE_DRIFT_RAD = 0.03
-STRAIGHT_YAW_RATE_RAD_S = 0.35  # a vessel of unknown length (a bare geometry): the dimensional bound
+# Straight enough to read the compass on: running whose turn keeps the hull's own drift angle small. In a
+# steady turn a hull crabs by about c·r', r' = |r|·L/U its turn rate per ship length and c its own (the
+# twin's sway balance with no thrust and the rudder amidships, sway_balance: about 0.15 for the BlueBoat,
+# 0.6 for the Esso Osaka). Running is read where c·r' stays under MAX_DRIFT_RAD (r' at most MAX_TURN_RATE,
+# the BlueBoat's weaving), the sideslip left fitted beside the offset where the yaw rate varies (x[1]);
+# and where it has stayed so for SETTLE_TIME_CONSTANTS of the hull's sway time constant, as a turn's drift
+# angle outlasts the turn (a ship's by several lengths run: between the legs of its zig-zags the yaw rate
+# passes zero where the drift angle is largest). A bound on |r| alone (0.35 rad/s) read a slow ship's
+# every turn and zig-zag as straight running, and its drift angle as a compass offset
+MAX_DRIFT_RAD = 0.03
+MAX_TURN_RATE = 0.2
+SETTLE_TIME_CONSTANTS = 3.0
+STRAIGHT_YAW_RATE_RAD_S = 0.35  # a hull whose sway balance is not known (no length, no sway damping)
 MIN_STRETCH_S = 1.0  # a GNSS velocity direction needs a few fixes
 PIECE_S = 2.0  # straight running is cut into pieces this long: each gives the offset once
 MIN_STRAIGHT_S = 3.0  # less straight running than this says nothing reliable about the compass
@@ -133,14 +126,12 @@ class LogCalibration:
     drift_ned_m_s: tuple[float, float] | None
     note: str = ""
     drift_from_logs: int = 0  # the drift is the mean of this many other logs' own (kinematic_calibrations)
-    turn_rate: float = STRAIGHT_TURN_RATE  # the running read: turn rate per ship length under this
 
     def to_dict(self) -> dict:
         return {"log": self.log, "heading_bias_deg": self.heading_bias_deg, "sigma_deg": self.sigma_deg,
                 "stretches": self.stretches, "seconds": round(self.seconds, 1),
                 "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note,
-                **({"drift_from_logs": self.drift_from_logs} if self.drift_from_logs else {}),
-                **({"turn_rate": self.turn_rate} if self.turn_rate != STRAIGHT_TURN_RATE else {})}
+                **({"drift_from_logs": self.drift_from_logs} if self.drift_from_logs else {})}
 
     def __repr__(self) -> str:
         return f"LogCalibration({self.text()})"
@@ -152,28 +143,69 @@ class LogCalibration:
             f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s" + \
             (f" (the mean of {self.drift_from_logs} other logs': its own legs point one way)"
              if self.drift_from_logs else "")
-        kind = "straight" if self.turn_rate == STRAIGHT_TURN_RATE else \
-            f"gently turning (under {self.turn_rate:g} rad per ship length)"
         return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
-                f"{self.stretches} {kind} stretch{'es' if self.stretches != 1 else ''} ({self.seconds:.0f} s under way)"
+                f"{self.stretches} straight stretch{'es' if self.stretches != 1 else ''} ({self.seconds:.0f} s under way)"
                 f"{drift}")
 
 
-def straight_stretches(prep: Prepared, length_m: float = 0.0, min_speed_m_s: float = STRAIGHT_SPEED_M_S,
-                       max_turn_rate: float = STRAIGHT_TURN_RATE, min_stretch_s: float = MIN_STRETCH_S
-                       ) -> list[slice]:
-    """Runs of grid samples going straight under way (ahead or astern), each at least min_stretch_s long and
-    inside one segment: the turn rate per ship length |r|·L/|u| (L = `length_m`, the hull's length
-    overall) under `max_turn_rate` there and over the SETTLE_LENGTHS lengths run before (the note above
-    STRAIGHT_TURN_RATE). Without a length, |r| under STRAIGHT_YAW_RATE_RAD_S."""
+@dataclass(frozen=True)
+class StraightRunning:
+    """What straight enough means for one hull at one speed (the note above MAX_DRIFT_RAD): the turn
+    rate per ship length under `turn_rate` (rad, r' = |r|·L/U) for at least `settle_s` seconds; or,
+    for a hull whose sway balance is not known (length_m 0), |r| under STRAIGHT_YAW_RATE_RAD_S."""
+
+    length_m: float = 0.0
+    turn_rate: float = MAX_TURN_RATE
+    settle_s: float = 0.0
+
+    def text(self) -> str:
+        if self.length_m <= 0:
+            return f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s"
+        return f"|r|·L/|u| < {self.turn_rate:.2g} for {self.settle_s:.1f} s, L {self.length_m:.2f} m"
+
+
+def sway_balance(compiled: CompiledVessel, speed_m_s: float) -> tuple[float, float]:
+    """(c, T_v) of the hull at `speed_m_s` from the twin's sway row of M·ν̇ = τ with no thrust and the
+    rudder amidships: c = |β|/r' in a steady turn, where the sway force vanishes at v/r = −(∂Y/∂r)/(∂Y/∂v)
+    (β/r' = (v/r)/L), and T_v = M_22/|∂Y/∂v| (s), the time a sideslip takes to die away. NaN where the
+    sway force does not depend on v."""
+    hydro, length = compiled.hydro(), compiled.geometry.length_m
+    mass = hydro.M_RB + hydro.M_A
+    step = 1e-4
+
+    def sway(v: float, r: float) -> float:
+        return float((mass @ relative_acceleration(hydro, 0.0, np.array([speed_m_s, v, r]), np.zeros(3)))[1])
+    dv, dr = (sway(step, 0.0) - sway(-step, 0.0)) / (2 * step), (sway(0.0, step) - sway(0.0, -step)) / (2 * step)
+    if not (length > 0 and dv < 0 and np.isfinite(dr)):
+        return float("nan"), float("nan")
+    return abs(dr / dv) / length, float(mass[1, 1]) / abs(dv)
+
+
+def straight_running(compiled: CompiledVessel, prep: Prepared, min_speed_m_s: float = STRAIGHT_SPEED_M_S
+                     ) -> StraightRunning:
+    """StraightRunning of the vessel at the log's median speed under way."""
+    speed = np.abs(prep.u[np.isfinite(prep.u)])
+    speed = speed[speed > min_speed_m_s]
+    if not len(speed):
+        return StraightRunning()
+    c, settle = sway_balance(compiled, float(np.median(speed)))
+    if not (np.isfinite(c) and np.isfinite(settle)):
+        return StraightRunning()
+    return StraightRunning(compiled.geometry.length_m, min(MAX_TURN_RATE, MAX_DRIFT_RAD / c) if c > 0 else MAX_TURN_RATE,
+                           SETTLE_TIME_CONSTANTS * settle)
+
+
+def straight_stretches(prep: Prepared, straight: StraightRunning = StraightRunning(),
+                       min_speed_m_s: float = STRAIGHT_SPEED_M_S, min_stretch_s: float = MIN_STRETCH_S) -> list[slice]:
+    """Runs of grid samples going straight under way (ahead or astern) as `straight` says, each at
+    least min_stretch_s long and inside one segment."""
     h = prep.settings.grid_dt
     speed = np.abs(prep.u)
     ok = (speed > min_speed_m_s) & np.isfinite(prep.u) & np.isfinite(prep.v) & np.isfinite(prep.r)
-    if length_m > 0:
-        turning = ~(np.abs(prep.r) * length_m < max_turn_rate * speed)  # NaN counts as turning
-        run = np.cumsum(np.where(np.isfinite(speed), speed, 0.0) * h)  # distance run through the log, m
-        since = run - np.maximum.accumulate(np.where(turning, run, -np.inf))
-        ok &= since > SETTLE_LENGTHS * length_m
+    if straight.length_m > 0:
+        turning = ~(np.abs(prep.r) * straight.length_m < straight.turn_rate * speed)  # NaN counts as turning
+        t = np.arange(len(turning)) * h
+        ok &= t - np.maximum.accumulate(np.where(turning, t, -np.inf)) > straight.settle_s
     else:
         ok &= np.abs(prep.r) < STRAIGHT_YAW_RATE_RAD_S
     out = []
@@ -190,22 +222,6 @@ def straight_stretches(prep: Prepared, length_m: float = 0.0, min_speed_m_s: flo
                 out.append(slice(k, j))
             k = j
     return out
-
-
-def drift_per_turn_rate(compiled: CompiledVessel, speed_m_s: float) -> float:
-    """|β| per unit r' = r·L/U (rad) of the hull in a steady turn at `speed_m_s`, from the twin's own
-    sway balance with no thrust and the rudder amidships: the sway row of M·ν̇ = τ vanishes at
-    v/r = −(∂Y/∂r)/(∂Y/∂v), and β/r' = (v/r)/L."""
-    hydro, length = compiled.hydro(), compiled.geometry.length_m
-    mass = hydro.M_RB + hydro.M_A
-    step = 1e-4
-
-    def sway(v: float, r: float) -> float:
-        return float((mass @ relative_acceleration(hydro, 0.0, np.array([speed_m_s, v, r]), np.zeros(3)))[1])
-    dv, dr = sway(step, 0.0) - sway(-step, 0.0), sway(0.0, step) - sway(0.0, -step)
-    if not (length > 0 and dv != 0 and np.isfinite(dv) and np.isfinite(dr)):
-        return float("nan")
-    return abs(dr / dv) / length
 
 
 def _ground_velocity(prep: Prepared, sl: slice) -> tuple[np.ndarray, np.ndarray]:
@@ -289,30 +305,17 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     own.pop(name, None)
     common = replace(compiled.vessel, sensors=replace(sensors, heading_bias_by_log_deg=tuple(sorted(own.items()))))
     prep = prepare_for(rec, CompiledVessel(common, compiled.model, compiled.geometry))
-    length = compiled.geometry.length_m
-    stretches = straight_stretches(prep, length, **limits)
+    straight = straight_running(compiled, prep, limits.get("min_speed_m_s", STRAIGHT_SPEED_M_S))
+    stretches = straight_stretches(prep, straight, **limits)
     seconds = sum(sl.stop - sl.start for sl in stretches) * prep.settings.grid_dt
-    rate = limits.get("max_turn_rate", STRAIGHT_TURN_RATE)
-    under = np.abs(prep.u[np.isfinite(prep.u)])
-    under = under[under > limits.get("min_speed_m_s", STRAIGHT_SPEED_M_S)]
-    if seconds < MIN_STRAIGHT_S and length > 0 and len(under):
-        drift = drift_per_turn_rate(compiled, float(np.median(under)))
-        gentle_rate = min(GENTLE_TURN_RATE, GENTLE_DRIFT_RAD / drift) if drift > 0 else GENTLE_TURN_RATE
-        gentle = straight_stretches(prep, length, **{**limits, "max_turn_rate": gentle_rate})
-        if gentle_rate > rate and sum(sl.stop - sl.start for sl in gentle) * prep.settings.grid_dt >= MIN_STRAIGHT_S:
-            stretches, rate = gentle, gentle_rate
-            seconds = sum(sl.stop - sl.start for sl in stretches) * prep.settings.grid_dt
     if seconds < MIN_STRAIGHT_S:
         speed = limits.get("min_speed_m_s", STRAIGHT_SPEED_M_S)
         fast = np.abs(prep.u[np.isfinite(prep.u)])
         top = float(np.percentile(fast, 99)) if len(fast) else 0.0
         slow = f"; this log's |u| reaches {top:.2f} m/s (99th percentile)" if top <= speed else ""
-        turn = (f"|r|·L/|u| < {limits.get('max_turn_rate', STRAIGHT_TURN_RATE):g} over the last "
-                f"{SETTLE_LENGTHS:g} of its {length:.2f} m lengths run" if length > 0
-                else f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s")
         return LogCalibration(name, None, None, len(stretches), seconds, None,
-                              f"{seconds:.1f} s of straight running under way (|u| > {speed:g} m/s, {turn}); "
-                              f"{MIN_STRAIGHT_S:g} s are needed{slow}")
+                              f"{seconds:.1f} s of straight running under way (|u| > {speed:g} m/s, "
+                              f"{straight.text()}); {MIN_STRAIGHT_S:g} s are needed{slow}")
     legs = [_ground_velocity(prep, sl) for sl in stretches]
     vel = np.concatenate([v for v, _ in legs])
     psi = np.concatenate([p for _, p in legs])
@@ -323,13 +326,11 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
         np.concatenate([np.arange(len(p)) // piece for _, p in legs])
     which = np.unique(which, return_inverse=True)[1]
     with_drift = spread >= DRIFT_HEADING_SPREAD_DEG
-    # gentle turns' sideslip is told from the offset where their yaw rate varies enough; straight running
-    # has none to fit, and its yaw rate varies by the heading's noise alone
-    with_slip = rate > STRAIGHT_TURN_RATE and float(np.std(yaw)) >= SLIP_YAW_SPREAD_RAD_S
+    # the sideslip of gentle turns is told from the offset only where the yaw rate varies enough
+    with_slip = len(stretches) >= 2 and float(np.std(yaw)) >= SLIP_YAW_SPREAD_RAD_S
     if not with_drift and len(borrowed) >= 2:
-        return replace(_with_borrowed(name, vel, psi, yaw if with_slip else 0.0 * yaw, which, len(stretches), seconds,
-                                      borrowed, spread, rest_drift(prep, settle_s(compiled)) if at_rest else None),
-                       turn_rate=rate)
+        return _with_borrowed(name, vel, psi, yaw if with_slip else 0.0 * yaw, which, len(stretches), seconds,
+                              borrowed, spread, rest_drift(prep, settle_s(compiled)) if at_rest else None)
 
     def across(x):
         """Velocity across the true heading ψ_logged − δ, less the sideslip a hull takes in a gentle
@@ -353,8 +354,8 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):  # NaN σ: not significant
         return LogCalibration(name, None, sigma_deg, len(stretches), seconds, drift,
                               f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "
-                              f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ)", turn_rate=rate)
-    return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note, turn_rate=rate)
+                              f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ)")
+    return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note)
 
 
 def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: float, borrowed, spread: float,
@@ -449,13 +450,13 @@ class ThrottleDependence:
                 f"straight stretches ahead in {self.logs} log{'' if self.logs == 1 else 's'}")
 
 
-def _throttle_pieces(prep: Prepared, vessel: Vessel, drift, length_m: float) -> list[tuple]:
+def _throttle_pieces(prep: Prepared, vessel: Vessel, drift, compiled: CompiledVessel) -> list[tuple]:
     """(stretch, crab deg, ψ, U m/s, r, τ) of each PIECE_S piece of straight running ahead; crab = logged
-    heading less the track over ground less `drift` (NED m/s); length_m the hull's (straight_stretches)."""
+    heading less the track over ground less `drift` (NED m/s)."""
     th = vessel.thrusters
     piece = int(round(PIECE_S / prep.settings.grid_dt))
     out = []
-    for j, sl in enumerate(straight_stretches(prep, length_m)):
+    for j, sl in enumerate(straight_stretches(prep, straight_running(compiled, prep))):
         if np.median(prep.u[sl]) <= 0:  # ahead only: astern, the water meets another hull end
             continue
         vel, psi = _ground_velocity(prep, sl)
@@ -484,14 +485,14 @@ def throttle_dependence(preps: list[Prepared], vessel: Vessel, drifts=None) -> T
     used where the log cannot fit its own); None with fewer than MIN_THROTTLE_STRETCHES straight
     stretches ahead or fewer pieces than twice the unknowns."""
     blocks, y, cluster, common = [], [], [], []
-    length = compile_vessel(vessel).geometry.length_m
+    compiled = compile_vessel(vessel)
     for i, prep in enumerate(preps):
-        p = _finite_rows(_throttle_pieces(prep, vessel, np.zeros(2), length))
+        p = _finite_rows(_throttle_pieces(prep, vessel, np.zeros(2), compiled))
         if not len(p):  # no straight running ahead, or no throttle logged (a log without thruster outputs)
             continue
         own = _heading_spread_deg(p[:, 2]) >= DRIFT_HEADING_SPREAD_DEG
         if not own and drifts is not None and drifts[i] is not None:
-            p = _finite_rows(_throttle_pieces(prep, vessel, np.asarray(drifts[i], float), length))
+            p = _finite_rows(_throttle_pieces(prep, vessel, np.asarray(drifts[i], float), compiled))
         psi, speed = p[:, 2], p[:, 3]
         cols = [np.ones(len(p))] + ([np.degrees(np.sin(psi) / speed), np.degrees(-np.cos(psi) / speed)] if own else [])
         blocks.append(np.column_stack(cols))
