@@ -412,3 +412,35 @@ def test_options_that_do_not_apply_or_say_nothing_are_refused_before_any_work(mo
         err = refused(monkeypatch, capsys, args, [log, inputs, same])
         assert message in err, (args, err)
     assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]
+
+
+def test_a_ctrl_c_ends_in_one_line_and_exit_code_130(monkeypatch, capsys, tmp_path):
+    """typer answers a KeyboardInterrupt inside a command with its own exit 130: the user still reads
+    'aborted', as for a Ctrl-C the command itself catches; `twin view --sim` without a vessel is bad
+    input, not an AttributeError."""
+    import twin
+    import twin.replay
+
+    twin.simulate_run("blueboat", scenario="turn", duration_s=5.0).write(tmp_path / "run.csv")
+    code, err = run(monkeypatch, capsys, ["view", tmp_path / "run.csv", "--sim", "--png", tmp_path / "v.png"])
+    assert code == 2 and err.strip() == "error: --sim and --smoother model need --vessel NAME or --model FILE"
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(twin.replay, "view_runs", interrupted)
+    code, err = run(monkeypatch, capsys, ["view", tmp_path / "run.csv", "--vessel", "blueboat", "--png", tmp_path / "v.png"])
+    assert code == 130 and err.strip().splitlines()[-1] == "aborted"
+
+
+def test_a_run_too_large_for_the_machines_memory_is_refused_before_it_starts(monkeypatch, capsys, tmp_path):
+    """`twin simulate --duration 1e7` would hold some 150 GB while it is made: refused at once (a
+    machine of 25 GB spent 8 GB in ten minutes before), and a run that fits goes on."""
+    import twin.simulation as simulation
+
+    monkeypatch.setattr(simulation, "_physical_memory_bytes", lambda: 16 * 10 ** 9)
+    code, err = run(monkeypatch, capsys, ["simulate", "--vessel", "blueboat", "--duration", "1e7",
+                                          "--out", tmp_path / "big.csv"])
+    assert code == 2 and "holds about 15 GB" not in err and "more than half of this machine's 16 GB" in err
+    assert not (tmp_path / "big.csv").exists()
+    assert simulation.simulate_run("blueboat", scenario="turn", duration_s=2.0).run.t[-1] == 2.0

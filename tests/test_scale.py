@@ -233,7 +233,7 @@ def test_fleet_reports_and_summary_per_vessel_and_day(logs, tmp_path):
     assert s["effects"]["current"]["logs"] == 1 and s["effects"]["current"]["share"] == 0.5
     assert s["effects"]["current"]["parameters"]["speed_m_s"]["median"] == pytest.approx(0.04, abs=0.002)
     assert s["per_vessel"]["blueboat"]["effects"] == {} and s["per_vessel"]["yellowfish"]["logs"] == 2
-    assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}}
+    assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}, "day_from": ["manifest"]}
     report = json.loads((tmp_path / "out" / "log0.json").read_text())
     assert report["ok"] and report["day"] == "2026-05-01" and report["report"]["options"] == {"window_s": 5.0}
     assert "| current | 1 | 50 % |" in (tmp_path / "out" / "fleet.md").read_text()
@@ -344,3 +344,17 @@ def test_evaluate_band_command_on_a_recording(vessel, tmp_path):
     assert band["level"] == 0.9 and band["inside"]["u"] > 0.9 and "share of the recording inside" in done.stdout
     done = twin("evaluate", tmp_path / "run.csv", "--vessel", "yellowfish", "--band")
     assert done.returncode == 2 and "uncertainty" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_fleet_day_read_from_the_files_time_says_so():
+    """A day no manifest and no log clock gave is the file's modification time (a copy's, not the
+    outing's): the summary says so beside it; a log's failure reads its reason once, not its name twice."""
+    from twin.scale.fleet import format_summary, summarise
+
+    results = [{"log": "a.csv", "vessel": "blueboat", "ok": True, "effects": [], "day": "2026-12-03",
+                "day_from": "file time"},
+               {"log": "empty.csv", "vessel": "blueboat", "ok": False, "error": "empty.csv: empty file",
+                "day": "2026-12-03", "day_from": "file time"}]
+    text = format_summary(summarise(results))
+    assert "### 2026-12-03: 1 of 2 logs diagnosed (the day of the file's modification time" in text
+    assert "- empty.csv: empty file" in text and "empty.csv: empty.csv" not in text

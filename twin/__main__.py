@@ -1,4 +1,16 @@
-"""`python -m twin` runs the `twin` command."""
-from .cli import main
+"""`python -m twin` and the `twin` console script: the command, with a Ctrl-C while its libraries
+still load ending in one line, as a Ctrl-C does later (twin.cli.app.main), not in a traceback."""
+import sys
 
-main()
+
+def main() -> None:
+    try:
+        from .cli import main as run
+    except KeyboardInterrupt:
+        sys.stderr.write("aborted\n")
+        sys.exit(130)
+    run()
+
+
+if __name__ == "__main__":
+    main()

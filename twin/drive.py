@@ -138,6 +138,8 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     The first row must be at t ≤ 0: the run starts at t = 0 and nothing says what the
     thrusters did before a later first row. Spreadsheets may prefix a UTF-8 byte-order mark."""
     path = Path(path)
+    if path.is_dir():
+        raise TwinError(f"inputs file '{path}' is a folder: give the CSV file")
     if not path.is_file():
         raise TwinError(f"inputs file '{path}' not found")
     try:

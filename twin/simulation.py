@@ -5,6 +5,7 @@ a second of CPU saved on every `twin simulate`."""
 from __future__ import annotations
 
 import numbers
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -71,6 +72,22 @@ def _check_run(duration_s: float, sample_dt_s: float) -> None:
     if sample_dt_s > duration_s:
         raise TwinError(f"the sample step ({sample_dt_s:g} s) is longer than the run ({duration_s:g} s): "
                         "give a shorter step or a longer run")
+    need, have = BYTES_PER_SAMPLE * duration_s / sample_dt_s, _physical_memory_bytes()
+    if have and need > 0.5 * have:
+        raise TwinError(f"a run of {duration_s:g} s sampled every {sample_dt_s:g} s holds about {need / 1e9:.3g} GB "
+                        f"while it is made, more than half of this machine's {have / 1e9:.3g} GB: give a shorter "
+                        "--duration or a longer --sample-dt")
+
+
+BYTES_PER_SAMPLE = 1500  # a run's memory per output sample while it is made and written (1.35 kB measured)
+
+
+def _physical_memory_bytes() -> int:
+    """The machine's physical memory (bytes), 0 where the system does not say."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return 0
 
 
 @dataclass

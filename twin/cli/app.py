@@ -517,4 +517,6 @@ def main() -> None:
         typer.echo(f"error: {type(exc).__name__}: {exc}".splitlines()[0], err=True)
         sys.exit(3)
     if isinstance(code, int) and not isinstance(code, bool) and code != 0:
+        if code == 130:  # typer's own answer to a Ctrl-C inside a command, returned as its exit code
+            typer.echo("aborted", err=True)
         sys.exit(code)

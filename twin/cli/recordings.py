@@ -171,6 +171,8 @@ def view(
     check_outputs([png], (".png",), "--png")
     check_distinct({"--out": out, "--png": png}, [*files, model])
     v = vessel_from(vessel, model) if (vessel or model) else None
+    if (sim or smoother == "model") and v is None:
+        raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
     if wind_measured and not sim:
         raise TwinError("--wind-measured is a known input of the twin's replay: give it with --sim")
     mapping = channels_from(channels)

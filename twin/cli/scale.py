@@ -208,13 +208,18 @@ def fleet_command(
     effects: Optional[str] = typer.Option(None, help="only these candidate effects (comma separated; `twin effects`)"),
     window: Optional[float] = typer.Option(None, help="free-run window length of the diagnoses, s"),
     html: bool = typer.Option(False, "--html", help="also an HTML report per log"),
+    wind_measured: bool = typer.Option(False, "--wind-measured",
+                                       help="take each log's measured wind (its anemometer stream) as a known input of "
+                                            "its diagnosis, as `twin diagnose --wind-measured`"),
     batch_size: int = typer.Option(1, help="logs per batch (a batch is one cluster task)"),
     ray: Optional[str] = typer.Option(None, help=RAY_HELP),
     cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
     retries: int = typer.Option(3, help=RETRIES_HELP),
 ):
     """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
+    from ..ident.identify import fitted_wind_note
     from ..scale.fleet import Log, diagnose_fleet, format_summary, read_manifest
+    from ..vessel import load
 
     # every option checked before any log is read or report written: a rerun into the same --out
     # with a bad option must not replace its reports by failure records
@@ -232,9 +237,14 @@ def fleet_command(
         if default is None:
             raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
         logs = [Log(p, default) for p in _in_folders(recordings)]
+    wind = "measured" if wind_measured else None
+    for name in sorted({log.vessel for log in logs}):
+        wind_note = fitted_wind_note(load(name), wind)
+        if wind_note:
+            note(f"note: {Path(name).name}: {wind_note}")
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
-                               executor=_executor(ray, cpus_per_task, retries), progress=progress)
+                               executor=_executor(ray, cpus_per_task, retries), progress=progress, wind=wind)
     typer.echo(format_summary(fleet.summary))
     say(f"wrote {len(fleet.reports)} report{'' if len(fleet.reports) == 1 else 's'}, {out / 'fleet.json'} and "
         f"{out / 'fleet.md'}")

@@ -147,8 +147,9 @@ def answer(d) -> dict:
             # gusts) as well as a form error the signals do not show: the proof's chop and its dead zones leave the
             # same lines, and no test on the residual tells them apart, so both are said
             cause = ("the twin's form is off there" if follows else
-                     f"it follows none of the logged signals (|r| ≤ {FOLLOWS_R:g}): either the twin's form is off in a "
-                     "way they do not show, or a disturbance the log does not record acts (short waves, gusts)")
+                     f"it follows none of the logged signals (correlation at most {FOLLOWS_R:g} in size): either the "
+                     "twin's form is off in a way they do not show, or a disturbance the log does not record acts "
+                     "(short waves, gusts)")
             out["form"].append(f"{u['dof']} is still {u['rms_over_noise']:.0f}× the noise off (RMS "
                                f"{_shown(u['dof'], u['rms']):.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
                                + (f", and follows {follows}" if follows else "")

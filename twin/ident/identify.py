@@ -597,6 +597,9 @@ def format_choices(ident: Identification) -> str:
         ran_away = sum(any(m.get("diverged", 0) for m in r.metrics.values()) for r in cv.runs)
         note = f"  (ran away on {ran_away} of {len(cv.runs)} left-out runs)" if ran_away else ""
         lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}{note}")
+    if ident.chosen is not None:
+        lines.append(f"* the twin written: the belief scale of lowest left-out cost; a group goes back to its prior "
+                     f"only where that lowers the cost by {100 * DROP_GAIN:g} % or more")
     return "\n".join(lines)
 
 

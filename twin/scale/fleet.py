@@ -176,10 +176,12 @@ class Fleet:
 
 def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None, library: list[str] | None = None,
                    html: bool = False, batch_size: int = 1, executor: Executor | None = None,
-                   progress: Progress | None = None, diagnose: Callable | None = None) -> Fleet:
+                   progress: Progress | None = None, diagnose: Callable | None = None,
+                   wind: str | None = None) -> Fleet:
     """Diagnose every log (module docstring), writing OUT/<log name>.json (and .html) per log,
     OUT/fleet.json and OUT/fleet.md. `diagnose`: the per-log diagnosis, (recordings, vessel,
-    **options) -> an object with .effects and .to_dict() (default twin.diagnose.doctor.diagnose)."""
+    **options) -> an object with .effects and .to_dict() (default twin.diagnose.doctor.diagnose);
+    `wind` "measured": each log's measured wind a known input (`twin diagnose --wind-measured`)."""
     out = Path(out)
     if not logs:
         raise TwinError("no logs to diagnose")
@@ -191,7 +193,7 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
         if not log.path.is_file():
             raise TwinError(f"{log.path}: no such file")
     vessels = {name: load(name) for name in sorted({log.vessel for log in logs})}
-    options = {k: v for k, v in (("window_s", window_s), ("library", library)) if v is not None}
+    options = {k: v for k, v in (("window_s", window_s), ("library", library), ("wind", wind)) if v is not None}
     job = _Job(vessels, options, html, diagnose)
     names = _report_names(logs)
     _check_inputs_kept(out, names, html, [log.path for log in logs] + [Path(v) for v in vessels if v.endswith(".json")])
@@ -226,13 +228,19 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     return Fleet(results, summary, reports)
 
 
+def _why(log: str, error: str) -> str:
+    """A log's failure after its name: the reason less the name the reader's own message may begin with."""
+    name = Path(log).name
+    return error[len(name) + 2:] if error.startswith(f"{name}: ") else error
+
+
 def _all_failed(results: list[dict], out: Path) -> Exception:
     """The error of a run in which no log could be diagnosed: bad input (TwinError) when some log's
     reason is one, else an unexpected error; either way nothing in `out` was replaced."""
     first = results[0]
     which = "the log could not" if len(results) == 1 else f"none of the {len(results)} logs could"
     text = (f"{which} be diagnosed ({'' if len(results) == 1 else 'first: '}{Path(first['log']).name}: "
-            f"{first.get('error', '')}); nothing written in {out}")
+            f"{_why(first['log'], first.get('error', ''))}); nothing written in {out}")
     if all(r.get("unexpected") for r in results):
         return RuntimeError(text)
     return TwinError(text)
@@ -307,7 +315,10 @@ def summarise(results: list[dict]) -> dict:
 
 def _group(ok: list[dict], results: list[dict], key: str, value: str) -> dict:
     mine = [r for r in ok if r.get(key) == value]
-    return {"logs": sum(r.get(key) == value for r in results), "diagnosed": len(mine), "effects": _effects(mine)}
+    out = {"logs": sum(r.get(key) == value for r in results), "diagnosed": len(mine), "effects": _effects(mine)}
+    if key == "day":  # where the day was read: a manifest, the log's own clock, or the file's time
+        out["day_from"] = sorted({str(r.get("day_from", "")) for r in results if r.get(key) == value} - {""})
+    return out
 
 
 def _effects(ok: list[dict]) -> dict:
@@ -340,10 +351,13 @@ def format_summary(summary: dict) -> str:
     for title, key in (("Per vessel", "per_vessel"), ("Per day", "per_day")):
         lines += ["", f"## {title}", ""]
         for name, group in summary[key].items():
-            lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed", ""]
+            source = ""
+            if "file time" in group.get("day_from", ()):  # a copy's modification time, not the outing's
+                source = " (the day of the file's modification time: the log's clock did not say)"
+            lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed{source}", ""]
             lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
     if summary["failed"]:
-        lines += ["## Not diagnosed", ""] + [f"- {f['log']}: {f['error']}" for f in summary["failed"]]
+        lines += ["## Not diagnosed", ""] + [f"- {f['log']}: {_why(f['log'], f['error'])}" for f in summary["failed"]]
     return "\n".join(lines).rstrip()
 
 
