@@ -284,3 +284,16 @@ def test_a_faster_test_than_the_vessel_files_bound_is_replayed_as_logged(esso, t
 
     notes = beyond_command_bounds(read([tmp_path / "fast.csv"]), esso.vessel)
     assert len(notes) == 1 and "propeller speed reaches 17 rps" in notes[0] and "replayed as logged" in notes[0]
+
+
+def test_a_ships_scenario_starts_from_its_steady_approach(esso):
+    """A propeller-and-rudder ship's scenario begins at the steady straight speed of its first propeller
+    speed [IMO-MSC137]: the zig-zag (0.3 of 10 rps) at 0.097 m/s, where from rest it would take two
+    minutes to reach half of it; a small boat's scenario starts at rest."""
+    from twin.analytic import straight_speed
+    from twin.simulation import simulate_run
+
+    run = simulate_run("esso_osaka", scenario="zigzag", duration_s=30.0).run
+    assert run.nu[0, 0] == pytest.approx(straight_speed(esso, 3.0)) and run.nu[0, 0] == pytest.approx(0.097, abs=0.002)
+    assert run.meta["approach_speed_m_s"] == run.nu[0, 0] and abs(run.nu[:50, 0] - run.nu[0, 0]).max() < 0.005
+    assert np.all(simulate_run("blueboat", scenario="zigzag", duration_s=1.0).run.nu[0] == 0.0)

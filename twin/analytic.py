@@ -165,3 +165,19 @@ def simulate(
     thrust = delivered(thrusters.advance_loss, cmd * gains, out[:, 3:6], thruster_y_m)  # as the engine reports it
     return Run(start_s + t_samples, out[:, 0:3], out[:, 3:6], inputs.pwm_at(t_samples), thrust,
                meta={"engine": "analytic", "integrator": "DOP853"})
+
+
+def straight_speed(compiled, n_rps: float) -> float:
+    """u₀ (m/s): a propeller-and-rudder ship's steady straight-running speed at propeller speed n with
+    the rudder amidships, in calm water (X(u₀, 0, 0) = 0 of the MMG forces)."""
+    from scipy.optimize import brentq
+
+    hydro = compiled.hydro().with_environment(type(compiled.vessel.environment)())
+
+    def surge(u: float) -> float:
+        return float(acceleration(hydro, 0.0, np.array([u, 0.0, 0.0]), np.zeros(3), (n_rps, 0.0))[0])
+
+    hi = 0.1
+    while surge(hi) > 0 and hi < 20:
+        hi *= 2
+    return float(brentq(surge, 0.0, hi, xtol=1e-10)) if surge(0.0) > 0 else 0.0

@@ -100,6 +100,9 @@ BIBLIOGRAPHY = _bib(
            "Proceedings of the 8th ITTC, Madrid; ITTC Recommended Procedure 7.5-02-02-02", 1957),
     Source("ITTC-2011", "Fresh water and seawater properties", "International Towing Tank Conference",
            "ITTC Recommended Procedure 7.5-02-01-03", 2011),
+    Source("IMO-MSC137", "Standards for ship manoeuvrability (turning circle, zig-zag and stopping tests, each "
+           "begun from a steady approach at the test speed)", "International Maritime Organization",
+           "Resolution MSC.137(76), with the explanatory notes MSC/Circ.1053", 2002),
     Source("Clarke-1983", "The application of manoeuvring criteria in hull design using linear theory",
            "D. Clarke, P. Gedling, G. Hine", "Transactions of the Royal Institution of Naval Architects 125, 45-68",
            1983),

@@ -50,6 +50,7 @@ import numpy as np
 from ...errors import TwinError
 from ...physics.kinematics import wrap_angle
 from ...progress import Progress, steps
+from ...analytic import straight_speed
 from ...physics.thrusters import allocation_matrix
 
 DOFS = ("yaw", "surge", "sway")
@@ -259,24 +260,6 @@ def iso_row(relay_c: float, xa: float, log: np.ndarray, settle_s: float, twin: T
 
 def is_ship(compiled) -> bool:
     return compiled.vessel.thrusters.kind == "propeller_rudder"
-
-
-def straight_speed(compiled, n_rps: float) -> float:
-    """u₀ (m/s): the steady straight-running speed at propeller speed n with the rudder amidships, in
-    calm water (X(u₀, 0, 0) = 0 of the MMG forces)."""
-    from scipy.optimize import brentq
-
-    from ...physics.hydrodynamics import acceleration
-
-    hydro = compiled.hydro().with_environment(type(compiled.vessel.environment)())
-
-    def surge(u: float) -> float:
-        return float(acceleration(hydro, 0.0, np.array([u, 0.0, 0.0]), np.zeros(3), (n_rps, 0.0))[0])
-
-    hi = 0.1
-    while surge(hi) > 0 and hi < 20:
-        hi *= 2
-    return float(brentq(surge, 0.0, hi, xtol=1e-10)) if surge(0.0) > 0 else 0.0
 
 
 def rudder_moment(compiled, speed_m_s: float, n_rps: float, rudder_rad: float) -> float:
