@@ -161,7 +161,8 @@ class StraightRunning:
     def text(self) -> str:
         if self.length_m <= 0:
             return f"|r| < {STRAIGHT_YAW_RATE_RAD_S:g} rad/s"
-        return f"|r|·L/|u| < {self.turn_rate:.2g} for {self.settle_s:.1f} s, L {self.length_m:.2f} m"
+        return (f"|r|·L/|u| < {self.turn_rate:.2g}, and so for the {self.settle_s:.0f} s before (three sway time "
+                f"constants), L {self.length_m:.2f} m")
 
 
 def sway_balance(compiled: CompiledVessel, speed_m_s: float) -> tuple[float, float]:
@@ -350,7 +351,8 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1:]]) / speed, -1.0, 1.0))
     sigma = _piece_sigma(crab, speed, which)
     drift = (float(fit.x[2]), float(fit.x[3])) if with_drift else None
-    note = "" if with_drift else f"straight legs within {spread:.0f}° of each other: no drift fitted"
+    note = "" if with_drift else (f"straight legs within {spread:.0f}° of each other" if len(stretches) > 1 else
+                                  "one straight leg") + ": no drift fitted (a current across it reads as offset)"
     offset_deg, sigma_deg = float(np.degrees(delta)), float(np.degrees(sigma))
     if not abs(offset_deg) >= max(SIGNIFICANT_SIGMA * sigma_deg, MIN_OFFSET_DEG):  # NaN σ: not significant
         return LogCalibration(name, None, sigma_deg, len(stretches), seconds, drift,

@@ -222,7 +222,7 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
         if created and not any(out.iterdir()):
             out.rmdir()
         raise _all_failed([r for r in results if r is not None], out)
-    summary = summarise([r for r in results if r is not None])
+    summary = {**summarise([r for r in results if r is not None]), "wind": wind or "none"}
     write_text_atomic(out / "fleet.json", json.dumps(finite_json(summary), indent=1, allow_nan=False) + "\n")
     write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
     return Fleet(results, summary, reports)
@@ -347,13 +347,18 @@ def _effects(ok: list[dict]) -> dict:
 def format_summary(summary: dict) -> str:
     """The summary as Markdown: effects over the fleet, per vessel, per day, and the failures."""
     lines = [f"# Fleet diagnosis: {summary['diagnosed']} of {summary['logs']} logs diagnosed", ""]
+    if "wind" in summary:
+        measured = summary["wind"] == "measured"
+        lines += ["Each log diagnosed with its measured wind a known input (--wind-measured)." if measured
+                  else "Diagnosed without the logs' measured wind (--wind-measured takes it as a known input).", ""]
     lines += _effect_table(summary["effects"], summary["diagnosed"])
     for title, key in (("Per vessel", "per_vessel"), ("Per day", "per_day")):
         lines += ["", f"## {title}", ""]
         for name, group in summary[key].items():
             source = ""
             if "file time" in group.get("day_from", ()):  # a copy's modification time, not the outing's
-                source = " (the day of the file's modification time: the log's clock did not say)"
+                source = (" (the day of the file's modification time: the log's clock did not say; a --manifest's "
+                          "day column sets it)")
             lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed{source}", ""]
             lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
     if summary["failed"]:
