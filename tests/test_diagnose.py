@@ -634,3 +634,14 @@ def test_a_twins_own_noise_free_run_is_not_read_as_the_twins_form():
     assert d.noise["replay_u"] > 3 * d.noise["u"] and d.noise["input_period_s"] > 0
     assert not d.unexplained
     assert d.overall["before"]["v"]["n"] < 0.9 * 3600  # the judged span leaves out each window's edges
+
+
+def test_a_misfit_below_any_sensors_resolution_is_not_the_twins_form():
+    """On a noise-free log the estimated noise is zero and any misfit is many times it: a residual
+    of 0.6 mm/s (the replay's own arithmetic) is not reported as the twin's form; 1 cm/s is."""
+    from twin.diagnose.doctor import _unexplained
+
+    def overall(rms):
+        return {"v": {"n": 100, "rms": rms, "bias": 0.0, "rms_over_noise": 4.0, "z_bias": 0.5}}
+    assert _unexplained([], {}, overall(0.000625)) == []
+    assert [u["dof"] for u in _unexplained([], {}, overall(0.01))] == ["v"]

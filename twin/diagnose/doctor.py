@@ -555,17 +555,22 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
             for key, v, row in zip(keys, var, J) if np.any(row)}
 
 
+# a misfit under this (m/s, m/s, rad/s) is below any GNSS's or compass's resolution: the replay's own
+# arithmetic on a noise-free log, whose estimated noise is zero and any ratio to it large
+FORM_FLOOR = {"u": 1e-3, "v": 1e-3, "r": 1e-4}
+
+
 def _unexplained(located: list[dict], corr: dict, overall: dict) -> list[dict]:
     """Regions still significant after the amendment, well above the noise, with what they follow;
-    and a DOF whose whole residual is still far above its noise."""
+    and a DOF whose whole residual is still far above its noise (and above FORM_FLOOR)."""
     out = []
     for dof, o in overall.items():
-        if (o.get("rms_over_noise") or 0) > 3.0:
+        if (o.get("rms_over_noise") or 0) > 3.0 and (o.get("rms") or 0) > FORM_FLOOR[dof]:
             follows = [c for c in corr.get(dof, []) if abs(c.get("r", 0)) > FOLLOWS_R][:3]
             out.append({"dimension": "all", "bin": "every window", "dof": dof, "rms": o["rms"], "bias": o["bias"],
                         "rms_over_noise": o["rms_over_noise"], "z": o.get("z_bias"), "correlates_with": follows})
     for e in located:
-        if e.get("z", 0) >= 3.0 and (e.get("rms_over_noise") or 0) > 1.5:
+        if e.get("z", 0) >= 3.0 and (e.get("rms_over_noise") or 0) > 1.5 and (e.get("rms") or 0) > FORM_FLOOR[e["dof"]]:
             follows = [c for c in corr.get(e["dof"], []) if abs(c.get("r", 0)) > FOLLOWS_R][:3]
             out.append({**e, "correlates_with": follows})
     return out[:10]
