@@ -38,7 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..drive import InputSeries
 from ..effects.coefficients import fit_groups as groups_of
+from ..engine.limits import beyond_bounds
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
 from ..fit import simfit
@@ -425,18 +427,21 @@ def fitted_wind_note(vessel: Vessel, wind: str | None) -> str | None:
 
 def beyond_command_bounds(recordings: list[Recording], vessel: Vessel) -> list[str]:
     """A note for each recording whose propeller speed or rudder angle goes beyond the vessel file's
-    bounds: a replay takes them as logged (Vessel.as_logged), where the twin's own commands stop."""
-    t = vessel.thrusters
+    bounds (engine.limits.beyond_bounds): a replay takes them as logged (Vessel.as_logged), where the
+    twin's own commands stop."""
+    if vessel.thrusters.kind != "propeller_rudder":
+        return []
     out = []
     for rec in recordings:
-        if t.kind != "propeller_rudder" or not len(rec.prop_rudder):
+        if not len(rec.prop_rudder):
             continue
-        for column, bound, unit, scale, what in (("n_rps", t.rps_max, "rps", 1.0, "propeller speed"),
-                                                  ("delta_rad", t.rudder_max_deg, "°", 180.0 / np.pi, "rudder angle")):
-            top = float(np.nanmax(np.abs(np.asarray(rec.prop_rudder[column], float)), initial=0.0)) * scale
-            if bound is not None and top > bound * (1 + 1e-9):
-                out.append(f"{Path(rec.source).name}: the {what} reaches {top:.3g} {unit}, beyond the vessel file's "
-                           f"{bound:g} {unit} (the bound of the twin's own commands): replayed as logged")
+        t = np.asarray(rec.prop_rudder.t, float)
+        inputs = InputSeries(t - t[0], np.column_stack([rec.prop_rudder["n_rps"], rec.prop_rudder["delta_rad"]]),
+                             "propeller_rudder")
+        for lim in beyond_bounds(vessel, inputs, float(t[-1] - t[0]) + 1.0):
+            out.append(f"{Path(rec.source).name}: the {lim.thruster} {lim.quantity} reaches "
+                       f"{lim.bound + lim.worst_excess:.3g} {lim.unit}, beyond the vessel file's {lim.bound:g} "
+                       f"{lim.unit} (the bound of the twin's own commands): replayed as logged")
     return out
 
 
