@@ -1,13 +1,13 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|tenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|eleventh] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to tenth sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
-T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again), with other magnitudes and
+which magnitudes. The second to eleventh sets regroup the same active BlueBoat runs into other
+outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V) and take other Esso turning tests (T3, T4; T5, T6; T7, T8; T9, T10;
+T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again), with other magnitudes and
 directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -81,7 +81,8 @@ OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 22
            "F": (224, 225, 228), "G": (216, 225), "H": (220, 224), "I": (224, 228), "J": (220, 225),
            "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228),
            "O": (216, 224, 228), "P": (220, 224, 225), "Q": (216, 220, 225), "R": (216, 220, 224, 225, 228),
-           "S": (216, 220, 224, 228), "T": (220, 224, 225, 228)}
+           "S": (216, 220, 224, 228), "T": (220, 224, 225, 228), "U": (216, 220, 224, 225),
+           "V": (216, 224, 225, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
@@ -259,14 +260,30 @@ PROOF_TENTH = [
     Case("esso", "T7", "input_late", (0.6,)), Case("esso", "T8", "input_late", (1.0,)),
     Case("esso", "T7", "heading_late", (0.45,)), Case("esso", "T8", "heading_late", (0.3,)),
 ]
+# the eleventh set takes the two groupings of four active BlueBoat runs the tenth left; its Esso cases
+# reuse T9 and T10 (the fifth set's tests) with other values
+PROOF_ELEVENTH = [
+    Case("blueboat", "U", "null"), Case("blueboat", "V", "null"),
+    Case("blueboat", "U", "current", (0.12, 320.0)), Case("blueboat", "V", "current", (0.15, 140.0)),
+    Case("blueboat", "U", "antenna", (0.25, -0.30)), Case("blueboat", "V", "antenna", (-0.35, 0.20)),
+    Case("blueboat", "U", "input_late", (0.35,)), Case("blueboat", "V", "input_late", (0.6,)),
+    Case("blueboat", "U", "thruster_scaled", ("right", 0.75)), Case("blueboat", "V", "thruster_scaled", ("left", 0.7)),
+    Case("blueboat", "U", "heading_late", (0.55,)), Case("blueboat", "V", "heading_late", (0.35,)),
+    Case("esso", "T9", "null"), Case("esso", "T10", "null"),
+    Case("esso", "T9", "current", (0.11, 30.0)), Case("esso", "T10", "current", (0.09, 190.0)),
+    Case("esso", "T9", "antenna", (0.35, -0.30)), Case("esso", "T10", "antenna", (-0.40, 0.20)),
+    Case("esso", "T9", "input_late", (0.5,)), Case("esso", "T10", "input_late", (0.8,)),
+    Case("esso", "T9", "heading_late", (0.6,)), Case("esso", "T10", "heading_late", (0.35,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
-          "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH}
+          "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
+          "eleventh": PROOF_ELEVENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
          "eighth": "concealed_effects_eighth", "ninth": "concealed_effects_ninth",
-         "tenth": "concealed_effects_tenth"}
+         "tenth": "concealed_effects_tenth", "eleventh": "concealed_effects_eleventh"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -279,6 +296,7 @@ STAGE_METHODS = {
     ("eighth", "before"): "the Esso tests diagnosed with their measured wind a known input of every free run",
     ("ninth", "before"): "the diagnosis as it was when the set was fixed",
     ("tenth", "before"): "the diagnosis as it was when the set was fixed",
+    ("eleventh", "before"): "the diagnosis as it was when the set was fixed",
     ("tenth", "after"): "the Esso's yaw rate read from its gyro (sensors.yaw_rate_source), its twin identified so; "
                         "the BlueBoat (no gyro in its logs) as before",
     ("eighth", "mean wind (control)"): "the Esso tests diagnosed with each test's mean wind given as a constant "
@@ -288,7 +306,7 @@ STAGE_METHODS = {
 
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
-ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth"}
+ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
