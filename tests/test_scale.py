@@ -358,3 +358,18 @@ def test_a_fleet_day_read_from_the_files_time_says_so():
     text = format_summary(summarise(results))
     assert "### 2026-12-03: 1 of 2 logs diagnosed (the day of the file's modification time" in text
     assert "- empty.csv: empty file" in text and "empty.csv: empty.csv" not in text
+
+
+def test_a_fleet_day_is_read_from_a_date_in_the_file_name():
+    """A copied log's modification time is the day it was copied: a date in its name (ISO, with or
+    without dashes, or 14-Oct-2020) is the outing's day; a log counter's digits are not a date."""
+    assert fleet.day_in_name("turn_14-Oct-2020_14_29_49.csv") == "2020-10-14"
+    assert fleet.day_in_name("2026-05-02_survey.bin") == "2026-05-02"
+    assert fleet.day_in_name("log_20201014_1200.tlog") == "2020-10-14"
+    assert fleet.day_in_name("fixed_00000216.csv") is None
+    assert fleet.day_in_name("run_20201399.csv") is None  # month 13: not a day
+    rec = SimpleNamespace(origin_s=0.0)  # a log clock that is not a calendar time
+    item = fleet._Item(0, "turn_14-Sep-2020_14_16_04.csv", b"", "esso_osaka", None, "2026-12-03")
+    assert fleet._day(rec, item) == ("2020-09-14", "file name")
+    counter = fleet._Item(1, "fixed_00000216.csv", b"", "blueboat", None, "2026-12-03")
+    assert fleet._day(rec, counter) == ("2026-12-03", "file time")

@@ -15,13 +15,15 @@ Logs and their vessels: one vessel for all (`--vessel` / `--model`), or a manife
 `recording` column and optional `vessel` (a shipped name or a vessel file) and `day`
 (YYYY-MM-DD) columns, paths relative to the manifest's folder. A log's day, when the manifest
 does not give it, is the date (UTC) of the log's own clock when that is a calendar time, else
-of the file's modification time.
+a date in the file's name (2020-10-14, 20201014 or 14-Oct-2020, a year 2000-2099), else the date
+of the file's modification time (a copy's is the day it was copied).
 """
 from __future__ import annotations
 
 import csv
 import datetime as dt
 import json
+import re
 import tempfile
 import time
 from dataclasses import dataclass
@@ -37,6 +39,14 @@ from ..vessel import load
 from .batches import Batch, Executor, LocalExecutor, plan
 
 EPOCH_2000_S, EPOCH_2100_S = 946684800.0, 4102444800.0
+MONTHS = ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec")
+# a date written into a log's name by loggers and test series: ISO with or without dashes, or 14-Oct-2020;
+# the digits must not run on (00000216 is a log counter, not a day)
+_NAME_DATES = (
+    (re.compile(r"(?<!\d)(20\d\d)-?(\d\d)-?(\d\d)(?!\d)"), lambda m: (m[1], m[2], m[3])),
+    (re.compile(r"(?<!\d)(\d\d?)-(" + "|".join(MONTHS) + r")[a-z]*-(20\d\d)(?!\d)", re.IGNORECASE),
+     lambda m: (m[3], str(MONTHS.index(m[2].lower()) + 1), m[1])),
+)
 
 
 @dataclass(frozen=True)
@@ -138,8 +148,10 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
         except Exception as exc:  # one log's failure, expected (TwinError) or not, must not end a month's job
             text = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}".splitlines()[0]
             out.update(ok=False, error=text, **({} if isinstance(exc, TwinError) else {"unexpected": True}))
-            out.setdefault("day", item.day or item.file_day)
-            out.setdefault("day_from", "manifest" if item.day else "file time")
+            if "day" not in out:
+                named = day_in_name(item.name)
+                out["day"] = item.day or named or item.file_day
+                out["day_from"] = "manifest" if item.day else ("file name" if named else "file time")
     out["seconds"] = round(time.perf_counter() - started, 3)
     return out
 
@@ -155,7 +167,30 @@ def _day(rec, item: _Item) -> tuple[str, str]:
         return item.day, "manifest"
     if EPOCH_2000_S <= rec.origin_s <= EPOCH_2100_S:
         return dt.datetime.fromtimestamp(rec.origin_s, dt.timezone.utc).date().isoformat(), "log clock"
+    named = day_in_name(item.name)
+    if named:
+        return named, "file name"
     return item.file_day, "file time"
+
+
+def day_in_name(name: str) -> str | None:
+    """The calendar day (YYYY-MM-DD) a log's file name carries, or None (no date, or not a real day).
+
+    Args:
+        name: the file name, e.g. turn_14-Oct-2020_14_29_49.csv or 2026-05-02_survey.bin.
+
+    Returns:
+        The ISO date, or None.
+    """
+    stem = Path(name).name
+    for pattern, parts in _NAME_DATES:
+        for m in pattern.finditer(stem):
+            year, month, day = (int(x) for x in parts(m))
+            try:
+                return dt.date(year, month, day).isoformat()
+            except ValueError:
+                continue
+    return None
 
 
 def _plain(x):
