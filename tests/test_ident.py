@@ -533,3 +533,43 @@ def test_a_span_near_zero_keeps_its_digits():
 
     assert span_text({"r": (-0.004, 0.05)}) == "r -0.004..+0.05 rad/s"
     assert span_text({"u": (-0.12, 1.5)}) == "u -0.12..+1.50 m/s"
+
+
+def test_misfit_by_state_adds_up_to_one_minus_r2_and_finds_a_drag_too_strong_at_speed(yellowfish_vessel):
+    from twin.fit.evaluate import misfit_by_state
+
+    ds = generate(yellowfish_vessel, n_segments=3, seed=5, segment_s=(30, 40))
+    preps = [prepare_for(ds.recording, compile_vessel(yellowfish_vessel))]
+    wrong = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Xuu=-12.0))
+    pooled = evaluate(wrong, preps, horizons={"h": 10.0})["h"]
+    speed = np.hypot(preps[0].u, preps[0].v)
+    edge = float(np.median(speed))
+    bands = misfit_by_state(wrong, preps, 10.0, "speed_m_s", (edge,))
+    assert [b.label for b in bands] == [f"< {edge:g}", f"≥ {edge:g}"]
+    assert sum(b.samples for b in bands) == pytest.approx(1.0)
+    for d in ("u", "v", "r"):
+        assert sum(b.share[d] for b in bands) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
+    slow, fast = bands
+    # a quadratic drag too strong slows the twin where it runs fast: more of u's misfit there, and the
+    # vessel moves more than the twin (gain above 1)
+    assert fast.share["u"] > 2.0 * slow.share["u"] and fast.gain["u"] > 1.02
+    # the twin itself misses nowhere
+    own = misfit_by_state(yellowfish_vessel, preps, 10.0, "speed_m_s", (edge,))
+    assert max(b.share["u"] for b in own) < 0.05 and all(abs(b.gain["u"] - 1.0) < 0.02 for b in own)
+    with pytest.raises(TwinError, match="unknown state"):
+        misfit_by_state(wrong, preps, 10.0, "heave", (1.0,))
+
+
+def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
+    from types import SimpleNamespace
+
+    from twin.fit.evaluate import recording_states
+
+    t = np.arange(8) * 0.5
+    n = np.array([5.0, 0.0, 0.5, -0.2, 6.0, 0.0, 0.0, 0.0])
+    prep = SimpleNamespace(t=t, segment=np.array([0, 0, 0, 0, 0, 0, 1, 1]), pwm=np.column_stack([n, np.zeros(8)]),
+                           u=np.full(8, 0.3), v=np.full(8, 0.4), r=np.full(8, -0.1))
+    states = recording_states(prep)
+    np.testing.assert_allclose(states["input_0_rest_s"], [0, 0, 0.5, 1.0, 0, 0, 0, 0.5])
+    np.testing.assert_allclose(states["speed_m_s"], 0.5)
+    np.testing.assert_allclose(states["yaw_rate_rad_s"], 0.1)

@@ -231,6 +231,86 @@ def _window_manoeuvres(vessel: Vessel, preps: list[Prepared], wins: list[Window]
     return np.array([np.bincount(c, minlength=len(MANOEUVRES)).argmax() for c in codes])
 
 
+@dataclass(frozen=True)
+class StateBand:
+    """The samples of free runs whose measured state lies in one band: their share of all samples,
+    each DOF's share of 1 − R² (the shares of all bands add up to 1 − R²), the RMS error (m/s, m/s,
+    rad/s) and the gain: the measured on the predicted value by least squares through the origin (above
+    1: the twin moves less than the vessel there)."""
+
+    label: str
+    samples: float
+    share: dict[str, float | None]
+    rms_error: dict[str, float | None]
+    gain: dict[str, float | None]
+
+
+# the measured states `misfit_by_state` bands the samples by (each on the recording's grid)
+STATES = ("speed_m_s", "yaw_rate_rad_s", "input_0", "input_1", "input_0_rest_s")
+REST_INPUT = 1.0  # |input 0| at or below this counts as at rest for input_0_rest_s (a propeller's rps)
+
+
+def recording_states(prep: Prepared) -> dict[str, np.ndarray]:
+    """Per grid sample: the speed over the water √(u² + v²) (m/s), |r| (rad/s), the logged inputs
+    (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤ REST_INPUT: a
+    propeller stopped; s, counted within the segment)."""
+    rest = np.abs(prep.pwm[:, 0]) <= REST_INPUT
+    held = np.zeros(len(prep.t))
+    for k in range(1, len(prep.t)):
+        same_segment = prep.segment[k] == prep.segment[k - 1]
+        held[k] = held[k - 1] + (prep.t[k] - prep.t[k - 1]) if rest[k] and rest[k - 1] and same_segment else 0.0
+    return {"speed_m_s": np.hypot(prep.u, prep.v), "yaw_rate_rad_s": np.abs(prep.r),
+            "input_0": prep.pwm[:, 0].astype(float), "input_1": prep.pwm[:, 1].astype(float), "input_0_rest_s": held}
+
+
+def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, state: str,
+                    edges: tuple[float, ...], stride_s: float = 2.0, wind: str | None = None) -> list[StateBand]:
+    """Where free runs of `horizon_s` miss, by the measured state of each predicted sample.
+
+    Args:
+        model: the twin (a Vessel, run on the batch engine with `wind`) or a Predictor.
+        preps: the recordings judged.
+        horizon_s: the free runs' length (s), every `stride_s`.
+        state: one of STATES (recording_states).
+        edges: the bands' inner edges, increasing: len(edges) + 1 bands.
+
+    Returns:
+        One StateBand per band with samples, labelled "< a", "a-b", "≥ z".
+    """
+    if state not in STATES:
+        raise TwinError(f"unknown state '{state}' (known: {', '.join(STATES)})")
+    if isinstance(model, Vessel):
+        model = TwinPredictor(model, ModelCache(), wind)
+    wins = horizon_windows(preps, horizon_s, stride_s)
+    if not wins:
+        return []
+    pred, meas = _predictions(model, preps, wins)
+    values = np.full(meas.shape[:2], np.nan)
+    per_rec = {k: recording_states(p)[state] for k, p in enumerate(preps) if any(w.rec == k for w in wins)}
+    for j, w in enumerate(wins):
+        values[j, : w.n + 1] = per_rec[w.rec][w.start: w.start + w.n + 1]
+    finite = ~np.any(np.isinf(pred[:, 1:]), axis=(1, 2))
+    sq, total = _squares(pred[:, 1:], meas[:, 1:], finite)
+    paired = np.isfinite(meas[:, 1:]) & np.isfinite(pred[:, 1:]) & finite[:, None, None]
+    band = np.digitize(values[:, 1:], edges)
+    labels = ([f"< {edges[0]:g}"] + [f"{a:g}-{b:g}" for a, b in zip(edges[:-1], edges[1:])] + [f"≥ {edges[-1]:g}"])
+    n_all = int(paired.any(axis=2).sum())
+    out = []
+    for b, label in enumerate(labels):
+        sel = (band == b) & np.isfinite(values[:, 1:])
+        if not sel.any():
+            continue
+        share, rms, gain = {}, {}, {}
+        for k, d in enumerate(DOFS):
+            ok = sel & paired[..., k]
+            y, x = meas[:, 1:, k][ok], pred[:, 1:, k][ok]
+            share[d] = float(sq[..., k][ok].sum() / total[k]) if total[k] > 0 else None
+            rms[d] = float(np.sqrt(np.mean((x - y) ** 2))) if y.size else None
+            gain[d] = float(np.dot(x, y) / np.dot(x, x)) if y.size and np.dot(x, x) > 0 else None
+        out.append(StateBand(label, float((sel & paired.any(axis=2)).sum() / max(n_all, 1)), share, rms, gain))
+    return out
+
+
 def _squares(pred: np.ndarray, meas: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Squared errors per sample (0 where no pair or the window diverged) and the pooled Σ(y − ȳ)²
     per DOF of the measured samples paired in the finite windows."""

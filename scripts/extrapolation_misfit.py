@@ -1,0 +1,146 @@
+"""Where the twins of the extrapolation study miss beyond their runs, by the measured state of each
+sample: the BlueBoat's sway on its five most active runs, the Esso Osaka's yaw on its random tests
+for a twin fitted on the turning tests.
+
+    python scripts/extrapolation_misfit.py [--work /tmp/extrapolation] [--out docs/results]
+
+Reads the twins scripts/extrapolation.py saved in --work (blueboat_activity_none.vessel.json,
+esso_turn_random_measured.vessel.json) and the judged runs of those splits; bands the free runs'
+samples by speed, yaw rate, propeller speed and how long the propeller has been stopped
+(twin.fit.evaluate.misfit_by_state), and moves one coefficient at a time on the judged runs to show
+which part of the form the misfit answers to. That last table is read on the judged runs: it
+chooses nothing and fits nothing. Without ../shared/data it says so and exits 0.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "scripts"))
+
+import extrapolation as study  # noqa: E402
+import twin.vessel as vessel_mod  # noqa: E402
+from twin.fit.evaluate import evaluate, misfit_by_state  # noqa: E402
+from twin.fit.metrics import DOFS  # noqa: E402
+from twin.ident.identify import calibrate, prepared  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+
+# (split, wind, the DOF the target misses, free-run length s, stride s)
+CASES = {"blueboat": ("blueboat_activity", None, "v", 10.0, 2.0),
+         "esso": ("esso_turn_random", "measured", "r", 30.0, 10.0)}
+BANDS = {"blueboat": [("speed over the water, m/s", "speed_m_s", (0.2, 0.6, 1.2)),
+                      ("yaw rate |r|, rad/s", "yaw_rate_rad_s", (0.1, 0.3, 0.6))],
+         "esso": [("propeller speed, rps", "input_0", (-1.0, 1.0, 6.0)),
+                  ("time the propeller has been stopped (|n| ≤ 1 rps), s", "input_0_rest_s", (0.05, 2.0, 5.0, 10.0)),
+                  ("speed over the water, m/s", "speed_m_s", (0.05, 0.1, 0.2))]}
+
+
+def tag_of(case: str) -> str:
+    """The name extrapolation.py saved the split's twin under."""
+    name, wind, *_ = CASES[case]
+    return f"{name}_{wind or 'none'}"
+
+
+def judged(case: str):
+    """The split's judged recordings."""
+    _, _, _, recs, _, _, split, names = study._split_runs(CASES[case][0])
+    return split.pick(recs, names)[1]
+
+
+def _scored(vessel, recs, wind, horizon_s: float, stride_s: float) -> dict:
+    calibrated = calibrate(recs, vessel)[0]
+    m = evaluate(calibrated, prepared(recs, calibrated), stride_s=stride_s, horizons={"h": horizon_s}, wind=wind)["h"]
+    return {d: m[d]["r2"] for d in DOFS}
+
+
+def _bands(vessel, recs, case: str) -> list[dict]:
+    _, wind, dof, horizon_s, stride_s = CASES[case]
+    calibrated = calibrate(recs, vessel)[0]
+    preps = prepared(recs, calibrated)
+    out = []
+    for title, state, edges in BANDS[case]:
+        for b in misfit_by_state(calibrated, preps, horizon_s, state, edges, stride_s=stride_s, wind=wind):
+            out.append({"by": title, "band": b.label, "samples": b.samples, "share": b.share,
+                        "rms": b.rms_error[dof], "gain": b.gain[dof]})
+    return out
+
+
+def sensitivities(case: str, vessel, prior, recs) -> list[dict]:
+    """One coefficient moved at a time, scored on the judged runs."""
+    _, wind, _, horizon_s, stride_s = CASES[case]
+    if case == "blueboat":
+        d = vessel.damping
+        moves = [("identified", vessel), ("Yur × 0", replace(vessel, damping=replace(d, Yur=0.0))),
+                 ("Yur × 2", replace(vessel, damping=replace(d, Yur=2.0 * d.Yur))),
+                 ("Yv at the prior's", replace(vessel, damping=replace(d, Yv=prior.damping.Yv)))]
+    else:
+        m = vessel.mmg
+        moves = [("identified", vessel)] + [(f"U floor {u:g} m/s (identified {m.low_speed_m_s:g})",
+                                             replace(vessel, mmg=replace(m, low_speed_m_s=u))) for u in (0.01, 0.15)]
+    return [{"twin": label, "r2": _scored(v, recs, wind, horizon_s, stride_s)} for label, v in moves]
+
+
+def page(raw: dict) -> ResultPage:
+    tables = []
+    at = sorted({p["identified_at"] or "unknown" for p in raw["cases"].values()})
+    for case, part in raw["cases"].items():
+        name, wind, dof, horizon_s, _ = CASES[case]
+        r2 = part["sensitivity"][0]["r2"]
+        tables.append(ResultTable(
+            f"{part['tag']}: {horizon_s:g}-s free runs of the identified twin on the judged runs (R² u {r2['u']:.3f}, "
+            f"v {r2['v']:.3f}, r {r2['r']:.3f}), by measured state: share of the samples, each DOF's share of 1 − R² "
+            f"(the bands of one state add up to 1 − R²), {dof}'s RMS error and gain (measured on predicted)",
+            ["state", "band", "samples", "share u", "share v", "share r", f"RMS {dof}", f"gain {dof}"],
+            [[row["by"], row["band"], row["samples"], row["share"]["u"], row["share"]["v"], row["share"]["r"],
+              row["rms"], row["gain"]] for row in part["bands"]]))
+        tables.append(ResultTable(
+            f"{part['tag']}: one coefficient moved, scored on the judged runs (a sensitivity; it fits and chooses "
+            "nothing)", ["twin", "R² u", "R² v", "R² r"],
+            [[row["twin"], *(row["r2"][d] for d in DOFS)] for row in part["sensitivity"]]))
+    return ResultPage(
+        name="extrapolation_misfit", title="Where the twins miss beyond their runs",
+        ran="python scripts/extrapolation_misfit.py",
+        data="the twins `python scripts/extrapolation.py` identified: the BlueBoat's on its five least active runs "
+             "[BlueBoat-SI], judged on its five most active; the Esso Osaka's on its turning tests with their "
+             f"measured wind [ESSO-FRT], judged on its random tests (identified at commit {', '.join(at)})",
+        summary="Each judged sample of the study's free runs, banded by the state the vessel measured there "
+                "(twin.fit.evaluate.misfit_by_state): where a band's share of 1 − R² exceeds its share of the "
+                "samples, the twin's form misses there; a gain above 1 says the vessel moves more than the twin.",
+        tables=tables, raw=raw)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", type=Path, default=Path("/tmp/extrapolation"))
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    args = ap.parse_args()
+    if not study.blueboat_paths() or not study.esso_paths():
+        print(f"the shared recordings are not in {study.DATA}: nothing to do")
+        return 0
+    missing = [f"{tag_of(c)}.vessel.json" for c in CASES if not (args.work / f"{tag_of(c)}.vessel.json").is_file()]
+    if missing:
+        print(f"error: no {', '.join(missing)} in {args.work}: run `python scripts/extrapolation.py --work "
+              f"{args.work}` first", file=sys.stderr)
+        return 2
+    raw = {"cases": {}}
+    for case in CASES:
+        tag, recs = tag_of(case), judged(case)
+        path = args.work / f"{tag}.vessel.json"
+        vessel = vessel_mod.load(str(path))
+        prior = vessel_mod.load(study.SPLITS[CASES[case][0]][0])
+        split_file = args.work / f"{tag}.json"
+        identified_at = json.loads(split_file.read_text()).get("commit") if split_file.is_file() else None
+        raw["cases"][case] = {"tag": tag, "identified_at": identified_at, "bands": _bands(vessel, recs, case),
+                              "sensitivity": sensitivities(case, vessel, prior, recs)}
+        print(f"{tag}: banded", flush=True)
+    print(f"wrote {page(raw).write(args.out)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
