@@ -73,6 +73,29 @@ def test_identify_then_evaluate(dataset):
     assert done.returncode == 2 and "fitted_on" in done.stderr and "Traceback" not in done.stderr
 
 
+def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_does_not_vary(dataset, tmp_path):
+    from dataclasses import replace
+
+    slow = tmp_path / "slow.json"  # a drag twice too strong: the twin misses most where it runs fast
+    base = vessel_mod.load("yellowfish")
+    vessel_mod.save(replace(base, damping=replace(base.damping, Xuu=2.0 * base.damping.Xuu)), slow)
+    done = twin("evaluate", "--model", slow, dataset / "train.csv", "--by", "speed", "--json", tmp_path / "e.json")
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "e.json").read_text())
+    bands = report["by_state"]["bands"]
+    assert report["by_state"]["state"] == "speed_m_s" and len(bands) == 4 and "by speed" in done.stdout
+    assert sum(b["samples"] for b in bands) == pytest.approx(1.0)
+    assert sum(b["share"]["u"] for b in bands) == pytest.approx(1.0 - report["metrics"]["free_run_10s"]["u"]["r2"],
+                                                                 rel=1e-6)
+    per_sample = [b["share"]["u"] / b["samples"] for b in bands]
+    assert per_sample[-1] > 2.0 * per_sample[0] and bands[-1]["gain"]["u"] > 1.0
+    # a PWM log's first input never rests at zero: refused in one line, before any work
+    done = twin("evaluate", "--vessel", "yellowfish", dataset / "train.csv", "--by", "rest")
+    assert done.returncode == 2 and "--by rest" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    done = twin("evaluate", "--vessel", "yellowfish", dataset / "train.csv", "--by", "heave")
+    assert done.returncode == 2 and "unknown state" in done.stderr
+
+
 def test_a_twin_that_follows_the_pack_says_which_logs_record_none(dataset, tmp_path):
     from dataclasses import replace
 

@@ -1,6 +1,7 @@
 """`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
 from __future__ import annotations
 
+from dataclasses import asdict
 from pathlib import Path
 from typing import Optional
 
@@ -210,18 +211,26 @@ def evaluate_command(
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
+    by: Optional[str] = typer.Option(None, "--by", help="also: where the free runs miss by a state measured at each "
+                                                        "sample, bands of its lower half, next quarter, next 15 % and top 10 %: speed, yaw_rate, input_0, "
+                                                        "input_1 (the logged inputs) or rest (how long input 0, a "
+                                                        "propeller, has been stopped)"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the free runs miss, by manoeuvre (idle, ahead, turning,
     spin, astern: each one's share of 1 − R²), and for a twin written by `twin identify` how many
     windows of each its fit saw and how much of the misfit lies beyond the speeds and turn rates it
-    was fitted on; with --band, the share of the recording inside the
-    prediction band of the identified uncertainty."""
+    was fitted on; with --by, by a measured state (each band's share of 1 − R², and the gain of the
+    measured on the predicted value: above 1, the vessel moves more than the twin); with --band, the
+    share of the recording inside the prediction band of the identified uncertainty."""
     from ..fit.coverage import from_dict as envelope_from
-    from ..fit.evaluate import TwinPredictor, evaluate, format_by_manoeuvre, format_metrics, misfit_by_manoeuvre
+    from ..fit.evaluate import (STATE_NAMES, TwinPredictor, evaluate, format_by_manoeuvre, format_by_state,
+                                format_metrics, misfit_by_manoeuvre, misfit_by_state, percentile_edges)
     from ..fit.windows import ModelCache
     from ..ident.identify import calibrate, manoeuvre_horizon_s, prepared, read
 
+    if by is not None and by not in STATE_NAMES:
+        raise TwinError(f"--by {by}: unknown state (known: {', '.join(STATE_NAMES)})")
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
     check_distinct({"--json": json_out, "--rrd": rrd}, [*recordings, model])
@@ -254,17 +263,26 @@ def evaluate_command(
            "sea_drift_ned_m_s": list(v.environment.wave_drift_ned)}
     names = ", ".join(p.name for p in recordings) + (", with the measured wind" if wind else "")
     used = calibrated if calibration else v
+    if by:  # a state that does not vary is refused before the work
+        state = STATE_NAMES[by]
+        edges = percentile_edges(prepared(recs, used), state, f"--by {by}")
+    steps = 4 if by else 3
     with progress_bar("evaluate") as progress:
-        progress("without calibration", 0, 3)
+        progress("without calibration", 0, steps)
         out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride, wind=wind)
-        progress("with each log's calibration", 1, 3)
+        progress("with each log's calibration", 1, steps)
         cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
         out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated),
                                   stride_s=stride) if calibration else out["metrics_uncalibrated"]
-        progress("by manoeuvre", 2, 3)
+        progress("by manoeuvre", 2, steps)
         horizon = manoeuvre_horizon_s(v, fitted)
         out["by_manoeuvre"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), horizon,
                                                   stride, vessel=used, fitted=fitted)
+        if by:
+            progress(f"by {by}", 3, steps)
+            bands = misfit_by_state(TwinPredictor(used, cache, wind), prepared(recs, used), horizon, state, edges,
+                                    stride)
+            out["by_state"] = {"state": state, "bands": [asdict(b) for b in bands]}
     if sea_line:
         say(sea_line)
     for c in calibrations:
@@ -277,6 +295,9 @@ def evaluate_command(
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
+    if by:
+        typer.echo(format_by_state(bands, f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; "
+                                          "gain: measured on predicted)"))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel
         from ..outputs import write

@@ -311,6 +311,44 @@ def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s:
     return out
 
 
+# what `twin evaluate --by` calls each state
+STATE_NAMES = {"speed": "speed_m_s", "yaw_rate": "yaw_rate_rad_s", "input_0": "input_0", "input_1": "input_1",
+               "rest": "input_0_rest_s"}
+
+
+BAND_PERCENTILES = (50, 75, 90)  # the lower half of the samples, the next quarter, the next 15 %, the top 10 %
+
+
+def percentile_edges(preps: list[Prepared], state: str, label: str | None = None) -> tuple[float, ...]:
+    """The inner edges that cut the recordings' samples of `state` at BAND_PERCENTILES (fewer where
+    values repeat, e.g. a propeller's time at rest, mostly zero). *Why these:* a missing force shows
+    at the edge of what was recorded, so the top of the range gets bands of its own. TwinError
+    where the state does not vary (`label`: its name in the message)."""
+    values = np.concatenate([recording_states(p)[state] for p in preps])
+    values = values[np.isfinite(values)]
+    edges = np.unique(np.round(np.percentile(values, BAND_PERCENTILES), 4)) if values.size else np.zeros(0)
+    edges = edges[edges > values.min()] if values.size else edges
+    if not edges.size:
+        raise TwinError(f"{label or state}: the same in every sample of these recordings, nothing to band by")
+    return tuple(float(e) for e in edges)
+
+
+def format_by_state(bands: list[StateBand], title: str = "") -> str:
+    """misfit_by_state's bands as rows: the band, its share of the samples, each DOF's share of
+    1 − R² and the gain (measured on predicted) per DOF; ≤ 100 columns."""
+    head = (f"{'band':>16s}{'samples':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
+            + "".join(f"{'gain ' + d:>9s}" for d in DOFS))
+    lines = ([title] if title else []) + [head, "-" * len(head)]
+
+    def num(x, width, fmt):
+        return f"{'-':>{width}s}" if x is None else f"{x:>{width}{fmt}}"
+
+    for b in bands:
+        lines.append(f"{b.label:>16s}{b.samples:>9.0%}" + "".join(num(b.share[d], 10, ".3f") for d in DOFS)
+                     + "".join(num(b.gain[d], 9, ".2f") for d in DOFS))
+    return "\n".join(lines)
+
+
 def _squares(pred: np.ndarray, meas: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Squared errors per sample (0 where no pair or the window diverged) and the pooled Σ(y − ȳ)²
     per DOF of the measured samples paired in the finite windows."""
