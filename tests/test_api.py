@@ -93,7 +93,12 @@ def test_results_are_typed_with_short_rounded_reprs(log):
     assert not any(len(tok) > 8 for tok in repr(s).replace(",", " ").split() if tok[:1].isdigit())
     table = ev.table()
     assert table.title and "horizon" in str(table).splitlines()[1] and table.to_dict()["rows"]
-    assert ev.to_dict()["vessel"] == "blueboat"
+    assert ev.to_dict()["vessel"] == "blueboat" and ev.by_state == []
+    by_speed = twin.evaluate("blueboat", [log], by="speed")
+    shares = sum(b.share["u"] for b in by_speed.by_state)
+    assert shares == pytest.approx(1.0 - by_speed.score("u").r2, rel=1e-6) and len(by_speed.by_state) >= 2
+    with pytest.raises(twin.TwinError, match="unknown state"):
+        twin.evaluate("blueboat", [log], by="heave")
 
 
 def test_an_effect_has_parameters_with_units_and_evidence():

@@ -18,7 +18,7 @@ packages), so importing any part of the package never replaces a function.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from .drive import InputSeries
@@ -225,13 +225,15 @@ class Evaluation:
     """`twin evaluate`: R² and MAE per DOF and horizon (`scores`; `score("u")`), with and without
     each log's compass calibration, and the calibrations; by_manoeuvre: where the free runs of the
     fit's window (10 s for a small boat, 30 s for a slow ship: its `horizon_s`) miss
-    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it."""
+    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it;
+    by_state: where they miss by a measured state, when one was asked for (fit.evaluate.StateBand)."""
 
     vessel: str
     metrics: dict
     metrics_uncalibrated: dict
     calibrations: list
     by_manoeuvre: dict = field(default_factory=dict)
+    by_state: list = field(default_factory=list)
 
     @property
     def scores(self) -> list[Score]:
@@ -257,18 +259,21 @@ class Evaluation:
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
-                "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre": self.by_manoeuvre}
+                "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre": self.by_manoeuvre,
+                "by_state": [asdict(b) for b in self.by_state]}
 
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
-             sea=None) -> Evaluation:
+             sea=None, by: str | None = None) -> Evaluation:
     """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
     where its free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
     recording's measured wind a known input (`twin evaluate --wind-measured`); sea (a
     physics.waves.Sea or `--sea` text): the sea they were made in, its Stokes drift a known flow and
-    its mean load on the hull a known force (`--sea`)."""
+    its mean load on the hull a known force (`--sea`); by (speed, yaw_rate, input_0, input_1 or
+    rest): also where they miss by that measured state (`--by`)."""
     from .fit.coverage import from_dict
-    from .fit.evaluate import TwinPredictor, evaluate as run, misfit_by_manoeuvre
+    from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as run, misfit_by_manoeuvre, misfit_by_state, \
+        percentile_edges
     from .fit.windows import ModelCache
     from .ident.identify import calibrate as calibrate_logs, check_wind, manoeuvre_horizon_s, prepared
 
@@ -279,12 +284,16 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
         if "fitted_on" in v.uncertainty else None
+    if by is not None and by not in STATE_NAMES:
+        raise TwinError(f"by={by!r}: unknown state (known: {', '.join(STATE_NAMES)})")
     calibrated, calibrations = calibrate_logs(recs, v)
     preps = prepared(recs, calibrated)
+    edges = percentile_edges(preps, STATE_NAMES[by], f"by={by!r}") if by else ()
+    predictor, horizon = TwinPredictor(calibrated, ModelCache(), wind), manoeuvre_horizon_s(v, seen)
+    bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s) if by else []
     return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
                       run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
-                      misfit_by_manoeuvre(TwinPredictor(calibrated, ModelCache(), wind), preps,
-                                          manoeuvre_horizon_s(v, seen), stride_s, vessel=calibrated, fitted=seen))
+                      misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands)
 
 
 @dataclass(frozen=True)
