@@ -218,6 +218,13 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("diagnose", "LOG", "--window", "-5"), "--window must be a positive number"),
     (("diagnose", "LOG", "--window", "nan"), "--window must be a positive number"),
     (("diagnose", "LOG", "--effects", "bogus"), "unknown effect(s) bogus"),
+    (("diagnose", "LOG", "--effects", " , "), "--effects is empty"),
+    (("diagnose", "LOG", "--window", "0.05"), "--window must be at least 1 s"),
+    (("identify", "LOG", "--window", "0.5"), "--window must be at least 1 s"),
+    (("diagnose", "LOG", "--given", "current=0.1,90", "--given", "current=0.05,0"), "--given names current twice"),
+    (("montecarlo", "--no-covariance", "--vary", "Xu=0.9..1.1", "--cpus-per-task", "0"),
+     "--cpus-per-task must be at least 1"),
+    (("dataset-shards", "--retries", "-5", "--out", "OUT"), "--retries must be at least 0"),
     (("convert", "LOG", "OUT.csv", "--grid-dt", "1e-9"), "samples, more than this machine's memory"),
     (("convert", "LOG", "OUT.csv", "--grid-dt", "0"), "--grid-dt must be a positive number"),
     (("dataset-shards", "--seed", "-1", "--out", "OUT"), "--seed must be a whole number ≥ 0"),
@@ -244,6 +251,20 @@ def test_bad_numbers_are_refused_before_any_work(monkeypatch, capsys, kept, args
     assert sorted(p.name for p in root.iterdir()) == ["inputs.csv", "log.csv", "same.json"]
 
 
+def test_a_mission_without_sitl_says_at_once_what_it_waits_for(monkeypatch, capsys):
+    import socket
+
+    with socket.socket() as s:  # a port nothing listens on: bound, then released
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    code, err = run(monkeypatch, capsys, ["mission", "--home", "63.4366,10.3991", "--waypoints", "15,4",
+                                          "--port", port, "--timeout", "0.5"])
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 2 and "Traceback" not in err
+    assert lines[0].startswith(f"note: waiting up to 0.5 s (--timeout) for SITL's MAVLink console on tcp:127.0.0.1:{port}")
+    assert lines[1] == f"error: no MAVLink console on tcp:127.0.0.1:{port} (is SITL running?)"
+
+
 def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys, kept):
     root, log, inputs, same = kept
     out = root / "fleet"
@@ -258,6 +279,14 @@ def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys
     assert "unknown effect(s) bogus" in refused(monkeypatch, capsys, [*base, "--effects", "bogus"], files)
     assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "0"], files)
     assert "--window must be" in refused(monkeypatch, capsys, [*base, "--window", "nan"], files)
+    assert "--effects is empty" in refused(monkeypatch, capsys, [*base, "--effects", ""], files)
+    assert "--retries must be at least 0" in refused(monkeypatch, capsys, [*base, "--retries", "-1"], files)
+    assert "given twice" in refused(monkeypatch, capsys, ["fleet", log, log, "--vessel", "yellowfish", "--out", out],
+                                    files)
+    nested = root / "by_day"
+    (nested / "2020-10-14").mkdir(parents=True)
+    assert "subfolders are not searched" in refused(monkeypatch, capsys, ["fleet", nested, "--vessel", "yellowfish",
+                                                                          "--out", out], files)
     # every log failing (an empty file) is bad input, exit 2, and replaces nothing
     assert "the log could not be diagnosed (" in refused(monkeypatch, capsys, base, files)
     assert sorted(p.name for p in out.iterdir()) == sorted(earlier)

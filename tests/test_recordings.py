@@ -679,3 +679,26 @@ def test_a_csv_that_cannot_be_read_says_why(tmp_path, data, why):
     path.write_bytes(data)
     with pytest.raises(TwinError, match=rf"log.csv: not a recognised recording \({re.escape(why)}"):
         read_recording(path)
+
+
+def test_a_dataset_layout_short_of_a_column_is_told_which(tmp_path):
+    from twin.formats import read_recording
+
+    blueboat = tmp_path / "bb.csv"
+    blueboat.write_text("original_timestamp,lat,lon,yaw,thr_right\n0,63.4,10.4,0.1,1500\n100,63.4,10.4,0.1,1500\n")
+    with pytest.raises(TwinError, match="looks like the BlueBoat dataset's layout but lacks the column thr_left"):
+        read_recording(blueboat)
+    esso = tmp_path / "esso.csv"
+    header = ["t [s]", "x_position_mid [m]", "y_position_mid [m]", "psi_hat [rad]", "delta_rudder [rad]"]
+    esso.write_text(",".join(header) + "\n" + "\n".join(f"{0.1 * k},{0.01 * k},0,0,0" for k in range(50)) + "\n")
+    with pytest.raises(TwinError, match=re.escape("lacks the column n_prop [rps]")):
+        read_recording(esso)
+    unknown = tmp_path / "other.csv"
+    unknown.write_text("a,b\n1,2\n")
+    with pytest.raises(TwinError, match="CSV layout not recognised"):
+        read_recording(unknown)
+    # an Esso file without its wind columns says so once, and does not also describe a wind it lacks
+    esso.write_text(",".join([*header, "n_prop [rps]"]) + "\n"
+                    + "\n".join(f"{0.1 * k},{0.01 * k},0,0,0,5" for k in range(50)) + "\n")
+    notes = read_recording(esso).notes
+    assert any(n.startswith("no wind") for n in notes) and not any(n.startswith("wind: measured") for n in notes)

@@ -233,7 +233,7 @@ def test_fleet_reports_and_summary_per_vessel_and_day(logs, tmp_path):
     assert s["effects"]["current"]["logs"] == 1 and s["effects"]["current"]["share"] == 0.5
     assert s["effects"]["current"]["parameters"]["speed_m_s"]["median"] == pytest.approx(0.04, abs=0.002)
     assert s["per_vessel"]["blueboat"]["effects"] == {} and s["per_vessel"]["yellowfish"]["logs"] == 2
-    assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}, "day_from": ["manifest"]}
+    assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}, "day_from": {"manifest": 2}}
     report = json.loads((tmp_path / "out" / "log0.json").read_text())
     assert report["ok"] and report["day"] == "2026-05-01" and report["report"]["options"] == {"window_s": 5.0}
     assert "| current | 1 | 50 % |" in (tmp_path / "out" / "fleet.md").read_text()
@@ -356,7 +356,18 @@ def test_a_fleet_day_read_from_the_files_time_says_so():
                {"log": "empty.csv", "vessel": "blueboat", "ok": False, "error": "empty.csv: empty file",
                 "day": "2026-12-03", "day_from": "file time"}]
     text = format_summary(summarise(results))
-    assert "### 2026-12-03: 1 of 2 logs diagnosed (the day of the file's modification time" in text
+    assert "### 2026-12-03: 1 of 2 logs diagnosed (the day from the file's modification time: neither" in text
+    # a day whose logs read it from different sources says so, each with its count
+    mixed = [{"log": "turn_14-Oct-2020.csv", "vessel": "esso_osaka", "ok": True, "effects": [], "day": "2020-10-14",
+              "day_from": "file name"},
+             {"log": "copy.csv", "vessel": "esso_osaka", "ok": True, "effects": [], "day": "2020-10-14",
+              "day_from": "file time"},
+             {"log": "clocked.bin", "vessel": "esso_osaka", "ok": True, "effects": [], "day": "2020-10-15",
+              "day_from": "log clock"}]
+    mixed_text = format_summary(summarise(mixed))
+    assert ("### 2020-10-14: 2 of 2 logs diagnosed (the day from a date in the file's name (1 of 2 logs), the "
+            "file's modification time (1 of 2 logs): neither") in mixed_text
+    assert "### 2020-10-15: 1 of 1 logs diagnosed (the day from the log's own clock)" in mixed_text
     assert "- empty.csv: empty file" in text and "empty.csv: empty.csv" not in text
 
 

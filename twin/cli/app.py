@@ -142,13 +142,15 @@ def effect_names(text: Optional[str], option: str = "--effects") -> Optional[lis
     all (which of them fit a given recording and vessel only the diagnosis can tell)."""
     from ..effects import EFFECTS
 
-    if not text:
+    if text is None:
         return None
     names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:  # an empty list is not "every effect": that is leaving the option out
+        raise TwinError(f"{option} is empty: name at least one effect (leave {option} out for the whole library)")
     unknown = [e for e in names if e not in EFFECTS]
     if unknown:
         raise TwinError(f"{option}: unknown effect(s) {', '.join(unknown)} (known: {', '.join(EFFECTS)})")
-    return names or None
+    return names
 
 
 def floats(text: Optional[str], option: str) -> Optional[list[float]]:
@@ -188,6 +190,18 @@ def positive(value: float, option: str) -> float:
     before any work, where the computation would otherwise fail deep inside or loop forever."""
     if not (math.isfinite(value) and value > 0):
         raise TwinError(f"{option} must be a positive number, got {value:g}")
+    return value
+
+
+MIN_WINDOW_S = 1.0  # a free run of a few grid samples (0.1 s) shows no dynamics to judge
+
+
+def window_s(value: float, option: str = "--window") -> float:
+    """A free-run window length (s): positive and at least MIN_WINDOW_S."""
+    positive(value, option)
+    if value < MIN_WINDOW_S:
+        raise TwinError(f"{option} must be at least {MIN_WINDOW_S:g} s (a free run of a few samples shows no "
+                        f"dynamics), got {value:g}")
     return value
 
 
@@ -298,7 +312,8 @@ def check_recordings_distinct(recordings) -> None:
     for k, path in enumerate(paths):
         for earlier in paths[:k]:
             if same_file(path, earlier):
-                raise TwinError(f"'{path}' is given twice (as '{earlier}'): give each recording once")
+                again = "" if str(path) == str(earlier) else f" (as '{earlier}')"
+                raise TwinError(f"'{path}' is given twice{again}: give each recording once")
         if not path.is_file():
             continue  # the reader says what is wrong with it
         digest = hashlib.sha256(path.read_bytes()).hexdigest()

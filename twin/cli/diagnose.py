@@ -10,7 +10,7 @@ from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar, say,
-                  say_unlogged_supply, vessel_from, warn_recordings, write_json)
+                  say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 
@@ -57,7 +57,7 @@ def diagnose_command(
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
                    [*recordings, model])
     check_recordings_distinct(recordings)
-    positive(window, "--window")
+    window_s(window)
     positive(refit_weight, "--refit-weight")
     if refit is None and refit_weight != 1.0:  # it weighs the refitted coefficients' beliefs, and none are
         raise TwinError("--refit-weight weighs the beliefs of the coefficients --refit names: give --refit GROUPS")
@@ -72,9 +72,13 @@ def diagnose_command(
     if sea_line:
         say(sea_line)
     if given:
-        from ..effects import apply_effects
+        from ..effects import apply_effects, as_effect
 
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
+        names = [as_effect(g).spec.name for g in given]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:  # the later value would replace the earlier, while the verdict named both
+            raise TwinError(f"--given names {', '.join(twice)} twice: give each effect once, with its values")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     warn_recordings(recs)
     wind = "measured" if wind_measured else None

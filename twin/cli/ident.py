@@ -12,7 +12,7 @@ from ..errors import TwinError
 from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
                   check_outputs, check_recordings_distinct, check_wind_and_inputs, console, floats, note, positive,
                   progress_bar, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings,
-                  write_json)
+                  window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -133,7 +133,7 @@ def identify_command(
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
     check_recordings_distinct(recordings)
     if window is not None:
-        positive(window, "--window")
+        window_s(window)
     at_least(max_evaluations, 1, "--max-evaluations")
     if greybox:
         at_least(repeats, 1, "--repeats")

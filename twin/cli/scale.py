@@ -9,9 +9,9 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, draws_fit, effect_names, memory_for,
-                  note, positive, progress_bar, samples_fit, say, seed_from, sensor_noise, vessel_from,
-                  write_json)
+from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, check_recordings_distinct, draws_fit,
+                  effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, sensor_noise,
+                  vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
@@ -225,7 +225,8 @@ def fleet_command(
     # with a bad option must not replace its reports by failure records
     library = effect_names(effects)
     if window is not None:
-        positive(window, "--window")
+        window_s(window)
+    executor = _executor(ray, cpus_per_task, retries)
     default = str(model) if model is not None else vessel
     if manifest is not None:
         if recordings:
@@ -236,7 +237,9 @@ def fleet_command(
             raise TwinError("give recordings to diagnose, or --manifest FILE")
         if default is None:
             raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
-        logs = [Log(p, default) for p in _in_folders(recordings)]
+        paths = _in_folders(recordings)
+        check_recordings_distinct(paths)  # one log twice would count twice in the summary
+        logs = [Log(p, default) for p in paths]
     wind = "measured" if wind_measured else None
     for name in sorted({log.vessel for log in logs}):
         wind_note = fitted_wind_note(load(name), wind)
@@ -244,7 +247,7 @@ def fleet_command(
             note(f"note: {Path(name).name}: {wind_note}")
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
-                               executor=_executor(ray, cpus_per_task, retries), progress=progress, wind=wind)
+                               executor=executor, progress=progress, wind=wind)
     typer.echo(format_summary(fleet.summary))
     say(f"wrote {len(fleet.reports)} report{'' if len(fleet.reports) == 1 else 's'}, {out / 'fleet.json'} and "
         f"{out / 'fleet.md'}")
@@ -267,7 +270,9 @@ def _in_folders(paths: list[Path]) -> list[Path]:
         if p.is_dir():
             found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in RECORDING_SUFFIXES)
             if not found:
-                raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)})")
+                below = " (its subfolders are not searched: give them, e.g. FOLDER/*)" if any(
+                    q.is_dir() for q in p.iterdir()) else ""
+                raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)}){below}")
             out += found
         elif not p.is_file():
             raise TwinError(f"{p}: no such file")

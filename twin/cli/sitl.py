@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import re
+import socket
 from pathlib import Path
 from typing import Optional
 
@@ -123,8 +124,20 @@ def mission(
     if not points or any(len(p) != 2 for p in points):
         raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
     settings = param_settings(set_)
+    if not _listening(port):  # SITL may be starting: say what is awaited rather than wait in silence
+        note(f"note: waiting up to {timeout:g} s (--timeout) for SITL's MAVLink console on tcp:127.0.0.1:{port}; "
+             "start it first (twin sitl, or ArduPilot's own SITL)")
     result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
     say(result.text())
     if json_out is not None:
         write_text_atomic(json_out, json.dumps(result.to_dict(), indent=1) + "\n")
         say(f"wrote {json_out}")
+
+
+def _listening(port: int) -> bool:
+    """Whether something accepts TCP connections on 127.0.0.1:port now."""
+    try:
+        socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+        return True
+    except OSError:
+        return False

@@ -78,6 +78,8 @@ from .telemetry import DEFAULT_ORIGIN
 
 # datasets with their own CSV layout
 CSV_LAYOUTS = ((blueboat_csv.matches, blueboat_csv.read), (esso_csv.matches, esso_csv.read))
+CSV_KNOWN = (("the BlueBoat dataset's", frozenset(blueboat_csv.COLUMNS)),
+             ("the Esso Osaka dataset's", frozenset(esso_csv.REQUIRED)))
 MCAP_MAGIC = b"\x89MCAP"
 DATAFLASH_MAGIC = b"\xa3\x95"
 COLUMNS = {"heading": ("psi_rad",), "pwm": ("left_us", "right_us"), "imu": ("yaw_rate_rads",),
@@ -266,7 +268,7 @@ WRITERS: dict[str, Callable[[Recording, Path, tuple[float, float] | None], None]
     ".csv": _write_csv, ".tlog": _write_tlog, ".bin": _write_bin, ".mcap": _write_mcap}
 READERS = {"mcap": lambda path, channels: mcap.read_mcap(path), "dataflash": dataflash.read_dataflash,
            "tlog": tlog.read_tlog,
-           "csv": lambda path, channels: csv_format.read_csv(path, channels, CSV_LAYOUTS)}
+           "csv": lambda path, channels: csv_format.read_csv(path, channels, CSV_LAYOUTS, CSV_KNOWN)}
 RUN_FORMATS = (".csv", ".mcap", ".tlog", ".bin")
 
 

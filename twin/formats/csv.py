@@ -48,10 +48,12 @@ CSV_NEUTRAL_US = 1500.0
 Layout = Callable[[Path, list[str], dict[str, np.ndarray], dict | None], Recording]
 
 
-def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Callable, Layout], ...] = ()
-             ) -> Recording:
+def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Callable, Layout], ...] = (),
+             known: tuple[tuple[str, frozenset], ...] = ()) -> Recording:
     """Read a CSV recording: the first adapter whose `matches(header)` holds reads the columns
-    (a dataset's own layout, e.g. blueboat_csv), else the generic layout (module docstring)."""
+    (a dataset's own layout, e.g. blueboat_csv), else the generic layout (module docstring).
+    `known`: (name, columns it needs) of each dataset layout, so that a file that holds most of one's
+    columns is told which it lacks."""
     header, cols, defects = table(path)
     reader = next((read for matches, read in adapters if matches(header)), None)
     if reader is not None:
@@ -59,11 +61,23 @@ def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Cal
     elif "t" in header:
         rec = _generic(path, header, cols, channels)
     else:
-        raise TwinError(f"{path.name}: CSV layout not recognised (need a 't' column or a known dataset's columns)")
+        raise TwinError(f"{path.name}: {_unrecognised(header, known)}")
     rec.dropped[:0] = [(what, n) for what, n in defects if n]
     if not any(len(s) for s in rec.streams().values()):
         raise TwinError(f"{path.name}: no usable rows")
     return with_common_origin(rec)
+
+
+def _unrecognised(header: list[str], known: tuple[tuple[str, frozenset], ...]) -> str:
+    """Why no layout reads a header: the known layout it comes nearest (half its columns or more),
+    and what it lacks; else what a layout needs."""
+    have = set(header)
+    near = [(len(cols - have), name, cols - have) for name, cols in known if len(cols & have) >= len(cols) / 2]
+    if near:
+        _, name, missing = min(near, key=lambda x: x[0])
+        plural = "s" if len(missing) > 1 else ""
+        return f"looks like {name} layout but lacks the column{plural} {', '.join(sorted(missing))}"
+    return "CSV layout not recognised (need a 't' column or a known dataset's columns)"
 
 
 def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str, int]]]:

@@ -66,8 +66,8 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
         "positions: midship in the pond frame, x0 as north and y0 as east (the body origin of esso_osaka: "
         "no lever arm)",
         "inputs: propeller speed n (rps, > 0 ahead) and rudder angle (> 0 turns to starboard)",
-        "wind: measured (true: from x0 clockwise; relative: from the bow clockwise, both FROM); "
-        "used only when asked",
+        *(["wind: measured (true: from x0 clockwise; relative: from the bow clockwise, both FROM); "
+           "used only when asked"] if len(rec.wind) else []),
         "the file's own u_velo/vm_velo are not read; r_angvelo is the yaw-rate stream",
     ]
     return rec

@@ -230,7 +230,12 @@ def cluster_cpus(ray) -> int:
 
 def executor_from(ray: str | None, *, cpus_per_task: int = 1, retries: int = 3,
                   nthread: int | None = None) -> Executor:
-    """The executor a command's --ray option names: None → local (every core of this machine)."""
+    """The executor a command's --ray option names: None → local (every core of this machine). The
+    cluster's options are checked either way: a bad value is refused, not ignored for want of --ray."""
+    if cpus_per_task < 1:
+        raise TwinError(f"--cpus-per-task must be at least 1, got {cpus_per_task}")
+    if retries < 0:
+        raise TwinError(f"--retries must be at least 0, got {retries}")
     if ray is None:
         return LocalExecutor(nthread)
     if not ray.strip():

@@ -351,8 +351,9 @@ def summarise(results: list[dict]) -> dict:
 def _group(ok: list[dict], results: list[dict], key: str, value: str) -> dict:
     mine = [r for r in ok if r.get(key) == value]
     out = {"logs": sum(r.get(key) == value for r in results), "diagnosed": len(mine), "effects": _effects(mine)}
-    if key == "day":  # where the day was read: a manifest, the log's own clock, or the file's time
-        out["day_from"] = sorted({str(r.get("day_from", "")) for r in results if r.get(key) == value} - {""})
+    if key == "day":  # where the day was read, and for how many logs: a manifest, the log's clock, its name or time
+        sources = [str(r.get("day_from", "")) for r in results if r.get(key) == value and r.get("day_from")]
+        out["day_from"] = {s: sources.count(s) for s in DAY_SOURCES if s in sources}
     return out
 
 
@@ -390,15 +391,31 @@ def format_summary(summary: dict) -> str:
     for title, key in (("Per vessel", "per_vessel"), ("Per day", "per_day")):
         lines += ["", f"## {title}", ""]
         for name, group in summary[key].items():
-            source = ""
-            if "file time" in group.get("day_from", ()):  # a copy's modification time, not the outing's
-                source = (" (the day of the file's modification time: the log's clock did not say; a --manifest's "
-                          "day column sets it)")
+            source = _day_source(group.get("day_from", {}), group["logs"]) if key == "per_day" else ""
             lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed{source}", ""]
             lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
     if summary["failed"]:
         lines += ["## Not diagnosed", ""] + [f"- {f['log']}: {_why(f['log'], f['error'])}" for f in summary["failed"]]
     return "\n".join(lines).rstrip()
+
+
+# where a log's day was read, in the order it is looked for, and how fleet.md says it
+DAY_SOURCES = ("manifest", "log clock", "file name", "file time")
+_DAY_SOURCE_TEXT = {"manifest": "the manifest's day column", "log clock": "the log's own clock",
+                    "file name": "a date in the file's name", "file time": "the file's modification time"}
+
+
+def _day_source(day_from: dict, logs: int) -> str:
+    """' (the day from ...)' for a day's heading: each source with its count of logs where several
+    mix; a modification time said to be a copy's date, with how to set the day instead."""
+    if not day_from:
+        return ""
+    parts = [_DAY_SOURCE_TEXT[s] + (f" ({n} of {logs} logs)" if len(day_from) > 1 else "") for s, n in day_from.items()]
+    text = " (the day from " + ", ".join(parts)
+    if "file time" in day_from:  # a copy's modification time, not the outing's
+        text += ": neither the log's clock nor its name gave one, and a copy's time is the day it was copied; " \
+                "a --manifest's day column sets it"
+    return text + ")"
 
 
 def _effect_table(effects: dict, diagnosed: int) -> list[str]:
