@@ -140,6 +140,10 @@ def identify_command(
     seed_from(seed)
     prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     weights = tuple(floats(beliefs, "beliefs"))
+    if not weights or any(w <= 0 for w in weights):
+        raise TwinError(f"--beliefs must be positive numbers, got '{beliefs}'")
+    if anchor not in ("mass", "thrust"):
+        raise TwinError(f"--anchor must be mass or thrust, got '{anchor}'")
     chosen_params = names_list(params, "--params", "coefficient")
     chosen_groups = names_list(groups, "--groups", "group")
     if chosen_params:
@@ -212,9 +216,10 @@ def evaluate_command(
                                             "input of every free run"),
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
     by: Optional[str] = typer.Option(None, "--by", help="also: where the free runs miss by a state measured at each "
-                                                        "sample, bands of its lower half, next quarter, next 15 % and top 10 %: speed, yaw_rate, input_0, "
-                                                        "input_1 (the logged inputs) or rest (how long input 0, a "
-                                                        "propeller, has been stopped)"),
+                                                        "sample, in bands of the samples (the lower half, the next "
+                                                        "quarter, the next 15 %, the top 10 %): speed, yaw_rate, "
+                                                        "input_0, input_1 (the logged inputs) or rest (how long input "
+                                                        "0, a propeller, has been stopped)"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
     log's own compass calibration; where the free runs miss, by manoeuvre (idle, ahead, turning,
@@ -296,8 +301,8 @@ def evaluate_command(
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
     if by:
-        typer.echo(format_by_state(bands, f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; "
-                                          "gain: measured on predicted)"))
+        title = f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; gain: measured on predicted)"
+        typer.echo(format_by_state(bands, title))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel
         from ..outputs import write

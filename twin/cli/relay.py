@@ -12,7 +12,7 @@ from rich.table import Table
 from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, progress_bar, say,
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, positive, progress_bar, say,
                   vessel_from, write_json)
 
 
@@ -80,6 +80,8 @@ def iso_command(
     iso.check_dof(v.name, dof, v.thrusters.kind)
     if duration is not None and not duration > 0:
         raise TwinError("--duration must be positive")
+    if xa is not None:
+        positive(xa, "--xa")
     xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)
     if v.thrusters.kind != "propeller_rudder" and rps is not None:
         raise TwinError("--rps applies to a propeller-and-rudder ship only")

@@ -9,9 +9,9 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, check_recordings_distinct, draws_fit,
-                  effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, sensor_noise,
-                  vessel_from, window_s, write_json)
+from .app import (MODEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs, check_recordings_distinct,
+                  draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
+                  sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
@@ -75,6 +75,7 @@ def montecarlo_command(
     positive(sample_dt, "--sample-dt")
     if draws < 1:
         raise TwinError(f"--draws must be a whole number of 1 or more, got {draws}")
+    at_least(batch_size, 1, "--batch-size")
     seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
     variation = _variation(v, vary, effect, covariance)
@@ -226,6 +227,7 @@ def fleet_command(
     library = effect_names(effects)
     if window is not None:
         window_s(window)
+    at_least(batch_size, 1, "--batch-size")
     executor = _executor(ray, cpus_per_task, retries)
     default = str(model) if model is not None else vessel
     if manifest is not None:
