@@ -33,11 +33,11 @@ from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
 # (split, wind, the DOF the target misses, free-run length s, stride s)
 CASES = {"blueboat": ("blueboat_activity", None, "v", 10.0, 2.0),
          "esso": ("esso_turn_random", "measured", "r", 30.0, 10.0)}
-BANDS = {"blueboat": [("speed over the water, m/s", "speed_m_s", (0.2, 0.6, 1.2)),
+BANDS = {"blueboat": [("speed √(u² + v²), m/s", "speed_m_s", (0.2, 0.6, 1.2)),
                       ("yaw rate |r|, rad/s", "yaw_rate_rad_s", (0.1, 0.3, 0.6))],
          "esso": [("propeller speed, rps", "input_0", (-1.0, 1.0, 6.0)),
                   ("time the propeller has been stopped (|n| ≤ 1 rps), s", "input_0_rest_s", (0.05, 2.0, 5.0, 10.0)),
-                  ("speed over the water, m/s", "speed_m_s", (0.05, 0.1, 0.2))]}
+                  ("speed √(u² + v²), m/s", "speed_m_s", (0.05, 0.1, 0.2))]}
 
 
 def tag_of(case: str) -> str:

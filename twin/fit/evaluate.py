@@ -251,9 +251,9 @@ REST_INPUT = 1.0  # |input 0| at or below this counts as at rest for input_0_res
 
 
 def recording_states(prep: Prepared) -> dict[str, np.ndarray]:
-    """Per grid sample: the speed over the water √(u² + v²) (m/s), |r| (rad/s), the logged inputs
-    (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤ REST_INPUT: a
-    propeller stopped; s, counted within the segment)."""
+    """Per grid sample: the speed √(u² + v²) of the prepared log (m/s, over ground), |r| (rad/s), the
+    logged inputs (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤
+    REST_INPUT: a propeller stopped; s, counted within the segment)."""
     rest = np.abs(prep.pwm[:, 0]) <= REST_INPUT
     held = np.zeros(len(prep.t))
     for k in range(1, len(prep.t)):
