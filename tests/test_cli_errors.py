@@ -368,7 +368,7 @@ def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkey
     assert "calibration: cut.csv: no compass calibration (" in out
     assert "calibration: fixed_00000225.csv: compass offset +7.0°" in out
     code, err = run(monkeypatch, capsys, ["info", good, "--vessel", "esso_osaka"])
-    assert code == 2 and "is driven by propeller_rudder inputs; the recording holds pwm" in err
+    assert code == 2 and "is driven by propeller speed and rudder angle; the recording holds PWM" in err
 
 
 def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_path):

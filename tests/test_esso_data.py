@@ -195,7 +195,7 @@ def test_view_shows_a_ships_inputs_as_propeller_and_rudder_and_replays_with_its_
     out = twin_command.twin("view", tmp_path / "run.csv", "--vessel", "esso_osaka", "--wind-measured",
                             "--out", tmp_path / "v.rrd", cwd=tmp_path)
     assert out.returncode == 2 and "--sim" in out.stderr and not (tmp_path / "v.rrd").exists()
-    with pytest.raises(TwinError, match="driven by pwm inputs; the recording holds propeller_rudder"):
+    with pytest.raises(TwinError, match="driven by PWM; the recording holds propeller speed and rudder angle"):
         view_runs([rec], vessel_mod.load("blueboat"))
 
 

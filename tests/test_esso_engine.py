@@ -173,12 +173,12 @@ def test_a_recording_of_the_other_kind_cannot_drive_the_vessel(esso, yellowfish)
 
     rec, _ = _synthetic_recording(esso, gusty_wind(200.0, seed=8), 30.0)
     prep = prepare(rec, smoother="none")
-    with pytest.raises(TwinError, match="driven by pwm inputs"):
+    with pytest.raises(TwinError, match="driven by PWM"):
         predict(yellowfish.vessel, [prep], [Window(0, 0, 50)])
     no_wind = replace(prep, wind_ned=None)
     with pytest.raises(TwinError, match="no measured wind"):
         predict(esso.vessel, [no_wind], [Window(0, 0, 50)], wind="measured")
-    with pytest.raises(TwinError, match="driven by propeller_rudder inputs"):
+    with pytest.raises(TwinError, match="driven by propeller speed and rudder angle, not PWM"):
         simulate(esso, InputSeries(np.zeros(1), np.full((1, 2), 1500.0), "pwm"), 1.0)
 
 

@@ -181,7 +181,7 @@ def test_twin_identify_on_the_ship_with_its_measured_wind(tmp_path):
     if boat is not None:
         wrong = twin_command.twin("evaluate", str(boat), "--model", str(out))
         assert wrong.returncode == 2 and "identified with the measured wind" not in wrong.stderr
-        assert "is driven by propeller_rudder inputs" in wrong.stderr
+        assert "is driven by propeller speed and rudder angle" in wrong.stderr
 
 
 def test_evaluate_splits_a_slow_ships_free_runs_by_manoeuvre_at_its_own_window(esso):

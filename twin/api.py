@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-from .drive import InputSeries
+from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import compile_vessel
 from .engine.parameters import effective_parameters
 from .diagnose.doctor import Diagnosis as _Found
@@ -81,8 +81,8 @@ def _drivable(rec, vessel: Vessel) -> None:
     kind = "pwm" if len(rec.pwm) else ("propeller_rudder" if len(rec.prop_rudder) else None)
     wants = {"t200": "pwm", "propeller_rudder": "propeller_rudder"}.get(vessel.thrusters.kind)
     if kind is not None and wants is not None and kind != wants:
-        raise TwinError(f"'{rec.source}' is a recording of another kind of vessel: it holds {kind} inputs, and "
-                        f"vessel '{vessel.name}' is driven by {wants.replace('_', ' and ')} inputs")
+        raise TwinError(f"'{rec.source}' is a recording of another kind of vessel: "
+                        f"{inputs_mismatch(vessel.name, wants, kind)}")
 
 
 def read_recording(path, channels: dict | None = None):

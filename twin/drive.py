@@ -30,6 +30,14 @@ PWM_COLUMNS = ("pwm_left", "pwm_right")
 THRUST_COLUMNS = ("thrust_left", "thrust_right")
 PROPELLER_RUDDER_COLUMNS = ("prop_rps", "rudder_deg")
 KINDS = ("pwm", "thrust", "propeller_rudder")
+INPUT_WORDS = {"pwm": "PWM", "thrust": "thrust", "propeller_rudder": "propeller speed and rudder angle"}
+
+
+def inputs_mismatch(vessel_name: str, wanted: str, held: str | None) -> str:
+    """The words for a recording whose inputs (`held`, a kind of KINDS) cannot drive a vessel that
+    takes `wanted`."""
+    holds = INPUT_WORDS.get(held, held) if held else "no inputs"
+    return f"vessel '{vessel_name}' is driven by {INPUT_WORDS.get(wanted, wanted)}; the recording holds {holds}"
 
 
 def _held(t: np.ndarray, values: np.ndarray, times) -> np.ndarray:

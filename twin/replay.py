@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .drive import InputSeries
+from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import delivered_thrust, simulate
 from .errors import TwinError
@@ -139,8 +139,8 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
             own = replace(vessel, environment=vessel.environment.for_log(rec.source))
             prep = model_smoothed(compiled if own == vessel else compile_vessel(own), prep)
         if compiled is not None and prep.input_kind != vessel.thrusters.input_kind:
-            raise TwinError(f"{Path(rec.source).name}: vessel '{vessel.name}' is driven by "
-                            f"{vessel.thrusters.input_kind} inputs; the recording holds {prep.input_kind}")
+            raise TwinError(f"{Path(rec.source).name}: "
+                            f"{inputs_mismatch(vessel.name, vessel.thrusters.input_kind, prep.input_kind)}")
         label = name if len(recordings) > 1 else "real"
         runs[label] = measured_run(prep)
         if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r

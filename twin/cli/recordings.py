@@ -6,6 +6,7 @@ from typing import Optional
 
 import typer
 
+from ..drive import inputs_mismatch
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_wind_and_inputs, memory_for, positive, progress_bar, samples_fit, say, vessel_from)
@@ -72,8 +73,7 @@ def _calibrations(recordings: list, vessel) -> int:
         if not (len(r.gnss) and len(r.heading)):
             typer.echo(f"calibration: {name}: no compass calibration (it needs GNSS and heading)")
         elif held is not None and held != wanted:  # another kind of vessel's log: identify would refuse it too
-            typer.echo(f"error: calibration: {name}: vessel '{vessel.name}' is driven by {wanted} inputs; the "
-                       f"recording holds {held}", err=True)
+            typer.echo(f"error: calibration: {name}: {inputs_mismatch(vessel.name, wanted, held)}", err=True)
             failed = 1
         else:
             try:  # one log that cannot be prepared must not hide the others' calibrations

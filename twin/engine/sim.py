@@ -27,7 +27,7 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from ..drive import InputSeries, SupplySeries, WindSeries
+from ..drive import INPUT_WORDS, InputSeries, SupplySeries, WindSeries
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms, mmg_forces
 from ..physics import thrusters
@@ -322,8 +322,8 @@ def simulate(
     inputs_on = terms.thrust or vessel.thrusters.kind == "propeller_rudder"
     if isinstance(drive, InputSeries):
         if (drive.kind == "propeller_rudder") != (vessel.thrusters.kind == "propeller_rudder"):
-            raise TwinError(f"vessel '{vessel.name}' is driven by {vessel.thrusters.input_kind} inputs, "
-                            f"not {drive.kind}")
+            raise TwinError(f"vessel '{vessel.name}' is driven by {INPUT_WORDS[vessel.thrusters.input_kind]}, "
+                            f"not {INPUT_WORDS.get(drive.kind, drive.kind)}")
         if supply is not None:
             drive = replace(drive, supply_v=supply.at(drive.t))
         loop = _OpenLoop(drive, vessel.thrusters, n_steps, n_sample, h, start_s, inputs_on)

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..engine import batch, native
 from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..drive import inputs_mismatch
 from ..errors import TwinError
 from ..physics.thrusters import ThrusterModel
 from ..prepare import Prepared
@@ -352,8 +353,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         kinds = {vpreps[w.rec].input_kind for w in windows}
         if kinds != {vessel.thrusters.input_kind}:
             other = sorted(kinds - {vessel.thrusters.input_kind})
-            raise TwinError(f"vessel '{vessel.name}' is driven by {vessel.thrusters.input_kind} inputs; the recording "
-                            f"holds {', '.join(other) or 'none'}")
+            raise TwinError(inputs_mismatch(vessel.name, vessel.thrusters.input_kind, ", ".join(other) or None))
         model = cache.model(vessel, wind=wind is not None)
         h = model.opt.timestep
         data = mujoco.MjData(model)

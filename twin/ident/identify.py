@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..drive import InputSeries
+from ..drive import InputSeries, inputs_mismatch
 from ..effects.coefficients import fit_groups as groups_of
 from ..engine.limits import beyond_bounds
 from ..engine.mjcf import compile_vessel
@@ -261,7 +261,9 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S))
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if not every:
-        raise TwinError(f"no stretch of {window_s:g} s without a dropout to fit on")
+        longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps for seg in p.segments), default=0.0)
+        raise TwinError(f"no stretch of {window_s:g} s to fit on: the longest without a dropout lasts {longest:.0f} s "
+                        "(a shorter --window, or longer recordings)")
     unused = sorted(set(range(len(preps))) - {w.rec for w in every})
     if unused:
         names = ", ".join(Path(recordings[i].source).name for i in unused)
@@ -412,8 +414,7 @@ def check_inputs(recordings: list[Recording], vessel: Vessel) -> None:
     for rec in recordings:
         held = held_inputs(rec)
         if held is not None and held != wanted:
-            raise TwinError(f"{Path(rec.source).name}: vessel '{vessel.name}' is driven by {wanted} inputs; the "
-                            f"recording holds {held}")
+            raise TwinError(f"{Path(rec.source).name}: {inputs_mismatch(vessel.name, wanted, held)}")
 
 
 def fitted_wind_note(vessel: Vessel, wind: str | None) -> str | None:
