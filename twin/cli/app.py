@@ -205,6 +205,11 @@ def window_s(value: float, option: str = "--window") -> float:
     return value
 
 
+def counted(n: int, noun: str) -> str:
+    """'1 segment', '3 segments'."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def at_least(value: int, least: int, option: str) -> int:
     """A count of at least `least` (evaluations, draws)."""
     if value < least:

@@ -10,8 +10,8 @@ import typer
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
-                  check_outputs, check_recordings_distinct, check_wind_and_inputs, console, floats, note, positive,
-                  progress_bar, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings,
+                  check_outputs, check_recordings_distinct, check_wind_and_inputs, console, counted, floats, note,
+                  positive, progress_bar, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings,
                   window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
@@ -60,7 +60,8 @@ def dataset_command(
         console.print(f"wrote {path}")
     write_json(truth, ds.truth())
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
-    console.print(f"{len(ds.runs)} segments, {total:.0f} s logged ({', '.join(m.name for m in ds.manoeuvres)}); "
+    made = ", ".join(m.name for m in ds.manoeuvres)
+    console.print(f"{counted(len(ds.runs), 'segment')}, {total:.0f} s logged ({made}); "
                   f"effects: {', '.join(e.text for e in ds.effects) or 'none'}", soft_wrap=True)
 
 
@@ -301,7 +302,8 @@ def evaluate_command(
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
     if by:
-        title = f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; gain: measured on predicted)"
+        title = (f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; gain: measured on "
+                 "predicted)")
         typer.echo(format_by_state(bands, title))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel

@@ -10,7 +10,7 @@ import typer
 
 from ..errors import TwinError
 from .app import (MODEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs, check_recordings_distinct,
-                  draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
+                  counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
                   sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
@@ -194,8 +194,10 @@ def dataset_shards_command(
         result = generate_shards(v, settings, out, executor=executor, resume=resume, progress=progress)
     logged = sum(e["logged_s"] for e in result.entries)
     if result.reused:
-        note(f"note: {result.reused} shards were already complete in {out} and kept")
-    say(f"wrote {out}: {len(result.entries)} vessels in {result.index['shards']} shards ({result.made} made now, "
+        note(f"note: {counted(result.reused, 'shard')} {'was' if result.reused == 1 else 'were'} already complete in "
+             f"{out} and kept")
+    say(f"wrote {out}: {counted(len(result.entries), 'vessel')} in {counted(result.index['shards'], 'shard')} "
+        f"({result.made} made now, "
         f"{result.bytes_written / 1e6:.1f} MB of recordings), {logged / 3600:.2f} h logged; index {out / 'index.json'}")
 
 
