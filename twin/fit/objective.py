@@ -29,10 +29,12 @@ class Estimate:
     identifiable: bool
     note: str = ""
     on_bound: bool = False  # ended on, or within its σ of, a bound of its physical range
+    held_by_belief: bool = False  # its belief, counted as data, narrows it about as much as the fit does
 
     def to_dict(self) -> dict:
         return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
-                "identifiable": self.identifiable, "note": self.note, **({"on_bound": True} if self.on_bound else {})}
+                "identifiable": self.identifiable, "note": self.note, **({"on_bound": True} if self.on_bound else {}),
+                **({"held_by_belief": True} if self.held_by_belief else {})}
 
 
 class Measurements:
@@ -124,6 +126,14 @@ class Objective:
         gain = np.where(np.isfinite(sigma) & (sigma > 0), np.sqrt(weight) / np.where(sigma > 0, sigma, 1.0), 0.0)
         self._belief = (gain, np.asarray(mean, float))
         self._last = None
+
+    def belief_sigma(self) -> np.ndarray | None:
+        """Per coordinate, the σ (value units) its belief alone would leave it, counted as the data it
+        is worth (σ/√weight; inf where nothing is believed); None without beliefs."""
+        if self._belief is None:
+            return None
+        gain = self._belief[0]
+        return np.where(gain > 0, 1.0 / np.where(gain > 0, gain, 1.0), np.inf)
 
     @property
     def n_data(self) -> int:

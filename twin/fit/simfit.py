@@ -361,6 +361,7 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
                    ) -> list[Estimate]:
     out = []
     edge = _near_bound(obj, x, cov)
+    held = obj.belief_sigma()
     for i, c in enumerate(coords):
         xv = float(x[i] * obj.scale[i])
         value = c.natural(xv)
@@ -368,12 +369,17 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
             note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
+            by_belief = held is not None and sx >= POSTERIOR_RATIO * held[i]  # the belief, as data, did the narrowing
+            if by_belief:
+                note = (f"held by its belief (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
+                        f"{sx / held[i]:.0%} of what the belief alone leaves at its weight): the recordings add little")
             if edge[i] is not None:  # a curvature's σ at a wall says nothing of where the data would put it
                 bound, on = edge[i]
                 note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
                         f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
                         " (σ from the fit's curvature, which the bound cuts)")
-            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None))
+            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None,
+                                by_belief and edge[i] is None))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,
