@@ -384,3 +384,18 @@ def test_a_fleet_day_is_read_from_a_date_in_the_file_name():
     assert fleet._day(rec, item) == ("2020-09-14", "file name")
     counter = fleet._Item(1, "fixed_00000216.csv", b"", "blueboat", None, "2026-12-03")
     assert fleet._day(rec, counter) == ("2026-12-03", "file time")
+
+
+def test_an_interrupted_fleet_leaves_no_empty_folder_it_made_and_keeps_one_it_did_not(logs, tmp_path):
+    entries = fleet.read_manifest(logs / "manifest.csv", default_vessel="yellowfish")
+
+    def interrupted(recordings, vessel, **options):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        fleet.diagnose_fleet(entries, tmp_path / "new", diagnose=interrupted)
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        fleet.diagnose_fleet(entries, tmp_path / "kept", diagnose=interrupted)
+    assert (tmp_path / "kept").is_dir()

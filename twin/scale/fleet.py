@@ -244,15 +244,20 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
     def items(b: Batch) -> list[_Item]:
         return [_item(i, logs[i]) for i in range(b.start, b.stop)]
 
-    for _, batch_results in (executor or LocalExecutor()).run(run_logs, job, batches, items, progress):
-        for r in batch_results:
-            r["log"] = str(logs[r["index"]].path)
-            results[r["index"]] = r
-            waiting.append(r)
-            if any(w.get("ok") for w in waiting) or reports:
-                for w in waiting:
-                    reports[w["index"]] = _write_report(out, names[w["index"]], w)
-                waiting = []
+    try:
+        for _, batch_results in (executor or LocalExecutor()).run(run_logs, job, batches, items, progress):
+            for r in batch_results:
+                r["log"] = str(logs[r["index"]].path)
+                results[r["index"]] = r
+                waiting.append(r)
+                if any(w.get("ok") for w in waiting) or reports:
+                    for w in waiting:
+                        reports[w["index"]] = _write_report(out, names[w["index"]], w)
+                    waiting = []
+    except BaseException:  # interrupted (Ctrl-C) or failed: a folder this run made and left empty goes again
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
     if not reports:
         if created and not any(out.iterdir()):
             out.rmdir()
