@@ -73,23 +73,19 @@ def test_identify_then_evaluate(dataset):
     assert done.returncode == 2 and "fitted_on" in done.stderr and "Traceback" not in done.stderr
 
 
-def test_a_coefficient_only_its_heavy_belief_narrows_stays_at_its_prior(dataset, tmp_path):
-    """A thrust gain of 1.15: believed as 10 windows' worth of data, the belief alone narrows it about
-    as much as the fit does, so the recordings did not pin it and it stays at its prior exactly;
-    believed lightly, the recordings pin it near the truth."""
-    lines, values = {}, {}
+def test_a_coefficient_its_heavy_belief_holds_is_not_said_to_be_pinned_by_the_recordings(dataset, tmp_path):
+    """A thrust gain of 1.15: believed as 10 windows' worth of data, the belief holds it near 1 and the
+    report says so; believed lightly, the recordings pin it near the truth."""
+    lines = {}
     for beliefs in ("10", "0.01"):
-        out = tmp_path / f"m{beliefs}.json"
-        done = twin("identify", dataset / "train.csv", "--vessel", "yellowfish", "--out", out,
+        done = twin("identify", dataset / "train.csv", "--vessel", "yellowfish", "--out", tmp_path / f"m{beliefs}.json",
                     "--params", "Xuu,thrust_gain", "--beliefs", beliefs, "--window", "5")
         assert done.returncode == 0, done.stderr
         lines[beliefs] = next(line for line in done.stdout.splitlines() if line.startswith("thrust_gain"))
-        values[beliefs] = vessel_mod.load(str(out)).thrusters.gain_left
-    prior = vessel_mod.load("yellowfish").thrusters.gain_left
-    assert "kept at its prior" in lines["10"] and values["10"] == pytest.approx(prior, rel=1e-9)
-    assert "pinned by the recordings" in lines["0.01"] and values["0.01"] == pytest.approx(1.15 * prior, rel=0.05)
+    assert "held by its belief" in lines["10"] and "the recordings add little" in lines["10"]
+    assert "pinned by the recordings" in lines["0.01"]
     sources = vessel_mod.load(str(tmp_path / "m10.json")).sources["identification"]
-    assert "kept at the prior with its uncertainty: thrust_gain" in sources
+    assert "held by their beliefs (the recordings add little): thrust_gain" in sources
 
 
 def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_does_not_vary(dataset, tmp_path):

@@ -333,11 +333,9 @@ def test_a_parameter_the_data_cannot_excite_is_named_not_returned(yellowfish_ves
 def test_a_coefficient_the_data_push_beyond_its_physical_range_is_said_to_be_on_its_bound(yellowfish_vessel):
     # the truth turns with half the yaw damping; a fit free only in the speed-proportional yaw damping
     # N_ur (a damping: ≤ 0) would need it positive, so it stops on 0, which is a wall, not a measurement
-    # (believed as 0.1 windows' worth: at 1 window the form error's scatter leaves it no narrower than
-    # its belief alone, and it stays at its prior, which is that same wall)
     ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.5"], n_segments=3, seed=2, noise=QUIET,
                   segment_s=(30, 35), manoeuvres=["rc", "zigzag", "circle_varying"])
-    res = simfit.fit(yellowfish_vessel, _truth_preps(ds), ("Nur", "Xuu"), window_s=5.0, prior_weight=0.1)
+    res = simfit.fit(yellowfish_vessel, _truth_preps(ds), ("Nur", "Xuu"), window_s=5.0, prior_weight=1.0)
     est = {e.name: e for e in res.estimates}
     assert est["Nur"].on_bound and est["Nur"].value == pytest.approx(0.0, abs=1e-3)
     assert "on the bound" in est["Nur"].note and est["Nur"].to_dict()["on_bound"] is True

@@ -31,8 +31,8 @@ With `prior_weight`, the fit is a maximum a posteriori one: each coefficient's b
 (effects.coefficients.belief: a log-normal magnitude for a damping, an added mass or a
 thrust scale, a normal value for a coupling) enters as a residual row, counted as
 `prior_weight` windows' worth of data. A log-normal coefficient is fitted as ln|θ|, so its
-sign cannot flip. A coefficient whose posterior is not clearly narrower than what its belief
-alone leaves at that weight (POSTERIOR_RATIO) is not pinned down by the recordings: it goes back to its prior value
+sign cannot flip. A coefficient whose posterior is not clearly narrower than its belief
+(POSTERIOR_RATIO) is not pinned down by the recordings: it goes back to its prior value
 exactly, keeps its belief's uncertainty, and the rest is fitted again around it, so what the
 report says is kept is what the vessel file holds.
 """
@@ -333,18 +333,11 @@ def _solution(obj: Objective, x: np.ndarray, J: np.ndarray | None = None):
 
 
 def _pinned(obj: Objective, coords: list[Coordinate], cov) -> np.ndarray:
-    """Which coordinates the recordings narrowed clearly (POSTERIOR_RATIO) below what their belief
-    alone leaves: the belief is counted as data (prior_weight windows' worth), so at any weight it
-    narrows the posterior by itself, and compared with the belief's own σ a coordinate the logs
-    never touch would still count as pinned."""
+    """Which coordinates the data narrowed clearly below their belief (POSTERIOR_RATIO)."""
     if cov is None:
         return np.zeros(len(coords), bool)
     sigma = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    reference = np.array([c.belief.sigma for c in coords])
-    held = obj.belief_sigma()
-    if held is not None:
-        reference = np.minimum(reference, held)
-    return sigma < POSTERIOR_RATIO * reference
+    return sigma < POSTERIOR_RATIO * np.array([c.belief.sigma for c in coords])
 
 
 def _near_bound(obj: Objective, x: np.ndarray, cov) -> list[tuple[float, bool] | None]:
@@ -368,6 +361,7 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
                    ) -> list[Estimate]:
     out = []
     edge = _near_bound(obj, x, cov)
+    held = obj.belief_sigma()
     for i, c in enumerate(coords):
         xv = float(x[i] * obj.scale[i])
         value = c.natural(xv)
@@ -375,12 +369,17 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
             note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
+            by_belief = held is not None and sx >= POSTERIOR_RATIO * held[i]  # the belief, as data, did the narrowing
+            if by_belief:
+                note = (f"held by its belief (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
+                        f"{sx / held[i]:.0%} of what the belief alone leaves at its weight): the recordings add little")
             if edge[i] is not None:  # a curvature's σ at a wall says nothing of where the data would put it
                 bound, on = edge[i]
                 note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
                         f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
                         " (σ from the fit's curvature, which the bound cuts)")
-            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None))
+            out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None,
+                                by_belief and edge[i] is None))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,

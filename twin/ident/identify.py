@@ -554,7 +554,8 @@ def _linearised(fit: simfit.FitResult, names: tuple[str, ...]) -> Vessel:
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], wind: str | None = None) -> Vessel:
     v = fit.vessel
     moved = [e for e in fit.estimates if e.identifiable and not e.on_bound]
-    pinned = ", ".join(e.name for e in moved)
+    pinned = ", ".join(e.name for e in moved if not e.held_by_belief)
+    held = ", ".join(e.name for e in moved if e.held_by_belief)
     walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
     kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
@@ -564,6 +565,7 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
     text = (f"identified by `twin identify` on {when} from {files}{wind_text}: maximum a posteriori fit by free-run "
             f"windows of {fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
+            + (f"; held by their beliefs (the recordings add little): {held}" if held else "")
             + (f"; on or within their σ of a bound of their physical range: {walled}"
                if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
