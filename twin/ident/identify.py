@@ -581,8 +581,11 @@ def format_estimates(result: simfit.FitResult) -> str:
     for e in result.estimates:
         sigma = f"{e.sigma:10.3g}" if e.sigma is not None else f"{'-':>10s}"
         lines.append(f"{e.name:{name_width}s} {e.unit:{width}s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
-    lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows "
-                 f"({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
+    window, stride = result.meta.get("window_s"), result.meta.get("stride_s")
+    which = (f" of {window:g} s{' back to back' if stride == window else ''} with the thrusters working or the hull "
+             "moving" if window else "")
+    lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows"
+                 f"{which} ({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
     return "\n".join(lines)
 
 
