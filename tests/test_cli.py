@@ -40,6 +40,15 @@ def test_simulate_inputs_file_and_current(tmp_path):
     assert run.nu[-1, 1] == pytest.approx(0.3, abs=0.01)  # drifts east with the water
 
 
+def test_params_text_gives_every_value_its_unit():
+    boat = twin("params", "--vessel", "blueboat")
+    assert boat.returncode == 0, boat.stderr
+    assert "(kg, kg·m, kg·m²)" in boat.stdout and "Xuu -3.0288 N s2/m2" in boat.stdout
+    assert "thrusters (t200): gains left 1.605" in boat.stdout
+    ship = twin("params", "--vessel", "esso_osaka")
+    assert "MMG hull (non-dimensional): R0 0.022" in ship.stdout and "MMG rudder: area_m2 0.01063" in ship.stdout
+
+
 def test_params_json():
     p = twin("params", "--vessel", "yellowfish", "--json")
     assert p.returncode == 0, p.stderr

@@ -236,6 +236,10 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("params", "--model", "."), "is a folder, not a vessel file"),
     (("simulate", "--out", "."), "is a folder: give a file name"),
     (("simulate", "--out", "LOG/a.csv"), "is a file, not a folder"),
+    (("simulate", "--wind", "500,40"), "wind's speed 500 m/s is beyond any a small vessel meets (at most 40 m/s)"),
+    (("simulate", "--current", "20,90"), "current's speed 20 m/s is beyond any a small vessel meets"),
+    (("identify", "LOG", "--vessel", "esso_osaka", "--params", "lag_s,mmg_Nr"),
+     "lag_s: a PWM thruster's term, and vessel 'esso_osaka' has a propeller and rudder"),
 ])
 def test_bad_numbers_are_refused_before_any_work(monkeypatch, capsys, kept, args, message):
     root, log, inputs, same = kept

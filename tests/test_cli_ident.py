@@ -1,11 +1,13 @@
 """The identification commands end to end: dataset → identify → evaluate, and their errors."""
 import json
 import sys
+from dataclasses import replace
 
 import pytest
 
 import twin.vessel as vessel_mod
 import twin_command
+from twin.fit.evaluate import state_display
 
 
 def twin(*args, timeout=300):
@@ -37,6 +39,9 @@ def test_identify_then_evaluate(dataset):
     assert "[Morel-2024] grey-box" in done.stdout and "identification by simulation" in done.stdout
     assert "judged on left-out runs" in done.stdout and "on a new run expect" in done.stdout
     assert "fitted on: u " in done.stdout and "the twin extrapolates" in done.stdout
+    # one log: its left-out groups are time blocks of it, said as parts; --params judges no groups
+    assert "R² on left-out parts" in done.stdout and "left-out runs, all together" not in done.stdout
+    assert "no group is needed" not in done.stdout and "a group goes back to its prior" not in done.stdout
     v = vessel_mod.load(str(model))
     assert v.thrusters.gain_left == pytest.approx(1.15, rel=0.03)
     assert "identification" in v.sources
@@ -89,8 +94,6 @@ def test_a_coefficient_its_heavy_belief_holds_is_not_said_to_be_pinned_by_the_re
 
 
 def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_does_not_vary(dataset, tmp_path):
-    from dataclasses import replace
-
     slow = tmp_path / "slow.json"  # a drag twice too strong: the twin misses most where it runs fast
     base = vessel_mod.load("yellowfish")
     vessel_mod.save(replace(base, damping=replace(base.damping, Xuu=2.0 * base.damping.Xuu)), slow)
@@ -98,7 +101,8 @@ def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_do
     assert done.returncode == 0, done.stderr
     report = json.loads((tmp_path / "e.json").read_text())
     bands = report["by_state"]["bands"]
-    assert report["by_state"]["state"] == "speed_m_s" and len(bands) == 4 and "by speed" in done.stdout
+    assert report["by_state"]["state"] == "speed_m_s" and len(bands) == 4 and "by speed over ground" in done.stdout
+    assert bands[0]["label"].startswith("< ") and bands[1]["label"].endswith(" m/s") and " to " in bands[1]["label"]
     assert sum(b["samples"] for b in bands) == pytest.approx(1.0)
     assert sum(b["share"]["u"] for b in bands) == pytest.approx(1.0 - report["metrics"]["free_run_10s"]["u"]["r2"],
                                                                  rel=1e-6)
@@ -112,8 +116,6 @@ def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_do
 
 
 def test_a_twin_that_follows_the_pack_says_which_logs_record_none(dataset, tmp_path):
-    from dataclasses import replace
-
     base = vessel_mod.load("yellowfish")
     model = vessel_mod.save(replace(base, thrusters=replace(base.thrusters, supply_exponent=2.0, supply_ref_v=16.0)),
                             tmp_path / "pack.json")
@@ -152,8 +154,6 @@ def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys
 def test_identify_refuses_a_twin_that_ran_away_on_every_left_out_run(dataset, tmp_path):
     """A prior whose thrust is a billion times too strong runs away on every window, whatever is fitted:
     nothing is written, and a model file already there is kept byte for byte."""
-    from dataclasses import replace
-
     base = vessel_mod.load("yellowfish")
     wild = vessel_mod.save(replace(base, thrusters=replace(base.thrusters, forward=(1e9, 1e9, -0.6),
                                                            reverse=(-1e9, 1e9, -0.3))), tmp_path / "wild.json")
@@ -176,3 +176,9 @@ def test_identify_says_a_log_too_short_for_any_window_is_not_in_the_fit(dataset,
                 "--params", "thrust_gain", "--beliefs", "1", "--max-evaluations", "2", "--window", "5")
     assert done.returncode == 0, done.stderr
     assert "short.csv: no stretch of 5 s without a dropout, so not in the fit" in done.stdout + done.stderr
+
+
+def test_state_bands_are_shown_in_the_units_the_reports_use():
+    assert state_display("yaw_rate_rad_s")[1:] == ("°/s", pytest.approx(57.29578))
+    assert state_display("input_1", "propeller_rudder")[:2] == ("rudder angle", "°")
+    assert state_display("input_1")[:2] == ("right thruster's PWM", "µs")

@@ -204,8 +204,9 @@ def fake_diagnose(recordings, vessel, **options):
         raise TwinError(f"{rec.source}: too short")
     effects = [{"name": "current", "parameters": {"speed_m_s": rec.duration_s() / 1000.0}, "held_out_gain": 0.5}]
     effects = effects if vessel.name == "yellowfish" else []
+    answer = {} if effects else {"form": ["r 12× the noise off, following the PWM difference"]}
     return SimpleNamespace(effects=effects, to_dict=lambda: {"vessel": vessel.name, "effects": effects,
-                                                           "options": options})
+                                                           "options": options, "answer": answer})
 
 
 @pytest.fixture(scope="module")
@@ -236,7 +237,12 @@ def test_fleet_reports_and_summary_per_vessel_and_day(logs, tmp_path):
     assert s["per_day"]["2026-05-02"] == {"logs": 2, "diagnosed": 1, "effects": {}, "day_from": {"manifest": 2}}
     report = json.loads((tmp_path / "out" / "log0.json").read_text())
     assert report["ok"] and report["day"] == "2026-05-01" and report["report"]["options"] == {"window_s": 5.0}
-    assert "| current | 1 | 50 % |" in (tmp_path / "out" / "fleet.md").read_text()
+    md = (tmp_path / "out" / "fleet.md").read_text()
+    assert "| current | 1 | 50 % |" in md
+    # a log where nothing was named but the twin's form is off says so; logs without an anemometer are
+    # not told to use one
+    assert "- log1.mcap: twin's form: r 12× the noise off, following the PWM difference" in md
+    assert "wind" not in md and s["with_measured_wind"] == 0
     with pytest.raises(TwinError, match="not YYYY-MM-DD"):
         (logs / "bad.csv").write_text("recording,day\nlog0.mcap,May 1\n")
         fleet.read_manifest(logs / "bad.csv", "yellowfish")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from twin.prepare.timing import heading_lag_behind_gyro
+from twin.prepare.timing import GyroLag, heading_lag_behind_gyro
 from twin.recording import Recording, Stream
 
 
@@ -56,6 +56,7 @@ def test_the_diagnosis_notes_each_logs_heading_against_its_gyro():
     notes = _gyro_timing([late, Recording("still.csv", "csv", heading=plain.heading, imu=plain.imu)])
     assert len(notes) == 1 and notes[0].startswith("weave.csv: heading against the gyro: +")
     assert float(notes[0].split(": +")[1].split(" s late")[0]) == pytest.approx(0.25, abs=0.02)
+    assert "`heading_latency=0.2" in notes[0]  # told: well beyond its σ
 
 
 def test_a_gyro_of_the_other_sign_is_not_read_as_a_lag():
@@ -92,3 +93,12 @@ def test_the_search_fits_a_heading_or_a_fix_late_only_and_a_pwm_clock_both_ways(
         (q,) = cand.params
         assert q.lo == lowest if lowest == 0.0 else q.lo < lowest, name
         assert min(v[0] for v in cand.scan) == pytest.approx(lowest, abs=0.1), name
+
+
+def test_a_lag_within_three_sigma_of_zero_is_not_said_to_describe_the_heading():
+    vague = GyroLag(0.79, 0.95, 120.0, sigma_s=0.82).text()
+    assert "+0.79 s late ± 0.82 s" in vague and "not told from on time" in vague and "heading_latency=" not in vague
+    early = GyroLag(-0.20, 0.97, 300.0, sigma_s=0.05).text()
+    assert "leads its gyro" in early and "heading_latency=" not in early
+    late = GyroLag(0.40, 0.97, 300.0, sigma_s=0.05).text()
+    assert "`heading_latency=0.40` describes it" in late

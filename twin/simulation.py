@@ -16,6 +16,7 @@ from .engine.limits import Limited, beyond_bounds
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate as _simulate
 from .errors import TwinError
+from .physics.environment import MAX_CURRENT_M_S, MAX_WIND_M_S
 from .run import Run
 from .vessel import Vessel, load as load_vessel
 
@@ -63,7 +64,11 @@ def _flow(value, what: str) -> tuple[float, float] | None:
         return None
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
         raise TwinError(f"{what} must be (speed m/s, direction deg), two numbers, got {value!r}")
-    return _number(value[0], f"{what}'s speed"), _number(value[1], f"{what}'s direction")
+    speed, direction = _number(value[0], f"{what}'s speed"), _number(value[1], f"{what}'s direction")
+    most = MAX_WIND_M_S if what == "wind" else MAX_CURRENT_M_S
+    if speed > most:
+        raise TwinError(f"{what}'s speed {speed:g} m/s is beyond any a small vessel meets (at most {most:g} m/s)")
+    return speed, direction
 
 
 def _check_inputs(vessel: Vessel, kind: str) -> None:

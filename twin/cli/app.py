@@ -380,7 +380,8 @@ def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: 
     vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes: inputs
     beyond the vessel file's bounds (replayed as logged), the wind's gaps, and a twin identified with
     the wind that is run without it."""
-    from ..ident.identify import beyond_command_bounds, check_inputs, check_wind, fitted_wind_note, wind_gaps
+    from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note, unused_wind_note,
+                                  wind_gaps)
 
     check_wind(recordings, wind, vessel)
     if replayed:
@@ -392,6 +393,8 @@ def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: 
     wind_note = fitted_wind_note(vessel, wind) if replayed else None
     if wind_note:
         note(f"note: {wind_note}")
+    elif replayed and (unused := unused_wind_note(recordings, wind, vessel)):
+        note(f"note: {unused}")
 
 
 def note(text: str) -> None:

@@ -171,7 +171,9 @@ def identify_command(
     console.print(f"[bold]choices, judged on left-out runs ({result.fit.meta.get('window_s', 10.0):g}-s free runs "
                   "from measured states)[/]")
     typer.echo(ident.format_choices(result))
-    say(ident.format_needed(result))
+    needed = ident.format_needed(result)
+    if needed:
+        say(needed)
     console.print("[bold]identification by simulation[/]")
     typer.echo(ident.format_estimates(result.fit))
     say(f"on a new run expect{' (with its measured wind)' if wind else ''}: {result.chosen.cv.summary()}")
@@ -231,7 +233,8 @@ def evaluate_command(
     share of the recording inside the prediction band of the identified uncertainty."""
     from ..fit.coverage import from_dict as envelope_from
     from ..fit.evaluate import (STATE_NAMES, TwinPredictor, evaluate, format_by_manoeuvre, format_by_state,
-                                format_metrics, misfit_by_manoeuvre, misfit_by_state, percentile_edges)
+                                format_metrics, misfit_by_manoeuvre, misfit_by_state, percentile_edges,
+                                state_display)
     from ..fit.windows import ModelCache
     from ..ident.identify import calibrate, manoeuvre_horizon_s, prepared, read
 
@@ -301,8 +304,15 @@ def evaluate_command(
         typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
+    preps_used = prepared(recs, used)
+    longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps_used for seg in p.segments), default=0.0)
+    short = [f"{h:g}-s" for h in (10.0, 30.0) if longest < h]
+    if short:  # said, not left to a table of dashes
+        note(f"note: the longest stretch without a dropout lasts {longest:.1f} s: the {' and '.join(short)} free runs "
+             "have nothing to score")
     if by:
-        title = (f"where the {horizon:g}-s free runs miss, by {by} ({state}; share of 1 − R²; gain: measured on "
+        what = state_display(state, "propeller_rudder" if used.thrusters.kind == "propeller_rudder" else "pwm")[0]
+        title = (f"where the {horizon:g}-s free runs miss, by {what} (share of 1 − R²; gain: measured on "
                  "predicted)")
         typer.echo(format_by_state(bands, title))
     if rrd is not None:

@@ -220,11 +220,39 @@ def params(
     if as_json:
         typer.echo(json.dumps(p, indent=2))
         return
-    say(f"[bold]{p['vessel']}[/] ({p['case']}): m = {p['rigid_body']['mass_kg']:.3f} kg, "
+    source = f"{model.name}: " if model is not None else ""
+    say(f"[bold]{source}{p['vessel']}[/] ({p['case']}): m = {p['rigid_body']['mass_kg']:.3f} kg, "
         f"xg = {p['rigid_body']['xg_m'] * 1e3:.1f} mm, Iz = {p['rigid_body']['Iz_kgm2']:.3f} kg·m²")
+    say("mass matrices, rows and columns u, v, r (kg, kg·m, kg·m²):")
     for key in ("M", "M_RB", "M_A"):
         say(f"{key:5s} = " + "  ".join("[" + ", ".join(f"{x:9.4f}" for x in row) + "]" for row in p[key]))
-    say("damping: " + ", ".join(f"{k}={val:g}" for k, val in p["damping"].items() if val))
+    for line in params_lines(p):
+        say(line)
+
+
+def params_lines(p: dict) -> list[str]:
+    """The damping and propulsion of effective_parameters' dict as text, each value with its unit:
+    Fossen's damping (N and N·m per the velocities' powers), a PWM thruster's map scales, or a ship's
+    MMG coefficients (non-dimensional, [MMG-2015])."""
+    from ..effects.coefficients import DAMPING_UNITS
+
+    lines = []
+    damping = [f"{k} {val:g} {DAMPING_UNITS.get(k, '')}".rstrip() for k, val in p["damping"].items() if val]
+    if damping:
+        lines.append("damping: " + ", ".join(damping))
+    t = p["thrusters"]
+    if t["kind"] == "propeller_rudder" and p.get("mmg"):
+        m = p["mmg"]
+        lines.append("MMG hull (non-dimensional): " + ", ".join(f"{k} {v:g}" for k, v in m["hull"].items()))
+        lines.append("MMG propeller: " + ", ".join(f"{k} {v:g}" for k, v in m["propeller"].items()
+                                                   if isinstance(v, (int, float))))
+        lines.append("MMG rudder: " + ", ".join(f"{k} {v:g}" for k, v in m["rudder"].items()))
+    else:
+        lines.append(f"thrusters ({t['kind']}): gains left {t['gain_left']:g}, right {t['gain_right']:g} (× the map); "
+                     f"lag {t['lag_s']:g} s, delay {t['delay_s']:g} s; advance loss {t['advance_loss']:g} √N s/m; "
+                     f"dead zone {t['deadzone_fwd']:g} / {t['deadzone_rev']:g} (of the PWM scale, "
+                     f"{t['pwm_scale_us']:g} µs)")
+    return lines
 
 
 @app.command()

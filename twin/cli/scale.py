@@ -253,8 +253,10 @@ def fleet_command(
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=executor, progress=progress, wind=wind)
     typer.echo(format_summary(fleet.summary))
-    say(f"wrote {len(fleet.reports)} report{'' if len(fleet.reports) == 1 else 's'}, {out / 'fleet.json'} and "
-        f"{out / 'fleet.md'}")
+    failures = len(fleet.reports) - fleet.summary["diagnosed"]
+    say(f"wrote {counted(len(fleet.reports), 'report')}"
+        + (f" ({fleet.summary['diagnosed']} diagnosed, {counted(failures, 'failure record')})" if failures > 0 else "")
+        + f", {out / 'fleet.json'} and {out / 'fleet.md'}")
     written = {Path(r).name for r in fleet.reports.values()} | {"fleet.json"}
     older = sorted(q.name for q in out.glob("*.json") if q.name not in written)
     if older:

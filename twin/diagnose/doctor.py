@@ -186,9 +186,15 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if not kept:
         diagnosis.notes.append("no candidate effect improves the held-out fit significantly")
     diagnosis.notes += [f.text() for f in findings if not f.told]
-    if unsearched:
+    told_or_absent = {f.effect for f in findings if f.told or f.absent}
+    settled_here = [k for k in unsearched if k in told_or_absent or k.startswith("heading_bias")]
+    only_kinematic = [k for k in unsearched if k not in settled_here]
+    if settled_here:
         diagnosis.notes.append(f"not searched, as the kinematics settle them (step 0, each log's compass offset): "
-                               f"{', '.join(unsearched)}")
+                               f"{', '.join(settled_here)}")
+    if only_kinematic:
+        diagnosis.notes.append(f"not searched in the dynamics, told from the kinematics alone (a twin's form error "
+                               f"would stand in for it there): {', '.join(only_kinematic)}")
     if replaced:
         diagnosis.notes.append(f"not searched, as each recording's measured wind is a known input: {', '.join(replaced)}")
     diagnosis.notes += _gyro_timing(recordings)

@@ -261,7 +261,7 @@ def format_text(d) -> str:
     """The diagnosis for the terminal, ≤ 100 columns, answer first."""
     a = answer(d)
     lines = [f"diagnosis of {d.prior.name}: {d.windows.get('windows')} windows of {d.windows.get('length_s')} s in "
-             f"{d.windows.get('blocks')} blocks, judged in {d.windows.get('folds')} folds; {d.seconds:.0f} s"]
+             f"{d.windows.get('blocks')} blocks, judged in {d.windows.get('folds')} folds; took {d.seconds:.0f} s"]
     lines += [f"MISSING: {x}" for x in a["missing"]]
     lines += [f"TWIN'S FORM: {x}" for x in a["form"]]
     if a["changes"]:

@@ -145,6 +145,10 @@ def mmg_coefficients() -> dict[str, Quantity]:
     return out
 
 
+PWM_THRUSTER_TERMS = ("thrust_gain", "reverse_scale", "asymmetry", "lag_s", "advance_loss", "delay_s",
+                      "supply_exponent", "full_share", "deadzone_fwd")  # what a propeller and rudder lacks
+
+
 def coefficients(prior: Vessel) -> dict[str, Quantity]:
     """Every coefficient identification can fit, by name (curve scales relative to `prior`; the
     MMG ones only for a vessel with an `mmg` block)."""
@@ -153,14 +157,15 @@ def coefficients(prior: Vessel) -> dict[str, Quantity]:
     out.update({n: damping(n) for n in ("Yuv", "Nur")})
     out.update({n: speed_coupling(n) for n in ("Yur", "Nuv")})
     out.update({n: added_mass(n) for n in ADDED_MASS})
-    out.update({"thrust_gain": gain_mean(), "reverse_scale": reverse_scale(prior), "asymmetry": gain_ratio(),
-                "lag_s": member("thrusters", "lag_s", "s", 0.01, 3.0, 0.2),
-                "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
-                "astern_excess": member("damping", "astern_excess", "-", -0.5, 4.0, 0.2),
-                "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
-                "supply_exponent": member("thrusters", "supply_exponent", "-", 0.0, 4.0, 0.5),
-                "full_share": member("thrusters", "full_share", "×", 0.3, 2.0, 0.2),
-                "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05),
+    if prior.thrusters.kind != "propeller_rudder":  # a propeller and rudder has none of a PWM thruster's terms
+        out.update({"thrust_gain": gain_mean(), "reverse_scale": reverse_scale(prior), "asymmetry": gain_ratio(),
+                    "lag_s": member("thrusters", "lag_s", "s", 0.01, 3.0, 0.2),
+                    "advance_loss": member("thrusters", "advance_loss", "√N s/m", 0.0, 8.0, 0.5),
+                    "delay_s": member("thrusters", "delay_s", "s", 0.0, 2.0, 0.1),
+                    "supply_exponent": member("thrusters", "supply_exponent", "-", 0.0, 4.0, 0.5),
+                    "full_share": member("thrusters", "full_share", "×", 0.3, 2.0, 0.2),
+                    "deadzone_fwd": member("thrusters", "deadzone_fwd", "δ̃", 0.0, 0.5, 0.05)})
+    out.update({"astern_excess": member("damping", "astern_excess", "-", -0.5, 4.0, 0.2),
                 "current_north": ned_component("current", 0, -3.0, 3.0, 0.1),
                 "current_east": ned_component("current", 1, -3.0, 3.0, 0.1)})
     if prior.mmg is not None:

@@ -30,6 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import TwinError
+from ..physics.environment import MAX_CURRENT_M_S, MAX_WIND_M_S
 from ..vessel import Vessel
 from .coefficients import (ADDED_MASS, ADDED_MASS_UNITS, DAMPING_UNITS, LINEAR_DAMPING, QUADRATIC_DAMPING,
                            SURGE_RESISTANCE, mmg_sway_added_mass)
@@ -547,11 +548,11 @@ def gnss_lever_arm(vessel: Vessel, dx_m: float, dy_m: float) -> Vessel:
 # ---------------------------------------------------------------- the registry
 
 _SPECS = [
-    EffectSpec("current", "environment", (_v("speed_m_s", "m/s", 0, 10), _v("dir_deg", "deg", -360, 360)), current,
+    EffectSpec("current", "environment", (_v("speed_m_s", "m/s", 0, MAX_CURRENT_M_S), _v("dir_deg", "deg", -360, 360)), current,
                "water current towards dir_deg", _current_fit),
-    EffectSpec("wind", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)), wind,
+    EffectSpec("wind", "environment", (_v("speed_m_s", "m/s", 0, MAX_WIND_M_S), _v("dir_deg", "deg", -360, 360)), wind,
                "wind from dir_deg", _wind_fit),
-    EffectSpec("wind_per_log", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360)),
+    EffectSpec("wind_per_log", "environment", (_v("speed_m_s", "m/s", 0, MAX_WIND_M_S), _v("dir_deg", "deg", -360, 360)),
                wind_per_log, "each log's own wind (file name), from dir_deg: a wind that changed between logs",
                _wind_per_log_fit, per_key="LOG"),
     EffectSpec("wind_load_shape", "environment", (_v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_load_shape,

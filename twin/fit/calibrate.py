@@ -313,11 +313,13 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
         speed = limits.get("min_speed_m_s", STRAIGHT_SPEED_M_S)
         fast = np.abs(prep.u[np.isfinite(prep.u)])
         top = float(np.percentile(fast, 99)) if len(fast) else 0.0
-        slow = f"; this log's |u| reaches {top:.2f} m/s (99th percentile)" if top <= speed else ""
-        rule = f"|u| > {speed:g} m/s" + ("" if slow else f", {straight.text()}")  # too slow: the turn rule never applied
-        return LogCalibration(name, None, None, len(stretches), seconds, None,
-                              f"{seconds:.1f} s of straight running under way ({rule}); {MIN_STRAIGHT_S:g} s are "
-                              f"needed{slow}")
+        if top <= speed:  # too slow throughout: the turn rule never applied
+            note = (f"its |u| reaches {top:.2f} m/s (99th percentile), and below {speed:g} m/s the direction of the "
+                    "GNSS track is mostly noise")
+        else:
+            note = (f"{seconds:.1f} s of straight running under way (|u| > {speed:g} m/s, {straight.text()}); "
+                    f"{MIN_STRAIGHT_S:g} s are needed")
+        return LogCalibration(name, None, None, len(stretches), seconds, None, note)
     legs = [_ground_velocity(prep, sl) for sl in stretches]
     vel = np.concatenate([v for v, _ in legs])
     psi = np.concatenate([p for _, p in legs])

@@ -125,7 +125,9 @@ class CrossValidation:
             parts.append(f"{d} {s[0]:.2f} ({s[1]:.2f} to {s[2]:.2f})" if s else f"{d} -")
         pooled = ", ".join(f"{d} {self.pooled[d]['r2']:.2f}" for d in DOFS
                            if self.pooled.get(d, {}).get("r2") is not None)
-        return (f"{self.label}: R² on left-out runs, all together: {pooled}; run by run, median (range): "
+        # fewer recordings than MIN_RUNS: the left-out groups are time blocks of them (held_out_groups)
+        unit = "part" if self.runs and all(" part " in r.log for r in self.runs) else "run"
+        return (f"{self.label}: R² on left-out {unit}s, all together: {pooled}; {unit} by {unit}, median (range): "
                 + ", ".join(parts))
 
 

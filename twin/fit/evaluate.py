@@ -250,6 +250,19 @@ STATES = ("speed_m_s", "yaw_rate_rad_s", "input_0", "input_1", "input_0_rest_s")
 REST_INPUT = 1.0  # |input 0| at or below this counts as at rest for input_0_rest_s (a propeller's rps)
 
 
+def state_display(state: str, input_kind: str = "pwm") -> tuple[str, str, float]:
+    """(what the state is, the unit its bands are shown in, the factor from its own unit to that one),
+    for a recording whose inputs are `input_kind` (Prepared.input_kind): a yaw rate and a rudder
+    angle in degrees, as the rest of the reports give them."""
+    ship = input_kind == "propeller_rudder"
+    deg = 180.0 / np.pi
+    return {"speed_m_s": ("speed over ground", "m/s", 1.0), "yaw_rate_rad_s": ("|yaw rate|", "°/s", deg),
+            "input_0": ("propeller speed", "rps", 1.0) if ship else ("left thruster's PWM", "µs", 1.0),
+            "input_1": ("rudder angle", "°", deg) if ship else ("right thruster's PWM", "µs", 1.0),
+            "input_0_rest_s": ("time the propeller has been stopped" if ship else "time input 0 has been at rest",
+                               "s", 1.0)}[state]
+
+
 def recording_states(prep: Prepared) -> dict[str, np.ndarray]:
     """Per grid sample: the speed √(u² + v²) of the prepared log (m/s, over ground), |r| (rad/s), the
     logged inputs (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤
@@ -293,7 +306,10 @@ def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s:
     sq, total = _squares(pred[:, 1:], meas[:, 1:], finite)
     paired = np.isfinite(meas[:, 1:]) & np.isfinite(pred[:, 1:]) & finite[:, None, None]
     band = np.digitize(values[:, 1:], edges)
-    labels = ([f"< {edges[0]:g}"] + [f"{a:g}-{b:g}" for a, b in zip(edges[:-1], edges[1:])] + [f"≥ {edges[-1]:g}"])
+    _, unit, factor = state_display(state, preps[0].input_kind)
+    shown = [f"{factor * e:.3g}" for e in edges]
+    labels = ([f"< {shown[0]} {unit}"] + [f"{a} to {b} {unit}" for a, b in zip(shown[:-1], shown[1:])]
+              + [f"≥ {shown[-1]} {unit}"])
     n_all = int(paired.any(axis=2).sum())
     out = []
     for b, label in enumerate(labels):
@@ -336,7 +352,8 @@ def percentile_edges(preps: list[Prepared], state: str, label: str | None = None
 def format_by_state(bands: list[StateBand], title: str = "") -> str:
     """misfit_by_state's bands as rows: the band, its share of the samples, each DOF's share of
     1 − R² and the gain (measured on predicted) per DOF; ≤ 100 columns."""
-    head = (f"{'band':>16s}{'samples':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
+    width = max([16] + [len(b.label) for b in bands])
+    head = (f"{'band':>{width}s}{'samples':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
             + "".join(f"{'gain ' + d:>9s}" for d in DOFS))
     lines = ([title] if title else []) + [head, "-" * len(head)]
 
@@ -344,7 +361,7 @@ def format_by_state(bands: list[StateBand], title: str = "") -> str:
         return f"{'-':>{width}s}" if x is None else f"{x:>{width}{fmt}}"
 
     for b in bands:
-        lines.append(f"{b.label:>16s}{b.samples:>9.0%}" + "".join(num(b.share[d], 10, ".3f") for d in DOFS)
+        lines.append(f"{b.label:>{width}s}{b.samples:>9.0%}" + "".join(num(b.share[d], 10, ".3f") for d in DOFS)
                      + "".join(num(b.gain[d], 9, ".2f") for d in DOFS))
     return "\n".join(lines)
 

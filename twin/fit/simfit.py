@@ -45,7 +45,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..effects import Quantity, coefficients
-from ..effects.coefficients import Belief, belief
+from ..effects.coefficients import PWM_THRUSTER_TERMS, Belief, belief
 from ..effects.quantity import log_magnitude
 from ..effects.coefficients import DEFAULT_FIT as DEFAULT
 from ..errors import TwinError
@@ -88,6 +88,11 @@ def check_names(prior: Vessel, names, anchor: str) -> list[str]:
     table = coefficients(prior)
     names = list(dict.fromkeys(names))
     unknown = [n for n in names if n not in table]
+    pwm_only = [n for n in unknown if n in PWM_THRUSTER_TERMS]
+    if pwm_only:
+        raise TwinError(f"{', '.join(pwm_only)}: a PWM thruster's term{'s' if len(pwm_only) > 1 else ''}, and vessel "
+                        f"'{prior.name}' has a propeller and rudder (its MMG coefficients: "
+                        f"{', '.join(n for n in table if n.startswith('mmg_'))})")
     if unknown:
         raise TwinError(f"unknown parameter(s) {', '.join(unknown)} (known: {', '.join(table)})")
     if anchor not in ("mass", "thrust"):

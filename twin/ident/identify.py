@@ -449,6 +449,18 @@ def beyond_command_bounds(recordings: list[Recording], vessel: Vessel) -> list[s
 MIN_WIND_COVER = 0.5
 
 
+def unused_wind_note(recordings: list[Recording], wind: str | None, vessel: Vessel) -> str | None:
+    """A note when recordings hold a measured wind that this run leaves out (no `wind`), on a vessel
+    with wind areas for it to act on; None otherwise."""
+    held = sum(bool(len(r.wind)) for r in recordings)
+    load = vessel.wind_load
+    acts = load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None
+    if wind == "measured" or not held or not acts:
+        return None
+    return (f"{held} of {len(recordings)} recording{'' if len(recordings) == 1 else 's'} hold a measured wind, left "
+            "out here (--wind-measured takes it as a known input)")
+
+
 def wind_gaps(recordings: list[Recording]) -> list[str]:
     """A note for each recording whose measured wind covers under MIN_WIND_COVER of its GNSS time
     (gaps longer than three of its sample periods): the free runs hold the last wind across them."""
@@ -585,13 +597,15 @@ def format_estimates(result: simfit.FitResult) -> str:
     which = (f" of {window:g} s{' back to back' if stride == window else ''} with the thrusters working or the hull "
              "moving" if window else "")
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows"
-                 f"{which} ({result.n_evaluations} candidate twins on each, {result.seconds:.1f} s)")
+                 f"{which} ({result.n_evaluations} candidate twins run on each, the fit took {result.seconds:.1f} s)")
     return "\n".join(lines)
 
 
 def format_needed(ident: Identification) -> str:
     """One line: the physics the left-out runs need most (Identification.needed)."""
     needed = ident.needed()
+    if ident.chosen is not None and ident.chosen.free_groups == ("chosen",):
+        return ""  # --params: no groups were judged
     if not needed:
         return f"no group is needed by the left-out runs (none raises their cost ×{NEEDED_RATIO:g} back at its prior)"
     return "the left-out runs need: " + ", ".join(f"{g} (left-out cost ×{r:.2f} without it)" for g, r in needed)
@@ -610,8 +624,10 @@ def format_choices(ident: Identification) -> str:
         note = f"  (ran away on {ran_away} of {len(cv.runs)} left-out runs)" if ran_away else ""
         lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}{note}")
     if ident.chosen is not None:
-        lines.append(f"* the twin written: the belief scale of lowest left-out cost; a group goes back to its prior "
-                     f"only where that lowers the cost by {100 * DROP_GAIN:g} % or more")
+        by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups to drop
+        lines.append("* the twin written: the belief scale of lowest left-out cost" +
+                     (f"; a group goes back to its prior only where that lowers the cost by {100 * DROP_GAIN:g} % "
+                      "or more" if by_groups else ""))
     return "\n".join(lines)
 
 

@@ -28,6 +28,10 @@ from ..errors import TwinError
 from .sensors import log_name
 
 RHO_AIR_KG_M3 = 1.225
+# beyond these no small vessel sails and no load form here holds: a tidal race runs under 10 m/s, a
+# hurricane's sustained wind from 33 m/s
+MAX_CURRENT_M_S = 10.0
+MAX_WIND_M_S = 40.0
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,9 @@ class Environment:
             if not math.isfinite(value) or (name.endswith("speed_m_s") and value < 0):
                 raise TwinError(f"environment: {name} must be a finite number{' ≥ 0' if 'speed' in name else ''}, "
                                 f"got {value!r}")
+        for name, most in (("current_speed_m_s", MAX_CURRENT_M_S), ("wind_speed_m_s", MAX_WIND_M_S)):
+            if getattr(self, name) > most:
+                raise TwinError(f"environment: {name} must be at most {most:g} m/s, got {getattr(self, name)!r}")
 
     def for_log(self, source: str) -> "Environment":
         """The environment of the recording from `source` (a path or name): its own wind, if

@@ -31,6 +31,7 @@ TURNING_RAD_S = 0.05
 # below this share the heading's wiggles are mostly noise or a gyro's drift within a piece: the best
 # lag is theirs (a ship model turning at 1-3°/s: 24-56 %, lags of either sign)
 MIN_FIT = 0.9
+TOLD_SIGMAS = 3.0  # a lag within this many σ of zero is not told from on time
 
 
 @dataclass(frozen=True)
@@ -49,9 +50,14 @@ class GyroLag:
     def text(self) -> str:
         if self.lag_s is None:
             return f"heading against the gyro: not told ({self.note})"
-        return (f"heading against the gyro: {self.lag_s:+.2f} s late (the shifted gyro's turning explains "
-                f"{100 * self.fit:.0f} % of the heading's over {self.turning_s:.0f} s of turning; `heading_latency={self.lag_s:.2f}` "
-                "describes it if the gyro is on time)")
+        sigma = f" ± {self.sigma_s:.2f} s" if self.sigma_s else ""
+        head = (f"heading against the gyro: {self.lag_s:+.2f} s late{sigma} (the shifted gyro's turning explains "
+                f"{100 * self.fit:.0f} % of the heading's over {self.turning_s:.0f} s of turning)")
+        if not self.sigma_s or abs(self.lag_s) < TOLD_SIGMAS * self.sigma_s:
+            return f"{head}: not told from on time (within {TOLD_SIGMAS:g}σ)"
+        if self.lag_s < 0:
+            return f"{head}: the heading leads its gyro, which no filter does (the gyro or its stamps are late)"
+        return f"{head}: `heading_latency={self.lag_s:.2f}` describes it if the gyro is on time"
 
 
 def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turning_rad_s: float = TURNING_RAD_S,

@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import json
+import os
 import re
 import tempfile
 import time
@@ -136,6 +137,7 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
         try:
             rec = read_recording(path)
             out["day"], out["day_from"] = _day(rec, item)
+            out["measured_wind"] = bool(len(rec.wind))
             diagnose = job.diagnose or _default_diagnose()
             result = diagnose([rec], job.vessels[item.vessel], **job.options)
             out.update(ok=True, report=_plain(result.to_dict()), effects=_plain(list(result.effects)))
@@ -224,6 +226,8 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
         raise TwinError(f"--out '{out}' is a file: give a folder")
     if not out.parent.is_dir():
         raise TwinError(f"--out '{out}': folder '{out.parent}' does not exist (create it first)")
+    if not os.access(out if out.is_dir() else out.parent, os.W_OK):
+        raise TwinError(f"--out '{out}': cannot write there (choose another folder)")
     for log in logs:
         if not log.path.is_file():
             raise TwinError(f"{log.path}: no such file")
@@ -348,9 +352,18 @@ def summarise(results: list[dict]) -> dict:
             "per_vessel": {v: _group(ok, results, "vessel", v) for v in sorted({r["vessel"] for r in results})},
             "per_day": {d: _group(ok, results, "day", d) for d in sorted({r.get("day", "") for r in results})},
             "failed": [{"log": r["log"], "error": r.get("error", "")} for r in results if not r.get("ok")],
+            "with_measured_wind": sum(bool(r.get("measured_wind")) for r in ok),
             "table": [{"log": r["log"], "vessel": r["vessel"], "day": r.get("day", ""), "ok": bool(r.get("ok")),
-                       "effects": [e.get("name") for e in r.get("effects", [])], "seconds": r.get("seconds")}
+                       "effects": [e.get("name") for e in r.get("effects", [])], "seconds": r.get("seconds"),
+                       **_verdicts(r)}
                       for r in results]}
+
+
+def _verdicts(result: dict) -> dict:
+    """A diagnosed log's verdicts beyond the effects named (report.answer): where the twin's form is
+    off, and the effects the recording hints at but does not settle."""
+    answer = (result.get("report") or {}).get("answer") or {}
+    return {k: list(answer[k]) for k in ("form", "unsettled") if answer.get(k)}
 
 
 def _group(ok: list[dict], results: list[dict], key: str, value: str) -> dict:
@@ -388,10 +401,13 @@ def _effects(ok: list[dict]) -> dict:
 def format_summary(summary: dict) -> str:
     """The summary as Markdown: effects over the fleet, per vessel, per day, and the failures."""
     lines = [f"# Fleet diagnosis: {summary['diagnosed']} of {summary['logs']} logs diagnosed", ""]
-    if "wind" in summary:
-        measured = summary["wind"] == "measured"
-        lines += ["Each log diagnosed with its measured wind a known input (--wind-measured)." if measured
-                  else "Diagnosed without the logs' measured wind (--wind-measured takes it as a known input).", ""]
+    with_wind = summary.get("with_measured_wind", 0)
+    if summary.get("wind") == "measured":
+        lines += [f"Each log diagnosed with its measured wind a known input (--wind-measured): {with_wind} of "
+                  f"{summary['diagnosed']} diagnosed logs have one.", ""]
+    elif with_wind:
+        lines += [f"Diagnosed without the measured wind that {with_wind} of {summary['diagnosed']} diagnosed logs "
+                  "have (--wind-measured takes it as a known input).", ""]
     lines += _effect_table(summary["effects"], summary["diagnosed"])
     for title, key in (("Per vessel", "per_vessel"), ("Per day", "per_day")):
         lines += ["", f"## {title}", ""]
@@ -399,6 +415,13 @@ def format_summary(summary: dict) -> str:
             source = _day_source(group.get("day_from", {}), group["logs"]) if key == "per_day" else ""
             lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed{source}", ""]
             lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
+    verdicts = [row for row in summary.get("table", []) if row.get("form") or row.get("unsettled")]
+    if verdicts:
+        lines += ["## Beyond the effects named", ""]
+        for row in verdicts:
+            lines += [f"- {Path(row['log']).name}: " + "; ".join(
+                [f"twin's form: {x}" for x in row.get("form", [])] + [f"unsettled: {x}" for x in row.get("unsettled", [])])]
+        lines += [""]
     if summary["failed"]:
         lines += ["## Not diagnosed", ""] + [f"- {f['log']}: {_why(f['log'], f['error'])}" for f in summary["failed"]]
     return "\n".join(lines).rstrip()

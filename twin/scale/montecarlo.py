@@ -52,6 +52,8 @@ UNITS = {"north": "m", "east": "m", "psi": "rad", "u": "m_s", "v": "m_s", "r": "
          "cross": "m", "deviation": "m"}
 QUANTITIES = tuple(UNITS)
 ONE_SIDED = ("deviation",)  # a distance: its band is [0, the level's percentile]
+# what the band's position quantities are, where their names do not say it
+BAND_MEANING = {"deviation": "(distance from the nominal twin's track: inside its one-sided band)"}
 CHUNK_BYTES = 64 << 20  # the largest block of engine states one rollout call returns
 
 
@@ -529,7 +531,8 @@ class RecordingCoverage:
                     "parameters' spread alone)" if widened else "")]
         for q, share in self.inside.items():
             alone = f"  ({100 * self.inside_parameters_only[q]:5.1f} %)" if widened else ""
-            lines.append(f"  {q:10s} {100 * share:5.1f} %{alone}")
+            what = f"  {BAND_MEANING[q]}" if q in BAND_MEANING else ""
+            lines.append(f"  {q:10s} {100 * share:5.1f} %{alone}{what}")
         return "\n".join(lines)
 
 
