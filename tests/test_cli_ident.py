@@ -182,3 +182,16 @@ def test_state_bands_are_shown_in_the_units_the_reports_use():
     assert state_display("yaw_rate_rad_s")[1:] == ("°/s", pytest.approx(57.29578))
     assert state_display("input_1", "propeller_rudder")[:2] == ("rudder angle", "°")
     assert state_display("input_1")[:2] == ("right thruster's PWM", "µs")
+
+
+def test_a_folder_stands_for_the_recordings_in_it(dataset, tmp_path):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    done = twin("evaluate", "--vessel", "yellowfish", folder)
+    assert done.returncode == 2 and "is a folder with no recordings in it" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    (folder / "train.csv").write_bytes((dataset / "train.csv").read_bytes())
+    (folder / "notes.txt").write_text("not a log")
+    done = twin("evaluate", "--vessel", "yellowfish", folder, "--json", tmp_path / "e.json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "e.json").read_text())["recordings"] == [str(folder / "train.csv")]

@@ -307,6 +307,29 @@ def check_distinct(outputs: dict[str, object], inputs=()) -> None:
                                 "would replace the other")
 
 
+RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")
+
+
+def recordings_in(paths: list[Path]) -> list[Path]:
+    """The recordings given, a folder standing for the recordings in it (an empty one is an error)."""
+    out = []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in RECORDING_SUFFIXES)
+            if not found:
+                below = " (its subfolders are not searched: give them, e.g. FOLDER/*)" if any(
+                    q.is_dir() for q in p.iterdir()) else ""
+                raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)}){below}")
+            out += found
+        elif not p.is_file():
+            raise TwinError(f"{p}: no such file")
+        elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
+            raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
+        else:
+            out.append(p)
+    return out
+
+
 def check_recordings_distinct(recordings) -> None:
     """Refuse one recording given twice (the same file, or a copy with the same bytes): its windows would
     count twice, and a run judged "left out" would be a copy of one fitted on."""

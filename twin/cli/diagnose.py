@@ -9,14 +9,14 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar, say,
-                  say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
+                  check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
+                  recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 
 @app.command("diagnose")
 def diagnose_command(
-    recordings: list[Path] = typer.Argument(..., help="recordings: .tlog, .bin, .csv, .mcap"),
+    recordings: list[Path] = typer.Argument(..., help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the diagnosis as JSON"),
@@ -54,6 +54,7 @@ def diagnose_command(
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
                                   (rrd, (".rrd",), "--rrd"), (write_model, (".json",), "--write-model")):
         check_outputs([path], formats, option)
+    recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
                    [*recordings, model])
     check_recordings_distinct(recordings)

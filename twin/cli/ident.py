@@ -11,8 +11,8 @@ from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
                   check_outputs, check_recordings_distinct, check_wind_and_inputs, console, counted, floats, note,
-                  positive, progress_bar, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from, warn_recordings,
-                  window_s, write_json)
+                  positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from,
+                  warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -86,7 +86,7 @@ def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] |
 
 @app.command("identify")
 def identify_command(
-    recordings: list[Path] = typer.Argument(..., help="recordings: .tlog, .bin, .csv, .mcap"),
+    recordings: list[Path] = typer.Argument(..., help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
@@ -131,6 +131,7 @@ def identify_command(
 
     check_outputs([out], (".json",), "--out")
     check_outputs([json_out], (".json",), "--json")
+    recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
     check_recordings_distinct(recordings)
     if window is not None:
@@ -198,7 +199,8 @@ def identify_command(
 
 @app.command("evaluate")
 def evaluate_command(
-    recordings: list[Path] = typer.Argument(..., help="recordings to evaluate on"),
+    recordings: list[Path] = typer.Argument(..., help="recordings to evaluate on (.tlog, .bin, .csv, .mcap, or folders "
+                                                      "of them)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
@@ -242,6 +244,7 @@ def evaluate_command(
         raise TwinError(f"--by {by}: unknown state (known: {', '.join(STATE_NAMES)})")
     check_outputs([json_out], (".json",), "--json")
     check_outputs([rrd], (".rrd",), "--rrd")
+    recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--json": json_out, "--rrd": rrd}, [*recordings, model])
     check_recordings_distinct(recordings)
     positive(stride, "--stride")

@@ -10,7 +10,7 @@ import typer
 
 from ..errors import TwinError
 from .app import (MODEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs, check_recordings_distinct,
-                  counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
+                  counted, recordings_in, draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
                   sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
@@ -241,7 +241,7 @@ def fleet_command(
             raise TwinError("give recordings to diagnose, or --manifest FILE")
         if default is None:
             raise TwinError("give --vessel NAME or --model FILE (or a manifest with a vessel column)")
-        paths = _in_folders(recordings)
+        paths = recordings_in(recordings)
         check_recordings_distinct(paths)  # one log twice would count twice in the summary
         logs = [Log(p, default) for p in paths]
     wind = "measured" if wind_measured else None
@@ -266,24 +266,3 @@ def fleet_command(
         note(f"note: {len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed")
 
 
-RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")
-
-
-def _in_folders(paths: list[Path]) -> list[Path]:
-    """The recordings given, a folder standing for the recordings in it (an empty one is an error)."""
-    out = []
-    for p in paths:
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in RECORDING_SUFFIXES)
-            if not found:
-                below = " (its subfolders are not searched: give them, e.g. FOLDER/*)" if any(
-                    q.is_dir() for q in p.iterdir()) else ""
-                raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)}){below}")
-            out += found
-        elif not p.is_file():
-            raise TwinError(f"{p}: no such file")
-        elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
-            raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
-        else:
-            out.append(p)
-    return out
