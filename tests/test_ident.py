@@ -12,7 +12,8 @@ from twin.errors import TwinError
 from twin.fit import simfit
 from twin.fit.objective import Objective
 from twin.synth.dataset import PROFILES, SensorNoise, generate
-from twin.effects import parse_effect
+from twin.effects import coefficients, parse_effect
+from twin.effects.coefficients import PWM_THRUSTER_TERMS
 from twin.fit.evaluate import TwinPredictor, evaluate, manoeuvres, misfit_by_manoeuvre
 from twin.fit.windows import ModelCache, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
@@ -573,3 +574,8 @@ def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
     np.testing.assert_allclose(states["input_0_rest_s"], [0, 0, 0.5, 1.0, 0, 0, 0, 0.5])
     np.testing.assert_allclose(states["speed_m_s"], 0.5)
     np.testing.assert_allclose(states["yaw_rate_rad_s"], 0.1)
+
+
+def test_a_ship_is_offered_every_coefficient_but_a_pwm_thrusters(yellowfish_vessel):
+    boat, ship = set(coefficients(yellowfish_vessel)), set(coefficients(vessel_mod.load("esso_osaka")))
+    assert boat - ship == set(PWM_THRUSTER_TERMS) and not ship & set(PWM_THRUSTER_TERMS)

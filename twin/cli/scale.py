@@ -10,8 +10,8 @@ import typer
 
 from ..errors import TwinError
 from .app import (MODEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs, check_recordings_distinct,
-                  counted, recordings_in, draws_fit, effect_names, memory_for, note, positive, progress_bar, samples_fit, say, seed_from,
-                  sensor_noise, vessel_from, window_s, write_json)
+                  counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
+                  say, seed_from, sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
 RAY_HELP = ("run on Ray: auto (the cluster this machine belongs to, `ray start --head`), local (a private Ray on "
