@@ -147,6 +147,15 @@ def test_inputs_csv_with_byte_order_mark(tmp_path):
     np.testing.assert_allclose(series.at(np.array([0.0, 2.9, 3.0])), [[10, 12], [10, 12], [0, 0]])
 
 
+def test_inputs_csv_holds_an_input_over_empty_cells_as_a_recording_leaves_them(tmp_path):
+    """The generic log layout: rows of other streams leave the PWM cells empty; the last PWM holds."""
+    series = read_inputs_csv(_inputs(tmp_path, "t,lat,pwm_left,pwm_right\n0,37.4,1629,1506\n0.02,,,\n"
+                                                "0.1,,1700,\n0.2,,1550,1450\n"))
+    np.testing.assert_allclose(series.at(np.array([0.05, 0.15, 0.25])), [[1629, 1506], [1700, 1506], [1550, 1450]])
+    with pytest.raises(TwinError, match="line 2: the first inputs row has an empty pwm_left or pwm_right"):
+        read_inputs_csv(_inputs(tmp_path, "t,pwm_left,pwm_right\n0,1600,\n"))
+
+
 def test_crosscheck_over_tolerance_exits_1(monkeypatch, capsys):
     """main() must pass on a command's exit code: without standalone mode Click returns it instead of exiting."""
     import importlib

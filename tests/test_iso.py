@@ -137,7 +137,12 @@ def test_point_move_reaches_the_target(yellowfish, yaw_model):
     dp = ipd.point_move(yellowfish, yaw_model, surge, (10.0, 10.0))
     summary = dp.summary()
     assert summary["final_distance_to_target_m"] < 0.1  # measured 0.02 m
+    assert summary["settled"] and summary["last_quarter_distance_m"][1] < 0.5
     assert summary["max_cross_track_m"] < 0.05
+    # gains from an IS-O surge model with a quarter of the identified α swing about the target: said, not passed over
+    loose = ipd.point_move(yellowfish, yaw_model, ipd.DofModel(6.0, 10.0, ipd.binomial(ipd.SURGE_OMEGA_RAD_S)),
+                           (10.0, 10.0)).summary()
+    assert not loose["settled"], loose["last_quarter_distance_m"]
     assert dp.loops[0].iae_ratio < 1.1  # measured 0.998
 
 

@@ -24,6 +24,7 @@ import pytest
 
 from twin.errors import TwinError
 from twin.run import read_csv
+from twin.sitl.ardupilot import MODES
 import twin_command
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -162,7 +163,12 @@ def test_ardupilot_flies_the_twin_manual_guided_and_a_mission(tmp_path):
             phases["auto"] = rover.boot_s - t0
             texts = list(rover.texts)
             track = np.array(rover.track)
-            rover.set_mode("HOLD")
+            # a mission's --home is checked against SITL's own before anything is uploaded
+            rover.check_home(HOME)
+            with pytest.raises(TwinError, match="111.[0-9] km from SITL's home"):
+                rover.check_home((HOME[0] + 1.0, HOME[1]))
+            rover.stop()  # what a failed mission leaves: held and disarmed
+            assert not rover.armed and rover.mode == MODES["HOLD"]
         with ardupilot(port, box["params"], tmp_path, wipe=False) as again:
             again.wait_sim(3.0)
     wall_s = time.monotonic() - started

@@ -144,7 +144,9 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     propeller-and-rudder ship, prop_rps,rudder_deg (rps; degrees, > 0 turns to starboard).
 
     The first row must be at t ≤ 0: the run starts at t = 0 and nothing says what the
-    thrusters did before a later first row. Spreadsheets may prefix a UTF-8 byte-order mark."""
+    thrusters did before a later first row. An empty input cell holds that input's last value, and
+    a row with no inputs at all (a recording's row of another stream, as in the generic log layout)
+    is passed over. Spreadsheets may prefix a UTF-8 byte-order mark."""
     path = Path(path)
     if path.is_dir():
         raise TwinError(f"inputs file '{path}' is a folder: give the CSV file")
@@ -165,10 +167,18 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     for line, row in enumerate(rows[1:], start=2):
         if not row:
             continue
+        cells = [row[i].strip() if i < len(row) else "" for i in idx]
+        if cells[0] and not any(cells[1:]):
+            continue  # a recording's row without inputs (another stream's sample): the last ones hold
+        held = data[-1][1:] if data else None
         try:
-            data.append([float(row[i]) for i in idx])
-        except (ValueError, IndexError):
+            values = [float(cells[0])] + [float(c) if c else (held[k] if held else float("nan"))
+                                           for k, c in enumerate(cells[1:])]
+        except ValueError:
             raise TwinError(f"{path.name}: line {line}: not a number in t/{cols[0]}/{cols[1]}") from None
+        if not np.all(np.isfinite(values[1:])) and not data:
+            raise TwinError(f"{path.name}: line {line}: the first inputs row has an empty {cols[0]} or {cols[1]}")
+        data.append(values)
     if not data:
         raise TwinError(f"{path.name}: needs a header and at least one row")
     a = np.array(data)

@@ -32,7 +32,20 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
         if "nu0" not in kwargs and (nu0 := _approach(compiled, drive, seed)) is not None:
             kwargs["nu0"] = nu0
         drive = get_scenario(drive, seed, vessel.thrusters.kind, vessel.name)
+        kwargs["sea"] = _sea(kwargs.get("sea"), seed)
+    else:
+        kwargs["sea"] = _sea(kwargs.get("sea"), _seed(kwargs.pop("seed", 0)))
     return _simulate(compiled, drive, duration_s, **kwargs)
+
+
+def _sea(sea, seed: int):
+    """A physics.waves.Sea as given, or drawn with `seed` from its text 'HS,TP,DIR[,SPREAD]' /
+    'regular,H,T,DIR' (as `twin simulate --sea`); None stays None."""
+    if isinstance(sea, str):
+        from .physics.waves import parse_sea
+
+        return parse_sea(sea, seed)
+    return sea
 
 
 def _approach(compiled: CompiledVessel, scenario: str, seed: int) -> np.ndarray | None:
@@ -162,10 +175,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     drive = inputs if inputs is not None else get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name)
     if isinstance(drive, InputSeries):
         _check_inputs(vessel, drive.kind)
-    if isinstance(sea, str):
-        from .physics.waves import parse_sea
-
-        sea = parse_sea(sea, seed)
+    sea = _sea(sea, seed)
     compiled = compile_vessel(vessel)
     nu0 = None if inputs is not None else _approach(compiled, scenario, seed)
     run = _simulate(compiled, drive, duration_s, sample_dt_s=sample_dt_s, sea=sea, six_dof=six_dof, nu0=nu0)

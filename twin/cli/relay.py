@@ -193,11 +193,15 @@ def dp_command(
                 else ipd.point_move(cv, yaw, surge, goal)
     summary = dp.summary()
     for lp in summary["loops"]:
-        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f} ([Relay-ISO]: ~1.02 for 45°), "
+        paper = " ([Relay-ISO]: ~1.02 for a 45° heading step)" if lp["dof"] == "yaw" else ""
+        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f}{paper}, "
                       f"max |twin − model| {lp['max_deviation_from_model']:.3g} {lp['unit']}, "
                       f"saturated {lp['saturated_percent_of_time']:.0f} % of the time")
     if "final_distance_to_target_m" in summary:  # a point move's; a heading step has no target
-        console.print(f"final distance to the target {summary['final_distance_to_target_m']:.3f} m")
+        lo, hi = summary["last_quarter_distance_m"]
+        console.print(f"final distance to the target {summary['final_distance_to_target_m']:.3f} m"
+                      + ("" if summary["settled"] else f": NOT SETTLED, the run's last quarter {lo:.2f}-{hi:.2f} m "
+                                                       "from it (a longer --duration, or gains that damp it)"))
     models = {"yaw": yaw, "surge": surge}
     write_json(json_out, {"vessel": cv.vessel.name, **summary, "tuning": {
         k: {"alpha": m.alpha, "beta": m.beta, "omega_n_rad_s": m.model.omega_n_rad_s,

@@ -44,6 +44,7 @@ def sitl(
                                                            "and exit"),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
+    from ..sitl.backend import check_channels
     from ..sitl.server import run_sitl
 
     check_outputs(record, RUN_OUTPUTS, "--record")
@@ -51,6 +52,8 @@ def sitl(
         check_outputs([write_params], (".parm", ".param", ".txt"), "--write-params")
     check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model])
     pair = channels_from(channels)
+    if pair:  # the parameter file and the server alike: two different servo outputs
+        check_channels((pair["left"], pair["right"]))
     v = vessel_from(vessel, model, case)
     if write_params is not None:
         from ..sitl.params import boat_parameters

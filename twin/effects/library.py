@@ -367,7 +367,11 @@ def thrust_decay(vessel: Vessel, decay_per_min: float) -> Vessel:
 def supply_voltage(vessel: Vessel, exponent: float, ref_v: float = 0.0) -> Vessel:
     """Thrust × (V/V_ref)^exponent with V the battery voltage the recording logs (physics/thrusters.py);
     ref_v: V_ref (V), the voltage the thrust map holds at (0: the vessel's own supply_ref_v)."""
-    return _thrusters(vessel, supply_exponent=exponent, supply_ref_v=ref_v or vessel.thrusters.supply_ref_v)
+    ref = ref_v or vessel.thrusters.supply_ref_v
+    if exponent and not ref:
+        raise TwinError(f"supply_voltage: vessel '{vessel.name}' has no reference voltage of its own: give it, "
+                        f"supply_voltage={exponent:g},REF_V (the volts its thrust map holds at)")
+    return _thrusters(vessel, supply_exponent=exponent, supply_ref_v=ref)
 
 
 def _supply_fit(prior: Vessel, logs) -> Candidate | None:

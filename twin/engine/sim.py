@@ -45,7 +45,9 @@ _CHECKED = [int(kind) for kind in CHECKS]  # data.warning indices of MuJoCo's di
 def _steps(interval_s: float, timestep_s: float, what: str) -> int:
     n = int(round(interval_s / timestep_s))
     if n < 1 or abs(n * timestep_s - interval_s) > 1e-9:
-        raise TwinError(f"{what} {interval_s} s is not a multiple of the time step {timestep_s} s")
+        below, above = max(n, 1) * timestep_s, (max(n, 1) + 1) * timestep_s
+        raise TwinError(f"{what} {interval_s:g} s is not a multiple of the physics' time step {timestep_s:g} s "
+                        f"(e.g. {below:g} or {above:g} s)")
     return n
 
 

@@ -25,7 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from twin.errors import TwinError
-from twin.geodesy import geodetic_from_ned
+from twin.geodesy import geodetic_from_ned, ned_from_geodetic
 
 MODES = {"MANUAL": 0, "HOLD": 4, "AUTO": 10, "GUIDED": 15}
 # EKF_STATUS_REPORT flags a GPS-aided EKF sets once it is usable for navigation: attitude,
@@ -33,6 +33,9 @@ MODES = {"MANUAL": 0, "HOLD": 4, "AUTO": 10, "GUIDED": 15}
 EKF_NAV_FLAGS = 0x01 | 0x02 | 0x08 | 0x10
 ARMED_FLAG = 0x80  # MAV_MODE_FLAG_SAFETY_ARMED
 GPS_FIX_3D = 3
+# the --home a mission is given may differ from SITL's own by this much (m) and no more: beyond, every
+# waypoint would be that far off and the boat would drive there
+HOME_TOLERANCE_M = 100.0
 
 
 def free_tcp_port() -> int:
@@ -50,6 +53,17 @@ class ArduRover:
     mavlink_port: int
     folder: Path
     log_path: Path
+
+    def check_home(self, home: tuple[float, float], timeout_s: float = 30.0) -> None:
+        """Refuse a `home` (lat, lon deg) that is not SITL's: the vehicle's global position less its
+        local one (north, east from the EKF's origin, SITL's home) must lie within HOME_TOLERANCE_M of it."""
+        self.wait(lambda: self.global_deg is not None and bool(self.track), "a global position", timeout_s)
+        north, east = ned_from_geodetic(self.global_deg[0], self.global_deg[1], home[0], home[1])
+        local = self.position
+        off = math.hypot(float(north) - local[0], float(east) - local[1])
+        if off > HOME_TOLERANCE_M:
+            raise TwinError(f"--home {home[0]:g},{home[1]:g} is {off / 1000:.1f} km from SITL's home: give the "
+                            "--home SITL was started with (the waypoints are metres from it)")
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """End the process (SIGTERM, then SIGKILL: SITL may not answer SIGTERM while it waits for
@@ -143,6 +157,7 @@ class Rover:
         self.heading_rad = 0.0
         self.ekf_flags = 0
         self.gps_fix = 0
+        self.global_deg: tuple[float, float] | None = None  # the last GLOBAL_POSITION_INT (lat, lon)
         self.armed = False
         self.mode = None
         self.reached: list[int] = []
@@ -175,6 +190,8 @@ class Rover:
                 self.mode = msg.custom_mode
             elif kind == "EKF_STATUS_REPORT":
                 self.ekf_flags = msg.flags
+            elif kind == "GLOBAL_POSITION_INT" and msg.get_srcSystem() == self.target[0]:
+                self.global_deg = (msg.lat * 1e-7, msg.lon * 1e-7)
             elif kind == "GPS_RAW_INT":
                 self.gps_fix = msg.fix_type
             elif kind == "STATUSTEXT":
@@ -315,6 +332,26 @@ class Rover:
                                                 m.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
                                                 int(round(lat * 1e7)), int(round(lon * 1e7)), 0.0)
 
+    def check_home(self, home: tuple[float, float], timeout_s: float = 30.0) -> None:
+        """Refuse a `home` (lat, lon deg) that is not SITL's: the vehicle's global position less its
+        local one (north, east from the EKF's origin, SITL's home) must lie within HOME_TOLERANCE_M of it."""
+        self.wait(lambda: self.global_deg is not None and bool(self.track), "a global position", timeout_s)
+        north, east = ned_from_geodetic(self.global_deg[0], self.global_deg[1], home[0], home[1])
+        local = self.position
+        off = math.hypot(float(north) - local[0], float(east) - local[1])
+        if off > HOME_TOLERANCE_M:
+            raise TwinError(f"--home {home[0]:g},{home[1]:g} is {off / 1000:.1f} km from SITL's home: give the "
+                            "--home SITL was started with (the waypoints are metres from it)")
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """HOLD and disarm, as far as the link still answers within `timeout_s` each: the safe state
+        after a failure, which must not raise over the error that led here."""
+        for step in (lambda: self.set_mode("HOLD", timeout_s), lambda: self.disarm(timeout_s)):
+            try:
+                step()
+            except (TwinError, OSError, KeyboardInterrupt):
+                pass
+
     def close(self) -> None:
         self.link.close()
 
@@ -386,8 +423,10 @@ def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[t
     if len(waypoints_ne_m) < 1:
         raise TwinError("a mission needs one waypoint at least")
     rover = Rover(port, connect_timeout_s=timeout_s)
+    finished = False
     try:
         rover.wait_ekf(timeout_s=timeout_s)
+        rover.check_home(home, timeout_s=timeout_s)
         rover.check_params(settings or {}, timeout_s=timeout_s)
         for name, value in (settings or {}).items():
             rover.set_param(name, value)
@@ -402,7 +441,10 @@ def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[t
         t1 = rover.boot_s
         rover.set_mode("HOLD")
         rover.disarm()
+        finished = True
     finally:
+        if not finished:  # a mission that failed or was interrupted must not leave the boat driving in AUTO
+            rover.stop()
         rover.close()
     track = np.array(rover.track[first:], dtype=float).reshape(-1, 3)
     path = [tuple(start)] + [tuple(w) for w in waypoints_ne_m]

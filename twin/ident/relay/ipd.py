@@ -46,6 +46,11 @@ import numpy as np
 from ...physics.kinematics import wrap_angle
 from ...physics.thrusters import allocation_matrix
 
+# a point move has settled when its last quarter stays within this of the target: the larger of a
+# distance (m) and a share of the move
+SETTLED_M = 0.5
+SETTLED_SHARE = 0.05
+
 CONTROL_DT_S = 0.02
 # Binomial ω_n for the Yellowfish ([Relay-ISO] used 0.2 heading / 0.1 surge for a slower tanker model).
 # Heading: the fastest round value whose 45° step needs ~80 % of the ±15.4 N·m the thrusters give
@@ -356,9 +361,13 @@ class DpRun:
         out = {"run": self.name, "loops": [lp.summary(180 / math.pi if lp.unit == "deg" else 1.0)
                                            for lp in self.loops]}
         if self.target_ne_m is not None:
-            end = self.run.eta[-1, :2] - self.run.eta[0, :2]
-            out["final_distance_to_target_m"] = float(np.hypot(*(np.array(self.target_ne_m) - end)))
+            moved = self.run.eta[:, :2] - self.run.eta[0, :2]
+            distance = np.hypot(*(np.array(self.target_ne_m) - moved).T)
+            out["final_distance_to_target_m"] = float(distance[-1])
             out["max_cross_track_m"] = float(np.max(np.abs(self._cross_track_m())))
+            last = distance[len(distance) * 3 // 4:]  # the run's last quarter
+            out["last_quarter_distance_m"] = [float(last.min()), float(last.max())]
+            out["settled"] = bool(last.max() <= max(SETTLED_M, SETTLED_SHARE * float(np.hypot(*self.target_ne_m))))
         return out
 
     def _cross_track_m(self) -> np.ndarray:
