@@ -147,6 +147,17 @@ def test_inputs_csv_with_byte_order_mark(tmp_path):
     np.testing.assert_allclose(series.at(np.array([0.0, 2.9, 3.0])), [[10, 12], [10, 12], [0, 0]])
 
 
+def test_a_run_from_inputs_can_start_under_way(tmp_path):
+    inputs = _inputs(tmp_path, "t,prop_rps,rudder_deg\n0,10,0\n")
+    for start, out in ((None, tmp_path / "rest.csv"), ("0.37", tmp_path / "way.csv")):
+        done = twin("simulate", "--vessel", "esso_osaka", "--inputs", inputs, "--duration", "20", "--out", out,
+                    *(["--start-speed", start] if start else []))
+        assert done.returncode == 0, done.stderr
+    # at 10 rps the ship's steady speed is about 0.37 m/s: started there it stays, from rest it is far below
+    assert read_csv(tmp_path / "way.csv").nu[-1, 0] == pytest.approx(0.37, abs=0.01)
+    assert read_csv(tmp_path / "rest.csv").nu[-1, 0] < 0.2
+
+
 def test_inputs_csv_holds_an_input_over_empty_cells_as_a_recording_leaves_them(tmp_path):
     """The generic log layout: rows of other streams leave the PWM cells empty; the last PWM holds."""
     series = read_inputs_csv(_inputs(tmp_path, "t,lat,pwm_left,pwm_right\n0,37.4,1629,1506\n0.02,,,\n"

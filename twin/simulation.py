@@ -155,11 +155,13 @@ class Simulation:
 
 def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None, duration_s: float = 120.0,
                  seed: int = 0, sample_dt_s: float = 0.1, current: tuple[float, float] | None = None,
-                 wind: tuple[float, float] | None = None, sea=None, six_dof: bool = False) -> Simulation:
+                 wind: tuple[float, float] | None = None, sea=None, six_dof: bool = False,
+                 start_speed_m_s: float | None = None) -> Simulation:
     """`twin simulate`: a scenario (or an inputs CSV path / InputSeries) with an optional current
     (speed m/s, direction deg it flows towards) and wind (speed m/s, direction deg it blows from);
     `sea` (a physics.waves.Sea, or its text 'HS,TP,DIR[,SPREAD]' / 'regular,H,T,DIR', drawn with
-    `seed`) runs the 6-DOF hull in waves, `six_dof` the 6-DOF hull in calm water."""
+    `seed`) runs the 6-DOF hull in waves, `six_dof` the 6-DOF hull in calm water; `start_speed_m_s`
+    the surge at t = 0 (default: at rest, or a ship's scenario's steady approach)."""
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     _check_run(duration_s, sample_dt_s)
@@ -177,7 +179,10 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
         _check_inputs(vessel, drive.kind)
     sea = _sea(sea, seed)
     compiled = compile_vessel(vessel)
-    nu0 = None if inputs is not None else _approach(compiled, scenario, seed)
+    if start_speed_m_s is not None:
+        nu0 = np.array([_number(start_speed_m_s, "start speed"), 0.0, 0.0])
+    else:
+        nu0 = None if inputs is not None else _approach(compiled, scenario, seed)
     run = _simulate(compiled, drive, duration_s, sample_dt_s=sample_dt_s, sea=sea, six_dof=six_dof, nu0=nu0)
     run.meta["scenario"] = "inputs" if inputs is not None else scenario
     if nu0 is not None:

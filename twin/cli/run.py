@@ -97,6 +97,8 @@ def simulate(
     sea: Optional[str] = typer.Option(None, help=SEA_HELP),
     six_dof: bool = typer.Option(False, "--six-dof", help="the 6-DOF hull (heave, roll, pitch) in calm water; "
                                                          "implied by --sea"),
+    start_speed: Optional[float] = typer.Option(None, help="surge at t = 0, m/s (default: at rest; a ship's scenario "
+                                                           "starts from its steady approach)"),
 ):
     """Run the twin headless and write the run."""
     from ..simulation import simulate_run
@@ -114,6 +116,8 @@ def simulate(
     if v.thrusters.kind == "propeller_rudder" and lossy:  # the run would be written without its inputs
         raise TwinError(f"{', '.join(lossy)}: a propeller-and-rudder ship's run keeps its propeller speed and rudder "
                         "angle in .csv only (and shows in .rrd): write .csv")
+    if start_speed is not None and not (math.isfinite(start_speed) and abs(start_speed) <= 20.0):
+        raise TwinError(f"--start-speed must be a speed in m/s within ±20, got {start_speed:g}")
     flows = speed_direction(current, "current"), speed_direction(wind, "wind")
     sea_state = sea_from(sea, seed)
     # a long run (hours of simulated time, an .rrd or .mcap of it) takes a while: say which part is running
@@ -124,7 +128,7 @@ def simulate(
             with memory_for(f"--duration {duration:g} at --sample-dt {sample_dt:g}"):
                 result = simulate_run(v, scenario=scenario, inputs=inputs, duration_s=duration, seed=seed,
                                       sample_dt_s=sample_dt, current=flows[0], wind=flows[1], sea=sea_state,
-                                      six_dof=six_dof)
+                                      six_dof=six_dof, start_speed_m_s=start_speed)
             for k, path in enumerate(out):
                 progress(f"writing {path.name}", k, len(out))
                 result.write(path, origin=start)
