@@ -65,14 +65,14 @@ def test_twin_yaw_alpha_within_10_percent(yaw_sweep, yellowfish):
         assert row.estimate.beta_lin == pytest.approx(row.beta_lin_equivalent, rel=0.06)
     s = yaw_sweep.spreads()
     assert s["alpha"].cv_percent < 10.0 and s["beta_lin"].cv_percent < 12.5  # [Relay-ISO Table II]'s spread
-    assert yaw_sweep.better_drag_model().startswith("constant")  # Nr = −40 dominates Nrr = −6
+    assert yaw_sweep.better_drag_model().startswith("the linear model")  # Nr = −40 dominates Nrr = −6
 
 
 def test_twin_surge_alpha_and_better_model(yellowfish):
     result = iso.sweep(yellowfish, "surge", amplitudes=[10.0, 40.0], duration_s=100.0)
     assert result.spreads()["alpha"].mean == pytest.approx(yellowfish.hydro().M[0, 0], rel=0.05)
     # Xuu = −8 dominates Xu = −2: the linear-drag β_νν scatters less than β_ν
-    assert result.better_drag_model().startswith("linear drag")
+    assert result.better_drag_model().startswith("the nonlinear model")
 
 
 def test_sway_is_a_clear_error(yellowfish):

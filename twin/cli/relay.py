@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import TwinError
@@ -33,10 +34,10 @@ def _sweep_table(result) -> Table:
                         "([Relay-ISO Table I]; Table II layout)")
     if ship:
         for col in ("n [rps]", "δ_c [°]"):
-            table.add_column(col, justify="right")
+            table.add_column(escape(col), justify="right")
     for col in (f"C [{u['C']}]", f"Xm [{u['x']}]", "ω [rad/s]", f"x0 [{u['x']}]", f"α [{u['alpha']}]",
                 f"β_ν [{u['beta_lin']}]", f"β_νν [{u['beta_quad']}]", f"Δ [{u['C']}]"):
-        table.add_column(col, justify="right")
+        table.add_column(escape(col), justify="right")
     pad = ["", ""] if ship else []
     for r in result.rows:
         o, e = r.oscillation, r.estimate
@@ -97,7 +98,7 @@ def iso_command(
     console.print(f"α: {s['alpha'].mean:.4g} vs the twin's {result.twin.alpha:.4g} "
                   f"({result.alpha_error_percent():+.1f} %), "
                   f"CV {s['alpha'].cv_percent:.1f} % ([Relay-ISO]: ~10 %); drag CV {s['beta_lin'].cv_percent:.1f} % "
-                  f"(constant) / {s['beta_quad'].cv_percent:.1f} % (linear): {result.better_drag_model()} fits better.")
+                  f"(β_ν) / {s['beta_quad'].cv_percent:.1f} % (β_νν): {result.better_drag_model()} fits better.")
     if v.thrusters.kind == "propeller_rudder":
         console.print("C is the rudder's yaw moment at ±δ_c in straight running (u₀ at n). The ship's yaw is coupled "
                       "with its sway (rudder side force, N'_v), so α and β are effective values: the twin's uncoupled "

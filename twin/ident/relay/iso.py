@@ -399,8 +399,8 @@ class IsoSweep:
     def better_drag_model(self) -> str:
         """[Relay-ISO §V-A]: the drag form whose estimates scatter less over the experiments fits better."""
         s = self.spreads()
-        return "constant drag (linear model)" if s["beta_lin"].cv_percent <= s["beta_quad"].cv_percent \
-            else "linear drag (nonlinear model)"
+        return "the linear model (damping β_ν·ν)" if s["beta_lin"].cv_percent <= s["beta_quad"].cv_percent \
+            else "the nonlinear model (damping β_νν·|ν|·ν)"
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "dof": self.dof, "units": UNITS[self.dof],
