@@ -546,7 +546,7 @@ def test_misfit_by_state_adds_up_to_one_minus_r2_and_finds_a_drag_too_strong_at_
     speed = np.hypot(preps[0].u, preps[0].v)
     edge = float(np.median(speed))
     bands = misfit_by_state(wrong, preps, 10.0, "speed_m_s", (edge,))
-    assert [b.label for b in bands] == [f"< {edge:g}", f"≥ {edge:g}"]
+    assert [b.label for b in bands] == [f"< {edge:.3g} m/s", f"≥ {edge:.3g} m/s"]
     assert sum(b.samples for b in bands) == pytest.approx(1.0)
     for d in ("u", "v", "r"):
         assert sum(b.share[d] for b in bands) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)

@@ -314,8 +314,8 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
         fast = np.abs(prep.u[np.isfinite(prep.u)])
         top = float(np.percentile(fast, 99)) if len(fast) else 0.0
         if top <= speed:  # too slow throughout: the turn rule never applied
-            note = (f"its |u| reaches {top:.2f} m/s (99th percentile), and below {speed:g} m/s the direction of the "
-                    "GNSS track is mostly noise")
+            note = (f"no straight running under way: its |u| reaches {top:.2f} m/s (99th percentile), and below "
+                    f"{speed:g} m/s the direction of the GNSS track is mostly noise")
         else:
             note = (f"{seconds:.1f} s of straight running under way (|u| > {speed:g} m/s, {straight.text()}); "
                     f"{MIN_STRAIGHT_S:g} s are needed")

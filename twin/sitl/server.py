@@ -451,5 +451,5 @@ def write_recording(twin: SitlTwin, paths: Sequence[Path], origin: tuple[float, 
     v = twin.vessel
     for path in paths:
         write({"sitl": run}, path, geometry=twin.compiled.geometry, vessel_name=v.name, mjcf=v.mjcf, origin=origin)
-        log(f"wrote {path} ({len(run.t)} physics frames, {run.t[-1] - run.t[0]:.2f} s)")
+        log(f"wrote {path} ({len(run.t)} twin states, one per physics step, {run.t[-1] - run.t[0]:.2f} s)")
     return tuple(paths)
