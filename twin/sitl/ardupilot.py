@@ -54,17 +54,6 @@ class ArduRover:
     folder: Path
     log_path: Path
 
-    def check_home(self, home: tuple[float, float], timeout_s: float = 30.0) -> None:
-        """Refuse a `home` (lat, lon deg) that is not SITL's: the vehicle's global position less its
-        local one (north, east from the EKF's origin, SITL's home) must lie within HOME_TOLERANCE_M of it."""
-        self.wait(lambda: self.global_deg is not None and bool(self.track), "a global position", timeout_s)
-        north, east = ned_from_geodetic(self.global_deg[0], self.global_deg[1], home[0], home[1])
-        local = self.position
-        off = math.hypot(float(north) - local[0], float(east) - local[1])
-        if off > HOME_TOLERANCE_M:
-            raise TwinError(f"--home {home[0]:g},{home[1]:g} is {off / 1000:.1f} km from SITL's home: give the "
-                            "--home SITL was started with (the waypoints are metres from it)")
-
     def stop(self, timeout_s: float = 5.0) -> None:
         """End the process (SIGTERM, then SIGKILL: SITL may not answer SIGTERM while it waits for
         physics) and its process group."""
