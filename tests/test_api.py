@@ -14,7 +14,7 @@ FAST_CALLS = {
     "simulate": lambda: twin.simulate("blueboat", "step", duration_s=2.0),
     "simulate_run": lambda: twin.simulate_run("blueboat", scenario="turn", duration_s=2.0),
     "validate": lambda: twin.validate("cybership1"),
-    "effective_parameters": lambda: twin.effective_parameters(twin.load_vessel("blueboat")),
+    "effective_parameters": lambda: twin.effective_parameters("blueboat"),
     "compile_vessel": lambda: twin.compile_vessel(twin.load_vessel("blueboat")),
 }
 
@@ -57,6 +57,13 @@ def test_recording_functions_work_twice_after_every_subpackage_is_imported(every
         assert twin.evaluate("blueboat", [rec]).score("u").r2 > 0.9
 
 
+def test_one_name_is_a_name_not_its_letters(log):
+    rec = twin.read_recording(log)
+    with pytest.raises(twin.TwinError) as err:
+        twin.identify([rec], "blueboat", params="no_such_term")
+    assert "no_such_term" in str(err.value) and "n, o" not in str(err.value)
+
+
 def test_every_export_is_covered_by_a_call():
     slow = {"identify", "diagnose_recordings", "judge", "crosscheck", "save_vessel"}  # tested in their own files
     called = set(FAST_CALLS) | {"read_recording", "prepare_recording", "calibrate", "evaluate"} | slow
@@ -73,6 +80,10 @@ def test_every_export_is_covered_by_a_call():
     (lambda: twin.simulate_run("blueboat", duration_s=5.0, sample_dt_s=10.0), "longer than the run"),
     (lambda: twin.simulate("blueboat", duration_s=-1.0), "positive"),
     (lambda: twin.evaluate(42, []), "expected a vessel"),
+    (lambda: twin.effective_parameters("titanic"), "unknown vessel 'titanic'"),
+    (lambda: twin.crosscheck("titanic"), "unknown vessel 'titanic'"),
+    (lambda: twin.crosscheck("blueboat", duration_s=0.0), "positive"),
+    (lambda: twin.identify([], "blueboat", params="thrust_gain"), "no recordings"),
 ])
 def test_bad_input_is_a_twin_error_saying_so(call, says):
     with pytest.raises(twin.TwinError, match=says):

@@ -75,6 +75,21 @@ def test_twin_surge_alpha_and_better_model(yellowfish):
     assert result.better_drag_model().startswith("the nonlinear model")
 
 
+def test_surge_alpha_of_a_vessel_whose_thrusters_have_a_gain():
+    """A thrust command is the map's, which the gains scale (BlueBoat: 1.605 at its 14.8 V pack): the
+    relay puts ±C on the hull itself, so Table I gives the twin's M11, not M11/gain."""
+    from twin.engine.mjcf import compile_vessel
+    from twin.vessel import load
+
+    blueboat = compile_vessel(load("blueboat"))
+    assert blueboat.vessel.thrusters.gain_left == pytest.approx(1.605)
+    result = iso.sweep(blueboat, "surge", amplitudes=[30.0], duration_s=60.0)
+    assert result.spreads()["alpha"].mean == pytest.approx(blueboat.hydro().M[0, 0], rel=0.02)  # 1/1.605 before
+    assert iso.relay_limit(blueboat.geometry.thruster_y_m, iso.force_range(blueboat.vessel.thrusters), "surge") \
+        == pytest.approx(2 * 1.605 * min(-blueboat.vessel.thrusters.command_range()[0],
+                                         blueboat.vessel.thrusters.command_range()[1]), rel=1e-9)
+
+
 def test_sway_is_a_clear_error(yellowfish):
     with pytest.raises(TwinError, match="no sway actuator"):
         iso.sweep(yellowfish, "sway")

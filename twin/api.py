@@ -23,12 +23,12 @@ from pathlib import Path
 
 from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import compile_vessel
-from .engine.parameters import effective_parameters
+from .engine.parameters import effective_parameters as _effective_parameters
 from .diagnose.doctor import Diagnosis as _Found
 from .errors import TwinError
 from .run import Run
 from .simulation import Simulation, simulate, simulate_run
-from .verify.crosscheck import crosscheck
+from .verify.crosscheck import crosscheck as _crosscheck
 from .verify.validate import Validation, validate as _validate
 from .vessel import Vessel, load as load_vessel, save as save_vessel
 
@@ -43,6 +43,21 @@ def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
     if isinstance(vessel, str):
         vessel = load_vessel(vessel)
     return _validate(vessel if case is None else vessel.with_case(case))
+
+
+def effective_parameters(vessel: Vessel | str) -> dict:
+    """`twin params --json`: M, M_RB, M_A, damping (Fossen signs), thrusters, GNSS lever arm of a vessel
+    (a twin.Vessel, a shipped vessel's name or a vessel file)."""
+    return _effective_parameters(_vessel(vessel))
+
+
+def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] | None = None,
+               six_dof: bool = False) -> list:
+    """`twin crosscheck`: the engine against the analytic 3-DOF model over a zig-zag, one Result per case
+    (`.passed`, `.position_err_m`, `.heading_err_deg`; `to_dict()`)."""
+    if not duration_s > 0:
+        raise TwinError(f"duration_s must be positive, got {duration_s}")
+    return _crosscheck(_vessel(vessel), duration_s, only, six_dof=six_dof)
 
 
 def _vessel(vessel: Vessel | str) -> Vessel:
@@ -138,6 +153,9 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
     from .ident.identify import identify as run
 
     v = _in_sea(_vessel(vessel), sea)
+    for name in ("params", "groups"):  # one name alone is a name, not its letters
+        if isinstance(options.get(name), str):
+            options[name] = (options[name],)
     result = run(_recordings(recordings, v), v, **options)
     return replace(result, vessel=without_known_sea(result.vessel)) if sea is not None else result
 

@@ -33,6 +33,11 @@ console = Console(width=None if sys.stdout.isatty() else 100)
 SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
                            if p.name.endswith(".json")))
 VESSEL_HELP = f"vessel name (one shipped with twin: {SHIPPED})"
+# a synthetic log records PWM: the shipped vessels whose thrusters take it
+PWM_SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
+                               if p.name.endswith(".json")
+                               and json.loads(p.read_text()).get("thrusters", {}).get("kind") == "t200"))
+PWM_VESSEL_HELP = f"vessel name (one shipped with twin whose thrusters take PWM, as a dataset logs it: {PWM_SHIPPED})"
 MODEL_HELP = "vessel description file (e.g. written by `twin identify`), instead of --vessel"
 CASE_HELP = "mass case: min | nominal | max (min and max where the vessel file has them, e.g. yellowfish)"
 CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"

@@ -9,10 +9,10 @@ import typer
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, at_least, channels_from, check_distinct,
-                  check_outputs, check_recordings_distinct, check_wind_and_inputs, console, counted, floats, note,
-                  positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise, vessel_from,
-                  warn_recordings, window_s, write_json)
+from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, channels_from,
+                  check_distinct, check_outputs, check_recordings_distinct, check_wind_and_inputs, console, counted,
+                  floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
+                  vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
@@ -20,7 +20,7 @@ RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 
 @app.command("dataset")
 def dataset_command(
-    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    vessel: Optional[str] = typer.Option(None, help=PWM_VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: list[Path] = typer.Option(..., help="recording(s) to write: .tlog, .bin, .mcap, .csv (repeatable)"),
     truth: Optional[Path] = typer.Option(None, help="truth file (JSON; default: OUT.truth.json beside the first output)"),

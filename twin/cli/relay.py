@@ -13,8 +13,9 @@ from rich.table import Table
 from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, positive, progress_bar, say,
-                  vessel_from, write_json)
+from ..ident.relay.iso import CONTROL_DT_S
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, positive, progress_bar,
+                  samples_fit, say, vessel_from, write_json)
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -81,6 +82,8 @@ def iso_command(
     iso.check_dof(v.name, dof, v.thrusters.kind)
     if duration is not None and not duration > 0:
         raise TwinError("--duration must be positive")
+    if duration is not None:
+        samples_fit(duration, CONTROL_DT_S, "--duration")  # the relay's samples
     if xa is not None:
         positive(xa, "--xa")
     xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)

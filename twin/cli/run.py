@@ -177,6 +177,7 @@ def crosscheck(
     check_outputs([json_out], (".json",), "--json")
     check_distinct({"--rrd": rrd, "--json": json_out}, [model])
     positive(duration, "--duration")
+    samples_fit(duration, 0.1, "--duration")  # the zig-zag's runs are sampled every 0.1 s
     v = vessel_from(vessel, model, case)
     with progress_bar("crosscheck") as progress:
         results = run_crosscheck(v, duration, progress=progress, six_dof=six_dof)

@@ -9,8 +9,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs, check_recordings_distinct,
-                  counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
+from .app import (MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs,
+                  check_recordings_distinct, counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
                   say, seed_from, sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
 
@@ -155,7 +155,7 @@ def _report(result) -> None:
 
 @app.command("dataset-shards")
 def dataset_shards_command(
-    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    vessel: Optional[str] = typer.Option(None, help=PWM_VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="folder to write the shards and index.json/index.csv into (new or empty)"),
     vessels: int = typer.Option(100, help="number of randomised vessels (one recording each)"),

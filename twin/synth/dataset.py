@@ -115,6 +115,10 @@ def generate(vessel: Vessel, *, effects=(), n_segments: int = 8, manoeuvres: lis
     segment (k of n) is simulated, then logged. `sea` (physics.waves.Sea): every segment runs the
     6-DOF hull in it (one run each), the GNSS antenna at its site on the mast follows the hull's
     roll and pitch, and the log holds the attitude (roll, pitch) and the sea in its meta."""
+    names = [as_effect(e).name for e in effects]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # applied one after the other they would compound, which no one means by naming it twice
+        raise TwinError(f"effect {twice[0]} given twice: give it once, with the value the truth should have")
     truth = apply_effects(vessel, effects)
     if truth.thrusters.kind != "t200":
         raise TwinError(f"vessel '{vessel.name}' has no PWM thruster model: a dataset logs PWM")

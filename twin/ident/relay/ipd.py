@@ -45,6 +45,7 @@ import numpy as np
 
 from ...physics.kinematics import wrap_angle
 from ...physics.thrusters import allocation_matrix
+from .iso import force_range
 
 # a point move has settled when its last quarter stays within this of the target: the larger of a
 # distance (m) and a share of the move
@@ -169,8 +170,12 @@ class DpController:
     output = "thrust"
 
     def __init__(self, heading: IpdLoop, bearing_rad: float, thruster_y_m, bounds_n,
-                 surge: IpdLoop | None = None, distance_m: float = 0.0, surge_start_s: float = 0.0):
+                 surge: IpdLoop | None = None, distance_m: float = 0.0, surge_start_s: float = 0.0,
+                 gains=(1.0, 1.0)):
+        """bounds_n: what one thruster puts on the hull (iso.force_range); gains: the thrusters'
+        (left, right), by which each allocated force is divided into the map's command."""
         self.heading, self.surge = heading, surge
+        self.gains = np.asarray(gains, float)
         self.bearing_rad, self.distance_m, self.surge_start_s = bearing_rad, distance_m, surge_start_s
         self.thruster_y_m, self.bounds_n = thruster_y_m, bounds_n
         self.start: np.ndarray | None = None  # η at t = 0: the origin of η*
@@ -199,6 +204,7 @@ class DpController:
         if surging:
             self.surge.advance(x_ref, x, force_cmd, force_sat, CONTROL_DT_S)
             self._log(self.surge_log, t_s, x_ref, x, force_cmd, force_sat)
+        thrust_n = thrust_n / self.gains
         return float(thrust_n[0]), float(thrust_n[1])
 
     @staticmethod
@@ -388,7 +394,7 @@ def heading_step(compiled, yaw: DofModel, step_deg: float, duration_s: float | N
 
     duration_s = duration_s or settle_s(yaw.model)
     ctrl = DpController(yaw.loop(anti_windup), math.radians(step_deg), compiled.geometry.thruster_y_m,
-                        compiled.vessel.thrusters.command_range())
+                        force_range(compiled.vessel.thrusters), gains=compiled.vessel.thrusters.gains())
     run = simulate(compiled, ctrl, duration_s, control_dt_s=CONTROL_DT_S, sample_dt_s=CONTROL_DT_S)
     name = f"heading step {step_deg:g}°" + ("" if anti_windup else " without anti-windup")
     return DpRun(name, run, [_response("yaw", "deg", ctrl.yaw_log, yaw.model)])
@@ -401,9 +407,9 @@ def point_move(compiled, yaw: DofModel, surge: DofModel, target_ne_m: tuple[floa
     from ...engine.sim import simulate
 
     bearing = math.atan2(target_ne_m[1], target_ne_m[0])
-    ctrl = DpController(yaw.loop(), bearing, compiled.geometry.thruster_y_m, compiled.vessel.thrusters.command_range(),
+    ctrl = DpController(yaw.loop(), bearing, compiled.geometry.thruster_y_m, force_range(compiled.vessel.thrusters),
                         surge=surge.loop(), distance_m=math.hypot(*target_ne_m),
-                        surge_start_s=8 / yaw.model.omega_n_rad_s)
+                        surge_start_s=8 / yaw.model.omega_n_rad_s, gains=compiled.vessel.thrusters.gains())
     duration_s = duration_s or settle_s(yaw.model) + settle_s(surge.model)
     run = simulate(compiled, ctrl, duration_s, control_dt_s=CONTROL_DT_S, sample_dt_s=CONTROL_DT_S)
     loops = [_response("surge x*", "m", ctrl.surge_log, surge.model), _response("yaw", "deg", ctrl.yaw_log, yaw.model)]

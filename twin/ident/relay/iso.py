@@ -163,8 +163,12 @@ class RelayExperiment:
 
     output = "thrust"
 
-    def __init__(self, dof: str, relay_c: float, xa: float, thruster_y_m: tuple[float, float]):
+    def __init__(self, dof: str, relay_c: float, xa: float, thruster_y_m: tuple[float, float],
+                 gains=(1.0, 1.0)):
+        """gains: the thrusters' (left, right): a thrust command is the map's, which the gains scale,
+        so each is divided by its gain and the hull feels the relay's C itself."""
         self.dof = dof
+        self.gains = np.asarray(gains, float)
         self.relay = RelayWithHysteresis(relay_c, xa)
         self.allocation_inv = np.linalg.inv(allocation_matrix(thruster_y_m)[[0, 2]])
         self.heading_ref_rad: float | None = None
@@ -185,8 +189,16 @@ class RelayExperiment:
         level = self.relay(e)
         self.log.append((t_s, e, level))
         force_n, moment_nm = (level, 0.0) if self.dof == "surge" else (0.0, level)
-        thrust_n = self.allocation_inv @ np.array([force_n, moment_nm])
+        thrust_n = self.allocation_inv @ np.array([force_n, moment_nm]) / self.gains
         return float(thrust_n[0]), float(thrust_n[1])
+
+
+def force_range(thrusters) -> tuple[float, float]:
+    """(lo, hi) N one thruster puts on the hull across its commands: the command range times the
+    weaker thruster's gain (a command in N is the thrust map's, which the gains scale)."""
+    lo, hi = thrusters.command_range()
+    gain = float(min(thrusters.gains()))
+    return lo * gain, hi * gain
 
 
 def relay_limit(thruster_y_m: tuple[float, float], bounds_n: tuple[float, float], dof: str) -> float:
@@ -361,7 +373,7 @@ def run_experiment(compiled, dof: str, relay_c: float, xa: float, duration_s: fl
     """One relay experiment in the twin ([Relay-ISO Fig. 4] or 5), from rest; the first third is transient."""
     from ...engine.sim import simulate
 
-    controller = RelayExperiment(dof, relay_c, xa, compiled.geometry.thruster_y_m)
+    controller = RelayExperiment(dof, relay_c, xa, compiled.geometry.thruster_y_m, compiled.vessel.thrusters.gains())
     simulate(compiled, controller, duration_s, control_dt_s=CONTROL_DT_S, sample_dt_s=CONTROL_DT_S)
     return iso_row(relay_c, xa, np.array(controller.log), duration_s / 3, twin or twin_uncoupled(compiled, dof))
 
@@ -417,7 +429,7 @@ def sweep(compiled, dof: str, amplitudes: list[float] | None = None, xa: float |
     check_dof(compiled.vessel.name, dof, compiled.vessel.thrusters.kind)
     if is_ship(compiled):
         return ship_sweep(compiled, amplitudes, None, xa, duration_s, progress)
-    y_m, bounds = compiled.geometry.thruster_y_m, compiled.vessel.thrusters.command_range()
+    y_m, bounds = compiled.geometry.thruster_y_m, force_range(compiled.vessel.thrusters)
     limit = relay_limit(y_m, bounds, dof)
     amplitudes = amplitudes or [math.floor(f * limit * 100) / 100 for f in DEFAULT_FRACTIONS]
     bad = [c for c in amplitudes if not 0 < c <= limit + 1e-9]
