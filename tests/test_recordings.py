@@ -702,3 +702,22 @@ def test_a_dataset_layout_short_of_a_column_is_told_which(tmp_path):
                     + "\n".join(f"{0.1 * k},{0.01 * k},0,0,0,5" for k in range(50)) + "\n")
     notes = read_recording(esso).notes
     assert any(n.startswith("no wind") for n in notes) and not any(n.startswith("wind: measured") for n in notes)
+
+
+def test_a_conversion_says_which_streams_it_held_or_thinned_to_the_grid():
+    """A 5-Hz GNSS on a 0.1-s grid repeats each fix: the file would show it at 10 Hz, so the
+    conversion says so; a stream at the grid's own rate is not mentioned."""
+    from twin.prepare.convert import for_conversion
+    from twin.recording import Recording, Stream
+
+    t = np.arange(0.0, 30.0, 0.02)
+    rec = Recording(source="rates.csv", kind="csv")
+    gnss_t = t[::10]  # 5 Hz
+    rec.gnss = Stream(gnss_t, {"north_m": 0.5 * gnss_t, "east_m": 0.0 * gnss_t})
+    rec.heading = Stream(t, {"psi_rad": np.zeros(len(t))})  # 50 Hz
+    pwm_t = t[::5]  # 10 Hz, the grid's
+    rec.pwm = Stream(pwm_t, {"left_us": np.full(len(pwm_t), 1600.0), "right_us": np.full(len(pwm_t), 1600.0)})
+    timing = for_conversion(rec, 0.1).timing
+    assert "gnss recorded at 5 Hz, each sample held until the next" in timing
+    assert "heading recorded at 50 Hz, thinned to the grid" in timing
+    assert "pwm recorded" not in timing

@@ -271,8 +271,12 @@ class Evaluation:
         return f"Evaluation({self.vessel}: 10-s free runs R² {cells or '-'})"
 
     def table(self) -> Table:
-        """One row per horizon and DOF: horizon, dof, r2, mae (m/s; r in °/s), n, calibrated."""
-        rows = [{k: v for k, v in s.to_dict().items() if k != "unit"} for s in self.scores]
+        """One row per horizon and DOF with samples: horizon, dof, r2, mae (m/s; r in °/s), n,
+        calibrated; the rows without each log's compass calibration only where it changed a score."""
+        rows = [{k: v for k, v in s.to_dict().items() if k != "unit"} for s in self.scores if s.n]
+        calibrated = {(r["horizon"], r["dof"]): (r["r2"], r["mae"]) for r in rows if r["calibrated"]}
+        if all(calibrated.get((r["horizon"], r["dof"])) == (r["r2"], r["mae"]) for r in rows if not r["calibrated"]):
+            rows = [r for r in rows if r["calibrated"]]
         return Table(rows, f"{self.vessel}: how the twin predicts the recordings (MAE in m/s, r in °/s)")
 
     def to_dict(self) -> dict:

@@ -184,12 +184,20 @@ def crosscheck(
     table = Table(title=f"crosscheck {v.name}: engine (MuJoCo) vs analytic, {duration:g} s zig-zag")
     for col in ("case", "position err (m)", "heading err (deg)", "term effect (m)", "result"):
         table.add_column(col, justify="right" if "err" in col or "effect" in col else "left")
+    idle = []
     for r in results:
         effect = "-" if r.effect_m is None else f"{r.effect_m:.3g}"
+        # a term that moves nothing on this vessel checks nothing: a pass there would say more than it knows
+        untested = r.effect_m is not None and r.effect_m < POSITION_TOL_M
+        idle += [r.case] if untested else []
         table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
-                      "[green]pass[/]" if r.passed else "[red]FAIL[/]")
+                      "[green]pass[/]" if r.passed and not untested else "[grey50]no effect[/]" if r.passed
+                      else "[red]FAIL[/]")
     console.print(table)
     say(f"tolerance: position < {POSITION_TOL_M} m, heading < {HEADING_TOL_DEG}°")
+    if idle:
+        say(f"note: {', '.join(idle)}: the term moves this vessel less than the position tolerance over the run, so "
+            "the case tests nothing here (no such load on it, or a run too short)")
     write_json(json_out, {"vessel": v.name, "duration_s": duration, "cases": [r.to_dict() for r in results]})
     if rrd is not None:
         full = results[0]

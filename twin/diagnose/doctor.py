@@ -321,8 +321,12 @@ def given_text(effects, e) -> str:
     blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
     share = (f"removes {excess_share(e.rel_excess)}" if e.rel_excess >= 0
              else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise")
-    change = (f"held-out misfit {-100 * e.rel:+.1f} % ({share}; "
-              + ", ".join(f"{k} {-100 * v:+.1f} %" for k, v in e.dof_rel.items()) + ")")
+    # said as what the effect does to the misfit: lowers (a gain) or raises it, each velocity alike
+    def moved(rel: float) -> str:
+        return f"{'lowers' if rel >= 0 else 'raises'} it {100 * abs(rel):.1f} %"
+
+    change = (f"held-out misfit: {moved(e.rel)} ({share}; "
+              + ", ".join(f"{k}: {moved(v)}" for k, v in e.dof_rel.items()) + ")")
     if e.earns_its_place():
         return f"{what} earns its place as given: {blocks}; {change}"
     if e.z <= -Z_MIN:  # the blocks' vote, mirrored: as sure as a finding, the other way

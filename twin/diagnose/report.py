@@ -254,7 +254,26 @@ def _worst_bin(d, dof: str) -> str:
     if not bins:
         return ""
     e = max(bins, key=lambda x: x.get("share_of_residual", 0))
-    return f"{e['dimension']} {e['bin']}"
+    return bin_words(e["dimension"], e["bin"])
+
+
+# how a bin of the located table (diagnose/locate.py DIMENSIONS) reads in a sentence
+_BIN_WORDS = {"near_zero_pwm": {"yes": "windows with a thruster near zero PWM",
+                                "no": "windows with both thrusters away from zero PWM"},
+              "region": {"ff": "samples with both thrusters ahead", "fr": "samples with the left thruster ahead, the "
+                         "right astern", "rf": "samples with the left thruster astern, the right ahead",
+                         "rr": "samples with both thrusters astern"},
+              "speed": "speed", "yaw_rate": "yaw rate", "heading": "heading",
+              "since_step": "time since an input step", "pwm_diff": "PWM difference", "run_third": "part of the run",
+              "time_block": "time in the run", "recording": "recording"}
+
+
+def bin_words(dimension: str, bin_label: str) -> str:
+    """A located bin as words: "yaw rate r>10°/s", "windows with a thruster near zero PWM"."""
+    words = _BIN_WORDS.get(dimension, dimension)
+    if isinstance(words, dict):
+        return words.get(bin_label, f"{dimension} {bin_label}")
+    return f"{words} {bin_label}"
 
 
 def format_text(d) -> str:

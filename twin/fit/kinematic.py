@@ -114,8 +114,9 @@ class KinematicFinding:
         return dict(self.values)
 
     def text(self) -> str:
+        # a value read with no σ is no reading: a finding not told says only why
         vals = ", ".join(f"{k} {v:+.3g}" + (f" ± {self.sigma[k]:.2g}" if self.sigma.get(k) else "")
-                         for k, v in self.change.items())
+                         for k, v in self.change.items() if self.told or self.sigma.get(k))
         state = "named" if self.told else ("not there" if self.absent else "not told")
         return f"{self.effect} from kinematics: {state} ({'; '.join(x for x in (vals, self.why) if x)})"
 

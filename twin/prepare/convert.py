@@ -52,11 +52,27 @@ def for_conversion(rec: Recording, grid_dt: float = 0.1) -> Conversion:
             if len(s)]
     timing = (f"{', '.join(held)} synchronised on a {grid_dt:g} s grid ({len(t)} samples in "
               f"{len(prep.segments)} segment{'s' if len(prep.segments) != 1 else ''})")
+    changed = [_rate_change(name, getattr(rec, name), grid_dt) for name in held]
+    if any(changed):  # a reader of the file would otherwise take a held fix for a new one
+        timing += ": " + "; ".join(c for c in changed if c)
     own = [name for name in ("imu", "battery", "wind") if len(getattr(rec, name))]
     if own:
         timing += f"; {', '.join(own)} at {'their' if len(own) > 1 else 'its'} own times"
     return Conversion(dataclasses.replace(rec, gnss=gnss, heading=heading, pwm=pwm, prop_rudder=prop_rudder),
                       timing, True)
+
+
+def _rate_change(name: str, stream: Stream, grid_dt: float) -> str:
+    """How putting a stream on the grid changed it: held (each sample repeated until the next) or
+    thinned; "" where it was recorded at the grid's own rate."""
+    if len(stream) < 2:
+        return ""
+    period = float(np.median(np.diff(stream.t)))
+    if not period > 0 or abs(period - grid_dt) <= 0.05 * grid_dt:
+        return ""
+    if period > grid_dt:
+        return f"{name} recorded at {1 / period:.3g} Hz, each sample held until the next"
+    return f"{name} recorded at {1 / period:.3g} Hz, thinned to the grid"
 
 
 def not_kept(rec: Recording, suffix: str) -> list[str]:

@@ -122,6 +122,9 @@ def comparison_png(runs: dict, title: str) -> bytes:
     if axes[2].lines:  # the line styles' key, in grey: the colours already name the runs
         axes[2].legend([Line2D([], [], color="grey", ls="-"), Line2D([], [], color="grey", ls="--")],
                        [solid, dashed], fontsize=8, loc="best")
+    else:  # an empty panel would look like a drawing that failed
+        axes[2].text(0.5, 0.5, "no inputs in this log", transform=axes[2].transAxes, ha="center", va="center",
+                     color="grey")
     axes[2].set_xlabel("t (s)")
     track.set_xlabel("east (m)")
     track.set_ylabel("north (m)")
