@@ -481,3 +481,18 @@ def test_a_run_too_large_for_the_machines_memory_is_refused_before_it_starts(mon
     assert code == 2 and "holds about 15 GB" not in err and "more than half of this machine's 16 GB" in err
     assert not (tmp_path / "big.csv").exists()
     assert simulation.simulate_run("blueboat", scenario="turn", duration_s=2.0).run.t[-1] == 2.0
+
+
+def test_a_vessel_file_and_a_recording_given_for_each_other_are_told_apart(tmp_path):
+    """A vessel file where an inputs CSV belongs, and a recording where a vessel file belongs, each
+    get a sentence saying which is which, not only the parser's complaint."""
+    from twin.drive import read_inputs_csv
+    from twin.errors import TwinError
+    from twin.vessel import MODEL_DIR, load
+
+    with pytest.raises(TwinError, match="it looks like a vessel file: give that with --model"):
+        read_inputs_csv(MODEL_DIR / "blueboat.json")
+    log = tmp_path / "run.csv"
+    log.write_text("t,lat,lon\n0,63.4,10.4\n")
+    with pytest.raises(TwinError, match="not valid JSON .*this looks like a recording"):
+        load(str(log))

@@ -160,7 +160,9 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
         raise TwinError(f"{path.name}: needs a header and at least one row")
     header = [h.strip() for h in rows[0]]
     if "t" not in header:
-        raise TwinError(f"{path.name}: missing column 't'")
+        looks = (" (it looks like a vessel file: give that with --model)" if path.suffix.lower() == ".json"
+                 or header[:1] == ["{"] else "")
+        raise TwinError(f"{path.name}: missing column 't': an inputs file is a CSV of t and the inputs{looks}")
     kind, cols = _input_columns(header, path)
     idx = [header.index(c) for c in ("t", *cols)]
     data = []

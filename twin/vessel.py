@@ -548,7 +548,10 @@ def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
     try:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise TwinError(f"{path.name}: not valid JSON ({exc})") from None
+        recording = path.suffix.lower() in (".csv", ".tlog", ".bin", ".mcap")
+        raise TwinError(f"{path.name}: not valid JSON ({exc})"
+                        + ("; a vessel file is the JSON `twin identify` writes, and this looks like a recording"
+                           if recording else "")) from None
     return from_dict(data, path.resolve()).with_case(case)
 
 
