@@ -28,7 +28,7 @@ def info(
     from ..formats import read_recording
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
-    from ..prepare.timing import heading_lag_behind_gyro
+    from ..prepare.timing import MIN_TURNING_S, heading_lag_behind_gyro
     from ..fit.kinematic import GYRO_MIN_FIT, GYRO_PIECE_S, GYRO_TURNING_RAD_S
     from ..recording import format_summary
 
@@ -48,8 +48,9 @@ def info(
             typer.echo(f"  {line}")
         if len(rec.imu) and len(rec.heading):
             lag = heading_lag_behind_gyro(rec)
-            if lag.lag_s is None and len(rec.prop_rudder):
+            if lag.lag_s is None and (len(rec.prop_rudder) or lag.turning_s < MIN_TURNING_S):
                 # a ship turns at 1-3°/s: read on longer pieces and slower turning, as the diagnosis reads it
+                # (also where a conversion left its propeller and rudder out: a tlog has no place for them)
                 lag = heading_lag_behind_gyro(rec, window_s=GYRO_PIECE_S, turning_rad_s=GYRO_TURNING_RAD_S,
                                               min_fit=GYRO_MIN_FIT)
             typer.echo(f"  {lag.text()}")
