@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second] [--work DIR] [--only CASE,...] [--page-only]
+    python scripts/blind_truths.py [--set first|second|third] [--work DIR] [--only CASE,...] [--page-only]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -117,7 +117,19 @@ SECOND = [  # fixed before it was run: other seeds, magnitudes, sides and direct
     Case("wind-gusty-6-40", "wind", 49, wind_speed_m_s=6.0, wind_from_deg=40.0, gust_sigma_m_s=1.0, gust_tau_s=15.0),
     Case("wind-steady-5-220", "wind", 50, wind_speed_m_s=5.0, wind_from_deg=220.0),
 ]
-SETS = {"first": FIRST, "second": SECOND}
+THIRD = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-e", "null", 51),
+    Case("null-f", "null", 52),
+    Case("dead_zone-right-soft-50-120us", "dead_zone", 53, side="right", inner_us=50.0, outer_us=120.0),
+    Case("dead_zone-left-hard-100us", "dead_zone", 54, side="left", inner_us=100.0, outer_us=100.0),
+    Case("speed_loss-0.08u", "speed_loss", 55, k=0.08, power=1),
+    Case("speed_loss-0.10u2", "speed_loss", 56, k=0.10, power=2),
+    Case("sag-exp-300s", "sag_exp", 57, k=0.3, tau_s=300.0),
+    Case("sag-square-0.25", "sag_square", 58, k=0.25),
+    Case("wind-gusty-5-130", "wind", 59, wind_speed_m_s=5.0, wind_from_deg=130.0, gust_sigma_m_s=0.8, gust_tau_s=10.0),
+    Case("wind-steady-6-300", "wind", 60, wind_speed_m_s=6.0, wind_from_deg=300.0),
+]
+SETS = {"first": FIRST, "second": SECOND, "third": THIRD}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}
