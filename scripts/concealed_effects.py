@@ -6,7 +6,8 @@ other runs of the same vessel.
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
 which magnitudes. The second to twelfth sets regroup the same active BlueBoat runs into other
-outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, X) and take other Esso turning tests (T3, T4;
+outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, P again: the last pair
+left, 216 and 228, is too short to diagnose) and take other Esso turning tests (T3, T4;
 T5, T6; T7, T8; T9, T10; T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again; T11, T12
 again), with other magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
@@ -82,7 +83,7 @@ OUTINGS = {"A": (216, 220, 228), "B": (224, 225), "C": (216, 224), "D": (220, 22
            "K": (216, 224, 225), "L": (220, 224, 228), "M": (216, 220, 224), "N": (216, 225, 228),
            "O": (216, 224, 228), "P": (220, 224, 225), "Q": (216, 220, 225), "R": (216, 220, 224, 225, 228),
            "S": (216, 220, 224, 228), "T": (220, 224, 225, 228), "U": (216, 220, 224, 225),
-           "V": (216, 224, 225, 228), "W": (216, 220, 225, 228), "X": (216, 228)}
+           "V": (216, 224, 225, 228), "W": (216, 220, 225, 228)}
 ESSO_TESTS = {"T1": "turn_14-Oct-2020_14_29_49.csv", "T2": "turn_14-Sep-2020_14_50_41.csv",
               "T3": "turn_14-Oct-2020_14_08_51.csv", "T4": "turn_14-Sep-2020_13_51_45.csv",
               "T5": "turn_14-Oct-2020_15_06_53.csv", "T6": "turn_14-Sep-2020_15_47_33.csv",
@@ -276,12 +277,12 @@ PROOF_ELEVENTH = [
     Case("esso", "T9", "heading_late", (0.6,)), Case("esso", "T10", "heading_late", (0.35,)),
 ]
 PROOF_TWELFTH = [
-    Case("blueboat", "W", "null"), Case("blueboat", "X", "null"),
-    Case("blueboat", "W", "current", (0.10, 60.0)), Case("blueboat", "X", "current", (0.14, 250.0)),
-    Case("blueboat", "W", "antenna", (0.30, 0.20)), Case("blueboat", "X", "antenna", (-0.25, -0.25)),
-    Case("blueboat", "W", "input_late", (0.45,)), Case("blueboat", "X", "input_late", (0.7,)),
-    Case("blueboat", "W", "thruster_scaled", ("left", 0.8)), Case("blueboat", "X", "thruster_scaled", ("right", 0.7)),
-    Case("blueboat", "W", "heading_late", (0.45,)), Case("blueboat", "X", "heading_late", (0.65,)),
+    Case("blueboat", "W", "null"), Case("blueboat", "P", "null"),
+    Case("blueboat", "W", "current", (0.10, 60.0)), Case("blueboat", "P", "current", (0.14, 250.0)),
+    Case("blueboat", "W", "antenna", (0.30, 0.20)), Case("blueboat", "P", "antenna", (-0.25, -0.25)),
+    Case("blueboat", "W", "input_late", (0.45,)), Case("blueboat", "P", "input_late", (0.7,)),
+    Case("blueboat", "W", "thruster_scaled", ("left", 0.8)), Case("blueboat", "P", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "W", "heading_late", (0.45,)), Case("blueboat", "P", "heading_late", (0.65,)),
     Case("esso", "T11", "null"), Case("esso", "T12", "null"),
     Case("esso", "T11", "current", (0.10, 100.0)), Case("esso", "T12", "current", (0.12, 300.0)),
     Case("esso", "T11", "antenna", (0.40, 0.25)), Case("esso", "T12", "antenna", (-0.30, -0.35)),
