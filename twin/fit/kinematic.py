@@ -34,8 +34,9 @@ best s is its own estimate; the median over events is the estimate and its robus
 spread. Only events whose template removes at least MIN_EVENT_GAIN of what a quadratic in time
 leaves are counted: the others are steps the controller made in answer to the motion (closed loop),
 where the input follows the motion rather than leading it. The surge answers through the GNSS
-(forward thrust, projected on the heading), the yaw through the heading, or the gyro where the log
-has one. An input log late by d moves both answers by +d; a heading late by L moves the heading's
+(forward thrust, projected on the heading; the fixes' swing R(ψ)·p about the hull for an antenna p
+anywhere on it is fitted beside, so where the antenna sits does not move the answer), the yaw through
+the heading, or the gyro where the log has one. An input log late by d moves both answers by +d; a heading late by L moves the heading's
 answer by −L and not the surge's; the gyro, where there is one, tells the heading's lateness
 directly (prepare.timing) and its answer then carries the input's timing alone. GNSS fixes stamped
 late move the surge's answer alone. Relative timing is
@@ -342,7 +343,10 @@ def _event_costs(t_obs: np.ndarray, obs: np.ndarray, t_in: np.ndarray, drive: np
         c, sn = np.cos(direction), np.sin(direction)
         y = np.r_[obs[m, 0], obs[m, 1]]
         ones, zeros = np.ones_like(t), np.zeros_like(t)
-        nuisance = [np.r_[ones, zeros], np.r_[zeros, ones], np.r_[t, zeros], np.r_[zeros, t]]
+        # R(ψ)·p of an antenna p anywhere on the hull: its swing in a turn is not the surge's answer
+        psi = at(direction[None, :])[0]
+        nuisance = [np.r_[ones, zeros], np.r_[zeros, ones], np.r_[t, zeros], np.r_[zeros, t],
+                    np.r_[np.cos(psi), np.sin(psi)], np.r_[-np.sin(psi), np.cos(psi)]]
 
         def along(x):  # the track of speeds x (rows) along the heading
             x = np.atleast_2d(x)
