@@ -164,6 +164,33 @@ def test_rrd_two_runs(tmp_path):
     assert len(data) > 1000 and data.startswith(RRD_MAGIC)
 
 
+def test_rrd_draws_nothing_across_a_gap(tmp_path, monkeypatch):
+    """Two stretches 30 s apart (an outing's two logs, a recording's segments): the track is two
+    strips and every plot is cleared once inside the gap, which rerun draws as a hole; a run
+    without a gap is one strip and clears nothing."""
+    strips, clears = [], []
+    real_strips, real_clear = rerun_log.rr.LineStrips3D, rerun_log.rr.Clear
+
+    def spy_strips(lines, **kwargs):
+        strips.append(len(lines))
+        return real_strips(lines, **kwargs)
+
+    def spy_clear(**kwargs):
+        clears.append(kwargs)
+        return real_clear(**kwargs)
+
+    monkeypatch.setattr(rerun_log.rr, "LineStrips3D", spy_strips)
+    monkeypatch.setattr(rerun_log.rr, "Clear", spy_clear)
+    run = synthetic_run(3, n=600)
+    run.t = np.where(np.arange(600) < 300, run.t, run.t + 30.0)
+    assert list(rerun_log.gap_ends(run.t)) == [299]
+    write_runs_rrd({"outing": run}, tmp_path / "gap.rrd")
+    assert strips == [2] and len(clears) == 7  # u, v, r, two thrusts, two PWMs
+    strips.clear(), clears.clear()
+    write_runs_rrd({"one": synthetic_run(3, n=600)}, tmp_path / "one.rrd")
+    assert strips == [1] and clears == []
+
+
 def test_rrd_with_meshes_and_geometry(tmp_path):
     class Geometry:  # only the sites are used
         thruster_pos_m = np.array([[-0.5, -0.3, 0.0], [-0.5, 0.3, 0.0]])

@@ -2,7 +2,8 @@
 
 Entity paths, for each run name:
   world                          NED view coordinates (x north, y east, z down), static
-  world/<name>/path              LineStrips3D of (x, y, 0) in m, static
+  world/<name>/path              LineStrips3D of (x, y, 0) in m, static: one strip per stretch
+                                 without a gap (gap_ends), and the plots cleared in each gap
   world/<name>/vessel            Transform3D over "time": translation (x, y, 0) m, yaw ψ about z
   world/<name>/vessel/<hull>     Mesh3D per hull mesh (body FRD, m), or a Boxes3D "hull", static
   world/<name>/vessel/sites      Points3D of thrusters, GNSS, IMU (when a Geometry is given), static
@@ -28,6 +29,7 @@ import rerun.blueprint as rrb
 from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..formats.mcap import check_run
+from ..recording import GAP_S
 from ..run import Run
 
 TIMELINE = "time"
@@ -110,11 +112,23 @@ def _load_meshes(hull_mesh_paths: HullMeshes | None) -> list[tuple[str, np.ndarr
     return out
 
 
+def gap_ends(t: np.ndarray) -> np.ndarray:
+    """Indices i after which a run's samples stop for longer than GAP_S and five sample periods (the
+    segments of a recording, the logs of an outing): nothing is drawn between t[i] and t[i + 1]."""
+    dt = np.diff(np.asarray(t, float))
+    if len(dt) == 0:
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(dt > max(GAP_S, 5.0 * float(np.median(dt))))
+
+
 def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, meshes) -> None:
     key = rr.escape_entity_path_part(name)
     times = [rr.TimeColumn(TIMELINE, duration=np.asarray(run.t, dtype=float))]
     xyz = np.column_stack([run.eta[:, 0], run.eta[:, 1], np.zeros(len(run.t))])
-    rec.log(f"world/{key}/path", rr.LineStrips3D([xyz], colors=[color], radii=[0.03]), static=True)
+    breaks = gap_ends(run.t)
+    strips = np.split(xyz, breaks + 1)
+    rec.log(f"world/{key}/path", rr.LineStrips3D(strips, colors=[color] * len(strips), radii=[0.03] * len(strips)),
+            static=True)
     six = run.meta.get("six_dof")
     if six is not None:
         xyz[:, 2] = six["down_m"]
@@ -142,6 +156,9 @@ def _log_run(rec: rr.RecordingStream, name: str, run: Run, color, geometry, mesh
         label = run.meta.get("series_labels", {}).get(q, name)  # e.g. a thrust that was derived, not measured
         rec.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
         rec.send_columns(entity, indexes=times, columns=rr.Scalars.columns(scalars=cols[q]))
+        for i in breaks:  # a plot draws a hole where its entity is cleared (rerun's Clear archetype)
+            rec.set_time(TIMELINE, duration=float(0.5 * (run.t[i] + run.t[i + 1])))
+            rec.log(entity, rr.Clear(recursive=False))
     for lim in run.meta.get("limits", []):  # an input the engine bounded: said where it happened
         rec.set_time(TIMELINE, duration=float(run.t[0] + lim["first_s"]))
         rec.log(f"log/{key}", rr.TextLog(f"{lim['thruster']} thruster {lim['quantity']} requested beyond the bound "
