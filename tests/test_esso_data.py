@@ -141,8 +141,16 @@ def test_twin_info_convert_view_on_an_esso_layout(tmp_path):
 
     info = twin("info", src)
     assert info.returncode == 0 and "prop_rudder" in info.stdout and "wind" in info.stdout
-    out = twin("convert", src, tmp_path / "run.tlog")
-    assert out.returncode == 0 and "no place for the propeller and rudder inputs" in out.stdout + out.stderr
+    rec = read_recording(src)
+    for suffix in (".tlog", ".bin"):  # a ship's inputs and its measured wind survive ArduPilot's formats
+        out = twin("convert", src, tmp_path / f"run{suffix}")
+        assert out.returncode == 0 and "no place" not in out.stdout + out.stderr, out.stderr
+        back = read_recording(tmp_path / f"run{suffix}")
+        for stream, cols in (("prop_rudder", ("n_rps", "delta_rad")), ("wind", ("speed_m_s", "from_deg"))):
+            a, b = getattr(rec, stream), getattr(back, stream)
+            assert len(b) == len(a) and np.max(np.abs((b.t - b.t[0]) - (a.t - a.t[0]))) <= 1e-3
+            for c in cols:
+                assert np.allclose(b[c], a[c], rtol=1e-6, atol=1e-6), (suffix, stream, c)
     view = twin("view", src, "--sim", "--vessel", "esso_osaka", "--out", tmp_path / "v.rrd")
     assert view.returncode == 0 and (tmp_path / "v.rrd").is_file(), view.stderr
 

@@ -50,7 +50,6 @@ def info(
             lag = heading_lag_behind_gyro(rec)
             if lag.lag_s is None and (len(rec.prop_rudder) or lag.turning_s < MIN_TURNING_S):
                 # a ship turns at 1-3°/s: read on longer pieces and slower turning, as the diagnosis reads it
-                # (also where a conversion left its propeller and rudder out: a tlog has no place for them)
                 lag = heading_lag_behind_gyro(rec, window_s=GYRO_PIECE_S, turning_rad_s=GYRO_TURNING_RAD_S,
                                               min_fit=GYRO_MIN_FIT)
             typer.echo(f"  {lag.text()}")

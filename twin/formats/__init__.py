@@ -26,14 +26,14 @@ The format follows the extension:
          The PWM neutral columns are written on the PWM rows only when it is not 1500 µs.
   .tlog  MAVLink telemetry (tlog.py): the recording's parameters, GPS_RAW_INT,
          ATTITUDE, SERVO_OUTPUT_RAW on the channels of SERVO1/3_FUNCTION = 73/74 with
-         SERVOn_TRIM = the PWM neutral, SYS_STATUS for the battery, HEARTBEAT every second.
+         SERVOn_TRIM = the PWM neutral, SYS_STATUS for the battery, HEARTBEAT every second,
+         NAMED_VALUE_FLOAT for a ship's propeller and rudder and a measured wind.
   .bin   ArduPilot DataFlash (dataflash.py): PARM (the recording's parameters and
-         the same thruster mapping), GPS, ATT, RCOU, IMU (GyrZ), BAT.
+         the same thruster mapping), GPS, ATT, RCOU, IMU (GyrZ), BAT, and the log's own
+         SHIP (propeller and rudder) and WNDM (measured wind).
   .mcap  /sensors/gnss (foxglove.LocationFix), /sensors/heading, /sensors/pwm,
          /sensors/imu, /sensors/battery, /sensors/prop_rudder, /sensors/wind (mcap.py), the
          parameters in its metadata.
-A propeller-and-rudder ship's inputs (prop_rudder) and a measured wind (wind) are kept by .csv
-and .mcap; .tlog and .bin have no place for them (`twin convert` says so).
 
 What a round trip keeps (sample times / values):
   .csv   1 µs / lat, lon 1e-10 deg, heading 1e-7 deg, PWM as written; no parameters
@@ -44,7 +44,8 @@ What a round trip keeps (sample times / values):
   .bin   1 µs / lat, lon 1e-7 deg, alt 1 cm, heading 0.01 deg, PWM integer µs (rounded),
          yaw rate and voltage float32, parameters float32
   .mcap  1 ns / every value exactly (JSON), plus the origin, PWM neutral and parameters
-  (.csv prop_rudder and wind: 10 significant digits, 1e-6 m/s and deg)
+  (prop_rudder and wind: .csv 10 significant digits, 1e-6 m/s and deg; .tlog 1 ms, .bin 1 µs /
+  float32)
 
 Times: a stream's t (s from the recording's origin) is written as it is, unless some
 sample is before the origin: then every stream is shifted by the same amount so that

@@ -5,8 +5,10 @@ A DataFlash log is a sequence of messages [0xA3 0x95 type][payload]; the
 first messages are FMT records that describe every type, FMT included.
 Written here: PARM (a recording's own parameters, then the thruster functions
 73/74 on channels 1/3 as ArduRover, and their trims), GPS (lat/lon 1e-7 deg,
-alt cm), ATT (heading, roll and pitch, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s) and
-BAT (Volt), each message at its own sample time (TimeUS, µs).
+alt cm), ATT (heading, roll and pitch, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s),
+BAT (Volt), and for a propeller-and-rudder ship and a measured wind the log's own types SHIP
+(Prop rps, Rudder rad) and WNDM (Spd m/s, From deg), float32, each message at its own sample
+time (TimeUS, µs).
 A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
 the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
 """
@@ -42,6 +44,9 @@ FORMATS = {  # type id, name, format, columns (ArduPilot's layouts, trimmed to w
     "RCOU": (67, "Q" + "H" * 14, "TimeUS," + ",".join(f"C{i}" for i in range(1, 15))),
     "IMU": (68, "QBfff", "TimeUS,I,GyrX,GyrY,GyrZ"),
     "BAT": (69, "QBf", "TimeUS,Inst,Volt"),
+    # a ship's inputs and a measured wind, which ArduPilot has no message for (a log defines its own types)
+    "SHIP": (70, "Qff", "TimeUS,Prop,Rudder"),
+    "WNDM": (71, "Qff", "TimeUS,Spd,From"),
 }
 GPS_EPOCH_UNIX_S = 315964800.0
 LEAP_S = 18.0
@@ -94,6 +99,13 @@ def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
         timed += _imu(imu.t, imu["yaw_rate_rads"])
     if len(bat):
         timed += [(_us(t), _message("BAT", _us(t), 0, float(v))) for t, v in zip(bat.t, bat["voltage_v"])]
+    ship, wind = rec.prop_rudder, rec.wind
+    if len(ship):
+        timed += [(_us(t), _message("SHIP", _us(t), float(n), float(d)))
+                  for t, n, d in zip(ship.t, ship["n_rps"], ship["delta_rad"])]
+    if len(wind):
+        timed += [(_us(t), _message("WNDM", _us(t), float(v), float(f)))
+                  for t, v, f in zip(wind.t, wind["speed_m_s"], wind["from_deg"])]
     return _log_bytes(timed + _rcou(p.t, pwm))
 
 
@@ -165,9 +177,9 @@ def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
 # Read with pymavlink's DFReader_binary (current TimeUS and legacy TimeMS layouts; its
 # per-message `_timestamp` is one clock for all messages): GPS (Status ≥ 3, instance 0),
 # ATT (Yaw in degrees), RCOU (C1..C14 or legacy Ch1..Ch12), PARM, BAT (instance 0) or
-# legacy CURR, IMU (GyrZ, instance 0).
+# legacy CURR, IMU (GyrZ, instance 0), SHIP and WNDM (this project's own, above).
 
-DF_WANTED = ["GPS", "ATT", "RCOU", "PARM", "BAT", "CURR", "IMU"]
+DF_WANTED = ["GPS", "ATT", "RCOU", "PARM", "BAT", "CURR", "IMU", "SHIP", "WNDM"]
 
 
 def read_dataflash(path: Path, channels: dict | None) -> Recording:
@@ -188,6 +200,13 @@ def read_dataflash(path: Path, channels: dict | None) -> Recording:
     rec.imu = clean_stream("imu", [m._timestamp for m in imu], {"yaw_rate_rads": [m.GyrZ for m in imu]}, rec.dropped)
     _df_pwm(rec, rows["RCOU"], channels)
     _df_battery(rec, rows)
+    ship, wind = rows["SHIP"], rows["WNDM"]
+    if ship:
+        rec.prop_rudder = clean_stream("prop_rudder", [m._timestamp for m in ship], {
+            "n_rps": [m.Prop for m in ship], "delta_rad": [m.Rudder for m in ship]}, rec.dropped)
+    if wind:
+        rec.wind = clean_stream("wind", [m._timestamp for m in wind], {
+            "speed_m_s": [m.Spd for m in wind], "from_deg": [m.From for m in wind]}, rec.dropped)
     return finish(rec)
 
 

@@ -17,6 +17,9 @@ One packet builder (`telemetry_packets`) serves both sources:
                      (rad, float32) of a 6-DOF hull or a recording's attitude stream, else 0
   SERVO_OUTPUT_RAW   port 0, PWM (integer µs) on channels 1 and 3, time_usec (32-bit µs)
   SYS_STATUS         battery voltage (mV), only where the source has a battery stream
+  NAMED_VALUE_FLOAT  a recording's propeller speed and rudder angle (PROP_RPS rps, RUDDER_RAD rad)
+                     and measured wind (WIND_SPD m/s, WIND_FROM deg), float32, time_boot_ms:
+                     MAVLink has no message of its own for them
 Every message is stamped with its own sample time; the Unix stamp is a fixed start
 plus that time, so the log's boot clock and receive clock agree.
 
@@ -47,6 +50,9 @@ UNKNOWN_U16 = 65535  # MAVLink's "unknown" for GPS speed and course
 MAX_BOOT_MS = 2**32 - 1  # ATTITUDE.time_boot_ms is a 32-bit ms counter
 
 Add = Callable[[float, object], None]
+# recording stream → (NAMED_VALUE_FLOAT name, column) pairs, written together at the stream's times
+NAMED = {"prop_rudder": (("PROP_RPS", "n_rps"), ("RUDDER_RAD", "delta_rad")),
+         "wind": (("WIND_SPD", "speed_m_s"), ("WIND_FROM", "from_deg"))}
 
 
 def tlog_packets(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, start_unix_s: float = START_UNIX_S,
@@ -81,7 +87,10 @@ def write_recording_tlog(rec: Recording, path, start_unix_s: float = START_UNIX_
     tel = recording_telemetry(rec)
     ends = [s.t[-1] for s in rec.streams().values() if len(s)]
     params = log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(rec.pwm) > 0)
-    write_bytes_atomic(path, tlog_bytes(telemetry_packets(tel, float(max(ends)), params, start_unix_s)))
+    named = {stream: getattr(rec, stream) for stream in NAMED if len(getattr(rec, stream))}
+    for stream in named.values():
+        _check_range("time (ms)", np.round(stream.t * 1e3), 0, MAX_BOOT_MS)
+    write_bytes_atomic(path, tlog_bytes(telemetry_packets(tel, float(max(ends)), params, start_unix_s, named)))
 
 
 def tlog_bytes(packets: list[tuple[int, bytes]]) -> bytes:
@@ -91,8 +100,9 @@ def tlog_bytes(packets: list[tuple[int, bytes]]) -> bytes:
 # ---------------------------------------------------------------- the shared packet builder
 
 def telemetry_packets(tel: Telemetry, end_s: float, params: dict[str, float],
-                      start_unix_s: float = START_UNIX_S) -> list[tuple[int, bytes]]:
-    """(unix time µs, MAVLink packet) in time order; see the module docstring."""
+                      start_unix_s: float = START_UNIX_S, named: dict | None = None) -> list[tuple[int, bytes]]:
+    """(unix time µs, MAVLink packet) in time order; see the module docstring. `named`: recording
+    streams (a key of NAMED → Stream) written as NAMED_VALUE_FLOAT."""
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     start_us = int(round(start_unix_s * 1e6))
     out: list[tuple[int, bytes]] = []
@@ -106,6 +116,7 @@ def telemetry_packets(tel: Telemetry, end_s: float, params: dict[str, float],
     _attitude(mav, tel, add)
     _servo(mav, tel, add)
     _battery(mav, tel, add)
+    _named(mav, named or {}, add)
     out.sort(key=lambda item: item[0])  # stable: packets of one instant keep the order above
     return out
 
@@ -168,6 +179,13 @@ def _battery(mav, tel: Telemetry, add: Add) -> None:
         add(t, mav.sys_status_encode(0, 0, 0, 0, int(round(volts * 1e3)), -1, -1, 0, 0, 0, 0, 0, 0))
 
 
+def _named(mav, streams: dict, add: Add) -> None:
+    for key, stream in streams.items():
+        for name, column in NAMED[key]:
+            for t, value in zip(stream.t, stream[column]):
+                add(t, mav.named_value_float_encode(int(round(t * 1e3)), name.encode(), float(value)))
+
+
 # ---------------------------------------------------------------- recording → Telemetry
 
 def recording_telemetry(rec: Recording) -> Telemetry:
@@ -207,12 +225,14 @@ def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
 # process-wide environment variable. Every packet's CRC is checked (bad packets are counted,
 # then the reader re-synchronises on the next marker byte); only the wanted messages are
 # decoded: GPS_RAW_INT (fix_type ≥ 3 only; GLOBAL_POSITION_INT if the log has no usable
-# GPS_RAW_INT), ATTITUDE (yaw, yawspeed), SERVO_OUTPUT_RAW, PARAM_VALUE, SYS_STATUS.
+# GPS_RAW_INT), ATTITUDE (yaw, yawspeed), SERVO_OUTPUT_RAW, PARAM_VALUE, SYS_STATUS, and
+# NAMED_VALUE_FLOAT of the names in NAMED (a ship's inputs and a measured wind).
 # Sample times are the vehicle's boot clock (time_boot_ms / time_usec) where it agrees with
 # the receive clock within 1 s, else the receive time mapped onto the boot clock: the link's
 # latency jitter would otherwise show up in the velocities.
 
-TLOG_WANTED = ("GPS_RAW_INT", "GLOBAL_POSITION_INT", "ATTITUDE", "SERVO_OUTPUT_RAW", "PARAM_VALUE", "SYS_STATUS")
+TLOG_WANTED = ("GPS_RAW_INT", "GLOBAL_POSITION_INT", "ATTITUDE", "SERVO_OUTPUT_RAW", "PARAM_VALUE", "SYS_STATUS",
+               "NAMED_VALUE_FLOAT")
 _MARKER = re.compile(b"[\xfd\xfe]")
 _MAX_JUMP_US = 3 * 24 * 3600 * 1_000_000  # a receive time further than this from the last good one is garbage
 _CLOCK_TOLERANCE_S = 1.0
@@ -315,6 +335,7 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
         rec.imu = clean_stream("imu", t_att, {"yaw_rate_rads": rate}, rec.dropped)
     _tlog_pwm(rec, msgs, clock, channels)
     _tlog_battery(rec, msgs, clock)
+    _tlog_named(rec, msgs["NAMED_VALUE_FLOAT"], clock)
     rec.meta["clock"] = "vehicle boot time" if len(clock.recv) else "tlog receive time"
     return finish(rec)
 
@@ -415,3 +436,20 @@ def _tlog_battery(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> N
     if status:  # SYS_STATUS has no time field of its own: the mapped receive time
         volts = [m.voltage_battery * 1e-3 for _, m in status]
         rec.battery = clean_stream("battery", clock.stamp(status), {"voltage_v": volts}, rec.dropped)
+
+
+def _tlog_named(rec: Recording, named: list, clock: _BootClock) -> None:
+    """The streams of NAMED from NAMED_VALUE_FLOAT: each pair of names read at the times both were
+    sent (boot ms); other names are not this project's and are left alone."""
+    by_name: dict[str, dict[int, tuple]] = defaultdict(dict)
+    for t, m in named:
+        by_name[text(m.name)][int(m.time_boot_ms)] = (t, m)
+    for stream, ((first, col_a), (second, col_b)) in NAMED.items():
+        times = sorted(set(by_name[first]) & set(by_name[second]))
+        if not times:
+            continue
+        items = [by_name[first][ms] for ms in times]
+        t = clock.stamp(items, [ms * 1e-3 for ms in times])
+        cols = {col_a: [by_name[first][ms][1].value for ms in times],
+                col_b: [by_name[second][ms][1].value for ms in times]}
+        setattr(rec, stream, clean_stream(stream, t, cols, rec.dropped))

@@ -80,11 +80,6 @@ def not_kept(rec: Recording, suffix: str) -> list[str]:
     out = []
     if suffix == ".csv" and rec.parameters:
         out.append(f"the CSV layout has no place for the {len(rec.parameters)} parameters (use .mcap, .tlog or .bin)")
-    if suffix in (".tlog", ".bin"):
-        lost = [what for name, what in (("prop_rudder", "propeller and rudder inputs"), ("wind", "measured wind"))
-                if len(getattr(rec, name))]
-        if lost:
-            out.append(f"a {suffix} file has no place for the {' and the '.join(lost)} (use .mcap or .csv)")
     if suffix == ".tlog" and len(rec.imu) and not len(rec.heading):
         out.append("a .tlog carries the yaw rate in ATTITUDE with the heading: without heading the imu stream is lost")
     return out
