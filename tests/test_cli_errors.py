@@ -147,6 +147,8 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(monkeypatch, ca
          "same file"),
         (("evaluate", log, *v, "--json", same, "--rrd", root / "e.rrd", "--stride", "0"), "--stride"),
         (("montecarlo", "--model", same, "--out", same), "is the input"),
+        (("iso", "--model", same, "--json", same), "is the input"),
+        (("dp", "--model", same, "--png", root / "same.png", "--json", same), "is the input"),
         (("dataset", *v, "--out", root / "d.csv", "--out", root / "d.csv"), "same file"),
     ]
     for args, message in cases:

@@ -402,3 +402,22 @@ def test_a_log_is_corrected_with_the_throttle_at_each_heading_sample(tmp_path):
     back = vessel_mod.load(str(vessel_mod.save(v, tmp_path / "motor.json")))
     assert back.sensors.compass_motor_deg == (0.0, 10.0)
     assert "compass_motor_deg" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()
+
+
+@pytest.mark.parametrize("name, value", [("thrust_gain", 0.85), ("thruster_asymmetry", 0.9)])
+def test_a_gain_effect_is_read_as_a_multiple_of_the_twins_own(name, value):
+    """On a twin whose gains are not 1 (the BlueBoat's 1.605 for its 14.8-V pack, made unequal here)
+    the diagnosis reads thrust_gain and thruster_asymmetry as the effect applies them, a multiple of
+    the twin's own: the value it names can be given back (--effect, --given)."""
+    from twin.effects import apply_effects, candidates
+
+    boat = vessel_mod.load("blueboat")
+    prior = replace(boat, thrusters=replace(boat.thrusters, gain_left=1.5, gain_right=1.7))
+    cand = candidates(prior, [])[name]
+    q = cand.params[0]
+    assert q.get(prior) == pytest.approx(1.0) and cand.starts[0][0] == 1.0
+    truth = apply_effects(prior, [(name, {q.name: value})])
+    assert q.get(truth) == pytest.approx(value)
+    put = q.put(prior, value)
+    assert (put.thrusters.gain_left, put.thrusters.gain_right) == pytest.approx(
+        (truth.thrusters.gain_left, truth.thrusters.gain_right))

@@ -14,8 +14,8 @@ from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
 from ..ident.relay.iso import CONTROL_DT_S
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_outputs, console, floats, positive, progress_bar,
-                  samples_fit, say, vessel_from, write_json)
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, positive,
+                  progress_bar, samples_fit, say, vessel_from, write_json)
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -78,6 +78,7 @@ def iso_command(
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
+    check_distinct({"--json": json_out, "--png": png}, [model])
     v = vessel_from(vessel, model, case)
     iso.check_dof(v.name, dof, v.thrusters.kind)
     if duration is not None and not duration > 0:
@@ -175,6 +176,7 @@ def dp_command(
         raise TwinError("--target is the point of --run point; a heading step (--run heading) has none")
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
+    check_distinct({"--json": json_out, "--png": png}, [model])
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
     if ship and run == "point":

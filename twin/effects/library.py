@@ -73,6 +73,13 @@ def _single(name: str, quantity, starts, family: str, **scan) -> "callable":
     return fit
 
 
+def _relative(name: str, quantity, family: str) -> "callable":
+    """The fit of an effect whose one value multiplies the prior's own (quantity(prior)), from 1."""
+    def fit(prior: Vessel, logs) -> Candidate:
+        return Candidate(name, (quantity(prior),), ((1.0,),), lambda p: effect(name, **p), family)
+    return fit
+
+
 # ---------------------------------------------------------------- environment
 
 def current(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
@@ -578,9 +585,9 @@ _SPECS = [
                        scan=_grid(0.0, 1.2, 0.12), scan_step=(0.01,), time_shift=True)),
     EffectSpec("thruster_asymmetry", "thrusters", (_v("ratio", "×", 0, 10, True),), thruster_asymmetry,
                "right/left thrust gain ratio, their mean kept",
-               _single("thruster_asymmetry", gain_ratio("ratio", 0.3, 3.0), ((1.0,),), "turning")),
+               _relative("thruster_asymmetry", lambda prior: gain_ratio("ratio", 0.3, 3.0, prior), "turning")),
     EffectSpec("thrust_gain", "thrusters", (_v(*_SCALE),), thrust_gain, "overall thrust scale",
-               _single("thrust_gain", gain_mean("scale", 0.2, 5.0), ((1.0,),), "thrust")),
+               _relative("thrust_gain", lambda prior: gain_mean("scale", 0.2, 5.0, prior), "thrust")),
     EffectSpec("thruster_gain_left", "thrusters", (_v(*_SCALE),), thruster_gain_left,
                "the left thruster alone weaker or stronger", _one_gain_fit("left")),
     EffectSpec("thruster_gain_right", "thrusters", (_v(*_SCALE),), thruster_gain_right,

@@ -99,28 +99,41 @@ def ned_component(kind: str, axis: int, lo: float, hi: float, typical: float) ->
     return Quantity(name, "m/s", get, put, lo, hi, typical)
 
 
-def gain_ratio(name: str = "asymmetry", lo: float = 0.2, hi: float = 5.0) -> Quantity:
-    """Right/left thrust gain, their mean kept (so the surge thrust at equal PWM stays)."""
+def _ratio(v: Vessel) -> float:
+    return v.thrusters.gain_right / v.thrusters.gain_left
+
+
+def _mean_gain(v: Vessel) -> float:
+    return 0.5 * (v.thrusters.gain_left + v.thrusters.gain_right)
+
+
+def gain_ratio(name: str = "asymmetry", lo: float = 0.2, hi: float = 5.0, prior: Vessel | None = None) -> Quantity:
+    """Right/left thrust gain, their mean kept (so the surge thrust at equal PWM stays); with `prior`,
+    as a multiple of the prior's own ratio (an effect's value: thruster_asymmetry multiplies it)."""
+    ref = 1.0 if prior is None else _ratio(prior)
+
     def get(v: Vessel) -> float:
-        return v.thrusters.gain_right / v.thrusters.gain_left
+        return _ratio(v) / ref
 
     def put(v: Vessel, ratio: float) -> Vessel:
         t = v.thrusters
-        mean = 0.5 * (t.gain_left + t.gain_right)
-        left = 2 * mean / (1 + ratio)
-        return replace(v, thrusters=replace(t, gain_left=left, gain_right=ratio * left))
+        left = 2 * _mean_gain(v) / (1 + ratio * ref)
+        return replace(v, thrusters=replace(t, gain_left=left, gain_right=ratio * ref * left))
 
     return Quantity(name, "right/left", get, put, lo, hi, 1.0, edges_unphysical=True)
 
 
-def gain_mean(name: str = "thrust_gain", lo: float = 0.05, hi: float = 20.0) -> Quantity:
-    """Both thruster gains scaled together (their mean), their ratio kept."""
+def gain_mean(name: str = "thrust_gain", lo: float = 0.05, hi: float = 20.0, prior: Vessel | None = None) -> Quantity:
+    """Both thruster gains scaled together (their mean), their ratio kept; with `prior`, as a multiple
+    of the prior's own mean gain (an effect's value: thrust_gain multiplies the gains)."""
+    ref = 1.0 if prior is None else _mean_gain(prior)
+
     def get(v: Vessel) -> float:
-        return 0.5 * (v.thrusters.gain_left + v.thrusters.gain_right)
+        return _mean_gain(v) / ref
 
     def put(v: Vessel, g: float) -> Vessel:
         t = v.thrusters
-        k = g / get(v)
+        k = g * ref / _mean_gain(v)
         return replace(v, thrusters=replace(t, gain_left=t.gain_left * k, gain_right=t.gain_right * k))
 
     return Quantity(name, "×", get, put, lo, hi, 1.0, edges_unphysical=True)
