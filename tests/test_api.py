@@ -159,3 +159,24 @@ def test_simulate_takes_a_sea_as_its_text_as_simulate_run_does():
     assert len(waves.t) == len(calm.t) and not np.allclose(waves.eta[:, :2], calm.eta[:, :2], atol=1e-3)
     with pytest.raises(twin.TwinError, match="--sea expects HS,TP,DIR"):
         twin.simulate("blueboat", "zigzag", duration_s=3.0, sea="0.3,2.5")
+
+
+def test_diagnose_recordings_takes_the_clis_option_names(monkeypatch):
+    """`effects` (the CLI's --effects) reaches the diagnosis as its candidate list, the window as
+    window_s; a keyword the CLI does not have is Python's TypeError, before any work."""
+    import twin.diagnose.doctor as doctor
+
+    seen = {}
+
+    def fake(recordings, prior, **kwargs):
+        seen.update(kwargs)
+        raise twin.TwinError("stop")
+
+    monkeypatch.setattr(doctor, "diagnose", fake)
+    monkeypatch.setattr(twin.api, "_recordings", lambda recordings, vessel=None: list(recordings))
+    rec = object()
+    with pytest.raises(twin.TwinError, match="stop"):
+        twin.diagnose_recordings([rec], "yellowfish", effects="current", window_s=8.0)
+    assert seen["library"] == ["current"] and seen["window_s"] == 8.0 and seen["wind"] is None
+    with pytest.raises(TypeError):
+        twin.diagnose_recordings([rec], "yellowfish", library=["current"])

@@ -179,7 +179,9 @@ def test_info_reports_every_file_and_exits_2_if_any_failed(sim_tlog, tmp_path):
     assert p.stdout.count("== ") == 2 and "z.csv (csv)" in p.stdout  # the good file after the bad ones too
     errors = p.stderr.strip().splitlines()
     assert len(errors) == 2 and all(e.startswith("error: ") for e in errors) and "Traceback" not in p.stderr
-    assert "one.csv: nothing usable" in errors[0] and "is a directory" in errors[1]
+    assert "one.csv: nothing usable" in errors[0] and "is a folder with no recordings in it" in errors[1]
+    p = twin("info", sim_tlog)  # a folder stands for the recordings in it
+    assert p.returncode == 0 and p.stdout.count("== ") == 4, p.stderr
 
 
 def test_view_writes_into_the_working_folder_not_beside_the_input(sim_tlog, tmp_path):

@@ -187,3 +187,10 @@ def test_format_located_fits_100_columns():
     assert "90-135°" in text and "u>1.2" in text
     assert max(len(line) for line in text.splitlines()) <= 100
     assert "no bin" in format_located([])
+
+
+def test_a_z_short_of_the_bar_is_not_shown_on_it():
+    """2.98 against z 3 reads 2.98, never 3.0 beside "z 3 needs more"; elsewhere one decimal."""
+    from twin.diagnose.report import z_text
+
+    assert [z_text(z) for z in (2.98, 3.0, 3.04, 2.9, 4.76, -0.13)] == ["2.98", "3.0", "3.04", "2.9", "4.8", "-0.1"]

@@ -437,18 +437,38 @@ class Diagnosis(_Found):
         return Table(rows, f"{self.prior.name}: effects named by the diagnosis" + ("" if rows else " (nothing named)"))
 
 
-def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, **options):
-    """`twin diagnose`: a Diagnosis (.effects as Effect objects, .amended, .fit_before/.fit_after,
-    .unexplained); options as twin.diagnose.doctor.diagnose; sea (a physics.waves.Sea or `--sea`
-    text): the sea the recordings were made in, its Stokes drift a known flow and its mean load a
-    known force (`twin diagnose --sea`; .amended is the twin without them)."""
+def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=None, window_s: float | None = None,
+                        wind: str | None = None, calibrated: bool = True, kinematic: bool = True,
+                        refit=None, refit_weight: float = 1.0, log=None):
+    """`twin diagnose`: which physics the twin lacks, how much of it, and the amended twin.
+
+    Args:
+        recordings: paths or Recording objects, diagnosed together.
+        vessel: a Vessel or a shipped vessel's name.
+        sea: a physics.waves.Sea or `--sea` text: the sea the recordings were made in, its Stokes drift
+            a known flow and its mean load a known force (`--sea`; .amended is the twin without them).
+        effects: only these candidate effects (names, as `twin effects` lists them; `--effects`).
+        window_s: the free-run window, s (`--window`; default 10).
+        wind: "measured": each recording's measured wind a known input (`--wind-measured`).
+        calibrated: each log's compass offset from its own kinematics first (`--no-calibration`: False).
+        kinematic: sensor and timing effects told from the kinematics first.
+        refit: identification groups refitted beside every candidate (`--refit`), with `refit_weight`.
+        log: a callable taking progress lines.
+
+    Returns:
+        A Diagnosis: .effects (Effect objects with their Parameters and units), .amended,
+        .fit_before / .fit_after, .unexplained, .notes.
+    """
     from dataclasses import fields
 
-    from .diagnose.doctor import diagnose as run
+    from .diagnose.doctor import WINDOW_S, diagnose as run
     from .engine.sixdof import without_known_sea
 
     v = _in_sea(_vessel(vessel), sea)
-    found = run(_recordings(recordings, v), v, **options)
+    library = None if effects is None else ([effects] if isinstance(effects, str) else list(effects))
+    found = run(_recordings(recordings, v), v, window_s=WINDOW_S if window_s is None else window_s, log=log,
+                library=library, calibrated=calibrated, refit=None if refit is None else tuple(refit),
+                refit_weight=refit_weight, kinematic=kinematic, wind=wind)
     typed = Diagnosis(**{f.name: getattr(found, f.name) for f in fields(found)})
     if sea is not None:
         typed.amended = without_known_sea(typed.amended)

@@ -9,14 +9,31 @@ import typer
 from ..drive import inputs_mismatch
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
-                  check_wind_and_inputs, memory_for, positive, progress_bar, samples_fit, say, vessel_from)
+                  check_wind_and_inputs, memory_for, positive, progress_bar, recordings_in, samples_fit, say,
+                  vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
+INFO_HELP = RECORDING_HELP + ", or folders of them"
+
+
+def _expanded(files: list[Path]) -> list:
+    """The files given, a folder standing for the recordings in it (as for identify and diagnose); a
+    folder without any is its TwinError in the list, reported in its turn."""
+    out: list = []
+    for p in files:
+        if not p.is_dir():
+            out.append(p)
+            continue
+        try:
+            out += recordings_in([p])
+        except TwinError as exc:
+            out.append(exc)
+    return out
 
 
 @app.command()
 def info(
-    files: list[Path] = typer.Argument(..., help=RECORDING_HELP),
+    files: list[Path] = typer.Argument(..., help=INFO_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with it: each log's compass calibration)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP + " (with it: each log's compass calibration)"),
@@ -35,8 +52,10 @@ def info(
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
     failed, read = 0, []
-    for path in files:  # one bad file must not hide the others' summaries
+    for path in _expanded(files):  # one bad file must not hide the others' summaries
         try:
+            if isinstance(path, TwinError):
+                raise path
             rec = read_recording(path, channels=mapping)
         except TwinError as exc:
             typer.echo(f"error: {exc}", err=True)

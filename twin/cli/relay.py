@@ -81,10 +81,8 @@ def iso_command(
     check_distinct({"--json": json_out, "--png": png}, [model])
     v = vessel_from(vessel, model, case)
     iso.check_dof(v.name, dof, v.thrusters.kind)
-    if duration is not None and not duration > 0:
-        raise TwinError("--duration must be positive")
     if duration is not None:
-        samples_fit(duration, CONTROL_DT_S, "--duration")  # the relay's samples
+        samples_fit(positive(duration, "--duration"), CONTROL_DT_S, "--duration")  # the relay's samples
     if xa is not None:
         positive(xa, "--xa")
     xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)
@@ -155,6 +153,8 @@ def dp_command(
     rps: float = typer.Option(SHIP_RPS, help="a propeller-and-rudder ship's constant propeller speed, rps"),
     omega_surge: float = typer.Option(SURGE_OMEGA_RAD_S, help="ω_n of the binomial surge model function, rad/s"),
     no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
+    duration: Optional[float] = typer.Option(None, help="length of the run, s (default: the model functions' "
+                                                        "settling time; a point move, both loops')"),
     case: str = typer.Option("nominal", help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
     png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
@@ -177,6 +177,8 @@ def dp_command(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
     check_distinct({"--json": json_out, "--png": png}, [model])
+    if duration is not None:
+        samples_fit(positive(duration, "--duration"), CONTROL_DT_S, "--duration")
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
     if ship and run == "point":
@@ -193,10 +195,10 @@ def dp_command(
                                   progress=progress)
         progress(f"I-PD: {'point move' if run == 'point' else 'heading step'} in the twin")
         if ship:
-            dp = ipd.ship_heading_step(cv, yaw, step, rps, anti_windup=not no_anti_windup)
+            dp = ipd.ship_heading_step(cv, yaw, step, rps, duration, anti_windup=not no_anti_windup)
         else:
-            dp = ipd.heading_step(cv, yaw, step, anti_windup=not no_anti_windup) if run == "heading" \
-                else ipd.point_move(cv, yaw, surge, goal)
+            dp = ipd.heading_step(cv, yaw, step, duration, anti_windup=not no_anti_windup) if run == "heading" \
+                else ipd.point_move(cv, yaw, surge, goal, duration)
     summary = dp.summary()
     for lp in summary["loops"]:
         paper = " ([Relay-ISO]: ~1.02 for a 45° heading step)" if lp["dof"] == "yaw" else ""

@@ -33,6 +33,13 @@ def excess_share(share: float) -> str:
     return f"{100 * share:.0f} % of the held-out misfit above the noise"
 
 
+def z_text(z: float, bar: float = 3.0) -> str:
+    """A blocks' z as the report says it: one decimal, two where one would round it onto the bar it is
+    judged against (2.98 is not 3.0: z 3 is needed)."""
+    one = f"{z:.1f}"
+    return f"{z:.2f}" if z != bar and float(one) == bar else one
+
+
 def _shown(dof: str, value):
     """A residual, noise or error of `dof` in the report's unit (None stays None)."""
     return None if value is None else value * DOF_SCALE.get(dof, 1.0)
@@ -114,7 +121,7 @@ def answer(d) -> dict:
                                   f"{ev.get('basis', '')})")
             continue
         out["missing"].append(
-            f"{e['name']} ({params}): removes {excess_share(e.get('excess_gain', 0))}, z {e['z']:.1f} over "
+            f"{e['name']} ({params}): removes {excess_share(e.get('excess_gain', 0))}, z {z_text(e['z'], Z_MIN)} over "
             f"{ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
             f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)")
         for r in e["rivals"]:
@@ -126,7 +133,7 @@ def answer(d) -> dict:
                 families |= {_family(d, r["name"]), _family(d, e["name"])}  # what settles either
             elif not r["separable"]:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
-                                        f"(blocks z {r['z']:.1f})")
+                                        f"(blocks z {z_text(r['z'], Z_MIN)})")
                 families |= {_family(d, r["name"]), _family(d, e["name"])}
     blocks = int(d.windows.get("blocks", (d.windows.get("windows") or 0) // BLOCK_WINDOWS))
     if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
@@ -156,7 +163,7 @@ def answer(d) -> dict:
                                + f": {cause}, and no effect of the library explains it on held-out blocks")
     for c in at_edge(d):
         edges = ", ".join(f"{k} {np.median([f[k] for f in c['fold_values']]):.3g}" for k in c["at_edge"])
-        out["form"].append(f"{c['name']} would remove {excess_share(c['excess_gain'])} (z {c['z']:.1f}), "
+        out["form"].append(f"{c['name']} would remove {excess_share(c['excess_gain'])} (z {z_text(c['z'], Z_MIN)}), "
                            f"but only at the edge of what is physical ({edges}, on every "
                            f"fold): not named; the twin's form is off where {c['name']} acts")
     if d.effects:
@@ -164,7 +171,7 @@ def answer(d) -> dict:
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
     for c in promising(d):
         out["unsettled"].append(
-            f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, z {c['z']:.1f} "
+            f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, z {z_text(c['z'], Z_MIN)} "
             f"from the {c['blocks_for'] + c['blocks_against']} blocks in which "
             f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
             f"such blocks{_more_to_record(d, c)})")
