@@ -501,3 +501,13 @@ def test_a_vessel_file_and_a_recording_given_for_each_other_are_told_apart(tmp_p
     log.write_text("t,lat,lon\n0,63.4,10.4\n")
     with pytest.raises(TwinError, match="not valid JSON .*this looks like a recording"):
         load(str(log))
+
+
+def test_evaluate_refuses_a_log_with_nothing_to_score(monkeypatch, capsys, tmp_path):
+    """A boat lying still for a second: no velocity varies, so no R² exists at any horizon; said in
+    one line with exit 2, as identify and diagnose refuse it, and no JSON is written."""
+    log = tmp_path / "still.csv"
+    log.write_text("t,lat,lon,heading_deg,pwm_left,pwm_right\n0,37.4,-5.9,10,1500,1500\n1,37.4,-5.9,10,1500,1500\n")
+    err = refused(monkeypatch, capsys, ("evaluate", log, "--vessel", "blueboat", "--json", tmp_path / "e.json"),
+                  [log])
+    assert "nothing to score" in err and not (tmp_path / "e.json").exists()

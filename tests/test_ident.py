@@ -564,6 +564,8 @@ def test_misfit_by_state_adds_up_to_one_minus_r2_and_finds_a_drag_too_strong_at_
     assert max(b.share["u"] for b in own) < 0.05 and all(abs(b.gain["u"] - 1.0) < 0.02 for b in own)
     with pytest.raises(TwinError, match="unknown state"):
         misfit_by_state(wrong, preps, 10.0, "heave", (1.0,))
+    pwm = misfit_by_state(wrong, preps, 10.0, "input_0", (1625.0, 1750.0))  # PWM in whole µs, never 1.75e+03
+    assert pwm and {b.label for b in pwm} <= {"< 1625 µs", "1625 to 1750 µs", "≥ 1750 µs"}
 
 
 def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():

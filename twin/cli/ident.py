@@ -1,6 +1,7 @@
 """`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict
 from pathlib import Path
 from typing import Optional
@@ -197,6 +198,11 @@ def identify_command(
     write_json(json_out, result.to_dict())
 
 
+def _scored(horizon: dict) -> bool:
+    """Whether a horizon's metrics hold an R² for some velocity (R² needs the velocity to vary)."""
+    return any(m.get("r2") is not None and math.isfinite(m["r2"]) for m in horizon.values())
+
+
 @app.command("evaluate")
 def evaluate_command(
     recordings: list[Path] = typer.Argument(..., help="recordings to evaluate on (.tlog, .bin, .csv, .mcap, or folders "
@@ -295,6 +301,9 @@ def evaluate_command(
             bands = misfit_by_state(TwinPredictor(used, cache, wind), prepared(recs, used), horizon, state, edges,
                                     stride)
             out["by_state"] = {"state": state, "bands": [asdict(b) for b in bands]}
+    if not any(_scored(m) for m in out["metrics_uncalibrated"].values()):
+        raise TwinError(f"{', '.join(p.name for p in recordings)}: nothing to score: no horizon has a velocity that varies (the boat lies still, "
+                        "or every stretch without a dropout is shorter than a free run)")
     if sea_line:
         say(sea_line)
     for c in calibrations:

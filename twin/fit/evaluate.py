@@ -307,7 +307,8 @@ def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s:
     paired = np.isfinite(meas[:, 1:]) & np.isfinite(pred[:, 1:]) & finite[:, None, None]
     band = np.digitize(values[:, 1:], edges)
     _, unit, factor = state_display(state, preps[0].input_kind)
-    shown = [f"{factor * e:.3g}" for e in edges]
+    # a PWM edge in whole µs (1750, not 1.75e+03); smaller states to 3 figures
+    shown = [f"{factor * e:.0f}" if abs(factor * e) >= 100 else f"{factor * e:.3g}" for e in edges]
     labels = ([f"< {shown[0]} {unit}"] + [f"{a} to {b} {unit}" for a, b in zip(shown[:-1], shown[1:])]
               + [f"≥ {shown[-1]} {unit}"])
     n_all = int(paired.any(axis=2).sum())
