@@ -518,6 +518,9 @@ def test_geodetic_to_ned_matches_exact_within_a_km():
 def test_increasing_subsequence_drops_wild_stamps():
     t = np.array([0.0, 0.1, 0.2, 50.0, 0.3, 0.4, 0.25, 0.5])
     assert list(increasing_subsequence(t)) == [0, 1, 2, 4, 5, 7]
+    # a stamp that jumps back is the row dropped, not the good row before it (both runs are as long)
+    assert list(increasing_subsequence(np.array([0.0, -1.0, 2.0, 3.0]))) == [0, 2, 3]
+    assert list(increasing_subsequence(np.array([0.0, 1.0, 5.0, 2.0, 3.0, 4.0]))) == [0, 1, 3, 4, 5]
 
 
 # ---------------------------------------------------------------- ../shared data

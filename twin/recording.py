@@ -28,6 +28,7 @@ The last two are summarised only when present, so other recordings read as befor
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -246,26 +247,29 @@ def _plausible(name: str, n: int, cols: dict[str, np.ndarray], dropped: list) ->
 
 
 def increasing_subsequence(t: np.ndarray) -> np.ndarray:
-    """Indices of a longest strictly increasing subsequence of t (O(n log n))."""
+    """Indices of a longest strictly increasing subsequence of t (O(n log n)); of several, the one
+    that keeps the earliest rows: a stamp that jumps back is the row dropped, not the one before it."""
     n = len(t)
     if n < 2 or np.all(np.diff(t) > 0):
         return np.arange(n)
-    tails: list[float] = []  # smallest tail value of an increasing run of each length
-    tail_idx: list[int] = []
-    prev = np.full(n, -1)
-    for i, x in enumerate(t.tolist()):
-        k = bisect.bisect_left(tails, x)
+    values = t.tolist()
+    # longest[i]: the longest increasing run starting at row i (from the end: increasing in −t)
+    longest = [0] * n
+    tails: list[float] = []
+    for i in range(n - 1, -1, -1):
+        k = bisect.bisect_left(tails, -values[i])
         if k == len(tails):
-            tails.append(x)
-            tail_idx.append(i)
+            tails.append(-values[i])
         else:
-            tails[k], tail_idx[k] = x, i
-        prev[i] = tail_idx[k - 1] if k else -1
-    out, i = [], tail_idx[-1]
-    while i >= 0:
-        out.append(i)
-        i = prev[i]
-    return np.array(out[::-1], dtype=int)
+            tails[k] = -values[i]
+        longest[i] = k + 1
+    need = len(tails)
+    out, last = [], -math.inf
+    for i in range(n):  # the earliest row that still completes a longest run
+        if need and longest[i] == need and values[i] > last:
+            out.append(i)
+            last, need = values[i], need - 1
+    return np.array(out, dtype=int)
 
 
 def _note(dropped: list, reason: str, count: int) -> None:
