@@ -105,6 +105,9 @@ def test_results_are_typed_with_short_rounded_reprs(log):
     assert not any(len(tok) > 8 for tok in repr(s).replace(",", " ").split() if tok[:1].isdigit())
     table = ev.table()
     assert table.title and "horizon" in str(table).splitlines()[1] and table.to_dict()["rows"]
+    # "calibrated" says whether a log's compass offset was applied, never merely that one was looked for
+    assert ev.applied or not any(r["calibrated"] for r in table.to_dict()["rows"])
+    assert ev.applied or "no log's compass offset was applied" in table.title
     assert ev.to_dict()["vessel"] == "blueboat" and ev.by_state == []
     by_speed = twin.evaluate("blueboat", [log], by="speed")
     shares = sum(b.share["u"] for b in by_speed.by_state)

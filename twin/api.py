@@ -254,20 +254,29 @@ class Evaluation:
     by_state: list = field(default_factory=list)
 
     @property
+    def applied(self) -> bool:
+        """Whether any log's compass offset was applied (else the scores are the log's as logged)."""
+        return any(c.heading_bias_deg is not None for c in self.calibrations)
+
+    @property
     def scores(self) -> list[Score]:
-        """Every score: calibrated first, then without the calibrations."""
+        """Every score: calibrated first, then without the calibrations; where no log's compass
+        offset was applied, the scores as logged alone (calibrated False)."""
+        if not self.applied:
+            return _scores(self.metrics_uncalibrated, False)
         return _scores(self.metrics, True) + _scores(self.metrics_uncalibrated, False)
 
     def score(self, dof: str, horizon: str = "free_run_10s", calibrated: bool = True) -> Score:
-        """One score: `dof` u, v or r; `horizon` one_step, free_run_10s, free_run_30s or full."""
+        """One score: `dof` u, v or r; `horizon` one_step, free_run_10s, free_run_30s or full; with
+        `calibrated`, each log's compass calibration applied (where none was, the score as logged)."""
         for s in self.scores:
-            if (s.dof, s.horizon, s.calibrated) == (dof, horizon, calibrated):
+            if (s.dof, s.horizon, s.calibrated) == (dof, horizon, calibrated and self.applied):
                 return s
         raise TwinError(f"no score for {dof} at {horizon} (horizons: {', '.join(self.metrics)}; dof u, v, r)")
 
     def __repr__(self) -> str:
-        cells = ", ".join(f"{s.dof} {s.r2:.3f}" for s in _scores(self.metrics, True)
-                          if s.horizon == "free_run_10s" and s.r2 is not None)
+        cells = ", ".join(f"{s.dof} {s.r2:.3f}" for s in self.scores
+                          if s.horizon == "free_run_10s" and s.r2 is not None and s.calibrated == self.applied)
         return f"Evaluation({self.vessel}: 10-s free runs R² {cells or '-'})"
 
     def table(self) -> Table:
@@ -277,7 +286,8 @@ class Evaluation:
         calibrated = {(r["horizon"], r["dof"]): (r["r2"], r["mae"]) for r in rows if r["calibrated"]}
         if all(calibrated.get((r["horizon"], r["dof"])) == (r["r2"], r["mae"]) for r in rows if not r["calibrated"]):
             rows = [r for r in rows if r["calibrated"]]
-        return Table(rows, f"{self.vessel}: how the twin predicts the recordings (MAE in m/s, r in °/s)")
+        applied = "" if self.applied else ", as logged: no log's compass offset was applied"
+        return Table(rows, f"{self.vessel}: how the twin predicts the recordings (MAE in m/s, r in °/s){applied}")
 
     def to_dict(self) -> dict:
         return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
