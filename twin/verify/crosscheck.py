@@ -112,6 +112,10 @@ class Result:
     def passed(self) -> bool:
         return self.position_err_m < POSITION_TOL_M and self.heading_err_deg < HEADING_TOL_DEG
 
+    def __repr__(self) -> str:
+        return (f"Result({self.case}: {self.position_err_m:.3g} m, {self.heading_err_deg:.3g}°, "
+                f"{'pass' if self.passed else 'FAIL'})")
+
     def to_dict(self) -> dict:
         return {"case": self.case, "position_err_m": self.position_err_m, "heading_err_deg": self.heading_err_deg,
                 "effect_m": self.effect_m, "passed": self.passed}

@@ -81,6 +81,10 @@ class Validation:
     def flagged(self) -> list[Quantity]:
         return [q for q in self.quantities if q.flag]
 
+    def __repr__(self) -> str:
+        flagged = ", ".join(q.name for q in self.flagged()) or "none"
+        return f"Validation({self.vessel} {self.case}: {len(self.quantities)} quantities, flagged: {flagged})"
+
 
 # ---------------------------------------------------------------- engine and mesh readers
 
