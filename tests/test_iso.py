@@ -103,6 +103,24 @@ def test_relay_amplitude_outside_thrust_is_refused(yellowfish):
         iso.sweep(yellowfish, "yaw", amplitudes=[20.0])  # 0.68 m × 22.66 N = 15.4 N·m at most
 
 
+def test_a_negative_derivative_gain_is_taken_as_zero_and_the_blueboats_point_move_settles():
+    """The BlueBoat's IS-O surge (α 16.48 kg, β 18.74 N·s/m) with the default surge model function:
+    eq. 11 asks K_D −6.4, more than its linear drag at rest (0.44) can carry, which swings the boat
+    about the target; held at −0.44 the move settles. Eq. 11 stands where the drag at rest carries it."""
+    import twin.vessel as vessel_mod
+    from twin.engine.mjcf import compile_vessel
+
+    omega = ipd.binomial(ipd.SURGE_OMEGA_RAD_S)
+    g = ipd.IpdGains.tuned(16.48, 18.74, omega, beta_rest=0.44)
+    assert g.kd == -0.44 and g.kd_eq11 == pytest.approx(3 * 0.25 * 16.48 - 18.74)
+    assert ipd.IpdGains.tuned(4.5, 39.7, ipd.binomial(1.4), beta_rest=40.0).kd == pytest.approx(3 * 1.4 * 4.5 - 39.7)
+    boat = compile_vessel(vessel_mod.load("blueboat"))
+    yaw = ipd.DofModel(2.607, 5.750, ipd.binomial(ipd.HEADING_OMEGA_RAD_S))
+    for rest, settles in ((None, False), (0.44, True)):
+        moved = ipd.point_move(boat, yaw, ipd.DofModel(16.48, 18.74, omega, beta_rest=rest), (10.0, 10.0))
+        assert moved.summary()["settled"] == settles
+
+
 def test_eq_11_gives_the_model_function():
     model = ipd.binomial(0.5)
     g = ipd.IpdGains.tuned(4.0, 10.0, model)

@@ -14,8 +14,8 @@ from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
 from ..ident.relay.iso import CONTROL_DT_S
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, positive,
-                  progress_bar, samples_fit, say, vessel_from, write_json)
+from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
+                  positive, progress_bar, samples_fit, say, vessel_from, write_json)
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -131,11 +131,13 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
     if iso.is_ship(compiled):
         sweep = iso.ship_sweep(compiled, rps=[rps], progress=progress)
         return ipd.DofModel(*iso.linear_model(sweep, rps), ipd.binomial(omega_heading)), None
-    yaw = ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "yaw", progress=progress)), ipd.binomial(omega_heading))
+    damping = compiled.vessel.damping  # the hull's linear drag at rest, where a move ends
+    yaw = ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "yaw", progress=progress)), ipd.binomial(omega_heading),
+                       beta_rest=max(-damping.Nr, 0.0))
     if omega_surge is None:
         return yaw, None
     return yaw, ipd.DofModel(*iso.linear_model(iso.sweep(compiled, "surge", progress=progress)),
-                             ipd.binomial(omega_surge))
+                             ipd.binomial(omega_surge), beta_rest=max(-damping.Xu, 0.0))
 
 
 DEFAULT_TARGET = "10,10"
@@ -200,6 +202,10 @@ def dp_command(
             dp = ipd.heading_step(cv, yaw, step, duration, anti_windup=not no_anti_windup) if run == "heading" \
                 else ipd.point_move(cv, yaw, surge, goal, duration)
     summary = dp.summary()
+    for name, m in (("heading", yaw), ("surge", surge)):
+        if m is not None and m.gains.kd != m.gains.kd_eq11:
+            note(f"note: {name} K_D {m.gains.kd:.3g}, the hull's linear drag at rest, where [Relay-ISO eq. 11] gives "
+                 f"{m.gains.kd_eq11:.3g}: below it the loop has negative damping at rest and swings about the target")
     for lp in summary["loops"]:
         paper = " ([Relay-ISO]: ~1.02 for a 45° heading step)" if lp["dof"] == "yaw" else ""
         console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f}{paper}, "

@@ -8,7 +8,13 @@ Per DOF, with the IS-O linear (constant-drag) model α ν̇ + β ν = τ:
 
 so that the loop follows the model function G_m = 1/(a3 s³ + a2 s² + a1 s + 1),
 here binomial, 1/(s/ω_n + 1)³. The reference enters only through the integral,
-so a step never kicks the thrusters [Relay-ISO §IV].
+so a step never kicks the thrusters [Relay-ISO §IV]. β is the describing function's linear
+equivalent at the relay's speeds; near the target, at rest, the hull gives only its linear drag
+β₀ (−X_u, −N_r of the twin), so the loop's damping there is β₀ + K_D. Where eq. 11 gives a K_D
+below −β₀ it is taken as −β₀: a loop with negative damping at rest swings about the target (the
+BlueBoat's surge at ω_n 0.25: eq. 11's K_D −6.4 against its β₀ 0.44 swings ±2.5 m about a 14-m
+move's end; at −0.44 it settles, IAE ratio 1.00). The Yellowfish's heading keeps eq. 11's −20.7
+(β₀ 40). A ship steering at speed is not at rest: its K_D is eq. 11's.
 
 Anti-windup (Fig. 6): the thrusters saturate, so the integrator is driven back
 by what the allocation could not deliver (back-calculation),
@@ -99,15 +105,19 @@ def binomial(omega_n_rad_s: float) -> ModelFunction:
 
 @dataclass(frozen=True)
 class IpdGains:
-    """[Relay-ISO eq. 11] from the IS-O α, β and the model function."""
+    """[Relay-ISO eq. 11] from the IS-O α, β and the model function; with the hull's drag at rest
+    beta_rest, K_D at least −beta_rest (module docstring); kd_eq11: eq. 11's own K_D."""
 
     ki: float
     kp: float
     kd: float
+    kd_eq11: float | None = None
 
     @classmethod
-    def tuned(cls, alpha: float, beta: float, model: ModelFunction) -> "IpdGains":
-        return cls(ki=alpha / model.a3, kp=model.a1 * alpha / model.a3, kd=model.a2 * alpha / model.a3 - beta)
+    def tuned(cls, alpha: float, beta: float, model: ModelFunction, beta_rest: float | None = None) -> "IpdGains":
+        kd = model.a2 * alpha / model.a3 - beta
+        held = kd if beta_rest is None else max(kd, -beta_rest)
+        return cls(ki=alpha / model.a3, kp=model.a1 * alpha / model.a3, kd=held, kd_eq11=kd)
 
 
 class IpdLoop:
@@ -340,15 +350,17 @@ def _response(name: str, unit: str, log: LoopLog, model: ModelFunction) -> LoopR
 
 @dataclass(frozen=True)
 class DofModel:
-    """IS-O linear model of one DOF and the model function chosen for it."""
+    """IS-O linear model of one DOF, the model function chosen for it and the hull's own linear
+    drag at rest (N·s/m or N·m·s; None: eq. 11 as it is)."""
 
     alpha: float
     beta: float
     model: ModelFunction
+    beta_rest: float | None = None
 
     @property
     def gains(self) -> IpdGains:
-        return IpdGains.tuned(self.alpha, self.beta, self.model)
+        return IpdGains.tuned(self.alpha, self.beta, self.model, self.beta_rest)
 
     def loop(self, anti_windup: bool = True) -> IpdLoop:
         return IpdLoop(self.gains, tracking_s=1 / (3 * self.model.omega_n_rad_s) if anti_windup else math.inf)
