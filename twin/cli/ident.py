@@ -302,8 +302,9 @@ def evaluate_command(
                                     stride)
             out["by_state"] = {"state": state, "bands": [asdict(b) for b in bands]}
     if not any(_scored(m) for m in out["metrics_uncalibrated"].values()):
-        raise TwinError(f"{', '.join(p.name for p in recordings)}: nothing to score: no horizon has a velocity that varies (the boat lies still, "
-                        "or every stretch without a dropout is shorter than a free run)")
+        raise TwinError(f"{', '.join(p.name for p in recordings)}: nothing to score: no horizon has a velocity "
+                        "that varies (the boat lies still, or every stretch without a dropout is shorter than a "
+                        "free run)")
     if sea_line:
         say(sea_line)
     for c in calibrations:

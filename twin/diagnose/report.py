@@ -171,7 +171,8 @@ def answer(d) -> dict:
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
     for c in promising(d):
         out["unsettled"].append(
-            f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, z {z_text(c['z'], Z_MIN)} "
+            f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, "
+            f"z {z_text(c['z'], Z_MIN)} "
             f"from the {c['blocks_for'] + c['blocks_against']} blocks in which "
             f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
             f"such blocks{_more_to_record(d, c)})")

@@ -36,9 +36,10 @@ leaves are counted: the others are steps the controller made in answer to the mo
 where the input follows the motion rather than leading it. The surge answers through the GNSS
 (forward thrust, projected on the heading; the fixes' swing R(ψ)·p about the hull for an antenna p
 anywhere on it is fitted beside, so where the antenna sits does not move the answer), the yaw through
-the heading, or the gyro where the log has one. An input log late by d moves both answers by +d; a heading late by L moves the heading's
-answer by −L and not the surge's; the gyro, where there is one, tells the heading's lateness
-directly (prepare.timing) and its answer then carries the input's timing alone. GNSS fixes stamped
+the heading, or the gyro where the log has one. An input log late by d moves both answers by +d; a
+heading late by L moves the heading's answer by −L and not the surge's; the gyro, where there is
+one, tells the heading's lateness directly (prepare.timing) and its answer then carries the input's
+timing alone. GNSS fixes stamped
 late move the surge's answer alone. Relative timing is
 all a log can tell: a heading late by L is the GNSS and the input early by as much, so the reading
 is the one that explains the answers with one late stream. A heading or a fix is named late, never
