@@ -14,7 +14,7 @@ PACKAGE = ROOT / "twin"
 
 # the layout of docs/method/architecture.md, floor by floor: a module may import from its own floor or below
 FLOORS = {
-    0: ("errors", "files", "geodesy", "references", "progress"),
+    0: ("errors", "files", "geodesy", "references", "progress", "threads"),
     1: ("physics",),
     2: ("vessel", "recording", "run", "drive", "effects"),
     3: ("formats",),

@@ -24,6 +24,7 @@ from rich.console import Console
 from ..errors import TwinError
 from ..files import finite_json, link_target, read_only, same_file, write_text_atomic
 from ..progress import Progress
+from ..threads import limit_process_blas_threads
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
                   help="MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, "
@@ -98,6 +99,7 @@ def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or
                                           help="print the version and exit")) -> None:
     """MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, diagnose."""
     _settings["quiet"] = _settings["quiet"] or quiet
+    limit_process_blas_threads()
 
 
 # ---------------------------------------------------------------- arguments

@@ -43,6 +43,7 @@ from ..prepare import Prepared, supply_reference
 from ..prepare.prepared import supply_voltage
 from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
+from ..threads import one_blas_thread
 from ..fit.calibrate import prepare_for, rate_windows
 from ..ident.identify import check_wind
 from ..vessel import Vessel
@@ -117,6 +118,7 @@ def _check_library(prior: Vessel, recordings: list[Recording], library: list[str
     raise TwinError(f"unknown effect(s) {', '.join(sorted(unknown))} (known: {', '.join(offered)})")
 
 
+@one_blas_thread
 def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S, log=None,
              library: list[str] | None = None, calibrated: bool = True,
              refit: tuple[str, ...] | None = None, refit_weight: float = 1.0, kinematic: bool = True,

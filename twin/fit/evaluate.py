@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import TwinError
 from ..prepare import Prepared
+from ..threads import one_blas_thread
 from ..vessel import Vessel
 from .coverage import UNITS, Envelope, beyond, sample_ranges, span_text
 from .metrics import DOFS, r2_mae
@@ -72,6 +73,7 @@ def horizon_windows(preps: list[Prepared], horizon, stride_s: float) -> list[Win
     return make_windows(preps, float(horizon), stride_s, min_length_s=float(horizon))
 
 
+@one_blas_thread
 def evaluate(model: Predictor | Vessel, preps: list[Prepared], stride_s: float = 2.0,
              horizons: dict | None = None, wind: str | None = None) -> dict:
     """Metrics per horizon (see the module docstring): {horizon: {u, v, r: {r2, mae, n}}}.

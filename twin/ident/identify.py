@@ -54,6 +54,7 @@ from ..formats import read_recording
 from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
 from ..recording import Recording
+from ..threads import one_blas_thread
 from ..vessel import Vessel
 from .greybox.models import fit_dynamic, fit_static
 from .greybox.physical import first_guesses
@@ -218,6 +219,7 @@ def greybox_stage(preps: list[Prepared], prior: Vessel, thruster: str, split: st
     return out, notes
 
 
+@one_blas_thread
 def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, ...] | None = None,
              params: tuple[str, ...] | None = None, prior_weights: tuple[float, ...] = PRIOR_WEIGHTS,
              anchor: str = "mass", window_s: float | None = None, start: str = "free", calibrated: bool = True,
