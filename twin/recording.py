@@ -37,6 +37,7 @@ import numpy as np
 from .errors import TwinError
 
 GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
+DROPOUTS = f"dropouts > {GAP_S:g} s"  # the `dropped` reason (after "STREAM: ") that counts a stream's gaps
 STREAMS = ("gnss", "heading", "pwm", "imu", "battery", "prop_rudder", "wind")
 OPTIONAL_STREAMS = ("prop_rudder", "wind")  # summarised only when they have samples
 # values no sensor can report: a sample holding one is corrupt, dropped and counted
@@ -189,13 +190,15 @@ def format_summary(summary: dict) -> str:
     lines = [f"{summary['source']} ({summary['kind']}): {summary['duration_s']:.1f} s{params}"]
     for name, s in summary["streams"].items():
         if s["samples"]:
-            gap = f", {s['gaps']} gaps > {GAP_S:g} s (longest {s['longest_gap_s']:.1f} s)" if s["gaps"] else ""
+            gap = (f", {s['gaps']} gap{'s' if s['gaps'] != 1 else ''} > {GAP_S:g} s (longest {s['longest_gap_s']:.1f} s)"
+                   if s["gaps"] else "")
             volt = (f", {s['voltage_first_v']:.2f} → {s['voltage_last_v']:.2f} V (range {s['voltage_min_v']:.2f}-"
                     f"{s['voltage_max_v']:.2f})" if "voltage_first_v" in s else "")
             lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}{volt}")
         else:
             lines.append(f"  {name:8s}       - none")
-    lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"]]
+    # a dropout is a gap between samples, not data discarded: the stream's line above counts it
+    lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"] if not reason.endswith(DROPOUTS)]
     lines += [f"  note: {note}" for note in summary["notes"]]
     lines += [f"  warning: {text}" for text in summary.get("warnings", [])]
     return "\n".join(lines)
@@ -227,7 +230,7 @@ def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:
     t, cols = t[keep], {k: v[keep] for k, v in cols.items()}
     stream = Stream(t, cols)
     if name in ("gnss", "heading", "pwm", "prop_rudder"):
-        _note(dropped, f"{name}: dropouts > {GAP_S:g} s", len(stream.gaps()))
+        _note(dropped, f"{name}: {DROPOUTS}", len(stream.gaps()))
     return stream
 
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 import math
 from dataclasses import asdict
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
+from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
@@ -16,7 +17,22 @@ from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_
                   vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
+if TYPE_CHECKING:
+    from ..fit.calibrate import LogCalibration
+
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
+
+
+def calibration_line(c: LogCalibration, applied: bool | None = None) -> str:
+    """A log's compass calibration (twin.fit.calibrate.LogCalibration) as the commands print it, its
+    caveat in brackets (one straight leg: an offset a current may share). `applied`: whether this
+    command applied the offset found (None: a command that applies none, as `twin info`)."""
+    line = c.text()
+    if c.heading_bias_deg is None:  # its text says why it is not applied
+        return line
+    if applied is not None:
+        line += "; offset applied" if applied else "; offset not applied (--no-calibration)"
+    return line + (f" [{c.note}]" if c.note else "")
 
 
 @app.command("dataset")
@@ -163,8 +179,8 @@ def identify_command(
                                 sources=[str(r) for r in recordings], progress=progress, wind=wind)
     if sea_line:
         say(sea_line)
-    for c in result.calibrations:
-        say(f"calibration: {c.text()}")
+    for c in result.calibrations:  # made only to be applied (none with --no-calibration)
+        say(escape(f"calibration: {calibration_line(c, applied=True)}"))  # its [caveat] is no rich markup
     say_unlogged_supply(recs, prior)
     text = ident.format_greybox(result.greybox)
     if text:
@@ -308,7 +324,7 @@ def evaluate_command(
     if sea_line:
         say(sea_line)
     for c in calibrations:
-        say(f"calibration: {c.text()}")
+        say(escape(f"calibration: {calibration_line(c, applied=calibration)}"))
     say_unlogged_supply(recs, v)
     applied = calibration and any(c.heading_bias_deg is not None for c in calibrations)
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"

@@ -83,6 +83,7 @@ def _calibrations(recordings: list, vessel) -> int:
     """Print each log's kinematic compass calibration (twin.fit.calibrate); 1 when it cannot be made."""
     from ..ident.identify import calibrate, held_inputs
     from ..prepare import prepare
+    from .ident import calibration_line
 
     usable, failed = [], 0
     wanted = vessel.thrusters.input_kind
@@ -109,7 +110,7 @@ def _calibrations(recordings: list, vessel) -> int:
         return 1
     typer.echo(f"== each log's compass calibration ({vessel.name}; identify, evaluate and diagnose apply it)")
     for c in calibrations:
-        typer.echo(f"calibration: {c.text()}" + (f" [{c.note}]" if c.heading_bias_deg is not None and c.note else ""))
+        typer.echo(f"calibration: {calibration_line(c)}")
     if wanted == "pwm":
         typer.echo(f"calibration: {_throttle_line(usable, calibrated_vessel, calibrations)}")
     return failed
@@ -142,6 +143,7 @@ def convert(
     dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
+    force: bool = typer.Option(False, "--force", help="replace the output if it exists (never the input)"),
 ):
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
     [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
@@ -149,7 +151,9 @@ def convert(
     from ..prepare.convert import for_conversion, not_kept
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
-    check_distinct({"output": dst}, [src])
+    check_distinct({"output": dst}, [src])  # even with --force: the input is never replaced
+    if dst.exists() and not force:  # a converted copy (resampled on the grid) must not silently replace a log
+        raise TwinError(f"output '{dst}' exists: it is kept (--force replaces it)")
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")

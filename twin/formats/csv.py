@@ -16,6 +16,8 @@ Generic CSV (one header line, comma separated, empty or "nan" cells are missing)
   wind_speed, wind_from_deg   true wind over ground, m/s and degrees FROM, clockwise from north
   wind_rel_speed, wind_rel_from_deg   apparent wind on board, m/s and degrees FROM, clockwise from the bow
                      (optional, the wind stream; the relative pair only with the true one)
+The columns of a pair (lat, lon; north, east; x, y; pwm_left, pwm_right; prop_rps, rudder_deg; each wind
+pair) are read together: a file with one of a pair is refused, naming the other.
 A twin run's u, v (its true velocities) and thrust_left/right are not read: a
 Recording holds what sensors log. Streams at different rates share the rows.
 `channels={"reversed": {"left": True}, "trim": {"left": 1500, "right": 1500}}` mirrors
@@ -46,6 +48,11 @@ CSV_NEUTRAL_US = 1500.0
 
 
 Layout = Callable[[Path, list[str], dict[str, np.ndarray], dict | None], Recording]
+# the generic layout's columns read only together: a file with one of them would lose its stream unsaid
+PAIRS = (("lat", "lon"), ("north", "east"), ("x", "y"), ("pwm_left", "pwm_right"), ("prop_rps", "rudder_deg"),
+         ("wind_speed", "wind_from_deg"), ("wind_rel_speed", "wind_rel_from_deg"))
+# where a generic CSV gives the streams prepare() needs: what to say of a file without them
+NEEDED_COLUMNS = {"GNSS": "GNSS in columns lat,lon or north,east", "heading": "the heading in a column heading_deg or psi"}
 
 
 def read_csv(path: Path, channels: dict | None = None, adapters: tuple[tuple[Callable, Layout], ...] = (),
@@ -122,6 +129,10 @@ def _float(s: str) -> float:
 def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict | None) -> Recording:
     """Multi-rate streams share the rows: a row whose cells of one stream are all empty
     is simply not a sample of it (only partly filled rows count as dropped)."""
+    for first, second in PAIRS:
+        if (first in c) != (second in c):
+            has, lacks = (first, second) if first in c else (second, first)
+            raise TwinError(f"{path.name}: has {has} but no {lacks} column")
     rec = Recording(source=str(path), kind="csv")
     t = c["t"]
     if {"lat", "lon"} <= set(header):

@@ -85,8 +85,10 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
     for path in paths:
         rec = read_recording(path, channels=channels)
         if not len(rec.pwm) and not len(rec.prop_rudder):
+            hint = ("columns pwm_left,pwm_right (or prop_rps,rudder_deg)" if Path(path).suffix.lower() == ".csv"
+                    else "an ArduPilot log: give the thruster channels with --channels LEFT,RIGHT")
             raise TwinError(f"{Path(path).name}: no inputs (thruster PWM, or propeller and rudder): the twin cannot "
-                            "be run on it (an ArduPilot log: give the thruster channels with --channels LEFT,RIGHT)")
+                            f"be run on it ({hint})")
         out.append(rec)
     return out
 
@@ -459,7 +461,8 @@ def unused_wind_note(recordings: list[Recording], wind: str | None, vessel: Vess
     acts = load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None
     if wind == "measured" or not held or not acts:
         return None
-    return (f"{held} of {len(recordings)} recording{'' if len(recordings) == 1 else 's'} hold a measured wind, left "
+    return (f"{held} of {len(recordings)} recording{'' if len(recordings) == 1 else 's'} "
+            f"hold{'s' if held == 1 else ''} a measured wind, left "
             "out here (--wind-measured takes it as a known input)")
 
 

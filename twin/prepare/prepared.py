@@ -149,6 +149,16 @@ class Prepared:
                 f"{self.settings.grid_dt:g} s in {len(self.segments)} segments, {self.settings.smoother} velocities)")
 
 
+def _csv_hint(rec: Recording, missing: list[str]) -> str:
+    """For a generic CSV, the columns that give the `missing` streams ("GNSS", "heading"): a
+    user who wrote the file can add them; other formats log them under names of their own."""
+    if rec.kind != "csv":
+        return ""
+    from ..formats.csv import NEEDED_COLUMNS
+
+    return f" (a CSV gives {' and '.join(NEEDED_COLUMNS[m] for m in missing)})"
+
+
 def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None, grid_dt: float = 0.1,
             smoother: str = "savgol", window_s: float = 1.0, polyorder: int = 2, max_gap_s: float = 1.0,
             heading_window_s: float | None = None,
@@ -177,8 +187,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         # moved by the antenna's arm, the track would turn every r into a sway of r·dx
         lever_arm_OP_m = None
     if not len(rec.gnss) or not len(rec.heading):
-        missing = " and ".join(s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower())))
-        raise TwinError(f"{name}: cannot prepare without {missing} samples")
+        missing = [s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower()))]
+        raise TwinError(f"{name}: cannot prepare without {' and '.join(missing)} samples{_csv_hint(rec, missing)}")
     north_o, east_o, origin = local_ned(rec.gnss)
     psi_h = np.unwrap(rec.heading["psi_rad"])
     off_track = _flagged(gnss_outliers, north_o, east_o, rec.gnss.t)

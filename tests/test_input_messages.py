@@ -1,0 +1,151 @@
+"""What a user is told about partial input and existing files: convert keeps an existing file, a CSV
+with half a column pair or without inputs, GNSS or heading is told which columns it needs, identify
+says whether it applied the compass offset (with info's caveat), and `twin info` counts gaps in
+good English."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from twin_command import twin
+
+from twin.cli.ident import calibration_line
+from twin.errors import TwinError
+from twin.fit.calibrate import LogCalibration
+from twin.formats import read_recording
+from twin.prepare import prepare
+from twin.recording import format_summary
+
+ONE_LEG = "one straight leg: no drift fitted (a current across it reads as offset)"
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray], t: np.ndarray) -> Path:
+    """A generic CSV with a t column and `columns`, one row per time."""
+    rows = [",".join(["t", *columns])]
+    rows += [",".join([f"{t[k]:.2f}", *(f"{v[k]:.8f}" for v in columns.values())]) for k in range(len(t))]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def straight(n: int = 300, dt: float = 0.1) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A boat going north at 1 m/s, heading 0°, both thrusters at 1600 µs."""
+    t = np.arange(n) * dt
+    return t, {"lat": 59.0 + t / 111_000.0, "lon": np.full(n, 10.0), "heading_deg": np.zeros(n),
+               "pwm_left": np.full(n, 1600.0), "pwm_right": np.full(n, 1600.0)}
+
+
+# -------------------------------------------------------------------------------- 1. convert keeps a file
+
+
+def test_convert_refuses_to_replace_an_existing_file_without_force(tmp_path):
+    t, cols = straight()
+    original = write_csv(tmp_path / "a.csv", cols, t)
+    text = original.read_text()
+    assert twin("convert", original, tmp_path / "b.mcap").returncode == 0
+    done = twin("convert", tmp_path / "b.mcap", original)
+    assert done.returncode == 2
+    assert done.stderr.strip() == f"error: output '{original}' exists: it is kept (--force replaces it)"
+    assert original.read_text() == text  # the 10 Hz original, not the grid's copy
+    forced = twin("convert", tmp_path / "b.mcap", original, "--force")
+    assert forced.returncode == 0 and f"wrote {original}" in forced.stdout
+
+
+def test_convert_force_never_replaces_its_input(tmp_path):
+    t, cols = straight()
+    original = write_csv(tmp_path / "a.csv", cols, t)
+    text = original.read_text()
+    done = twin("convert", original, original, "--force")
+    assert done.returncode == 2 and "is the input" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert original.read_text() == text
+
+
+# ------------------------------------------------------------------------------ 2. half a pair of columns
+
+
+@pytest.mark.parametrize("kept, dropped", [("pwm_left", "pwm_right"), ("pwm_right", "pwm_left"), ("lat", "lon"),
+                                           ("north", "east"), ("prop_rps", "rudder_deg"),
+                                           ("wind_speed", "wind_from_deg")])
+def test_csv_with_half_a_column_pair_is_refused_by_name(tmp_path, kept, dropped):
+    t, cols = straight()
+    cols.pop(dropped, None)
+    cols.setdefault(kept, np.ones(len(t)))
+    if kept == "north":  # positions from north alone, not lat/lon
+        cols.pop("lat"), cols.pop("lon")
+    path = write_csv(tmp_path / "x.csv", cols, t)
+    with pytest.raises(TwinError) as err:
+        read_recording(path)
+    assert str(err.value) == f"x.csv: has {kept} but no {dropped} column"
+    done = twin("info", path)
+    assert done.returncode == 2 and done.stderr.strip() == f"error: x.csv: has {kept} but no {dropped} column"
+
+
+def test_csv_with_both_columns_of_each_pair_still_reads(tmp_path):
+    t, cols = straight()
+    rec = read_recording(write_csv(tmp_path / "x.csv", cols, t))
+    assert len(rec.pwm) == len(t) and len(rec.gnss) == len(t)
+
+
+@pytest.mark.parametrize("dropped, message", [
+    (("lat", "lon"), "x.csv: cannot prepare without GNSS samples (a CSV gives GNSS in columns lat,lon or north,east)"),
+    (("heading_deg",), "x.csv: cannot prepare without heading samples (a CSV gives the heading in a column "
+                       "heading_deg or psi)"),
+    (("lat", "lon", "heading_deg"), "x.csv: cannot prepare without GNSS and heading samples (a CSV gives GNSS in "
+                                    "columns lat,lon or north,east and the heading in a column heading_deg or psi)"),
+])
+def test_csv_without_gnss_or_heading_names_the_columns_it_needs(tmp_path, dropped, message):
+    t, cols = straight()
+    for name in dropped:
+        cols.pop(name)
+    path = write_csv(tmp_path / "x.csv", cols, t)
+    with pytest.raises(TwinError) as err:
+        prepare(read_recording(path))
+    assert str(err.value) == message
+    done = twin("view", path, "--out", tmp_path / "x.rrd")
+    assert done.returncode == 2 and done.stderr.strip() == f"error: {message}"
+
+
+# ---------------------------------------------------------------- 3. identify's compass calibration line
+
+
+def test_calibration_line_says_whether_applied_with_info_caveat():
+    one_leg = LogCalibration("x.csv", -10.6, 1.0, 1, 10.0, None, ONE_LEG)
+    head = "x.csv: compass offset -10.6° ± 1.0° from 1 straight stretch (10 s under way)"
+    assert calibration_line(one_leg, applied=True) == f"{head}; offset applied [{ONE_LEG}]"
+    assert calibration_line(one_leg, applied=False) == f"{head}; offset not applied (--no-calibration) [{ONE_LEG}]"
+    assert calibration_line(one_leg) == f"{head} [{ONE_LEG}]"  # twin info: it applies none
+    legs = LogCalibration("x.csv", -10.6, 1.0, 3, 10.0, (0.1, -0.2), "")
+    assert calibration_line(legs, applied=True).endswith("E -0.200 m/s; offset applied")
+    none = LogCalibration("x.csv", None, None, 0, 0.0, None, "no straight running under way")
+    assert calibration_line(none, applied=True) == "x.csv: compass offset not applied (no straight running under way)"
+
+
+# ------------------------------------------------------------------------------ 4. gaps, in good English
+
+
+def gappy(tmp_path, gaps: int) -> Path:
+    """A straight run with `gaps` silences of 3 s in every stream."""
+    t, cols = straight(600)
+    keep = np.ones(len(t), bool)
+    for k in range(gaps):
+        keep[100 + 200 * k:130 + 200 * k] = False
+    return write_csv(tmp_path / "g.csv", {k: v[keep] for k, v in cols.items()}, t[keep])
+
+
+def test_info_says_one_gap_and_does_not_call_gaps_dropped(tmp_path):
+    text = format_summary(read_recording(gappy(tmp_path, 1)).summary())
+    assert "1 gap > 1 s (longest 3.1 s)" in text and "1 gaps" not in text
+    assert "dropped" not in text and "dropouts" not in text  # nothing was discarded: the gap is on its stream's line
+    assert "2 gaps > 1 s" in format_summary(read_recording(gappy(tmp_path, 2)).summary())
+
+
+def test_a_gap_is_still_counted_in_the_recording_dropped_list(tmp_path):
+    rec = read_recording(gappy(tmp_path, 2))
+    assert dict(rec.dropped)["gnss: dropouts > 1 s"] == 2
+
+
+def test_a_csv_without_inputs_is_told_the_columns_not_an_ardupilot_option(tmp_path):
+    t, cols = straight()
+    del cols["pwm_left"], cols["pwm_right"]
+    done = twin("identify", write_csv(tmp_path / "no_inputs.csv", cols, t), "--vessel", "blueboat",
+                "--out", tmp_path / "twin.json")
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert "columns pwm_left,pwm_right (or prop_rps,rudder_deg)" in done.stderr and "--channels" not in done.stderr
