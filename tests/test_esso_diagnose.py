@@ -70,7 +70,7 @@ def test_diagnose_takes_the_measured_wind_as_a_known_input(tmp_path, shared_dir)
         assert done.returncode == 0, done.stderr
         held[flag] = json.loads(out.read_text())["fit_before"]
         # the anemometer's stream left out is said, once, and only when it is
-        assert ("hold a measured wind, left out here" in done.stderr) == (not flag), done.stderr
+        assert ("1 of 1 recording holds a measured wind, left out here" in done.stderr) == (not flag), done.stderr
     assert held[("--wind-measured",)]["v"]["r2"] > held[()]["v"]["r2"] + 0.2
     no_wind = tmp_path / "no_wind.csv"
     no_wind.write_text("t [s],x_position_mid [m],y_position_mid [m],psi_hat [rad],r_angvelo [rad/s],n_prop [rps],"
