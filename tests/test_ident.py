@@ -540,7 +540,8 @@ def test_a_span_near_zero_keeps_its_digits():
     """A ship's yaw rate spans a few hundredths of a rad/s: two decimals would print it as 0.00."""
     from twin.fit.coverage import span_text
 
-    assert span_text({"r": (-0.004, 0.05)}) == "r -0.004..+0.05 rad/s"
+    assert span_text({"r": (-0.004, 0.05)}) == "r -0.23..+2.86 °/s"
+    assert span_text({"r": (-0.0005, 0.001)}) == "r -0.029..+0.057 °/s"
     assert span_text({"u": (-0.12, 1.5)}) == "u -0.12..+1.50 m/s"
 
 

@@ -14,6 +14,7 @@ samples R² is pooled over: overlapping windows count a sample once per window) 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,12 +54,14 @@ class Envelope:
                 "stride_s": float(self.stride_s), "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
 
 
-UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}
+# as printed: r in °/s, as every table of the CLI gives the yaw rate's error (the states are kept in rad/s)
+UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}
+SHOWN = {"u": 1.0, "v": 1.0, "r": 180.0 / math.pi}
 
 
 def span_text(ranges: dict) -> str:
     """"u −0.10..+0.27 m/s, v …, r …" of a {dof: (low, high)} span (an Envelope's or its dict's)."""
-    return ", ".join(f"{d} {_signed(lo)}..{_signed(hi)} {UNITS[d]}" for d, (lo, hi) in ranges.items())
+    return ", ".join(f"{d} {_signed(SHOWN[d] * lo)}..{_signed(SHOWN[d] * hi)} {UNITS[d]}" for d, (lo, hi) in ranges.items())
 
 
 def _signed(x: float) -> str:

@@ -27,7 +27,7 @@ from ..errors import TwinError
 from ..prepare import Prepared
 from ..threads import one_blas_thread
 from ..vessel import Vessel
-from .coverage import UNITS, Envelope, beyond, sample_ranges, span_text
+from .coverage import SHOWN, UNITS, Envelope, beyond, sample_ranges, span_text
 from .metrics import DOFS, r2_mae
 from .windows import ModelCache, Window, make_windows, measured, predict
 
@@ -437,7 +437,7 @@ def beyond_sentence(split: dict) -> str:
         if scores:
             text += "; R² " + ", ".join(scores)
         reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span "
-                 f"{x['low']:+.2f}..{x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
+                 f"{SHOWN[d] * x['low']:+.2f}..{SHOWN[d] * x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
         if reach:
             text += "; beyond it in " + ", ".join(reach) + ": record runs that reach there to fit it"
     return text
