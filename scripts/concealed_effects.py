@@ -1,15 +1,15 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|thirteenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|fourteenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
-which magnitudes. The second to thirteenth sets regroup the same active BlueBoat runs into other
+which magnitudes. The second to fourteenth sets regroup the same active BlueBoat runs into other
 outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, P again: the last pair
-left, 216 and 228, is too short to diagnose; A, F again) and take other Esso turning tests (T3, T4;
+left, 216 and 228, is too short to diagnose; A, F again; D, K again) and take other Esso turning tests (T3, T4;
 T5, T6; T7, T8; T9, T10; T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again; T11, T12
-again; T1, T2 again), with other magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
+again; T1, T2 again; T3, T4 again), with other magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
 logged streams alone:
@@ -304,17 +304,33 @@ PROOF_THIRTEENTH = [
     Case("esso", "T1", "input_late", (0.5,)), Case("esso", "T2", "input_late", (0.8,)),
     Case("esso", "T1", "heading_late", (0.6,)), Case("esso", "T2", "heading_late", (0.45,)),
 ]
+# the fourteenth set takes outings D and K (the second and sixth sets' groupings) and Esso tests T3 and T4
+# (the second set's) again, with other values
+PROOF_FOURTEENTH = [
+    Case("blueboat", "D", "null"), Case("blueboat", "K", "null"),
+    Case("blueboat", "D", "current", (0.13, 160.0)), Case("blueboat", "K", "current", (0.10, 320.0)),
+    Case("blueboat", "D", "antenna", (0.30, 0.25)), Case("blueboat", "K", "antenna", (-0.35, -0.15)),
+    Case("blueboat", "D", "input_late", (0.45,)), Case("blueboat", "K", "input_late", (0.65,)),
+    Case("blueboat", "D", "thruster_scaled", ("left", 0.8)), Case("blueboat", "K", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "D", "heading_late", (0.6,)), Case("blueboat", "K", "heading_late", (0.35,)),
+    Case("esso", "T3", "null"), Case("esso", "T4", "null"),
+    Case("esso", "T3", "current", (0.12, 250.0)), Case("esso", "T4", "current", (0.10, 70.0)),
+    Case("esso", "T3", "antenna", (0.35, 0.25)), Case("esso", "T4", "antenna", (-0.45, -0.20)),
+    Case("esso", "T3", "input_late", (0.7,)), Case("esso", "T4", "input_late", (0.55,)),
+    Case("esso", "T3", "heading_late", (0.5,)), Case("esso", "T4", "heading_late", (0.65,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
-          "thirteenth": PROOF_THIRTEENTH}
+          "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
          "eighth": "concealed_effects_eighth", "ninth": "concealed_effects_ninth",
          "tenth": "concealed_effects_tenth", "eleventh": "concealed_effects_eleventh",
-         "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth"}
+         "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth",
+         "fourteenth": "concealed_effects_fourteenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -337,7 +353,7 @@ STAGE_METHODS = {
 
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
-ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth"}
+ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
