@@ -5,9 +5,12 @@ how much of it, and the amended twin, judged on data it did not fit.
    without a dynamic model (fit/kinematic.py: where the GNSS antenna sits, whether the input log
    or the heading is late). A finding told there is named with its kinematic evidence and put into
    the twin before anything is fitted, so the twin's form error does not have to carry it; an
-   effect the kinematics tell is not there is not searched for. The antenna is not searched for
-   at all: a dynamic fit's lever arm moves the point the twin's sway is read at, which takes up a
-   sway-yaw form error the twin has, so only the kinematics can name it.
+   effect the kinematics tell is not there is not searched for. Some are never searched for in the
+   dynamics (KINEMATIC_ONLY), as a dynamic fit of them takes up a form error the twin has: the
+   antenna (its lever arm moves the point the twin's sway is read at), the GNSS fixes' timing (a
+   shift of the track in time stands in for a lag of the twin's sway and yaw), and, where every log
+   has a gyro, the heading's timing (the gyro is the direct reference; where it cannot tell the
+   heading's lateness, a twin's dynamics, further from the truth than a gyro, cannot either).
 1. Replay: the twin over 10-s free-run windows from measured states, driven by the
    recorded PWM, after each log's compass calibration. The noise of every signal is
    estimated so that "significant" has a scale.
@@ -56,6 +59,9 @@ WINDOW_S = 10.0
 # the effects a recording's measured wind, given as a known input, takes the place of (their constant
 # wind acts on no free run then; `wind_shape` stays: it reshapes the load the measured wind makes)
 MEASURED_WIND_REPLACES = ("wind", "wind_per_log")
+# never searched in the dynamics, told from the kinematics alone (module docstring, step 0); the heading's
+# timing joins them where every log has a gyro
+KINEMATIC_ONLY = ("gnss_lever_arm", "gnss_latency")
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
 # Screening only ranks candidates: it may step at the recording's grid where RK4 stays well
 # inside its stability limit (|hλ| < 2.8) for the prior's fastest dynamics.
@@ -151,8 +157,8 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
-    # the antenna is the kinematics' alone (module docstring, step 0)
-    settled = {f.effect for f in findings if f.told or f.absent or f.effect == "gnss_lever_arm"}
+    # some sensor effects are the kinematics' alone (module docstring, step 0)
+    settled = {f.effect for f in findings if f.told or f.absent or f.effect in kinematic_only(recordings)}
     if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
         # each log's compass offset was measured from its own straight running (applied where it is
         # clear): a constant heading bias has a kinematic signature, and where the kinematics show none
@@ -212,6 +218,12 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                if search.overlapping else ""))
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def kinematic_only(recordings: list[Recording]) -> set[str]:
+    """The effects told from these recordings' kinematics alone, never searched in the dynamics
+    (module docstring, step 0): KINEMATIC_ONLY, and the heading's timing where every log has a gyro."""
+    return set(KINEMATIC_ONLY) | ({"heading_latency"} if recordings and all(len(r.imu) for r in recordings) else set())
 
 
 def _kinematic(recordings: list[Recording], prior: Vessel, calibrated: bool, library, log):
