@@ -67,6 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import TwinError
+from ..formats.csv import NEEDED_COLUMNS
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
 from ..recording import Recording, Stream
 from ..run import Run
@@ -154,8 +155,6 @@ def _csv_hint(rec: Recording, missing: list[str]) -> str:
     user who wrote the file can add them; other formats log them under names of their own."""
     if rec.kind != "csv":
         return ""
-    from ..formats.csv import NEEDED_COLUMNS
-
     return f" (a CSV gives {' and '.join(NEEDED_COLUMNS[m] for m in missing)})"
 
 
