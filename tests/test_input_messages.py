@@ -149,3 +149,17 @@ def test_a_csv_without_inputs_is_told_the_columns_not_an_ardupilot_option(tmp_pa
                 "--out", tmp_path / "twin.json")
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
     assert "columns pwm_left,pwm_right (or prop_rps,rudder_deg)" in done.stderr and "--channels" not in done.stderr
+
+
+def test_dataset_says_the_log_span_twin_info_reports(tmp_path):
+    """`twin dataset` counts its manoeuvres' seconds and the log's whole span, gaps between segments
+    included, which is what `twin info` calls the recording's length."""
+    import re
+
+    out = tmp_path / "two.csv"
+    made = twin("dataset", "--vessel", "blueboat", "--segments", "2", "--seed", "1", "--out", out)
+    assert made.returncode == 0, made.stderr
+    manoeuvres, span = map(float, re.search(r"(\d+) s of manoeuvres in a log of (\d+) s", made.stdout).groups())
+    info = twin("info", out)
+    length = float(re.search(r"\(csv\): ([0-9.]+) s", info.stdout).group(1))
+    assert manoeuvres < span and span == pytest.approx(length, abs=0.5)

@@ -77,8 +77,9 @@ def dataset_command(
         console.print(f"wrote {path}")
     write_json(truth, ds.truth())
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
+    span = ds.recording.duration_s()  # what `twin info` reports: the segments and the silent gaps between them
     made = ", ".join(m.name for m in ds.manoeuvres)
-    console.print(f"{counted(len(ds.runs), 'segment')}, {total:.0f} s logged ({made}); "
+    console.print(f"{counted(len(ds.runs), 'segment')}, {total:.0f} s of manoeuvres in a log of {span:.0f} s ({made}); "
                   f"effects: {', '.join(e.text for e in ds.effects) or 'none'}", soft_wrap=True)
 
 
