@@ -319,18 +319,35 @@ PROOF_FOURTEENTH = [
     Case("esso", "T3", "input_late", (0.7,)), Case("esso", "T4", "input_late", (0.55,)),
     Case("esso", "T3", "heading_late", (0.5,)), Case("esso", "T4", "heading_late", (0.65,)),
 ]
+# the fifteenth set takes outings T and U (the tenth and eleventh sets' groupings) and Esso tests T5 and T6
+# again, with other values
+PROOF_FIFTEENTH = [
+    Case("blueboat", "T", "null"), Case("blueboat", "U", "null"),
+    Case("blueboat", "T", "current", (0.12, 40.0)), Case("blueboat", "U", "current", (0.11, 200.0)),
+    Case("blueboat", "T", "antenna", (0.25, -0.30)), Case("blueboat", "U", "antenna", (-0.30, 0.20)),
+    Case("blueboat", "T", "input_late", (0.5,)), Case("blueboat", "U", "input_late", (0.4,)),
+    Case("blueboat", "T", "thruster_scaled", ("right", 0.8)), Case("blueboat", "U", "thruster_scaled", ("left", 0.75)),
+    Case("blueboat", "T", "heading_late", (0.45,)), Case("blueboat", "U", "heading_late", (0.55,)),
+    Case("esso", "T5", "null"), Case("esso", "T6", "null"),
+    Case("esso", "T5", "current", (0.11, 300.0)), Case("esso", "T6", "current", (0.09, 150.0)),
+    Case("esso", "T5", "antenna", (0.40, -0.25)), Case("esso", "T6", "antenna", (-0.30, 0.35)),
+    Case("esso", "T5", "input_late", (0.6,)), Case("esso", "T6", "input_late", (0.75,)),
+    Case("esso", "T5", "heading_late", (0.55,)), Case("esso", "T6", "heading_late", (0.7,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
-          "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH}
+          "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
+          "fifteenth": PROOF_FIFTEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
          "eighth": "concealed_effects_eighth", "ninth": "concealed_effects_ninth",
          "tenth": "concealed_effects_tenth", "eleventh": "concealed_effects_eleventh",
          "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth",
-         "fourteenth": "concealed_effects_fourteenth"}
+         "fourteenth": "concealed_effects_fourteenth",
+         "fifteenth": "concealed_effects_fifteenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -353,7 +370,7 @@ STAGE_METHODS = {
 
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
-ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth"}
+ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
