@@ -565,6 +565,10 @@ def limited_by(row: dict) -> str:
     return "did not earn its place in the dynamic search"
 
 
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
+
+
 def _values_text(values: dict) -> str:
     return ", ".join(f"{k} {v:.3g}" for k, v in values.items())
 
@@ -657,8 +661,9 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
         rows = res["rows"]
         s = summary_of(rows)
         lines.append(f"{stage} (commit {res['commit']}): {s['exact']} of {s['effects']} concealed effects exact, "
-                     f"{s['named']} named, {s['within']} within the tolerances; {s['false_discoveries']} false "
-                     f"discoveries in {s['cases_with_false_discoveries']} cases; nulls clean {s['nulls_clean']} of "
+                     f"{s['named']} named, {s['within']} within the tolerances; "
+                     f"{_count(s['false_discoveries'], 'false discovery', 'false discoveries')} in "
+                     f"{_count(s['cases_with_false_discoveries'], 'case', 'cases')}; nulls clean {s['nulls_clean']} of "
                      f"{s['nulls']}")
         tables.append(ResultTable(
             f"{stage}: each case (commit {res['commit']})",
