@@ -396,7 +396,7 @@ def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_pa
         link = tmp_path / f"link.{ext}"
         link.symlink_to(data / f"run.{ext}")
         links.append(link)
-    p = twin_command.twin("simulate", "--vessel", "yellowfish", "--duration", "1",
+    p = twin_command.twin("simulate", "--vessel", "yellowfish", "--duration", "1", "--force",
                           *[a for link in links for a in ("--out", link)])
     assert p.returncode == 0, p.stderr
     for link in links:
@@ -411,7 +411,8 @@ def test_a_failed_write_names_the_file_and_keeps_the_old_one(monkeypatch, capsys
     out = tmp_path / "run.csv"
     out.write_text("old\n")
     full_disk(0.0)
-    err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--out", out], [out])
+    err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--out", out, "--force"],
+                  [out])
     assert err == f"error: cannot write '{out}': No space left on device (the file there, if any, is kept)\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
 

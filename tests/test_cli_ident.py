@@ -159,7 +159,7 @@ def test_identify_refuses_a_twin_that_ran_away_on_every_left_out_run(dataset, tm
                                                            reverse=(-1e9, 1e9, -0.3))), tmp_path / "wild.json")
     out, report = tmp_path / "model.json", tmp_path / "report.json"
     out.write_text('{"kept": true}\n')
-    done = twin("identify", dataset / "train.csv", "--model", wild, "--out", out, "--json", report,
+    done = twin("identify", dataset / "train.csv", "--model", wild, "--out", out, "--json", report, "--force",
                 "--params", "Xuu", "--beliefs", "1", "--max-evaluations", "1", "--window", "5")
     assert done.returncode == 2 and done.stderr.startswith("error: the identified twin ran away (diverged) on all ")
     assert "left-out runs: nothing written (check the prior" in done.stderr

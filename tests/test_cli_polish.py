@@ -40,7 +40,7 @@ def test_quiet_holds_for_its_own_run_only(tmp_path):
     inputs = tmp_path / "big.csv"
     inputs.write_text("t,thrust_left,thrust_right\n0,500,500\n")  # over the thrusters' bound: a note each
     args = ("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "2", "--out", tmp_path / "a.csv")
-    quiet, loud = twin(*args, "--quiet"), twin(*args)
+    quiet, loud = twin(*args, "--quiet"), twin(*args, "--force")
     assert quiet.returncode == loud.returncode == 0
     assert quiet.stderr == "" and loud.stderr.count("note: ") == 2 and "above the vessel file's bound" in loud.stderr
 

@@ -231,7 +231,7 @@ def seed_from(seed: int, option: str = "--seed") -> int:
     return seed
 
 
-def _memory_bytes() -> int | None:
+def memory_bytes() -> int | None:
     """This machine's physical memory (bytes), None where the system does not say."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -243,7 +243,7 @@ def samples_fit(duration_s: float, period_s: float, what: str) -> None:
     """Refuse a run whose sample count (duration / period) could not be held in this machine's memory
     even at one 8-byte number per sample: the arrays would fail to allocate only once the work began."""
     n = duration_s / period_s
-    memory = _memory_bytes()
+    memory = memory_bytes()
     if memory is not None and n * 8 > memory:
         raise TwinError(f"{what}: {duration_s:g} s at {period_s:g} s is {n:.3g} samples, more than this machine's "
                         f"memory ({memory / 2**30:.0f} GiB) holds")
@@ -254,7 +254,7 @@ def draws_fit(draws: int, samples: float, numbers_per_sample: int, what: str) ->
     8-byte numbers each) are all kept for the band and could not be held in this machine's memory:
     the run would otherwise work for hours and fail at the end."""
     need = float(draws) * samples * numbers_per_sample * 8
-    memory = _memory_bytes()
+    memory = memory_bytes()
     if memory is not None and need > memory:
         raise TwinError(f"{what}: {draws} draws of {samples:.0f} samples keep {need / 2**30:.3g} GiB, more than this "
                         f"machine's memory ({memory / 2**30:.0f} GiB) holds (fewer draws, a shorter run or a longer "
@@ -294,6 +294,18 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}' is read-only: it is kept (give another output name)")
         if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)) or not _can_create(folder):
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
+
+
+FORCE_HELP = "replace an output that exists (never an input)"
+
+
+def check_new(paths, force: bool, option: str = "output") -> None:
+    """Refuse, before any work is done, to write over a file that exists unless `force`: a
+    recording or a vessel file there may be one the user made, and a run or a fit written over it
+    would lose it."""
+    for p in paths:
+        if p is not None and Path(p).exists() and not force:
+            raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
 
 
 def check_distinct(outputs: dict[str, object], inputs=()) -> None:

@@ -31,7 +31,7 @@ def diagnose_command(
                                      help="apply each log's compass offset estimated from its own GNSS track first"),
     refit: Optional[str] = typer.Option(None, help="identification groups whose coefficients are refitted with every "
                                                    "candidate, for a twin not yet identified (comma separated, "
-                                                   "`twin identify`'s groups, e.g. surge,yaw,sway,thrust curve)"),
+                                                   "`twin identify`'s groups, e.g. surge,yaw,thrust_curve: _ for a space)"),
     refit_weight: float = typer.Option(1.0, help="with --refit: windows of data each refitted coefficient's belief "
                                                  "counts as (as `twin identify`'s beliefs ×1)"),
     given: Optional[list[str]] = typer.Option(None, help="instead of a search: judge this effect at these values "
@@ -91,7 +91,8 @@ def diagnose_command(
         typer.echo(given_text(given, e))
         write_json(json_out, {"given": list(given), "earns_its_place": bool(e.earns_its_place()), **e.to_dict()})
         return
-    groups = tuple(g.strip() for g in refit.split(",") if g.strip()) if refit is not None else None
+    # a group's name may hold a space ("thrust curve"), which a shell splits unless quoted: _ stands for it
+    groups = tuple(g.strip().replace("_", " ") for g in refit.split(",") if g.strip()) if refit is not None else None
     with progress_bar("diagnose") as progress:
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,
                           refit_weight=refit_weight, log=lambda m: progress(m), wind=wind)

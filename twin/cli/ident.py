@@ -11,8 +11,8 @@ from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (CASE_HELP, CHANNELS_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, channels_from,
-                  check_distinct, check_outputs, check_recordings_distinct, check_wind_and_inputs, console, counted,
+from .app import (CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+                  channels_from, check_distinct, check_new, check_outputs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
@@ -44,8 +44,10 @@ def dataset_command(
     segments: int = typer.Option(8, help="number of trajectory segments"),
     manoeuvres: str = typer.Option(",".join(("rc", "forward_constant", "forward_varying", "zigzag", "circle_constant",
                                              "circle_varying")),
-                                   help="manoeuvres to cycle through: rc, forward_constant, forward_varying, zigzag, "
-                                        "circle_constant, circle_varying, autopilot, and astern_varying (backing)"),
+                                   show_default=False,  # the list is cut short in the help's column
+                                   help="manoeuvres to cycle through, comma separated: rc, forward_constant, "
+                                        "forward_varying, zigzag, circle_constant, circle_varying (these six by "
+                                        "default), autopilot, and astern_varying (backing)"),
     effect: list[str] = typer.Option([], help="effect injected in the truth, NAME=V1,V2 (repeatable; "
                                               "`twin effects` lists them)"),
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
@@ -53,6 +55,7 @@ def dataset_command(
     case: str = typer.Option("nominal", help=CASE_HELP),
     sea: Optional[str] = typer.Option(None, help="sea state HS,TP,DIR[,SPREAD] (or regular,H,T,DIR): every segment "
                                                  "runs the 6-DOF hull in it"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Synthetic identification dataset from the twin, with its truth in a separate file."""
     from ..synth.dataset import generate
@@ -62,6 +65,8 @@ def dataset_command(
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
     check_distinct({"--out": out, "--truth": truth}, [model])
+    check_new([*out, truth], force, "output")
+    segments_fit(segments)
     seed_from(seed)
     profile = sensor_noise(noise)  # before any work
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
@@ -91,6 +96,22 @@ def effects_command():
     typer.echo(describe())
 
 
+# what one segment's runs and log hold in memory until the dataset is written (measured: 0.34 MB for
+# the BlueBoat's default manoeuvres, 40-90 s each), with room for the formats' own copies
+SEGMENT_BYTES = 1.0e6
+
+
+def segments_fit(segments: int) -> None:
+    """Refuse, before any work, a dataset whose segments are fewer than one or would not fit in half of
+    this machine's memory (the run would fill it, then fail or swap, with nothing written)."""
+    at_least(segments, 1, "--segments")
+    memory = memory_bytes()
+    if memory is not None and segments * SEGMENT_BYTES > memory / 2:
+        raise TwinError(f"--segments {segments}: about {segments * SEGMENT_BYTES / 2**30:.3g} GiB held until the log "
+                        f"is written, more than half this machine's memory ({memory / 2**30:.0f} GiB): fewer "
+                        "segments, or `twin dataset-shards`, which writes them shard by shard")
+
+
 def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] | None:
     """A comma-separated list of names; None when the option is not given. Given empty it is refused:
     read as "all" it would fit what the user meant to leave out."""
@@ -112,10 +133,10 @@ def identify_command(
                                                    "(default: all of " + ", ".join(FIT_GROUPS) + ", and pack voltage "
                                                    "where every recording logs its battery; for a "
                                                    "propeller-and-rudder ship: " + ", ".join(MMG_FIT_GROUPS)
-                                                   + "); the fit "
+                                                   + "; _ for a space: thrust_curve); the fit "
                                                    "keeps those that predict left-out runs better"),
     params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
-                                                   "comma separated (e.g. Xu,Xuu,Nr,Nrr,thrust_gain)"),
+                                                   "comma separated (e.g. Xu,Nr,thrust_gain)"),
     beliefs: str = typer.Option("0.01,0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
                                                  "the values tried (chosen on left-out runs)"),
     anchor: str = typer.Option("mass", help="absolute scale: mass (M11 from the vessel) | thrust (thrust curve)"),
@@ -138,6 +159,7 @@ def identify_command(
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
     prior's beliefs, every choice judged on runs left out of the fit."""
@@ -165,9 +187,11 @@ def identify_command(
     if anchor not in ("mass", "thrust"):
         raise TwinError(f"--anchor must be mass or thrust, got '{anchor}'")
     chosen_params = names_list(params, "--params", "coefficient")
-    chosen_groups = names_list(groups, "--groups", "group")
+    # a group's name may hold a space ("thrust curve"), which a shell splits unless quoted: _ stands for it
+    chosen_groups = names_list(None if groups is None else groups.replace("_", " "), "--groups", "group")
     if chosen_params:
         simfit.check_names(prior, chosen_params, anchor)  # before any work
+    check_new([out], force, "--out")  # after the options: a bad option is the first thing to fix
     recs = ident.read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
@@ -297,6 +321,7 @@ def evaluate_command(
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",
            "sea_drift_ned_m_s": list(v.environment.wave_drift_ned)}
     names = ", ".join(p.name for p in recordings) + (", with the measured wind" if wind else "")
+    twin_name = f"{model.name} ({v.name})" if model is not None else v.name
     used = calibrated if calibration else v
     if by:  # a state that does not vary is refused before the work
         state = STATE_NAMES[by]
@@ -328,10 +353,10 @@ def evaluate_command(
         say(escape(f"calibration: {calibration_line(c, applied=calibration)}"))
     say_unlogged_supply(recs, v)
     applied = calibration and any(c.heading_bias_deg is not None for c in calibrations)
-    typer.echo(format_metrics(out["metrics_uncalibrated"], f"{v.name} on {names}, as logged"
+    typer.echo(format_metrics(out["metrics_uncalibrated"], f"{twin_name} on {names}, as logged"
                               + ("" if applied or not calibration else " (no log's compass offset was applied)")))
     if applied:
-        typer.echo(format_metrics(out["metrics"], f"{v.name} on {names}, each log's compass calibration applied"))
+        typer.echo(format_metrics(out["metrics"], f"{twin_name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
     preps_used = prepared(recs, used)

@@ -8,11 +8,12 @@ import typer
 
 from ..drive import inputs_mismatch
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+                  check_outputs,
                   check_wind_and_inputs, memory_for, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
 
-RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic or BlueBoat layout), .mcap"
+RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic, BlueBoat or Esso Osaka layout), .mcap"
 INFO_HELP = RECORDING_HELP + ", or folders of them"
 
 
@@ -143,7 +144,7 @@ def convert(
     dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
-    force: bool = typer.Option(False, "--force", help="replace the output if it exists (never the input)"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
     [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
@@ -152,8 +153,7 @@ def convert(
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src])  # even with --force: the input is never replaced
-    if dst.exists() and not force:  # a converted copy (resampled on the grid) must not silently replace a log
-        raise TwinError(f"output '{dst}' exists: it is kept (--force replaces it)")
+    check_new([dst], force)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")

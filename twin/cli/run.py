@@ -12,8 +12,8 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, memory_for, note,
-                  positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
+from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
+                  console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 SEA_HELP = ("sea state HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come "
@@ -83,7 +83,8 @@ def simulate(
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag; not "
                                                       "with --inputs)"),
     inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs), thrust_left,thrust_right (N) or, for "
-                                                  "a propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg)"),
+                                                  "a propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg); each row held until "
+                                                  "the next, an empty cell holds its input's last value"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
     out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
@@ -99,12 +100,14 @@ def simulate(
                                                          "implied by --sea"),
     start_speed: Optional[float] = typer.Option(None, help="surge at t = 0, m/s (default: at rest; a ship's scenario "
                                                            "starts from its steady approach)"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Run the twin headless and write the run."""
     from ..simulation import simulate_run
 
     check_outputs(out, RUN_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model])
+    check_new(out, force, "--out")
     if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
         raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")
     scenario = scenario or "zigzag"
@@ -213,7 +216,7 @@ def params(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: str = typer.Option("nominal", help=CASE_HELP),
-    as_json: bool = typer.Option(False, "--json", help="print JSON"),
+    as_json: bool = typer.Option(False, "--json", help="print JSON instead of text (a flag: `> FILE` keeps it)"),
     first_principles: bool = typer.Option(False, "--first-principles",
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
                                                "each with its method"),
@@ -236,12 +239,18 @@ def params(
         return
     source = f"{model.name}: " if model is not None else ""
     say(f"[bold]{source}{p['vessel']}[/] ({p['case']}): m = {p['rigid_body']['mass_kg']:.3f} kg, "
-        f"xg = {p['rigid_body']['xg_m'] * 1e3:.1f} mm, Iz = {p['rigid_body']['Iz_kgm2']:.3f} kg·m²")
+        f"xg = {_unsigned_zero(p['rigid_body']['xg_m'] * 1e3, 1):.1f} mm, Iz = {p['rigid_body']['Iz_kgm2']:.3f} kg·m²")
     say("mass matrices, rows and columns u, v, r (kg, kg·m, kg·m²):")
     for key in ("M", "M_RB", "M_A"):
-        say(f"{key:5s} = " + "  ".join("[" + ", ".join(f"{x:9.4f}" for x in row) + "]" for row in p[key]))
+        say(f"{key:5s} = " + "  ".join("[" + ", ".join(f"{_unsigned_zero(x, 4):9.4f}" for x in row) + "]"
+                                       for row in p[key]))
     for line in params_lines(p):
         say(line)
+
+
+def _unsigned_zero(x: float, decimals: int) -> float:
+    """x, with a value that rounds to zero printed as 0 rather than −0."""
+    return 0.0 if round(float(x), decimals) == 0 else float(x)
 
 
 def params_lines(p: dict) -> list[str]:

@@ -44,7 +44,8 @@ def montecarlo_command(
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag): run "
                                                       "closed loop once by the nominal twin, its inputs replayed"),
     inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,"
-                                                     "thrust_right (N)"),
+                                                     "thrust_right (N); each row held until the next, an empty "
+                                                     "cell holds its input's last value"),
     duration: Optional[float] = typer.Option(None, help="mission length, s (default 120, or the inputs' last time)"),
     draws: int = typer.Option(1000, help="number of twins drawn"),
     seed: int = typer.Option(0, help="root seed (batch i draws from its i-th child)"),
@@ -262,7 +263,8 @@ def fleet_command(
     if older:
         note(f"note: {out} also holds {len(older)} report{'' if len(older) == 1 else 's'} of logs not in this fleet "
              f"(kept, not in fleet.json): {', '.join(older[:3])}{' …' if len(older) > 3 else ''}")
-    if fleet.summary["failed"]:
-        note(f"note: {len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed")
+    if fleet.summary["failed"]:  # the others' reports are written: a script sees the failure in the exit code
+        raise TwinError(f"{len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed "
+                        f"(their failure records are in {out}, the other reports are written)")
 
 

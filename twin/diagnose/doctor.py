@@ -300,7 +300,8 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if len(every) < 2 * BLOCK_WINDOWS * 2:
         raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
-                        "and judge on another (a diagnosis needs about 2 minutes of data with PWM)")
+                        "and judge on another (a diagnosis runs on 2 minutes of data with inputs or more; naming an "
+                        "effect from the dynamics takes about 5, ten blocks of 30 s)")
     return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)
 
 

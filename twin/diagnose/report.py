@@ -120,10 +120,14 @@ def answer(d) -> dict:
             out["missing"].append(f"{e['name']} ({params}): told from the kinematics, before any fit ({ev.get('why', '')}; "
                                   f"{ev.get('basis', '')})")
             continue
+        # a rival the recording cannot tell from it is said on the same line: named alone, the effect would
+        # read as settled, and UNSETTLED below as a contradiction of it
+        rivals = [r["name"] for r in e["rivals"] if not r["separable"]]
         out["missing"].append(
             f"{e['name']} ({params}): removes {excess_share(e.get('excess_gain', 0))}, z {z_text(e['z'], Z_MIN)} over "
             f"{ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
-            f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)")
+            f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)"
+            + (f"; or {' or '.join(rivals)} in its place (UNSETTLED)" if rivals else ""))
         for r in e["rivals"]:
             if not r["separable"] and r["z"] <= -Z_PREFER:
                 # kept all the same: the rival the blocks lean to did not earn its place by itself

@@ -212,7 +212,8 @@ class Search:
         self.folds = [(t, h) for t, h in self.folds if t and h]
         if len(self.folds) < 2:
             raise TwinError(f"{len(windows)} windows: too few to fit on some and judge on others "
-                            "(a diagnosis needs about 2 minutes of data with PWM)")
+                            "(a diagnosis runs on 2 minutes of data with inputs or more; naming an effect from the "
+                            "dynamics takes about 5, ten blocks of 30 s)")
         self.held_order = [w for _, held in self.folds for w in held]  # pooled held-out windows, fold by fold
         index = {id(w): i for i, w in enumerate(windows)}
         self.held_blocks = np.array([self.blocks[index[id(w)]] for w in self.held_order])

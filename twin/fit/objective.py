@@ -30,11 +30,13 @@ class Estimate:
     note: str = ""
     on_bound: bool = False  # ended on, or within its σ of, a bound of its physical range
     held_by_belief: bool = False  # its belief, counted as data, narrows it about as much as the fit does
+    disputed: bool = False  # its σ is wider than its belief alone leaves: the windows pull it different ways
 
     def to_dict(self) -> dict:
         return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
                 "identifiable": self.identifiable, "note": self.note, **({"on_bound": True} if self.on_bound else {}),
-                **({"held_by_belief": True} if self.held_by_belief else {})}
+                **({"held_by_belief": True} if self.held_by_belief else {}),
+                **({"disputed": True} if self.disputed else {})}
 
 
 class Measurements:

@@ -58,6 +58,9 @@ from .windows import ModelCache, make_windows
 
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.0)  # of the step that returns unpinned coordinates to their prior
 POSTERIOR_RATIO = 0.7  # a posterior σ above this share of the belief's: the data did not pin it down
+# a posterior σ above this multiple of what the belief alone leaves: the cluster-robust σ carries the
+# windows' disagreement (their scatter about the fit), which no belief narrows
+DISPUTED_RATIO = 1.5
 MAP_FTOL = 1e-4  # relative cost change at which a maximum a posteriori fit stops
 
 
@@ -374,17 +377,23 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
             note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
-            by_belief = held is not None and sx >= POSTERIOR_RATIO * held[i]  # the belief, as data, did the narrowing
+            alone = held[i] if held is not None else float("inf")  # what the belief alone leaves at its weight
+            disputed = sx > DISPUTED_RATIO * alone
+            by_belief = not disputed and sx >= POSTERIOR_RATIO * alone  # the belief, as data, did the narrowing
             if by_belief:
                 note = (f"held by its belief (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
-                        f"{sx / held[i]:.0%} of what the belief alone leaves at its weight): the recordings add little")
+                        f"{sx / alone:.0%} of what the belief alone leaves at its weight): the recordings add little")
+            elif disputed:
+                note = (f"moved by recordings whose windows pull it different ways (posterior {sx / c.belief.sigma:.0%} "
+                        f"of the belief's σ, {sx / alone:.1f} times what the belief alone leaves at its weight: the "
+                        "σ is their scatter about the fit)")
             if edge[i] is not None:  # a curvature's σ at a wall says nothing of where the data would put it
                 bound, on = edge[i]
                 note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
                         f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
                         " (σ from the fit's curvature, which the bound cuts)")
             out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None,
-                                by_belief and edge[i] is None))
+                                by_belief and edge[i] is None, disputed and edge[i] is None))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,

@@ -85,7 +85,10 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
     for path in paths:
         rec = read_recording(path, channels=channels)
         if not len(rec.pwm) and not len(rec.prop_rudder):
-            hint = ("columns pwm_left,pwm_right (or prop_rps,rudder_deg)" if Path(path).suffix.lower() == ".csv"
+            # inputs logged but every sample dropped (out of range, not numbers) are not missing columns
+            lost = [f"{reason}: {n}" for reason, n in rec.dropped if reason.split(":")[0] in ("pwm", "prop_rudder")]
+            hint = (f"every input sample was dropped: {'; '.join(lost)}" if lost else
+                    "columns pwm_left,pwm_right (or prop_rps,rudder_deg)" if Path(path).suffix.lower() == ".csv"
                     else "an ArduPilot log: give the thruster channels with --channels LEFT,RIGHT")
             raise TwinError(f"{Path(path).name}: no inputs (thruster PWM, or propeller and rudder): the twin cannot "
                             f"be run on it ({hint})")
@@ -571,8 +574,9 @@ def _linearised(fit: simfit.FitResult, names: tuple[str, ...]) -> Vessel:
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], wind: str | None = None) -> Vessel:
     v = fit.vessel
     moved = [e for e in fit.estimates if e.identifiable and not e.on_bound]
-    pinned = ", ".join(e.name for e in moved if not e.held_by_belief)
+    pinned = ", ".join(e.name for e in moved if not e.held_by_belief and not e.disputed)
     held = ", ".join(e.name for e in moved if e.held_by_belief)
+    disputed = ", ".join(e.name for e in moved if e.disputed)
     walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
     kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
@@ -583,6 +587,7 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
             f"windows of {fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
             + (f"; held by their beliefs (the recordings add little): {held}" if held else "")
+            + (f"; moved by recordings whose windows pull them different ways: {disputed}" if disputed else "")
             + (f"; on or within their σ of a bound of their physical range: {walled}"
                if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")

@@ -51,7 +51,9 @@ class GyroLag:
         if self.lag_s is None:
             return f"heading against the gyro: not told ({self.note})"
         sigma = f" ± {self.sigma_s:.2f} s" if self.sigma_s else ""
-        head = (f"heading against the gyro: {self.lag_s:+.2f} s late{sigma} (the shifted gyro's turning explains "
+        # a negative lag reads as early: "−0.22 s late" says the same less plainly
+        when = f"+{self.lag_s:.2f} s late" if self.lag_s >= 0 else f"{-self.lag_s:.2f} s early"
+        head = (f"heading against the gyro: {when}{sigma} (the shifted gyro's turning explains "
                 f"{100 * self.fit:.0f} % of the heading's over {self.turning_s:.0f} s of turning)")
         if not self.sigma_s or abs(self.lag_s) < TOLD_SIGMAS * self.sigma_s:
             return f"{head}: not told from on time (within {TOLD_SIGMAS:g}σ)"
