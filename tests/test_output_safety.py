@@ -3,7 +3,6 @@
 log whose every input sample was dropped says so, a dataset too large for the machine is refused
 before any work, and a coefficient whose windows disagree is not said to be held by its belief."""
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pytest
