@@ -701,7 +701,12 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "place from the dynamics (z 3 needs ten blocks or more, every one for it): there only what the kinematics "
          "tell can be named.",
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
-         "inputs two or three times (a rudder step and a stop): an input log late has little to be seen by."],
+         "inputs two or three times, the rudder at about 2.3°/s (a ramp, not a step): an input log late has little "
+         "to be seen by.",
+         "The Esso's files give midship's positions (the pond's tracking, by the files' own account), not an "
+         "antenna's: a twin applies no lever arm to them, so its gnss_lever_arm moves nothing there, and an offset "
+         "concealed in them can be told only from the kinematics of spins on the spot, which its tests do not "
+         "have."],
         {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
          **({"boat_pwm_timing": timing} if timing else {}), **({"boat_idle_drift": drift} if drift else {})})
     page.notes += [f"Stage '{stage}': {STAGE_METHODS[(proof_set, stage)]}." for stage in stages
