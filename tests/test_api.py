@@ -189,5 +189,5 @@ def test_validation_and_crosscheck_results_have_short_reprs():
     """print() of a result says what it found in a line, not every point of the hull outline or run."""
     val = twin.validate("blueboat")
     assert len(repr(val)) < 160 and "blueboat" in repr(val) and "flagged" in repr(val)
-    results = twin.crosscheck("yellowfish", duration_s=5.0, only=["nominal"])
+    results = twin.crosscheck("yellowfish", duration_s=5.0, only=["full"])
     assert results and all(len(repr(r)) < 100 and r.case in repr(r) for r in results)

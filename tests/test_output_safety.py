@@ -101,3 +101,48 @@ def test_a_coefficient_is_pinned_held_or_disputed_by_its_sigma_against_its_belie
     assert "the recordings add little" in est[1].note
     assert "pull it different ways" in est[2].note and "6.0 times what the belief alone leaves" in est[2].note
     assert "add little" not in est[2].note
+
+
+# -------------------------------------------------------------------------------- the Python API
+
+
+def test_the_api_refuses_bad_arguments_in_one_sentence(tmp_path):
+    """What a user types wrong in Python is a TwinError naming it, not a TypeError from deep inside."""
+    import twin
+
+    with pytest.raises(TwinError, match="expected a vessel .* got int"):
+        twin.simulate_run(5, duration_s=5)
+    for bad in (-1, 0, float("nan")):
+        with pytest.raises(TwinError, match="window_s must be a positive number of seconds"):
+            twin.diagnose_recordings(["unused.csv"], "blueboat", window_s=bad)
+    with pytest.raises(TwinError, match="identify: unknown option foo .*known: .*params"):
+        twin.identify(["unused.csv"], "blueboat", foo=1)
+    with pytest.raises(TwinError, match="judge: unknown option foo"):
+        twin.judge(["unused.csv"], "blueboat", ["current=0.15,90"], foo=1)
+    with pytest.raises(TwinError, match="unknown effect"):  # before the recordings are read
+        twin.judge(["unused.csv"], "blueboat", ["warp_drive=3"])
+    with pytest.raises(TwinError, match=r"only=\['heavy'\]: unknown crosscheck case .*damping"):
+        twin.crosscheck("yellowfish", duration_s=5, only=["heavy"])
+    path = twin.save_vessel("blueboat", tmp_path / "bb.json")  # a name, as every other function takes
+    assert twin.load_vessel(str(path)).name == "blueboat"
+
+
+def test_validation_and_identification_are_tables_too():
+    import twin
+
+    val = twin.validate("yellowfish")
+    table = val.table()
+    assert len(table) == len(val.quantities) and {"quantity", "unit", "rel_diff", "flag"} <= set(table[0])
+    assert val.to_dict()["quantities"][0]["quantity"] == val.quantities[0].name
+    assert "yellowfish" in str(table).splitlines()[0]
+
+
+def test_an_identified_twin_says_so_and_its_coefficients_are_a_table(tmp_path):
+    import twin
+
+    sim = twin.simulate_run("blueboat", scenario="random", duration_s=60, seed=3)
+    sim.write(tmp_path / "run.csv")
+    found = twin.identify([tmp_path / "run.csv"], "blueboat", params="thrust_gain", max_evaluations=1, window_s=5.0)
+    assert "identified (prior from blueboat.json)" in repr(found.vessel)
+    rows = found.table()
+    assert [r["coefficient"] for r in rows] == ["thrust_gain"] and rows[0]["prior"] == pytest.approx(1.605, abs=1e-3)

@@ -18,7 +18,9 @@ packages), so importing any part of the package never replaces a function.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+import inspect
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from .drive import InputSeries, inputs_mismatch
@@ -29,20 +31,56 @@ from .errors import TwinError
 from .run import Run
 from .simulation import Simulation, simulate, simulate_run
 from .verify.crosscheck import crosscheck as _crosscheck
-from .verify.validate import Validation, validate as _validate
-from .vessel import Vessel, load as load_vessel, save as save_vessel
+from .ident.identify import Identification as _Identification
+from .verify.validate import Validation as _Validation, validate as _validate
+from .vessel import Vessel, load as load_vessel, save as _save
 
-__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Simulation", "Evaluation", "Score", "Effect", "Parameter",
-           "Judgement", "Diagnosis", "Table", "TwinError", "load_vessel", "save_vessel", "simulate", "simulate_run",
+__all__ = ["Run", "Vessel", "InputSeries", "Validation", "Identification", "Simulation", "Evaluation", "Score", "Effect",
+           "Parameter", "Judgement", "Diagnosis", "Table", "TwinError", "load_vessel", "save_vessel", "simulate",
+           "simulate_run",
            "crosscheck", "effective_parameters", "compile_vessel", "validate", "read_recording",
            "prepare_recording", "calibrate", "identify", "evaluate", "diagnose_recordings", "judge"]
 
 
+def save_vessel(vessel: Vessel | str, path) -> Path:
+    """`--out` of `twin identify`: a vessel (a twin.Vessel, a shipped vessel's name or a vessel file)
+    written as a vessel file at `path` (JSON)."""
+    return _save(_vessel(vessel), path)
+
+
+def _known_options(function, options: dict, what: str) -> None:
+    """Refuse, in one sentence, an option `function` does not take (a typo would otherwise surface as
+    a TypeError from deep inside)."""
+    known = [n for n, p in inspect.signature(inspect.unwrap(function)).parameters.items()
+             if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise TwinError(f"{what}: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
+                        f"(known: {', '.join(known)})")
+
+
+class Validation(_Validation):
+    """`twin validate`: every quantity of one vessel and mass case side by side, each column a way of
+    obtaining it (`.quantities`, `.flagged()`, `table()`, `to_dict()`)."""
+
+    def table(self) -> Table:
+        """One row per quantity: its columns as obtained (analytic, the vessel file's table, the engine,
+        the mesh, an independent estimate), the largest relative difference from the reference, flag."""
+        rows = [{"quantity": q.name, "unit": q.unit, "analytic": q.analytic, "table": q.table, "engine": q.engine,
+                 "mesh": q.mesh, "independent": q.independent, "rel_diff": q.rel_diff, "flag": q.flag or ""}
+                for q in self.quantities]
+        return Table(rows, f"{self.vessel} ({self.case}): each quantity by every way of obtaining it")
+
+    def to_dict(self) -> dict:
+        return {"vessel": self.vessel, "case": self.case, "quantities": [dict(r) for r in self.table()]}
+
+
 def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
-    """`twin validate`: every quantity of one vessel and mass case side by side (`.quantities`, `.flagged()`)."""
-    if isinstance(vessel, str):
-        vessel = load_vessel(vessel)
-    return _validate(vessel if case is None else vessel.with_case(case))
+    """`twin validate`: every quantity of one vessel and mass case side by side (`.quantities`, `.flagged()`,
+    `table()`)."""
+    v = _vessel(vessel)
+    found = _validate(v if case is None else v.with_case(case))
+    return Validation(**{f.name: getattr(found, f.name) for f in fields(found)})
 
 
 def effective_parameters(vessel: Vessel | str) -> dict:
@@ -55,9 +93,18 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
                six_dof: bool = False) -> list:
     """`twin crosscheck`: the engine against the analytic 3-DOF model over a zig-zag, one Result per case
     (`.passed`, `.position_err_m`, `.heading_err_deg`; `to_dict()`)."""
+    from .verify.crosscheck import cases
+
     if not duration_s > 0:
         raise TwinError(f"duration_s must be positive, got {duration_s}")
-    return _crosscheck(_vessel(vessel), duration_s, only, six_dof=six_dof)
+    v = _vessel(vessel)
+    only = [only] if isinstance(only, str) else only
+    known = [c.name for c in cases(v)]
+    unknown = [n for n in only or () if n not in known]
+    if unknown:  # a case not run would read as passed
+        raise TwinError(f"only={unknown}: unknown crosscheck case (the force terms checked one by one: "
+                        f"{', '.join(known)})")
+    return _crosscheck(v, duration_s, only, six_dof=six_dof)
 
 
 def _vessel(vessel: Vessel | str) -> Vessel:
@@ -152,12 +199,26 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
     from .engine.sixdof import without_known_sea
     from .ident.identify import identify as run
 
+    _known_options(run, options, "identify")
     v = _in_sea(_vessel(vessel), sea)
     for name in ("params", "groups"):  # one name alone is a name, not its letters
         if isinstance(options.get(name), str):
             options[name] = (options[name],)
     result = run(_recordings(recordings, v), v, **options)
-    return replace(result, vessel=without_known_sea(result.vessel)) if sea is not None else result
+    result = replace(result, vessel=without_known_sea(result.vessel)) if sea is not None else result
+    return Identification(**{f.name: getattr(result, f.name) for f in fields(result)})
+
+
+class Identification(_Identification):
+    """`twin identify`: the twin it writes (`.vessel`), the fit, the choices and what they were judged
+    by, each log's calibration (`table()`: each coefficient, its prior and what was identified)."""
+
+    def table(self) -> Table:
+        """One row per coefficient of the fit: unit, prior, identified, its 1-σ, and how the recordings
+        moved it (the note `twin identify` prints)."""
+        rows = [{"coefficient": e.name, "unit": e.unit, "prior": e.prior, "identified": e.value, "sigma": e.sigma,
+                 "note": e.note} for e in (self.fit.estimates if self.fit else [])]
+        return Table(rows, f"{self.vessel.name}: the coefficients identified")
 
 
 class Table(list):
@@ -290,7 +351,9 @@ class Evaluation:
         return Table(rows, f"{self.vessel}: how the twin predicts the recordings (MAE in m/s, r in °/s){applied}")
 
     def to_dict(self) -> dict:
-        return {"vessel": self.vessel, "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
+        # the metrics as fit.evaluate gives them, in SI (r's MAE in rad/s, where table() shows °/s)
+        return {"vessel": self.vessel, "units": {"u": "m/s", "v": "m/s", "r": "rad/s"},
+                "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre": self.by_manoeuvre,
                 "by_state": [asdict(b) for b in self.by_state]}
 
@@ -474,6 +537,8 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     from .diagnose.doctor import WINDOW_S, diagnose as run
     from .engine.sixdof import without_known_sea
 
+    if window_s is not None and not (isinstance(window_s, (int, float)) and math.isfinite(window_s) and window_s > 0):
+        raise TwinError(f"window_s must be a positive number of seconds, got {window_s}")
     v = _in_sea(_vessel(vessel), sea)
     library = None if effects is None else ([effects] if isinstance(effects, str) else list(effects))
     found = run(_recordings(recordings, v), v, window_s=WINDOW_S if window_s is None else window_s, log=log,
@@ -492,10 +557,15 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     uses: a Judgement (`earns_its_place`, `z`, `held_out_gain`, ...; `str()` says it in a sentence)."""
     from .diagnose.doctor import given_evidence, given_text
     from .diagnose.search import Z_MIN
+    from .effects import parse_effect
 
     effects = [effects] if isinstance(effects, str) else list(effects)
     if not effects:
         raise TwinError("no effects given: give one or more effect texts (e.g. 'current=0.1,90'; `twin effects` lists them)")
+    _known_options(given_evidence, options, "judge")
+    for text in effects:  # an unknown effect is told before the recordings are read
+        if isinstance(text, str):
+            parse_effect(text)
     v = _vessel(vessel)
     e = given_evidence(_recordings(recordings, v), v, effects, **options)
     verdict = ("earns its place" if e.earns_its_place() else "contradicted" if e.z <= -Z_MIN

@@ -162,8 +162,11 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     `sea` (a physics.waves.Sea, or its text 'HS,TP,DIR[,SPREAD]' / 'regular,H,T,DIR', drawn with
     `seed`) runs the 6-DOF hull in waves, `six_dof` the 6-DOF hull in calm water; `start_speed_m_s`
     the surge at t = 0 (default: at rest, or a ship's scenario's steady approach)."""
-    if isinstance(vessel, str):
-        vessel = load_vessel(vessel)
+    if isinstance(vessel, (str, Path)):
+        vessel = load_vessel(str(vessel))
+    if not isinstance(vessel, Vessel):
+        raise TwinError(f"expected a vessel (a twin.Vessel, a shipped vessel's name or a vessel file), "
+                        f"got {type(vessel).__name__}")
     _check_run(duration_s, sample_dt_s)
     current, wind, seed = _flow(current, "current"), _flow(wind, "wind"), _seed(seed)
     env = vessel.environment

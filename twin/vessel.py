@@ -69,6 +69,8 @@ class Vessel:
 
     def __repr__(self) -> str:
         where = f" from {self.path.name}" if self.path else ""
+        if "identification" in self.sources:  # a fit's twin, not the file its prior came from
+            where = " identified" + (f" (prior from {self.path.name})" if self.path else "")
         return f"Vessel({self.name}{where}, case {self.case}, MJCF {self.mjcf.name})"
 
     def with_case(self, case: str) -> "Vessel":

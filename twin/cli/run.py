@@ -219,7 +219,8 @@ def params(
     as_json: bool = typer.Option(False, "--json", help="print JSON instead of text (a flag: `> FILE` keeps it)"),
     first_principles: bool = typer.Option(False, "--first-principles",
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
-                                               "each with its method"),
+                                               "each with its method (a vessel file with a design block: of the "
+                                               "shipped ones, blueboat)"),
 ):
     """Print the effective 3-DOF parameters of a vessel."""
     from ..engine.parameters import effective_parameters

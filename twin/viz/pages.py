@@ -89,11 +89,12 @@ def staged(raw_path: Path, stage: str, stage_dir: Path, cases: list[str], summar
 
 
 def write_index(folder: Path | str = "docs/results") -> Path:
-    """The folder's index.md: every page in it (but the index) by its title, in name order, so a page a
-    study script writes is listed without an edit here."""
+    """The folder's index.md: every page in it (but the index) by its title, in name order (a numbered
+    set's ordinal by its number: the fifteenth after the fourteenth), so a page a study script writes is
+    listed without an edit here."""
     folder = Path(folder)
     rows = []
-    for page in sorted(folder.glob("*.md")):
+    for page in sorted(folder.glob("*.md"), key=_by_ordinal):
         if page.name == "index.md":
             continue
         title = next((line[2:].strip() for line in page.read_text().splitlines() if line.startswith("# ")), page.stem)
@@ -103,6 +104,17 @@ def write_index(folder: Path | str = "docs/results") -> Path:
     index = folder / "index.md"
     write_text_atomic(index, text)
     return index
+
+
+_ORDINALS = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth",
+             "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth", "sixteenth", "seventeenth", "eighteenth",
+             "nineteenth", "twentieth")
+
+
+def _by_ordinal(page: Path) -> tuple:
+    """A page's sort key: its name, an ordinal word in it (concealed_effects_fourteenth) as its number."""
+    words = page.stem.split("_")
+    return tuple((0, f"{_ORDINALS.index(w) + 1:03d}") if w in _ORDINALS else (0, w) for w in words)
 
 
 def _cell(value, digits: int) -> str:
