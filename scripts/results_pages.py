@@ -289,9 +289,13 @@ def page(name: str) -> ResultPage:
     scores = score_table(raw)
     if scores and name != "diagnosis_proof":
         tables.append(scores)
+    figures = _figures(raw)
     if not tables:
         tables = record_tables(raw)
-    figures = _figures(raw)
+        # the study's own numbers beside its records (a benchmark's largest log and its time)
+        top = [(k, v) for k, v in figures if "." not in k]
+        if tables and top:
+            tables.insert(0, ResultTable("Figures", ["figure", "value"], [[k, v] for k, v in top]))
     if figures and not tables:
         tables.append(ResultTable("Figures", ["figure", "value"], [[k, v] for k, v in figures[:60]]))
     targets = raw.get("targets") if isinstance(raw, dict) else None
@@ -302,7 +306,16 @@ def page(name: str) -> ResultPage:
         figures_of = (prov["date"], prov["commit"])  # figures of a run made before they were moved here
     else:
         figures_of = _last_change(path)
-    return ResultPage(name, title, f"{ran}; python scripts/results_pages.py {name}", data, summary, tables, raw_file=f"data/{name}.json", figures_of=figures_of)
+    return ResultPage(name, title, f"{ran}; python scripts/results_pages.py {name}", data, summary, tables,
+                      raw_file=f"data/{name}.json", figures_of=figures_of, images=images_of(name))
+
+
+def images_of(name: str) -> list[str]:
+    """The figures beside the pages that belong to study `name`: its own name, or its name and a
+    suffix (dp_heading45.png); a validation page's are its vessel and case's (yellowfish_nominal_topview.png)."""
+    stems = (name, name.removeprefix("validation_")) if name.startswith("validation_") else (name,)
+    return sorted(p.name for p in RESULTS.glob("*.png")
+                  if any(p.stem == s or p.stem.startswith(s + "_") for s in stems))
 
 
 def main() -> None:

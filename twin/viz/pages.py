@@ -46,6 +46,7 @@ class ResultPage:
     raw: dict = field(default_factory=dict)
     raw_file: str | None = None  # the raw figures already lie in this file (relative to the page): not rewritten
     figures_of: tuple[str, str] | None = None  # (date, commit) of the run the raw figures come from, if not this one
+    images: list[str] = field(default_factory=list)  # figure files beside the page, shown after the tables
 
     def markdown(self, date: str, commit: str) -> str:
         raw = self.raw_file or f"data/{self.name}.json"
@@ -56,6 +57,8 @@ class ResultPage:
                  f"**Data.** {self.data}", "", self.summary, ""]
         for table in self.tables:
             parts += [table.markdown(), ""]
+        for image in self.images:
+            parts += [f"![{Path(image).stem.replace('_', ' ')}]({image})", ""]
         parts += [f"- {n}" for n in self.notes]
         return "\n".join(parts).rstrip() + "\n"
 
