@@ -132,12 +132,13 @@ def _cell(value, digits: int) -> str:
 
 def checkout_commit(where: Path | str | None = None) -> str:
     """The short commit of the checkout at `where` (the working directory by default), with `+` when
-    its tree has uncommitted changes, or 'unknown'."""
+    its code has uncommitted changes (the docs aside: a study writing its pages one after another
+    does not change what wrote them), or 'unknown'."""
     try:
         sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                              check=True, timeout=10, cwd=where).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, timeout=10, cwd=where).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)docs"],
+                               capture_output=True, text=True, timeout=10, cwd=where).stdout.strip()
         return sha + ("+" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
