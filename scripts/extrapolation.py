@@ -237,7 +237,8 @@ def page(parts: list[dict], reach: dict | None = None) -> ResultPage:
                 "turns, a lower propeller speed, another family of manoeuvres, or another day), judged on the runs that go "
                 "further: R² of free runs from measured states, pooled over the judged runs, each log's compass "
                 "calibration from its own kinematics. The untuned prior is judged the same way.",
-        tables=[ResultTable("Free-run R² on the judged runs", ["split", "wind", "twin", "R² u", "R² v", "R² r", "met"],
+        tables=[ResultTable("Free-run R² on the judged runs (10-s free runs for the BlueBoat, 30-s for the Esso Osaka)",
+                            ["split", "wind", "twin", "R² u", "R² v", "R² r", "met"],
                             rows),
                 ResultTable("Judged samples beyond the span of u, v, r the fit saw (identified twin): their share, "
                             "their part of 1 − R², and their own R²",

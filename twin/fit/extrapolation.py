@@ -172,7 +172,7 @@ def by_input_level(preps: list[Prepared], max_fitted: float) -> Split:
         raise TwinError(f"no split at input level {max_fitted:g}: every run is on one side (peaks "
                         f"{min(peak.values()):g} to {max(peak.values()):g})")
     unit = "rps" if preps[0].input_kind == "propeller_rudder" else "µs from neutral"
-    return Split(f"input ≤ {max_fitted:g}", f"runs whose inputs never exceed {max_fitted:g} {unit} fitted, the runs "
+    return Split(f"input ≤ {max_fitted:g} {unit.split()[0]}", f"runs whose inputs never exceed {max_fitted:g} {unit} fitted, the runs "
                  "beyond judged", fitted, judged)
 
 
