@@ -146,3 +146,16 @@ def test_an_identified_twin_says_so_and_its_coefficients_are_a_table(tmp_path):
     assert "identified (prior from blueboat.json)" in repr(found.vessel)
     rows = found.table()
     assert [r["coefficient"] for r in rows] == ["thrust_gain"] and rows[0]["prior"] == pytest.approx(1.605, abs=1e-3)
+
+
+def test_a_coefficient_started_away_from_its_prior_shows_the_prior_and_says_where_it_started():
+    """The shipped BlueBoat has no thrust lag: the fit starts its log-normal lag at 0.1 s, and the
+    table's prior column shows the vessel's 0, not the start."""
+    import twin
+
+    v = twin.load_vessel("blueboat")
+    assert v.thrusters.lag_s == 0.0
+    est = simfit._started([simfit.Estimate("lag_s", "s", 0.1, 0.05, 0.003, True, "pinned by the recordings")], v,
+                          simfit.map_start(v, ["lag_s"]))
+    assert est[0].prior == 0.0 and est[0].value == 0.05
+    assert est[0].note.startswith("the prior's 0 s started at 0.1 (a log-normal belief needs a magnitude); pinned")

@@ -224,6 +224,22 @@ def map_start(prior: Vessel, names) -> Vessel:
     return prior
 
 
+def _started(estimates: list[Estimate], given: Vessel, start: Vessel) -> list[Estimate]:
+    """The estimates with the vessel's own prior value where the fit started elsewhere (map_start: a
+    lag of 0 s started at 0.1 s), and the note saying so: a prior column showing the start would read
+    as the vessel's."""
+    moved = {"lag_s": (given.thrusters.lag_s, start.thrusters.lag_s),
+             "supply_exponent": (given.thrusters.supply_exponent, start.thrusters.supply_exponent)}
+    out = []
+    for e in estimates:
+        own, began = moved.get(e.name, (None, None))
+        if own is not None and own != began:
+            e = replace(e, prior=own, note=f"the prior's {own:g} {e.unit} started at {began:g} (a log-normal belief "
+                                           f"needs a magnitude); {e.note}")
+        out.append(e)
+    return out
+
+
 def coordinates(prior: Vessel, names) -> list[Coordinate]:
     """The coordinates of a maximum a posteriori fit of `names`: log-magnitude where the belief
     is log-normal and the prior value non-zero, the value itself otherwise (a zero prior has no
@@ -252,6 +268,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
         windows = make_windows(preps, window_s, stride_s, min_length_s=min(window_s, 3.0))
     if not windows:
         raise TwinError(f"no segment of {min(window_s, 3.0):g} s or more to fit on")
+    given = prior
     prior = map_start(prior, names)
     coords = coordinates(prior, names)
     obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
@@ -287,7 +304,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
             break
         free = still
     evaluations = obj.evaluations
-    estimates = _map_estimates(obj, coords, x, cov, free)
+    estimates = _started(_map_estimates(obj, coords, x, cov, free), given, prior)
     data_r = r[: obj.n_data]
     result = FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
                      time.time() - started, sol.message,
