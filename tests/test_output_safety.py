@@ -159,3 +159,26 @@ def test_a_coefficient_started_away_from_its_prior_shows_the_prior_and_says_wher
                           simfit.map_start(v, ["lag_s"]))
     assert est[0].prior == 0.0 and est[0].value == 0.05
     assert est[0].note.startswith("the prior's 0 s started at 0.1 (a log-normal belief needs a magnitude); pinned")
+
+
+def test_a_log_whose_rows_repeat_the_fix_says_so_and_a_twin_run_does_not(tmp_path):
+    """A converted log holds 5-Hz fixes on a 10-Hz grid: `twin info` says half its rows (30 of 59 steps) repeat the
+    previous fix; a receiver's own rows (noise on every fix) and a twin run's exact track at rest are
+    not said to."""
+    from twin.formats import read_recording
+
+    n = 60
+    t = np.arange(n) * 0.1
+    held_lat = 59.0 + np.repeat(np.arange(n // 2), 2) * 1e-6  # a new fix every other row
+    path = tmp_path / "held.csv"
+    path.write_text("t,lat,lon,heading_deg\n" + "".join(f"{t[k]:.1f},{held_lat[k]:.8f},10,0\n" for k in range(n)))
+    assert "GNSS: 51% of the rows repeat the previous fix (a slower receiver held on the rows)" in \
+        read_recording(path).notes
+    rng = np.random.default_rng(0)
+    fresh = tmp_path / "fresh.csv"
+    lat = 59.0 + rng.normal(0, 1e-7, n)
+    fresh.write_text("t,lat,lon,heading_deg\n" + "".join(f"{t[k]:.1f},{lat[k]:.9f},10,0\n" for k in range(n)))
+    assert not any("repeat the previous fix" in x for x in read_recording(fresh).notes)
+    still = tmp_path / "still.csv"  # a twin run at rest: x, y exact and constant
+    still.write_text("t,x,y,psi\n" + "".join(f"{t[k]:.1f},0,0,0\n" for k in range(n)))
+    assert not any("repeat the previous fix" in x for x in read_recording(still).notes)

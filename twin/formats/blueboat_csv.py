@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..recording import Recording, clean_stream
-from .csv import csv_pwm, neutral
+from .csv import csv_pwm, held_fix_note, neutral
 
 COLUMNS = {"original_timestamp", "lat", "lon", "yaw", "thr_left", "thr_right"}
 NEUTRAL_US = 1500.0 + 11.0  # the recordings' neutral, about 1511 µs
@@ -40,10 +40,9 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
     csv_pwm(rec, t, c["thr_right"], c["thr_left"], neutral_us, {"left": False, "right": True}, channels)
     rec.notes.append("thrusters: port = column thr_right, starboard = column thr_left mirrored (the dataset's "
                      "labels are swapped, which every run's turning shows)")
-    g = rec.gnss
-    if len(g) > 1:  # rows at 10 Hz from a slower receiver repeat the fix: say how many
-        same = np.mean((np.diff(g["lat_deg"]) == 0) & (np.diff(g["lon_deg"]) == 0))
-        rec.notes.append(f"GNSS: {100 * same:.0f}% of the rows repeat the previous fix")
+    held = held_fix_note(rec.gnss)  # rows at 10 Hz from a slower receiver repeat the fix: say how many
+    if held:
+        rec.notes.append(held)
     rec.notes.append("the file's own surge/sway/yaw_rate estimates are not read")
     return rec
 

@@ -42,7 +42,7 @@ import numpy as np
 from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..geodesy import ned_from_geodetic
-from ..recording import Recording, clean_stream, with_common_origin
+from ..recording import Recording, Stream, clean_stream, with_common_origin
 
 CSV_NEUTRAL_US = 1500.0
 
@@ -119,6 +119,20 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str,
                           ("csv: infinite cells, read as missing", infinite)]
 
 
+HELD_SHARE = 0.10  # a receiver's fixes differ by its noise even at rest: this many exact repeats are held ones
+
+
+def held_fix_note(gnss: Stream) -> str:
+    """A note when many rows repeat the previous fix exactly (a slower receiver's fixes held on a
+    faster grid, as `twin convert` writes them), else ""."""
+    names = [n for n in ("lat_deg", "lon_deg", "north_m", "east_m") if n in gnss.columns]
+    if len(gnss) < 3 or not names:
+        return ""
+    same = float(np.mean(np.all([np.diff(np.asarray(gnss[n], float)) == 0 for n in names], axis=0)))
+    return f"GNSS: {100 * same:.0f}% of the rows repeat the previous fix (a slower receiver held on the rows)" \
+        if same >= HELD_SHARE else ""
+
+
 def _float(s: str) -> float:
     try:
         return float(s)
@@ -148,6 +162,10 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.notes.append("no GNSS: no lat/lon, north/east or x/y columns")
     if gnss is not None:
         rec.gnss = stream("gnss", t, gnss, rec.dropped)
+        if rec.meta.get("positions") != "body origin":  # a receiver's, not a twin run's exact track
+            held = held_fix_note(rec.gnss)
+            if held:
+                rec.notes.append(held)
     psi = np.radians(c["heading_deg"]) if "heading_deg" in c else c.get("psi")
     if psi is not None:
         rec.heading = stream("heading", t, {"psi_rad": psi}, rec.dropped)
