@@ -364,11 +364,15 @@ def test_a_share_beyond_the_whole_excess_over_the_noise_is_not_printed_as_a_perc
     """A candidate that removes more than the misfit above the noise (the noise estimate is high) is
     said so in words, never as e.g. 16883373999 %; a share within it stays a percentage."""
     from twin.diagnose.report import excess_share
+    from twin.diagnose.search import excess_shown
 
     assert excess_share(0.079) == "8 % of the held-out misfit above the noise"
-    assert excess_share(1.0) == "100 % of the held-out misfit above the noise"
+    assert excess_share(0.995) == "100 % of the held-out misfit above the noise"
     big = excess_share(1.7e8)
-    assert "%" not in big and big.startswith("more than all of the held-out misfit above the noise")
+    assert "%" not in big and big.startswith("all of the held-out misfit above the noise (or more")
+    # a JSON file's share stops at ±1, and the report read back from it says the same words
+    assert excess_shown(2.48e7) == 1.0 and excess_shown(-3e6) == -1.0 and excess_shown(0.12345) == 0.1235
+    assert excess_share(excess_shown(1.7e8)) == big
 
 
 def test_a_residual_that_follows_no_signal_is_not_blamed_on_the_form_alone():

@@ -27,6 +27,7 @@ from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import compile_vessel
 from .engine.parameters import effective_parameters as _effective_parameters
 from .diagnose.doctor import Diagnosis as _Found
+from .diagnose.search import excess_shown
 from .errors import TwinError
 from .run import Run
 from .simulation import Simulation, simulate, simulate_run
@@ -445,7 +446,7 @@ class Judgement:
 
     def to_dict(self) -> dict:
         return {"effects": list(self.effects), "verdict": self.verdict, "z": round(self.z, 2),
-                "held_out_gain": round(self.held_out_gain, 4), "excess_gain": round(self.excess_gain, 4),
+                "held_out_gain": round(self.held_out_gain, 4), "excess_gain": excess_shown(self.excess_gain),
                 "blocks_for": self.blocks_for, "blocks_against": self.blocks_against, "affected": self.affected,
                 "at_edge": list(self.at_edge), "sentence": self.sentence}
 

@@ -52,7 +52,7 @@ from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
 from .report import FOLLOWS_R, excess_share
-from .search import BLOCK_WINDOWS, Z_MIN, Search
+from .search import BLOCK_WINDOWS, Z_MIN, Search, excess_shown
 
 WINDOW_S = 10.0
 # the effects a recording's measured wind, given as a known input, takes the place of (their constant
@@ -334,7 +334,8 @@ def given_text(effects, e) -> str:
                 "names its log by file name)")
     blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
     share = (f"removes {excess_share(e.rel_excess)}" if e.rel_excess >= 0
-             else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise")
+             else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise" if e.rel_excess >= -1
+             else "adds more than all of the held-out misfit above the noise to it")
     # said as what the effect does to the misfit: lowers (a gain) or raises it, each velocity alike
     def moved(rel: float) -> str:
         return f"{'lowers' if rel >= 0 else 'raises'} it {100 * abs(rel):.1f} %"
@@ -547,7 +548,7 @@ def _effects(kept, search: Search) -> list[dict]:
                     "fitted": values, "fitted_sigma": {p.name: search.sigma_values.get(n) for p, n in
                                                        zip(cand.params, names)},
                     "improvement": {d: round(v, 4) for d, v in e.dof_rel.items()},
-                    "held_out_gain": round(e.rel, 4), "excess_gain": round(e.rel_excess, 4), "z": round(e.z, 2),
+                    "held_out_gain": round(e.rel, 4), "excess_gain": excess_shown(e.rel_excess), "z": round(e.z, 2),
                     "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals)})
     return out
 

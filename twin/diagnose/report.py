@@ -28,8 +28,8 @@ def excess_share(share: float) -> str:
     """A candidate's share of the held-out misfit above the noise, as the report says it. Beyond 100 %
     the candidate fits the held-out blocks closer than the noise estimated for the recording allows:
     that estimate is high there (or the twin was already within it), and a percentage would mislead."""
-    if share > 1.0:
-        return "more than all of the held-out misfit above the noise (the recording's noise estimate is high)"
+    if share >= 1.0:  # a JSON file's shares stop at 1 (search.excess_shown)
+        return "all of the held-out misfit above the noise (or more: the recording's noise estimate is high)"
     return f"{100 * share:.0f} % of the held-out misfit above the noise"
 
 

@@ -127,6 +127,13 @@ class Fitted:
     fixed: tuple[str, ...] = ()  # a separable candidate's quantities left at the base's value (_pinned_only)
 
 
+def excess_shown(share: float) -> float:
+    """A share of the held-out misfit above the noise as a report or a JSON file gives it: within ±1.
+    Past 1 the twin fitted the held-out blocks closer than the noise estimated for the recording, and
+    the ratio to that small excess (10⁷ on a noise-free simulation) says nothing more than "all"."""
+    return round(max(-1.0, min(1.0, share)), 4)
+
+
 @dataclass
 class Evidence:
     """A change of the twin judged on every fold's held-out blocks: z of the blocks' votes, the
@@ -148,7 +155,7 @@ class Evidence:
         return self.z >= Z_MIN and self.rel_excess >= REL_EXCESS and not self.at_edge
 
     def to_dict(self) -> dict:
-        return {"z": round(self.z, 2), "held_out_gain": round(self.rel, 4), "excess_gain": round(self.rel_excess, 4),
+        return {"z": round(self.z, 2), "held_out_gain": round(self.rel, 4), "excess_gain": excess_shown(self.rel_excess),
                 "dof_gain": {k: round(v, 4) for k, v in self.dof_rel.items()}, "blocks_for": self.blocks_for,
                 "blocks_against": self.blocks_against, "affected_windows": self.affected,
                 "fold_values": self.fold_values, **({"at_edge": self.at_edge} if self.at_edge else {})}
