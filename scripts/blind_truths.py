@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|third] [--work DIR] [--only CASE,...] [--page-only]
+    python scripts/blind_truths.py [--set first|second|third] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -496,6 +496,40 @@ def diagnose_cli(log_csv: Path, out_json: Path) -> tuple[dict | None, float, lis
     return json.loads(out_json.read_text()), seconds, argv
 
 
+def truth_text(name: str, values: dict) -> str:
+    """The truth in `twin effects` syntax (NAME=v1,v2 in the effect's own order)."""
+    return f"{name}=" + ",".join(f"{v:.4g}" for v in values.values())
+
+
+def given_cli(log_csv: Path, text: str, out_json: Path) -> dict | None:
+    """`twin diagnose LOG.csv --vessel yellowfish --given TEXT --json OUT.json`: the truth at its own values,
+    nothing fitted, judged by the diagnosis's rule on the diagnosis's blocks (its JSON, or None)."""
+    argv = [twin_command(), "diagnose", str(log_csv), "--vessel", VESSEL, "--given", text, "--json", str(out_json)]
+    done = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT)
+    out_json.with_suffix(".console.txt").write_text(f"$ {' '.join(argv[1:])}\n# exit {done.returncode}\n"
+                                                    f"{done.stdout}\n# stderr\n{done.stderr}")
+    if done.returncode != 0 or not out_json.is_file():
+        return None
+    return json.loads(out_json.read_text())
+
+
+def judge_truth(case: Case, hull: Hull, row: dict, work: Path, commit: str) -> dict:
+    """The row with its truth judged as given (row["given"]); the log written again from its seed when
+    --work no longer holds it (the simulator is deterministic)."""
+    if row["truth"] is None:
+        return row
+    log_csv = work / f"{case.name}.csv"
+    if not log_csv.is_file():
+        write_csv(simulate(case, hull), log_csv)
+    text = truth_text(row["truth"], row["truth_values"])
+    got = given_cli(log_csv, text, work / f"{case.name}.given.json")
+    given = {"effect": text, "commit": commit, "failed": got is None}
+    if got is not None:
+        given.update({k: got[k] for k in ("earns_its_place", "z", "held_out_gain", "excess_gain", "blocks_for",
+                                          "blocks_against", "affected_windows")})
+    return {**row, "given": given}
+
+
 def steady_speeds(run: dict[str, np.ndarray], hull: Hull) -> list[dict]:
     """The simulator against the hand balance: on each survey leg's last 10 s at a steady throttle, the
     mean surge speed and the speed at which 2·T(mean PWM) = −Xu·u − X|u|u·u²."""
@@ -549,7 +583,12 @@ def run_case(case: Case, hull: Hull, work: Path) -> dict:
 def summary_of(rows: list[dict]) -> dict:
     effects = [r for r in rows if r["truth"] is not None]
     nulls = [r for r in rows if r["truth"] is None]
-    return {"effects": len(effects), "named": sum(r["hit"] for r in effects), "exact": sum(r["exact"] for r in effects),
+    judged = [r for r in effects if "given" in r and not r["given"]["failed"]]
+    provable = [r for r in judged if r["given"]["earns_its_place"]]
+    given = {"given_judged": len(judged), "given_provable": len(provable),
+             "exact_where_provable": sum(r["exact"] for r in provable),
+             "exact_where_not_provable": sum(r["exact"] for r in judged if r not in provable)} if judged else {}
+    return {**given, "effects": len(effects), "named": sum(r["hit"] for r in effects), "exact": sum(r["exact"] for r in effects),
             "false_discoveries": sum(len(r["others"]) for r in effects) + sum(len(r["named"]) for r in nulls),
             "nulls": len(nulls), "nulls_clean": sum(r["exact"] for r in nulls),
             "failed": sum(r["failed"] for r in rows), "seconds": round(sum(r["seconds"] for r in rows), 1)}
@@ -585,21 +624,39 @@ def case_text(case: Case) -> str:
     raise ValueError(case.kind)
 
 
+def given_cell(row: dict) -> str:
+    """Whether the recording can prove the truth as given: the diagnosis's verdict, z and blocks."""
+    g = row.get("given")
+    if g is None:
+        return "-"
+    if g["failed"]:
+        return "judgement failed"
+    verdict = "provable" if g["earns_its_place"] else "not provable"
+    return f"{verdict} (z {g['z']:.2f}, blocks {g['blocks_for']} for / {g['blocks_against']} against)"
+
+
 def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first") -> Path:
     s = summary_of(rows)
     line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false discoveries; "
             f"nulls clean {s['nulls_clean']} of {s['nulls']}"
             + (f"; {s['failed']} diagnoses failed" if s["failed"] else "")
             + f" (diagnoses {s['seconds']:.0f} s in all).")
+    if s.get("given_judged"):
+        commits = sorted({r["given"]["commit"] for r in rows if "given" in r})
+        line += (f" The truth itself, given at its own values in the library's terms and judged by the diagnosis's "
+                 f"rule on the same blocks (commit {', '.join(commits)}): the recording can prove it on "
+                 f"{s['given_provable']} of {s['given_judged']}; of those the diagnosis named {s['exact_where_provable']} "
+                 f"exactly, of the others {s['exact_where_not_provable']}.")
     by_name = {c.name: c for c in SETS[proof_set]}
     cases = ResultTable("Each truth and what the diagnosis named",
                         ["case", "seed", "concealed", "truth (library's terms)", "named (values)", "exact", "else named",
-                         "s"],
+                         "truth as given", "s"],
                         [[r["case"], r["seed"], case_text(by_name[r["case"]]), "nothing" if r["truth"] is None else
                           f"{r['truth']} ({_values_text(r['truth_values'])})",
                           "diagnosis failed" if r["failed"] else
                           "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
-                          "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]] for r in rows])
+                          "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", given_cell(r), r["seconds"]]
+                         for r in rows])
     logs = ResultTable("The recordings",
                        ["case", "rows", "GNSS fixes", "top surge speed m/s", "top yaw rate °/s", "compass calibration"],
                        [[r["case"], r["log"]["rows"], r["log"]["fixes"], r["log"]["u_max_m_s"], r["log"]["r_max_deg_s"],
@@ -613,10 +670,11 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
                                    for x in null["steady"]], digits=4))
     seeds = [c.seed for c in SETS[proof_set]]
     page = ResultPage(
-        "blind_truths" if proof_set == "first" else f"blind_truths_{proof_set}",
+        page_name(proof_set),
         "Effect truths of forms the library lacks, from a simulator of the study's own, diagnosed by the CLI"
         + ("" if proof_set == "first" else f" (proof set: {proof_set})"),
-        "python scripts/blind_truths.py" + ("" if proof_set == "first" else f" --set {proof_set}"),
+        "python scripts/blind_truths.py" + ("" if proof_set == "first" else f" --set {proof_set}")
+        + (", then the same with --truth-given" if s.get("given_judged") else ""),
         f"Ten recordings of 10 minutes (seeds {min(seeds)}-{max(seeds)}) written by scripts/blind_truths.py's own three-degree-of-freedom "
         "simulator (RK4 at 0.02 s) from the shipped Yellowfish's numbers: a survey mission (legs at 1650, 1750 and "
         "1850 µs held by a heading controller on the PWM difference, 90° turns and a short cross leg at each end, "
@@ -657,9 +715,18 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
          "In the library's terms wind or wind_shape with speed_m_s the mean speed and dir_deg the direction it "
          "blows from.",
          "Named: every entry of the CLI's JSON `effects` (kinematic findings among them). False discoveries: every "
-         "name but the truth's on an effect case, and every name on a null."],
+         "name but the truth's on an effect case, and every name on a null.",
+         "Truth as given: `twin diagnose LOG.csv --vessel yellowfish --given TRUTH` (TRUTH the library's terms of "
+         "the truth column), nothing fitted, judged by the rule the diagnosis names an effect by (z ≥ 3 of the "
+         "held-out blocks' votes and 5 % of the held-out misfit above the noise): whether the recording can prove "
+         "the truth in the library's form at all. A miss where it cannot is the data's or the form's; a fitted "
+         "form may still do better than the given one."],
         {"commit": commit, "summary": s, "rows": rows, "cases": [asdict(c) for c in SETS[proof_set]]})
     return page.write(out)
+
+
+def page_name(proof_set: str) -> str:
+    return "blind_truths" if proof_set == "first" else f"blind_truths_{proof_set}"
 
 
 def main() -> int:
@@ -670,11 +737,26 @@ def main() -> int:
     ap.add_argument("--only", default="", help="these cases only (comma separated); the page is not rewritten")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the rows in --work")
+    ap.add_argument("--truth-given", action="store_true",
+                    help="judge each case's truth as given (twin diagnose --given) beside the diagnosis already run "
+                         "(rows from --work, else from the page's raw figures), and rewrite the page")
     args = ap.parse_args()
     cases = SETS[args.set]
     args.work = args.work or Path("/tmp/blind_truths" + ("" if args.set == "first" else f"_{args.set}"))
     args.work.mkdir(parents=True, exist_ok=True)
-    if not args.page_only:
+    if args.truth_given:
+        hull, commit = hull_of(vessel_mod.load(VESSEL)), checkout_commit(ROOT)
+        published = args.out / "data" / f"{page_name(args.set)}.json"
+        kept = {r["case"]: r for r in json.loads(published.read_text())["rows"]} if published.is_file() else {}
+        for case in cases:
+            path = args.work / f"{case.name}.row.json"
+            row = json.loads(path.read_text()) if path.is_file() else kept[case.name]
+            row = judge_truth(case, hull, row, args.work, commit)
+            path.write_text(json.dumps(row, indent=1))
+            print(f"{case.name}: truth as given {given_cell(row)}", flush=True)
+        if not (args.work / "commit.txt").is_file() and published.is_file():
+            (args.work / "commit.txt").write_text(json.loads(published.read_text())["commit"])
+    elif not args.page_only:
         hull = hull_of(vessel_mod.load(VESSEL))
         only = {x for x in args.only.split(",") if x}
         for case in cases:
