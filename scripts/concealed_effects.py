@@ -65,7 +65,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
-from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.doctor import diagnose, given_evidence  # noqa: E402
 from twin.diagnose.report import MIN_UNANIMOUS_BLOCKS as MIN_BLOCKS  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
@@ -546,6 +546,35 @@ def run_case(case: Case, twins: dict, wind_measured: bool = False) -> dict:
             "notes": list(d.notes), "seconds": round(seconds, 1), "blocks": d.windows.get("blocks")}
 
 
+def judge_truth(case: Case, twins: dict, wind_measured: bool, commit: str) -> dict | None:
+    """The case's truth at its own values, nothing fitted, judged by the diagnosis's rule on the blocks a
+    diagnosis of the concealed logs judges on (doctor.given_evidence, `twin diagnose --given`): whether the
+    logs can prove it through this twin at all. None for a null."""
+    recs = recordings_of(case)
+    twin = twins[case.vessel]
+    known = "measured" if case.vessel == "esso" and wind_measured else None
+    if case.vessel == "esso" and known is None:
+        twin = apply_effects(twin, [("wind_per_log", {log_name(r.source): mean_wind(r) for r in recs})])
+    truth_name, truth = truth_of(case, twin, recs)
+    if truth_name is None:
+        return None
+    text = f"{truth_name}=" + ",".join(f"{v:.4g}" for v in truth.values())
+    e = given_evidence([conceal(r, case) for r in recs], twin, [text], known_wind=known)
+    return {"effect": text, "commit": commit, "earns_its_place": bool(e.earns_its_place()), "z": round(e.z, 2),
+            "blocks_for": e.blocks_for, "blocks_against": e.blocks_against, "affected_windows": e.affected,
+            "held_out_gain": round(e.rel, 4)}
+
+
+def given_cell(given: dict | None) -> str:
+    """Whether the logs can prove the truth as given: the verdict, z and blocks ("-" not judged)."""
+    if given is None:
+        return "-"
+    if given["affected_windows"] == 0:
+        return "changes no window"
+    verdict = "provable" if given["earns_its_place"] else "not provable"
+    return f"{verdict} (z {given['z']:.2f}, blocks {given['blocks_for']} for / {given['blocks_against']} against)"
+
+
 # ---------------------------------------------------------------- the page
 
 def limited_by(row: dict) -> str:
@@ -653,8 +682,9 @@ def boat_drift(work: Path) -> list[dict]:
 
 
 def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: str = "first",
-               timing: list[dict] | None = None, drift: list[dict] | None = None) -> Path:
+               timing: list[dict] | None = None, drift: list[dict] | None = None, given: dict | None = None) -> Path:
     tables, lines = [], []
+    given = given or {}
     # an outing's blocks are its windows' alone, whatever the stage: filled in where a stage did not keep them
     blocks = {(r["vessel"], r["where"]): r["blocks"] for res in stages.values() for r in res["rows"] if r.get("blocks")}
     for stage, res in stages.items():
@@ -668,18 +698,28 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
         tables.append(ResultTable(
             f"{stage}: each case (commit {res['commit']})",
             ["vessel", "where", "blocks", "effect", "magnitude", "truth", "named (values)", "exact", "else named",
-             "not named for", "s"],
+             "not named for", *(["truth as given"] if given else []), "s"],
             [[r["vessel"], r["where"], blocks.get((r["vessel"], r["where"]), "-"), r["kind"], r["magnitude"],
               "nothing" if r["truth"] is None else f"{r['truth']} ({_values_text(r['truth_values'])})",
               "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
               "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
               limited_by({**r, "blocks": r.get("blocks") or blocks.get((r["vessel"], r["where"]))}),
-              r["seconds"]] for r in rows]))
+              *([given_cell(given.get(r["case"]))] if given else []), r["seconds"]] for r in rows]))
+    judged = [(g, next((r for r in rows if r["case"] == name), None)) for name, g in given.items() if g is not None]
+    if judged:
+        provable = [r for g, r in judged if g["earns_its_place"] and r is not None]
+        last = list(stages)[-1]  # the stages in the order they ran: the last is the diagnosis of today
+        lines.append(
+            f"The truth itself, given at its own values and judged by the diagnosis's rule on the same blocks through "
+            f"the same twin (commit {', '.join(sorted({g['commit'] for g, _ in judged}))}): the logs can prove "
+            f"{len(provable)} of {len(judged)} as given; of those '{last}' named "
+            f"{sum(r['exact'] for r in provable)} exactly")
     proof = PROOFS[proof_set]
     page = ResultPage(
         PAGES[proof_set], "Effects concealed in real logs, found by `twin diagnose` with an identified twin"
         + ("" if proof_set == "first" else f" (proof set: {proof_set})"),
-        f"python scripts/concealed_effects.py --set {proof_set} --stage STAGE",
+        f"python scripts/concealed_effects.py --set {proof_set} --stage STAGE"
+        + (", then --truth-given" if any(g is not None for g in given.values()) else ""),
         f"Proof set: {proof_set}. BlueBoat: twin identified on runs 218, 221, 222, 223, 226 (the least active); "
         "effects concealed in runs " + " and ".join(f"{' + '.join(map(str, OUTINGS[w]))} (outing {w})" for w in
                                                     sorted({c.where for c in proof if c.vessel == 'blueboat'}))
@@ -700,6 +740,11 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "Blocks: the 30-s blocks of windows the diagnosis judges on. With fewer than ten, no effect can earn its "
          "place from the dynamics (z 3 needs ten blocks or more, every one for it): there only what the kinematics "
          "tell can be named.",
+         *(["Truth as given: the concealed effect at its own values in the library's terms, nothing fitted, judged "
+            "by the rule the diagnosis names an effect by (z ≥ 3 of the held-out blocks' votes and 5 % of the misfit "
+            "above the noise) through the same twin on the same blocks: whether the logs can prove it from the "
+            "dynamics at all. The antenna, the clocks and the heading are named from the kinematics, which this "
+            "column does not judge."] if given else []),
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
          "inputs two or three times, the rudder at about 2.3°/s (a ramp, not a step): an input log late has little "
          "to be seen by.",
@@ -707,7 +752,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "antenna's: a twin applies no lever arm to them, so its gnss_lever_arm moves nothing there, and an offset "
          "concealed in them can be told only from the kinematics of spins on the spot, which its tests do not "
          "have."],
-        {"stages": stages, "proof": [c.name for c in proof], **({"boat_antenna": antenna} if antenna else {}),
+        {"stages": stages, "proof": [c.name for c in proof], **({"given": given} if given else {}),
+         **({"boat_antenna": antenna} if antenna else {}),
          **({"boat_pwm_timing": timing} if timing else {}), **({"boat_idle_drift": drift} if drift else {})})
     page.notes += [f"Stage '{stage}': {STAGE_METHODS[(proof_set, stage)]}." for stage in stages
                    if (proof_set, stage) in STAGE_METHODS]
@@ -760,11 +806,23 @@ def main() -> int:
     ap.add_argument("--esso-mean-wind", action="store_true",
                     help="give each Esso test its mean wind as a constant wind_per_log (a control stage)")
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the raw figures there are")
+    ap.add_argument("--truth-given", action="store_true",
+                    help="judge each case's truth as given (twin diagnose --given) through the twins in --work, "
+                         "beside the stages already run, and rewrite the page")
     args = ap.parse_args()
-    if args.page_only:
-        raw_path = args.out / "data" / f"{PAGES[args.proof_set]}.json"
-        print(write_page(json.loads(raw_path.read_text())["stages"], args.out, boat_antenna(args.work), args.proof_set,
-                         boat_timing(args.work), boat_drift(args.work)))
+    raw_path = args.out / "data" / f"{PAGES[args.proof_set]}.json"
+    if args.page_only or args.truth_given:
+        raw = json.loads(raw_path.read_text())
+        given = raw.get("given", {})
+        if args.truth_given:
+            proof = PROOFS[args.proof_set]
+            twins = {"blueboat": blueboat_twin(args.work), "esso": esso_twin(args.work)}
+            commit = checkout_commit(ROOT)
+            for c in proof:
+                given[c.name] = judge_truth(c, twins, args.proof_set in ESSO_WIND_MEASURED, commit)
+                print(f"{c.name}: truth as given {given_cell(given[c.name])}", flush=True)
+        print(write_page(raw["stages"], args.out, boat_antenna(args.work), args.proof_set,
+                         boat_timing(args.work), boat_drift(args.work), given))
         return 0
     proof = PROOFS[args.proof_set]
     needed = [BLUEBOAT / f"fixed_00000{n}.csv" for n in FIT_BLUEBOAT + sum(OUTINGS.values(), ())] + \
@@ -794,8 +852,9 @@ def main() -> int:
               f"exact {row['exact']} ({row['seconds']} s)", flush=True)
     stages = staged(args.out / "data" / f"{PAGES[args.proof_set]}.json", args.stage, stage_dir,
                     [c.name for c in proof], summary_of, checkout_commit(ROOT))
+    given = json.loads(raw_path.read_text()).get("given") if raw_path.is_file() else None
     print(write_page(stages, args.out, boat_antenna(args.work), args.proof_set, boat_timing(args.work),
-                     boat_drift(args.work)))
+                     boat_drift(args.work), given))
     return 0
 
 
