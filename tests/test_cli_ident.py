@@ -151,6 +151,29 @@ def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys
     assert not (tmp_path / "x.tlog").exists() and not (tmp_path / "m.json").exists()
 
 
+def test_identify_writes_the_prior_where_it_predicts_the_left_out_runs_better_than_any_fit(dataset, tmp_path):
+    """Given the truth that wrote the (noise-free) recording as its prior, no fit predicts the left-out
+    parts better: the prior is written, every coefficient at its own value, its uncertainty the
+    beliefs' alone without the lag the fit started from (the truth has none), and the report says why."""
+    base = vessel_mod.load("yellowfish")
+    truth = vessel_mod.save(replace(base, thrusters=replace(base.thrusters, gain_left=1.15, gain_right=1.15)),
+                            tmp_path / "truth.json")
+    out, report = tmp_path / "model.json", tmp_path / "report.json"
+    done = twin("identify", dataset / "train.csv", "--model", truth, "--out", out, "--json", report, "--window", "5")
+    assert done.returncode == 0, done.stderr
+    assert "prior (no fit) *" in done.stdout and "the prior written, not the fit" in done.stdout
+    assert "warning" not in done.stdout + done.stderr
+    written, given = vessel_mod.load(str(out)), vessel_mod.load(str(truth))
+    assert written.thrusters == given.thrusters and written.damping == given.damping
+    assert written.added_mass == given.added_mass
+    block = written.uncertainty
+    assert "lag_s" not in [c["name"] for c in block["coordinates"]] and block["form_error"]
+    assert written.sources["identification"].startswith("kept by `twin identify`")
+    r = json.loads(report.read_text())
+    assert r["chosen"] == "prior (no fit)" and not r["worse_than_prior"]
+    assert all(not e["identifiable"] and e["value"] == e["prior"] for e in r["fit"]["estimates"])
+
+
 def test_identify_refuses_a_twin_that_ran_away_on_every_left_out_run(dataset, tmp_path):
     """A prior whose thrust is a billion times too strong runs away on every window, whatever is fitted:
     nothing is written, and a model file already there is kept byte for byte."""

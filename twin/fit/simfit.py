@@ -316,6 +316,30 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     return result
 
 
+def at_prior(fit: FitResult, given: Vessel, why: str) -> FitResult:
+    """`fit` put back at the vessel it was given: every coefficient at its prior with its prior's
+    uncertainty (`why` says why), the uncertainty block the beliefs' alone. A term the vessel lacks
+    that the fit started elsewhere (map_start: a lag of 0 s at 0.1 s) stays out of the block: a draw
+    from it would add physics the written twin does not have."""
+    names = [e.name for e in fit.estimates]
+    table = coefficients(given)
+    kept, own = [], []
+    for e, c in zip(fit.estimates, coordinates(fit.objective.prior, names)):
+        held = table[c.name].get(given) == c.prior_value
+        sigma = (abs(c.prior_value) * c.belief.sigma if c.log else c.belief.sigma) if held else None
+        kept.append(Estimate(e.name, e.unit, e.prior, e.prior, sigma, False,
+                             "kept at its prior with its prior's uncertainty: the prior written (below)"))
+        if held:
+            own.append(c)
+    uncertainty = {"coordinates": [{"name": c.name, "log": c.log, "sign": float(np.sign(c.prior_value) or 1.0)}
+                                   for c in own],
+                   "mean": [c.mean for c in own],
+                   "covariance": [[c.belief.sigma ** 2 if i == j else 0.0 for j in range(len(own))]
+                                  for i, c in enumerate(own)]}
+    return replace(fit, vessel=replace(given, uncertainty=uncertainty), estimates=kept,
+                   meta={**fit.meta, "kept_prior": why})
+
+
 def _lowest_on_line(obj: Objective, x: np.ndarray, step: np.ndarray) -> np.ndarray:
     """x + a·step for the a in STEP_FRACTIONS the objective finds lowest (a step of 0 included)."""
     lo, hi = obj.bounds()

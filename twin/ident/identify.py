@@ -14,7 +14,9 @@ on runs left out of the fit.
    run is predicted by a twin fitted on the runs that go less far than it does (time under way,
    time turning: crossval.beyond_folds), so every choice is judged where the twin extrapolates.
    How much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of coefficients stay
-   free: a group goes back to its prior while that lowers the left-out cost by DROP_GAIN or more.
+   free: a group goes back to its prior while that lowers the left-out cost by DROP_GAIN or more, and
+   all of them (the prior written as it is) where the prior predicts them better than every fit by
+   DROP_GAIN or more.
    No choice looks at how well the fit matches its own data.
 5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
    runs' scores: median and range), the twin's error on the left-out runs' 30-s free runs (which
@@ -329,6 +331,13 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         else:  # the linearised choice did not hold up once refitted: every group stays free
             best = min((c for c in choices if c.free_groups == tuple(names_by_group)), key=lambda c: c.cv.cost)
             result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
+    if params is None and result.prior_cv.cost < (1.0 - DROP_GAIN) * best.cv.cost:
+        # the end of dropping groups: all of them back at their prior, judged as each group is
+        why = (f"the prior predicts the left-out runs better than any fit (cost {result.prior_cv.cost:.4g} against "
+               f"{best.cv.cost:.4g}, {best.label})")
+        fit_best, best = simfit.at_prior(fit_best, vessel, why), Choice("prior (no fit)", best.prior_weight, (),
+                                                                        result.prior_cv)
+        result.notes.append(f"{why}: the prior is written, as these recordings do not support moving it")
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings], wind)
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
@@ -336,6 +345,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
                                    fit_best.objective.residuals(fit_best.x), fit_groups, fixed=_unpinned(fit_best),
                                    folds=folds)
+        if not best.free_groups:  # the prior written: it is its own twin on every fold
+            folded = [vessel] * len(folded)
         label = FOLDS_LABEL[judged_on]
         errors = form_error(folded, preps, label,
                             max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
@@ -583,6 +594,9 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
     files = ", ".join(Path(s).name for s in sources) or "recordings"
     expected = choice.cv.summary()
     wind_text = ", each recording's measured wind a known input" if wind == "measured" else ""
+    if not choice.free_groups:
+        return replace(v, sources={**v.sources, "identification": (
+            f"kept by `twin identify` on {when} from {files}{wind_text}: {fit.meta['kept_prior']}. {expected}")})
     text = (f"identified by `twin identify` on {when} from {files}{wind_text}: maximum a posteriori fit by free-run "
             f"windows of {fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
@@ -606,6 +620,9 @@ def format_estimates(result: simfit.FitResult) -> str:
     window, stride = result.meta.get("window_s"), result.meta.get("stride_s")
     which = (f" of {window:g} s{' back to back' if stride == window else ''} with the thrusters working or the hull "
              "moving" if window else "")
+    if "kept_prior" in result.meta:
+        lines.append(f"the prior written, not the fit: {result.meta['kept_prior']}")
+        return "\n".join(lines)
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows"
                  f"{which} ({result.n_evaluations} candidate twins run on each, the fit took {result.seconds:.1f} s)")
     return "\n".join(lines)
@@ -637,7 +654,7 @@ def format_choices(ident: Identification) -> str:
         by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups to drop
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
                      (f"; a group goes back to its prior only where that lowers the cost by {100 * DROP_GAIN:g} % "
-                      "or more" if by_groups else ""))
+                      "or more (all of them: the prior written)" if by_groups else ""))
     return "\n".join(lines)
 
 
