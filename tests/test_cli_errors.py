@@ -300,8 +300,10 @@ def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys
     (nested / "2020-10-14").mkdir(parents=True)
     assert "subfolders are not searched" in refused(monkeypatch, capsys, ["fleet", nested, "--vessel", "yellowfish",
                                                                           "--out", out], files)
-    # every log failing (an empty file) is bad input, exit 2, and replaces nothing
-    assert "the log could not be diagnosed (" in refused(monkeypatch, capsys, base, files)
+    # an earlier run's summary is kept unless --force; every log failing (an empty file) is bad input, exit 2,
+    # and replaces nothing even with --force
+    assert "--out's summary" in refused(monkeypatch, capsys, base, files)
+    assert "the log could not be diagnosed (" in refused(monkeypatch, capsys, [*base, "--force"], files)
     assert sorted(p.name for p in out.iterdir()) == sorted(earlier)
     assert "the log could not be diagnosed" in refused(monkeypatch, capsys, ["fleet", empty, "--vessel", "yellowfish",
                                                                             "--out", root / "new"])

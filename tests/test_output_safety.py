@@ -1,5 +1,6 @@
 """What a new user meets: a run, a dataset or a fit never replaces a file that exists unless asked
-(--force), a fleet with a log it cannot diagnose ends in exit code 2 after writing the others, a
+(--force) and a report never replaces a log or a twin, a fleet with a log it cannot diagnose (not one
+too short) ends in exit code 2 after writing the others, a
 log whose every input sample was dropped says so, a dataset too large for the machine is refused
 before any work, and a coefficient whose windows disagree is not said to be held by its belief."""
 from dataclasses import dataclass
@@ -24,6 +25,36 @@ def test_simulate_refuses_to_replace_an_existing_file_without_force(tmp_path):
     assert log.read_text() == "t,lat,lon\n0,59,10\n"
     forced = twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", log, "--force")
     assert forced.returncode == 0 and log.read_text().startswith("t,x,y,psi")
+
+
+def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_force(tmp_path):
+    """A report (--json of evaluate or mission) written over a vessel file or a recording would lose
+    it: refused by what the file holds, before any work; a SITL session's recording and a Monte
+    Carlo band are data, kept unless --force; a report over an earlier report is written."""
+    log, twin_file = tmp_path / "my_log.csv", tmp_path / "my_boat.json"
+    log.write_text("t,lat,lon,heading_deg,pwm_left,pwm_right\n0,59,10,0,1500,1500\n")
+    twin_file.write_text('{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n')
+    kept = {p: p.read_text() for p in (log, twin_file)}
+    refusals = [
+        (("evaluate", "--vessel", "blueboat", log, "--json", twin_file), "--json", twin_file, "vessel file"),
+        (("mission", "--home", "59,10", "--waypoints", "5,0", "--json", twin_file), "--json", twin_file, "vessel file"),
+        (("sitl", "--vessel", "blueboat", "--record", log), "--record", log, None),
+        (("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "2",
+          "--duration", "2", "--out", log), "--out", log, None),
+    ]
+    for args, option, path, kind in refusals:
+        done = twin(*args)
+        assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (args, done.stderr)
+        said = (f"exists and is a {kind}: it is kept (give another name, or remove it first)" if kind
+                else "exists: it is kept (--force replaces it)")
+        assert done.stderr.strip() == f"error: {option} '{path}' {said}", (args, done.stderr)
+    assert all(p.read_text() == text for p, text in kept.items())
+    report = tmp_path / "report.json"
+    report.write_text('{"earlier": "report"}\n')
+    made = twin("simulate", "--vessel", "blueboat", "--duration", "20", "--scenario", "random", "--out", tmp_path / "r.csv")
+    assert made.returncode == 0, made.stderr
+    done = twin("evaluate", "--vessel", "blueboat", tmp_path / "r.csv", "--json", report)
+    assert done.returncode == 0 and '"earlier"' not in report.read_text()
 
 
 def test_dataset_refuses_to_replace_its_log_or_its_truth_without_force(tmp_path):

@@ -320,6 +320,22 @@ def test_identify_takes_the_sea_a_log_was_made_in_and_bad_seas_are_one_line(tmp_
             assert done.returncode == 2 and words in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
+def test_a_log_made_in_waves_keeps_its_sea_and_info_says_it_with_the_roll_and_pitch(tmp_path):
+    """The sea a dataset was made in is kept in the MCAP's meta and `twin info` says it, with how far
+    the hull rolled and pitched (the guide, sea-state, promises both)."""
+    from twin_command import twin
+
+    done = twin("dataset", "--vessel", "yellowfish", "--segments", "1", "--sea", "0.2,2.5,60,4", "--out",
+                tmp_path / "waves.mcap")
+    assert done.returncode == 0, done.stderr
+    done = twin("info", tmp_path / "waves.mcap")
+    assert done.returncode == 0, done.stderr
+    assert "  sea      JONSWAP, Hs 0.2 m, Tp 2.5 s, from 60°, spreading cos^4 (seed 0)" in done.stdout
+    tilt = [line for line in done.stdout.splitlines() if line.strip().startswith("attitude")]
+    roll, pitch = (float(x) for x in __import__("re").findall(r"within ±([0-9.]+)°", tilt[0]))
+    assert 1.0 < roll < 30.0 and 1.0 < pitch < 30.0  # a 1.3-m hull in 0.2-m waves rocks, and stays up
+
+
 SHARED = __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ardupilot"
 
 

@@ -788,9 +788,10 @@ def test_mission_set_refuses_what_cannot_be_an_ardupilot_parameter_before_connec
                           ("WP_SPEED", "--set expects NAME=VALUE with a finite number, got 'WP_SPEED'")]:
         with pytest.raises(TwinError, match=re.escape(message)):
             param_settings([item])
-    known = ["WP_SPEED", "WP_RADIUS", "ATC_STR_RAT_FF", "CRUISE_SPEED"]
+    known = ["WP_SPEED", "WP_RADIUS", "ATC_STR_RAT_FF", "CRUISE_SPEED", "MAV3_PARAMS"]
     assert unknown_params_text(["WP_SPD", "ZZZ"], known) == ("--set: ArduPilot has no parameter WP_SPD (did you mean "
                                                             "WP_SPEED?); ZZZ: nothing was set")
+    assert "did you mean" not in unknown_params_text(["NOT_A_PARAM"], known)  # another family's name is no typo
 
 
 # ---------------------------------------------------------------- in a seaway

@@ -180,6 +180,7 @@ class Recording:
             "dropped": [[reason, int(n)] for reason, n in self.dropped],
             "notes": list(self.notes),
             "warnings": list(self.warnings),
+            **({"sea": dict(self.meta["sea"])} if isinstance(self.meta.get("sea"), dict) else {}),
         }
 
 
@@ -194,14 +195,27 @@ def format_summary(summary: dict) -> str:
                    if s["gaps"] else "")
             volt = (f", {s['voltage_first_v']:.2f} → {s['voltage_last_v']:.2f} V (range {s['voltage_min_v']:.2f}-"
                     f"{s['voltage_max_v']:.2f})" if "voltage_first_v" in s else "")
-            lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}{volt}")
+            tilt = (f", roll within ±{s['roll_max_deg']:.1f}°, pitch within ±{s['pitch_max_deg']:.1f}°"
+                    if "roll_max_deg" in s else "")
+            lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}{volt}{tilt}")
         else:
             lines.append(f"  {name:8s}       - none")
     # a dropout is a gap between samples, not data discarded: the stream's line above counts it
     lines += [f"  dropped: {reason}: {n}" for reason, n in summary["dropped"] if not reason.endswith(DROPOUTS)]
+    if "sea" in summary:  # a synthetic log made in waves keeps the sea it was made in
+        lines.append(f"  sea      {sea_text(summary['sea'])}")
     lines += [f"  note: {note}" for note in summary["notes"]]
     lines += [f"  warning: {text}" for text in summary.get("warnings", [])]
     return "\n".join(lines)
+
+
+def sea_text(sea: dict) -> str:
+    """A sea's description (physics.waves.Sea.to_dict) in words."""
+    if sea.get("regular"):
+        return f"regular waves, H {sea['hs_m']:g} m, T {sea['tp_s']:g} s, from {sea['dir_deg']:g}°"
+    spread = f", spreading cos^{sea['spread']:g}" if sea.get("spread") else ", long-crested"
+    return (f"JONSWAP, Hs {sea['hs_m']:g} m, Tp {sea['tp_s']:g} s, from {sea['dir_deg']:g}°{spread} "
+            f"(seed {sea.get('seed')})")
 
 
 def clean_stream(name: str, t, columns: dict, dropped: list) -> Stream:

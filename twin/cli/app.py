@@ -274,6 +274,30 @@ def memory_for(what: str) -> Iterator[None]:
 
 # ---------------------------------------------------------------- outputs
 
+RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg", "north_m"}
+
+
+def kept_data(path: Path) -> str | None:
+    """What a file at `path` is when it is data a user keeps, a recording or a vessel file (by its
+    content, whatever command wrote it), else None (a report, a view, no file)."""
+    if not path.is_file():
+        return None
+    suffix = path.suffix.lower()
+    if suffix in (".tlog", ".bin", ".mcap"):
+        return "recording"
+    try:
+        if suffix == ".csv":
+            with open(path, encoding="utf-8", errors="replace") as f:
+                head = [c.strip() for c in f.readline().split(",")]
+            return "recording" if head[:1] == ["t"] and RECORDING_HEADS & set(head) else None
+        if suffix == ".json" and path.stat().st_size < 50_000_000:
+            data = json.loads(path.read_text(encoding="utf-8"))
+            return "vessel file" if isinstance(data, dict) and {"mjcf", "thrusters"} <= set(data) else None
+    except (OSError, ValueError):
+        return None
+    return None
+
+
 def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> None:
     """Refuse, before any work is done, an output whose extension is not one of `formats`, whose
     folder does not exist or cannot be written, or that is a folder itself."""
@@ -308,10 +332,13 @@ def check_new(paths, force: bool, option: str = "output") -> None:
             raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
 
 
-def check_distinct(outputs: dict[str, object], inputs=()) -> None:
+def check_distinct(outputs: dict[str, object], inputs=(), keep_data: bool = True) -> None:
     """Refuse, before any work is done, two outputs at one path (the second would replace the
-    first) and an output that is one of the inputs (the run would replace the data it read).
-    `outputs`: option -> path or list of paths (None skipped); `inputs`: the paths read."""
+    first), an output that is one of the inputs (the run would replace the data it read), and,
+    with keep_data, an output that would replace a recording or a vessel file (kept_data: a report
+    written over a user's log or twin loses it; a command whose outputs are data refuses any
+    existing file itself, check_new, and passes keep_data=False). `outputs`: option -> path or list
+    of paths (None skipped); `inputs`: the paths read."""
     named = [(option, Path(p)) for option, given in outputs.items()
              for p in (given if isinstance(given, (list, tuple)) else [given]) if p is not None]
     read = [Path(p) for p in inputs if p is not None]
@@ -324,6 +351,11 @@ def check_distinct(outputs: dict[str, object], inputs=()) -> None:
             if same_file(path, other):
                 raise TwinError(f"{option} '{path}' and {other_option} '{other}' are the same file: one output "
                                 "would replace the other")
+    for option, path in named if keep_data else ():
+        kind = kept_data(path)
+        if kind:
+            raise TwinError(f"{option} '{path}' exists and is a {kind}: it is kept (give another name, or remove it "
+                            "first)")
 
 
 RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")
@@ -341,7 +373,7 @@ def recordings_in(paths: list[Path]) -> list[Path]:
                 raise TwinError(f"'{p}' is a folder with no recordings in it ({', '.join(RECORDING_SUFFIXES)}){below}")
             out += found
         elif not p.is_file():
-            raise TwinError(f"{p}: no such file")
+            raise TwinError(f"{p}: no such file" + (" or folder" if not p.suffix else ""))
         elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
             raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
         else:

@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (CHANNELS_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
@@ -42,6 +42,7 @@ def diagnose_command(
     wind_measured: bool = typer.Option(False, "--wind-measured",
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run, the twin's and every candidate's"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     from ..diagnose.doctor import diagnose
@@ -56,7 +57,7 @@ def diagnose_command(
         check_outputs([path], formats, option)
     recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
-                   [*recordings, model])
+                   [*recordings, model], keep_data=not force)
     check_recordings_distinct(recordings)
     window_s(window)
     positive(refit_weight, "--refit-weight")

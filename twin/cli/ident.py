@@ -64,7 +64,7 @@ def dataset_command(
     check_outputs(out, RECORDING_FORMATS)
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
-    check_distinct({"--out": out, "--truth": truth}, [model])
+    check_distinct({"--out": out, "--truth": truth}, [model], keep_data=False)  # check_new: any file there
     check_new([*out, truth], force, "output")
     segments_fit(segments)
     seed_from(seed)
@@ -169,10 +169,11 @@ def identify_command(
     from ..ident import identify as ident
     from ..vessel import save
 
-    check_outputs([out], (".json",), "--out")
     check_outputs([json_out], (".json",), "--json")
+    check_outputs([out], (".json",), "--out")
     recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
-    check_distinct({"--out": out, "--json": json_out}, [*recordings, model])
+    check_distinct({"--out": out, "--json": json_out}, [*recordings, model], keep_data=False)
+    check_distinct({"--json": json_out}, keep_data=not force)  # a report over a log or a twin: with --force only
     check_recordings_distinct(recordings)
     if window is not None:
         window_s(window)

@@ -152,7 +152,7 @@ def convert(
     from ..prepare.convert import for_conversion, not_kept
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
-    check_distinct({"output": dst}, [src])  # even with --force: the input is never replaced
+    check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
     check_new([dst], force)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))

@@ -106,7 +106,7 @@ def simulate(
     from ..simulation import simulate_run
 
     check_outputs(out, RUN_OUTPUTS, "--out")
-    check_distinct({"--out": out}, [inputs, model])
+    check_distinct({"--out": out}, [inputs, model], keep_data=False)
     check_new(out, force, "--out")
     if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
         raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")

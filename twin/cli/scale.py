@@ -9,7 +9,8 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from .app import (MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_outputs,
+from .app import (FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
+                  check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
                   say, seed_from, sensor_noise, vessel_from, window_s, write_json)
 from .run import SEA_HELP, sea_from
@@ -62,13 +63,15 @@ def montecarlo_command(
     retries: int = typer.Option(3, help=RETRIES_HELP),
     sea: Optional[str] = typer.Option(None, help=SEA_HELP + "; every draw in its own realisation of the sea "
                                                  "(seeded from --seed)"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Prediction bands of an identified twin: draws from its covariance through a mission."""
     from ..drive import read_inputs_csv
     from ..scale import montecarlo as mc
 
     check_outputs(out, MC_OUTPUTS, "--out")
-    check_distinct({"--out": out}, [inputs, model])
+    check_distinct({"--out": out}, [inputs, model], keep_data=False)
+    check_new(out, force, "--out")
     if scenario is not None and inputs is not None:
         raise TwinError("give --scenario or --inputs, not both")
     if duration is not None:
@@ -219,6 +222,8 @@ def fleet_command(
     ray: Optional[str] = typer.Option(None, help=RAY_HELP),
     cpus_per_task: int = typer.Option(1, help=CPUS_HELP),
     retries: int = typer.Option(3, help=RETRIES_HELP),
+    force: bool = typer.Option(False, "--force", help="replace the fleet summary (fleet.json, fleet.md) a "
+                                                      "previous run left in --out"),
 ):
     """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
     from ..ident.identify import fitted_wind_note
@@ -250,6 +255,7 @@ def fleet_command(
         wind_note = fitted_wind_note(load(name), wind)
         if wind_note:
             note(f"note: {Path(name).name}: {wind_note}")
+    check_new([out / "fleet.json"], force, "--out's summary")  # the last check: every bad option comes first
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=executor, progress=progress, wind=wind)
@@ -263,8 +269,11 @@ def fleet_command(
     if older:
         note(f"note: {out} also holds {len(older)} report{'' if len(older) == 1 else 's'} of logs not in this fleet "
              f"(kept, not in fleet.json): {', '.join(older[:3])}{' …' if len(older) > 3 else ''}")
-    if fleet.summary["failed"]:  # the others' reports are written: a script sees the failure in the exit code
-        raise TwinError(f"{len(fleet.summary['failed'])} of {fleet.summary['logs']} logs could not be diagnosed "
+    # a log too short to diagnose is listed, as a fleet of a month's logs has them; any other failure is a
+    # fault a script must see in the exit code (the others' reports are written)
+    failed = [f for f in fleet.summary["failed"] if not f.get("too_short")]
+    if failed:
+        raise TwinError(f"{len(failed)} of {fleet.summary['logs']} logs could not be diagnosed "
                         f"(their failure records are in {out}, the other reports are written)")
 
 

@@ -11,8 +11,8 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs, note, say,
-                  seed_from, speed_direction, vessel_from)
+from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+                  check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
 
@@ -42,6 +42,7 @@ def sitl(
     write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "
                                                            "and --channels (ardurover --defaults ...,FILE) "
                                                            "and exit"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
     from ..sitl.backend import check_channels
@@ -50,7 +51,11 @@ def sitl(
     check_outputs(record, RUN_OUTPUTS, "--record")
     if write_params is not None:
         check_outputs([write_params], (".parm", ".param", ".txt"), "--write-params")
-    check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model])
+    check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model],
+                   keep_data=False)  # a parameter file is no log; a recording there: check_new below
+    # a session ends with Ctrl-C: an earlier session's recording or a parameter file the user edited
+    # would be found replaced only after it
+    check_new(record, force, "--record")
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
         check_channels((pair["left"], pair["right"]))
@@ -114,8 +119,10 @@ def mission(
 
     from ..sitl.ardupilot import fly_mission
 
+    positive(timeout, "--timeout")
     if json_out is not None:
         check_outputs([json_out], (".json",), "--json")
+        check_distinct({"--json": json_out})  # the figures never replace a log or a twin
     try:
         lat_lon = origin_from(home)
     except TwinError as exc:

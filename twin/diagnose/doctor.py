@@ -36,7 +36,7 @@ import numpy as np
 
 from ..effects import candidates
 from ..engine.mjcf import compile_vessel
-from ..errors import TwinError
+from ..errors import TooShort, TwinError
 from ..fit.metrics import r2_mae
 from ..physics.sensors import log_name
 from ..fit.objective import Measurements
@@ -299,7 +299,7 @@ def _prepared(recordings: list[Recording], prior: Vessel, window_s: float, calib
     data = Measurements(preps, recordings, compiled, kwargs)
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if len(every) < 2 * BLOCK_WINDOWS * 2:
-        raise TwinError(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
+        raise TooShort(f"the recording gives {len(every)} windows of {window_s:g} s: too short to fit on one part "
                         "and judge on another (a diagnosis runs on 2 minutes of data with inputs or more; naming an "
                         "effect from the dynamics takes about 5, ten blocks of 30 s)")
     return prior, calibrations, compiled, preps, data, every, _noise(recordings, preps)

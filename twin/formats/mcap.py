@@ -191,9 +191,13 @@ def _num(x: float) -> float | None:
 
 
 def _plain(meta: dict) -> dict:
-    """The meta entries JSON keeps exactly: str, int and finite float (bool is an int)."""
+    """The meta entries JSON keeps exactly: str, int and finite float (bool is an int), and a dict of
+    them (the sea a log was made in)."""
+    def kept(v) -> bool:
+        return v is None or isinstance(v, (str, int)) or (isinstance(v, float) and math.isfinite(v))
+
     return {str(k): v for k, v in meta.items()
-            if isinstance(v, (str, int)) or (isinstance(v, float) and math.isfinite(v))}
+            if kept(v) or (isinstance(v, dict) and all(kept(x) for x in v.values()))}
 
 
 def read_run_mcap(path: str | Path, notes: list[str] | None = None) -> Run:

@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import TwinError
+from ..errors import TooShort, TwinError
 from ..files import finite_json, json_default, same_file, write_bytes_atomic, write_text_atomic
 from ..progress import Progress
 from ..vessel import load
@@ -149,7 +149,8 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
                 out["html"] = page.read_bytes()
         except Exception as exc:  # one log's failure, expected (TwinError) or not, must not end a month's job
             text = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}".splitlines()[0]
-            out.update(ok=False, error=text, **({} if isinstance(exc, TwinError) else {"unexpected": True}))
+            out.update(ok=False, error=text, **({} if isinstance(exc, TwinError) else {"unexpected": True}),
+                       **({"too_short": True} if isinstance(exc, TooShort) else {}))
             if "day" not in out:
                 named = day_in_name(item.name)
                 out["day"] = item.day or named or item.file_day
@@ -351,7 +352,8 @@ def summarise(results: list[dict]) -> dict:
             "effects": _effects(ok),
             "per_vessel": {v: _group(ok, results, "vessel", v) for v in sorted({r["vessel"] for r in results})},
             "per_day": {d: _group(ok, results, "day", d) for d in sorted({r.get("day", "") for r in results})},
-            "failed": [{"log": r["log"], "error": r.get("error", "")} for r in results if not r.get("ok")],
+            "failed": [{"log": r["log"], "error": r.get("error", ""), **({"too_short": True} if r.get("too_short") else {})}
+                       for r in results if not r.get("ok")],
             "with_measured_wind": sum(bool(r.get("measured_wind")) for r in ok),
             "table": [{"log": r["log"], "vessel": r["vessel"], "day": r.get("day", ""), "ok": bool(r.get("ok")),
                        "effects": [e.get("name") for e in r.get("effects", [])], "seconds": r.get("seconds"),

@@ -12,6 +12,7 @@ north/east metres from SITL's home, which is the twin's origin.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import signal
@@ -394,11 +395,11 @@ class MissionResult:
 
 def unknown_params_text(unknown: list[str], known) -> str:
     """One line naming the parameters ArduPilot does not have, each with its closest names (difflib)."""
-    import difflib
-
     parts = []
     for name in unknown:
-        close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+        # 0.7: a typo (WP_SPD for WP_SPEED, 0.71) is suggested, a name of another family (NOT_A_PARAM for
+        # MAV3_PARAMS, 0.64) is not
+        close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.7)
         parts.append(f"{name}" + (f" (did you mean {', '.join(close)}?)" if close else ""))
     return f"--set: ArduPilot has no parameter {'; '.join(parts)}: nothing was set"
 
