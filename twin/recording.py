@@ -195,8 +195,8 @@ def format_summary(summary: dict) -> str:
                    if s["gaps"] else "")
             volt = (f", {s['voltage_first_v']:.2f} → {s['voltage_last_v']:.2f} V (range {s['voltage_min_v']:.2f}-"
                     f"{s['voltage_max_v']:.2f})" if "voltage_first_v" in s else "")
-            tilt = (f", roll within ±{s['roll_max_deg']:.1f}°, pitch within ±{s['pitch_max_deg']:.1f}°"
-                    if "roll_max_deg" in s else "")
+            tilt = ("" if "roll_max_deg" not in s else ", level throughout" if not (s["roll_max_deg"] or s["pitch_max_deg"])
+                    else f", roll within ±{s['roll_max_deg']:.1f}°, pitch within ±{s['pitch_max_deg']:.1f}°")
             lines.append(f"  {name:8s} {s['samples']:7d} samples at {s['rate_hz']:.2f} Hz{gap}{volt}{tilt}")
         else:
             lines.append(f"  {name:8s}       - none")

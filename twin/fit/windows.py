@@ -166,7 +166,7 @@ class ModelCache:
         for i, gain in enumerate(t.gains()):
             m.actuator_gainprm[i, 0] = gain
             if t.lag_s > 0:
-                m.actuator_dynprm[i, 0] = max(t.lag_s, m.opt.timestep / RK4_FASTEST_H_LAMBDA)
+                m.actuator_dynprm[i, 0] = t.lag_s
         return m
 
 
@@ -293,7 +293,7 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
                   *vessel.thrusters.bounds())
     from scipy.signal import lfilter
 
-    a = np.exp(-timestep_s / max(vessel.thrusters.lag_s, timestep_s / RK4_FASTEST_H_LAMBDA))  # as the model holds it
+    a = np.exp(-timestep_s / vessel.thrusters.lag_s)
     filtered, _ = lfilter([1 - a], [1, -a], cmd, axis=0, zi=(a * cmd[0])[None, :])
     return filtered[-1]
 
@@ -575,12 +575,6 @@ def _fill_forward(x: np.ndarray) -> np.ndarray:
     return np.take_along_axis(x, last, axis=1)
 
 
-# RK4's one-step factor for ẋ = λx, 1 + z + z²/2 + z³/6 + z⁴/24 (z = hλ), is least at z = −1.6: a
-# first-order lag shorter than h/1.6 would answer a step more slowly than one of h/1.6 does, so the
-# candidate twins' models hold a lag at that floor (the fit's cost stops falling there, not rising)
-RK4_FASTEST_H_LAMBDA = 1.6
-
-
 def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallback_s: float) -> float:
     """The recordings' grid step if RK4 is comfortable at it for this vessel (|hλ| ≤ h_lambda;
     RK4's stability limit is 2.8), else fallback_s, divided as often as it takes to be comfortable.
@@ -599,5 +593,5 @@ def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallb
     if uniform and grid > fallback_s and grid * rate <= h_lambda:
         return grid
     # a fallback too coarse for this vessel (a lag of hundredths of a second) is divided until RK4
-    # is comfortable: a lag integrated at |hλ| past 2.8 runs away, and past 1.6 answers slower
+    # is comfortable: a lag integrated at |hλ| past 2.8 runs away
     return fallback_s / math.ceil(fallback_s * rate / h_lambda - 1e-9)

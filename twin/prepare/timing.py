@@ -80,6 +80,9 @@ def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turni
         return GyroLag(None, note="too few heading or gyro samples")
     turned = np.r_[0.0, cumulative_trapezoid(r_g, t_g)]  # the heading the gyro alone gives (rad), from 0
     pieces = list(_pieces(t_h, t_g, window_s))
+    if not pieces:  # a short log: its turning is not counted as none
+        return GyroLag(None, note=f"no stretch of {window_s + 2 * MAX_LAG_S:g} s with the heading and the gyro "
+                                  f"running; the log's heading spans {t_h[-1] - t_h[0]:.0f} s")
     spin = np.abs(np.interp(t_h, t_g, r_g)) >= turning_rad_s
     dt = float(np.median(np.diff(t_h)))
     turning_s = sum(float(np.sum(spin[m])) for m in pieces) * dt
