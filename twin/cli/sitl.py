@@ -53,8 +53,7 @@ def sitl(
         check_outputs([write_params], (".parm", ".param", ".txt"), "--write-params")
     check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model],
                    keep_data=False)  # a parameter file is no log; a recording there: check_new below
-    # a session ends with Ctrl-C: an earlier session's recording or a parameter file the user edited
-    # would be found replaced only after it
+    # a SITL run ends with Ctrl-C: a recording already at that path would be found replaced only after it
     check_new(record, force, "--record")
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
