@@ -654,7 +654,8 @@ def format_choices(ident: Identification) -> str:
         by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups to drop
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
                      (f"; a group goes back to its prior only where that lowers the cost by {100 * DROP_GAIN:g} % "
-                      "or more (all of them: the prior written)" if by_groups else ""))
+                      "or more" + ("; here all of them: the prior is written" if not ident.chosen.free_groups else "")
+                      if by_groups else ""))
     return "\n".join(lines)
 
 
