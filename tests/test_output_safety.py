@@ -34,8 +34,11 @@ def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_f
     log, twin_file = tmp_path / "my_log.csv", tmp_path / "my_boat.json"
     log.write_text("t,lat,lon,heading_deg,pwm_left,pwm_right\n0,59,10,0,1500,1500\n")
     twin_file.write_text('{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n')
-    kept = {p: p.read_text() for p in (log, twin_file)}
+    truth = tmp_path / "d.truth.json"
+    truth.write_text('{"vessel": {}, "effects": [], "segments": []}\n')
+    kept = {p: p.read_text() for p in (log, twin_file, truth)}
     refusals = [
+        (("diagnose", log, "--vessel", "blueboat", "--json", truth), "--json", truth, "dataset's truth"),
         (("evaluate", "--vessel", "blueboat", log, "--json", twin_file), "--json", twin_file, "vessel file"),
         (("mission", "--home", "59,10", "--waypoints", "5,0", "--json", twin_file), "--json", twin_file, "vessel file"),
         (("sitl", "--vessel", "blueboat", "--record", log), "--record", log, None),
@@ -156,6 +159,29 @@ def test_the_api_refuses_bad_arguments_in_one_sentence(tmp_path):
         twin.crosscheck("yellowfish", duration_s=5, only=["heavy"])
     path = twin.save_vessel("blueboat", tmp_path / "bb.json")  # a name, as every other function takes
     assert twin.load_vessel(str(path)).name == "blueboat"
+
+
+def test_the_api_keeps_a_file_its_outputs_would_replace_and_refuses_one_log_given_twice(tmp_path):
+    """As the commands do: a run or a vessel file written over an existing file only with force=True,
+    a vessel file only as .json, and one log given twice refused by name (not judged against itself)."""
+    import twin
+
+    log = tmp_path / "my_log.csv"
+    log.write_text("t,lat,lon\n0,59,10\n")
+    sim = twin.simulate_run("blueboat", scenario="turn", duration_s=5)
+    for write, words in ((lambda: sim.write(log), "exists: it is kept (force=True replaces it)"),
+                         (lambda: twin.save_vessel("blueboat", log), "unknown format '.csv'"),
+                         (lambda: twin.save_vessel("blueboat", tmp_path / "a.txt"), "unknown format '.txt'")):
+        with pytest.raises(TwinError, match=__import__("re").escape(words)):
+            write()
+    assert log.read_text() == "t,lat,lon\n0,59,10\n"
+    boat = twin.save_vessel("blueboat", tmp_path / "boat.json")
+    with pytest.raises(TwinError, match="exists: it is kept"):
+        twin.save_vessel("yellowfish", boat)
+    assert twin.load_vessel(str(twin.save_vessel("yellowfish", boat, force=True))).name == "yellowfish"
+    sim.write(log, force=True)
+    with pytest.raises(TwinError, match="is given twice: give each recording once"):
+        twin.evaluate("blueboat", [log, tmp_path / "." / "my_log.csv"])
 
 
 def test_validation_and_identification_are_tables_too():

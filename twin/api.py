@@ -29,6 +29,7 @@ from .engine.parameters import effective_parameters as _effective_parameters
 from .diagnose.doctor import Diagnosis as _Found
 from .diagnose.search import excess_shown
 from .errors import TwinError
+from .files import same_file
 from .run import Run
 from .simulation import Simulation, simulate, simulate_run
 from .verify.crosscheck import crosscheck as _crosscheck
@@ -43,10 +44,22 @@ __all__ = ["Run", "Vessel", "InputSeries", "Validation", "Identification", "Simu
            "prepare_recording", "calibrate", "identify", "evaluate", "diagnose_recordings", "judge"]
 
 
-def save_vessel(vessel: Vessel | str, path) -> Path:
+def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
     """`--out` of `twin identify`: a vessel (a twin.Vessel, a shipped vessel's name or a vessel file)
-    written as a vessel file at `path` (JSON)."""
+    written as a vessel file at `path` (.json); a file there is kept unless `force`, as the command
+    keeps it."""
+    _new_output(path, (".json",), force)
     return _save(_vessel(vessel), path)
+
+
+def _new_output(path, formats: tuple[str, ...], force: bool) -> None:
+    """An output path the API writes, checked as the commands check theirs: its format, and a file
+    already there kept unless `force` (it may be a log or a twin the user made)."""
+    p = Path(path)
+    if p.suffix.lower() not in formats:
+        raise TwinError(f"'{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
+    if p.exists() and not force:
+        raise TwinError(f"'{p}' exists: it is kept (force=True replaces it)")
 
 
 def _known_options(function, options: dict, what: str) -> None:
@@ -126,6 +139,10 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
     items = [recordings] if isinstance(recordings, (str, Path, Recording)) else list(recordings)
     if not items:
         raise TwinError("no recordings given: give one or more recordings (paths or twin.read_recording(...))")
+    paths = [Path(r) for r in items if not isinstance(r, Recording)]
+    for k, p in enumerate(paths):  # one log twice would be judged against itself as a left-out run
+        if any(same_file(p, q) for q in paths[:k]):
+            raise TwinError(f"'{p}' is given twice: give each recording once")
     recs = [r if isinstance(r, Recording) else read(r) for r in items]
     seen: dict[int, int] = {}
     for i, r in enumerate(recs):

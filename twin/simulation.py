@@ -144,10 +144,13 @@ class Simulation:
         return (f"Simulation({self.compiled.vessel.name}, {r.t[-1] - r.t[0]:.4g} s, final position "
                 f"({r.eta[-1, 0]:.2f}, {r.eta[-1, 1]:.2f}) m, {len(self.limits)} input limits hit)")
 
-    def write(self, path, origin: tuple[float, float] | None = None) -> None:
-        """The run as .csv, .mcap, .rrd, .tlog or .bin (map positions around `origin`, lat/lon deg)."""
+    def write(self, path, origin: tuple[float, float] | None = None, *, force: bool = False) -> None:
+        """The run as .csv, .mcap, .rrd, .tlog or .bin (map positions around `origin`, lat/lon deg); a
+        file already at `path` is kept unless `force`, as `twin simulate` keeps it."""
         from .outputs import write
 
+        if Path(path).exists() and not force:
+            raise TwinError(f"'{path}' exists: it is kept (force=True replaces it)")
         v = self.compiled.vessel
         write({"twin": self.run}, Path(path), geometry=self.compiled.geometry, vessel_name=v.name, mjcf=v.mjcf,
               origin=origin)

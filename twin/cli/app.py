@@ -292,7 +292,9 @@ def kept_data(path: Path) -> str | None:
             return "recording" if head[:1] == ["t"] and RECORDING_HEADS & set(head) else None
         if suffix == ".json" and path.stat().st_size < 50_000_000:
             data = json.loads(path.read_text(encoding="utf-8"))
-            return "vessel file" if isinstance(data, dict) and {"mjcf", "thrusters"} <= set(data) else None
+            keys = set(data) if isinstance(data, dict) else set()
+            return ("vessel file" if {"mjcf", "thrusters"} <= keys
+                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys else None)
     except (OSError, ValueError):
         return None
     return None

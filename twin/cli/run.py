@@ -134,7 +134,7 @@ def simulate(
                                       six_dof=six_dof, start_speed_m_s=start_speed)
             for k, path in enumerate(out):
                 progress(f"writing {path.name}", k, len(out))
-                result.write(path, origin=start)
+                result.write(path, origin=start, force=True)  # check_new asked already
                 written.append(path)
     finally:  # after the bar (a line printed under it would be drawn over), and also when a later output fails
         for path in written:

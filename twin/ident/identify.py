@@ -618,7 +618,8 @@ def format_estimates(result: simfit.FitResult) -> str:
         sigma = f"{e.sigma:10.3g}" if e.sigma is not None else f"{'-':>10s}"
         lines.append(f"{e.name:{name_width}s} {e.unit:{width}s} {e.prior:11.4g} {e.value:11.4g} {sigma}  {e.note}")
     window, stride = result.meta.get("window_s"), result.meta.get("stride_s")
-    which = (f" of {window:g} s{' back to back' if stride == window else ''} with the thrusters working or the hull "
+    working = "the propeller working" if result.vessel.mmg is not None else "the thrusters working"
+    which = (f" of {window:g} s{' back to back' if stride == window else ''} with {working} or the hull "
              "moving" if window else "")
     if "kept_prior" in result.meta:
         lines.append(f"the prior written, not the fit: {result.meta['kept_prior']}")
