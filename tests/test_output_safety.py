@@ -102,6 +102,27 @@ def test_a_fleet_with_a_log_it_cannot_diagnose_exits_2_after_writing_the_reports
     assert (out / "fleet.json").is_file() and (out / "good.json").is_file()
 
 
+def test_a_log_whose_pwm_never_leaves_neutral_while_the_boat_is_driven_is_warned(tmp_path):
+    """Every PWM at 1500 µs while the track does 1-2 m/s: the logged outputs are not the ones that drove
+    the boat, and evaluate says so (naming --channels) before scoring a twin that never moves."""
+    made = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--seed", "2", "--out", tmp_path / "d.csv")
+    assert made.returncode == 0, made.stderr
+    rows = (tmp_path / "d.csv").read_text().splitlines()
+    cols = rows[0].split(",")
+    left, right = cols.index("pwm_left"), cols.index("pwm_right")
+    out = [rows[0]]
+    for row in rows[1:]:
+        cells = row.split(",")
+        cells[left] = cells[right] = "1500" if cells[left] else ""
+        out.append(",".join(cells))
+    (tmp_path / "neutral.csv").write_text("\n".join(out) + "\n")
+    done = twin("evaluate", "--vessel", "blueboat", tmp_path / "neutral.csv")
+    assert "warning: neutral.csv: the thrusters' PWM stays within 35 µs of neutral (1500, 1500 µs) while the boat " \
+           "goes" in done.stderr and "--channels LEFT,RIGHT" in done.stderr, done.stderr
+    done = twin("evaluate", "--vessel", "blueboat", tmp_path / "d.csv")
+    assert "stays within" not in done.stderr
+
+
 def test_a_heading_ahead_of_its_gyro_is_said_to_be_early():
     assert "heading against the gyro: 0.22 s early ± 0.10 s" in GyroLag(-0.22, 0.95, 60.0, sigma_s=0.10).text()
     assert "heading against the gyro: +0.30 s late ± 0.05 s" in GyroLag(0.30, 0.95, 60.0, sigma_s=0.05).text()

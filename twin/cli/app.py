@@ -456,14 +456,16 @@ def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: 
     vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes: inputs
     beyond the vessel file's bounds (replayed as logged), the wind's gaps, and a twin identified with
     the wind that is run without it."""
-    from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note, unused_wind_note,
-                                  wind_gaps)
+    from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note,
+                                  idle_inputs_under_way, unused_wind_note, wind_gaps)
 
     check_wind(recordings, wind, vessel)
     if replayed:
         check_inputs(recordings, vessel)
         for line in beyond_command_bounds(recordings, vessel):
             note(f"note: {line}")
+        for line in idle_inputs_under_way(recordings):
+            note(f"warning: {line}")
     for line in wind_gaps(recordings) if wind else []:
         say(f"note: {line}")
     wind_note = fitted_wind_note(vessel, wind) if replayed else None

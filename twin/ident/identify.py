@@ -53,6 +53,7 @@ from ..fit.evaluate import fitted_envelope
 from ..fit.kinematic import input_answers
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
+from ..geodesy import ned_from_geodetic
 from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
 from ..recording import Recording
@@ -461,6 +462,32 @@ def beyond_command_bounds(recordings: list[Recording], vessel: Vessel) -> list[s
             out.append(f"{Path(rec.source).name}: the {lim.thruster} {lim.quantity} reaches "
                        f"{lim.bound + lim.worst_excess:.3g} {lim.unit}, beyond the vessel file's {lim.bound:g} "
                        f"{lim.unit} (the bound of the twin's own commands): replayed as logged")
+    return out
+
+
+UNDER_WAY_M_S = 0.5  # a ground speed no drift gives a small hull: it is being driven
+
+
+def idle_inputs_under_way(recordings: list[Recording]) -> list[str]:
+    """A warning for each recording whose thruster PWM never leaves its neutral (IDLE_PWM_US) while its
+    GNSS track goes faster than UNDER_WAY_M_S for a tenth of the log: the inputs that drove it are
+    not the ones logged (other servo outputs, --channels, or another neutral)."""
+    out = []
+    for rec in recordings:
+        if not len(rec.pwm) or len(rec.gnss) < 3:
+            continue
+        pwm = np.column_stack([rec.pwm["left_us"], rec.pwm["right_us"]]) - np.asarray(rec.pwm_neutral_us)
+        if np.nanmax(np.abs(pwm)) > IDLE_PWM_US:
+            continue
+        north, east = ned_from_geodetic(rec.gnss["lat_deg"], rec.gnss["lon_deg"], rec.gnss["lat_deg"][0],
+                                        rec.gnss["lon_deg"][0])[:2]
+        t = np.asarray(rec.gnss.t, float)
+        speed = np.hypot(np.diff(north), np.diff(east)) / np.maximum(np.diff(t), 1e-6)
+        if np.nanpercentile(speed, 90) > UNDER_WAY_M_S:
+            out.append(f"{Path(rec.source).name}: the thrusters' PWM stays within {IDLE_PWM_US:g} µs of neutral "
+                       f"({', '.join(f'{n:g}' for n in rec.pwm_neutral_us)} µs) while the boat goes "
+                       f"{np.nanpercentile(speed, 90):.1f} m/s over ground: the logged outputs are not the ones "
+                       "that drove it (--channels LEFT,RIGHT names the servo outputs)")
     return out
 
 
