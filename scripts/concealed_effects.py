@@ -523,12 +523,19 @@ def recordings_of(case: Case) -> list[Recording]:
     return read([ESSO / ESSO_TESTS[case.where]])
 
 
-def run_case(case: Case, twins: dict, wind_measured: bool = False) -> dict:
+def case_setup(case: Case, twins: dict, wind_measured: bool):
+    """A case's recordings, the twin that diagnoses them (an Esso test's mean wind given where its
+    measured wind is not a known input) and that known wind ("measured" or None)."""
     recs = recordings_of(case)
     twin = twins[case.vessel]
     wind = "measured" if case.vessel == "esso" and wind_measured else None
     if case.vessel == "esso" and wind is None:
         twin = apply_effects(twin, [("wind_per_log", {log_name(r.source): mean_wind(r) for r in recs})])
+    return recs, twin, wind
+
+
+def run_case(case: Case, twins: dict, wind_measured: bool = False) -> dict:
+    recs, twin, wind = case_setup(case, twins, wind_measured)
     truth_name, truth = truth_of(case, twin, recs)
     concealed = [conceal(r, case) for r in recs]
     started = time.time()
@@ -550,11 +557,7 @@ def judge_truth(case: Case, twins: dict, wind_measured: bool, commit: str) -> di
     """The case's truth at its own values, nothing fitted, judged by the diagnosis's rule on the blocks a
     diagnosis of the concealed logs judges on (doctor.given_evidence, `twin diagnose --given`): whether the
     logs can prove it through this twin at all. None for a null."""
-    recs = recordings_of(case)
-    twin = twins[case.vessel]
-    known = "measured" if case.vessel == "esso" and wind_measured else None
-    if case.vessel == "esso" and known is None:
-        twin = apply_effects(twin, [("wind_per_log", {log_name(r.source): mean_wind(r) for r in recs})])
+    recs, twin, known = case_setup(case, twins, wind_measured)
     truth_name, truth = truth_of(case, twin, recs)
     if truth_name is None:
         return None
