@@ -78,4 +78,9 @@ def test_diagnose_takes_the_measured_wind_as_a_known_input(tmp_path, shared_dir)
     done = twin_command.twin("diagnose", str(no_wind), "--vessel", "esso_osaka", "--wind-measured",
                              "--json", str(tmp_path / "x.json"))
     assert done.returncode == 2 and "no measured wind" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    # a wind asked for beside the measured one is refused before any work, not dropped in silence
+    done = twin_command.twin("diagnose", str(log), "--vessel", "esso_osaka", "--wind-measured", "--effects",
+                             "current,wind")
+    assert done.returncode == 2 and "effect(s) wind: each recording's measured wind is a known input" in done.stderr
+    assert "these can: " in done.stderr and ", wind," not in done.stderr, done.stderr
     assert not (tmp_path / "x.json").exists()

@@ -103,14 +103,20 @@ class Diagnosis:
                 **({"refit": self.refit} if self.refit else {})}
 
 
-def _check_library(prior: Vessel, recordings: list[Recording], library: list[str]) -> None:
+def _check_library(prior: Vessel, recordings: list[Recording], library: list[str], wind: str | None = None) -> None:
     """Refuse, before any replay, a requested effect that is unknown or has nothing to act on in
     these recordings (the same offer `candidates` makes once they are prepared: a battery's
-    effect only where every log has a voltage)."""
+    effect only where every log has a voltage), and a wind where the measured one is a known input."""
     from ..effects import EFFECTS
 
     logs_battery = all(supply_voltage(r, r.battery.t) is not None for r in recordings)
     offered = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=1.0 if logs_battery else None)
+    if wind == "measured":
+        offered = {k: v for k, v in offered.items() if k not in MEASURED_WIND_REPLACES}
+        known = sorted(set(library) & set(MEASURED_WIND_REPLACES))
+        if known:
+            raise TwinError(f"effect(s) {', '.join(known)}: each recording's measured wind is a known input "
+                            f"(--wind-measured), so no wind is fitted; these can: {', '.join(offered)}")
     unknown = set(library) - set(offered)
     if not unknown:
         return
@@ -142,7 +148,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if refit is not None:
         _check_refit(prior, refit, refit_weight)
     if library:
-        _check_library(prior, recordings, library)
+        _check_library(prior, recordings, library, wind)
     log = log or (lambda msg: None)
     findings = []
     if kinematic:
