@@ -153,6 +153,7 @@ def convert(
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
+    recordings_in([src])  # an input that is no recording is the first thing to fix, before the output's
     check_new([dst], force)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
