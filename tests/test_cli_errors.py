@@ -358,7 +358,8 @@ def test_one_recording_given_twice_is_refused(monkeypatch, capsys, kept):
     for args, message in [(("identify", log, log, *v, "--out", root / "m.json"), "is given twice"),
                           (("identify", log, root / "." / "log.csv", *v, "--out", root / "m.json"), "is given twice"),
                           (("evaluate", log, copy, *v), "holds the same bytes as"),
-                          (("diagnose", copy, log, *v), "holds the same bytes as")]:
+                          (("diagnose", copy, log, *v), "holds the same bytes as"),
+                          (("info", log, log), "is given twice")]:
         err = refused(monkeypatch, capsys, args, [log, copy, same])
         assert message in err, (args, err)
     assert not (root / "m.json").exists()

@@ -9,7 +9,7 @@ import typer
 from ..drive import inputs_mismatch
 from ..errors import TwinError
 from .app import (CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
-                  check_outputs,
+                  check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
 
@@ -53,7 +53,10 @@ def info(
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
     failed, read = 0, []
-    for path in _expanded(files):  # one bad file must not hide the others' summaries
+    expanded = _expanded(files)
+    # one log twice is refused as every command refuses it (with --vessel it would be calibrated twice)
+    check_recordings_distinct([p for p in expanded if isinstance(p, Path) and p.is_file()])
+    for path in expanded:  # one bad file must not hide the others' summaries
         try:
             if isinstance(path, TwinError):
                 raise path
