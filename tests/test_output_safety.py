@@ -260,3 +260,17 @@ def test_a_log_whose_rows_repeat_the_fix_says_so_and_a_twin_run_does_not(tmp_pat
     still = tmp_path / "still.csv"  # a twin run at rest: x, y exact and constant
     still.write_text("t,x,y,psi\n" + "".join(f"{t[k]:.1f},0,0,0\n" for k in range(n)))
     assert not any("repeat the previous fix" in x for x in read_recording(still).notes)
+
+
+def test_a_report_view_never_replaces_runs_recorded_in_rerun_but_replaces_an_earlier_view(tmp_path):
+    """An .rrd of runs (`twin simulate --out`, a SITL session's --record) is data; a report's --rrd
+    (crosscheck, evaluate, diagnose, view) is a view and replaces an earlier view."""
+    runs, view = tmp_path / "run.rrd", tmp_path / "check.rrd"
+    assert twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", runs).returncode == 0
+    kept = runs.read_bytes()
+    done = twin("crosscheck", "--vessel", "blueboat", "--duration", "2", "--rrd", runs)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert "is a rerun recording of runs: it is kept" in done.stderr and runs.read_bytes() == kept
+    view.write_bytes(b"an earlier view")
+    done = twin("crosscheck", "--vessel", "blueboat", "--duration", "2", "--rrd", view)
+    assert done.returncode == 0 and view.read_bytes()[:4] == b"RRF2"

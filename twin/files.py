@@ -10,6 +10,10 @@ from pathlib import Path
 
 from .errors import TwinError
 
+# rerun application ids: runs recorded (a simulation, a SITL session) against a report's view of
+# runs; the one is data a user keeps, the other a report may replace
+RRD_RUN, RRD_VIEW = "twin-run", "twin-view"
+
 
 def read_only(path) -> bool:
     """Whether `path` is a file its owner has marked read-only (no write permission for anyone).

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .errors import TwinError
+from .files import RRD_RUN, RRD_VIEW
 from .formats import RUN_FORMATS, write_run
 from .run import Run
 
@@ -28,13 +29,17 @@ def mesh_placements(mjcf: Path) -> dict[Path, tuple[float, float, float]]:
 
 
 def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str = "",
-          mjcf: Path | None = None, origin: tuple[float, float] | None = None) -> None:
-    """The first run goes to .csv/.mcap/.tlog/.bin; every run goes to .rrd on one timeline."""
+          mjcf: Path | None = None, origin: tuple[float, float] | None = None, view: bool = False) -> None:
+    """The first run goes to .csv/.mcap/.tlog/.bin; every run goes to .rrd on one timeline.
+
+    view: the .rrd is a report's view of runs (`RRD_VIEW`), not runs recorded (`RRD_RUN`); a
+    report may then be written over the one but not over the other (`twin.cli.app.kept_data`)."""
     suffix = path.suffix.lower()
     if suffix == ".rrd":
         from .viz.rerun_log import write_runs_rrd
 
-        write_runs_rrd(runs, path, geometry=geometry, hull_mesh_paths=mesh_placements(mjcf) if mjcf else None)
+        write_runs_rrd(runs, path, geometry=geometry, hull_mesh_paths=mesh_placements(mjcf) if mjcf else None,
+                       application_id=RRD_VIEW if view else RRD_RUN)
         return
     if suffix not in RUN_FORMATS:
         raise TwinError(f"output '{path}': unknown format (use {', '.join(FORMATS)})")

@@ -22,7 +22,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import finite_json, link_target, read_only, same_file, write_text_atomic
+from ..files import RRD_RUN, finite_json, link_target, read_only, same_file, write_text_atomic
 from ..progress import Progress
 from ..threads import limit_process_blas_threads
 
@@ -278,14 +278,19 @@ RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg",
 
 
 def kept_data(path: Path) -> str | None:
-    """What a file at `path` is when it is data a user keeps, a recording or a vessel file (by its
-    content, whatever command wrote it), else None (a report, a view, no file)."""
+    """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
+    (a simulation, a SITL session) or a vessel file (by its content, whatever command wrote it),
+    else None (a report, a view, no file)."""
     if not path.is_file():
         return None
     suffix = path.suffix.lower()
     if suffix in (".tlog", ".bin", ".mcap"):
         return "recording"
     try:
+        if suffix == ".rrd":
+            # rerun writes the application id near the file's start, uncompressed
+            with open(path, "rb") as f:
+                return "rerun recording of runs" if RRD_RUN.encode() in f.read(4096) else None
         if suffix == ".csv":
             with open(path, encoding="utf-8", errors="replace") as f:
                 head = [c.strip() for c in f.readline().split(",")]

@@ -376,8 +376,8 @@ def evaluate_command(
         from ..outputs import write
         from ..replay import free_run_views
 
-        write(free_run_views(used, prepared(recs, used)), rrd, geometry=compile_vessel(v).geometry, vessel_name=v.name,
-              mjcf=v.mjcf)
+        write(free_run_views(used, prepared(recs, used)), rrd, geometry=compile_vessel(v).geometry,
+              vessel_name=v.name, mjcf=v.mjcf, view=True)
         say(f"wrote {rrd} (open with: rerun {rrd})")
     if band:
         from ..scale.montecarlo import band_coverage

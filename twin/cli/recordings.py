@@ -213,7 +213,7 @@ def view(
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
         runs = view_runs(recordings, v, sim=sim, smoother=smoother, wind=wind)
         progress(f"writing {out.name}")
-        write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None)
+        write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None, view=True)
     say(f"wrote {out} (open with: rerun {out})")
     if png is not None:
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"

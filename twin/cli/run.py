@@ -205,7 +205,7 @@ def crosscheck(
     if rrd is not None:
         full = results[0]
         write({"engine": full.engine, "analytic": full.analytic}, rrd,
-              geometry=compile_vessel(v).geometry, vessel_name=v.name, mjcf=v.mjcf)
+              geometry=compile_vessel(v).geometry, vessel_name=v.name, mjcf=v.mjcf, view=True)
         say(f"wrote {rrd}")
     if not all(r.passed for r in results):
         raise typer.Exit(1)

@@ -59,7 +59,7 @@ def write_rrd(d, path: Path) -> None:
     from ..outputs import write
 
     write(runs(d), Path(path), geometry=compile_vessel(d.prior).geometry, vessel_name=d.prior.name,
-          mjcf=d.prior.mjcf)
+          mjcf=d.prior.mjcf, view=True)
 
 
 def _png(fig) -> str:
