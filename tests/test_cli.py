@@ -81,7 +81,9 @@ def _vessel_file(tmp_path, **changes):
     (lambda tmp: ["--model", _vessel_file(tmp, cases={"min": {"geom_mass_kg": {"battery": -2.0}}}),
                   "--case", "min"], "mass"),
     (lambda tmp: ["--model", _vessel_file(tmp, added_mass={"Xudot": -1, "Yvdot": -10, "Nrdot": 30})],
-     "positive-definite"),
+     "added_mass.Nrdot is 30"),
+    (lambda tmp: ["--model", _vessel_file(tmp, added_mass={"Xudot": -1, "Yvdot": -10, "Nrdot": -1, "Yrdot": 300,
+                                                           "Nvdot": 300})], "positive-definite"),
     (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left\n0,1500\n")], "missing columns"),
     (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left,pwm_right\n0,1500,1500\n"
                                                               "2,1600,1600\n1,1500,1500\n")], "backwards"),

@@ -515,3 +515,17 @@ def test_evaluate_refuses_a_log_with_nothing_to_score(monkeypatch, capsys, tmp_p
     err = refused(monkeypatch, capsys, ("evaluate", log, "--vessel", "blueboat", "--json", tmp_path / "e.json"),
                   [log])
     assert "nothing to score" in err and not (tmp_path / "e.json").exists()
+
+
+def test_a_wind_on_a_vessel_without_a_wind_load_is_refused_and_thrust_inputs_say_the_gains(tmp_path):
+    """--wind on a vessel with no wind load did nothing without a word; thrust inputs are commands the
+    vessel's gains scale (the BlueBoat's 1.605: 20 N asked, 32.1 N applied), which is said."""
+    twin = twin_command.twin
+    done = twin("simulate", "--vessel", "cybership1", "--duration", "2", "--wind", "5,0", "--out", tmp_path / "w.csv")
+    assert done.returncode == 2 and "has no wind load model" in done.stderr and not (tmp_path / "w.csv").exists()
+    inputs = tmp_path / "thrust.csv"
+    inputs.write_text("t,thrust_left,thrust_right\n0,20,20\n")
+    done = twin("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "1", "--out", tmp_path / "t.csv")
+    assert done.returncode == 0 and "10 N commanded gives 16.1 N (left) at rest" in done.stderr
+    row = (tmp_path / "t.csv").read_text().splitlines()[1].split(",")
+    assert float(row[-2]) == pytest.approx(20 * 1.605, abs=0.05)

@@ -42,7 +42,7 @@ def test_quiet_holds_for_its_own_run_only(tmp_path):
     args = ("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "2", "--out", tmp_path / "a.csv")
     quiet, loud = twin(*args, "--quiet"), twin(*args, "--force")
     assert quiet.returncode == loud.returncode == 0
-    assert quiet.stderr == "" and loud.stderr.count("note: ") == 2 and "above the vessel file's bound" in loud.stderr
+    assert quiet.stderr == "" and loud.stderr.count("note: ") == 3 and "above the vessel file's bound" in loud.stderr
 
 
 def test_vessel_and_model_together_are_refused(tmp_path):

@@ -161,3 +161,17 @@ def test_the_command_reference_page_is_the_commands_own_help():
     from twin.cli.reference import page
 
     assert (DOCS / "reference" / "cli.md").read_text() == page(), "regenerate docs/reference/cli.md"
+
+
+def test_the_vessel_file_reference_names_every_field():
+    """A field the loader takes but the reference does not name is one a user cannot know of."""
+    from dataclasses import fields
+
+    from twin.physics.priors import Design
+    from twin.vessel import VESSEL_FILE_KEYS, AddedMass, Damping, Environment, MassCase, Sensors, ThrusterModel, WindLoad
+
+    page = (ROOT / "docs" / "reference" / "vessel-file.md").read_text(encoding="utf-8")
+    names = set(VESSEL_FILE_KEYS) | {f.name for c in (AddedMass, Damping, ThrusterModel, WindLoad, Environment,
+                                                      Sensors, MassCase, Design) for f in fields(c)}
+    unnamed = sorted(n for n in names if f"`{n}`" not in page)
+    assert not unnamed, unnamed

@@ -77,3 +77,41 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     path.write_text(json.dumps(data))
     with pytest.raises(TwinError, match=message):
         vessel_mod.load(str(path))
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.__setitem__("damping", {}), "damping has no coefficient"),
+    (lambda d: d["added_mass"].__setitem__("Xudot", 5.0), r"added_mass.Xudot is 5: .* ≤ 0"),
+    (lambda d: d["thrusters"].__setitem__("gain_left", 1605.0), r"thrusters.gain_left is 1605"),
+    (lambda d: d["thrusters"].__setitem__("gain_right", -1.0), r"thrusters.gain_right must be > 0, got -1"),
+    (lambda d: d["thrusters"].__setitem__("lag_s", 200.0), r"thrusters.lag_s is 200 s"),
+    (lambda d: d.__setitem__("cg_offset_m", [100.0, 0.0]), r"cg_offset_m \[100.0, 0.0\]"),
+    (lambda d: d["wind_load"].__setitem__("frontal_area_m2", -0.3), r"wind_load.frontal_area_m2 must be ≥ 0"),
+    (lambda d: d.pop("name"), r"needs 'name' \(at least"),
+])
+def test_a_vessel_file_value_only_a_slipped_unit_gives_is_refused_naming_its_field(tmp_path, edit, message):
+    """Each of these ran without a word as another boat (a gain in per mille reached 35 m/s, a
+    headwind on a negative area pushed the boat ahead)."""
+    path = vessel_mod.save(vessel_mod.load("blueboat"), tmp_path / "boat.json")
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=message):
+        vessel_mod.load(str(path))
+
+
+def test_masses_in_grams_are_refused_where_the_hull_meshes_say_what_floats(tmp_path):
+    import shutil
+
+    from twin.engine.mjcf import compile_vessel
+
+    mjcf = (vessel_mod.MODEL_DIR / "blueboat.xml").read_text()
+    (tmp_path / "boat.xml").write_text(mjcf.replace('mass="4.5"', 'mass="4500"').replace(
+        'meshdir="../assets"', f'meshdir="{vessel_mod.MODEL_DIR.parent / "assets"}"'))
+    shutil.copy(vessel_mod.MODEL_DIR / "blueboat.json", tmp_path / "boat.json")
+    data = json.loads((tmp_path / "boat.json").read_text())
+    data["mjcf"] = "boat.xml"
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=r"9006 kg cannot float: its hull meshes displace 98.2. kg"):
+        compile_vessel(vessel_mod.load(str(tmp_path / "boat.json")))
+    assert compile_vessel(vessel_mod.load("blueboat")).geometry.rigid.mass_kg == pytest.approx(15.0)

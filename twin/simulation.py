@@ -176,6 +176,9 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     if current is not None:
         env = replace(env, current_speed_m_s=current[0], current_dir_deg=current[1])
     if wind is not None:
+        if wind[0] > 0 and not vessel.feels_wind():
+            raise TwinError(f"vessel '{vessel.name}' has no wind load model (wind_load areas or wind_regression), "
+                            "so a wind would do nothing: add wind_load to its vessel file")
         env = replace(env, wind_speed_m_s=wind[0], wind_dir_deg=wind[1])
     vessel = vessel.with_environment(env)
     if inputs is not None and not isinstance(inputs, InputSeries):

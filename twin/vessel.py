@@ -82,6 +82,11 @@ class Vessel:
     def with_environment(self, environment: Environment) -> "Vessel":
         return replace(self, environment=environment)
 
+    def feels_wind(self) -> bool:
+        """A wind load model: projected areas (wind_load) or a published regression (wind_regression)."""
+        load = self.wind_load
+        return load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or self.wind_regression is not None
+
     def as_logged(self) -> "Vessel":
         """The vessel as a recording's replay drives it (ThrusterModel.as_logged): a logged
         propeller speed or rudder angle is not clipped to the bounds of the twin's own commands."""
@@ -262,8 +267,12 @@ REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
 
 
 def from_dict(data: dict[str, Any], path: Path) -> Vessel:
-    if not isinstance(data, dict) or "mjcf" not in data or "name" not in data:
-        raise TwinError(f"{path.name}: a vessel file needs at least 'name' and 'mjcf'")
+    if not isinstance(data, dict):
+        raise TwinError(f"{path.name}: a vessel file is a JSON object with at least 'name' and 'mjcf'")
+    lacking = [k for k in ("name", "mjcf") if k not in data]
+    if lacking:
+        raise TwinError(f"{path.name}: a vessel file needs {' and '.join(repr(k) for k in lacking)} (at least 'name' "
+                        "and 'mjcf')")
     _typed(data["name"], str, "name", path)
     _typed(data["mjcf"], str, "mjcf", path)
     shipped = data["mjcf"].startswith(PACKAGE_MJCF)
@@ -313,7 +322,40 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         check(vessel)
     except TwinError as exc:  # the file a user gave, not only the vessel's name, so they know what to edit
         raise TwinError(f"{path.name}: {exc}") from None
+    _plausible(vessel, path)
     return vessel
+
+
+# a file's value past these is a unit slip (ms for s, mm for m, percent for a factor), not a small vessel
+MOST_GAIN, MOST_LAG_S, MOST_CG_OFFSET_M = 10.0, 10.0, 5.0
+
+
+def _plausible(vessel: Vessel, path: Path) -> None:
+    """Refuse what a vessel file can hold but no small vessel has, naming the field: a file that
+    loads runs, and a unit slipped by 1000 would run as another boat (checked at load only: a fit's
+    candidates may pass through values a file should not hold)."""
+    am, t, load = vessel.added_mass, vessel.thrusters, vessel.wind_load
+    for name in ("Xudot", "Yvdot", "Nrdot"):
+        if getattr(am, name) > 0:
+            raise TwinError(f"{path.name}: added_mass.{name} is {getattr(am, name):g}: a hull's added mass adds to its "
+                            "inertia, so the derivative is ≤ 0")
+    if vessel.mmg is None and t.kind != "propeller_rudder" and not any(asdict(vessel.damping).values()):
+        raise TwinError(f"{path.name}: damping has no coefficient: the twin would never slow down (give its "
+                        "coefficients, N s/m and N s²/m², negative)")
+    for name in ("gain_left", "gain_right"):
+        if getattr(t, name) > MOST_GAIN:
+            raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g}, a factor on the thrust map: "
+                            f"beyond {MOST_GAIN:g} it is no thruster's (a percentage?)")
+    for name in ("lag_s", "delay_s"):
+        if getattr(t, name) > MOST_LAG_S:
+            raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g} s, beyond {MOST_LAG_S:g} s "
+                            "(milliseconds given as seconds?)")
+    if math.hypot(*vessel.cg_offset_m) > MOST_CG_OFFSET_M:
+        raise TwinError(f"{path.name}: cg_offset_m {list(vessel.cg_offset_m)} moves the masses more than "
+                        f"{MOST_CG_OFFSET_M:g} m (millimetres given as metres?)")
+    for name in ("frontal_area_m2", "lateral_area_m2", "length_m"):
+        if getattr(load, name) < 0:
+            raise TwinError(f"{path.name}: wind_load.{name} must be ≥ 0, got {getattr(load, name):g}")
 
 
 def _fitted_coefficients_given(data: dict, uncertainty: dict, path: Path) -> None:
@@ -450,8 +492,11 @@ def check(vessel: Vessel) -> None:
         raise TwinError(f"vessel '{vessel.name}': added mass must be symmetric (Yrdot = Nvdot)")
     t = vessel.thrusters
     _check_thruster_kind_and_pwm(vessel)
-    if t.lag_s < 0 or t.gain_left <= 0 or t.gain_right <= 0:
-        raise TwinError(f"vessel '{vessel.name}': thruster lag must be ≥ 0 and gains > 0")
+    if t.lag_s < 0:
+        raise TwinError(f"vessel '{vessel.name}': thrusters.lag_s must be ≥ 0 s, got {t.lag_s:g}")
+    for name in ("gain_left", "gain_right"):
+        if not getattr(t, name) > 0:
+            raise TwinError(f"vessel '{vessel.name}': thrusters.{name} must be > 0, got {getattr(t, name):g}")
     if t.delay_s < 0 or not 0 <= t.decay_per_min < 1 or not t.advance_loss >= 0:
         raise TwinError(f"vessel '{vessel.name}': thruster delay and advance loss must be ≥ 0, decay in [0, 1)")
     if (t.start_fwd is not None and not t.start_fwd >= 0) or (t.start_rev is not None and not t.start_rev <= 0):

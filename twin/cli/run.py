@@ -82,9 +82,10 @@ def simulate(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag; not "
                                                       "with --inputs)"),
-    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs), thrust_left,thrust_right (N) or, for "
-                                                  "a propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg); each row held until "
-                                                  "the next, an empty cell holds its input's last value"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs), thrust_left,thrust_right (N, "
+                                                  "commands: the vessel's thruster gains scale them) or, for a "
+                                                  "propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg); each row "
+                                                  "held until the next, an empty cell holds its input's last value"),
     duration: float = typer.Option(120.0, help="simulated time, s"),
     out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
@@ -141,6 +142,10 @@ def simulate(
             say(f"wrote {path}")
     for limit in result.limits:
         note(f"note: {limit.text()}")
+    gains = v.thrusters.gains()
+    if result.run.meta["inputs"].kind == "thrust" and inputs is not None and not np.allclose(gains, 1.0):
+        note(f"note: thrust inputs are commands, which this vessel's thruster gains ({gains[0]:g}, {gains[1]:g}) "
+             f"scale: 10 N commanded gives {10 * gains[0]:.3g} N (left) at rest; divide by the gain for a thrust")
     end = result.run.meta.get("inputs_end_s")
     if end is not None:
         note(f"note: the inputs end at {end:g} s: their last row is held to the end of the run ({duration:g} s)")

@@ -96,16 +96,10 @@ def _current_fit(prior: Vessel, logs) -> Candidate:
                      ((0.0, 0.0),), to_effect, "drift")
 
 
-def _feels_wind(vessel: Vessel) -> bool:
-    """A wind load model: projected areas (wind_load) or a published regression (wind_regression)."""
-    load = vessel.wind_load
-    return load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None
-
-
 def wind(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
     """Wind (m/s) blowing from dir_deg (cw from north) on the vessel's wind load model (its
     wind_load areas, or its wind_regression, e.g. Fujiwara's)."""
-    if speed_m_s > 0 and not _feels_wind(vessel):
+    if speed_m_s > 0 and not vessel.feels_wind():
         raise TwinError(f"effect 'wind': vessel '{vessel.name}' has no wind load model (wind_load areas or "
                         "wind_regression), so wind would do nothing")
     env = replace(vessel.environment, wind_speed_m_s=speed_m_s, wind_dir_deg=dir_deg)
@@ -113,7 +107,7 @@ def wind(vessel: Vessel, speed_m_s: float, dir_deg: float) -> Vessel:
 
 
 def _wind_fit(prior: Vessel, logs) -> Candidate | None:
-    if not _feels_wind(prior):
+    if not prior.feels_wind():
         return None
 
     def to_effect(p: dict) -> Effect:
@@ -127,7 +121,7 @@ def _wind_fit(prior: Vessel, logs) -> Candidate | None:
 def wind_per_log(vessel: Vessel, wind_by_log: dict[str, tuple[float, float]]) -> Vessel:
     """Each named log's own wind (speed m/s, from deg), in place of the constant wind for that log:
     a wind that changed between outings, or between the tests of one day; set."""
-    if any(speed > 0 for speed, _ in wind_by_log.values()) and not _feels_wind(vessel):
+    if any(speed > 0 for speed, _ in wind_by_log.values()) and not vessel.feels_wind():
         raise TwinError(f"effect 'wind_per_log': vessel '{vessel.name}' has no wind load model (wind_load areas or "
                         "wind_regression), so wind would do nothing")
     entries = tuple(sorted((n, float(s), float(d)) for n, (s, d) in wind_by_log.items()))
@@ -138,7 +132,7 @@ def _wind_per_log_fit(prior: Vessel, logs) -> Candidate | None:
     """Two numbers per log (its air velocity north, east), each log started from the calm or uniform wind
     its own windows like best; one log's wind is `wind`."""
     logs = list(dict.fromkeys(logs))
-    if len(logs) < 2 or not _feels_wind(prior):
+    if len(logs) < 2 or not prior.feels_wind():
         return None
     params = tuple(log_wind(n, axis) for n in logs for axis in (0, 1))
 
@@ -164,7 +158,7 @@ def wind_load_shape(vessel: Vessel, cy: float, cn: float) -> Vessel:
     """The wind load's sway and yaw coefficients set (c_x stays the vessel's, as in `wind_shape`),
     for whatever wind acts (each log's own, a constant one, or a measured one): the shape of a
     superstructure the vessel file does not describe, apart from the wind itself."""
-    if vessel.wind_load.cx == 0.0 or not _feels_wind(vessel) or vessel.wind_regression is not None:
+    if vessel.wind_load.cx == 0.0 or not vessel.feels_wind() or vessel.wind_regression is not None:
         raise TwinError(f"effect 'wind_load_shape': vessel '{vessel.name}' has no wind load model with "
                         "coefficients (wind_load areas and c_x, and no wind_regression in their place), so its "
                         "shape would do nothing")
@@ -174,7 +168,7 @@ def wind_load_shape(vessel: Vessel, cy: float, cn: float) -> Vessel:
 def _wind_load_shape_fit(prior: Vessel, logs) -> Candidate | None:
     """Offered beside winds of each log's own (several logs): a single log's wind and its shape are
     `wind_shape`."""
-    if len(set(logs)) < 2 or not _feels_wind(prior) or prior.wind_load.cx == 0.0 or prior.wind_regression is not None:
+    if len(set(logs)) < 2 or not prior.feels_wind() or prior.wind_load.cx == 0.0 or prior.wind_regression is not None:
         return None
     shape = _load_coefficients(prior)
     return Candidate("wind_load_shape", shape, ((prior.wind_load.cy, prior.wind_load.cn),),

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import TwinError
 from ..physics import fujiwara, mmg
 from ..physics.added_mass import RigidBody, is_symmetric_positive_definite
+from ..physics.hydrostatics import RHO_FRESH_KG_M3
 from ..physics.hydrodynamics import HydroModel, Terms
 from ..vessel import MODEL_DIR, Vessel
 
@@ -253,11 +254,32 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
     if model.nv != 3:
         raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
     geometry = read_geometry(model, vessel)
+    _check_floats(vessel, model, geometry.rigid.mass_kg)
     compiled = CompiledVessel(vessel, model, geometry)
     M = compiled.hydro().M
     if not is_symmetric_positive_definite(M):
         raise TwinError(f"vessel '{vessel.name}': M = M_RB + M_A is not symmetric positive-definite")
     return compiled
+
+
+# a vessel heavier than this many times what its hull meshes displace fully submerged has its masses
+# in another unit (grams for kilograms), not a hull that floats low; a mesh that is no closed hull
+# (a mast, a deck) makes the displacement only larger
+SINKS_AT = 10.0
+
+
+def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
+    """Refuse masses in another unit where the vessel's meshes say how much water its hulls hold."""
+    volume_m3 = 0.0
+    for gid in np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_MESH):
+        mid = model.geom_dataid[gid]
+        v0, nv = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
+        f0, nf = model.mesh_faceadr[mid], model.mesh_facenum[mid]
+        tri = model.mesh_vert[v0:v0 + nv][model.mesh_face[f0:f0 + nf]]
+        volume_m3 += abs(float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum())) / 6.0
+    if volume_m3 > 0 and mass_kg > SINKS_AT * RHO_FRESH_KG_M3 * volume_m3:
+        raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: its hull meshes displace "
+                        f"{RHO_FRESH_KG_M3 * volume_m3:.4g} kg fully submerged (the MJCF's masses are in kg)")
 
 
 def _check_masses(vessel: Vessel, spec: mujoco.MjSpec) -> None:

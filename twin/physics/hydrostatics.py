@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 from scipy.optimize import brentq
 
+from ..errors import TwinError
 from .waves import bilinear, cell
 
 RHO_FRESH_KG_M3 = 1000.0
@@ -67,7 +68,9 @@ def waterline_for_mass(meshes: list[tuple[np.ndarray, np.ndarray]], mass_kg: flo
         return sum(submerged_volume(v, f, z)[0] for v, f in meshes) - target
 
     if excess(z_top + 1e-9) < 0:
-        raise ValueError(f"the hulls cannot float {mass_kg:.2f} kg: fully submerged volume is too small")
+        most = (excess(z_top + 1e-9) + target) * rho_kg_m3
+        raise TwinError(f"the hulls cannot float the vessel's {mass_kg:.6g} kg: fully submerged they displace "
+                        f"{most:.4g} kg (the MJCF's masses are in kg)")
     z_w = brentq(excess, z_top + 1e-9, z_keel - 1e-9, xtol=1e-9)
     length, breadth = waterplane_extent(meshes[0][0], meshes[0][1], z_w)
     return {"waterline_z_m": z_w, "draft_m": z_keel - z_w, "displaced_volume_m3": target,

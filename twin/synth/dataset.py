@@ -21,6 +21,7 @@ ones (zig-zag, autopilot) step the engine with their controller.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -86,10 +87,12 @@ class Dataset:
     manoeuvres: list[man.Manoeuvre]
     runs: list[Run] = field(default_factory=list)  # noise-free states of each segment
 
-    def truth(self) -> dict:
-        """Everything identification must not see, as plain data."""
+    def truth(self, written_to: Path | None = None) -> dict:
+        """Everything identification must not see, as plain data; `written_to`: the file it goes to,
+        against which the truth vessel's MJCF path is written (so the truth loads as a vessel file)."""
+        vessel = self.truth_vessel if written_to is None else replace(self.truth_vessel, path=Path(written_to).resolve())
         return {
-            "vessel": self.truth_vessel.to_dict(),
+            "vessel": vessel.to_dict(),
             "effects": [as_effect(e).to_dict() for e in self.effects],
             "noise": asdict(self.noise),
             "seed": self.seed,

@@ -88,10 +88,10 @@ def _wetted_area_m2(vertices: np.ndarray, faces: np.ndarray, z_waterline_m: floa
 
 def hulls(vessel: Vessel) -> list[Hull]:
     """Each hull mesh of the vessel at the waterline that floats its mass."""
+    compiled = compile_vessel(vessel)  # first: it says what is wrong with a vessel file in its own words
     meshes = load_meshes(vessel)
     if not meshes:
         raise TwinError(f"vessel '{vessel.name}' has no hull meshes: a first-principles estimate needs them")
-    compiled = compile_vessel(vessel)
     placed = [(np.asarray(m["mesh"].vertices), np.asarray(m["mesh"].faces)) for m in meshes]
     z_w = waterline_for_mass(placed, compiled.geometry.rigid.mass_kg, RHO_FRESH_KG_M3)["waterline_z_m"]
     out = []

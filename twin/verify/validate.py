@@ -474,7 +474,7 @@ def _floating_free(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantit
     placed = [(h["mesh"].vertices, h["mesh"].faces) for h in meshes]
     try:
         z, trim, heel = equilibrium(placed, compiled.geometry.rigid.mass_kg, cg, rho)
-    except (ValueError, np.linalg.LinAlgError):  # meshes that cannot float it: the draft row says so
+    except (TwinError, ValueError, np.linalg.LinAlgError):  # meshes that cannot float it: the draft row says so
         return []
     if not all(np.isfinite([z, trim, heel])):
         return []
