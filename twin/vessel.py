@@ -391,6 +391,11 @@ def _design(data, path: Path) -> Design | None:
             and d.propeller_diameter_m >= 0):
         raise TwinError(f"{path.name}: design needs top_speed_m_s > 0, form_factor ≥ 1, cross_flow_cd > 0 and "
                         "diameters ≥ 0")
+    # beyond these a figure is in another unit (km/h, mm), not a small vessel's
+    if d.top_speed_m_s > 30 or max(d.duct_diameter_m, d.propeller_diameter_m) > 3 or d.form_factor > 3:
+        raise TwinError(f"{path.name}: design top_speed_m_s {d.top_speed_m_s:g} (at most 30 m/s), diameters "
+                        f"{d.duct_diameter_m:g}, {d.propeller_diameter_m:g} (at most 3 m) or form_factor "
+                        f"{d.form_factor:g} (at most 3) lies beyond any small vessel: is a unit another?")
     return d
 
 

@@ -226,14 +226,28 @@ def params(
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
                                                "each with its method (a vessel file with a design block: of the "
                                                "shipped ones, blueboat)"),
+    write_model: Optional[Path] = typer.Option(None, "--write-model", help="with --first-principles: write the "
+                                               "vessel file with these estimates (.json), each source saying so"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Print the effective 3-DOF parameters of a vessel."""
     from ..engine.parameters import effective_parameters
 
+    if write_model is not None and not first_principles:
+        raise TwinError("--write-model writes the first-principles estimates: give --first-principles too")
     if first_principles:
+        from ..vessel import save as save_vessel
         from ..verify.priors import first_principles as estimate
 
-        fp = estimate(vessel_from(vessel, model, case))
+        check_outputs([write_model], (".json",), "--write-model")
+        check_distinct({"--write-model": write_model}, [model], keep_data=False)
+        check_new([write_model], force, "--write-model")
+        v = vessel_from(vessel, model, case)
+        fp = estimate(v)
+        if write_model is not None:
+            save_vessel(fp.applied(v), write_model)
+            # on stderr with --json: standard output is the JSON a caller redirects
+            typer.echo(f"wrote {write_model}: {v.name} with its first-principles coefficients", err=as_json)
         if as_json:
             typer.echo(json.dumps({"vessel": fp.vessel, "estimates": [e.__dict__ for e in fp.estimates]}, indent=2))
         else:

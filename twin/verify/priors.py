@@ -15,6 +15,7 @@ import numpy as np
 
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
+from ..physics.added_mass import ellipsoid_added_mass
 from ..physics.hydrostatics import (RHO_FRESH_KG_M3, clip_triangle, submerged_volume, waterline_for_mass,
                                     waterplane_extent)
 from ..physics.priors import (SpeedDerivatives, cross_flow_drag, lateral_profile, propulsor_at_rest,
@@ -38,7 +39,8 @@ class Estimate:
 @dataclass(frozen=True)
 class Hull:
     """One hull at its flotation draft: waterline length, breadth, draft (m), block coefficient,
-    wetted area (m²), lateral position y (m) and its lateral profile (x m, T(x) m)."""
+    wetted area (m²), lateral position y (m) and its lateral profile (x m, T(x) m); x_m (m) the
+    centre of its displaced volume."""
 
     length_m: float
     beam_m: float
@@ -47,6 +49,7 @@ class Hull:
     wetted_m2: float
     y_m: float
     profile: tuple[np.ndarray, np.ndarray]
+    x_m: float = 0.0
 
 
 @dataclass
@@ -67,12 +70,20 @@ class FirstPrinciples:
         return "\n".join(lines)
 
     def applied(self, vessel: Vessel) -> Vessel:
-        """`vessel` with these damping values and thruster gains (added mass and the map kept)."""
+        """`vessel` with these added-mass and damping values and thruster gains (the map kept), each
+        source saying so."""
         values = self.values()
-        known = set(vessel.damping.__dataclass_fields__)
-        damping = replace(vessel.damping, **{k: v for k, v in values.items() if k in known})
+        picked = {section: {k: v for k, v in values.items() if k in fields_of}
+                  for section, fields_of in (("added_mass", vessel.added_mass.__dataclass_fields__),
+                                             ("damping", vessel.damping.__dataclass_fields__))}
         thrusters = replace(vessel.thrusters, **{k: values[k] for k in ("gain_left", "gain_right") if k in values})
-        return replace(vessel, damping=damping, thrusters=thrusters)
+        sources, before = dict(vessel.sources), ""
+        for e in self.estimates:  # "the same ..." in the table reads on from the row above; a file's source stands alone
+            same, rest = e.method.startswith("the same"), e.method[len("the same"):]
+            before = (before + (rest if rest.startswith(",") else "")) if same else e.method
+            sources[e.name] = f"twin params --first-principles: {before}"
+        return replace(vessel, added_mass=replace(vessel.added_mass, **picked["added_mass"]),
+                       damping=replace(vessel.damping, **picked["damping"]), thrusters=thrusters, sources=sources)
 
 
 def _wetted_area_m2(vertices: np.ndarray, faces: np.ndarray, z_waterline_m: float) -> float:
@@ -96,12 +107,12 @@ def hulls(vessel: Vessel) -> list[Hull]:
     z_w = waterline_for_mass(placed, compiled.geometry.rigid.mass_kg, RHO_FRESH_KG_M3)["waterline_z_m"]
     out = []
     for v, f in placed:
-        volume, _ = submerged_volume(v, f, z_w)
+        volume, centre = submerged_volume(v, f, z_w)
         length, beam = waterplane_extent(v, f, z_w)
         draft = float(v[:, 2].max() - z_w)
         x, t = lateral_profile(v, f, z_w)
         out.append(Hull(length, beam, draft, volume / (length * beam * draft), _wetted_area_m2(v, f, z_w),
-                        float(np.mean(v[:, 1])), (x, t)))
+                        float(np.mean(v[:, 1])), (x, t), float(centre[0])))
     return out
 
 
@@ -119,7 +130,8 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
     t = vessel.thrusters
     gain = t200_voltage_gain(d.battery_v) if d.battery_v else float(np.mean(t.gains()))
     full = float(t.bounds()[1] * gain)
-    at_top = full + float(advance_loss(t.advance_loss, full, d.top_speed_m_s))
+    loss = float(advance_loss(t.advance_loss, full, d.top_speed_m_s))  # ≤ 0: the thrust lost at top speed
+    at_top = full + loss
     thrust_top = 2.0 * at_top
     wetted = sum(h.wetted_m2 for h in hs)
     length = float(np.mean([h.length_m for h in hs]))
@@ -130,7 +142,8 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
     est = [Estimate("gain_left", gain, "×", gain_text), Estimate("gain_right", gain, "×", "the same"),
            Estimate("Xu", curve.xu, "N s/m", f"ITTC-1957 friction × (1 + k) {d.form_factor:g} on {wetted:.3f} m² "
                     f"wetted, residuary C_R {curve.residuary_cr:.4f} holding {d.top_speed_m_s:g} m/s at "
-                    f"{thrust_top:.1f} N ({d.top_speed_source or 'stated top speed'}); least squares to "
+                    f"{thrust_top:.1f} N ({d.top_speed_source or 'stated top speed'}; full thrust less the file's advance loss "
+                    f"{t.advance_loss:g}: {2 * loss:.1f} N); least squares to "
                     "Xu·u + Xuu·u|u| [ITTC-1957]"),
            Estimate("Xuu", curve.xuu, "N s2/m2", "the same curve")]
     lift = SpeedDerivatives(0.0, 0.0, 0.0, 0.0)
@@ -172,4 +185,22 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
                  "is symmetric about the centre)"),
         Estimate("Nv", rest[2], "N s", "the same"),
     ]
+    est += _added_mass(hs, rho)
     return FirstPrinciples(vessel.name, hs, est)
+
+
+def _added_mass(hs: list[Hull], rho: float) -> list[Estimate]:
+    """Xu̇, Yv̇, Nṙ: each hull an ellipsoid of its waterline half-length and half-breadth and its draft
+    (mirrored in the free surface) [Yellowfish-TR eq. 21], the hulls summed about the origin by the
+    parallel-axis theorem for added mass (physics.added_mass.catamaran_added_mass_consistent)."""
+    xu = yv = nr = 0.0
+    for h in hs:
+        e = ellipsoid_added_mass(h.length_m / 2, h.beam_m / 2, h.draft_m, rho)
+        xu, yv = xu + e["Xudot"], yv + e["Yvdot"]
+        nr += e["Nrdot"] + e["Xudot"] * h.y_m ** 2 + e["Yvdot"] * h.x_m ** 2
+    h = hs[0]
+    text = (f"{len(hs)} ellipsoid{'s' if len(hs) > 1 else ''} of semi-axes {h.length_m / 2:.3f}, {h.beam_m / 2:.3f}, "
+            f"{h.draft_m:.3f} m (half waterline length and breadth, draft) [Yellowfish-TR eq. 21]")
+    return [Estimate("Xudot", xu, "kg", text), Estimate("Yvdot", yv, "kg", "the same"),
+            Estimate("Nrdot", nr, "kg m2", "the same, each hull's added mass carried about the origin "
+                     "(parallel axes)")]
