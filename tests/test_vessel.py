@@ -115,3 +115,21 @@ def test_masses_in_grams_are_refused_where_the_hull_meshes_say_what_floats(tmp_p
     with pytest.raises(TwinError, match=r"9006 kg cannot float: its hull meshes displace 98.2. kg"):
         compile_vessel(vessel_mod.load(str(tmp_path / "boat.json")))
     assert compile_vessel(vessel_mod.load("blueboat")).geometry.rigid.mass_kg == pytest.approx(15.0)
+
+
+def test_a_thruster_site_in_millimetres_is_refused_before_the_twin_diverges(tmp_path):
+    from twin.engine.mjcf import compile_vessel
+
+    mjcf = (vessel_mod.MODEL_DIR / "blueboat.xml").read_text().replace(
+        'pos="-0.52 -0.285 0.10"', 'pos="-520 -285 100"').replace(
+        'meshdir="../assets"', f'meshdir="{vessel_mod.MODEL_DIR.parent / "assets"}"')
+    (tmp_path / "boat.xml").write_text(mjcf)
+    data = json.loads((vessel_mod.MODEL_DIR / "blueboat.json").read_text()) | {"mjcf": "boat.xml"}
+    data["thrusters"]["pwm_min_us"] = 1100.0
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=r"site 'thruster_left' at \(-520, -285, 100\) m lies far beyond the hull"):
+        compile_vessel(vessel_mod.load(str(tmp_path / "boat.json")))
+    data["thrusters"]["pwm_min_us"], data["thrusters"]["pwm_max_us"] = 1.1, 1.9
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=r"pwm_min_us 1.1 and pwm_max_us 1.9 must be pulse widths in µs"):
+        vessel_mod.load(str(tmp_path / "boat.json"))

@@ -255,6 +255,7 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
         raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
     geometry = read_geometry(model, vessel)
     _check_floats(vessel, model, geometry.rigid.mass_kg)
+    _check_sites(vessel, model, geometry)
     compiled = CompiledVessel(vessel, model, geometry)
     M = compiled.hydro().M
     if not is_symmetric_positive_definite(M):
@@ -280,6 +281,20 @@ def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None
     if volume_m3 > 0 and mass_kg > SINKS_AT * RHO_FRESH_KG_M3 * volume_m3:
         raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: its hull meshes displace "
                         f"{RHO_FRESH_KG_M3 * volume_m3:.4g} kg fully submerged (the MJCF's masses are in kg)")
+
+
+def _check_sites(vessel: Vessel, model: mujoco.MjModel, geometry: Geometry) -> None:
+    """Refuse a thruster or sensor site far outside the vessel (its position in mm for m): the twin
+    would run with a lever arm of hundreds of metres and diverge, or say nothing."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    # the hull's own reach from the origin (its geoms; MuJoCo's stat.extent counts the sites too)
+    hull_m = float(np.max(np.linalg.norm(data.geom_xpos[:, :2], axis=1) + model.geom_rbound)) if model.ngeom else 1.0
+    named = list(zip(actuator_names(vessel), geometry.thruster_pos_m)) + [("gnss", geometry.gnss_pos_m)]
+    for name, pos in named:
+        if float(np.linalg.norm(np.asarray(pos)[:2])) > 2.0 * hull_m + 1.0:
+            raise TwinError(f"{vessel.mjcf.name}: site '{name}' at ({', '.join(f'{x:g}' for x in pos)}) m lies "
+                            f"far beyond the hull, which reaches {hull_m:.3g} m from the origin (positions are in m)")
 
 
 def _check_masses(vessel: Vessel, spec: mujoco.MjSpec) -> None:
