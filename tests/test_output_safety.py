@@ -29,8 +29,9 @@ def test_simulate_refuses_to_replace_an_existing_file_without_force(tmp_path):
 
 def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_force(tmp_path):
     """A report (--json of evaluate or mission) written over a vessel file or a recording would lose
-    it: refused by what the file holds, before any work; a SITL session's recording and a Monte
-    Carlo band are data, kept unless --force; a report over an earlier report is written."""
+    it: refused by what the file holds, before any work, --force or not; --force replaces data only
+    with data of its kind (a session's recording over a recording, a twin over a twin, never a band
+    over a log or a truth over a twin); a report over an earlier report is written."""
     log, twin_file = tmp_path / "my_log.csv", tmp_path / "my_boat.json"
     log.write_text("t,lat,lon,heading_deg,pwm_left,pwm_right\n0,59,10,0,1500,1500\n")
     twin_file.write_text('{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n')
@@ -43,12 +44,18 @@ def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_f
         (("mission", "--home", "59,10", "--waypoints", "5,0", "--json", twin_file), "--json", twin_file, "vessel file"),
         (("sitl", "--vessel", "blueboat", "--record", log), "--record", log, None),
         (("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "2",
-          "--duration", "2", "--out", log), "--out", log, None),
+          "--duration", "2", "--out", log, "--force"), "--out", log, "recording"),
+        (("identify", log, "--vessel", "blueboat", "--out", tmp_path / "x.json", "--json", twin_file, "--force"),
+         "--json", twin_file, "vessel file"),
+        (("diagnose", log, "--vessel", "blueboat", "--write-model", truth, "--force"), "--write-model", truth,
+         "dataset's truth"),
+        (("dataset", "--vessel", "blueboat", "--segments", "1", "--out", tmp_path / "d.csv", "--truth", twin_file,
+          "--force"), "--truth", twin_file, "vessel file"),
     ]
     for args, option, path, kind in refusals:
         done = twin(*args)
         assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (args, done.stderr)
-        said = (f"exists and is a {kind}: it is kept (give another name, or remove it first)" if kind
+        said = (f"exists and is a {kind}: it is kept, --force or not (give another name, or remove it first)" if kind
                 else "exists: it is kept (--force replaces it)")
         assert done.stderr.strip() == f"error: {option} '{path}' {said}", (args, done.stderr)
     assert all(p.read_text() == text for p, text in kept.items())
@@ -274,3 +281,15 @@ def test_a_report_view_never_replaces_runs_recorded_in_rerun_but_replaces_an_ear
     view.write_bytes(b"an earlier view")
     done = twin("crosscheck", "--vessel", "blueboat", "--duration", "2", "--rrd", view)
     assert done.returncode == 0 and view.read_bytes()[:4] == b"RRF2"
+
+
+def test_a_fleet_never_writes_a_report_over_a_twin_kept_beside_its_log(tmp_path):
+    logs, out = tmp_path / "logs", tmp_path / "out"
+    logs.mkdir(), out.mkdir()
+    made = twin("simulate", "--vessel", "blueboat", "--duration", "20", "--scenario", "random", "--out", logs / "boat.csv")
+    assert made.returncode == 0, made.stderr
+    twin_file = out / "boat.json"
+    twin_file.write_text('{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n')
+    done = twin("fleet", logs, "--vessel", "blueboat", "--out", out)
+    assert done.returncode == 2 and "the report 'boat.json' would replace a vessel file kept there" in done.stderr
+    assert twin_file.read_text() == '{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n'

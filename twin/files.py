@@ -2,6 +2,7 @@
 a temporary name in the same folder (same file system), then an atomic rename."""
 from __future__ import annotations
 
+import json
 import math
 import os
 import stat
@@ -123,3 +124,34 @@ def finite_json(x):
     if isinstance(x, (str, int, bool)) or x is None:
         return x
     return finite_json(json_default(x))
+
+
+RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg", "north_m"}
+
+
+def kept_data(path: Path) -> str | None:
+    """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
+    (a simulation, a SITL session) or a vessel file (by its content, whatever command wrote it),
+    else None (a report, a view, no file)."""
+    if not path.is_file():
+        return None
+    suffix = path.suffix.lower()
+    if suffix in (".tlog", ".bin", ".mcap"):
+        return "recording"
+    try:
+        if suffix == ".rrd":
+            # rerun writes the application id near the file's start, uncompressed
+            with open(path, "rb") as f:
+                return "rerun recording of runs" if RRD_RUN.encode() in f.read(4096) else None
+        if suffix == ".csv":
+            with open(path, encoding="utf-8", errors="replace") as f:
+                head = [c.strip() for c in f.readline().split(",")]
+            return "recording" if head[:1] == ["t"] and RECORDING_HEADS & set(head) else None
+        if suffix == ".json" and path.stat().st_size < 50_000_000:
+            data = json.loads(path.read_text(encoding="utf-8"))
+            keys = set(data) if isinstance(data, dict) else set()
+            return ("vessel file" if {"mjcf", "thrusters"} <= keys
+                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys else None)
+    except (OSError, ValueError):
+        return None
+    return None

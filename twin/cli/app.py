@@ -22,7 +22,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import RRD_RUN, finite_json, link_target, read_only, same_file, write_text_atomic
+from ..files import finite_json, kept_data, link_target, read_only, same_file, write_text_atomic
 from ..progress import Progress
 from ..threads import limit_process_blas_threads
 
@@ -274,37 +274,6 @@ def memory_for(what: str) -> Iterator[None]:
 
 # ---------------------------------------------------------------- outputs
 
-RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg", "north_m"}
-
-
-def kept_data(path: Path) -> str | None:
-    """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
-    (a simulation, a SITL session) or a vessel file (by its content, whatever command wrote it),
-    else None (a report, a view, no file)."""
-    if not path.is_file():
-        return None
-    suffix = path.suffix.lower()
-    if suffix in (".tlog", ".bin", ".mcap"):
-        return "recording"
-    try:
-        if suffix == ".rrd":
-            # rerun writes the application id near the file's start, uncompressed
-            with open(path, "rb") as f:
-                return "rerun recording of runs" if RRD_RUN.encode() in f.read(4096) else None
-        if suffix == ".csv":
-            with open(path, encoding="utf-8", errors="replace") as f:
-                head = [c.strip() for c in f.readline().split(",")]
-            return "recording" if head[:1] == ["t"] and RECORDING_HEADS & set(head) else None
-        if suffix == ".json" and path.stat().st_size < 50_000_000:
-            data = json.loads(path.read_text(encoding="utf-8"))
-            keys = set(data) if isinstance(data, dict) else set()
-            return ("vessel file" if {"mjcf", "thrusters"} <= keys
-                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys else None)
-    except (OSError, ValueError):
-        return None
-    return None
-
-
 def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> None:
     """Refuse, before any work is done, an output whose extension is not one of `formats`, whose
     folder does not exist or cannot be written, or that is a folder itself."""
@@ -327,15 +296,24 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
 
 
-FORCE_HELP = "replace an output that exists (never an input)"
+KEPT = "it is kept, --force or not (give another name, or remove it first)"
+FORCE_HELP = "replace an output that exists (never an input, nor data of another kind)"
+# the kinds of kept data (files.kept_data) a run's or a recording's outputs are
+RUNS = ("recording", "rerun recording of runs")
 
 
-def check_new(paths, force: bool, option: str = "output") -> None:
+def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...] = ()) -> None:
     """Refuse, before any work is done, to write over a file that exists unless `force`: a
     recording or a vessel file there may be one the user made, and a run or a fit written over it
-    would lose it."""
+    would lose it. `writes`: the kinds of kept data (kept_data) this output is; data of another kind
+    (a log where a band would go, a twin where a truth would) is kept even with `force`."""
     for p in paths:
-        if p is not None and Path(p).exists() and not force:
+        if p is None or not Path(p).exists():
+            continue
+        kind = kept_data(Path(p))
+        if kind and kind not in writes:
+            raise TwinError(f"{option} '{p}' exists and is a {kind}: {KEPT}")
+        if not force:
             raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
 
 
@@ -361,8 +339,7 @@ def check_distinct(outputs: dict[str, object], inputs=(), keep_data: bool = True
     for option, path in named if keep_data else ():
         kind = kept_data(path)
         if kind:
-            raise TwinError(f"{option} '{path}' exists and is a {kind}: it is kept (give another name, or remove it "
-                            "first)")
+            raise TwinError(f"{option} '{path}' exists and is a {kind}: {KEPT}")
 
 
 RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")

@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
@@ -57,7 +57,9 @@ def diagnose_command(
         check_outputs([path], formats, option)
     recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--json": json_out, "--report": report, "--rrd": rrd, "--write-model": write_model},
-                   [*recordings, model], keep_data=not force)
+                   [*recordings, model], keep_data=False)
+    check_distinct({"--json": json_out, "--report": report, "--rrd": rrd})  # reports: never over data, --force or not
+    check_new([write_model], force, "--write-model", ("vessel file",))  # a twin over a twin only
     check_recordings_distinct(recordings)
     window_s(window)
     positive(refit_weight, "--refit-weight")

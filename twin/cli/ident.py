@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+from .app import (RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
                   channels_from, check_distinct, check_new, check_outputs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
@@ -65,7 +65,8 @@ def dataset_command(
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
     check_distinct({"--out": out, "--truth": truth}, [model], keep_data=False)  # check_new: any file there
-    check_new([*out, truth], force, "output")
+    check_new(out, force, "output", RUNS)
+    check_new([truth], force, "--truth", ("dataset's truth",))
     segments_fit(segments)
     seed_from(seed)
     profile = sensor_noise(noise)  # before any work
@@ -173,7 +174,7 @@ def identify_command(
     check_outputs([out], (".json",), "--out")
     recordings = recordings_in(recordings) if any(p.is_dir() for p in recordings) else recordings
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model], keep_data=False)
-    check_distinct({"--json": json_out}, keep_data=not force)  # a report over a log or a twin: with --force only
+    check_distinct({"--json": json_out})  # a report never replaces a log or a twin, --force or not
     check_recordings_distinct(recordings)
     if window is not None:
         window_s(window)
@@ -192,7 +193,7 @@ def identify_command(
     chosen_groups = names_list(None if groups is None else groups.replace("_", " "), "--groups", "group")
     if chosen_params:
         simfit.check_names(prior, chosen_params, anchor)  # before any work
-    check_new([out], force, "--out")  # after the options: a bad option is the first thing to fix
+    check_new([out], force, "--out", ("vessel file",))  # after the options: a bad option is the first thing to fix
     recs = ident.read(recordings, channels_from(channels))
     warn_recordings(recs)
     wind = "measured" if wind_measured else None

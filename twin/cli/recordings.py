@@ -8,7 +8,7 @@ import typer
 
 from ..drive import inputs_mismatch
 from ..errors import TwinError
-from .app import (CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+from .app import (RUNS, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
@@ -157,7 +157,7 @@ def convert(
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
     recordings_in([src])  # an input that is no recording is the first thing to fix, before the output's
-    check_new([dst], force)  # a converted copy (resampled on the grid) must not silently replace a log
+    check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")

@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
+from .app import (RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
@@ -108,7 +108,7 @@ def simulate(
 
     check_outputs(out, RUN_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model], keep_data=False)
-    check_new(out, force, "--out")
+    check_new(out, force, "--out", RUNS)
     if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
         raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")
     scenario = scenario or "zigzag"
@@ -241,7 +241,7 @@ def params(
 
         check_outputs([write_model], (".json",), "--write-model")
         check_distinct({"--write-model": write_model}, [model], keep_data=False)
-        check_new([write_model], force, "--write-model")
+        check_new([write_model], force, "--write-model", ("vessel file",))
         v = vessel_from(vessel, model, case)
         fp = estimate(v)
         if write_model is not None:

@@ -11,7 +11,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+from .app import (RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
@@ -54,7 +54,8 @@ def sitl(
     check_distinct({"--record": record, "--write-params": [write_params] if write_params else []}, [model],
                    keep_data=False)  # a parameter file is no log; a recording there: check_new below
     # a SITL run ends with Ctrl-C: a recording already at that path would be found replaced only after it
-    check_new(record, force, "--record")
+    check_new(record, force, "--record", RUNS)
+    check_new([write_params], force, "--write-params")
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
         check_channels((pair["left"], pair["right"]))

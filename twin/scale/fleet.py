@@ -34,7 +34,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TooShort, TwinError
-from ..files import finite_json, json_default, same_file, write_bytes_atomic, write_text_atomic
+from ..files import finite_json, json_default, kept_data, same_file, write_bytes_atomic, write_text_atomic
 from ..progress import Progress
 from ..vessel import load
 from .batches import Batch, Executor, LocalExecutor, plan
@@ -299,7 +299,8 @@ def _item(i: int, log: Log) -> _Item:
 
 def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Path]) -> None:
     """Refuse, before anything is written, a report that would land on a file the run reads
-    (a vessel file or a log kept in --out under a report's name)."""
+    (a vessel file or a log kept in --out under a report's name) or on data a user keeps there
+    (a twin `boat.json` beside `boat.csv`: files.kept_data)."""
     written = [out / "fleet.json", out / "fleet.md"]
     for n in names:
         written += [out / f"{n}.json", out / f"{n}.failed.json"] + ([out / f"{n}.html"] if html else [])
@@ -308,6 +309,10 @@ def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Pat
             if same_file(path, source):
                 raise TwinError(f"--out '{out}': the report '{path.name}' would replace the input '{source}' "
                                 "(give another --out folder)")
+        kind = kept_data(path)
+        if kind:
+            raise TwinError(f"--out '{out}': the report '{path.name}' would replace a {kind} kept there "
+                            "(give another --out folder)")
 
 
 def _report_names(logs: list[Log]) -> list[str]:
