@@ -1,5 +1,6 @@
 """Every command, given bad arguments or paths, ends in one line on stderr and exit 2: never a
 traceback, never a file left behind."""
+import json
 import sys
 
 import pytest
@@ -529,3 +530,17 @@ def test_a_wind_on_a_vessel_without_a_wind_load_is_refused_and_thrust_inputs_say
     assert done.returncode == 0 and "10 N commanded gives 16.1 N (left) at rest" in done.stderr
     row = (tmp_path / "t.csv").read_text().splitlines()[1].split(",")
     assert float(row[-2]) == pytest.approx(20 * 1.605, abs=0.05)
+
+
+def test_dp_dead_ahead_a_short_run_and_an_infinite_frequency_end_in_one_line(tmp_path):
+    """A point dead ahead asks the heading loop no step (its IAE ratio was a division by zero), a run
+    shorter than the turn before the surge had no surge samples, ω = inf divided by zero: exit 3."""
+    twin = twin_command.twin
+    done = twin("dp", "--vessel", "blueboat", "--run", "point", "--target", "10,0", "--json", tmp_path / "dp.json")
+    assert done.returncode == 0 and "IAE ratio – (no step asked of it)" in done.stdout
+    surge, yaw = json.loads((tmp_path / "dp.json").read_text())["loops"]
+    assert yaw["iae_ratio"] is None and 0.9 < surge["iae_ratio"] < 1.2
+    for args, said in ((("--run", "point", "--duration", "5"), "ends before the point move's surge starts"),
+                       (("--omega-heading", "inf"), "must be positive and finite, got inf")):
+        done = twin("dp", "--vessel", "blueboat", *args)
+        assert done.returncode == 2 and said in done.stderr and len(done.stderr.strip().splitlines()) == 1

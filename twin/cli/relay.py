@@ -126,8 +126,8 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
     from ..ident.relay import ipd, iso
 
     for w in (omega_heading, omega_surge):
-        if w is not None and not w > 0:
-            raise TwinError("model-function frequencies must be positive")
+        if w is not None and not (w > 0 and math.isfinite(w)):
+            raise TwinError(f"model-function frequencies must be positive and finite, got {w:g} rad/s")
     if iso.is_ship(compiled):
         sweep = iso.ship_sweep(compiled, rps=[rps], progress=progress)
         return ipd.DofModel(*iso.linear_model(sweep, rps), ipd.binomial(omega_heading)), None
@@ -192,6 +192,10 @@ def dp_command(
             raise TwinError(f"--rps must lie in (0, {n_max:g}] rps")
     omega_heading = omega_heading if omega_heading is not None else (SHIP_HEADING_OMEGA_RAD_S if ship
                                                                      else HEADING_OMEGA_RAD_S)
+    if run == "point" and duration is not None and duration <= 8 / omega_heading:
+        # the surge loop starts once the turn to the bearing has had eight of its time constants (ipd.point_move)
+        raise TwinError(f"--duration {duration:g} s ends before the point move's surge starts, at {8 / omega_heading:.3g} s "
+                        "after the turn to the bearing: give a longer one, or none for the settling time")
     with progress_bar("dp") as progress:
         yaw, surge = tuned_models(cv, omega_heading, omega_surge if run == "point" else None, rps if ship else None,
                                   progress=progress)
@@ -208,7 +212,8 @@ def dp_command(
                  f"{m.gains.kd_eq11:.3g}: below it the loop has negative damping at rest and swings about the target")
     for lp in summary["loops"]:
         paper = " ([Relay-ISO]: ~1.02 for a 45° heading step)" if lp["dof"] == "yaw" else ""
-        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {lp['iae_ratio']:.3f}{paper}, "
+        ratio = "– (no step asked of it)" if lp["iae_ratio"] is None else f"{lp['iae_ratio']:.3f}{paper}"
+        console.print(f"{dp.name}, {lp['dof']}: IAE ratio {ratio}, "
                       f"max |twin − model| {lp['max_deviation_from_model']:.3g} {lp['unit']}, "
                       f"saturated {lp['saturated_percent_of_time']:.0f} % of the time")
     if "final_distance_to_target_m" in summary:  # a point move's; a heading step has no target

@@ -314,9 +314,11 @@ class LoopResponse:
     delivered: np.ndarray
 
     @property
-    def iae_ratio(self) -> float:
-        """IAE of the twin / IAE of the model function ([Relay-ISO §V-B]: about 1.02 for 45°)."""
-        return iae(self.t_s, self.reference - self.response) / iae(self.t_s, self.reference - self.model)
+    def iae_ratio(self) -> float | None:
+        """IAE of the twin / IAE of the model function ([Relay-ISO §V-B]: about 1.02 for 45°); None
+        where the loop was asked no step (a point dead ahead: the heading's reference is 0)."""
+        model = iae(self.t_s, self.reference - self.model)
+        return iae(self.t_s, self.reference - self.response) / model if model > 0 else None
 
     @property
     def max_deviation(self) -> float:
@@ -445,7 +447,7 @@ def response_png(dp: DpRun, title: str) -> bytes:
         ax.plot(lp.t_s, lp.model * k, "k:", lw=1.5, label="model function $G_m$")
         ax.plot(lp.t_s, lp.response * k, "C0", label="twin")
         ax.set_ylabel(f"{lp.name} [{lp.unit}]")
-        ax.set_title(f"{lp.name}: IAE ratio {lp.iae_ratio:.3f}")
+        ax.set_title(f"{lp.name}: IAE ratio {'–' if lp.iae_ratio is None else f'{lp.iae_ratio:.3f}'}")
         ax.legend(fontsize=8)
         force = "N·m" if lp.name == "yaw" else "N"
         axes[1, j].plot(lp.t_s, lp.commanded, "C1", lw=0.8, label="I-PD output")
