@@ -167,6 +167,7 @@ def test_simulate_takes_a_sea_as_its_text_as_simulate_run_does():
 def test_diagnose_recordings_takes_the_clis_option_names(monkeypatch):
     """`effects` (the CLI's --effects) reaches the diagnosis as its candidate list, the window as
     window_s; a keyword the CLI does not have is Python's TypeError, before any work."""
+    import twin.api
     import twin.diagnose.doctor as doctor
 
     seen = {}
@@ -191,3 +192,28 @@ def test_validation_and_crosscheck_results_have_short_reprs():
     assert len(repr(val)) < 160 and "blueboat" in repr(val) and "flagged" in repr(val)
     results = twin.crosscheck("yellowfish", duration_s=5.0, only=["full"])
     assert results and all(len(repr(r)) < 100 and r.case in repr(r) for r in results)
+
+
+@pytest.mark.parametrize("call, said", [
+    (lambda v: twin.simulate(v, None, duration_s=5), "drive is a scenario name"),
+    (lambda v: twin.simulate(3, "zigzag"), "expected a vessel"),
+    (lambda v: twin.simulate(v, "zigzag", duration_s=5, sea=3), "sea is a twin.physics.waves.Sea"),
+    (lambda v: twin.simulate(v, "zigzag", duration_s=5, nu0=[1, 2]), r"nu0 must be 3 finite numbers"),
+    (lambda v: twin.simulate(v, "zigzag", duration_s=float("inf")), "positive, finite number of seconds"),
+    (lambda v: twin.evaluate(v, None), "recordings are a path, a twin.Recording or a list"),
+    (lambda v: twin.evaluate(v, [1, 2]), "recordings are a path, a twin.Recording or a list"),
+    (lambda v: twin.crosscheck(v, duration_s=float("inf")), "duration_s must be a positive, finite"),
+    (lambda v: twin.diagnose_recordings("r.csv", v, effects=[]), "effects: give one or more names"),
+    (lambda v: twin.judge("r.csv", v, 5), "effects: give one or more names"),
+    (lambda v: twin.identify("r.csv", v, params="Xu", max_evaluations=1.5), "max_evaluations must be a whole number"),
+    (lambda v: twin.identify("r.csv", v, params="Xu", window_s=0), "window_s must be a positive number"),
+    (lambda v: twin.identify("r.csv", v, params=[]), "params must be None or a non-empty list"),
+    (lambda v: twin.load_vessel(None), "a vessel is a shipped vessel's name"),
+])
+def test_the_api_says_what_a_wrong_argument_should_be(tmp_path, monkeypatch, call, said):
+    """Each of these failed deep inside numpy, MuJoCo or scipy (TypeError, IndexError, OverflowError),
+    or ran scipy's optimiser for minutes on 1.5 evaluations."""
+    monkeypatch.chdir(tmp_path)
+    twin.simulate_run("blueboat", scenario="random", duration_s=20).write("r.csv")
+    with pytest.raises(twin.TwinError, match=said):
+        call(twin.load_vessel("blueboat"))

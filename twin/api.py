@@ -109,8 +109,9 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
     (`.passed`, `.position_err_m`, `.heading_err_deg`; `to_dict()`)."""
     from .verify.crosscheck import cases
 
-    if not duration_s > 0:
-        raise TwinError(f"duration_s must be positive, got {duration_s}")
+    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
+            math.isfinite(duration_s) and duration_s > 0):
+        raise TwinError(f"duration_s must be a positive, finite number of seconds, got {duration_s!r}")
     v = _vessel(vessel)
     only = [only] if isinstance(only, str) else only
     known = [c.name for c in cases(v)]
@@ -119,6 +120,14 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
         raise TwinError(f"only={unknown}: unknown crosscheck case (the force terms checked one by one: "
                         f"{', '.join(known)})")
     return _crosscheck(v, duration_s, only, six_dof=six_dof)
+
+
+def _names(given, what: str, which: str) -> tuple[str, ...]:
+    """One name or a non-empty list of names (a name alone is a name, not its letters)."""
+    names = (given,) if isinstance(given, str) else given
+    if not isinstance(names, (list, tuple)) or not names or not all(isinstance(n, str) for n in names):
+        raise TwinError(f"{what}: give one or more names ({which}), got {given!r:.60}")
+    return tuple(names)
 
 
 def _vessel(vessel: Vessel | str) -> Vessel:
@@ -136,7 +145,13 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
     from .formats import read_recording as read
     from .recording import Recording
 
-    items = [recordings] if isinstance(recordings, (str, Path, Recording)) else list(recordings)
+    kinds = (str, Path, Recording)
+    if isinstance(recordings, kinds):
+        items = [recordings]
+    elif isinstance(recordings, (list, tuple)) and all(isinstance(r, kinds) for r in recordings):
+        items = list(recordings)
+    else:
+        raise TwinError(f"recordings are a path, a twin.Recording or a list of them, got {recordings!r:.80}")
     if not items:
         raise TwinError("no recordings given: give one or more recordings (paths or twin.read_recording(...))")
     paths = [Path(r) for r in items if not isinstance(r, Recording)]
@@ -558,9 +573,10 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     if window_s is not None and not (isinstance(window_s, (int, float)) and math.isfinite(window_s) and window_s > 0):
         raise TwinError(f"window_s must be a positive number of seconds, got {window_s}")
     v = _in_sea(_vessel(vessel), sea)
-    library = None if effects is None else ([effects] if isinstance(effects, str) else list(effects))
+    library = None if effects is None else list(_names(effects, "effects", "`twin effects` lists them"))
+    refit = None if refit is None else _names(refit, "refit", "surge, sway, yaw, ...: the vessel's fit groups")
     found = run(_recordings(recordings, v), v, window_s=WINDOW_S if window_s is None else window_s, log=log,
-                library=library, calibrated=calibrated, refit=None if refit is None else tuple(refit),
+                library=library, calibrated=calibrated, refit=refit,
                 refit_weight=refit_weight, kinematic=kinematic, wind=wind)
     typed = Diagnosis(**{f.name: getattr(found, f.name) for f in fields(found)})
     if sea is not None:
@@ -577,9 +593,7 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     from .diagnose.search import Z_MIN
     from .effects import parse_effect
 
-    effects = [effects] if isinstance(effects, str) else list(effects)
-    if not effects:
-        raise TwinError("no effects given: give one or more effect texts (e.g. 'current=0.1,90'; `twin effects` lists them)")
+    effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
     _known_options(given_evidence, options, "judge")
     for text in effects:  # an unknown effect is told before the recordings are read
         if isinstance(text, str):

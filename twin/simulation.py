@@ -22,9 +22,26 @@ from .vessel import Vessel, load as load_vessel
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
-    """Run the engine twin; `drive` is a scenario name, an InputSeries or a controller."""
-    if isinstance(vessel, str):
-        vessel = load_vessel(vessel)
+    """Run the engine twin; `drive` is a scenario name, an InputSeries or a controller (a callable
+    (t s, η, ν) → (surge, yaw) commands); nu0, eta0: the start (3 numbers each)."""
+    if isinstance(vessel, (str, Path)):
+        vessel = load_vessel(str(vessel))
+    if not isinstance(vessel, Vessel):
+        raise TwinError(f"expected a vessel (a twin.Vessel, a shipped vessel's name or a vessel file), "
+                        f"got {type(vessel).__name__}")
+    if not (isinstance(drive, (str, InputSeries)) or callable(drive)):
+        raise TwinError(f"drive is a scenario name, a twin.InputSeries or a controller (t, eta, nu) -> (surge, yaw), "
+                        f"got {drive!r:.60}")
+    for name in ("nu0", "eta0"):
+        value = kwargs.get(name)
+        if value is not None:
+            try:
+                start = np.asarray(value, float)
+            except (TypeError, ValueError):
+                start = np.full(0, np.nan)
+            if start.shape != (3,) or not np.all(np.isfinite(start)):
+                raise TwinError(f"{name} must be 3 finite numbers ({'u, v, r' if name == 'nu0' else 'north, east, ψ'}),"
+                                f" got {value!r:.60}")
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
     compiled = compile_vessel(vessel)
     if isinstance(drive, str):
@@ -41,10 +58,12 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
 def _sea(sea, seed: int):
     """A physics.waves.Sea as given, or drawn with `seed` from its text 'HS,TP,DIR[,SPREAD]' /
     'regular,H,T,DIR' (as `twin simulate --sea`); None stays None."""
-    if isinstance(sea, str):
-        from .physics.waves import parse_sea
+    from .physics.waves import Sea, parse_sea
 
+    if isinstance(sea, str):
         return parse_sea(sea, seed)
+    if sea is not None and not isinstance(sea, Sea):
+        raise TwinError(f"sea is a twin.physics.waves.Sea or its text 'HS,TP,DIR[,SPREAD]', got {sea!r:.60}")
     return sea
 
 
@@ -105,8 +124,8 @@ def _seed(seed) -> int:
 def _check_run(duration_s: float, sample_dt_s: float) -> None:
     """The checks `twin simulate` makes on a run's length and sample step."""
     duration_s, sample_dt_s = _number(duration_s, "the duration"), _number(sample_dt_s, "the sample step")
-    if not duration_s > 0:
-        raise TwinError(f"the duration must be a positive number of seconds, got {duration_s:g}")
+    if not (duration_s > 0 and np.isfinite(duration_s)):
+        raise TwinError(f"the duration must be a positive, finite number of seconds, got {duration_s:g}")
     if not sample_dt_s > 0:
         raise TwinError(f"the sample step must be a positive number of seconds, got {sample_dt_s:g}")
     if sample_dt_s > duration_s:
@@ -116,7 +135,7 @@ def _check_run(duration_s: float, sample_dt_s: float) -> None:
     if have and need > 0.5 * have:
         raise TwinError(f"a run of {duration_s:g} s sampled every {sample_dt_s:g} s holds about {need / 1e9:.3g} GB "
                         f"while it is made, more than half of this machine's {have / 1e9:.3g} GB: give a shorter "
-                        "--duration or a longer --sample-dt")
+                        "duration or a longer sample step")
 
 
 BYTES_PER_SAMPLE = 1500  # a run's memory per output sample while it is made and written (1.35 kB measured)

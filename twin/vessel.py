@@ -593,8 +593,13 @@ def available() -> list[str]:
 def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
     """Load a vessel by name (one shipped with the package: twin/model/NAME.json) or from a
     parameter file path."""
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise TwinError(f"a vessel is a shipped vessel's name ({', '.join(available())}) or a vessel file's path, "
+                        f"got {name_or_path!r:.60}")
     text = str(name_or_path)
     path = Path(text)
+    if path.is_dir():
+        raise TwinError(f"'{text}' is a folder: give a vessel file (.json) or a shipped vessel's name")
     if not (text.endswith(".json") or path.is_file()):
         path = MODEL_DIR / f"{text}.json"
         if not path.is_file():

@@ -34,6 +34,8 @@ judging alike, takes each recording's measured wind as a known input.
 from __future__ import annotations
 
 import datetime as _dt
+import math
+import numbers
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -244,6 +246,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     say = steps(progress)
     window_s = default_window_s(prior) if window_s is None else window_s
     _check(start, thruster, split, train, prior_weights)
+    _check_counts(window_s, max_evaluations=max_evaluations, repeats=repeats, seed=seed, params=params, groups=groups)
     if judged_on not in ("beyond", "each"):
         raise TwinError(f"judged_on must be 'beyond' or 'each', got {judged_on!r}")
     check_wind(recordings, wind, prior)
@@ -389,6 +392,22 @@ def manoeuvre_horizon_s(vessel: Vessel, fitted=None) -> float:
     envelope counted (`fitted`, a coverage.Envelope), else the vessel's own fit window (10 s for a
     small boat, 30 s for a slow ship): a slow ship's 10-s run is mostly its initial state."""
     return float(fitted.horizon_s) if fitted is not None else default_window_s(vessel)
+
+
+def _check_counts(window_s, *, params, groups, **counts) -> None:
+    """The numbers and names identify takes, checked before any work (the Python API passes them as
+    given: a window of 0 s failed in the engine, 1.5 evaluations ran scipy's optimiser for minutes)."""
+    if isinstance(window_s, bool) or not isinstance(window_s, numbers.Real) or not (math.isfinite(window_s)
+                                                                                 and window_s > 0):
+        raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
+    for name, value in counts.items():
+        least = 0 if name == "seed" else 1
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+            raise TwinError(f"{name} must be a whole number ≥ {least}, got {value!r}")
+    for name, value in (("params", params), ("groups", groups)):
+        if value is not None and (not isinstance(value, (list, tuple)) or not value
+                                  or not all(isinstance(v, str) for v in value)):
+            raise TwinError(f"{name} must be None or a non-empty list of names, got {value!r}")
 
 
 def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
