@@ -544,3 +544,18 @@ def test_dp_dead_ahead_a_short_run_and_an_infinite_frequency_end_in_one_line(tmp
                        (("--omega-heading", "inf"), "must be positive and finite, got inf")):
         done = twin("dp", "--vessel", "blueboat", *args)
         assert done.returncode == 2 and said in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_an_inputs_csv_says_a_ragged_row_a_nan_cell_and_how_to_replay_a_run(tmp_path):
+    twin = twin_command.twin
+    for text, said in (("t,pwm_left,pwm_right\n0,1600,1600,1700\n", "line 2 has 4 cells under a header of 3 columns"),
+                       ("t,pwm_left,pwm_right\n0,nan,1600\n", "line 2: NaN or infinite value"),
+                       ("t,x,pwm_left,pwm_right,thrust_left,thrust_right\n0,0,1500,1500,0,0\n",
+                        "a twin run's CSV has both")):
+        inputs = tmp_path / "in.csv"
+        inputs.write_text(text)
+        done = twin("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "1", "--out",
+                    tmp_path / "o.csv")
+        assert done.returncode == 2 and said in done.stderr and not (tmp_path / "o.csv").exists()
+    done = twin("mission", "--home", "0,0", "--waypoints", "1,1", "--port", "99999")
+    assert done.returncode == 2 and "a TCP port number is 1..65535" in done.stderr

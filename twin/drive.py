@@ -169,6 +169,8 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     for line, row in enumerate(rows[1:], start=2):
         if not row:
             continue
+        if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
+            raise TwinError(f"{path.name}: line {line} has {len(row)} cells under a header of {len(header)} columns")
         cells = [row[i].strip() if i < len(row) else "" for i in idx]
         if cells[0] and not any(cells[1:]):
             continue  # a recording's row without inputs (another stream's sample): the last ones hold
@@ -178,6 +180,8 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
                                            for k, c in enumerate(cells[1:])]
         except ValueError:
             raise TwinError(f"{path.name}: line {line}: not a number in t/{cols[0]}/{cols[1]}") from None
+        if any(c and not np.isfinite(v) for c, v in zip(cells, values)):
+            raise TwinError(f"{path.name}: line {line}: NaN or infinite value in t/{cols[0]}/{cols[1]}")
         if not np.all(np.isfinite(values[1:])) and not data:
             raise TwinError(f"{path.name}: line {line}: the first inputs row has an empty {cols[0]} or {cols[1]}")
         data.append(values)
@@ -204,8 +208,9 @@ def _input_columns(header: list[str], path: Path) -> tuple[str, tuple[str, str]]
     kinds = {"pwm": PWM_COLUMNS, "thrust": THRUST_COLUMNS, "propeller_rudder": PROPELLER_RUDDER_COLUMNS}
     present = [k for k, cols in kinds.items() if any(c in header for c in cols)]
     if present == ["pwm", "thrust"]:
-        raise TwinError(f"{path.name}: both PWM and thrust columns: give pwm_left,pwm_right (µs) or "
-                        "thrust_left,thrust_right (N), not both")
+        raise TwinError(f"{path.name}: both PWM and thrust columns (a twin run's CSV has both): give "
+                        "pwm_left,pwm_right (µs) or thrust_left,thrust_right (N), not both (keep t and one pair, "
+                        "e.g. with cut -d, -f1,8,9 for a run's PWM)")
     if len(present) > 1:
         raise TwinError(f"{path.name}: columns of two kinds of inputs: give pwm_left,pwm_right (µs), "
                         "thrust_left,thrust_right (N) or prop_rps,rudder_deg, not more than one")

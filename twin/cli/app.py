@@ -377,8 +377,8 @@ def check_recordings_distinct(recordings) -> None:
             if same_file(path, earlier):
                 again = "" if str(path) == str(earlier) else f" (as '{earlier}')"
                 raise TwinError(f"'{path}' is given twice{again}: give each recording once")
-        if not path.is_file():
-            continue  # the reader says what is wrong with it
+        if not path.is_file() or path.stat().st_size == 0:
+            continue  # the reader says what is wrong with it (two empty files are not one log twice)
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         if digest in seen:
             raise TwinError(f"'{path}' holds the same bytes as '{seen[digest]}': give each recording once")

@@ -71,6 +71,8 @@ def dataset_command(
     seed_from(seed)
     profile = sensor_noise(noise)  # before any work
     names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
+    if not names:
+        raise TwinError("--manoeuvres names none: give one or more of the manoeuvres its help lists")
     with progress_bar("dataset") as progress:
         from .run import sea_from
 

@@ -10,7 +10,7 @@ from ..drive import inputs_mismatch
 from ..errors import TwinError
 from .app import (RUNS, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
                   check_outputs, check_recordings_distinct,
-                  check_wind_and_inputs, memory_for, positive, progress_bar, recordings_in, samples_fit, say,
+                  check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
 
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic, BlueBoat or Esso Osaka layout), .mcap"
@@ -153,6 +153,7 @@ def convert(
     [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
     from ..formats import read_recording, write_recording
     from ..prepare.convert import for_conversion, not_kept
+    from ..recording import DROPOUTS
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
@@ -165,8 +166,11 @@ def convert(
         conversion = for_conversion(rec, grid_dt)
     write_recording(conversion.recording, dst)
     say(f"wrote {dst}: {conversion.recording.duration_s():.1f} s, {conversion.timing}")
+    for reason, count in rec.dropped:  # what `twin info` lists as dropped is not in the copy either
+        if DROPOUTS not in reason:
+            note(f"note: not in the copy: {reason} ({count})")
     for line in not_kept(conversion.recording, dst.suffix.lower()):
-        say(f"note: {line}")
+        note(f"note: {line}")
 
 
 @app.command()

@@ -120,6 +120,8 @@ def mission(
     from ..sitl.ardupilot import fly_mission
 
     positive(timeout, "--timeout")
+    if not 1 <= port <= 65535:
+        raise TwinError(f"--port {port}: a TCP port number is 1..65535 (SITL's MAVLink console: 5760)")
     if json_out is not None:
         check_outputs([json_out], (".json",), "--json")
         check_distinct({"--json": json_out})  # the figures never replace a log or a twin
