@@ -109,7 +109,11 @@ def parse_effect_range(text: str) -> EffectRange:
         items.append((key.strip() if colon else "", lo, hi))
     out = EffectRange(name, tuple(items))
     for end in (1, 2):  # the lows, then the highs, as the effect library parses them
-        EffectRange(name, tuple((item[0], item[end], item[end]) for item in items)).draw(np.random.default_rng(0))
+        try:
+            EffectRange(name, tuple((item[0], item[end], item[end]) for item in items)).draw(np.random.default_rng(0))
+        except TwinError as exc:  # the effect's own words, about the text given rather than one end of it
+            why = str(exc).split(": ", 1)[-1].split(", got")[0]
+            raise TwinError(f"--effect '{text}': {why} (each value V or LO..HI)") from None
     return out
 
 
