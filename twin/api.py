@@ -269,8 +269,11 @@ class Table(list):
         keys = list(self[0])
         cells = [[_cell(row.get(k)) for k in keys] for row in self]
         widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
-        lines = head + ["  ".join(k.ljust(w) for k, w in zip(keys, widths))]
-        lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells]
+        # numbers right-aligned under a right-aligned head, words left-aligned under theirs
+        numeric = [all(isinstance(row.get(k), (int, float)) or row.get(k) is None for row in self) for k in keys]
+        lines = head + ["  ".join(k.rjust(w) if n else k.ljust(w) for k, w, n in zip(keys, widths, numeric)).rstrip()]
+        lines += ["  ".join(c.rjust(w) if n else c.ljust(w) for c, w, n in zip(row, widths, numeric)).rstrip()
+                  for row in cells]
         return "\n".join(lines)
 
     __repr__ = __str__
