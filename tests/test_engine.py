@@ -178,3 +178,13 @@ def test_contact_and_constraint_stages_are_off_and_safe_to_be(name):
             mujoco.mj_step(model, d)
         states.append(np.concatenate([d.qpos, d.qvel]))
     np.testing.assert_allclose(states[0], states[1], rtol=0, atol=1e-12)
+
+
+def test_a_run_records_the_pwm_its_escs_take_not_a_pulse_beyond_their_range():
+    """An inputs series asking 5000 µs is held at the ESC's 1900 µs, as the engine applies it; the run
+    recorded 5000, which no autopilot log holds."""
+    from twin.drive import InputSeries
+    from twin.simulation import simulate
+
+    run = simulate("blueboat", InputSeries(np.array([0.0]), np.array([[5000.0, -3000.0]]), "pwm"), duration_s=1.0)
+    assert np.all(run.pwm_us[:, 0] == 1900.0) and np.all(run.pwm_us[:, 1] == 1100.0)

@@ -304,7 +304,7 @@ def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, s
     t_rel = np.arange(len(full)) * every * h
     act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
     cmd = act if act is not None else np.vstack([controls, controls[-1]])[::every]
-    return Run(start_s + t_rel, eta, nu, series.pwm_at(t_rel),
+    return Run(start_s + t_rel, eta, nu, compiled.vessel.thrusters.at_escs(series.pwm_at(t_rel)),
                delivered_forces(compiled, cmd, nu),
                meta={"vessel": compiled.vessel.name, "engine": "mujoco-rollout", "timestep_s": h,
                      "inputs": series, "start_s": start_s})

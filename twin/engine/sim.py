@@ -349,7 +349,7 @@ def simulate(
         meta["wind"] = wind
     if six is not None:
         meta["six_dof"] = six_dof_samples(six, states)
-    return Run(start_s + sample_steps * h, eta, nu, loop.held(sample_steps),
+    return Run(start_s + sample_steps * h, eta, nu, vessel.thrusters.at_escs(loop.held(sample_steps)),
                delivered_forces(compiled, command_n, nu, terms), meta=meta)
 
 

@@ -273,6 +273,12 @@ class ThrusterModel:
             raise ValueError("an unbounded direct-thrust model needs command_scale_n to run a scenario")
         return -float(self.command_scale_n), float(self.command_scale_n)
 
+    def at_escs(self, pwm_us) -> np.ndarray:
+        """PWM (µs) as the ESCs take it, within their range (pwm_min_us, pwm_max_us): what a run
+        records, as an autopilot's log holds its outputs within the range it may send (NaN stays)."""
+        pwm = np.asarray(pwm_us, float)
+        return np.clip(pwm, self.pwm_min_us, self.pwm_max_us) if self.kind == "t200" else pwm
+
     def gains(self) -> np.ndarray:
         return np.array([self.gain_left, self.gain_right])
 
