@@ -150,7 +150,7 @@ def simulate_reference(
         series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
     nu = np.array(rows["nu"])
     return Run(
-        np.array(rows["t"]), np.array(rows["eta"]), nu, np.array(rows["held"], dtype=float),
+        np.array(rows["t"]), np.array(rows["eta"]), nu, vessel.thrusters.at_escs(np.array(rows["held"], dtype=float)),
         delivered_thrust(vessel, compiled.geometry.thruster_y_m, np.array(rows["cmd"]), nu),
         meta={"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
               "integrator": mujoco.mjtIntegrator(model.opt.integrator).name, "backend": backend,
