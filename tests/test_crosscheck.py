@@ -19,3 +19,12 @@ def test_crosscheck_every_term(name):
         assert results["wind"].effect_m > 100 * POSITION_TOL_M
     else:
         assert results["wind"].effect_m == 0.0  # [Bertoni-2024] gives CyberShip I no wind load
+
+
+def test_a_term_that_moves_the_vessel_less_than_the_tolerance_is_said_to_have_no_effect():
+    """The Cybership's file has no wind load: its wind case passes by checking nothing, which the
+    command said ("no effect") and the API's result did not."""
+    import twin
+
+    wind = {r.case: r for r in twin.crosscheck("cybership1", duration_s=20)}["wind"]
+    assert wind.passed and not wind.exercised and "no effect" in repr(wind) and wind.to_dict()["exercised"] is False

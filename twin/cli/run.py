@@ -195,8 +195,7 @@ def crosscheck(
     idle = []
     for r in results:
         effect = "-" if r.effect_m is None else f"{r.effect_m:.3g}"
-        # a term that moves nothing on this vessel checks nothing: a pass there would say more than it knows
-        untested = r.effect_m is not None and r.effect_m < POSITION_TOL_M
+        untested = not r.exercised  # a pass there would say more than it knows
         idle += [r.case] if untested else []
         table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
                       "[green]pass[/]" if r.passed and not untested else "[grey50]no effect[/]" if r.passed

@@ -112,13 +112,19 @@ class Result:
     def passed(self) -> bool:
         return self.position_err_m < POSITION_TOL_M and self.heading_err_deg < HEADING_TOL_DEG
 
+    @property
+    def exercised(self) -> bool:
+        """The term moves this vessel at least the position tolerance over the run: a pass where it
+        moves less checks nothing (the command says "no effect")."""
+        return self.effect_m is None or self.effect_m >= POSITION_TOL_M
+
     def __repr__(self) -> str:
-        return (f"Result({self.case}: {self.position_err_m:.3g} m, {self.heading_err_deg:.3g}°, "
-                f"{'pass' if self.passed else 'FAIL'})")
+        verdict = "FAIL" if not self.passed else "pass" if self.exercised else "no effect"
+        return f"Result({self.case}: {self.position_err_m:.3g} m, {self.heading_err_deg:.3g}°, {verdict})"
 
     def to_dict(self) -> dict:
         return {"case": self.case, "position_err_m": self.position_err_m, "heading_err_deg": self.heading_err_deg,
-                "effect_m": self.effect_m, "passed": self.passed}
+                "effect_m": self.effect_m, "passed": self.passed, "exercised": self.exercised}
 
 
 def _compare(a: Run, b: Run) -> tuple[float, float]:
