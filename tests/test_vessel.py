@@ -133,3 +133,19 @@ def test_a_thruster_site_in_millimetres_is_refused_before_the_twin_diverges(tmp_
     (tmp_path / "boat.json").write_text(json.dumps(data))
     with pytest.raises(TwinError, match=r"pwm_min_us 1.1 and pwm_max_us 1.9 must be pulse widths in µs"):
         vessel_mod.load(str(tmp_path / "boat.json"))
+
+
+def test_a_meshdir_of_ones_own_that_names_no_folder_is_said_not_replaced_by_the_packages(tmp_path):
+    """A shipped MJCF copied elsewhere finds the package's meshes; a user's own meshdir does not:
+    with a typo it loaded the package's hulls of the same names without a word."""
+    from twin.engine.mjcf import compile_vessel
+
+    import shutil
+
+    shutil.copy(vessel_mod.MODEL_DIR / "blueboat.xml", tmp_path / "blueboat.xml")
+    shutil.copy(vessel_mod.MODEL_DIR / "blueboat.json", tmp_path / "blueboat.json")
+    assert compile_vessel(vessel_mod.load(str(tmp_path / "blueboat.json"))).geometry.rigid.mass_kg == pytest.approx(15)
+    (tmp_path / "blueboat.xml").write_text((tmp_path / "blueboat.xml").read_text().replace(
+        'meshdir="../assets"', 'meshdir="mesh"'))
+    with pytest.raises(TwinError, match="Error opening file 'mesh/blueboat_hull_port.stl'"):
+        compile_vessel(vessel_mod.load(str(tmp_path / "blueboat.json")))

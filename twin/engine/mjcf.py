@@ -31,6 +31,7 @@ from ..physics.hydrodynamics import HydroModel, Terms
 from ..vessel import MODEL_DIR, Vessel
 
 ASSETS_DIR = MODEL_DIR.parent / "assets"  # the hull meshes shipped with the package
+SHIPPED_MESHDIR = "../assets"  # the shipped MJCFs' meshdir, relative to twin/model
 
 JOINTS = ("north", "east", "yaw")
 THRUSTERS = ("thruster_left", "thruster_right")
@@ -85,7 +86,10 @@ def _spec(vessel: Vessel) -> mujoco.MjSpec:
 def _shipped_meshes(spec: mujoco.MjSpec, folder: Path) -> None:
     """A shipped MJCF copied elsewhere still finds its hull meshes: when a mesh file is missing from
     the MJCF's own mesh folder (meshdir, relative to the MJCF) and the package ships one of that
-    name, the package's folder is used."""
+    name, the package's folder is used. Only for the shipped MJCFs' own meshdir (../assets): a
+    meshdir of the user's that names no folder is said, not replaced by the package's meshes."""
+    if (spec.meshdir or "").rstrip("/") != SHIPPED_MESHDIR:
+        return
     own = folder / (spec.meshdir or "")
     files = [m.file for m in spec.meshes if m.file]
     if files and not all((own / f).is_file() for f in files) and all((ASSETS_DIR / f).is_file() for f in files):
