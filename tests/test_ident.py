@@ -607,3 +607,18 @@ def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
 def test_a_ship_is_offered_every_coefficient_but_a_pwm_thrusters(yellowfish_vessel):
     boat, ship = set(coefficients(yellowfish_vessel)), set(coefficients(vessel_mod.load("esso_osaka")))
     assert boat - ship == set(PWM_THRUSTER_TERMS) and not ship & set(PWM_THRUSTER_TERMS)
+
+
+def test_a_fitted_lag_the_candidates_step_barely_holds_is_said():
+    """A noise-free truth without a lag was fitted at 0.045 s on the 0.1-s candidate step, the edge
+    below which RK4 runs away, while its own misfit is lowest at no lag: the fit says so."""
+    from dataclasses import replace
+
+    from twin.ident.identify import _lag_at_the_steps_edge
+
+    prior = vessel_mod.load("blueboat")
+    fitted = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.045))
+    said = _lag_at_the_steps_edge(fitted, prior, 0.1, freed=True)
+    assert "0.045 s lies where the candidate twins' 0.1-s step barely holds it (h/lag 2.2" in said
+    assert _lag_at_the_steps_edge(fitted, prior, 0.05, freed=True) == ""  # h/lag 1.1: held
+    assert _lag_at_the_steps_edge(fitted, prior, 0.1, freed=False) == ""  # not fitted: the file's own
