@@ -114,6 +114,11 @@ def mujoco_message(exc: Exception, what: str) -> str:
     return f"{where}: {what} ({reason})"
 
 
+def _file_of(vessel: Vessel) -> str:
+    """'NAME.json: ' of the vessel file a vessel was read from, '' for one built in code."""
+    return f"{Path(vessel.path).name}: " if vessel.path is not None else ""
+
+
 def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     if vessel.case == "nominal":
         return
@@ -121,12 +126,14 @@ def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     for name, mass in case.geom_mass_kg.items():
         geom = spec.geom(name)
         if geom is None:
-            raise TwinError(f"{vessel.mjcf.name}: case '{vessel.case}' names unknown geom '{name}'")
+            raise TwinError(f"{_file_of(vessel)}cases.{vessel.case}.geom_mass_kg names geom '{name}', which "
+                            f"{vessel.mjcf.name} does not have")
         geom.mass = mass
     for name, x in case.body_x_m.items():
         body = spec.body(name)
         if body is None:
-            raise TwinError(f"{vessel.mjcf.name}: case '{vessel.case}' names unknown body '{name}'")
+            raise TwinError(f"{_file_of(vessel)}cases.{vessel.case}.body_x_m names body '{name}', which "
+                            f"{vessel.mjcf.name} does not have")
         body.pos[0] = x
 
 

@@ -43,6 +43,8 @@ _CHECKED = [int(kind) for kind in CHECKS]  # data.warning indices of MuJoCo's di
 
 
 def _steps(interval_s: float, timestep_s: float, what: str) -> int:
+    if not (np.isfinite(interval_s) and interval_s > 0):
+        raise TwinError(f"{what} must be a positive number of seconds, got {interval_s:g}")
     n = int(round(interval_s / timestep_s))
     if n < 1 or abs(n * timestep_s - interval_s) > 1e-9:
         below, above = max(n, 1) * timestep_s, (max(n, 1) + 1) * timestep_s

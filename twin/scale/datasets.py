@@ -63,7 +63,8 @@ class Settings:
 
     def __post_init__(self):
         if self.fmt not in FORMATS:
-            raise TwinError(f"dataset format '{self.fmt}': use {', '.join(FORMATS)}")
+            raise TwinError(f"--format {self.fmt.lstrip('.')}: a dataset's recordings are "
+                            f"{', '.join(f.lstrip('.') for f in FORMATS)}")
         if self.vessels < 1 or self.per_shard < 1 or self.segments < 1:
             raise TwinError("a dataset needs at least one vessel, one vessel per shard and one segment each")
         unknown = [m for m in self.manoeuvres if m not in man.KNOWN]
