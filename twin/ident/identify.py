@@ -446,8 +446,7 @@ def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | N
     if wind not in (None, "measured"):
         raise TwinError(f"wind must be None or 'measured', got {wind!r}")
     if wind == "measured" and vessel is not None:
-        load = vessel.wind_load
-        if not (load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None):
+        if not vessel.feels_wind():
             raise TwinError(f"vessel '{vessel.name}' has no wind load model (wind_load areas or wind_regression): "
                             "a measured wind would act on nothing")
     if wind == "measured":
@@ -534,9 +533,7 @@ def unused_wind_note(recordings: list[Recording], wind: str | None, vessel: Vess
     """A note when recordings hold a measured wind that this run leaves out (no `wind`), on a vessel
     with wind areas for it to act on; None otherwise."""
     held = sum(bool(len(r.wind)) for r in recordings)
-    load = vessel.wind_load
-    acts = load.frontal_area_m2 > 0 or load.lateral_area_m2 > 0 or vessel.wind_regression is not None
-    if wind == "measured" or not held or not acts:
+    if wind == "measured" or not held or not vessel.feels_wind():
         return None
     return (f"{held} of {len(recordings)} recording{'' if len(recordings) == 1 else 's'} "
             f"hold{'s' if held == 1 else ''} a measured wind, left "
