@@ -234,8 +234,8 @@ def test_a_delay_within_an_engine_step_moves_the_thrust_by_the_share_of_the_step
 
 
 def test_a_lags_and_a_gains_trials_share_the_commands_and_each_lag_starts_from_its_own_history(prior):
-    """The commands are the same for every lag, gain and advance loss (they act in the engine), so
-    the cache computes them once; the lag's state at a window's start is that lag's filter of the
+    """The commands are the same for every lag, gain and advance loss, so the cache computes them
+    once; a lag filters them from its state at the window's start, that lag's filter of the
     commands since the segment began, whichever lag was asked first; a delay is not shared."""
     from dataclasses import replace
     from scipy.signal import lfilter
@@ -249,17 +249,34 @@ def test_a_lags_and_a_gains_trials_share_the_commands_and_each_lag_starts_from_i
     def boat(**kw):
         return replace(prior, thrusters=replace(prior.thrusters, **kw))
 
-    got = {lag: cache.inputs(boat(lag_s=lag, gain_right=0.9), prep, w, 0.05, True) for lag in (0.2, 0.6)}
-    assert got[0.2][0] is got[0.6][0] and cache.inputs(prior, prep, w, 0.05, False)[0] is got[0.2][0]
-    assert cache.inputs(boat(delay_s=0.1), prep, w, 0.05, False)[0] is not got[0.2][0]
+    raw = cache.inputs(boat(lag_s=0.0), prep, w, 0.05)
+    assert cache.inputs(boat(lag_s=0.0, gain_right=0.9, advance_loss=1.0), prep, w, 0.05) is raw
+    assert cache.inputs(boat(lag_s=0.0, delay_s=0.1), prep, w, 0.05) is not raw
+    got = {lag: cache.inputs(boat(lag_s=lag, gain_right=0.9), prep, w, 0.05) for lag in (0.2, 0.6)}
     seg = prep.segments[int(prep.segment[w.start])]
     history = thrust_commands(prior, prep, Window(0, seg.start, w.start - seg.start), 0.05)
     assert len(history) == 2 * (w.start - seg.start) > 100
-    for lag, (_, act0) in got.items():
+    for lag, thrust in got.items():
         a = np.exp(-0.05 / lag)
-        want = lfilter([1 - a], [1, -a], history, axis=0, zi=(a * history[0])[None, :])[0][-1]
-        np.testing.assert_allclose(act0, want, rtol=1e-12)
-    assert np.abs(got[0.2][1] - got[0.6][1]).max() > 0.5  # the two lags do start apart
+        start = lfilter([1 - a], [1, -a], history, axis=0, zi=(a * history[0])[None, :])[0][-1]
+        # the first step's mean thrust: from the lag's start toward the step's command
+        np.testing.assert_allclose(thrust[0], raw[0] + (start - raw[0]) * lag / 0.05 * (1 - a), rtol=1e-12)
+    assert np.abs(got[0.2][0] - got[0.6][0]).max() > 0.5  # the two lags do start apart
+
+
+def test_a_lag_filtered_ahead_of_the_engine_is_exact_and_stable_at_any_step():
+    """A step command through a 0.02-s lag at a 0.1-s step (RK4 on the lag as state runs away
+    there: |hλ| 5) gives each step's exact mean thrust, never beyond the command."""
+    from twin.fit.windows import lagged_thrust
+
+    commands = np.column_stack([np.full(6, 10.0), np.full(6, -4.0)])
+    got = lagged_thrust(commands, np.array([0.0, 2.0]), 0.02, 0.1)
+    tau, h = 0.02, 0.1
+    # ∫₀ʰ c + (y₀ − c) e^(−t/τ) dt / h for the first step, then y₀ = c(1 − e^(−h/τ)) + y₀ e^(−h/τ)
+    want0 = commands[0] + (np.array([0.0, 2.0]) - commands[0]) * tau / h * (1 - np.exp(-h / tau))
+    np.testing.assert_allclose(got[0], want0, rtol=1e-12)
+    assert got[0, 0] == pytest.approx(8.013, abs=0.001) and np.all(got[:, 0] <= 10.0) and np.all(got[:, 1] >= -4.0)
+    np.testing.assert_allclose(got[-1], commands[-1], atol=1e-9)
 
 
 def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):

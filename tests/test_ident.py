@@ -102,7 +102,9 @@ def test_windows_reproduce_the_generating_twin(yellowfish_vessel, change):
     cache.model(yellowfish_vessel)
     pred = predict(v, preps, wins, cache)[0]
     _, nu = measured(preps, wins)
-    assert np.nanmax(np.abs(pred.nu - nu)) < 1e-6
+    # a lag is filtered ahead of the engine (each step's mean thrust, lagged_thrust), where the run
+    # integrates it within the step: second order in the 0.02-s step, 1e-4 rad/s at most here
+    assert np.nanmax(np.abs(pred.nu - nu)) < (2e-4 if "lag_s" in change else 1e-6)
 
 
 def test_a_kept_cache_predicts_to_the_bit_what_a_fresh_one_does(yellowfish_vessel):
@@ -124,21 +126,21 @@ def test_a_kept_cache_predicts_to_the_bit_what_a_fresh_one_does(yellowfish_vesse
     assert np.nanmax(np.abs(again[2].nu[:, 1:] - again[0].nu[:, 1:])) > 1e-3  # the offset's start was its own
 
 
-def test_a_lag_of_hundredths_of_a_second_is_fitted_at_a_step_that_holds_it(yellowfish_vessel):
-    """A thrust lag far below the candidate twins' coarse RK4 step (0.05 s) ran away there (|hλ| 5 for
-    0.01 s): the step is divided until RK4 is comfortable, where the generating twin reproduces its
-    own run."""
+def test_a_lag_of_hundredths_of_a_second_is_held_at_the_candidates_coarse_step(yellowfish_vessel):
+    """A thrust lag far below the candidate twins' coarse RK4 step ran away when RK4 integrated it
+    (|hλ| 5 for 0.01 s at 0.05 s) and the fit stopped at that edge: filtered ahead of the engine, it
+    needs no finer step, and the generating twin reproduces its own run at 0.05 and 0.1 s."""
     from twin.fit.windows import comfortable_timestep
 
     quick = replace(yellowfish_vessel, thrusters=replace(yellowfish_vessel.thrusters, lag_s=0.01))
     ds = generate(quick, n_segments=1, seed=5, noise=QUIET, segment_s=(20, 20), manoeuvres=["rc"])
     preps = _truth_preps(ds)
-    step = comfortable_timestep(compile_vessel(quick), preps, 1.5, 0.05)
-    assert step <= 1.5 * 0.01 and abs(round(0.1 / step) * step - 0.1) < 1e-9
+    assert comfortable_timestep(compile_vessel(quick), preps, 1.5, 0.05) == pytest.approx(0.1)  # the grid
     wins = make_windows(preps, 10.0, 5.0)
     _, nu = measured(preps, wins)
-    fine = predict(quick, preps, wins, ModelCache(step))[0]
-    assert np.nanmax(np.abs(fine.nu - nu)) < 0.02 and not fine.diverged  # at a step that holds its lag
+    for step in (0.05, 0.1):
+        coarse = predict(quick, preps, wins, ModelCache(step))[0]
+        assert np.nanmax(np.abs(coarse.nu - nu)) < 0.02 and not coarse.diverged
 
 
 def test_evaluate_tells_the_truth_from_a_wrong_twin(yellowfish_vessel):
@@ -607,18 +609,3 @@ def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
 def test_a_ship_is_offered_every_coefficient_but_a_pwm_thrusters(yellowfish_vessel):
     boat, ship = set(coefficients(yellowfish_vessel)), set(coefficients(vessel_mod.load("esso_osaka")))
     assert boat - ship == set(PWM_THRUSTER_TERMS) and not ship & set(PWM_THRUSTER_TERMS)
-
-
-def test_a_fitted_lag_the_candidates_step_barely_holds_is_said():
-    """A noise-free truth without a lag was fitted at 0.045 s on the 0.1-s candidate step, the edge
-    below which RK4 runs away, while its own misfit is lowest at no lag: the fit says so."""
-    from dataclasses import replace
-
-    from twin.ident.identify import _lag_at_the_steps_edge
-
-    prior = vessel_mod.load("blueboat")
-    fitted = replace(prior, thrusters=replace(prior.thrusters, lag_s=0.045))
-    said = _lag_at_the_steps_edge(fitted, prior, 0.1, freed=True)
-    assert "0.045 s lies where the candidate twins' 0.1-s step barely holds it (h/lag 2.2" in said
-    assert _lag_at_the_steps_edge(fitted, prior, 0.05, freed=True) == ""  # h/lag 1.1: held
-    assert _lag_at_the_steps_edge(fitted, prior, 0.1, freed=False) == ""  # not fitted: the file's own

@@ -99,36 +99,39 @@ class ModelCache:
         self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
         self.timestep_s = timestep_s
         self._inputs: dict[tuple, np.ndarray] = {}
-        self._lag_starts: dict[tuple, np.ndarray] = {}
+        self._lagged: dict[tuple, np.ndarray] = {}
         self._states: dict[tuple, np.ndarray] = {}
 
     def initial_state(self, model: mujoco.MjModel, data: mujoco.MjData, layout: tuple, prep: Prepared, window: Window,
-                      act0: np.ndarray | None, nu_offset: tuple) -> np.ndarray:
+                      nu_offset: tuple) -> np.ndarray:
         """A window's full-physics initial state (_initial_state), made once for every vessel of one
-        state layout: it depends on nothing else than the measured state at the window's start, the
-        offset and the lag's start (a Jacobian's vessels and a round's candidates share them)."""
+        state layout: it depends on nothing else than the measured state at the window's start and
+        the offset (a Jacobian's vessels and a round's candidates share them; a lag's state is the
+        inputs', lagged_thrust)."""
         k = window.start
-        key = (layout, prep.t[k], prep.north[k], prep.east[k], prep.psi[k], prep.u[k], prep.v[k], prep.r[k], nu_offset,
-               None if act0 is None else np.asarray(act0, float).tobytes())
-        return self._held(self._states, key, lambda: _initial_state(model, data, prep, window, act0, nu_offset))
+        key = (layout, prep.t[k], prep.north[k], prep.east[k], prep.psi[k], prep.u[k], prep.v[k], prep.r[k], nu_offset)
+        return self._held(self._states, key, lambda: _initial_state(model, data, prep, window, nu_offset))
 
-    def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, lagged: bool,
-               thrusters: ThrusterModel | None = None):
-        """(thrust commands, lag state at the start) of a window: the same for every candidate
-        that leaves the thrusters and the PWM clock alone, so computed once. (A propeller and
-        rudder's commands are its controls (n, δ).) thrusters: command_thrusters(vessel.thrusters),
-        when the caller has it (one vessel's many windows)."""
+    def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float,
+               thrusters: ThrusterModel | None = None) -> np.ndarray:
+        """(steps, 2) thrust (N, before the gains) over each engine step of a window: the commands,
+        through the thrust lag where the vessel has one (lagged_thrust). The commands are the same
+        for every candidate that leaves the thrusters and the PWM clock alone, so computed once. (A
+        propeller and rudder's commands are its controls (n, δ).) thrusters:
+        command_thrusters(vessel.thrusters), when the caller has it (one vessel's many windows)."""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
         # the recording (source, grid) and the window identify it; nor do the commands depend on the
-        # gains, lag or advance loss (they act in the engine), so a lag's or a gain's trials share them
+        # gains, lag or advance loss, so a lag's or a gain's trials share them
         thrusters = command_thrusters(vessel.thrusters) if thrusters is None else thrusters
         key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
                thrusters, vessel.sensors.pwm_clock_offset_s)
         cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
-        if not lagged:
-            return cmd, None
-        return cmd, self._held(self._lag_starts, key + (vessel.thrusters.lag_s,),
-                               lambda: lagged_thrust_at_start(vessel, prep, window, timestep_s))
+        if not lag_outside_engine(vessel):
+            return cmd
+        return self._held(self._lagged, key + (vessel.thrusters.lag_s,),
+                          lambda: lagged_thrust(np.clip(cmd, *vessel.thrusters.bounds()),
+                                                lagged_thrust_at_start(vessel, prep, window, timestep_s),
+                                                vessel.thrusters.lag_s, timestep_s))
 
     @staticmethod
     def _held(store: dict, key: tuple, make) -> np.ndarray:
@@ -278,6 +281,38 @@ def _substeps(grid_dt: float, timestep_s: float) -> int:
     return sub
 
 
+def lag_outside_engine(vessel: Vessel) -> bool:
+    """Whether the candidate runs filter this vessel's thrust lag ahead of the engine (lagged_thrust)
+    instead of integrating it as actuator state: every lagged thruster that takes thrust commands."""
+    return vessel.thrusters.lag_s > 0 and vessel.thrusters.kind != "propeller_rudder"
+
+
+def without_lag(vessel: Vessel) -> Vessel:
+    """The vessel the engine runs when its lag is filtered ahead of it (lag_outside_engine)."""
+    return replace(vessel, thrusters=replace(vessel.thrusters, lag_s=0.0))
+
+
+def lagged_thrust(commands_n: np.ndarray, start_n: np.ndarray, lag_s: float, timestep_s: float) -> np.ndarray:
+    """Each engine step's mean thrust (N) of a first-order lag driven by commands held over the step,
+    from start_n, integrated exactly: stable and exact at any step for any lag, where RK4 integrating
+    the lag as state runs away once the step passes 2.8 lags (so a fit of the lag at a coarse step
+    stops at that edge, not at the recordings' lag).
+
+    Args:
+        commands_n: (steps, 2) commanded thrust, held over each step.
+        start_n: (2,) lagged thrust at the first step's start.
+        lag_s: time constant τ (s), > 0.
+        timestep_s: engine step h (s).
+    Returns:
+        (steps, 2): c + (y₀ − c)·τ/h·(1 − e^(−h/τ)) per step, y₀ the lagged thrust at its start."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-timestep_s / lag_s)
+    ends, _ = lfilter([1 - a], [1, -a], commands_n, axis=0, zi=(a * np.asarray(start_n, float))[None, :])
+    starts = np.vstack([np.asarray(start_n, float)[None, :], ends[:-1]])
+    return commands_n + (starts - commands_n) * (lag_s / timestep_s) * (1 - a)
+
+
 def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
     """The first-order lag's state (N) at the window start: the recorded commands since
     the segment began, filtered (exact discretisation), so a window does not start from
@@ -299,14 +334,12 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
 
 
 def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,
-                   act0: np.ndarray | None, nu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
+                   nu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
     k = w.start
     du, dv, dr = nu_offset
     batch._set_initial_state(model, data, (prep.north[k], prep.east[k], prep.psi[k]),
                              (prep.u[k] + du, prep.v[k] + dv, prep.r[k] + dr))
     data.time = prep.t[k]
-    if model.na:
-        data.act[:2] = act0
     state = np.empty(batch.state_size(model))
     mujoco.mj_getState(model, data, state, batch.FULL)
     return state
@@ -355,10 +388,11 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         if kinds != {vessel.thrusters.input_kind}:
             other = sorted(kinds - {vessel.thrusters.input_kind})
             raise TwinError(inputs_mismatch(vessel.name, vessel.thrusters.input_kind, ", ".join(other) or None))
-        model = cache.model(vessel, wind=wind is not None)
+        engine_vessel = without_lag(vessel) if lag_outside_engine(vessel) else vessel
+        model = cache.model(engine_vessel, wind=wind is not None)
         h = model.opt.timestep
         data = mujoco.MjData(model)
-        model_of_log = _per_log_models(vessel, model, cache) if wind is None else (lambda source, m=model: m)
+        model_of_log = _per_log_models(engine_vessel, model, cache) if wind is None else (lambda source, m=model: m)
         thrusters = command_thrusters(vessel.thrusters)
         layouts: dict[int, tuple] = {}
         for w in windows:
@@ -367,7 +401,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             layout = layouts.get(id(model))
             if layout is None:  # what fixes a state vector besides the window: sizes, joints, unset qpos
                 layout = layouts[id(model)] = (batch._signature(model), _joint_columns(model), model.qpos0.tobytes())
-            cmd, act0 = cache.inputs(vessel, prep, w, h, bool(model.na), thrusters)
+            cmd = cache.inputs(vessel, prep, w, h, thrusters)
             steps = _substeps(prep.settings.grid_dt, h) * n_max
             padded = np.zeros((steps, model.nu))
             padded[: len(cmd), :2] = cmd
@@ -376,7 +410,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
                 padded[: len(air), 2:4] = air
                 padded[len(air):, 2:4] = air[-1]
             models.append(model)
-            states.append(cache.initial_state(model, data, layout, prep, w, act0, offset))
+            states.append(cache.initial_state(model, data, layout, prep, w, offset))
             controls.append(padded)
             owners.append(iv)
     traj, diverged = _rollout(models, states, controls, nthread)
@@ -579,19 +613,17 @@ def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallb
     """The recordings' grid step if RK4 is comfortable at it for this vessel (|hλ| ≤ h_lambda;
     RK4's stability limit is 2.8), else fallback_s, divided as often as it takes to be comfortable.
     The fastest rate: the largest eigenvalue of ∂ν̇/∂ν at a brisk state (2 m/s, 0.5 m/s, 1 rad/s,
-    where quadratic damping is strong) or 1/lag."""
+    where quadratic damping is strong). A thrust lag does not count: predict filters it ahead of
+    the engine, exactly at any step (lagged_thrust)."""
     from ..physics.hydrodynamics import acceleration
 
     hydro, nu, h = compiled.hydro(), np.array([2.0, 0.5, 1.0]), 1e-5
     base = acceleration(hydro, 0.0, nu, np.zeros(3))
     J = np.column_stack([(acceleration(hydro, 0.0, nu + h * e, np.zeros(3)) - base) / h for e in np.eye(3)])
     rate = float(np.max(np.abs(np.linalg.eigvals(J))))
-    lag = compiled.vessel.thrusters.lag_s
-    rate = max(rate, 1.0 / lag if lag > 0 else 0.0)
     grid = preps[0].settings.grid_dt
     uniform = all(abs(p.settings.grid_dt - grid) <= 1e-9 for p in preps)
     if uniform and grid > fallback_s and grid * rate <= h_lambda:
         return grid
-    # a fallback too coarse for this vessel (a lag of hundredths of a second) is divided until RK4
-    # is comfortable: a lag integrated at |hλ| past 2.8 runs away
+    # a fallback too coarse for this hull is divided until RK4 is comfortable: past |hλ| 2.8 it runs away
     return fallback_s / math.ceil(fallback_s * rate / h_lambda - 1e-9)

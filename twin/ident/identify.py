@@ -344,9 +344,6 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         result.notes.append(f"{why}: the prior is written, as these recordings do not support moving it")
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings], wind)
-    edge = _lag_at_the_steps_edge(result.vessel, vessel, cache.timestep_s, "lag_s" in all_names)
-    if edge:
-        result.notes.append(edge)
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
         say("measuring the twin's error on left-out runs", 3, 4)
         folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
@@ -411,20 +408,6 @@ def _check_counts(window_s, *, params, groups, **counts) -> None:
         if value is not None and (not isinstance(value, (list, tuple)) or not value
                                   or not all(isinstance(v, str) for v in value)):
             raise TwinError(f"{name} must be None or a non-empty list of names, got {value!r}")
-
-
-def _lag_at_the_steps_edge(written: Vessel, prior: Vessel, step_s: float | None, freed: bool) -> str:
-    """What to say of a fitted thrust lag the candidate twins' RK4 step barely holds: below about
-    step/2.8 a candidate runs away, so a fit walking its lag down stops near that edge whatever the
-    recordings say (a truth without a lag, noise-free, was fitted at 0.045 s on a 0.1-s step; its own
-    misfit is lowest at 0). "" where the lag is not near the edge."""
-    lag = written.thrusters.lag_s
-    if not (freed and step_s and lag > 0 and step_s / lag > FIT_H_LAMBDA and lag != prior.thrusters.lag_s):
-        return ""
-    return (f"the thrust lag {lag:.3g} s lies where the candidate twins' {step_s:g}-s step barely holds it "
-            f"(h/lag {step_s / lag:.2g}; below about h/2.8 they run away): the fit may have stopped at the "
-            "step's limit rather than at the recordings' lag, and the coefficients fitted beside it (the thrust "
-            "gain) take up the difference")
 
 
 def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
