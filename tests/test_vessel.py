@@ -149,3 +149,19 @@ def test_a_meshdir_of_ones_own_that_names_no_folder_is_said_not_replaced_by_the_
         'meshdir="../assets"', 'meshdir="mesh"'))
     with pytest.raises(TwinError, match="Error opening file 'mesh/blueboat_hull_port.stl'"):
         compile_vessel(vessel_mod.load(str(tmp_path / "blueboat.json")))
+
+
+def test_a_datasets_truth_file_loads_as_its_truth_vessel(tmp_path):
+    """`--model my_log.truth.json` is the twin that generated the log, not an error."""
+    from dataclasses import replace
+
+    from twin.synth.dataset import generate
+
+    boat = vessel_mod.load("blueboat")
+    ds = generate(boat, effects=["thrust_gain=0.9"], n_segments=1, seed=2, segment_s=(10, 11))
+    (tmp_path / "sub").mkdir()
+    path = tmp_path / "sub" / "d.truth.json"
+    path.write_text(json.dumps(ds.truth(path)))
+    got = vessel_mod.load(path)
+    assert got.thrusters.gain_left == pytest.approx(0.9 * boat.thrusters.gain_left)
+    assert got.mjcf == boat.mjcf and replace(got, path=None).name == ds.truth_vessel.name

@@ -269,10 +269,11 @@ REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
 def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if not isinstance(data, dict):
         raise TwinError(f"{path.name}: a vessel file is a JSON object with at least 'name' and 'mjcf'")
+    if {"vessel", "effects", "segments"} <= set(data) and isinstance(data["vessel"], dict):
+        data = data["vessel"]  # a dataset's truth: its vessel, written against the truth file's own folder
     lacking = [k for k in ("name", "mjcf") if k not in data]
     if lacking:
-        raise TwinError(f"{path.name}: a vessel file needs {' and '.join(repr(k) for k in lacking)} (at least 'name' "
-                        "and 'mjcf')")
+        raise TwinError(f"{path.name}: a vessel file needs {' and '.join(repr(k) for k in lacking)}")
     _typed(data["name"], str, "name", path)
     _typed(data["mjcf"], str, "mjcf", path)
     shipped = data["mjcf"].startswith(PACKAGE_MJCF)
