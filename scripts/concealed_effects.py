@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|fourteenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|sixteenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -334,12 +334,27 @@ PROOF_FIFTEENTH = [
     Case("esso", "T5", "input_late", (0.6,)), Case("esso", "T6", "input_late", (0.75,)),
     Case("esso", "T5", "heading_late", (0.55,)), Case("esso", "T6", "heading_late", (0.7,)),
 ]
+# the sixteenth set takes outings V and W (the eleventh and twelfth sets' groupings) and Esso tests T9 and T10
+# again, with other values
+PROOF_SIXTEENTH = [
+    Case("blueboat", "V", "null"), Case("blueboat", "W", "null"),
+    Case("blueboat", "V", "current", (0.14, 100.0)), Case("blueboat", "W", "current", (0.12, 280.0)),
+    Case("blueboat", "V", "antenna", (0.30, 0.25)), Case("blueboat", "W", "antenna", (-0.25, -0.30)),
+    Case("blueboat", "V", "input_late", (0.55,)), Case("blueboat", "W", "input_late", (0.45,)),
+    Case("blueboat", "V", "thruster_scaled", ("right", 0.75)), Case("blueboat", "W", "thruster_scaled", ("left", 0.8)),
+    Case("blueboat", "V", "heading_late", (0.5,)), Case("blueboat", "W", "heading_late", (0.4,)),
+    Case("esso", "T9", "null"), Case("esso", "T10", "null"),
+    Case("esso", "T9", "current", (0.10, 330.0)), Case("esso", "T10", "current", (0.12, 100.0)),
+    Case("esso", "T9", "antenna", (0.35, -0.30)), Case("esso", "T10", "antenna", (-0.40, 0.25)),
+    Case("esso", "T9", "input_late", (0.65,)), Case("esso", "T10", "input_late", (0.5,)),
+    Case("esso", "T9", "heading_late", (0.45,)), Case("esso", "T10", "heading_late", (0.6,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
-          "fifteenth": PROOF_FIFTEENTH}
+          "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -347,7 +362,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "tenth": "concealed_effects_tenth", "eleventh": "concealed_effects_eleventh",
          "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth",
          "fourteenth": "concealed_effects_fourteenth",
-         "fifteenth": "concealed_effects_fifteenth"}
+         "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -370,7 +385,8 @@ STAGE_METHODS = {
 
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
-ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth"}
+ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
+                      "sixteenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
