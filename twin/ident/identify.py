@@ -13,11 +13,11 @@ on runs left out of the fit.
 4. Choose on left-out runs (fit/crossval.py; time blocks with fewer than three recordings): each
    run is predicted by a twin fitted on the runs that go less far than it does (time under way,
    time turning: crossval.beyond_folds), so every choice is judged where the twin extrapolates.
-   How much the beliefs count (PRIOR_WEIGHTS), then, backwards, which groups of coefficients stay
-   free: a group goes back to its prior while that lowers the left-out cost by DROP_GAIN or more, and
-   all of them (the prior written as it is) where the prior predicts them better than every fit by
-   DROP_GAIN or more.
-   No choice looks at how well the fit matches its own data.
+   How much the beliefs count (PRIOR_WEIGHTS); every group stays free (the beliefs hold what the
+   recordings do not pin), unless the prior predicts the left-out runs better than every fit by
+   DROP_GAIN or more: then the prior is written as it is. Each group's return to its prior is
+   judged too, as a report of the physics the left-out runs need (Identification.needed), not as
+   a choice. No choice looks at how well the fit matches its own data.
 5. Refit with the choices and write the twin, with what to expect on a new run (the left-out
    runs' scores: median and range), the twin's error on the left-out runs' 30-s free runs (which
    widens its prediction bands: crossval.form_error), and a warning when it predicts the left-out
@@ -50,7 +50,7 @@ from ..errors import TwinError
 from ..fit import simfit
 from ..fit.calibrate import LogCalibration, kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
 from ..fit.crossval import (CrossValidation, beyond_folds, each_folds, form_error, held_out_groups,
-                            jackknife_vessels, judge, linearised_vessel)
+                            jackknife_vessels, judge)
 from ..fit.evaluate import fitted_envelope
 from ..fit.kinematic import input_answers
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
@@ -74,9 +74,8 @@ WINDOW_S = 10.0
 SLOW_WINDOW_S = 30.0  # for a vessel whose surge time constant exceeds WINDOW_S
 TYPICAL_SPEED_M_S = 1.0  # a small ASV's cruising speed, where its surge time constant is read
 NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost this much is physics the runs need
-# A group goes back to its prior only when that lowers the left-out cost by this share: a free group the
-# recordings do not pin stays near its prior anyway (the beliefs hold it), and a smaller difference is
-# within the scatter of the judging itself, so dropping on it would make the choice a coin toss.
+# The prior is written instead of a fit only when it predicts the left-out runs better by this share: a
+# smaller difference is within the scatter of the judging itself.
 DROP_GAIN = 0.02
 FORM_ERROR_HORIZON_S = 30.0  # the prediction band's free runs (twin evaluate --band)
 FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that go less far (time under way, "
@@ -166,9 +165,8 @@ class Identification:
 
     def needed(self) -> list[tuple[str, float]]:
         """The groups the left-out runs need: (group, left-out cost without it ÷ with it) for each group
-        whose return to its prior raises the left-out cost by NEEDED_RATIO or more, from the first
-        round of the backward elimination (each refit linearised about the fit with every group
-        free), largest first."""
+        whose return to its prior raises the left-out cost by NEEDED_RATIO or more (each refit
+        linearised about the fit with every group free), largest first."""
         if not self.choices:
             return []
         full = max(len(c.free_groups) for c in self.choices)
@@ -309,34 +307,13 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
     best = min(choices, key=lambda c: c.cv.cost)
     chosen_fit = fits[best.prior_weight]
-    if params is None:
-        best, more = _drop_groups(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
-                                  judge_groups, group_names, cache, wind, folds)
-        choices += more
+    if params is None:  # a report of what the left-out runs need, not a choice (module docstring, step 4)
+        choices += _without_each_group(chosen_fit, best, names_by_group, all_names, preps, every, fit_groups,
+                                       judge_groups, group_names, cache, wind, folds)
     result.choices, result.chosen = choices, best
     fit_best = chosen_fit
-    if best.free_groups != tuple(names_by_group):
-        say("refitting with the chosen groups", 3, 4)
-        names = tuple(n for g in best.free_groups for n in names_by_group[g])
-        refit = simfit.fit(vessel, preps, names, anchor=anchor, window_s=window_s, stride_s=window_s,
-                           max_evaluations=max(6, max_evaluations // 3), cache=cache, free_start=start == "free",
-                           prior_weight=best.prior_weight, start=[_linearised(chosen_fit, names), chosen_fit.vessel],
-                           windows=informative,
-                           wind=wind)
-        cv = judge({"refit": jackknife_vessels(refit.objective, refit.x, refit.jacobian,
-                                               refit.objective.residuals(refit.x), fit_groups, fixed=_unpinned(refit),
-                                               folds=folds)},
-                   preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)["refit"]
-        refitted = Choice(best.label + " (refitted)", best.prior_weight, best.free_groups,
-                          _labelled(cv, best.label + " (refitted)"))
-        choices.append(refitted)
-        if cv.cost <= min(c.cv.cost for c in choices if c.free_groups == tuple(names_by_group)):
-            fit_best, best = refit, refitted
-        else:  # the linearised choice did not hold up once refitted: every group stays free
-            best = min((c for c in choices if c.free_groups == tuple(names_by_group)), key=lambda c: c.cv.cost)
-            result.notes.append("dropping groups looked better linearised but not once refitted: all groups kept")
     if params is None and result.prior_cv.cost < (1.0 - DROP_GAIN) * best.cv.cost:
-        # the end of dropping groups: all of them back at their prior, judged as each group is
+        # every group back at its prior
         why = (f"the prior predicts the left-out runs better than any fit (cost {result.prior_cv.cost:.4g} against "
                f"{best.cv.cost:.4g}, {best.label})")
         fit_best, best = simfit.at_prior(fit_best, vessel, why), Choice("prior (no fit)", best.prior_weight, (),
@@ -583,46 +560,35 @@ def _informative(prep: Prepared, w) -> bool:
     return bool(thrust or moving)
 
 
-def _drop_groups(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
-                 group_names, cache, wind: str | None = None, folds=None) -> tuple[Choice, list[Choice]]:
-    """Backward: the group whose return to its prior most improves the left-out scores goes back,
-    while one does by DROP_GAIN or more (each refit linearised about the fit with every group free)."""
+def _without_each_group(fit, start: Choice, names_by_group, all_names, preps, every, fit_groups, judge_groups,
+                        group_names, cache, wind: str | None = None, folds=None) -> list[Choice]:
+    """Each group back at its prior, the others free (refits linearised about the fit with every
+    group free), judged on the left-out runs: what Identification.needed reads. Not a choice: on
+    the BlueBoat's five least active runs, the left-out costs of such options differ by 2-10 %
+    while every option's left-out R² of r is negative, so choosing among them picks by scatter
+    (Method: identification)."""
     obj, x, J = fit.objective, fit.x, fit.jacobian
     r = obj.residuals(x)
     col = {n: i for i, n in enumerate(all_names)}
     held = _unpinned(fit)
-    current, tried = start, []
-    while len(current.free_groups) > 1:
-        configs = {}
-        for g in current.free_groups:
-            fixed = np.ones(len(all_names), bool)
-            for kept in current.free_groups:
-                if kept != g:
-                    fixed[[col[n] for n in names_by_group[kept]]] = False
-            configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed | held, folds=folds)
-        judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
-        options = [Choice(f"{current.label} without {g}", current.prior_weight,
-                          tuple(k for k in current.free_groups if k != g), _labelled(cv, f"{current.label} without {g}"))
-                   for g, cv in judged.items()]
-        tried += options
-        best = min(options, key=lambda c: c.cv.cost)
-        if best.cv.cost >= (1.0 - DROP_GAIN) * current.cv.cost:
-            break
-        current = best
-    return current, tried
+    if len(start.free_groups) < 2:
+        return []
+    configs = {}
+    for g in start.free_groups:
+        fixed = np.ones(len(all_names), bool)
+        for kept in start.free_groups:
+            if kept != g:
+                fixed[[col[n] for n in names_by_group[kept]]] = False
+        configs[g] = jackknife_vessels(obj, x, J, r, fit_groups, fixed=fixed | held, folds=folds)
+    judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
+    return [Choice(f"{start.label} without {g}", start.prior_weight, tuple(k for k in start.free_groups if k != g),
+                   _labelled(cv, f"{start.label} without {g}")) for g, cv in judged.items()]
 
 
 def _unpinned(fit: simfit.FitResult) -> np.ndarray:
     """The coordinates the fit kept at their prior (not pinned by the data): the twins that judge a
     fit on left-out runs hold them there too, as the twin written does."""
     return np.array([not e.identifiable for e in fit.estimates])
-
-
-def _linearised(fit: simfit.FitResult, names: tuple[str, ...]) -> Vessel:
-    """The fit with only `names` free, linearised about it (crossval.linearised_vessel): the twin
-    the choice of those names was judged as."""
-    fixed = np.array([e.name not in names for e in fit.estimates])  # estimates: one per coordinate, in order
-    return linearised_vessel(fit.objective, fit.x, fit.jacobian, fit.objective.residuals(fit.x), fixed)
 
 
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], wind: str | None = None) -> Vessel:
@@ -697,9 +663,9 @@ def format_choices(ident: Identification) -> str:
     if ident.chosen is not None:
         by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups to drop
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
-                     (f"; a group goes back to its prior only where that lowers the cost by {100 * DROP_GAIN:g} % "
-                      "or more" + ("; here all of them: the prior is written" if not ident.chosen.free_groups else "")
-                      if by_groups else ""))
+                     ("; every group free (the rows without one are a report, not a choice)" if by_groups else "") +
+                     (f"; the prior is written, as it predicts the left-out runs better by {100 * DROP_GAIN:g} % or "
+                      "more" if by_groups and not ident.chosen.free_groups else ""))
     return "\n".join(lines)
 
 
