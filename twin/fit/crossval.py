@@ -131,20 +131,6 @@ class CrossValidation:
                 + ", ".join(parts))
 
 
-def linearised_vessel(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, fixed: np.ndarray) -> Vessel:
-    """The fit on every window with the `fixed` coordinates moved back to the prior, the others
-    moved by one Gauss-Newton step to where that puts their optimum: the twin a linearised choice
-    of free coordinates stands for, and the start from which that choice is refitted (the fit's
-    own values beside prior ones for the rest can lie where windows diverge)."""
-    free = ~np.asarray(fixed, bool)
-    base = np.where(free, x, obj.x_prior)
-    r0 = r + J @ (base - x)
-    delta = np.zeros(len(x))
-    if free.any():
-        delta[free] = np.linalg.lstsq(J[:, free], -r0, rcond=None)[0]
-    return obj.vessel(np.clip(base + delta, *obj.bounds()))
-
-
 def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,
                       fixed: np.ndarray | None = None, at: np.ndarray | None = None,
                       folds: list[np.ndarray] | None = None) -> list[Vessel]:
