@@ -132,13 +132,13 @@ def identify_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
-    groups: Optional[str] = typer.Option(None, help="groups of coefficients to consider, comma separated "
+    groups: Optional[str] = typer.Option(None, help="groups of coefficients to free, comma separated "
                                                    "(default: all of " + ", ".join(FIT_GROUPS) + ", and pack voltage "
                                                    "where every recording logs its battery; for a "
                                                    "propeller-and-rudder ship: " + ", ".join(MMG_FIT_GROUPS)
-                                                   + "; _ for a space: thrust_curve); the fit "
-                                                   "keeps those that predict left-out runs better"),
-    params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of choosing groups, "
+                                                   + "; _ for a space: thrust_curve); the others "
+                                                   "stay at their prior"),
+    params: Optional[str] = typer.Option(None, help="fit exactly these coefficients instead of groups, "
                                                    "comma separated (e.g. Xu,Nr,thrust_gain)"),
     beliefs: str = typer.Option("0.01,0.1,1,10", help="how much the prior's beliefs count, in windows of data each: "
                                                  "the values tried (chosen on left-out runs)"),

@@ -661,7 +661,7 @@ def format_choices(ident: Identification) -> str:
         note = f"  (ran away on {ran_away} of {len(cv.runs)} left-out runs)" if ran_away else ""
         lines.append(f"{label:{width}s} {cv.cost:9.4g} {cells}{note}")
     if ident.chosen is not None:
-        by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups to drop
+        by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
                      ("; every group free (the rows without one are a report, not a choice)" if by_groups else "") +
                      (f"; the prior is written, as it predicts the left-out runs better by {100 * DROP_GAIN:g} % or "
