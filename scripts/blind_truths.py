@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|third] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|third|fourth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -129,7 +129,19 @@ THIRD = [  # fixed before it was run: other seeds, magnitudes, sides and directi
     Case("wind-gusty-5-130", "wind", 59, wind_speed_m_s=5.0, wind_from_deg=130.0, gust_sigma_m_s=0.8, gust_tau_s=10.0),
     Case("wind-steady-6-300", "wind", 60, wind_speed_m_s=6.0, wind_from_deg=300.0),
 ]
-SETS = {"first": FIRST, "second": SECOND, "third": THIRD}
+FOURTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-g", "null", 61),
+    Case("null-h", "null", 62),
+    Case("dead_zone-left-soft-60-110us", "dead_zone", 63, side="left", inner_us=60.0, outer_us=110.0),
+    Case("dead_zone-right-hard-90us", "dead_zone", 64, side="right", inner_us=90.0, outer_us=90.0),
+    Case("speed_loss-0.14u", "speed_loss", 65, k=0.14, power=1),
+    Case("speed_loss-0.08u2", "speed_loss", 66, k=0.08, power=2),
+    Case("sag-exp-250s", "sag_exp", 67, k=0.2, tau_s=250.0),
+    Case("sag-square-0.2", "sag_square", 68, k=0.2),
+    Case("wind-gusty-5.5-200", "wind", 69, wind_speed_m_s=5.5, wind_from_deg=200.0, gust_sigma_m_s=0.9, gust_tau_s=12.0),
+    Case("wind-steady-5.5-70", "wind", 70, wind_speed_m_s=5.5, wind_from_deg=70.0),
+]
+SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}
