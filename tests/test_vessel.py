@@ -87,7 +87,7 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     (lambda d: d["thrusters"].__setitem__("lag_s", 200.0), r"thrusters.lag_s is 200 s"),
     (lambda d: d.__setitem__("cg_offset_m", [100.0, 0.0]), r"cg_offset_m \[100.0, 0.0\]"),
     (lambda d: d["wind_load"].__setitem__("frontal_area_m2", -0.3), r"wind_load.frontal_area_m2 must be ≥ 0"),
-    (lambda d: d.pop("name"), r"needs 'name' \(at least"),
+    (lambda d: d.pop("name"), r"a vessel file needs 'name'$"),
 ])
 def test_a_vessel_file_value_only_a_slipped_unit_gives_is_refused_naming_its_field(tmp_path, edit, message):
     """Each of these ran without a word as another boat (a gain in per mille reached 35 m/s, a
