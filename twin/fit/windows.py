@@ -100,6 +100,7 @@ class ModelCache:
         self.timestep_s = timestep_s
         self._inputs: dict[tuple, np.ndarray] = {}
         self._lagged: dict[tuple, np.ndarray] = {}
+        self._command_keys: dict[tuple, int] = {}
         self._states: dict[tuple, np.ndarray] = {}
 
     def initial_state(self, model: mujoco.MjModel, data: mujoco.MjData, layout: tuple, prep: Prepared, window: Window,
@@ -112,19 +113,24 @@ class ModelCache:
         key = (layout, prep.t[k], prep.north[k], prep.east[k], prep.psi[k], prep.u[k], prep.v[k], prep.r[k], nu_offset)
         return self._held(self._states, key, lambda: _initial_state(model, data, prep, window, nu_offset))
 
+    def command_key(self, vessel: Vessel) -> int:
+        """A small integer for what a vessel's commands depend on (command_thrusters, the PWM clock),
+        the same for every vessel that shares them: hashed once per vessel, not once per window."""
+        key = (command_thrusters(vessel.thrusters), vessel.sensors.pwm_clock_offset_s)
+        return self._command_keys.setdefault(key, len(self._command_keys))
+
     def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float,
-               thrusters: ThrusterModel | None = None) -> np.ndarray:
+               command_key: int | None = None) -> np.ndarray:
         """(steps, 2) thrust (N, before the gains) over each engine step of a window: the commands,
         through the thrust lag where the vessel has one (lagged_thrust). The commands are the same
         for every candidate that leaves the thrusters and the PWM clock alone, so computed once. (A
-        propeller and rudder's commands are its controls (n, δ).) thrusters:
-        command_thrusters(vessel.thrusters), when the caller has it (one vessel's many windows)."""
+        propeller and rudder's commands are its controls (n, δ).) command_key: command_key(vessel),
+        when the caller has it (one vessel's many windows)."""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
         # the recording (source, grid) and the window identify it; nor do the commands depend on the
         # gains, lag or advance loss, so a lag's or a gain's trials share them
-        thrusters = command_thrusters(vessel.thrusters) if thrusters is None else thrusters
-        key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s,
-               thrusters, vessel.sensors.pwm_clock_offset_s)
+        command_key = self.command_key(vessel) if command_key is None else command_key
+        key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s, command_key)
         cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
         if not lag_outside_engine(vessel):
             return cmd
@@ -393,7 +399,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         h = model.opt.timestep
         data = mujoco.MjData(model)
         model_of_log = _per_log_models(engine_vessel, model, cache) if wind is None else (lambda source, m=model: m)
-        thrusters = command_thrusters(vessel.thrusters)
+        command_key = cache.command_key(vessel)
         layouts: dict[int, tuple] = {}
         for w in windows:
             prep = vpreps[w.rec]
@@ -401,7 +407,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             layout = layouts.get(id(model))
             if layout is None:  # what fixes a state vector besides the window: sizes, joints, unset qpos
                 layout = layouts[id(model)] = (batch._signature(model), _joint_columns(model), model.qpos0.tobytes())
-            cmd = cache.inputs(vessel, prep, w, h, thrusters)
+            cmd = cache.inputs(vessel, prep, w, h, command_key)
             steps = _substeps(prep.settings.grid_dt, h) * n_max
             padded = np.zeros((steps, model.nu))
             padded[: len(cmd), :2] = cmd
