@@ -14,7 +14,7 @@ from ..effects import Quantity
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel, check
-from .windows import ModelCache, Window, as_measured, measured, predict
+from .windows import ModelCache, Window, as_measured, measured, measured_side, predict
 
 SETTLE_S = 1.0
 START_STEP = np.array([0.01, 0.01, 0.01])  # m/s, m/s, rad/s: finite differences of the initial velocities
@@ -117,6 +117,7 @@ class Objective:
         self.sigma = np.where(sd > 1e-6, sd, 1.0)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._sides: dict[tuple, tuple] = {}
         self._runs_at: tuple[np.ndarray, list[np.ndarray]] | None = None
         self._belief: tuple[np.ndarray, np.ndarray] | None = None  # (√w/σ, mean) per coordinate, value units
 
@@ -157,8 +158,16 @@ class Objective:
         return measured(preps, self.windows)[1][:, 1:]
 
     def _seen(self, nu: np.ndarray, preps: list[Prepared]) -> np.ndarray:
-        """The prediction as the measurement would show it (see windows.as_measured)."""
-        return as_measured(nu, preps, self.windows)
+        """The prediction as the measurement would show it (see windows.as_measured), with the
+        recordings' side of it kept per list of recordings: every evaluation predicts the same
+        windows. The entry holds the list, so its id is not reused while the entry lives."""
+        key = (id(preps), nu.shape[1])
+        held = self._sides.get(key)
+        if held is None:
+            if len(self._sides) >= 8:
+                self._sides.pop(next(iter(self._sides)))
+            held = self._sides[key] = (preps, measured_side(preps, self.windows, nu.shape[1]))
+        return as_measured(nu, preps, self.windows, held[1])
 
     @property
     def x_prior(self) -> np.ndarray:

@@ -500,7 +500,22 @@ def measured(preps: list[Prepared], windows: list[Window]) -> tuple[np.ndarray, 
     return eta, nu
 
 
-def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window]) -> np.ndarray:
+def measured_side(preps: list[Prepared], windows: list[Window], n1: int) -> tuple:
+    """What as_measured takes from the recordings, the same for every prediction of these windows
+    (n1 samples each, the start included): the measured r before each window (heading window), u, v
+    before it and the heading over it (GNSS window); None where a window of the estimator is empty."""
+    settings = preps[0].settings
+    h = settings.grid_dt
+    gnss_half = int(np.floor(settings.window_s / 2 / h + 1e-9))
+    heading_half = int(np.floor(settings.yaw_rate_window_s / 2 / h + 1e-9))
+    r_past = _past(preps, windows, heading_half)[..., 2:]
+    if gnss_half < 1:
+        return r_past, None, None
+    return r_past, _past(preps, windows, gnss_half)[..., :2], _headings(preps, windows, gnss_half, n1)
+
+
+def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window],
+                side: tuple | None = None) -> np.ndarray:
     """Predicted velocities seen through the measurement's own velocity estimator.
 
     A Savitzky-Golay slope over ±L = window_s/2 (any polyorder ≤ 2: the quadratic term
@@ -516,23 +531,23 @@ def as_measured(nu_pred: np.ndarray, preps: list[Prepared], windows: list[Window
     keep a sway that the ground track's smoothing turns away (u·r over the window): the fit then
     reads it as sway physics (on a simulated BlueBoat run, Yuv −91 for −48). The turn uses the
     measured heading, as the estimator does; the antenna's arm is left out of the smoothing (its
-    part, r·arm averaged over the window, is of second order)."""
+    part, r·arm averaged over the window, is of second order). side: measured_side(preps, windows,
+    nu_pred.shape[1]), when the caller keeps it for many predictions of the same windows."""
     settings = preps[0].settings
     if settings.smoother != "savgol":
         return nu_pred
     h = settings.grid_dt
-    gnss_half = int(np.floor(settings.window_s / 2 / h + 1e-9))
-    heading_half = int(np.floor(settings.yaw_rate_window_s / 2 / h + 1e-9))
-    r = _smoothed(nu_pred[..., 2:], _past(preps, windows, heading_half)[..., 2:], settings.yaw_rate_window_s, h)
+    r_past, uv_past, psi = measured_side(preps, windows, nu_pred.shape[1]) if side is None else side
+    r = _smoothed(nu_pred[..., 2:], r_past, settings.yaw_rate_window_s, h)
     # a rate gyro measures r itself: where a recording's r was read from one, nothing smooths it
     gyro = np.array([preps[w.rec].settings.yaw_rate_source == "gyro" for w in windows], bool)
     if gyro.any():
         r = np.where(gyro[:, None, None], nu_pred[..., 2:], r)
-    if gnss_half < 1:
+    if uv_past is None:
         return np.concatenate([nu_pred[..., :2], r], axis=-1)
-    psi = _headings(preps, windows, gnss_half, nu_pred.shape[1])
+    gnss_half = uv_past.shape[1]
     c, s = np.cos(psi), np.sin(psi)
-    body = np.concatenate([_past(preps, windows, gnss_half)[..., :2], nu_pred[..., :2]], axis=1)
+    body = np.concatenate([uv_past, nu_pred[..., :2]], axis=1)
     ground = np.stack([c * body[..., 0] - s * body[..., 1], s * body[..., 0] + c * body[..., 1]], axis=-1)
     g = _smoothed(ground[:, gnss_half:], ground[:, :gnss_half], settings.window_s, h)
     c, s = c[:, gnss_half:], s[:, gnss_half:]
