@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|third|fourth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|third|fourth|fifth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -141,7 +141,19 @@ FOURTH = [  # fixed before it was run: other seeds, magnitudes, sides and direct
     Case("wind-gusty-5.5-200", "wind", 69, wind_speed_m_s=5.5, wind_from_deg=200.0, gust_sigma_m_s=0.9, gust_tau_s=12.0),
     Case("wind-steady-5.5-70", "wind", 70, wind_speed_m_s=5.5, wind_from_deg=70.0),
 ]
-SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH}
+FIFTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-i", "null", 71),
+    Case("null-j", "null", 72),
+    Case("dead_zone-right-soft-45-100us", "dead_zone", 73, side="right", inner_us=45.0, outer_us=100.0),
+    Case("dead_zone-left-hard-85us", "dead_zone", 74, side="left", inner_us=85.0, outer_us=85.0),
+    Case("speed_loss-0.11u", "speed_loss", 75, k=0.11, power=1),
+    Case("speed_loss-0.13u2", "speed_loss", 76, k=0.13, power=2),
+    Case("sag-exp-350s", "sag_exp", 77, k=0.25, tau_s=350.0),
+    Case("sag-square-0.3", "sag_square", 78, k=0.3),
+    Case("wind-gusty-6-320", "wind", 79, wind_speed_m_s=6.0, wind_from_deg=320.0, gust_sigma_m_s=1.0, gust_tau_s=12.0),
+    Case("wind-steady-5-150", "wind", 80, wind_speed_m_s=5.0, wind_from_deg=150.0),
+]
+SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|sixteenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|seventeenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -349,12 +349,28 @@ PROOF_SIXTEENTH = [
     Case("esso", "T9", "input_late", (0.65,)), Case("esso", "T10", "input_late", (0.5,)),
     Case("esso", "T9", "heading_late", (0.45,)), Case("esso", "T10", "heading_late", (0.6,)),
 ]
+# the seventeenth set takes outings R and D (the fifth and second sets' groupings) and Esso tests T13 and
+# T14 again, with other values
+PROOF_SEVENTEENTH = [
+    Case("blueboat", "R", "null"), Case("blueboat", "D", "null"),
+    Case("blueboat", "R", "current", (0.11, 150.0)), Case("blueboat", "D", "current", (0.13, 20.0)),
+    Case("blueboat", "R", "antenna", (-0.30, 0.20)), Case("blueboat", "D", "antenna", (0.25, -0.35)),
+    Case("blueboat", "R", "input_late", (0.5,)), Case("blueboat", "D", "input_late", (0.6,)),
+    Case("blueboat", "R", "thruster_scaled", ("right", 0.8)), Case("blueboat", "D", "thruster_scaled", ("left", 0.75)),
+    Case("blueboat", "R", "heading_late", (0.45,)), Case("blueboat", "D", "heading_late", (0.55,)),
+    Case("esso", "T13", "null"), Case("esso", "T14", "null"),
+    Case("esso", "T13", "current", (0.10, 40.0)), Case("esso", "T14", "current", (0.11, 230.0)),
+    Case("esso", "T13", "antenna", (0.35, 0.30)), Case("esso", "T14", "antenna", (-0.40, -0.20)),
+    Case("esso", "T13", "input_late", (0.7,)), Case("esso", "T14", "input_late", (0.55,)),
+    Case("esso", "T13", "heading_late", (0.55,)), Case("esso", "T14", "heading_late", (0.65,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
-          "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH}
+          "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
+          "seventeenth": PROOF_SEVENTEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -362,7 +378,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "tenth": "concealed_effects_tenth", "eleventh": "concealed_effects_eleventh",
          "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth",
          "fourteenth": "concealed_effects_fourteenth",
-         "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth"}
+         "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
+         "seventeenth": "concealed_effects_seventeenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -386,7 +403,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth"}
+                      "sixteenth", "seventeenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
