@@ -262,6 +262,16 @@ def test_a_lags_and_a_gains_trials_share_the_commands_and_each_lag_starts_from_i
         # the first step's mean thrust: from the lag's start toward the step's command
         np.testing.assert_allclose(thrust[0], raw[0] + (start - raw[0]) * lag / 0.05 * (1 - a), rtol=1e-12)
     assert np.abs(got[0.2][0] - got[0.6][0]).max() > 0.5  # the two lags do start apart
+    # every window's start is the history's own filter, bit for bit, though the cache filters each
+    # segment once per lag
+    from twin.fit.windows import lagged_thrust, lagged_thrust_at_start
+
+    lagged = boat(lag_s=0.3)
+    for v in make_windows([prep], 10.0, 5.0, min_length_s=5.0):
+        cmd = thrust_commands(lagged, prep, v, 0.05)
+        want = lagged_thrust(np.clip(cmd, *lagged.thrusters.bounds()),
+                             lagged_thrust_at_start(lagged, prep, v, 0.05), 0.3, 0.05)
+        assert np.array_equal(cache.inputs(lagged, prep, v, 0.05), want)
 
 
 def test_a_lag_filtered_ahead_of_the_engine_is_exact_and_stable_at_any_step():

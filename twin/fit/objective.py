@@ -197,16 +197,17 @@ class Objective:
             return [r if r.ndim == 1 else r[self.valid] for r in [base] + full[4:]]
         S = np.stack([np.where(self.valid, np.nan_to_num((s - base) / d, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
                       for s, d in zip(sens, START_STEP)], axis=-1)  # (W, n, 3 dof, 3 start)
-        return [r if r.ndim == 1 else self._free_started(r, S) for r in [base] + full[4:]]
-
-    def _free_started(self, r: np.ndarray, S: np.ndarray) -> np.ndarray:
-        """Residuals with each window's initial velocities re-estimated (linearised about
-        the base twin): r + S·Δ with Δ = argmin |r + S·Δ|² per window."""
-        r = np.where(self.valid, np.nan_to_num(r, nan=10.0), 0.0)
-        W = r.shape[0]
-        Sf, rf = S.reshape(W, -1, 3), r.reshape(W, -1)
-        G = np.einsum("wki,wkj->wij", Sf, Sf)
+        Sf = S.reshape(S.shape[0], -1, 3)
+        G = np.einsum("wki,wkj->wij", Sf, Sf)  # the same for every vessel of one call: formed once
         G += (1e-9 * np.trace(G, axis1=1, axis2=2)[:, None, None] + 1e-12) * np.eye(3)
+        return [r if r.ndim == 1 else self._free_started(r, Sf, G) for r in [base] + full[4:]]
+
+    def _free_started(self, r: np.ndarray, Sf: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """Residuals with each window's initial velocities re-estimated (linearised about
+        the base twin): r + S·Δ with Δ = argmin |r + S·Δ|² per window (Sf: S as (W, n·3, 3),
+        G: SᵀS per window, regularised)."""
+        r = np.where(self.valid, np.nan_to_num(r, nan=10.0), 0.0)
+        rf = r.reshape(r.shape[0], -1)
         delta = -np.linalg.solve(G, np.einsum("wki,wk->wi", Sf, rf)[..., None])[..., 0]
         return (rf + np.einsum("wki,wi->wk", Sf, delta)).reshape(r.shape)[self.valid]
 

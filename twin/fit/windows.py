@@ -79,6 +79,10 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 
 # ---------------------------------------------------------------- models
 
+# a segment's lag states per lag tried: a few tens of kB each, as many as a diagnosis's candidate
+# lags over one outing's segments need
+SEGMENT_LAGS_KEPT = 512
+
 def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
     """What needs a recompilation: everything else is set on a copy of a compiled model."""
     t = vessel.thrusters
@@ -102,6 +106,8 @@ class ModelCache:
         self._lagged: dict[tuple, np.ndarray] = {}
         self._command_keys: dict[tuple, int] = {}
         self._states: dict[tuple, np.ndarray] = {}
+        self._thrust_bounds: dict[int, tuple[float, float]] = {}
+        self._segment_lag: dict[tuple, np.ndarray] = {}
 
     def initial_state(self, model: mujoco.MjModel, data: mujoco.MjData, layout: tuple, prep: Prepared, window: Window,
                       nu_offset: tuple) -> np.ndarray:
@@ -130,21 +136,45 @@ class ModelCache:
         # the recording (source, grid) and the window identify it; nor do the commands depend on the
         # gains, lag or advance loss, so a lag's or a gain's trials share them
         command_key = self.command_key(vessel) if command_key is None else command_key
-        key = (prep.settings.source, float(prep.t[0]), len(prep.t), window.start, window.n, timestep_s, command_key)
+        recording = (prep.settings.source, float(prep.t[0]), len(prep.t))
+        key = recording + (window.start, window.n, timestep_s, command_key)
         cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
         if not lag_outside_engine(vessel):
             return cmd
-        return self._held(self._lagged, key + (vessel.thrusters.lag_s,),
-                          lambda: lagged_thrust(np.clip(cmd, *vessel.thrusters.bounds()),
-                                                lagged_thrust_at_start(vessel, prep, window, timestep_s),
-                                                vessel.thrusters.lag_s, timestep_s))
+        lag_s = vessel.thrusters.lag_s
+        return self._held(self._lagged, key + (lag_s,),
+                          lambda: lagged_thrust(np.clip(cmd, *self._bounds(vessel, command_key)),
+                                                self._lag_state(vessel, prep, window, timestep_s, command_key,
+                                                                recording),
+                                                lag_s, timestep_s))
+
+    def _bounds(self, vessel: Vessel, command_key: int) -> tuple[float, float]:
+        """The thrusters' bounds (N), which depend on their map alone (the command key's)."""
+        hit = self._thrust_bounds.get(command_key)
+        if hit is None:
+            hit = self._thrust_bounds[command_key] = vessel.thrusters.bounds()
+        return hit
+
+    def _lag_state(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, command_key: int,
+                   recording: tuple) -> np.ndarray:
+        """lagged_thrust_at_start, from the segment's commands filtered once per lag: a causal filter's
+        value after k steps is the same whether the steps after k are filtered or not."""
+        seg = prep.segments[int(prep.segment[window.start])]
+        if window.start == seg.start:
+            return lagged_thrust_at_start(vessel, prep, window, timestep_s)
+        key = recording + (seg.start, timestep_s, command_key, vessel.thrusters.lag_s)
+        filtered = self._held(self._segment_lag, key,
+                              lambda: _filtered_segment(vessel, prep, seg, window.rec, timestep_s,
+                                                        self._bounds(vessel, command_key)),
+                              limit=SEGMENT_LAGS_KEPT)
+        return filtered[(window.start - seg.start) * _substeps(prep.settings.grid_dt, timestep_s) - 1]
 
     @staticmethod
-    def _held(store: dict, key: tuple, make) -> np.ndarray:
+    def _held(store: dict, key: tuple, make, limit: int = 20000) -> np.ndarray:
         hit = store.get(key)
         if hit is None:
             hit = store[key] = make()
-            if len(store) > 20000:
+            if len(store) > limit:
                 store.pop(next(iter(store)))
         return hit
 
@@ -339,6 +369,17 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
     return filtered[-1]
 
 
+def _filtered_segment(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s: float,
+                      bounds: tuple[float, float]) -> np.ndarray:
+    """The lag's state (N) at the end of every engine step of a segment, as lagged_thrust_at_start
+    filters a window's history (from the segment's first command)."""
+    from scipy.signal import lfilter
+
+    cmd = np.clip(_segment_commands(vessel, prep, seg, rec, timestep_s), *bounds)
+    a = np.exp(-timestep_s / vessel.thrusters.lag_s)
+    return lfilter([1 - a], [1, -a], cmd, axis=0, zi=(a * cmd[0])[None, :])[0]
+
+
 def _initial_state(model: mujoco.MjModel, data: mujoco.MjData, prep: Prepared, w: Window,
                    nu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
     k = w.start
@@ -466,11 +507,17 @@ def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction
     bad = {i: t for i, t in diverged}
     lost = [(j, bad[row]) for j, row in enumerate(rows) if row in bad]
     groups: dict[tuple[int, int], list[int]] = {}  # windows of one length on one grid: sliced all at once
-    for j, w in enumerate(windows):
-        prep = preps[w.rec]
-        eta[j, 0] = (prep.north[w.start], prep.east[w.start], prep.psi[w.start])
-        nu[j, 0] = (prep.u[w.start], prep.v[w.start], prep.r[w.start])
-        groups.setdefault((_substeps(prep.settings.grid_dt, model.opt.timestep), w.n), []).append(j)
+    recs = np.array([w.rec for w in windows])
+    starts = np.array([w.start for w in windows])
+    lengths = np.array([w.n for w in windows])
+    for rec in np.unique(recs):
+        js = np.flatnonzero(recs == rec)
+        prep, k = preps[rec], starts[js]
+        eta[js, 0] = np.column_stack([prep.north[k], prep.east[k], prep.psi[k]])
+        nu[js, 0] = np.column_stack([prep.u[k], prep.v[k], prep.r[k]])
+        sub = _substeps(prep.settings.grid_dt, model.opt.timestep)
+        for n in np.unique(lengths[js]):
+            groups.setdefault((sub, int(n)), []).extend(js[lengths[js] == n].tolist())
     columns = [1 + q for q in qpos] + [1 + nq + d for d in dof]
     for (sub, n), js in groups.items():
         picks = np.stack([traj[rows[j]][sub - 1: n * sub: sub][:, columns] for j in js])  # (G, n, 6)
