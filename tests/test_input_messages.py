@@ -73,9 +73,9 @@ def test_csv_with_half_a_column_pair_is_refused_by_name(tmp_path, kept, dropped)
     path = write_csv(tmp_path / "x.csv", cols, t)
     with pytest.raises(TwinError) as err:
         read_recording(path)
-    assert str(err.value) == f"x.csv: has {kept} but no {dropped} column"
+    assert str(err.value) == f"{path}: has {kept} but no {dropped} column"  # the path as given
     done = twin("info", path)
-    assert done.returncode == 2 and done.stderr.strip() == f"error: x.csv: has {kept} but no {dropped} column"
+    assert done.returncode == 2 and done.stderr.strip() == f"error: {path}: has {kept} but no {dropped} column"
 
 
 def test_csv_with_both_columns_of_each_pair_still_reads(tmp_path):
@@ -163,3 +163,33 @@ def test_dataset_says_the_log_span_twin_info_reports(tmp_path):
     info = twin("info", out)
     length = float(re.search(r"\(csv\): ([0-9.]+) s", info.stdout).group(1))
     assert manoeuvres < span and span == pytest.approx(length, abs=0.5)
+
+
+def test_a_bad_file_in_a_folder_is_named_by_its_path_and_a_bad_mcap_as_not_mcap(tmp_path):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    (folder / "wrong.csv").write_text("a;b\n1;2\n")
+    (tmp_path / "g.mcap").write_bytes(bytes(range(256)))
+    with pytest.raises(TwinError) as bad_csv:
+        read_recording(folder / "wrong.csv")
+    assert str(bad_csv.value).startswith(f"{folder / 'wrong.csv'}: not a recognised recording")
+    with pytest.raises(TwinError, match="not an MCAP file: it does not begin with MCAP's magic bytes"):
+        read_recording(tmp_path / "g.mcap")
+
+
+def test_force_does_not_replace_a_log_under_the_dataset_truth_that_describes_it(tmp_path):
+    """A recording replaced under its dataset's truth would leave the truth describing another log;
+    the run that writes that truth itself may replace both."""
+    import json
+
+    from twin.cli.app import RUNS, check_new
+
+    t, cols = straight(20)
+    log = write_csv(tmp_path / "my_log.csv", cols, t)
+    truth = tmp_path / "my_log.truth.json"
+    truth.write_text(json.dumps({"vessel": {}, "effects": [], "segments": []}))
+    with pytest.raises(TwinError, match="has a dataset's truth beside it"):
+        check_new([log], True, "--out", RUNS)
+    check_new([log], True, "output", RUNS, truth=truth)  # the dataset's own run rewrites both
+    truth.unlink()
+    check_new([log], True, "--out", RUNS)  # no truth: --force replaces the log

@@ -302,11 +302,12 @@ FORCE_HELP = "replace an output that exists (never an input, nor data of another
 RUNS = ("recording", "rerun recording of runs")
 
 
-def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...] = ()) -> None:
+def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...] = (), truth=None) -> None:
     """Refuse, before any work is done, to write over a file that exists unless `force`: a
     recording or a vessel file there may be one the user made, and a run or a fit written over it
     would lose it. `writes`: the kinds of kept data (kept_data) this output is; data of another kind
-    (a log where a band would go, a twin where a truth would) is kept even with `force`."""
+    (a log where a band would go, a twin where a truth would) is kept even with `force`; a recording
+    is not replaced under a dataset's truth that stays beside it (`truth`: the truth the run writes)."""
     for p in paths:
         if p is None or not Path(p).exists():
             continue
@@ -315,6 +316,12 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
             raise TwinError(f"{option} '{p}' exists and is a {kind}: {KEPT}")
         if not force:
             raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
+        beside = Path(p).with_name(Path(p).stem + ".truth.json")
+        if kind == "recording" and kept_data(beside) == "dataset's truth" and not (
+                truth is not None and same_file(Path(truth), beside)):
+            # the recording would change under its truth, which would then describe another log
+            raise TwinError(f"{option} '{p}' has a dataset's truth beside it ('{beside}') that would no longer "
+                            "describe it: move or remove the truth first, or write elsewhere")
 
 
 def check_distinct(outputs: dict[str, object], inputs=(), keep_data: bool = True) -> None:

@@ -65,7 +65,7 @@ def dataset_command(
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",))
     check_distinct({"--out": out, "--truth": truth}, [model], keep_data=False)  # check_new: any file there
-    check_new(out, force, "output", RUNS)
+    check_new(out, force, "output", RUNS, truth=truth)
     check_new([truth], force, "--truth", ("dataset's truth",))
     segments_fit(segments)
     seed_from(seed)

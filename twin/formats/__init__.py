@@ -97,6 +97,17 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
     if not isinstance(path, (str, os.PathLike)):
         raise TwinError(f"a recording is read from a file path (str or Path), got {type(path).__name__}")
     path = Path(path)
+    try:
+        return _read(path, channels)
+    except TwinError as exc:
+        # the readers name the file; a user who gave a folder or a path needs the path to find it
+        text = str(exc)
+        if text.startswith(f"{path.name}:") and str(path) != path.name:
+            raise TwinError(f"{path}{text[len(path.name):]}") from None
+        raise
+
+
+def _read(path: Path, channels: dict | None) -> Recording:
     if path.is_dir():
         raise TwinError(f"{path}: is a directory, not a recording file")
     if not path.is_file():
@@ -107,7 +118,8 @@ def read_recording(path, *, channels: dict | None = None) -> Recording:
     kind = sniff(head, path.suffix.lower())
     reader = READERS.get(kind)
     if reader is None:
-        why = _not_csv(head) if path.suffix.lower() == ".csv" else ""
+        why = (_not_csv(head) if path.suffix.lower() == ".csv" else
+               "not an MCAP file: it does not begin with MCAP's magic bytes" if path.suffix.lower() == ".mcap" else "")
         raise TwinError(f"{path.name}: not a recognised recording ({why or 'expected .tlog, DataFlash .bin, .csv or .mcap'})")
     if kind in ("csv", "mcap") and isinstance(channels, dict) and {"left", "right"} & set(channels):
         raise TwinError(f"{path.name}: --channels LEFT,RIGHT does not apply to a{'n' if kind == 'mcap' else ''} "

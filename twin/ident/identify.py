@@ -638,6 +638,9 @@ def format_estimates(result: simfit.FitResult) -> str:
     return "\n".join(lines)
 
 
+TIED_CHOICES = 0.01  # options whose left-out costs differ by less than this share are not told apart
+
+
 def format_needed(ident: Identification) -> str:
     """One line: the physics the left-out runs need most (Identification.needed)."""
     needed = ident.needed()
@@ -666,6 +669,11 @@ def format_choices(ident: Identification) -> str:
                      ("; every group free (the rows without one are a report, not a choice)" if by_groups else "") +
                      (f"; the prior is written, as it predicts the left-out runs better by {100 * DROP_GAIN:g} % or "
                       "more" if by_groups and not ident.chosen.free_groups else ""))
+    costs = [cv.cost for _, cv in rows if np.isfinite(cv.cost)]
+    if len(costs) > 1 and min(costs) > 0 and max(costs) <= (1 + TIED_CHOICES) * min(costs):
+        lines.append(f"the left-out runs tell these options apart by under {100 * TIED_CHOICES:g} %: they hold too little "
+                     "manoeuvring to choose on, and the choice rests on nothing (more logs, with turns and changes "
+                     "of speed, let it be made)")
     return "\n".join(lines)
 
 
