@@ -83,6 +83,7 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 # lags over one outing's segments need
 SEGMENT_LAGS_KEPT = 512
 
+
 def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
     """What needs a recompilation: everything else is set on a copy of a compiled model."""
     t = vessel.thrusters
