@@ -609,3 +609,24 @@ def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
 def test_a_ship_is_offered_every_coefficient_but_a_pwm_thrusters(yellowfish_vessel):
     boat, ship = set(coefficients(yellowfish_vessel)), set(coefficients(vessel_mod.load("esso_osaka")))
     assert boat - ship == set(PWM_THRUSTER_TERMS) and not ship & set(PWM_THRUSTER_TERMS)
+
+
+def test_identify_says_when_its_left_out_runs_cannot_tell_the_options_apart():
+    """Options whose left-out costs differ by under 1 % are said to rest on nothing (a short log's
+    table that decides nothing); a spread of 5 % is a choice, said as none."""
+    from types import SimpleNamespace
+
+    from twin.fit.crossval import CrossValidation, RunScore
+    from twin.ident.identify import format_choices
+
+    def cv(label, cost):
+        metrics = {d: {"r2": 0.5, "mae": 0.1} for d in "uvr"}
+        return CrossValidation(label, runs=[RunScore("a part 1", metrics, cost)])
+
+    def ident(costs):
+        choices = [SimpleNamespace(label=f"beliefs ×{k}", cv=cv(f"beliefs ×{k}", c)) for k, c in enumerate(costs)]
+        return SimpleNamespace(prior_cv=None, choices=choices,
+                               chosen=SimpleNamespace(cv=choices[0].cv, free_groups=("surge",)))
+
+    assert "the choice rests on nothing" in format_choices(ident([1439.0, 1440.0, 1442.0]))
+    assert "the choice rests on nothing" not in format_choices(ident([1439.0, 1511.0]))
