@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|third|fourth|fifth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|third|fourth|fifth|sixth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -153,7 +153,19 @@ FIFTH = [  # fixed before it was run: other seeds, magnitudes, sides and directi
     Case("wind-gusty-6-320", "wind", 79, wind_speed_m_s=6.0, wind_from_deg=320.0, gust_sigma_m_s=1.0, gust_tau_s=12.0),
     Case("wind-steady-5-150", "wind", 80, wind_speed_m_s=5.0, wind_from_deg=150.0),
 ]
-SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH}
+SIXTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-k", "null", 81),
+    Case("null-l", "null", 82),
+    Case("dead_zone-left-soft-55-95us", "dead_zone", 83, side="left", inner_us=55.0, outer_us=95.0),
+    Case("dead_zone-right-hard-75us", "dead_zone", 84, side="right", inner_us=75.0, outer_us=75.0),
+    Case("speed_loss-0.09u", "speed_loss", 85, k=0.09, power=1),
+    Case("speed_loss-0.11u2", "speed_loss", 86, k=0.11, power=2),
+    Case("sag-exp-300s", "sag_exp", 87, k=0.22, tau_s=300.0),
+    Case("sag-square-0.25", "sag_square", 88, k=0.25),
+    Case("wind-gusty-5-60", "wind", 89, wind_speed_m_s=5.0, wind_from_deg=60.0, gust_sigma_m_s=0.8, gust_tau_s=15.0),
+    Case("wind-steady-6-240", "wind", 90, wind_speed_m_s=6.0, wind_from_deg=240.0),
+]
+SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|seventeenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|eighteenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -364,13 +364,28 @@ PROOF_SEVENTEENTH = [
     Case("esso", "T13", "input_late", (0.7,)), Case("esso", "T14", "input_late", (0.55,)),
     Case("esso", "T13", "heading_late", (0.55,)), Case("esso", "T14", "heading_late", (0.65,)),
 ]
+# the eighteenth set takes outings A and P (the first and twelfth sets' groupings) and Esso tests T11 and
+# T12 again, with other values
+PROOF_EIGHTEENTH = [
+    Case("blueboat", "A", "null"), Case("blueboat", "P", "null"),
+    Case("blueboat", "A", "current", (0.12, 320.0)), Case("blueboat", "P", "current", (0.10, 200.0)),
+    Case("blueboat", "A", "antenna", (0.30, -0.25)), Case("blueboat", "P", "antenna", (-0.35, 0.25)),
+    Case("blueboat", "A", "input_late", (0.6,)), Case("blueboat", "P", "input_late", (0.45,)),
+    Case("blueboat", "A", "thruster_scaled", ("left", 0.7)), Case("blueboat", "P", "thruster_scaled", ("right", 0.75)),
+    Case("blueboat", "A", "heading_late", (0.5,)), Case("blueboat", "P", "heading_late", (0.6,)),
+    Case("esso", "T11", "null"), Case("esso", "T12", "null"),
+    Case("esso", "T11", "current", (0.12, 60.0)), Case("esso", "T12", "current", (0.10, 250.0)),
+    Case("esso", "T11", "antenna", (-0.35, 0.30)), Case("esso", "T12", "antenna", (0.40, -0.25)),
+    Case("esso", "T11", "input_late", (0.55,)), Case("esso", "T12", "input_late", (0.75,)),
+    Case("esso", "T11", "heading_late", (0.6,)), Case("esso", "T12", "heading_late", (0.5,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
-          "seventeenth": PROOF_SEVENTEENTH}
+          "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -379,7 +394,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "twelfth": "concealed_effects_twelfth", "thirteenth": "concealed_effects_thirteenth",
          "fourteenth": "concealed_effects_fourteenth",
          "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
-         "seventeenth": "concealed_effects_seventeenth"}
+         "seventeenth": "concealed_effects_seventeenth",
+         "eighteenth": "concealed_effects_eighteenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -403,7 +419,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth"}
+                      "sixteenth", "seventeenth", "eighteenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
