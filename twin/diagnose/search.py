@@ -27,8 +27,12 @@ compensated for a wrong form gives way once the right form is in.
 
 Which candidates a round judges: each remaining one is first screened (its scan, or one
 Gauss-Newton step, on at most SCREEN_WINDOWS training windows) and ranked by the training cost
-it reaches; the first FULL_FITS are fitted on every fold and judged as above. A library of at
-most JUDGED_WHOLE candidates is judged whole. (Judging also the screening leader's near ties, up
+it reaches; the first FULL_FITS are fitted on every fold and judged as above, and beside them the
+best earth-fixed candidate (a current, a wind: acts_on "environment") where none of them is one.
+A twin's form error beyond its own runs moves with the hull, so a hull or thrust term takes part of
+it up in screening and ranks first whatever else the logs hold, while an effect that acts by the
+heading is one the form error cannot stand in for. A library of at most JUDGED_WHOLE candidates is
+judged whole. (Judging also the screening leader's near ties, up
 to the sixth, is not done: judging more near-equal stand-ins gives one of them more chances to be
 preferred by chance, and on recordings it had not been chosen on it changed one verdict, for the
 worse.)
@@ -85,7 +89,7 @@ from dataclasses import dataclass, field, fields, is_dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..effects import Candidate
+from ..effects import EFFECTS, Candidate
 from ..errors import TwinError
 from ..fit.objective import Measurements, Objective, cluster_covariance
 from ..fit.windows import ModelCache, Window
@@ -114,6 +118,11 @@ CORE_NFEV = 20  # solver steps of every fit with the core (module docstring)
 # a constant thrust scale that a loss growing with the speed could stand in for (module docstring)
 SPEED_STAND_INS = {"thrust_gain": "thrust_speed_loss"}
 SPEED_SHARE = 0.10  # the scale fitted on the fast half of the windows this much below the slow half's, on every fold
+
+
+def _earth_fixed(name: str) -> bool:
+    """An effect that acts by the heading (the registry's "environment": a current, a wind)."""
+    return name in EFFECTS and EFFECTS[name].acts_on == "environment"
 
 
 @dataclass
@@ -507,6 +516,11 @@ class Search:
         names = {f.candidate.name for f in shortlist}
         shortlist += [f for f in screened if f.candidate.name not in names and
                       f.candidate.name in {SPEED_STAND_INS[n] for n in names if n in SPEED_STAND_INS}]
+        # and the best earth-fixed effect beside whatever leads: a twin's form error moves with the hull,
+        # so hull and thrust terms take it up in a one-step screening and lead it, while a current or a
+        # wind, which acts by the heading, is what no such term stands in for
+        if not any(_earth_fixed(f.candidate.name) for f in shortlist):
+            shortlist += [f for f in screened if _earth_fixed(f.candidate.name)][:1]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
 
