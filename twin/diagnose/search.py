@@ -28,7 +28,8 @@ compensated for a wrong form gives way once the right form is in.
 Which candidates a round judges: each remaining one is first screened (its scan, or one
 Gauss-Newton step, on at most SCREEN_WINDOWS training windows) and ranked by the training cost
 it reaches; the first FULL_FITS are fitted on every fold and judged as above, and beside them the
-best earth-fixed candidate (a current, a wind: acts_on "environment") where none of them is one.
+best earth-fixed candidate (a current, a wind: acts_on "environment") where none of them is one and
+no earth-fixed effect is kept yet (once one is, the others compete as every candidate does).
 A twin's form error beyond its own runs moves with the hull, so a hull or thrust term takes part of
 it up in screening and ranks first whatever else the logs hold, while an effect that acts by the
 heading is one the form error cannot stand in for. A library of at most JUDGED_WHOLE candidates is
@@ -495,9 +496,10 @@ class Search:
                            starts=tuple(tuple(s[i] for i in free) for s in cand.starts))
         return Trial(cand, fits, replace(evidence, at_edge=at_unphysical_edge(screened.candidate, fits)), cand_costs)
 
-    def round(self, bases: list[Vessel], base_costs: _Costs, skip: set[str]) -> list[Trial]:
+    def round(self, bases: list[Vessel], base_costs: _Costs, skip: set[str], earth_slot: bool = True) -> list[Trial]:
         """Every remaining candidate screened, the best few fitted on every fold and judged,
-        best evidence first."""
+        best evidence first; earth_slot: the best earth-fixed candidate judged beside them (module
+        docstring), while no earth-fixed effect is kept."""
         screened = []
         for name, cand in self.library.items():
             if name in skip:
@@ -519,7 +521,7 @@ class Search:
         # and the best earth-fixed effect beside whatever leads: a twin's form error moves with the hull,
         # so hull and thrust terms take it up in a one-step screening and lead it, while a current or a
         # wind, which acts by the heading, is what no such term stands in for
-        if not any(_earth_fixed(f.candidate.name) for f in shortlist):
+        if earth_slot and not any(_earth_fixed(f.candidate.name) for f in shortlist):
             shortlist += [f for f in screened if _earth_fixed(f.candidate.name)][:1]
         trials = [self.trial(bases, base_costs, f) for f in shortlist]
         return sorted(trials, key=lambda t: (t.evidence.earns_its_place(), t.evidence.rel_excess), reverse=True)
@@ -575,7 +577,8 @@ class Search:
         dropped: set[str] = set()
         for _ in range(MAX_EFFECTS):
             superseded = {n for k in kept for n in k.trial.candidate.supersedes}
-            trials = self.round(bases, base_costs, {k.trial.name for k in kept} | dropped | superseded)
+            trials = self.round(bases, base_costs, {k.trial.name for k in kept} | dropped | superseded,
+                                earth_slot=not any(_earth_fixed(k.trial.name) for k in kept))
             rounds.append({"candidates": [{"name": t.name, **t.evidence.to_dict()} for t in trials]})
             winner = next((t for t in trials if t.evidence.earns_its_place()), None)
             if winner is None:
