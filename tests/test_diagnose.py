@@ -676,3 +676,26 @@ def test_a_misfit_below_any_sensors_resolution_is_not_the_twins_form():
         return {"v": {"n": 100, "rms": rms, "bias": 0.0, "rms_over_noise": 4.0, "z_bias": 0.5}}
     assert _unexplained([], {}, overall(0.000625)) == []
     assert [u["dof"] for u in _unexplained([], {}, overall(0.01))] == ["v"]
+
+
+def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms():
+    """Screening ranks hull and thrust terms first when they take up a twin's form error; the best
+    current or wind is judged beside the first three, until an earth-fixed effect is kept."""
+    from types import SimpleNamespace
+
+    import twin.diagnose.search as search
+
+    order = ["speed_damping", "speed_coupling", "full_thrust", "thrust_gain", "added_mass", "quadratic_damping",
+             "linear_damping", "thruster_lag", "input_delay", "current", "wind"]
+    s = search.Search.__new__(search.Search)
+    s.library = {name: SimpleNamespace(name=name) for name in order}
+    s.screen = lambda base, cand: [SimpleNamespace(candidate=SimpleNamespace(name=cand.name, log_of_param=()),
+                                                   train_cost=order.index(cand.name))]
+    s.trial = lambda bases, costs, f: SimpleNamespace(
+        name=f.candidate.name, evidence=SimpleNamespace(earns_its_place=lambda: False, rel_excess=0.0))
+    s.log = lambda text: None
+    assert len(order) > search.JUDGED_WHOLE
+    judged = {t.name for t in s.round([None], None, set())}
+    assert judged == {"speed_damping", "speed_coupling", "full_thrust", "current"}
+    assert {t.name for t in s.round([None], None, set(), earth_slot=False)} == set(order[:3])
+    assert {t.name for t in s.round([None], None, {"current"})} == set(order[:3]) | {"wind"}
