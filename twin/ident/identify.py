@@ -77,6 +77,7 @@ NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost
 # The prior is written instead of a fit only when it predicts the left-out runs better by this share: a
 # smaller difference is within the scatter of the judging itself.
 DROP_GAIN = 0.02
+TIED_CHOICES = 0.01  # options whose left-out costs differ by less than this share are not told apart
 FORM_ERROR_HORIZON_S = 30.0  # the prediction band's free runs (twin evaluate --band)
 FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that go less far (time under way, "
                          "turning)", "each": "each run predicted by the twin fitted on the other runs"}
@@ -636,9 +637,6 @@ def format_estimates(result: simfit.FitResult) -> str:
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows"
                  f"{which} ({result.n_evaluations} candidate twins run on each, the fit took {result.seconds:.1f} s)")
     return "\n".join(lines)
-
-
-TIED_CHOICES = 0.01  # options whose left-out costs differ by less than this share are not told apart
 
 
 def format_needed(ident: Identification) -> str:
