@@ -630,3 +630,30 @@ def test_identify_says_when_its_left_out_runs_cannot_tell_the_options_apart():
 
     assert "the choice rests on nothing" in format_choices(ident([1439.0, 1440.0, 1442.0]))
     assert "the choice rests on nothing" not in format_choices(ident([1439.0, 1511.0]))
+
+
+def test_each_velocity_weighed_by_its_own_misfit_keeps_a_sway_the_twin_cannot_read_out_of_the_yaw(yellowfish_vessel):
+    # exact data but the sway read with a slow error of its own (a sensor's, which no coefficient
+    # answers): scaled by its measured spread the sway's error bends the yaw coefficients; scaled by
+    # each velocity's own misfit at a first fit (identify's rule), the yaw comes back
+    from twin.ident.identify import MIN_MISFIT_SHARE, own_misfit_sigma
+
+    ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.7", "added_mass=Nrdot:1.5"], n_segments=3,
+                  seed=1, noise=QUIET, segment_s=(30, 35), manoeuvres=["rc", "zigzag", "circle_varying"])
+    rng = np.random.default_rng(3)
+    spoilt = [replace(p, v=p.v + 0.3 * np.convolve(rng.normal(0.0, 1.0, len(p.v)), np.ones(20) / 20, "same"))
+              for p in _truth_preps(ds)]
+    names = ("Nr", "Nrdot", "Yv", "Yur")
+    spread = simfit.fit(yellowfish_vessel, spoilt, names, window_s=5.0, stride_s=5.0, prior_weight=0.01)
+    sigma = own_misfit_sigma(spread)
+    obj = spread.objective
+    assert sigma == pytest.approx(obj.sigma * np.maximum(obj.dof_rms(spread.x), MIN_MISFIT_SHARE))
+    assert sigma[1] / obj.sigma[1] > 2 * max(sigma[0] / obj.sigma[0], sigma[2] / obj.sigma[2])  # the sway's the worst
+    own = simfit.fit(yellowfish_vessel, spoilt, names, window_s=5.0, stride_s=5.0, prior_weight=0.01,
+                     dof_sigma=sigma, start=spread.vessel)
+    truth = ds.truth_vessel.added_mass.Nrdot
+
+    def error(fit):
+        return abs(next(e.value for e in fit.estimates if e.name == "Nrdot") / truth - 1)
+    assert error(spread) > 0.15
+    assert error(own) < 0.10

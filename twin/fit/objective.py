@@ -143,6 +143,13 @@ class Objective:
         """Rows of residuals() that are data (the rest are the prior's)."""
         return int(self.valid.sum())
 
+    def dof_rms(self, x: np.ndarray) -> np.ndarray:
+        """Per degree of freedom (u, v, r), the RMS of the scaled data residuals at x: how far each
+        velocity's misfit is from the scale sigma gives it (1: as far as sigma says)."""
+        r = self.residuals(x)[: self.n_data]
+        dof = np.nonzero(self.valid)[2]  # the data rows are the valid samples, in the mask's order
+        return np.array([float(np.sqrt(np.mean(r[dof == k] ** 2))) if np.any(dof == k) else 1.0 for k in range(3)])
+
     def prior_rows(self, x: np.ndarray) -> np.ndarray:
         if self._belief is None:
             return np.zeros(0)

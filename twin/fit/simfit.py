@@ -125,16 +125,18 @@ def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, 
         cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True,
         prior_weight: float | None = None, start: Vessel | list[Vessel] | None = None,
         windows: list | None = None,
-        wind: str | None = None) -> FitResult:
+        wind: str | None = None, dof_sigma: np.ndarray | None = None) -> FitResult:
     """Identify `names` (see `coefficients`) by free-run windows of window_s every stride_s s,
     each window's initial velocities estimated with them unless free_start is False; with
     prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior;
     several candidates: the one the objective finds lowest),
-    on `windows` if given; wind "measured": the recordings' wind a known input."""
+    on `windows` if given; wind "measured": the recordings' wind a known input. dof_sigma: the
+    scale of each velocity's residual in a MAP fit (m/s, m/s, rad/s; default: the spread of each
+    measured velocity, Objective)."""
     if prior_weight is not None:
         return _fit_map(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
                         max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start,
-                        prior_weight=prior_weight, start=start, windows=windows, wind=wind)
+                        prior_weight=prior_weight, start=start, windows=windows, wind=wind, dof_sigma=dof_sigma)
     return _fit_least_squares(prior, preps, names, anchor=anchor, window_s=window_s, stride_s=stride_s,
                               max_evaluations=max_evaluations, cache=cache, settle_s=settle_s, free_start=free_start,
                               wind=wind)
@@ -260,7 +262,7 @@ def coordinates(prior: Vessel, names) -> list[Coordinate]:
 def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window_s: float, stride_s: float,
              max_evaluations: int, cache: ModelCache | None, settle_s: float, free_start: bool,
              prior_weight: float, start: Vessel | list[Vessel] | None, windows: list | None,
-             wind: str | None = None) -> FitResult:
+             wind: str | None = None, dof_sigma: np.ndarray | None = None) -> FitResult:
     started = time.time()
     names = check_names(prior, names, anchor)
     check_kind(prior)
@@ -272,7 +274,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     prior = map_start(prior, names)
     coords = coordinates(prior, names)
     obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
-                        wind)
+                        wind, dof_sigma)
     cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
     x0 = obj.x_prior if start is None else _lowest_start(obj, coords, [start] if isinstance(start, Vessel) else start)
     # ftol 1e-4: on the BlueBoat's runs the last ten of twenty steps moved the cost by 0.01 % and the
@@ -359,11 +361,14 @@ def _lowest_start(obj: Objective, coords: list[Coordinate], starts: list[Vessel]
 
 
 def map_objective(prior: Vessel, coords: list[Coordinate], preps, windows, cache, settle_s: float, free_start: bool,
-                  prior_weight: float, wind: str | None = None) -> Objective:
+                  prior_weight: float, wind: str | None = None, dof_sigma: np.ndarray | None = None) -> Objective:
     """The objective of a maximum a posteriori fit: data rows, then one row per coordinate, the
-    beliefs counted as prior_weight windows' worth of data samples each."""
+    beliefs counted as prior_weight windows' worth of data samples each; dof_sigma: each velocity's
+    residual scale (default: its measured spread)."""
     obj = Objective(prior, [c.quantity for c in coords], preps, windows, cache, settle_s, free_start=free_start,
                     wind=wind)
+    if dof_sigma is not None:
+        obj.sigma = np.asarray(dof_sigma, float)
     per_window = obj.n_data / max(len(windows), 1)
     obj.believe(np.array([c.mean for c in coords]), np.array([c.belief.sigma for c in coords]),
                 prior_weight * per_window)

@@ -9,7 +9,8 @@ on runs left out of the fit.
 3. Fit by simulation (fit/simfit.py), maximum a posteriori: the coefficients of FIT_GROUPS, each
    with the belief its prior value deserves (effects/coefficients.py: a first-principles damping
    is right within a factor of 3, an added mass within 2, ...). A coefficient the recordings do
-   not pin down stays at its prior with its prior's uncertainty.
+   not pin down stays at its prior with its prior's uncertainty. Each velocity's residual is scaled
+   by its own misfit at a first, short fit (own_misfit_sigma), not by its measured spread alone.
 4. Choose on left-out runs (fit/crossval.py; time blocks with fewer than three recordings): each
    run is predicted by a twin fitted on the runs that go less far than it does (time under way,
    time turning: crossval.beyond_folds), so every choice is judged where the twin extrapolates.
@@ -77,6 +78,9 @@ NEEDED_RATIO = 1.1  # a group whose return to the prior raises the left-out cost
 # The prior is written instead of a fit only when it predicts the left-out runs better by this share: a
 # smaller difference is within the scatter of the judging itself.
 DROP_GAIN = 0.02
+# a velocity a first fit matches within this share of its spread is weighted as if it missed by it:
+# the rest is the GNSS's noise and smoothing, not the twin's
+MIN_MISFIT_SHARE = 0.1
 TIED_CHOICES = 0.01  # options whose left-out costs differ by less than this share are not told apart
 FORM_ERROR_HORIZON_S = 30.0  # the prediction band's free runs (twin evaluate --band)
 FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that go less far (time under way, "
@@ -285,14 +289,22 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     if len(informative) < 3:
         raise TwinError(f"only {len(informative)} windows of {window_s:g} s with the thrusters working or the boat "
                         "moving: nothing to identify (record some driving)")
+    weights = sorted(prior_weights, key=lambda w: abs(np.log(w / START_WEIGHT)))
+    say(f"fit by simulation on {len(informative)} of {len(every)} windows: each velocity's misfit", 2, 4)
+    short = max(6, max_evaluations // 3)
+    scout = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
+                       max_evaluations=short, cache=cache, free_start=start == "free", prior_weight=weights[0],
+                       windows=informative, wind=wind)
+    sigma = own_misfit_sigma(scout)
     fits, previous = {}, None
-    for k, weight in enumerate(sorted(prior_weights, key=lambda w: abs(np.log(w / START_WEIGHT)))):
+    for k, weight in enumerate(weights):
         say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {weight:g} windows",
             2, 4)
         fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
-                                  max_evaluations=max_evaluations if previous is None else max(6, max_evaluations // 3),
-                                  cache=cache, free_start=start == "free", prior_weight=weight, start=previous,
-                                  windows=informative, wind=wind)
+                                  max_evaluations=max_evaluations if previous is None else short,
+                                  cache=cache, free_start=start == "free", prior_weight=weight,
+                                  start=scout.vessel if previous is None else previous, windows=informative,
+                                  wind=wind, dof_sigma=sigma)
         previous = fits[weight].vessel if previous is None else previous  # each later fit starts from the first
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
@@ -584,6 +596,17 @@ def _without_each_group(fit, start: Choice, names_by_group, all_names, preps, ev
     judged = judge(configs, preps, every, judge_groups, group_names, obj.sigma, cache, wind)
     return [Choice(f"{start.label} without {g}", start.prior_weight, tuple(k for k in start.free_groups if k != g),
                    _labelled(cv, f"{start.label} without {g}")) for g, cv in judged.items()]
+
+
+def own_misfit_sigma(fit: simfit.FitResult) -> np.ndarray:
+    """Each velocity's residual scale (m/s, m/s, rad/s) for the fits: the RMS of its misfit at `fit`
+    (a first fit, each velocity scaled by its measured spread), at least MIN_MISFIT_SHARE of that
+    spread. The twin's form error is what its residuals mostly are, and it differs by velocity: a
+    sway the GNSS reads through a compass and an antenna the twin does not know may stay half
+    unexplained where surge and yaw are matched to a tenth, and scaled alike the fit bends the
+    yaw's coefficients to answer the sway (maximum likelihood with a variance per output)."""
+    obj = fit.objective
+    return obj.sigma * np.maximum(obj.dof_rms(fit.x), MIN_MISFIT_SHARE)
 
 
 def _unpinned(fit: simfit.FitResult) -> np.ndarray:
