@@ -79,19 +79,23 @@ def test_identify_then_evaluate(dataset):
 
 
 def test_a_coefficient_its_heavy_belief_holds_is_not_said_to_be_pinned_by_the_recordings(dataset, tmp_path):
-    """A thrust gain of 1.15: believed as 10 windows' worth of data, the belief holds it near 1 and the
-    report says so; believed lightly, the recordings pin it near the truth."""
+    """A thrust gain of 1.15: believed as 10000 windows' worth of data, the belief holds it near 1 and
+    the report does not call it pinned by the recordings; believed lightly, the recordings pin it near
+    the truth. (Each velocity scaled by its own misfit, a window of these nearly exact logs is worth
+    much: at 10 windows the recordings already pin it at 1.14.)"""
     lines = {}
-    for beliefs in ("10", "0.01"):
+    for beliefs in ("10000", "0.01"):
         done = twin("identify", dataset / "train.csv", "--vessel", "yellowfish", "--out", tmp_path / f"m{beliefs}.json",
                     "--params", "Xuu,thrust_gain", "--beliefs", beliefs, "--window", "5")
         assert done.returncode == 0, done.stderr
         lines[beliefs] = next(line for line in done.stdout.splitlines() if line.startswith("thrust_gain"))
-    assert "held by its belief" in lines["10"] and "the recordings add little" in lines["10"]
+    assert float(lines["10000"].split()[3]) == pytest.approx(1.0, abs=0.01)
+    assert "pinned by the recordings" not in lines["10000"] and "belief" in lines["10000"]
+    assert float(lines["0.01"].split()[3]) == pytest.approx(1.15, abs=0.02)
     assert "pinned by the recordings" in lines["0.01"]
-    sources = vessel_mod.load(str(tmp_path / "m10.json")).sources["identification"]
-    assert "held by their beliefs (the recordings add little): thrust_gain" in sources
-
+    sources = vessel_mod.load(str(tmp_path / "m10000.json")).sources["identification"]
+    pinned = sources.split("pinned by the recordings: ")[1].split(";")[0].split(".")[0]
+    assert "thrust_gain" not in pinned and "thrust_gain" in sources
 
 def test_evaluate_by_a_state_adds_up_to_one_minus_r2_and_refuses_a_state_that_does_not_vary(dataset, tmp_path):
     slow = tmp_path / "slow.json"  # a drag twice too strong: the twin misses most where it runs fast

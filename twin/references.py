@@ -61,6 +61,9 @@ BIBLIOGRAPHY = _bib(
            "github.com/NAOE-5thLab/mmg-1p1r-simulator", None),
     Source("RTS-1965", "Maximum likelihood estimates of linear dynamic systems",
            "Herbert E. Rauch, F. Tung, Charlotte T. Striebel", "AIAA Journal 3(8), 1445-1450", 1965),
+    Source("Ljung-1999", "System Identification: Theory for the User, 2nd edition (section 7.3: prediction-error "
+           "criteria for several outputs, maximum likelihood with the noise's covariance unknown)", "Lennart Ljung",
+           "Prentice Hall, Upper Saddle River NJ", 1999),
     Source("Savitzky-1964", "Smoothing and differentiation of data by simplified least squares procedures",
            "Abraham Savitzky, Marcel J. E. Golay", "Analytical Chemistry 36(8), 1627-1639", 1964),
     Source("Wilcoxon-1945", "Individual comparisons by ranking methods", "Frank Wilcoxon",

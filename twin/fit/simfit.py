@@ -312,7 +312,8 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
                      time.time() - started, sol.message,
                      {"anchor": anchor, "window_s": window_s, "stride_s": stride_s, "free_start": free_start,
                       "prior_weight": prior_weight, "residual_rms": float(np.sqrt(np.mean(data_r ** 2))),
-                      **({"wind": wind} if wind else {})},
+                      **({"wind": wind} if wind else {}),
+                      **({"dof_sigma": [float(x) for x in obj.sigma]} if dof_sigma is not None else {})},
                      objective=obj, x=x, jacobian=J, covariance=cov)
     result.vessel = replace(result.vessel, uncertainty=block(result, coords, free))
     return result

@@ -604,7 +604,9 @@ def own_misfit_sigma(fit: simfit.FitResult) -> np.ndarray:
     spread. The twin's form error is what its residuals mostly are, and it differs by velocity: a
     sway the GNSS reads through a compass and an antenna the twin does not know may stay half
     unexplained where surge and yaw are matched to a tenth, and scaled alike the fit bends the
-    yaw's coefficients to answer the sway (maximum likelihood with a variance per output)."""
+    yaw's coefficients to answer the sway. Weighing each output by its own residual variance is the
+    maximum-likelihood fit of several outputs whose noise variances are not known [Ljung-1999 §7.3],
+    one step of it."""
     obj = fit.objective
     return obj.sigma * np.maximum(obj.dof_rms(fit.x), MIN_MISFIT_SHARE)
 
@@ -659,6 +661,10 @@ def format_estimates(result: simfit.FitResult) -> str:
         return "\n".join(lines)
     lines.append(f"free-run cost {result.cost_before:.4g} → {result.cost_after:.4g} over {result.n_windows} windows"
                  f"{which} ({result.n_evaluations} candidate twins run on each, the fit took {result.seconds:.1f} s)")
+    if "dof_sigma" in result.meta:
+        su, sv, sr = result.meta["dof_sigma"]
+        lines.append(f"each velocity's residual scaled by its misfit at a first fit: u {su:.3g} m/s, v {sv:.3g} m/s, "
+                     f"r {sr:.3g} rad/s")
     return "\n".join(lines)
 
 
