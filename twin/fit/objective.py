@@ -79,7 +79,8 @@ class Measurements:
 
 class Objective:
     """Free-run residuals of the windows, (ν̂ − ν)/σ_dof for u, v, r (σ_dof the spread of
-    the measured ν), as a function of the scaled parameter vector x (value = x·scale);
+    the measured ν, unless a caller sets `sigma`: identify's own misfit per velocity), as a
+    function of the scaled parameter vector x (value = x·scale);
     Jacobians by forward differences in one batch.
 
     Velocities, not positions or heading: a free run's position and heading errors are
