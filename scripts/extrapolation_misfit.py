@@ -66,7 +66,7 @@ def _bands(vessel, recs, case: str) -> list[dict]:
     for title, state, edges in BANDS[case]:
         for b in misfit_by_state(calibrated, preps, horizon_s, state, edges, stride_s=stride_s, wind=wind):
             out.append({"by": title, "band": b.label, "samples": b.samples, "share": b.share,
-                        "rms": b.rms_error[dof], "gain": b.gain[dof]})
+                        "rms": b.rms_error[dof], "gain": b.gain[dof], "correlation": b.correlation[dof]})
     return out
 
 
@@ -100,10 +100,13 @@ def page(raw: dict) -> ResultPage:
         tables.append(ResultTable(
             f"{part['tag']}: {horizon_s:g}-s free runs of the identified twin on the judged runs (R² u {r2['u']:.3f}, "
             f"v {r2['v']:.3f}, r {r2['r']:.3f}), by measured state: share of the samples, each DOF's share of 1 − R² "
-            f"(the bands of one state add up to 1 − R²), {dof}'s RMS error and gain (measured on predicted)",
-            ["state", "band", "samples", "share u", "share v", "share r", f"RMS {dof}", f"gain {dof}"],
+            f"(the bands of one state add up to 1 − R²), {dof}'s RMS error, gain (measured on predicted) and "
+            "correlation of measured and predicted (a gain away from 1 at a correlation near 1: the twin's shape at "
+            "the wrong size)",
+            ["state", "band", "samples", "share u", "share v", "share r", f"RMS {dof}", f"gain {dof}",
+             f"correlation {dof}"],
             [[row["by"], row["band"], row["samples"], row["share"]["u"], row["share"]["v"], row["share"]["r"],
-              row["rms"], row["gain"]] for row in part["bands"]]))
+              row["rms"], row["gain"], row.get("correlation")] for row in part["bands"]]))
         tables.append(ResultTable(
             f"{part['tag']}: one coefficient moved, scored on the judged runs (a sensitivity; it fits and chooses "
             "nothing)", ["twin", "R² u", "R² v", "R² r"],

@@ -582,6 +582,8 @@ def test_misfit_by_state_adds_up_to_one_minus_r2_and_finds_a_drag_too_strong_at_
     # a quadratic drag too strong slows the twin where it runs fast: more of u's misfit there, and the
     # vessel moves more than the twin (gain above 1)
     assert fast.share["u"] > 2.0 * slow.share["u"] and fast.gain["u"] > 1.02
+    # the twin's own shape at the wrong size: the two still move together
+    assert fast.correlation["u"] > 0.95
     # the twin itself misses nowhere
     own = misfit_by_state(yellowfish_vessel, preps, 10.0, "speed_m_s", (edge,))
     assert max(b.share["u"] for b in own) < 0.05 and all(abs(b.gain["u"] - 1.0) < 0.02 for b in own)

@@ -372,7 +372,7 @@ def evaluate_command(
     if by:
         what = state_display(state, "propeller_rudder" if used.thrusters.kind == "propeller_rudder" else "pwm")[0]
         title = (f"where the {horizon:g}-s free runs miss, by {what} (share of 1 − R²; gain: measured on "
-                 "predicted)")
+                 "predicted; corr: their correlation)")
         typer.echo(format_by_state(bands, title))
     if rrd is not None:
         from ..engine.mjcf import compile_vessel

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import textwrap
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -237,14 +237,17 @@ def _window_manoeuvres(vessel: Vessel, preps: list[Prepared], wins: list[Window]
 class StateBand:
     """The samples of free runs whose measured state lies in one band: their share of all samples,
     each DOF's share of 1 − R² (the shares of all bands add up to 1 − R²), the RMS error (m/s, m/s,
-    rad/s) and the gain: the measured on the predicted value by least squares through the origin (above
-    1: the twin moves less than the vessel there)."""
+    rad/s), the gain: the measured on the predicted value by least squares through the origin (above
+    1: the twin moves less than the vessel there), and the correlation of the two. A gain away from 1
+    with a correlation near 1 is the twin's own shape at the wrong size (a coefficient's magnitude); a
+    low correlation is a motion the twin's form does not make."""
 
     label: str
     samples: float
     share: dict[str, float | None]
     rms_error: dict[str, float | None]
     gain: dict[str, float | None]
+    correlation: dict[str, float | None] = field(default_factory=dict)
 
 
 # the measured states `misfit_by_state` bands the samples by (each on the recording's grid)
@@ -319,14 +322,16 @@ def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s:
         sel = (band == b) & np.isfinite(values[:, 1:])
         if not sel.any():
             continue
-        share, rms, gain = {}, {}, {}
+        share, rms, gain, corr = {}, {}, {}, {}
         for k, d in enumerate(DOFS):
             ok = sel & paired[..., k]
             y, x = meas[:, 1:, k][ok], pred[:, 1:, k][ok]
             share[d] = float(sq[..., k][ok].sum() / total[k]) if total[k] > 0 else None
             rms[d] = float(np.sqrt(np.mean((x - y) ** 2))) if y.size else None
             gain[d] = float(np.dot(x, y) / np.dot(x, x)) if y.size and np.dot(x, x) > 0 else None
-        out.append(StateBand(label, float((sel & paired.any(axis=2)).sum() / max(n_all, 1)), share, rms, gain))
+            corr[d] = _correlation(x, y)
+        out.append(StateBand(label, float((sel & paired.any(axis=2)).sum() / max(n_all, 1)), share, rms, gain,
+                             corr))
     return out
 
 
@@ -352,20 +357,29 @@ def percentile_edges(preps: list[Prepared], state: str, label: str | None = None
     return tuple(float(e) for e in edges)
 
 
+def _correlation(x: np.ndarray, y: np.ndarray) -> float | None:
+    """Pearson's correlation of x and y; None with fewer than three pairs or either constant."""
+    if x.size < 3 or np.std(x) == 0.0 or np.std(y) == 0.0:
+        return None
+    return float(np.corrcoef(x, y)[0, 1])
+
+
 def format_by_state(bands: list[StateBand], title: str = "") -> str:
     """misfit_by_state's bands as rows: the band, its share of the samples, each DOF's share of
-    1 − R² and the gain (measured on predicted) per DOF; ≤ 100 columns."""
+    1 − R², the gain (measured on predicted) and the correlation per DOF; ≤ 100 columns with the
+    default band width."""
     width = max([16] + [len(b.label) for b in bands])
-    head = (f"{'band':>{width}s}{'samples':>9s}" + "".join(f"{'share ' + d:>10s}" for d in DOFS)
-            + "".join(f"{'gain ' + d:>9s}" for d in DOFS))
+    head = (f"{'band':>{width}s}{'samples':>8s}" + "".join(f"{'share ' + d:>9s}" for d in DOFS)
+            + "".join(f"{'gain ' + d:>8s}" for d in DOFS) + "".join(f"{'corr ' + d:>8s}" for d in DOFS))
     lines = ([title] if title else []) + [head, "-" * len(head)]
 
     def num(x, width, fmt):
         return f"{'-':>{width}s}" if x is None else f"{x:>{width}{fmt}}"
 
     for b in bands:
-        lines.append(f"{b.label:>{width}s}{b.samples:>9.0%}" + "".join(num(b.share[d], 10, ".3f") for d in DOFS)
-                     + "".join(num(b.gain[d], 9, ".2f") for d in DOFS))
+        lines.append(f"{b.label:>{width}s}{b.samples:>8.0%}" + "".join(num(b.share[d], 9, ".3f") for d in DOFS)
+                     + "".join(num(b.gain[d], 8, ".2f") for d in DOFS)
+                     + "".join(num(b.correlation.get(d), 8, ".2f") for d in DOFS))
     return "\n".join(lines)
 
 
