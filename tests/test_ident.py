@@ -659,3 +659,21 @@ def test_each_velocity_weighed_by_its_own_misfit_keeps_a_sway_the_twin_cannot_re
         return abs(next(e.value for e in fit.estimates if e.name == "Nrdot") / truth - 1)
     assert error(spread) > 0.15
     assert error(own) < 0.10
+
+
+def test_a_coefficient_moved_beyond_its_belief_is_flagged_as_standing_in_for_missing_physics(yellowfish_vessel):
+    # yaw added inertia six times the prior's (outside a belief of a factor of 2: 2.6 σ), the yaw damping
+    # 0.7 of it (inside its factor of 3): the fit follows both; only the first is flagged
+    from twin.fit.objective import STAND_IN_SIGMAS
+
+    ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.7", "added_mass=Nrdot:6"], n_segments=3,
+                  seed=1, noise=QUIET, segment_s=(30, 35), manoeuvres=["rc", "zigzag", "circle_varying"])
+    fit = simfit.fit(yellowfish_vessel, _truth_preps(ds), ("Nr", "Nrdot"), window_s=5.0, stride_s=5.0,
+                     prior_weight=0.01)
+    est = {e.name: e for e in fit.estimates}
+    assert est["Nrdot"].value / yellowfish_vessel.added_mass.Nrdot > 4.0
+    assert est["Nrdot"].from_prior_sigmas >= STAND_IN_SIGMAS and est["Nrdot"].stand_in
+    assert "stands in for something the twin's form lacks" in est["Nrdot"].note and not est["Nrdot"].held_by_belief
+    assert est["Nr"].from_prior_sigmas < 1.0 and not est["Nr"].stand_in
+    assert "stands in" not in est["Nr"].note
+    assert est["Nrdot"].to_dict()["from_prior_sigmas"] == pytest.approx(est["Nrdot"].from_prior_sigmas)

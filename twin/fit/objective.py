@@ -19,6 +19,11 @@ from .windows import ModelCache, Window, as_measured, measured, measured_side, p
 SETTLE_S = 1.0
 START_STEP = np.array([0.01, 0.01, 0.01])  # m/s, m/s, rad/s: finite differences of the initial velocities
 
+# a fitted coefficient this many of its belief's σ from its physical prior (a factor of 4 for a belief
+# of a factor of 2) lies where the physics behind the prior does not put it: the recordings pull it
+# there to stand in for something the twin's form lacks (two-sided, 5 % of a belief's mass lies further)
+STAND_IN_SIGMAS = 2.0
+
 @dataclass
 class Estimate:
     name: str
@@ -31,12 +36,21 @@ class Estimate:
     on_bound: bool = False  # ended on, or within its σ of, a bound of its physical range
     held_by_belief: bool = False  # its belief, counted as data, narrows it about as much as the fit does
     disputed: bool = False  # its σ is wider than its belief alone leaves: the windows pull it different ways
+    # how many of its belief's σ the fit put it from its prior (None without a belief); past
+    # STAND_IN_SIGMAS it stands in for physics the twin's form lacks
+    from_prior_sigmas: float | None = None
+
+    @property
+    def stand_in(self) -> bool:
+        """Moved further from its physical prior than its belief allows (STAND_IN_SIGMAS)."""
+        return self.from_prior_sigmas is not None and self.from_prior_sigmas >= STAND_IN_SIGMAS
 
     def to_dict(self) -> dict:
         return {"name": self.name, "unit": self.unit, "prior": self.prior, "value": self.value, "sigma": self.sigma,
                 "identifiable": self.identifiable, "note": self.note, **({"on_bound": True} if self.on_bound else {}),
                 **({"held_by_belief": True} if self.held_by_belief else {}),
-                **({"disputed": True} if self.disputed else {})}
+                **({"disputed": True} if self.disputed else {}),
+                **({"from_prior_sigmas": self.from_prior_sigmas} if self.from_prior_sigmas is not None else {})}
 
 
 class Measurements:

@@ -52,7 +52,7 @@ from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel
 from .uncertainty import block
-from .objective import SETTLE_S, Estimate, Objective, cluster_covariance, estimates_of
+from .objective import SETTLE_S, STAND_IN_SIGMAS, Estimate, Objective, cluster_covariance, estimates_of
 from .windows import ModelCache, make_windows
 
 
@@ -439,8 +439,19 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
                 note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
                         f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
                         " (σ from the fit's curvature, which the bound cuts)")
+            away = abs(xv - c.mean) / c.belief.sigma if c.belief.sigma > 0 else None
+            if away is not None and away >= STAND_IN_SIGMAS:  # Estimate.stand_in
+                ratio = f", ×{value / c.prior_value:.2g}" if c.log and c.prior_value else ""
+                lacks = "it stands in for something the twin's form lacks"
+                if by_belief and edge[i] is None:
+                    note = (f"pulled {away:.1f} σ of its belief from its prior{ratio}, by recordings that narrow it "
+                            f"no more than its belief does (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
+                            f"{sx / alone:.0%} of what the belief alone leaves at its weight): {lacks}")
+                else:
+                    note += f"; {away:.1f} σ of its belief from its prior{ratio}: {lacks}"
+            stands_in = away is not None and away >= STAND_IN_SIGMAS
             out.append(Estimate(c.name, c.unit, c.prior_value, value, sigma, True, note, edge[i] is not None,
-                                by_belief and edge[i] is None, disputed and edge[i] is None))
+                                by_belief and edge[i] is None and not stands_in, disputed and edge[i] is None, away))
         else:
             sigma = abs(value) * c.belief.sigma if c.log else c.belief.sigma
             out.append(Estimate(c.name, c.unit, c.prior_value, c.prior_value, sigma, False,

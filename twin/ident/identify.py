@@ -333,6 +333,13 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                                                                         result.prior_cv)
         result.notes.append(f"{why}: the prior is written, as these recordings do not support moving it")
     result.fit, result.chosen = fit_best, best  # the choice whose twin is written, after any fallback
+    stand_ins = [e for e in fit_best.estimates if e.identifiable and e.stand_in]
+    if stand_ins:
+        listed = ", ".join(f"{e.name} {e.value:.3g} {e.unit} (prior {e.prior:.3g}, {e.from_prior_sigmas:.1f} σ)"
+                           for e in stand_ins)
+        result.notes.append(f"moved beyond what their beliefs allow: {listed}: each stands in for something the "
+                            "twin's form lacks, and carries the twin beyond its runs only as far as that lack does "
+                            "(`twin diagnose` looks for what)")
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings], wind)
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
         say("measuring the twin's error on left-out runs", 3, 4)
@@ -623,6 +630,7 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
     pinned = ", ".join(e.name for e in moved if not e.held_by_belief and not e.disputed)
     held = ", ".join(e.name for e in moved if e.held_by_belief)
     disputed = ", ".join(e.name for e in moved if e.disputed)
+    stand_in = ", ".join(e.name for e in moved if e.stand_in)
     walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
     kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
@@ -637,6 +645,8 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
             f"{', '.join(choice.free_groups)} (chosen on left-out runs); pinned by the recordings: {pinned or 'none'}"
             + (f"; held by their beliefs (the recordings add little): {held}" if held else "")
             + (f"; moved by recordings whose windows pull them different ways: {disputed}" if disputed else "")
+            + (f"; moved beyond what their beliefs allow, standing in for something the form lacks: {stand_in}"
+               if stand_in else "")
             + (f"; on or within their σ of a bound of their physical range: {walled}"
                if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
