@@ -257,3 +257,26 @@ def test_simulate_says_inputs_that_end_before_the_run_are_held(tmp_path):
     assert "the inputs end at 4 s: their last row is held to the end of the run (10 s)" in p.stdout + p.stderr
     read = read_csv(tmp_path / "r.csv")
     assert read.t[-1] == pytest.approx(10.0)
+
+
+def test_simulate_runs_to_the_inputs_last_row_unless_told_and_says_a_shorter_duration(tmp_path):
+    inputs = tmp_path / "in.csv"
+    inputs.write_text("t,pwm_left,pwm_right\n0,1600,1600\n4,1700,1500\n7,1500,1500\n")
+    p = twin("simulate", "--vessel", "yellowfish", "--inputs", inputs, "--out", tmp_path / "all.csv")
+    assert p.returncode == 0 and "inputs" not in p.stderr, p.stderr
+    assert read_csv(tmp_path / "all.csv").t[-1] == pytest.approx(7.0)
+    p = twin("simulate", "--vessel", "yellowfish", "--inputs", inputs, "--duration", "5", "--out", tmp_path / "cut.csv")
+    assert p.returncode == 0 and "the inputs run to 7 s: the run stops at --duration 5 s" in p.stdout + p.stderr
+    assert read_csv(tmp_path / "cut.csv").t[-1] == pytest.approx(5.0)
+    single = tmp_path / "one.csv"
+    single.write_text("t,pwm_left,pwm_right\n0,1600,1600\n")
+    p = twin("simulate", "--vessel", "yellowfish", "--inputs", single, "--out", tmp_path / "one_run.csv")
+    assert p.returncode == 2 and p.stderr.strip() == "error: one.csv: give --duration (the inputs end at t = 0 s)"
+
+
+def test_validate_names_the_figure_a_markdown_report_writes_beside_it(tmp_path):
+    p = twin("validate", "--vessel", "blueboat", "--report", tmp_path / "v.md")
+    assert p.returncode == 0, p.stderr
+    assert f"wrote {tmp_path / 'v.md'} and {tmp_path / 'v_topview.png'}" in p.stdout
+    assert (tmp_path / "v_topview.png").read_bytes()[:4] == b"\x89PNG"
+    assert "v_topview.png" in (tmp_path / "v.md").read_text()

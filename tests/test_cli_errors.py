@@ -205,6 +205,8 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("iso", "--duration", "-1"), "--duration must be a positive number"),
     (("dp", "--duration", "nan"), "--duration must be a positive number"),
     (("dp", "--duration", "1e12"), "samples, more than this machine's memory"),
+    (("dp", "--rps", "-5"), "--rps applies to a propeller-and-rudder ship only"),
+    (("dp", "--omega-surge", "-1"), "model-function frequencies must be positive and finite, got -1 rad/s"),
     (("dataset", "--effect", "thrust_gain=0.8", "--effect", "thrust_gain=0.9"),
      "effect thrust_gain given twice"),
     (("montecarlo", "--duration", "inf"), "--duration must be a positive number"),

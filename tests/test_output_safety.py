@@ -3,6 +3,7 @@
 too short) ends in exit code 2 after writing the others, a
 log whose every input sample was dropped says so, a dataset too large for the machine is refused
 before any work, and a coefficient whose windows disagree is not said to be held by its belief."""
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,8 +38,17 @@ def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_f
     twin_file.write_text('{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n')
     truth = tmp_path / "d.truth.json"
     truth.write_text('{"vessel": {}, "effects": [], "segments": []}\n')
-    kept = {p: p.read_text() for p in (log, twin_file, truth)}
+    band = tmp_path / "band.json"
+    made = twin("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "2",
+                "--duration", "2", "--out", band)
+    assert made.returncode == 0, made.stderr
+    kept = {p: p.read_text() for p in (log, twin_file, truth, band)}
     refusals = [
+        (("evaluate", "--vessel", "blueboat", log, "--json", band), "--json", band, "Monte Carlo band"),
+        (("identify", log, "--vessel", "blueboat", "--params", "thrust_gain", "--out", band, "--force"), "--out", band,
+         "Monte Carlo band"),
+        (("params", "--vessel", "blueboat", "--first-principles", "--write-model", band, "--force"), "--write-model",
+         band, "Monte Carlo band"),
         (("diagnose", log, "--vessel", "blueboat", "--json", truth), "--json", truth, "dataset's truth"),
         (("evaluate", "--vessel", "blueboat", log, "--json", twin_file), "--json", twin_file, "vessel file"),
         (("mission", "--home", "59,10", "--waypoints", "5,0", "--json", twin_file), "--json", twin_file, "vessel file"),
@@ -59,6 +69,9 @@ def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_f
                 else "exists: it is kept (--force replaces it)")
         assert done.stderr.strip() == f"error: {option} '{path}' {said}", (args, done.stderr)
     assert all(p.read_text() == text for p, text in kept.items())
+    again = twin("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "3",
+                 "--duration", "2", "--out", band, "--force")  # a band over a band, with --force
+    assert again.returncode == 0 and json.loads(band.read_text())["draws"] == 3, again.stderr
     report = tmp_path / "report.json"
     report.write_text('{"earlier": "report"}\n')
     made = twin("simulate", "--vessel", "blueboat", "--duration", "20", "--scenario", "random", "--out", tmp_path / "r.csv")

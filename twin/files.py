@@ -129,10 +129,13 @@ def finite_json(x):
 RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg", "north_m"}
 
 
+BAND = "Monte Carlo band"  # kept_data's name for `twin montecarlo`'s JSON band
+
+
 def kept_data(path: Path) -> str | None:
     """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
-    (a simulation, a SITL session) or a vessel file (by its content, whatever command wrote it),
-    else None (a report, a view, no file)."""
+    (a simulation, a SITL session), a vessel file, a dataset's truth or a Monte Carlo band (by its
+    content, whatever command wrote it), else None (a report, a view, no file)."""
     if not path.is_file():
         return None
     suffix = path.suffix.lower()
@@ -151,7 +154,8 @@ def kept_data(path: Path) -> str | None:
             data = json.loads(path.read_text(encoding="utf-8"))
             keys = set(data) if isinstance(data, dict) else set()
             return ("vessel file" if {"mjcf", "thrusters"} <= keys
-                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys else None)
+                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys
+                    else BAND if {"draws", "percentiles", "nominal", "band"} <= keys else None)
     except (OSError, ValueError):
         return None
     return None

@@ -34,7 +34,7 @@ def _expanded(files: list[Path]) -> list:
 
 @app.command()
 def info(
-    files: list[Path] = typer.Argument(..., help=INFO_HELP),
+    files: list[Path] = typer.Argument(..., metavar="FILES", help=INFO_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with it: each log's compass calibration)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP + " (with it: each log's compass calibration)"),
@@ -143,8 +143,8 @@ def _throttle_line(recordings: list, vessel, calibrations) -> str:
 
 @app.command()
 def convert(
-    src: Path = typer.Argument(..., help="input recording: .bin, .tlog, .csv, .mcap"),
-    dst: Path = typer.Argument(..., help="output: .csv (generic layout), .mcap, .tlog or .bin"),
+    src: Path = typer.Argument(..., metavar="SRC", help="input recording: .bin, .tlog, .csv, .mcap"),
+    dst: Path = typer.Argument(..., metavar="DST", help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -175,7 +175,7 @@ def convert(
 
 @app.command()
 def view(
-    files: list[Path] = typer.Argument(..., help="recordings to show"),
+    files: list[Path] = typer.Argument(..., metavar="FILES", help="recordings to show"),
     sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (for --sim and the sensors' calibration)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),

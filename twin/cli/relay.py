@@ -152,7 +152,8 @@ def dp_command(
     omega_heading: Optional[float] = typer.Option(None, help=f"ω_n of the binomial heading model function, rad/s "
                                                             f"(default {HEADING_OMEGA_RAD_S:g}; a propeller-and-rudder "
                                                             f"ship {SHIP_HEADING_OMEGA_RAD_S:g})"),
-    rps: float = typer.Option(SHIP_RPS, help="a propeller-and-rudder ship's constant propeller speed, rps"),
+    rps: Optional[float] = typer.Option(None, help=f"a propeller-and-rudder ship's constant propeller speed, rps "
+                                                  f"(default {SHIP_RPS:g})"),
     omega_surge: float = typer.Option(SURGE_OMEGA_RAD_S, help="ω_n of the binomial surge model function, rad/s"),
     no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
     duration: Optional[float] = typer.Option(None, help="length of the run, s (default: the model functions' "
@@ -181,8 +182,14 @@ def dp_command(
     check_distinct({"--json": json_out, "--png": png}, [model])
     if duration is not None:
         samples_fit(positive(duration, "--duration"), CONTROL_DT_S, "--duration")
+    for w in (omega_heading, omega_surge):  # refused whichever run is asked for, as --target is
+        if w is not None and not (math.isfinite(w) and w > 0):
+            raise TwinError(f"model-function frequencies must be positive and finite, got {w:g} rad/s")
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
+    if not ship and rps is not None:
+        raise TwinError("--rps applies to a propeller-and-rudder ship only")
+    rps = SHIP_RPS if rps is None else rps
     if ship and run == "point":
         raise TwinError(f"--run point: vessel '{cv.vessel.name}' is a propeller-and-rudder ship without sway or "
                         "astern control for a point move; run a heading step")

@@ -86,7 +86,7 @@ def simulate(
                                                   "commands: the vessel's thruster gains scale them) or, for a "
                                                   "propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg); each row "
                                                   "held until the next, an empty cell holds its input's last value"),
-    duration: float = typer.Option(120.0, help="simulated time, s"),
+    duration: Optional[float] = typer.Option(None, help="simulated time, s (default 120, or the inputs' last time)"),
     out: list[Path] = typer.Option(..., help="output file(s): .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     current: Optional[str] = typer.Option(None, help="water current SPEED,DIR_DEG (m/s, flowing towards)"),
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
@@ -112,6 +112,15 @@ def simulate(
     if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
         raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")
     scenario = scenario or "zigzag"
+    inputs_end = None
+    if inputs is not None:  # read here too: the run's default length is the inputs' own
+        from ..drive import read_inputs_csv
+
+        inputs_end = float(read_inputs_csv(inputs).t[-1])
+        if duration is None and not inputs_end > 0:
+            raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {inputs_end:g} s)")
+    cut = duration is not None and inputs_end is not None and duration < inputs_end
+    duration = duration if duration is not None else inputs_end if inputs_end is not None else 120.0
     check_run_length(duration, sample_dt)
     seed_from(seed)
     start = origin_from(origin)
@@ -149,6 +158,8 @@ def simulate(
     end = result.run.meta.get("inputs_end_s")
     if end is not None:
         note(f"note: the inputs end at {end:g} s: their last row is held to the end of the run ({duration:g} s)")
+    if cut:
+        note(f"note: the inputs run to {inputs_end:g} s: the run stops at --duration {duration:g} s")
     if v.sensors.errors():
         note(f"note: the run is written as the hull moved, without this twin's sensor errors "
              f"({', '.join(v.sensors.errors())}): a twin that carries them reads it through them; "
@@ -309,11 +320,12 @@ def validate(
     from ..files import write_text_atomic
     from ..verify.validate import format_table
     from ..verify.validate import validate as run_validation
-    from ..viz.report import top_view_png, write_report
+    from ..viz.report import report_figure, top_view_png, write_report
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([report], (".md", ".html", ".htm"), "--report")
-    check_distinct({"--json": json_out, "--report": report}, [model])
+    figure = report_figure(report) if report is not None else None
+    check_distinct({"--json": json_out, "--report": report, "--report's figure": figure}, [model])
     result = run_validation(vessel_from(vessel, model, case))
     rows = [q.to_dict() for q in result.quantities]
     typer.echo(format_table(result.vessel, result.case, rows))
@@ -329,4 +341,4 @@ def validate(
         typer.echo(f"wrote {json_out}")
     if report is not None:
         write_report(report, title, rows, top_view_png(result.drawing, title))
-        typer.echo(f"wrote {report}")
+        typer.echo(f"wrote {report}" + (f" and {figure}" if figure is not None else ""))

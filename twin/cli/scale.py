@@ -10,6 +10,7 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
+from ..files import BAND
 from .app import (FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
@@ -75,7 +76,7 @@ def montecarlo_command(
 
     check_outputs(out, MC_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model], keep_data=False)
-    check_new(out, force, "--out")
+    check_new(out, force, "--out", (BAND,))  # a band over a band only
     if scenario is not None and inputs is not None:
         raise TwinError("give --scenario or --inputs, not both")
     if duration is not None:
@@ -230,7 +231,7 @@ def _shards_fit(vessels: int, per_shard: int, segments: int, out: Path) -> None:
 
 @app.command("fleet")
 def fleet_command(
-    recordings: list[Path] = typer.Argument(None, help="recordings: .tlog, .bin, .csv, .mcap, or folders of them (or --manifest)"),
+    recordings: list[Path] = typer.Argument(None, metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, or folders of them (or --manifest)"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     manifest: Optional[Path] = typer.Option(None, help="CSV with a recording column and optional vessel, day columns"),

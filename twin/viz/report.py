@@ -62,8 +62,13 @@ def _rows(rows: list[dict]) -> list[list[str]]:
 HEADER = ["quantity", "unit", "analytic", "table", "engine", "mesh", "independent", "rel. diff", "flag"]
 
 
+def report_figure(path: Path) -> Path | None:
+    """The PNG a Markdown report at `path` writes beside it (None for HTML, which embeds it)."""
+    return None if path.suffix.lower() in (".html", ".htm") else path.with_name(path.stem + "_topview.png")
+
+
 def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
-    """Markdown (PNG written beside it) or HTML (PNG embedded), by extension; atomic."""
+    """Markdown (PNG written beside it, report_figure) or HTML (PNG embedded), by extension; atomic."""
     flagged = [r for r in rows if r["flag"]]
     if path.suffix.lower() in (".html", ".htm"):
         img = base64.b64encode(png).decode()
@@ -77,7 +82,7 @@ def write_report(path: Path, title: str, rows: list[dict], png: bytes) -> None:
                 f"<h2>Differences over 5 %</h2><ul>{notes}</ul></body></html>\n")
         write_text_atomic(path, text)
         return
-    png_path = path.with_name(path.stem + "_topview.png")
+    png_path = report_figure(path)
     write_bytes_atomic(png_path, png)
     lines = [f"# {title}", "", f"![top view]({png_path.name})", "",
              "| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
