@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|eighteenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|nineteenth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -9,7 +9,8 @@ which magnitudes. The second to fourteenth sets regroup the same active BlueBoat
 outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, P again: the last pair
 left, 216 and 228, is too short to diagnose; A, F again; D, K again) and take other Esso turning tests (T3, T4;
 T5, T6; T7, T8; T9, T10; T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again; T11, T12
-again; T1, T2 again; T3, T4 again), with other magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
+again; T1, T2 again; T3, T4 again; then A, P with T11, T12 again, and J, O with T3, T4 again), with other
+magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
 logged streams alone:
@@ -379,13 +380,29 @@ PROOF_EIGHTEENTH = [
     Case("esso", "T11", "input_late", (0.55,)), Case("esso", "T12", "input_late", (0.75,)),
     Case("esso", "T11", "heading_late", (0.6,)), Case("esso", "T12", "heading_late", (0.5,)),
 ]
+# the nineteenth set takes outings J and O (the fifth and eighth sets' groupings, disjoint runs) and Esso
+# tests T3 and T4 again, with other values; its twins are identified with each velocity weighed by its
+# own misfit (twin/ident/identify.py), which no earlier set's twins were
+PROOF_NINETEENTH = [
+    Case("blueboat", "J", "null"), Case("blueboat", "O", "null"),
+    Case("blueboat", "J", "current", (0.13, 80.0)), Case("blueboat", "O", "current", (0.11, 300.0)),
+    Case("blueboat", "J", "antenna", (0.35, 0.20)), Case("blueboat", "O", "antenna", (-0.30, -0.25)),
+    Case("blueboat", "J", "input_late", (0.5,)), Case("blueboat", "O", "input_late", (0.65,)),
+    Case("blueboat", "J", "thruster_scaled", ("left", 0.8)), Case("blueboat", "O", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "J", "heading_late", (0.55,)), Case("blueboat", "O", "heading_late", (0.45,)),
+    Case("esso", "T3", "null"), Case("esso", "T4", "null"),
+    Case("esso", "T3", "current", (0.11, 160.0)), Case("esso", "T4", "current", (0.12, 340.0)),
+    Case("esso", "T3", "antenna", (0.30, 0.25)), Case("esso", "T4", "antenna", (-0.45, 0.20)),
+    Case("esso", "T3", "input_late", (0.6,)), Case("esso", "T4", "input_late", (0.7,)),
+    Case("esso", "T3", "heading_late", (0.65,)), Case("esso", "T4", "heading_late", (0.55,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
-          "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH}
+          "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -395,7 +412,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "fourteenth": "concealed_effects_fourteenth",
          "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
          "seventeenth": "concealed_effects_seventeenth",
-         "eighteenth": "concealed_effects_eighteenth"}
+         "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -419,7 +436,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth", "eighteenth"}
+                      "sixteenth", "seventeenth", "eighteenth", "nineteenth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
