@@ -64,6 +64,9 @@ def write_bytes_atomic(path, data: bytes, make_folder: bool = False) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+            fh.flush()
+            # on disk before the rename: a crash leaves the old file or the new one, never an empty one
+            os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
     except OSError as exc:
