@@ -16,7 +16,8 @@ from .run import KNOWN_SEA_HELP, known_sea
 
 @app.command("diagnose")
 def diagnose_command(
-    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
+    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS",
+                                            help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the diagnosis as JSON"),

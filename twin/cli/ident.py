@@ -128,7 +128,8 @@ def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] |
 
 @app.command("identify")
 def identify_command(
-    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
+    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS",
+                                            help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Path = typer.Option(..., help="identified vessel description to write (.json)"),
@@ -250,8 +251,8 @@ def _scored(horizon: dict) -> bool:
 
 @app.command("evaluate")
 def evaluate_command(
-    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings to evaluate on (.tlog, .bin, .csv, .mcap, or folders "
-                                                      "of them)"),
+    recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings to evaluate on (.tlog, .bin, "
+                                                                             ".csv, .mcap, or folders of them)"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),

@@ -231,7 +231,8 @@ def _shards_fit(vessels: int, per_shard: int, segments: int, out: Path) -> None:
 
 @app.command("fleet")
 def fleet_command(
-    recordings: list[Path] = typer.Argument(None, metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, or folders of them (or --manifest)"),
+    recordings: list[Path] = typer.Argument(None, metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, "
+                                                                            "or folders of them (or --manifest)"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     manifest: Optional[Path] = typer.Option(None, help="CSV with a recording column and optional vessel, day columns"),
