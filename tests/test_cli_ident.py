@@ -52,6 +52,7 @@ def test_identify_then_evaluate(dataset):
     done = twin("evaluate", "--model", model, dataset / "train.csv", "--json", dataset / "eval.json",
                 "--rrd", dataset / "eval.rrd")
     assert done.returncode == 0, done.stderr
+    assert "stand_ins" not in v.uncertainty and "stands in" not in done.stderr  # none moved past its belief
     assert (dataset / "eval.rrd").stat().st_size > 1000
     report = json.loads((dataset / "eval.json").read_text())
     metrics = report["metrics"]
@@ -76,6 +77,17 @@ def test_identify_then_evaluate(dataset):
     (dataset / "broken.json").write_text(json.dumps(broken))
     done = twin("evaluate", "--model", dataset / "broken.json", dataset / "train.csv")
     assert done.returncode == 2 and "fitted_on" in done.stderr and "Traceback" not in done.stderr
+    # a coefficient identify flagged as moved past its belief is named; a damaged entry is refused
+    flagged = json.loads(model.read_text())
+    flagged["uncertainty"]["stand_ins"] = [{"name": "Xuu", "unit": "N s2/m2", "value": -40.0, "prior": -8.0,
+                                            "from_prior_sigmas": 1.5}]
+    (dataset / "flagged.json").write_text(json.dumps(flagged))
+    done = twin("evaluate", "--model", dataset / "flagged.json", dataset / "train.csv")
+    assert done.returncode == 0 and "(Xuu ×5 of its prior): each stands in for something its form lacks" in done.stderr
+    flagged["uncertainty"]["stand_ins"] = [{"name": "Xuu", "value": "large"}]
+    (dataset / "flagged.json").write_text(json.dumps(flagged))
+    done = twin("evaluate", "--model", dataset / "flagged.json", dataset / "train.csv")
+    assert done.returncode == 2 and "uncertainty.stand_ins needs" in done.stderr and "Traceback" not in done.stderr
 
 
 def test_a_coefficient_its_heavy_belief_holds_is_not_said_to_be_pinned_by_the_recordings(dataset, tmp_path):

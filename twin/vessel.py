@@ -440,7 +440,8 @@ def _uncertainty(data, path: Path) -> dict:
             "covariance": [[float(x) for x in row] for row in cov],
             **({"source": str(data["source"])} if "source" in data else {}),
             **({"fitted_on": _fitted_on(data["fitted_on"], path)} if "fitted_on" in data else {}),
-            **({"form_error": _form_error(data["form_error"], path)} if "form_error" in data else {})}
+            **({"form_error": _form_error(data["form_error"], path)} if "form_error" in data else {}),
+            **({"stand_ins": _stand_ins(data["stand_ins"], path)} if "stand_ins" in data else {})}
 
 
 def _uncertainty_coordinates(coordinates, path: Path) -> None:
@@ -460,6 +461,26 @@ def _uncertainty_coordinates(coordinates, path: Path) -> None:
             raise TwinError(f"{path.name}: {where}: a log coordinate needs the coefficient's 'sign' (1 or -1)")
         if "sign" in c:
             _typed(c["sign"], float, f"{where}.sign", path)
+
+
+def _stand_ins(data, path: Path) -> list[dict]:
+    """The coefficients the fit moved beyond what their beliefs allow (twin identify): per entry its name,
+    unit, value, prior and how many belief σ it lies from the prior."""
+    bad = TwinError(f"{path.name}: uncertainty.stand_ins needs a list of entries, each with name and unit (text), "
+                    "value, prior and from_prior_sigmas (numbers)")
+    if not isinstance(data, list):
+        raise bad
+    out = []
+    for e in data:
+        if not isinstance(e, dict) or not {"name", "unit", "value", "prior", "from_prior_sigmas"} <= set(e):
+            raise bad
+        if not isinstance(e["name"], str) or not isinstance(e["unit"], str) or not all(
+                isinstance(e[k], (int, float)) and not isinstance(e[k], bool) and math.isfinite(e[k])
+                for k in ("value", "prior", "from_prior_sigmas")):
+            raise bad
+        out.append({"name": e["name"], "unit": e["unit"], "value": float(e["value"]), "prior": float(e["prior"]),
+                    "from_prior_sigmas": float(e["from_prior_sigmas"])})
+    return out
 
 
 def _form_error(data, path: Path) -> dict:

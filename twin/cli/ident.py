@@ -249,6 +249,17 @@ def _scored(horizon: dict) -> bool:
     return any(m.get("r2") is not None and math.isfinite(m["r2"]) for m in horizon.values())
 
 
+def stand_in_text(entries: list[dict] | None) -> str:
+    """The uncertainty block's stand_ins (twin identify; vessel.py checks their shape) as "Nrdot ×7.8 of
+    its prior, ..."; "" when there are none."""
+    parts = []
+    for e in entries or []:
+        ratio = e["value"] / e["prior"] if e["prior"] else None
+        parts.append(f"{e['name']} ×{ratio:.2g} of its prior" if ratio and ratio > 0
+                     else f"{e['name']} {e['value']:.3g} {e['unit']} against its prior's {e['prior']:.3g}")
+    return ", ".join(parts)
+
+
 @app.command("evaluate")
 def evaluate_command(
     recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings to evaluate on (.tlog, .bin, "
@@ -364,6 +375,12 @@ def evaluate_command(
         typer.echo(format_metrics(out["metrics"], f"{twin_name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
+    stand_ins = stand_in_text(v.uncertainty.get("stand_ins") if v.uncertainty else None)
+    if stand_ins:
+        out["stand_ins"] = v.uncertainty["stand_ins"]
+        note(f"note: this twin carries coefficients its fit moved beyond what their beliefs allow ({stand_ins}): "
+             "each stands in for something its form lacks, and holds beyond the runs it was fitted on only as far "
+             "as that lack does")
     preps_used = prepared(recs, used)
     longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps_used for seg in p.segments), default=0.0)
     short = [f"{h:g}-s" for h in (10.0, 30.0) if longest < h]

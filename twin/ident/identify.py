@@ -353,6 +353,10 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                             max(FORM_ERROR_HORIZON_S, window_s), cache=cache, wind=wind)
         result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "fitted_on": seen,
                                                             **({"form_error": errors} if errors else {})})
+        if stand_ins:  # evaluate names them on runs beyond the fitted ones
+            result.vessel = replace(result.vessel, uncertainty={**result.vessel.uncertainty, "stand_ins": [
+                {"name": e.name, "value": e.value, "prior": e.prior, "unit": e.unit,
+                 "from_prior_sigmas": e.from_prior_sigmas} for e in stand_ins]})
     say("timing the hull's answers to the input steps", 3, 4)
     result.vessel = replace(result.vessel, sensors=replace(
         result.vessel.sensors, input_answer_s=input_answers(recordings, result.vessel)))
