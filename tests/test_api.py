@@ -108,7 +108,7 @@ def test_results_are_typed_with_short_rounded_reprs(log):
     # "calibrated" says whether a log's compass offset was applied, never merely that one was looked for
     assert ev.applied or not any(r["calibrated"] for r in table.to_dict()["rows"])
     assert ev.applied or "no log's compass offset was applied" in table.title
-    assert ev.to_dict()["vessel"] == "blueboat" and ev.by_state == []
+    assert ev.to_dict()["vessel"] == "blueboat" and ev.by_state == [] and ev.stand_ins == []
     by_speed = twin.evaluate("blueboat", [log], by="speed")
     shares = sum(b.share["u"] for b in by_speed.by_state)
     assert shares == pytest.approx(1.0 - by_speed.score("u").r2, rel=1e-6) and len(by_speed.by_state) >= 2

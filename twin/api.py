@@ -341,7 +341,9 @@ class Evaluation:
     each log's compass calibration, and the calibrations; by_manoeuvre: where the free runs of the
     fit's window (10 s for a small boat, 30 s for a slow ship: its `horizon_s`) miss
     (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it;
-    by_state: where they miss by a measured state, when one was asked for (fit.evaluate.StateBand)."""
+    by_state: where they miss by a measured state, when one was asked for (fit.evaluate.StateBand);
+    stand_ins: the coefficients the twin's fit moved beyond what their beliefs allow (name, unit, value,
+    prior, from_prior_sigmas), which hold beyond the fitted runs only as far as what they stand in for."""
 
     vessel: str
     metrics: dict
@@ -349,6 +351,7 @@ class Evaluation:
     calibrations: list
     by_manoeuvre: dict = field(default_factory=dict)
     by_state: list = field(default_factory=list)
+    stand_ins: list = field(default_factory=list)
 
     @property
     def applied(self) -> bool:
@@ -391,7 +394,7 @@ class Evaluation:
         return {"vessel": self.vessel, "units": {"u": "m/s", "v": "m/s", "r": "rad/s"},
                 "metrics": self.metrics, "metrics_uncalibrated": self.metrics_uncalibrated,
                 "calibrations": [c.to_dict() for c in self.calibrations], "by_manoeuvre": self.by_manoeuvre,
-                "by_state": [asdict(b) for b in self.by_state]}
+                "by_state": [asdict(b) for b in self.by_state], "stand_ins": self.stand_ins}
 
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
@@ -424,7 +427,8 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s) if by else []
     return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
                       run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
-                      misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands)
+                      misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands,
+                      list(v.uncertainty.get("stand_ins", [])))
 
 
 @dataclass(frozen=True)
