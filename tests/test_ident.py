@@ -677,3 +677,22 @@ def test_a_coefficient_moved_beyond_its_belief_is_flagged_as_standing_in_for_mis
     assert est["Nr"].from_prior_sigmas < 1.0 and not est["Nr"].stand_in
     assert "stands in" not in est["Nr"].note
     assert est["Nrdot"].to_dict()["from_prior_sigmas"] == pytest.approx(est["Nrdot"].from_prior_sigmas)
+
+
+def test_a_fit_continued_from_another_belief_weight_runs_nothing_at_its_start(yellowfish_vessel):
+    # the data's rows do not depend on the belief weight: a fit at another weight that starts from a
+    # finished fit takes its residuals and Jacobian there, and ends where a start from its vessel ends
+    ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.7"], n_segments=2, seed=2, noise=QUIET,
+                  segment_s=(30, 35), manoeuvres=["rc", "zigzag"])
+    preps = _truth_preps(ds)
+    first = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), window_s=5.0, stride_s=5.0, prior_weight=1.0)
+    kw = dict(window_s=5.0, stride_s=5.0, prior_weight=0.01, max_evaluations=4)
+    from_result = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first, **kw)
+    from_vessel = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first.vessel, **kw)
+    assert from_result.n_evaluations < from_vessel.n_evaluations
+    for a, b in zip(from_result.estimates, from_vessel.estimates):
+        assert a.value == pytest.approx(b.value, rel=1e-6)
+    # another set of coefficients: the finished fit is only a start (its vessel), nothing is taken over
+    other = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first, **kw)
+    plain = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first.vessel, **kw)
+    assert other.estimates[0].value == plain.estimates[0].value and other.n_evaluations == plain.n_evaluations

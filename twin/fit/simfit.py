@@ -123,13 +123,14 @@ def check_kind(prior: Vessel) -> None:
 def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, *, anchor: str = "mass",
         window_s: float = 10.0, stride_s: float = 5.0, max_evaluations: int = 40,
         cache: ModelCache | None = None, settle_s: float = SETTLE_S, free_start: bool = True,
-        prior_weight: float | None = None, start: Vessel | list[Vessel] | None = None,
+        prior_weight: float | None = None, start: Vessel | list[Vessel] | FitResult | None = None,
         windows: list | None = None,
         wind: str | None = None, dof_sigma: np.ndarray | None = None) -> FitResult:
     """Identify `names` (see `coefficients`) by free-run windows of window_s every stride_s s,
     each window's initial velocities estimated with them unless free_start is False; with
     prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior;
-    several candidates: the one the objective finds lowest),
+    several candidates: the one the objective finds lowest; a FitResult of the same coefficients on
+    the same windows and scales at another weight: its point, its runs there not repeated),
     on `windows` if given; wind "measured": the recordings' wind a known input. dof_sigma: the
     scale of each velocity's residual in a MAP fit (m/s, m/s, rad/s; default: the spread of each
     measured velocity, Objective)."""
@@ -261,7 +262,7 @@ def coordinates(prior: Vessel, names) -> list[Coordinate]:
 
 def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window_s: float, stride_s: float,
              max_evaluations: int, cache: ModelCache | None, settle_s: float, free_start: bool,
-             prior_weight: float, start: Vessel | list[Vessel] | None, windows: list | None,
+             prior_weight: float, start: Vessel | list[Vessel] | FitResult | None, windows: list | None,
              wind: str | None = None, dof_sigma: np.ndarray | None = None) -> FitResult:
     started = time.time()
     names = check_names(prior, names, anchor)
@@ -276,7 +277,11 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
     obj = map_objective(prior, coords, preps, windows, cache, min(settle_s, window_s / 2), free_start, prior_weight,
                         wind, dof_sigma)
     cost0 = 0.5 * float(np.sum(obj.residuals(obj.x_prior) ** 2))
-    x0 = obj.x_prior if start is None else _lowest_start(obj, coords, [start] if isinstance(start, Vessel) else start)
+    if isinstance(start, FitResult):  # a fit at another belief weight: its point and its data's Jacobian there
+        x0 = _continued(obj, coords, start)
+    else:
+        x0 = obj.x_prior if start is None else _lowest_start(obj, coords, [start] if isinstance(start, Vessel)
+                                                             else start)
     # ftol 1e-4: on the BlueBoat's runs the last ten of twenty steps moved the cost by 0.01 % and the
     # coefficients by a fraction of their posterior σ, at half the time of the fit
     sol = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=obj.bounds(), method="trf", x_scale="jac",
@@ -349,6 +354,23 @@ def _lowest_on_line(obj: Objective, x: np.ndarray, step: np.ndarray) -> np.ndarr
     xs = [np.clip(x + a * step, lo, hi) for a in STEP_FRACTIONS]
     costs = np.array([float(np.sum(obj.residuals(c) ** 2)) for c in xs])
     return xs[int(np.argmin(np.where(np.isfinite(costs), costs, np.inf)))]
+
+
+def _continued(obj: Objective, coords: list[Coordinate], start: FitResult) -> np.ndarray:
+    """The point of `start`, a fit of the same coordinates on the same windows and scales at another
+    belief weight, its data's residuals and Jacobian given to `obj` there (the data's rows do not
+    depend on the weight: no run is repeated); otherwise its vessel as a start."""
+    before = start.objective
+    same = (before is not None and start.x is not None and start.jacobian is not None
+            and [c.quantity.name for c in coords] == [q.name for q in before.params]
+            and before.windows == obj.windows and np.array_equal(before.sigma, obj.sigma)
+            and np.array_equal(before.scale, obj.scale) and before.n_data == obj.n_data)
+    if not same:
+        return _lowest_start(obj, coords, [start.vessel])
+    x = np.asarray(start.x, float)
+    n = obj.n_data
+    obj.seed(x, before.residuals(x)[:n], start.jacobian[:n])
+    return x
 
 
 def _lowest_start(obj: Objective, coords: list[Coordinate], starts: list[Vessel]) -> np.ndarray:

@@ -305,7 +305,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                                   cache=cache, free_start=start == "free", prior_weight=weight,
                                   start=scout.vessel if previous is None else previous, windows=informative,
                                   wind=wind, dof_sigma=sigma)
-        previous = fits[weight].vessel if previous is None else previous  # each later fit starts from the first
+        previous = fits[weight] if previous is None else previous  # each later fit starts from the first
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)
