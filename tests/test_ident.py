@@ -692,6 +692,13 @@ def test_a_fit_continued_from_another_belief_weight_runs_nothing_at_its_start(ye
     assert from_result.n_evaluations < from_vessel.n_evaluations
     for a, b in zip(from_result.estimates, from_vessel.estimates):
         assert a.value == pytest.approx(b.value, rel=1e-6)
+    # each velocity scaled otherwise (identify's first fit after its scout): the rows are rescaled, not rerun
+    sigma = first.objective.sigma * np.array([0.5, 3.0, 0.8])
+    rescaled = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first, dof_sigma=sigma, **kw)
+    rerun = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first.vessel, dof_sigma=sigma, **kw)
+    assert rescaled.n_evaluations < rerun.n_evaluations
+    for a, b in zip(rescaled.estimates, rerun.estimates):
+        assert a.value == pytest.approx(b.value, rel=1e-6)
     # another set of coefficients: the finished fit is only a start (its vessel), nothing is taken over
     other = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first, **kw)
     plain = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first.vessel, **kw)

@@ -357,19 +357,21 @@ def _lowest_on_line(obj: Objective, x: np.ndarray, step: np.ndarray) -> np.ndarr
 
 
 def _continued(obj: Objective, coords: list[Coordinate], start: FitResult) -> np.ndarray:
-    """The point of `start`, a fit of the same coordinates on the same windows and scales at another
-    belief weight, its data's residuals and Jacobian given to `obj` there (the data's rows do not
-    depend on the weight: no run is repeated); otherwise its vessel as a start."""
+    """The point of `start`, a fit of the same coordinates on the same windows at another belief
+    weight or velocity scale, its data's residuals and Jacobian given to `obj` there (a data row does
+    not depend on the weight, and a velocity's scale divides its rows: no run is repeated); otherwise
+    its vessel as a start."""
     before = start.objective
     same = (before is not None and start.x is not None and start.jacobian is not None
             and [c.quantity.name for c in coords] == [q.name for q in before.params]
-            and before.windows == obj.windows and np.array_equal(before.sigma, obj.sigma)
-            and np.array_equal(before.scale, obj.scale) and before.n_data == obj.n_data)
+            and before.windows == obj.windows and np.array_equal(before.valid, obj.valid)
+            and np.array_equal(before.scale, obj.scale))
     if not same:
         return _lowest_start(obj, coords, [start.vessel])
     x = np.asarray(start.x, float)
     n = obj.n_data
-    obj.seed(x, before.residuals(x)[:n], start.jacobian[:n])
+    rescale = (before.sigma / obj.sigma)[np.nonzero(obj.valid)[2]]  # each data row's velocity, as dof_rms
+    obj.seed(x, before.residuals(x)[:n] * rescale, start.jacobian[:n] * rescale[:, None])
     return x
 
 

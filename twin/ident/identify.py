@@ -303,7 +303,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
                                   max_evaluations=max_evaluations if previous is None else short,
                                   cache=cache, free_start=start == "free", prior_weight=weight,
-                                  start=scout.vessel if previous is None else previous, windows=informative,
+                                  start=scout if previous is None else previous, windows=informative,
                                   wind=wind, dof_sigma=sigma)
         previous = fits[weight] if previous is None else previous  # each later fit starts from the first
     say("judging the choices on left-out runs", 3, 4)
