@@ -303,9 +303,12 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
                                   max_evaluations=max_evaluations if previous is None else short,
                                   cache=cache, free_start=start == "free", prior_weight=weight,
-                                  start=scout if previous is None else previous, windows=informative,
+                                  start=scout.vessel if previous is None else previous, windows=informative,
                                   wind=wind, dof_sigma=sigma)
-        previous = fits[weight] if previous is None else previous  # each later fit starts from the first
+        # each later fit starts from the first, taking its runs there. The first starts from the scout's
+        # vessel, not its runs: rows rescaled to the new scales end the ftol-stopped fit elsewhere within
+        # its tolerance, which moved the BlueBoat split's judged R² v by 0.006
+        previous = fits[weight] if previous is None else previous
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)
