@@ -277,6 +277,6 @@ def test_simulate_runs_to_the_inputs_last_row_unless_told_and_says_a_shorter_dur
 def test_validate_names_the_figure_a_markdown_report_writes_beside_it(tmp_path):
     p = twin("validate", "--vessel", "blueboat", "--report", tmp_path / "v.md")
     assert p.returncode == 0, p.stderr
-    assert f"wrote {tmp_path / 'v.md'} and {tmp_path / 'v_topview.png'}" in p.stdout
+    assert f"wrote {tmp_path / 'v.md'}\nwrote {tmp_path / 'v_topview.png'}" in p.stdout
     assert (tmp_path / "v_topview.png").read_bytes()[:4] == b"\x89PNG"
     assert "v_topview.png" in (tmp_path / "v.md").read_text()

@@ -341,4 +341,6 @@ def validate(
         typer.echo(f"wrote {json_out}")
     if report is not None:
         write_report(report, title, rows, top_view_png(result.drawing, title))
-        typer.echo(f"wrote {report}" + (f" and {figure}" if figure is not None else ""))
+        typer.echo(f"wrote {report}")
+        if figure is not None:
+            typer.echo(f"wrote {figure}")
