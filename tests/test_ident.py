@@ -584,6 +584,13 @@ def test_misfit_by_state_adds_up_to_one_minus_r2_and_finds_a_drag_too_strong_at_
     assert fast.share["u"] > 2.0 * slow.share["u"] and fast.gain["u"] > 1.02
     # the twin's own shape at the wrong size: the two still move together
     assert fast.correlation["u"] > 0.95
+    from twin.fit.evaluate import _correlation
+
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=200)
+    y = 0.3 * x + rng.normal(size=200)  # loosely related: a correlation near 0.3, not 1
+    assert _correlation(x, y) == pytest.approx(np.corrcoef(x, y)[0, 1]) and 0.1 < _correlation(x, y) < 0.6
+    assert _correlation(x, -x) == pytest.approx(-1.0) and _correlation(x, np.ones(200)) is None
     # the twin itself misses nowhere
     own = misfit_by_state(yellowfish_vessel, preps, 10.0, "speed_m_s", (edge,))
     assert max(b.share["u"] for b in own) < 0.05 and all(abs(b.gain["u"] - 1.0) < 0.02 for b in own)
@@ -692,14 +699,36 @@ def test_a_fit_continued_from_another_belief_weight_runs_nothing_at_its_start(ye
     assert from_result.n_evaluations < from_vessel.n_evaluations
     for a, b in zip(from_result.estimates, from_vessel.estimates):
         assert a.value == pytest.approx(b.value, rel=1e-6)
-    # each velocity scaled otherwise (identify's first fit after its scout): the rows are rescaled, not rerun
+    # what it is given are the rows the new objective itself makes at that point
+    obj = from_result.objective
+    fresh = Objective(obj.prior, obj.params, obj.data, obj.windows, obj.cache, obj.settle_s,
+                             free_start=obj.free_start)
+    fresh.sigma = obj.sigma
+    n = obj.n_data
+    assert np.array_equal(fresh.residuals(first.x)[:n], first.objective.residuals(first.x)[:n])
+    assert np.array_equal(fresh.jacobian(first.x)[:n], first.jacobian[:n])
+    # each velocity scaled otherwise: the start weighs every window's fitted start otherwise, and the
+    # rows are run again (its vessel is the start)
     sigma = first.objective.sigma * np.array([0.5, 3.0, 0.8])
-    rescaled = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first, dof_sigma=sigma, **kw)
+    scaled = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first, dof_sigma=sigma, **kw)
     rerun = simfit.fit(yellowfish_vessel, preps, ("Nr", "Xuu"), start=first.vessel, dof_sigma=sigma, **kw)
-    assert rescaled.n_evaluations < rerun.n_evaluations
-    for a, b in zip(rescaled.estimates, rerun.estimates):
-        assert a.value == pytest.approx(b.value, rel=1e-6)
+    assert scaled.n_evaluations == rerun.n_evaluations and scaled.estimates == rerun.estimates
     # another set of coefficients: the finished fit is only a start (its vessel), nothing is taken over
     other = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first, **kw)
     plain = simfit.fit(yellowfish_vessel, preps, ("Nr",), start=first.vessel, **kw)
     assert other.estimates[0].value == plain.estimates[0].value and other.n_evaluations == plain.n_evaluations
+
+
+def test_a_vessel_file_keeps_its_stand_ins_and_refuses_a_damaged_entry(yellowfish_vessel, tmp_path):
+    entry = {"name": "Nrdot", "unit": "kg m2", "value": -4.1, "prior": -0.685, "from_prior_sigmas": 2.58}
+    block = {"coordinates": [{"name": "Nrdot", "log": True, "sign": -1.0}], "mean": [float(np.log(4.1))],
+             "covariance": [[0.01]], "stand_ins": [entry]}
+    path = tmp_path / "flagged.json"
+    vessel_mod.save(replace(yellowfish_vessel, added_mass=replace(yellowfish_vessel.added_mass, Nrdot=-4.1),
+                            uncertainty=block), path)
+    assert vessel_mod.load(str(path)).uncertainty["stand_ins"] == [entry]
+    data = json.loads(path.read_text())
+    data["uncertainty"]["stand_ins"] = [{**entry, "value": "large"}]
+    path.write_text(json.dumps(data))
+    with pytest.raises(TwinError, match="uncertainty.stand_ins needs"):
+        vessel_mod.load(str(path))

@@ -255,7 +255,7 @@ def stand_in_text(entries: list[dict] | None) -> str:
     parts = []
     for e in entries or []:
         ratio = e["value"] / e["prior"] if e["prior"] else None
-        parts.append(f"{e['name']} ×{ratio:.2g} of its prior" if ratio and ratio > 0
+        parts.append(f"{e['name']} ×{ratio:.3g} of its prior" if ratio and ratio > 0
                      else f"{e['name']} {e['value']:.3g} {e['unit']} against its prior's {e['prior']:.3g}")
     return ", ".join(parts)
 
@@ -375,9 +375,9 @@ def evaluate_command(
         typer.echo(format_metrics(out["metrics"], f"{twin_name} on {names}, each log's compass calibration applied"))
     typer.echo(format_by_manoeuvre(out["by_manoeuvre"], f"where the {horizon:g}-s free runs miss, by what the inputs "
                                                         "ask (each group's share of 1 − R²)"))
-    stand_ins = stand_in_text(v.uncertainty.get("stand_ins") if v.uncertainty else None)
+    out["stand_ins"] = list(v.uncertainty.get("stand_ins", [])) if v.uncertainty else []
+    stand_ins = stand_in_text(out["stand_ins"])
     if stand_ins:
-        out["stand_ins"] = v.uncertainty["stand_ins"]
         note(f"note: this twin carries coefficients its fit moved beyond what their beliefs allow ({stand_ins}): "
              "each stands in for something its form lacks, and holds beyond the runs it was fitted on only as far "
              "as that lack does")

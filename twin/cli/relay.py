@@ -182,9 +182,9 @@ def dp_command(
     check_distinct({"--json": json_out, "--png": png}, [model])
     if duration is not None:
         samples_fit(positive(duration, "--duration"), CONTROL_DT_S, "--duration")
-    for w in (omega_heading, omega_surge):  # refused whichever run is asked for, as --target is
+    for option, w in (("--omega-heading", omega_heading), ("--omega-surge", omega_surge)):  # whichever run
         if w is not None and not (math.isfinite(w) and w > 0):
-            raise TwinError(f"model-function frequencies must be positive and finite, got {w:g} rad/s")
+            raise TwinError(f"{option}: model-function frequencies must be positive and finite, got {w:g} rad/s")
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
     if not ship and rps is not None:

@@ -112,15 +112,15 @@ def simulate(
     if scenario is not None and inputs is not None:  # which of the two drives the run cannot be known
         raise TwinError(f"give --scenario or --inputs, not both (--scenario {scenario} --inputs {inputs})")
     scenario = scenario or "zigzag"
-    inputs_end = None
+    inputs_end_s = None
     if inputs is not None:  # read here too: the run's default length is the inputs' own
         from ..drive import read_inputs_csv
 
-        inputs_end = float(read_inputs_csv(inputs).t[-1])
-        if duration is None and not inputs_end > 0:
-            raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {inputs_end:g} s)")
-    cut = duration is not None and inputs_end is not None and duration < inputs_end
-    duration = duration if duration is not None else inputs_end if inputs_end is not None else 120.0
+        inputs_end_s = float(read_inputs_csv(inputs).t[-1])
+        if duration is None and not inputs_end_s > 0:
+            raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {inputs_end_s:g} s)")
+    cut = duration is not None and inputs_end_s is not None and duration < inputs_end_s
+    duration = duration if duration is not None else inputs_end_s if inputs_end_s is not None else 120.0
     check_run_length(duration, sample_dt)
     seed_from(seed)
     start = origin_from(origin)
@@ -159,7 +159,7 @@ def simulate(
     if end is not None:
         note(f"note: the inputs end at {end:g} s: their last row is held to the end of the run ({duration:g} s)")
     if cut:
-        note(f"note: the inputs run to {inputs_end:g} s: the run stops at --duration {duration:g} s")
+        note(f"note: the inputs run to {inputs_end_s:g} s: the run stops at --duration {duration:g} s")
     if v.sensors.errors():
         note(f"note: the run is written as the hull moved, without this twin's sensor errors "
              f"({', '.join(v.sensors.errors())}): a twin that carries them reads it through them; "

@@ -358,10 +358,16 @@ def percentile_edges(preps: list[Prepared], state: str, label: str | None = None
 
 
 def _correlation(x: np.ndarray, y: np.ndarray) -> float | None:
-    """Pearson's correlation of x and y; None with fewer than three pairs or either constant."""
-    if x.size < 3 or np.std(x) == 0.0 or np.std(y) == 0.0:
+    """Pearson's correlation of x and y; None with fewer than three pairs, either (nearly) constant, or
+    values too large to correlate."""
+    if x.size < 3:
         return None
-    return float(np.corrcoef(x, y)[0, 1])
+    sx, sy = np.std(x), np.std(y)
+    if not (sx > 1e-12 * max(np.max(np.abs(x)), 1e-300) and sy > 1e-12 * max(np.max(np.abs(y)), 1e-300)):
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        c = float(np.corrcoef(x, y)[0, 1])
+    return c if np.isfinite(c) else None
 
 
 def format_by_state(bands: list[StateBand], title: str = "") -> str:

@@ -264,9 +264,10 @@ class Objective:
         return out
 
     def seed(self, x: np.ndarray, data_rows: np.ndarray, data_jacobian: np.ndarray) -> None:
-        """The data's residuals and their Jacobian at x, from another objective on the same windows and
-        scales (a fit at another belief weight, which leaves the data's rows as they are): residuals()
-        and jacobian() at exactly x then run nothing."""
+        """The data's residuals and their Jacobian at x, from another objective on the same windows,
+        recordings and scales (a fit at another belief weight, which leaves the data's rows as they
+        are): residuals() and jacobian() at exactly x then run nothing (once: the Jacobian's copy is
+        let go after its use; a start moved off x, e.g. off a bound, runs as any point does)."""
         self._given = (self._key(x), np.asarray(data_rows, float), np.asarray(data_jacobian, float))
 
     def _seeded(self, x: np.ndarray) -> bool:
@@ -300,7 +301,9 @@ class Objective:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         if self._seeded(x):
-            return np.vstack([self._given[2], self.prior_jacobian()])
+            J = np.vstack([self._given[2], self.prior_jacobian()])
+            self._given = None  # trf asks once at its start; the residuals there are held in _last
+            return J
         lo, hi = self.bounds()
         steps = np.where(x + self.steps <= hi, self.steps, -self.steps)  # stay inside the bounds
         trial = [x.copy() for _ in x]

@@ -130,7 +130,7 @@ def fit(prior: Vessel, preps: list[Prepared], names: tuple[str, ...] = DEFAULT, 
     each window's initial velocities estimated with them unless free_start is False; with
     prior_weight, a maximum a posteriori fit (module docstring) from `start` (default: the prior;
     several candidates: the one the objective finds lowest; a FitResult of the same coefficients on
-    the same windows and scales at another weight: its point, its runs there not repeated),
+    the same windows, recordings and scales at another weight: its point, its runs there not repeated),
     on `windows` if given; wind "measured": the recordings' wind a known input. dof_sigma: the
     scale of each velocity's residual in a MAP fit (m/s, m/s, rad/s; default: the spread of each
     measured velocity, Objective)."""
@@ -227,12 +227,23 @@ def map_start(prior: Vessel, names) -> Vessel:
     return prior
 
 
+def _map_starts(given: Vessel, start: Vessel) -> dict[str, tuple[float, float]]:
+    """The terms map_start may start away from the vessel's own value: (own, start) each."""
+    return {"lag_s": (given.thrusters.lag_s, start.thrusters.lag_s),
+            "supply_exponent": (given.thrusters.supply_exponent, start.thrusters.supply_exponent)}
+
+
+def _started_elsewhere(given: Vessel, start: Vessel) -> set[str]:
+    """The terms the fit started away from the vessel's own value: their belief centres on the start, so
+    no distance from a physical prior is measured for them."""
+    return {name for name, (own, began) in _map_starts(given, start).items() if own != began}
+
+
 def _started(estimates: list[Estimate], given: Vessel, start: Vessel) -> list[Estimate]:
     """The estimates with the vessel's own prior value where the fit started elsewhere (map_start: a
     lag of 0 s started at 0.1 s), and the note saying so: a prior column showing the start would read
     as the vessel's."""
-    moved = {"lag_s": (given.thrusters.lag_s, start.thrusters.lag_s),
-             "supply_exponent": (given.thrusters.supply_exponent, start.thrusters.supply_exponent)}
+    moved = _map_starts(given, start)
     out = []
     for e in estimates:
         own, began = moved.get(e.name, (None, None))
@@ -311,7 +322,7 @@ def _fit_map(prior: Vessel, preps: list[Prepared], names, *, anchor: str, window
             break
         free = still
     evaluations = obj.evaluations
-    estimates = _started(_map_estimates(obj, coords, x, cov, free), given, prior)
+    estimates = _started(_map_estimates(obj, coords, x, cov, free, _started_elsewhere(given, prior)), given, prior)
     data_r = r[: obj.n_data]
     result = FitResult(obj.vessel(x), estimates, cost0, 0.5 * float(np.sum(r ** 2)), len(windows), evaluations,
                      time.time() - started, sol.message,
@@ -357,21 +368,27 @@ def _lowest_on_line(obj: Objective, x: np.ndarray, step: np.ndarray) -> np.ndarr
 
 
 def _continued(obj: Objective, coords: list[Coordinate], start: FitResult) -> np.ndarray:
-    """The point of `start`, a fit of the same coordinates on the same windows at another belief
-    weight or velocity scale, its data's residuals and Jacobian given to `obj` there (a data row does
-    not depend on the weight, and a velocity's scale divides its rows: no run is repeated); otherwise
-    its vessel as a start."""
+    """The point of `start`, a fit of the same coordinates on the same windows, recordings, scales,
+    start handling, wind and time step at another belief weight, its data's residuals and Jacobian
+    given to `obj` there (a data row does not depend on the weight: no run is repeated); otherwise
+    its vessel as a start. Only the weight may differ: each velocity's scale also weighs the fitted
+    start of every window, so rows at other scales are not these rows rescaled."""
     before = start.objective
     same = (before is not None and start.x is not None and start.jacobian is not None
             and [c.quantity.name for c in coords] == [q.name for q in before.params]
-            and before.windows == obj.windows and np.array_equal(before.valid, obj.valid)
-            and np.array_equal(before.scale, obj.scale))
-    if not same:
+            and before.windows == obj.windows and len(before.preps) == len(obj.preps)
+            and all(a is b for a, b in zip(before.preps, obj.preps))
+            and before.free_start == obj.free_start and before.wind == obj.wind
+            and before.cache.timestep_s == obj.cache.timestep_s
+            and np.array_equal(before.sigma, obj.sigma) and np.array_equal(before.scale, obj.scale))
+    # the vessel must be the fit's point (a fit put back at its prior keeps its objective and point)
+    at_point = same and np.allclose([c.quantity.get(start.vessel) for c in coords], np.asarray(start.x) * obj.scale,
+                                    rtol=1e-9, atol=1e-12)
+    if not at_point:
         return _lowest_start(obj, coords, [start.vessel])
     x = np.asarray(start.x, float)
     n = obj.n_data
-    rescale = (before.sigma / obj.sigma)[np.nonzero(obj.valid)[2]]  # each data row's velocity, as dof_rms
-    obj.seed(x, before.residuals(x)[:n] * rescale, start.jacobian[:n] * rescale[:, None])
+    obj.seed(x, before.residuals(x)[:n], start.jacobian[:n])
     return x
 
 
@@ -436,8 +453,8 @@ def _near_bound(obj: Objective, x: np.ndarray, cov) -> list[tuple[float, bool] |
     return out
 
 
-def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray
-                   ) -> list[Estimate]:
+def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray,
+                   started_elsewhere: set[str] = frozenset()) -> list[Estimate]:
     out = []
     edge = _near_bound(obj, x, cov)
     held = obj.belief_sigma()
@@ -463,7 +480,8 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
                 note = (f"{'on' if on else 'within its σ of'} the bound {c.natural(bound):g} {c.unit} of its physical "
                         f"range: {'the recordings push it beyond' if on else 'the recordings do not tell it from the bound'}"
                         " (σ from the fit's curvature, which the bound cuts)")
-            away = abs(xv - c.mean) / c.belief.sigma if c.belief.sigma > 0 else None
+            physical = c.belief.sigma > 0 and c.name not in started_elsewhere
+            away = abs(xv - c.mean) / c.belief.sigma if physical else None
             if away is not None and away >= STAND_IN_SIGMAS:  # Estimate.stand_in
                 ratio = f", ×{value / c.prior_value:.2g}" if c.log and c.prior_value else ""
                 lacks = "it stands in for something the twin's form lacks"

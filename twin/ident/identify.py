@@ -305,9 +305,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                                   cache=cache, free_start=start == "free", prior_weight=weight,
                                   start=scout.vessel if previous is None else previous, windows=informative,
                                   wind=wind, dof_sigma=sigma)
-        # each later fit starts from the first, taking its runs there. The first starts from the scout's
-        # vessel, not its runs: rows rescaled to the new scales end the ftol-stopped fit elsewhere within
-        # its tolerance, which moved the BlueBoat split's judged R² v by 0.006
+        # each later fit starts from the first, taking its runs there (only the weight differs); the first
+        # starts from the scout's twin, whose runs were scaled otherwise
         previous = fits[weight] if previous is None else previous
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
@@ -634,10 +633,10 @@ def _unpinned(fit: simfit.FitResult) -> np.ndarray:
 def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], wind: str | None = None) -> Vessel:
     v = fit.vessel
     moved = [e for e in fit.estimates if e.identifiable and not e.on_bound]
-    pinned = ", ".join(e.name for e in moved if not e.held_by_belief and not e.disputed)
+    pinned = ", ".join(e.name for e in moved if not e.held_by_belief and not e.disputed and not e.stand_in)
     held = ", ".join(e.name for e in moved if e.held_by_belief)
     disputed = ", ".join(e.name for e in moved if e.disputed)
-    stand_in = ", ".join(e.name for e in moved if e.stand_in)
+    stand_in = ", ".join(e.name for e in fit.estimates if e.identifiable and e.stand_in)
     walled = ", ".join(e.name for e in fit.estimates if e.on_bound)
     kept = ", ".join(e.name for e in fit.estimates if not e.identifiable)
     when = _dt.date.today().isoformat()
