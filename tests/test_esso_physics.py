@@ -1,5 +1,6 @@
 """The MMG standard method and Fujiwara's wind loads (physics/mmg.py, physics/fujiwara.py) against the
 equations written out by hand here, in the paper's own form, on the Esso Osaka vessel's numbers."""
+import json
 import math
 from dataclasses import replace
 
@@ -257,3 +258,49 @@ def test_an_mmg_file_without_a_side_force_is_written_as_before(tmp_path):
     assert not {"astern_side_y", "astern_side_n"} & set(bare.to_dict()["mmg"]["propeller"])
     again = vessel_mod.load(str(vessel_mod.save(ship, tmp_path / "esso.json")))
     assert again.mmg.propeller.astern_side_y == ship.mmg.propeller.astern_side_y
+
+
+def _hull_forces(vessel, u, v, r, domain_deg=None):
+    ship = vessel if domain_deg is None else replace(vessel, mmg=replace(vessel.mmg, drift_domain_deg=domain_deg))
+    return mmg_forces(compile_vessel(ship).hydro().with_terms(Terms().only("mmg_hull")), np.array([u, v, r]))[:3]
+
+
+def test_beyond_its_drift_domain_the_hull_polynomial_continues_along_its_tangent(esso, tmp_path):
+    """Within 30° of drift the standard's polynomial as it is; beyond, each power of v' along its
+    tangent at the edge (value and slope kept), so the broadside sway force is Y'_v + Y'_vvv·s²(3 − 2s),
+    s = sin 30°, not Y'_v + Y'_vvv."""
+    ship, p = esso.vessel, _p(esso)
+    assert ship.mmg.drift_domain_deg == 30.0 and p["v_domain"] == pytest.approx(0.5)
+    inside = (0.3, -0.3 * math.tan(math.radians(25)), 0.02)  # 25° of drift
+    np.testing.assert_allclose(_hull_forces(ship, *inside), _hull_forces(ship, *inside, domain_deg=90.0), rtol=1e-12)
+    U, q = 0.2, 0.5 * p["rho"] * p["L"] * p["d"]
+    broadside = _hull_forces(ship, 0.0, U, 0.0)
+    assert broadside[1] == pytest.approx(q * U**2 * (p["Yv"] + p["Yvvv"] * 0.25 * 2.0), rel=1e-12)
+    assert _hull_forces(ship, 0.0, U, 0.0, domain_deg=90.0)[1] == pytest.approx(q * U**2 * (p["Yv"] + p["Yvvv"]))
+    # at 60° with a yaw rate: v'², v'³ of the yaw moment replaced by their tangents (f = 1 up to 60°)
+    u, v, r = U * math.cos(math.radians(59)), -U * math.sin(math.radians(59)), 0.01
+    vp, rp = v / U, r * p["L"] / U
+    v2, v3, _ = mmg.drift_powers(vp, 0.5)
+    assert (v2, v3) == pytest.approx((0.5 * (2 * abs(vp) - 0.5), -0.25 * (3 * abs(vp) - 1.0)))
+    f = min(2 * u / U, 1.0)
+    N_H = q * p["L"] * U**2 * (f * p["Nv"] * vp + p["Nr"] * rp + f * p["Nvvv"] * v3 + p["Nvvr"] * v2 * rp
+                               + f * p["Nvrr"] * vp * rp**2 + p["Nrrr"] * rp**3)
+    assert _hull_forces(ship, u, v, r)[2] == pytest.approx(N_H, rel=1e-12)
+    # less yaw damping there than the polynomial as it is gives (N'_vvr < 0 grows as v'² beyond the tests)
+    assert abs(_hull_forces(ship, u, v, r)[2]) < abs(_hull_forces(ship, u, v, r, domain_deg=90.0)[2])
+    # continuous with its slope across the edge, in every force
+    edge = math.radians(30)
+    at = [np.array(_hull_forces(ship, U * math.cos(b), -U * math.sin(b), 0.02)) for b in
+          (edge - 2e-6, edge - 1e-6, edge + 1e-6, edge + 2e-6)]
+    # across the edge (2e-6 rad) each force moves as twice a step beside it: no jump
+    np.testing.assert_allclose(at[2] - at[1], 2 * (at[1] - at[0]), rtol=1e-3, atol=1e-12)
+    np.testing.assert_allclose((at[1] - at[0]) / 1e-6, (at[3] - at[2]) / 1e-6, rtol=1e-3, atol=1e-6)
+    # the vessel file keeps a domain other than the standard's and refuses one outside (0, 90]
+    wide = replace(ship, mmg=replace(ship.mmg, drift_domain_deg=90.0))
+    assert "drift_domain_deg" not in ship.to_dict()["mmg"]
+    assert vessel_mod.load(str(vessel_mod.save(wide, tmp_path / "wide.json"))).mmg.drift_domain_deg == 90.0
+    data = wide.to_dict()
+    data["mmg"]["drift_domain_deg"] = 120.0
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(TwinError, match="drift_domain_deg must lie in"):
+        vessel_mod.load(str(tmp_path / "bad.json"))

@@ -153,6 +153,8 @@ def _mmg_to_dict(m) -> dict[str, Any]:
     d = asdict(m)
     if not m.friction_factor:  # only where R'_0 follows the friction line
         d.pop("friction_factor"), d.pop("reference_speed_m_s")
+    if m.drift_domain_deg == MmgModel.drift_domain_deg:  # only where it is not the standard's
+        d.pop("drift_domain_deg")
     for key in ("astern_side_y", "astern_side_n"):
         if not any(getattr(m.propeller, key)):
             del d["propeller"][key]
@@ -604,6 +606,9 @@ def _check_propeller_rudder(vessel: Vessel) -> None:
     for what, x in positive.items():
         if not x > 0:
             raise TwinError(f"vessel '{name}': {what} must be positive, got {x}")
+    if not 0 < m.drift_domain_deg <= 90:
+        raise TwinError(f"vessel '{name}': mmg.drift_domain_deg must lie in (0, 90] degrees (90: the hull "
+                        f"polynomial as it is at every drift angle), got {m.drift_domain_deg}")
     if not 0 <= m.propeller.wP0 < 1 or not 0 <= m.propeller.tP < 1 or not 0 <= m.rudder.tR < 1:
         raise TwinError(f"vessel '{name}': mmg wake fraction w_P0 and deductions t_P, t_R must lie in [0, 1)")
 

@@ -42,6 +42,14 @@ keeping the standard exact inside it (each extension says why; identification ma
     the standard stands ahead up to 60° of drift, and moving broadside a hull turns no sway into yaw
     nor yaw into sway, as a symmetric hull does not. (The standard's polynomial, taken as it is
     astern, turns the Munk moment's sign: a hull backing with a drift yawed the wrong way.);
+  * beyond the drift domain (|β| above `drift_domain_deg`, 30°; its captive tests stay within about
+    that) the hull polynomial's powers of v' continue along their tangents at the domain's edge s =
+    sin 30°: v'^k → s^(k−1)·(k|v'| − (k−1)s) with v'^k's sign, its value and slope kept there. Taken
+    as it is, the cubic fitted within ±30° grows as |v'|³ where a hull's cross-flow drag grows as
+    v|v| [Hoerner-1965]: the KVLCC2 coefficients gave a broadside sway force of Y' = −1.92 (a
+    cross-flow drag coefficient near 1 gives about −1), and a yaw damping N'_vvr v'² at 60° of drift
+    4.5 times N'_r. Continued, they give −1.12 and 3.7 times. A pond's free-running model drifts
+    beyond 30° for much of a slow manoeuvre (a third of the Esso Osaka's random tests' samples);
   * β = atan2(−v_m, |u|) (the standard's β for u ≥ 0; astern the drift angle is measured from
     the stern), 1 − w_P = 1 for u < 0 (no wake ahead of the propeller when going astern);
   * n < 0 (astern rotation, not in the standard): T = −ρ n² D_P⁴ K_astern, K_astern =
@@ -156,6 +164,9 @@ class MmgModel:
     draft_m: float = 0.0
     block_coefficient: float = 0.0
     low_speed_m_s: float = 0.05  # U_nd floor of the module docstring
+    # the drift angle (deg) up to which the hull's polynomial is the standard's; beyond it each power
+    # of v' continues along its tangent (module docstring). 90: the polynomial as it is at every drift
+    drift_domain_deg: float = 30.0
     # R'_0 following the ITTC-1957 friction line (module docstring): F = (1 + k)·S/(L·d), 0 = a constant
     # R'_0; R'_0 then holds at reference_speed_m_s
     friction_factor: float = 0.0
@@ -167,7 +178,7 @@ class MmgModel:
 
 # ---------------------------------------------------------------- packed parameters
 
-FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS,
+FIELDS = ("rho", "L", "d", "U_min", *HULL_FIELDS, "v_domain",
           "D_P", "k0", "k1", "k2", "tP", "wP0", "C1", "C2_plus", "C2_minus", "xP_nd",
           "astern_kt0", "astern_kt1", "astern_kt_max",
           "ay0", "ay1", "ay2", "ay3", "ay4", "bn0", "bn1", "bn2", "bn3", "bn4",
@@ -180,8 +191,8 @@ _RHO, _L, _D, _UMIN, _H = 0, 1, 2, 3, 4
 (_DP, _K0, _K1, _K2, _TP, _WP0, _C1, _C2P, _C2M, _XP, _KA0, _KA1, _KAMAX, _AR, _FA, _ETA, _TR, _AH, _XH, _XR,
  _GM, _GP, _LR, _EPS, _KAPPA, _NMIN, _NMAX, _DMAX) = (INDEX[k] for k in FIELDS[_H + len(HULL_FIELDS):]
                                                       if not k.startswith(("ay", "bn"))
-                                                      and k not in ("F_fric", "cf_ref", "L_nu"))
-_AY, _BN = INDEX["ay0"], INDEX["bn0"]
+                                                      and k not in ("F_fric", "cf_ref", "L_nu", "v_domain"))
+_AY, _BN, _VDOM = INDEX["ay0"], INDEX["bn0"], INDEX["v_domain"]
 _FF, _CFREF, _LNU = INDEX["F_fric"], INDEX["cf_ref"], INDEX["L_nu"]
 NU_WATER_M2_S = 1.0e-6  # kinematic viscosity of the water the Reynolds number uses [ITTC-2011]
 JS_SYN, JS_SYN0 = -0.35, -0.06  # the knots of Hachii's astern side force in J_s (module docstring)
@@ -199,7 +210,7 @@ def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
     p, r, h = model.propeller, model.rudder, model.hull
     span_m = math.sqrt(r.area_m2 * r.aspect_ratio)
     values = {"rho": model.rho_kg_m3, "L": model.lpp_m, "d": model.draft_m, "U_min": model.low_speed_m_s,
-              **{k: getattr(h, k) for k in HULL_FIELDS},
+              **{k: getattr(h, k) for k in HULL_FIELDS}, "v_domain": math.sin(math.radians(model.drift_domain_deg)),
               "D_P": p.diameter_m, "k0": p.k0, "k1": p.k1, "k2": p.k2, "tP": p.tP, "wP0": p.wP0, "C1": p.C1,
               "C2_plus": p.C2_plus, "C2_minus": p.C2_minus, "xP_nd": propeller_x_m / model.lpp_m,
               "astern_kt0": p.astern_kt0, "astern_kt1": p.astern_kt1, "astern_kt_max": p.astern_kt_max,
@@ -228,6 +239,18 @@ def hull_fields() -> list[str]:
 
 
 # ---------------------------------------------------------------- the forces
+
+def drift_powers(vp: float, s: float) -> tuple[float, float, float]:
+    """(v'², v'³, v'⁴) where |v'| ≤ s (the sine of the drift domain), each continued along its
+    tangent at |v'| = s beyond it (v'³ odd, the others even): s^(k−1)·(k|v'| − (k−1)s) for v'^k,
+    continuous with its slope (module docstring)."""
+    a = abs(vp)
+    if a <= s:
+        v2 = vp * vp
+        return v2, v2 * vp, v2 * v2
+    v3 = s * s * (3.0 * a - 2.0 * s)
+    return s * (2.0 * a - s), v3 if vp >= 0.0 else -v3, s * s * s * (4.0 * a - 3.0 * s)
+
 
 def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
               hull_on: bool, propeller_on: bool, rudder_on: bool):
@@ -258,11 +281,21 @@ def mmg_force(p, u: float, v: float, r: float, n: float, delta: float,
             r0 += p[_FF] * (0.075 / (math.log10(max(Un * p[_LNU], 1e3)) - 2.0) ** 2 - p[_CFREF])
         # astern the hull meets the water stern first (module docstring): the terms even in v and r of
         # X, odd in r of Y and odd in v of N change sign with f, as R'_0's does
-        X += q * (-r0 * U * U * f + U2 * (f * (p[h + 1] * vp * vp + p[h + 3] * rp * rp + p[h + 4] * vp * vp * vp * vp)
+        # v'², v'³, v'⁴: the standard's within its drift domain, along their tangents beyond it
+        # (drift_powers written out: numba compiles this function alone)
+        s, a = p[_VDOM], abs(vp)
+        if a <= s:
+            v2 = vp * vp
+            v3, v4 = v2 * vp, v2 * v2
+        else:
+            v2, v3, v4 = s * (2.0 * a - s), s * s * (3.0 * a - 2.0 * s), s * s * s * (4.0 * a - 3.0 * s)
+            if vp < 0.0:
+                v3 = -v3
+        X += q * (-r0 * U * U * f + U2 * (f * (p[h + 1] * v2 + p[h + 3] * rp * rp + p[h + 4] * v4)
                                              + p[h + 2] * vp * rp))
-        Y += q * U2 * (p[h + 5] * vp + f * p[h + 6] * rp + p[h + 7] * vp * vp * vp + f * p[h + 8] * vp * vp * rp
+        Y += q * U2 * (p[h + 5] * vp + f * p[h + 6] * rp + p[h + 7] * v3 + f * p[h + 8] * v2 * rp
                        + p[h + 9] * vp * rp * rp + f * p[h + 10] * rp * rp * rp)
-        N += q * L * U2 * (f * p[h + 11] * vp + p[h + 12] * rp + f * p[h + 13] * vp * vp * vp + p[h + 14] * vp * vp * rp
+        N += q * L * U2 * (f * p[h + 11] * vp + p[h + 12] * rp + f * p[h + 13] * v3 + p[h + 14] * v2 * rp
                            + f * p[h + 15] * vp * rp * rp + p[h + 16] * rp * rp * rp)
     # propeller, eqs. 10-16: the wake in manoeuvring motion (eqs. 15-16), the thrust multiplied
     # through by n² so that it stays finite at n = 0
