@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|nineteenth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentieth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -396,13 +396,30 @@ PROOF_NINETEENTH = [
     Case("esso", "T3", "input_late", (0.6,)), Case("esso", "T4", "input_late", (0.7,)),
     Case("esso", "T3", "heading_late", (0.65,)), Case("esso", "T4", "heading_late", (0.55,)),
 ]
+# the twentieth set takes outings H and N (disjoint runs) and Esso tests T7 and T8 again, with other
+# values; its Esso twin's hull polynomial continues along its tangents beyond 30° of drift
+# (physics/mmg.py), which no earlier set's did
+PROOF_TWENTIETH = [
+    Case("blueboat", "H", "null"), Case("blueboat", "N", "null"),
+    Case("blueboat", "H", "current", (0.12, 230.0)), Case("blueboat", "N", "current", (0.14, 40.0)),
+    Case("blueboat", "H", "antenna", (0.30, -0.30)), Case("blueboat", "N", "antenna", (-0.35, 0.20)),
+    Case("blueboat", "H", "input_late", (0.55,)), Case("blueboat", "N", "input_late", (0.5,)),
+    Case("blueboat", "H", "thruster_scaled", ("right", 0.75)), Case("blueboat", "N", "thruster_scaled", ("left", 0.7)),
+    Case("blueboat", "H", "heading_late", (0.5,)), Case("blueboat", "N", "heading_late", (0.6,)),
+    Case("esso", "T7", "null"), Case("esso", "T8", "null"),
+    Case("esso", "T7", "current", (0.10, 200.0)), Case("esso", "T8", "current", (0.12, 70.0)),
+    Case("esso", "T7", "antenna", (0.40, 0.20)), Case("esso", "T8", "antenna", (-0.30, -0.30)),
+    Case("esso", "T7", "input_late", (0.65,)), Case("esso", "T8", "input_late", (0.55,)),
+    Case("esso", "T7", "heading_late", (0.5,)), Case("esso", "T8", "heading_late", (0.65,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
           "eleventh": PROOF_ELEVENTH, "twelfth": PROOF_TWELFTH,
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
-          "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH}
+          "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
+          "twentieth": PROOF_TWENTIETH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -412,7 +429,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "fourteenth": "concealed_effects_fourteenth",
          "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
          "seventeenth": "concealed_effects_seventeenth",
-         "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth"}
+         "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth",
+         "twentieth": "concealed_effects_twentieth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -436,7 +454,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth", "eighteenth", "nineteenth"}
+                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
