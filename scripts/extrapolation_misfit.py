@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -37,7 +38,9 @@ BANDS = {"blueboat": [("speed √(u² + v²)", "speed_m_s", (0.2, 0.6, 1.2)),
                       ("yaw rate |r|", "yaw_rate_rad_s", (0.1, 0.3, 0.6))],
          "esso": [("propeller speed", "input_0", (-1.0, 1.0, 6.0)),
                   ("time the propeller has been stopped (|n| ≤ 1 rps)", "input_0_rest_s", (0.05, 2.0, 5.0, 10.0)),
-                  ("speed √(u² + v²)", "speed_m_s", (0.05, 0.1, 0.2))]}
+                  ("speed √(u² + v²)", "speed_m_s", (0.05, 0.1, 0.2)),
+                  # the hull polynomial's own domain ends near 30° (physics/mmg.py)
+                  ("drift angle |β|", "drift_rad", (math.radians(10), math.radians(30), math.radians(60)))]}
 
 
 def tag_of(case: str) -> str:
@@ -88,6 +91,8 @@ def sensitivities(case: str, vessel, prior, recs) -> list[dict]:
         m = vessel.mmg
         moves = [("identified", vessel)] + [(f"U floor {u:g} m/s (identified {m.low_speed_m_s:g})",
                                              replace(vessel, mmg=replace(m, low_speed_m_s=u))) for u in (0.01, 0.15)]
+        moves.append((f"hull polynomial as it is at every drift (drift domain 90°, identified {m.drift_domain_deg:g}°)",
+                      replace(vessel, mmg=replace(m, drift_domain_deg=90.0))))
     return [{"twin": label, "r2": _scored(v, recs, wind, horizon_s, stride_s)} for label, v in moves]
 
 

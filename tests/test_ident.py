@@ -608,8 +608,11 @@ def test_a_propellers_rest_is_timed_from_when_it_stopped_within_its_segment():
     t = np.arange(8) * 0.5
     n = np.array([5.0, 0.0, 0.5, -0.2, 6.0, 0.0, 0.0, 0.0])
     prep = SimpleNamespace(t=t, segment=np.array([0, 0, 0, 0, 0, 0, 1, 1]), pwm=np.column_stack([n, np.zeros(8)]),
-                           u=np.full(8, 0.3), v=np.full(8, 0.4), r=np.full(8, -0.1))
+                           u=np.array([0.3] * 6 + [-0.3, 0.0]), v=np.array([0.4] * 6 + [-0.4, 0.5]),
+                           r=np.full(8, -0.1))
     states = recording_states(prep)
+    # the drift angle |atan2(v, |u|)|: the same ahead and astern, 90° broadside
+    np.testing.assert_allclose(states["drift_rad"], [np.arctan2(0.4, 0.3)] * 7 + [np.pi / 2])
     np.testing.assert_allclose(states["input_0_rest_s"], [0, 0, 0.5, 1.0, 0, 0, 0, 0.5])
     np.testing.assert_allclose(states["speed_m_s"], 0.5)
     np.testing.assert_allclose(states["yaw_rate_rad_s"], 0.1)

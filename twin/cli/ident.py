@@ -286,7 +286,7 @@ def evaluate_command(
     by: Optional[str] = typer.Option(None, "--by", help="also: where the free runs miss by a state measured at each "
                                                         "sample, in bands of the samples (the lower half, the next "
                                                         "quarter, the next 15 %, the top 10 %): speed, yaw_rate, "
-                                                        "input_0, input_1 (the logged inputs) or rest (how long input "
+                                                        "drift (the drift angle |β|), input_0, input_1 (the logged inputs) or rest (how long input "
                                                         "0, a propeller, has been stopped)"),
 ):
     """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each

@@ -251,7 +251,7 @@ class StateBand:
 
 
 # the measured states `misfit_by_state` bands the samples by (each on the recording's grid)
-STATES = ("speed_m_s", "yaw_rate_rad_s", "input_0", "input_1", "input_0_rest_s")
+STATES = ("speed_m_s", "yaw_rate_rad_s", "drift_rad", "input_0", "input_1", "input_0_rest_s")
 REST_INPUT = 1.0  # |input 0| at or below this counts as at rest for input_0_rest_s (a propeller's rps)
 
 
@@ -262,6 +262,7 @@ def state_display(state: str, input_kind: str = "pwm") -> tuple[str, str, float]
     ship = input_kind == "propeller_rudder"
     deg = 180.0 / np.pi
     return {"speed_m_s": ("speed over ground", "m/s", 1.0), "yaw_rate_rad_s": ("|yaw rate|", "°/s", deg),
+            "drift_rad": ("drift angle |β|", "°", deg),
             "input_0": ("propeller speed", "rps", 1.0) if ship else ("left thruster's PWM", "µs", 1.0),
             "input_1": ("rudder angle", "°", deg) if ship else ("right thruster's PWM", "µs", 1.0),
             "input_0_rest_s": ("time the propeller has been stopped" if ship else "time input 0 has been at rest",
@@ -270,7 +271,8 @@ def state_display(state: str, input_kind: str = "pwm") -> tuple[str, str, float]
 
 def recording_states(prep: Prepared) -> dict[str, np.ndarray]:
     """Per grid sample: the speed √(u² + v²) of the prepared log (m/s, over ground), |r| (rad/s), the
-    logged inputs (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤
+    drift angle |β| = |atan2(v, |u|)| (rad, 0 running straight ahead or astern, π/2 broadside; at rest
+    it is the direction of the GNSS velocity's noise), the logged inputs (PWM µs; or n rps and δ rad) and for how long input 0 has been at rest (|input 0| ≤
     REST_INPUT: a propeller stopped; s, counted within the segment)."""
     rest = np.abs(prep.pwm[:, 0]) <= REST_INPUT
     held = np.zeros(len(prep.t))
@@ -278,7 +280,7 @@ def recording_states(prep: Prepared) -> dict[str, np.ndarray]:
         same_segment = prep.segment[k] == prep.segment[k - 1]
         held[k] = held[k - 1] + (prep.t[k] - prep.t[k - 1]) if rest[k] and rest[k - 1] and same_segment else 0.0
     return {"speed_m_s": np.hypot(prep.u, prep.v), "yaw_rate_rad_s": np.abs(prep.r),
-            "input_0": prep.pwm[:, 0].astype(float), "input_1": prep.pwm[:, 1].astype(float), "input_0_rest_s": held}
+            "drift_rad": np.abs(np.arctan2(prep.v, np.abs(prep.u))), "input_0": prep.pwm[:, 0].astype(float), "input_1": prep.pwm[:, 1].astype(float), "input_0_rest_s": held}
 
 
 def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, state: str,
@@ -336,7 +338,7 @@ def misfit_by_state(model: Predictor | Vessel, preps: list[Prepared], horizon_s:
 
 
 # what `twin evaluate --by` calls each state
-STATE_NAMES = {"speed": "speed_m_s", "yaw_rate": "yaw_rate_rad_s", "input_0": "input_0", "input_1": "input_1",
+STATE_NAMES = {"speed": "speed_m_s", "yaw_rate": "yaw_rate_rad_s", "drift": "drift_rad", "input_0": "input_0", "input_1": "input_1",
                "rest": "input_0_rest_s"}
 
 
