@@ -368,6 +368,34 @@ def test_one_recording_given_twice_is_refused(monkeypatch, capsys, kept):
     assert not (root / "m.json").exists()
 
 
+def test_a_recording_cut_from_another_is_refused_beside_it(monkeypatch, capsys, kept):
+    """Other bytes, the same stretch: a log cut from another (the Esso set's turn_cut_ file) would be
+    fitted on and judged "left out" at once. info describes both and says so; the others refuse."""
+    from twin.formats import read_recording
+    from twin.recording import shared_stretch_s
+
+    root, log, _, same = kept
+    cut = root / "cut.csv"
+    cut.write_text("".join(log.read_text().splitlines(keepends=True)[:31]))  # the header and 3 s
+    v = ["--vessel", "yellowfish"]
+    for args in (("identify", log, cut, *v, "--out", root / "m.json"), ("evaluate", cut, log, *v),
+                 ("diagnose", log, cut, *v)):
+        err = refused(monkeypatch, capsys, args, [log, cut, same])
+        assert "share 3 s of the same GNSS fixes" in err, (args, err)
+    assert not (root / "m.json").exists()
+    monkeypatch.setattr(sys, "argv", ["twin", "info", str(log), str(cut)])
+    try:
+        cli.main()
+    except SystemExit as exc:
+        assert not exc.code, exc.code
+    assert "note: 'cut.csv' and 'log.csv' share 3 s" in capsys.readouterr().out
+    whole, part = read_recording(log), read_recording(cut)
+    assert shared_stretch_s(whole, part) == pytest.approx(2.9) and shared_stretch_s(part, whole) == pytest.approx(2.9)
+    moved = log.read_text().replace("63.4013904", "63.4013905")  # another stretch of water: nothing shared
+    (root / "other.csv").write_text(moved)
+    assert shared_stretch_s(whole, read_recording(root / "other.csv")) == 0.0
+
+
 def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkeypatch, capsys, shared_dir,
                                                                            tmp_path):
     """A log that cannot be prepared hides no other log's calibration and is itself a finding (no

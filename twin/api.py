@@ -143,7 +143,7 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
     """Recordings from paths or Recording objects, checked as the command checks them: at least one,
     each one at most once, and each one able to drive `vessel`."""
     from .formats import read_recording as read
-    from .recording import Recording
+    from .recording import Recording, check_no_shared_stretch
 
     kinds = (str, Path, Recording)
     if isinstance(recordings, kinds):
@@ -164,6 +164,7 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
         if id(r) in seen:
             raise TwinError(f"recording {i} is recording {seen[id(r)]} again ('{r.source}'): give each recording once")
         seen[id(r)] = i
+    check_no_shared_stretch(recs)
     if vessel is not None:
         for r in recs:
             _drivable(r, vessel)

@@ -315,3 +315,49 @@ def with_common_origin(rec: Recording) -> Recording:
         rec.attitude = rec.attitude.shifted(t0)
         rec.origin_s += t0
     return rec
+
+
+SHARED_FIXES = 20  # consecutive fresh GNSS fixes two recordings must share to be one stretch given twice
+
+
+def _fresh_fixes(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """(t, rows of position bytes) of the GNSS fixes that moved from the one before (a repeated fix
+    is a logger's, not a new measurement)."""
+    g = rec.gnss
+    names = ("lat_deg", "lon_deg") if g.has("lat_deg", "lon_deg") else ("north_m", "east_m")
+    if not g.has(*names):
+        return np.zeros(0), np.zeros((0, 2))
+    pos = np.column_stack([np.asarray(g[n], float) for n in names])
+    fresh = np.r_[True, np.any(np.diff(pos, axis=0) != 0, axis=1)] if len(pos) else np.zeros(0, bool)
+    return np.asarray(g.t, float)[fresh], pos[fresh]
+
+
+def _windows(pos: np.ndarray, fixes: int) -> list[bytes]:
+    return [pos[i: i + fixes].tobytes() for i in range(len(pos) - fixes + 1)]
+
+
+def shared_stretch_s(a: Recording, b: Recording, fixes: int = SHARED_FIXES) -> float:
+    """How long (s) `b` runs through the same GNSS fixes as `a`, in runs of `fixes` consecutive fresh
+    fixes or more, bit for bit: one log cut from another, or the same stretch exported twice (0 for
+    recordings of their own)."""
+    in_a = set(_windows(_fresh_fixes(a)[1], fixes))
+    tb, pb = _fresh_fixes(b)
+    covered = np.zeros(len(pb), bool)
+    for i, key in enumerate(_windows(pb, fixes)):
+        if key in in_a:
+            covered[i: i + fixes] = True
+    return float(np.sum(np.diff(tb)[covered[1:] & covered[:-1]])) if covered.any() else 0.0
+
+
+def check_no_shared_stretch(recordings: list[Recording]) -> None:
+    """TwinError (one line) where one recording repeats a stretch of another (shared_stretch_s): its
+    windows would count twice, and a run judged "left out" would hold samples fitted on."""
+    keys = [set(_windows(_fresh_fixes(r)[1], SHARED_FIXES)) for r in recordings]
+    for j, b in enumerate(recordings):
+        for i, a in enumerate(recordings[:j]):
+            if keys[i].isdisjoint(keys[j]):
+                continue
+            seconds = max(shared_stretch_s(a, b), shared_stretch_s(b, a))
+            first, second = Path(a.source).name, Path(b.source).name
+            raise TwinError(f"'{second}' and '{first}' share {seconds:.0f} s of the same GNSS fixes (one cut from "
+                            "the other?): give each stretch of a recording once (leave one of them out)")

@@ -143,10 +143,17 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
                             f"{inputs_mismatch(vessel.name, vessel.thrusters.input_kind, prep.input_kind)}")
         label = name if len(recordings) > 1 else "real"
         runs[label] = measured_run(prep)
+        # u, v, r are not logged but estimated from the track and heading, over a window centred on each
+        # sample: a step's answer starts before the step by half that window, which the plot should not hide
+        half = {"u": prep.settings.window_s / 2, "v": prep.settings.window_s / 2, "r": prep.settings.yaw_rate_window_s / 2}
+        runs[label].meta["series_labels"] = {
+            q: f"{label} {q}: " + ("a model smoother (EKF + RTS)" if smoother == "model" else
+                                   f"the {'heading' if q == 'r' else 'track'}'s slope over ±{half[q]:g} s, centred")
+            for q in ("u", "v", "r")}
         if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r
             runs[label].thrust_n = thrust_from_recorded_pwm(compiled, prep)
-            runs[label].meta["series_labels"] = {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
-                                                 for q in ("thrust_left", "thrust_right")}
+            runs[label].meta["series_labels"] |= {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
+                                                  for q in ("thrust_left", "thrust_right")}
         if sim:
             runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep, wind)
     return runs

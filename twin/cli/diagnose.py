@@ -51,6 +51,7 @@ def diagnose_command(
     from ..diagnose.report import format_text
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
+    from ..recording import check_no_shared_stretch
     from ..vessel import save
 
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
@@ -85,6 +86,7 @@ def diagnose_command(
         if twice:  # the later value would replace the earlier, while the verdict named both
             raise TwinError(f"--given names {', '.join(twice)} twice: give each effect once, with its values")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
+    check_no_shared_stretch(recs)
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind_and_inputs(recs, wind, prior)  # before any work

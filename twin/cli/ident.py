@@ -341,6 +341,9 @@ def evaluate_command(
     used = calibrated if calibration else v
     if by:  # a state that does not vary is refused before the work
         state = STATE_NAMES[by]
+        if by == "rest" and any(r.pwm.has("left_us") for r in recs):
+            raise TwinError("--by rest bands by how long a propeller-and-rudder ship's propeller has been stopped; "
+                            "these recordings log thruster PWM (band a boat's by speed, yaw_rate, drift or input_0)")
         edges = percentile_edges(prepared(recs, used), state, f"--by {by}")
     steps = 4 if by else 3
     with progress_bar("evaluate") as progress:

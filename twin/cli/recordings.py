@@ -48,7 +48,7 @@ def info(
     from ..prepare.prepared import outlier_counts as counted
     from ..prepare.timing import MIN_TURNING_S, heading_lag_behind_gyro
     from ..fit.kinematic import GYRO_MIN_FIT, GYRO_PIECE_S, GYRO_TURNING_RAD_S
-    from ..recording import format_summary
+    from ..recording import check_no_shared_stretch, format_summary
 
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
@@ -77,6 +77,10 @@ def info(
                                               min_fit=GYRO_MIN_FIT)
             typer.echo(f"  {lag.text()}")
         read.append(rec)
+    try:  # info describes each log; identify, evaluate and diagnose refuse a stretch given twice
+        check_no_shared_stretch(read)
+    except TwinError as exc:
+        typer.echo(f"note: {exc}")
     if v is not None:
         failed += _calibrations(read, v)
     if failed:

@@ -59,7 +59,7 @@ from ..formats import read_recording
 from ..geodesy import ned_from_geodetic
 from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
-from ..recording import Recording
+from ..recording import Recording, check_no_shared_stretch
 from ..threads import one_blas_thread
 from ..vessel import Vessel
 from .greybox.models import fit_dynamic, fit_static
@@ -89,7 +89,7 @@ FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
     """The recordings, each with thruster PWM or a propeller's and rudder's inputs (TwinError naming
-    the one without)."""
+    the one without), no two sharing a stretch (recording.check_no_shared_stretch)."""
     out = []
     for path in paths:
         rec = read_recording(path, channels=channels)
@@ -102,6 +102,7 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
             raise TwinError(f"{Path(path).name}: no inputs (thruster PWM, or propeller and rudder): the twin cannot "
                             f"be run on it ({hint})")
         out.append(rec)
+    check_no_shared_stretch(out)
     return out
 
 

@@ -439,8 +439,9 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
     else:
         ell_l = None
         why = (f"{mass:.2f} kg float on {floats_l:.1f} L of fresh water. {meshes_say} The hull lines are assumed, "
-               "not published. The twin is planar (no heave, roll or pitch): the draft enters only through the "
-               "parameters the model file's sources derive from it.")
+               "not published. The 3-DOF twin is planar (no heave, roll or pitch): there the draft enters only "
+               "through the parameters the model file's sources derive from it; the 6-DOF hull (--six-dof, --sea) "
+               "floats on these meshes.")
     out = [
         Quantity("displaced volume", "L", analytic=floats_l, table=ell_l, mesh=design_l,
                  reference="analytic", explanation=why),

@@ -111,8 +111,9 @@ def comparison_png(runs: dict, title: str) -> bytes:
     for (name, run), colour in zip(runs.items(), ("k", "tab:orange", "tab:blue", "tab:green")):
         track.plot(run.eta[:, 1], run.eta[:, 0], color=colour, lw=1.2, label=name)
         track.plot(run.eta[0, 1], run.eta[0, 0], "o", color=colour, ms=4)
-        for ax, (k, label, scale) in zip(axes, ((0, "u (m/s)", 1.0), (2, "r (°/s)", 180.0 / np.pi))):
-            ax.plot(run.t, scale * run.nu[:, k], color=colour, lw=1, label=name)
+        for ax, (k, q, label, scale) in zip(axes, ((0, "u", "u (m/s)", 1.0), (2, "r", "r (°/s)", 180.0 / np.pi))):
+            # a velocity estimated from the track says how (its meta's series label)
+            ax.plot(run.t, scale * run.nu[:, k], color=colour, lw=1, label=run.meta.get("series_labels", {}).get(q, name))
             ax.set_ylabel(label)
         held = run.propeller_rudder()
         if held is not None:  # a ship: rudder (deg) and propeller speed (rps) share the panel

@@ -290,12 +290,14 @@ def render_split_table(table: dict) -> str:
             cells = "".join(f"{_num(row[metric][d]['mean']):>10}{_num(row[metric][d]['sd'], 9):>10}"
                             for d in R.DOFS)
             lines.append(f"{'By ' + method:<14}{cells}")
+    if any("–" in line for line in lines[1:]):
+        lines.append("–: no fit of that split method scored that DOF (each failed or left it without a finite score)")
     for method, row in table["rows"].items():
         share = row["train_fraction"]["mean"]
         note = f"{method}: {row['ok']} fits, actual training share {share:.1%}" if row["ok"] else f"{method}: no fit"
         if row["failed"]:
             note += f"; {row['failed']} failed: {row['first_failure']}"
-        lines.append(note if len(note) <= 100 else note[:99] + "…")
+        lines += textwrap.wrap(note, 100, subsequent_indent="  ")  # whole: a cut reason says nothing
     return "\n".join(lines)
 
 
