@@ -589,3 +589,60 @@ def test_an_inputs_csv_says_a_ragged_row_a_nan_cell_and_how_to_replay_a_run(tmp_
         assert done.returncode == 2 and said in done.stderr and not (tmp_path / "o.csv").exists()
     done = twin("mission", "--home", "0,0", "--waypoints", "1,1", "--port", "99999")
     assert done.returncode == 2 and "a TCP port number is 1..65535" in done.stderr
+
+
+def _mjcf_changed(root, name: str, old: str, new: str) -> str:
+    """The shipped blueboat with `old` replaced by `new` in a copy of its MJCF (meshes from the package)."""
+    import twin.vessel as vessel_mod
+
+    text = (vessel_mod.MODEL_DIR / "blueboat.xml").read_text()
+    assert old in text
+    mjcf = root / f"{name}.xml"
+    mjcf.write_text(text.replace(old, new).replace('meshdir="../assets"', f'meshdir="{vessel_mod.MODEL_DIR.parent / "assets"}"'))
+    return vessel_file(root, name, lambda d: d.update(mjcf=str(mjcf)))
+
+
+@pytest.mark.parametrize("args, message", [
+    (("identify", "{log}", "--vessel", "yellowfish", "--out", "{root}/m.json", "--thruster", "dynamic", "--seed", "3"),
+     "--thruster, --seed apply only with --greybox"),
+    (("identify", "{log}", "--vessel", "yellowfish", "--out", "{root}/m.json", "--params", "Xu", "--groups", "surge"),
+     "--groups does not apply with it"),
+    (("identify", "{log}", "--vessel", "yellowfish", "--out", "{root}/m.json", "--greybox", "--repeats", "100000"),
+     "--repeats 100000: at most 1000"),
+    (("iso", "--vessel", "blueboat", "--amplitudes", "5,,6"), "(an empty item)"),
+    (("dp", "--vessel", "blueboat", "--run", "point", "--target", "1e9,1e9"), "0.5 to 1000 m away"),
+    (("dp", "--vessel", "blueboat", "--omega-heading", "1e9"), "at most 25 rad/s"),
+    (("mission", "--timeout", "1", "--home", "37,-5", "--waypoints", "nan,0"), "is not a waypoint within 50 km"),
+    (("dataset-shards", "--vessel", "blueboat", "--out", "{root}/shards", "--effect-share", "0.5"),
+     "--effect-share applies only with --effect"),
+])
+def test_options_that_would_do_nothing_or_nonsense_are_refused(monkeypatch, capsys, kept, args, message):
+    root, log, _, same = kept
+    err = refused(monkeypatch, capsys, [str(a).format(log=log, root=root) for a in args], [log, same])
+    assert message in err, err
+
+
+def test_a_vessel_whose_mjcf_holds_no_number_or_no_step_is_refused(monkeypatch, capsys, tmp_path):
+    nan = _mjcf_changed(tmp_path, "nan", 'mass="3.5"', 'mass="nan"')
+    assert 'mass="nan" is not a finite number' in refused(monkeypatch, capsys, ["params", "--model", nan])
+    step = _mjcf_changed(tmp_path, "step", 'timestep="0.02"', 'timestep="0"')
+    assert "option timestep must lie between 0 and 1 s" in refused(
+        monkeypatch, capsys, ["simulate", "--model", step, "--duration", "1", "--out", tmp_path / "o.csv"])
+    named = _mjcf_changed(tmp_path, "named", 'name="battery"', 'name="nan"')  # a name is not a number
+    monkeypatch.setattr(sys, "argv", ["twin", "params", "--model", named])
+    cli.main()
+    assert "m = 15.000 kg" in capsys.readouterr().out
+
+
+def test_inputs_and_logs_cut_short_or_stamped_in_another_unit_are_refused(monkeypatch, capsys, kept):
+    root, log, _, same = kept
+    cut = root / "cut_inputs.csv"
+    cut.write_text("t,pwm_left,pwm_right\n0,1500,1500\n5,16")
+    assert "line 3 has 2 cells under a header of 3 columns (cut short?)" in refused(
+        monkeypatch, capsys, ["simulate", "--vessel", "blueboat", "--inputs", cut, "--out", root / "o.csv"])
+    rows = log.read_text().splitlines()
+    nanos = root / "nanos.csv"
+    nanos.write_text("\n".join([rows[0]] + [f"{float(r.split(',')[0]) * 1e9:.1f}," + r.split(",", 1)[1]
+                                            for r in rows[1:]]) + "\n")
+    assert "are the time stamps in another unit" in refused(
+        monkeypatch, capsys, ["evaluate", nanos, "--vessel", "yellowfish"], [log, same])

@@ -210,7 +210,10 @@ def test_identify_says_a_log_too_short_for_any_window_is_not_in_the_fit(dataset,
     rows = (dataset / "train.csv").read_text().splitlines(keepends=True)
     short = tmp_path / "short.csv"
     start = float(rows[1].split(",")[0])
-    short.write_text("".join([rows[0]] + [r for r in rows[1:] if float(r.split(",")[0]) < start + 4.0]))
+    # its first 4 s moved 11 m north: a log of its own, not a stretch cut from the other (refused)
+    kept = [r.split(",") for r in rows[1:] if float(r.split(",")[0]) < start + 4.0]
+    short.write_text("".join([rows[0]] + [",".join([c[0], f"{float(c[1]) + 1e-4:.10f}" if c[1] else "", *c[2:]])
+                                                 for c in kept]))
     done = twin("identify", dataset / "train.csv", short, "--vessel", "yellowfish", "--out", tmp_path / "m.json",
                 "--params", "thrust_gain", "--beliefs", "1", "--max-evaluations", "2", "--window", "5")
     assert done.returncode == 0, done.stderr

@@ -306,3 +306,55 @@ def test_a_fleet_never_writes_a_report_over_a_twin_kept_beside_its_log(tmp_path)
     done = twin("fleet", logs, "--vessel", "blueboat", "--out", out)
     assert done.returncode == 2 and "the report 'boat.json' would replace a vessel file kept there" in done.stderr
     assert twin_file.read_text() == '{"name": "mine", "mjcf": "blueboat.xml", "thrusters": {}}\n'
+
+
+def test_a_command_that_fails_at_its_second_output_writes_none_and_replaces_none(monkeypatch, capsys, tmp_path):
+    """A full disk at the second file: the first (written fine) does not land either, the file there
+    before is kept whole, no temporary is left and no "wrote" line is said."""
+    import os
+    import sys
+
+    from twin import cli
+    from twin.formats import mcap
+
+    first, second = tmp_path / "a.csv", tmp_path / "b.mcap"
+    first.write_text("kept\n")
+
+    def full(fh, *args):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(mcap, "_write", full)
+    monkeypatch.setattr(sys, "argv", ["twin", "simulate", "--vessel", "blueboat", "--duration", "2", "--out",
+                                      str(first), "--out", str(second), "--force"])
+    with pytest.raises(SystemExit) as done:
+        cli.main()
+    out = capsys.readouterr()
+    assert done.value.code == 2 and "No space left on device" in out.err and "wrote" not in out.out
+    assert first.read_text() == "kept\n" and sorted(os.listdir(tmp_path)) == ["a.csv"]
+
+
+def test_files_land_together_at_the_end_of_a_block_and_never_over_a_device(tmp_path):
+    import os
+
+    from twin.files import after_writes, all_or_nothing, write_text_atomic
+
+    said = []
+    with all_or_nothing():
+        write_text_atomic(tmp_path / "x.txt", "1")
+        after_writes(lambda: said.append(sorted(os.listdir(tmp_path))))
+        assert not (tmp_path / "x.txt").exists() and not said  # held until the block ends
+    assert (tmp_path / "x.txt").read_text() == "1" and said == [["x.txt"]]
+    with pytest.raises(KeyError), all_or_nothing():
+        write_text_atomic(tmp_path / "x.txt", "2")
+        raise KeyError("a failure after the write")
+    assert (tmp_path / "x.txt").read_text() == "1" and os.listdir(tmp_path) == ["x.txt"]
+    with pytest.raises(SystemExit), all_or_nothing(keep_on=(SystemExit,)):  # a chosen exit code keeps them
+        write_text_atomic(tmp_path / "x.txt", "3")
+        raise SystemExit(1)
+    assert (tmp_path / "x.txt").read_text() == "3"
+    pipe, link = tmp_path / "pipe", tmp_path / "link.csv"
+    os.mkfifo(pipe)
+    link.symlink_to(pipe)
+    with pytest.raises(TwinError, match="is not a regular file"):
+        write_text_atomic(link, "data")
+    assert not pipe.is_file() and pipe.exists()

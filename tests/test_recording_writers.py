@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from twin_command import twin
 
 from twin.errors import TwinError
 from twin.geodesy import geodetic_from_ned, ned_from_geodetic
@@ -283,4 +284,15 @@ def test_mcap_cut_short_reads_its_complete_part(tmp_path):
         whole, part = getattr(rec, name), getattr(back, name)
         assert 0.2 * len(whole) < len(part) < 0.6 * len(whole), name
         np.testing.assert_allclose(part.t + back.origin_s, whole.t[: len(part)] + rec.origin_s, atol=1e-9)
+    # a copy says what it lost, as info does
+    done = twin("convert", tmp_path / "cut.mcap", tmp_path / "cut.csv")
+    assert done.returncode == 0 and "note: not in the copy: MCAP file truncated or damaged" in done.stderr
+    # bytes flipped inside its compressed chunks: the decompressor's own error is the file's damage, said so
+    flipped = bytearray(data)
+    for k in range(200, len(data) - 200, max(1, (len(data) - 400) // 50)):
+        flipped[k] ^= 0xFF
+    (tmp_path / "flip.mcap").write_bytes(bytes(flipped))
+    done = twin("info", tmp_path / "flip.mcap")
+    assert done.returncode == 0 and not done.stderr, done.stderr
+    assert "messages whose bytes are not JSON left out" in done.stdout and "the rest is lost" in done.stdout
     np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"][: len(back.pwm)])

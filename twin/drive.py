@@ -171,6 +171,9 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
             continue
         if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
             raise TwinError(f"{path.name}: line {line} has {len(row)} cells under a header of {len(header)} columns")
+        if len(row) < len(header):  # a row cut short (a file cut off mid-line): its last number is partial
+            raise TwinError(f"{path.name}: line {line} has {len(row)} cells under a header of {len(header)} columns "
+                            "(cut short?)")
         cells = [row[i].strip() if i < len(row) else "" for i in idx]
         if cells[0] and not any(cells[1:]):
             continue  # a recording's row without inputs (another stream's sample): the last ones hold

@@ -7,13 +7,75 @@ import math
 import os
 import stat
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable, Iterator
 
 from .errors import TwinError
 
 # rerun application ids: runs recorded (a simulation, a SITL session) against a report's view of
 # runs; the one is data a user keeps, the other a report may replace
 RRD_RUN, RRD_VIEW = "twin-run", "twin-view"
+
+
+# the open all_or_nothing blocks, innermost last: each holds its written temporaries and what to do
+# once they are in place
+_STAGES: list[dict] = []
+
+
+@contextmanager
+def all_or_nothing(keep_on: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
+    """Every atomic write in the block (write_bytes_atomic, commit) lands only when the block ends:
+    a command that writes several files and fails at the third leaves none of them written or
+    replaced, and the files already there whole. An exception of a `keep_on` class (a command's
+    chosen exit code) ends the block as a success does; any other removes the temporaries. What was
+    deferred with after_writes runs once the files are in place."""
+    stage: dict = {"writes": [], "after": []}
+    _STAGES.append(stage)
+    try:
+        yield
+    except keep_on:
+        _STAGES.remove(stage)
+        _land(stage)
+        raise
+    except BaseException:
+        _STAGES.remove(stage)
+        for tmp, _ in stage["writes"]:
+            Path(tmp).unlink(missing_ok=True)
+        raise
+    _STAGES.remove(stage)
+    _land(stage)
+
+
+def _land(stage: dict) -> None:
+    writes = stage["writes"]
+    for k, (tmp, target) in enumerate(writes):
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:  # a rename in the file's own folder: it fails only with the folder gone
+            for rest, _ in writes[k:]:
+                Path(rest).unlink(missing_ok=True)
+            raise TwinError(f"cannot write '{target}': {exc.strerror or exc}") from None
+    for fn in stage["after"]:
+        fn()
+
+
+def after_writes(fn: Callable[[], None]) -> None:
+    """fn() once the open all_or_nothing block's files are in place (now, outside one): a line saying
+    a file was written is said when it is."""
+    if _STAGES:
+        _STAGES[-1]["after"].append(fn)
+    else:
+        fn()
+
+
+def commit(tmp, target) -> None:
+    """Put the finished temporary `tmp` in place of `target` (os.replace), or hold it for the open
+    all_or_nothing block."""
+    if _STAGES:
+        _STAGES[-1]["writes"].append((Path(tmp), Path(target)))
+    else:
+        os.replace(tmp, target)
 
 
 def read_only(path) -> bool:
@@ -40,6 +102,9 @@ def written_path(path, make_folder: bool = False) -> Path:
     (TwinError naming it) unless `make_folder`: an output into a mistyped folder is refused, not
     written into a new one nobody looks in; a writer filling its own folder tree makes its subfolders."""
     target = link_target(path)
+    if target.exists() and not target.is_file():  # a device, a pipe or a folder is not replaced by a file
+        raise TwinError(f"'{path}' is not a regular file" + (f" ('{target}')" if target != Path(path) else "")
+                        + ": give a file's name")
     folder = target.parent
     if folder.exists() and not folder.is_dir():
         raise TwinError(f"'{path}': '{folder}' is a file, not a folder")
@@ -68,7 +133,7 @@ def write_bytes_atomic(path, data: bytes, make_folder: bool = False) -> None:
             # on disk before the rename: a crash leaves the old file or the new one, never an empty one
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, target)
+        commit(tmp, target)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None

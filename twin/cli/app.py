@@ -9,6 +9,7 @@ unreadable or unwritable path, a bad file, an inconsistent vessel); 3 an unexpec
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import os
@@ -22,7 +23,8 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import finite_json, kept_data, link_target, read_only, same_file, write_text_atomic
+from ..files import (after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
+                     write_text_atomic)
 from ..progress import Progress
 from ..threads import limit_process_blas_threads
 
@@ -164,8 +166,11 @@ def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     """A comma-separated list of finite numbers."""
     if text is None:
         return None
+    items = text.split(",")
+    if len(items) > 1 and not all(x.strip() for x in items):  # "5,,6": a number left out is a typo, not a list of two
+        raise TwinError(f"--{option} expects comma-separated numbers, got '{text}' (an empty item)")
     try:
-        values = [float(x) for x in text.split(",") if x.strip()]
+        values = [float(x) for x in items if x.strip()]
     except ValueError:
         raise TwinError(f"--{option} expects comma-separated numbers, got '{text}'") from None
     if not values or not all(math.isfinite(x) for x in values):
@@ -416,8 +421,31 @@ def write_json(path: Optional[Path], data: dict) -> None:
 
 
 def say(text: str) -> None:
-    """A line for the user (what was written, what was found): always shown."""
-    console.print(text, highlight=False, soft_wrap=True)
+    """A line for the user (what was written, what was found): always shown; "wrote …" once the
+    command's files are in place (all_or_nothing_outputs)."""
+    if text.startswith("wrote "):
+        after_writes(lambda: console.print(text, highlight=False, soft_wrap=True))
+    else:
+        console.print(text, highlight=False, soft_wrap=True)
+
+
+def given_on_command_line(ctx: typer.Context, *names: str) -> list[str]:
+    """Of the options `names` (parameter names), those the user wrote, as --their-spelling: an option
+    that does nothing without another is refused rather than silently ignored."""
+    # by the source's name: typer carries a click of its own, whose enum is not click's
+    return ["--" + n.replace("_", "-") for n in names
+            if getattr(ctx.get_parameter_source(n), "name", None) == "COMMANDLINE"]
+
+
+def all_or_nothing_outputs(command):
+    """A command whose files all land, or none (files.all_or_nothing): one that fails after writing its
+    first output leaves no output written and nothing replaced. Its own exit code (typer.Exit) is a
+    success for its files."""
+    @functools.wraps(command)
+    def run(*args, **kwargs):
+        with all_or_nothing(keep_on=(typer.Exit,)):
+            return command(*args, **kwargs)
+    return run
 
 
 def say_unlogged_supply(recordings, vessel) -> None:

@@ -8,13 +8,14 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (all_or_nothing_outputs, CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
 
 
 @app.command("diagnose")
+@all_or_nothing_outputs
 def diagnose_command(
     recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS",
                                             help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),

@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
                   channels_from, check_distinct, check_new, check_outputs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from ..fit.calibrate import LogCalibration
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
+MAX_REPEATS = 1000  # --greybox --repeats: a million would run for days before a word
 
 
 def calibration_line(c: LogCalibration, applied: bool | None = None) -> str:
@@ -36,6 +37,7 @@ def calibration_line(c: LogCalibration, applied: bool | None = None) -> str:
 
 
 @app.command("dataset")
+@all_or_nothing_outputs
 def dataset_command(
     vessel: Optional[str] = typer.Option(None, help=PWM_VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
@@ -82,7 +84,7 @@ def dataset_command(
             progress(f"writing {path.name}", k, len(out))
             write_recording(ds.recording, path)
     for path in out:
-        console.print(f"wrote {path}")
+        say(f"wrote {path}")
     write_json(truth, ds.truth(truth))
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
     span = ds.recording.duration_s()  # what `twin info` reports: the segments and the silent gaps between them
@@ -127,7 +129,9 @@ def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] |
 
 
 @app.command("identify")
+@all_or_nothing_outputs
 def identify_command(
+    ctx: typer.Context,
     recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS",
                                             help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (the prior)"),
@@ -179,11 +183,19 @@ def identify_command(
     check_distinct({"--out": out, "--json": json_out}, [*recordings, model], keep_data=False)
     check_distinct({"--json": json_out})  # a report never replaces a log or a twin, --force or not
     check_recordings_distinct(recordings)
+    if params is not None and groups is not None:
+        raise TwinError("--params names the coefficients to fit itself: --groups does not apply with it")
+    lone = given_on_command_line(ctx, "thruster", "split", "train", "repeats", "seed") if not greybox else []
+    if lone:  # they set the [Morel-2024] tables, which only --greybox makes
+        raise TwinError(f"{', '.join(lone)} appl{'ies' if len(lone) == 1 else 'y'} only with --greybox")
     if window is not None:
         window_s(window)
     at_least(max_evaluations, 1, "--max-evaluations")
     if greybox:
         at_least(repeats, 1, "--repeats")
+        if repeats > MAX_REPEATS:  # each repeat is a grey-box fit of every split method
+            raise TwinError(f"--repeats {repeats}: at most {MAX_REPEATS} (each is a fit of every split method; "
+                            "the default is 20)")
     seed_from(seed)
     prior, sea_line = known_sea(vessel_from(vessel, model, "nominal"), sea)
     weights = tuple(floats(beliefs, "beliefs"))
@@ -261,6 +273,7 @@ def stand_in_text(entries: list[dict] | None) -> str:
 
 
 @app.command("evaluate")
+@all_or_nothing_outputs
 def evaluate_command(
     recordings: list[Path] = typer.Argument(..., metavar="RECORDINGS", help="recordings to evaluate on (.tlog, .bin, "
                                                                              ".csv, .mcap, or folders of them)"),
@@ -329,6 +342,8 @@ def evaluate_command(
     fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
               if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work
     recs = read(recordings, channels_from(channels))
+    if band:  # every draw's samples (a second apart, u, v, r, position and heading) are kept for the band
+        draws_fit(draws, sum(r.duration_s() for r in recs), 6, "--draws of --band on these recordings")
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind_and_inputs(recs, wind, v)  # before any work

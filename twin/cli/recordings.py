@@ -8,7 +8,7 @@ import typer
 
 from ..drive import inputs_mismatch
 from ..errors import TwinError
-from .app import (RUNS, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+from .app import (all_or_nothing_outputs, RUNS, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
@@ -146,6 +146,7 @@ def _throttle_line(recordings: list, vessel, calibrations) -> str:
 
 
 @app.command()
+@all_or_nothing_outputs
 def convert(
     src: Path = typer.Argument(..., metavar="SRC", help="input recording: .bin, .tlog, .csv, .mcap"),
     dst: Path = typer.Argument(..., metavar="DST", help="output: .csv (generic layout), .mcap, .tlog or .bin"),
@@ -156,6 +157,7 @@ def convert(
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
     [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
     from ..formats import read_recording, write_recording
+    from ..formats.mcap import MCAP_DAMAGE
     from ..prepare.convert import for_conversion, not_kept
     from ..recording import DROPOUTS
 
@@ -173,11 +175,15 @@ def convert(
     for reason, count in rec.dropped:  # what `twin info` lists as dropped is not in the copy either
         if DROPOUTS not in reason:
             note(f"note: not in the copy: {reason} ({count})")
+    for line in rec.notes:  # a cut-short MCAP file: what it lost is not in the copy
+        if line.startswith(MCAP_DAMAGE):
+            note(f"note: not in the copy: {line}")
     for line in not_kept(conversion.recording, dst.suffix.lower()):
         note(f"note: {line}")
 
 
 @app.command()
+@all_or_nothing_outputs
 def view(
     files: list[Path] = typer.Argument(..., metavar="FILES", help="recordings to show"),
     sim: bool = typer.Option(False, "--sim", help="replay the twin with the recorded inputs beside the real track"),

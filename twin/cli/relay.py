@@ -14,7 +14,7 @@ from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
 from ..ident.relay.iso import CONTROL_DT_S
-from .app import (CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
+from .app import (all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
                   positive, progress_bar, samples_fit, say, vessel_from, write_json)
 
 
@@ -112,10 +112,14 @@ def iso_command(
     _write_png(png, lambda: iso.sweep_png(result))
 
 
+MAX_TARGET_M = 1000.0
+
+
 def _target(text: str) -> tuple[float, float]:
     values = floats(text, "target")
-    if len(values) != 2 or math.hypot(*values) < 0.5:
-        raise TwinError(f"--target expects NORTH,EAST in m, at least 0.5 m away, got '{text}'")
+    if len(values) != 2 or not 0.5 <= math.hypot(*values) <= MAX_TARGET_M:
+        raise TwinError(f"--target expects NORTH,EAST in m, 0.5 to {MAX_TARGET_M:g} m away (a station to hold, "
+                        f"not a passage), got '{text}'")
     return values[0], values[1]
 
 
@@ -185,6 +189,9 @@ def dp_command(
     for option, w in (("--omega-heading", omega_heading), ("--omega-surge", omega_surge)):  # whichever run
         if w is not None and not (math.isfinite(w) and w > 0):
             raise TwinError(f"{option}: model-function frequencies must be positive and finite, got {w:g} rad/s")
+        if w is not None and w * CONTROL_DT_S > 0.5:  # a loop sampled every CONTROL_DT_S cannot follow faster
+            raise TwinError(f"{option} {w:g} rad/s: the controller runs every {CONTROL_DT_S:g} s, so at most "
+                            f"{0.5 / CONTROL_DT_S:g} rad/s")
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
     if not ship and rps is not None:
@@ -235,5 +242,5 @@ def dp_command(
     _write_png(png, lambda: ipd.response_png(dp, f"{cv.vessel.name}: {dp.name}, I-PD tuned from IS-O"))
 
 
-app.command("iso")(iso_command)
-app.command("dp")(dp_command)
+app.command("iso")(all_or_nothing_outputs(iso_command))
+app.command("dp")(all_or_nothing_outputs(dp_command))

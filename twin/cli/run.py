@@ -12,7 +12,8 @@ import typer
 from rich.table import Table
 
 from ..errors import TwinError
-from .app import (RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
+from ..files import after_writes
+from .app import (all_or_nothing_outputs, RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
@@ -77,6 +78,7 @@ def check_run_length(duration: float, sample_dt: float) -> None:
 
 
 @app.command()
+@all_or_nothing_outputs
 def simulate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
@@ -176,6 +178,7 @@ def simulate(
 
 
 @app.command()
+@all_or_nothing_outputs
 def crosscheck(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
@@ -227,6 +230,7 @@ def crosscheck(
 
 
 @app.command()
+@all_or_nothing_outputs
 def params(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
@@ -257,7 +261,8 @@ def params(
         if write_model is not None:
             save_vessel(fp.applied(v), write_model)
             # on stderr with --json: standard output is the JSON a caller redirects
-            typer.echo(f"wrote {write_model}: {v.name} with its first-principles coefficients", err=as_json)
+            line = f"wrote {write_model}: {v.name} with its first-principles coefficients"
+            after_writes(lambda: typer.echo(line, err=as_json))
         if as_json:
             typer.echo(json.dumps({"vessel": fp.vessel, "estimates": [e.__dict__ for e in fp.estimates]}, indent=2))
         else:
@@ -309,6 +314,7 @@ def params_lines(p: dict) -> list[str]:
 
 
 @app.command()
+@all_or_nothing_outputs
 def validate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
@@ -338,9 +344,9 @@ def validate(
     if json_out is not None:
         write_text_atomic(json_out, json.dumps({"vessel": result.vessel, "case": result.case,
                                                 "quantities": rows}, indent=2) + "\n")
-        typer.echo(f"wrote {json_out}")
+        say(f"wrote {json_out}")
     if report is not None:
         write_report(report, title, rows, top_view_png(result.drawing, title))
-        typer.echo(f"wrote {report}")
+        say(f"wrote {report}")
         if figure is not None:
-            typer.echo(f"wrote {figure}")
+            say(f"wrote {figure}")

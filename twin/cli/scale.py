@@ -11,7 +11,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import BAND
-from .app import (FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
+from .app import (all_or_nothing_outputs, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
                   say, seed_from, sensor_noise, vessel_from, window_s, write_json)
@@ -44,6 +44,7 @@ def _variation(vessel, vary: list[str], effect: list[str], covariance: bool, sha
 
 
 @app.command("montecarlo")
+@all_or_nothing_outputs
 def montecarlo_command(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP + "; its uncertainty block gives the draws"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with --no-covariance and --vary/--effect)"),
@@ -192,6 +193,8 @@ def dataset_shards_command(
     from ..scale.datasets import Settings, generate_shards
 
     seed_from(seed)
+    if effect_share != 1.0 and not effect:  # it sets how often each --effect is drawn: without one it does nothing
+        raise TwinError("--effect-share applies only with --effect")
     _shards_fit(vessels, per_shard, segments, out)
     v = vessel_from(vessel, model, "nominal")
     sensor_noise(noise)  # a bad profile fails now, not in every worker
@@ -267,6 +270,7 @@ def fleet_command(
         if recordings:
             raise TwinError("give recordings or --manifest, not both")
         logs = read_manifest(manifest, default)
+        check_recordings_distinct([log.path for log in logs])  # as when the logs are given on the command line
     else:
         if not recordings:
             raise TwinError("give recordings to diagnose, or --manifest FILE")

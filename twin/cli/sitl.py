@@ -80,6 +80,7 @@ def sitl(
     say(summary.text())
 
 
+MAX_LEG_M = 50_000.0  # a small vessel's mission stays within tens of kilometres of home
 PARAM_NAME = re.compile(r"[A-Z][A-Z0-9_]{0,15}")  # ArduPilot's names: 16 characters at most, upper case
 
 
@@ -135,6 +136,10 @@ def mission(
         points = []
     if not points or any(len(p) != 2 for p in points):
         raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
+    far = [p for p in points if not (math.isfinite(p[0]) and math.isfinite(p[1]) and math.hypot(*p) <= MAX_LEG_M)]
+    if far:  # NaN would be uploaded to the autopilot as it is; a waypoint 1000 km off is a unit (mm, or degrees)
+        raise TwinError(f"--waypoints: {far[0][0]:g},{far[0][1]:g} is not a waypoint within {MAX_LEG_M / 1e3:g} km "
+                        "of home (NORTH,EAST in m)")
     settings = param_settings(set_)
     if not _listening(port):  # SITL may be starting: say what is awaited rather than wait in silence
         note(f"note: waiting up to {timeout:g} s (--timeout) for SITL's MAVLink console on tcp:127.0.0.1:{port}; "

@@ -16,6 +16,7 @@ reads them in place of the environment's constant wind.
 """
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from dataclasses import dataclass
@@ -74,7 +75,35 @@ class CompiledVessel:
         return wind_control(self.model) >= 0
 
 
+ATTRIBUTE = re.compile(r'([\w:]+)\s*=\s*"([^"]*)"')
+# attributes that name things (a body called "nan" is a name, not a number)
+NAMING = {"name", "file", "class", "childclass", "model", "mesh", "material", "texture", "hfield", "joint", "site",
+          "body", "body1", "body2", "geom", "geom1", "geom2", "tendon", "actuator", "target", "objname",
+          "meshdir", "texturedir", "assetdir", "content_type", "prefix", "type", "integrator"}
+
+
+def _check_numbers(path: Path) -> None:
+    """Refuse an MJCF attribute whose numbers hold NaN or infinity: MuJoCo reads it with a warning and
+    then derives the value another way (a geom's NaN mass from its volume), so the vessel would run
+    with numbers nobody wrote."""
+    try:
+        text = Path(path).read_text(errors="replace")
+    except OSError:
+        return  # MuJoCo's own reader says what is wrong with the file
+    for k, line in enumerate(text.splitlines(), start=1):
+        for key, value in ATTRIBUTE.findall(line):
+            if key in NAMING or not value.split():
+                continue
+            try:
+                numbers = [float(x) for x in value.split()]
+            except ValueError:
+                continue  # a word: not a number MuJoCo would read as one
+            if not all(math.isfinite(x) for x in numbers):
+                raise TwinError(f"{Path(path).name}, line {k}: {key}=\"{value}\" is not a finite number")
+
+
 def _spec(vessel: Vessel) -> mujoco.MjSpec:
+    _check_numbers(vessel.mjcf)
     try:
         spec = mujoco.MjSpec.from_file(str(vessel.mjcf))
     except Exception as exc:  # MuJoCo raises ValueError with the parser message
@@ -264,6 +293,8 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
             raise TwinError(f"{vessel.mjcf.name}: missing planar joint '{j}' (north, east, yaw)")
     if model.nv != 3:
         raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
+    if not 0 < model.opt.timestep < 1:  # MuJoCo takes 0 (and a step of a second misses every lag)
+        raise TwinError(f"{vessel.mjcf.name}: option timestep must lie between 0 and 1 s, got {model.opt.timestep:g}")
     geometry = read_geometry(model, vessel)
     _check_floats(vessel, model, geometry.rigid.mass_kg)
     _check_sites(vessel, model, geometry)

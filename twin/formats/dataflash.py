@@ -222,7 +222,8 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
         try:
             log = DFReader.DFReader_binary(str(path), zero_time_base=False)
         except Exception as exc:  # empty, truncated header, not DataFlash: pymavlink raises anything
-            raise TwinError(f"{path.name}: not a readable DataFlash log ({type(exc).__name__})") from None
+            why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise TwinError(f"{path.name}: not a readable DataFlash log (pymavlink: {why[:120]})") from None
         while True:
             try:
                 m = log.recv_match(type=DF_WANTED)

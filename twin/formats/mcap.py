@@ -49,7 +49,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from ..errors import TwinError
-from ..files import read_only, written_path
+from ..files import commit, read_only, written_path
 from ..geodesy import geodetic_from_ned
 from ..physics.sensors import antenna_ned
 from ..recording import Recording, Stream, clean_stream, with_common_origin
@@ -129,7 +129,7 @@ def write_atomic(path: Path, fill: Callable[[IO[bytes]], None]) -> None:
     try:
         with open(tmp, "xb") as fh:
             fill(fh)
-        os.replace(tmp, target)
+        commit(tmp, target)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
@@ -207,8 +207,11 @@ def read_run_mcap(path: str | Path, notes: list[str] | None = None) -> Run:
     contents = read_contents(path)
     if not contents.messages.get(TOPIC_STATE):
         raise TwinError(f"{path.name}: MCAP file has no {TOPIC_STATE} messages" + contents.lost_clause())
-    states = [json.loads(data) for _, data in contents.messages[TOPIC_STATE]]
-    inputs = [json.loads(data) for _, data in contents.messages.get(TOPIC_INPUTS, [])]
+    states, bad = _json_messages(contents.messages[TOPIC_STATE])
+    inputs, bad_inputs = _json_messages(contents.messages.get(TOPIC_INPUTS, []))
+    if bad or bad_inputs:  # a run's states and inputs pair up one by one: a damaged one breaks the pairs
+        raise TwinError(f"{path.name}: damaged: {bad + bad_inputs} of its run's messages are not readable")
+    states, inputs = [m for _, m in states], [m for _, m in inputs]
     if contents.damaged:
         inputs = inputs[: len(states)]  # the last sample's topics may straddle the cut
         states = states[: len(inputs)] if inputs else states
@@ -232,8 +235,12 @@ class Contents:
         return f" ({self.damaged})" if self.damaged else ""
 
 
-# what the mcap reader raises on a truncated or foreign file
-_MCAP_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, struct.error)
+MCAP_DAMAGE = "MCAP file "  # how the note on what a damaged file lost begins (Contents.damaged)
+
+# what the mcap reader raises on a truncated or foreign file; a damaged chunk's bytes also reach the
+# decompressors mcap uses (zstd, lz4), whose errors are classes of their own (Exception, RuntimeError):
+# whatever reading such bytes raises is the file's damage, said as such
+_MCAP_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, struct.error, Exception)
 
 
 def read_contents(path: Path) -> Contents:
@@ -279,7 +286,7 @@ def _salvage(path: Path, first_error: Exception) -> Contents:
         raise TwinError(f"{path.name}: not a readable MCAP file ({type(first_error).__name__}: {first_error})")
     last_s = max((t for m in messages.values() for t, _ in m), default=0) / 1e9
     how = "truncated or damaged" if not complete else "without its index (not closed)"
-    return Contents(messages, metadata, f"MCAP file {how}: read the {n} complete messages up to "
+    return Contents(messages, metadata, f"{MCAP_DAMAGE}{how}: read the {n} complete messages up to "
                                         f"t = {last_s:.1f} s, the rest is lost")
 
 
@@ -429,10 +436,34 @@ def read_sensor_mcap(path: str | Path) -> tuple[dict[str, tuple[np.ndarray, dict
         if contents.damaged and RECORDING_METADATA in contents.metadata:  # a recording cut before its first sample
             raise TwinError(f"{Path(path).name}: no complete sensor message{contents.lost_clause()}")
         return None
-    rows = {wanted[topic]: [(ns, json.loads(data)) for ns, data in contents.messages[topic]] for topic in topics}
+    rows, unreadable = {}, 0
+    for topic in topics:
+        rows[wanted[topic]], bad = _json_messages(contents.messages[topic])
+        unreadable += bad
+    rows = {name: msgs for name, msgs in rows.items() if msgs}
+    if not rows:
+        raise TwinError(f"{Path(path).name}: no readable sensor message ({unreadable} damaged)")
     meta = _recording_meta(contents.metadata.get(RECORDING_METADATA, {}))
-    meta["damaged"] = contents.damaged
+    lost = f"{MCAP_DAMAGE}damaged: {unreadable} messages whose bytes are not JSON left out" if unreadable else ""
+    meta["damaged"] = "; ".join(x for x in (contents.damaged, lost) if x)
     return {name: _columns(name, msgs) for name, msgs in rows.items()}, meta
+
+
+def _json_messages(messages: list[tuple[int, bytes]]) -> tuple[list[tuple[int, dict]], int]:
+    """(log time, JSON object) of each message whose bytes read as one, and how many did not (a
+    damaged chunk that still decompressed)."""
+    out, bad = [], 0
+    for ns, data in messages:
+        try:
+            value = json.loads(data)
+        except (UnicodeDecodeError, ValueError):
+            bad += 1
+            continue
+        if isinstance(value, dict):
+            out.append((ns, value))
+        else:
+            bad += 1
+    return out, bad
 
 
 def _columns(name: str, msgs: list[tuple[int, dict]]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -473,10 +504,13 @@ def read_mcap(path: Path) -> Recording:
     a run written from a recording) and heading, /vessel/inputs the PWM (absent when
     the run was driven by thrust). A file cut short gives its complete messages, with
     a note."""
-    sensors = read_sensor_mcap(path)
-    if sensors is not None:
-        return _mcap_sensors(path, *sensors)
-    return _mcap_run(path)
+    try:
+        sensors = read_sensor_mcap(path)
+        if sensors is not None:
+            return _mcap_sensors(path, *sensors)
+        return _mcap_run(path)
+    except (UnicodeDecodeError, ValueError, TypeError) as exc:  # a metadata record's bytes damaged
+        raise TwinError(f"{Path(path).name}: damaged: its metadata does not read ({type(exc).__name__})") from None
 
 
 def _mcap_sensors(path: Path, streams: dict, meta: dict) -> Recording:

@@ -154,6 +154,8 @@ def propulsor_at_rest(x_m: float, propeller_diameter_m: float, thrust_n: float, 
     works at rest, its disc passing ṁ = ρA_p·w with w = √(T/(2ρA_p)) the actuator disc's induced
     velocity at thrust T [Glauert-1935]: −ṁ·(v + x·r) at its site."""
     area = math.pi * propeller_diameter_m ** 2 / 4.0
+    if area <= 0.0:  # no propeller disc given (a design block's 0): no flow turned
+        return 0.0, 0.0, 0.0, 0.0
     mdot = rho_kg_m3 * area * math.sqrt(max(thrust_n, 0.0) / (2.0 * rho_kg_m3 * area))
     return -mdot, -mdot * x_m, -mdot * x_m, -mdot * x_m ** 2
 

@@ -213,7 +213,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
     inputs = rec.pwm if len(rec.pwm) else rec.prop_rudder
     gyro = _gyro(rec) if yaw_rate_source == "gyro" else None
     needed = [pos, hdg] + ([inputs] if len(inputs) else []) + ([gyro] if gyro is not None else [])
-    grid = _grid(needed, grid_dt)
+    grid = _grid(needed, grid_dt, name)
     if grid is None:
         raise TwinError(f"{name}: the GNSS, heading and {'PWM' if inputs is rec.pwm else 'input'} streams "
                         "do not overlap in time")
@@ -326,14 +326,20 @@ def local_ned(gnss: Stream) -> tuple[np.ndarray, np.ndarray, dict]:
 
 # ---------------------------------------------------------------- synchronisation
 
-def _grid(streams: list[Stream], dt: float) -> np.ndarray | None:
+MAX_GRID_SAMPLES = 5e7  # 58 days at 0.1 s: a longer span is a unit (ns read as s), and would not fit in memory
+
+def _grid(streams: list[Stream], dt: float, name: str = "the recording") -> np.ndarray | None:
     """Grid from the time every stream has a first sample to the end of the
-    earliest-ending stream."""
+    earliest-ending stream (`name`: the recording's, for a message)."""
     t0 = max(s.t[0] for s in streams)
     t1 = min(s.t[-1] for s in streams)
     if t1 < t0:
         return None
-    return t0 + dt * np.arange(int(np.floor((t1 - t0) / dt + 1e-9)) + 1)
+    n = (t1 - t0) / dt
+    if n > MAX_GRID_SAMPLES:
+        raise TwinError(f"{name}: the streams span {t1 - t0:.3g} s, {n:.3g} samples at {dt:g} s: more than any outing (are "
+                        "the time stamps in another unit, ms or ns for s?)")
+    return t0 + dt * np.arange(int(np.floor(n + 1e-9)) + 1)
 
 
 def hold(ts: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:

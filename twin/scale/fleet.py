@@ -149,6 +149,7 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
                 out["html"] = page.read_bytes()
         except Exception as exc:  # one log's failure, expected (TwinError) or not, must not end a month's job
             text = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}".splitlines()[0]
+            text = text.replace(str(path), Path(item.name).name)  # the worker's copy is the user's file
             out.update(ok=False, error=text, **({} if isinstance(exc, TwinError) else {"unexpected": True}),
                        **({"too_short": True} if isinstance(exc, TooShort) else {}))
             if "day" not in out:
