@@ -372,7 +372,7 @@ def test_a_recording_cut_from_another_is_refused_beside_it(monkeypatch, capsys, 
     """Other bytes, the same stretch: a log cut from another (the Esso set's turn_cut_ file) would be
     fitted on and judged "left out" at once. info describes both and says so; the others refuse."""
     from twin.formats import read_recording
-    from twin.recording import shared_stretch_s
+    from twin.recording import check_no_shared_stretch, shared_stretch_s
 
     root, log, _, same = kept
     cut = root / "cut.csv"
@@ -394,6 +394,12 @@ def test_a_recording_cut_from_another_is_refused_beside_it(monkeypatch, capsys, 
     moved = log.read_text().replace("63.4013904", "63.4013905")  # another stretch of water: nothing shared
     (root / "other.csv").write_text(moved)
     assert shared_stretch_s(whole, read_recording(root / "other.csv")) == 0.0
+    # two runs alike for their first 2 s of 5 (simulated runs from one start): not one cut from the other
+    lines = log.read_text().splitlines(keepends=True)
+    (root / "met.csv").write_text("".join(lines[:22] + [r.replace("63.4013904", "63.4013905") for r in lines[22:]]))
+    met = read_recording(root / "met.csv")
+    assert shared_stretch_s(whole, met) == pytest.approx(2.0)
+    check_no_shared_stretch([whole, met])
 
 
 def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkeypatch, capsys, shared_dir,
@@ -628,10 +634,11 @@ def test_a_vessel_whose_mjcf_holds_no_number_or_no_step_is_refused(monkeypatch, 
     step = _mjcf_changed(tmp_path, "step", 'timestep="0.02"', 'timestep="0"')
     assert "option timestep must lie between 0 and 1 s" in refused(
         monkeypatch, capsys, ["simulate", "--model", step, "--duration", "1", "--out", tmp_path / "o.csv"])
-    named = _mjcf_changed(tmp_path, "named", 'name="battery"', 'name="nan"')  # a name is not a number
-    monkeypatch.setattr(sys, "argv", ["twin", "params", "--model", named])
-    cli.main()
-    assert "m = 15.000 kg" in capsys.readouterr().out
+    for fine in (_mjcf_changed(tmp_path, "named", 'name="battery"', 'name="nan"'),  # a name is not a number
+                 _mjcf_changed(tmp_path, "noted", "<worldbody>", '<!-- <geom mass="nan"/> --><worldbody>')):
+        monkeypatch.setattr(sys, "argv", ["twin", "params", "--model", fine])
+        cli.main()
+        assert "m = 15.000 kg" in capsys.readouterr().out
 
 
 def test_inputs_and_logs_cut_short_or_stamped_in_another_unit_are_refused(monkeypatch, capsys, kept):

@@ -295,10 +295,15 @@ def test_beyond_its_drift_domain_the_hull_polynomial_continues_along_its_tangent
     # across the edge (2e-6 rad) each force moves as twice a step beside it: no jump
     np.testing.assert_allclose(at[2] - at[1], 2 * (at[1] - at[0]), rtol=1e-3, atol=1e-12)
     np.testing.assert_allclose((at[1] - at[0]) / 1e-6, (at[3] - at[2]) / 1e-6, rtol=1e-3, atol=1e-6)
-    # the vessel file keeps a domain other than the standard's and refuses one outside (0, 90]
+    # the vessel file keeps its domain, refuses one outside (0, 90], and a file written without one
+    # (its hull identified with the polynomial as it is) keeps the polynomial as it is
     wide = replace(ship, mmg=replace(ship.mmg, drift_domain_deg=90.0))
-    assert "drift_domain_deg" not in ship.to_dict()["mmg"]
+    assert ship.to_dict()["mmg"]["drift_domain_deg"] == 30.0
     assert vessel_mod.load(str(vessel_mod.save(wide, tmp_path / "wide.json"))).mmg.drift_domain_deg == 90.0
+    old = ship.to_dict()
+    del old["mmg"]["drift_domain_deg"]
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    assert vessel_mod.load(str(tmp_path / "old.json")).mmg.drift_domain_deg == 90.0
     data = wide.to_dict()
     data["mmg"]["drift_domain_deg"] = 120.0
     (tmp_path / "bad.json").write_text(json.dumps(data))

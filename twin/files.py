@@ -48,14 +48,17 @@ def all_or_nothing(keep_on: tuple[type[BaseException], ...] = ()) -> Iterator[No
 
 
 def _land(stage: dict) -> None:
-    writes = stage["writes"]
-    for k, (tmp, target) in enumerate(writes):
-        try:
+    writes, landed = stage["writes"], []
+    try:
+        for tmp, target in writes:
             os.replace(tmp, target)
-        except OSError as exc:  # a rename in the file's own folder: it fails only with the folder gone
-            for rest, _ in writes[k:]:
-                Path(rest).unlink(missing_ok=True)
-            raise TwinError(f"cannot write '{target}': {exc.strerror or exc}") from None
+            landed.append(target)
+    except OSError as exc:  # a rename in the file's own folder: it fails only with the folder gone
+        done = f" ({', '.join(map(str, landed))} written before it)" if landed else ""
+        raise TwinError(f"cannot write '{writes[len(landed)][1]}': {exc.strerror or exc}{done}") from None
+    finally:  # an interrupt or a failed rename leaves no temporary behind
+        for tmp, _ in writes[len(landed):]:
+            Path(tmp).unlink(missing_ok=True)
     for fn in stage["after"]:
         fn()
 

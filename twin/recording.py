@@ -317,47 +317,67 @@ def with_common_origin(rec: Recording) -> Recording:
     return rec
 
 
-SHARED_FIXES = 20  # consecutive fresh GNSS fixes two recordings must share to be one stretch given twice
+SHARED_FIXES = 20  # consecutive fresh GNSS fixes two recordings must share, bit for bit, to share a stretch
+SHARED_SHARE = 0.5  # of the shorter recording's span: one log cut from another, not two runs that met briefly
+_WINDOW_WEIGHTS = np.random.default_rng(20).integers(1, 2 ** 63 - 1, SHARED_FIXES, dtype=np.uint64) | np.uint64(1)
 
 
 def _fresh_fixes(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
-    """(t, rows of position bytes) of the GNSS fixes that moved from the one before (a repeated fix
-    is a logger's, not a new measurement)."""
+    """(t, positions (n, 2)) of the GNSS fixes that moved from the one before (a repeated fix is a
+    logger's, not a new measurement)."""
     g = rec.gnss
     names = ("lat_deg", "lon_deg") if g.has("lat_deg", "lon_deg") else ("north_m", "east_m")
     if not g.has(*names):
         return np.zeros(0), np.zeros((0, 2))
-    pos = np.column_stack([np.asarray(g[n], float) for n in names])
+    pos = np.ascontiguousarray(np.column_stack([np.asarray(g[n], float) for n in names]))
     fresh = np.r_[True, np.any(np.diff(pos, axis=0) != 0, axis=1)] if len(pos) else np.zeros(0, bool)
     return np.asarray(g.t, float)[fresh], pos[fresh]
 
 
-def _windows(pos: np.ndarray, fixes: int) -> list[bytes]:
-    return [pos[i: i + fixes].tobytes() for i in range(len(pos) - fixes + 1)]
+def _window_keys(pos: np.ndarray, fixes: int = SHARED_FIXES) -> np.ndarray:
+    """One 64-bit key per run of `fixes` consecutive fixes (a weighted sum of the fixes' bits, wrapping):
+    equal runs have equal keys; a key met twice is then compared bit for bit."""
+    if len(pos) < fixes:
+        return np.zeros(0, np.uint64)
+    bits = np.ascontiguousarray(pos).view(np.uint64)
+    per_fix = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1]
+    n = len(per_fix) - fixes + 1
+    keys = np.zeros(n, np.uint64)
+    for k in range(fixes):  # twenty vector passes: a month of logs in seconds, eight bytes a fix
+        keys += per_fix[k: k + n] * _WINDOW_WEIGHTS[k]
+    return keys
 
 
 def shared_stretch_s(a: Recording, b: Recording, fixes: int = SHARED_FIXES) -> float:
     """How long (s) `b` runs through the same GNSS fixes as `a`, in runs of `fixes` consecutive fresh
     fixes or more, bit for bit: one log cut from another, or the same stretch exported twice (0 for
     recordings of their own)."""
-    in_a = set(_windows(_fresh_fixes(a)[1], fixes))
+    pa = _fresh_fixes(a)[1]
     tb, pb = _fresh_fixes(b)
+    ka, kb = _window_keys(pa, fixes), _window_keys(pb, fixes)
+    first_in_a = dict(zip(ka[::-1].tolist(), range(len(ka) - 1, -1, -1)))
     covered = np.zeros(len(pb), bool)
-    for i, key in enumerate(_windows(pb, fixes)):
-        if key in in_a:
+    for i in np.flatnonzero(np.isin(kb, ka)):
+        j = first_in_a[int(kb[i])]
+        if np.array_equal(pa[j: j + fixes], pb[i: i + fixes]):
             covered[i: i + fixes] = True
     return float(np.sum(np.diff(tb)[covered[1:] & covered[:-1]])) if covered.any() else 0.0
 
 
 def check_no_shared_stretch(recordings: list[Recording]) -> None:
-    """TwinError (one line) where one recording repeats a stretch of another (shared_stretch_s): its
-    windows would count twice, and a run judged "left out" would hold samples fitted on."""
-    keys = [set(_windows(_fresh_fixes(r)[1], SHARED_FIXES)) for r in recordings]
+    """TwinError (one line) where one recording is mostly a stretch of another (shared_stretch_s over
+    SHARED_SHARE of the shorter one's span): its windows would count twice, and a run judged "left
+    out" would hold samples fitted on. Two runs that pass through a few seconds alike (simulated
+    runs from one start) are not refused."""
+    fixes = [_fresh_fixes(r) for r in recordings]
+    keys = [_window_keys(p) for _, p in fixes]
     for j, b in enumerate(recordings):
         for i, a in enumerate(recordings[:j]):
-            if keys[i].isdisjoint(keys[j]):
+            if not len(keys[i]) or not len(keys[j]) or not np.isin(keys[j], keys[i]).any():
                 continue
             seconds = max(shared_stretch_s(a, b), shared_stretch_s(b, a))
-            first, second = Path(a.source).name, Path(b.source).name
-            raise TwinError(f"'{second}' and '{first}' share {seconds:.0f} s of the same GNSS fixes (one cut from "
-                            "the other?): give each stretch of a recording once (leave one of them out)")
+            shorter = min(float(np.ptp(fixes[i][0])), float(np.ptp(fixes[j][0])))
+            if seconds >= SHARED_SHARE * shorter:
+                first, second = Path(a.source).name, Path(b.source).name
+                raise TwinError(f"'{second}' and '{first}' share {seconds:.0f} s of the same GNSS fixes (one cut "
+                                "from the other?): give each stretch of a recording once (leave one of them out)")

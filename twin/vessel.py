@@ -153,8 +153,6 @@ def _mmg_to_dict(m) -> dict[str, Any]:
     d = asdict(m)
     if not m.friction_factor:  # only where R'_0 follows the friction line
         d.pop("friction_factor"), d.pop("reference_speed_m_s")
-    if m.drift_domain_deg == MmgModel.drift_domain_deg:  # only where it is not the standard's
-        d.pop("drift_domain_deg")
     for key in ("astern_side_y", "astern_side_n"):
         if not any(getattr(m.propeller, key)):
             del d["propeller"][key]
@@ -373,6 +371,9 @@ def _fitted_coefficients_given(data: dict, uncertainty: dict, path: Path) -> Non
                                 f"{section} section does not give it: it would run as 0 (write its value back)")
 
 
+LEGACY_DRIFT_DOMAIN_DEG = 90.0  # mmg.drift_domain_deg of a vessel file that does not give it
+
+
 def _mmg(data, path: Path) -> MmgModel | None:
     """The `mmg` block: top-level particulars plus `hull`, `propeller` and `rudder` objects."""
     if data is None:
@@ -381,7 +382,9 @@ def _mmg(data, path: Path) -> MmgModel | None:
         raise TwinError(f"{path.name}: mmg must be an object of named fields")
     parts = {"hull": MmgHull, "propeller": MmgPropeller, "rudder": MmgRudder}
     built = {k: _build(cls, data.get(k), f"mmg.{k}", path) for k, cls in parts.items()}
-    top = _build(MmgModel, {k: v for k, v in data.items() if k not in parts}, "mmg", path)
+    # a file without it was written (and its hull identified) with the polynomial as it is at every drift
+    top = _build(MmgModel, {"drift_domain_deg": LEGACY_DRIFT_DOMAIN_DEG,
+                            **{k: v for k, v in data.items() if k not in parts}}, "mmg", path)
     return replace(top, **built)
 
 

@@ -167,7 +167,7 @@ def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     if text is None:
         return None
     items = text.split(",")
-    if len(items) > 1 and not all(x.strip() for x in items):  # "5,,6": a number left out is a typo, not a list of two
+    if not all(x.strip() for x in items[1:-1]) or (len(items) > 1 and not items[0].strip()):  # "5,,6": a typo
         raise TwinError(f"--{option} expects comma-separated numbers, got '{text}' (an empty item)")
     try:
         values = [float(x) for x in items if x.strip()]
@@ -288,6 +288,8 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
         p = Path(p)
         if p.is_dir():
             raise TwinError(f"{option} '{p}' is a folder: give a file name")
+        if link_target(p).exists() and not link_target(p).is_file():  # a device or a pipe, through a link or not
+            raise TwinError(f"{option} '{p}' is not a regular file: give a file's name")
         if p.suffix.lower() not in formats:
             raise TwinError(f"{option} '{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
         folder = link_target(p).parent  # a link is written through: its target's folder is written

@@ -13,7 +13,7 @@ from rich.table import Table
 from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from ..ident.relay.iso import CONTROL_DT_S
+from ..ident.relay.iso import CONTROL_DT_S, SHIP_CONTROL_DT_S
 from .app import (all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
                   positive, progress_bar, samples_fit, say, vessel_from, write_json)
 
@@ -189,11 +189,13 @@ def dp_command(
     for option, w in (("--omega-heading", omega_heading), ("--omega-surge", omega_surge)):  # whichever run
         if w is not None and not (math.isfinite(w) and w > 0):
             raise TwinError(f"{option}: model-function frequencies must be positive and finite, got {w:g} rad/s")
-        if w is not None and w * CONTROL_DT_S > 0.5:  # a loop sampled every CONTROL_DT_S cannot follow faster
-            raise TwinError(f"{option} {w:g} rad/s: the controller runs every {CONTROL_DT_S:g} s, so at most "
-                            f"{0.5 / CONTROL_DT_S:g} rad/s")
     cv = compile_vessel(vessel_from(vessel, model, case))
     ship = cv.vessel.thrusters.kind == "propeller_rudder"
+    period = SHIP_CONTROL_DT_S if ship else CONTROL_DT_S  # the heading loop's
+    for option, w in (("--omega-heading", omega_heading), ("--omega-surge", omega_surge)):
+        if w is not None and w * period > 0.5:  # a loop sampled every `period` cannot follow faster
+            raise TwinError(f"{option} {w:g} rad/s: the controller runs every {period:g} s, so at most "
+                            f"{0.5 / period:g} rad/s")
     if not ship and rps is not None:
         raise TwinError("--rps applies to a propeller-and-rudder ship only")
     rps = SHIP_RPS if rps is None else rps

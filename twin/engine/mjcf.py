@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from xml.etree import ElementTree
 from dataclasses import dataclass
 
 import mujoco
@@ -75,23 +76,29 @@ class CompiledVessel:
         return wind_control(self.model) >= 0
 
 
-ATTRIBUTE = re.compile(r'([\w:]+)\s*=\s*"([^"]*)"')
-# attributes that name things (a body called "nan" is a name, not a number)
-NAMING = {"name", "file", "class", "childclass", "model", "mesh", "material", "texture", "hfield", "joint", "site",
-          "body", "body1", "body2", "geom", "geom1", "geom2", "tendon", "actuator", "target", "objname",
-          "meshdir", "texturedir", "assetdir", "content_type", "prefix", "type", "integrator"}
+# attributes that name things or hold text (a body called "nan" is a name, not a number)
+NAMING = {"name", "file", "class", "childclass", "model", "mesh", "material", "texture", "hfield", "joint", "joint1",
+          "joint2", "jointinparent", "site", "refsite", "cranksite", "slidersite", "body", "body1", "body2",
+          "geom", "geom1", "geom2", "tendon", "tendon1", "tendon2", "actuator", "target", "objname", "refname",
+          "objtype", "reftype", "plugin", "instance", "meshdir", "texturedir", "assetdir", "content_type",
+          "prefix", "type", "integrator", "data", "key", "value"}
 
 
-def _check_numbers(path: Path) -> None:
-    """Refuse an MJCF attribute whose numbers hold NaN or infinity: MuJoCo reads it with a warning and
-    then derives the value another way (a geom's NaN mass from its volume), so the vessel would run
-    with numbers nobody wrote."""
+def _check_numbers(path: Path, seen: frozenset = frozenset()) -> None:
+    """Refuse an MJCF attribute whose numbers hold NaN or infinity (in the file or the files it
+    includes): MuJoCo reads it with a warning and then derives the value another way (a geom's NaN
+    mass from its volume), so the vessel would run with numbers nobody wrote."""
+    path = Path(path)
     try:
-        text = Path(path).read_text(errors="replace")
-    except OSError:
+        root = ElementTree.parse(path).getroot()
+    except (OSError, ElementTree.ParseError):
         return  # MuJoCo's own reader says what is wrong with the file
-    for k, line in enumerate(text.splitlines(), start=1):
-        for key, value in ATTRIBUTE.findall(line):
+    for element in root.iter():
+        if element.tag == "include" and element.get("file") and path.resolve() not in seen:
+            _check_numbers(path.parent / element.get("file"), seen | {path.resolve()})
+        if element.tag in ("text", "numeric", "tuple", "custom"):
+            continue  # a user's own data, not MuJoCo's numbers
+        for key, value in element.attrib.items():
             if key in NAMING or not value.split():
                 continue
             try:
@@ -99,7 +106,7 @@ def _check_numbers(path: Path) -> None:
             except ValueError:
                 continue  # a word: not a number MuJoCo would read as one
             if not all(math.isfinite(x) for x in numbers):
-                raise TwinError(f"{Path(path).name}, line {k}: {key}=\"{value}\" is not a finite number")
+                raise TwinError(f"{path.name}: <{element.tag}> {key}=\"{value}\" is not a finite number")
 
 
 def _spec(vessel: Vessel) -> mujoco.MjSpec:

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import struct
 import uuid
 from dataclasses import dataclass
@@ -237,10 +236,15 @@ class Contents:
 
 MCAP_DAMAGE = "MCAP file "  # how the note on what a damaged file lost begins (Contents.damaged)
 
-# what the mcap reader raises on a truncated or foreign file; a damaged chunk's bytes also reach the
-# decompressors mcap uses (zstd, lz4), whose errors are classes of their own (Exception, RuntimeError):
-# whatever reading such bytes raises is the file's damage, said as such
-_MCAP_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, struct.error, Exception)
+# what the mcap reader raises on a truncated or foreign file
+_MCAP_ERRORS = (McapError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, struct.error)
+# a damaged chunk's bytes also reach the decompressors mcap uses, whose errors are classes of their own
+_DECOMPRESSORS = ("zstandard", "lz4")
+
+
+def _damage(exc: BaseException) -> bool:
+    """Whether reading raised `exc` because of the file's bytes (not a lack of memory, not a bug)."""
+    return isinstance(exc, _MCAP_ERRORS) or type(exc).__module__.split(".")[0] in _DECOMPRESSORS
 
 
 def read_contents(path: Path) -> Contents:
@@ -260,7 +264,9 @@ def read_contents(path: Path) -> Contents:
                 m.sort(key=lambda item: item[0])
             metadata = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
         return Contents(messages, metadata)
-    except _MCAP_ERRORS as exc:
+    except Exception as exc:
+        if not _damage(exc):
+            raise
         return _salvage(path, exc)
 
 
@@ -279,7 +285,9 @@ def _salvage(path: Path, first_error: Exception) -> Contents:
                     messages.setdefault(topics[record.channel_id], []).append((record.log_time, record.data))
                 elif isinstance(record, Metadata):
                     metadata[record.name] = dict(record.metadata)
-    except _MCAP_ERRORS:
+    except Exception as exc:
+        if not _damage(exc):
+            raise
         complete = False
     n = sum(len(m) for m in messages.values())
     if not n and not metadata:
@@ -290,8 +298,16 @@ def _salvage(path: Path, first_error: Exception) -> Contents:
                                         f"t = {last_s:.1f} s, the rest is lost")
 
 
+def _loaded(text: str, what: str):
+    """json.loads of a metadata record's text; TwinError where its bytes were damaged."""
+    try:
+        return json.loads(text)
+    except ValueError:  # JSONDecodeError, and text from undecodable bytes
+        raise TwinError(f"damaged: the MCAP {what} metadata does not read as JSON") from None
+
+
 def _meta_from(record: dict[str, str]) -> dict:
-    meta = json.loads(record.get("meta", "{}"))
+    meta = _loaded(record.get("meta", "{}"), "run's")
     if record.get("vessel"):
         meta.setdefault("vessel", record["vessel"])
     return meta
@@ -485,11 +501,11 @@ def _recording_meta(record: dict[str, str]) -> dict:
     if "origin_s" in record:
         out["origin_s"] = float(record["origin_s"])
     if "pwm_neutral_us" in record:
-        left, right = json.loads(record["pwm_neutral_us"])
+        left, right = _loaded(record["pwm_neutral_us"], "recording's")
         out["pwm_neutral_us"] = (float(left), float(right))
-    meta = json.loads(record.get("meta", "{}"))
+    meta = _loaded(record.get("meta", "{}"), "recording's")
     out["meta"] = meta if isinstance(meta, dict) else {}
-    params = json.loads(record.get("parameters", "{}"))
+    params = _loaded(record.get("parameters", "{}"), "recording's")
     out["parameters"] = {str(k): float(v) for k, v in params.items()} if isinstance(params, dict) else {}
     return out
 
@@ -509,8 +525,10 @@ def read_mcap(path: Path) -> Recording:
         if sensors is not None:
             return _mcap_sensors(path, *sensors)
         return _mcap_run(path)
-    except (UnicodeDecodeError, ValueError, TypeError) as exc:  # a metadata record's bytes damaged
-        raise TwinError(f"{Path(path).name}: damaged: its metadata does not read ({type(exc).__name__})") from None
+    except TwinError as exc:
+        if str(exc).startswith("damaged:"):  # said by _loaded, which does not know the file
+            raise TwinError(f"{Path(path).name}: {exc}") from None
+        raise
 
 
 def _mcap_sensors(path: Path, streams: dict, meta: dict) -> Recording:
