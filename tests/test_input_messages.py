@@ -116,6 +116,24 @@ def test_calibration_line_says_whether_applied_with_info_caveat():
     assert calibration_line(legs, applied=True).endswith("E -0.200 m/s; offset applied")
     none = LogCalibration("x.csv", None, None, 0, 0.0, None, "no straight running under way")
     assert calibration_line(none, applied=True) == "x.csv: compass offset not applied (no straight running under way)"
+    # stretches that disagree more than their pieces say: told beside the pieces' σ (which decides)
+    apart = LogCalibration("x.csv", 7.0, 0.6, 2, 31.0, None, "", stretch_sigma_deg=4.4)
+    assert "± 0.6° from 2 straight stretches (31 s under way); its stretches alone give ± 4.4°" in apart.text()
+    assert "alone" not in LogCalibration("x.csv", 7.0, 0.6, 2, 31.0, None, "", stretch_sigma_deg=0.3).text()
+
+
+def test_a_logs_compass_offset_says_how_far_its_straight_stretches_disagree(shared_dir):
+    """Run 225's two straight stretches give offsets apart by more than the spread of their 2-s
+    pieces: the σ between stretches is told (the offset read with another twin, whose stretches are
+    others, lands inside it)."""
+    from twin.fit.calibrate import kinematic_calibrations
+    from twin.engine.mjcf import compile_vessel
+    from twin.formats import read_recording
+    import twin.vessel as vessel_mod
+
+    rec = read_recording(shared_dir / "data" / "blueboat" / "fixed_00000225.csv")
+    c = kinematic_calibrations([rec], compile_vessel(vessel_mod.load("blueboat")))[0]
+    assert c.stretches == 2 and c.stretch_sigma_deg is not None and c.stretch_sigma_deg > 3 * c.sigma_deg
 
 
 # ------------------------------------------------------------------------------ 4. gaps, in good English

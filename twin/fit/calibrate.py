@@ -126,12 +126,16 @@ class LogCalibration:
     drift_ned_m_s: tuple[float, float] | None
     note: str = ""
     drift_from_logs: int = 0  # the drift is the mean of this many other logs' own (kinematic_calibrations)
+    # the offset's 1-σ from the spread of its straight stretches' own offsets (two or more): the pieces
+    # of one stretch share its conditions, so where the stretches disagree this is the honest one
+    stretch_sigma_deg: float | None = None
 
     def to_dict(self) -> dict:
         return {"log": self.log, "heading_bias_deg": self.heading_bias_deg, "sigma_deg": self.sigma_deg,
                 "stretches": self.stretches, "seconds": round(self.seconds, 1),
                 "drift_ned_m_s": None if self.drift_ned_m_s is None else list(self.drift_ned_m_s), "note": self.note,
-                **({"drift_from_logs": self.drift_from_logs} if self.drift_from_logs else {})}
+                **({"drift_from_logs": self.drift_from_logs} if self.drift_from_logs else {}),
+                **({"stretch_sigma_deg": self.stretch_sigma_deg} if self.stretch_sigma_deg is not None else {})}
 
     def __repr__(self) -> str:
         return f"LogCalibration({self.text()})"
@@ -143,9 +147,11 @@ class LogCalibration:
             f"; ground drift N {self.drift_ned_m_s[0]:+.3f}, E {self.drift_ned_m_s[1]:+.3f} m/s" + \
             (f" (the mean of {self.drift_from_logs} other logs': its own legs point one way)"
              if self.drift_from_logs else "")
+        apart = (f"; its stretches alone give ± {self.stretch_sigma_deg:.1f}°" if self.stretch_sigma_deg is not None
+                 and self.stretch_sigma_deg > self.sigma_deg else "")
         return (f"{self.log}: compass offset {self.heading_bias_deg:+.1f}° ± {self.sigma_deg:.1f}° from "
                 f"{self.stretches} straight stretch{'es' if self.stretches != 1 else ''} ({self.seconds:.0f} s under way)"
-                f"{drift}")
+                f"{apart}{drift}")
 
 
 @dataclass(frozen=True)
@@ -352,6 +358,8 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     speed = np.hypot(*(vel - drift_now).T)
     crab = np.arcsin(np.clip(across(np.r_[0.0, fit.x[1:]]) / speed, -1.0, 1.0))
     sigma = _piece_sigma(crab, speed, which)
+    leg = np.concatenate([np.full(len(p), i) for i, (_, p) in enumerate(legs)])
+    apart = float(np.degrees(_piece_sigma(crab, speed, leg))) if len(legs) >= 2 else None  # told, not applied
     drift = (float(fit.x[2]), float(fit.x[3])) if with_drift else None
     note = "" if with_drift else (f"straight legs within {spread:.0f}° of each other" if len(stretches) > 1 else
                                   "one straight leg") + ": no drift fitted (a current across it reads as offset)"
@@ -360,7 +368,7 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
         return LogCalibration(name, None, sigma_deg, len(stretches), seconds, drift,
                               f"offset {offset_deg:+.1f}° ± {sigma_deg:.1f}° is not clearly more than a compass's "
                               f"own error (applied from {MIN_OFFSET_DEG:g}° and {SIGNIFICANT_SIGMA:g} σ)")
-    return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note)
+    return LogCalibration(name, offset_deg, sigma_deg, len(stretches), seconds, drift, note, stretch_sigma_deg=apart)
 
 
 def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: float, borrowed, spread: float,
