@@ -153,7 +153,7 @@ def effect_names(text: Optional[str], option: str = "--effects") -> Optional[lis
 
     if text is None:
         return None
-    names = [e.strip() for e in text.split(",") if e.strip()]
+    names = listed(text, option)
     if not names:  # an empty list is not "every effect": that is leaving the option out
         raise TwinError(f"{option} is empty: name at least one effect (leave {option} out for the whole library)")
     unknown = [e for e in names if e not in EFFECTS]
@@ -162,15 +162,23 @@ def effect_names(text: Optional[str], option: str = "--effects") -> Optional[lis
     return names
 
 
+def listed(text: str, option: str) -> list[str]:
+    """The items of a comma-separated list, stripped; an item left empty between others ("5,,6",
+    "Xu,,Nr") is refused as the typo it is (a trailing comma is not: nothing follows it)."""
+    items = [x.strip() for x in text.split(",")]
+    kept = [x for x in items if x]
+    if kept and not all(items[:-1]):  # a list of nothing at all is the caller's to call empty
+        raise TwinError(f"{option} '{text}': an empty item in the list")
+    return kept
+
+
 def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     """A comma-separated list of finite numbers."""
     if text is None:
         return None
-    items = text.split(",")
-    if not all(x.strip() for x in items[1:-1]) or (len(items) > 1 and not items[0].strip()):  # "5,,6": a typo
-        raise TwinError(f"--{option} expects comma-separated numbers, got '{text}' (an empty item)")
+    items = listed(text, f"--{option}")
     try:
-        values = [float(x) for x in items if x.strip()]
+        values = [float(x) for x in items]
     except ValueError:
         raise TwinError(f"--{option} expects comma-separated numbers, got '{text}'") from None
     if not values or not all(math.isfinite(x) for x in values):

@@ -8,7 +8,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (all_or_nothing_outputs, CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (all_or_nothing_outputs, listed, CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea
@@ -99,7 +99,7 @@ def diagnose_command(
         write_json(json_out, {"given": list(given), "earns_its_place": bool(e.earns_its_place()), **e.to_dict()})
         return
     # a group's name may hold a space ("thrust curve"), which a shell splits unless quoted: _ stands for it
-    groups = tuple(g.strip().replace("_", " ") for g in refit.split(",") if g.strip()) if refit is not None else None
+    groups = tuple(g.replace("_", " ") for g in listed(refit, "--refit")) if refit is not None else None
     with progress_bar("diagnose") as progress:
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,
                           refit_weight=refit_weight, log=lambda m: progress(m), wind=wind)

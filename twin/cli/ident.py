@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, listed, RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
                   channels_from, check_distinct, check_new, check_outputs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
@@ -72,7 +72,7 @@ def dataset_command(
     segments_fit(segments)
     seed_from(seed)
     profile = sensor_noise(noise)  # before any work
-    names = [m.strip() for m in manoeuvres.split(",") if m.strip()]
+    names = listed(manoeuvres, "--manoeuvres")
     if not names:
         raise TwinError("--manoeuvres names none: give one or more of the manoeuvres its help lists")
     with progress_bar("dataset") as progress:
@@ -122,7 +122,7 @@ def names_list(text: Optional[str], option: str, what: str) -> tuple[str, ...] |
     read as "all" it would fit what the user meant to leave out."""
     if text is None:
         return None
-    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    names = tuple(listed(text, option))
     if not names:
         raise TwinError(f"{option} is empty: name at least one {what} (leave {option} out for the default)")
     return names

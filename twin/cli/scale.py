@@ -11,7 +11,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import BAND
-from .app import (all_or_nothing_outputs, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
+from .app import (all_or_nothing_outputs, listed, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, check_new,
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
                   say, seed_from, sensor_noise, vessel_from, window_s, write_json)
@@ -198,7 +198,7 @@ def dataset_shards_command(
     _shards_fit(vessels, per_shard, segments, out)
     v = vessel_from(vessel, model, "nominal")
     sensor_noise(noise)  # a bad profile fails now, not in every worker
-    names = tuple(m.strip() for m in manoeuvres.split(",") if m.strip())
+    names = tuple(listed(manoeuvres, "--manoeuvres"))
     variation = _variation(v, vary, effect, covariance, effect_share)
     settings = Settings(vessels, per_shard, segments, names, noise, "." + fmt.lower().lstrip("."), seed, variation,
                         _sea_for(v, sea, seed))
