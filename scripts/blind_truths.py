@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|third|fourth|fifth|sixth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|seventh] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -165,7 +165,20 @@ SIXTH = [  # fixed before it was run: other seeds, magnitudes, sides and directi
     Case("wind-gusty-5-60", "wind", 89, wind_speed_m_s=5.0, wind_from_deg=60.0, gust_sigma_m_s=0.8, gust_tau_s=15.0),
     Case("wind-steady-6-240", "wind", 90, wind_speed_m_s=6.0, wind_from_deg=240.0),
 ]
-SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH}
+SEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-m", "null", 91),
+    Case("null-n", "null", 92),
+    Case("dead_zone-right-soft-50-105us", "dead_zone", 93, side="right", inner_us=50.0, outer_us=105.0),
+    Case("dead_zone-left-hard-80us", "dead_zone", 94, side="left", inner_us=80.0, outer_us=80.0),
+    Case("speed_loss-0.12u", "speed_loss", 95, k=0.12, power=1),
+    Case("speed_loss-0.09u2", "speed_loss", 96, k=0.09, power=2),
+    Case("sag-exp-280s", "sag_exp", 97, k=0.25, tau_s=280.0),
+    Case("sag-square-0.22", "sag_square", 98, k=0.22),
+    Case("wind-gusty-6-100", "wind", 99, wind_speed_m_s=6.0, wind_from_deg=100.0, gust_sigma_m_s=0.9, gust_tau_s=12.0),
+    Case("wind-steady-5.5-200", "wind", 100, wind_speed_m_s=5.5, wind_from_deg=200.0),
+]
+SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
+        "seventh": SEVENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

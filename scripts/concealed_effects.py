@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentieth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentyfirst] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -412,6 +412,21 @@ PROOF_TWENTIETH = [
     Case("esso", "T7", "input_late", (0.65,)), Case("esso", "T8", "input_late", (0.55,)),
     Case("esso", "T7", "heading_late", (0.5,)), Case("esso", "T8", "heading_late", (0.65,)),
 ]
+# the twenty-first set takes outings Q and I (disjoint runs) and Esso tests T9 and T10 again, with other
+# values
+PROOF_TWENTYFIRST = [
+    Case("blueboat", "Q", "null"), Case("blueboat", "I", "null"),
+    Case("blueboat", "Q", "current", (0.15, 170.0)), Case("blueboat", "I", "current", (0.12, 300.0)),
+    Case("blueboat", "Q", "antenna", (0.30, 0.25)), Case("blueboat", "I", "antenna", (-0.30, -0.20)),
+    Case("blueboat", "Q", "input_late", (0.45,)), Case("blueboat", "I", "input_late", (0.6,)),
+    Case("blueboat", "Q", "thruster_scaled", ("right", 0.7)), Case("blueboat", "I", "thruster_scaled", ("left", 0.75)),
+    Case("blueboat", "Q", "heading_late", (0.55,)), Case("blueboat", "I", "heading_late", (0.4,)),
+    Case("esso", "T9", "null"), Case("esso", "T10", "null"),
+    Case("esso", "T9", "current", (0.10, 130.0)), Case("esso", "T10", "current", (0.12, 10.0)),
+    Case("esso", "T9", "antenna", (0.35, -0.20)), Case("esso", "T10", "antenna", (-0.40, 0.25)),
+    Case("esso", "T9", "input_late", (0.6,)), Case("esso", "T10", "input_late", (0.75,)),
+    Case("esso", "T9", "heading_late", (0.6,)), Case("esso", "T10", "heading_late", (0.5,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -419,7 +434,7 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
           "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
-          "twentieth": PROOF_TWENTIETH}
+          "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -430,7 +445,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
          "seventeenth": "concealed_effects_seventeenth",
          "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth",
-         "twentieth": "concealed_effects_twentieth"}
+         "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -454,7 +469,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth"}
+                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,6 +1,7 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
-    python scripts/independent_truths.py [--stage before|after] [--only CASE,...] [--work /tmp/independent_truths]
+    python scripts/independent_truths.py [--set first|second] [--stage before|after] [--prior FILE] [--only CASE,...]
+                                         [--work /tmp/independent_truths]
 
 The simulator here shares no physics with the package: its own three-degree-of-freedom equations
 (rigid and added mass, Coriolis and Munk terms, linear and quadratic damping, integrated by RK4),
@@ -73,6 +74,19 @@ CASES = [
     Case("decay-0.02", "decay", (0.02,), 17), Case("decay-0.04", "decay", (0.04,), 18),
     Case("wind_shape-5-60", "wind_shape", (5.0, 60.0), 19), Case("wind_shape-6-250", "wind_shape", (6.0, 250.0), 20),
 ]
+CASES_SECOND = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-3", "null", (), 21), Case("null-4", "null", (), 22),
+    Case("one_dead_zone-right-70-40", "one_dead_zone", ("right", 70.0, 40.0), 23),
+    Case("one_dead_zone-left-90-20", "one_dead_zone", ("left", 90.0, 20.0), 24),
+    Case("speed_loss_u2-0.14", "speed_loss_u2", (0.14,), 25), Case("speed_loss_u2-0.22", "speed_loss_u2", (0.22,), 26),
+    Case("decay-0.03", "decay", (0.03,), 27), Case("decay-0.05", "decay", (0.05,), 28),
+    Case("wind_shape-5.5-140", "wind_shape", (5.5, 140.0), 29),
+    Case("wind_shape-6.5-320", "wind_shape", (6.5, 320.0), 30),
+]
+SETS = {"first": CASES, "second": CASES_SECOND}
+PAGES = {"first": "independent_truths", "second": "independent_truths_second"}
+# the stages' names as the page shows them
+STAGE_LABELS = {"after, main's new prior": "after, from the shipped first-principles prior"}
 
 
 # ---------------------------------------------------------------- the simulator
@@ -268,9 +282,12 @@ def _text(values: dict) -> str:
     return ", ".join(f"{k} {v:.3g}" for k, v in values.items())
 
 
-def write_page(stages: dict, out: Path) -> Path:
+def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
     tables, lines = [], []
-    for stage, res in stages.items():
+    cases = SETS[proof_set]
+    seeds = [c.seed for c in cases]
+    for key, res in stages.items():
+        stage = STAGE_LABELS.get(key, key)
         s = summary_of(res["rows"])
         lines.append(f"{stage} (commit {res['commit']}): {s['exact']} of {s['effects']} exact, {s['named']} named; "
                      f"{s['false_discoveries']} false discoveries; nulls clean {s['nulls_clean']} of {s['nulls']}")
@@ -282,28 +299,32 @@ def write_page(stages: dict, out: Path) -> Path:
                                     "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]]
                                    for r in res["rows"]]))
     page = ResultPage(
-        "independent_truths", "Effect truths from a simulator the library does not share",
-        "python scripts/independent_truths.py --stage STAGE",
-        "Ten logs of about 7 minutes written by scripts/independent_truths.py's own three-degree-of-freedom "
-        "simulator from the BlueBoat's nominal numbers, one truth each (seeds 11-20), diagnosed from the untuned "
-        "BlueBoat prior (twin/model/blueboat.json).",
+        PAGES[proof_set], "Effect truths from a simulator the library does not share"
+        + ("" if proof_set == "first" else f" (proof set: {proof_set})"),
+        "python scripts/independent_truths.py" + ("" if proof_set == "first" else f" --set {proof_set}")
+        + " --stage STAGE --prior PRIOR",
+        f"Ten logs of about 7 minutes written by scripts/independent_truths.py's own three-degree-of-freedom "
+        f"simulator from the BlueBoat's nominal numbers, one truth each (seeds {min(seeds)}-{max(seeds)}), diagnosed "
+        "from the untuned BlueBoat prior the simulator reads its numbers from.",
         "The three classes of effect a diagnosis missed or drew a false effect beside, in forms the effect library "
         "does not have: a soft dead zone on one thruster only, a thrust loss growing with u², and a thrust decay and "
         "a wind of another load shape (beside which a heading bias was drawn); and nulls. Exact: the truth named "
         "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines),
-        tables, ["The prior: 'before' and 'after' start from the BlueBoat prior as it was when this study's cases "
-                 "were fixed (twin/model/blueboat.json of commit a6f6976, given with --prior: the numbers this simulator "
-                 "reproduces); \"after, main's new prior\" from the first-principles prior shipped since, whose sway-yaw "
-                 "coupling and speed-dependent damping this simulator does not have, so its nulls carry that form error.",
+        tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
+                 "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces; the "
+                 "stage 'from the shipped first-principles prior' from the BlueBoat shipped today, whose sway-yaw "
+                 "coupling and speed-dependent damping this simulator does not have, so its nulls carry that form "
+                 "error.",
                  "A one-thruster dead zone's truth in the library's terms: its soft edge's middle as a hard edge of "
                  "that thruster (forward and astern alike); the u² loss's: the thrust_speed_loss coefficient that "
                  "matches it over the log's own samples, added to the prior's."],
-        {"stages": stages, "cases": [c.__dict__ for c in CASES]})
+        {"stages": stages, "cases": [c.__dict__ for c in cases]})
     return page.write(out)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", default="first", choices=list(SETS), help="the proof set (each fixed before it was run)")
     ap.add_argument("--stage", default="after")
     ap.add_argument("--only", default="")
     ap.add_argument("--work", type=Path, default=Path("/tmp/independent_truths"))
@@ -313,22 +334,24 @@ def main() -> int:
                     "diagnosis starts from (default: the shipped BlueBoat)")
     args = ap.parse_args()
     if args.page_only:
-        print(write_page(json.loads((args.out / "data" / "independent_truths.json").read_text())["stages"], args.out))
+        print(write_page(json.loads((args.out / "data" / f"{PAGES[args.set]}.json").read_text())["stages"], args.out,
+                         args.set))
         return 0
     prior = vessel_mod.load(args.prior)
     hull = Hull(prior)
     only = {x for x in args.only.split(",") if x}
-    stage_dir = args.work / args.stage
+    cases = SETS[args.set]
+    stage_dir = args.work / args.set / args.stage
     stage_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
-        for c in CASES:
+        for c in cases:
             if only and c.name not in only:
                 continue
             row = run_case(c, prior, hull, Path(tmp))
             (stage_dir / f"{c.name}.json").write_text(json.dumps(row, indent=1, default=float))
             print(f"{c.name}: named {', '.join(e['name'] for e in row['named']) or 'nothing'}; exact {row['exact']} "
                   f"({row['seconds']} s)", flush=True)
-    stages = staged(args.out / "data" / "independent_truths.json", args.stage, stage_dir, [c.name for c in CASES],
+    stages = staged(args.out / "data" / f"{PAGES[args.set]}.json", args.stage, stage_dir, [c.name for c in cases],
                     summary_of, checkout_commit(ROOT))
     print(write_page(stages, args.out))
     return 0

@@ -302,8 +302,8 @@ def evaluate_command(
                                                         "drift (the drift angle |β|), input_0, input_1 (the logged inputs) or rest (how long input "
                                                         "0, a propeller, has been stopped)"),
 ):
-    """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with and without each
-    log's own compass calibration; where the free runs miss, by manoeuvre (idle, ahead, turning,
+    """R² and MAE per DOF: one step, 10-s and 30-s free runs, whole segments; with each log's own
+    compass calibration (and without it where an offset was applied); where the free runs miss, by manoeuvre (idle, ahead, turning,
     spin, astern: each one's share of 1 − R²), and for a twin written by `twin identify` how many
     windows of each its fit saw and how much of the misfit lies beyond the speeds and turn rates it
     was fitted on; with --by, by a measured state (each band's share of 1 − R², and the gain of the

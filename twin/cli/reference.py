@@ -16,12 +16,24 @@ def _commands():
     return group, ctx, [(name, group.get_command(ctx, name)) for name in group.list_commands(ctx)]
 
 
+def _default_text(param) -> str:
+    """' (default: `x`)' as `--help` shows it, or '' where there is none to show: an on/off pair
+    names the side that holds (a seed of 0 is a default too, though it equals False)."""
+    default = param.default
+    if getattr(param, "is_flag", False):
+        if param.secondary_opts:
+            return f" (default: `{param.opts[0] if default else param.secondary_opts[0]}`)"
+        return ""
+    if default is None or default is False or (isinstance(default, (tuple, list)) and not default):
+        return ""
+    return f" (default: `{default}`)"
+
+
 def _option_row(param) -> str:
     names = ", ".join(f"`{o}`" for o in (*param.opts, *param.secondary_opts))
     if param.param_type_name == "argument":
         names = f"`{(param.metavar or param.name).upper()}`"
-    default = param.default
-    shown = "" if default in (None, False, (), []) or getattr(param, "is_flag", False) else f" (default: `{default}`)"
+    shown = _default_text(param)
     text = " ".join((getattr(param, "help", None) or "").split()).replace("|", "\\|")
     return f"| {names} | {text}{shown} |"
 
@@ -32,7 +44,7 @@ def markdown() -> str:
     group, _, commands = _commands()
     out = ["Every command of `twin`, in the order of the workflow. Every bad input ends in one "
            "`error: ...` line on stderr and exit code 2; `--quiet` (before or after the command) turns "
-           "off progress bars and notes.", ""]
+           "off progress bars and notes; `twin --version` prints the version.", ""]
     for name, cmd in commands:
         out += [f"## twin {name}", "", cmd.short_help or "", ""]
         doc = inspect.cleandoc(cmd.help or "")

@@ -38,7 +38,7 @@ def sitl(
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the origin, SITL's home, for map positions"),
     record: list[Path] = typer.Option([], help="record the SITL session: .csv, .mcap, .rrd, .tlog or .bin (repeatable)"),
     realtime: bool = typer.Option(False, "--realtime/--lockstep", help="pace to the wall clock / one physics "
-                                                                       "frame per servo frame (default)"),
+                                                                       "frame per servo frame"),
     write_params: Optional[Path] = typer.Option(None, help="write ArduPilot's parameter file for this vessel "
                                                            "and --channels (ardurover --defaults ...,FILE) "
                                                            "and exit"),
