@@ -33,6 +33,14 @@ STUDIES = {
                         "synthetic recordings: effects injected by the library's own functions, and recordings of "
                         "an independent simulator (scripts/world_sim.py) with physics the library does not write",
                         "Does `twin diagnose` name the effect a recording hides, and nothing when it hides none?"),
+    # a proof set fixed before it was run: world seeds no study had used, the cases where the GNSS fixes'
+    # latency is the truth, a current beside which it was drawn, and a null
+    "gnss_latency_world": ("GNSS latency on an independent simulator's truths (world seeds 57-59)",
+                           "python scripts/diagnose_proof.py --no-library --world-seeds 57,58,59 "
+                           "--only gnss_latency,current_tidal,null_rc --out out/diagnose/gnss_latency",
+                           "recordings of an independent simulator (scripts/world_sim.py) at seeds no other study "
+                           "used: GNSS fixes stamped 0.2-0.4 s late, a tidal current, and a null",
+                           "Is a GNSS fixes' latency named where it is there, and nowhere else?"),
     "blueboat_diagnosis": ("BlueBoat: diagnosis of the untuned twin", "python scripts/diagnose_blueboat.py",
                            "BlueBoat recordings [BlueBoat-SI]", "What does the diagnosis name on a real boat?"),
     "blueboat_heldout_band": ("BlueBoat: prediction band on held-out runs", "python scripts/identify_blueboat.py",
@@ -120,7 +128,8 @@ STUDIES = {
 
 # where each study script writes its raw figures by default (its --out / --json)
 COLLECT = {
-    "diagnosis_proof": "out/diagnose/proof.json", "blueboat_diagnosis": "out/diagnose/blueboat.json",
+    "diagnosis_proof": "out/diagnose/proof.json", "gnss_latency_world": "out/diagnose/gnss_latency/proof.json",
+    "blueboat_diagnosis": "out/diagnose/blueboat.json",
     "record_more": "out/diagnose/record_more.json", "record_more_astern": "out/diagnose/record_more_astern.json",
     "blueboat_heldout_band": "out/identification/blueboat_heldout_band.json",
     "synthetic_identification": "out/identification/synthetic.json",
@@ -285,9 +294,10 @@ def compass_tables(raw: dict) -> list[ResultTable]:
 def page(name: str) -> ResultPage:
     title, ran, data, question = STUDIES[name]
     raw = json.loads((DATA / f"{name}.json").read_text())
-    tables = proof_tables(raw) if name == "diagnosis_proof" else compass_tables(raw) if name == "compass_throttle" else []
+    proof = name in ("diagnosis_proof", "gnss_latency_world")
+    tables = proof_tables(raw) if proof else compass_tables(raw) if name == "compass_throttle" else []
     scores = score_table(raw)
-    if scores and name != "diagnosis_proof":
+    if scores and not proof:
         tables.append(scores)
     figures = _figures(raw)
     if not tables:
