@@ -197,13 +197,13 @@ def test_without_spins_both_ways_the_antenna_is_not_told_and_not_ruled_out(blueb
 
 
 def test_the_heading_timing_is_the_kinematics_alone_only_where_every_log_has_a_gyro():
-    """The antenna is never searched in the dynamics; the heading's timing joins it where every log
-    has a gyro to read it against, and only then."""
+    """The antenna and the GNSS fixes' latency are never searched in the dynamics; the heading's
+    timing joins them where every log has a gyro to read it against, and only then."""
     from twin.diagnose.doctor import kinematic_only
 
     t = np.arange(0.0, 10.0, 0.1)
     gyro = Recording(source="a", kind="csv", imu=Stream(t, {"yaw_rate_rads": np.zeros_like(t)}))
     bare = Recording(source="b", kind="csv")
-    assert kinematic_only([bare]) == {"gnss_lever_arm"}
-    assert kinematic_only([gyro]) == {"gnss_lever_arm", "heading_latency"}
-    assert kinematic_only([gyro, bare]) == {"gnss_lever_arm"}
+    assert kinematic_only([bare]) == {"gnss_lever_arm", "gnss_latency"}
+    assert kinematic_only([gyro]) == {"gnss_lever_arm", "gnss_latency", "heading_latency"}
+    assert kinematic_only([gyro, bare]) == {"gnss_lever_arm", "gnss_latency"}

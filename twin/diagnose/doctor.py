@@ -7,8 +7,11 @@ how much of it, and the amended twin, judged on data it did not fit.
    the twin before anything is fitted, so the twin's form error does not have to carry it; an
    effect the kinematics tell is not there is not searched for. Some are never searched for in the
    dynamics (KINEMATIC_ONLY), as a dynamic fit of them takes up a form error the twin has: the
-   antenna (its lever arm moves the point the twin's sway is read at) and, where every log has a
-   gyro, the heading's timing (the gyro is the direct reference; where it cannot tell the heading's
+   antenna (its lever arm moves the point the twin's sway is read at), the GNSS fixes' latency (a
+   fix taken τ before its stamp moves the measured sway by −u·r·τ and the surge by −τ·u̇, which a
+   twin's sway-yaw coupling and added mass, off as any twin's are, imitate; the kinematics read it
+   where the surge answers input steps later than the yaw does) and, where every log has a gyro,
+   the heading's timing (the gyro is the direct reference; where it cannot tell the heading's
    lateness, a twin's dynamics, further from the truth than a gyro, cannot either).
 1. Replay: the twin over 10-s free-run windows from measured states, driven by the
    recorded PWM, after each log's compass calibration. The noise of every signal is
@@ -60,7 +63,7 @@ WINDOW_S = 10.0
 MEASURED_WIND_REPLACES = ("wind", "wind_per_log")
 # never searched in the dynamics, told from the kinematics alone (module docstring, step 0); the heading's
 # timing joins it where every log has a gyro
-KINEMATIC_ONLY = ("gnss_lever_arm",)
+KINEMATIC_ONLY = ("gnss_lever_arm", "gnss_latency")
 SEARCH_TIMESTEP_S = 0.05  # RK4 step of the candidate runs (the final fit figures use the vessel's own)
 # Screening only ranks candidates: it may step at the recording's grid where RK4 stays well
 # inside its stability limit (|hλ| < 2.8) for the prior's fastest dynamics.
