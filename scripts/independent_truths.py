@@ -353,7 +353,7 @@ def main() -> int:
                   f"({row['seconds']} s)", flush=True)
     stages = staged(args.out / "data" / f"{PAGES[args.set]}.json", args.stage, stage_dir, [c.name for c in cases],
                     summary_of, checkout_commit(ROOT))
-    print(write_page(stages, args.out))
+    print(write_page(stages, args.out, args.set))
     return 0
 
 

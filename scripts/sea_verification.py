@@ -100,10 +100,13 @@ def main(argv=None) -> int:
                  f"{max(r['position_err_m'] for r in raw['calm_water'].values()) * 100:.1f} cm of the 3-DOF "
                  "twin's. The barge's heave follows the linear strip solution of the same model, its roll the "
                  "linear Froude-Krylov solution, and its mean drift the short-wave asymptote for a wall-sided hull "
-                 "[Faltinsen-1990] times the reflection of a fixed barrier of its draft [Ursell-1947]. A free hull "
-                 "drifts along the waves: in long waves near their Stokes drift (within "
-                 f"{max(abs(r['along_m_s'] - r['stokes_m_s']) for r in long_waves):.3f} m/s), in short waves "
-                 f"up to {max(r['along_m_s'] / r['stokes_m_s'] for r in raw['free_drift']):.1f} times it. The 6-DOF "
+                 "[Faltinsen-1990] times the reflection of a fixed barrier of its draft [Ursell-1947]. In long waves "
+                 "a free hull drifts within "
+                 f"{max(abs(r['along_m_s'] - r['stokes_m_s']) for r in long_waves):.3f} m/s of their Stokes drift"
+                 + "".join(f"; the {r['vessel']} at {r['along_m_s']:+.4f} m/s for {r['stokes_m_s']:+.4f}, against the "
+                           "waves" for r in long_waves if r["along_m_s"] < 0)
+                 + "; in short waves up to "
+                 f"{max(r['along_m_s'] / r['stokes_m_s'] for r in raw['free_drift']):.1f} times it. The 6-DOF "
                  f"twin in an irregular short-crested sea ran {s['six_dof_simsec_per_s']:.0f}× real time on one "
                  f"core, paired with the 3-DOF twin at {s['three_dof_simsec_per_s']:.0f}× in the same run."),
         tables=tables,
