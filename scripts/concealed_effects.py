@@ -449,6 +449,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentyfirst", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
+    ("twentyfirst", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py KINEMATIC_ONLY)",
     ("fifth", "before"): "each velocity's residual scaled by the spread of its measured signal",
     ("fifth", "after"): "an identified twin's velocities scaled by its own misfit on the recordings (search.dof_scale)",
     ("sixth", "before"): "each velocity's residual scaled by the spread of its measured signal",

@@ -163,6 +163,21 @@ def test_the_command_reference_page_is_the_commands_own_help():
     assert (DOCS / "reference" / "cli.md").read_text() == page(), "regenerate docs/reference/cli.md"
 
 
+def test_the_command_reference_shows_the_defaults_help_shows():
+    """A seed of 0 is a default (though 0 == False), an on/off pair names the side that holds, and
+    an option without a default shows none."""
+    from twin.cli.reference import page
+
+    text = page()
+    simulate = text.split("## twin simulate", 1)[1].split("## twin ", 1)[0]
+    assert "random seed (scenario 'random', the sea's components) (default: `0`)" in simulate
+    identify = text.split("## twin identify", 1)[1].split("## twin ", 1)[0]
+    assert "(default: `--calibration`)" in identify
+    sitl = text.split("## twin sitl", 1)[1].split("## twin ", 1)[0]
+    assert "(default: `--lockstep`)" in sitl and "(default) (default" not in sitl
+    assert "| `--model` | vessel description file (e.g. written by `twin identify`), instead of --vessel |" in simulate
+
+
 def test_the_vessel_file_reference_names_every_field():
     """A field the loader takes but the reference does not name is one a user cannot know of."""
     from dataclasses import fields
