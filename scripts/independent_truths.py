@@ -85,6 +85,10 @@ CASES_SECOND = [  # fixed before it was run: other seeds, magnitudes, sides and 
 ]
 SETS = {"first": CASES, "second": CASES_SECOND}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second"}
+# what a stage of a set ran, where its stages differ in the diagnosis
+STAGE_METHODS = {("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
+                 ("second", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py "
+                                      "KINEMATIC_ONLY)"}
 # the stages' names as the page shows them
 STAGE_LABELS = {"after, main's new prior": "after, from the shipped first-principles prior"}
 
@@ -311,10 +315,11 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         "a wind of another load shape (beside which a heading bias was drawn); and nulls. Exact: the truth named "
         "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines),
         tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
-                 "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces; the "
-                 "stage 'from the shipped first-principles prior' from the BlueBoat shipped today, whose sway-yaw "
-                 "coupling and speed-dependent damping this simulator does not have, so its nulls carry that form "
-                 "error.",
+                 "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces"
+                 + ("; the stage 'from the shipped first-principles prior' from the BlueBoat shipped today, whose "
+                    "sway-yaw coupling and speed-dependent damping this simulator does not have, so its nulls carry "
+                    "that form error" if any(k in STAGE_LABELS for k in stages) else "") + ".",
+                 *[f"Stage '{k}': {STAGE_METHODS[(proof_set, k)]}." for k in stages if (proof_set, k) in STAGE_METHODS],
                  "A one-thruster dead zone's truth in the library's terms: its soft edge's middle as a hard edge of "
                  "that thruster (forward and astern alike); the u² loss's: the thrust_speed_loss coefficient that "
                  "matches it over the log's own samples, added to the prior's."],
