@@ -684,7 +684,9 @@ def given_cell(row: dict) -> str:
     return f"{verdict} (z {g['z']:.2f}, blocks {g['blocks_for']} for / {g['blocks_against']} against)"
 
 
-def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first") -> Path:
+def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first", compared: dict | None = None) -> Path:
+    """The set's page from its rows; `compared` ({"label", "commit", "rows"}), the same recordings diagnosed
+    by another commit's diagnosis, is shown beside them."""
     s = summary_of(rows)
     line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false discoveries; "
             f"nulls clean {s['nulls_clean']} of {s['nulls']}"
@@ -712,6 +714,17 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
                          _calibration_text(r["calibrations"])] for r in rows])
     null = next((r for r in rows if r["truth"] is None), None)
     tables = [cases, logs]
+    if compared:
+        c = summary_of(compared["rows"])
+        line += (f" The same recordings diagnosed at commit {compared['commit']} ({compared['label']}): {c['exact']} of "
+                 f"{c['effects']} exact, {c['named']} named; {c['false_discoveries']} false discoveries; nulls clean "
+                 f"{c['nulls_clean']} of {c['nulls']}.")
+        tables.insert(1, ResultTable(f"The same recordings diagnosed at commit {compared['commit']} ({compared['label']})",
+                                     ["case", "named (values)", "exact", "else named"],
+                                     [[r["case"], "diagnosis failed" if r["failed"] else "; ".join(
+                                         f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
+                                       "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-"]
+                                      for r in compared["rows"]]))
     if null is not None:
         tables.append(ResultTable(f"The simulator against the hand balance of thrust and surge drag ({null['case']})",
                                   ["throttle µs", "2·T N", "u balance m/s", "u simulated m/s", "samples"],
@@ -770,7 +783,8 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
          "held-out blocks' votes and 5 % of the held-out misfit above the noise): whether the recording can prove "
          "the truth in the library's form at all. A miss where it cannot is the data's or the form's; a fitted "
          "form may still do better than the given one."],
-        {"commit": commit, "summary": s, "rows": rows, "cases": [asdict(c) for c in SETS[proof_set]]})
+        {"commit": commit, "summary": s, "rows": rows, "cases": [asdict(c) for c in SETS[proof_set]],
+         **({"compared": compared} if compared else {})})
     return page.write(out)
 
 
@@ -789,6 +803,10 @@ def main() -> int:
     ap.add_argument("--truth-given", action="store_true",
                     help="judge each case's truth as given (twin diagnose --given) beside the diagnosis already run "
                          "(rows from --work, else from the page's raw figures), and rewrite the page")
+    ap.add_argument("--compare", type=Path, default=None,
+                    help="the raw figures (data/blind_truths_SET.json) of the same set diagnosed at another commit, "
+                         "shown beside this run's")
+    ap.add_argument("--compare-label", default="", help="what that commit's diagnosis did otherwise")
     args = ap.parse_args()
     cases = SETS[args.set]
     args.work = args.work or Path("/tmp/blind_truths" + ("" if args.set == "first" else f"_{args.set}"))
@@ -821,7 +839,13 @@ def main() -> int:
     rows = [json.loads((args.work / f"{c.name}.row.json").read_text()) for c in cases]
     commit_file = args.work / "commit.txt"
     commit = commit_file.read_text().strip() if commit_file.is_file() else checkout_commit(ROOT)
-    print(write_page(rows, commit, args.out, args.set))
+    published = args.out / "data" / f"{page_name(args.set)}.json"
+    if args.compare:
+        other = json.loads(args.compare.read_text())
+        compared = {"label": args.compare_label, "commit": other["commit"], "rows": other["rows"]}
+    else:  # a rewrite keeps what the page compared with
+        compared = json.loads(published.read_text()).get("compared") if published.is_file() else None
+    print(write_page(rows, commit, args.out, args.set, compared))
     return 0
 
 

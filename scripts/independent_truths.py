@@ -316,7 +316,8 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines),
         tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
                  "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces"
-                 + ("; the stage 'from the shipped first-principles prior' from the BlueBoat shipped today, whose "
+                 + ("; the stage 'from the shipped first-principles prior' from the BlueBoat shipped at that stage's "
+                    "commit, whose "
                     "sway-yaw coupling and speed-dependent damping this simulator does not have, so its nulls carry "
                     "that form error" if any(k in STAGE_LABELS for k in stages) else "") + ".",
                  *[f"Stage '{k}': {STAGE_METHODS[(proof_set, k)]}." for k in stages if (proof_set, k) in STAGE_METHODS],

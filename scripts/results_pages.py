@@ -40,7 +40,16 @@ STUDIES = {
                            "--only gnss_latency,current_tidal,null_rc --out out/diagnose/gnss_latency",
                            "recordings of an independent simulator (scripts/world_sim.py) at seeds no other study "
                            "used: GNSS fixes stamped 0.2-0.4 s late, a tidal current, and a null",
-                           "Is a GNSS fixes' latency named where it is there, and nowhere else?"),
+                           "Is a GNSS fixes' latency named where it is there, and nowhere else? (The diagnosis reads "
+                           "the latency from the kinematics alone.)"),
+    "gnss_latency_world_searched": ("GNSS latency on an independent simulator's truths (world seeds 57-59), the "
+                                    "latency searched in the dynamics as well",
+                                    "python scripts/diagnose_proof.py --no-library --world-seeds 57,58,59 --only "
+                                    "gnss_latency,current_tidal,null_rc --out out/diagnose/gnss_latency_searched, with "
+                                    "the diagnosis of commit 2e24909",
+                                    "the same recordings as gnss_latency_world (the set fixed at 225fb76)",
+                                    "The same question, with the diagnosis that also searched the dynamics for the "
+                                    "latency (twin/diagnose/doctor.py with gnss_latency not in KINEMATIC_ONLY)."),
     "blueboat_diagnosis": ("BlueBoat: diagnosis of the untuned twin", "python scripts/diagnose_blueboat.py",
                            "BlueBoat recordings [BlueBoat-SI]", "What does the diagnosis name on a real boat?"),
     "blueboat_heldout_band": ("BlueBoat: prediction band on held-out runs", "python scripts/identify_blueboat.py",
@@ -129,6 +138,7 @@ STUDIES = {
 # where each study script writes its raw figures by default (its --out / --json)
 COLLECT = {
     "diagnosis_proof": "out/diagnose/proof.json", "gnss_latency_world": "out/diagnose/gnss_latency/proof.json",
+    "gnss_latency_world_searched": "out/diagnose/gnss_latency_searched/proof.json",
     "blueboat_diagnosis": "out/diagnose/blueboat.json",
     "record_more": "out/diagnose/record_more.json", "record_more_astern": "out/diagnose/record_more_astern.json",
     "blueboat_heldout_band": "out/identification/blueboat_heldout_band.json",
@@ -203,16 +213,17 @@ def proof_tables(raw: dict) -> list[ResultTable]:
     nulls = [c for c in lib if not c.get("effects")]
     clean = sum(1 for c in nulls if not c.get("extra"))
     s = raw.get("world_summary", {})
-    tables = [ResultTable("Truths written by the library's own effects", ["cases", "every truth named",
-                                                                           "null cases", "null cases clean"],
-                          [[len(lib), found, len(nulls), clean]]),
-              ResultTable("Truths of the independent simulator", list(s), [list(s.values())])]
-    rows = [[c.get("case"), ", ".join(e if isinstance(e, str) else e.get("text", str(e)) for e in c.get("effects", []))
-             or "none", "yes" if c.get("found_all") else "no",
-             ", ".join(x if isinstance(x, str) else x.get("text", str(x)) for x in c.get("extra", [])) or "–"]
-            for c in lib]
-    tables.append(ResultTable("Each library case: the truth, named in full?, anything else named",
-                              ["case", "truth", "named", "also named"], rows))
+    tables = [ResultTable("Truths of the independent simulator", list(s), [list(s.values())])]
+    if lib:  # a study of the world cases alone (--no-library) has none
+        rows = [[c.get("case"), ", ".join(e if isinstance(e, str) else e.get("text", str(e))
+                                          for e in c.get("effects", [])) or "none", "yes" if c.get("found_all") else "no",
+                 ", ".join(x if isinstance(x, str) else x.get("text", str(x)) for x in c.get("extra", [])) or "–"]
+                for c in lib]
+        tables[:0] = [ResultTable("Truths written by the library's own effects", ["cases", "every truth named",
+                                                                                "null cases", "null cases clean"],
+                                  [[len(lib), found, len(nulls), clean]])]
+        tables.append(ResultTable("Each library case: the truth, named in full?, anything else named",
+                                  ["case", "truth", "named", "also named"], rows))
     wrows = [[c.get("case"), c.get("seed"), ", ".join(map(str, c.get("named", []))) or "–",
               ", ".join(map(str, c.get("spurious", []))) or "–"] for c in raw.get("world", [])]
     tables.append(ResultTable("Each independent-simulator recording (random seed): named, and named without a truth",
@@ -294,7 +305,7 @@ def compass_tables(raw: dict) -> list[ResultTable]:
 def page(name: str) -> ResultPage:
     title, ran, data, question = STUDIES[name]
     raw = json.loads((DATA / f"{name}.json").read_text())
-    proof = name in ("diagnosis_proof", "gnss_latency_world")
+    proof = name in ("diagnosis_proof", "gnss_latency_world", "gnss_latency_world_searched")
     tables = proof_tables(raw) if proof else compass_tables(raw) if name == "compass_throttle" else []
     scores = score_table(raw)
     if scores and not proof:

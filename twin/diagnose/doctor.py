@@ -166,7 +166,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
     # some sensor effects are the kinematics' alone (module docstring, step 0)
-    settled = {f.effect for f in findings if f.told or f.absent or f.effect in kinematic_only(recordings)}
+    settled = {f.effect for f in findings if f.told or f.absent} | kinematic_only(recordings)
     if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
         # each log's compass offset was measured from its own straight running (applied where it is
         # clear): a constant heading bias has a kinematic signature, and where the kinematics show none
