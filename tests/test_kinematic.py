@@ -207,3 +207,20 @@ def test_the_heading_timing_is_the_kinematics_alone_only_where_every_log_has_a_g
     assert kinematic_only([bare]) == {"gnss_lever_arm", "gnss_latency"}
     assert kinematic_only([gyro]) == {"gnss_lever_arm", "gnss_latency", "heading_latency"}
     assert kinematic_only([gyro, bare]) == {"gnss_lever_arm", "gnss_latency"}
+
+
+def test_a_kinematics_only_effect_is_left_out_of_the_search_with_or_without_a_kinematic_step():
+    """Without findings (the kinematic step switched off) the antenna and the GNSS latency are still
+    not searched; a told or absent finding is left out too, one neither told nor absent is searched."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.doctor import not_searched
+
+    bare = Recording(source="b", kind="csv")
+    assert not_searched([], [bare], []) == {"gnss_lever_arm", "gnss_latency"}
+    told = SimpleNamespace(effect="clock_offset", told=True, absent=False)
+    unsure = SimpleNamespace(effect="heading_latency", told=False, absent=False)
+    assert not_searched([told, unsure], [bare], []) == {"gnss_lever_arm", "gnss_latency", "clock_offset"}
+    measured = SimpleNamespace(sigma_deg=0.4)
+    assert "heading_bias" in not_searched([], [bare], [measured])
+    assert "heading_bias" not in not_searched([], [bare], [SimpleNamespace(sigma_deg=None)])

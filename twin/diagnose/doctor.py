@@ -165,13 +165,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     lib = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=supply_reference(preps))
     if library:
         lib = {k: v for k, v in lib.items() if k in library}
-    # some sensor effects are the kinematics' alone (module docstring, step 0)
-    settled = {f.effect for f in findings if f.told or f.absent} | kinematic_only(recordings)
-    if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
-        # each log's compass offset was measured from its own straight running (applied where it is
-        # clear): a constant heading bias has a kinematic signature, and where the kinematics show none
-        # the dynamics' would be a stand-in for another term (a decay, a wind of another shape)
-        settled |= {"heading_bias", "heading_bias_per_log"}
+    settled = not_searched(findings, recordings, calibrations)
     unsearched = sorted(k for k in lib if k in settled)
     replaced = sorted(k for k in lib if wind == "measured" and k in MEASURED_WIND_REPLACES)
     lib = {k: v for k, v in lib.items() if k not in settled and k not in replaced}
@@ -226,6 +220,18 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
                if search.overlapping else ""))
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
     return diagnosis
+
+
+def not_searched(findings, recordings: list[Recording], calibrations) -> set[str]:
+    """The effects the dynamic search leaves out: those the kinematic findings told or found absent,
+    those the kinematics alone may tell (kinematic_only; with or without a kinematic step run), and a
+    constant heading bias where every log's compass offset was measured from its own straight running
+    (a heading bias has a kinematic signature, and where the kinematics show none the dynamics' would
+    stand in for another term: a decay, a wind of another shape)."""
+    settled = {f.effect for f in findings if f.told or f.absent} | kinematic_only(recordings)
+    if calibrations and all(c.sigma_deg is not None and math.isfinite(c.sigma_deg) for c in calibrations):
+        settled |= {"heading_bias", "heading_bias_per_log"}
+    return settled
 
 
 def kinematic_only(recordings: list[Recording]) -> set[str]:
