@@ -630,6 +630,13 @@ def test_a_recording_too_short_for_any_dynamic_finding_says_so():
     from twin.diagnose.search import _signed_rank_z
 
     assert _signed_rank_z(np.full(9, 0.2)) < 3.0 <= _signed_rank_z(np.full(10, 0.2))
+    # every block against is as sure as every block for, the other way, and no surer: five blocks
+    # cannot contradict an effect any more than they can prove it
+    for n in (5, 7, 12):
+        assert _signed_rank_z(np.full(n, -0.2)) == pytest.approx(-_signed_rank_z(np.full(n, 0.2)), abs=1e-9)
+    assert -3.0 < _signed_rank_z(np.full(5, -0.2)) < -1.8
+    mixed = np.array([0.3, -0.1, 0.2, 0.25, -0.05, 0.4, 0.15])
+    assert _signed_rank_z(-mixed) == pytest.approx(-_signed_rank_z(mixed), abs=1e-9)
     d = SimpleNamespace(effects=[], rounds=[], unexplained=[], located=[], fit_before={}, fit_after={},
                         prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 20, "blocks": 7})
     (line,) = answer(d)["missing"]
