@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|seventh] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|eighth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -177,8 +177,20 @@ SEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides and direc
     Case("wind-gusty-6-100", "wind", 99, wind_speed_m_s=6.0, wind_from_deg=100.0, gust_sigma_m_s=0.9, gust_tau_s=12.0),
     Case("wind-steady-5.5-200", "wind", 100, wind_speed_m_s=5.5, wind_from_deg=200.0),
 ]
+EIGHTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-o", "null", 101),
+    Case("null-p", "null", 102),
+    Case("dead_zone-left-soft-60-110us", "dead_zone", 103, side="left", inner_us=60.0, outer_us=110.0),
+    Case("dead_zone-right-hard-75us", "dead_zone", 104, side="right", inner_us=75.0, outer_us=75.0),
+    Case("speed_loss-0.13u", "speed_loss", 105, k=0.13, power=1),
+    Case("speed_loss-0.10u2", "speed_loss", 106, k=0.10, power=2),
+    Case("sag-exp-350s", "sag_exp", 107, k=0.2, tau_s=350.0),
+    Case("sag-square-0.18", "sag_square", 108, k=0.18),
+    Case("wind-gusty-5-30", "wind", 109, wind_speed_m_s=5.0, wind_from_deg=30.0, gust_sigma_m_s=0.8, gust_tau_s=10.0),
+    Case("wind-steady-6.5-250", "wind", 110, wind_speed_m_s=6.5, wind_from_deg=250.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
-        "seventh": SEVENTH}
+        "seventh": SEVENTH, "eighth": EIGHTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

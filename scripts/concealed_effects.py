@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentyfirst] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentysecond] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -9,7 +9,8 @@ which magnitudes. The second to fourteenth sets regroup the same active BlueBoat
 outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, P again: the last pair
 left, 216 and 228, is too short to diagnose; A, F again; D, K again) and take other Esso turning tests (T3, T4;
 T5, T6; T7, T8; T9, T10; T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again; T11, T12
-again; T1, T2 again; T3, T4 again; then A, P with T11, T12 again, and J, O with T3, T4 again), with other
+again; T1, T2 again; T3, T4 again; then A, P with T11, T12 again, J, O with T3, T4 again,
+H, N with T7, T8 again, Q, I with T9, T10 again and G, L with T5, T6 again), with other
 magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -427,6 +428,21 @@ PROOF_TWENTYFIRST = [
     Case("esso", "T9", "input_late", (0.6,)), Case("esso", "T10", "input_late", (0.75,)),
     Case("esso", "T9", "heading_late", (0.6,)), Case("esso", "T10", "heading_late", (0.5,)),
 ]
+# the twenty-second set takes outings G and L (disjoint runs) and Esso tests T5 and T6 again, with other
+# values
+PROOF_TWENTYSECOND = [
+    Case("blueboat", "G", "null"), Case("blueboat", "L", "null"),
+    Case("blueboat", "G", "current", (0.14, 250.0)), Case("blueboat", "L", "current", (0.13, 20.0)),
+    Case("blueboat", "G", "antenna", (0.25, -0.30)), Case("blueboat", "L", "antenna", (-0.35, 0.25)),
+    Case("blueboat", "G", "input_late", (0.55,)), Case("blueboat", "L", "input_late", (0.45,)),
+    Case("blueboat", "G", "thruster_scaled", ("left", 0.7)), Case("blueboat", "L", "thruster_scaled", ("right", 0.75)),
+    Case("blueboat", "G", "heading_late", (0.45,)), Case("blueboat", "L", "heading_late", (0.6,)),
+    Case("esso", "T5", "null"), Case("esso", "T6", "null"),
+    Case("esso", "T5", "current", (0.11, 100.0)), Case("esso", "T6", "current", (0.10, 330.0)),
+    Case("esso", "T5", "antenna", (-0.30, -0.25)), Case("esso", "T6", "antenna", (0.35, 0.30)),
+    Case("esso", "T5", "input_late", (0.7,)), Case("esso", "T6", "input_late", (0.55,)),
+    Case("esso", "T5", "heading_late", (0.45,)), Case("esso", "T6", "heading_late", (0.65,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -434,7 +450,8 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "thirteenth": PROOF_THIRTEENTH, "fourteenth": PROOF_FOURTEENTH,
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
           "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
-          "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST}
+          "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
+          "twentysecond": PROOF_TWENTYSECOND}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -445,7 +462,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "fifteenth": "concealed_effects_fifteenth", "sixteenth": "concealed_effects_sixteenth",
          "seventeenth": "concealed_effects_seventeenth",
          "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth",
-         "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst"}
+         "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst",
+         "twentysecond": "concealed_effects_twentysecond"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -471,7 +489,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst"}
+                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

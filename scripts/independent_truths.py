@@ -1,6 +1,6 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
-    python scripts/independent_truths.py [--set first|second] [--stage before|after] [--prior FILE] [--only CASE,...]
+    python scripts/independent_truths.py [--set first|second|third] [--stage before|after] [--prior FILE] [--only CASE,...]
                                          [--work /tmp/independent_truths]
 
 The simulator here shares no physics with the package: its own three-degree-of-freedom equations
@@ -83,8 +83,17 @@ CASES_SECOND = [  # fixed before it was run: other seeds, magnitudes, sides and 
     Case("wind_shape-5.5-140", "wind_shape", (5.5, 140.0), 29),
     Case("wind_shape-6.5-320", "wind_shape", (6.5, 320.0), 30),
 ]
-SETS = {"first": CASES, "second": CASES_SECOND}
-PAGES = {"first": "independent_truths", "second": "independent_truths_second"}
+CASES_THIRD = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-5", "null", (), 31), Case("null-6", "null", (), 32),
+    Case("one_dead_zone-left-75-35", "one_dead_zone", ("left", 75.0, 35.0), 33),
+    Case("one_dead_zone-right-85-25", "one_dead_zone", ("right", 85.0, 25.0), 34),
+    Case("speed_loss_u2-0.12", "speed_loss_u2", (0.12,), 35), Case("speed_loss_u2-0.20", "speed_loss_u2", (0.20,), 36),
+    Case("decay-0.025", "decay", (0.025,), 37), Case("decay-0.045", "decay", (0.045,), 38),
+    Case("wind_shape-5-200", "wind_shape", (5.0, 200.0), 39),
+    Case("wind_shape-6-30", "wind_shape", (6.0, 30.0), 40),
+]
+SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD}
+PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third"}
 # what a stage of a set ran, where its stages differ in the diagnosis
 STAGE_METHODS = {("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
                  ("second", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py "
