@@ -575,32 +575,6 @@ def test_the_rival_the_blocks_prefer_is_kept_when_it_earns_its_place_too():
     assert Search._preferred(winner, trials, []) is winner
 
 
-def test_of_rivals_the_blocks_cannot_tell_apart_the_one_with_fewer_numbers_is_kept():
-    """A quadratic drag in surge and yaw (two numbers) wins on pooled gain over a thrust loss with
-    speed (one) that the blocks cannot tell from it: the loss is kept when it earns its place itself,
-    not when the blocks tell the drag apart (z > 3) or when both fit as many numbers."""
-    from twin.diagnose.search import SPEED_STAND_INS, Evidence, Search, Trial
-    from twin.effects.spec import Candidate
-
-    def trial(name, numbers, z, rel):
-        cand = Candidate(name, tuple(range(numbers)), ((),), lambda p: None, "drag")
-        return Trial(cand, [], Evidence(z, rel, rel, {}, 10, 0, 10))
-
-    drag, loss, scale = trial("quadratic_damping", 2, 4.8, 0.165), trial("thrust_speed_loss", 1, 4.8, 0.163), \
-        trial("full_thrust", 1, 4.7, 0.16)
-    trials = [drag, loss, scale]
-    assert Search._preferred(drag, trials, [{"name": "thrust_speed_loss", "z": 0.24}]) is loss
-    assert Search._preferred(drag, trials, [{"name": "thrust_speed_loss", "z": 3.2}]) is drag  # told apart
-    assert Search._preferred(loss, trials, [{"name": "full_thrust", "z": 0.1}]) is loss  # as many numbers
-    # of two simpler ones, the larger held-out gain
-    assert Search._preferred(drag, trials, [{"name": "full_thrust", "z": 0.5}, {"name": "thrust_speed_loss",
-                                                                                "z": 0.3}]) is loss
-    weak = trial("thrust_speed_loss", 1, 2.0, 0.163)  # does not earn its place itself
-    assert Search._preferred(drag, [drag, weak], [{"name": "thrust_speed_loss", "z": 0.24}]) is drag
-    # a forward curve saturating at full PWM is tested for a loss with speed as a constant scale is
-    assert SPEED_STAND_INS["full_thrust"] == SPEED_STAND_INS["thrust_gain"] == "thrust_speed_loss"
-
-
 def test_a_window_votes_when_its_residuals_move_by_half_a_noise_sigma():
     """Residuals in each DOF's own noise units: a window votes when the change's RMS over its samples
     of u, v and r passes 0.5, whatever the DOFs' noise in the fit's scale (a sway noise 100 times

@@ -65,8 +65,7 @@ own one step on the same windows. Scanned candidates (time
 shifts, dead zones) are scanned with the core held, then the core is refitted around the scanned
 value; backward elimination refits the core without the effect put back.
 
-A constant thrust scale (thrust_gain), or a forward curve that saturates below the map's at full
-PWM (full_thrust), is judged beside the thrust loss with advance speed
+A constant thrust scale (thrust_gain) is judged beside the thrust loss with advance speed
 (thrust_speed_loss) whenever it is judged at all, and where it wins but, refitted on each fold's
 faster half of the training windows, wants at least SPEED_SHARE less thrust than on the slower half
 on every fold, the loss with speed is kept in its place if it earns its place itself: a thrust that
@@ -75,11 +74,7 @@ falls with speed is what such a scale stands in for, and the speed dependence is
 A candidate that does nearly as well as the one kept (the blocks' votes between the two: z <
 Z_SEPARABLE) is reported as not separable from it by this recording. Which of two such candidates
 is kept: the one with the larger pooled held-out gain, unless the blocks themselves lean to the
-other (z ≤ −Z_PREFER between the two) and it earns its place too, or, where the blocks lean to
-neither, the other fits fewer numbers and earns its place too (the fewest numbers kept; a quadratic
-drag in surge and yaw, two numbers, gives way to a thrust loss with speed, one, which the recording
-cannot tell from it: more numbers than the data can tell apart are a stand-in's freedom, not
-evidence). Two effects that explain the
+other (z ≤ −Z_PREFER between the two) and it earns its place too. Two effects that explain the
 same misfit gain nearly the same over the pooled windows, and the pooled sum then decides on a
 few windows' worth; the blocks' vote is the test the rule trusts everywhere else. Chosen on the
 proof's recordings of random seeds 1-10: wherever the kept effect was the truth's, its rivals had
@@ -122,7 +117,7 @@ T_PIN = 3.0  # a separable candidate's quantity is fitted when its training wind
 MIN_CLUSTERS = 8  # training blocks that σ must come from for T_PIN to decide
 CORE_NFEV = 20  # solver steps of every fit with the core (module docstring)
 # a constant thrust scale that a loss growing with the speed could stand in for (module docstring)
-SPEED_STAND_INS = {"thrust_gain": "thrust_speed_loss", "full_thrust": "thrust_speed_loss"}
+SPEED_STAND_INS = {"thrust_gain": "thrust_speed_loss"}
 SPEED_SHARE = 0.10  # the scale fitted on the fast half of the windows this much below the slow half's, on every fold
 
 
@@ -592,13 +587,9 @@ class Search:
             rivals = self._rivals(winner, trials, base_costs)
             preferred = self._preferred(winner, trials, rivals)
             if preferred is not winner:
-                z = next(r['z'] for r in rivals if r['name'] == preferred.name)
-                self.log(f"the blocks prefer {preferred.name} to {winner.name} (z {-z:.1f}): kept instead"
-                         if z <= -Z_PREFER else
-                         f"{preferred.name} ({_numbers_fitted(preferred)} fitted) cannot be told from {winner.name} "
-                         f"({_numbers_fitted(winner)}; blocks z {z:.1f}): the simpler kept instead")
-                winner = self._speed_form(preferred, trials, bases)
-                rivals = self._rivals(winner, trials, base_costs)
+                self.log(f"the blocks prefer {preferred.name} to {winner.name} (z "
+                         f"{-next(r['z'] for r in rivals if r['name'] == preferred.name):.1f}): kept instead")
+                winner, rivals = preferred, self._rivals(preferred, trials, base_costs)
             e = winner.evidence
             self.log(f"kept {winner.name}: held-out misfit −{100 * e.rel:.1f} % (−{100 * e.rel_excess:.1f} % of "
                      f"the excess over the noise), z = {e.z:.1f} over {e.blocks_for + e.blocks_against} blocks")
@@ -669,20 +660,10 @@ class Search:
     @staticmethod
     def _preferred(winner: Trial, trials: list[Trial], rivals: list[dict]) -> Trial:
         """The rival the blocks prefer to the winner by Z_PREFER or more and that earns its place
-        itself (the most preferred); else, of the rivals the blocks cannot tell from the winner that
-        earn their place themselves, the one with the fewest fitted numbers where it has fewer than
-        the winner (the larger held-out gain among equals); else the winner (module docstring)."""
+        itself (the most preferred), else the winner (module docstring)."""
         by_name = {t.name: t for t in trials}
-        earning = [r for r in rivals if by_name[r["name"]].evidence.earns_its_place()]
-        leaning = [r for r in earning if r["z"] <= -Z_PREFER]
-        if leaning:
-            return by_name[min(leaning, key=lambda r: r["z"])["name"]]
-        simpler = [r for r in earning if r["z"] <= Z_SEPARABLE
-                   and _numbers_fitted(by_name[r["name"]]) < _numbers_fitted(winner)]
-        if simpler:
-            return by_name[min(simpler, key=lambda r: (_numbers_fitted(by_name[r["name"]]),
-                                                       -by_name[r["name"]].evidence.rel))["name"]]
-        return winner
+        leaning = [r for r in rivals if r["z"] <= -Z_PREFER and by_name[r["name"]].evidence.earns_its_place()]
+        return by_name[min(leaning, key=lambda r: r["z"])["name"]] if leaning else winner
 
     def _rivals(self, winner: Trial, trials: list[Trial], base_costs: _Costs) -> list[dict]:
         """Candidates that did at least half as well: told apart from the winner only when the
@@ -701,12 +682,6 @@ class Search:
                         "held_out_gain": round(t.evidence.rel, 4),
                         "parameters": t.candidate.to_effect(t.fits[0].values).flat()})
         return out
-
-
-def _numbers_fitted(trial: Trial) -> int:
-    """How many numbers a trial fitted: its candidate's quantities less those its folds left at the
-    base's value (Search.trial)."""
-    return len(trial.candidate.params)
 
 
 def without_superseded(kept: list[Kept], winner: Trial) -> tuple[list[Kept], set[str]]:
