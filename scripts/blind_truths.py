@@ -700,7 +700,7 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
     """The set's page from its rows; `compared` ({"label", "commit", "rows"}), the same recordings diagnosed
     by another commit's diagnosis, is shown beside them."""
     s = summary_of(rows)
-    line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false discoveries; "
+    line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false {'discovery' if s['false_discoveries'] == 1 else 'discoveries'}; "
             f"nulls clean {s['nulls_clean']} of {s['nulls']}"
             + (f"; {s['failed']} diagnoses failed" if s["failed"] else "")
             + f" (diagnoses {s['seconds']:.0f} s in all).")
@@ -729,7 +729,7 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
     if compared:
         c = summary_of(compared["rows"])
         line += (f" The same recordings diagnosed at commit {compared['commit']} ({compared['label']}): {c['exact']} of "
-                 f"{c['effects']} exact, {c['named']} named; {c['false_discoveries']} false discoveries; nulls clean "
+                 f"{c['effects']} exact, {c['named']} named; {c['false_discoveries']} false {'discovery' if c['false_discoveries'] == 1 else 'discoveries'}; nulls clean "
                  f"{c['nulls_clean']} of {c['nulls']}.")
         tables.insert(1, ResultTable(f"The same recordings diagnosed at commit {compared['commit']} ({compared['label']})",
                                      ["case", "named (values)", "exact", "else named"],

@@ -467,6 +467,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentysecond", "before"): "the diagnosis as it was when the set was fixed",
+    ("twentysecond", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; a saturating full thrust tested for a loss with speed as a constant scale is (commit e3fb80b, reverted)",
     ("twentyfirst", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
     ("twentyfirst", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py KINEMATIC_ONLY)",
     ("fifth", "before"): "each velocity's residual scaled by the spread of its measured signal",
@@ -830,7 +832,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
     judged = [(g, next((r for r in rows if r["case"] == name), None)) for name, g in given.items() if g is not None]
     if judged:
         provable = [r for g, r in judged if g["earns_its_place"] and r is not None]
-        last = list(stages)[-1]  # the stages in the order they ran: the last is the diagnosis of today
+        # the stages in the order they ran: the last one kept is the diagnosis of today
+        last = next((s for s in reversed(list(stages)) if "(not kept)" not in s), list(stages)[-1])
         lines.append(
             f"The truth itself, given at its own values and judged by the diagnosis's rule on the same blocks through "
             f"the same twin (commit {', '.join(sorted({g['commit'] for g, _ in judged}))}): the logs can prove "

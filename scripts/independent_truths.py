@@ -95,7 +95,9 @@ CASES_THIRD = [  # fixed before it was run: other seeds, magnitudes, sides and d
 SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
+STAGE_METHODS = {("third", "before"): "the diagnosis as it was when the set was fixed",
+                 ("third", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; a saturating full thrust tested for a loss with speed as a constant scale is (commit e3fb80b, reverted)",
+                 ("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
                  ("second", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py "
                                       "KINEMATIC_ONLY)"}
 # the stages' names as the page shows them
@@ -303,7 +305,7 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         stage = STAGE_LABELS.get(key, key)
         s = summary_of(res["rows"])
         lines.append(f"{stage} (commit {res['commit']}): {s['exact']} of {s['effects']} exact, {s['named']} named; "
-                     f"{s['false_discoveries']} false discoveries; nulls clean {s['nulls_clean']} of {s['nulls']}")
+                     f"{s['false_discoveries']} false {'discovery' if s['false_discoveries'] == 1 else 'discoveries'}; nulls clean {s['nulls_clean']} of {s['nulls']}")
         tables.append(ResultTable(f"{stage}: each truth (commit {res['commit']})",
                                   ["case", "truth", "named (values)", "exact", "else named", "s"],
                                   [[r["case"], "nothing" if r["truth"] is None else
