@@ -1,0 +1,184 @@
+"""The BlueBoat's sway beyond its fitted runs: what the identified twin misses in v, and what the
+figure of merit does with where the antenna is taken to be.
+
+    python scripts/blueboat_sway.py [--out docs/results]
+
+The twin is `twin identify` with its defaults on the five least active of the ten shared runs
+[BlueBoat-SI] (twin.fit.extrapolation.by_activity), judged on the five most active in 10-s free
+runs from measured states every 2 s, as on the extrapolation page. Three looks:
+
+1. Where the antenna is taken to be. The recordings' sway at the hull's reference point is the
+   antenna's less x·r (prepare): moving the antenna along the hull by Δx adds −Δx·r to the
+   measured sway, a part the twin's own r predicts. R² and MAE of the same twin, its antenna moved
+   (nothing refitted), tell a better twin from a yardstick that changed.
+2. What the sway residual follows: the measured less the predicted v of every free-run sample,
+   regressed on u·r by speed band; and, on the prepared runs, the lag at which the measured v and
+   u·r correlate best (negative: v leads).
+3. An added-mass coupling Y_ṙ = N_v̇ (zero in the shipped prior; physics/added_mass.py), set by
+   hand on the identified twin: what it gives in v and costs in r.
+
+The recordings are read in place; without them the script says so and exits 0.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import twin.vessel as vessel_mod  # noqa: E402
+from twin.effects import apply_effects  # noqa: E402
+from twin.fit.evaluate import TwinPredictor, evaluate, horizon_windows  # noqa: E402
+from twin.fit.extrapolation import by_activity  # noqa: E402
+from twin.fit.windows import ModelCache, measured  # noqa: E402
+from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
+from twin.physics.sensors import log_name  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+
+DATA = ROOT.parent / "shared" / "data" / "blueboat"
+HORIZON_S, STRIDE_S = 10.0, 2.0
+ANTENNA_DX_M = (0.15, 0.0, -0.1, -0.2, -0.3)
+COUPLING_KG_M = (-2.0, 0.0, 2.0, 4.0)
+SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
+LAGS_S = np.round(np.arange(-1.5, 1.51, 0.3), 1)
+
+
+def scores(vessel, recordings) -> tuple[dict, float]:
+    """(10-s free-run {dof: (R², MAE)} on `recordings` as `vessel` sees them, the measured v's spread)."""
+    seen, _ = calibrate(recordings, vessel)
+    preps = prepared(recordings, seen)
+    got = evaluate(seen, preps, stride_s=STRIDE_S, horizons={"10s": HORIZON_S})["10s"]
+    spread = float(np.std(np.concatenate([p.v[np.isfinite(p.v)] for p in preps])))
+    return {d: (got[d]["r2"], got[d]["mae"]) for d in "uvr"}, spread
+
+
+def sway_residual(vessel, recordings) -> list[list]:
+    """Per speed band: samples, the correlation of the sway residual with u·r and its slope (s)."""
+    seen, _ = calibrate(recordings, vessel)
+    preps = prepared(recordings, seen)
+    windows = horizon_windows(preps, HORIZON_S, STRIDE_S)
+    predictor = TwinPredictor(seen, ModelCache(), None)
+    pred = np.full((len(windows), max(w.n for w in windows) + 1, 3), np.nan)
+    groups: dict[tuple[int, int], list[int]] = {}  # one batch per recording and length
+    for j, w in enumerate(windows):
+        groups.setdefault((w.rec, w.n), []).append(j)
+    for (rec, n), rows in groups.items():
+        got = predictor.predict_windows(preps[rec], np.array([windows[j].start for j in rows]), n)
+        pred[rows, : n + 1] = got[:, : n + 1]
+    _, meas = measured(preps, windows)
+    p, m = pred[:, 1:].reshape(-1, 3), meas[:, 1:].reshape(-1, 3)
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(m), axis=1)
+    residual, u, ur = (m[ok, 1] - p[ok, 1]), m[ok, 0], m[ok, 0] * m[ok, 2]
+    rows = []
+    for lo, hi in SPEED_BANDS_M_S:
+        k = (u >= lo) & (u < hi)
+        if k.sum() >= 50:
+            rows.append([f"{lo:g}-{hi:g}", int(k.sum()), float(np.corrcoef(ur[k], residual[k])[0, 1]),
+                         float(np.polyfit(ur[k], residual[k], 1)[0])])
+    rows.append(["all", int(len(u)), float(np.corrcoef(ur, residual)[0, 1]), float(np.polyfit(ur, residual, 1)[0])])
+    return rows
+
+
+def lead_of_sway(vessel, recordings) -> tuple[float, float]:
+    """(lag s of the best correlation of the measured v with u·r, that correlation) over the prepared
+    runs' segments; a negative lag: v leads u·r."""
+    seen, _ = calibrate(recordings, vessel)
+    best = (0.0, -np.inf)
+    for lag_s in LAGS_S:
+        xs, ys = [], []
+        for p in prepared(recordings, seen):
+            k = int(round(lag_s / p.settings.grid_dt))
+            for seg in p.segments:
+                v, ur = p.v[seg.start:seg.stop], (p.u * p.r)[seg.start:seg.stop]
+                if len(v) <= abs(k) + 10:
+                    continue
+                a, b = (v[k:], ur[:len(ur) - k]) if k >= 0 else (v[:k], ur[-k:])
+                ok = np.isfinite(a) & np.isfinite(b)
+                xs.append(b[ok])
+                ys.append(a[ok])
+        c = float(np.corrcoef(np.concatenate(xs), np.concatenate(ys))[0, 1])
+        if c > best[1]:
+            best = (float(lag_s), c)
+    return best
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    args = ap.parse_args()
+    paths = sorted(DATA.glob("fixed_*.csv"))
+    if not paths:
+        print(f"the BlueBoat recordings are not in {DATA}: nothing to do")
+        return 0
+    started = time.time()
+    prior = vessel_mod.load("blueboat")
+    recordings = read(paths)
+    split = by_activity(prepared(recordings, prior))
+    by_name = {log_name(r.source): r for r in recordings}
+    fitted = [by_name[n] for n in split.fitted]
+    judged = [by_name[n] for n in split.judged]
+    twin = identify(fitted, prior, sources=[r.source for r in fitted]).vessel
+
+    antenna_rows, raw_antenna = [], []
+    for dx in ANTENNA_DX_M:
+        moved = apply_effects(twin, [("gnss_lever_arm", {"dx_m": dx, "dy_m": 0.0})]) if dx else twin
+        got, spread = scores(moved, judged)
+        raw_antenna.append({"dx_m": dx, "scores": got, "v_spread_m_s": spread})
+        antenna_rows.append([f"{dx:+.2f}", spread, *[x for d in "uvr" for x in got[d]]])
+    residual_rows = sway_residual(twin, judged)
+    leads = {"fitted": lead_of_sway(twin, fitted), "judged": lead_of_sway(twin, judged)}
+    coupling_rows, raw_coupling = [], []
+    for c in COUPLING_KG_M:
+        coupled = replace(twin, added_mass=replace(twin.added_mass, Yrdot=c, Nvdot=c))
+        got, _ = scores(coupled, judged)
+        raw_coupling.append({"Yrdot_kg_m": c, "scores": got})
+        coupling_rows.append([f"{c:+g}", *[got[d][0] for d in "uvr"]])
+    base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
+    aft = raw_antenna[-1]
+    summary = (
+        f"The identified twin predicts the most active runs' sway at R² {base['v'][0]:.3f} (MAE {base['v'][1]:.4f} m/s). "
+        f"Taking the antenna {abs(ANTENNA_DX_M[-1]):g} m further aft raises that R² to {aft['scores']['v'][0]:.3f} "
+        f"while the MAE grows to {aft['scores']['v'][1]:.4f} m/s: the measured sway gains a part x·r that the "
+        f"twin's own r predicts (its spread {raw_antenna[ANTENNA_DX_M.index(0.0)]['v_spread_m_s']:.4f} → "
+        f"{aft['v_spread_m_s']:.4f} m/s), so the R² of v moves with the yardstick, not the twin. What the twin misses "
+        f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples) and the measured v leads u·r "
+        f"(best at {leads['judged'][0]:+.1f} s on the judged runs, {leads['fitted'][0]:+.1f} s on the fitted): "
+        "not a sway that answers the turn through its own lag. An added-mass coupling set by hand buys v only "
+        "with r.")
+    page = ResultPage(
+        "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
+        f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
+        f"({', '.join(split.fitted)}), judged on the five most active ({', '.join(split.judged)}), 10-s free "
+        "runs from measured states every 2 s",
+        summary,
+        [ResultTable("The same twin with its antenna moved along the hull (nothing refitted): 10-s R² and MAE "
+                     "(u, v m/s; r rad/s) on the judged runs",
+                     ["antenna Δx (m)", "spread of measured v (m/s)", "R² u", "MAE u", "R² v", "MAE v", "R² r",
+                      "MAE r"], antenna_rows),
+         ResultTable("The sway residual (measured less predicted v, every free-run sample on the judged runs) "
+                     "against u·r, by speed",
+                     ["u (m/s)", "samples", "correlation with u·r", "slope (s)"], residual_rows),
+         ResultTable("The measured v against u·r on the prepared runs: the lag of the best correlation "
+                     "(negative: v leads)",
+                     ["runs", "lag (s)", "correlation"],
+                     [[k, lag, c] for k, (lag, c) in leads.items()]),
+         ResultTable("An added-mass coupling Y_ṙ = N_v̇ set on the identified twin (nothing refitted): 10-s R² "
+                     "on the judged runs", ["Y_ṙ = N_v̇ (kg m)", "R² u", "R² v", "R² r"], coupling_rows)],
+        notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
+               "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
+               "hull creeps while it spins)."],
+        raw={"split": {"fitted": list(split.fitted), "judged": list(split.judged)}, "antenna": raw_antenna,
+             "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
+             "seconds": round(time.time() - started, 1)})
+    print(page.write(args.out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
