@@ -636,7 +636,20 @@ def run_case(case: Case, hull: Hull, work: Path) -> dict:
     close = bool(hit is not None and within(truth_name, truth, hit["parameters"]))
     return {**row, "failed": False, "named": named, "hit": hit is not None, "within": close, "others": others,
             "exact": (not named) if truth_name is None else (close and not others),
-            "calibrations": found.get("calibrations", []), "notes": found.get("notes", [])}
+            "unsettled": unsettled_rivals(found), "calibrations": found.get("calibrations", []),
+            "notes": found.get("notes", [])}
+
+
+def unsettled_rivals(found: dict) -> list[str]:
+    """The effects a diagnosis reports in place of one it named, which the recording cannot tell from
+    it (its rivals not separable: UNSETTLED in the CLI's answer)."""
+    return sorted({r["name"] for e in found.get("effects", []) for r in e.get("rivals", []) if not r["separable"]})
+
+
+def truth_unsettled(row: dict) -> bool:
+    """The truth not named but reported as a rival the recording cannot tell from what was."""
+    accepted = ACCEPTED.get(row["truth"], (row["truth"],))
+    return bool(row["truth"] is not None and not row["hit"] and set(accepted) & set(row.get("unsettled", [])))
 
 
 # ---------------------------------------------------------------- the page
@@ -650,6 +663,7 @@ def summary_of(rows: list[dict]) -> dict:
              "exact_where_provable": sum(r["exact"] for r in provable),
              "exact_where_not_provable": sum(r["exact"] for r in judged if r not in provable)} if judged else {}
     return {**given, "effects": len(effects), "named": sum(r["hit"] for r in effects), "exact": sum(r["exact"] for r in effects),
+            "truth_unsettled": sum(truth_unsettled(r) for r in effects),
             "false_discoveries": sum(len(r["others"]) for r in effects) + sum(len(r["named"]) for r in nulls),
             "nulls": len(nulls), "nulls_clean": sum(r["exact"] for r in nulls),
             "failed": sum(r["failed"] for r in rows), "seconds": round(sum(r["seconds"] for r in rows), 1)}
@@ -703,7 +717,9 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
     line = (f"{s['exact']} of {s['effects']} exact, {s['named']} named; {s['false_discoveries']} false {'discovery' if s['false_discoveries'] == 1 else 'discoveries'}; "
             f"nulls clean {s['nulls_clean']} of {s['nulls']}"
             + (f"; {s['failed']} diagnoses failed" if s["failed"] else "")
-            + f" (diagnoses {s['seconds']:.0f} s in all).")
+            + f" (diagnoses {s['seconds']:.0f} s in all)."
+            + (f" Of the truths not named, {s['truth_unsettled']} the diagnosis reported as a rival the recording "
+               "cannot tell from what it named (UNSETTLED)." if s["truth_unsettled"] else ""))
     if s.get("given_judged"):
         commits = sorted({r["given"]["commit"] for r in rows if "given" in r})
         line += (f" The truth itself, given at its own values in the library's terms and judged by the diagnosis's "
@@ -713,12 +729,13 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
     by_name = {c.name: c for c in SETS[proof_set]}
     cases = ResultTable("Each truth and what the diagnosis named",
                         ["case", "seed", "concealed", "truth (library's terms)", "named (values)", "exact", "else named",
-                         "truth as given", "s"],
+                         "unsettled with", "truth as given", "s"],
                         [[r["case"], r["seed"], case_text(by_name[r["case"]]), "nothing" if r["truth"] is None else
                           f"{r['truth']} ({_values_text(r['truth_values'])})",
                           "diagnosis failed" if r["failed"] else
                           "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
-                          "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", given_cell(r), r["seconds"]]
+                          "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
+                          ", ".join(r.get("unsettled", [])) or "-", given_cell(r), r["seconds"]]
                          for r in rows])
     logs = ResultTable("The recordings",
                        ["case", "rows", "GNSS fixes", "top surge speed m/s", "top yaw rate °/s", "compass calibration"],
@@ -800,6 +817,15 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
     return page.write(out)
 
 
+def with_unsettled(row: dict, work: Path) -> dict:
+    """The row with its diagnosis's unsettled rivals, read from the CLI's JSON in `work` where the row
+    was written without them."""
+    found = work / f"{row['case']}.diagnosis.json"
+    if "unsettled" in row or row.get("failed") or not found.is_file():
+        return row
+    return {**row, "unsettled": unsettled_rivals(json.loads(found.read_text()))}
+
+
 def page_name(proof_set: str) -> str:
     return "blind_truths" if proof_set == "first" else f"blind_truths_{proof_set}"
 
@@ -848,7 +874,7 @@ def main() -> int:
         if only:
             return 0
         (args.work / "commit.txt").write_text(checkout_commit(ROOT))
-    rows = [json.loads((args.work / f"{c.name}.row.json").read_text()) for c in cases]
+    rows = [with_unsettled(json.loads((args.work / f"{c.name}.row.json").read_text()), args.work) for c in cases]
     commit_file = args.work / "commit.txt"
     commit = commit_file.read_text().strip() if commit_file.is_file() else checkout_commit(ROOT)
     published = args.out / "data" / f"{page_name(args.set)}.json"
