@@ -735,7 +735,8 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
                           "diagnosis failed" if r["failed"] else
                           "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
                           "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
-                          ", ".join(r.get("unsettled", [])) or "-", given_cell(r), r["seconds"]]
+                          "not recorded" if "unsettled" not in r else ", ".join(r["unsettled"]) or "-",
+                          given_cell(r), r["seconds"]]
                          for r in rows])
     logs = ResultTable("The recordings",
                        ["case", "rows", "GNSS fixes", "top surge speed m/s", "top yaw rate °/s", "compass calibration"],
@@ -807,6 +808,8 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
          "blows from.",
          "Named: every entry of the CLI's JSON `effects` (kinematic findings among them). False discoveries: every "
          "name but the truth's on an effect case, and every name on a null.",
+         "Unsettled with: the rivals the CLI's JSON reports beside what it named that the recording cannot tell "
+         "from it (not separable: UNSETTLED in its answer), shown where the named effect is exact too.",
          "Truth as given: `twin diagnose LOG.csv --vessel yellowfish --given TRUTH` (TRUTH the library's terms of "
          "the truth column), nothing fitted, judged by the rule the diagnosis names an effect by (z ≥ 3 of the "
          "held-out blocks' votes and 5 % of the held-out misfit above the noise): whether the recording can prove "
@@ -819,11 +822,14 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
 
 def with_unsettled(row: dict, work: Path) -> dict:
     """The row with its diagnosis's unsettled rivals, read from the CLI's JSON in `work` where the row
-    was written without them."""
+    was written without them and that JSON names what the row does (it is that diagnosis's)."""
     found = work / f"{row['case']}.diagnosis.json"
     if "unsettled" in row or row.get("failed") or not found.is_file():
         return row
-    return {**row, "unsettled": unsettled_rivals(json.loads(found.read_text()))}
+    diagnosis = json.loads(found.read_text())
+    if [e["name"] for e in diagnosis.get("effects", [])] != [e["name"] for e in row["named"]]:
+        return row
+    return {**row, "unsettled": unsettled_rivals(diagnosis)}
 
 
 def page_name(proof_set: str) -> str:
@@ -874,10 +880,18 @@ def main() -> int:
         if only:
             return 0
         (args.work / "commit.txt").write_text(checkout_commit(ROOT))
-    rows = [with_unsettled(json.loads((args.work / f"{c.name}.row.json").read_text()), args.work) for c in cases]
-    commit_file = args.work / "commit.txt"
-    commit = commit_file.read_text().strip() if commit_file.is_file() else checkout_commit(ROOT)
     published = args.out / "data" / f"{page_name(args.set)}.json"
+    kept = {r["case"]: r for r in json.loads(published.read_text())["rows"]} if published.is_file() else {}
+    missing = [c.name for c in cases if not (args.work / f"{c.name}.row.json").is_file() and c.name not in kept]
+    if missing:
+        print(f"error: no row for {', '.join(missing)} in {args.work} or {published}: run the set first", file=sys.stderr)
+        return 2
+    # rows from --work, else the page's raw figures (a rewrite of a published set)
+    rows = [with_unsettled(json.loads((args.work / f"{c.name}.row.json").read_text()), args.work)
+            if (args.work / f"{c.name}.row.json").is_file() else kept[c.name] for c in cases]
+    commit_file = args.work / "commit.txt"
+    commit = (commit_file.read_text().strip() if commit_file.is_file() else
+              json.loads(published.read_text())["commit"] if published.is_file() else checkout_commit(ROOT))
     if args.compare:
         other = json.loads(args.compare.read_text())
         compared = {"label": args.compare_label, "commit": other["commit"], "rows": other["rows"]}

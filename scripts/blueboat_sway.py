@@ -46,21 +46,20 @@ HORIZON_S, STRIDE_S = 10.0, 2.0
 ANTENNA_DX_M = (0.15, 0.0, -0.1, -0.2, -0.3)
 COUPLING_KG_M = (-2.0, 0.0, 2.0, 4.0)
 SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
-LAGS_S = np.round(np.arange(-1.5, 1.51, 0.3), 1)
+LAGS_S = np.round(np.arange(-1.5, 1.51, 0.1), 1)
 
 
-def scores(vessel, recordings) -> tuple[dict, float]:
-    """(10-s free-run {dof: (R², MAE)} on `recordings` as `vessel` sees them, the measured v's spread)."""
-    seen, _ = calibrate(recordings, vessel)
+def scores(seen, recordings) -> tuple[dict, float]:
+    """(10-s free-run {dof: (R², MAE)} on `recordings` as `seen` (a vessel with its logs' compass
+    calibrations) sees them, the measured v's spread)."""
     preps = prepared(recordings, seen)
     got = evaluate(seen, preps, stride_s=STRIDE_S, horizons={"10s": HORIZON_S})["10s"]
     spread = float(np.std(np.concatenate([p.v[np.isfinite(p.v)] for p in preps])))
     return {d: (got[d]["r2"], got[d]["mae"]) for d in "uvr"}, spread
 
 
-def sway_residual(vessel, recordings) -> list[list]:
-    """Per speed band: samples, the correlation of the sway residual with u·r and its slope (s)."""
-    seen, _ = calibrate(recordings, vessel)
+def sway_residual(seen, recordings) -> list[list]:
+    """Per speed band: window samples, the correlation of the sway residual with u·r and its slope (s)."""
     preps = prepared(recordings, seen)
     windows = horizon_windows(preps, HORIZON_S, STRIDE_S)
     predictor = TwinPredictor(seen, ModelCache(), None)
@@ -79,20 +78,20 @@ def sway_residual(vessel, recordings) -> list[list]:
     for lo, hi in SPEED_BANDS_M_S:
         k = (u >= lo) & (u < hi)
         if k.sum() >= 50:
-            rows.append([f"{lo:g}-{hi:g}", int(k.sum()), float(np.corrcoef(ur[k], residual[k])[0, 1]),
+            rows.append([f"{lo:g} to {hi:g}".replace("-", "−"), int(k.sum()), float(np.corrcoef(ur[k], residual[k])[0, 1]),
                          float(np.polyfit(ur[k], residual[k], 1)[0])])
     rows.append(["all", int(len(u)), float(np.corrcoef(ur, residual)[0, 1]), float(np.polyfit(ur, residual, 1)[0])])
     return rows
 
 
-def lead_of_sway(vessel, recordings) -> tuple[float, float]:
+def lead_of_sway(seen, recordings) -> tuple[float, float]:
     """(lag s of the best correlation of the measured v with u·r, that correlation) over the prepared
     runs' segments; a negative lag: v leads u·r."""
-    seen, _ = calibrate(recordings, vessel)
+    preps = prepared(recordings, seen)
     best = (0.0, -np.inf)
     for lag_s in LAGS_S:
         xs, ys = [], []
-        for p in prepared(recordings, seen):
+        for p in preps:
             k = int(round(lag_s / p.settings.grid_dt))
             for seg in p.segments:
                 v, ur = p.v[seg.start:seg.stop], (p.u * p.r)[seg.start:seg.stop]
@@ -124,18 +123,22 @@ def main() -> int:
     fitted = [by_name[n] for n in split.fitted]
     judged = [by_name[n] for n in split.judged]
     twin = identify(fitted, prior, sources=[r.source for r in fitted]).vessel
+    # each log's compass calibration read once, with the twin's own antenna: a moved antenna then
+    # changes the measured sway by x·r alone
+    on_judged, _ = calibrate(judged, twin)
+    on_fitted, _ = calibrate(fitted, twin)
 
     antenna_rows, raw_antenna = [], []
     for dx in ANTENNA_DX_M:
-        moved = apply_effects(twin, [("gnss_lever_arm", {"dx_m": dx, "dy_m": 0.0})]) if dx else twin
+        moved = apply_effects(on_judged, [("gnss_lever_arm", {"dx_m": dx, "dy_m": 0.0})]) if dx else on_judged
         got, spread = scores(moved, judged)
         raw_antenna.append({"dx_m": dx, "scores": got, "v_spread_m_s": spread})
         antenna_rows.append([f"{dx:+.2f}", spread, *[x for d in "uvr" for x in got[d]]])
-    residual_rows = sway_residual(twin, judged)
-    leads = {"fitted": lead_of_sway(twin, fitted), "judged": lead_of_sway(twin, judged)}
+    residual_rows = sway_residual(on_judged, judged)
+    leads = {"fitted": lead_of_sway(on_fitted, fitted), "judged": lead_of_sway(on_judged, judged)}
     coupling_rows, raw_coupling = [], []
     for c in COUPLING_KG_M:
-        coupled = replace(twin, added_mass=replace(twin.added_mass, Yrdot=c, Nvdot=c))
+        coupled = replace(on_judged, added_mass=replace(on_judged.added_mass, Yrdot=c, Nvdot=c))
         got, _ = scores(coupled, judged)
         raw_coupling.append({"Yrdot_kg_m": c, "scores": got})
         coupling_rows.append([f"{c:+g}", *[got[d][0] for d in "uvr"]])
@@ -148,22 +151,24 @@ def main() -> int:
         f"twin's own r predicts (its spread {raw_antenna[ANTENNA_DX_M.index(0.0)]['v_spread_m_s']:.4f} → "
         f"{aft['v_spread_m_s']:.4f} m/s), so the R² of v moves with the yardstick, not the twin. What the twin misses "
         f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples) and the measured v leads u·r "
-        f"(best at {leads['judged'][0]:+.1f} s on the judged runs, {leads['fitted'][0]:+.1f} s on the fitted): "
-        "not a sway that answers the turn through its own lag. An added-mass coupling set by hand buys v only "
-        "with r.")
+        f"(best at {leads['judged'][0]:+.1f} s on the judged runs, {leads['fitted'][0]:+.1f} s on the fitted), "
+        "where a sway that answers the turn through its own lag would follow it; with r the heading's slope "
+        "(these logs carry no gyro), a heading stamped that much late would read the same. An added-mass "
+        "coupling set by hand buys v only with r.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
         f"({', '.join(split.fitted)}), judged on the five most active ({', '.join(split.judged)}), 10-s free "
         "runs from measured states every 2 s",
         summary,
-        [ResultTable("The same twin with its antenna moved along the hull (nothing refitted): 10-s R² and MAE "
-                     "(u, v m/s; r rad/s) on the judged runs",
+        [ResultTable("The same twin with its antenna moved along the hull (nothing refitted, each log's compass "
+                     "calibration held): 10-s R² and MAE (u, v m/s; r rad/s) on the judged runs",
                      ["antenna Δx (m)", "spread of measured v (m/s)", "R² u", "MAE u", "R² v", "MAE v", "R² r",
                       "MAE r"], antenna_rows),
          ResultTable("The sway residual (measured less predicted v, every free-run sample on the judged runs) "
                      "against u·r, by speed",
-                     ["u (m/s)", "samples", "correlation with u·r", "slope (s)"], residual_rows),
+                     ["u (m/s)", "window samples (overlapping)", "correlation with u·r", "slope (s)"],
+                     residual_rows),
          ResultTable("The measured v against u·r on the prepared runs: the lag of the best correlation "
                      "(negative: v leads)",
                      ["runs", "lag (s)", "correlation"],

@@ -468,7 +468,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
     ("twentysecond", "before"): "the diagnosis as it was when the set was fixed",
-    ("twentysecond", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; a saturating full thrust tested for a loss with speed as a constant scale is (commit e3fb80b, reverted)",
+    ("twentysecond", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; full_thrust, like thrust_gain, tested as a stand-in for a thrust loss with speed",
     ("twentyfirst", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
     ("twentyfirst", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py KINEMATIC_ONLY)",
     ("fifth", "before"): "each velocity's residual scaled by the spread of its measured signal",

@@ -96,7 +96,7 @@ SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third"}
 # what a stage of a set ran, where its stages differ in the diagnosis
 STAGE_METHODS = {("third", "before"): "the diagnosis as it was when the set was fixed",
-                 ("third", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; a saturating full thrust tested for a loss with speed as a constant scale is (commit e3fb80b, reverted)",
+                 ("third", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; full_thrust, like thrust_gain, tested as a stand-in for a thrust loss with speed",
                  ("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
                  ("second", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py "
                                       "KINEMATIC_ONLY)"}
@@ -321,9 +321,8 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         f"Ten logs of about 7 minutes written by scripts/independent_truths.py's own three-degree-of-freedom "
         f"simulator from the BlueBoat's nominal numbers, one truth each (seeds {min(seeds)}-{max(seeds)}), diagnosed "
         "from the untuned BlueBoat prior the simulator reads its numbers from.",
-        "The three classes of effect a diagnosis missed or drew a false effect beside, in forms the effect library "
-        "does not have: a soft dead zone on one thruster only, a thrust loss growing with u², and a thrust decay and "
-        "a wind of another load shape (beside which a heading bias was drawn); and nulls. Exact: the truth named "
+        "Effects in forms the effect library does not have: a soft dead zone on one thruster only, a thrust loss "
+        "growing with u², a thrust decay and a wind of another load shape; and nulls. Exact: the truth named "
         "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines),
         tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
                  "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces"
