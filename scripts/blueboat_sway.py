@@ -143,6 +143,7 @@ def main() -> int:
         raw_coupling.append({"Yrdot_kg_m": c, "scores": got})
         coupling_rows.append([f"{c:+g}", *[got[d][0] for d in "uvr"]])
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
+    answers = twin.sensors.input_answer_s
     aft = raw_antenna[-1]
     summary = (
         f"The identified twin predicts the most active runs' sway at R² {base['v'][0]:.3f} (MAE {base['v'][1]:.4f} m/s). "
@@ -152,9 +153,11 @@ def main() -> int:
         f"{aft['v_spread_m_s']:.4f} m/s), so the R² of v moves with the yardstick, not the twin. What the twin misses "
         f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples) and the measured v leads u·r "
         f"(best at {leads['judged'][0]:+.1f} s on the judged runs, {leads['fitted'][0]:+.1f} s on the fitted), "
-        "where a sway that answers the turn through its own lag would follow it; with r the heading's slope "
-        "(these logs carry no gyro), a heading stamped that much late would read the same. An added-mass "
-        "coupling set by hand buys v only with r.")
+        "where a sway that answers the turn through its own lag would follow it. With r the heading's slope "
+        "(these logs carry no gyro), a heading stamped that much late would read the same, but on the fitted runs "
+        f"the heading answers the input steps within {abs(answers[1] - answers[0]):.2f} s of the GNSS (the "
+        f"twin's input answers: surge {answers[0]:+.2f} s, yaw {answers[1]:+.2f} s; fit/kinematic.py). An "
+        "added-mass coupling set by hand buys v only with r.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -180,6 +183,7 @@ def main() -> int:
                "hull creeps while it spins)."],
         raw={"split": {"fitted": list(split.fitted), "judged": list(split.judged)}, "antenna": raw_antenna,
              "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
+             "input_answer_s": list(answers),
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
