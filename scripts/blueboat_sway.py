@@ -84,9 +84,9 @@ def sway_residual(seen, recordings) -> list[list]:
     return rows
 
 
-def lead_of_sway(seen, recordings) -> tuple[float, float]:
-    """(lag s of the best correlation of the measured v with u·r, that correlation) over the prepared
-    runs' segments; a negative lag: v leads u·r."""
+def lead_of_sway(seen, recordings, signal) -> tuple[float, float]:
+    """(lag s of the best correlation of the measured v with signal(prep) (u·r, or r), that correlation)
+    over the prepared runs' segments; a negative lag: v leads."""
     preps = prepared(recordings, seen)
     best = (0.0, -np.inf)
     for lag_s in LAGS_S:
@@ -94,7 +94,7 @@ def lead_of_sway(seen, recordings) -> tuple[float, float]:
         for p in preps:
             k = int(round(lag_s / p.settings.grid_dt))
             for seg in p.segments:
-                v, ur = p.v[seg.start:seg.stop], (p.u * p.r)[seg.start:seg.stop]
+                v, ur = p.v[seg.start:seg.stop], signal(p)[seg.start:seg.stop]
                 if len(v) <= abs(k) + 10:
                     continue
                 a, b = (v[k:], ur[:len(ur) - k]) if k >= 0 else (v[:k], ur[-k:])
@@ -135,7 +135,9 @@ def main() -> int:
         raw_antenna.append({"dx_m": dx, "scores": got, "v_spread_m_s": spread})
         antenna_rows.append([f"{dx:+.2f}", spread, *[x for d in "uvr" for x in got[d]]])
     residual_rows = sway_residual(on_judged, judged)
-    leads = {"fitted": lead_of_sway(on_fitted, fitted), "judged": lead_of_sway(on_judged, judged)}
+    leads = {f"{runs}, against {name}": lead_of_sway(seen, recs, signal)
+             for runs, seen, recs in (("fitted", on_fitted, fitted), ("judged", on_judged, judged))
+             for name, signal in (("u·r", lambda p: p.u * p.r), ("r", lambda p: p.r))}
     coupling_rows, raw_coupling = [], []
     for c in COUPLING_KG_M:
         coupled = replace(on_judged, added_mass=replace(on_judged.added_mass, Yrdot=c, Nvdot=c))
@@ -152,7 +154,9 @@ def main() -> int:
         f"twin's own r predicts (its spread {raw_antenna[ANTENNA_DX_M.index(0.0)]['v_spread_m_s']:.4f} → "
         f"{aft['v_spread_m_s']:.4f} m/s), so the R² of v moves with the yardstick, not the twin. What the twin misses "
         f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples) and the measured v leads u·r "
-        f"(best at {leads['judged'][0]:+.1f} s on the judged runs, {leads['fitted'][0]:+.1f} s on the fitted), "
+        f"(best at {leads['judged, against u·r'][0]:+.1f} s on the judged runs, "
+        f"{leads['fitted, against u·r'][0]:+.1f} s on the fitted; r itself by {-leads['judged, against r'][0]:.1f} "
+        f"and {-leads['fitted, against r'][0]:.1f} s), "
         "where a sway that answers the turn through its own lag would follow it. With r the heading's slope "
         "(these logs carry no gyro), a heading stamped that much late would read the same, but on the fitted runs "
         f"the heading answers the input steps within {abs(answers[1] - answers[0]):.2f} s of the GNSS (the "
@@ -172,8 +176,8 @@ def main() -> int:
                      "against u·r, by speed",
                      ["u (m/s)", "window samples (overlapping)", "correlation with u·r", "slope (s)"],
                      residual_rows),
-         ResultTable("The measured v against u·r on the prepared runs: the lag of the best correlation "
-                     "(negative: v leads)",
+         ResultTable("The measured v against u·r and against r on the prepared runs: the lag of the best "
+                     "correlation (negative: v leads)",
                      ["runs", "lag (s)", "correlation"],
                      [[k, lag, c] for k, (lag, c) in leads.items()]),
          ResultTable("An added-mass coupling Y_ṙ = N_v̇ set on the identified twin (nothing refitted): 10-s R² "
