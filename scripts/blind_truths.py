@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|eighth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|ninth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -189,8 +189,20 @@ EIGHTH = [  # fixed before it was run: other seeds, magnitudes, sides and direct
     Case("wind-gusty-5-30", "wind", 109, wind_speed_m_s=5.0, wind_from_deg=30.0, gust_sigma_m_s=0.8, gust_tau_s=10.0),
     Case("wind-steady-6.5-250", "wind", 110, wind_speed_m_s=6.5, wind_from_deg=250.0),
 ]
+NINTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-q", "null", 111),
+    Case("null-r", "null", 112),
+    Case("dead_zone-right-soft-40-100us", "dead_zone", 113, side="right", inner_us=40.0, outer_us=100.0),
+    Case("dead_zone-left-hard-90us", "dead_zone", 114, side="left", inner_us=90.0, outer_us=90.0),
+    Case("speed_loss-0.15u", "speed_loss", 115, k=0.15, power=1),
+    Case("speed_loss-0.14u2", "speed_loss", 116, k=0.14, power=2),
+    Case("sag-exp-220s", "sag_exp", 117, k=0.3, tau_s=220.0),
+    Case("sag-square-0.25", "sag_square", 118, k=0.25),
+    Case("wind-gusty-7-160", "wind", 119, wind_speed_m_s=7.0, wind_from_deg=160.0, gust_sigma_m_s=1.0, gust_tau_s=15.0),
+    Case("wind-steady-5-330", "wind", 120, wind_speed_m_s=5.0, wind_from_deg=330.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
-        "seventh": SEVENTH, "eighth": EIGHTH}
+        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

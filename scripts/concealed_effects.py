@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentysecond] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentythird] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -10,7 +10,8 @@ outings (C, D; E, F; G, H; I, J; K, L; M, N; O, P; Q, R; S, T; U, V; W, P again:
 left, 216 and 228, is too short to diagnose; A, F again; D, K again) and take other Esso turning tests (T3, T4;
 T5, T6; T7, T8; T9, T10; T11, T12; T13, T14; T13, T14 again; T5, T6 again; T7, T8 again; T9, T10 again; T11, T12
 again; T1, T2 again; T3, T4 again; then A, P with T11, T12 again, J, O with T3, T4 again,
-H, N with T7, T8 again, Q, I with T9, T10 again and G, L with T5, T6 again), with other
+H, N with T7, T8 again, Q, I with T9, T10 again, G, L with T5, T6 again and B, A with T1, T2
+again), with other
 magnitudes and directions: a change of method chosen while looking at one set is judged on a set it never saw.
 
 Each effect is put into the logs as a sensor or a clock would have put it there, by rewriting the
@@ -443,6 +444,21 @@ PROOF_TWENTYSECOND = [
     Case("esso", "T5", "input_late", (0.7,)), Case("esso", "T6", "input_late", (0.55,)),
     Case("esso", "T5", "heading_late", (0.45,)), Case("esso", "T6", "heading_late", (0.65,)),
 ]
+# the twenty-third set takes outings B and A (disjoint runs) and Esso tests T1 and T2 again, with other
+# values
+PROOF_TWENTYTHIRD = [
+    Case("blueboat", "B", "null"), Case("blueboat", "A", "null"),
+    Case("blueboat", "B", "current", (0.15, 60.0)), Case("blueboat", "A", "current", (0.12, 200.0)),
+    Case("blueboat", "B", "antenna", (0.30, 0.30)), Case("blueboat", "A", "antenna", (-0.25, -0.35)),
+    Case("blueboat", "B", "input_late", (0.5,)), Case("blueboat", "A", "input_late", (0.65,)),
+    Case("blueboat", "B", "thruster_scaled", ("right", 0.8)), Case("blueboat", "A", "thruster_scaled", ("left", 0.7)),
+    Case("blueboat", "B", "heading_late", (0.5,)), Case("blueboat", "A", "heading_late", (0.4,)),
+    Case("esso", "T1", "null"), Case("esso", "T2", "null"),
+    Case("esso", "T1", "current", (0.12, 160.0)), Case("esso", "T2", "current", (0.09, 280.0)),
+    Case("esso", "T1", "antenna", (0.40, -0.25)), Case("esso", "T2", "antenna", (-0.35, 0.35)),
+    Case("esso", "T1", "input_late", (0.6,)), Case("esso", "T2", "input_late", (0.8,)),
+    Case("esso", "T1", "heading_late", (0.55,)), Case("esso", "T2", "heading_late", (0.4,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -451,7 +467,7 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "fifteenth": PROOF_FIFTEENTH, "sixteenth": PROOF_SIXTEENTH,
           "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
           "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
-          "twentysecond": PROOF_TWENTYSECOND}
+          "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -463,7 +479,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "seventeenth": "concealed_effects_seventeenth",
          "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth",
          "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst",
-         "twentysecond": "concealed_effects_twentysecond"}
+         "twentysecond": "concealed_effects_twentysecond", "twentythird": "concealed_effects_twentythird"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
@@ -491,7 +507,7 @@ STAGE_METHODS = {
 # the sets whose Esso tests are diagnosed with their measured wind stream a known input (`twin diagnose
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
-                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond"}
+                      "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,6 +1,6 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
-    python scripts/independent_truths.py [--set first|second|third] [--stage before|after] [--prior FILE] [--only CASE,...]
+    python scripts/independent_truths.py [--set first|second|third|fourth] [--stage before|after] [--prior FILE] [--only CASE,...]
                                          [--work /tmp/independent_truths]
 
 The simulator here shares no physics with the package: its own three-degree-of-freedom equations
@@ -92,8 +92,18 @@ CASES_THIRD = [  # fixed before it was run: other seeds, magnitudes, sides and d
     Case("wind_shape-5-200", "wind_shape", (5.0, 200.0), 39),
     Case("wind_shape-6-30", "wind_shape", (6.0, 30.0), 40),
 ]
-SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD}
-PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third"}
+CASES_FOURTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-7", "null", (), 41), Case("null-8", "null", (), 42),
+    Case("one_dead_zone-left-65-40", "one_dead_zone", ("left", 65.0, 40.0), 43),
+    Case("one_dead_zone-right-95-30", "one_dead_zone", ("right", 95.0, 30.0), 44),
+    Case("speed_loss_u2-0.16", "speed_loss_u2", (0.16,), 45), Case("speed_loss_u2-0.24", "speed_loss_u2", (0.24,), 46),
+    Case("decay-0.035", "decay", (0.035,), 47), Case("decay-0.055", "decay", (0.055,), 48),
+    Case("wind_shape-4.5-100", "wind_shape", (4.5, 100.0), 49),
+    Case("wind_shape-7-280", "wind_shape", (7.0, 280.0), 50),
+]
+SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH}
+PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
+         "fourth": "independent_truths_fourth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
 STAGE_METHODS = {("third", "before"): "the diagnosis as it was when the set was fixed",
                  ("third", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; full_thrust, like thrust_gain, tested as a stand-in for a thrust loss with speed",

@@ -111,7 +111,7 @@ def write_index(folder: Path | str = "docs/results") -> Path:
 
 _ORDINALS = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth",
              "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth", "sixteenth", "seventeenth", "eighteenth",
-             "nineteenth", "twentieth", "twentyfirst", "twentysecond")
+             "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird")
 
 
 def _by_ordinal(page: Path) -> tuple:
