@@ -159,6 +159,23 @@ def test_on_time_streams_name_nothing_and_rule_the_timing_effects_out(blueboat):
     assert clock.absent and heading.absent and fixes.absent and abs(clock.change["pwm_clock_offset_s"]) < 0.06
 
 
+def test_a_shift_read_at_the_floor_itself_is_not_named(blueboat, monkeypatch):
+    """Streams at 10 Hz: the floor is 0.15 s. A surge answering 0.15 s after the yaw, read on the
+    shifts' grid, is the resolution, not a late GNSS; 0.17 s exceeds it."""
+    from twin.fit import kinematic
+
+    def answers(surge_s):
+        return lambda recordings, vessel: (kinematic.Answer("surge", surge_s, 0.03, 8, 9),
+                                           kinematic.Answer("yaw", 0.11, 0.04, 8, 9), False,
+                                           {"input": 0.1, "heading": 0.1})
+    monkeypatch.setattr(kinematic, "_answers", answers(-0.04))
+    _, _, fixes = input_timing([], blueboat)
+    assert not fixes.told
+    monkeypatch.setattr(kinematic, "_answers", answers(-0.06))
+    _, _, fixes = input_timing([], blueboat)
+    assert fixes.told and fixes.change["gnss_latency_s"] == pytest.approx(0.17)
+
+
 def test_an_early_heading_is_not_named(blueboat):
     """A heading filter delays: a heading that seems early is a clock's matter, not a latency."""
     _, heading, _ = input_timing([_answers(blueboat, heading_late_s=-0.4, seed=7)], blueboat)

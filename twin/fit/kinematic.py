@@ -48,7 +48,8 @@ answers later than the twin expects may as well be a thrust lag or an ESC's dela
 which the diagnosis's search tells apart.
 
 A shift is named only when it exceeds TIMING_FLOOR_SAMPLES sample periods of the streams compared
-and three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
+(by half a step of the grid the shifts are read on: a shift read at the floor is the resolution) and
+three σ: a log whose streams are stamped at 10 Hz carries no timing finer than that. Results are
 relative to the twin given: its antenna offset, thrust lag, input delay and sensor latencies are
 taken as they are, and what is found is what they lack. The template is not the twin's dynamics
 (a free first-order response against its thrust lag), so even on the runs a twin was fitted on the
@@ -66,6 +67,7 @@ from scipy.signal import lfilter
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..physics.sensors import antenna_body_m
 from ..prepare.prepared import local_ned
+from ..prepare.timing import STEP_S as GYRO_STEP_S
 from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
 from ..vessel import Vessel
@@ -468,6 +470,9 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     # a stamp is good to a sample period of its own stream: the input log's for the clock, the
     # heading's for its lateness
     floor = TIMING_FLOOR_SAMPLES * (max(periods["input"], periods["heading"]) or 0.1)
+    # a shift exceeds the floor by half a step of the grid the events' shifts are read on: one read at
+    # the floor itself is the resolution, not a lateness
+    above = floor + SHIFT_STEP_S / 2
     s = vessel.sensors
     basis = (f"surge: {surge.events} of {surge.steps} input steps answered clearly; yaw ({'gyro' if gyro else 'heading'}): "
              f"{yaw.events} of {yaw.steps}")
@@ -487,7 +492,7 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
         return finding("gnss_latency", "gnss_latency_s", s.gnss_latency_s, change, sigma, told, absent, why)
 
     def sure(x, sig):
-        return x is not None and abs(x) >= floor and abs(x) >= 3 * sig
+        return x is not None and abs(x) > above and abs(x) > 3 * sig
 
     def later(x, sig):  # a filter or a receiver delays, it never leads: an early stream is not named
         return sure(x, sig) and x > 0
@@ -519,7 +524,7 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     # moves both, a late heading the yaw's alone (not with a gyro), a late receiver the surge's alone
     diff = surge.shift_s - yaw.shift_s
     sig_d = math.hypot(surge.sigma_s, yaw.sigma_s)
-    agree = abs(diff) < max(floor, 3 * sig_d)
+    agree = abs(diff) <= max(above, 3 * sig_d)
     w = np.array([1 / surge.sigma_s ** 2, 1 / yaw.sigma_s ** 2])
     both = float((w[0] * surge.shift_s + w[1] * yaw.shift_s) / w.sum())
     sig_b = float(1 / math.sqrt(w.sum()))
@@ -529,8 +534,8 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
         return (clock(both, sig_b, leads(both, sig_b), nil(both, sig_b), text),
                 heading or late(diff, sig_d, False, nil(diff, sig_d), text),
                 fix_late(-diff, sig_d, False, nil(diff, sig_d), text))
-    on_time_surge = abs(surge.shift_s) < max(floor, 3 * surge.sigma_s)
-    on_time_yaw = abs(yaw.shift_s) < max(floor, 3 * yaw.sigma_s)
+    on_time_surge = abs(surge.shift_s) <= max(above, 3 * surge.sigma_s)
+    on_time_yaw = abs(yaw.shift_s) <= max(above, 3 * yaw.sigma_s)
     if diff > 0 and on_time_surge and not gyro:  # the yaw answers late: the heading is
         return (clock(surge.shift_s, surge.sigma_s, False, nil(surge.shift_s, surge.sigma_s), text),
                 late(diff, sig_d, later(diff, sig_d), False, text), fix_late(0.0, None, False, False, text))
@@ -557,7 +562,7 @@ def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> 
     lag = float(np.sum(w * [g.lag_s for g in got]) / w.sum())
     sig = float(1 / math.sqrt(w.sum()))
     change = lag - s.heading_latency_s
-    told = abs(change) >= floor and abs(change) >= 3 * sig and lag > 0
+    told = abs(change) > floor + GYRO_STEP_S / 2 and abs(change) > 3 * sig and lag > 0
     absent = not told and 3 * sig <= floor
     return KinematicFinding("heading_latency", {"heading_latency_s": lag}, {"heading_latency_s": change},
                             {"heading_latency_s": sig}, told, absent,
