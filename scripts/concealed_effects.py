@@ -483,6 +483,8 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentythird", "before"): "the diagnosis as it was when the set was fixed",
+    ("twentythird", "after"): "a timing shift named only where it exceeds the floor by half a step of the grid it is read on (fit/kinematic.py)",
     ("twentysecond", "before"): "the diagnosis as it was when the set was fixed",
     ("twentysecond", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; full_thrust, like thrust_gain, tested as a stand-in for a thrust loss with speed",
     ("twentyfirst", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",

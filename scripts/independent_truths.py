@@ -105,7 +105,9 @@ SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": 
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
          "fourth": "independent_truths_fourth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("third", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("fourth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("fourth", "after"): "a timing shift named only where it exceeds the floor by half a step of the grid it is read on (fit/kinematic.py)",
+                 ("third", "before"): "the diagnosis as it was when the set was fixed",
                  ("third", "fewer numbers among rivals (not kept)"): "of the rivals the blocks cannot tell from the winner (z ≤ 3) that earn their place themselves, the one with fewer fitted numbers kept; full_thrust, like thrust_gain, tested as a stand-in for a thrust loss with speed",
                  ("second", "before"): "a GNSS fixes' latency searched in the dynamics as well as read from the kinematics",
                  ("second", "after"): "a GNSS fixes' latency read from the kinematics alone (diagnose/doctor.py "
