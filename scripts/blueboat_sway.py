@@ -13,7 +13,8 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
    (nothing refitted), tell a better twin from a yardstick that changed.
 2. What the sway residual follows: the measured less the predicted v of every free-run sample,
    regressed on u·r by speed band; and, on the prepared runs, the lag at which the measured v and
-   u·r correlate best (negative: v leads).
+   u·r, r or the differential thrust (the twin's map of the logged PWM) correlate best (negative: v
+   leads).
 3. An added-mass coupling Y_ṙ = N_v̇ (zero in the shipped prior; physics/added_mass.py), set by
    hand on the identified twin: what it gives in v and costs in r.
 
@@ -135,9 +136,15 @@ def main() -> int:
         raw_antenna.append({"dx_m": dx, "scores": got, "v_spread_m_s": spread})
         antenna_rows.append([f"{dx:+.2f}", spread, *[x for d in "uvr" for x in got[d]]])
     residual_rows = sway_residual(on_judged, judged)
+    th = twin.thrusters
+
+    def differential_thrust_n(p):  # the twin's thrust map of the logged PWM, left less right
+        thrust = th.thrust_from_pwm(p.pwm) * np.array([th.gain_left, th.gain_right])
+        return thrust[:, 0] - thrust[:, 1]
     leads = {f"{runs}, against {name}": lead_of_sway(seen, recs, signal)
              for runs, seen, recs in (("fitted", on_fitted, fitted), ("judged", on_judged, judged))
-             for name, signal in (("u·r", lambda p: p.u * p.r), ("r", lambda p: p.r))}
+             for name, signal in (("u·r", lambda p: p.u * p.r), ("r", lambda p: p.r),
+                                  ("the differential thrust", differential_thrust_n))}
     coupling_rows, raw_coupling = [], []
     for c in COUPLING_KG_M:
         coupled = replace(on_judged, added_mass=replace(on_judged.added_mass, Yrdot=c, Nvdot=c))
@@ -157,7 +164,9 @@ def main() -> int:
         f"(best at {leads['judged, against u·r'][0]:+.1f} s on the judged runs, "
         f"{leads['fitted, against u·r'][0]:+.1f} s on the fitted; r itself by {-leads['judged, against r'][0]:.1f} "
         f"and {-leads['fitted, against r'][0]:.1f} s), "
-        "where a sway that answers the turn through its own lag would follow it. With r the heading's slope "
+        "where a sway that answers the turn through its own lag would follow it; it follows the differential "
+        f"thrust closely (correlation {leads['judged, against the differential thrust'][1]:.2f} at "
+        f"{leads['judged, against the differential thrust'][0]:+.1f} s on the judged runs). With r the heading's slope "
         "(these logs carry no gyro), a heading stamped that much late would read the same, but on the fitted runs "
         f"the heading answers the input steps within {abs(answers[1] - answers[0]):.2f} s of the GNSS (the "
         f"twin's input answers: surge {answers[0]:+.2f} s, yaw {answers[1]:+.2f} s; fit/kinematic.py). An "
@@ -176,8 +185,8 @@ def main() -> int:
                      "against u·r, by speed",
                      ["u (m/s)", "window samples (overlapping)", "correlation with u·r", "slope (s)"],
                      residual_rows),
-         ResultTable("The measured v against u·r and against r on the prepared runs: the lag of the best "
-                     "correlation (negative: v leads)",
+         ResultTable("The measured v against u·r, r and the differential thrust on the prepared runs: the lag "
+                     "of the best correlation (negative: v leads)",
                      ["runs", "lag (s)", "correlation"],
                      [[k, lag, c] for k, (lag, c) in leads.items()]),
          ResultTable("An added-mass coupling Y_ṙ = N_v̇ set on the identified twin (nothing refitted): 10-s R² "
