@@ -6,7 +6,8 @@ on the runs that go further (twin.fit.extrapolation), on the shared BlueBoat and
 
 Splits (twin.fit.extrapolation): the BlueBoat's five least active runs fitted, its five most active
 judged (10-s free runs); the Esso Osaka's tests whose propeller never exceeds 8 rps fitted, those
-that reach 10 rps judged, and each family of tests (random manoeuvres, steady turns) fitted and the
+that reach 10 rps judged; the random tests' stretches of 30 s or more at 6 rps or less fitted, the
+turning tests (8 and 10 rps) judged; and each family of tests (random manoeuvres, steady turns) fitted and the
 other judged (30-s free runs), each without and with the measured wind as a known input. Per split:
 R² of u, v, r of the untuned prior and of the identified twin, pooled over the judged runs (each
 log's compass calibration from its own kinematics), the share of judged samples beyond what the fit
@@ -37,10 +38,12 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import evaluate, fitted_envelope, misfit_by_manoeuvre  # noqa: E402
-from twin.fit.extrapolation import activities, by_activity, by_day, by_family, by_input_level  # noqa: E402
+from twin.fit.extrapolation import (Split, activities, by_activity, by_day, by_family, by_input_level,  # noqa: E402
+                                    low_input_stretches)
 from twin.fit.metrics import DOFS  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
+from twin.recording import within  # noqa: E402
 from twin.scale.montecarlo import band_coverage  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
@@ -76,8 +79,12 @@ def _split_of(name: str, recs, preps):
     raise SystemExit(f"unknown split {name}")
 
 
+# esso_low_rps: the random tests' stretches whose propeller stays at or below LOW_RPS for LOW_STRETCH_S or
+# more fitted, every turning test (8 and 10 rps) judged: 10 rps is 1.67 times 6, as 17 rps is 10
+LOW_RPS, LOW_STRETCH_S = 6.0, 30.0
 BAND_DRAWS = 50  # parameter draws of the 90 % band (30-s free runs)
 SPLITS = {"blueboat_activity": ("blueboat", (None,)), "esso_rps": ("esso_osaka", (None, "measured")),
+          "esso_low_rps": ("esso_osaka", (None, "measured")),
           "esso_random_turn": ("esso_osaka", (None, "measured")),
           "esso_turn_random": ("esso_osaka", (None, "measured")),
           "esso_turn_day": ("esso_osaka", (None, "measured")),
@@ -141,8 +148,32 @@ def _split_runs(name: str):
     recs = read(blueboat_paths() if vessel_name == "blueboat" else esso_paths())
     calibrated = calibrate(recs, prior)[0]
     preps = prepared(recs, calibrated)
+    if name == "esso_low_rps":
+        recs, split = _low_rps_runs(recs, preps)
+        calibrated = calibrate(recs, prior)[0]
+        preps = prepared(recs, calibrated)
+        return vessel_name, SETTINGS[vessel_name], prior, recs, calibrated, preps, split, \
+            [log_name(r.source) for r in recs]
     return vessel_name, SETTINGS[vessel_name], prior, recs, calibrated, preps, _split_of(name, recs, preps), \
         [log_name(r.source) for r in recs]
+
+
+def _low_rps_runs(recs, preps):
+    """The random tests' slow stretches (each a recording of its own, named FILE#k) and the turning
+    tests, and the split that fits the first and judges the second."""
+    fitted, judged = [], []
+    for rec, prep in zip(recs, preps):
+        name = log_name(rec.source)
+        if name.startswith("random"):
+            for k, (t0, t1) in enumerate(low_input_stretches(prep, LOW_RPS, LOW_STRETCH_S), 1):
+                fitted.append(within(rec, t0, t1, f"{rec.source}#{k}"))
+        elif name.startswith("turn"):
+            judged.append(rec)
+    split = Split(f"random ≤ {LOW_RPS:g} rps → turning",
+                  f"the random tests' stretches of {LOW_STRETCH_S:g} s or more whose propeller stays at or below "
+                  f"{LOW_RPS:g} rps fitted (each a recording FILE#k), the turning tests (8 and 10 rps) judged",
+                  tuple(log_name(r.source) for r in fitted), tuple(log_name(r.source) for r in judged))
+    return fitted + judged, split
 
 
 def run_split(name: str, wind, work: Path) -> dict:

@@ -11,13 +11,15 @@ import trimesh
 
 import twin.vessel as vessel_mod
 from twin.fit.crossval import beyond_folds, form_error_at
-from twin.fit.extrapolation import activities, activity_order, by_activity, by_day, by_family, by_input_level
+from twin.fit.extrapolation import (activities, activity_order, by_activity, by_day, by_family, by_input_level,
+                                    low_input_stretches)
 from twin.fit.windows import make_windows
 from twin.physics import mmg
 from twin.physics.priors import (cross_flow_drag, ittc57_cf, lateral_profile, propulsor_at_rest, propulsor_lateral,
                                  resistance_curve, slender_hull_derivatives, twin_hull_yaw,
                                  without_added_mass_coriolis)
 from twin.prepare.prepared import prepared_from_run
+from twin.recording import Recording, Stream, within
 from twin.run import Run
 from twin.physics.thrusters import t200_voltage_gain
 from twin.scale.montecarlo import _widened
@@ -150,6 +152,30 @@ def test_splits_by_input_level_and_by_family_and_their_refusals():
     assert split.judged == ("turn_14-Oct-2020_2.csv",)  # another family's run is on neither side
     with pytest.raises(TwinError, match="every such run is on one side"):
         by_day(days, "31-Jul-2020", family="turn")
+
+
+def test_slow_stretches_are_found_on_the_grid_and_cut_from_the_log():
+    from twin.errors import TwinError
+
+    run = _run(0.0, 0.1, seconds=120.0)
+    pwm = np.full((len(run.t), 2), 1550.0)  # 50 µs from neutral
+    pwm[(run.t >= 40.0) & (run.t < 45.0)] = 1800.0  # a burst of 300 µs
+    pwm[run.t >= 100.0] = 1700.0
+    prep = _named(replace(run, pwm_us=pwm), "slow.csv")
+    got = low_input_stretches(prep, 100.0, 30.0)
+    assert got == [pytest.approx((0.0, 39.9)), pytest.approx((45.0, 99.9))]
+    assert low_input_stretches(prep, 100.0, 60.0) == []  # neither lasts a minute
+    with pytest.raises(TwinError, match="more than 0 s"):
+        low_input_stretches(prep, 100.0, 0.0)
+    t = np.arange(0.0, 10.0, 0.5)
+    rec = Recording("a/b.csv", "csv", heading=Stream(t, {"psi_rad": t * 0.1}), pwm=Stream(t[::2], {
+        "left_us": t[::2], "right_us": t[::2]}))
+    cut = within(rec, 2.0, 4.0, "a/b.csv#1")
+    assert cut.heading.t.tolist() == [2.0, 2.5, 3.0, 3.5, 4.0] and cut.pwm.t.tolist() == [2.0, 3.0, 4.0]
+    assert cut.heading["psi_rad"].tolist() == pytest.approx([0.2, 0.25, 0.3, 0.35, 0.4])
+    assert cut.meta["stretch_of"] == "a/b.csv" and len(rec.heading) == 20  # the log itself is untouched
+    with pytest.raises(TwinError, match="end after it starts"):
+        within(rec, 4.0, 4.0, "x")
 
 
 def test_form_error_interpolates_in_level_and_horizon_and_grows_a_position_beyond_it():

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -315,6 +315,21 @@ def with_common_origin(rec: Recording) -> Recording:
         rec.attitude = rec.attitude.shifted(t0)
         rec.origin_s += t0
     return rec
+
+
+def within(rec: Recording, t0_s: float, t1_s: float, source: str) -> Recording:
+    """The samples of `rec` at t0_s ≤ t ≤ t1_s (s on its clock) as a recording named `source`: a
+    stretch of a log fitted or judged on its own. The clock and origin stay the log's."""
+    if not t1_s > t0_s:
+        raise TwinError(f"{source}: a stretch must end after it starts ({t0_s:g} s to {t1_s:g} s)")
+    cut = {}
+    for name in (*STREAMS, "attitude"):
+        s = getattr(rec, name)
+        keep = (s.t >= t0_s) & (s.t <= t1_s)
+        cut[name] = Stream(s.t[keep], {k: v[keep] for k, v in s.columns.items()})
+    return replace(rec, source=source, dropped=list(rec.dropped), notes=list(rec.notes),
+                   warnings=list(rec.warnings), meta={**rec.meta, "stretch_of": rec.source,
+                                                      "stretch_s": [float(t0_s), float(t1_s)]}, **cut)
 
 
 SHARED_FIXES = 20  # consecutive fresh GNSS fixes two recordings must share, bit for bit, to share a stretch

@@ -12,6 +12,8 @@ manoeuvre. These splits put the runs that go further on the judged side:
   are judged (a propeller at ≤ 8 rps fitted, at 10 rps judged).
 - `by_family`: runs whose file names start with one prefix are fitted, the others judged (random
   manoeuvres against steady turns).
+- `low_input_stretches`: the stretches of runs whose inputs stay below a level, to be fitted on
+  their own (recording.within) and judged on the runs that go beyond it.
 - `by_day`: runs of one family recorded on one day are fitted, the family's runs of other days
   judged (the same manoeuvres a month later: another wind, another water temperature, the model
   ballasted again).
@@ -174,6 +176,23 @@ def by_input_level(preps: list[Prepared], max_fitted: float) -> Split:
     unit = "rps" if preps[0].input_kind == "propeller_rudder" else "µs from neutral"
     return Split(f"input ≤ {max_fitted:g} {unit.split()[0]}", f"runs whose inputs never exceed {max_fitted:g} {unit} fitted, the runs "
                  "beyond judged", fitted, judged)
+
+
+def low_input_stretches(prep: Prepared, max_level: float, min_length_s: float) -> list[tuple[float, float]]:
+    """The stretches (start, end s on the log's clock) of at least `min_length_s` in which the inputs
+    never exceed `max_level` (µs from neutral, or rps) and no sample is missing: the slow parts of
+    runs that also go faster, to fit a twin that is then judged at the higher inputs."""
+    if not min_length_s > 0:
+        raise TwinError(f"a stretch must last more than 0 s, got {min_length_s:g}")
+    low = _input_magnitude(prep) <= max_level
+    out = []
+    for seg in prep.segments:
+        t, ok = prep.t[seg.slice], low[seg.slice]
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if t[b - 1] - t[a] >= min_length_s:
+                out.append((float(t[a]), float(t[b - 1])))
+    return out
 
 
 def by_family(names: list[str], fitted_prefix: str) -> Split:
