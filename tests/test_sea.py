@@ -217,8 +217,14 @@ def test_a_free_hull_drifts_along_the_waves_near_their_stokes_drift(yellowfish, 
     for v in (yellowfish, blueboat):  # long waves (λ 25 m): a small hull rides the orbits
         long = checks.free_drift(v, waves.parse_sea("regular,0.25,4,30"))
         assert long["stokes_m_s"] == pytest.approx(0.0061, abs=3e-4)
-        assert long["along_m_s"] == pytest.approx(long["stokes_m_s"], abs=0.012), long
+        # settled for five of its drift time constants: the BlueBoat's light surge damping takes ~35 s
+        assert long["settle_s"] == pytest.approx(5.0 * long["time_constant_s"])
+        assert (long["time_constant_s"] > 30.0) == (v is blueboat), long
+        assert long["along_m_s"] == pytest.approx(long["stokes_m_s"], rel=0.3), long
         assert abs(long["across_m_s"]) < 0.003, long
+    # averaged over its first 150 s the BlueBoat still carries its start from rest: it reads against the waves
+    early = checks.free_drift(blueboat, waves.parse_sea("regular,0.25,4,30"), duration_s=150.0, settle_s=20.0)
+    assert early["along_m_s"] < 0.0, early
     short = checks.free_drift(blueboat, waves.parse_sea("0.3,2.5,30,4", 1))
     # the waves' way, at the order of their Stokes drift, not along the hull's own heading
     assert 0.5 * short["stokes_m_s"] < short["along_m_s"] < 3.0 * short["stokes_m_s"], short

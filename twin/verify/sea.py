@@ -29,6 +29,7 @@ from .. import drive
 from ..engine import sixdof
 from ..engine.mjcf import compile_vessel
 from ..engine.sim import simulate
+from ..errors import TwinError
 from ..physics import seakeeping as sk
 from ..physics import waves
 from ..physics.hydrodynamics import Terms
@@ -281,15 +282,38 @@ def drift(vessel: Vessel, height_m: float = 0.02) -> list[dict]:
     return out
 
 
-def free_drift(vessel: Vessel, sea: waves.Sea, duration_s: float = 150.0, settle_s: float = 20.0) -> dict:
+DRIFT_SETTLE_TIME_CONSTANTS = 5.0  # a start from rest in the waves has died to e⁻⁵ of itself
+DRIFT_MIN_SETTLE_S = 20.0
+DRIFT_AVERAGE_S = 300.0
+
+
+def drift_time_constant_s(vessel: Vessel, speed_m_s: float) -> float:
+    """(m − X_u̇)/(−X_u − 2 X_uu |u|) at a drift of speed_m_s: how long the hull takes to settle
+    into a drift. At a few mm/s only the linear damping holds it: a hull of light linear surge
+    damping (the BlueBoat's X_u −0.44 N s/m at 16 kg: 35 s) keeps the start's velocity for minutes."""
+    mass = compile_vessel(vessel).geometry.rigid.mass_kg - vessel.added_mass.Xudot
+    slope = -(vessel.damping.Xu + 2.0 * vessel.damping.Xuu * abs(speed_m_s))
+    return float(mass / slope) if slope > 0 else float("inf")
+
+
+def free_drift(vessel: Vessel, sea: waves.Sea, duration_s: float | None = None, settle_s: float | None = None
+               ) -> dict:
     """A free hull without thrust in `sea`, from rest heading into the waves: its mean velocity after
     `settle_s` (a line through its track) along and across the waves' mean direction, against the
     Stokes drift at the strips' mean depth (waves.stokes_drift): the known flow a 3-DOF twin given
-    this sea moves through (sixdof.known_sea_drift)."""
+    this sea moves through (sixdof.known_sea_drift). settle_s defaults to DRIFT_SETTLE_TIME_CONSTANTS
+    of the hull's drift time constant at the Stokes drift (at least DRIFT_MIN_SETTLE_S), duration_s
+    to that plus DRIFT_AVERAGE_S."""
     cv = compile_vessel(vessel)
     six = sixdof.compile_six(cv, sea)
     depth = sixdof.strip_depth_m(six.hull)
     stokes = waves.stokes_drift(six.components, depth)
+    tau = drift_time_constant_s(vessel, float(np.hypot(*stokes)))
+    if settle_s is None:
+        if not math.isfinite(tau):
+            raise TwinError(f"{vessel.name}: no surge damping to settle a drift by (X_u, X_uu)")
+        settle_s = max(DRIFT_MIN_SETTLE_S, DRIFT_SETTLE_TIME_CONSTANTS * tau)
+    duration_s = settle_s + DRIFT_AVERAGE_S if duration_s is None else duration_s
     toward = math.atan2(stokes[1], stokes[0])
     t, q, _ = sixdof.free_run(six, duration_s, sample_every=10, eta0=(0.0, 0.0, toward + math.pi))
     keep = t >= settle_s
@@ -299,7 +323,8 @@ def free_drift(vessel: Vessel, sea: waves.Sea, duration_s: float = 150.0, settle
     return {"sea": sea.text(), "strip_depth_m": depth, "stokes_m_s": float(np.hypot(*stokes)),
             "wavelength_over_length": waves.wavelength_m(sea.tp_s) / (x1 - x0),
             "along_m_s": c * vn + s * ve, "across_m_s": -s * vn + c * ve,
-            "heading_end_deg": float(np.rad2deg(q[-1, 3]) % 360.0),
+            "heading_end_deg": float(np.rad2deg(q[-1, 3]) % 360.0), "settle_s": float(settle_s),
+            "duration_s": float(duration_s), "time_constant_s": tau,
             "waves_toward_deg": float(np.rad2deg(toward) % 360.0)}
 
 
