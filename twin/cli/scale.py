@@ -154,6 +154,9 @@ def _report(result) -> None:
         f"{'' if sea is None else '; in ' + sea.text() + ', each draw its own realisation'}) "
         f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
         f"{result.rejected} unphysical draws redrawn")
+    if result.rejected > result.draws // 2:
+        say("more draws fell outside the physical range than were kept: the recordings pin the twin's coefficients "
+            "loosely (few or short runs), and its band is wide for that; `twin identify` on more runs narrows it")
     k = 180.0 / math.pi
     dev = b.values["deviation"]
     psi = b.nominal["psi"][-1]
