@@ -17,6 +17,9 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
    leads).
 3. An added-mass coupling Y_ṙ = N_v̇ (zero in the shipped prior; physics/added_mass.py), set by
    hand on the identified twin: what it gives in v and costs in r.
+4. Each log's compass offset fitted to that log's own sway through the twin (in-sample, one
+   number per log) against the offset its straight running gives: whether the compass
+   calibration is what v misses.
 
 The recordings are read in place; without them the script says so and exits 0.
 """
@@ -34,6 +37,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
+from twin.vessel import Vessel  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.fit.evaluate import TwinPredictor, evaluate, horizon_windows  # noqa: E402
 from twin.fit.extrapolation import by_activity  # noqa: E402
@@ -48,6 +52,7 @@ ANTENNA_DX_M = (0.15, 0.0, -0.1, -0.2, -0.3)
 COUPLING_KG_M = (-2.0, 0.0, 2.0, 4.0)
 SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
 LAGS_S = np.round(np.arange(-1.5, 1.51, 0.1), 1)
+COMPASS_ITERATIONS = 3
 
 
 def scores(seen, recordings) -> tuple[dict, float]:
@@ -59,8 +64,8 @@ def scores(seen, recordings) -> tuple[dict, float]:
     return {d: (got[d]["r2"], got[d]["mae"]) for d in "uvr"}, spread
 
 
-def sway_residual(seen, recordings) -> list[list]:
-    """Per speed band: window samples, the correlation of the sway residual with u·r and its slope (s)."""
+def free_run_samples(seen, recordings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(measured (n, 3), predicted (n, 3), recording index (n,)) of every sample of the 10-s free runs."""
     preps = prepared(recordings, seen)
     windows = horizon_windows(preps, HORIZON_S, STRIDE_S)
     predictor = TwinPredictor(seen, ModelCache(), None)
@@ -72,9 +77,16 @@ def sway_residual(seen, recordings) -> list[list]:
         got = predictor.predict_windows(preps[rec], np.array([windows[j].start for j in rows]), n)
         pred[rows, : n + 1] = got[:, : n + 1]
     _, meas = measured(preps, windows)
+    rec = np.broadcast_to(np.array([w.rec for w in windows])[:, None], meas.shape[:2])[:, 1:].ravel()
     p, m = pred[:, 1:].reshape(-1, 3), meas[:, 1:].reshape(-1, 3)
     ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(m), axis=1)
-    residual, u, ur = (m[ok, 1] - p[ok, 1]), m[ok, 0], m[ok, 0] * m[ok, 2]
+    return m[ok], p[ok], rec[ok]
+
+
+def sway_residual(seen, recordings) -> list[list]:
+    """Per speed band: window samples, the correlation of the sway residual with u·r and its slope (s)."""
+    m, p, _ = free_run_samples(seen, recordings)
+    residual, u, ur = (m[:, 1] - p[:, 1]), m[:, 0], m[:, 0] * m[:, 2]
     rows = []
     for lo, hi in SPEED_BANDS_M_S:
         k = (u >= lo) & (u < hi)
@@ -83,6 +95,24 @@ def sway_residual(seen, recordings) -> list[list]:
                          float(np.polyfit(ur[k], residual[k], 1)[0])])
     rows.append(["all", int(len(u)), float(np.corrcoef(ur, residual)[0, 1]), float(np.polyfit(ur, residual, 1)[0])])
     return rows
+
+
+def compass_from_sway(seen, recordings) -> Vessel:
+    """`seen` with each log's compass offset moved to where the twin's sway puts it: the offset δ that
+    takes u·δ (a compass reading δ high lowers the measured v by u·δ) out of the log's sway residual,
+    COMPASS_ITERATIONS times (the free runs start from the measured states the offset also moves).
+    In-sample, one number per log: an upper mark for what a better compass calibration could give."""
+    names = [log_name(r.source) for r in recordings]
+    for _ in range(COMPASS_ITERATIONS):
+        m, p, rec = free_run_samples(seen, recordings)
+        residual, u = m[:, 1] - p[:, 1], m[:, 0]
+        table = dict(seen.sensors.heading_bias_by_log_deg)
+        for k in np.unique(rec):
+            s = rec == k
+            slope = float(np.linalg.lstsq(u[s][:, None], residual[s], rcond=None)[0][0])
+            table[names[k]] = table.get(names[k], seen.sensors.heading_bias_deg) - float(np.degrees(slope))
+        seen = replace(seen, sensors=replace(seen.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))
+    return seen
 
 
 def lead_of_sway(seen, recordings, signal) -> tuple[float, float]:
@@ -151,6 +181,20 @@ def main() -> int:
         got, _ = scores(coupled, judged)
         raw_coupling.append({"Yrdot_kg_m": c, "scores": got})
         coupling_rows.append([f"{c:+g}", *[got[d][0] for d in "uvr"]])
+    compass_rows, raw_compass = [], []
+    for runs, seen, recs in (("judged", on_judged, judged), ("fitted", on_fitted, fitted)):
+        kinematic, _ = scores(seen, recs)
+        swayed = compass_from_sway(seen, recs)
+        got, _ = scores(swayed, recs)
+        before, after = dict(seen.sensors.heading_bias_by_log_deg), dict(swayed.sensors.heading_bias_by_log_deg)
+        for r in recs:
+            name = log_name(r.source)
+            compass_rows.append([runs, name, before.get(name, seen.sensors.heading_bias_deg),
+                                 after.get(name, seen.sensors.heading_bias_deg)])
+        compass_rows.append([runs, "R² v (u, r)", f"{kinematic['v'][0]:.3f} ({kinematic['u'][0]:.3f}, "
+                             f"{kinematic['r'][0]:.3f})", f"{got['v'][0]:.3f} ({got['u'][0]:.3f}, {got['r'][0]:.3f})"])
+        raw_compass.append({"runs": runs, "kinematic": {**before}, "from_sway": {**after},
+                            "scores_kinematic": kinematic, "scores_from_sway": got})
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
     answers = twin.sensors.input_answer_s
     aft = raw_antenna[-1]
@@ -170,7 +214,10 @@ def main() -> int:
         "(these logs carry no gyro), a heading stamped that much late would read the same, but on the fitted runs "
         f"the heading answers the input steps within {abs(answers[1] - answers[0]):.2f} s of the GNSS (the "
         f"twin's input answers: surge {answers[0]:+.2f} s, yaw {answers[1]:+.2f} s; fit/kinematic.py). An "
-        "added-mass coupling set by hand buys v only with r.")
+        "added-mass coupling set by hand buys v only with r. Each log's compass offset fitted to its own sway "
+        f"(in-sample, one number per log) takes v to {raw_compass[0]['scores_from_sway']['v'][0]:.3f} on the judged "
+        f"runs and {raw_compass[1]['scores_from_sway']['v'][0]:.3f} on the fitted: the compass calibration is not "
+        "what v misses.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -190,13 +237,17 @@ def main() -> int:
                      ["runs", "lag (s)", "correlation"],
                      [[k, lag, c] for k, (lag, c) in leads.items()]),
          ResultTable("An added-mass coupling Y_ṙ = N_v̇ set on the identified twin (nothing refitted): 10-s R² "
-                     "on the judged runs", ["Y_ṙ = N_v̇ (kg m)", "R² u", "R² v", "R² r"], coupling_rows)],
+                     "on the judged runs", ["Y_ṙ = N_v̇ (kg m)", "R² u", "R² v", "R² r"], coupling_rows),
+         ResultTable("Each log's compass offset (°): from its straight running (fit/calibrate.py, as every page "
+                     "reads it; a log without enough keeps the twin's) and fitted to its own sway through the "
+                     "twin (compass_from_sway: in-sample), and the 10-s R² of each",
+                     ["runs", "log", "from straight running", "fitted to its sway"], compass_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
                "hull creeps while it spins)."],
         raw={"split": {"fitted": list(split.fitted), "judged": list(split.judged)}, "antenna": raw_antenna,
              "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
-             "input_answer_s": list(answers),
+             "input_answer_s": list(answers), "compass": raw_compass,
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
