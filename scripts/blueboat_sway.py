@@ -110,7 +110,7 @@ def compass_from_sway(seen, recordings) -> Vessel:
         for k in np.unique(rec):
             s = rec == k
             slope = float(np.linalg.lstsq(u[s][:, None], residual[s], rcond=None)[0][0])
-            table[names[k]] = table.get(names[k], seen.sensors.heading_bias_deg) - float(np.degrees(slope))
+            table[names[k]] = table.get(names[k], 0.0) - float(np.degrees(slope))  # on top of the common bias
         seen = replace(seen, sensors=replace(seen.sensors, heading_bias_by_log_deg=tuple(sorted(table.items()))))
     return seen
 
@@ -187,10 +187,10 @@ def main() -> int:
         swayed = compass_from_sway(seen, recs)
         got, _ = scores(swayed, recs)
         before, after = dict(seen.sensors.heading_bias_by_log_deg), dict(swayed.sensors.heading_bias_by_log_deg)
+        common = seen.sensors.heading_bias_deg  # a log's own bias adds to it (physics.sensors)
         for r in recs:
             name = log_name(r.source)
-            compass_rows.append([runs, name, before.get(name, seen.sensors.heading_bias_deg),
-                                 after.get(name, seen.sensors.heading_bias_deg)])
+            compass_rows.append([runs, name, common + before.get(name, 0.0), common + after.get(name, 0.0)])
         compass_rows.append([runs, "R² v (u, r)", f"{kinematic['v'][0]:.3f} ({kinematic['u'][0]:.3f}, "
                              f"{kinematic['r'][0]:.3f})", f"{got['v'][0]:.3f} ({got['u'][0]:.3f}, {got['r'][0]:.3f})"])
         raw_compass.append({"runs": runs, "kinematic": {**before}, "from_sway": {**after},
@@ -240,7 +240,7 @@ def main() -> int:
                      "on the judged runs", ["Y_ṙ = N_v̇ (kg m)", "R² u", "R² v", "R² r"], coupling_rows),
          ResultTable("Each log's compass offset (°): from its straight running (fit/calibrate.py, as every page "
                      "reads it; a log without enough keeps the twin's) and fitted to its own sway through the "
-                     "twin (compass_from_sway: in-sample), and the 10-s R² of each",
+                     "twin (compass_from_sway: in-sample); last row of each group: the 10-s R² v (u, r) with each",
                      ["runs", "log", "from straight running", "fitted to its sway"], compass_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "

@@ -123,9 +123,8 @@ def main(argv=None) -> int:
                "waterline integral) on the barge's mesh: it checks the waterline, the heading table and Newman's "
                "sums against the published asymptote and Ursell's closed form, not against a measured drift.",
                "A hull of light linear surge damping keeps the velocity of its start for minutes (the BlueBoat's "
-               "X_u of −0.44 N s/m at 16 kg with its added mass: a time constant of about 35 s): averaged over its "
-               "first 150 s, its drift would still carry the start from rest and read against the waves; it is "
-               "averaged here only once the start has died to e⁻⁵ of itself.",
+               "X_u of −0.44 N s/m at 16 kg with its added mass: a drift time constant of about 35 s): each drift is "
+               "averaged only once the start has died to e⁻⁵ of itself.",
                "The free drift has no published figure for these hulls: in long waves a small hull rides the "
                "orbits and goes with the water's Stokes drift, the reference used; in shorter waves its own "
                "pressure and diffraction loads add a drift of their own, which is the engine's and is not checked "

@@ -327,7 +327,8 @@ def within(rec: Recording, t0_s: float, t1_s: float, source: str) -> Recording:
         s = getattr(rec, name)
         keep = (s.t >= t0_s) & (s.t <= t1_s)
         cut[name] = Stream(s.t[keep], {k: v[keep] for k, v in s.columns.items()})
-    return replace(rec, source=source, dropped=list(rec.dropped), notes=list(rec.notes),
+    return replace(rec, source=source, parameters=dict(rec.parameters), channels=dict(rec.channels),
+                   dropped=list(rec.dropped), notes=list(rec.notes),
                    warnings=list(rec.warnings), meta={**rec.meta, "stretch_of": rec.source,
                                                       "stretch_s": [float(t0_s), float(t1_s)]}, **cut)
 

@@ -154,7 +154,7 @@ def _report(result) -> None:
         f"{'' if sea is None else '; in ' + sea.text() + ', each draw its own realisation'}) "
         f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
         f"{result.rejected} unphysical draws redrawn")
-    if result.rejected > result.draws // 2:
+    if result.rejected > result.draws:
         say("more draws fell outside the physical range than were kept: the recordings pin the twin's coefficients "
             "loosely (few or short runs), and its band is wide for that; `twin identify` on more runs narrows it")
     k = 180.0 / math.pi

@@ -324,7 +324,7 @@ def free_drift(vessel: Vessel, sea: waves.Sea, duration_s: float | None = None, 
             "wavelength_over_length": waves.wavelength_m(sea.tp_s) / (x1 - x0),
             "along_m_s": c * vn + s * ve, "across_m_s": -s * vn + c * ve,
             "heading_end_deg": float(np.rad2deg(q[-1, 3]) % 360.0), "settle_s": float(settle_s),
-            "duration_s": float(duration_s), "time_constant_s": tau,
+            "duration_s": float(duration_s), "time_constant_s": tau if math.isfinite(tau) else None,
             "waves_toward_deg": float(np.rad2deg(toward) % 360.0)}
 
 
