@@ -127,12 +127,10 @@ def main(argv=None) -> int:
                "A hull of light linear surge damping keeps the velocity of its start for minutes (the BlueBoat's "
                "X_u of −0.44 N s/m at 16 kg with its added mass: a drift time constant of about 35 s): each drift is "
                "averaged only once the start has died to e⁻⁵ of itself.",
-               "In long swell the BlueBoat's drift follows the strips' heave and pitch radiation damping, which "
-               "the engine takes at the heave natural frequency (0.68 s) whatever the wave's: at T 8 s, H 1 m its "
-               "mean load along the waves is −48 mN with that damping and its drift against the waves; with a "
-               "third of it, +0.87 times the Stokes drift, but its pitch then follows a fifth of the wave's slope; "
-               "without it the hull turns over in pitch. A frequency-dependent radiation (a memory of the hull's "
-               "own waves) is not modelled.",
+               "The engine takes the strips' heave and pitch radiation damping at the hull's heave natural "
+               "frequency whatever the wave's period (a frequency-dependent radiation, the memory of the hull's own "
+               "waves, is not modelled); a light hull's drift in long swell depends on it, and the BlueBoat drifts "
+               "against the longest swell here.",
                "The free drift has no published figure for these hulls: in long waves a small hull rides the "
                "orbits and goes with the water's Stokes drift, the reference used; in shorter waves its own "
                "pressure and diffraction loads add a drift of their own, which is the engine's and is not checked "
