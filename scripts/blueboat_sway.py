@@ -53,6 +53,7 @@ COUPLING_KG_M = (-2.0, 0.0, 2.0, 4.0)
 SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
 LAGS_S = np.round(np.arange(-1.5, 1.51, 0.1), 1)
 COMPASS_ITERATIONS = 3
+PIVOT_TURNING_RAD_S = 0.08
 
 
 def scores(seen, recordings) -> tuple[dict, float]:
@@ -94,6 +95,23 @@ def sway_residual(seen, recordings) -> list[list]:
             rows.append([f"{lo:g} to {hi:g}".replace("-", "−"), int(k.sum()), float(np.corrcoef(ur[k], residual[k])[0, 1]),
                          float(np.polyfit(ur[k], residual[k], 1)[0])])
     rows.append(["all", int(len(u)), float(np.corrcoef(ur, residual)[0, 1]), float(np.polyfit(ur, residual, 1)[0])])
+    return rows
+
+
+def pivot_points(seen, recordings) -> list[list]:
+    """Per speed band of the free-run samples turning faster than PIVOT_TURNING_RAD_S: where along the
+    hull the sway vanishes (x = −v/r by least squares through the origin, m from the reference point,
+    negative aft), measured and as the twin predicts it, with the correlation of the measured v and r."""
+    m, p, _ = free_run_samples(seen, recordings)
+    rows = []
+    for lo, hi in SPEED_BANDS_M_S:
+        k = (m[:, 0] >= lo) & (m[:, 0] < hi) & (np.abs(m[:, 2]) > PIVOT_TURNING_RAD_S)
+        if k.sum() < 50:
+            continue
+        measured_x = -float(np.sum(m[k, 1] * m[k, 2]) / np.sum(m[k, 2] ** 2))
+        predicted_x = -float(np.sum(p[k, 1] * p[k, 2]) / np.sum(p[k, 2] ** 2))
+        rows.append([f"{lo:g} to {hi:g}".replace("-", "−"), int(k.sum()), float(np.mean(np.abs(m[k, 2]))),
+                     measured_x, float(np.corrcoef(m[k, 1], m[k, 2])[0, 1]), predicted_x])
     return rows
 
 
@@ -166,6 +184,7 @@ def main() -> int:
         raw_antenna.append({"dx_m": dx, "scores": got, "v_spread_m_s": spread})
         antenna_rows.append([f"{dx:+.2f}", spread, *[x for d in "uvr" for x in got[d]]])
     residual_rows = sway_residual(on_judged, judged)
+    pivot_rows = pivot_points(on_judged, judged)
     th = twin.thrusters
 
     def differential_thrust_n(p):  # the twin's thrust map of the logged PWM, left less right
@@ -204,7 +223,10 @@ def main() -> int:
         f"while the MAE grows to {aft['scores']['v'][1]:.4f} m/s: the measured sway gains a part x·r that the "
         f"twin's own r predicts (its spread {raw_antenna[ANTENNA_DX_M.index(0.0)]['v_spread_m_s']:.4f} → "
         f"{aft['v_spread_m_s']:.4f} m/s), so the R² of v moves with the yardstick, not the twin. What the twin misses "
-        f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples) and the measured v leads u·r "
+        f"follows u·r (correlation {residual_rows[-1][2]:.2f} over all samples); in turns under way the hull "
+        f"pivots about a point {abs(pivot_rows[-1][3]):.2f} m {'aft' if pivot_rows[-1][3] < 0 else 'forward'} of the "
+        f"reference point at {pivot_rows[-1][0]} m/s, where the twin puts it {abs(pivot_rows[-1][5]):.2f} m "
+        f"{'aft' if pivot_rows[-1][5] < 0 else 'forward'}; the measured v leads u·r "
         f"(best at {leads['judged, against u·r'][0]:+.1f} s on the judged runs, "
         f"{leads['fitted, against u·r'][0]:+.1f} s on the fitted; r itself by {-leads['judged, against r'][0]:.1f} "
         f"and {-leads['fitted, against r'][0]:.1f} s), "
@@ -232,6 +254,11 @@ def main() -> int:
                      "against u·r, by speed",
                      ["u (m/s)", "window samples (overlapping)", "correlation with u·r", "slope (s)"],
                      residual_rows),
+         ResultTable(f"Where the hull pivots in turns (|r| > {PIVOT_TURNING_RAD_S:g} rad/s, every free-run sample on "
+                     "the judged runs): the point along the hull whose sway vanishes, x = −v/r (m from the reference "
+                     "point, negative aft), measured and as the twin predicts it",
+                     ["u (m/s)", "window samples (overlapping)", "mean |r| (rad/s)", "measured x (m)",
+                      "correlation of v and r", "twin's x (m)"], pivot_rows),
          ResultTable("The measured v against u·r, r and the differential thrust on the prepared runs: the lag "
                      "of the best correlation (negative: v leads)",
                      ["runs", "lag (s)", "correlation"],
@@ -247,7 +274,7 @@ def main() -> int:
                "hull creeps while it spins)."],
         raw={"split": {"fitted": list(split.fitted), "judged": list(split.judged)}, "antenna": raw_antenna,
              "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
-             "input_answer_s": list(answers), "compass": raw_compass,
+             "input_answer_s": list(answers), "compass": raw_compass, "pivot_by_speed": pivot_rows,
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
