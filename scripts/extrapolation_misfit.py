@@ -132,7 +132,17 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", type=Path, default=Path("/tmp/extrapolation"))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
+    ap.add_argument("--page-only", action="store_true", help="write the page again from its published figures "
+                                                             "(--out/data/extrapolation_misfit.json)")
     args = ap.parse_args()
+    if args.page_only:
+        published = args.out / "data" / "extrapolation_misfit.json"
+        if not published.is_file():
+            print(f"error: no {published}: run the study first", file=sys.stderr)
+            return 2
+        raw = {k: v for k, v in json.loads(published.read_text()).items() if k != "meta"}
+        print(f"wrote {page(raw).write(args.out)}")
+        return 0
     if not study.blueboat_paths() or not study.esso_paths():
         print(f"the shared recordings are not in {study.DATA}: nothing to do")
         return 0

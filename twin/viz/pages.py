@@ -25,7 +25,7 @@ class ResultTable:
     digits: int = 3
 
     def markdown(self) -> str:
-        head = "| " + " | ".join(self.columns) + " |"
+        head = "| " + " | ".join(_escaped(c) for c in self.columns) + " |"
         rule = "| " + " | ".join("---" for _ in self.columns) + " |"
         body = ["| " + " | ".join(_cell(c, self.digits) for c in row) + " |" for row in self.rows]
         return "\n".join([f"**{self.caption}**", "", head, rule, *body])
@@ -127,7 +127,12 @@ def _cell(value, digits: int) -> str:
         if abs(value) < 10 ** digits or abs(value) >= 1e7:  # past 10⁷ the digits are noise: powers of ten instead
             return f"{value:.{digits}g}"
         return f"{value:.0f}"
-    return str(value)
+    return _escaped(str(value))
+
+
+def _escaped(text: str) -> str:
+    """A table cell's text with its bars escaped (|r| would end the cell in Markdown)."""
+    return str(text).replace("|", "\\|")
 
 
 def checkout_commit(where: Path | str | None = None) -> str:
