@@ -140,8 +140,12 @@ def main() -> int:
         if not published.is_file():
             print(f"error: no {published}: run the study first", file=sys.stderr)
             return 2
-        raw = {k: v for k, v in json.loads(published.read_text()).items() if k != "meta"}
-        print(f"wrote {page(raw).write(args.out)}")
+        figures = json.loads(published.read_text())
+        meta = figures.pop("meta")
+        again = replace(page(figures), figures_of=(meta["date"], meta["commit"]),
+                        raw_file="data/extrapolation_misfit.json",
+                        ran="python scripts/extrapolation_misfit.py --page-only")
+        print(f"wrote {again.write(args.out)}")
         return 0
     if not study.blueboat_paths() or not study.esso_paths():
         print(f"the shared recordings are not in {study.DATA}: nothing to do")
