@@ -213,6 +213,24 @@ def test_mean_drift_against_the_short_wave_asymptote_and_the_barrier_reflection(
     assert rows[2]["engine"] < 0.02  # long waves pass under the box
 
 
+@pytest.mark.parametrize("which", ["barge", "blueboat", "yellowfish"])
+def test_a_free_hull_in_a_long_wave_heaves_with_the_surface_and_pitches_with_its_slope(which, request):
+    from twin.engine.mjcf import compile_vessel
+
+    vessel = request.getfixturevalue(which)
+    six = sixdof.compile_six(compile_vessel(vessel), waves.parse_sea("regular,0.1,8,30"))
+    a, w, k, cb, sb, phase = six.components.pack()[0]
+    t, q, _ = sixdof.free_run(six, 120.0, sample_every=2, eta0=(0.0, 0.0, math.atan2(sb, cb) + math.pi))
+    keep = t >= 60.0  # λ 100 m over a hull of 1-2 m: quasi-static, the start long damped out
+    theta = k * (cb * q[keep, 0] + sb * q[keep, 1]) - w * t[keep] + phase
+    basis = np.column_stack([np.cos(theta), np.sin(theta), np.ones(keep.sum())])
+    heave = np.linalg.lstsq(basis, q[keep, 2], rcond=None)[0]
+    pitch = np.linalg.lstsq(basis, q[keep, 4], rcond=None)[0]
+    # down positive: the hull rises on the crest (η = a cos θ); bow up where the surface ahead rises
+    assert heave[0] == pytest.approx(-a, rel=0.02) and abs(heave[1]) < 0.02 * a
+    assert pitch[1] == pytest.approx(k * a, rel=0.05) and abs(pitch[0]) < 0.1 * k * a
+
+
 def test_a_free_hull_drifts_along_the_waves_near_their_stokes_drift(yellowfish, blueboat):
     for v in (yellowfish, blueboat):  # long waves (λ 25 m and 39 m): a small hull rides the orbits
         for sea, stokes in (("regular,0.25,4,30", 0.0061), ("regular,0.39,5,30", 0.0076)):
