@@ -129,8 +129,9 @@ def main(argv=None) -> int:
                "averaged only once the start has died to e⁻⁵ of itself.",
                "The engine takes the strips' heave and pitch radiation damping at the hull's heave natural "
                "frequency whatever the wave's period (a frequency-dependent radiation, the memory of the hull's own "
-               "waves, is not modelled); a light hull's drift in long swell depends on it, and the BlueBoat drifts "
-               "against the longest swell here.",
+               "waves, is not modelled); it holds a drifting hull head to the waves.",
+               "The incident pressure decays with the depth below the local surface (Wheeler's stretching "
+               "[Wheeler-1970]): zero on the surface under crests and troughs alike.",
                "The free drift has no published figure for these hulls: in long waves a small hull rides the "
                "orbits and goes with the water's Stokes drift, the reference used; in shorter waves its own "
                "pressure and diffraction loads add a drift of their own, which is the engine's and is not checked "

@@ -1,5 +1,6 @@
 """The native (numba cfunc) passive callback against the Python reference."""
 import ctypes
+import os
 from dataclasses import replace
 
 import mujoco
@@ -12,6 +13,7 @@ from twin.engine import callbacks, native
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.errors import TwinError
 from twin.physics.environment import Environment
+from twin.physics import drop_stale_jit_caches
 from twin.physics.hydrodynamics import Terms
 
 VESSELS = ("yellowfish", "cybership1", "blueboat")
@@ -268,3 +270,20 @@ def test_a_later_process_loads_the_compiled_callback_from_the_disk_cache_and_ste
     assert first.returncode == 0 and second.returncode == 0, first.stderr + second.stderr
     hits, state = second.stdout.split()
     assert hits == "1" and state == first.stdout.split()[1] and float(state) != 0.0
+
+
+def test_a_compiled_cache_older_than_a_jitted_source_is_dropped_and_a_newer_one_kept(tmp_path):
+    # numba would reuse a caller's cache after a callee in another file changed (twin.physics)
+    source, cache = tmp_path / "hydrostatics.py", tmp_path / "__pycache__"
+    cache.mkdir()
+    source.write_text("x = 1\n")
+    stale, fresh, other = cache / "seakeeping.sea_load-1.py311.nbi", cache / "waves.grid-2.py311.1.nbc", cache / "a.pyc"
+    for f in (stale, fresh, other):
+        f.write_bytes(b"0")
+    t = source.stat().st_mtime
+    os.utime(stale, (t - 10, t - 10))
+    os.utime(fresh, (t + 10, t + 10))
+    os.utime(other, (t - 10, t - 10))
+    assert drop_stale_jit_caches([source], [cache]) == [stale]
+    assert not stale.exists() and fresh.exists() and other.exists()
+    assert drop_stale_jit_caches([], [cache]) == []

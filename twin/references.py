@@ -140,6 +140,9 @@ BIBLIOGRAPHY = _bib(
     Source("Stokes-1847", "On the theory of oscillatory waves (the mean drift of a particle under a progressive "
            "wave)", "G. G. Stokes", "Transactions of the Cambridge Philosophical Society 8, 441-455", 1847),
     Source("Michell-1893", "The highest waves in water", "J. H. Michell", "Philosophical Magazine 36, 430-437", 1893),
+    Source("Wheeler-1970", "Method for calculating forces produced by irregular waves (the stretching of linear "
+           "wave kinematics to the instantaneous surface)", "J. D. Wheeler",
+           "Journal of Petroleum Technology 22(3), 359-367", 1970),
 )
 
 def markdown() -> str:

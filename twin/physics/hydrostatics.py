@@ -155,8 +155,8 @@ def pressure_load(verts, faces, px, py, pz, R, fields, ox, oy, cpsi, spsi, dx, d
             q, ux, uy = cell(cpsi * wx + spsi * wy, -spsi * wx + cpsi * wy, dx, dy, nx, ny)
             p0 = bilinear(fields, 0, q, ux, uy, nx)
             head = p0
-            if z >= 0.0:
-                head = _head(z, p0, bilinear(fields, 1, q, ux, uy, nx), bilinear(fields, 2, q, ux, uy, nx), zh)
+            if z + p0 > 0.0:  # stretched: each component's decay from the local surface [Wheeler-1970]
+                head = _head(z + p0, p0, bilinear(fields, 1, q, ux, uy, nx), bilinear(fields, 2, q, ux, uy, nx), zh)
         work[v, 0] = rx
         work[v, 1] = ry
         work[v, 2] = rz

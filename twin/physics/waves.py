@@ -6,13 +6,16 @@ wave travels *to*) and phase ε_i. In the NED frame (z down) at a point (x, y, z
 
     θ_i = k_i (x cos β_i + y sin β_i) − ω_i t + ε_i
     ζ   = Σ a_i cos θ_i                                (elevation, up)
-    p   = ρ g z + ρ g Σ a_i e^{−k_i z} cos θ_i         (incident pressure under the surface, z ≥ 0)
+    p   = ρ g z + ρ g Σ a_i e^{−k_i (z + ζ)} cos θ_i   (incident pressure under the surface, z + ζ ≥ 0)
     u_h = Σ ω_i a_i e^{−k_i z} cos θ_i (cos β_i, sin β_i)  (horizontal particle velocity)
     w   = Σ ω_i a_i e^{−k_i z} sin θ_i                 (vertical particle velocity, up)
 
-[Faltinsen-1990], [DNV-RP-C205] (its wave-theory section). Above the mean level (z < 0, under a crest) the
-pressure is continued hydrostatically from the local surface, p = ρ g (z + ζ) (a common
-stretching of linear theory [DNV-RP-C205]).
+[Faltinsen-1990], [DNV-RP-C205] (its wave-theory section). The pressure's decay is counted from the
+local surface, not from the mean level (Wheeler's stretching [Wheeler-1970], [DNV-RP-C205]): it is
+zero on the surface under crests and troughs alike, and its gradient there is ρ(g − ω²ζ), the
+water's own vertical acceleration. *Why:* decaying from the mean level, linear theory leaves a
+pressure of order ρgka² on the surface in the troughs and none under the crests, a mean lift of
+that order on a hull riding the waves that turned a light hull's drift against long swell.
 
 Spectra: JONSWAP with peak enhancement γ (3.3 by default) and Pierson-Moskowitz (γ = 1), in the
 form of [DNV-RP-C205] (its wave-spectrum section; the Pierson-Moskowitz spectrum is γ = 1);
@@ -212,12 +215,13 @@ def elevation(c: Components, x, y, t: float) -> np.ndarray:
 
 
 def pressure(c: Components, x, y, z, t: float, rho: float = 1000.0) -> np.ndarray:
-    """Incident pressure (Pa, gauge) at (x, y, z) (z down), 0 above the surface (module docstring)."""
+    """Incident pressure (Pa, gauge) at (x, y, z) (z down), 0 above the surface; each component decays
+    with the depth below the local surface (module docstring)."""
     th = phases(c, x, y, t)
     z = np.asarray(z, float)
     zeta = np.sum(c.amplitude_m * np.cos(th), axis=-1)
-    decay = np.exp(-c.k_rad_m * np.maximum(z, 0.0)[..., None])
-    p = np.where(z >= 0.0, rho * G * (z + np.sum(c.amplitude_m * decay * np.cos(th), axis=-1)), rho * G * (z + zeta))
+    depth = np.maximum(z + zeta, 0.0)
+    p = rho * G * (z + np.sum(c.amplitude_m * np.exp(-c.k_rad_m * depth[..., None]) * np.cos(th), axis=-1))
     return np.where(z + zeta > 0.0, p, 0.0)
 
 
