@@ -115,6 +115,37 @@ def test_a_box_riding_a_wave_feels_the_pressure_at_its_depth_below_the_local_sur
         assert abs(abs(zeta) - a) < 1e-3 and -out[2] == pytest.approx(lift, rel=0.01), (zeta, out[2], lift)
 
 
+def test_the_pressure_over_a_hull_mesh_in_an_irregular_sea_is_the_reference_pressure_integrated():
+    # a box piercing the surface of a seeded short-crested sea, trimmed, heeled and yawed: the engine's
+    # integration (wave grid, depth interpolation, clipping at the local surface) against waves.pressure
+    # at each face's centroid of a fine mesh
+    c = waves.components(waves.parse_sea("0.3,2.5,30,4", 1))
+    box = trimesh.creation.box(extents=(0.6, 0.3, 0.2))
+    for _ in range(5):
+        box = box.subdivide()
+    verts, faces = np.array(box.vertices), np.array(box.faces)
+    zh, nx, step = 0.3, 41, 0.025
+    weights = waves.field_weights(c, (0.0, zh / 2, zh), 0.05)
+    for t, (px, py, pz), angles in ((3.1, (1.0, 2.0, 0.0), (0.3, 0.05, -0.04)),
+                                    (7.4, (-2.0, 0.5, 0.03), (2.0, -0.08, 0.1))):
+        R = sk.rotation(*angles)
+        ox, oy = px - step * (nx // 2), py - step * (nx // 2)
+        fields, phase = np.empty((7, nx * nx)), np.empty((2, len(c)))
+        waves.grid_fields(c.pack(), weights, t, ox, oy, 1.0, 0.0, step, step, nx, nx, fields, phase, 0, 0)
+        out = np.zeros(6)
+        pressure_load(verts, faces.astype(float), px, py, pz, R, fields, ox, oy, 1.0, 0.0, step, step, nx, nx, zh,
+                      1000.0 * waves.G, np.empty((len(verts), 5)), out)
+        tri = verts[faces] @ R.T
+        centre = tri.mean(axis=1)
+        area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # outward normal × area
+        p = waves.pressure(c, px + centre[:, 0], py + centre[:, 1], pz + centre[:, 2], t)
+        force = -(p[:, None] * area).sum(axis=0)
+        moment = -(p[:, None] * np.cross(centre, area)).sum(axis=0)
+        assert 0.0 < np.mean(p > 0) < 1.0  # the box pierces the surface
+        assert out[:3] == pytest.approx(force, abs=0.01 * abs(force[2])), (out[:3], force)
+        assert out[3:] == pytest.approx(moment, abs=0.003 * abs(force[2])), (out[3:], moment)
+
+
 def test_bad_seas_are_refused_on_one_line():
     for text, words in (("1.0,1.0,30", "steeper than breaking"), ("0.3,2.5", "expects HS,TP,DIR"),
                         ("0.3,-2,0", "positive"), ("0.3,2.5,0,0.5", "spreading"), ("regular,0.3,2.5", "expects")):

@@ -104,8 +104,10 @@ def waterplane_extent(vertices: np.ndarray, faces: np.ndarray, z_m: float) -> tu
 @njit(inline="always")
 def _head(z, p0, p1, p2, zh):
     """Incident pressure head (m) at depth z ≥ 0 from its values at 0, zh/2 and zh (quadratic
-    Lagrange interpolation in depth; the exponential decay of each component is smooth on [0, zh])."""
-    u = z / zh
+    Lagrange interpolation in depth; the exponential decay of each component is smooth on [0, zh]),
+    held at its value at zh below it: a quadratic carried on grows without bound, where the true
+    head only decays further."""
+    u = min(z / zh, 1.0)
     return p0 * (1.0 - u) * (1.0 - 2.0 * u) + p1 * 4.0 * u * (1.0 - u) + p2 * u * (2.0 * u - 1.0)
 
 

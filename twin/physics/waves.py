@@ -12,10 +12,11 @@ wave travels *to*) and phase ε_i. In the NED frame (z down) at a point (x, y, z
 
 [Faltinsen-1990], [DNV-RP-C205] (its wave-theory section). The pressure's decay is counted from the
 local surface, not from the mean level (Wheeler's stretching [Wheeler-1970], [DNV-RP-C205]): it is
-zero on the surface under crests and troughs alike, and its gradient there is ρ(g − ω²ζ), the
-water's own vertical acceleration. *Why:* decaying from the mean level, linear theory leaves a
-pressure of order ρgka² on the surface in the troughs and none under the crests, a mean lift of
-that order on a hull riding the waves that turned a light hull's drift against long swell.
+zero on the surface under crests and troughs alike, and its gradient there (a regular wave)
+ρ(g − ω²ζ), the water's own vertical acceleration. *Why:* decaying from the mean level, linear
+theory leaves a pressure of order ρgka² on the surface in the troughs and none under the crests, a
+mean lift of that order on a hull riding the waves, which draws a light hull's drift away from the
+Stokes drift in long swell.
 
 Spectra: JONSWAP with peak enhancement γ (3.3 by default) and Pierson-Moskowitz (γ = 1), in the
 form of [DNV-RP-C205] (its wave-spectrum section; the Pierson-Moskowitz spectrum is γ = 1);
