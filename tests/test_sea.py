@@ -8,6 +8,7 @@ import trimesh
 
 import twin.vessel as vessel_mod
 from twin.engine import sixdof
+from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.physics import seakeeping as sk
 from twin.physics import waves
@@ -233,6 +234,17 @@ def test_the_shipped_hulls_float_level(which, request):
 
 
 @pytest.mark.parametrize("which", ["yellowfish", "blueboat"])
+def test_the_wave_pressure_levels_reach_below_the_keel_at_rest(which, request):
+    # the head is interpolated between levels down to zh and held below it: the hull must lie within them
+    vessel = request.getfixturevalue(which)
+    hull = sixdof.hull_model(vessel)
+    keel = max(float(m[0][:, 2].max()) for m in hull.meshes) + hull.equilibrium[0]  # m below the surface
+    assert 0.05 < keel < 0.15
+    zh = sixdof.sea_view(sixdof.compile_six(compile_vessel(vessel), waves.parse_sea("regular,0.1,4,0", 1)).model)[sk._ZH]
+    assert 1.4 * keel < zh < 1.6 * keel
+
+
+@pytest.mark.parametrize("which", ["yellowfish", "blueboat"])
 def test_calm_water_six_dof_follows_the_three_dof_twin(which, request):
     """The BlueBoat trims 1.5° bow up at 20 N a thruster: its thrusters tilt with it and its centre of
     gravity moves over the yaw axis, which the level horizontal model takes off."""
@@ -271,7 +283,6 @@ def test_mean_drift_against_the_short_wave_asymptote_and_the_barrier_reflection(
 
 @pytest.mark.parametrize("which", ["barge", "blueboat", "yellowfish"])
 def test_a_free_hull_in_a_long_wave_heaves_with_the_surface_and_pitches_with_its_slope(which, request):
-    from twin.engine.mjcf import compile_vessel
 
     vessel = request.getfixturevalue(which)
     six = sixdof.compile_six(compile_vessel(vessel), waves.parse_sea("regular,0.1,8,30"))
@@ -315,7 +326,6 @@ def test_a_known_seas_drift_is_the_stokes_drift_a_flow_the_3dof_twin_goes_with(b
     from dataclasses import replace
 
     from twin.drive import InputSeries
-    from twin.engine.mjcf import compile_vessel
     from twin.engine.sim import simulate
 
     sea = waves.parse_sea("regular,0.25,4,30")
@@ -346,7 +356,6 @@ def test_a_known_load_is_read_by_heading_and_speed_alike_in_both_engines(yellowf
     from dataclasses import replace
 
     from twin.drive import InputSeries
-    from twin.engine.mjcf import compile_vessel
     from twin.engine.sim import simulate
 
     table = np.zeros((sk.KNOWN_HEADINGS, 3, 3))
@@ -443,7 +452,6 @@ def test_logs_roll_and_pitch_are_read_beside_the_heading():
 def test_montecarlo_in_a_sea_draws_each_twin_its_own_sea_from_its_seed(yellowfish):
     from dataclasses import replace
 
-    from twin.engine.mjcf import compile_vessel
     from twin.engine.sim import simulate
     from twin.scale import montecarlo as mc
     from twin.scale.draws import Variation, parse_factor
@@ -482,7 +490,6 @@ def test_dataset_shards_in_a_sea_give_each_vessel_its_own_realisation(yellowfish
 
 
 def test_logs_written_from_a_run_in_a_sea_carry_its_roll_and_pitch(yellowfish, tmp_path):
-    from twin.engine.mjcf import compile_vessel
     from twin.engine.sim import simulate
     from twin.formats import read_recording, write_recording, write_run
     from twin.drive import get

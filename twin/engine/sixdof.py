@@ -495,7 +495,9 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
         faces.append(f + off)
         off += len(v)
     verts, faces = np.vstack(verts), np.vstack(faces)
-    zh = max(hull.z_keel_m - hull.equilibrium[0], 0.02) * 1.5  # below the keel at rest, and some
+    # the deepest pressure level: half as deep again as the keel at rest (the body origin floats
+    # equilibrium[0] below the surface, the keel z_keel_m below the origin)
+    zh = max(hull.z_keel_m + hull.equilibrium[0], 0.02) * 1.5
     strip_depth = strip_depth_m(hull)
     dxs = np.array([s.dx for s in hull.strips])
     a22 = np.array([s.beam * s.draft for s in hull.strips]) * dxs  # the sway share follows the lateral area
