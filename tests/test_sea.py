@@ -11,6 +11,7 @@ from twin.engine import sixdof
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 from twin.physics import seakeeping as sk
+from twin.physics import sections
 from twin.physics import waves
 from twin.physics.hydrostatics import pressure_load
 from twin.verify import sea as checks
@@ -212,6 +213,51 @@ def test_lewis_form_of_a_semicircle_and_of_a_box():
     assert sk.lewis_heave(2.0, 1.0, math.pi / 4, 1000.0) == pytest.approx(1000 * math.pi / 2, rel=1e-5)
     c = sk.lewis_heave(2.0, 1.0, 1.0, 1000.0) / (1000 * math.pi * 4 / 8)
     assert c == pytest.approx(1.51, rel=0.06)
+
+
+def _semicircle(radius_m: float, panels: int = sections.PANELS):
+    th = np.linspace(0.0, math.pi / 2, panels + 1)
+    return radius_m * np.cos(th), -radius_m * np.sin(th)
+
+
+def test_a_heaving_semicircle_radiates_as_its_limits_and_its_energy_say():
+    rho, radius = 1000.0, 1.0
+    for kr in (0.2, 1.0, 2.0):  # K R: the wave number times the radius
+        omega = math.sqrt(kr * waves.G / radius)
+        r = sections.heave_radiation(*_semicircle(radius), omega, rho)
+        # the damping from the pressure on the hull is the energy its two waves carry away
+        assert r.b33 == pytest.approx(rho * waves.G ** 2 * r.amplitude_ratio ** 2 / omega ** 3, rel=0.02)
+    fast = sections.heave_radiation(*_semicircle(radius), math.sqrt(20 * waves.G), rho)
+    assert fast.a33 == pytest.approx(rho * math.pi * radius ** 2 / 2, rel=0.02)  # the surface a node
+    slow_omega = math.sqrt(0.02 * waves.G)
+    slow = sections.heave_radiation(*_semicircle(radius), slow_omega, rho)
+    # long waves: Ā → ω²B/g (the Froude-Krylov force and the Haskind relation), twice the ω²B/(2g) of a
+    # flux shared between the two waves
+    assert slow.amplitude_ratio == pytest.approx(slow_omega ** 2 * 2 * radius / waves.G, rel=0.06)
+    coarse, fine = (sections.heave_radiation(*_semicircle(radius, n), waves.G ** 0.5, rho).b33 for n in (20, 40))
+    assert coarse == pytest.approx(fine, rel=0.01)
+    with pytest.raises(TwinError, match="positive frequency"):
+        sections.heave_radiation(*_semicircle(radius), 0.0)
+
+
+def test_a_lewis_contour_spans_its_beam_and_draft_and_holds_its_area():
+    x, y = sections.lewis_contour(0.227, 0.066, 0.8, panels=400)
+    assert (x[0], y[0]) == pytest.approx((0.1135, 0.0), abs=1e-9) and (x[-1], y[-1]) == pytest.approx((0.0, -0.066))
+    area = 2.0 * abs(np.trapezoid(-y, x))  # both halves
+    assert area == pytest.approx(0.8 * 0.227 * 0.066, rel=0.01)
+
+
+@pytest.mark.parametrize("which", ["yellowfish", "blueboat"])
+def test_the_strips_heave_damping_at_the_natural_frequency(which, request):
+    hull = sixdof.hull_model(request.getfixturevalue(which))
+    wet = np.array([s.beam > 0 and s.draft > 0 for s in hull.strips])
+    b33 = hull.radiation.b33
+    assert np.all(b33[wet] > 0) and np.all(b33[~wet] == 0)
+    # each section's own damping at the heave natural frequency: a third to three times ρωB²/4, a
+    # quarter of the long-wave limit ρωB² (a section's Ā saturates below it as ω√(B/2g) nears 1)
+    beams = np.array([s.beam for s in hull.strips])[wet]
+    ratio = b33[wet] / (1000.0 * hull.omega_heave * beams ** 2 / 4)
+    assert np.all((ratio > 0.3) & (ratio < 3.0)), ratio
 
 
 @pytest.mark.parametrize("which", ["yellowfish", "blueboat", "barge"])

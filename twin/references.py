@@ -140,6 +140,11 @@ BIBLIOGRAPHY = _bib(
     Source("Stokes-1847", "On the theory of oscillatory waves (the mean drift of a particle under a progressive "
            "wave)", "G. G. Stokes", "Transactions of the Cambridge Philosophical Society 8, 441-455", 1847),
     Source("Michell-1893", "The highest waves in water", "J. H. Michell", "Philosophical Magazine 36, 430-437", 1893),
+    Source("Frank-1967", "Oscillation of cylinders in or below the free surface of deep fluids (the close-fit "
+           "source method for ship sections)", "W. Frank", "Naval Ship Research and Development Center, Report 2375",
+           1967),
+    Source("Wehausen-Laitone-1960", "Surface waves (the pulsating source below a free surface in two dimensions)",
+           "J. V. Wehausen, E. V. Laitone", "Handbuch der Physik IX, Springer, 446-778", 1960),
     Source("Wheeler-1970", "Method for calculating forces produced by irregular waves (the stretching of linear "
            "wave kinematics to the instantaneous surface)", "J. D. Wheeler",
            "Journal of Petroleum Technology 22(3), 359-367", 1970),

@@ -168,10 +168,8 @@ def _hull(vessel: Vessel) -> HullModel:
     strips = [s for v, f in hydro for s in sk.strips(v, f, z_w, N_STRIPS)]
     wp = sk.waterplane(hydro, z_w)
     restoring = sk.restoring(wp, mass, float(cg[2]), rho)
-    omega = 2 * math.pi / (2 * math.pi * math.sqrt(mass / restoring["C33"]))  # first guess: no added mass
-    for _ in range(3):  # the heave natural frequency with the added mass it implies
-        rad = sk.radiation(strips, rho, omega)
-        omega = math.sqrt(restoring["C33"] / (mass + rad.A33))
+    # the heave natural frequency with the strips' added mass (of infinite frequency: no iteration)
+    omega = math.sqrt(restoring["C33"] / (mass + sk.radiation(strips, rho, None).A33))
     rad = sk.radiation(strips, rho, omega)
     periods = sk.natural_periods(wp, restoring, mass, cg, i_cg, rad, rho)
     eq = equilibrium(hydro, mass, cg, rho)

@@ -18,11 +18,11 @@ dx with y_c the section's centreline and a44 = ρπB⁴/256 the roll added momen
 section (half that of a plate of width B rotating in infinite fluid, ρπ(B/2)⁴/8 [Newman-1977 Table
 4.2], the free surface a rigid lid at infinite frequency).
 
-Damping (radiation, linear, at the mode's natural frequency ω_n) per section from the radiated
-wave: b33 = ρ g² Ā²/ω³ [Faltinsen-1990] with the low-frequency wave-amplitude ratio
-Ā = ω² B/(2g) of a section displacing B per unit heave (its flux leaves as waves on both sides),
-so b33 = ρ ω B²/4. It is applied per section on the section's velocity relative to the water
-(the relative-motion principle [Journee-Massie-2001]).
+Damping (radiation, linear, at the heave natural frequency ω_n) per section: the heave damping of
+its Lewis form at ω_n by pulsating sources on its contour (physics/sections.py, [Frank-1967]),
+b33 = ρ g² Ā²/ω³ [Faltinsen-1990] with Ā the section's own radiated-wave amplitude. It is applied per
+section on the section's velocity relative to the water (the relative-motion principle
+[Journee-Massie-2001]).
 
 Diffraction correction: the relative-motion principle with the Smith effect [Journee-Massie-2001
 §6.3.2]: each section feels a33 ζ̈* + b33 ζ̇* beside the Froude-Krylov pressure, ζ̈* and ζ̇* the
@@ -50,6 +50,7 @@ from scipy.special import i1, k1
 from . import waves
 from .hydrostatics import pressure_load as _pressure
 from .hydrostatics import plane_crossings, submerged_volume
+from .sections import heave_radiation, lewis_contour, lewis_form
 
 G = 9.81
 N_STATIONS, N_RING = 25, 24
@@ -142,21 +143,16 @@ def lewis_heave(beam_m: float, draft_m: float, sigma: float, rho: float) -> floa
     σ is held within the range where the Lewis mapping exists."""
     if not (beam_m > 0 and draft_m > 0):
         return 0.0
-    h0 = beam_m / (2.0 * draft_m)
-    r = ((h0 - 1.0) / (h0 + 1.0)) ** 2
-    lo = np.pi / 32.0 * (10.0 - h0 - 1.0 / h0)  # bounds of σ for a valid, non-re-entrant Lewis form
-    hi = np.pi / 32.0 * (10.0 + h0 + 1.0 / h0)
-    sigma = min(max(sigma, lo + 1e-6), hi - 1e-6)
-    c1 = (3.0 + 4.0 * sigma / np.pi) + (1.0 - 4.0 * sigma / np.pi) * r
-    a3 = (-c1 + 3.0 + np.sqrt(max(9.0 - 2.0 * c1, 0.0))) / c1
-    a1 = (1.0 + a3) * (h0 - 1.0) / (h0 + 1.0)
-    m = beam_m / (2.0 * (1.0 + a1 + a3))
+    a1, a3, m = lewis_form(beam_m, draft_m, sigma)
     return float(rho * np.pi / 2.0 * m * m * ((1.0 + a1) ** 2 + 3.0 * a3 * a3))
 
 
-def heave_damping(beam_m: float, omega: float, rho: float) -> float:
-    """Radiation heave damping per unit length (N s/m²) at ω: ρ g² Ā²/ω³ with Ā = ω² B/(2g)."""
-    return rho * omega * beam_m ** 2 / 4.0
+def heave_damping(beam_m: float, draft_m: float, sigma: float, omega: float, rho: float) -> float:
+    """Radiation heave damping per unit length (N s/m²) of the Lewis section of beam B, draft T and
+    area coefficient σ at ω, by pulsating sources on its contour (physics/sections.py, [Frank-1967])."""
+    if not (beam_m > 0 and draft_m > 0):
+        return 0.0
+    return heave_radiation(*lewis_contour(beam_m, draft_m, sigma), omega, rho).b33
 
 
 @dataclass(frozen=True)
@@ -228,10 +224,12 @@ class Radiation:
     b33: np.ndarray
 
 
-def radiation(all_strips: list[Strip], rho: float, omega: float) -> Radiation:
-    """Strip sums of the module docstring; b33 at ω (the heave natural frequency)."""
+def radiation(all_strips: list[Strip], rho: float, omega: float | None) -> Radiation:
+    """Strip sums of the module docstring; b33 at ω (the heave natural frequency), none without one
+    (the added mass, of infinite frequency, does not depend on it)."""
     a33 = np.array([lewis_heave(s.beam, s.draft, s.sigma, rho) for s in all_strips])
-    b33 = np.array([heave_damping(s.beam, omega, rho) for s in all_strips])
+    b33 = np.array([0.0 if omega is None else heave_damping(s.beam, s.draft, s.sigma, omega, rho)
+                    for s in all_strips])
     dx = np.array([s.dx for s in all_strips])
     x = np.array([s.x for s in all_strips])
     y = np.array([s.y for s in all_strips])
