@@ -498,7 +498,9 @@ def _pack(hull: HullModel, comps, sea_terms: SeaTerms, qpos, dof, compiled: Comp
     zh = max(hull.z_keel_m + hull.equilibrium[0], 0.02) * 1.5
     strip_depth = strip_depth_m(hull)
     dxs = np.array([s.dx for s in hull.strips])
-    a22 = np.array([s.beam * s.draft for s in hull.strips]) * dxs  # the sway share follows the lateral area
+    # the sway share follows each section's area B·T (its share of the displaced water); a flat plate's
+    # sway added mass would follow T², which moves the load's centre 6-7 mm on the shipped hulls
+    a22 = np.array([s.beam * s.draft for s in hull.strips]) * dxs
     rows = np.column_stack([[s.x for s in hull.strips], [s.y for s in hull.strips], hull.radiation.a33 * dxs,
                             hull.radiation.b33 * dxs, dxs / dxs.sum(), a22 / max(a22.sum(), 1e-12)])
     am = compiled.vessel.added_mass
