@@ -145,6 +145,8 @@ BIBLIOGRAPHY = _bib(
            1967),
     Source("Wehausen-Laitone-1960", "Surface waves (the pulsating source below a free surface in two dimensions)",
            "J. V. Wehausen, E. V. Laitone", "Handbuch der Physik IX, Springer, 446-778", 1960),
+    Source("Ursell-1949", "On the heaving motion of a circular cylinder on the surface of a fluid", "F. Ursell",
+           "Quarterly Journal of Mechanics and Applied Mathematics 2, 218-231", 1949),
     Source("Wheeler-1970", "Method for calculating forces produced by irregular waves (the stretching of linear "
            "wave kinematics to the instantaneous surface)", "J. D. Wheeler",
            "Journal of Petroleum Technology 22(3), 359-367", 1970),
