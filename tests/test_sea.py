@@ -257,6 +257,25 @@ def test_a_lewis_contour_spans_its_beam_and_draft_and_holds_its_area():
     assert area == pytest.approx(0.8 * 0.227 * 0.066, rel=0.01)
 
 
+def _conformal(a1: float, a3: float) -> bool:
+    """Whether the Lewis map z = M(ζ + a1/ζ + a3/ζ³) has no critical point outside the unit circle
+    (its contour is then not re-entrant): the roots of ζ⁴ − a1ζ² − 3a3 all inside it."""
+    return bool(np.all(np.abs(np.roots([1.0, 0.0, -a1, 0.0, -3.0 * a3])) < 1.0))
+
+
+def test_the_lewis_form_keeps_every_area_its_mapping_allows_and_no_other():
+    # a V section of B = 2T and σ 0.55 is a valid Lewis form, kept as it is; a flat section of
+    # B = 10T and σ 0.5 is not (its map folds), and is held to the nearest valid form
+    x, y = sections.lewis_contour(0.2, 0.1, 0.55, panels=400)
+    assert _conformal(*sections.lewis_form(0.2, 0.1, 0.55)[:2])
+    assert 2.0 * abs(np.trapezoid(-y, x)) == pytest.approx(0.55 * 0.2 * 0.1, rel=0.01)
+    # the check itself: B = 10T, σ 0.5 by the formulas unheld (a1 0.735, a3 0.102) folds
+    assert not _conformal(0.7345, 0.1018)
+    for h0 in (0.3, 0.5, 1.0, 2.0, 5.0, 8.0):
+        for sigma in np.linspace(0.2, 1.6, 29):
+            assert _conformal(*sections.lewis_form(2.0 * h0, 1.0, float(sigma))[:2]), (h0, sigma)
+
+
 @pytest.mark.parametrize("which", ["yellowfish", "blueboat"])
 def test_the_strips_heave_damping_at_the_natural_frequency(which, request):
     hull = sixdof.hull_model(request.getfixturevalue(which))

@@ -53,12 +53,13 @@ class SectionRadiation:
 
 def lewis_form(beam_m: float, draft_m: float, sigma: float) -> tuple[float, float, float]:
     """(a1, a3, M m) of the Lewis form of beam B, draft T and area coefficient σ = A/(BT)
-    [Journee-Massie-2001], σ held within the range where the mapping is not re-entrant:
+    [Journee-Massie-2001], σ held within the range where the mapping is not re-entrant,
+    3π/32·(2 − min(H0, 1/H0)) < σ < π/32·(10 + H0 + 1/H0):
         H0 = B/(2T), C1 = (3 + 4σ/π) + (1 − 4σ/π)((H0 − 1)/(H0 + 1))²,
         a3 = (−C1 + 3 + √(9 − 2C1))/C1, a1 = (1 + a3)(H0 − 1)/(H0 + 1), M = B/(2(1 + a1 + a3))."""
     h0 = beam_m / (2.0 * draft_m)
     r = ((h0 - 1.0) / (h0 + 1.0)) ** 2
-    lo = np.pi / 32.0 * (10.0 - h0 - 1.0 / h0)
+    lo = 3.0 * np.pi / 32.0 * (2.0 - min(h0, 1.0 / h0))
     hi = np.pi / 32.0 * (10.0 + h0 + 1.0 / h0)
     sigma = min(max(sigma, lo + 1e-6), hi - 1e-6)
     c1 = (3.0 + 4.0 * sigma / np.pi) + (1.0 - 4.0 * sigma / np.pi) * r
