@@ -285,7 +285,7 @@ def known_sea_drift(vessel: Vessel, sea: waves.Sea) -> tuple[float, float]:
     return float(n), float(e)
 
 
-KNOWN_SPEEDS_M_S = (0.0, 1.0, 2.0, 3.0)  # speeds through the water of the mean-load table
+KNOWN_SPEEDS_M_S = (0.0, 1.0, 2.0, 3.0)  # the mean-load table's speeds: run over ground, read through the flow
 KNOWN_SETTLE_S = 6.0  # the heave, roll and pitch settle into the waves before the mean is taken
 KNOWN_RUN_S = 30.0  # each run's averaging time: two antithetic runs in an irregular sea, one in a regular
 _KNOWN_SAMPLE_EVERY = 5  # steps between the samples of the mean
@@ -295,7 +295,8 @@ _MEAN_LOADS: dict[str, np.ndarray] = {}
 def mean_sea_load(vessel: Vessel, sea: waves.Sea, speeds_m_s=KNOWN_SPEEDS_M_S, run_s: float = KNOWN_RUN_S
                   ) -> np.ndarray:
     """The mean load of `sea` on the vessel's 6-DOF hull by the waves' heading off the bow (every
-    45°) and its speed through the water: the block of physics.seakeeping.pack_known_load.
+    45°) and its speed (the runs' over ground, read through the known flow: docs/method/sea-state.md):
+    the block of physics.seakeeping.pack_known_load.
 
     Each entry is a run of the 6-DOF hull driven at that speed and heading without thrust, free in
     heave, roll and pitch: the mean over the run of the forces that accelerate its surge, sway and
