@@ -203,8 +203,8 @@ def test_view_replay_without_pwm_names_the_file(tmp_path):
     assert p.stderr.startswith("error: nopwm.csv: the recording has no thruster PWM to replay")
 
 
-def test_view_sim_plots_the_real_thrust_from_the_recorded_pwm(sim_tlog, tmp_path, monkeypatch):
-    """Thrust is "sim against real" like u, v, r: the recording's thrust is the twin's thruster map
+def test_view_sim_plots_the_logged_thrust_from_the_recorded_pwm(sim_tlog, tmp_path, monkeypatch):
+    """Thrust is "twin against log" like u, v, r: the recording's thrust is the twin's thruster map
     on its PWM, labelled so; replaying a twin's own log, the two agree."""
     import twin.outputs
     import twin.viz.rerun_log as rerun_log
@@ -226,13 +226,13 @@ def test_view_sim_plots_the_real_thrust_from_the_recorded_pwm(sim_tlog, tmp_path
     monkeypatch.setattr(sys, "argv", ["twin", "view", str(sim_tlog / "z.tlog"), "--sim", "--vessel", "yellowfish",
                                       "--out", str(tmp_path / "v.rrd")])
     cli.main()
-    real, sim = written["real"], written["twin"]
+    real, sim = written["recorded"], written["twin"]
     assert np.all(np.isfinite(real.thrust_n)) and np.ptp(real.thrust_n[:, 0]) > 10.0  # the zig-zag's steps
     k = np.searchsorted(sim.t, real.t - 1e-6)
     ok = k < len(sim.t)
     # the recorded PWM is the twin's at 10 Hz: the thrust agrees but where a step falls between samples
     assert np.median(np.abs(real.thrust_n[ok] - sim.thrust_n[k[ok]])) < 0.5
-    assert "real (yellowfish thrust map on the recorded PWM)" in labels
+    assert "recorded (yellowfish thrust map on the recorded PWM)" in labels
 
 
 def test_info_with_a_vessel_reports_each_logs_compass_calibration(shared_dir, tmp_path):

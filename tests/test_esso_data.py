@@ -194,7 +194,7 @@ def test_view_shows_a_ships_inputs_as_propeller_and_rudder_and_replays_with_its_
     ship = vessel_mod.load("esso_osaka")
     calm = view_runs([rec], ship, sim=True)
     windy = view_runs([rec], ship, sim=True, wind="measured")
-    real = calm["real"]
+    real = calm["recorded"]
     assert np.all(np.isnan(real.pwm_us))  # no 10-µs "PWM" line
     held = real.propeller_rudder()
     assert held[:, 0] == pytest.approx(10.0) and held[:, 1] == pytest.approx(0.05)
@@ -223,7 +223,7 @@ def test_the_yaw_rate_is_read_from_the_gyro_less_its_bias_where_the_vessel_says_
     assert np.max(np.abs(gyro.r - truth)) < 1e-3  # the gyro's 0.01-rad/s offset taken out
     from twin.replay import view_runs
     import twin.vessel as vessel_mod
-    shown = view_runs([rec], vessel_mod.load("esso_osaka"))["real"]  # `twin view` reads it as identify does
+    shown = view_runs([rec], vessel_mod.load("esso_osaka"))["recorded"]  # `twin view` reads it as identify does
     assert np.max(np.abs(shown.nu[:, 2] - 0.15 * np.cos(0.5 * shown.t))) < 1e-3
     rec.imu = rec.imu.__class__.empty("yaw_rate_rads")
     assert prepare(rec, yaw_rate_source="gyro").settings.yaw_rate_source == "heading"  # no gyro: the heading

@@ -122,6 +122,26 @@ def test_calibration_line_says_whether_applied_with_info_caveat():
     assert "alone" not in LogCalibration("x.csv", 7.0, 0.6, 2, 31.0, None, "", stretch_sigma_deg=0.3).text()
 
 
+def test_calibration_line_names_the_offset_a_twin_was_identified_under():
+    from dataclasses import replace
+
+    from twin.vessel import load as load_vessel
+
+    boat = load_vessel("blueboat")
+    twin_of = replace(boat, sensors=replace(boat.sensors, heading_bias_by_log_deg=(("x.csv", 7.0),)))
+    read_now = LogCalibration("x.csv", 4.8, 0.2, 2, 6.0, None, "")
+    line = calibration_line(read_now, applied=True, twin=twin_of)
+    assert line.endswith("the twin was identified with +7.0° for this log (its straight stretches are chosen by "
+                         "the sway balance of the twin that reads them); offset applied")
+    assert "identified with" not in calibration_line(LogCalibration("x.csv", 7.0, 0.2, 2, 6.0, None, ""),
+                                                     applied=True, twin=twin_of)  # the same: nothing to say
+    assert "identified with" not in calibration_line(read_now, applied=True, twin=boat)  # no entry for it
+    none = LogCalibration("x.csv", None, None, 0, 0.0, None, "no straight running under way")
+    assert calibration_line(none, twin=twin_of).endswith("identified with +7.0° for this log (its straight "
+                                                         "stretches are chosen by the sway balance of the twin that "
+                                                         "reads them)")
+
+
 def test_a_logs_compass_offset_says_how_far_its_straight_stretches_disagree(shared_dir):
     """Run 225's two straight stretches give offsets apart by more than the spread of their 2-s
     pieces: the σ between stretches is told (the offset read with another twin, whose stretches are

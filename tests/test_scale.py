@@ -300,7 +300,7 @@ def test_montecarlo_says_when_most_draws_fall_outside_physics(vessel, tmp_path):
     done = twin("montecarlo", "--model", vessel_mod.save(wide, tmp_path / "wide.json"), "--draws", "8", "--duration",
                 "5", "--out", tmp_path / "band.json")
     assert done.returncode == 0, done.stderr
-    rejected = int(re.search(r"(\d+) unphysical draws redrawn", done.stdout).group(1))
+    rejected = int(re.search(r"(\d+) draws redrawn as unphysical", done.stdout).group(1))
     assert rejected > 8 and "pin the twin's coefficients loosely" in done.stdout
     tight = twin("montecarlo", "--model", vessel_mod.save(vessel, tmp_path / "tight.json"), "--draws", "8",
                  "--duration", "5", "--out", tmp_path / "band2.json")

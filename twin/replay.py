@@ -141,7 +141,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         if compiled is not None and prep.input_kind != vessel.thrusters.input_kind:
             raise TwinError(f"{Path(rec.source).name}: "
                             f"{inputs_mismatch(vessel.name, vessel.thrusters.input_kind, prep.input_kind)}")
-        label = name if len(recordings) > 1 else "real"
+        label = name if len(recordings) > 1 else "recorded"
         runs[label] = measured_run(prep)
         # u, v, r are not logged but estimated from the track and heading, over a window centred on each
         # sample: a step's answer starts before the step by half that window, which the plot should not hide
@@ -150,7 +150,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
             q: f"{label} {q}: " + ("a model smoother (EKF + RTS)" if smoother == "model" else
                                    f"the {'heading' if q == 'r' else 'track'}'s slope over ±{half[q]:g} s, centred")
             for q in ("u", "v", "r")}
-        if compiled is not None:  # the real thrust as the twin would make it: sim against real, as u, v, r
+        if compiled is not None:  # the logged PWM's thrust as the twin would make it: twin against log, as u, v, r
             runs[label].thrust_n = thrust_from_recorded_pwm(compiled, prep)
             runs[label].meta["series_labels"] |= {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
                                                   for q in ("thrust_left", "thrust_right")}
@@ -187,4 +187,4 @@ def free_run_views(vessel: Vessel, preps: list[Prepared], window_s: float = 10.0
     wins = make_windows(preps, window_s, window_s)
     pred = predict(vessel, preps, wins)[0]
     eta, nu = measured(preps, wins)
-    return stitched_runs(wins, {"real": (preps, eta, nu), "twin": (preps, pred.eta, pred.nu)})
+    return stitched_runs(wins, {"recorded": (preps, eta, nu), "twin": (preps, pred.eta, pred.nu)})

@@ -5,12 +5,14 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 
 from ..errors import TwinError
 from ..files import write_text_atomic
 from .app import (all_or_nothing_outputs, listed, CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
+from .ident import calibration_line
 from .run import KNOWN_SEA_HELP, known_sea
 
 
@@ -104,7 +106,7 @@ def diagnose_command(
         result = diagnose(recs, prior, window_s=window, library=library, calibrated=calibration, refit=groups,
                           refit_weight=refit_weight, log=lambda m: progress(m), wind=wind)
     for c in result.calibrations:
-        say(f"calibration: {c.text()}")
+        say(escape(f"calibration: {calibration_line(c, applied=calibration, twin=prior)}"))
     say_unlogged_supply(recs, result.amended)
     typer.echo(format_text(result))
     typer.echo("\nwhere the residual concentrates (every window, twin before):")

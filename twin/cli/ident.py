@@ -19,16 +19,23 @@ from .run import KNOWN_SEA_HELP, known_sea
 
 if TYPE_CHECKING:
     from ..fit.calibrate import LogCalibration
+    from ..vessel import Vessel
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 MAX_REPEATS = 1000  # --greybox --repeats: a million would run for days before a word
 
 
-def calibration_line(c: LogCalibration, applied: bool | None = None) -> str:
+def calibration_line(c: LogCalibration, applied: bool | None = None, twin: Vessel | None = None) -> str:
     """A log's compass calibration (twin.fit.calibrate.LogCalibration) as the commands print it, its
     caveat in brackets (one straight leg: an offset a current may share). `applied`: whether this
-    command applied the offset found (None: a command that applies none, as `twin info`)."""
+    command applied the offset found (None: a command that applies none, as `twin info`). `twin`: a
+    twin that holds its own offset for this log (the one it was identified under) has it said beside
+    the one read now, where they differ: the straight stretches are chosen by the twin's sway balance."""
     line = c.text()
+    held = dict(twin.sensors.heading_bias_by_log_deg).get(c.log) if twin is not None else None
+    if held is not None and (c.heading_bias_deg is None or abs(held - c.heading_bias_deg) >= 0.05):
+        line += (f"; the twin was identified with {held:+.1f}° for this log (its straight stretches are "
+                 "chosen by the sway balance of the twin that reads them)")
     if c.heading_bias_deg is None:  # its text says why it is not applied
         return line
     if applied is not None:
@@ -384,7 +391,7 @@ def evaluate_command(
     if sea_line:
         say(sea_line)
     for c in calibrations:
-        say(escape(f"calibration: {calibration_line(c, applied=calibration)}"))
+        say(escape(f"calibration: {calibration_line(c, applied=calibration, twin=v)}"))
     say_unlogged_supply(recs, v)
     applied = calibration and any(c.heading_bias_deg is not None for c in calibrations)
     typer.echo(format_metrics(out["metrics_uncalibrated"], f"{twin_name} on {names}, as logged"

@@ -118,7 +118,7 @@ def _calibrations(recordings: list, vessel) -> int:
         return 1
     typer.echo(f"== each log's compass calibration ({vessel.name}; identify, evaluate and diagnose apply it)")
     for c in calibrations:
-        typer.echo(f"calibration: {calibration_line(c)}")
+        typer.echo(f"calibration: {calibration_line(c, twin=vessel)}")
     if wanted == "pwm":
         typer.echo(f"calibration: {_throttle_line(usable, calibrated_vessel, calibrations)}")
     return failed

@@ -153,7 +153,8 @@ def _report(result) -> None:
     say(f"{result.vessel.name}: {result.draws} draws of {result.mission.duration_s:g} s ({result.mission.source}"
         f"{'' if sea is None else '; in ' + sea.text() + ', each draw its own realisation'}) "
         f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
-        f"{result.rejected} unphysical draws redrawn")
+        f"{result.rejected} draws redrawn as unphysical (damping that stops dissipating, or a mass matrix not "
+        "positive-definite)")
     if result.rejected > result.draws:
         say("more draws fell outside the physical range than were kept: the recordings pin the twin's coefficients "
             "loosely (few or short runs), and its band is wide for that; `twin identify` on more runs narrows it")

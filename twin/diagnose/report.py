@@ -49,7 +49,7 @@ def runs(d) -> dict[str, Run]:
     """Real, twin before and twin after on the windows' samples, in time order."""
     rp = d.replay
     before, after = rp["before"], rp["after"]
-    return stitched_runs(rp["windows"], {"real": (rp["preps"], before.meas_eta, before.meas_nu),
+    return stitched_runs(rp["windows"], {"recorded": (rp["preps"], before.meas_eta, before.meas_nu),
                                          "twin before": (rp["preps"], before.pred_eta, before.pred_nu),
                                          "twin after": (rp["amended_preps"], after.pred_eta, after.pred_nu)})
 
@@ -381,7 +381,7 @@ def track_png(d, max_windows: int = 8) -> str:
     fig, ax = plt.subplots(figsize=(7, 7))
     for i, j in enumerate(_telling(d, max_windows)):
         n = rp["windows"][j].n + 1
-        lines = [(rp["before"].meas_eta, dict(color="k", lw=1.4), "real"),
+        lines = [(rp["before"].meas_eta, dict(color="k", lw=1.4), "recorded"),
                  (rp["before"].pred_eta, dict(color="tab:red", lw=2.0, alpha=0.7), "twin before" if d.effects else "twin")]
         if d.effects:
             lines.append((rp["after"].pred_eta, dict(color="tab:green", lw=1.2, ls="--"), "twin after"))
