@@ -431,8 +431,9 @@ def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_pa
     data = tmp_path / "data"
     data.mkdir()
     links = []
+    earlier = {"csv": "t,x,y\n0,0,0\n", "mcap": "old", "rrd": "twin-run old"}  # runs: --force replaces them
     for ext in ("csv", "mcap", "rrd"):
-        (data / f"run.{ext}").write_text("old")
+        (data / f"run.{ext}").write_text(earlier[ext])
         link = tmp_path / f"link.{ext}"
         link.symlink_to(data / f"run.{ext}")
         links.append(link)
@@ -449,7 +450,7 @@ def test_an_output_that_is_a_link_is_written_through(monkeypatch, capsys, tmp_pa
 def test_a_failed_write_names_the_file_and_keeps_the_old_one(monkeypatch, capsys, tmp_path, full_disk):
     """A full disk while writing: one line naming the output, the file already there kept whole."""
     out = tmp_path / "run.csv"
-    out.write_text("old\n")
+    out.write_text("t,x,y\n0,0,0\n")
     full_disk(0.0)
     err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--out", out, "--force"],
                   [out])

@@ -80,6 +80,40 @@ def test_a_report_never_replaces_a_log_or_a_twin_and_a_session_or_a_band_needs_f
     assert done.returncode == 0 and '"earlier"' not in report.read_text()
 
 
+def test_force_replaces_a_table_or_a_band_only_with_its_own_kind(tmp_path):
+    """--force replaces a run with a run and a band with a band; a table that is neither (notes, a
+    manifest), a table of inputs or a band is kept when a run would go there, and a dataset's truth
+    is not replaced under a log beside it that the run does not write."""
+    notes, inputs = tmp_path / "notes.csv", tmp_path / "inputs.csv"
+    notes.write_text("note,value\n1,2\n")
+    inputs.write_text("t,pwm_left,pwm_right\n0,1500,1500\n")
+    band = tmp_path / "band.csv"
+    made = twin("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "2",
+                "--duration", "2", "--out", band, "--out", tmp_path / "band.rrd")
+    assert made.returncode == 0, made.stderr
+    kept = {p: p.read_bytes() for p in (notes, inputs, band, tmp_path / "band.rrd")}
+    for path, said in ((notes, "is not a recording or rerun recording of runs"), (inputs, "is a table of inputs"),
+                       (band, "is a Monte Carlo band"), (tmp_path / "band.rrd", "is a Monte Carlo band")):
+        done = twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", path, "--force")
+        assert done.returncode == 2 and done.stderr.strip() == (
+            f"error: --out '{path}' exists and {said}: it is kept, --force or not (give another name, or remove it "
+            "first)"), done.stderr
+    assert all(p.read_bytes() == b for p, b in kept.items())
+    again = twin("montecarlo", "--vessel", "blueboat", "--no-covariance", "--vary", "Nr=0.8..1.2", "--draws", "3",
+                 "--duration", "2", "--out", band, "--out", tmp_path / "band.rrd", "--force")
+    assert again.returncode == 0 and band.read_bytes() != kept[band], again.stderr  # a band over a band
+    made = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--out", tmp_path / "d.csv")
+    assert made.returncode == 0, made.stderr
+    truth = (tmp_path / "d.truth.json").read_text()
+    done = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--seed", "1", "--out", tmp_path / "d.mcap",
+                "--force")
+    assert done.returncode == 2 and f"describes the recording '{tmp_path / 'd.csv'}' beside it" in done.stderr
+    assert (tmp_path / "d.truth.json").read_text() == truth and not (tmp_path / "d.mcap").exists()
+    again = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--seed", "1", "--out", tmp_path / "d.csv",
+                 "--force")  # the log and its truth anew, together
+    assert again.returncode == 0 and (tmp_path / "d.truth.json").read_text() != truth, again.stderr
+
+
 def test_dataset_refuses_to_replace_its_log_or_its_truth_without_force(tmp_path):
     truth = tmp_path / "d.truth.json"
     truth.write_text("{}")
@@ -318,7 +352,7 @@ def test_a_command_that_fails_at_its_second_output_writes_none_and_replaces_none
     from twin.formats import mcap
 
     first, second = tmp_path / "a.csv", tmp_path / "b.mcap"
-    first.write_text("kept\n")
+    first.write_text("t,x,y\n0,0,0\n")
 
     def full(fh, *args):
         raise OSError(28, "No space left on device")
@@ -330,7 +364,7 @@ def test_a_command_that_fails_at_its_second_output_writes_none_and_replaces_none
         cli.main()
     out = capsys.readouterr()
     assert done.value.code == 2 and "No space left on device" in out.err and "wrote" not in out.out
-    assert first.read_text() == "kept\n" and sorted(os.listdir(tmp_path)) == ["a.csv"]
+    assert first.read_text() == "t,x,y\n0,0,0\n" and sorted(os.listdir(tmp_path)) == ["a.csv"]
 
 
 def test_files_land_together_at_the_end_of_a_block_and_never_over_a_device(tmp_path):

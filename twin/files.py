@@ -198,15 +198,21 @@ def finite_json(x):
 
 
 RECORDING_HEADS = {"lat", "x", "pwm_left", "heading_deg", "prop_rps", "lat_deg", "north_m"}
+# a recording places the boat; a table of inputs alone (simulate --inputs) holds no position or heading
+POSITION_HEADS = {"lat", "x", "lat_deg", "north_m", "heading_deg", "psi"}
+INPUT_HEADS = {"pwm_left", "pwm_right", "thrust_left", "thrust_right", "prop_rps", "rudder_deg"}
 
 
-BAND = "Monte Carlo band"  # kept_data's name for `twin montecarlo`'s JSON band
+BAND = "Monte Carlo band"  # kept_data's name for `twin montecarlo`'s band (JSON, CSV or rerun)
+INPUTS = "table of inputs"  # kept_data's name for a CSV of inputs alone (`twin simulate --inputs`)
+RRD_BAND = "twin-montecarlo"  # the rerun application id of a band
 
 
 def kept_data(path: Path) -> str | None:
     """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
-    (a simulation, a SITL session), a vessel file, a dataset's truth or a Monte Carlo band (by its
-    content, whatever command wrote it), else None (a report, a view, no file)."""
+    (a simulation, a SITL session), a vessel file, a dataset's truth, a Monte Carlo band or a table
+    of inputs (by its content, whatever command wrote it), else None (a report, a view, another
+    table, no file)."""
     if not path.is_file():
         return None
     suffix = path.suffix.lower()
@@ -216,11 +222,17 @@ def kept_data(path: Path) -> str | None:
         if suffix == ".rrd":
             # rerun writes the application id near the file's start, uncompressed
             with open(path, "rb") as f:
-                return "rerun recording of runs" if RRD_RUN.encode() in f.read(4096) else None
+                start = f.read(4096)
+            return ("rerun recording of runs" if RRD_RUN.encode() in start
+                    else BAND if RRD_BAND.encode() in start else None)
         if suffix == ".csv":
             with open(path, encoding="utf-8", errors="replace") as f:
                 head = [c.strip() for c in f.readline().split(",")]
-            return "recording" if head[:1] == ["t"] and RECORDING_HEADS & set(head) else None
+            if head[:1] == ["t_s"] and "north_m_nominal" in head:
+                return BAND
+            if head[:1] != ["t"] or not RECORDING_HEADS & set(head):
+                return None
+            return "recording" if POSITION_HEADS & set(head) else INPUTS if INPUT_HEADS & set(head) else None
         if suffix == ".json" and path.stat().st_size < 50_000_000:
             data = json.loads(path.read_text(encoding="utf-8"))
             keys = set(data) if isinstance(data, dict) else set()

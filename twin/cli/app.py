@@ -331,12 +331,30 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
             raise TwinError(f"{option} '{p}' exists and is a {kind}: {KEPT}")
         if not force:
             raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
+        if writes and kind is None and Path(p).suffix.lower() in (".csv", ".rrd"):
+            # a table or a rerun file whose content is none of what this output writes is someone's
+            # other data (notes, a manifest, a view): --force replaces data with data of its kind only
+            raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)}: {KEPT}")
         beside = Path(p).with_name(Path(p).stem + ".truth.json")
         if kind == "recording" and kept_data(beside) == "dataset's truth" and not (
                 truth is not None and same_file(Path(truth), beside)):
             # the recording would change under its truth, which would then describe another log
             raise TwinError(f"{option} '{p}' has a dataset's truth beside it ('{beside}') that would no longer "
                             "describe it: move or remove the truth first, or write elsewhere")
+
+
+def check_truth_beside_logs(truth: Path, outputs) -> None:
+    """Refuse to replace a dataset's truth that describes a recording beside it which this run does not
+    write (its name's stem with a recording's suffix): the log would stay under a truth of another."""
+    if kept_data(Path(truth)) != "dataset's truth":
+        return
+    stem = Path(truth).name.removesuffix(".truth.json")
+    for suffix in RECORDING_SUFFIXES:
+        log = Path(truth).with_name(stem + suffix)
+        if log.is_file() and not any(same_file(log, Path(o)) for o in outputs):
+            raise TwinError(f"--truth '{truth}' describes the recording '{log}' beside it, which this run does not "
+                            "write: replaced, it would describe another log (move or remove the two first, or "
+                            "write elsewhere)")
 
 
 def check_distinct(outputs: dict[str, object], inputs=(), keep_data: bool = True) -> None:

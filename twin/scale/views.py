@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_bytes_atomic
+from ..files import RRD_BAND, write_bytes_atomic
 from .montecarlo import ONE_SIDED, MonteCarlo
 
 PLOTTED = (("deviation", "distance from nominal (m)", 1.0), ("psi", "heading (deg)", 180.0 / np.pi),
@@ -83,7 +83,7 @@ def write_rrd(mc: MonteCarlo, path: Path) -> None:
 
     plots = [rrb.TimeSeriesView(origin=f"plots/{q}", name=label) for q, label, _ in PLOTTED]
     blueprint = rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="water"), rrb.Grid(*plots)))
-    with rrd_file(path, "twin-montecarlo", blueprint) as rec:
+    with rrd_file(path, RRD_BAND, blueprint) as rec:
         _log_world(rr, rec, mc)
         _log_plots(rr, rec, mc)
 
