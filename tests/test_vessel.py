@@ -1,6 +1,7 @@
 """Vessel files a user writes and moves: identified and amended vessels keep working wherever they go."""
 import json
 
+import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
@@ -66,6 +67,8 @@ def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
     (lambda d: d.__setitem__("dampng", d.pop("damping")), "unknown vessel file field.s. dampng"),
     (lambda d: d.pop("damping"), "needs its damping section"),
     (lambda d: d.pop("thrusters"), "needs its thrusters section"),
+    (lambda d: d.__setitem__("thrusters", None), "needs its thrusters section"),  # null loaded as defaults
+    (lambda d: d.__setitem__("added_mass", None), "needs its added_mass section"),
 ])
 def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_path, edit, message):
     """A misspelt or missing section would load as zeros or defaults (a twin with no damping ran with
@@ -165,3 +168,51 @@ def test_a_datasets_truth_file_loads_as_its_truth_vessel(tmp_path):
     got = vessel_mod.load(path)
     assert got.thrusters.gain_left == pytest.approx(0.9 * boat.thrusters.gain_left)
     assert got.mjcf == boat.mjcf and replace(got, path=None).name == ds.truth_vessel.name
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda m: m.__setitem__("hull", None), r"mmg needs its hull object"),
+    (lambda m: m["hull"].__setitem__("R0", -1.0), r"mmg.hull.R0 .* must be positive, got -1.0"),
+    (lambda m: m.__setitem__("friction_factor", -1.0), r"mmg.friction_factor .* got -1.0"),
+])
+def test_a_ship_file_whose_hull_cannot_resist_is_refused(tmp_path, edit, message):
+    """A hull with no resistance (R'_0 ≤ 0, or its hull object null) ran away under any thrust; a twin's
+    approach speed then failed in scipy with exit code 3: refused in one line when the file is read."""
+    path = vessel_mod.save(vessel_mod.load("esso_osaka"), tmp_path / "ship.json")
+    data = json.loads(path.read_text())
+    edit(data["mmg"])
+    path.write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=message):
+        vessel_mod.load(str(path))
+
+
+def test_a_ship_whose_thrust_outruns_its_resistance_has_no_approach_speed():
+    from dataclasses import replace
+
+    from twin.analytic import straight_speed
+    from twin.engine.mjcf import compile_vessel
+
+    ship = vessel_mod.load("esso_osaka")
+    assert 0.3 < straight_speed(compile_vessel(ship), 10.0) < 0.45  # the shipped twin at the tests' 10 rps
+    mmg = ship.mmg
+    wild = replace(ship, mmg=replace(mmg, propeller=replace(mmg.propeller, k0=1e30)))
+    with pytest.raises(TwinError, match="no straight-running speed under .* m/s at 10 rps"):
+        straight_speed(compile_vessel(wild), 10.0)
+
+
+def test_an_uncertainty_block_naming_no_coefficient_is_refused_before_a_draw():
+    from dataclasses import replace
+
+    from twin.fit.uncertainty import check_drawable, draw
+
+    boat = vessel_mod.load("blueboat")
+    with pytest.raises(TwinError, match="carries no identification uncertainty"):
+        check_drawable(boat)
+    block = {"coordinates": [{"name": "nope", "log": False}], "mean": [0.0], "covariance": [[1.0]]}
+    with pytest.raises(TwinError, match="uncertainty.coordinates name 'nope', which is no coefficient of this vessel"):
+        draw(replace(boat, uncertainty=block), 2, np.random.default_rng(0))
+    short = {"coordinates": [{"name": "Xu", "log": False}], "mean": [0.0, 1.0], "covariance": [[1.0]]}
+    with pytest.raises(TwinError, match="mean and covariance must match its 1 coordinates"):
+        check_drawable(replace(boat, uncertainty=short))
+    fine = {"coordinates": [{"name": "Xu", "log": False}], "mean": [-0.4], "covariance": [[0.01]]}
+    assert len(draw(replace(boat, uncertainty=fine), 3, np.random.default_rng(0))[0]) == 3

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .drive import InputSeries, WindSeries
+from .errors import TwinError
 from .physics.hydrodynamics import HydroModel, acceleration, mmg_forces
 from .physics.kinematics import eta_dot
 from .physics.thrusters import ThrusterModel, allocation_matrix, delivered
@@ -180,4 +181,10 @@ def straight_speed(compiled, n_rps: float) -> float:
     hi = 0.1
     while surge(hi) > 0 and hi < 20:
         hi *= 2
-    return float(brentq(surge, 0.0, hi, xtol=1e-10)) if surge(0.0) > 0 else 0.0
+    if not surge(0.0) > 0:
+        return 0.0
+    if not surge(hi) <= 0:  # NaN too: forces that are not numbers balance nowhere
+        raise TwinError(f"vessel '{compiled.vessel.name}': no straight-running speed under {hi:g} m/s at {n_rps:g} rps: "
+                        "its resistance never balances the propeller's thrust (check mmg.hull.R0 and the propeller's "
+                        "k0, k1, k2 and diameter)")
+    return float(brentq(surge, 0.0, hi, xtol=1e-10))

@@ -290,7 +290,7 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "
                         f"(known: {', '.join(sorted(VESSEL_FILE_KEYS))})")
-    missing = [k for k in REQUIRED_SECTIONS if k not in data]
+    missing = [k for k in REQUIRED_SECTIONS if data.get(k) is None]  # null is as good as missing
     if missing:
         raise TwinError(f"{path.name}: a vessel file needs its {', '.join(missing)} section(s); "
                         "without them the twin would run with zero or default physics")
@@ -381,6 +381,9 @@ def _mmg(data, path: Path) -> MmgModel | None:
     if not isinstance(data, dict):
         raise TwinError(f"{path.name}: mmg must be an object of named fields")
     parts = {"hull": MmgHull, "propeller": MmgPropeller, "rudder": MmgRudder}
+    lacking = [k for k in parts if data.get(k) is None]
+    if lacking:  # each would load as zeros: a ship without that physics
+        raise TwinError(f"{path.name}: mmg needs its {', '.join(lacking)} object(s)")
     built = {k: _build(cls, data.get(k), f"mmg.{k}", path) for k, cls in parts.items()}
     # a file without it was written (and its hull identified) with the polynomial as it is at every drift
     top = _build(MmgModel, {"drift_domain_deg": LEGACY_DRIFT_DOMAIN_DEG,
@@ -609,6 +612,15 @@ def _check_propeller_rudder(vessel: Vessel) -> None:
     for what, x in positive.items():
         if not x > 0:
             raise TwinError(f"vessel '{name}': {what} must be positive, got {x}")
+    if not m.hull.R0 > 0:  # a hull that does not resist runs away under any thrust
+        raise TwinError(f"vessel '{name}': mmg.hull.R0 (the straight-running resistance R'_0) must be positive, "
+                        f"got {m.hull.R0}")
+    if not m.friction_factor >= 0:
+        raise TwinError(f"vessel '{name}': mmg.friction_factor (1 + k)·S/(L·d) must be positive, or 0 for a constant "
+                        f"R'_0, got {m.friction_factor}")
+    if m.friction_factor > 0 and not m.reference_speed_m_s > 0:
+        raise TwinError(f"vessel '{name}': mmg.reference_speed_m_s (where R'_0 holds on the friction line) must be "
+                        f"positive with a friction_factor, got {m.reference_speed_m_s}")
     if not 0 < m.drift_domain_deg <= 90:
         raise TwinError(f"vessel '{name}': mmg.drift_domain_deg must lie in (0, 90] degrees (90: the hull "
                         f"polynomial as it is at every drift angle), got {m.drift_domain_deg}")

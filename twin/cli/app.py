@@ -186,6 +186,9 @@ def floats(text: Optional[str], option: str) -> Optional[list[float]]:
     return values
 
 
+MOST_GNSS_NOISE_M, MOST_HEADING_NOISE_DEG = 100.0, 90.0
+
+
 def sensor_noise(text: str):
     """--noise: a profile's name or GNSS_M,HEADING_DEG, finite levels ≥ 0 (a NaN level would only fail once
     the recording is being written, as NaN positions)."""
@@ -200,6 +203,11 @@ def sensor_noise(text: str):
         if len(levels) != 2 or not all(math.isfinite(x) and x >= 0 for x in levels):
             raise TwinError(f"--noise expects {', '.join(PROFILES)} or GNSS_M,HEADING_DEG (two finite numbers ≥ 0: "
                             f"m, degrees), got '{text}'")
+        if levels[0] > MOST_GNSS_NOISE_M or levels[1] > MOST_HEADING_NOISE_DEG:
+            # past these a fix lands off the globe and a heading is noise alone: no receiver or compass a log
+            # would be worth reading from
+            raise TwinError(f"--noise {text}: a GNSS noise above {MOST_GNSS_NOISE_M:g} m or a heading noise above "
+                            f"{MOST_HEADING_NOISE_DEG:g}° describes no usable sensor")
     return noise_profile(text)
 
 

@@ -344,8 +344,10 @@ def evaluate_command(
     if band and (draws < 2 or not 0.0 < level < 1.0):
         raise TwinError("--band needs --draws of at least 2 and a --level between 0 and 1")
     if band:
+        from ..fit.uncertainty import check_drawable
         from ..scale.batches import executor_from
 
+        check_drawable(v)
         executor = executor_from(ray)  # an unreachable --ray address is refused before the work
     fitted = (envelope_from(v.uncertainty["fitted_on"], f"{model or v.name}: uncertainty.fitted_on")
               if "fitted_on" in v.uncertainty else None)  # a bad block is refused before the work

@@ -83,8 +83,8 @@ def montecarlo_command(
     if duration is not None:
         positive(duration, "--duration")
     positive(sample_dt, "--sample-dt")
-    if draws < 1:
-        raise TwinError(f"--draws must be a whole number of 1 or more, got {draws}")
+    if draws < 2:  # a band's percentiles need a spread: one draw is a run, not a band
+        raise TwinError(f"--draws must be a whole number of 2 or more, got {draws}")
     at_least(batch_size, 1, "--batch-size")
     seed_from(seed)
     v = vessel_from(vessel, model, "nominal")

@@ -43,12 +43,30 @@ def _put(vessel: Vessel, coordinate: dict, value: float) -> Vessel:
     return q.put(vessel, float(value))
 
 
-def draw(vessel: Vessel, n: int, rng: np.random.Generator, max_tries: int = 20) -> tuple[list[Vessel], int]:
-    """n twins drawn from the vessel's uncertainty block, and how many draws were rejected as
-    unphysical. TwinError without a block."""
+def check_drawable(vessel: Vessel) -> None:
+    """TwinError (one line) unless the vessel's uncertainty block names coefficients this vessel has,
+    one for each entry of its mean (checked before a command's work: a block edited by hand would
+    otherwise fail at its first draw)."""
     u = vessel.uncertainty
     if not u:
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty (identify it first)")
+    known = coefficients(vessel)
+    unknown = [c["name"] for c in u.get("coordinates", []) if c["name"] not in known]
+    if unknown:
+        raise TwinError(f"vessel '{vessel.name}': uncertainty.coordinates name{'s' if len(unknown) > 1 else ''} "
+                        f"{', '.join(map(repr, unknown))}, which {'are' if len(unknown) > 1 else 'is'} no coefficient "
+                        f"of this vessel (known: {', '.join(sorted(known))})")
+    n = len(u.get("coordinates", []))
+    if len(u.get("mean", [])) != n or np.shape(u.get("covariance", [])) != (n, n):
+        raise TwinError(f"vessel '{vessel.name}': the uncertainty block's mean and covariance must match its {n} "
+                        "coordinates")
+
+
+def draw(vessel: Vessel, n: int, rng: np.random.Generator, max_tries: int = 20) -> tuple[list[Vessel], int]:
+    """n twins drawn from the vessel's uncertainty block, and how many draws were rejected as
+    unphysical. TwinError without a block, or with one that names no coefficient of the vessel."""
+    check_drawable(vessel)
+    u = vessel.uncertainty
     mean, cov = np.asarray(u["mean"], float), np.asarray(u["covariance"], float)
     # a covariance a little short of positive semi-definite (rounding in the file) still draws
     w, V = np.linalg.eigh(0.5 * (cov + cov.T))
@@ -70,4 +88,4 @@ def draw(vessel: Vessel, n: int, rng: np.random.Generator, max_tries: int = 20) 
     return out, rejected
 
 
-__all__ = ["block", "draw", "log_magnitude"]
+__all__ = ["block", "check_drawable", "draw", "log_magnitude"]

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import coefficients
+from ..fit.uncertainty import check_drawable
 from ..errors import TwinError
 from ..files import write_bytes_atomic, write_text_atomic
 from ..progress import Progress, steps
@@ -187,6 +188,8 @@ def generate_shards(vessel: Vessel, settings: Settings, folder: Path, *, executo
         raise TwinError(f"--out '{folder}' is not empty: choose an empty folder, or --resume to finish a job there")
     if settings.variation.covariance and not vessel.uncertainty:
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty to draw from")
+    if settings.variation.covariance:
+        check_drawable(vessel)
     from ..engine.mjcf import compile_vessel
 
     fp = fingerprint(vessel, settings)

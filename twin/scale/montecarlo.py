@@ -40,6 +40,7 @@ from ..effects import coefficients
 from ..errors import TwinError
 from ..fit.windows import ModelCache, Window, as_measured, make_windows, measured, predict
 from ..fit.crossval import form_error_at
+from ..fit.uncertainty import check_drawable
 from ..physics.kinematics import wrap_angle
 from ..prepare import Prepared
 from ..progress import Progress
@@ -450,6 +451,8 @@ def check_variation(vessel: Vessel, variation: Variation) -> None:
     if variation.covariance and not vessel.uncertainty:
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty: use a vessel file "
                         "written by `twin identify`, or give --vary / --effect ranges with --no-covariance")
+    if variation.covariance:
+        check_drawable(vessel)
 
 
 def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variation: Variation | None = None,
@@ -585,8 +588,8 @@ def band_coverage(vessel: Vessel, preps: list[Prepared], *, draws: int = 200, se
     `form_error` is False: a twin is wrong in its form as well as in its numbers, and a band without
     that covers new runs far less often than its level says."""
     variation = variation or Variation(covariance=True)
-    if variation.covariance and not vessel.uncertainty:
-        raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty (identify it first)")
+    if variation.covariance:
+        check_drawable(vessel)
     level_percentiles(level)
     windows = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if not windows:
