@@ -1,6 +1,7 @@
 """write_recording: synthetic sensor recordings → .csv / .tlog / .mcap → read_recording
 gives back the same streams (times, values, gaps) to each format's resolution."""
 import json
+import re
 from collections import Counter
 from pathlib import Path
 from typing import NamedTuple
@@ -242,6 +243,13 @@ def test_csv_keeps_a_pwm_neutral_other_than_1500(tmp_path):
     back = read_recording(tmp_path / "r.csv")
     assert tuple(back.pwm_neutral_us) == (1511.0, 1509.0)
     np.testing.assert_array_equal(back.pwm["right_us"], odd.pwm["right_us"])
+    # a neutral no ESC has (a unit slip), or a column of no number, is refused naming it, not taken as 1500
+    text = (tmp_path / "r.csv").read_text()
+    for value, said in (("1e9", "is 1e+09 µs: a PWM of zero thrust lies between 1000 and 2000 µs"),
+                        ("abc", "holds no number")):
+        (tmp_path / "bad.csv").write_text(text.replace(",1511,", f",{value},"))
+        with pytest.raises(TwinError, match=re.escape(f"bad.csv: column pwm_neutral_left {said}")):
+            read_recording(tmp_path / "bad.csv")
 
 
 def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):

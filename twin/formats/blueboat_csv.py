@@ -36,7 +36,8 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
         gnss["alt_m"] = c["alt"]
     rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
     rec.heading = clean_stream("heading", t, {"psi_rad": np.radians(c["yaw"])}, rec.dropped)
-    neutral_us = tuple(neutral(c.get(f"thr_{s}_pwm_zero_point"), NEUTRAL_US) for s in ("right", "left"))
+    neutral_us = tuple(neutral(c.get(f"thr_{s}_pwm_zero_point"), NEUTRAL_US, f"{path.name}: column thr_{s}_pwm_zero_point")
+                       for s in ("right", "left"))
     csv_pwm(rec, t, c["thr_right"], c["thr_left"], neutral_us, {"left": False, "right": True}, channels)
     rec.notes.append("thrusters: port = column thr_right, starboard = column thr_left mirrored (the dataset's "
                      "labels are swapped, which every run's turning shows)")

@@ -185,7 +185,8 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         if looks:
             rec.warnings.append(looks)
     if {"pwm_left", "pwm_right"} <= set(header):
-        neutral_us = tuple(neutral(c.get(f"pwm_neutral_{side}"), 1500.0) for side in ("left", "right"))
+        neutral_us = tuple(neutral(c.get(f"pwm_neutral_{side}"), 1500.0, f"{path.name}: column pwm_neutral_{side}")
+                           for side in ("left", "right"))
         csv_pwm(rec, t, c["pwm_left"], c["pwm_right"], neutral_us, {"left": False, "right": False}, channels)
     yaw_rate = c.get("yaw_rate", c.get("r"))
     if yaw_rate is not None:
@@ -248,10 +249,23 @@ def stream(name: str, t: np.ndarray, cols: dict, dropped: list):
     return clean_stream(name, t[present], {k: v[present] for k, v in cols.items()}, dropped)
 
 
-def neutral(col, default: float) -> float:
-    if col is None or not np.any(np.isfinite(col)):
+NEUTRAL_RANGE_US = (1000.0, 2000.0)  # where an RC/ESC pulse of zero thrust lies (servo pulses run 1000-2000 µs)
+
+
+def neutral(col, default: float, name: str = "column pwm_neutral") -> float:
+    """A PWM neutral column's value (its median), the default without one; a column that holds no
+    number, or a neutral outside NEUTRAL_RANGE_US (a unit slip, a typo), is refused: it mirrors a
+    reversed channel and tells idle from driven."""
+    if col is None:
         return default
-    return float(np.nanmedian(col))
+    if not np.any(np.isfinite(col)):
+        raise TwinError(f"{name} holds no number: give the PWM of zero thrust in µs, or leave the column out "
+                        f"({default:g} µs)")
+    value = float(np.nanmedian(col))
+    if not NEUTRAL_RANGE_US[0] <= value <= NEUTRAL_RANGE_US[1]:
+        raise TwinError(f"{name} is {value:g} µs: a PWM of zero thrust lies between {NEUTRAL_RANGE_US[0]:g} and "
+                        f"{NEUTRAL_RANGE_US[1]:g} µs")
+    return value
 
 
 def csv_pwm(rec: Recording, t, left, right, neutral, reversed_: dict, channels: dict | None) -> None:
