@@ -351,7 +351,7 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
                             "describe it: move or remove the truth first, or write elsewhere")
 
 
-def check_truth_beside_logs(truth: Path, outputs) -> None:
+def check_truth_beside_logs(truth: Path, outputs, option: str = "--truth") -> None:
     """Refuse to replace a dataset's truth that describes a recording beside it which this run does not
     write (its name's stem with a recording's suffix): the log would stay under a truth of another."""
     if kept_data(Path(truth)) != "dataset's truth":
@@ -360,7 +360,7 @@ def check_truth_beside_logs(truth: Path, outputs) -> None:
     for suffix in RECORDING_SUFFIXES:
         log = Path(truth).with_name(stem + suffix)
         if log.is_file() and not any(same_file(log, Path(o)) for o in outputs):
-            raise TwinError(f"--truth '{truth}' describes the recording '{log}' beside it, which this run does not "
+            raise TwinError(f"{option} '{truth}' describes the recording '{log}' beside it, which this run does not "
                             "write: replaced, it would describe another log (move or remove the two first, or "
                             "write elsewhere)")
 

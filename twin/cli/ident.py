@@ -71,12 +71,13 @@ def dataset_command(
     from ..formats import write_recording
 
     check_outputs(out, RECORDING_FORMATS)
+    truth_option = "--truth" if truth else "the truth beside the first --out"  # the option named is one given
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
-    check_outputs([truth], (".json",))
-    check_distinct({"--out": out, "--truth": truth}, [model], keep_data=False)  # check_new: any file there
+    check_outputs([truth], (".json",), truth_option)
+    check_distinct({"--out": out, truth_option: truth}, [model], keep_data=False)  # check_new: any file there
     check_new(out, force, "output", RUNS, truth=truth)
-    check_new([truth], force, "--truth", ("dataset's truth",))
-    check_truth_beside_logs(truth, out)
+    check_new([truth], force, truth_option, ("dataset's truth",))
+    check_truth_beside_logs(truth, out, truth_option)
     segments_fit(segments)
     seed_from(seed)
     profile = sensor_noise(noise)  # before any work
