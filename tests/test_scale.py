@@ -129,6 +129,9 @@ def test_effect_ranges_and_factors_are_drawn_within_their_ranges(vessel):
         parse_effect_range("current=0..0.3,0..400")
     with pytest.raises(TwinError, match="LO ≤ HI"):
         parse_factor("Xu=2..1", vessel)
+    # a mass its hulls cannot carry fully submerged (the Yellowfish's displace 5.7 times its mass)
+    with pytest.raises(TwinError, match=r"--vary mass: at ×8 .* it would sink"):
+        parse_factor("mass=1..8", vessel)
     v = Variation(factors=(parse_factor("mass=1.2..1.2", vessel), parse_factor("Xu=0.5..0.5", vessel)))
     (d,), _ = v.draw(vessel, 1, np.random.default_rng(0))
     assert d.vessel.damping.Xu == pytest.approx(0.5 * vessel.damping.Xu)

@@ -318,8 +318,9 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
 SINKS_AT = 10.0
 
 
-def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
-    """Refuse masses in another unit where the vessel's meshes say how much water its hulls hold."""
+def mesh_volume_m3(model: mujoco.MjModel) -> float:
+    """The volume (m³) of the model's mesh geoms: what its hulls displace fully submerged (0 without
+    meshes)."""
     volume_m3 = 0.0
     for gid in np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_MESH):
         mid = model.geom_dataid[gid]
@@ -327,6 +328,12 @@ def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None
         f0, nf = model.mesh_faceadr[mid], model.mesh_facenum[mid]
         tri = model.mesh_vert[v0:v0 + nv][model.mesh_face[f0:f0 + nf]]
         volume_m3 += abs(float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum())) / 6.0
+    return volume_m3
+
+
+def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
+    """Refuse masses in another unit where the vessel's meshes say how much water its hulls hold."""
+    volume_m3 = mesh_volume_m3(model)
     if volume_m3 > 0 and mass_kg > SINKS_AT * RHO_FRESH_KG_M3 * volume_m3:
         raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: its hull meshes displace "
                         f"{RHO_FRESH_KG_M3 * volume_m3:.4g} kg fully submerged (the MJCF's masses are in kg)")

@@ -24,8 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import Effect, apply_effects, coefficients, parse_effect
+from ..engine.mjcf import compile_vessel, mesh_volume_m3
 from ..errors import TwinError
 from ..fit.uncertainty import draw as draw_from_covariance
+from ..physics.hydrostatics import RHO_FRESH_KG_M3
 from ..vessel import MassCase, Vessel, check
 
 _RANGE = re.compile(r"^\s*([-+0-9.eE]+)\s*\.\.\s*([-+0-9.eE]+)\s*$")
@@ -74,7 +76,21 @@ def parse_factor(text: str, vessel: Vessel) -> Factor:
         raise TwinError(f"--vary {name}: factors must be > 0, got {values}")
     if name != MASS and known[name].get(vessel) == 0.0:
         raise TwinError(f"--vary {name}: the vessel's {name} is 0, so no factor changes it (use an --effect)")
+    if name == MASS:
+        _check_mass_floats(vessel, hi)
     return Factor(name, lo, hi)
+
+
+def _check_mass_floats(vessel: Vessel, factor: float) -> None:
+    """Refuse a mass factor under which the hulls, fully submerged, no longer carry the vessel: a
+    surface vessel's twin of that mass describes no boat (its 3-DOF run would go on as if it floated)."""
+    compiled = compile_vessel(vessel)
+    volume_m3 = mesh_volume_m3(compiled.model)
+    mass_kg = compiled.geometry.rigid.mass_kg
+    rho = RHO_FRESH_KG_M3 if vessel.mmg is None else vessel.mmg.rho_kg_m3
+    if volume_m3 > 0 and factor * mass_kg > rho * volume_m3:
+        raise TwinError(f"--vary mass: at ×{factor:g} the vessel's {mass_kg:.4g} kg becomes {factor * mass_kg:.4g} kg, "
+                        f"more than its hulls displace fully submerged ({rho * volume_m3:.4g} kg): it would sink")
 
 
 @dataclass(frozen=True)
