@@ -216,3 +216,14 @@ def test_an_uncertainty_block_naming_no_coefficient_is_refused_before_a_draw():
         check_drawable(replace(boat, uncertainty=short))
     fine = {"coordinates": [{"name": "Xu", "log": False}], "mean": [-0.4], "covariance": [[0.01]]}
     assert len(draw(replace(boat, uncertainty=fine), 3, np.random.default_rng(0))[0]) == 3
+
+
+def test_an_mjcf_that_is_no_xml_file_is_refused_in_one_line(tmp_path):
+    """MuJoCo picks its reader by the extension and, without one it knows, printed a warning of its
+    own before the error."""
+    (tmp_path / "hull.txt").write_text("hello")
+    data = json.loads(vessel_mod.save(vessel_mod.load("blueboat"), tmp_path / "boat.json").read_text())
+    data["mjcf"] = "hull.txt"
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    with pytest.raises(TwinError, match=r"boat.json: MJCF file 'hull.txt' must be an .xml file"):
+        vessel_mod.load(str(tmp_path / "boat.json"))

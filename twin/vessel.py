@@ -286,6 +286,8 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if not mjcf.is_file():
         raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' not found (looked beside the vessel file; "
                         f"'{PACKAGE_MJCF}NAME.xml' names one shipped with twin)")
+    if mjcf.suffix.lower() != ".xml":  # MuJoCo picks its reader by the extension, and warns on stdout without one
+        raise TwinError(f"{path.name}: MJCF file '{data['mjcf']}' must be an .xml file")
     unknown = sorted(set(data) - VESSEL_FILE_KEYS)
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "
