@@ -363,7 +363,8 @@ def test_one_recording_given_twice_is_refused(monkeypatch, capsys, kept):
                           (("identify", log, root / "." / "log.csv", *v, "--out", root / "m.json"), "is given twice"),
                           (("evaluate", log, copy, *v), "holds the same bytes as"),
                           (("diagnose", copy, log, *v), "holds the same bytes as"),
-                          (("info", log, log), "is given twice")]:
+                          (("info", log, log), "is given twice"),
+                          (("evaluate", root / "gone.csv", root / "gone.csv", *v), "gone.csv: no such file")]:
         err = refused(monkeypatch, capsys, args, [log, copy, same])
         assert message in err, (args, err)
     assert not (root / "m.json").exists()

@@ -421,6 +421,8 @@ def check_recordings_distinct(recordings) -> None:
     seen: dict[str, Path] = {}
     paths = [Path(p) for p in recordings]
     for k, path in enumerate(paths):
+        if not path.exists():  # said as the reader says it: a missing file is not one given twice
+            raise TwinError(f"{path}: no such file")
         for earlier in paths[:k]:
             if same_file(path, earlier):
                 again = "" if str(path) == str(earlier) else f" (as '{earlier}')"
