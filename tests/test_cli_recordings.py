@@ -66,6 +66,57 @@ def test_bad_recordings_exit_2(tmp_path):
     assert not (tmp_path / "x.bin").exists()
 
 
+def test_convert_refuses_a_grid_that_would_write_an_unreasonable_number_of_rows(sim_tlog, tmp_path, monkeypatch):
+    """--grid-dt 1e-6 on a 30-s log wrote 30 million rows (1.5 GB) in over 90 s: refused before any is
+    written, with the rows it would have and the finest grid this log allows (a tenth of its 10 Hz streams'
+    period, or the row cap on a long log); that finest grid itself is converted."""
+    import twin.cli.recordings as recordings
+
+    out = tmp_path / "fine.csv"
+    p = twin("convert", sim_tlog / "z.csv", out, "--grid-dt", "1e-6")
+    assert p.returncode == 2 and not out.exists()
+    assert p.stderr == ("error: --grid-dt 1e-06 on z.csv: 40,000,001 rows for its 40.0 s; the finest grid for this "
+                        "log is 0.01 s (a tenth of the 0.1 s sample period of its fastest synchronised stream: on a "
+                        "finer grid each sample fills more than ten rows)\n")
+    assert twin("convert", sim_tlog / "z.csv", out, "--grid-dt", "0.01").returncode == 0
+    monkeypatch.setattr(recordings, "MAX_GRID_ROWS", 1000)  # a long log: the row cap is the tighter bound
+    p = twin("convert", sim_tlog / "z.csv", tmp_path / "long.csv", "--grid-dt", "0.01")
+    assert p.returncode == 2 and "4,001 rows for its 40.0 s; the finest grid for this log is 0.04 s (1,000 rows " \
+        "at most)" in p.stderr and not (tmp_path / "long.csv").exists()
+
+
+def test_a_device_or_a_pipe_is_said_not_a_regular_file_not_missing(sim_tlog, tmp_path):
+    """/dev/null, /dev/zero and a FIFO exist: "no such file" sent the user looking for a typo. A FIFO is
+    never opened (reading it would wait for a writer)."""
+    import os
+
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    for path in ("/dev/null", "/dev/zero", fifo):
+        p = twin("info", path)
+        assert p.returncode == 2 and p.stderr == (f"error: {path}: not a regular file (a device, a pipe or a socket): "
+                                                  "give a recording file\n"), p.stderr
+    p = twin("info", sim_tlog / "z.csv", fifo)  # the good log is still summarised
+    assert p.returncode == 2 and "== " in p.stdout and "pipe.csv: not a regular file" in p.stderr
+    for command in (("convert", fifo, tmp_path / "c.csv"), ("view", fifo, "--out", tmp_path / "v.rrd")):
+        p = twin(*command)
+        assert p.returncode == 2 and "pipe.csv: not a regular file" in p.stderr, p.stderr
+    assert twin("info", tmp_path / "absent.csv").stderr == f"error: {tmp_path / 'absent.csv'}: no such file\n"
+    assert not (tmp_path / "c.csv").exists() and not (tmp_path / "v.rrd").exists()
+
+
+def test_view_refuses_one_recording_given_twice_as_identify_does(sim_tlog, tmp_path):
+    import shutil
+
+    copy = tmp_path / "copy.csv"
+    shutil.copy(sim_tlog / "z.csv", copy)
+    out = tmp_path / "v.rrd"
+    p = twin("view", sim_tlog / "z.csv", sim_tlog / "z.csv", "--out", out)
+    assert p.returncode == 2 and p.stderr == f"error: '{sim_tlog / 'z.csv'}' is given twice: give each recording once\n"
+    p = twin("view", sim_tlog / "z.csv", copy, "--out", out)
+    assert p.returncode == 2 and "holds the same bytes as" in p.stderr and not out.exists()
+
+
 def test_convert_tlog_to_dataflash_and_back(sim_tlog, tmp_path):
     p = twin("convert", sim_tlog / "z.tlog", tmp_path / "z.bin")
     assert p.returncode == 0, p.stderr
@@ -264,3 +315,18 @@ def test_info_with_a_vessel_on_a_log_without_thruster_outputs_names_it(shared_di
     assert lines[-1] == ("calibration: compass error following the throttle: not told (sitl_motorboat.tlog: no "
                          "thruster outputs logged (give --channels LEFT,RIGHT if its servo outputs drive the "
                          "thrusters))")
+
+
+def test_an_inputs_csv_with_a_column_twice_is_refused_as_a_recordings_csv_is(tmp_path):
+    """A log's CSV with a column twice is refused (which one a reader took would be a guess); simulate
+    --inputs took the first `t` and ran. Both now say it the same way, before anything is written."""
+    for header, said in (("t,pwm_left,pwm_right,t", "column t appears"),
+                         ("t,pwm_left,pwm_right,pwm_left,pwm_right", "columns pwm_left, pwm_right appear")):
+        inputs = tmp_path / "in.csv"
+        inputs.write_text(header + "\n" + "\n".join(",".join([str(k)] + ["1600"] * (header.count(",")))
+                                                    for k in range(3)) + "\n")
+        p = twin("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "1", "--out", tmp_path / "o.csv")
+        assert p.returncode == 2 and p.stderr == f"error: in.csv: {said} more than once in the header\n", p.stderr
+        assert not (tmp_path / "o.csv").exists()
+        p = twin("info", inputs)  # the same file read as a recording: the same words
+        assert p.returncode == 2 and f"in.csv: {said} more than once in the header" in p.stderr

@@ -189,3 +189,29 @@ def test_dp_runs_its_default_heading_step_and_writes_its_json(tmp_path):
     got = json.loads(out.read_text())
     assert got["run"] and got["loops"] and "final_distance_to_target_m" not in got
     assert 0.8 < got["loops"][0]["iae_ratio"] < 1.3
+
+
+def test_iso_and_dp_refuse_a_duration_too_short_for_the_job_before_any_run(tmp_path):
+    """iso --duration 0.01 said "0 full periods after 0.00333333 s"; dp --duration 0.01 exited 0 with "no step
+    asked of it" (one control sample: the model function's IAE 0). Refused before any relay run, saying the
+    least duration: 3 relay periods of 2 control steps after a third of transient; the heading model
+    function's 90 % rise (5.32/ω_n)."""
+    import json
+
+    twin = twin_command.twin
+    for args, least in ((("--duration", "0.01"), "at least 0.18 s"), (("--dof", "surge", "--duration", "0.17"),
+                                                                       "at least 0.18 s")):
+        p = twin("iso", "--vessel", "blueboat", *args, "--json", tmp_path / "iso.json")
+        assert p.returncode == 2 and p.stdout == "" and len(p.stderr.strip().splitlines()) == 1, p.stderr
+        assert p.stderr.startswith(f"error: --duration {args[-1]} s is too short for a relay experiment") and least in \
+            p.stderr and not (tmp_path / "iso.json").exists()
+    p = twin("iso", "--vessel", "esso_osaka", "--duration", "0.5")
+    assert p.returncode == 2 and "every 0.1 s at most takes 0.2 s a period: at least 0.9 s" in p.stderr
+    p = twin("dp", "--vessel", "blueboat", "--duration", "0.01", "--json", tmp_path / "dp.json")
+    assert p.returncode == 2 and p.stdout == "" and not (tmp_path / "dp.json").exists()
+    assert p.stderr == ("error: --duration 0.01 s ends before the heading model function has made 90 % of the 45° "
+                        "step, at 3.8 s (5.32/ω_n): the IAE ratio compares the twin with that step; give a longer "
+                        "one, or none for the settling time (10 s)\n")
+    p = twin("dp", "--vessel", "blueboat", "--duration", "3.81", "--json", tmp_path / "dp.json")  # just past it
+    assert p.returncode == 0, p.stderr
+    assert json.loads((tmp_path / "dp.json").read_text())["loops"][0]["iae_ratio"] is not None

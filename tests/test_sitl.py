@@ -448,6 +448,33 @@ def test_a_frame_count_going_back_is_an_ardupilot_restart_and_resets_the_twin(fu
     assert np.hypot(*replies[199]["position"][:2]) > 0.01
 
 
+def test_a_frame_count_jumping_wildly_ahead_is_a_new_count_not_billions_of_missed_frames():
+    """The fuzzer's 0xffffffff after frame 1, then 1 again: one jump and one restart, no frame missed; a
+    gap of lost datagrams (here 5) is still counted as missed."""
+    frames, _ = pwm_frames(8, seed=8)
+    logged: list[str] = []
+    counts = [1, 2, 8, 0xFFFFFFFF, 1, 2]
+    with sitl(load("yellowfish"), log=logged.append) as (client, box):
+        for count, pwm in zip(counts, frames):
+            client.frame(count, pwm, 1200)
+    c = box["summary"].counters
+    assert (c.frames, c.missed, c.count_jumps, c.restarts) == (6, 5, 1, 1)
+    assert "5 missed, 1 restarts, 1 frame_count jumps (taken as a new count, not as missed)" in box["summary"].text()
+    assert any("frame_count jumped 8 → 4294967295, more than 10 s of frames at 1200 Hz" in line for line in logged)
+
+
+def test_sitl_refuses_a_physics_rate_beyond_a_tenth_of_a_millisecond_step():
+    """--rate 1e9 split each 1200 Hz frame into 833334 steps: 165 times slower than real time."""
+    for rate in ("1e9", "10001", "0", "nan"):
+        r = twin_command.twin("sitl", "--vessel", "blueboat", "--rate", rate, "--port", "0")
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, (rate, r.stderr)
+        assert r.stderr.startswith(f"error: --rate {float(rate):g}: the least physics rate is a number of Hz above 0 "
+                                   "and at most 10000"), r.stderr
+    with pytest.raises(TwinError, match="at most 10000"):
+        SitlTwin(load("yellowfish"), min_rate_hz=2e4)
+    assert SitlTwin(load("yellowfish"), min_rate_hz=1e4, record=False).min_rate_hz == 1e4
+
+
 def test_16_and_32_output_packets_mix_and_the_channels_can_be_chosen(full_vessel):
     frames, _ = pwm_frames(200, seed=6, outputs=32)
     mixed = [(k, pwm if k % 3 else pwm[:16], 400) for k, pwm in enumerate(frames)]
@@ -792,6 +819,58 @@ def test_mission_set_refuses_what_cannot_be_an_ardupilot_parameter_before_connec
     assert unknown_params_text(["WP_SPD", "ZZZ"], known) == ("--set: ArduPilot has no parameter WP_SPD (did you mean "
                                                             "WP_SPEED?); ZZZ: nothing was set")
     assert "did you mean" not in unknown_params_text(["NOT_A_PARAM"], known)  # another family's name is no typo
+
+
+@contextlib.contextmanager
+def closing_console(heartbeat: bool):
+    """A TCP server on a free port that accepts each connection and closes it at once, after one
+    ArduPilot heartbeat when `heartbeat`: an autopilot whose console goes away. Yields the port."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    packet = mavlink.MAVLink(None, srcSystem=1, srcComponent=1).heartbeat_encode(
+        mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 0).pack(
+        mavlink.MAVLink(None, srcSystem=1, srcComponent=1))
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    server.settimeout(0.1)
+    stop = threading.Event()
+
+    def serve():
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            with conn:
+                if heartbeat:
+                    conn.sendall(packet)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield server.getsockname()[1]
+    finally:
+        stop.set()
+        thread.join(5)
+        server.close()
+
+
+def test_mission_ends_at_once_with_one_line_when_ardupilot_closes_the_connection():
+    """pymavlink printed "EOF on TCP socket" on every read of the closed socket, some 150,000 lines a
+    second until --timeout: the closed connection is told once, at once, before a heartbeat or after one."""
+    for heartbeat, before in ((False, "before its first heartbeat"), (True, "before an EKF navigating on GPS")):
+        with closing_console(heartbeat) as port:
+            start = time.monotonic()
+            r = twin_command.twin("mission", "--home", "37.4,-5.9", "--waypoints", "10,0", "--port", port,
+                                  "--timeout", "20")
+            took_s = time.monotonic() - start
+        assert r.returncode == 2 and took_s < 10.0, (r, took_s)
+        assert "EOF" not in r.stdout + r.stderr and "Traceback" not in r.stderr
+        assert r.stderr.strip().splitlines()[-1] == (f"error: ArduPilot closed the MAVLink connection on "
+                                                     f"tcp:127.0.0.1:{port} {before}" +
+                                                     (" (is ArduPilot's console on that port?)" if not heartbeat
+                                                      else "")), r.stderr
 
 
 # ---------------------------------------------------------------- in a seaway

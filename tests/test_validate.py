@@ -142,6 +142,16 @@ def test_cli_writes_json_and_report(tmp_path):
     assert max(len(line) for line in p.stdout.splitlines()) <= 100
 
 
+def test_cli_checks_the_reports_figure_before_the_validation(tmp_path):
+    """The page's companion PNG (d_topview.png beside d.md) a folder: refused before the table is printed,
+    not after the whole validation; the page itself is not written."""
+    (tmp_path / "d_topview.png").mkdir()
+    p = twin_command.twin("validate", "--vessel", "yellowfish", "--report", str(tmp_path / "d.md"))
+    assert p.returncode == 2 and p.stdout == "", p.stdout
+    assert p.stderr == f"error: --report's figure '{tmp_path / 'd_topview.png'}' is a folder: give a file name\n"
+    assert not (tmp_path / "d.md").exists() and not any((tmp_path / "d_topview.png").iterdir())
+
+
 @pytest.fixture(scope="module")
 def minimum():
     return {q.name: q for q in validate(vessel_mod.load("yellowfish", "min")).quantities}

@@ -1,6 +1,7 @@
 """`twin info`, `twin convert`, `twin view`: recordings read, converted and shown."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Optional
 
@@ -13,17 +14,35 @@ from .app import (all_or_nothing_outputs, RUNS, CHANNELS_HELP, FORCE_HELP, MODEL
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
 
+# a converted copy's grid is no finer than a tenth of the sample period of its fastest synchronised stream (finer
+# repeats each sample on more than ten rows: rows, not information) and holds at most MAX_GRID_ROWS rows (a day's
+# log on a 0.01 s grid is 8.6 million; a 30-s log on a 1 µs grid wrote 30 million rows, 1.5 GB, in over 90 s)
+GRID_ROWS_PER_SAMPLE = 10
+MAX_GRID_ROWS = 10_000_000
+
 RECORDING_HELP = "recordings: ArduPilot .bin or .tlog, .csv (generic, BlueBoat or Esso Osaka layout), .mcap"
 INFO_HELP = RECORDING_HELP + ", or folders of them"
 
 
+def check_regular(path: Path) -> None:
+    """Refuse a path that exists but is neither a file nor a folder (/dev/null, /dev/zero, a FIFO, a
+    socket): the readers would call it missing, and a pipe would be read until a writer closed it."""
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise TwinError(f"{path}: not a regular file (a device, a pipe or a socket): give a recording file")
+
+
 def _expanded(files: list[Path]) -> list:
     """The files given, a folder standing for the recordings in it (as for identify and diagnose); a
-    folder without any is its TwinError in the list, reported in its turn."""
+    folder without any, or a path that is no regular file, is its TwinError in the list, reported in
+    its turn."""
     out: list = []
     for p in files:
         if not p.is_dir():
-            out.append(p)
+            try:
+                check_regular(p)
+                out.append(p)
+            except TwinError as exc:
+                out.append(exc)
             continue
         try:
             out += recordings_in([p])
@@ -145,13 +164,34 @@ def _throttle_line(recordings: list, vessel, calibrations) -> str:
                          "calibration measures it)" if dep.shown else "") + (f" ({left_out[2:]})" if missing else "")
 
 
+def check_grid_rows(rec, grid_dt_s: float, name: str) -> None:
+    """Refuse, before the conversion, a --grid-dt that would write an unreasonable number of rows for this
+    log (GRID_ROWS_PER_SAMPLE, MAX_GRID_ROWS); a log whose streams keep their own times (no GNSS or no
+    heading: twin.prepare.convert) has no grid and is not checked."""
+    if not (len(rec.gnss) and len(rec.heading)):
+        return
+    rates_hz = [s.median_rate_hz() for s in (rec.gnss, rec.heading, rec.pwm, rec.prop_rudder)]
+    fastest_hz = max((r for r in rates_hz if math.isfinite(r)), default=0.0)
+    duration_s = rec.duration_s()
+    by_rows_s = duration_s / MAX_GRID_ROWS
+    by_rate_s = 1.0 / (GRID_ROWS_PER_SAMPLE * fastest_hz) if fastest_hz > 0 else 0.0
+    finest_s = max(by_rows_s, by_rate_s)
+    if grid_dt_s >= finest_s * 0.99:  # 1 %: the finest grid is told to 3 digits, and that figure is accepted
+        return
+    why = (f"a tenth of the {1 / fastest_hz:.3g} s sample period of its fastest synchronised stream: on a finer grid "
+           "each sample fills more than ten rows" if by_rate_s >= by_rows_s else f"{MAX_GRID_ROWS:,} rows at most")
+    raise TwinError(f"--grid-dt {grid_dt_s:g} on {name}: {duration_s / grid_dt_s + 1:,.0f} rows for its "
+                    f"{duration_s:.1f} s; the finest grid for this log is {finest_s:.3g} s ({why})")
+
+
 @app.command()
 @all_or_nothing_outputs
 def convert(
     src: Path = typer.Argument(..., metavar="SRC", help="input recording: .bin, .tlog, .csv, .mcap"),
     dst: Path = typer.Argument(..., metavar="DST", help="output: .csv (generic layout), .mcap, .tlog or .bin"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
-    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s"),
+    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s (no finer "
+                                            "than a tenth of the fastest one's own)"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
@@ -163,11 +203,13 @@ def convert(
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
+    check_regular(src)
     recordings_in([src])  # an input that is no recording is the first thing to fix, before the output's
     check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
+    check_grid_rows(rec, grid_dt, src.name)
     with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):
         conversion = for_conversion(rec, grid_dt)
     write_recording(conversion.recording, dst)
@@ -211,6 +253,9 @@ def view(
     check_outputs([out], (".rrd",), "--out")
     check_outputs([png], (".png",), "--png")
     check_distinct({"--out": out, "--png": png}, [*files, model])
+    for path in files:
+        check_regular(path)
+    check_recordings_distinct(files)  # one log twice is two identical tracks: refused as identify refuses it
     v = vessel_from(vessel, model) if (vessel or model) else None
     if (sim or smoother == "model") and v is None:
         raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")

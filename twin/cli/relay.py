@@ -13,9 +13,33 @@ from rich.table import Table
 from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from ..ident.relay.iso import CONTROL_DT_S, SHIP_CONTROL_DT_S
+from ..ident.relay.iso import CONTROL_DT_S, DEFAULT_DURATION_S, SHIP_CONTROL_DT_S, SHIP_DURATION_S
 from .app import (all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
                   positive, progress_bar, samples_fit, say, vessel_from, write_json)
+
+
+# IS-O reads Table I from whole relay periods after the run's first third, its transient: three at least
+# (iso.measure_oscillation wants four rising switches). A sampled relay switches at most once a control step,
+# so a period lasts two steps at least: 3·2 steps in the last two thirds, 9 steps in all, is the least run
+ISO_PERIODS = 3
+# a heading step's model function (s/ω_n + 1)⁻³ reaches 90 % of the step at x = ω_n·t = 5.32, the root of
+# 1 − e^(−x)(1 + x + x²/2) = 0.9: a shorter run's IAE ratio compares the twin with a step hardly begun
+RISE_90_X = 5.3223
+
+
+def least_iso_duration_s(control_dt_s: float) -> float:
+    """The shortest relay experiment that can hold ISO_PERIODS whole periods after its first third (s)."""
+    return 1.5 * ISO_PERIODS * 2 * control_dt_s
+
+
+def check_iso_duration(duration_s: float, control_dt_s: float, default: str) -> None:
+    """Refuse, before any run, a --duration no relay experiment could read Table I from."""
+    least = least_iso_duration_s(control_dt_s)
+    if duration_s < least - 1e-9:
+        raise TwinError(f"--duration {duration_s:g} s is too short for a relay experiment: Table I is read from "
+                        f"{ISO_PERIODS} whole periods after the run's first third (its transient), and a relay "
+                        f"switching every {control_dt_s:g} s at most takes {2 * control_dt_s:g} s a period: at least "
+                        f"{least:g} s, and a few of the boat's own periods in practice (default {default})")
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
@@ -83,6 +107,9 @@ def iso_command(
     iso.check_dof(v.name, dof, v.thrusters.kind)
     if duration is not None:
         samples_fit(positive(duration, "--duration"), CONTROL_DT_S, "--duration")  # the relay's samples
+        ship = v.thrusters.kind == "propeller_rudder"
+        check_iso_duration(duration, SHIP_CONTROL_DT_S if ship else CONTROL_DT_S,
+                           f"{SHIP_DURATION_S if ship else DEFAULT_DURATION_S[dof]:g} s")  # check_dof: yaw or surge
     if xa is not None:
         positive(xa, "--xa")
     xa_si = None if xa is None else (math.radians(xa) if dof == "yaw" else xa)
@@ -208,6 +235,12 @@ def dp_command(
             raise TwinError(f"--rps must lie in (0, {n_max:g}] rps")
     omega_heading = omega_heading if omega_heading is not None else (SHIP_HEADING_OMEGA_RAD_S if ship
                                                                      else HEADING_OMEGA_RAD_S)
+    rise_s = RISE_90_X / omega_heading
+    if run == "heading" and duration is not None and duration < rise_s:
+        # one control step gave an IAE of 0 for the model function too, read as "no step asked of it"
+        raise TwinError(f"--duration {duration:g} s ends before the heading model function has made 90 % of the "
+                        f"{step:g}° step, at {rise_s:.3g} s ({RISE_90_X:.2f}/ω_n): the IAE ratio compares the twin "
+                        f"with that step; give a longer one, or none for the settling time ({14 / omega_heading:.3g} s)")
     if run == "point" and duration is not None and duration <= 8 / omega_heading:
         # the surge loop starts once the turn to the bearing has had eight of its time constants (ipd.point_move)
         raise TwinError(f"--duration {duration:g} s ends before the point move's surge starts, at {8 / omega_heading:.3g} s "

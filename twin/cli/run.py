@@ -331,6 +331,7 @@ def validate(
     check_outputs([json_out], (".json",), "--json")
     check_outputs([report], (".md", ".html", ".htm"), "--report")
     figure = report_figure(report) if report is not None else None
+    check_outputs([figure], (".png",), "--report's figure")  # written beside the page: a folder there fails late
     check_distinct({"--json": json_out, "--report": report, "--report's figure": figure}, [model])
     result = run_validation(vessel_from(vessel, model, case))
     rows = [q.to_dict() for q in result.quantities]

@@ -24,8 +24,8 @@ def sitl(
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
     host: str = typer.Option("127.0.0.1", help="address to listen on (0.0.0.0: every interface, for an ArduPilot "
                                                "on another machine)"),
-    rate: float = typer.Option(400.0, help="least physics rate, Hz: frames (1200 Hz in Rover SITL) are split "
-                                           "into equal steps no longer than 1/RATE"),
+    rate: float = typer.Option(400.0, help="least physics rate, Hz, at most 10000: frames (1200 Hz in Rover "
+                                           "SITL) are split into equal steps no longer than 1/RATE"),
     esc_arm: float = typer.Option(2.0, help="seconds each ESC must see its stopped signal after power-up before "
                                            "it drives its thruster, as a Basic ESC does (0: at once)"),
     channels: Optional[str] = typer.Option(None, help="servo outputs LEFT,RIGHT of the thrusters (default 1,3: "
@@ -45,7 +45,7 @@ def sitl(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
-    from ..sitl.backend import check_channels
+    from ..sitl.backend import check_channels, check_rate
     from ..sitl.server import run_sitl
 
     check_outputs(record, RUN_OUTPUTS, "--record")
@@ -56,6 +56,7 @@ def sitl(
     # a SITL run ends with Ctrl-C: a recording already at that path would be found replaced only after it
     check_new(record, force, "--record", RUNS)
     check_new([write_params], force, "--write-params")
+    check_rate(rate)
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
         check_channels((pair["left"], pair["right"]))

@@ -39,6 +39,10 @@ GPS_FIX_3D = 3
 HOME_TOLERANCE_M = 100.0
 
 
+class LinkClosed(TwinError):
+    """ArduPilot closed (or reset) the MAVLink connection: nothing more will arrive on it."""
+
+
 def free_tcp_port() -> int:
     """A TCP port nothing listens on now (the system's choice of an ephemeral one)."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
@@ -135,8 +139,16 @@ class Rover:
                 if time.monotonic() > deadline:
                     raise TwinError(f"no MAVLink console on tcp:127.0.0.1:{port} (is SITL running?)") from None
                 time.sleep(0.2)
+        self.port = port
         self.link = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255, autoreconnect=False)
-        if self.link.wait_heartbeat(timeout=max(1.0, deadline - time.monotonic())) is None:
+        self._raise_when_closed()
+        try:
+            heartbeat = self.link.wait_heartbeat(timeout=max(1.0, deadline - time.monotonic()))
+        except LinkClosed as exc:
+            self.link.close()
+            raise TwinError(f"{exc} before its first heartbeat (is ArduPilot's console on that port?)") from None
+        if heartbeat is None:
+            self.link.close()
             raise TwinError("no heartbeat from ArduPilot")
         self.target = (self.link.target_system, self.link.target_component)
         self.track: list[tuple[float, float, float]] = []
@@ -155,6 +167,19 @@ class Rover:
         self.params: dict[str, float] = {}  # PARAM_VALUE: what ArduPilot says it has
         self.param_count = 0
         self.link.mav.request_data_stream_send(*self.target, mavutil.mavlink.MAV_DATA_STREAM_ALL, stream_hz, 1)
+
+    def _raise_when_closed(self) -> None:
+        """Make a closed or reset connection raise LinkClosed. pymavlink's TCP link, without autoreconnect,
+        prints "EOF on TCP socket" on every read of a socket its peer closed and returns no bytes, as when
+        nothing has arrived yet: a wait would print that line hundreds of thousands of times until its
+        timeout, then blame the autopilot's silence."""
+        text = f"ArduPilot closed the MAVLink connection on tcp:127.0.0.1:{self.port}"
+
+        def closed() -> None:
+            raise LinkClosed(text)
+
+        self.link.handle_eof = closed  # a read of no bytes on a readable socket: the peer's FIN
+        self.link.handle_disconnect = closed  # ECONNRESET / EPIPE on a read or a write
 
     # ------------------------------------------------------------ receiving
 
@@ -202,9 +227,12 @@ class Rover:
         while not condition():
             if time.monotonic() > deadline:
                 raise TwinError(f"ArduPilot: {what} not within {timeout_s:g} s; last messages: {self.texts[-5:]}")
-            if every is not None:
-                every()
-            self.pump()
+            try:
+                if every is not None:
+                    every()
+                self.pump()
+            except LinkClosed as exc:  # nothing more will come: end the wait now, not at its timeout
+                raise TwinError(f"{exc} before {what}") from None
 
     @property
     def position(self) -> tuple[float, float]:
@@ -245,8 +273,11 @@ class Rover:
         for name in [n for n in names if n not in self.params]:
             self.link.mav.param_request_read_send(*self.target, name.encode(), -1)
         end = time.monotonic() + 2.0
-        while time.monotonic() < end and any(n not in self.params for n in names):
-            self.pump()
+        try:
+            while time.monotonic() < end and any(n not in self.params for n in names):
+                self.pump()
+        except LinkClosed as exc:
+            raise TwinError(f"{exc} before it listed its parameters") from None
         unknown = [n for n in names if n not in self.params]
         if unknown:
             raise TwinError(unknown_params_text(unknown, self.params))
@@ -302,10 +333,17 @@ class Rover:
                        timeout_s: float = 30.0) -> None:
         """Waypoints (north, east m from home) as NAV_WAYPOINT items after item 0 (home), by MAVLink's
         mission protocol: count, the items it asks for, its acknowledgement."""
-        m = self.mavutil.mavlink
         items = [home] + [offset_position(home[0], home[1], n, e) for n, e in waypoints_ne_m]
-        self.link.mav.mission_count_send(*self.target, len(items))
         deadline = time.monotonic() + timeout_s
+        try:
+            self._upload(items, deadline)
+        except LinkClosed as exc:
+            raise TwinError(f"{exc} before the mission upload finished") from None
+
+    def _upload(self, items: list[tuple[float, float]], deadline: float) -> None:
+        """MAVLink's mission upload of `items` (lat, lon deg; item 0 home), until its acknowledgement."""
+        m = self.mavutil.mavlink
+        self.link.mav.mission_count_send(*self.target, len(items))
         while True:
             msg = self.link.recv_match(type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], blocking=True,
                                        timeout=1.0)

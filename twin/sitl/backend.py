@@ -95,6 +95,10 @@ from twin.vessel import Vessel
 DEFAULT_CHANNELS = (1, 3)  # SERVO1_FUNCTION = 73 (throttle left), SERVO3_FUNCTION = 74 (throttle right)
 GRAVITY_M_S2 = 9.80665  # ArduPilot's GRAVITY_MSS: the specific force at rest is what its EKF expects
 ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seconds" (module docstring)
+# the finest physics --rate: a 0.1 ms step, nine steps to a frame at Rover SITL's 1200 Hz (SIM_RATE_HZ), finer
+# than any boat's dynamics needs. A step costs about 8 µs here: 1e5 Hz would just keep up with real time, and
+# 1e9 Hz (833334 steps a frame) ran 165 times slower than it, with ArduPilot waiting on every frame
+MAX_RATE_HZ = 10_000.0
 ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 SIX_NAMES = ("down_m", "pitch_rad", "roll_rad", "down_rate_m_s", "pitch_rate_rad_s", "roll_rate_rad_s")  # and in a sea
@@ -186,8 +190,7 @@ class SitlTwin:
                  channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True,
                  esc_arm_s: float = ESC_ARM_S, sea: Sea | None = None) -> None:
         check_channels(channels)
-        if not (math.isfinite(min_rate_hz) and min_rate_hz > 0):
-            raise TwinError(f"the physics rate must be a positive number of Hz, got {min_rate_hz}")
+        check_rate(min_rate_hz)
         check_esc_arm(esc_arm_s)
         self.esc_arm_s = float(esc_arm_s)
         if not math.isfinite(heading_deg):
@@ -625,6 +628,16 @@ def delivered_thrust_n(thrusters: ThrusterModel, thruster_y_m, command_n: np.nda
     t_min, t_max = thrusters.bounds()
     static = np.clip(command_n, t_min, t_max) * thrusters.gains()
     return delivered(thrusters.advance_loss, static, nu, thruster_y_m) if thrusters.advance_loss else static
+
+
+def check_rate(rate_hz: float) -> None:
+    """A physics rate (Hz) above 0 and at most MAX_RATE_HZ."""
+    number = isinstance(rate_hz, (int, float))
+    if not (number and math.isfinite(rate_hz) and 0 < rate_hz <= MAX_RATE_HZ):
+        shown = f"{rate_hz:g}" if number else repr(rate_hz)
+        raise TwinError(f"--rate {shown}: the least physics rate is a number of Hz above 0 and at most "
+                        f"{MAX_RATE_HZ:g}, a 0.1 ms step (Rover SITL's frames come at 1200 Hz: the default 400 "
+                        "steps once a frame)")
 
 
 def check_esc_arm(esc_arm_s: float) -> None:

@@ -18,7 +18,10 @@ speed-up. What the loop does with each datagram (twin.sitl.protocol has the byte
   reset when SITL is re-started allowing the physics backend to reset the vehicle"): the
   twin is reset to the origin, at rest, clock 0 (ArduPilot takes a timestamp going
   backwards as a physics reset);
-- frame_count jumping ahead: the missing frames are counted; the twin still steps once;
+- frame_count jumping ahead: the missing frames are counted; the twin still steps once. A jump of
+  more than MAX_GAP_S of frames at the frame's rate is no run of lost datagrams (in lock-step
+  ArduPilot sends a frame only after the last answer, and re-sends it when none came): the count
+  is taken from there as a new one, logged and counted apart (`count_jumps`), not as missed;
 - a new frame_rate: the physics step follows (SitlTwin), logged.
 
 `--realtime` instead paces the twin to the wall clock: a frame advances the twin by as
@@ -54,7 +57,7 @@ from twin.errors import TwinError
 from twin.outputs import FORMATS, write
 from twin.physics.waves import Sea
 from twin.sitl.backend import (DEFAULT_CHANNELS, ESC_ARM_S, SitlTwin, check_channels, check_esc_arm,
-                               sensor_amendments, with_environment)
+                               check_rate, sensor_amendments, with_environment)
 from twin.sitl.protocol import (HEADER, MAGIC_16, PACKET_16, REASONS, PacketError, format_planar, format_six,
                                 pair_reader, parse_servo_packet)
 from twin.vessel import Vessel, load
@@ -67,20 +70,25 @@ MAX_STEP_S = 0.09  # ArduPilot advances its clock only for timestamp steps under
 # out was sent before the answer reached it (the answer was late, not lost)
 RESEND_AFTER_S = 0.5
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# a frame_count jumping further ahead than this many seconds of frames is a corrupt or foreign count, not
+# datagrams lost: 0xffffffff after frame 1 would otherwise be reported as 4294967293 missed frames
+MAX_GAP_S = 10.0
 
 
 @dataclass
 class Counters:
     """What a session did: frames stepped and answered, duplicates answered again (the answer was
     lost), duplicates not answered (they crossed a late answer), restarts, frames skipped by the
-    frame counter, frame rate changes, datagrams ignored by reason, and (real time only)
-    wall-clock time given up because the twin fell too far behind."""
+    frame counter, jumps of the frame counter too far ahead to be missed frames (MAX_GAP_S), frame
+    rate changes, datagrams ignored by reason, and (real time only) wall-clock time given up because
+    the twin fell too far behind."""
 
     frames: int = 0
     duplicates: int = 0
     crossed: int = 0
     restarts: int = 0
     missed: int = 0
+    count_jumps: int = 0
     rate_changes: int = 0
     ignored: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
     lag_dropped_s: float = 0.0
@@ -88,7 +96,8 @@ class Counters:
     def to_dict(self) -> dict:
         return {"frames": self.frames, "duplicates": self.duplicates, "crossed": self.crossed,
                 "restarts": self.restarts,
-                "missed": self.missed, "rate_changes": self.rate_changes, "ignored": dict(self.ignored),
+                "missed": self.missed, "count_jumps": self.count_jumps, "rate_changes": self.rate_changes,
+                "ignored": dict(self.ignored),
                 "lag_dropped_s": self.lag_dropped_s}
 
 
@@ -110,9 +119,11 @@ class SitlSummary:
         c = self.counters
         ignored = sum(c.ignored.values())
         why = ", ".join(f"{n} {reason}" for reason, n in c.ignored.items() if n)
+        # told only when it happened: the usual line keeps its shape
+        jumps = f"{c.count_jumps} frame_count jumps (taken as a new count, not as missed), " if c.count_jumps else ""
         return (f"{c.frames} frames, {self.physics_time_s:.2f} s of twin time in {self.wall_time_s:.2f} s; "
                 f"{c.duplicates} duplicates answered, {c.crossed} not (crossed a late answer), "
-                f"{c.missed} missed, {c.restarts} restarts, "
+                f"{c.missed} missed, {c.restarts} restarts, {jumps}"
                 f"{c.rate_changes} frame rate changes, {ignored} datagrams ignored" + (f" ({why})" if why else "")
                 + (f"; the twin's CPU {self.serve_cpu_s:.2f} s ({self.serve_cpu_s / c.frames * 1e6:.0f} µs a frame)"
                    if c.frames else ""))
@@ -234,7 +245,7 @@ class SitlServer:
                             c.crossed += 1
                         continue
                     self._last_count = last
-                    self._irregular(count, peer, (n - HEADER.size) // 2)
+                    self._irregular(count, rate, peer, (n - HEADER.size) // 2)
                 if rate != self._rate_hz:
                     self._new_rate(rate)
                 if realtime:
@@ -260,8 +271,9 @@ class SitlServer:
             self._logged.add(exc.reason)
             self.log(f"ignoring datagrams that are not servo packets ({exc}); counted in the summary")
 
-    def _irregular(self, count: int, peer, n_outputs: int) -> None:
-        """A first frame, a restart (frame_count went back) or skipped frames."""
+    def _irregular(self, count: int, rate: int, peer, n_outputs: int) -> None:
+        """A first frame, a restart (frame_count went back), skipped frames, or a count jumping too far
+        ahead to be skipped frames (more than MAX_GAP_S of them at the frame's rate)."""
         last = self._last_count
         if last is None:
             self._connected(peer, n_outputs)
@@ -271,6 +283,10 @@ class SitlServer:
             self._wall0 = time.perf_counter()
             self._rate_hz = None
             self.log(f"ArduPilot restarted (frame_count {last} → {count}): twin reset to the origin, at rest")
+        elif count - last - 1 > MAX_GAP_S * rate:
+            self.counters.count_jumps += 1
+            self.log(f"frame_count jumped {last} → {count}, more than {MAX_GAP_S:g} s of frames at {rate} Hz: "
+                     "taken as a new count, not as missed frames")
         else:
             self.counters.missed += count - last - 1
         if peer != self._peer and last is not None:
@@ -347,8 +363,7 @@ def run_sitl(
     paths = check_record_paths(record_paths)
     check_channels(channels)
     check_esc_arm(esc_arm_s)
-    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
-        raise TwinError(f"--rate {rate_hz}: the physics rate must be a positive number of Hz (e.g. 400)")
+    check_rate(rate_hz)
     if stop_after_frames is not None and stop_after_frames < 0:
         raise TwinError("stop_after_frames must be ≥ 0")
     v = load(vessel) if isinstance(vessel, str) else vessel
