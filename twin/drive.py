@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import TwinError
+from .files import check_unique_columns
 from .physics.thrusters import ThrusterModel
 
 PWM_COLUMNS = ("pwm_left", "pwm_right")
@@ -159,10 +160,7 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     if len(rows) < 2:
         raise TwinError(f"{path.name}: needs a header and at least one row")
     header = [h.strip() for h in rows[0]]
-    twice = sorted({h for h in header if h and header.count(h) > 1})
-    if twice:  # which of the two is the input would be a guess: refused as a log's CSV is (twin.formats.csv.table)
-        raise TwinError(f"{path.name}: column{'s' if len(twice) > 1 else ''} {', '.join(twice)} "
-                        f"{'appear' if len(twice) > 1 else 'appears'} more than once in the header")
+    check_unique_columns(header, path.name)
     if "t" not in header:
         looks = (" (it looks like a vessel file: give that with --model)" if path.suffix.lower() == ".json"
                  or header[:1] == ["{"] else "")

@@ -242,3 +242,12 @@ def kept_data(path: Path) -> str | None:
     except (OSError, ValueError):
         return None
     return None
+
+
+def check_unique_columns(header: list[str], name: str) -> None:
+    """TwinError unless every named column of a CSV header appears once: which of two a reader took
+    would be a guess (a log's CSV and an inputs CSV alike)."""
+    twice = sorted({h for h in header if h and header.count(h) > 1})
+    if twice:
+        raise TwinError(f"{name}: column{'s' if len(twice) > 1 else ''} {', '.join(twice)} "
+                        f"{'appear' if len(twice) > 1 else 'appears'} more than once in the header")

@@ -40,7 +40,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TwinError
-from ..files import write_bytes_atomic
+from ..files import check_unique_columns, write_bytes_atomic
 from ..geodesy import ned_from_geodetic
 from ..recording import Recording, Stream, clean_stream, with_common_origin
 
@@ -98,10 +98,7 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str,
     if not rows:
         raise TwinError(f"{path.name}: empty CSV file")
     header = [h.strip() for h in rows[0]]
-    twice = sorted({h for h in header if h and header.count(h) > 1})
-    if twice:  # which of the two a reader took would be a guess
-        raise TwinError(f"{path.name}: column{'s' if len(twice) > 1 else ''} {', '.join(twice)} "
-                        f"{'appear' if len(twice) > 1 else 'appears'} more than once in the header")
+    check_unique_columns(header, path.name)
     good = [r for r in rows[1:] if len(r) == len(header)]
     malformed = sum(1 for r in rows[1:] if r and len(r) != len(header))
     named = [i for i, name in enumerate(header) if name]
