@@ -45,9 +45,23 @@ __all__ = ["Run", "Vessel", "InputSeries", "Validation", "Identification", "Simu
 
 
 def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
-    """`--out` of `twin identify`: a vessel (a twin.Vessel, a shipped vessel's name or a vessel file)
-    written as a vessel file at `path` (.json); a file there is kept unless `force`, as the command
-    keeps it."""
+    """Write a vessel as a vessel file, as `--out` of `twin identify` writes the twin it identified.
+
+    A file already at `path` is kept unless `force`, as the command keeps it: it may be a log or a
+    twin the user made.
+
+    Args:
+        vessel: the vessel to write: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        path (str | Path): where to write it, a .json file.
+        force: replace a file already at `path`.
+
+    Returns:
+        The path written, resolved.
+
+    Raises:
+        TwinError: `path` does not end in .json; a file is there and `force` is False; or `vessel`
+            is neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+    """
     _new_output(path, (".json",), force)
     return _save(_vessel(vessel), path)
 
@@ -74,8 +88,23 @@ def _known_options(function, options: dict, what: str) -> None:
 
 
 class Validation(_Validation):
-    """`twin validate`: every quantity of one vessel and mass case side by side, each column a way of
-    obtaining it (`.quantities`, `.flagged()`, `table()`, `to_dict()`)."""
+    """What `twin validate` finds: every quantity of one vessel and mass case side by side.
+
+    Each column is a way of obtaining the quantity (`.quantities`, `.flagged()`, `table()`,
+    `to_dict()`). A difference over 5 % between the columns is flagged, with the assumption behind
+    it and the value the twin uses.
+
+    Attributes:
+        vessel (str): the vessel's name.
+        case (str): the mass case validated ("nominal" or one of the vessel file's cases).
+        quantities (list[Quantity]): one per quantity (inertia, added mass, thrust bounds,
+            hydrostatics): `name`, `unit` and its columns `analytic` (the report's hand formulas),
+            `table` (the report's printed tables), `engine` (the compiled MuJoCo model), `mesh`
+            (the hull meshes) and `independent` (an independent computation), None where a way
+            does not give it; `rel_diff`, the largest relative difference from the reference
+            column; `flag`, whether that exceeds 5 %; `explanation`, why.
+        drawing (dict): positions for the top-view figure of `twin validate --report`.
+    """
 
     def table(self) -> Table:
         """One row per quantity: its columns as obtained (analytic, the vessel file's table, the engine,
@@ -90,23 +119,80 @@ class Validation(_Validation):
 
 
 def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
-    """`twin validate`: every quantity of one vessel and mass case side by side (`.quantities`, `.flagged()`,
-    `table()`)."""
+    """Every quantity of one vessel and mass case side by side, as `twin validate` lists them.
+
+    Each quantity (inertia, added mass, thrust bounds, hydrostatics) is obtained every way there is:
+    the report's hand formulas, its printed tables, the compiled MuJoCo model, the hull meshes and
+    an independent computation. Printed values that cannot be reproduced from their own table's
+    inputs are reported as such; no input is adjusted to agree.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        case: the mass case ("nominal" or one the vessel file lists; `--case`); None: the vessel's
+            own (a vessel loaded by name is "nominal").
+
+    Returns:
+        The quantities (`.quantities`, `.flagged()` for those over 5 %, `table()`, `to_dict()`).
+
+    Raises:
+        TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a readable
+            vessel file, or it has no mass case `case`.
+    """
     v = _vessel(vessel)
     found = _validate(v if case is None else v.with_case(case))
     return Validation(**{f.name: getattr(found, f.name) for f in fields(found)})
 
 
 def effective_parameters(vessel: Vessel | str) -> dict:
-    """`twin params --json`: M, M_RB, M_A, damping (Fossen signs), thrusters, GNSS lever arm of a vessel
-    (a twin.Vessel, a shipped vessel's name or a vessel file)."""
+    """The parameters the engine runs a vessel with, as `twin params --json` prints them.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+
+    Returns:
+        In SI units: "M", "M_RB" and "M_A" (3 × 3, surge, sway, yaw), "rigid_body", "added_mass"
+        and "damping" (the [Morel-2024 eq. 7] names, Fossen signs), "thrusters" (positions in m,
+        input and force bounds, a twin-thruster boat's allocation matrix), "gnss_antenna_m" and
+        "gnss_lever_arm_OP_m" (the GNSS lever arm), "imu_m", "wind_load", "environment",
+        "frames", "sources"; and a propeller-and-rudder ship's "mmg" coefficients.
+
+    Raises:
+        TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a readable
+            vessel file.
+    """
     return _effective_parameters(_vessel(vessel))
 
 
 def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] | None = None,
                six_dof: bool = False) -> list:
-    """`twin crosscheck`: the engine against the analytic 3-DOF model over a zig-zag, one Result per case
-    (`.passed`, `.position_err_m`, `.heading_err_deg`; `to_dict()`)."""
+    """The engine against the analytic 3-DOF model over a zig-zag, as `twin crosscheck` runs it.
+
+    One case per force term: each case runs the MuJoCo engine and the analytic model with the same
+    terms switched on over the same inputs (those of the full-physics case, which therefore always
+    runs) and compares the trajectories; a case passes within 0.01 m of position and 0.1° of
+    heading.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        duration_s: the zig-zag's length, s (`--duration`; default 120).
+        only: the cases to run besides "full" (one name, or a list), e.g. "damping" or ["thrust",
+            "current"]; None: every case of the vessel's kind (a propeller-and-rudder ship has
+            its own).
+        six_dof: also the 6-DOF hull in calm water against the 3-DOF model ("six_dof_calm";
+            `--six-dof`), for a vessel with hull meshes.
+
+    Returns:
+        One twin.verify.crosscheck.Result per case: `case`, `position_err_m` (m),
+        `heading_err_deg` (deg), `effect_m` (how far the term moves the vessel, m), `passed`,
+        `exercised` (False where the term moves it less than the tolerance, so the pass checks
+        nothing), `engine` and `analytic` (the two Runs); `to_dict()`.
+
+    Raises:
+        TwinError: `duration_s` is not a positive, finite number of seconds; `only` names a case
+            the vessel's kind does not have (a case not run would read as passed); `vessel` is
+            neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file; or
+            `six_dof` for a vessel without hull meshes.
+    """
     from .verify.crosscheck import cases
 
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
@@ -182,17 +268,56 @@ def _drivable(rec, vessel: Vessel) -> None:
 
 
 def read_recording(path, channels: dict | None = None):
-    """`twin info`'s reader: an ArduPilot .bin/.tlog, a CSV (generic or a known dataset's layout) or
-    an MCAP file → Recording."""
+    """Read a recording from a file, as `twin info` reads it.
+
+    Args:
+        path (str | Path): an ArduPilot DataFlash .bin or telemetry .tlog, a CSV (the generic layout or
+            a known dataset's) or an MCAP file.
+        channels: which servo outputs drive the thrusters of an ArduPilot log, as
+            `{"left": 1, "right": 3}` with optional "reversed" ({"left": True, ...}) and "trim"
+            (µs) (`--channels LEFT,RIGHT`; default: from its SERVOn_FUNCTION parameters); for a CSV,
+            only "reversed" and "trim".
+
+    Returns:
+        (twin.recording.Recording): the streams as logged (GNSS, heading, PWM in µs or propeller and
+            rudder, yaw rate, battery, wind), with what the reader skipped (`dropped`), its
+            `notes` and `warnings`.
+
+    Raises:
+        TwinError: `path` is not a path, is a folder, is missing or empty, is not a recognised
+            recording, or holds nothing usable; or `channels` is malformed or does not apply to
+            the file (LEFT,RIGHT for a CSV or MCAP recording).
+    """
     from .formats import read_recording as read
 
     return read(path, channels=channels)
 
 
 def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
-    """A recording made ready for fitting [Morel-2024 §5.1]: with a vessel, as its sensors see it (lever
-    arm, heading corrections) and, when `calibrated`, with the log's own compass offset estimated
-    from its GNSS track; without one, the antenna's positions as logged."""
+    """A recording made ready for fitting [Morel-2024 §5.1]: on one time grid, with body velocities.
+
+    The samples are synchronised on one time grid, with the body velocities and yaw rate. With a
+    vessel, the recording is prepared as its sensors see it (GNSS lever arm, heading corrections),
+    as `twin identify` and `twin evaluate` prepare theirs; without one, the positions are the
+    antenna's as logged.
+
+    Args:
+        recording (str | Path | Recording): one recording: a path or a Recording (twin.read_recording).
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path; None: prepared
+            without a vessel.
+        calibrated: with a vessel, first estimate the log's own compass offset from its GNSS track
+            and apply it (False: as `--no-calibration`).
+
+    Returns:
+        (twin.prepare.Prepared): on the grid `t` (s), the position north, east (m), heading `psi`
+            (rad), `u`, `v` (m/s), `r` (rad/s), the inputs (`pwm`: PWM in µs, or propeller
+            speed in rps and rudder angle in rad) and the `segments` between dropouts.
+
+    Raises:
+        TwinError: the recording cannot be read, or its inputs cannot drive the vessel (PWM for a
+            propeller-and-rudder ship, a ship's propeller and rudder for a PWM boat); or `vessel`
+            is neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+    """
     from .ident.identify import calibrate as calibrate_logs, prepared
     from .prepare import prepare as bare
 
@@ -206,7 +331,28 @@ def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated:
 
 
 def calibrate(recordings, vessel: Vessel | str) -> list:
-    """Each log's compass offset from its kinematics (twin.fit.calibrate.LogCalibration)."""
+    """Each log's compass offset, estimated from its own kinematics as `twin identify` does.
+
+    Going straight under way, the GNSS track over ground follows the hull's true heading, so the
+    angle between the track and the logged heading is the compass's error; no dynamic model is
+    involved.
+
+    Args:
+        recordings (str | Path | Recording | list): one recording or a list of them: paths or Recordings
+            (twin.read_recording), each at most once.
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+
+    Returns:
+        One twin.fit.calibrate.LogCalibration per recording, in order: `heading_bias_deg` (logged
+        minus true heading, deg) and its 1-σ `sigma_deg`, the straight `stretches` and `seconds`
+        it was taken from, the ground drift `drift_ned_m_s` (m/s, reported, not applied); the
+        offset is None where the log has too little straight running (why: `note`).
+
+    Raises:
+        TwinError: no recordings, one given twice or mostly a stretch of another, one that cannot
+            be read or whose inputs cannot drive the vessel; or `vessel` is neither a twin.Vessel
+            nor the name of a shipped vessel or a readable vessel file.
+    """
     from .ident.identify import calibrate as calibrate_logs
 
     v = _vessel(vessel)
@@ -226,10 +372,39 @@ def _in_sea(vessel: Vessel, sea) -> Vessel:
 
 
 def identify(recordings, vessel: Vessel | str, sea=None, **options):
-    """`twin identify`: an Identification (.vessel is the identified twin; options as
-    twin.ident.identify.identify); sea (a physics.waves.Sea or `--sea` text such as
-    "0.3,2.5,30,4"): the sea the recordings were made in, its Stokes drift a known flow and its mean
-    load on the hull a known force (`twin identify --sea`; .vessel carries neither)."""
+    """Identify a vessel from recordings, as `twin identify` does.
+
+    Each log's compass calibration, a fit by simulation with the prior's beliefs, and every choice
+    judged on runs left out of the fit.
+
+    Args:
+        recordings (str | Path | Recording | list): one recording or a list of them: paths or Recordings
+            (twin.read_recording), each at most once, each with inputs that can drive the vessel.
+        vessel: the prior: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        sea (Sea | str | None): the sea the recordings were made in, a twin.physics.waves.Sea or `--sea`
+            text such as "0.3,2.5,30,4" (Hs m, Tp s, direction the waves come from in deg, spreading):
+            its Stokes drift is a known flow and its mean load on the hull a known force of every free
+            run (`twin identify --sea`); the identified `.vessel` carries neither. None: calm water.
+        **options (Any): the keywords of twin.ident.identify.identify, documented there: among them
+            `groups` (the fit groups to free, one name or several; `--groups`), `params` (exactly
+            these coefficients instead; `--params`), `window_s` (the free-run window, s;
+            `--window`), `start` ("free" or "measured"), `calibrated` (False: `--no-calibration`),
+            `greybox` (also the [Morel-2024] grey-box tables; `--greybox`), `wind` ("measured":
+            `--wind-measured`), `judged_on` ("beyond" or "each"), `max_evaluations` and
+            `progress`.
+
+    Returns:
+        (Identification): `.vessel` is the identified twin (what `--out` writes), with the fit, the
+            choices and what they were judged by, and each log's calibration; `table()` lists
+            each coefficient, its prior and what was identified.
+
+    Raises:
+        TwinError: an option identify does not take, or one out of its range; no recordings, one
+            given twice, one that cannot be read or cannot drive the vessel; a sea given wrongly or
+            one the vessel cannot run in; too few windows with the thrusters working to identify
+            anything; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
+            readable vessel file.
+    """
     from .engine.sixdof import without_known_sea
     from .ident.identify import identify as run
 
@@ -244,8 +419,30 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
 
 
 class Identification(_Identification):
-    """`twin identify`: the twin it writes (`.vessel`), the fit, the choices and what they were judged
-    by, each log's calibration (`table()`: each coefficient, its prior and what was identified)."""
+    """What `twin identify` found: the twin it writes (`.vessel`), the fit and what it was judged by.
+
+    The fit, the choices and what they were judged by, each log's calibration (`table()`: each
+    coefficient, its prior and what was identified; `to_dict()`: the JSON `twin identify --json`
+    writes).
+
+    Attributes:
+        vessel (Vessel): the identified twin, what `--out` writes; its `uncertainty` holds what the
+            fit saw and its error on the left-out runs, which `evaluate` reads.
+        prior (Vessel): the vessel the fit started from.
+        fit (twin.fit.simfit.FitResult | None): the fit written; its `estimates` give each
+            coefficient's unit, prior, identified value, 1-σ and a note.
+        calibrations (list[LogCalibration]): each log's compass offset from its kinematics.
+        choices (list[Choice]): every configuration judged on the left-out runs (how much the
+            beliefs count, which groups are free) with its cross-validation.
+        chosen (Choice | None): the choice whose twin is written ("prior (no fit)" where the prior
+            predicts the left-out runs better than any fit).
+        prior_cv (CrossValidation | None): how the prior predicts the left-out runs.
+        greybox (dict): the [Morel-2024] grey-box tables, with `greybox=True`.
+        notes (list[str]): one-line remarks (a log left out of the fit, coefficients moved beyond
+            what their beliefs allow, a twin worse than its prior).
+        seconds (float): how long the identification took, s.
+        wind (str | None): "measured" where each recording's measured wind was a known input.
+    """
 
     def table(self) -> Table:
         """One row per coefficient of the fit: unit, prior, identified, its 1-σ, and how the recordings
@@ -256,8 +453,17 @@ class Identification(_Identification):
 
 
 class Table(list):
-    """Rows (dicts with the same keys) under a title, printed as aligned columns with numbers to 4
-    significant figures; still a list of dicts for code (`to_dict()` for JSON)."""
+    """Rows (dicts with the same keys) under a title, printed as aligned columns.
+
+    Numbers are printed to 4 significant figures; still a list of dicts for code (`to_dict()` for
+    JSON).
+
+    What the results' `table()` methods return: `print(t)` to read it, `t[0]["r2"]` or
+    `pandas.DataFrame(t)` to use it.
+
+    Attributes:
+        title (str): what the rows are, printed above them ("" for none).
+    """
 
     def __init__(self, rows=(), title: str = ""):
         super().__init__(rows)
@@ -297,9 +503,20 @@ UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}
 
 @dataclass(frozen=True)
 class Score:
-    """How well the twin predicts one velocity at one horizon: R² and the mean absolute error (in
-    `unit`: m/s for u and v, °/s for r) over `n` samples; `calibrated`: with each log's compass
-    offset applied."""
+    """How well the twin predicts one velocity at one horizon: R² and the mean absolute error.
+
+    The error is in `unit` (m/s for u and v, °/s for r), over `n` samples; `calibrated`: with each
+    log's compass offset applied.
+
+    Attributes:
+        horizon (str): "one_step", "free_run_10s", "free_run_30s" or "full" (whole segments).
+        dof (str): "u" (surge), "v" (sway) or "r" (yaw rate).
+        r2 (float | None): the coefficient of determination; None where no sample was predicted.
+        mae (float | None): the mean absolute error, m/s for u and v, °/s for r.
+        n (int): the samples predicted.
+        calibrated (bool): each log's compass offset applied.
+        unit (str): the unit of `mae`.
+    """
 
     horizon: str
     dof: str
@@ -338,13 +555,29 @@ def _scores(metrics: dict, calibrated: bool) -> list[Score]:
 
 @dataclass
 class Evaluation:
-    """`twin evaluate`: R² and MAE per DOF and horizon (`scores`; `score("u")`), with and without
-    each log's compass calibration, and the calibrations; by_manoeuvre: where the free runs of the
-    fit's window (10 s for a small boat, 30 s for a slow ship: its `horizon_s`) miss
-    (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify wrote it;
-    by_state: where they miss by a measured state, when one was asked for (fit.evaluate.StateBand);
-    stand_ins: the coefficients the twin's fit moved beyond what their beliefs allow (name, unit, value,
-    prior, from_prior_sigmas), which hold beyond the fitted runs only as far as what they stand in for."""
+    """What `twin evaluate` finds: R² and MAE per DOF and horizon, and where the free runs miss.
+
+    R² and MAE per DOF and horizon (`scores`; `score("u")`), with and without each log's compass
+    calibration, and the calibrations; where the free runs miss, by manoeuvre and by a measured
+    state; the coefficients that stand in for something the twin lacks.
+
+    Attributes:
+        vessel (str): the twin's name.
+        metrics (dict): with each log's compass calibration, {horizon: {u, v, r: {r2, mae, n}}}
+            for the horizons one_step, free_run_10s, free_run_30s and full, in SI (r's MAE in
+            rad/s, where `scores` and `table()` give °/s).
+        metrics_uncalibrated (dict): the same without the calibrations.
+        calibrations (list[LogCalibration]): each log's compass offset from its kinematics.
+        by_manoeuvre (dict): where the free runs of the fit's window (10 s for a small boat, 30 s
+            for a slow ship: its `horizon_s`) miss, each manoeuvre's share of 1 − R²
+            (fit.evaluate.misfit_by_manoeuvre), read against what the twin's fit saw when identify
+            wrote it.
+        by_state (list[StateBand]): where they miss by a measured state, when one was asked for
+            (fit.evaluate.StateBand); empty otherwise.
+        stand_ins (list[dict]): the coefficients the twin's fit moved beyond what their beliefs
+            allow (name, unit, value, prior, from_prior_sigmas), which hold beyond the fitted runs
+            only as far as what they stand in for.
+    """
 
     vessel: str
     metrics: dict
@@ -368,8 +601,20 @@ class Evaluation:
         return _scores(self.metrics, True) + _scores(self.metrics_uncalibrated, False)
 
     def score(self, dof: str, horizon: str = "free_run_10s", calibrated: bool = True) -> Score:
-        """One score: `dof` u, v or r; `horizon` one_step, free_run_10s, free_run_30s or full; with
-        `calibrated`, each log's compass calibration applied (where none was, the score as logged)."""
+        """One score: one velocity at one horizon.
+
+        Args:
+            dof: "u", "v" or "r".
+            horizon: "one_step", "free_run_10s", "free_run_30s" or "full".
+            calibrated: each log's compass calibration applied (where none was, the score as
+                logged).
+
+        Returns:
+            The score: `r2`, `mae` (m/s; r in °/s) and `n`.
+
+        Raises:
+            TwinError: no score for that DOF and horizon.
+        """
         for s in self.scores:
             if (s.dof, s.horizon, s.calibrated) == (dof, horizon, calibrated and self.applied):
                 return s
@@ -400,12 +645,41 @@ class Evaluation:
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
              sea=None, by: str | None = None) -> Evaluation:
-    """How the twin predicts recordings (one step, 10-s and 30-s free runs, whole segments), and
-    where its free runs miss, by manoeuvre and beyond what its fit saw; wind "measured": each
-    recording's measured wind a known input (`twin evaluate --wind-measured`); sea (a
-    physics.waves.Sea or `--sea` text): the sea they were made in, its Stokes drift a known flow and
-    its mean load on the hull a known force (`--sea`); by (speed, yaw_rate, input_0, input_1 or
-    rest): also where they miss by that measured state (`--by`)."""
+    """How the twin predicts recordings, and where its free runs miss, as `twin evaluate` finds.
+
+    One step, 10-s and 30-s free runs and whole segments; where the free runs miss, by manoeuvre and
+    beyond what the twin's fit saw. Every score is given with each log's compass offset, estimated
+    from its own kinematics, applied and without it.
+
+    Args:
+        vessel: the twin: a twin.Vessel, a shipped vessel's name or a vessel file's path (one
+            `twin identify` wrote says where its fit saw the vessel).
+        recordings (str | Path | Recording | list): one recording or a list of them: paths or Recordings
+            (twin.read_recording), each at most once, each with inputs that can drive the vessel; runs
+            the fit did not see, for a fair score.
+        stride_s: the free-run windows start every `stride_s`, s (`--stride`; default 2).
+        wind: "measured": each recording's measured wind a known input of every free run
+            (`twin evaluate --wind-measured`); None: the vessel's own wind.
+        sea (Sea | str | None): the sea the recordings were made in, a twin.physics.waves.Sea or `--sea`
+            text such as "0.3,2.5,30,4": its Stokes drift a known flow and its mean load on the hull a
+            known force (`--sea`). None: calm water.
+        by: also where the free runs miss by a measured state (`--by`), in bands of the samples
+            (the lower half, the next quarter, the next 15 %, the top 10 %): "speed" (over
+            ground, m/s), "yaw_rate" (|r|, rad/s), "drift" (the drift angle |β|, rad), "input_0"
+            or "input_1" (the logged inputs: PWM in µs, or propeller rps and rudder angle) or
+            "rest" (how long input 0, a propeller, has been stopped, s).
+
+    Returns:
+        The scores (`scores`, `score("u")`, `table()`), `by_manoeuvre`, `by_state`, `stand_ins`
+        and the calibrations.
+
+    Raises:
+        TwinError: `stride_s` not positive; `by` not a known state; `wind` neither None nor
+            "measured", or "measured" for a recording without a wind stream or a vessel without a
+            wind load model; no recordings, one given twice, one that cannot be read or cannot
+            drive the vessel; a sea given wrongly or one the vessel cannot run in; or `vessel` is
+            neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+    """
     from .fit.coverage import from_dict
     from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as run, misfit_by_manoeuvre, misfit_by_state, \
         percentile_edges
@@ -434,8 +708,17 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
 
 @dataclass(frozen=True)
 class Parameter:
-    """One value of a named effect: name, value, unit and its 95 % interval (None where the fit
-    holds it)."""
+    """One value of a named effect, with its unit and 95 % interval.
+
+    Its name, value, unit and 95 % interval (None where the fit holds it).
+
+    Attributes:
+        name (str): the parameter's name in the effect, e.g. "speed_m_s" of a current (with the
+            log's name in front for a per-log effect).
+        value (float): its value, in `unit`.
+        unit (str): e.g. "m/s", "deg", "s"; "×" for a factor on a coefficient; "" for none.
+        ci95 (tuple[float, float] | None): its 95 % interval, in `unit`.
+    """
 
     name: str
     value: float
@@ -450,12 +733,31 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Judgement:
-    """How the held-out blocks judge a change of the twin (the diagnosis's rule): `verdict` in words
-    ("earns its place", "does not earn its place", "contradicted"), z of the blocks' votes, the share
-    of the held-out misfit removed (`held_out_gain`) and of the misfit above the noise
-    (`excess_gain`), the blocks for and against, the windows it changed (`affected`), parameters
-    fitted to an unphysical edge; `str()` says it in a sentence. The diagnosis's own Evidence is
-    `evidence` (its other figures, e.g. `dof_rel`, are read through)."""
+    """How the held-out blocks judge a change of the twin, by the diagnosis's rule.
+
+    The `verdict` in words ("earns its place", "does not earn its place", "contradicted"), z of the
+    blocks' votes, the share of the held-out misfit removed (`held_out_gain`) and of the misfit
+    above the noise (`excess_gain`), the blocks for and against, the windows it changed
+    (`affected`), parameters fitted to an unphysical edge; `str()` says it in a sentence. The
+    diagnosis's own Evidence is `evidence` (its other figures, e.g. `dof_rel`, are read through).
+
+    A change earns its place where z ≥ 3, it removes at least 5 % of the held-out misfit above the
+    noise and no parameter sits at an unphysical edge; it is contradicted where z ≤ −3.
+
+    Attributes:
+        effects (tuple[str, ...]): the change judged, as effect texts ("current=0.1,90").
+        verdict (str): "earns its place", "does not earn its place" or "contradicted".
+        z (float): z of the held-out blocks' votes (positive: the change predicts them better).
+        held_out_gain (float): the share of the held-out misfit the change removes.
+        excess_gain (float): the share of the held-out misfit above the noise it removes.
+        blocks_for (int): the held-out blocks it predicts better.
+        blocks_against (int): the held-out blocks it predicts worse.
+        affected (int): the windows whose prediction it changes.
+        at_edge (tuple[str, ...]): parameters fitted to an unphysical edge.
+        sentence (str): the judgement in one sentence (`str()`).
+        evidence (Evidence | None): the diagnosis's own twin.diagnose.search.Evidence, from
+            `judge`; None for an Effect's, read from the diagnosis's JSON.
+    """
 
     effects: tuple[str, ...]
     verdict: str
@@ -492,9 +794,20 @@ class Judgement:
 
 
 class Effect(dict):
-    """An effect a diagnosis named: `name`, `parameters` (with units and 95 % intervals), `evidence`
-    (a Judgement) and `text` (as `twin effects` and `--given` take it). Still the dict of the
-    diagnosis's JSON (`e["text"]`, `to_dict()`), so code written against the JSON keeps working."""
+    """An effect a diagnosis named, with its values, their units and 95 % intervals, and its evidence.
+
+    `name`, `parameters` (with units and 95 % intervals), `evidence` (a Judgement) and `text` (as
+    `twin effects` and `--given` take it). Still the dict of the diagnosis's JSON (`e["text"]`,
+    `to_dict()`), so code written against the JSON keeps working.
+
+    Attributes:
+        name (str): the effect's name in the library `twin effects` lists, e.g. "current".
+        text (str): the effect at its values, as `twin effects` and `--given` take it (so
+            `judge(..., e.text)` judges it again).
+        parameters (list[Parameter]): its values, with units and 95 % intervals.
+        evidence (Judgement): how the held-out blocks judged it ("earns its place": a diagnosis
+            names no other).
+    """
 
     @property
     def name(self) -> str:
@@ -535,9 +848,37 @@ class Effect(dict):
 
 
 class Diagnosis(_Found):
-    """`twin diagnose`: the effects named (`effects`, each an Effect), the amended twin (`amended`),
-    the fit before and after, what stays unexplained and where (`unexplained`); `to_dict()` is the
-    JSON `twin diagnose --json` writes."""
+    """What `twin diagnose` finds: the effects named, the amended twin and what stays unexplained.
+
+    The effects named (`effects`, each an Effect), the amended twin (`amended`), the fit before and
+    after, what stays unexplained and where (`unexplained`); `to_dict()` is the JSON
+    `twin diagnose --json` writes.
+
+    Attributes:
+        prior (Vessel): the twin as given.
+        amended (Vessel): the twin with the effects named (what `--write-model` writes).
+        effects (list[Effect]): the effects named, each with its values, intervals and evidence;
+            empty when none earns its place.
+        located (list[dict]): where the residual of the twin as given concentrates (DOF, time,
+            operating regime).
+        growth (dict): whether the residual grows along a free run (dynamics) or is there from
+            the start (measurement).
+        correlations (dict): what the residual follows, per DOF.
+        fit_before (dict): R² and MAE per DOF on the held-out blocks, the twin as given.
+        fit_after (dict): the same with the effects named, each fitted without those blocks.
+        unexplained (list[dict]): what stays well above the noise after the amendment: where it
+            is, how big, and which signals it follows.
+        noise (dict): the noise estimated for each signal: what "significant" is measured against.
+        rounds (list[dict]): the candidates judged in each round of the search.
+        windows (dict): the free-run windows: their length (s), number, folds and blocks.
+        seconds (float): how long the diagnosis took, s.
+        notes (list[str]): one-line remarks (what was not searched, and why).
+        calibrations (list[LogCalibration]): each log's compass offset from its kinematics, applied.
+        kinematic (list): the sensor and timing findings told from the kinematics before any fit.
+        overall (dict): the residual's bias and RMS per DOF over every window, "before" and
+            "after" the amendment.
+        refit (dict): the twin's own coefficients refitted with every candidate, with `refit`.
+    """
 
     def __repr__(self) -> str:
         named = "; ".join(repr(e) for e in self.effects) or "nothing named"
@@ -554,24 +895,51 @@ class Diagnosis(_Found):
 def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=None, window_s: float | None = None,
                         wind: str | None = None, calibrated: bool = True, kinematic: bool = True,
                         refit=None, refit_weight: float = 1.0, log=None):
-    """`twin diagnose`: which physics the twin lacks, how much of it, and the amended twin.
+    """Which physics the twin lacks, how much of it, and the amended twin, as `twin diagnose` finds.
+
+    The twin is replayed over free-run windows; each candidate effect is fitted on some blocks of
+    windows and judged on the others, and named only where the held-out blocks say it earns its
+    place (Judgement). What stays significant after the amendment is reported as unexplained.
 
     Args:
-        recordings: paths or Recording objects, diagnosed together.
-        vessel: a Vessel or a shipped vessel's name.
-        sea: a physics.waves.Sea or `--sea` text: the sea the recordings were made in, its Stokes drift
-            a known flow and its mean load a known force (`--sea`; .amended is the twin without them).
-        effects: only these candidate effects (names, as `twin effects` lists them; `--effects`).
+        recordings (str | Path | Recording | list): one recording or a list of them, diagnosed together:
+            paths or Recordings (twin.read_recording), each at most once, each with inputs that can
+            drive the vessel.
+        vessel: the twin: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        sea (Sea | str | None): a twin.physics.waves.Sea or `--sea` text such as "0.3,2.5,30,4": the sea
+            the recordings were made in, its Stokes drift a known flow and its mean load a known force
+            (`--sea`; `.amended` is the twin without them). None: calm water.
+        effects (str | list[str] | None): only these candidate effects: one name or several, as
+            `twin effects` lists them (`--effects`); None: the whole library.
         window_s: the free-run window, s (`--window`; default 10).
-        wind: "measured": each recording's measured wind a known input (`--wind-measured`).
-        calibrated: each log's compass offset from its own kinematics first (`--no-calibration`: False).
-        kinematic: sensor and timing effects told from the kinematics first.
-        refit: identification groups refitted beside every candidate (`--refit`), with `refit_weight`.
-        log: a callable taking progress lines.
+        wind: "measured": each recording's measured wind a known input of every free run, the
+            twin's and every candidate's (`--wind-measured`); a constant wind is then not searched
+            for.
+        calibrated: each log's compass offset from its own kinematics first (`--no-calibration`:
+            False).
+        kinematic: sensor and timing effects (GNSS lever arm, latencies) told from the kinematics
+            first, before any dynamic fit.
+        refit (str | list[str] | None): identification groups refitted beside every candidate
+            (`--refit`; one name or several, e.g. "surge", "yaw"), for a twin not yet identified; None:
+            none.
+        refit_weight: with `refit`, how many windows of data each refitted coefficient's belief
+            counts as (`--refit-weight`; default 1, as `twin identify`'s beliefs ×1).
+        log (Callable[[str], None] | None): a callable taking progress lines (str); None: silent.
 
     Returns:
-        A Diagnosis: .effects (Effect objects with their Parameters and units), .amended,
-        .fit_before / .fit_after, .unexplained, .notes.
+        (Diagnosis): `.effects` (Effect objects with their Parameters and units), `.amended`,
+            `.fit_before` / `.fit_after`, `.unexplained`, `.notes`; `table()` one row per
+            parameter named.
+
+    Raises:
+        TwinError: `window_s` not a positive number of seconds; `effects` or `refit` not names,
+            an effect unknown or with nothing to act on in these recordings, a group the vessel
+            has not, or `refit_weight` not positive; `wind` neither None nor "measured", or
+            "measured" without a wind stream or a wind load model; no recordings, one given twice,
+            one that cannot be read or has no inputs to drive the vessel, or recordings too short
+            to fit on one part and judge on another (about 2 minutes with inputs at least); a sea
+            given wrongly or one the vessel cannot run in; or `vessel` is neither a twin.Vessel nor
+            the name of a shipped vessel or a readable vessel file.
     """
     from dataclasses import fields
 
@@ -594,9 +962,35 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
 
 
 def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
-    """`twin diagnose --given`: the effects at the values given (texts as `twin effects` lists them),
-    nothing fitted, judged by the diagnosis's rule on the blocks a diagnosis of these recordings
-    uses: a Judgement (`earns_its_place`, `z`, `held_out_gain`, ...; `str()` says it in a sentence)."""
+    """Judge effects at the values given, nothing fitted, as `twin diagnose --given` does.
+
+    Can these recordings prove that physics as given? The twin with the effects and the twin without
+    them are judged by the diagnosis's rule on the blocks a diagnosis of these recordings uses, each
+    log's compass calibration applied to both.
+
+    Args:
+        recordings (str | Path | Recording | list): one recording or a list of them: paths or Recordings
+            (twin.read_recording), each at most once, each with inputs that can drive the vessel.
+        vessel: the twin: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        effects (str | list[str]): one effect text or several, judged together, as `twin effects` lists
+            them (e.g. "current=0.1,90": 0.1 m/s flowing towards 90°).
+        **options (Any): the keywords of twin.diagnose.doctor.given_evidence, documented there:
+            `window_s` (the free-run window, s; default 10), `calibrated` (False:
+            `--no-calibration`), `wind` ("measured": the recordings' measured wind is the physics
+            judged) and `known_wind` ("measured": their measured wind a known input of both twins,
+            `--given ... --wind-measured`).
+
+    Returns:
+        The judgement (`earns_its_place()`, `verdict`, `z`, `held_out_gain`, ...; `str()` says it
+        in a sentence).
+
+    Raises:
+        TwinError: `effects` not texts, or one that is unknown or malformed (told before the
+            recordings are read); an option `given_evidence` does not take; no recordings, one
+            given twice, one that cannot be read or cannot drive the vessel, or recordings too
+            short to fit on one part and judge on another; or `vessel` is neither a twin.Vessel nor
+            the name of a shipped vessel or a readable vessel file.
+    """
     from .diagnose.doctor import given_evidence, given_text
     from .diagnose.search import Z_MIN
     from .effects import parse_effect
