@@ -22,8 +22,40 @@ from .vessel import Vessel, load as load_vessel
 
 
 def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **kwargs) -> Run:
-    """Run the engine twin; `drive` is a scenario name, an InputSeries or a controller (a callable
-    (t s, η, ν) → (surge, yaw) commands); nu0, eta0: the start (3 numbers each)."""
+    """Run the engine twin on a scenario, an input series or a controller, and return the run.
+
+    The engine's own call, its keywords passed through as they are; `simulate_run` is
+    `twin simulate`, with a current, a wind and where the inputs went beyond the vessel's bounds.
+    A propeller-and-rudder ship's scenario starts from its steady straight run (unless `nu0` is
+    given), as a ship's manoeuvres start from a steady approach; a small boat's starts at rest.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        drive (str | InputSeries | Callable): a scenario's name ("step", "turn", "zigzag", "spin" or
+            "random", as `twin simulate --scenario`), an InputSeries, or a controller: a callable (t s,
+            η, ν) → (surge, yaw) commands in [−1, 1].
+        duration_s: simulated time, s (default 120).
+        **kwargs (Any): the keywords of twin.engine.sim.simulate, documented there: among them `nu0`
+            and `eta0`, the start (3 numbers each: u, v in m/s and r in rad/s; north, east in m
+            and ψ in rad), `sample_dt_s` (the output sample period, s; default 0.1, a multiple of
+            the vessel's physics time step), `control_dt_s`, `sea` (a twin.physics.waves.Sea or
+            its text 'HS,TP,DIR[,SPREAD]', which runs the 6-DOF hull in waves) and `six_dof`; and
+            `seed` (a whole number, default 0), which draws the random scenario and the sea.
+
+    Returns:
+        The run: times `t` (s), `eta` (north, east in m, ψ in rad), `nu` (u, v in m/s, r in
+        rad/s), the inputs held over each sample (`pwm_us`, `thrust_n`) and `meta` (the inputs
+        applied, in `meta["inputs"]`, so that the run can be replayed).
+
+    Raises:
+        TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
+            readable vessel file; `drive` is none of the three, names an unknown scenario or one
+            the vessel's thrusters cannot sail ("spin" for a propeller-and-rudder ship); `nu0` or
+            `eta0` is not 3 finite numbers; the duration or sample step is not a positive number
+            of seconds, the step is longer than the run or not a multiple of the physics time
+            step, or the run would hold more than half of the machine's memory; the seed is not a
+            whole number; or the sea is given wrongly.
+    """
     if isinstance(vessel, (str, Path)):
         vessel = load_vessel(str(vessel))
     if not isinstance(vessel, Vessel):
@@ -151,8 +183,18 @@ def _physical_memory_bytes() -> int:
 
 @dataclass
 class Simulation:
-    """A run of the twin with what it was run on, and where its inputs went beyond the vessel
-    file's bounds (`limits`: empty when they never did)."""
+    """A run of the twin with what it was run on, and where its inputs went beyond their bounds.
+
+    `limits` lists where the inputs went beyond the vessel file's bounds: empty when they never did.
+
+    Attributes:
+        run: the run: times `t` (s), `eta` (north, east in m, ψ in rad), `nu` (u, v in m/s, r in
+            rad/s), the inputs (`pwm_us`, `thrust_n`) and `meta` (the scenario, the inputs applied,
+            the limits).
+        compiled: the compiled vessel it ran on, with the current and wind it was given.
+        limits: each thruster input held beyond the vessel file's bound: which bound, for how long
+            (s), the largest excess (in the input's unit) and when it began (s from the start).
+    """
 
     run: Run
     compiled: CompiledVessel
@@ -164,8 +206,18 @@ class Simulation:
                 f"({r.eta[-1, 0]:.2f}, {r.eta[-1, 1]:.2f}) m, {len(self.limits)} input limits hit)")
 
     def write(self, path, origin: tuple[float, float] | None = None, *, force: bool = False) -> None:
-        """The run as .csv, .mcap, .rrd, .tlog or .bin (map positions around `origin`, lat/lon deg); a
-        file already at `path` is kept unless `force`, as `twin simulate` keeps it."""
+        """Write the run as `twin simulate --out` does: .csv, .mcap, .rrd, .tlog or .bin.
+
+        Args:
+            path (str | Path): the file to write; its suffix says the format.
+            origin: (lat, lon) in deg of the start, for the map positions of .mcap, .tlog and .bin
+                (`--origin`); None: the command's default (37.4136, −5.9786, Seville).
+            force: replace a file already at `path`, which is otherwise kept, as `twin simulate`
+                keeps it.
+
+        Raises:
+            TwinError: a file is already at `path` and `force` is False, or the format is unknown.
+        """
         from .outputs import write
 
         if Path(path).exists() and not force:
@@ -179,11 +231,49 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
                  seed: int = 0, sample_dt_s: float = 0.1, current: tuple[float, float] | None = None,
                  wind: tuple[float, float] | None = None, sea=None, six_dof: bool = False,
                  start_speed_m_s: float | None = None) -> Simulation:
-    """`twin simulate`: a scenario (or an inputs CSV path / InputSeries) with an optional current
-    (speed m/s, direction deg it flows towards) and wind (speed m/s, direction deg it blows from);
-    `sea` (a physics.waves.Sea, or its text 'HS,TP,DIR[,SPREAD]' / 'regular,H,T,DIR', drawn with
-    `seed`) runs the 6-DOF hull in waves, `six_dof` the 6-DOF hull in calm water; `start_speed_m_s`
-    the surge at t = 0 (default: at rest, or a ship's scenario's steady approach)."""
+    """Run the twin as `twin simulate` does: a scenario or recorded inputs, in a current, wind or sea.
+
+    The run comes with where its inputs went beyond the vessel file's bounds.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        scenario: "step", "turn", "zigzag", "spin" or "random" (`--scenario`; default "zigzag");
+            not used with `inputs`.
+        inputs (str | Path | InputSeries | None): an inputs CSV's path or an InputSeries (`--inputs`): a
+            `t` column (s) and pwm_left,pwm_right (µs), thrust_left,thrust_right (N) or, for a
+            propeller-and-rudder ship, prop_rps,rudder_deg (rps, deg); each row held until the next, the
+            last one to the end of the run.
+        duration_s: simulated time, s (`--duration`; default 120, with `inputs` too, where the
+            command takes the inputs' last time).
+        seed: random seed of the "random" scenario and of the sea's components (`--seed`; a whole
+            number, default 0).
+        sample_dt_s: output sample period, s (`--sample-dt`; default 0.1): a multiple of the
+            vessel's physics time step (0.02 s; cybership1 0.01 s).
+        current: (speed m/s, direction deg it flows towards) (`--current`); None: the vessel's own.
+        wind: (speed m/s, direction deg it blows from) (`--wind`), for a vessel with a wind load
+            model; None: the vessel's own.
+        sea (Sea | str | None): a twin.physics.waves.Sea, or its text 'HS,TP,DIR[,SPREAD]' (JONSWAP: Hs
+            m, Tp s, direction the waves come from in deg, cosine-power spreading) or 'regular,H,T,DIR',
+            drawn with `seed` (`--sea`): runs the 6-DOF hull in waves.
+        six_dof: the 6-DOF hull (heave, roll, pitch) in calm water (`--six-dof`; implied by `sea`).
+        start_speed_m_s: the surge at t = 0, m/s (`--start-speed`); None: at rest, or a ship's
+            scenario's steady approach.
+
+    Returns:
+        The run (`.run`), the compiled vessel it ran on (`.compiled`) and the inputs held beyond
+        the vessel file's bounds (`.limits`); `.write(path)` writes it as the command does.
+
+    Raises:
+        TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
+            readable vessel file; the duration or sample step is not a positive number of
+            seconds, the step is longer than the run or not a multiple of the physics time step,
+            or the run would hold more than half of the machine's memory; `current` or `wind` is
+            not two numbers, or faster than any a small vessel meets (10 m/s of current, 40 m/s of
+            wind); a wind for a vessel with no wind load model; an inputs file missing or
+            malformed, or inputs of a kind that cannot drive the vessel; an unknown scenario or
+            one the vessel's thrusters cannot sail; a sea given wrongly or one the 6-DOF hull
+            cannot run in; the seed is not a whole number or the start speed not a number.
+    """
     if isinstance(vessel, (str, Path)):
         vessel = load_vessel(str(vessel))
     if not isinstance(vessel, Vessel):

@@ -635,8 +635,26 @@ def available() -> list[str]:
 
 
 def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
-    """Load a vessel by name (one shipped with the package: twin/model/NAME.json) or from a
-    parameter file path."""
+    """Load a vessel by name (one shipped with the package) or from a parameter file's path.
+
+    A shipped vessel is twin/model/NAME.json; a parameter file is a vessel file such as
+    `twin identify --out` writes.
+
+    Args:
+        name_or_path: a shipped vessel's name ("blueboat", "cybership1", "esso_osaka",
+            "yellowfish": `twin.vessel.available()` lists them) or the path of a vessel file
+            (.json), such as `twin identify --out` writes.
+        case: the mass case (`--case` of the commands; default "nominal"), one the vessel file
+            lists under `cases`.
+
+    Returns:
+        The vessel in mass case `case`.
+
+    Raises:
+        TwinError: `name_or_path` is neither a name nor a path, is a folder, names no shipped
+            vessel, or its file is missing, not valid JSON or not a vessel file (no "name" or
+            "mjcf", a value of the wrong type, ...); or the vessel has no mass case `case`.
+    """
     if not isinstance(name_or_path, (str, os.PathLike)):
         raise TwinError(f"a vessel is a shipped vessel's name ({', '.join(available())}) or a vessel file's path, "
                         f"got {name_or_path!r:.60}")
