@@ -278,7 +278,7 @@ def test_a_mission_without_sitl_says_at_once_what_it_waits_for(monkeypatch, caps
                                           "--port", port, "--timeout", "0.5"])
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 2 and "Traceback" not in err
-    assert lines[0].startswith(f"note: waiting up to 0.5 s (--timeout) for SITL's MAVLink console on tcp:127.0.0.1:{port}")
+    assert lines[0].startswith(f"note: waiting up to 0.5 s for SITL's MAVLink console on tcp:127.0.0.1:{port}")
     assert lines[1] == f"error: no MAVLink console on tcp:127.0.0.1:{port} (is SITL running?)"
 
 

@@ -112,14 +112,15 @@ def mission(
     port: int = typer.Option(5760, help="SITL's MAVLink TCP port (its SERIAL0: 5760, +10 per -I instance)"),
     set_: list[str] = typer.Option([], "--set", help="NAME=VALUE: an ArduPilot parameter set before the mission "
                                                    "(repeatable), e.g. --set ATC_STR_RAT_FF=0.5"),
-    timeout: float = typer.Option(600.0, help="wall-clock seconds to wait for each step"),
+    timeout: float = typer.Option(600.0, help="wall-clock seconds to wait for each step (for SITL's console to "
+                                              "appear: at most 120)"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="also write the figures and the EKF track (.json)"),
 ):
     """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
     time, mean speed and how far the boat strayed from the straight legs."""
     import json
 
-    from ..sitl.ardupilot import fly_mission
+    from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission
 
     positive(timeout, "--timeout")
     if not 1 <= port <= 65535:
@@ -143,8 +144,8 @@ def mission(
                         "of home (NORTH,EAST in m)")
     settings = param_settings(set_)
     if not _listening(port):  # SITL may be starting: say what is awaited rather than wait in silence
-        note(f"note: waiting up to {timeout:g} s (--timeout) for SITL's MAVLink console on tcp:127.0.0.1:{port}; "
-             "start it first (twin sitl, or ArduPilot's own SITL)")
+        note(f"note: waiting up to {min(timeout, CONSOLE_WAIT_S):g} s for SITL's MAVLink console on "
+             f"tcp:127.0.0.1:{port}; start it first (twin sitl, or ArduPilot's own SITL)")
     result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
     say(result.text())
     if json_out is not None:

@@ -179,5 +179,7 @@ def describe(counts: dict[str, int]) -> list[str]:
     what = {"gnss": f"GNSS fixes off their neighbours' track by more than {FLOOR_GNSS_M:g} m",
             "gnss_held": "GNSS fixes held while the vessel moved on (velocities taken across them)",
             "heading": f"heading samples off their neighbours by more than {np.degrees(FLOOR_HEADING_RAD):.0f}°"}
-    return [f"{'held' if k == 'gnss_held' else 'outliers'}: {what[k]}"
-            f"{'' if k == 'gnss_held' else ' (left out by preparation)'}: {n}" for k, n in counts.items() if n]
+    lines = [f"{'held' if k == 'gnss_held' else 'outliers'}: {what[k]}"
+             f"{'' if k == 'gnss_held' else ' (left out by preparation)'}: {n}" for k, n in counts.items() if n]
+    # said when there are none too, so that a reader knows the check ran
+    return lines or [f"outliers: none ({what['gnss']}, or {what['heading']})"]

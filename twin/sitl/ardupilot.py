@@ -37,6 +37,9 @@ GPS_FIX_3D = 3
 # the --home a mission is given may differ from SITL's own by this much (m) and no more: beyond, every
 # waypoint would be that far off and the boat would drive there
 HOME_TOLERANCE_M = 100.0
+# how long a mission waits for SITL's MAVLink console to appear (a SITL started after the mission is up
+# within seconds; one that died is not waited for through a whole step's --timeout)
+CONSOLE_WAIT_S = 120.0
 
 
 class LinkClosed(TwinError):
@@ -450,7 +453,7 @@ def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[t
     is: a second mission against the same SITL starts where the first ended."""
     if len(waypoints_ne_m) < 1:
         raise TwinError("a mission needs one waypoint at least")
-    rover = Rover(port, connect_timeout_s=timeout_s)
+    rover = Rover(port, connect_timeout_s=min(timeout_s, CONSOLE_WAIT_S))
     finished = False
     try:
         rover.wait_ekf(timeout_s=timeout_s)
