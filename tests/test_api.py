@@ -217,3 +217,41 @@ def test_the_api_says_what_a_wrong_argument_should_be(tmp_path, monkeypatch, cal
     twin.simulate_run("blueboat", scenario="random", duration_s=20).write("r.csv")
     with pytest.raises(twin.TwinError, match=said):
         call(twin.load_vessel("blueboat"))
+
+
+def test_wrong_arguments_found_by_calling_every_export_are_twin_errors(tmp_path, log):
+    """Each of these was a TypeError, AttributeError, ValueError or OverflowError from deep inside, or
+    ran silently: a list of recordings prepared as its first, a crosscheck of no case or of one
+    sample passing, an empty `only` running every case, a stride of True or inf."""
+    rec = twin.read_recording(log)
+    sim = twin.simulate_run("blueboat", duration_s=2.0)
+    calls = [
+        (lambda: twin.compile_vessel(None), "expected a vessel"),
+        (lambda: twin.save_vessel("blueboat", None), r"a file path \(str or Path\), got None"),
+        (lambda: sim.write(42), r"a file path \(str or Path\), got 42"),
+        (lambda: sim.write(""), r"a file path \(str or Path\), got ''"),
+        (lambda: twin.simulate("blueboat", "zigzag", duration_s=2.0, foo=1), "simulate: unknown option foo"),
+        (lambda: twin.simulate("blueboat", "zigzag", duration_s=2.0, control_dt_s="x"), "control period must be a"),
+        (lambda: twin.simulate_run("blueboat", duration_s=2.0, inputs=rec), "inputs is an inputs CSV's path"),
+        (lambda: twin.crosscheck("blueboat", duration_s=2.0, only=3), "only: give one or more names"),
+        (lambda: twin.crosscheck("blueboat", duration_s=2.0, only=[]), "only: give one or more names"),
+        (lambda: twin.crosscheck("blueboat", duration_s=0.01, only="full"), "at least one sample"),
+        (lambda: twin.read_recording(log, channels={"reversed": 5}), r"channels\['reversed'\] must be a dict"),
+        (lambda: twin.read_recording(log, channels={"trim": {"left": "x"}}), r"channels\['trim'\] must be a dict"),
+        (lambda: twin.prepare_recording([rec, rec], "blueboat"), "prepares one recording, got 2"),
+        (lambda: twin.evaluate("blueboat", rec, stride_s=float("inf")), "stride_s must be a positive number"),
+        (lambda: twin.evaluate("blueboat", rec, stride_s=True), "stride_s must be a positive number"),
+        (lambda: twin.evaluate("blueboat", rec, stride_s=None), "stride_s must be a positive number"),
+        (lambda: twin.identify(rec, "blueboat", progress=3), "progress is a callable"),
+        (lambda: twin.identify(rec, "blueboat", prior_weights=3), "prior_weights must be a non-empty list"),
+        (lambda: twin.diagnose_recordings(rec, "blueboat", window_s=True), "window_s must be a positive number"),
+        (lambda: twin.diagnose_recordings(rec, "blueboat", refit="surge", refit_weight="x"), "refit_weight must be"),
+        (lambda: twin.diagnose_recordings(rec, "blueboat", log=3), "log is a callable"),
+        (lambda: twin.judge(rec, "blueboat", "current=0.1,90", window_s=float("nan")), "window_s must be a positive"),
+        (lambda: twin.judge(rec, "blueboat", "current=0.1,90", window_s="x"), "window_s must be a positive"),
+    ]
+    for call, says in calls:
+        with pytest.raises(twin.TwinError, match=says):
+            call()
+    assert twin.compile_vessel("blueboat").vessel.name == "blueboat"  # a name, as every other export takes it
+    assert twin.prepare_recording([rec], "blueboat") is not None  # a list of one is still one recording

@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import inspect
 import math
+import numbers
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from .drive import InputSeries, inputs_mismatch
-from .engine.mjcf import compile_vessel
+from .engine.mjcf import CompiledVessel, compile_vessel as _compile_vessel
 from .engine.parameters import effective_parameters as _effective_parameters
 from .diagnose.doctor import Diagnosis as _Found
 from .diagnose.search import excess_shown
@@ -59,8 +60,9 @@ def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
         The path written, resolved.
 
     Raises:
-        TwinError: `path` does not end in .json; a file is there and `force` is False; or `vessel`
-            is neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+        TwinError: `path` is not a file path or does not end in .json; a file is there and `force`
+            is False; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
+            readable vessel file.
     """
     _new_output(path, (".json",), force)
     return _save(_vessel(vessel), path)
@@ -69,6 +71,8 @@ def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
 def _new_output(path, formats: tuple[str, ...], force: bool) -> None:
     """An output path the API writes, checked as the commands check theirs: its format, and a file
     already there kept unless `force` (it may be a log or a twin the user made)."""
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise TwinError(f"an output is written to a file path (str or Path), got {path!r:.60}")
     p = Path(path)
     if p.suffix.lower() not in formats:
         raise TwinError(f"'{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
@@ -143,6 +147,23 @@ def validate(vessel: Vessel | str, case: str | None = None) -> Validation:
     return Validation(**{f.name: getattr(found, f.name) for f in fields(found)})
 
 
+def compile_vessel(vessel: Vessel | str, wind_inputs: bool = False) -> CompiledVessel:
+    """The vessel's MuJoCo model, with its geometry, as the engine runs it.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        wind_inputs: with the wind as controls.
+
+    Returns:
+        (twin.engine.mjcf.CompiledVessel): `vessel`, the MuJoCo `model` and its `geometry`.
+
+    Raises:
+        TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a readable
+            vessel file, or its model does not compile.
+    """
+    return _compile_vessel(_vessel(vessel), wind_inputs)
+
+
 def effective_parameters(vessel: Vessel | str) -> dict:
     """The parameters the engine runs a vessel with, as `twin params --json` prints them.
 
@@ -188,7 +209,8 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
         nothing), `engine` and `analytic` (the two Runs); `to_dict()`.
 
     Raises:
-        TwinError: `duration_s` is not a positive, finite number of seconds; `only` names a case
+        TwinError: `duration_s` is not a positive, finite number of seconds of at least one sample
+            (0.1 s); `only` is not one or more names, or names a case
             the vessel's kind does not have (a case not run would read as passed); `vessel` is
             neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file; or
             `six_dof` for a vessel without hull meshes.
@@ -198,8 +220,11 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
             math.isfinite(duration_s) and duration_s > 0):
         raise TwinError(f"duration_s must be a positive, finite number of seconds, got {duration_s!r}")
+    if duration_s < SAMPLE_DT_S:  # one sample: every case would compare the start alone, and pass
+        raise TwinError(f"duration_s must be at least one sample ({SAMPLE_DT_S:g} s) for the cases to compare "
+                        f"anything, got {duration_s!r}")
     v = _vessel(vessel)
-    only = [only] if isinstance(only, str) else only
+    only = None if only is None else list(_names(only, "only", "the crosscheck cases, e.g. 'damping'"))
     known = [c.name for c in cases(v)]
     unknown = [n for n in only or () if n not in known]
     if unknown:  # a case not run would read as passed
@@ -290,7 +315,18 @@ def read_recording(path, channels: dict | None = None):
     """
     from .formats import read_recording as read
 
+    for key, to in (("reversed", "True or False"), ("trim", "the PWM of zero thrust in µs")):
+        given = channels.get(key) if isinstance(channels, dict) else None  # a wrong shape failed inside the readers
+        if given is not None and (not isinstance(given, dict) or set(given) - {"left", "right"} or key == "trim"
+                                  and not all(_finite(x, positive=False) for x in given.values())):
+            raise TwinError(f"channels[{key!r}] must be a dict of 'left' and/or 'right' to {to}, got {given!r:.60}")
     return read(path, channels=channels)
+
+
+def _finite(value, positive: bool = True) -> bool:
+    """A finite real number given as an argument (not text, not a flag), positive where asked."""
+    return (not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value)
+            and (value > 0 or not positive))
 
 
 def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
@@ -314,13 +350,16 @@ def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated:
             speed in rps and rudder angle in rad) and the `segments` between dropouts.
 
     Raises:
-        TwinError: the recording cannot be read, or its inputs cannot drive the vessel (PWM for a
-            propeller-and-rudder ship, a ship's propeller and rudder for a PWM boat); or `vessel`
-            is neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+        TwinError: more than one recording is given; the recording cannot be read, or its inputs
+            cannot drive the vessel (PWM for a propeller-and-rudder ship, a ship's propeller and
+            rudder for a PWM boat); or `vessel` is neither a twin.Vessel nor the name of a shipped
+            vessel or a readable vessel file.
     """
     from .ident.identify import calibrate as calibrate_logs, prepared
     from .prepare import prepare as bare
 
+    if isinstance(recording, (list, tuple)) and len(recording) > 1:  # the others were silently dropped
+        raise TwinError(f"prepare_recording prepares one recording, got {len(recording)}: prepare each on its own")
     if vessel is None:
         return bare(_recordings(recording)[0])
     v = _vessel(vessel)
@@ -399,8 +438,8 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
             each coefficient, its prior and what was identified.
 
     Raises:
-        TwinError: an option identify does not take, or one out of its range; no recordings, one
-            given twice, one that cannot be read or cannot drive the vessel; a sea given wrongly or
+        TwinError: an option identify does not take, or one of the wrong kind or out of its range;
+            no recordings, one given twice, one that cannot be read or cannot drive the vessel; a sea given wrongly or
             one the vessel cannot run in; too few windows with the thrusters working to identify
             anything; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
             readable vessel file.
@@ -409,6 +448,12 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
     from .ident.identify import identify as run
 
     _known_options(run, options, "identify")
+    if options.get("progress") is not None and not callable(options["progress"]):
+        raise TwinError(f"progress is a callable taking (text, step, steps) or None, got {options['progress']!r:.60}")
+    weights = options.get("prior_weights", (1.0,))
+    if isinstance(weights, (str, bytes, dict)) or not hasattr(weights, "__len__") or not len(weights) or not all(
+            _finite(w) for w in weights):
+        raise TwinError(f"prior_weights must be a non-empty list of positive numbers, got {weights!r:.60}")
     v = _in_sea(_vessel(vessel), sea)
     for name in ("params", "groups"):  # one name alone is a name, not its letters
         if isinstance(options.get(name), str):
@@ -496,6 +541,8 @@ def _cell(value) -> str:
         return f"{value:.4g}"
     return str(value)
 
+
+SAMPLE_DT_S = 0.1  # the engine's default output sample period, which crosscheck's runs are sampled at
 
 # units of the velocities and the yaw rate in every score: r in degrees per second, as in the reports
 UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}
@@ -674,7 +721,7 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         and the calibrations.
 
     Raises:
-        TwinError: `stride_s` not positive; `by` not a known state; `wind` neither None nor
+        TwinError: `stride_s` not a positive, finite number of seconds; `by` not a known state; `wind` neither None nor
             "measured", or "measured" for a recording without a wind stream or a vessel without a
             wind load model; no recordings, one given twice, one that cannot be read or cannot
             drive the vessel; a sea given wrongly or one the vessel cannot run in; or `vessel` is
@@ -686,11 +733,11 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     from .fit.windows import ModelCache
     from .ident.identify import calibrate as calibrate_logs, check_wind, manoeuvre_horizon_s, prepared
 
+    if not _finite(stride_s):
+        raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s!r}")
     v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
     check_wind(recs, wind, v)
-    if not stride_s > 0:
-        raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s:g}")
     seen = from_dict(v.uncertainty["fitted_on"], f"{v.name}: uncertainty.fitted_on") \
         if "fitted_on" in v.uncertainty else None
     if by is not None and by not in STATE_NAMES:
@@ -934,7 +981,7 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     Raises:
         TwinError: `window_s` not a positive number of seconds; `effects` or `refit` not names,
             an effect unknown or with nothing to act on in these recordings, a group the vessel
-            has not, or `refit_weight` not positive; `wind` neither None nor "measured", or
+            has not, or `refit_weight` not positive; `log` not callable; `wind` neither None nor "measured", or
             "measured" without a wind stream or a wind load model; no recordings, one given twice,
             one that cannot be read or has no inputs to drive the vessel, or recordings too short
             to fit on one part and judge on another (about 2 minutes with inputs at least); a sea
@@ -946,8 +993,12 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     from .diagnose.doctor import WINDOW_S, diagnose as run
     from .engine.sixdof import without_known_sea
 
-    if window_s is not None and not (isinstance(window_s, (int, float)) and math.isfinite(window_s) and window_s > 0):
-        raise TwinError(f"window_s must be a positive number of seconds, got {window_s}")
+    if window_s is not None and not _finite(window_s):
+        raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
+    if not _finite(refit_weight):
+        raise TwinError(f"refit_weight must be a positive number of windows, got {refit_weight!r}")
+    if log is not None and not callable(log):
+        raise TwinError(f"log is a callable taking progress lines (str) or None, got {log!r:.60}")
     v = _in_sea(_vessel(vessel), sea)
     library = None if effects is None else list(_names(effects, "effects", "`twin effects` lists them"))
     refit = None if refit is None else _names(refit, "refit", "surge, sway, yaw, ...: the vessel's fit groups")
@@ -986,7 +1037,8 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
 
     Raises:
         TwinError: `effects` not texts, or one that is unknown or malformed (told before the
-            recordings are read); an option `given_evidence` does not take; no recordings, one
+            recordings are read); an option `given_evidence` does not take, or `window_s` not a
+            positive number of seconds; no recordings, one
             given twice, one that cannot be read or cannot drive the vessel, or recordings too
             short to fit on one part and judge on another; or `vessel` is neither a twin.Vessel nor
             the name of a shipped vessel or a readable vessel file.
@@ -997,6 +1049,8 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
 
     effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
     _known_options(given_evidence, options, "judge")
+    if "window_s" in options and not _finite(options["window_s"]):
+        raise TwinError(f"window_s must be a positive number of seconds, got {options['window_s']!r}")
     for text in effects:  # an unknown effect is told before the recordings are read
         if isinstance(text, str):
             parse_effect(text)

@@ -4,6 +4,7 @@ identification and diagnosis libraries (scipy.optimize, scipy.signal, ...): meas
 a second of CPU saved on every `twin simulate`."""
 from __future__ import annotations
 
+import inspect
 import numbers
 import os
 from dataclasses import dataclass, field, replace
@@ -54,7 +55,7 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
             `eta0` is not 3 finite numbers; the duration or sample step is not a positive number
             of seconds, the step is longer than the run or not a multiple of the physics time
             step, or the run would hold more than half of the machine's memory; the seed is not a
-            whole number; or the sea is given wrongly.
+            whole number; the sea is given wrongly; or a keyword the engine does not take.
     """
     if isinstance(vessel, (str, Path)):
         vessel = load_vessel(str(vessel))
@@ -74,6 +75,13 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
             if start.shape != (3,) or not np.all(np.isfinite(start)):
                 raise TwinError(f"{name} must be 3 finite numbers ({'u, v, r' if name == 'nu0' else 'north, east, ψ'}),"
                                 f" got {value!r:.60}")
+    known = [n for n, p in inspect.signature(_simulate).parameters.items() if p.kind is p.KEYWORD_ONLY] + ["seed"]
+    unknown = sorted(set(kwargs) - set(known))
+    if unknown:  # a typo would otherwise be a TypeError from inside the engine, after the compile
+        raise TwinError(f"simulate: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
+                        f"(known: {', '.join(known)})")
+    if "control_dt_s" in kwargs:
+        _number(kwargs["control_dt_s"], "the control period")
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
     compiled = compile_vessel(vessel)
     if isinstance(drive, str):
@@ -181,6 +189,12 @@ def _physical_memory_bytes() -> int:
         return 0
 
 
+def _output_path(path) -> None:
+    """An output path given as a path: a str or Path, not empty (Path("") is the current folder)."""
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise TwinError(f"an output is written to a file path (str or Path), got {path!r:.60}")
+
+
 @dataclass
 class Simulation:
     """A run of the twin with what it was run on, and where its inputs went beyond their bounds.
@@ -216,10 +230,12 @@ class Simulation:
                 keeps it.
 
         Raises:
-            TwinError: a file is already at `path` and `force` is False, or the format is unknown.
+            TwinError: `path` is not a file path, a file is already there and `force` is False,
+                or the format is unknown.
         """
         from .outputs import write
 
+        _output_path(path)
         if Path(path).exists() and not force:
             raise TwinError(f"'{path}' exists: it is kept (force=True replaces it)")
         v = self.compiled.vessel
@@ -269,10 +285,11 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
             seconds, the step is longer than the run or not a multiple of the physics time step,
             or the run would hold more than half of the machine's memory; `current` or `wind` is
             not two numbers, or faster than any a small vessel meets (10 m/s of current, 40 m/s of
-            wind); a wind for a vessel with no wind load model; an inputs file missing or
-            malformed, or inputs of a kind that cannot drive the vessel; an unknown scenario or
-            one the vessel's thrusters cannot sail; a sea given wrongly or one the 6-DOF hull
-            cannot run in; the seed is not a whole number or the start speed not a number.
+            wind); a wind for a vessel with no wind load model; `inputs` neither a path nor an
+            InputSeries, an inputs file missing or malformed, or inputs of a kind that cannot drive
+            the vessel; an unknown scenario or one the vessel's thrusters cannot sail; a sea given
+            wrongly or one the 6-DOF hull cannot run in; the seed is not a whole number or the start
+            speed not a number.
     """
     if isinstance(vessel, (str, Path)):
         vessel = load_vessel(str(vessel))
@@ -290,6 +307,8 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
                             "so a wind would do nothing: add wind_load to its vessel file")
         env = replace(env, wind_speed_m_s=wind[0], wind_dir_deg=wind[1])
     vessel = vessel.with_environment(env)
+    if inputs is not None and not isinstance(inputs, (str, Path, InputSeries)):
+        raise TwinError(f"inputs is an inputs CSV's path or a twin.InputSeries, got {type(inputs).__name__}")
     if inputs is not None and not isinstance(inputs, InputSeries):
         inputs = read_inputs_csv(inputs)
     drive = inputs if inputs is not None else get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name)
