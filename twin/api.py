@@ -18,7 +18,6 @@ packages), so importing any part of the package never replaces a function.
 """
 from __future__ import annotations
 
-import inspect
 import math
 import numbers
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -32,7 +31,7 @@ from .diagnose.search import excess_shown
 from .errors import TwinError
 from .files import same_file
 from .run import Run
-from .simulation import Simulation, simulate, simulate_run
+from .simulation import Simulation, known_options, simulate, simulate_run
 from .verify.crosscheck import crosscheck as _crosscheck
 from .ident.identify import Identification as _Identification
 from .verify.validate import Validation as _Validation, validate as _validate
@@ -78,17 +77,6 @@ def _new_output(path, formats: tuple[str, ...], force: bool) -> None:
         raise TwinError(f"'{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
     if p.exists() and not force:
         raise TwinError(f"'{p}' exists: it is kept (force=True replaces it)")
-
-
-def _known_options(function, options: dict, what: str) -> None:
-    """Refuse, in one sentence, an option `function` does not take (a typo would otherwise surface as
-    a TypeError from deep inside)."""
-    known = [n for n, p in inspect.signature(inspect.unwrap(function)).parameters.items()
-             if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)]
-    unknown = sorted(set(options) - set(known))
-    if unknown:
-        raise TwinError(f"{what}: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
-                        f"(known: {', '.join(known)})")
 
 
 class Validation(_Validation):
@@ -447,7 +435,7 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
     from .engine.sixdof import without_known_sea
     from .ident.identify import identify as run
 
-    _known_options(run, options, "identify")
+    known_options(run, options, "identify")
     if options.get("progress") is not None and not callable(options["progress"]):
         raise TwinError(f"progress is a callable taking (text, step, steps) or None, got {options['progress']!r:.60}")
     weights = options.get("prior_weights", (1.0,))
@@ -1048,7 +1036,7 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     from .effects import parse_effect
 
     effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
-    _known_options(given_evidence, options, "judge")
+    known_options(given_evidence, options, "judge")
     if "window_s" in options and not _finite(options["window_s"]):
         raise TwinError(f"window_s must be a positive number of seconds, got {options['window_s']!r}")
     for text in effects:  # an unknown effect is told before the recordings are read

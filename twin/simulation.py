@@ -75,11 +75,8 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
             if start.shape != (3,) or not np.all(np.isfinite(start)):
                 raise TwinError(f"{name} must be 3 finite numbers ({'u, v, r' if name == 'nu0' else 'north, east, ψ'}),"
                                 f" got {value!r:.60}")
-    known = [n for n, p in inspect.signature(_simulate).parameters.items() if p.kind is p.KEYWORD_ONLY] + ["seed"]
-    unknown = sorted(set(kwargs) - set(known))
-    if unknown:  # a typo would otherwise be a TypeError from inside the engine, after the compile
-        raise TwinError(f"simulate: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
-                        f"(known: {', '.join(known)})")
+    # a typo would otherwise be a TypeError from inside the engine, after the compile
+    known_options(_simulate, kwargs, "simulate", also=("seed",))
     if "control_dt_s" in kwargs:
         _number(kwargs["control_dt_s"], "the control period")
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
@@ -194,6 +191,17 @@ def _output_path(path) -> None:
     if not isinstance(path, (str, Path)) or not str(path):
         raise TwinError(f"an output is written to a file path (str or Path), got {path!r:.60}")
 
+
+def known_options(function, options: dict, what: str, also: tuple[str, ...] = ()) -> None:
+    """Refuse, in one sentence, an option neither `function` nor its caller (`also`) takes (a typo
+    would otherwise surface as a TypeError from deep inside)."""
+    known = [n for n, p in inspect.signature(inspect.unwrap(function)).parameters.items()
+             if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)]
+    known += list(also)
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise TwinError(f"{what}: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
+                        f"(known: {', '.join(known)})")
 
 @dataclass
 class Simulation:
