@@ -255,3 +255,26 @@ def test_wrong_arguments_found_by_calling_every_export_are_twin_errors(tmp_path,
             call()
     assert twin.compile_vessel("blueboat").vessel.name == "blueboat"  # a name, as every other export takes it
     assert twin.prepare_recording([rec], "blueboat") is not None  # a list of one is still one recording
+
+
+def test_a_flag_given_as_text_and_a_controller_returning_nonsense_are_twin_errors(log):
+    """The text "no" is true to Python: calibrated="no" applied the calibration it meant to skip. A
+    controller returning text, one number or NaN failed inside the engine (TypeError) or ran on NaN."""
+    rec = twin.read_recording(log)
+    flags = [
+        (lambda: twin.prepare_recording(rec, "blueboat", calibrated="no"), "calibrated must be True or False"),
+        (lambda: twin.compile_vessel("blueboat", "false"), "wind_inputs must be True or False"),
+        (lambda: twin.crosscheck("blueboat", duration_s=2.0, six_dof=1), "six_dof must be True or False"),
+        (lambda: twin.save_vessel("blueboat", "v.json", force="yes"), "force must be True or False"),
+        (lambda: twin.diagnose_recordings(rec, "blueboat", kinematic="off"), "kinematic must be True or False"),
+        (lambda: twin.identify(rec, "blueboat", calibrated="no"), "identify: calibrated must be True or False"),
+        (lambda: twin.judge(rec, "blueboat", "current=0.1,90", calibrated=0), "calibrated must be True or False"),
+    ]
+    for call, says in flags:
+        with pytest.raises(twin.TwinError, match=says):
+            call()
+    for output in ("x", (1.0,), (float("nan"), 0.0), None, (0.5, float("inf"))):
+        with pytest.raises(twin.TwinError, match=r"the controller gave .* at t = 0\.00 s: it must return two finite"):
+            twin.simulate("blueboat", lambda t, eta, nu, out=output: out, duration_s=1.0)
+    held = twin.simulate("blueboat", lambda t, eta, nu: (5.0, 0.0), duration_s=3.0)  # beyond ±1: held at full
+    assert held.nu[-1, 0] > 0.5

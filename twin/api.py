@@ -31,7 +31,7 @@ from .diagnose.search import excess_shown
 from .errors import TwinError
 from .files import same_file
 from .run import Run
-from .simulation import Simulation, known_options, simulate, simulate_run
+from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
 from .verify.crosscheck import crosscheck as _crosscheck
 from .ident.identify import Identification as _Identification
 from .verify.validate import Validation as _Validation, validate as _validate
@@ -63,6 +63,7 @@ def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
             is False; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
             readable vessel file.
     """
+    check_flags("save_vessel", force=force)
     _new_output(path, (".json",), force)
     return _save(_vessel(vessel), path)
 
@@ -149,6 +150,7 @@ def compile_vessel(vessel: Vessel | str, wind_inputs: bool = False) -> CompiledV
         TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a readable
             vessel file, or its model does not compile.
     """
+    check_flags("compile_vessel", wind_inputs=wind_inputs)
     return _compile_vessel(_vessel(vessel), wind_inputs)
 
 
@@ -205,6 +207,7 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
     """
     from .verify.crosscheck import cases
 
+    check_flags("crosscheck", six_dof=six_dof)
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
             math.isfinite(duration_s) and duration_s > 0):
         raise TwinError(f"duration_s must be a positive, finite number of seconds, got {duration_s!r}")
@@ -348,6 +351,7 @@ def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated:
 
     if isinstance(recording, (list, tuple)) and len(recording) > 1:  # the others were silently dropped
         raise TwinError(f"prepare_recording prepares one recording, got {len(recording)}: prepare each on its own")
+    check_flags("prepare_recording", calibrated=calibrated)
     if vessel is None:
         return bare(_recordings(recording)[0])
     v = _vessel(vessel)
@@ -981,6 +985,7 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     from .diagnose.doctor import WINDOW_S, diagnose as run
     from .engine.sixdof import without_known_sea
 
+    check_flags("diagnose_recordings", calibrated=calibrated, kinematic=kinematic)
     if window_s is not None and not _finite(window_s):
         raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
     if not _finite(refit_weight):

@@ -202,6 +202,17 @@ def known_options(function, options: dict, what: str, also: tuple[str, ...] = ()
     if unknown:
         raise TwinError(f"{what}: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} "
                         f"(known: {', '.join(known)})")
+    parameters = inspect.signature(inspect.unwrap(function)).parameters
+    check_flags(what, **{n: v for n, v in options.items() if n in parameters
+                         and isinstance(parameters[n].default, bool)})
+
+
+def check_flags(what: str, **flags) -> None:
+    """Refuse a yes-or-no option given as anything but True or False: the text "no" or "false" is
+    true to Python, and would have turned on what the user meant to turn off."""
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise TwinError(f"{what}: {name} must be True or False, got {value!r:.60}")
 
 @dataclass
 class Simulation:

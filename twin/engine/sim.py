@@ -170,6 +170,20 @@ class _OpenLoop:
         return self.series
 
 
+_OUTPUT_WORDS = {"thrust": "(left, right) thrusts in N", "propeller_rudder": "(n rps, rudder δ rad)"}
+
+
+def _two_finite(pair) -> bool:
+    """Two finite numbers: a controller's output, or the input it holds (plain floats on the fast path)."""
+    if isinstance(pair, (tuple, list)) and len(pair) == 2 and all(isinstance(x, (float, int)) for x in pair):
+        return math.isfinite(pair[0]) and math.isfinite(pair[1])
+    try:
+        values = np.asarray(pair, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return values.shape == (2,) and bool(np.all(np.isfinite(values)))
+
+
 class _ClosedLoop:
     """A controller evaluated every n_control steps. Its output at step k reaches the thrusters
     at step min(k + n_delay, n_steps) (the delay), decayed by the recording time of each step."""
@@ -238,7 +252,14 @@ class _ClosedLoop:
     def _tick(self, k: int, state: np.ndarray) -> None:
         t = np.float64(k * self.h)  # the type the controller always got (k·h on numpy steps)
         eta, nu = self.layout.eta_nu(state)
-        kind, held = self.map.held(self.controller, self.controller(t, eta, nu))
+        out = self.controller(t, eta, nu)
+        try:
+            kind, held = self.map.held(self.controller, out)
+        except (TypeError, ValueError, IndexError):
+            kind, held = "", None
+        if held is None or not _two_finite(out) or not _two_finite(held):
+            raise TwinError(f"the controller gave {out!r:.60} at t = {t:.2f} s: it must return two finite numbers, "
+                            f"{_OUTPUT_WORDS.get(getattr(self.controller, 'output', ''), '(surge, yaw) from -1 to 1')}")
         self.ticks.append(k)
         self.times.append(t)
         self.values.append(held)
