@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from .drive import InputSeries, WindSeries
 from .errors import TwinError
@@ -171,8 +172,6 @@ def simulate(
 def straight_speed(compiled, n_rps: float) -> float:
     """u₀ (m/s): a propeller-and-rudder ship's steady straight-running speed at propeller speed n with
     the rudder amidships, in calm water (X(u₀, 0, 0) = 0 of the MMG forces)."""
-    from scipy.optimize import brentq
-
     hydro = compiled.hydro().with_environment(type(compiled.vessel.environment)())
 
     def surge(u: float) -> float:

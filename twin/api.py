@@ -26,14 +26,26 @@ from pathlib import Path
 from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import CompiledVessel, compile_vessel as _compile_vessel
 from .engine.parameters import effective_parameters as _effective_parameters
-from .diagnose.doctor import Diagnosis as _Found
-from .diagnose.search import excess_shown
+from .engine.sixdof import check_sea_for, with_known_sea, without_known_sea
+from .diagnose import doctor as _doctor
+from .diagnose.doctor import WINDOW_S, Diagnosis as _Found, given_evidence, given_text
+from .diagnose.search import Z_MIN, excess_shown
+from .effects import EFFECTS, parse_effect
 from .errors import TwinError
 from .files import same_file
+from .fit.coverage import from_dict
+from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as _evaluate, misfit_by_manoeuvre, misfit_by_state, \
+    percentile_edges
+from .fit.windows import ModelCache
+from .formats import read_recording as _read_recording
+from .physics.waves import Sea, parse_sea
+from .prepare import prepare as _prepare
+from .recording import Recording, check_no_shared_stretch
 from .run import Run
 from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
-from .verify.crosscheck import crosscheck as _crosscheck
-from .ident.identify import Identification as _Identification
+from .verify.crosscheck import cases, crosscheck as _crosscheck
+from .ident.identify import Identification as _Identification, calibrate as _calibrate, check_wind, \
+    identify as _identify, manoeuvre_horizon_s, prepared
 from .verify.validate import Validation as _Validation, validate as _validate
 from .vessel import Vessel, load as load_vessel, save as _save
 
@@ -205,8 +217,6 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
             neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file; or
             `six_dof` for a vessel without hull meshes.
     """
-    from .verify.crosscheck import cases
-
     check_flags("crosscheck", six_dof=six_dof)
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
             math.isfinite(duration_s) and duration_s > 0):
@@ -244,9 +254,6 @@ def _vessel(vessel: Vessel | str) -> Vessel:
 def _recordings(recordings, vessel: Vessel | None = None) -> list:
     """Recordings from paths or Recording objects, checked as the command checks them: at least one,
     each one at most once, and each one able to drive `vessel`."""
-    from .formats import read_recording as read
-    from .recording import Recording, check_no_shared_stretch
-
     kinds = (str, Path, Recording)
     if isinstance(recordings, kinds):
         items = [recordings]
@@ -260,7 +267,7 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
     for k, p in enumerate(paths):  # one log twice would be judged against itself as a left-out run
         if any(same_file(p, q) for q in paths[:k]):
             raise TwinError(f"'{p}' is given twice: give each recording once")
-    recs = [r if isinstance(r, Recording) else read(r) for r in items]
+    recs = [r if isinstance(r, Recording) else _read_recording(r) for r in items]
     seen: dict[int, int] = {}
     for i, r in enumerate(recs):
         if id(r) in seen:
@@ -304,14 +311,12 @@ def read_recording(path, channels: dict | None = None):
             recording, or holds nothing usable; or `channels` is malformed or does not apply to
             the file (LEFT,RIGHT for a CSV or MCAP recording).
     """
-    from .formats import read_recording as read
-
     for key, to in (("reversed", "True or False"), ("trim", "the PWM of zero thrust in µs")):
         given = channels.get(key) if isinstance(channels, dict) else None  # a wrong shape failed inside the readers
         if given is not None and (not isinstance(given, dict) or set(given) - {"left", "right"} or key == "trim"
                                   and not all(_finite(x, positive=False) for x in given.values())):
             raise TwinError(f"channels[{key!r}] must be a dict of 'left' and/or 'right' to {to}, got {given!r:.60}")
-    return read(path, channels=channels)
+    return _read_recording(path, channels=channels)
 
 
 def _finite(value, positive: bool = True) -> bool:
@@ -346,18 +351,15 @@ def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated:
             rudder for a PWM boat); or `vessel` is neither a twin.Vessel nor the name of a shipped
             vessel or a readable vessel file.
     """
-    from .ident.identify import calibrate as calibrate_logs, prepared
-    from .prepare import prepare as bare
-
     if isinstance(recording, (list, tuple)) and len(recording) > 1:  # the others were silently dropped
         raise TwinError(f"prepare_recording prepares one recording, got {len(recording)}: prepare each on its own")
     check_flags("prepare_recording", calibrated=calibrated)
     if vessel is None:
-        return bare(_recordings(recording)[0])
+        return _prepare(_recordings(recording)[0])
     v = _vessel(vessel)
     rec = _recordings(recording, v)[0]
     if calibrated:
-        v, _ = calibrate_logs([rec], v)
+        v, _ = _calibrate([rec], v)
     return prepared([rec], v)[0]
 
 
@@ -384,17 +386,12 @@ def calibrate(recordings, vessel: Vessel | str) -> list:
             be read or whose inputs cannot drive the vessel; or `vessel` is neither a twin.Vessel
             nor the name of a shipped vessel or a readable vessel file.
     """
-    from .ident.identify import calibrate as calibrate_logs
-
     v = _vessel(vessel)
-    return calibrate_logs(_recordings(recordings, v), v)[1]
+    return _calibrate(_recordings(recordings, v), v)[1]
 
 
 def _in_sea(vessel: Vessel, sea) -> Vessel:
     """The vessel with the steady drift of `sea` (a Sea, `--sea` text or None) a known flow."""
-    from .engine.sixdof import check_sea_for, with_known_sea
-    from .physics.waves import Sea, parse_sea
-
     if sea is None:
         return vessel
     sea = sea if isinstance(sea, Sea) else parse_sea(str(sea))
@@ -436,10 +433,7 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
             anything; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
             readable vessel file.
     """
-    from .engine.sixdof import without_known_sea
-    from .ident.identify import identify as run
-
-    known_options(run, options, "identify")
+    known_options(_identify, options, "identify")
     if options.get("progress") is not None and not callable(options["progress"]):
         raise TwinError(f"progress is a callable taking (text, step, steps) or None, got {options['progress']!r:.60}")
     weights = options.get("prior_weights", (1.0,))
@@ -450,7 +444,7 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
     for name in ("params", "groups"):  # one name alone is a name, not its letters
         if isinstance(options.get(name), str):
             options[name] = (options[name],)
-    result = run(_recordings(recordings, v), v, **options)
+    result = _identify(_recordings(recordings, v), v, **options)
     result = replace(result, vessel=without_known_sea(result.vessel)) if sea is not None else result
     return Identification(**{f.name: getattr(result, f.name) for f in fields(result)})
 
@@ -579,8 +573,6 @@ class Score:
 
 
 def _scores(metrics: dict, calibrated: bool) -> list[Score]:
-    import math
-
     out = []
     for horizon, m in metrics.items():
         for d in "uvr":
@@ -719,12 +711,6 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
             drive the vessel; a sea given wrongly or one the vessel cannot run in; or `vessel` is
             neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
     """
-    from .fit.coverage import from_dict
-    from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as run, misfit_by_manoeuvre, misfit_by_state, \
-        percentile_edges
-    from .fit.windows import ModelCache
-    from .ident.identify import calibrate as calibrate_logs, check_wind, manoeuvre_horizon_s, prepared
-
     if not _finite(stride_s):
         raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s!r}")
     v = _in_sea(_vessel(vessel), sea)
@@ -734,13 +720,13 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         if "fitted_on" in v.uncertainty else None
     if by is not None and by not in STATE_NAMES:
         raise TwinError(f"by={by!r}: unknown state (known: {', '.join(STATE_NAMES)})")
-    calibrated, calibrations = calibrate_logs(recs, v)
+    calibrated, calibrations = _calibrate(recs, v)
     preps = prepared(recs, calibrated)
     edges = percentile_edges(preps, STATE_NAMES[by], f"by={by!r}") if by else ()
     predictor, horizon = TwinPredictor(calibrated, ModelCache(), wind), manoeuvre_horizon_s(v, seen)
     bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s) if by else []
-    return Evaluation(v.name, run(calibrated, preps, stride_s=stride_s, wind=wind),
-                      run(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
+    return Evaluation(v.name, _evaluate(calibrated, preps, stride_s=stride_s, wind=wind),
+                      _evaluate(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
                       misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands,
                       list(v.uncertainty.get("stand_ins", [])))
 
@@ -858,8 +844,6 @@ class Effect(dict):
 
     @property
     def parameters(self) -> list[Parameter]:
-        from .effects import EFFECTS
-
         spec = EFFECTS.get(self["name"])
         units = {v.name: v.unit for v in spec.values} if spec else {}
         ci = self.get("ci") or {}
@@ -980,11 +964,6 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
             given wrongly or one the vessel cannot run in; or `vessel` is neither a twin.Vessel nor
             the name of a shipped vessel or a readable vessel file.
     """
-    from dataclasses import fields
-
-    from .diagnose.doctor import WINDOW_S, diagnose as run
-    from .engine.sixdof import without_known_sea
-
     check_flags("diagnose_recordings", calibrated=calibrated, kinematic=kinematic)
     if window_s is not None and not _finite(window_s):
         raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
@@ -995,9 +974,9 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     v = _in_sea(_vessel(vessel), sea)
     library = None if effects is None else list(_names(effects, "effects", "`twin effects` lists them"))
     refit = None if refit is None else _names(refit, "refit", "surge, sway, yaw, ...: the vessel's fit groups")
-    found = run(_recordings(recordings, v), v, window_s=WINDOW_S if window_s is None else window_s, log=log,
-                library=library, calibrated=calibrated, refit=refit,
-                refit_weight=refit_weight, kinematic=kinematic, wind=wind)
+    found = _doctor.diagnose(_recordings(recordings, v), v, window_s=WINDOW_S if window_s is None else window_s,
+                             log=log, library=library, calibrated=calibrated, refit=refit,
+                             refit_weight=refit_weight, kinematic=kinematic, wind=wind)
     typed = Diagnosis(**{f.name: getattr(found, f.name) for f in fields(found)})
     if sea is not None:
         typed.amended = without_known_sea(typed.amended)
@@ -1036,10 +1015,6 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
             short to fit on one part and judge on another; or `vessel` is neither a twin.Vessel nor
             the name of a shipped vessel or a readable vessel file.
     """
-    from .diagnose.doctor import given_evidence, given_text
-    from .diagnose.search import Z_MIN
-    from .effects import parse_effect
-
     effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
     known_options(given_evidence, options, "judge")
     if "window_s" in options and not _finite(options["window_s"]):

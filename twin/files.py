@@ -11,6 +11,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterator
 
+import numpy as np
+
 from .errors import TwinError
 
 # rerun application ids: runs recorded (a simulation, a SITL session) against a report's view of
@@ -171,8 +173,6 @@ def same_file(a, b) -> bool:
 def json_default(x):
     """json.dumps' default= for the project's results: numpy numbers and arrays as plain values,
     objects with to_dict() as that, anything else as its text."""
-    import numpy as np  # here: writing a file must not make every importer load numpy
-
     if isinstance(x, np.generic):
         return x.item()
     if isinstance(x, np.ndarray):

@@ -15,8 +15,11 @@ from .drive import InputSeries, inputs_mismatch
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import delivered_thrust, simulate
 from .errors import TwinError
-from .prepare import Prepared
+from .fit.calibrate import prepare_for, rate_windows
+from .fit.windows import make_windows, measured, predict
+from .prepare import Prepared, prepare
 from .prepare.prepared import hold, wind_series
+from .prepare.smoother import model_smoothed
 from .run import Run
 from .vessel import Vessel
 
@@ -115,9 +118,6 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
     calibration identify, evaluate and diagnose use: heading corrections, antenna position), its
     thrust through the vessel's thruster map, and with `sim` the twin's replay of each segment.
     Without a vessel the positions are the antenna's (no lever arm is known)."""
-    from .fit.calibrate import prepare_for, rate_windows
-    from .prepare import prepare
-
     if (sim or smoother == "model") and vessel is None:
         raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
     if smoother not in ("savgol", "model"):
@@ -134,8 +134,6 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         else:
             prep = prepare_for(rec, compiled, **rate_windows(vessel))  # as identify and diagnose see it
         if smoother == "model":
-            from .prepare.smoother import model_smoothed
-
             own = replace(vessel, environment=vessel.environment.for_log(rec.source))
             prep = model_smoothed(compiled if own == vessel else compile_vessel(own), prep)
         if compiled is not None and prep.input_kind != vessel.thrusters.input_kind:
@@ -182,8 +180,6 @@ def stitched_runs(windows, series: dict) -> dict[str, Run]:
 def free_run_views(vessel: Vessel, preps: list[Prepared], window_s: float = 10.0) -> dict[str, Run]:
     """The recordings and the twin's back-to-back free runs of window_s from measured states, as
     two runs on one timeline (what `twin evaluate --rrd` shows)."""
-    from .fit.windows import make_windows, measured, predict
-
     wins = make_windows(preps, window_s, window_s)
     pred = predict(vessel, preps, wins)[0]
     eta, nu = measured(preps, wins)

@@ -12,12 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .analytic import straight_speed
 from .drive import InputSeries, get as get_scenario, read_inputs_csv, to_thruster_inputs
 from .engine.limits import Limited, beyond_bounds
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate as _simulate
 from .errors import TwinError
 from .physics.environment import MAX_CURRENT_M_S, MAX_WIND_M_S
+from .physics.waves import Sea, parse_sea
 from .run import Run
 from .vessel import Vessel, load as load_vessel
 
@@ -95,8 +97,6 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
 def _sea(sea, seed: int):
     """A physics.waves.Sea as given, or drawn with `seed` from its text 'HS,TP,DIR[,SPREAD]' /
     'regular,H,T,DIR' (as `twin simulate --sea`); None stays None."""
-    from .physics.waves import Sea, parse_sea
-
     if isinstance(sea, str):
         return parse_sea(sea, seed)
     if sea is not None and not isinstance(sea, Sea):
@@ -112,8 +112,6 @@ def _approach(compiled: CompiledVessel, scenario: str, seed: int) -> np.ndarray 
     thrusters = compiled.vessel.thrusters
     if thrusters.kind != "propeller_rudder":
         return None
-    from .analytic import straight_speed  # scipy's integrators and root finders: a ship's scenario's alone (docstring)
-
     first = get_scenario(scenario, seed, thrusters.kind, compiled.vessel.name)  # its own: a scenario keeps state
     surge, _ = first(0.0, np.zeros(3), np.zeros(3))
     n_rps = float(to_thruster_inputs(thrusters, surge, 0.0)[1][0])

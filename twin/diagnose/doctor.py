@@ -37,7 +37,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..effects import candidates
+from ..effects import EFFECTS, apply_effects, candidates, effect
+from ..effects.coefficients import fit_groups
 from ..engine.mjcf import compile_vessel
 from ..errors import TooShort, TwinError
 from ..fit.metrics import r2_mae
@@ -49,12 +50,14 @@ from ..prepare.prepared import supply_voltage
 from ..prepare.timing import heading_lag_behind_gyro
 from ..recording import Recording
 from ..threads import one_blas_thread
-from ..fit.calibrate import prepare_for, rate_windows
+from ..fit.calibrate import kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
+from ..fit.kinematic import kinematic_findings, with_findings
+from ..fit.simfit import coordinates, map_start
 from ..ident.identify import check_wind
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
-from .report import FOLLOWS_R, excess_share
+from .report import FOLLOWS_R, answer, excess_share
 from .search import BLOCK_WINDOWS, Z_MIN, Search, excess_shown
 
 WINDOW_S = 10.0
@@ -110,8 +113,6 @@ def _check_library(prior: Vessel, recordings: list[Recording], library: list[str
     """Refuse, before any replay, a requested effect that is unknown or has nothing to act on in
     these recordings (the same offer `candidates` makes once they are prepared: a battery's
     effect only where every log has a voltage), and a wind where the measured one is a known input."""
-    from ..effects import EFFECTS
-
     logs_battery = all(supply_voltage(r, r.battery.t) is not None for r in recordings)
     offered = candidates(prior, [log_name(r.source) for r in recordings], supply_ref_v=1.0 if logs_battery else None)
     if wind == "measured":
@@ -243,8 +244,6 @@ def kinematic_only(recordings: list[Recording]) -> set[str]:
 def _kinematic(recordings: list[Recording], prior: Vessel, calibrated: bool, library, log):
     """Step 0 (module docstring): the findings, and the prior with the told ones put in. Read against
     the twin with each log's compass calibration, as everything after reads the logs."""
-    from ..fit.kinematic import kinematic_findings, with_findings
-
     seen = _calibrated(recordings, prior)[0] if calibrated else prior
     findings = [f for f in kinematic_findings(recordings, seen) if not library or f.effect in library]
     for f in findings:
@@ -256,8 +255,6 @@ def _kinematic(recordings: list[Recording], prior: Vessel, calibrated: bool, lib
 def _kinematic_effect(f) -> dict:
     """A kinematic finding as an entry of Diagnosis.effects: its values with 95 % intervals, its
     evidence the kinematics' own (no held-out blocks: nothing was fitted to the dynamics)."""
-    from ..effects import effect
-
     eff = effect(f.effect, **f.values)
     ci = {k: [v - 1.96 * f.sigma[k2], v + 1.96 * f.sigma[k2]] for k, v in eff.flat().items()
           for k2 in [k] if f.sigma.get(k2)}
@@ -270,8 +267,6 @@ def _kinematic_effect(f) -> dict:
 
 def _check_refit(prior: Vessel, refit: tuple[str, ...], weight: float) -> None:
     """Bad --refit input as one line, before any work."""
-    from ..effects.coefficients import fit_groups
-
     if not math.isfinite(weight) or not weight > 0:
         raise TwinError(f"--refit-weight must be a positive number of windows, got {weight}")
     if not refit:
@@ -288,9 +283,6 @@ def _core(prior: Vessel, refit: tuple[str, ...] | None) -> tuple[list, list[str]
     search starts from (a thrust lag of 0.1 s where a refitted prior has none: simfit.map_start)."""
     if not refit:
         return [], [], prior
-    from ..effects.coefficients import fit_groups
-    from ..fit.simfit import coordinates, map_start
-
     groups = fit_groups(prior)
     _check_refit(prior, refit, 1.0)
     names = list(dict.fromkeys(n for g in refit for n in groups[g]))
@@ -329,8 +321,6 @@ def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wi
     prove of that physics as given, whatever a fit of it would find. known_wind "measured": the
     recordings' measured wind a known input of both (`twin diagnose --given ... --wind-measured`).
     An Evidence (search.py)."""
-    from ..effects import apply_effects
-
     check_wind(recordings, known_wind)
     prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
     search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]),
@@ -393,15 +383,11 @@ def _inert_constant_wind(diagnosis, logs: set[str]) -> None:
 # ---------------------------------------------------------------- pieces
 
 def _calibrated(recordings: list[Recording], prior: Vessel):
-    from ..fit.calibrate import kinematic_calibrations, with_log_calibrations
-
     calibrations = kinematic_calibrations(recordings, compile_vessel(prior))
     return with_log_calibrations(prior, calibrations), calibrations
 
 
 def _answer(d) -> dict:
-    from .report import answer
-
     return answer(d)
 
 

@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 from scipy.special import ndtri_exp
+from scipy.stats import t as student_t
 
 DOFS = ("u", "v", "r")
 Z_MIN = 3.0  # below this an entry is what noise alone produces now and then
@@ -34,7 +35,6 @@ def _family_z(t: np.ndarray | float, df: np.ndarray | float, n_tests: int) -> np
     z = np.zeros(t.shape)
     ok = (df >= 1) & np.isfinite(t)
     if np.any(ok):
-        from scipy.stats import t as student_t  # not at the top: see prepare.prepared.derivative
         logp = np.minimum(np.log(max(n_tests, 1)) + student_t.logsf(t[ok], df[ok]), 0.0)
         z[ok] = np.maximum(-ndtri_exp(logp), 0.0)
     return z

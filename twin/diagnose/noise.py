@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import savgol_coeffs
 
 from ..prepare.prepared import Prepared, local_ned
 from ..recording import Recording
@@ -78,7 +79,6 @@ def derivative_coeffs(dt_s: float, smoother: str, window_s: float, polyorder: in
     (interior of a segment)."""
     w = int(round(window_s / dt_s)) | 1
     if smoother == "savgol" and w > polyorder:
-        from scipy.signal import savgol_coeffs  # not at the top: see prepare.prepared.derivative
         return savgol_coeffs(w, polyorder, deriv=1, delta=dt_s)
     return np.array([-0.5, 0.0, 0.5]) / dt_s
 

@@ -19,6 +19,10 @@ import numpy as np
 from ..run import Run
 from ..files import write_text_atomic
 from ..replay import stitched_runs
+from ..effects import candidates
+from ..engine.mjcf import compile_vessel
+from ..outputs import write
+from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
@@ -55,9 +59,6 @@ def runs(d) -> dict[str, Run]:
 
 
 def write_rrd(d, path: Path) -> None:
-    from ..engine.mjcf import compile_vessel
-    from ..outputs import write
-
     write(runs(d), Path(path), geometry=compile_vessel(d.prior).geometry, vessel_name=d.prior.name,
           mjcf=d.prior.mjcf, view=True)
 
@@ -108,8 +109,6 @@ FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates w
 def answer(d) -> dict:
     """What the diagnosis concludes, in the order a user needs it: {"missing": [...], "form": [...],
     "changes": str, "unsettled": [...], "next": [...]} (lines of plain text)."""
-    from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
-
     out = {"missing": [], "form": [], "changes": "", "unsettled": [], "next": []}
     families = set()
     for e in d.effects:
@@ -192,8 +191,6 @@ def answer(d) -> dict:
 def at_edge(d) -> list[dict]:
     """Candidates of the last round that would have earned their place but for a parameter fitted
     to an unphysical edge of its range on every fold (search.at_unphysical_edge)."""
-    from .search import REL_EXCESS, Z_MIN
-
     last = d.rounds[-1].get("candidates", []) if d.rounds else []
     return [c for c in last if c.get("at_edge") and c["z"] >= Z_MIN and c["excess_gain"] >= REL_EXCESS]
 
@@ -207,8 +204,6 @@ def more_recording_factor(candidate: dict) -> float | None:
     as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS blocks can reach it
     (which, every block voting for, is exactly what it takes).
     None where z ≤ 0 (no trend to extrapolate)."""
-    from .search import Z_MIN
-
     n = candidate["blocks_for"] + candidate["blocks_against"]
     if candidate["z"] <= 0 or n == 0:
         return None
@@ -236,8 +231,6 @@ def promising(d) -> list[dict]:
     least REL_EXCESS of the excess misfit with z ≥ PROMISING_Z or all of at least
     PROMISING_UNANIMOUS affected blocks for them, but too few blocks for z ≥ Z_MIN: the recording
     hints, it does not prove."""
-    from .search import REL_EXCESS, Z_MIN
-
     if not d.rounds:
         return []
     kept = {e["name"] for e in d.effects}
@@ -254,8 +247,6 @@ def promising(d) -> list[dict]:
 
 
 def _family(d, name: str) -> str:
-    from ..effects import candidates
-
     # two logs: the per-log effects have a family too; any reference voltage: the supply effect's family
     cand = candidates(d.prior, ["log 1", "log 2"], supply_ref_v=1.0).get(name)
     return cand.family if cand is not None else ""

@@ -89,6 +89,7 @@ from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import norm, wilcoxon
 
 from ..effects import EFFECTS, Candidate
 from ..errors import TwinError
@@ -818,7 +819,6 @@ def _signed_rank_z(votes: np.ndarray) -> float:
     # few blocks: the exact null distribution (the normal approximation understates how unlikely ten
     # blocks out of ten are by chance: z 2.8 instead of 3.1)
     method = "exact" if len(d) <= 50 else "approx"
-    from scipy.stats import norm, wilcoxon  # not at the top: see prepare.prepared.derivative
     greater = float(wilcoxon(d, zero_method="wilcox", alternative="greater", method=method).pvalue)
     less = float(wilcoxon(d, zero_method="wilcox", alternative="less", method=method).pvalue)
     # each side from its own tail: the far end of the one is the near end of the other a rank away

@@ -28,11 +28,13 @@ from mujoco import rollout as mj_rollout
 from ..errors import TwinError
 from ..drive import InputSeries
 from ..physics.hydrodynamics import HydroModel
+from ..run import Run
 from ..vessel import Vessel
 from . import native
+from .callbacks import _joint_indices
 from .divergence import quiet_log
 from .mjcf import CompiledVessel
-from .sim import initial_state as _set_initial_state
+from .sim import delivered_forces, initial_state as _set_initial_state
 
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 Twin = Union[CompiledVessel, mujoco.MjModel]
@@ -264,8 +266,6 @@ def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durat
     every sample_dt_s (default: every engine step). A run that diverges does not cost
     the others: it is None in the returned list and reported in `.diverged` as
     (index, time s) on its own clock (see `Runs`)."""
-    from .callbacks import _joint_indices
-
     n = len(inputs)
     model = native.with_native_params(compiled)
     h = model.opt.timestep
@@ -292,9 +292,6 @@ def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durat
 def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, state0: np.ndarray,
          traj: np.ndarray, controls: np.ndarray, every: int, start_s: float, qpos, dof):
     """One rollout trajectory (full-physics states after each step) as a Run sampled every `every` steps."""
-    from ..run import Run
-    from .sim import delivered_forces
-
     h = model.opt.timestep
     full = np.vstack([state0, traj])[::every]
     eta = full[:, [1 + q for q in qpos]]

@@ -32,9 +32,10 @@ from ..errors import TwinError
 from ..physics.hydrodynamics import Terms, mmg_forces
 from ..physics import thrusters
 from ..run import Run
-from . import callbacks
+from . import callbacks, native, sixdof
 from .divergence import CHECKS, clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel, compile_vessel
+from .sixdof import joint_addresses
 from .tick import Pair, TickMap
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
@@ -87,8 +88,6 @@ def _backend(compiled: CompiledVessel, terms: Terms, backend: str, wind: bool = 
     """The model to step and the context that installs its hydrodynamic callback (with the wind's
     two controls when `wind`)."""
     if backend == "native":
-        from . import native
-
         return native.with_native_params(compiled, terms, wind_inputs=wind), native.installed_native()
     if backend == "python":
         if wind and not compiled.wind_inputs:
@@ -330,8 +329,6 @@ def simulate(
     if sea is not None or six_dof:
         if backend != "native":
             raise TwinError("the 6-DOF hull runs on the native backend only")
-        from . import native, sixdof
-
         six = sixdof.compile_six(compiled, sea, terms, sea_terms, wind_inputs=wind is not None or compiled.wind_inputs)
         model, hydrodynamics = six.model, native.installed_native()
     else:
@@ -379,8 +376,6 @@ def simulate(
 def six_dof_samples(six, states: np.ndarray) -> dict:
     """Heave (down, m), roll and pitch (rad) and their rates at the samples of a 6-DOF run, with the
     hull and the sea it ran in."""
-    from .sixdof import joint_addresses
-
     qpos, dof = joint_addresses(six.model)
     nq = six.model.nq
     col = {name: states[:, 1 + q] for name, q in zip(("down_m", "pitch_rad", "roll_rad"), (qpos[2], qpos[4], qpos[5]))}

@@ -17,7 +17,7 @@ from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
 from ..physics.thrusters import delivered, slew_step
 from ..run import Run
-from . import callbacks
+from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
 from .sim import _event_steps, _steps, initial_state  # the loop differs, not its arithmetic
@@ -37,8 +37,6 @@ def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
 def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
     """The model to step and the context that installs its hydrodynamic callback."""
     if backend == "native":
-        from . import native
-
         return native.with_native_params(compiled, terms), native.installed_native()
     if backend == "python":
         return compiled.model, callbacks.installed(compiled.model, compiled.hydro(terms))

@@ -12,11 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.linalg import block_diag
+from scipy.optimize import least_squares
 
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..physics.hydrodynamics import relative_acceleration
 from ..errors import TwinError
-from ..physics.sensors import antenna_body_m, motor_throttle, true_heading
+from ..physics.sensors import antenna_body_m, log_name, motor_throttle, true_heading
 from ..prepare import Prepared, prepare
 from ..recording import Recording, Stream
 from ..vessel import Vessel
@@ -302,10 +304,6 @@ def kinematic_calibration(rec: Recording, compiled: CompiledVessel, borrowed=(),
     other logs' drifts (NED m/s), at least two, taken where this log's legs cannot fit one: the
     offset read with each in turn and with the log's own drift at rest (rest_drift; at_rest=False
     leaves it out; scripts/calibration_borrowing.py compares both), their mean, and their spread added to σ."""
-    from scipy.optimize import least_squares
-
-    from ..physics.sensors import log_name
-
     name = log_name(rec.source)
     sensors = compiled.vessel.sensors
     own = dict(sensors.heading_bias_by_log_deg)
@@ -376,8 +374,6 @@ def _with_borrowed(name: str, vel, psi, yaw, which, stretches: int, seconds: flo
     """The offset across the true heading (with the sideslip of gentle turns where `yaw` varies, as
     kinematic_calibration fits it) for each borrowed drift held in turn, and for the log's own drift
     at rest (kinematic_calibrations)."""
-    from scipy.optimize import least_squares
-
     offsets, sigmas = [], []
     for cn, ce in list(borrowed) + ([at_rest] if at_rest is not None else []):
         over = vel - np.array([cn, ce])
@@ -514,8 +510,6 @@ def throttle_dependence(preps: list[Prepared], vessel: Vessel, drifts=None) -> T
         common.append(np.column_stack([p[:, 4], p[:, 5] * np.sin(psi), p[:, 5] * np.cos(psi)]))
     if not y:
         return None
-    from scipy.linalg import block_diag
-
     common = np.vstack(common)
     if np.std(common[:, 0]) < SLIP_YAW_SPREAD_RAD_S:  # straight running so straight that no sideslip is left to fit
         common = common[:, 1:]

@@ -64,6 +64,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.signal import lfilter
 
+from ..effects import apply_effects
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..physics.sensors import antenna_body_m
 from ..prepare.prepared import local_ned
@@ -583,7 +584,5 @@ def kinematic_findings(recordings: list[Recording], vessel: Vessel) -> list[Kine
 
 def with_findings(vessel: Vessel, findings: list[KinematicFinding]) -> Vessel:
     """The vessel with every told finding's values put in (its sensors)."""
-    from ..effects import apply_effects
-
     told = [(f.effect, f.effect_params()) for f in findings if f.told]
     return apply_effects(vessel, told) if told else replace(vessel)

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import Quantity
+from ..engine.mjcf import CompiledVessel
 from ..errors import TwinError
 from ..prepare import Prepared
 from ..vessel import Vessel, check
+from .calibrate import prepare_for
 from .windows import ModelCache, Window, as_measured, measured, measured_side, predict
 
 SETTLE_S = 1.0
@@ -81,9 +83,6 @@ class Measurements:
             return self.preps
         key = self._key(vessel)
         if key not in self._cache:
-            from ..engine.mjcf import CompiledVessel
-            from ..fit.calibrate import prepare_for
-
             cv = CompiledVessel(vessel, self.compiled.model, self.compiled.geometry)
             self._cache[key] = [prepare_for(r, cv, **self.kwargs) for r in self.recordings]
             if len(self._cache) > 64:

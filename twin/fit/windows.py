@@ -34,11 +34,14 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from scipy.ndimage import correlate1d
 
 from ..engine import batch, native
+from ..engine.callbacks import _joint_indices
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..drive import inputs_mismatch
 from ..errors import TwinError
+from ..physics.hydrodynamics import acceleration
 from ..physics.thrusters import ThrusterModel
 from ..prepare import Prepared
 from ..prepare.prepared import hold
@@ -531,8 +534,6 @@ def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction
 
 
 def _joint_columns(model: mujoco.MjModel) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    from ..engine.callbacks import _joint_indices
-
     return _joint_indices(model)
 
 
@@ -607,8 +608,6 @@ def _smoothed(series: np.ndarray, past: np.ndarray, window_s: float, h: float) -
     """All windows at once: [measured past | series | its last slope] convolved with the kernel,
     missing samples left out of both the weighted sum and the weights. series (W, n1, k), past
     (W, half, k) with half the kernel's half-width in samples."""
-    from scipy.ndimage import correlate1d
-
     half = past.shape[1]
     if half < 1:
         return series
@@ -684,8 +683,6 @@ def comfortable_timestep(compiled, preps: list[Prepared], h_lambda: float, fallb
     The fastest rate: the largest eigenvalue of ∂ν̇/∂ν at a brisk state (2 m/s, 0.5 m/s, 1 rad/s,
     where quadratic damping is strong). A thrust lag does not count: predict filters it ahead of
     the engine, exactly at any step (lagged_thrust)."""
-    from ..physics.hydrodynamics import acceleration
-
     hydro, nu, h = compiled.hydro(), np.array([2.0, 0.5, 1.0]), 1e-5
     base = acceleration(hydro, 0.0, nu, np.zeros(3))
     J = np.column_stack([(acceleration(hydro, 0.0, nu + h * e, np.zeros(3)) - base) / h for e in np.eye(3)])

@@ -166,8 +166,6 @@ def _log_bytes(timed: list[tuple[int, bytes]]) -> bytes:
 
 
 def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
-    from ..errors import TwinError
-
     bad = (values < lo) | (values > hi)
     if np.any(bad):
         raise TwinError(f"bin: {what} {values[bad][0]:g} does not fit DataFlash's range {lo:g}..{hi:g}")

@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from pymavlink.generator.mavcrc import x25crc
 
 from ..errors import TwinError
 from ..files import write_bytes_atomic
@@ -244,10 +245,8 @@ def iter_tlog(data: bytes, wanted: tuple[str, ...], counts: Counter):
     `counts` receives "packets" (good ones), "bad_crc" (packets at a packet boundary whose CRC fails),
     "skipped_bytes" (bytes outside any valid record) and "truncated" (1 if the
     file ends inside a packet)."""
-    from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-    mav = mavlink2.MAVLink(None)
-    wanted_ids = {mid for mid, cls in mavlink2.mavlink_map.items() if cls.msgname in wanted}
+    mav = mavlink.MAVLink(None)
+    wanted_ids = {mid for mid, cls in mavlink.mavlink_map.items() if cls.msgname in wanted}
     pos, n, last_us, synced = 0, len(data), None, True
     while pos + 16 <= n:
         size = _frame_size(data, pos + 8, n)
@@ -256,7 +255,7 @@ def iter_tlog(data: bytes, wanted: tuple[str, ...], counts: Counter):
             counts["truncated"] += 1
             break
         if size and pos + 8 + size <= n and (last_us is None or abs(ts - last_us) < _MAX_JUMP_US):
-            status, msg = _check_frame(mav, mavlink2, data[pos + 8:pos + 8 + size], wanted_ids)
+            status, msg = _check_frame(mav, mavlink, data[pos + 8:pos + 8 + size], wanted_ids)
             if status == "ok" or (status == "unknown" and synced):
                 counts["packets"] += 1
                 if msg is not None:
@@ -286,8 +285,6 @@ def _frame_size(data: bytes, i: int, n: int) -> int:
 def _check_frame(mav, dialect, frame: bytes, wanted_ids: set[int]):
     """("ok", msg or None) if the CRC holds, ("crc", None) if not, ("unknown", None)
     for a message id the dialect does not know (its CRC cannot be checked)."""
-    from pymavlink.generator.mavcrc import x25crc
-
     v2 = frame[0] == 0xFD
     hdr = 10 if v2 else 6
     mid = (frame[7] | frame[8] << 8 | frame[9] << 16) if v2 else frame[5]

@@ -24,7 +24,7 @@ of the lateral area's centroid).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,8 +55,6 @@ class FujiwaraWind:
         """This load with its coefficients: the given ones, else the regression's."""
         if self.coefficients is not None:
             return self
-        from dataclasses import replace
-
         return replace(self, coefficients=regression(self))
 
 

@@ -34,11 +34,14 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import coefficients
+from ..engine.mjcf import compile_vessel
 from ..fit.uncertainty import check_drawable
 from ..errors import TwinError
 from ..files import write_bytes_atomic, write_text_atomic
+from ..formats import write_recording
 from ..progress import Progress, steps
 from ..synth import manoeuvres as man
+from ..synth.dataset import generate, noise_profile
 from ..vessel import Vessel
 from .batches import Batch, Executor, LocalExecutor, plan
 from .draws import MASS, Variation
@@ -113,8 +116,6 @@ def shard_name(index: int) -> str:
 
 def run_shard(job: _Job, b: Batch, extra=None) -> ShardResult:
     """One shard's vessels drawn from its seed, each one's dataset generated and serialised."""
-    from ..synth.dataset import generate, noise_profile
-
     s = job.settings
     rng = b.rng()
     drawn, _ = s.variation.draw(job.vessel, b.size, rng)
@@ -152,8 +153,6 @@ def _labels(quantities: dict, vessel: Vessel) -> dict:
 
 def _serialised(recording, fmt: str) -> bytes:
     """The recording as the bytes of a file of format fmt (the writers want a path)."""
-    from ..formats import write_recording
-
     with tempfile.TemporaryDirectory(prefix="twin-shard-") as folder:
         path = Path(folder) / f"recording{fmt}"
         write_recording(recording, path)
@@ -190,8 +189,6 @@ def generate_shards(vessel: Vessel, settings: Settings, folder: Path, *, executo
         raise TwinError(f"vessel '{vessel.name}' carries no identification uncertainty to draw from")
     if settings.variation.covariance:
         check_drawable(vessel)
-    from ..engine.mjcf import compile_vessel
-
     fp = fingerprint(vessel, settings)
     job = _Job(vessel, settings, fp, compile_vessel(vessel).geometry.rigid.mass_kg)
     batches = plan(settings.vessels, settings.per_shard, settings.seed)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from ..effects import Effect, apply_effects, coefficients, parse_effect
@@ -221,8 +222,6 @@ def with_mass_scale(vessel: Vessel, factor: float) -> Vessel:
 @lru_cache(maxsize=16)
 def geom_masses(mjcf: str) -> tuple[tuple[str, float], ...]:
     """(name, kg) of every named geom of the MJCF given an explicit mass."""
-    import mujoco
-
     spec = mujoco.MjSpec.from_file(mjcf)
     out = tuple((g.name, float(g.mass)) for g in spec.geoms if g.name and math.isfinite(g.mass) and g.mass > 0)
     if not out:

@@ -27,21 +27,25 @@ measured states, driven by its PWM; the share of the measured samples inside the
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
 
-from ..drive import InputSeries
+from ..drive import InputSeries, get as get_scenario
 from ..engine import batch as engine
-from ..engine import native
+from ..engine import native, sixdof
 from ..engine.callbacks import _joint_indices
+from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..engine.sim import initial_state, simulate
 from ..effects import coefficients
 from ..errors import TwinError
 from ..fit.windows import ModelCache, Window, as_measured, make_windows, measured, predict
 from ..fit.crossval import form_error_at
 from ..fit.uncertainty import check_drawable
 from ..physics.kinematics import wrap_angle
+from ..physics.waves import N_COMPONENTS
 from ..prepare import Prepared
 from ..progress import Progress
 from ..vessel import Vessel
@@ -90,11 +94,7 @@ def scenario_mission(vessel: Vessel, scenario: str, duration_s: float, sample_dt
                      seed: int = 0, sea=None) -> Mission:
     """A scenario run once closed loop by the nominal twin (in `sea`, a physics.waves.Sea, when
     given); its applied inputs become the mission (module docstring: why open loop for the draws)."""
-    from ..drive import get
-    from ..engine.mjcf import compile_vessel
-    from ..engine.sim import simulate
-
-    run = simulate(compile_vessel(vessel), get(scenario, seed, vessel.thrusters.kind, vessel.name), duration_s,
+    run = simulate(compile_vessel(vessel), get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name), duration_s,
                    sample_dt_s=sample_dt_s, sea=sea)
     return Mission(run.meta["inputs"], duration_s, sample_dt_s,
                    source=f"scenario {scenario} (closed loop by the nominal twin, its inputs replayed open loop)",
@@ -174,11 +174,6 @@ def _sea_twins(vessels: list[Vessel], seas: list, mission: Mission, cache: Model
     """Each twin's 6-DOF model in its own sea and its start at rest on its hull's equilibrium: a
     model compiled once per structure (room for every component a sea may have), copied per twin
     with its sea, its parameters and its thrusters' gains, range and lag (as ModelCache sets them)."""
-    from ..engine import sixdof
-    from ..engine.mjcf import CompiledVessel
-    from ..engine.sim import initial_state
-    from ..physics.waves import N_COMPONENTS
-
     models, states = [], []
     for v, sea in zip(vessels, seas):
         cv = cache.compiled(v)
@@ -283,10 +278,8 @@ def _cache(job: _Job) -> ModelCache:
 def sea_draws(sea, b: Batch) -> list:
     """The batch's realisations of `sea`, one per draw, each from a seed of its own (a stream of the
     batch's seed apart from the one the draws of the parameters take)."""
-    from dataclasses import replace as _with
-
     rng = np.random.default_rng(np.random.SeedSequence(b.seed, spawn_key=(b.index, 1)))
-    return [_with(sea, seed=int(s)) for s in rng.integers(0, 2 ** 31 - 1, size=b.size)]
+    return [replace(sea, seed=int(s)) for s in rng.integers(0, 2 ** 31 - 1, size=b.size)]
 
 
 def run_batch(job: _Job, b: Batch, extra=None) -> BatchResult:
@@ -461,8 +454,6 @@ def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variatio
     """`draws` twins of `vessel` through `mission` (module docstring), in batches of batch_size
     seeded from `seed`; the same numbers whichever executor runs them. Default variation: the
     vessel file's covariance (TwinError without one)."""
-    import time
-
     variation = variation or Variation(covariance=True)
     check_variation(vessel, variation)
     level_percentiles(level)

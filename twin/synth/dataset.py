@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from ..engine.batch import simulate_many
 from ..engine.mjcf import CompiledVessel, compile_vessel
@@ -233,8 +234,6 @@ def _wander(rng: np.random.Generator, n: int, dt: float, sigma: float, scale_s: 
     """Smooth random wander of standard deviation σ over time scale scale_s: white noise
     through a Gaussian filter (a first-order Markov process would be rough, and its
     derivative would swamp the velocities, which a real receiver's does not)."""
-    from scipy.ndimage import gaussian_filter1d
-
     if sigma <= 0 or n == 0:
         return np.zeros(n)
     width = scale_s / dt / 2.0

@@ -20,13 +20,16 @@ on a result page (docs/results/sea_verification.md).
 from __future__ import annotations
 
 import math
+import statistics
+import time
 from dataclasses import replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from .. import drive
-from ..engine import sixdof
+from ..engine import native, sixdof
 from ..engine.mjcf import compile_vessel
 from ..engine.sim import simulate
 from ..errors import TwinError
@@ -34,6 +37,7 @@ from ..physics import seakeeping as sk
 from ..physics import waves
 from ..physics.hydrodynamics import Terms
 from ..vessel import Vessel, load
+from .validate import validate
 
 BARGE = {"length_m": 2.0, "beam_m": 1.0, "depth_m": 0.5, "mass_kg": 500.0}  # a 0.25 m draft in fresh water
 
@@ -83,8 +87,6 @@ def barge(folder: Path) -> Vessel:
 def rest(vessel: Vessel, settle_s: float = 20.0) -> dict:
     """The engine's heave and trim after settling from the design waterline (level, z = 0), against
     `twin validate`'s floating-free values from the full meshes."""
-    from .validate import validate
-
     quantities = {q.name: q.mesh for q in validate(vessel).quantities}
     cv = compile_vessel(vessel)
     six = sixdof.compile_six(cv, terms=Terms().only())
@@ -130,8 +132,6 @@ def natural_periods(vessel: Vessel, cycles: float = 6.0) -> dict:
 def roll_energy(vessel: Vessel, duration_s: float = 10.0, roll_deg: float = 3.0) -> dict:
     """Undamped roll decay: kinetic + gravity + hydrostatic potential energy at the start and its
     largest departure (J), relative to the roll's initial potential energy above the rest."""
-    import mujoco
-
     cv = compile_vessel(vessel)
     six = sixdof.compile_six(cv, terms=Terms().only(), sea_terms=sixdof.SeaTerms(False, False, False, False))
     model = six.model
@@ -335,13 +335,6 @@ def speed_pair(vessel: Vessel, sea_text: str, repeats: int = 5, duration_s: floa
     """Simulated seconds per wall second of one 3-DOF twin and one 6-DOF twin in the sea, each a run of
     duration_s from rest under the same thrust, on one core, timed in turn (medians over repeats):
     a machine's background load comes and goes, and the pair sees the same."""
-    import statistics
-    import time
-
-    import mujoco
-
-    from ..engine import native
-
     cv = compile_vessel(vessel)
     three = native.with_native_params(cv)
     six = sixdof.compile_six(cv, waves.parse_sea(sea_text))

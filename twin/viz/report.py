@@ -6,6 +6,8 @@ import html
 import io
 from pathlib import Path
 
+import numpy as np
+
 from ..files import write_bytes_atomic, write_text_atomic
 
 
@@ -100,7 +102,6 @@ def comparison_png(runs: dict, title: str) -> bytes:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
     from matplotlib.lines import Line2D
 
     ship = False

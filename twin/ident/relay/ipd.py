@@ -51,7 +51,7 @@ import numpy as np
 
 from ...physics.kinematics import wrap_angle
 from ...physics.thrusters import allocation_matrix
-from .iso import force_range
+from .iso import SHIP_CONTROL_DT_S, calm_water, force_range, rudder_moment, straight_speed
 
 # a point move has settled when its last quarter stays within this of the target: the larger of a
 # distance (m) and a share of the move
@@ -232,8 +232,6 @@ class RudderAllocation:
 
     @classmethod
     def at(cls, compiled, speed_m_s: float, n_rps: float, max_deg: float = SHIP_RUDDER_MAX_DEG) -> "RudderAllocation":
-        from .iso import rudder_moment
-
         ref = math.radians(10.0)
         return cls(rudder_moment(compiled, speed_m_s, n_rps, ref) / (math.sin(ref) * math.cos(ref)),
                    math.radians(max_deg))
@@ -282,7 +280,6 @@ def ship_heading_step(compiled, yaw: DofModel, step_deg: float, n_rps: float = S
     """Heading step of `step_deg` at t = 0 steered by the rudder (module docstring), from straight running
     at the propeller speed n in calm water ([Relay-ISO Figs. 8-9] for the ship)."""
     from ...engine.sim import simulate
-    from .iso import SHIP_CONTROL_DT_S, calm_water, straight_speed
 
     u0 = straight_speed(compiled, n_rps)
     ctrl = ShipHeadingController(yaw.loop(anti_windup), math.radians(step_deg), RudderAllocation.at(compiled, u0, n_rps),

@@ -42,12 +42,14 @@ cannot avoid makes IS-O's α and β effective values, not these.
 """
 from __future__ import annotations
 
+import io
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from ...errors import TwinError
+from ...physics.hydrodynamics import Terms, mmg_forces
 from ...physics.kinematics import wrap_angle
 from ...progress import Progress, steps
 from ...analytic import straight_speed
@@ -277,16 +279,12 @@ def is_ship(compiled) -> bool:
 def rudder_moment(compiled, speed_m_s: float, n_rps: float, rudder_rad: float) -> float:
     """N_R (N·m): the MMG rudder moment at the straight-running state (u₀, 0, 0): the relay's C and the
     I-PD's allocation ([Relay-ISO eq. 4]'s N = L₁ k_F δ τ₁)."""
-    from ...physics.hydrodynamics import Terms, mmg_forces
-
     hydro = compiled.hydro(Terms().only("rudder"))
     return float(mmg_forces(hydro, np.array([speed_m_s, 0.0, 0.0]), (n_rps, rudder_rad))[2])
 
 
 def ship_twin_uncoupled(compiled, n_rps: float) -> TwinUncoupled:
     """M₃₃ and −∂N/∂r at (u₀(n), 0, 0) with the rudder amidships (hull, propeller, rudder)."""
-    from ...physics.hydrodynamics import mmg_forces
-
     hydro, u0, h = compiled.hydro(), straight_speed(compiled, n_rps), 1e-6
     n_at = [mmg_forces(hydro, np.array([u0, 0.0, r]), (n_rps, 0.0))[2] for r in (-h, h)]
     return TwinUncoupled(float(hydro.M[2, 2]), float(-(n_at[1] - n_at[0]) / (2 * h)), 0.0)
@@ -331,8 +329,6 @@ def run_ship_experiment(compiled, n_rps: float, rudder_deg: float, xa: float, du
 
 def calm_water(compiled):
     """The compiled vessel in calm water (IS-O in [Relay-ISO] is run without disturbances)."""
-    from dataclasses import replace
-
     from ...engine.mjcf import CompiledVessel
 
     return CompiledVessel(replace(compiled.vessel, environment=type(compiled.vessel.environment)()), compiled.model,
@@ -517,8 +513,6 @@ def sweep_png(result: IsoSweep) -> bytes:
     """α, β_ν, β_νν against the relay output, beside the twin's coefficients and their
     describing-function equivalents at each experiment's speed amplitude (a ship's: one line per
     propeller speed, the twin's −∂N/∂r at each speed's u₀)."""
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg")
