@@ -1,5 +1,6 @@
-"""The package's shape: imports run one way, from the ground floor up, with no cycle, and every
-third-party module the code imports is a declared dependency (a fresh install has nothing else)."""
+"""The package's shape: imports run one way, from the ground floor up, with no cycle, every
+third-party module the code imports is a declared dependency (a fresh install has nothing else), and
+imports sit at the top of their module but for the few that have a measured reason to wait."""
 import ast
 import re
 import sys
@@ -126,3 +127,74 @@ def test_every_imported_module_is_declared(folder):
             if top not in declared and top not in {p.stem for p in (ROOT / folder).glob("*.py")}:
                 missing.setdefault(top, str(path.relative_to(ROOT)))
     assert not missing, f"imported but not declared in pyproject.toml: {missing}"
+
+
+# What a function of twin/ may import inside its body (outside twin/cli/, whose commands import their
+# stack when they run): each module, with its submodules, for the reason measured (a cost is the
+# import's time on top of what the importing module already loads); anything else goes at the top.
+LATE_IMPORTS = {
+    "ray": "the cluster extra (pyproject.toml), not installed by default",
+    "matplotlib": "pyplot 0.25-0.3 s on top of its importers (twin.api too), only for a PNG or an HTML report",
+    "rerun": "0.3 s on top of twin.api, only for an .rrd output",
+    "trimesh": "0.12 s on top of twin.verify.validate (0.05 s on twin.api), only where hull meshes are read",
+    "scipy.signal": "0.3 s on top of twin.prepare, twin.fit.windows (twin montecarlo), only to smooth, filter a lag",
+    "scipy.integrate": "0.3 s on top of twin.physics.added_mass (twin.vessel), only for an ellipsoid's Lamb integrals",
+    "scipy.special": "0.12-0.2 s on top of twin.physics.added_mass, only for the same in closed form",
+    "mujoco": "0.11 s on top of twin.outputs, whose recording writers do not need it: only for an .rrd",
+    "pymavlink.mavutil": "sets MAVLINK_DIALECT in os.environ on import, which a SITL started before would inherit",
+    "pymavlink.DFReader": "imports pymavlink.mavutil (above), only to read a DataFlash .bin",
+    "twin.api": "twin/__init__.py loads it on first use: `import twin` 0.03 s, not 1.6 s",
+    "twin.cli": "twin/__main__.py: a Ctrl-C while the command's libraries load ends in one line, not a traceback",
+    "twin.engine.sim": "mujoco into twin.ident.relay, which `twin --help` loads: 0.2 s more at every command's start",
+    "twin.engine.mjcf": "as twin.engine.sim",
+    "twin.viz.rerun_log": "rerun, 0.25 s on top of twin.outputs and twin.scale.views, only for an .rrd",
+    "twin.outputs": "the recording writers, 0.1 s on top of twin.simulation, only for Simulation.write",
+    "twin.drive": "numba, 0.12-0.18 s on top of twin.run, twin.prepare, only for a ship's run CSV, a measured wind",
+    "twin.physics.waves": "numba, 0.12 s on top of twin.viz.rerun_log, only for a run in a sea",
+    "twin.ident.identify": "0.44 s (the fitting stack) on top of twin.scale.montecarlo, only for evaluate --band",
+}
+
+
+def _late_imports(path: Path) -> list[tuple[int, list[list[str]]]]:
+    """(line, modules) of every import inside a function of the file: for `import m` the module m;
+    for `from m import a, b` each name as m.a or m (whichever an entry covers), absolute."""
+    here = _module_name(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    out = []
+
+    def visit(node, in_function):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                visit(child, True)
+            elif isinstance(child, ast.Import) and in_function:
+                out.append((child.lineno, [[a.name] for a in child.names]))
+            elif isinstance(child, ast.ImportFrom) and in_function:
+                base = package[: len(package) - child.level + 1] if child.level else []
+                module = ".".join(base + ([child.module] if child.module else []))
+                out.append((child.lineno, [[f"{module}.{a.name}", module] for a in child.names]))
+            else:
+                visit(child, in_function)
+
+    visit(ast.parse(path.read_text()), False)
+    return out
+
+
+def _allowed(name: str) -> str | None:
+    return next((key for key in LATE_IMPORTS if name == key or name.startswith(key + ".")), None)
+
+
+def test_imports_are_at_the_top_but_for_the_late_imports_allowed():
+    wrong, used = [], set()
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.relative_to(PACKAGE).parts[0] == "cli":
+            continue
+        for line, names in _late_imports(path):
+            for forms in names:
+                key = next((k for k in map(_allowed, forms) if k), None)
+                if key is None:
+                    wrong.append(f"{path.relative_to(ROOT)}:{line}: {forms[-1]} imported inside a function: "
+                                 f"at the top, or in LATE_IMPORTS with its measured reason")
+                used.add(key)
+    assert not wrong, "\n".join(wrong)
+    stale = sorted(set(LATE_IMPORTS) - used)
+    assert not stale, f"in LATE_IMPORTS but imported inside no function: {stale}"

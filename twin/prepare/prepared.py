@@ -500,8 +500,8 @@ def derivative(x: np.ndarray, dt: float, smoother: str, window_s: float, polyord
     segment if needed) or central differences."""
     n = len(x)
     if smoother == "savgol":
-        # imported here, not at the top: scipy.signal and scipy.stats cost about 1 s of CPU at every start
-        # of the `twin` command (1.4 → 2.3 s user, measured), and most commands never smooth or test
+        # imported here, not at the top: scipy.signal adds about 0.3 s to importing twin.prepare, which
+        # twin montecarlo loads without preparing a recording (tests/test_layout.py, LATE_IMPORTS)
         from scipy.signal import savgol_filter
         w = min(int(round(window_s / dt)) | 1, n if n % 2 else n - 1)
         if w > polyorder:
