@@ -392,7 +392,7 @@ def test_a_fleet_day_read_from_the_files_time_says_so():
     mixed_text = format_summary(summarise(mixed))
     assert ("### 2020-10-14: 2 of 2 logs diagnosed (the day from a date in the file's name (1 of 2 logs), the "
             "file's modification time (1 of 2 logs): neither") in mixed_text
-    assert "### 2020-10-15: 1 of 1 logs diagnosed (the day from the log's own clock)" in mixed_text
+    assert "### 2020-10-15: 1 of 1 log diagnosed (the day from the log's own clock)" in mixed_text
     assert "- empty.csv: empty file" in text and "empty.csv: empty.csv" not in text
 
 

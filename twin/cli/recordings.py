@@ -276,6 +276,6 @@ def view(
     say(f"wrote {out} (open with: rerun {out})")
     if png is not None:
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
-                                                     + (f": real vs twin ({v.name}"
+                                                     + (f": recorded vs twin ({v.name}"
                                                         + (", measured wind" if wind else "") + ")" if sim else "")))
         say(f"wrote {png}")

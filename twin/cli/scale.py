@@ -294,8 +294,11 @@ def fleet_command(
                                executor=executor, progress=progress, wind=wind)
     typer.echo(format_summary(fleet.summary))
     failures = len(fleet.reports) - fleet.summary["diagnosed"]
+    short = sum(1 for f in fleet.summary["failed"] if f.get("too_short"))
+    why = ", ".join(part for part in (counted(short, "too short") if short else "",
+                                      counted(failures - short, "failure record") if failures > short else "") if part)
     say(f"wrote {counted(len(fleet.reports), 'report')}"
-        + (f" ({fleet.summary['diagnosed']} diagnosed, {counted(failures, 'failure record')})" if failures > 0 else "")
+        + (f" ({fleet.summary['diagnosed']} diagnosed, {why})" if failures > 0 else "")
         + f", {out / 'fleet.json'} and {out / 'fleet.md'}")
     written = {Path(r).name for r in fleet.reports.values()} | {"fleet.json"}
     older = sorted(q.name for q in out.glob("*.json") if q.name not in written)

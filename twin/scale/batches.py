@@ -186,6 +186,9 @@ def ray_module():
     except ImportError:
         raise TwinError("--ray needs Ray: pip install 'asv-twin[cluster]' (or pip install -e \".[cluster]\")") \
             from None
+    if not hasattr(ray, "init"):  # a folder named ray (Ray's own /tmp/ray) read as a namespace package
+        raise TwinError(f"--ray needs Ray, and 'ray' here is not it but a folder ({', '.join(ray.__path__)}): "
+                        "pip install 'asv-twin[cluster]', or run from another folder")
     return ray
 
 

@@ -403,9 +403,13 @@ def _effects(ok: list[dict]) -> dict:
     return out
 
 
+def _logs(n: int) -> str:
+    return f"{n} log{'' if n == 1 else 's'}"
+
+
 def format_summary(summary: dict) -> str:
     """The summary as Markdown: effects over the fleet, per vessel, per day, and the failures."""
-    lines = [f"# Fleet diagnosis: {summary['diagnosed']} of {summary['logs']} logs diagnosed", ""]
+    lines = [f"# Fleet diagnosis: {summary['diagnosed']} of {_logs(summary['logs'])} diagnosed", ""]
     with_wind = summary.get("with_measured_wind", 0)
     if summary.get("wind") == "measured":
         lines += [f"Each log diagnosed with its measured wind a known input (--wind-measured): {with_wind} of "
@@ -418,7 +422,7 @@ def format_summary(summary: dict) -> str:
         lines += ["", f"## {title}", ""]
         for name, group in summary[key].items():
             source = _day_source(group.get("day_from", {}), group["logs"]) if key == "per_day" else ""
-            lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {group['logs']} logs diagnosed{source}", ""]
+            lines += [f"### {name or '(unknown)'}: {group['diagnosed']} of {_logs(group['logs'])} diagnosed{source}", ""]
             lines += _effect_table(group["effects"], group["diagnosed"]) + [""]
     verdicts = [row for row in summary.get("table", []) if row.get("form") or row.get("unsettled")]
     if verdicts:
