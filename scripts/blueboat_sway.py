@@ -23,6 +23,10 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
 5. The antenna where the spins of all ten runs put it (fit/kinematic.py lever_arm, no dynamics),
    `twin identify` refitted on the fitted runs with it there, judged as above: whether a twin
    identified with another reading of the antenna predicts the sway better.
+6. The sway equation alone (fit/sway_alone.py), driven by the measured u, r, ṙ and the twin's map of
+   the logged PWM, in forms of growing reach, fitted on the fitted runs and on the judged runs
+   themselves: how much of the measured sway any sway equation of that form predicts over 10 s when
+   surge and yaw are known, not predicted.
 
 The recordings are read in place; without them the script says so and exits 0.
 """
@@ -43,6 +47,7 @@ import twin.vessel as vessel_mod  # noqa: E402
 from twin.vessel import Vessel  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.fit.evaluate import TwinPredictor, evaluate, horizon_windows  # noqa: E402
+from twin.fit import sway_alone  # noqa: E402
 from twin.fit.extrapolation import by_activity  # noqa: E402
 from twin.fit.kinematic import lever_arm  # noqa: E402
 from twin.fit.windows import ModelCache, measured  # noqa: E402
@@ -58,6 +63,8 @@ SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
 LAGS_S = np.round(np.arange(-1.5, 1.51, 0.1), 1)
 COMPASS_ITERATIONS = 3
 PIVOT_TURNING_RAD_S = 0.08
+SWAY_FORMS = (("v", "|v|v", "ur", "r"), ("v", "|v|v", "|u|v", "ur", "r"), ("v", "|v|v", "ur", "r", "rdot"),
+              ("v", "|v|v", "ur", "r", "dT"), sway_alone.TERMS)
 
 
 def scores(seen, recordings) -> tuple[dict, float]:
@@ -229,6 +236,17 @@ def main() -> int:
         raw_refit.append({"antenna": label, "dx_m": dx, "dy_m": dy, "scores": got, "v_spread_m_s": spread})
         refit_rows.append([label, f"{dx:+.2f}", f"{dy:+.2f}", spread, got["u"][0], got["v"][0], got["v"][1],
                            got["r"][0]])
+    drivers = {runs: [sway_alone.SwayDrivers(p.u, p.v, p.r, differential_thrust_n(p), p.segment, p.settings.grid_dt)
+                      for p in prepared(recs, seen)]
+               for runs, seen, recs in (("fitted", on_fitted, fitted), ("judged", on_judged, judged))}
+    alone_rows, raw_alone = [], []
+    for form in SWAY_FORMS:
+        on_fit = sway_alone.fit(drivers["fitted"], form, HORIZON_S, STRIDE_S)
+        on_own = sway_alone.fit(drivers["judged"], form, HORIZON_S, STRIDE_S)
+        beyond = sway_alone.score(on_fit.coefficients, drivers["judged"], HORIZON_S, STRIDE_S)
+        raw_alone.append({"terms": list(form), "fitted_on_fitted": on_fit.coefficients, "r2_fitted": on_fit.r2,
+                          "r2_judged": beyond, "fitted_on_judged": on_own.coefficients, "r2_judged_own": on_own.r2})
+        alone_rows.append([", ".join(form), on_fit.r2, beyond, on_own.r2])
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
     refit_rows.insert(0, ["the twin's (its MJCF site)", "+0.00", "+0.00",
                           raw_antenna[ANTENNA_DX_M.index(0.0)]["v_spread_m_s"], base["u"][0], base["v"][0],
@@ -261,7 +279,11 @@ def main() -> int:
         f"what v misses. Refitted with the antenna where the runs' spins put it ({found[0]:+.2f} m along, "
         f"{found[1]:+.2f} m across), or with either part of that alone, the twin predicts v at R² "
         f"{min(x['scores']['v'][0] for x in raw_refit):.3f} to {best_refit['scores']['v'][0]:.3f}: no reading of the "
-        "antenna these runs allow is what v misses either.")
+        "antenna these runs allow is what v misses either. The sway equation alone, driven by the measured surge, yaw "
+        "rate and thrust instead of the twin's predictions, reaches 10-s R² v "
+        f"{max(x['r2_judged'] for x in raw_alone):.3f} at best on the judged runs when fitted on the fitted ones, "
+        f"and {max(x['r2_judged_own'] for x in raw_alone):.3f} at best fitted on the judged runs themselves: no "
+        "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -295,14 +317,19 @@ def main() -> int:
                      f"{spins.why}), `twin identify` refitted on the fitted runs with it there: 10-s R² (and MAE v, "
                      "m/s) on the judged runs",
                      ["antenna", "Δx (m)", "Δy (m)", "spread of measured v (m/s)", "R² u", "R² v", "MAE v", "R² r"],
-                     refit_rows)],
+                     refit_rows),
+         ResultTable("The sway equation alone (fit/sway_alone.py: v̇ = −θ_v·v − θ_|v|v·|v|v − θ_|u|v·|u|v + θ_ur·u·r "
+                     "+ θ_r·r + θ_ṙ·ṙ + θ_ΔT·ΔT), driven by the measured u, r, ṙ and the twin's thrust map of the "
+                     "logged PWM (ΔT left less right), 10-s free runs of v from measured starts every 2 s: R² v",
+                     ["terms", "fitted on the fitted runs: R² there", "the same, R² on the judged runs",
+                      "fitted on the judged runs: R² there"], alone_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
                "hull creeps while it spins)."],
         raw={"split": {"fitted": list(split.fitted), "judged": list(split.judged)}, "antenna": raw_antenna,
              "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
              "input_answer_s": list(answers), "compass": raw_compass, "pivot_by_speed": pivot_rows,
-             "antenna_refit": raw_refit, "spins": spins.to_dict(),
+             "antenna_refit": raw_refit, "spins": spins.to_dict(), "sway_alone": raw_alone,
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
