@@ -98,7 +98,7 @@ def free_runs(theta: dict[str, float], stacked: dict[str, np.ndarray]) -> np.nda
 
 
 def fit(drivers: list[SwayDrivers], terms: tuple[str, ...], horizon_s: float = 10.0, stride_s: float = 2.0,
-        max_evaluations: int = 200) -> SwayAloneFit:
+        max_evaluations: int = 400) -> SwayAloneFit:
     """θ of `terms` (a subset of TERMS) by least squares on the free runs' v residuals.
 
     Args:
@@ -127,7 +127,8 @@ def fit(drivers: list[SwayDrivers], terms: tuple[str, ...], horizon_s: float = 1
 
     lower = [0.0 if t in DAMPING_TERMS else -np.inf for t in terms]
     x0 = [1.0 if t == "v" else 0.0 for t in terms]
-    sol = least_squares(residuals, x0, bounds=(lower, np.inf), max_nfev=max_evaluations)
+    # the terms differ in size by orders (ΔT in N, r in rad/s): each coefficient scaled by its column
+    sol = least_squares(residuals, x0, bounds=(lower, np.inf), x_scale="jac", max_nfev=max_evaluations)
     coefficients = dict(zip(terms, map(float, sol.x)))
     return SwayAloneFit(tuple(terms), coefficients, score(coefficients, drivers, horizon_s, stride_s), len(windows))
 
