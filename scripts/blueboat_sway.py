@@ -240,9 +240,15 @@ def main() -> int:
                       for p in prepared(recs, seen)]
                for runs, seen, recs in (("fitted", on_fitted, fitted), ("judged", on_judged, judged))}
     alone_rows, raw_alone = [], []
+    best: dict[str, list] = {}  # each form starts from the best smaller form it holds
     for form in SWAY_FORMS:
-        on_fit = sway_alone.fit(drivers["fitted"], form, HORIZON_S, STRIDE_S)
-        on_own = sway_alone.fit(drivers["judged"], form, HORIZON_S, STRIDE_S)
+        fits = {}
+        for runs in ("fitted", "judged"):
+            nested = [f for f in best.get(runs, []) if set(f.terms) <= set(form)]
+            start = max(nested, key=lambda f: f.r2).coefficients if nested else None
+            fits[runs] = sway_alone.fit(drivers[runs], form, HORIZON_S, STRIDE_S, start=start)
+            best.setdefault(runs, []).append(fits[runs])
+        on_fit, on_own = fits["fitted"], fits["judged"]
         beyond = sway_alone.score(on_fit.coefficients, drivers["judged"], HORIZON_S, STRIDE_S)
         raw_alone.append({"terms": list(form), "fitted_on_fitted": on_fit.coefficients, "r2_fitted": on_fit.r2,
                           "r2_judged": beyond, "fitted_on_judged": on_own.coefficients, "r2_judged_own": on_own.r2})

@@ -98,7 +98,7 @@ def free_runs(theta: dict[str, float], stacked: dict[str, np.ndarray]) -> np.nda
 
 
 def fit(drivers: list[SwayDrivers], terms: tuple[str, ...], horizon_s: float = 10.0, stride_s: float = 2.0,
-        max_evaluations: int = 400) -> SwayAloneFit:
+        max_evaluations: int = 400, start: dict[str, float] | None = None) -> SwayAloneFit:
     """θ of `terms` (a subset of TERMS) by least squares on the free runs' v residuals.
 
     Args:
@@ -106,6 +106,9 @@ def fit(drivers: list[SwayDrivers], terms: tuple[str, ...], horizon_s: float = 1
         terms: which terms the sway equation has.
         horizon_s, stride_s: each free run's length and the spacing of their starts (s).
         max_evaluations: the solver's budget of residual evaluations.
+        start: coefficients to start from (a term not given starts at 0, θ_v at 1 unless given): a
+            smaller form's fit, so that a larger one fits its own windows at least as well (the free
+            runs make the cost non-convex, and from the plain start a larger form can stop worse).
 
     Returns:
         SwayAloneFit, its R² on the same windows.
@@ -126,7 +129,8 @@ def fit(drivers: list[SwayDrivers], terms: tuple[str, ...], horizon_s: float = 1
         return (free_runs(dict(zip(terms, x)), stacked)[:, 1:] - measured).ravel()
 
     lower = [0.0 if t in DAMPING_TERMS else -np.inf for t in terms]
-    x0 = [1.0 if t == "v" else 0.0 for t in terms]
+    first = {"v": 1.0, **(start or {})}
+    x0 = [max(first.get(t, 0.0), lo) for t, lo in zip(terms, lower)]
     # the terms differ in size by orders (ΔT in N, r in rad/s): each coefficient scaled by its column
     sol = least_squares(residuals, x0, bounds=(lower, np.inf), x_scale="jac", max_nfev=max_evaluations)
     coefficients = dict(zip(terms, map(float, sol.x)))
