@@ -1,6 +1,7 @@
 """The native (numba cfunc) passive callback against the Python reference."""
 import ctypes
 import os
+import threading
 from dataclasses import replace
 
 import mujoco
@@ -154,6 +155,28 @@ def test_installed_native_restores_the_previous_callback(compiled):
         with native.installed_native():
             pass
         assert mujoco.get_mjcb_passive() is python_cb
+    assert mujoco.get_mjcb_passive() is None
+
+
+def test_a_second_thread_cannot_take_the_callback_from_a_block_still_stepping(compiled):
+    """MuJoCo's passive callback is one per process: a thread leaving its block while another's is
+    still inside would restore its own previous callback (none) under the other's steps."""
+    entered, done, seen = threading.Event(), threading.Event(), []
+
+    def other():
+        entered.wait(5)
+        with native.installed_native():
+            pass
+        done.set()
+
+    thread = threading.Thread(target=other)
+    thread.start()
+    with native.installed_native():
+        entered.set()
+        done.wait(0.3)  # the other thread's block waits for this one to end
+        seen.append(mujoco.get_mjcb_passive())
+    thread.join(5)
+    assert seen[0] is not None and done.is_set()
     assert mujoco.get_mjcb_passive() is None
 
 

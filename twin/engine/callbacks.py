@@ -12,11 +12,16 @@ force), and a model with wind inputs (mjcf.add_wind_inputs) has the air's NED ve
 controls 2 and 3 (in place of the environment's constant wind).
 
 MuJoCo holds one global passive callback, so vessels register here by model
-address and the installed function looks its vessel up.
+address and the installed function looks its vessel up. Being one per process, it is also one
+for every thread: a block that installs a callback (this module's or the native one) holds
+HOOK_LOCK from installing it to restoring the one before, so that another thread's block cannot
+take it away (restore its own previous callback, or none) while this one steps. Without it, twins
+simulated from two threads at once would now and then step without their hydrodynamics.
 """
 from __future__ import annotations
 
 import contextlib
+import threading
 from dataclasses import dataclass
 
 import mujoco
@@ -88,15 +93,22 @@ def unregister(model: mujoco.MjModel) -> None:
     _REGISTRY.pop(model._address, None)
 
 
+# held from installing a passive callback to restoring the previous one (module docstring);
+# reentrant, so a block nested in the same thread installs over the outer one and restores it
+HOOK_LOCK = threading.RLock()
+
+
 @contextlib.contextmanager
 def installed(model: mujoco.MjModel, hydro: HydroModel):
-    """Register the vessel and install the Python passive callback for the block."""
-    previous = mujoco.get_mjcb_passive()
-    register(model, hydro)
-    mujoco.set_mjcb_passive(_passive)
-    try:
-        yield
-    finally:
-        unregister(model)
-        if not _REGISTRY:
-            mujoco.set_mjcb_passive(previous)
+    """Register the vessel and install the Python passive callback for the block (other threads'
+    blocks wait: HOOK_LOCK)."""
+    with HOOK_LOCK:
+        previous = mujoco.get_mjcb_passive()
+        register(model, hydro)
+        mujoco.set_mjcb_passive(_passive)
+        try:
+            yield
+        finally:
+            unregister(model)
+            if not _REGISTRY:
+                mujoco.set_mjcb_passive(previous)

@@ -683,10 +683,13 @@ def install() -> None:
 
 @contextlib.contextmanager
 def installed_native():
-    """Install the native callback for the block, restoring the previous callback after."""
-    previous = mujoco.get_mjcb_passive()
-    install()
-    try:
-        yield
-    finally:
-        mujoco.set_mjcb_passive(previous)
+    """Install the native callback for the block, restoring the previous callback after; another
+    thread's block waits meanwhile (callbacks.HOOK_LOCK: the callback is one per process). A
+    rollout's own threads step inside the block and are not held."""
+    with callbacks.HOOK_LOCK:
+        previous = mujoco.get_mjcb_passive()
+        install()
+        try:
+            yield
+        finally:
+            mujoco.set_mjcb_passive(previous)
