@@ -735,3 +735,23 @@ def test_a_vessel_file_keeps_its_stand_ins_and_refuses_a_damaged_entry(yellowfis
     path.write_text(json.dumps(data))
     with pytest.raises(TwinError, match="uncertainty.stand_ins needs"):
         vessel_mod.load(str(path))
+
+
+def test_the_weights_fitted_side_by_side_give_what_one_after_another_gives(yellowfish_vessel, monkeypatch):
+    """identify fits its beliefs' other weights in threads (SIDE_BY_SIDE) on one model cache: every
+    coefficient and every left-out cost as fitted one after another."""
+    import twin.ident.identify as ident_mod
+
+    ds = generate(yellowfish_vessel, effects=["linear_damping=Nr:0.7"], n_segments=4, seed=5,
+                  noise=PROFILES["realistic"], segment_s=(40, 45), manoeuvres=["zigzag", "circle_varying"])
+    recs = [ds.recording]
+
+    def run(side_by_side):
+        monkeypatch.setattr(ident_mod, "SIDE_BY_SIDE", side_by_side)
+        got = ident_mod.identify(recs, yellowfish_vessel, groups=("yaw", "surge"), prior_weights=(0.1, 1.0, 10.0),
+                                 max_evaluations=6)
+        return ({c.label: c.cv.cost for c in got.choices},
+                {e.name: e.value for c in [got.fit] for e in c.estimates})
+
+    apart, together = run(1), run(3)
+    assert len(apart[0]) >= 3 and apart == together

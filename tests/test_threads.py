@@ -34,3 +34,39 @@ def test_the_library_entry_points_are_limited():
     from twin.ident.identify import identify
 
     assert all(getattr(f, "__wrapped__", None) is not None for f in (diagnose, evaluate, identify))
+
+
+def test_a_bounded_store_drops_its_oldest_beyond_its_count_or_its_bytes():
+    from twin.threads import BoundedStore
+
+    by_count = BoundedStore(limit=2)
+    for k in range(3):
+        by_count.get(k, lambda k=k: k * 10)
+    assert len(by_count) == 2 and by_count.get(0, lambda: -1) == -1  # 0 was dropped, and is made again
+    by_bytes = BoundedStore(max_bytes=3 * 800)
+    for k in range(5):
+        by_bytes.get(k, lambda: np.zeros(100))  # 800 bytes each
+    assert len(by_bytes) == 3
+    assert by_bytes.get(4, lambda: np.ones(1)).shape == (100,)  # the newest is kept
+
+
+def test_a_bounded_store_shared_by_threads_hands_out_one_value_per_key():
+    import threading
+
+    from twin.threads import BoundedStore
+
+    store, made, seen = BoundedStore(limit=1000), [], []
+    start = threading.Barrier(4)
+
+    def work(tag):
+        start.wait()
+        for k in range(200):
+            seen.append((k, store.get(k, lambda k=k: made.append(k) or (k, tag))))
+
+    threads = [threading.Thread(target=work, args=(t,)) for t in range(4)]
+    [t.start() for t in threads]
+    [t.join() for t in threads]
+    first = {}
+    for k, value in seen:
+        assert value[0] == k and first.setdefault(k, value) == value  # every thread got the stored one
+    assert len(first) == 200 and len(store) == 200

@@ -14,6 +14,7 @@ from ..effects import Quantity
 from ..engine.mjcf import CompiledVessel
 from ..errors import TwinError
 from ..prepare import Prepared
+from ..threads import BoundedStore
 from ..vessel import Vessel, check
 from .calibrate import prepare_for
 from .windows import ModelCache, Window, as_measured, measured, measured_side, predict
@@ -68,7 +69,7 @@ class Measurements:
         """preps: the recordings prepared for `compiled.vessel` (or fixed, without recordings)."""
         self.preps, self.recordings, self.compiled = preps, recordings, compiled
         self.kwargs = prepare_kwargs or {}
-        self._cache: dict[tuple, list[Prepared]] = {}
+        self._cache: BoundedStore[list[Prepared]] = BoundedStore(64)
         self._key0 = self._key(compiled.vessel) if compiled is not None else None
 
     @staticmethod
@@ -81,13 +82,8 @@ class Measurements:
     def for_vessel(self, vessel: Vessel) -> list[Prepared]:
         if self.recordings is None or self._key(vessel) == self._key0:
             return self.preps
-        key = self._key(vessel)
-        if key not in self._cache:
-            cv = CompiledVessel(vessel, self.compiled.model, self.compiled.geometry)
-            self._cache[key] = [prepare_for(r, cv, **self.kwargs) for r in self.recordings]
-            if len(self._cache) > 64:
-                self._cache.pop(next(iter(self._cache)))
-        return self._cache[key]
+        cv = CompiledVessel(vessel, self.compiled.model, self.compiled.geometry)
+        return self._cache.get(self._key(vessel), lambda: [prepare_for(r, cv, **self.kwargs) for r in self.recordings])
 
 
 class Objective:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -45,6 +46,7 @@ from ..physics.hydrodynamics import acceleration
 from ..physics.thrusters import ThrusterModel
 from ..prepare import Prepared
 from ..prepare.prepared import hold
+from ..threads import BoundedStore
 from ..vessel import Vessel
 
 
@@ -85,6 +87,7 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 # a segment's lag states per lag tried: a few tens of kB each, as many as a diagnosis's candidate
 # lags over one outing's segments need
 SEGMENT_LAGS_KEPT = 512
+KEPT = 20000  # windows' inputs and initial states: a diagnosis's outing of windows times its lags and offsets
 
 
 def _structure_key(vessel: Vessel, wind: bool = False) -> tuple:
@@ -101,17 +104,19 @@ class ModelCache:
     recordings, so a propeller and rudder's inputs are taken as logged (Vessel.as_logged).
 
     timestep_s overrides the MJCF's time step (a coarser RK4 step for the many
-    candidate runs of a diagnosis; it must divide the recordings' grid)."""
+    candidate runs of a diagnosis; it must divide the recordings' grid). One cache may serve
+    fits running in several threads (its stores are twin.threads.BoundedStore)."""
 
     def __init__(self, timestep_s: float | None = None) -> None:
-        self._compiled: dict[tuple, tuple[CompiledVessel, mujoco.MjModel]] = {}
+        self._compiled: BoundedStore[tuple[CompiledVessel, mujoco.MjModel]] = BoundedStore()
         self.timestep_s = timestep_s
-        self._inputs: dict[tuple, np.ndarray] = {}
-        self._lagged: dict[tuple, np.ndarray] = {}
+        self._inputs: BoundedStore[np.ndarray] = BoundedStore(KEPT)
+        self._lagged: BoundedStore[np.ndarray] = BoundedStore(KEPT)
         self._command_keys: dict[tuple, int] = {}
-        self._states: dict[tuple, np.ndarray] = {}
-        self._thrust_bounds: dict[int, tuple[float, float]] = {}
-        self._segment_lag: dict[tuple, np.ndarray] = {}
+        self._keys_lock = threading.Lock()
+        self._states: BoundedStore[np.ndarray] = BoundedStore(KEPT)
+        self._thrust_bounds: BoundedStore[tuple[float, float]] = BoundedStore()
+        self._segment_lag: BoundedStore[np.ndarray] = BoundedStore(SEGMENT_LAGS_KEPT)
 
     def initial_state(self, model: mujoco.MjModel, data: mujoco.MjData, layout: tuple, prep: Prepared, window: Window,
                       nu_offset: tuple) -> np.ndarray:
@@ -121,13 +126,14 @@ class ModelCache:
         inputs', lagged_thrust)."""
         k = window.start
         key = (layout, prep.t[k], prep.north[k], prep.east[k], prep.psi[k], prep.u[k], prep.v[k], prep.r[k], nu_offset)
-        return self._held(self._states, key, lambda: _initial_state(model, data, prep, window, nu_offset))
+        return self._states.get(key, lambda: _initial_state(model, data, prep, window, nu_offset))
 
     def command_key(self, vessel: Vessel) -> int:
         """A small integer for what a vessel's commands depend on (command_thrusters, the PWM clock),
         the same for every vessel that shares them: hashed once per vessel, not once per window."""
         key = (command_thrusters(vessel.thrusters), vessel.sensors.pwm_clock_offset_s)
-        return self._command_keys.setdefault(key, len(self._command_keys))
+        with self._keys_lock:  # two threads' new keys must not both take the next number
+            return self._command_keys.setdefault(key, len(self._command_keys))
 
     def inputs(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float,
                command_key: int | None = None) -> np.ndarray:
@@ -142,11 +148,11 @@ class ModelCache:
         command_key = self.command_key(vessel) if command_key is None else command_key
         recording = (prep.settings.source, float(prep.t[0]), len(prep.t))
         key = recording + (window.start, window.n, timestep_s, command_key)
-        cmd = self._held(self._inputs, key, lambda: thrust_commands(vessel, prep, window, timestep_s))
+        cmd = self._inputs.get(key, lambda: thrust_commands(vessel, prep, window, timestep_s))
         if not lag_outside_engine(vessel):
             return cmd
         lag_s = vessel.thrusters.lag_s
-        return self._held(self._lagged, key + (lag_s,),
+        return self._lagged.get(key + (lag_s,),
                           lambda: lagged_thrust(np.clip(cmd, *self._bounds(vessel, command_key)),
                                                 self._lag_state(vessel, prep, window, timestep_s, command_key,
                                                                 recording),
@@ -154,10 +160,7 @@ class ModelCache:
 
     def _bounds(self, vessel: Vessel, command_key: int) -> tuple[float, float]:
         """The thrusters' bounds (N), which depend on their map alone (the command key's)."""
-        hit = self._thrust_bounds.get(command_key)
-        if hit is None:
-            hit = self._thrust_bounds[command_key] = vessel.thrusters.bounds()
-        return hit
+        return self._thrust_bounds.get(command_key, vessel.thrusters.bounds)
 
     def _lag_state(self, vessel: Vessel, prep: Prepared, window: Window, timestep_s: float, command_key: int,
                    recording: tuple) -> np.ndarray:
@@ -167,33 +170,21 @@ class ModelCache:
         if window.start == seg.start:
             return lagged_thrust_at_start(vessel, prep, window, timestep_s)
         key = recording + (seg.start, timestep_s, command_key, vessel.thrusters.lag_s)
-        filtered = self._held(self._segment_lag, key,
-                              lambda: _filtered_segment(vessel, prep, seg, window.rec, timestep_s,
-                                                        self._bounds(vessel, command_key)),
-                              limit=SEGMENT_LAGS_KEPT)
+        filtered = self._segment_lag.get(key, lambda: _filtered_segment(vessel, prep, seg, window.rec, timestep_s,
+                                                                        self._bounds(vessel, command_key)))
         return filtered[(window.start - seg.start) * _substeps(prep.settings.grid_dt, timestep_s) - 1]
-
-    @staticmethod
-    def _held(store: dict, key: tuple, make, limit: int = 20000) -> np.ndarray:
-        hit = store.get(key)
-        if hit is None:
-            hit = store[key] = make()
-            if len(store) > limit:
-                store.pop(next(iter(store)))
-        return hit
 
     def compiled(self, vessel: Vessel) -> CompiledVessel:
         return self._base(vessel)[0]
 
     def _base(self, vessel: Vessel, wind: bool = False) -> tuple[CompiledVessel, mujoco.MjModel]:
-        key = _structure_key(vessel, wind)
-        if key not in self._compiled:
+        def compiled() -> tuple[CompiledVessel, mujoco.MjModel]:
             cv = compile_vessel(vessel.as_logged())
             model = native.with_native_params(cv, wind_inputs=wind, lean=True)
             if self.timestep_s is not None:
                 model.opt.timestep = self.timestep_s
-            self._compiled[key] = (cv, model)
-        return self._compiled[key]
+            return cv, model
+        return self._compiled.get(_structure_key(vessel, wind), compiled)
 
     def model(self, vessel: Vessel, wind: bool = False) -> mujoco.MjModel:
         """A native-parameterised model of `vessel` (same dynamics as compiling it afresh);
@@ -233,7 +224,7 @@ def command_thrusters(thrusters: ThrusterModel) -> ThrusterModel:
     return replace(thrusters, lag_s=0.0, gain_left=1.0, gain_right=1.0, advance_loss=0.0)
 
 
-_SEGMENTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # a segment's commands, by recording and thrusters
+_SEGMENTS: BoundedStore[tuple[np.ndarray, np.ndarray]] = BoundedStore(64)  # a segment's commands, by recording and thrusters
 
 
 def _segment_commands(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s: float) -> np.ndarray:
@@ -244,14 +235,10 @@ def _segment_commands(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s:
     reused by another recording while the entry lives."""
     key = (id(prep.pwm), seg.start, command_thrusters(vessel.thrusters), vessel.sensors.pwm_clock_offset_s,
            timestep_s)
-    hit = _SEGMENTS.get(key)
-    if hit is None:
+    def commands() -> tuple[np.ndarray, np.ndarray]:
         since = _commands(vessel, prep, Window(rec, seg.start, seg.stop - seg.start), timestep_s)
-        hit = (prep.pwm, vessel.thrusters.slewed(since, timestep_s)[0] if vessel.thrusters.ramping else since)
-        if len(_SEGMENTS) >= 64:
-            _SEGMENTS.pop(next(iter(_SEGMENTS)))
-        _SEGMENTS[key] = hit
-    return hit[1]
+        return prep.pwm, vessel.thrusters.slewed(since, timestep_s)[0] if vessel.thrusters.ramping else since
+    return _SEGMENTS.get(key, commands)[1]
 
 
 def _commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:

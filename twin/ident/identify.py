@@ -38,6 +38,7 @@ import datetime as _dt
 import math
 import numbers
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -68,6 +69,7 @@ from .greybox.splits import render_split_table, render_training_table, split_met
 
 PRIOR_WEIGHTS = (0.01, 0.1, 1.0, 10.0)  # a belief counts as this many windows' worth of data
 START_WEIGHT = 1.0  # fitted first, from the prior; the other weights' fits start from it
+SIDE_BY_SIDE = 3  # the other weights' fits at once, in threads (their rollouts take turns)
 IDLE_PWM_US, IDLE_SPEED_M_S, IDLE_YAW_RAD_S = 35.0, 0.15, 0.05  # below all three a window is a drift
 IDLE_RPS = 1.0  # a propeller turning slower than this drives a 3-m model at a few cm/s at most
 FIT_H_LAMBDA, FIT_TIMESTEP_S = 1.5, 0.05  # the candidate twins' RK4 step (the final scores use the vessel's)
@@ -297,18 +299,27 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                        max_evaluations=short, cache=cache, free_start=start == "free", prior_weight=weights[0],
                        windows=informative, wind=wind)
     sigma = own_misfit_sigma(scout)
-    fits, previous = {}, None
-    for k, weight in enumerate(weights):
-        say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {weight:g} windows",
-            2, 4)
-        fits[weight] = simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
-                                  max_evaluations=max_evaluations if previous is None else short,
-                                  cache=cache, free_start=start == "free", prior_weight=weight,
-                                  start=scout.vessel if previous is None else previous, windows=informative,
-                                  wind=wind, dof_sigma=sigma)
+    def fit_at(weight: float, previous: simfit.FitResult | None) -> simfit.FitResult:
         # each later fit starts from the first, taking its runs there (only the weight differs); the first
         # starts from the scout's twin, whose runs were scaled otherwise
-        previous = fits[weight] if previous is None else previous
+        return simfit.fit(vessel, preps, all_names, anchor=anchor, window_s=window_s, stride_s=window_s,
+                          max_evaluations=max_evaluations if previous is None else short,
+                          cache=cache, free_start=start == "free", prior_weight=weight,
+                          start=scout.vessel if previous is None else previous, windows=informative,
+                          wind=wind, dof_sigma=sigma)
+
+    say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {weights[0]:g} windows",
+        2, 4)
+    first_fit = fit_at(weights[0], None)
+    fits = {weights[0]: first_fit}
+    if len(weights) > 1:
+        others = ", ".join(f"{w:g}" for w in weights[1:])
+        say(f"fit by simulation on {len(informative)} of {len(every)} windows, beliefs worth {others} windows "
+            "side by side", 2, 4)
+        # the later fits depend on the first alone: side by side, one's Python runs while another's
+        # rollout steps (the results are the same as one after another)
+        with ThreadPoolExecutor(min(len(weights) - 1, SIDE_BY_SIDE)) as pool:
+            fits |= zip(weights[1:], pool.map(lambda w: fit_at(w, first_fit), weights[1:]))
     say("judging the choices on left-out runs", 3, 4)
     first = fits[START_WEIGHT] if START_WEIGHT in fits else next(iter(fits.values()))
     fit_groups, _ = held_out_groups(first.objective.windows, preps)

@@ -71,6 +71,7 @@ from ..formats.csv import NEEDED_COLUMNS
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
 from ..recording import Recording, Stream
 from ..run import Run
+from ..threads import BoundedStore
 from .outliers import distinct_count, gnss_outliers, heading_spikes, held_fixes
 
 DEADBAND_US = (-37.0, 31.0)  # [Yellowfish-TR Table VII] (experimental): 400·(3.75 + δ̃) − 1500
@@ -270,18 +271,14 @@ def _gyro_rate(gyro: Stream, t: np.ndarray, heading_rate: np.ndarray) -> np.ndar
     return r - (float(np.median(r[both] - heading_rate[both])) if both.any() else 0.0)
 
 
-_FLAGGED: dict[tuple, np.ndarray] = {}  # outlier masks by content: a calibration that leaves a stream as
+_FLAGGED: BoundedStore[np.ndarray] = BoundedStore(64)  # outlier masks by content: a calibration that leaves a stream as
 # it was (the GNSS under a compass calibration) leaves its outliers as they were
 
 
 def _flagged(rule, *arrays: np.ndarray, key: tuple | None = None) -> np.ndarray:
     """rule(*arrays), kept by the content of `key` (default: the arrays themselves)."""
     key = (rule.__name__, *(_digest(a) for a in (arrays if key is None else key)))
-    if key not in _FLAGGED:
-        if len(_FLAGGED) >= 64:
-            _FLAGGED.pop(next(iter(_FLAGGED)))
-        _FLAGGED[key] = rule(*arrays)
-    return _FLAGGED[key].copy()
+    return _FLAGGED.get(key, lambda: rule(*arrays)).copy()
 
 
 def outlier_counts(rec: Recording) -> dict[str, int]:
@@ -433,10 +430,10 @@ def _stream_rates(pos: Stream, hdg: Stream, t: np.ndarray, segments: list[Segmen
     return vn, ve, r
 
 
-_RATES: dict[tuple, np.ndarray] = {}  # _rate_at by content: a diagnosis re-prepares a recording for
-# every heading or antenna calibration it tries, and those leave the GNSS velocities as they were
-_RATES_BYTES = 256 * 2**20  # bounded by size, not count: a 30-min log of one segment is 144 kB a stream
-_rates_held = [0]
+# _rate_at by content: a diagnosis re-prepares a recording for every heading or antenna calibration
+# it tries, and those leave the GNSS velocities as they were. Bounded by size, not count: a 30-min log
+# of one segment is 144 kB a stream
+_RATES: BoundedStore[np.ndarray] = BoundedStore(max_bytes=256 * 2**20)
 
 
 def _digest(a: np.ndarray) -> tuple:
@@ -457,13 +454,7 @@ def _rate_at(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, windo
     (the sample held at tg[0] included): resampled at the stream's own median period,
     differentiated, interpolated at tg. `content` identifies (ts, x, tg) for the cache."""
     key = (content, smoother, window_s, polyorder, drop_repeats)
-    if key not in _RATES:
-        rate = _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)
-        while _RATES and _rates_held[0] + rate.nbytes > _RATES_BYTES:
-            _rates_held[0] -= _RATES.pop(next(iter(_RATES))).nbytes
-        _RATES[key] = rate
-        _rates_held[0] += rate.nbytes
-    return _RATES[key].copy()
+    return _RATES.get(key, lambda: _rate_uncached(ts, x, tg, smoother, window_s, polyorder, drop_repeats)).copy()
 
 
 def _rate_uncached(ts: np.ndarray, x: np.ndarray, tg: np.ndarray, smoother: str, window_s: float, polyorder: int,
