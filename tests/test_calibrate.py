@@ -243,3 +243,25 @@ def test_a_log_without_thruster_outputs_tells_no_throttle_dependence(blueboat):
     vessel = blueboat.vessel
     log = replace(_throttle_log(8.0, -5.0, 1), pwm=Stream.empty("left_us", "right_us"))
     assert throttle_dependence([prepare_for(log, blueboat, **rate_windows(vessel))], vessel) is None
+
+
+def test_a_recording_is_prepared_again_for_a_pwm_clock_its_compass_error_reads_the_throttle_on(blueboat):
+    """Where the compass follows the motors' throttle, preparing a log reads the PWM at each heading
+    sample on the PWM log's clock: a vessel with another clock offset sees another heading, and the
+    diagnosis's measurements (fit.objective.Measurements) must be prepared again for it."""
+    from dataclasses import replace
+
+    from twin.fit.calibrate import prepare_for, rate_windows
+    from twin.fit.objective import Measurements
+
+    vessel = replace(blueboat.vessel, sensors=replace(blueboat.vessel.sensors, compass_motor_deg=(20.0, -10.0)))
+    rec = _throttle_log(0.0, 0.0, 1)
+    t = rec.pwm.t
+    pwm = 1500.0 + 400.0 * (np.sin(2 * np.pi * t / 4.0) > 0)  # the throttle switches every 2 s
+    rec = replace(rec, pwm=Stream(t, {"left_us": pwm, "right_us": pwm}))
+    kw = rate_windows(vessel)
+    data = Measurements([prepare_for(rec, compile_vessel(vessel), **kw)], [rec], compile_vessel(vessel), kw)
+    late = replace(vessel, sensors=replace(vessel.sensors, pwm_clock_offset_s=1.0))
+    got, fresh = data.for_vessel(late)[0], prepare_for(rec, compile_vessel(late), **kw)
+    assert np.degrees(np.nanmax(np.abs(got.psi - data.preps[0].psi))) > 5.0  # the clock moves the heading
+    np.testing.assert_array_equal(got.psi, fresh.psi)

@@ -15,7 +15,7 @@ from twin.synth.dataset import PROFILES, SensorNoise, generate
 from twin.effects import coefficients, parse_effect
 from twin.effects.coefficients import PWM_THRUSTER_TERMS
 from twin.fit.evaluate import TwinPredictor, evaluate, manoeuvres, misfit_by_manoeuvre
-from twin.fit.windows import ModelCache, make_windows, measured, predict
+from twin.fit.windows import ModelCache, Window, make_windows, measured, predict
 from twin.physics.sensors import antenna_body_m
 from twin.formats import read_recording, write_recording
 from twin.fit.calibrate import prepare_for
@@ -124,6 +124,22 @@ def test_a_kept_cache_predicts_to_the_bit_what_a_fresh_one_does(yellowfish_vesse
         np.testing.assert_array_equal(a.nu, b.nu)
         np.testing.assert_array_equal(a.eta, b.eta)
     assert np.nanmax(np.abs(again[2].nu[:, 1:] - again[0].nu[:, 1:])) > 1e-3  # the offset's start was its own
+
+
+def test_two_recordings_of_one_name_and_span_are_driven_each_by_its_own_pwm(yellowfish_vessel):
+    """The cache keys a window's commands by what the recording logged, not by its name: two runs
+    that share a source name, a start and a length but not their PWM are each driven by their own."""
+    from twin.drive import InputSeries
+    from twin.simulation import simulate_run
+
+    t = np.arange(0.0, 20.0, 0.1)
+    runs = [prepared_from_run(simulate_run(yellowfish_vessel, inputs=InputSeries(
+        t, np.tile(pwm, (len(t), 1)), "pwm"), duration_s=19.9).run) for pwm in ([1800.0, 1800.0], [1800.0, 1300.0])]
+    assert runs[0].settings.source == runs[1].settings.source
+    both = predict(yellowfish_vessel, runs, [Window(0, 0, 150), Window(1, 0, 150)], ModelCache())[0]
+    alone = predict(yellowfish_vessel, [runs[1]], [Window(0, 0, 150)], ModelCache())[0]
+    np.testing.assert_array_equal(both.nu[1], alone.nu[0])
+    assert abs(alone.nu[0, 150, 2]) > 0.1  # the second run turns
 
 
 def test_a_lag_of_hundredths_of_a_second_is_held_at_the_candidates_coarse_step(yellowfish_vessel):

@@ -74,10 +74,15 @@ class Measurements:
 
     @staticmethod
     def _key(vessel: Vessel) -> tuple:
+        """What preparing a recording reads of the vessel: its sensors, and where the compass follows
+        the motors' throttle, what that is read from (the PWM at each heading sample, on the PWM log's
+        clock, over the thrusters' range: fit.calibrate.throttle_at_heading)."""
         s = vessel.sensors
+        throttle = ((s.pwm_clock_offset_s, vessel.thrusters.pwm_min_us, vessel.thrusters.pwm_max_us)
+                    if s.follows_throttle else ())
         return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.compass_motor_deg),
                 tuple(s.antenna_offset_m),
-                s.heading_bias_by_log_deg, s.gnss_latency_s, s.heading_latency_s)
+                s.heading_bias_by_log_deg, s.gnss_latency_s, s.heading_latency_s) + throttle
 
     def for_vessel(self, vessel: Vessel) -> list[Prepared]:
         if self.recordings is None or self._key(vessel) == self._key0:

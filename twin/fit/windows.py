@@ -28,6 +28,7 @@ not a fitted one. Without it (the default) nothing of the measured wind is used.
 from __future__ import annotations
 
 import copy
+import hashlib
 import math
 import threading
 from dataclasses import dataclass, replace
@@ -143,10 +144,10 @@ class ModelCache:
         propeller and rudder's commands are its controls (n, δ).) command_key: command_key(vessel),
         when the caller has it (one vessel's many windows)."""
         # the PWM a window sees does not depend on the sensors' heading or antenna calibration, so
-        # the recording (source, grid) and the window identify it; nor do the commands depend on the
-        # gains, lag or advance loss, so a lag's or a gain's trials share them
+        # what the recording logged (logged_key) and the window identify it; nor do the commands depend
+        # on the gains, lag or advance loss, so a lag's or a gain's trials share them
         command_key = self.command_key(vessel) if command_key is None else command_key
-        recording = (prep.settings.source, float(prep.t[0]), len(prep.t))
+        recording = logged_key(prep)
         key = recording + (window.start, window.n, timestep_s, command_key)
         cmd = self._inputs.get(key, lambda: thrust_commands(vessel, prep, window, timestep_s))
         if not lag_outside_engine(vessel):
@@ -205,6 +206,26 @@ class ModelCache:
 
 
 # ---------------------------------------------------------------- inputs
+
+_LOGGED: BoundedStore[tuple[Prepared, tuple]] = BoundedStore(256)  # by id(prep), the entry holding prep
+
+
+def logged_key(prep: Prepared) -> tuple:
+    """What a window's commands read of a prepared recording, by content: its grid, inputs and
+    supply voltage. A recording prepared again for another heading or antenna calibration has the
+    same (its windows' commands are computed once), and two recordings of one name and span do not.
+    Worked out once per Prepared (its entry holds it, so its id is not another's while kept)."""
+    def digest() -> tuple[Prepared, tuple]:
+        h = hashlib.blake2b(digest_size=16)
+        for a in (prep.t, prep.pwm, prep.supply_v):
+            if a is not None:
+                a = np.ascontiguousarray(a, dtype=float)
+                h.update(repr(a.shape).encode())
+                h.update(a.tobytes())
+            h.update(b"|")
+        return prep, (prep.input_kind, h.hexdigest())
+    return _LOGGED.get(id(prep), digest)[1]
+
 
 def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
     """(steps, 2) thrust commands (N) for the engine steps of one window. A thrust ramp (slew limit)
