@@ -220,7 +220,7 @@ def test_force_does_not_replace_a_log_under_the_dataset_truth_that_describes_it(
     the run that writes that truth itself may replace both."""
     import json
 
-    from twin.cli.app import RUNS, check_new
+    from twin.files import RUNS, check_new
 
     t, cols = straight(20)
     log = write_csv(tmp_path / "my_log.csv", cols, t)
@@ -229,5 +229,27 @@ def test_force_does_not_replace_a_log_under_the_dataset_truth_that_describes_it(
     with pytest.raises(TwinError, match="has a dataset's truth beside it"):
         check_new([log], True, "--out", RUNS)
     check_new([log], True, "output", RUNS, truth=truth)  # the dataset's own run rewrites both
+    link = tmp_path / "link.csv"
+    link.symlink_to(log.name)
+    with pytest.raises(TwinError, match="has a dataset's truth beside it"):  # a link writes the log it names
+        check_new([link], True, "--out", RUNS)
+    import twin
+
+    sim = twin.simulate_run("blueboat", scenario="turn", duration_s=3)
+    for path in (log, link):  # the API keeps it as the command does
+        with pytest.raises(TwinError, match="has a dataset's truth beside it"):
+            sim.write(path, force=True)
+    assert log.read_text().startswith("t,")
     truth.unlink()
     check_new([log], True, "--out", RUNS)  # no truth: --force replaces the log
+
+
+def test_a_column_named_in_another_case_is_said_to_be_unread(tmp_path):
+    path = tmp_path / "cased.csv"
+    path.write_text("t,lat,lon,Heading_Deg,PWM_left,pwm_right,Notes\n0,59,10,5,1500,1500,1\n0.1,59.00001,10,5,1500,1500,2\n")
+    with pytest.raises(TwinError, match="has pwm_right but no pwm_left"):
+        read_recording(path)
+    path.write_text("t,lat,lon,Heading_Deg,Notes\n0,59,10,5,1\n0.1,59.00001,10,5,2\n")
+    notes = read_recording(path).notes
+    assert "columns not read, names being case-sensitive: Heading_Deg (read as heading_deg only when named so)" in notes
+    assert not any("Notes" in n for n in notes)  # a column of the user's own is no mistake

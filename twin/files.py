@@ -244,6 +244,41 @@ def kept_data(path: Path) -> str | None:
     return None
 
 
+KEPT = "it is kept, {force} or not (give another name, or remove it first)"
+RUNS = ("recording", "rerun recording of runs")  # the kinds of kept data a run's or a recording's outputs are
+
+
+def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...] = (), truth=None,
+              force_name: str = "--force") -> None:
+    """Refuse, before any work is done, to write over a file that exists unless `force`: a
+    recording or a vessel file there may be one the user made, and a run or a fit written over it
+    would lose it. `writes`: the kinds of kept data (kept_data) this output is; data of another kind
+    (a log where a band would go, a twin where a truth would) is kept even with `force`; a recording
+    is not replaced under a dataset's truth that stays beside it (`truth`: the truth the run writes).
+    A symbolic link is judged by the file it names, which the write replaces. `force_name`: how the
+    caller's user says force (the command's --force, the API's force=True)."""
+    kept = KEPT.format(force=force_name)
+    for p in paths:
+        if p is None or not Path(p).exists():
+            continue
+        kind = kept_data(Path(p))
+        if kind and kind not in writes:
+            raise TwinError(f"{option} '{p}' exists and is a {kind}: {kept}")
+        if not force:
+            raise TwinError(f"{option} '{p}' exists: it is kept ({force_name} replaces it)")
+        if writes and kind is None and Path(p).suffix.lower() in (".csv", ".rrd"):
+            # a table or a rerun file whose content is none of what this output writes is someone's
+            # other data (notes, a manifest, a view): force replaces data with data of its kind only
+            raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)}: {kept}")
+        target = link_target(Path(p))
+        beside = target.with_name(target.stem + ".truth.json")
+        if kind == "recording" and kept_data(beside) == "dataset's truth" and not (
+                truth is not None and same_file(Path(truth), beside)):
+            # the recording would change under its truth, which would then describe another log
+            raise TwinError(f"{option} '{p}' has a dataset's truth beside it ('{beside}') that would no longer "
+                            "describe it: move or remove the truth first, or write elsewhere")
+
+
 def check_unique_columns(header: list[str], name: str) -> None:
     """TwinError unless every named column of a CSV header appears once: which of two a reader took
     would be a guess (a log's CSV and an inputs CSV alike)."""

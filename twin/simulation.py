@@ -18,6 +18,7 @@ from .engine.limits import Limited, beyond_bounds
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate as _simulate
 from .errors import TwinError
+from .files import RUNS, check_new
 from .physics.environment import MAX_CURRENT_M_S, MAX_WIND_M_S
 from .physics.waves import Sea, parse_sea
 from .run import Run
@@ -248,13 +249,14 @@ class Simulation:
 
         Raises:
             TwinError: `path` is not a file path, a file is already there and `force` is False,
-                or the format is unknown.
+                the file there is data of another kind (a vessel file, a band, someone's table) or a
+                recording with a dataset's truth beside it (kept even with `force`, as the command
+                keeps them), or the format is unknown.
         """
         from .outputs import write
 
         _output_path(path)
-        if Path(path).exists() and not force:
-            raise TwinError(f"'{path}' exists: it is kept (force=True replaces it)")
+        check_new([path], force, "path", RUNS, force_name="force=True")
         v = self.compiled.vessel
         write({"twin": self.run}, Path(path), geometry=self.compiled.geometry, vessel_name=v.name, mjcf=v.mjcf,
               origin=origin)

@@ -23,7 +23,7 @@ import typer
 from rich.console import Console
 
 from ..errors import TwinError
-from ..files import (after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
+from ..files import (KEPT, after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
                      write_text_atomic)
 from ..progress import Progress
 from ..threads import limit_process_blas_threads
@@ -319,36 +319,7 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
             raise TwinError(f"{option} '{p}': cannot write there (choose another folder)")
 
 
-KEPT = "it is kept, --force or not (give another name, or remove it first)"
 FORCE_HELP = "replace an output that exists (never an input, nor data of another kind)"
-# the kinds of kept data (files.kept_data) a run's or a recording's outputs are
-RUNS = ("recording", "rerun recording of runs")
-
-
-def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...] = (), truth=None) -> None:
-    """Refuse, before any work is done, to write over a file that exists unless `force`: a
-    recording or a vessel file there may be one the user made, and a run or a fit written over it
-    would lose it. `writes`: the kinds of kept data (kept_data) this output is; data of another kind
-    (a log where a band would go, a twin where a truth would) is kept even with `force`; a recording
-    is not replaced under a dataset's truth that stays beside it (`truth`: the truth the run writes)."""
-    for p in paths:
-        if p is None or not Path(p).exists():
-            continue
-        kind = kept_data(Path(p))
-        if kind and kind not in writes:
-            raise TwinError(f"{option} '{p}' exists and is a {kind}: {KEPT}")
-        if not force:
-            raise TwinError(f"{option} '{p}' exists: it is kept (--force replaces it)")
-        if writes and kind is None and Path(p).suffix.lower() in (".csv", ".rrd"):
-            # a table or a rerun file whose content is none of what this output writes is someone's
-            # other data (notes, a manifest, a view): --force replaces data with data of its kind only
-            raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)}: {KEPT}")
-        beside = Path(p).with_name(Path(p).stem + ".truth.json")
-        if kind == "recording" and kept_data(beside) == "dataset's truth" and not (
-                truth is not None and same_file(Path(truth), beside)):
-            # the recording would change under its truth, which would then describe another log
-            raise TwinError(f"{option} '{p}' has a dataset's truth beside it ('{beside}') that would no longer "
-                            "describe it: move or remove the truth first, or write elsewhere")
 
 
 def check_truth_beside_logs(truth: Path, outputs, option: str = "--truth") -> None:
@@ -387,7 +358,7 @@ def check_distinct(outputs: dict[str, object], inputs=(), keep_data: bool = True
     for option, path in named if keep_data else ():
         kind = kept_data(path)
         if kind:
-            raise TwinError(f"{option} '{path}' exists and is a {kind}: {KEPT}")
+            raise TwinError(f"{option} '{path}' exists and is a {kind}: {KEPT.format(force='--force')}")
 
 
 RECORDING_SUFFIXES = (".tlog", ".bin", ".csv", ".mcap")

@@ -9,7 +9,8 @@ from rich.markup import escape
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (all_or_nothing_outputs, listed, CHANNELS_HELP, check_new, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from ..files import check_new
+from .app import (all_or_nothing_outputs, listed, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .ident import calibration_line

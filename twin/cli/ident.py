@@ -11,8 +11,9 @@ from rich.markup import escape
 
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
-from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, listed, RUNS, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
-                  channels_from, check_distinct, check_new, check_outputs, check_truth_beside_logs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
+from ..files import RUNS, check_new
+from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, listed, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+                  channels_from, check_distinct, check_outputs, check_truth_beside_logs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
 from .run import KNOWN_SEA_HELP, known_sea

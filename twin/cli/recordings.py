@@ -9,7 +9,8 @@ import typer
 
 from ..drive import inputs_mismatch
 from ..errors import TwinError
-from .app import (all_or_nothing_outputs, RUNS, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+from ..files import RUNS, check_new
+from .app import (all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)

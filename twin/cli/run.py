@@ -13,7 +13,8 @@ from rich.table import Table
 
 from ..errors import TwinError
 from ..files import after_writes
-from .app import (all_or_nothing_outputs, RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_new, check_outputs,
+from ..files import RUNS, check_new
+from .app import (all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs,
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")

@@ -11,7 +11,8 @@ import typer
 
 from ..errors import TwinError
 from ..files import write_text_atomic
-from .app import (RUNS, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_new,
+from ..files import RUNS, check_new
+from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 

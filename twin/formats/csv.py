@@ -51,6 +51,9 @@ Layout = Callable[[Path, list[str], dict[str, np.ndarray], dict | None], Recordi
 # the generic layout's columns read only together: a file with one of them would lose its stream unsaid
 PAIRS = (("lat", "lon"), ("north", "east"), ("x", "y"), ("pwm_left", "pwm_right"), ("prop_rps", "rudder_deg"),
          ("wind_speed", "wind_from_deg"), ("wind_rel_speed", "wind_rel_from_deg"))
+# every column the generic layout reads (a twin run's u, v, thrust_left/right are known and left)
+GENERIC_COLUMNS = frozenset({"t", "alt", "heading_deg", "psi", "pwm_neutral_left", "pwm_neutral_right", "yaw_rate", "r",
+                             "voltage", "u", "v", "thrust_left", "thrust_right"} | {c for pair in PAIRS for c in pair})
 # where a generic CSV gives the streams prepare() needs: what to say of a file without them
 NEEDED_COLUMNS = {"GNSS": "GNSS in columns lat,lon or north,east", "heading": "the heading in a column heading_deg or psi"}
 
@@ -163,6 +166,11 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
             held = held_fix_note(rec.gnss)
             if held:
                 rec.notes.append(held)
+    by_lower = {n.lower(): n for n in GENERIC_COLUMNS}
+    cased = [f"{h} (read as {by_lower[h.lower()]} only when named so)" for h in header
+             if h not in GENERIC_COLUMNS and h.lower() in by_lower and by_lower[h.lower()] not in header]
+    if cased:  # a column name differing only in case is not read: say so, or a missing stream looks unexplained
+        rec.notes.append(f"columns not read, names being case-sensitive: {', '.join(cased)}")
     psi = np.radians(c["heading_deg"]) if "heading_deg" in c else c.get("psi")
     if psi is not None:
         rec.heading = stream("heading", t, {"psi_rad": psi}, rec.dropped)
