@@ -304,3 +304,73 @@ def test_mcap_cut_short_reads_its_complete_part(tmp_path):
     assert done.returncode == 0 and not done.stderr, done.stderr
     assert "messages whose bytes are not JSON left out" in done.stdout and "the rest is lost" in done.stdout
     np.testing.assert_array_equal(back.pwm["left_us"], rec.pwm["left_us"][: len(back.pwm)])
+
+
+@pytest.mark.parametrize("ext", [".tlog", ".bin"])
+def test_a_run_written_as_telemetry_has_samples_over_its_own_span_and_none_in_its_gaps(tmp_path, ext):
+    """A run that starts at 5 s, or two joined with a 4-s gap, is logged where it has states: no
+    fixes or PWM before its start (a still boat under thrust), none drawn across the gap."""
+    from twin.formats import write_run
+    from twin.run import Run
+
+    def run(t):
+        n = len(t)
+        return Run(t, np.column_stack([t - t[0], np.zeros(n), np.zeros(n)]),
+                   np.column_stack([np.ones(n), np.zeros(n), np.zeros(n)]), np.full((n, 2), 1600.0), np.zeros((n, 2)))
+
+    late = run(np.arange(50, 151) * 0.1)
+    write_run(late, tmp_path / f"late{ext}")
+    got = read_recording(tmp_path / f"late{ext}")
+    for stream in (got.gnss, got.heading, got.pwm):
+        assert stream.t[-1] - stream.t[0] == pytest.approx(10.0, abs=0.02)
+    joined = run(np.r_[np.arange(0, 51), np.arange(90, 141)] * 0.1)  # 0-5 s, then 9-14 s
+    write_run(joined, tmp_path / f"joined{ext}")
+    got = read_recording(tmp_path / f"joined{ext}")
+    for stream in (got.gnss, got.heading, got.pwm):
+        t = stream.t - stream.t[0]
+        assert not np.any((t > 5.0 + 1e-6) & (t < 9.0 - 1e-6)) and t[-1] == pytest.approx(14.0, abs=0.02)
+
+
+@pytest.mark.parametrize("ext", [".tlog", ".bin", ".mcap", ".csv"])
+def test_a_gyro_with_gaps_and_the_wind_on_board_come_back_as_written(tmp_path, ext):
+    """A gyro covering 10-20 s of a 30-s heading comes back over 10-20 s (a .tlog carries it at the
+    heading's times: none drawn where it had none), and the relative wind beside the true one."""
+    th, ti, tw = np.arange(0, 1500) * 0.02, np.arange(500, 1000) * 0.02, np.arange(0, 300) * 0.1
+    rec = Recording(source="g", kind="synthetic", heading=Stream(th, {"psi_rad": 0.1 * th}),
+                    imu=Stream(ti, {"yaw_rate_rads": np.full(len(ti), 0.1)}),
+                    wind=Stream(tw, {"speed_m_s": np.full(300, 3.0), "from_deg": np.full(300, 90.0),
+                                     "relative_speed_m_s": np.full(300, 4.0), "relative_from_deg": np.full(300, 20.0)}))
+    write_recording(rec, tmp_path / f"g{ext}")
+    back = read_recording(tmp_path / f"g{ext}")
+    assert len(back.imu) == 500 and back.imu.t[0] == pytest.approx(10.0) and back.imu.t[-1] == pytest.approx(19.98)
+    assert not any(reason.startswith("imu") for reason, _ in back.dropped)
+    np.testing.assert_allclose(back.wind["relative_speed_m_s"], 4.0)
+    np.testing.assert_allclose(back.wind["relative_from_deg"], 20.0)
+
+
+def test_a_tlog_refuses_a_gyro_without_a_heading_to_carry_it(tmp_path):
+    t = np.arange(0, 100) * 0.1
+    rec = Recording(source="y", kind="synthetic", imu=Stream(t, {"yaw_rate_rads": np.full(100, 0.1)}),
+                    gnss=Stream(t, {"lat_deg": np.full(100, 37.0), "lon_deg": -5.0 + 1e-6 * t}))
+    with pytest.raises(TwinError, match="has a gyro but no heading"):
+        write_recording(rec, tmp_path / "y.tlog")
+    assert not (tmp_path / "y.tlog").exists()
+
+
+def test_a_bin_keeps_a_recordings_calendar_day_and_a_simulated_run_claims_none(tmp_path):
+    """The GPS clock a .bin is written with: the recording's own calendar origin (a converted log keeps
+    its day, which `twin fleet` groups by), and for a simulated run no calendar day at all."""
+    from twin.formats import write_run
+    from twin.run import Run
+
+    t = np.arange(0, 101) * 0.1
+    dated = Recording(source="d", kind="synthetic", origin_s=1.75e9,
+                      gnss=Stream(t, {"lat_deg": np.full(101, 59.0), "lon_deg": 10.0 + 1e-6 * t}),
+                      heading=Stream(t, {"psi_rad": np.zeros(101)}))
+    write_recording(dated, tmp_path / "d.bin")
+    assert read_recording(tmp_path / "d.bin").origin_s == pytest.approx(1.75e9, abs=0.01)
+    n = len(t)
+    run = Run(t, np.column_stack([t, 0 * t, 0 * t]), np.column_stack([np.ones(n), 0 * t, 0 * t]),
+              np.full((n, 2), 1600.0), np.zeros((n, 2)))
+    write_run(run, tmp_path / "run.bin")
+    assert read_recording(tmp_path / "run.bin").origin_s < 946684800.0  # before 2000: no calendar day

@@ -424,3 +424,11 @@ def test_an_interrupted_fleet_leaves_no_empty_folder_it_made_and_keeps_one_it_di
     with pytest.raises(KeyboardInterrupt):
         fleet.diagnose_fleet(entries, tmp_path / "kept", diagnose=interrupted)
     assert (tmp_path / "kept").is_dir()
+
+
+def test_fleet_report_names_are_one_per_log_even_where_a_numbered_name_is_another_logs_stem():
+    from pathlib import Path
+
+    logs = [SimpleNamespace(path=Path(p)) for p in ("a/run.csv", "b/run.csv", "c/run-2.csv", "d/run.csv", "e/x.csv")]
+    names = fleet._report_names(logs)
+    assert names == ["run", "run-3", "run-2", "run-4", "x"]

@@ -7,8 +7,8 @@ Written here: PARM (a recording's own parameters, then the thruster functions
 73/74 on channels 1/3 as ArduRover, and their trims), GPS (lat/lon 1e-7 deg,
 alt cm), ATT (heading, roll and pitch, centidegrees), RCOU (integer µs), IMU (GyrZ, rad/s),
 BAT (Volt), and for a propeller-and-rudder ship and a measured wind the log's own types SHIP
-(Prop rps, Rudder rad) and WNDM (Spd m/s, From deg), float32, each message at its own sample
-time (TimeUS, µs).
+(Prop rps, Rudder rad) and WNDM (Spd m/s, From deg; the wind measured on board, where there is
+one, as WNDR at the same times), float32, each message at its own sample time (TimeUS, µs).
 A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
 the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
 """
@@ -47,9 +47,14 @@ FORMATS = {  # type id, name, format, columns (ArduPilot's layouts, trimmed to w
     # a ship's inputs and a measured wind, which ArduPilot has no message for (a log defines its own types)
     "SHIP": (70, "Qff", "TimeUS,Prop,Rudder"),
     "WNDM": (71, "Qff", "TimeUS,Spd,From"),
+    "WNDR": (72, "Qff", "TimeUS,Spd,From"),  # the wind measured on board (relative), at WNDM's times
 }
 GPS_EPOCH_UNIX_S = 315964800.0
 LEAP_S = 18.0
+# GPS week 0, time 0 at the log's time 0: a simulated run claims no calendar day (read back, its
+# origin is 0, not a date that `twin fleet` would take for the day it was logged)
+NO_CALENDAR_UNIX_S = GPS_EPOCH_UNIX_S - LEAP_S
+CALENDAR_UNIX_S = (946684800.0, 4102444800.0)  # 2000-2100: an origin in this span is a calendar time
 
 
 def _message(name: str, *values) -> bytes:
@@ -63,8 +68,8 @@ def _fmt_record(name: str) -> bytes:
     return _message("FMT", type_id, length, name.encode(), fmt.encode(), cols.encode())
 
 
-def dataflash_bytes(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, start_unix_s: float = 1.7e9,
-                    **rates) -> bytes:
+def dataflash_bytes(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN,
+                    start_unix_s: float = NO_CALENDAR_UNIX_S, **rates) -> bytes:
     tel = sample(run, antenna_body_m, origin, **rates)
     timed = _parameters(THRUSTER_PARAMS)
     timed += _gps(tel.gnss_t, tel.lat_deg, tel.lon_deg, np.zeros(len(tel.gnss_t)), tel.speed_m_s, start_unix_s,
@@ -79,10 +84,15 @@ def write_run_bin(run: Run, path, **kwargs) -> None:
     write_bytes_atomic(path, dataflash_bytes(run, **kwargs))
 
 
-def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
+def recording_bytes(rec: Recording, start_unix_s: float | None = None) -> bytes:
     """A recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg and whose psi_rad
     is wrapped (twin.formats.write_recording prepares it) as a DataFlash log; TwinError where a value
-    does not fit its field."""
+    does not fit its field. start_unix_s: the GPS clock (as Unix time) at the log's time 0; None: the
+    recording's own origin where it is a calendar time (a converted log keeps its day), else none
+    claimed (NO_CALENDAR_UNIX_S)."""
+    if start_unix_s is None:
+        dated = CALENDAR_UNIX_S[0] <= rec.origin_s <= CALENDAR_UNIX_S[1]
+        start_unix_s = rec.origin_s if dated else NO_CALENDAR_UNIX_S
     g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
@@ -106,6 +116,9 @@ def recording_bytes(rec: Recording, start_unix_s: float = 1.7e9) -> bytes:
     if len(wind):
         timed += [(_us(t), _message("WNDM", _us(t), float(v), float(f)))
                   for t, v, f in zip(wind.t, wind["speed_m_s"], wind["from_deg"])]
+    if len(wind) and wind.has("relative_speed_m_s", "relative_from_deg"):
+        timed += [(_us(t), _message("WNDR", _us(t), float(v), float(f)))
+                  for t, v, f in zip(wind.t, wind["relative_speed_m_s"], wind["relative_from_deg"])]
     return _log_bytes(timed + _rcou(p.t, pwm))
 
 
@@ -177,7 +190,7 @@ def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
 # ATT (Yaw in degrees), RCOU (C1..C14 or legacy Ch1..Ch12), PARM, BAT (instance 0) or
 # legacy CURR, IMU (GyrZ, instance 0), SHIP and WNDM (this project's own, above).
 
-DF_WANTED = ["GPS", "ATT", "RCOU", "PARM", "BAT", "CURR", "IMU", "SHIP", "WNDM"]
+DF_WANTED = ["GPS", "ATT", "RCOU", "PARM", "BAT", "CURR", "IMU", "SHIP", "WNDM", "WNDR"]
 
 
 def read_dataflash(path: Path, channels: dict | None) -> Recording:
@@ -203,8 +216,11 @@ def read_dataflash(path: Path, channels: dict | None) -> Recording:
         rec.prop_rudder = clean_stream("prop_rudder", [m._timestamp for m in ship], {
             "n_rps": [m.Prop for m in ship], "delta_rad": [m.Rudder for m in ship]}, rec.dropped)
     if wind:
-        rec.wind = clean_stream("wind", [m._timestamp for m in wind], {
-            "speed_m_s": [m.Spd for m in wind], "from_deg": [m.From for m in wind]}, rec.dropped)
+        cols = {"speed_m_s": [m.Spd for m in wind], "from_deg": [m.From for m in wind]}
+        relative = rows.get("WNDR", [])
+        if [m.TimeUS for m in relative] == [m.TimeUS for m in wind]:  # written beside each true wind, or not at all
+            cols |= {"relative_speed_m_s": [m.Spd for m in relative], "relative_from_deg": [m.From for m in relative]}
+        rec.wind = clean_stream("wind", [m._timestamp for m in wind], cols, rec.dropped)
     return finish(rec)
 
 

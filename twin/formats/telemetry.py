@@ -78,21 +78,34 @@ def antenna_ned(run: Run, antenna_body_m) -> tuple[np.ndarray, np.ndarray]:
     return run.eta[:, 0] + c * ax - s * ay, run.eta[:, 1] + s * ax + c * ay
 
 
+def _sensor_times(run: Run, dt: float) -> np.ndarray:
+    """A sensor's sample times every dt over the run's own span (from its first time, not from 0)
+    and not inside a gap between its samples (runs joined end to end, as `replay` joins segments):
+    a sample there would be the states on either side drawn as a straight line, and inputs held."""
+    t = np.asarray(run.t, float)
+    times = np.arange(float(t[0]), float(t[-1]) + 1e-9, dt)
+    steps = np.diff(t)
+    gap = steps > 2.0 * float(np.median(steps))
+    if not gap.any():
+        return times
+    k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(steps) - 1)
+    return times[~gap[k] | np.isclose(times, t[k])]
+
+
 def sample(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, gnss_dt: float = 0.2,
            heading_dt: float = 0.02, pwm_dt: float = 0.1) -> Telemetry:
     if len(run.t) < 2:
         raise TwinError("a log needs at least two samples")
-    t_end = float(run.t[-1])
     north, east = antenna_ned(run, antenna_body_m)
-    tg = np.arange(0.0, t_end + 1e-9, gnss_dt)
+    tg = _sensor_times(run, gnss_dt)
     ng, eg = np.interp(tg, run.t, north), np.interp(tg, run.t, east)
     lat, lon = geodetic_from_ned(ng, eg, *origin)
     velocity = np.column_stack([np.gradient(ng, tg), np.gradient(eg, tg)]) if len(tg) > 1 else np.zeros((len(tg), 2))
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
-    th = np.arange(0.0, t_end + 1e-9, heading_dt)
+    th = _sensor_times(run, heading_dt)
     psi = np.angle(np.exp(1j * np.interp(th, run.t, np.unwrap(run.eta[:, 2]))))
     r = np.interp(th, run.t, run.nu[:, 2])
-    tp = np.arange(0.0, t_end + 1e-9, pwm_dt) if np.all(np.isfinite(run.pwm_us)) else np.zeros(0)
+    tp = _sensor_times(run, pwm_dt) if np.all(np.isfinite(run.pwm_us)) else np.zeros(0)
     idx = np.clip(np.searchsorted(run.t, tp + 1e-9, side="right") - 1, 0, len(run.t) - 1)
     six = run.meta.get("six_dof")  # a 6-DOF hull's roll and pitch, beside the heading
     roll = None if six is None else np.interp(th, run.t, six["roll_rad"])

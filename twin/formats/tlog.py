@@ -18,7 +18,8 @@ One packet builder (`telemetry_packets`) serves both sources:
   SERVO_OUTPUT_RAW   port 0, PWM (integer µs) on channels 1 and 3, time_usec (32-bit µs)
   SYS_STATUS         battery voltage (mV), only where the source has a battery stream
   NAMED_VALUE_FLOAT  a recording's propeller speed and rudder angle (PROP_RPS rps, RUDDER_RAD rad)
-                     and measured wind (WIND_SPD m/s, WIND_FROM deg), float32, time_boot_ms:
+                     and measured wind (WIND_SPD m/s, WIND_FROM deg; on board, where measured,
+                     WIND_RSPD, WIND_RFROM), float32, time_boot_ms:
                      MAVLink has no message of its own for them
 Every message is stamped with its own sample time; the Unix stamp is a fixed start
 plus that time, so the log's boot clock and receive clock agree.
@@ -51,9 +52,12 @@ UNKNOWN_U16 = 65535  # MAVLink's "unknown" for GPS speed and course
 MAX_BOOT_MS = 2**32 - 1  # ATTITUDE.time_boot_ms is a 32-bit ms counter
 
 Add = Callable[[float, object], None]
-# recording stream → (NAMED_VALUE_FLOAT name, column) pairs, written together at the stream's times
+# recording stream → (NAMED_VALUE_FLOAT name, column) pairs, written together at the stream's times:
+# the first two always, the others (the wind measured on board) where the stream has them
 NAMED = {"prop_rudder": (("PROP_RPS", "n_rps"), ("RUDDER_RAD", "delta_rad")),
-         "wind": (("WIND_SPD", "speed_m_s"), ("WIND_FROM", "from_deg"))}
+         "wind": (("WIND_SPD", "speed_m_s"), ("WIND_FROM", "from_deg"),
+                  ("WIND_RSPD", "relative_speed_m_s"), ("WIND_RFROM", "relative_from_deg"))}
+NAMED_REQUIRED = 2
 
 
 def tlog_packets(run: Run, antenna_body_m=(0.0, 0.0), origin=DEFAULT_ORIGIN, start_unix_s: float = START_UNIX_S,
@@ -183,6 +187,8 @@ def _battery(mav, tel: Telemetry, add: Add) -> None:
 def _named(mav, streams: dict, add: Add) -> None:
     for key, stream in streams.items():
         for name, column in NAMED[key]:
+            if not stream.has(column):
+                continue
             for t, value in zip(stream.t, stream[column]):
                 add(t, mav.named_value_float_encode(int(round(t * 1e3)), name.encode(), float(value)))
 
@@ -193,13 +199,19 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     """The recording's samples as Telemetry; TwinError where a value does not fit
     its MAVLink field. ATTITUDE carries heading and yaw rate together, so the imu
     stream is interpolated at the heading times; without an imu stream its yawspeed is NaN, which
-    the reader takes as no gyro (a 0 would read back as a gyro that never turns). The attitude
-    stream (roll, pitch) likewise, exactly where it shares the heading's times."""
+    the reader takes as no gyro (a 0 would read back as a gyro that never turns), and so is it at
+    heading times the gyro did not cover (before its first sample, after its last, in its gaps):
+    a value there would be one it never measured. The attitude stream (roll, pitch) likewise,
+    exactly where it shares the heading's times. A gyro without a heading has no ATTITUDE to ride
+    on: refused (TwinError), not dropped unsaid."""
     g, h, p, imu, bat = rec.gnss, rec.heading, rec.pwm, rec.imu, rec.battery
-    r = np.interp(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
+    if len(imu) and not len(h):
+        raise TwinError(f"{Path(rec.source).name}: a .tlog carries the gyro in ATTITUDE beside the heading, and this "
+                        "recording has a gyro but no heading (write a .csv, .bin or .mcap)")
+    r = _covered(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
     att = rec.attitude
-    roll = np.interp(h.t, att.t, att["roll_rad"]) if len(att) else None
-    pitch = np.interp(h.t, att.t, att["pitch_rad"]) if len(att) else None
+    roll = _covered(h.t, att.t, att["roll_rad"]) if len(att) else None
+    pitch = _covered(h.t, att.t, att["pitch_rad"]) if len(att) else None
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
     _check_range("heading time (ms)", np.round(h.t * 1e3), 0, MAX_BOOT_MS)
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
@@ -209,6 +221,19 @@ def recording_telemetry(rec: Recording) -> Telemetry:
                      alt_m=g["alt_m"] if g.has("alt_m") else None,
                      battery_t=bat.t, voltage_v=bat["voltage_v"] if len(bat) else np.zeros(0),
                      roll_rad=roll, pitch_rad=pitch)
+
+
+def _covered(t: np.ndarray, t_src: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """x interpolated at times t where its samples cover them (between two samples no further apart
+    than twice their median spacing), NaN elsewhere."""
+    t, t_src, x = np.asarray(t, float), np.asarray(t_src, float), np.asarray(x, float)
+    out = np.interp(t, t_src, x)
+    if len(t_src) < 2:
+        return np.where(np.isclose(t, t_src[0]) if len(t_src) else False, out, np.nan)
+    steps = np.diff(t_src)
+    k = np.clip(np.searchsorted(t_src, t, side="right") - 1, 0, len(steps) - 1)
+    inside = (t >= t_src[0] - 1e-9) & (t <= t_src[-1] + 1e-9) & (steps[k] <= 2.0 * float(np.median(steps)))
+    return np.where(inside | np.isclose(t, t_src[k]), out, np.nan)
 
 
 def _check_range(what: str, values: np.ndarray, lo: float, hi: float) -> None:
@@ -328,8 +353,9 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     rate = np.array([m.yawspeed for _, m in att], float)
     if len(rate) and np.all(np.isnan(rate)):  # written without a gyro (recording_telemetry): none, not dropped
         rec.imu = Stream.empty("yaw_rate_rads")
-    else:
-        rec.imu = clean_stream("imu", t_att, {"yaw_rate_rads": rate}, rec.dropped)
+    else:  # a NaN yawspeed is where recording_telemetry had no gyro sample: not a sample dropped
+        sampled = ~np.isnan(rate)
+        rec.imu = clean_stream("imu", np.asarray(t_att, float)[sampled], {"yaw_rate_rads": rate[sampled]}, rec.dropped)
     _tlog_pwm(rec, msgs, clock, channels)
     _tlog_battery(rec, msgs, clock)
     _tlog_named(rec, msgs["NAMED_VALUE_FLOAT"], clock)
@@ -441,12 +467,13 @@ def _tlog_named(rec: Recording, named: list, clock: _BootClock) -> None:
     by_name: dict[str, dict[int, tuple]] = defaultdict(dict)
     for t, m in named:
         by_name[text(m.name)][int(m.time_boot_ms)] = (t, m)
-    for stream, ((first, col_a), (second, col_b)) in NAMED.items():
-        times = sorted(set(by_name[first]) & set(by_name[second]))
+    for stream, pairs in NAMED.items():
+        required = pairs[:NAMED_REQUIRED]
+        times = sorted(set.intersection(*(set(by_name[name]) for name, _ in required)))
         if not times:
             continue
-        items = [by_name[first][ms] for ms in times]
+        items = [by_name[required[0][0]][ms] for ms in times]
         t = clock.stamp(items, [ms * 1e-3 for ms in times])
-        cols = {col_a: [by_name[first][ms][1].value for ms in times],
-                col_b: [by_name[second][ms][1].value for ms in times]}
+        sent = required + tuple(p for p in pairs[NAMED_REQUIRED:] if set(times) <= set(by_name[p[0]]))
+        cols = {column: [by_name[name][ms][1].value for ms in times] for name, column in sent}
         setattr(rec, stream, clean_stream(stream, t, cols, rec.dropped))

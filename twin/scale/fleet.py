@@ -314,13 +314,19 @@ def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Pat
 
 
 def _report_names(logs: list[Log]) -> list[str]:
-    """A report name per log: its file's stem, numbered where two logs share one."""
-    seen: dict[str, int] = {}
-    out = []
-    for log in logs:
-        stem = log.path.stem
-        seen[stem] = seen.get(stem, 0) + 1
-        out.append(stem if seen[stem] == 1 else f"{stem}-{seen[stem]}")
+    """A report name per log: its file's stem, numbered where two logs share one (run, run-2), the
+    number passed over where another log's own stem is that name (run-2.csv beside two run.csv)."""
+    stems = [log.path.stem for log in logs]
+    taken, out = set(stems), []
+    for k, stem in enumerate(stems):
+        if stem not in stems[:k]:
+            out.append(stem)
+            continue
+        n = 2
+        while f"{stem}-{n}" in taken:
+            n += 1
+        taken.add(f"{stem}-{n}")
+        out.append(f"{stem}-{n}")
     return out
 
 
