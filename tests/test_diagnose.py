@@ -642,6 +642,12 @@ def test_a_recording_too_short_for_any_dynamic_finding_says_so():
     (line,) = answer(d)["missing"]
     assert line.startswith("nothing can be named from the dynamics with 7 blocks of 30 s")
     assert "at least 1.5 min more" in line
+    ev = {"blocks_for": 6, "blocks_against": 1}
+    named = {"name": "current", "parameters": {"speed_m_s": 0.1}, "ci": {}, "evidence": ev, "z": 3.2, "rivals": [],
+             "excess_gain": 0.3}
+    d.windows, d.effects = {"length_s": 5.0, "windows": 40, "blocks": 14}, [named]
+    d.fit_before = d.fit_after = {k: {"r2": 0.5, "mae": 0.1} for k in "uvr"}
+    assert "over 7 blocks of 15 s (6 for, 1 against)" in answer(d)["missing"][0]  # blocks of the windows given
 
 
 def test_the_report_says_the_form_is_off_where_an_edge_fit_was_refused():

@@ -194,3 +194,47 @@ def test_a_z_short_of_the_bar_is_not_shown_on_it():
     from twin.diagnose.report import z_text
 
     assert [z_text(z) for z in (2.98, 3.0, 3.04, 2.9, 4.76, -0.13)] == ["2.98", "3.0", "3.04", "2.9", "4.8", "-0.1"]
+
+
+def test_a_difference_either_way_counts_both_tails_and_an_excess_one():
+    from scipy.stats import norm
+    from scipy.stats import t as student_t
+
+    from twin.diagnose.locate import _family_z
+
+    p = student_t.sf(3.6, 40)
+    assert _family_z(3.6, 40, 33, two_sided=True) == pytest.approx(norm.isf(2 * 33 * p), rel=1e-9)
+    assert _family_z(3.6, 40, 33) == pytest.approx(norm.isf(33 * p), rel=1e-9)
+    assert _family_z(3.6, 40, 33, two_sided=True) < _family_z(3.6, 40, 33)
+
+
+def test_a_window_that_diverged_scores_as_failed_not_as_a_gap():
+    from twin.fit.metrics import r2_mae
+    from twin.fit.windows import Prediction, Window
+
+    nu = np.zeros((2, 11, 3))
+    nu[:, :, 0] = np.linspace(0.0, 1.0, 11)
+    nu[1, 5:] = np.nan  # blew up at its 5th sample
+    nu[0, 9:] = np.nan  # a shorter window: padding beyond its 8 steps
+    pred = Prediction([Window(0, 0, 8), Window(0, 0, 10)], np.zeros_like(nu), nu, [(1, 0.5)])
+    failed = pred.nu_failed_as_inf()
+    assert np.isinf(failed[1, 5:]).all() and np.isnan(failed[0, 9:]).all() and np.isfinite(failed[0, :9]).all()
+    meas = np.full_like(nu, 0.5)
+    meas[0, 9:] = np.nan  # measured over each window's own length
+    scored = r2_mae(failed[:, 1:], meas[:, 1:])
+    assert scored["u"]["diverged"] == 6 and scored["u"]["r2"] is None  # samples 5-10 of the second window
+    assert r2_mae(nu[:, 1:], meas[:, 1:])["u"]["diverged"] == 0  # as NaN they would have been skipped
+
+
+def test_a_noise_that_cannot_be_estimated_is_refused_in_one_sentence(monkeypatch):
+    from twin.diagnose import doctor
+    from twin.errors import TwinError
+
+    estimates = iter([{"u": float("nan"), "v": 0.01, "r": 0.002, "gnss_m": 0.02, "method": "m"},
+                      {"u": 0.02, "v": 0.01, "r": 0.003, "gnss_m": 0.03, "method": "m"}])
+    monkeypatch.setattr(doctor, "estimate_noise", lambda rec, prep: next(estimates))
+    got = doctor._noise([None, None], [None, None])  # one log gives u, and that is its median
+    assert got["u"] == 0.02 and got["r"] == pytest.approx(0.0025)
+    monkeypatch.setattr(doctor, "estimate_noise", lambda rec, prep: {"u": float("nan"), "v": 0.01, "r": float("nan")})
+    with pytest.raises(TwinError, match="the noise of u, r cannot be estimated from this recording"):
+        doctor._noise([None], [None])

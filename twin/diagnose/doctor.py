@@ -392,9 +392,21 @@ def _answer(d) -> dict:
 
 
 def _noise(recordings: list[Recording], preps: list[Prepared]) -> dict:
+    """Each noise figure's median over the logs that give one. The noise of u, v and r is every
+    judgement's scale (a window votes where a candidate moves it by AFFECT_SIGMA of it): without it
+    nothing could earn its place, and the diagnosis says so rather than name nothing unsaid."""
     per = [estimate_noise(r, p) for r, p in zip(recordings, preps)]
     keys = [k for k, v in per[0].items() if isinstance(v, (int, float))]
-    return {k: float(np.median([p[k] for p in per])) for k in keys} | {"method": per[0].get("method", "")}
+    out = {}
+    for k in keys:
+        values = np.array([p[k] for p in per], float)
+        out[k] = float(np.median(values[np.isfinite(values)])) if np.isfinite(values).any() else float("nan")
+    unknown = [k for k in "uvr" if k in out and not math.isfinite(out[k])]
+    if unknown:
+        raise TwinError(f"the noise of {', '.join(unknown)} cannot be estimated from "
+                        f"{'this recording' if len(per) == 1 else 'any of these recordings'} (too few samples "
+                        "between dropouts): the diagnosis has no scale to judge an effect by")
+    return out | {"method": per[0].get("method", "")}
 
 
 @dataclass
@@ -448,8 +460,9 @@ def _held_out_fits(search: Search, prior: Vessel, kept, data: Measurements, cach
     pred0, pred1, meas0, meas1 = [], [], [], []
     for start, base, (_, held) in zip(search.initial_bases, search.final_bases, search.folds):
         preps0, preps1 = data.for_vessel(start), data.for_vessel(base)
-        pred0.append(predict(start, preps0, held, cache, wind=wind)[0].nu[:, 1:])
-        pred1.append(predict(base, preps1, held, cache, wind=wind)[0].nu[:, 1:])
+        # a twin that blew up on a window scores as failed there (r2_mae counts it), not as a gap
+        pred0.append(predict(start, preps0, held, cache, wind=wind)[0].nu_failed_as_inf()[:, 1:])
+        pred1.append(predict(base, preps1, held, cache, wind=wind)[0].nu_failed_as_inf()[:, 1:])
         meas0.append(measured(preps0, held)[1][:, 1:])
         meas1.append(measured(preps1, held)[1][:, 1:])
     n = max(a.shape[1] for a in pred0)

@@ -8,7 +8,8 @@ it into a p-value (for a bin against the rest, the fewer clusters of the two), s
 bin seen in three windows cannot look certain and one seen in one window never does. Each function
 tests many things at once; its z is the normal quantile of the Bonferroni-adjusted
 p-value over everything that call tested, so z ≥ 3 means pure noise would give any
-such entry in the whole table with probability < 0.13 % (one-sided).
+such entry in the whole table with probability < 0.13 %: a test of a difference either way (a bias,
+a correlation) counts both tails, one of an excess (a larger spread, a residual that grows) one.
 """
 from __future__ import annotations
 
@@ -28,14 +29,16 @@ GROWS = 1.3  # a late RMS this much above the early one: the residual grows alon
 
 # ---------------------------------------------------------------- statistics
 
-def _family_z(t: np.ndarray | float, df: np.ndarray | float, n_tests: int) -> np.ndarray:
-    """z of the Bonferroni-adjusted upper tail P(T > t)·n_tests, via logs (no underflow);
-    0 where there is no evidence (df < 1)."""
+def _family_z(t: np.ndarray | float, df: np.ndarray | float, n_tests: int, two_sided: bool = False) -> np.ndarray:
+    """z of the Bonferroni-adjusted upper tail P(T > t)·n_tests (two_sided: t is |t| of a test
+    of a difference either way, and the tail is doubled), via logs (no underflow); 0 where there
+    is no evidence (df < 1)."""
     t, df = np.broadcast_arrays(np.asarray(t, float), np.asarray(df, float))
     z = np.zeros(t.shape)
     ok = (df >= 1) & np.isfinite(t)
     if np.any(ok):
-        logp = np.minimum(np.log(max(n_tests, 1)) + student_t.logsf(t[ok], df[ok]), 0.0)
+        tails = np.log(max(n_tests, 1)) + (np.log(2.0) if two_sided else 0.0)
+        logp = np.minimum(tails + student_t.logsf(t[ok], df[ok]), 0.0)
         z[ok] = np.maximum(-ndtri_exp(logp), 0.0)
     return z
 
@@ -198,7 +201,7 @@ def locate(res: np.ndarray, noise, window: np.ndarray, context: dict, *, top: in
             cells += _cells(dim, dof, res[ok, d], labels[ok], cluster[ok], noise[d])
     n_tests = sum(c.df_spread >= 1 for c in cells) + sum(c.df_bias >= 1 for c in cells)
     z_s = _family_z([c.t_spread for c in cells], [c.df_spread for c in cells], n_tests)
-    z_b = _family_z([abs(c.t_bias) for c in cells], [c.df_bias for c in cells], n_tests)
+    z_b = _family_z([abs(c.t_bias) for c in cells], [c.df_bias for c in cells], n_tests, two_sided=True)
     out = []
     for c, zs, zb in zip(cells, z_s, z_b):
         if zb >= z_min and c.shift_sq >= c.var_change:
@@ -254,7 +257,7 @@ def overall(res: np.ndarray, noise, window: np.ndarray) -> dict:
         rms = float(np.sqrt(np.mean(y ** 2))) if len(y) else float("nan")
         out[dof] = {"n": int(len(y)), "rms": rms, "bias": m,
                     "rms_over_noise": float(rms / noise[d]) if noise[d] > 0 else float("nan"),
-                    "z_bias": float(_family_z(abs(t), df, 3))}
+                    "z_bias": float(_family_z(abs(t), df, 3, two_sided=True))}
     return out
 
 
@@ -333,7 +336,7 @@ def correlations(res: np.ndarray, window: np.ndarray, signals: dict[str, np.ndar
     n_tests = sum(df >= 1 for rows in raw.values() for *_, df in rows)
     out = {}
     for dof, rows in raw.items():
-        z = _family_z([abs(t) for _, _, t, _ in rows], [df for *_, df in rows], n_tests) if rows else []
+        z = _family_z([abs(t) for _, _, t, _ in rows], [df for *_, df in rows], n_tests, two_sided=True) if rows else []
         out[dof] = sorted(({"signal": name, "r": r, "z": float(zi)} for (name, r, _, _), zi in zip(rows, z)),
                           key=lambda e: -abs(e["r"]))
     return out

@@ -106,11 +106,18 @@ MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment
 FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates with beyond this
 
 
+def _block_text(d) -> str:
+    """' of N s': a block's length, BLOCK_WINDOWS windows of the diagnosis's own window length."""
+    block_s = BLOCK_WINDOWS * float(d.windows.get("length_s") or 0.0)
+    return f" of {block_s:.0f} s" if block_s > 0 else ""
+
+
 def answer(d) -> dict:
     """What the diagnosis concludes, in the order a user needs it: {"missing": [...], "form": [...],
     "changes": str, "unsettled": [...], "next": [...]} (lines of plain text)."""
     out = {"missing": [], "form": [], "changes": "", "unsettled": [], "next": []}
     families = set()
+    block = _block_text(d)
     for e in d.effects:
         params = ", ".join(f"{k} {v:.3g}" + (f" [{e['ci'][k][0]:.3g}, {e['ci'][k][1]:.3g}]" if k in e["ci"] else "")
                            for k, v in e["parameters"].items())
@@ -124,7 +131,7 @@ def answer(d) -> dict:
         rivals = [r["name"] for r in e["rivals"] if not r["separable"]]
         out["missing"].append(
             f"{e['name']} ({params}): removes {excess_share(e.get('excess_gain', 0))}, z {z_text(e['z'], Z_MIN)} over "
-            f"{ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks of 30 s "
+            f"{ev.get('blocks_for', 0) + ev.get('blocks_against', 0)} blocks{block} "
             f"({ev.get('blocks_for', 0)} for, {ev.get('blocks_against', 0)} against)"
             + (f"; or {' or '.join(rivals)} in its place (UNSETTLED)" if rivals else ""))
         for r in e["rivals"]:
@@ -434,7 +441,7 @@ def write_html(d, path: Path) -> None:
     parts = [
         f"<h1>twin diagnose: {html.escape(d.prior.name)}</h1>", "<h2>The answer</h2>", lead,
         f"<p>{d.windows.get('windows')} free-run windows of {d.windows.get('length_s')} s in {d.windows.get('blocks')} "
-        f"blocks of 30 s, every block judged once by fits that did not see it ({d.windows.get('folds')} folds); "
+        f"blocks{_block_text(d)}, every block judged once by fits that did not see it ({d.windows.get('folds')} folds); "
         f"{d.seconds:.0f} s.</p>",
         "<h2>Effects named</h2>", _table(["effect", "parameters [95 % CI]", "misfit above noise removed",
                                           "per DOF (held-out)", "rivals"], eff_rows) if eff_rows else

@@ -51,11 +51,7 @@ class TwinPredictor:
         out = np.full((len(wins), n_steps + 1, 3), np.nan)
         keep = [i for i, w in enumerate(wins) if w.n > 0]
         if keep:
-            pred = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache, wind=self.wind)[0]
-            nu = pred.nu.copy()
-            for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
-                w = wins[keep[j]]
-                nu[j, : w.n + 1] = np.where(np.isnan(nu[j, : w.n + 1]), np.inf, nu[j, : w.n + 1])
+            nu = predict(self.vessel, [prep], [wins[i] for i in keep], self.cache, wind=self.wind)[0].nu_failed_as_inf()
             out[keep, : nu.shape[1]] = nu
         return out
 

@@ -417,6 +417,15 @@ class Prediction:
     nu: np.ndarray
     diverged: list[tuple[int, float]]
 
+    def nu_failed_as_inf(self) -> np.ndarray:
+        """nu with a diverged window's lost samples (NaN within its length) as inf: a twin that blew up
+        is a failure to score (metrics.r2_mae counts it), not a gap to skip."""
+        nu = self.nu.copy()
+        for j, _ in self.diverged:
+            n = self.windows[j].n + 1
+            nu[j, :n] = np.where(np.isnan(nu[j, :n]), np.inf, nu[j, :n])
+        return nu
+
 
 def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list[Window],
             cache: ModelCache | None = None, nthread: int | None = None,
