@@ -201,8 +201,20 @@ NINTH = [  # fixed before it was run: other seeds, magnitudes, sides and directi
     Case("wind-gusty-7-160", "wind", 119, wind_speed_m_s=7.0, wind_from_deg=160.0, gust_sigma_m_s=1.0, gust_tau_s=15.0),
     Case("wind-steady-5-330", "wind", 120, wind_speed_m_s=5.0, wind_from_deg=330.0),
 ]
+TENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-s", "null", 121),
+    Case("null-t", "null", 122),
+    Case("dead_zone-left-soft-50-110us", "dead_zone", 123, side="left", inner_us=50.0, outer_us=110.0),
+    Case("dead_zone-right-hard-80us", "dead_zone", 124, side="right", inner_us=80.0, outer_us=80.0),
+    Case("speed_loss-0.12u", "speed_loss", 125, k=0.12, power=1),
+    Case("speed_loss-0.18u2", "speed_loss", 126, k=0.18, power=2),
+    Case("sag-exp-300s", "sag_exp", 127, k=0.25, tau_s=300.0),
+    Case("sag-square-0.3", "sag_square", 128, k=0.3),
+    Case("wind-gusty-6-40", "wind", 129, wind_speed_m_s=6.0, wind_from_deg=40.0, gust_sigma_m_s=1.2, gust_tau_s=12.0),
+    Case("wind-steady-6.5-210", "wind", 130, wind_speed_m_s=6.5, wind_from_deg=210.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
-        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH}
+        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}
