@@ -101,6 +101,23 @@ def test_a_dead_zone_widened_astern_only_is_screened_at_that_edge(prior):
     assert screened.values["fwd"] == pytest.approx(0.0775) and screened.values["rev"] == pytest.approx(0.2, abs=0.026)
 
 
+def test_a_folds_scanned_fit_does_not_start_from_the_screening_that_saw_its_held_out_blocks(prior):
+    """The screening windows are fold 0's training windows, which are the other folds' held-out ones:
+    a scanned candidate's fold fit scans its own coarse grid again, so what screening chose (here a
+    value far from the truth) does not decide the value that fold's blocks then judge."""
+    from dataclasses import replace as with_values
+
+    ds = generate(prior, effects=["input_delay=0.4"], n_segments=3, seed=3, noise=PROFILES["none"],
+                  segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    search = make_search(prior, [prepare_for(ds.recording, cv, **PREP)], [ds.recording], cv, candidates(prior))
+    screened = min(search.screen(prior, search.library["input_delay"]), key=lambda f: f.train_cost)
+    elsewhere = with_values(screened, values={"delay_s": 1.08})
+    train = search.folds[1][0]
+    near, far = (search.refine(prior, f, train).values["delay_s"] for f in (screened, elsewhere))
+    assert near == far == pytest.approx(0.4, abs=0.03)
+
+
 def test_heading_bias_of_each_log_recovered(prior):
     """Two logs, each with its own compass bias: one parameter per log, by the log's file name."""
     recs = [generate(prior, effects=[f"heading_bias={b}"], n_segments=3, seed=20 + i, noise=PROFILES["none"],

@@ -771,3 +771,11 @@ def test_the_weights_fitted_side_by_side_give_what_one_after_another_gives(yello
 
     apart, together = run(1), run(3)
     assert len(apart[0]) >= 3 and apart == together
+
+
+def test_belief_weights_that_print_alike_are_refused_before_any_fit(yellowfish_vessel):
+    from twin.ident.identify import identify
+
+    ds = generate(yellowfish_vessel, n_segments=1, seed=2, noise=QUIET, segment_s=(20, 21))
+    with pytest.raises(TwinError, match="must differ in their first six digits: 0.333333 is given more than once"):
+        identify([ds.recording], yellowfish_vessel, prior_weights=(0.3333333, 0.33333333, 1.0))

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
+from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
 
 
@@ -227,3 +228,16 @@ def test_an_mjcf_that_is_no_xml_file_is_refused_in_one_line(tmp_path):
     (tmp_path / "boat.json").write_text(json.dumps(data))
     with pytest.raises(TwinError, match=r"boat.json: MJCF file 'hull.txt' must be an .xml file"):
         vessel_mod.load(str(tmp_path / "boat.json"))
+
+
+def test_a_vessel_written_in_another_mass_case_loads_in_it(tmp_path):
+    """A dataset simulated in case max, or a twin fitted in it, describes that boat: its file says the case,
+    and loading it gives that case unless another is asked for."""
+    heavy = vessel_mod.load("yellowfish", "max")
+    path = tmp_path / "heavy.json"
+    vessel_mod.save(heavy, path)
+    back = vessel_mod.load(str(path))
+    mass = lambda v: float(compile_vessel(v).model.body_subtreemass[1])  # noqa: E731
+    assert back.case == "max" and mass(back) == pytest.approx(mass(heavy)) and mass(heavy) > mass(vessel_mod.load("yellowfish"))
+    assert vessel_mod.load(str(path), "nominal").case == "nominal"
+    assert "case" not in vessel_mod.load("yellowfish").to_dict()  # a nominal vessel's file stays as it was

@@ -106,6 +106,9 @@ class Vessel:
         return {
             "name": self.name,
             "mjcf": str(mjcf),
+            # the mass case it is in, where not nominal: a dataset simulated in case max, or a twin fitted
+            # in it, describes that boat (load() takes it, unless told another case)
+            **({"case": self.case} if self.case != "nominal" else {}),
             "added_mass": asdict(self.added_mass),
             "damping": asdict(self.damping),
             "thrusters": _thrusters_to_dict(self.thrusters),
@@ -262,7 +265,7 @@ def _pair(value, what: str, path: Path) -> tuple[float, float]:
 
 VESSEL_FILE_KEYS = frozenset({"name", "mjcf", "added_mass", "damping", "thrusters", "wind_load", "environment",
                               "sensors", "cg_offset_m", "cases", "sources", "uncertainty", "mmg", "wind_regression",
-                              "design"})
+                              "design", "case"})
 REQUIRED_SECTIONS = ("added_mass", "damping", "thrusters")
 
 
@@ -321,7 +324,11 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
         path=path,
     )
     _fitted_coefficients_given(data, vessel.uncertainty, path)
+    case = data.get("case", "nominal")
+    if not isinstance(case, str):
+        raise TwinError(f"{path.name}: case must be a mass case's name, got {_shown(case)}")
     try:
+        vessel = vessel.with_case(case)
         check(vessel)
     except TwinError as exc:  # the file a user gave, not only the vessel's name, so they know what to edit
         raise TwinError(f"{path.name}: {exc}") from None
@@ -634,7 +641,7 @@ def available() -> list[str]:
     return sorted(p.stem for p in MODEL_DIR.glob("*.json"))
 
 
-def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
+def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
     """Load a vessel by name (one shipped with the package) or from a parameter file's path.
 
     A shipped vessel is twin/model/NAME.json; a parameter file is a vessel file such as
@@ -644,8 +651,9 @@ def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
         name_or_path: a shipped vessel's name ("blueboat", "cybership1", "esso_osaka",
             "yellowfish": `twin.vessel.available()` lists them) or the path of a vessel file
             (.json), such as `twin identify --out` writes.
-        case: the mass case (`--case` of the commands; default "nominal"), one the vessel file
-            lists under `cases`.
+        case: the mass case (`--case` of the commands), one the vessel file lists under `cases`;
+            None: the file's own ("nominal" unless the file names another, as a vessel written in
+            another case does).
 
     Returns:
         The vessel in mass case `case`.
@@ -675,7 +683,8 @@ def load(name_or_path: str | os.PathLike, case: str = "nominal") -> Vessel:
         raise TwinError(f"{path.name}: not valid JSON ({exc})"
                         + ("; a vessel file is the JSON `twin identify` writes, and this looks like a recording"
                            if recording else "")) from None
-    return from_dict(data, path.resolve()).with_case(case)
+    vessel = from_dict(data, path.resolve())
+    return vessel if case is None else vessel.with_case(case)
 
 
 def save(vessel: Vessel, path: str | os.PathLike) -> Path:

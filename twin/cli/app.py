@@ -42,7 +42,8 @@ PWM_SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").join
                                and json.loads(p.read_text()).get("thrusters", {}).get("kind") == "t200"))
 PWM_VESSEL_HELP = f"vessel name (one shipped with twin whose thrusters take PWM, as a dataset logs it: {PWM_SHIPPED})"
 MODEL_HELP = "vessel description file (e.g. written by `twin identify`), instead of --vessel"
-CASE_HELP = "mass case: min | nominal | max (min and max where the vessel file has them, e.g. yellowfish)"
+CASE_HELP = ("mass case: min | nominal | max (min and max where the vessel file has them, e.g. yellowfish; default: "
+             "the file's own, nominal unless it was written in another)")
 CHANNELS_HELP = "thruster servo output channels LEFT,RIGHT (for a log without SERVOn_FUNCTION 73/74)"
 _settings = {"quiet": False}
 
@@ -106,7 +107,7 @@ def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or
 
 # ---------------------------------------------------------------- arguments
 
-def vessel_from(vessel: Optional[str], model: Optional[Path], case: str = "nominal"):
+def vessel_from(vessel: Optional[str], model: Optional[Path], case: Optional[str] = None):
     """The vessel of --vessel NAME or --model FILE; both at once is refused (which one was meant
     cannot be known)."""
     from ..vessel import load

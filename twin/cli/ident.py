@@ -62,7 +62,7 @@ def dataset_command(
                                               "`twin effects` lists them)"),
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
     seed: int = typer.Option(0, help="random seed (manoeuvres, start states, noise)"),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     sea: Optional[str] = typer.Option(None, help="sea state HS,TP,DIR[,SPREAD] (or regular,H,T,DIR): every segment "
                                                  "runs the 6-DOF hull in it"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),

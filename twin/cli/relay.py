@@ -90,7 +90,7 @@ def iso_command(
                                                  "(default 8,10)"),
     duration: Optional[float] = typer.Option(None, help="length of each relay experiment, s "
                                                         "(default 30 yaw, 150 surge; 900 for a ship)"),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the table, CVs and the twin's values as JSON"),
     png: Optional[Path] = typer.Option(None, help="write α, β_ν, β_νν against C as PNG"),
 ):
@@ -189,7 +189,7 @@ def dp_command(
     no_anti_windup: bool = typer.Option(False, "--no-anti-windup", help="switch the anti-windup off (to compare)"),
     duration: Optional[float] = typer.Option(None, help="length of the run, s (default: the model functions' "
                                                         "settling time; a point move, both loops')"),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
     png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
 ):

@@ -95,7 +95,7 @@ def simulate(
     wind: Optional[str] = typer.Option(None, help="wind SPEED,DIR_DEG (m/s, coming from)"),
     origin: Optional[str] = typer.Option(None, help="LAT,LON (deg) of the start, for the map positions of .mcap, "
                                                    ".tlog and .bin (default 37.4136,-5.9786, Seville)"),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     seed: int = typer.Option(0, help="random seed (scenario 'random', the sea's components)"),
     sample_dt: float = typer.Option(0.1, help="output sample period, s: a multiple of the vessel's physics time "
                                               "step (0.02 s; cybership1 0.01 s)"),
@@ -184,7 +184,7 @@ def crosscheck(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     duration: float = typer.Option(120.0, help="zig-zag duration, s"),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
     six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
@@ -235,7 +235,7 @@ def crosscheck(
 def params(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     as_json: bool = typer.Option(False, "--json", help="print JSON instead of text (a flag: `> FILE` keeps it)"),
     first_principles: bool = typer.Option(False, "--first-principles",
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
@@ -319,7 +319,7 @@ def params_lines(p: dict) -> list[str]:
 def validate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
     report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
 ):

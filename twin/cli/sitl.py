@@ -21,7 +21,7 @@ from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 def sitl(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    case: str = typer.Option("nominal", help=CASE_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
     host: str = typer.Option("127.0.0.1", help="address to listen on (0.0.0.0: every interface, for an ArduPilot "
                                                "on another machine)"),

@@ -33,7 +33,10 @@ no earth-fixed effect is kept yet (once one is, the others compete as every cand
 A twin's form error beyond its own runs moves with the hull, so a hull or thrust term takes part of
 it up in screening and ranks first whatever else the logs hold, while an effect that acts by the
 heading is one the form error cannot stand in for. A library of at most JUDGED_WHOLE candidates is
-judged whole. (Judging also the screening leader's near ties, up
+judged whole. A fold's fit starts from the screened point, but for a scanned candidate (a time shift, a
+dead zone) its coarse grid is scanned again on the fold's own training windows: its fine scans reach a
+step or so around their start, and the screening windows are the other folds' held-out ones, whose
+blocks would then have chosen the value they judge. (Judging also the screening leader's near ties, up
 to the sixth, is not done: judging more near-equal stand-ins gives one of them more chances to be
 preferred by chance, and on recordings it had not been chosen on it changed one verdict, for the
 worse.)
@@ -321,10 +324,7 @@ class Search:
         out = []
         base_cost = self._screen_base(base, obj.cache)
         if cand.scan:
-            lo, hi = obj.bounds()
-            xs = [np.clip(np.array(v, float) / obj.scale, lo, hi) for v in cand.scan]
-            costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in xs])]
-            out.append(self._fitted(cand, obj, xs[_plateau_middle(costs)], min(costs)))
+            out.append(self._fitted(cand, obj, *self._coarse_scan(obj, cand)))
         else:
             if self.core:  # one step of the candidate and the core together (module docstring)
                 obj = self._objective(base, cand.params, self.screening, obj.cache, with_core=True)
@@ -398,8 +398,8 @@ class Search:
         train = _spread(train, max(REFINE_WINDOWS, REFINE_PER_NUMBER * len(cand.params)))
         obj = self._objective(base, cand.params, train)
         x0 = np.array([fitted.values[n] for n in cand.names]) / obj.scale
-        if cand.scan:
-            x, cost = self._coordinate_scans(obj, cand, x0)
+        if cand.scan:  # from its own coarse scan (module docstring)
+            x, cost = self._coordinate_scans(obj, cand, self._coarse_scan(obj, cand)[0])
             best = self._fitted(cand, obj, x, cost)
         else:
             sol = least_squares(obj.residuals, np.clip(x0, *obj.bounds()), jac=obj.jacobian, bounds=obj.bounds(),
@@ -446,7 +446,7 @@ class Search:
         if cand.scan:
             obj = self._objective(base, cand.params, _spread(train, max(REFINE_WINDOWS, REFINE_PER_NUMBER *
                                                                           len(cand.params))))
-            x, cost = self._coordinate_scans(obj, cand, np.array([fitted.values[n] for n in cand.names]) / obj.scale)
+            x, cost = self._coordinate_scans(obj, cand, self._coarse_scan(obj, cand)[0])
             self.evaluations += obj.evaluations * len(obj.windows)
             scanned = self._fitted(cand, obj, x, cost)
             return Fitted(cand, scanned.values, self._core_fit(scanned.vessel, train), cost)
@@ -456,6 +456,15 @@ class Search:
                             method="trf", x_scale="jac", max_nfev=CORE_NFEV, xtol=1e-5, ftol=1e-5)
         self.evaluations += obj.evaluations * len(obj.windows)
         return self._fitted(cand, obj, sol.x, float(np.sum(sol.fun[: obj.n_data] ** 2)))
+
+    @staticmethod
+    def _coarse_scan(obj: Objective, cand: Candidate) -> tuple[np.ndarray, float]:
+        """The best point of the candidate's coarse grid (cand.scan) on obj's windows (the middle of a
+        plateau of equal costs) and the lowest cost."""
+        lo, hi = obj.bounds()
+        xs = [np.clip(np.array(v, float) / obj.scale, lo, hi) for v in cand.scan]
+        costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in xs])]
+        return xs[_plateau_middle(costs)], min(costs)
 
     @staticmethod
     def _coordinate_scans(obj: Objective, cand: Candidate, x0: np.ndarray) -> tuple[np.ndarray, float]:

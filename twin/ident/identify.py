@@ -326,12 +326,13 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     judge_groups, group_names = held_out_groups(every, preps)
     folds = beyond_folds(every, preps, judge_groups) if judged_on == "beyond" else each_folds(judge_groups)
     configs = {"prior (no fit)": [vessel] * len(group_names)}
+    weight_of = {f"beliefs ×{weight:g}": weight for weight in fits}  # _check: one label a weight
     for weight, f in fits.items():
         configs[f"beliefs ×{weight:g}"] = jackknife_vessels(f.objective, f.x, f.jacobian, f.objective.residuals(f.x),
                                                             fit_groups, fixed=_unpinned(f), folds=folds)
     judged = judge(configs, preps, every, judge_groups, group_names, first.objective.sigma, cache, wind)
     result.prior_cv = judged.pop("prior (no fit)")
-    choices = [Choice(label, float(label.split("×")[1]), tuple(names_by_group), cv) for label, cv in judged.items()]
+    choices = [Choice(label, weight_of[label], tuple(names_by_group), cv) for label, cv in judged.items()]
     best = min(choices, key=lambda c: c.cv.cost)
     chosen_fit = fits[best.prior_weight]
     if params is None:  # a report of what the left-out runs need, not a choice (module docstring, step 4)
@@ -436,6 +437,11 @@ def _check(start: str, thruster: str, split: str, train: float, prior_weights) -
         raise TwinError(f"--train must lie in [0.1, 0.9], got {train}")
     if not prior_weights or any(not w > 0 for w in prior_weights):
         raise TwinError("the beliefs' weights must be positive numbers")
+    shown = [f"{w:g}" for w in prior_weights]
+    twice = sorted({s for s in shown if shown.count(s) > 1})
+    if twice:  # each weight is a choice named by its weight to six digits
+        raise TwinError(f"the beliefs' weights must differ in their first six digits: {', '.join(twice)} is given "
+                        "more than once")
 
 
 def check_wind(recordings: list[Recording], wind: str | None, vessel: Vessel | None = None) -> None:
