@@ -1,7 +1,12 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
-    python scripts/independent_truths.py [--set first|second|third|fourth] [--stage before|after] [--prior FILE] [--only CASE,...]
-                                         [--work /tmp/independent_truths]
+    git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
+    python scripts/independent_truths.py [--set first|...|fifth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
+                                         [--only CASE,...] [--work /tmp/independent_truths]
+
+Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
+the shipped BlueBoat (the default) is another hull, so the nulls themselves would carry its form
+error.
 
 The simulator here shares no physics with the package: its own three-degree-of-freedom equations
 (rigid and added mass, Coriolis and Munk terms, linear and quadratic damping, integrated by RK4),
