@@ -207,15 +207,13 @@ class ModelCache:
 
 # ---------------------------------------------------------------- inputs
 
-_LOGGED: BoundedStore[tuple[Prepared, tuple]] = BoundedStore(256)  # by id(prep), the entry holding prep
-
-
 def logged_key(prep: Prepared) -> tuple:
     """What a window's commands read of a prepared recording, by content: its grid, inputs and
     supply voltage. A recording prepared again for another heading or antenna calibration has the
     same (its windows' commands are computed once), and two recordings of one name and span do not.
-    Worked out once per Prepared (its entry holds it, so its id is not another's while kept)."""
-    def digest() -> tuple[Prepared, tuple]:
+    Worked out once per Prepared and kept on it (it lives and goes with the recording it describes)."""
+    key = prep.__dict__.get("_logged_key")
+    if key is None:
         h = hashlib.blake2b(digest_size=16)
         for a in (prep.t, prep.pwm, prep.supply_v):
             if a is not None:
@@ -223,8 +221,8 @@ def logged_key(prep: Prepared) -> tuple:
                 h.update(repr(a.shape).encode())
                 h.update(a.tobytes())
             h.update(b"|")
-        return prep, (prep.input_kind, h.hexdigest())
-    return _LOGGED.get(id(prep), digest)[1]
+        key = prep.__dict__["_logged_key"] = (prep.input_kind, h.hexdigest())
+    return key
 
 
 def thrust_commands(vessel: Vessel, prep: Prepared, window: Window, timestep_s: float) -> np.ndarray:
