@@ -176,9 +176,7 @@ def judge(configurations: dict[str, list[Vessel]], preps: list[Prepared], window
         predictions = predict([configurations[lb][k] for lb in labels], preps, mine, cache, wind=wind)
         _, meas = measured(preps, mine)
         for label, pred in zip(labels, predictions):
-            nu = pred.nu.copy()
-            for j, _ in pred.diverged:  # a twin that blew up is a failure, not a gap
-                nu[j] = np.where(np.isnan(nu[j]), np.inf, nu[j])
+            nu = pred.nu_failed_as_inf()
             out[label].runs.append(score_run(name, nu[:, 1:], meas[:, 1:], sigma))
             pairs[label][0].append(nu[:, 1:].reshape(-1, 3))
             pairs[label][1].append(meas[:, 1:].reshape(-1, 3))
