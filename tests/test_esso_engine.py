@@ -74,7 +74,10 @@ def test_crosscheck_passes_for_every_term_and_each_term_matters():
     assert [r.case for r in results] == list(SHIP_CASES)
     for r in results:
         assert r.passed, r.to_dict()
-        assert r.effect_m is None or r.effect_m > 100 * 0.01, r.to_dict()
+        if r.case == "input_delay":  # a 0.35-s delay barely moves a slow ship: far more than the two differ
+            assert r.effect_m > max(1e4 * r.position_err_m, 0.01), r.to_dict()
+        else:
+            assert r.effect_m is None or r.effect_m > 100 * 0.01, r.to_dict()
 
 
 def test_rigid_body_alone_conserves_the_kinetic_energy(esso):

@@ -194,7 +194,9 @@ def offline(vessel, pairs: np.ndarray, frame_s: float):
 def stepped(vessel, segments) -> list[tuple[float, np.ndarray, np.ndarray]]:
     """Reference for frame rate changes, stepped with mj_step: frames of (rate, pairs) segments, each
     frame split into ceil(400 Hz / rate) equal steps; thrust commands from InputSeries (delay, map,
-    decay) at each step's start. (timestamp, qpos, qvel) after each frame."""
+    decay) at each step's start, and a step within which the delayed input changes taken in two parts
+    (the input at its start over its share, then the rest's mean: drive.StepPieces, written out).
+    (timestamp, qpos, qvel) after each frame."""
     compiled = compile_vessel(vessel)
     model = with_native_params(compiled, Terms())
     data = mujoco.MjData(model)
@@ -212,12 +214,40 @@ def stepped(vessel, segments) -> list[tuple[float, np.ndarray, np.ndarray]]:
                 values.append(list(pair))
                 series = InputSeries(np.array(starts), np.array(values, float), "pwm")
                 for _ in range(n_sub):
-                    data.ctrl[:2] = series.commanded_thrust(vessel.thrusters, np.array([t_seg + k * h]))[0]
-                    mujoco.mj_step(model, data)
+                    t = t_seg + k * h
+                    data.ctrl[:2] = series.commanded_thrust(vessel.thrusters, np.array([t]))[0]
+                    _step_in_parts(model, data, vessel.thrusters, series, t, h)
                     k += 1
                 out.append((t_seg + k * h, data.qpos.copy(), data.qvel.copy()))
             t_seg = t_seg + k * h
     return out
+
+
+def _step_in_parts(model, data, thrusters, series: InputSeries, t: float, h: float) -> None:
+    """One step from t: whole, or in two parts where the input held delay_s before changes within it."""
+    start = t - thrusters.delay_s
+    end = start + h
+    stamps = series.t
+    later = [i for i in range(len(stamps)) if start + 1e-9 < stamps[i] <= end - 1e-9]
+    if not later:
+        mujoco.mj_step(model, data)
+        return
+    f = 1.0 - thrusters.decay_per_min * t / 60.0
+    total = np.zeros(2)
+    for i in later:
+        until = stamps[i + 1] if i + 1 in later else end
+        total += (until - stamps[i]) * (thrusters.thrust_from_pwm(series.values[i][None, :])[0] * f)
+    rest = total / (end - stamps[later[0]])
+    if np.array_equal(rest, data.ctrl[:2]):
+        mujoco.mj_step(model, data)
+        return
+    share = (stamps[later[0]] - start) / h
+    model.opt.timestep = share * h
+    mujoco.mj_step(model, data)
+    data.ctrl[:2] = rest
+    model.opt.timestep = h - share * h
+    mujoco.mj_step(model, data)
+    model.opt.timestep = h
 
 
 def arrays(replies: list[dict]) -> dict[str, np.ndarray]:
@@ -899,7 +929,10 @@ def test_in_a_sea_the_6dof_hull_is_the_offline_twin_and_its_states_are_consisten
                                record_paths=[path])
     assert summary.counters.frames == 300
     n = len(pairs)
-    series = InputSeries(np.concatenate([[-1.0], np.arange(n) / 50]), np.vstack([[NEUTRAL, NEUTRAL], pairs]), "pwm")
+    # the frames' stamps as SITL makes them (k steps of 1/50 s): a delayed input that changes within a
+    # step acts for its share of it, which the stamps' last bits move
+    series = InputSeries(np.concatenate([[-1.0], np.arange(n) * (1 / 50)]), np.vstack([[NEUTRAL, NEUTRAL], pairs]),
+                         "pwm")
     run = simulate(compile_vessel(full_vessel), series, n / 50, sample_dt_s=1 / 50, sea=sea)
     a = arrays(replies)
     six = run.meta["six_dof"]

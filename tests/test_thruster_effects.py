@@ -10,7 +10,7 @@ from twin import analytic
 from twin.verify.crosscheck import _compare
 from twin.engine.mjcf import compile_vessel
 from twin.engine.sim import simulate
-from twin.drive import InputSeries
+from twin.drive import InputSeries, StepPieces
 from twin.physics.sensors import Sensors, measured_heading, true_heading
 
 PWM = InputSeries(np.array([0.0, 4.0, 9.0, 14.0]), np.array([[1750, 1750], [1800, 1600], [1500, 1700],
@@ -47,6 +47,33 @@ def test_delay_shifts_the_response_by_the_delay():
     late = simulate(compile_vessel(replace(base, thrusters=replace(base.thrusters, delay_s=0.5))), step, 10.0,
                     sample_dt_s=0.02)
     np.testing.assert_allclose(late.nu[25:, 0], plain.nu[:-25, 0], atol=1e-9)
+
+
+def test_an_input_changing_within_a_step_acts_for_its_share_of_it():
+    """A thrust series stamped off the 0.02-s grid, 0.005 s late: step 1 (0.02-0.04 s) holds 1 N until
+    the stamp 0.021 + 0.005, then 3 N until 0.031 + 0.005, then 5 N: share 0.3, the rest 3 N for
+    0.5 of the step and 5 N for 0.2, mean 0.3·1 + 0.5·3 + 0.2·5 = 2.8 N. A step without a change keeps
+    its one command."""
+    base = vessel_mod.load("cybership1").thrusters
+    thrusters = replace(base, delay_s=0.005)
+    series = InputSeries(np.array([0.0, 0.021, 0.031]), np.array([[1.0, -1.0], [3.0, -3.0], [5.0, -5.0]]), "thrust")
+    pieces = StepPieces.of(series, thrusters, 3, 0.02)
+    assert pieces.split.tolist() == [1]
+    np.testing.assert_allclose(pieces.share, [1.0, 0.3, 1.0])
+    np.testing.assert_allclose(pieces.rest[1], [(0.5 * 3 + 0.2 * 5) / 0.7, -(0.5 * 3 + 0.2 * 5) / 0.7])
+    np.testing.assert_allclose(pieces.mean(), [[1.0, -1.0], [2.8, -2.8], [5.0, -5.0]])
+    np.testing.assert_allclose(series.thrust_on_steps(thrusters, 3, 0.02), pieces.mean())
+
+
+@pytest.mark.parametrize("delay_s", [0.35, 0.013])
+def test_engine_matches_analytic_with_a_delay_between_steps(delay_s):
+    """A delay that is not a whole number of 0.02-s steps, through the advance loss's curvature: the
+    engine takes the step in two parts (held at the step's start, a change acted up to a step late)."""
+    base = vessel_mod.load("blueboat")
+    v = replace(base, thrusters=replace(base.thrusters, delay_s=delay_s))
+    eng, ana = _both(v, start_s=30.0)
+    pos, head = _compare(eng, ana)
+    assert pos < 1e-4 and head < 1e-3
 
 
 def test_decay_scales_thrust_with_recording_time():

@@ -41,9 +41,12 @@ def inputs_mismatch(vessel_name: str, wanted: str, held: str | None) -> str:
     return f"vessel '{vessel_name}' is driven by {INPUT_WORDS.get(wanted, wanted)}; the recording holds {holds}"
 
 
+_HOLD_EPS_S = 1e-9  # a time within this of an input's stamp counts as at it (its value held from there)
+
+
 def _held(t: np.ndarray, values: np.ndarray, times) -> np.ndarray:
     """Zero-order hold: values[i] from t[i] until t[i+1], the first value before t[0]."""
-    idx = np.searchsorted(t, np.asarray(times, float) + 1e-9, side="right") - 1
+    idx = np.searchsorted(t, np.asarray(times, float) + _HOLD_EPS_S, side="right") - 1
     return values[np.clip(idx, 0, len(t) - 1)]
 
 
@@ -75,10 +78,10 @@ class InputSeries:
                                  self.supply_at(times) if thrusters.follows_supply else None)
 
     def thrust_on_steps(self, thrusters: ThrusterModel, n_steps: int, step_s: float, start_s: float = 0.0) -> np.ndarray:
-        """(n_steps, 2) thrust command (N) held over engine step k (from k·step_s): `commanded_thrust` at
-        the step's start; with a thrust ramp, within the bounds and through the slew limit (each step's
-        mean of the ramp, settled at the first command: ThrusterModel.slewed)."""
-        cmd = self.commanded_thrust(thrusters, np.arange(n_steps) * step_s, start_s)
+        """(n_steps, 2) thrust command (N) held over engine step k (k·step_s to (k+1)·step_s): the step's
+        mean of `commanded_thrust` (`step_pieces`); with a thrust ramp, within the bounds and through the
+        slew limit (each step's mean of the ramp, settled at the first command: ThrusterModel.slewed)."""
+        cmd = StepPieces.of(self, thrusters, n_steps, step_s, start_s).mean()
         if thrusters.ramping:
             return thrusters.slewed(cmd, step_s)[0]
         return cmd
@@ -94,6 +97,68 @@ class InputSeries:
         if self.kind == "pwm":
             return self.at(times).astype(float)
         return np.full((len(np.atleast_1d(times)), 2), np.nan)
+
+
+@dataclass(frozen=True)
+class StepPieces:
+    """An input series over the engine's steps: on step k the command `first[k]` (N, or a propeller
+    and rudder's controls) for the share `share[k]` of the step, then `rest[k]`, the mean of what
+    is held for the rest of it (`first` throughout where share is 1).
+
+    The inputs reach the thrusters delay_s after their stamps, and neither a stamp nor a delay need
+    fall on a step's start: an input that changes within a step acts for the share of the step it
+    is held, as in the continuous-time model (analytic.simulate) and in the fit's free runs
+    (fit/windows), not a whole step late. The decay and the supply factor are those at the step's
+    start."""
+
+    first: np.ndarray  # (n, 2)
+    share: np.ndarray  # (n,) in (0, 1]
+    rest: np.ndarray  # (n, 2)
+
+    @classmethod
+    def of(cls, series: InputSeries, thrusters: ThrusterModel, n_steps: int, step_s: float,
+           start_s: float = 0.0) -> "StepPieces":
+        """The pieces of steps 0 … n_steps − 1 of step_s; start_s: the recording time of t = 0 (the
+        thrust decay's clock)."""
+        driven = series.driven(thrusters)
+        t = np.asarray(driven.t, float)
+        times = np.arange(n_steps) * step_s
+        supply = series.supply_at(times) if thrusters.follows_supply else None
+        start = times - thrusters.delay_s
+        end = start + step_s
+        first_i = np.clip(np.searchsorted(t, start + _HOLD_EPS_S, side="right") - 1, 0, len(t) - 1)
+        last_i = np.maximum(np.clip(np.searchsorted(t, end - _HOLD_EPS_S, side="right") - 1, 0, len(t) - 1),
+                            first_i)
+        first = thrusters.command(series.kind, driven.values[first_i], times + start_s, supply)
+        several = np.flatnonzero(last_i > first_i)
+        share = np.ones(n_steps)
+        rest = first.copy()
+        if len(several):
+            lo, hi = first_i[several], last_i[several]
+            change = t[lo + 1]
+            share[several] = (change - start[several]) / step_s
+            total = np.zeros((len(several), first.shape[1]))
+            for d in range(1, int(np.max(hi - lo)) + 1):
+                m = np.minimum(lo + d, hi)
+                until = np.where(lo + d < hi, t[np.minimum(lo + d + 1, len(t) - 1)], end[several])
+                held_s = np.where(lo + d <= hi, until - t[m], 0.0)
+                total += held_s[:, None] * thrusters.command(series.kind, driven.values[m], times[several] + start_s,
+                                                              None if supply is None else supply[several])
+            rest[several] = total / (end[several] - change)[:, None]
+        return cls(first, share, rest)
+
+    @property
+    def split(self) -> np.ndarray:
+        """The steps whose command changes within them."""
+        return np.flatnonzero((self.share < 1.0) & np.any(self.first != self.rest, axis=1))
+
+    def mean(self) -> np.ndarray:
+        """(n, 2) each step's mean command."""
+        k = self.split
+        out = self.first.copy()
+        w = self.share[k, None]
+        out[k] = w * self.first[k] + (1.0 - w) * self.rest[k]
+        return out
 
 
 @dataclass(frozen=True)

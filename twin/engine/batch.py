@@ -90,12 +90,15 @@ def models_for(compiled: CompiledVessel, hydros: Sequence[HydroModel]) -> list[m
 
 def thrust_controls_from_inputs(vessel: Vessel, inputs: InputSeries, nstep: int, timestep: float,
                                 start_s: float = 0.0) -> np.ndarray:
-    """(nstep, 2) thrust commands (N) held over each step, as `sim.simulate` applies them.
+    """(nstep, 2) thrust commands (N) held over each step: each step's mean (drive.StepPieces).
 
-    Step k runs from k·timestep with the command the zero-order-hold series
-    gives at that instant less the thrusters' delay (PWM converted through the
-    thruster map), decayed by the recording time start_s + k·timestep; with a thrust ramp, through
-    its slew limit (each step's mean of the ramp, settled at the first command).
+    Step k runs from k·timestep with the mean over the step of the commands the zero-order-hold
+    series gives less the thrusters' delay (PWM converted through the thruster map), decayed by the
+    recording time start_s + k·timestep; with a thrust ramp, through its slew limit (each step's
+    mean of the ramp, settled at the first command). `sim.simulate` takes a step within which the
+    input changes in two parts instead; a batch rollout holds one command over a step, its mean,
+    which is the same push where the thrust is linear in the command and differs by the advance
+    loss's curvature where it is not (an input changing sign within a step, a thruster without lag).
     """
     return inputs.thrust_on_steps(vessel.thrusters, nstep, timestep, start_s)
 

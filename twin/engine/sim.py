@@ -27,7 +27,7 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from ..drive import INPUT_WORDS, InputSeries, SupplySeries, WindSeries
+from ..drive import INPUT_WORDS, InputSeries, StepPieces, SupplySeries, WindSeries
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms, mmg_forces
 from ..physics import thrusters
@@ -144,16 +144,24 @@ def _picker(indices: list[int]):
 
 
 class _OpenLoop:
-    """An input series: the thrust command of every step computed ahead, events where it changes."""
+    """An input series: the thrust command of every step computed ahead, events where it changes.
+    A step within which the input changes (a delay or stamps off the step grid) is taken in two
+    parts, each with the command held over it (`split`: step → (share of the step, first command,
+    the rest's)); with a thrust ramp the slew limit's step means are held instead."""
 
     def __init__(self, series: InputSeries, thrusters, n_steps: int, n_sample: int, h: float, start_s: float,
                  thrust_on: bool):
         self.series = series
-        cmd_steps = series.thrust_on_steps(thrusters, n_steps + 1, h, start_s)
-        self.events = _event_steps(n_steps, n_sample, None, cmd_steps)
+        pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
+        cmd_steps = thrusters.slewed(pieces.mean(), h)[0] if thrusters.ramping else pieces.mean()
+        split = pieces.split if thrust_on and not thrusters.ramping else np.zeros(0, int)
+        split = split[split < n_steps]
+        self.events = _event_steps(n_steps, n_sample, None, cmd_steps, np.concatenate([split, split + 1]))
         if not thrust_on:
             cmd_steps = np.zeros_like(cmd_steps)
         self._at = dict(zip(self.events.tolist(), map(tuple, cmd_steps[self.events].tolist())))
+        self.split = {k: (float(pieces.share[k]), tuple(pieces.first[k].tolist()), tuple(pieces.rest[k].tolist()))
+                      for k in split.tolist()}
         self.h = h
 
     def command(self, k: int, state: np.ndarray) -> Pair:
@@ -359,7 +367,8 @@ def simulate(
     sample_steps = np.arange(0, n_steps + 1, n_sample)
     states = np.empty((len(sample_steps), mujoco.mj_stateSize(model, FULL)))
     with hydrodynamics, quiet_log():
-        commands = _step_events(model, data, events.tolist(), n_sample, states, loop.command, start_s, air)
+        commands = _step_events(model, data, events.tolist(), n_sample, states, loop.command, start_s, air,
+                                getattr(loop, "split", None))
     eta, nu = layout.samples(states)
     command_n = states[:, layout.act] if layout.act is not None else np.array(commands, dtype=float)
     meta = {"vessel": vessel.name, "case": vessel.case, "engine": "mujoco", "timestep_s": h,
@@ -401,11 +410,13 @@ def delivered_forces(compiled: CompiledVessel, commands: np.ndarray, nu: np.ndar
 
 def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], n_sample: int,
                  states: np.ndarray, command: Callable[[int, np.ndarray], Pair], start_s: float,
-                 wind: Callable[[int], Pair] | None = None) -> list[Pair]:
+                 wind: Callable[[int], Pair] | None = None,
+                 split: dict[int, tuple[float, Pair, Pair]] | None = None) -> list[Pair]:
     """Step the engine from event to event, the thrust command `command(k, state)` held from
     each (and the air's velocity `wind(k)` on controls 2 and 3); the state at every sample step
     goes to the next row of `states`. Returns the command set at each sample. Raises TwinError
-    (naming when) if the twin diverges.
+    (naming when) if the twin diverges. `split`: the steps taken in two parts (_OpenLoop), each
+    an event followed by one at the next step.
 
     The hot loop of a run: names are bound to locals and the arrays (ctrl, qvel, the warning
     counters) are views taken once, so an event costs a few microseconds of Python."""
@@ -429,11 +440,38 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
         if i == last:
             break
         nstep = events[i + 1] - k
+        parts = split.get(k) if split else None
+        if parts is not None:
+            _step_in_parts(model, data, parts)
+            if _diverged(warnings, qvel):
+                mujoco.mj_setState(model, data, state, FULL)
+                clear(data)
+                _step_in_parts(model, data, parts)
+                raise TwinError(f"the twin diverged at t = {start_s + float(state[0]):.2f} s: MuJoCo found its "
+                                f"{what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable "
+                                "parameters, inputs or time step)")
+            continue
         step(model, data, nstep)
         if _diverged(warnings, qvel):
             controls = (left, right) if wind is None else (left, right, *wind(k))
             raise TwinError(_divergence(model, data, state, controls, nstep, start_s))
     return commands
+
+
+def _step_in_parts(model: mujoco.MjModel, data: mujoco.MjData, parts: tuple[float, Pair, Pair]) -> None:
+    """One engine step in two: `share` of it under the first command, the rest under the second
+    (the model's time step put back after)."""
+    share, first, rest = parts
+    h = model.opt.timestep
+    try:
+        data.ctrl[0], data.ctrl[1] = first
+        model.opt.timestep = share * h
+        mujoco.mj_step(model, data)
+        data.ctrl[0], data.ctrl[1] = rest
+        model.opt.timestep = h - share * h
+        mujoco.mj_step(model, data)
+    finally:
+        model.opt.timestep = h
 
 
 def _diverged(warnings: np.ndarray, qvel: np.ndarray) -> bool:

@@ -12,7 +12,7 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from ..drive import InputSeries, to_thruster_inputs
+from ..drive import InputSeries, StepPieces, to_thruster_inputs
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
 from ..physics.thrusters import delivered, slew_step
@@ -83,8 +83,13 @@ def simulate_reference(
     step_times = np.arange(n_steps + 1) * h
 
     series = drive if isinstance(drive, InputSeries) else None
+    split: dict[int, tuple] = {}
     if series is not None:
-        cmd_steps = series.commanded_thrust(thrusters, step_times, start_s)
+        # each step's mean input; a step within which it changes is taken in two parts (sim._OpenLoop)
+        pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
+        cmd_steps = pieces.mean()
+        if terms.thrust and not thrusters.ramping:
+            split = {k: (pieces.share[k], pieces.first[k], pieces.rest[k]) for k in pieces.split if k < n_steps}
         held_steps = series.at(step_times)
         kind = series.kind
     else:
@@ -102,6 +107,8 @@ def simulate_reference(
     if ramp is not None:
         marks = np.arange(n_steps + 1)  # a ramp's command changes at every step; its state is where it stands
     ramped = None
+    if split:
+        marks = np.array([m for k in split for m in (k, k + 1)])
     events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
     if not terms.thrust:
         cmd_steps = np.zeros_like(cmd_steps)
@@ -141,6 +148,29 @@ def simulate_reference(
             if k == n_steps:
                 break
             mujoco.mj_getState(model, data, chunk_start, FULL)
+            if k in split:
+                share, first, rest = split[k]
+                data.ctrl[:2] = first
+                model.opt.timestep = share * h
+                mujoco.mj_step(model, data)
+                data.ctrl[:2] = rest
+                model.opt.timestep = h - share * h
+                mujoco.mj_step(model, data)
+                model.opt.timestep = h
+                if flagged(data) or not np.all(np.isfinite(data.qvel)):
+                    mujoco.mj_setState(model, data, chunk_start, FULL)
+                    clear(data)
+                    model.opt.timestep = share * h
+                    data.ctrl[:2] = first
+                    mujoco.mj_step(model, data)
+                    model.opt.timestep = h - share * h
+                    data.ctrl[:2] = rest
+                    mujoco.mj_step(model, data)
+                    model.opt.timestep = h
+                    raise TwinError(f"the twin diverged at t = {start_s + float(chunk_start[0]):.2f} s: MuJoCo "
+                                    f"found its {what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} "
+                                    "(unstable parameters, inputs or time step)")
+                continue
             mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
             if flagged(data) or not np.all(np.isfinite(data.qvel)):
                 raise TwinError(_divergence(model, data, chunk_start, applied, int(events[i + 1] - k), start_s))

@@ -527,8 +527,42 @@ class SitlTwin:
             ctrl[ir] = right
             if i == 0 and self.record:
                 self._record(t0_s, pl, pr)
-            _mj_step(m, d)
+            start = t - delay_s
+            end = start + h
+            if not slew and j < last and times[j + 1] <= end - _ZOH_TOL_S:
+                self._step_in_parts(j, start, end, f, left, right)
+            else:
+                _mj_step(m, d)
         self._hist_i = j
+
+    def _step_in_parts(self, j: int, start: float, end: float, f: float, left: float, right: float) -> None:
+        """A step within which a delayed input changes, in two parts as engine.sim takes it
+        (drive.StepPieces: the input held at the step's start over its share, then the mean of the
+        rest), the same operations in the same order."""
+        m, d, ctrl, (il, ir), h = self.model, self.data, self._ctrl, self._ctrl_ids, self._h
+        times, lefts, rights, last = self._hist_t, self._hist_l, self._hist_r, len(self._hist_t) - 1
+        change = times[j + 1]
+        total_l = total_r = 0.0
+        k = j + 1
+        while k <= last and times[k] <= end - _ZOH_TOL_S:
+            until = times[k + 1] if k < last and times[k + 1] <= end - _ZOH_TOL_S else end
+            held_s = until - times[k]
+            total_l += held_s * (self._raw(lefts[k]) * f)
+            total_r += held_s * (self._raw(rights[k]) * f)
+            k += 1
+        share = (change - start) / h
+        rest_l, rest_r = total_l / (end - change), total_r / (end - change)
+        if (rest_l, rest_r) == (left, right):  # the change changes nothing: one step, as engine.sim
+            _mj_step(m, d)
+            return
+        try:
+            m.opt.timestep = share * h
+            _mj_step(m, d)
+            ctrl[il], ctrl[ir] = rest_l, rest_r
+            m.opt.timestep = h - share * h
+            _mj_step(m, d)
+        finally:
+            m.opt.timestep = h
 
     def _at_rest(self) -> bool:
         """No velocity and (with a thruster lag) no thrust still in the lag."""

@@ -4,6 +4,11 @@ term computed but never applied (or applied with a wrong sign or frame)
 cannot hide: every term case also reports how far the term moves the vessel
 ("effect"), which must dwarf the tolerance.
 
+An input delay that is not a whole number of engine steps has a case of its own (the full model,
+the inputs of the full run reaching the thrusters CHECK_DELAY_S later): the engine holds an input
+that changes within a step over its share of the step, the analytic model switches at the delayed
+time itself.
+
 A propeller-and-rudder ship (MMG standard method) has its own cases: the MMG hull, propeller
 and rudder forces each alone, its Fujiwara wind load under a constant wind and under a
 time-varying (measured-like, gusty) wind series, the added mass's Coriolis terms without the
@@ -36,6 +41,8 @@ TERM_ENV = Environment(current_speed_m_s=0.4, current_dir_deg=60.0, wind_speed_m
 SHIP_NU0_TERMS = (0.3, 0.03, 0.02)
 SHIP_TERM_ENV = Environment(current_speed_m_s=0.1, current_dir_deg=60.0, wind_speed_m_s=2.0, wind_dir_deg=200.0)
 SHIP_GUST_SEED = 20240516
+# an input delay that is not a whole number of engine steps (0.02 s): each input then changes within a step
+CHECK_DELAY_S = 0.35
 
 
 @dataclass(frozen=True)
@@ -46,6 +53,7 @@ class Case:
     nu0: tuple[float, float, float]
     baseline: Terms | None  # the case without the term, to measure the term's effect
     wind: WindSeries | None = None  # a time-varying wind on the run's clock (replaces the environment's)
+    input_delay_s: float = 0.0  # the thrusters act on inputs this much older (baseline: the same terms without)
 
 
 def gusty_wind(duration_s: float = 600.0, seed: int = SHIP_GUST_SEED) -> WindSeries:
@@ -76,6 +84,7 @@ def ship_cases() -> list[Case]:
         Case("wind_series", none.only("wind"), calm, nu0, none, gusty_wind()),
         Case("full_environment", Terms(), env, (0.2, 0.0, 0.0), Terms(current=False, wind=False)),
         Case("full_wind_series", Terms(), calm, (0.2, 0.0, 0.0), Terms(wind=False), gusty_wind()),
+        Case("input_delay", Terms(), calm, (0.2, 0.0, 0.0), Terms(), input_delay_s=CHECK_DELAY_S),
     ]
 
 
@@ -96,6 +105,7 @@ def cases(vessel: Vessel | None = None) -> list[Case]:
         Case("wind", none.only("wind"), env, NU0_TERMS, none),
         Case("full_environment", Terms(), env, (0.0, 0.0, 0.0), Terms().only("added_mass", "added_mass_coriolis",
                                                                               "damping", "thrust")),
+        Case("input_delay", Terms(), Environment(), (0.0, 0.0, 0.0), Terms(), input_delay_s=CHECK_DELAY_S),
     ]
 
 
@@ -142,7 +152,8 @@ def zigzag_for(vessel: Vessel):
 
 
 def run_case(compiled: CompiledVessel, case: Case, duration_s: float, inputs=None) -> Result:
-    vessel = replace(compiled.vessel, environment=case.environment)
+    plain = replace(compiled.vessel, environment=case.environment)
+    vessel = replace(plain, thrusters=replace(plain.thrusters, delay_s=plain.thrusters.delay_s + case.input_delay_s))
     cv = CompiledVessel(vessel, compiled.model, compiled.geometry)
     drive = inputs if inputs is not None else zigzag_for(vessel)
     try:
@@ -154,7 +165,7 @@ def run_case(compiled: CompiledVessel, case: Case, duration_s: float, inputs=Non
     pos, head = _compare(eng, ana)
     effect = None
     if case.baseline is not None:
-        base = analytic.simulate(cv.hydro(case.baseline), vessel.thrusters, cv.geometry.thruster_y_m,
+        base = analytic.simulate(cv.hydro(case.baseline), plain.thrusters, cv.geometry.thruster_y_m,
                                  eng.meta["inputs"], eng.t, nu0=np.array(case.nu0), wind=case.wind)
         effect = _compare(ana, base)[0]
     return Result(case.name, pos, head, effect, eng, ana)
