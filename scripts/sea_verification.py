@@ -143,9 +143,10 @@ def main(argv=None) -> int:
                "Speed figures are of a shared two-core machine; the ratio of the two twins, timed in turn, is the "
                "steadier figure."],
         raw_file="data/sea_verification.json")
-    page.write(args.out)
+    # the raw figures first (into a folder of their own under --out), so the page never links to none
     write_text_atomic(args.out / "data" / "sea_verification.json",
-                      json.dumps(raw, indent=1, default=json_default) + "\n")
+                      json.dumps(raw, indent=1, default=json_default) + "\n", make_folder=True)
+    page.write(args.out)
     print(f"wrote {args.out / 'sea_verification.md'}")
     print(json.dumps(raw["speed"], indent=1, default=json_default))
     return 0

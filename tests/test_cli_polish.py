@@ -103,3 +103,17 @@ def test_version_mass_cases_and_the_sitl_address_are_said_in_the_help():
     assert len(cases) >= 7 and all(h.startswith("mass case: min | nominal | max") for h in cases.values()), cases
     host = next(p for name, cmd in commands if name == "sitl" for p in cmd.params if p.name == "host")
     assert host.default == "127.0.0.1"
+
+
+def test_a_fleet_counts_as_earlier_reports_neither_truths_nor_vessel_files(tmp_path):
+    """A folder of `twin dataset` logs holds their truths: they are data beside the logs, not reports
+    of logs outside the fleet."""
+    import json
+
+    from twin.cli.scale import other_reports
+
+    (tmp_path / "day.truth.json").write_text(json.dumps({"vessel": "yellowfish", "effects": [], "segments": []}))
+    (tmp_path / "boat.json").write_text(json.dumps({"mjcf": "package:blueboat.xml", "thrusters": {}}))
+    (tmp_path / "old_log.json").write_text(json.dumps({"ok": True, "report": {}}))
+    (tmp_path / "log0.json").write_text(json.dumps({"ok": True, "report": {}}))
+    assert other_reports(tmp_path, {"log0.json", "fleet.json"}) == ["old_log.json"]

@@ -31,3 +31,15 @@ def test_a_term_that_moves_the_vessel_less_than_the_tolerance_is_said_to_have_no
 
     wind = {r.case: r for r in twin.crosscheck("cybership1", duration_s=20)}["wind"]
     assert wind.passed and not wind.exercised and "no effect" in repr(wind) and wind.to_dict()["exercised"] is False
+
+
+def test_a_vessel_with_an_input_delay_passes_every_case():
+    """The closed-loop run's inputs say that nothing acted before the first command came through the
+    delay: the analytic model replaying them held the first command from t = 0 (0.42 m off)."""
+    from dataclasses import replace
+
+    base = vessel_mod.load("yellowfish")
+    vessel = replace(base, thrusters=replace(base.thrusters, delay_s=0.4))
+    results = crosscheck(vessel, duration_s=60.0, only=["thrust", "input_delay"])
+    assert [r.case for r in results] == ["full", "thrust", "input_delay"]
+    assert all(r.passed and r.position_err_m < POSITION_TOL_M / 100 for r in results), results

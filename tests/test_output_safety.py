@@ -222,7 +222,7 @@ def test_the_api_refuses_bad_arguments_in_one_sentence(tmp_path):
     with pytest.raises(TwinError, match="expected a vessel .* got int"):
         twin.simulate_run(5, duration_s=5)
     for bad in (-1, 0, float("nan")):
-        with pytest.raises(TwinError, match="window_s must be a positive number of seconds"):
+        with pytest.raises(TwinError, match="window_s must be a positive finite number of seconds"):
             twin.diagnose_recordings(["unused.csv"], "blueboat", window_s=bad)
     with pytest.raises(TwinError, match="identify: unknown option foo .*known: .*params"):
         twin.identify(["unused.csv"], "blueboat", foo=1)

@@ -712,7 +712,7 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
             neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
     """
     if not _finite(stride_s):
-        raise TwinError(f"stride_s must be a positive number of seconds, got {stride_s!r}")
+        raise TwinError(f"stride_s must be a positive finite number of seconds, got {stride_s!r}")
     v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
     check_wind(recs, wind, v)
@@ -966,9 +966,9 @@ def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=N
     """
     check_flags("diagnose_recordings", calibrated=calibrated, kinematic=kinematic)
     if window_s is not None and not _finite(window_s):
-        raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
+        raise TwinError(f"window_s must be a positive finite number of seconds, got {window_s!r}")
     if not _finite(refit_weight):
-        raise TwinError(f"refit_weight must be a positive number of windows, got {refit_weight!r}")
+        raise TwinError(f"refit_weight must be a positive finite number of windows, got {refit_weight!r}")
     if log is not None and not callable(log):
         raise TwinError(f"log is a callable taking progress lines (str) or None, got {log!r:.60}")
     v = _in_sea(_vessel(vessel), sea)
@@ -1018,7 +1018,7 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
     known_options(given_evidence, options, "judge")
     if "window_s" in options and not _finite(options["window_s"]):
-        raise TwinError(f"window_s must be a positive number of seconds, got {options['window_s']!r}")
+        raise TwinError(f"window_s must be a positive finite number of seconds, got {options['window_s']!r}")
     for text in effects:  # an unknown effect is told before the recordings are read
         if isinstance(text, str):
             parse_effect(text)

@@ -163,7 +163,7 @@ def _check_run(duration_s: float, sample_dt_s: float) -> None:
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise TwinError(f"the duration must be a positive, finite number of seconds, got {duration_s:g}")
     if not sample_dt_s > 0:
-        raise TwinError(f"the sample step must be a positive number of seconds, got {sample_dt_s:g}")
+        raise TwinError(f"the sample step must be a positive finite number of seconds, got {sample_dt_s:g}")
     if sample_dt_s > duration_s:
         raise TwinError(f"the sample step ({sample_dt_s:g} s) is longer than the run ({duration_s:g} s): "
                         "give a shorter step or a longer run")

@@ -218,7 +218,7 @@ def positive(value: float, option: str) -> float:
     """A finite number > 0 (a period, a duration, a window): 0, negative, nan or inf is refused
     before any work, where the computation would otherwise fail deep inside or loop forever."""
     if not (math.isfinite(value) and value > 0):
-        raise TwinError(f"{option} must be a positive number, got {value:g}")
+        raise TwinError(f"{option} must be a positive finite number, got {value:g}")
     return value
 
 

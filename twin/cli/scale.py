@@ -11,7 +11,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import BAND
-from ..files import check_new
+from ..files import check_new, kept_data
 from .app import (all_or_nothing_outputs, listed, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, 
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
@@ -86,12 +86,13 @@ def montecarlo_command(
     positive(sample_dt, "--sample-dt")
     if draws < 2:  # a band's percentiles need a spread: one draw is a run, not a band
         raise TwinError(f"--draws must be a whole number of 2 or more, got {draws}")
+    if not 0.0 < level < 1.0:  # the band's share (the library says "band level")
+        raise TwinError(f"--level must lie between 0 and 1 (0.9: the 5th to the 95th percentile), got {level:g}")
     at_least(batch_size, 1, "--batch-size")
     seed_from(seed)
     v = vessel_from(vessel, model, "nominal")
     variation = _variation(v, vary, effect, covariance)
     mc.check_variation(v, variation)
-    mc.level_percentiles(level)
     sea_state = _sea_for(v, sea, seed)
     executor = _executor(ray, cpus_per_task, retries)
     if inputs is not None:
@@ -301,8 +302,7 @@ def fleet_command(
     say(f"wrote {counted(len(fleet.reports), 'report')}"
         + (f" ({fleet.summary['diagnosed']} diagnosed, {why})" if failures > 0 else "")
         + f", {out / 'fleet.json'} and {out / 'fleet.md'}")
-    written = {Path(r).name for r in fleet.reports.values()} | {"fleet.json"}
-    older = sorted(q.name for q in out.glob("*.json") if q.name not in written)
+    older = other_reports(out, {Path(r).name for r in fleet.reports.values()} | {"fleet.json"})
     if older:
         note(f"note: {out} also holds {len(older)} report{'' if len(older) == 1 else 's'} of logs not in this fleet "
              f"(kept, not in fleet.json): {', '.join(older[:3])}{' …' if len(older) > 3 else ''}")
@@ -314,3 +314,7 @@ def fleet_command(
                         f"(their failure records are in {out}, the other reports are written)")
 
 
+def other_reports(out: Path, written: set[str]) -> list[str]:
+    """The names of the reports in `out` this fleet did not write (an earlier fleet's): its JSON files
+    but those written and those that are data (a vessel file, a dataset's truth kept beside its log)."""
+    return sorted(q.name for q in out.glob("*.json") if q.name not in written and kept_data(q) is None)

@@ -268,7 +268,7 @@ def _kinematic_effect(f) -> dict:
 def _check_refit(prior: Vessel, refit: tuple[str, ...], weight: float) -> None:
     """Bad --refit input as one line, before any work."""
     if not math.isfinite(weight) or not weight > 0:
-        raise TwinError(f"--refit-weight must be a positive number of windows, got {weight}")
+        raise TwinError(f"--refit-weight must be a positive finite number of windows, got {weight}")
     if not refit:
         raise TwinError("--refit needs one or more of the vessel's identification groups "
                         f"({', '.join(fit_groups(prior))})")

@@ -40,12 +40,13 @@ from .tick import Pair, TickMap
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+SPLIT_EPS = 1e-9  # of a step: a delay within this of a whole number of steps is that number
 _CHECKED = [int(kind) for kind in CHECKS]  # data.warning indices of MuJoCo's divergence checks
 
 
 def _steps(interval_s: float, timestep_s: float, what: str) -> int:
     if not (np.isfinite(interval_s) and interval_s > 0):
-        raise TwinError(f"{what} must be a positive number of seconds, got {interval_s:g}")
+        raise TwinError(f"{what} must be a positive finite number of seconds, got {interval_s:g}")
     n = int(round(interval_s / timestep_s))
     if n < 1 or abs(n * timestep_s - interval_s) > 1e-9:
         below, above = max(n, 1) * timestep_s, (max(n, 1) + 1) * timestep_s
@@ -193,7 +194,10 @@ def _two_finite(pair) -> bool:
 
 class _ClosedLoop:
     """A controller evaluated every n_control steps. Its output at step k reaches the thrusters
-    at step min(k + n_delay, n_steps) (the delay), decayed by the recording time of each step."""
+    delay_s later, decayed by the recording time of each step: from step min(k + n_delay, n_steps)
+    where the delay is a whole number of steps; otherwise within that step, which is taken in two
+    parts (`split`, as _OpenLoop's: the share `late` of it under the command before). With a thrust
+    ramp, at the nearest step."""
 
     def __init__(self, compiled: CompiledVessel, controller: Controller, layout: _Layout, *, n_steps: int,
                  n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool,
@@ -201,7 +205,13 @@ class _ClosedLoop:
         thrusters = compiled.vessel.thrusters
         self.controller, self.layout, self.map = controller, layout, TickMap.of(thrusters)
         self.n_steps, self.n_control, self.h, self.start_s = n_steps, n_control, h, start_s
-        self.n_delay = int(round(thrusters.delay_s / h))
+        steps_late = thrusters.delay_s / h
+        self.n_delay = int(math.floor(steps_late + SPLIT_EPS))
+        # the share of the step the delay ends in that the command before still holds (0: none)
+        self.late = steps_late - self.n_delay if steps_late - self.n_delay > SPLIT_EPS else 0.0
+        if thrusters.ramping:
+            self.n_delay, self.late = int(round(steps_late)), 0.0
+        self.split: dict[int, tuple[float, Pair, Pair]] = {}
         self.thrust_on = thrust_on
         # the supply factor of every step (the voltage as each step starts), where the thrust follows it
         self.supply = supply
@@ -226,8 +236,9 @@ class _ClosedLoop:
         if self.decaying or self.ramp is not None:
             return np.arange(self.n_steps + 1)
         marks = np.arange(0, self.n_steps + 1, self.n_control)
-        if self.n_delay:
-            marks = np.unique(np.concatenate([marks, np.minimum(marks + self.n_delay, self.n_steps)]))
+        if self.n_delay or self.late:
+            acts = [marks + self.n_delay] + ([marks + self.n_delay + 1] if self.late else [])
+            marks = np.unique(np.minimum(np.concatenate([marks, *acts]), self.n_steps))
         return marks
 
     def command(self, k: int, state: np.ndarray) -> Pair:
@@ -235,14 +246,22 @@ class _ClosedLoop:
         if k % self.n_control == 0:
             self._tick(k, state)
         pending = self.pending
+        before, arrived = self.raw, False
         while pending and pending[0][0] <= k:
+            arrived = pending[0][0] == k
             self.raw = pending.popleft()[1]
         command = self.raw
+        f = 1.0
         if self.decaying:
             f = self.map.decay(self.start_s + k * self.h)
             if self.supplied is not None:
                 f *= float(self.supplied[k])
             command = (self.raw[0] * f, self.raw[1] * f)
+        if arrived and self.late and self.raw != before and k < self.n_steps:
+            old = (before[0] * f, before[1] * f) if self.decaying else before
+            self.split[k] = (self.late, old, command)
+            w = self.late
+            return (w * old[0] + (1.0 - w) * command[0], w * old[1] + (1.0 - w) * command[1])
         return command if self.ramp is None else self._ramped(command)
 
     def _ramped(self, command: Pair) -> Pair:
@@ -285,10 +304,16 @@ class _ClosedLoop:
 
     def inputs(self) -> InputSeries:
         """The inputs the controller gave, as a series that replays the run (with the supply voltage at
-        its ticks where one was given: a replay holds it over each tick, the run had it at every step)."""
-        times = np.array(self.times)
-        return InputSeries(times, np.array(self.values), self.kinds[-1],
-                           None if self.supply is None else self.supply.at(times))
+        its ticks where one was given: a replay holds it over each tick, the run had it at every step).
+        With a delay, the thrusters' neutral input from −delay_s on comes first: nothing acted until the
+        first command came through (a series holds its first input before it)."""
+        times, values = np.array(self.times), np.array(self.values)
+        delay_s = self.map.thrusters.delay_s
+        if delay_s > 0.0 and len(times):
+            neutral = self.map.thrusters.neutral_us if self.kinds[-1] == "pwm" else 0.0
+            times = np.r_[times[0] - delay_s, times]
+            values = np.vstack([np.full((1, values.shape[1]), neutral, dtype=values.dtype), values])
+        return InputSeries(times, values, self.kinds[-1], None if self.supply is None else self.supply.at(times))
 
 
 def simulate(
@@ -450,7 +475,11 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
                 raise TwinError(f"the twin diverged at t = {start_s + float(state[0]):.2f} s: MuJoCo found its "
                                 f"{what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable "
                                 "parameters, inputs or time step)")
-            continue
+            if nstep == 1:
+                continue
+            get_state(model, data, scratch, FULL)
+            state, nstep = scratch, nstep - 1
+            left, right = parts[2]
         step(model, data, nstep)
         if _diverged(warnings, qvel):
             controls = (left, right) if wind is None else (left, right, *wind(k))

@@ -7,6 +7,7 @@ the twin itself.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import mujoco
@@ -20,7 +21,7 @@ from ..run import Run
 from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
-from .sim import _event_steps, _steps, initial_state  # the loop differs, not its arithmetic
+from .sim import SPLIT_EPS, _event_steps, _steps, initial_state  # the loop differs, not its arithmetic
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -76,7 +77,11 @@ def simulate_reference(
     n_steps = int(round(duration_s / h))
     n_control = _steps(control_dt_s, h, "control period")
     n_sample = _steps(sample_dt_s, h, "sample period")
-    n_delay = int(round(thrusters.delay_s / h))
+    steps_late = thrusters.delay_s / h
+    n_delay = int(math.floor(steps_late + SPLIT_EPS))
+    late = steps_late - n_delay if steps_late - n_delay > SPLIT_EPS else 0.0  # the step the delay ends in
+    if thrusters.ramping:
+        n_delay, late = int(round(steps_late)), 0.0
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
     qpos, dof = callbacks._joint_indices(model)
@@ -99,8 +104,9 @@ def simulate_reference(
         kind = None
     applied_t, applied_v = [], []
     marks = np.arange(0, n_steps + 1, n_control) if series is None else None
-    if series is None and n_delay:
-        marks = np.unique(np.concatenate([marks, np.minimum(marks + n_delay, n_steps)]))
+    if series is None and (n_delay or late):
+        acts = [marks + n_delay] + ([marks + n_delay + 1] if late else [])
+        marks = np.unique(np.minimum(np.concatenate([marks, *acts]), n_steps))
     if series is None and thrusters.decay_per_min:
         marks = np.arange(n_steps + 1)  # the decaying command changes at every step
     ramp = thrusters.slew_n_per_s * h if thrusters.ramping else None
@@ -129,7 +135,14 @@ def simulate_reference(
                     motors, driven = thrusters.driven_step(motors, held)
                     held = np.asarray(driven)
                 cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
+                before = cmd_steps[act_at].copy()
                 cmd_steps[act_at:] = cmd if terms.thrust else 0.0
+                if late and terms.thrust and act_at < n_steps and act_at == k + n_delay \
+                        and not np.array_equal(before, cmd_steps[act_at]):
+                    # the delay ends within step act_at: the command before holds for its first `late`
+                    new_cmd = cmd_steps[act_at].copy()
+                    split[act_at] = (late, before, new_cmd)
+                    cmd_steps[act_at] = late * before + (1.0 - late) * new_cmd
             if ramp is None:
                 data.ctrl[:2] = cmd_steps[k]
             else:
@@ -175,7 +188,12 @@ def simulate_reference(
             if flagged(data) or not np.all(np.isfinite(data.qvel)):
                 raise TwinError(_divergence(model, data, chunk_start, applied, int(events[i + 1] - k), start_s))
     if series is None:
-        series = InputSeries(np.array(applied_t), np.array(applied_v), kind)
+        times, values = np.array(applied_t), np.array(applied_v)
+        if thrusters.delay_s > 0.0 and len(times):  # nothing acted until the first command came through
+            neutral = thrusters.neutral_us if kind == "pwm" else 0.0
+            times = np.r_[times[0] - thrusters.delay_s, times]
+            values = np.vstack([np.full((1, values.shape[1]), neutral, dtype=values.dtype), values])
+        series = InputSeries(times, values, kind)
     nu = np.array(rows["nu"])
     return Run(
         np.array(rows["t"]), np.array(rows["eta"]), nu, vessel.thrusters.at_escs(np.array(rows["held"], dtype=float)),

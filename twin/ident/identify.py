@@ -415,7 +415,7 @@ def _check_counts(window_s, *, params, groups, **counts) -> None:
     given: a window of 0 s failed in the engine, 1.5 evaluations ran scipy's optimiser for minutes)."""
     if isinstance(window_s, bool) or not isinstance(window_s, numbers.Real) or not (math.isfinite(window_s)
                                                                                  and window_s > 0):
-        raise TwinError(f"window_s must be a positive number of seconds, got {window_s!r}")
+        raise TwinError(f"window_s must be a positive finite number of seconds, got {window_s!r}")
     for name, value in counts.items():
         least = 0 if name == "seed" else 1
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:

@@ -33,7 +33,7 @@ class Conversion:
 def for_conversion(rec: Recording, grid_dt: float = 0.1) -> Conversion:
     """GNSS, heading and PWM on one grid of grid_dt s where possible, else every stream as recorded."""
     if not (np.isfinite(grid_dt) and grid_dt > 0):
-        raise TwinError(f"--grid-dt must be a positive number of seconds, got {grid_dt}")
+        raise TwinError(f"--grid-dt must be a positive finite number of seconds, got {grid_dt}")
     if grid_dt * 2 > rec.duration_s() > 0:  # the grid asked for cannot be given: a file without it would not be it
         raise TwinError(f"--grid-dt {grid_dt:g} s leaves fewer than two samples in this {rec.duration_s():.1f}-s "
                         f"recording (give at most {rec.duration_s() / 2:.3g} s)")

@@ -297,7 +297,7 @@ def outlier_counts(rec: Recording) -> dict[str, int]:
 
 def _check_settings(grid_dt, smoother, window_s, polyorder, max_gap_s) -> None:
     if not (np.isfinite(grid_dt) and grid_dt > 0):
-        raise TwinError(f"grid_dt must be a positive number of seconds, got {grid_dt}")
+        raise TwinError(f"grid_dt must be a positive finite number of seconds, got {grid_dt}")
     if smoother not in ("savgol", "none"):
         raise TwinError(f"smoother must be 'savgol' or 'none', got {smoother!r}")
     if smoother == "savgol" and not (window_s > 0 and 0 <= polyorder <= 5):
