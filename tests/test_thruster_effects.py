@@ -93,6 +93,51 @@ def test_closed_loop_matches_analytic_with_a_delay_between_steps(delay_s):
     assert pos < 1e-4 and head < 1e-3
 
 
+def test_a_sample_at_a_split_step_shows_the_thrust_acting_at_its_instant():
+    """CyberShip I (0.01-s step) with a 0.013-s delay: the change stamped 1.0 s acts from 1.013 s,
+    so the samples at 1.00 and 1.01 s still show the thrust before it (they showed the step's mean)."""
+    base = vessel_mod.load("cybership1")
+    v = replace(base, thrusters=replace(base.thrusters, delay_s=0.013))
+    series = InputSeries(np.array([0.0, 1.0]), np.array([[0.5, 0.5], [2.0, -1.0]]), "thrust")
+    run = simulate(compile_vessel(v), series, 2.0, sample_dt_s=0.01)
+    at = {round(t, 2): tuple(x) for t, x in zip(run.t, run.thrust_n)}
+    assert at[1.0] == at[1.01] == pytest.approx((0.5, 0.5)) and at[1.02] == pytest.approx((2.0, -1.0))
+
+
+def test_a_wind_series_changing_between_the_inputs_changes_runs_open_loop():
+    """A wind series whose changes fall on steps where the inputs do not change (the loop returns at
+    both): it raised a bare KeyError."""
+    from twin.drive import WindSeries
+
+    cv = compile_vessel(vessel_mod.load("yellowfish"))
+    series = InputSeries(np.array([0.0, 5.0]), np.array([[1700.0, 1700.0], [1600.0, 1800.0]]), "pwm")
+    wind = WindSeries.from_speed_direction([0.0, 0.74], [3.0, 6.0], [90.0, 180.0])
+    eng = simulate(cv, series, 10.0, wind=wind)
+    ana = analytic.simulate(cv.hydro(), cv.vessel.thrusters, cv.geometry.thruster_y_m, series, eng.t,
+                            nu0=np.zeros(3), wind=wind)
+    assert _compare(eng, ana)[0] < 1e-4
+
+
+def test_a_ramp_follows_the_input_at_each_steps_start():
+    """With a slew limit the ramp's target is the input at the step's start, not the step's mean (an
+    input that reverses within a step would turn the ramp a whole step's slew the wrong way)."""
+    base = vessel_mod.load("yellowfish")
+    th = replace(base.thrusters, ramp_s=2.0, delay_s=0.013)
+    series = InputSeries(np.array([0.0, 2.0]), np.array([[1800.0, 1800.0], [1200.0, 1200.0]]), "pwm")
+    held = series.commanded_thrust(th, np.arange(200) * 0.02)
+    np.testing.assert_array_equal(series.thrust_on_steps(th, 200, 0.02), th.slewed(held, 0.02)[0])
+
+
+def test_a_closed_loop_command_arriving_after_the_run_is_not_shown_at_its_end():
+    base = vessel_mod.load("yellowfish")
+    v = replace(base, thrusters=replace(base.thrusters, delay_s=0.35))
+    run = simulate(compile_vessel(v), ZigZag(), 10.0)
+    ticks = run.meta["inputs"]
+    # the last sample shows the command of the tick delay_s before it, not the one at the end
+    expected = replace(v.thrusters, delay_s=0.0).command("pwm", ticks.at(np.array([10.0 - 0.35])), np.array([10.0]))
+    np.testing.assert_allclose(run.thrust_n[-1], expected[0] * np.array(v.thrusters.gains()), rtol=1e-12)
+
+
 def test_decay_scales_thrust_with_recording_time():
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, decay_per_min=0.1))

@@ -79,12 +79,14 @@ class InputSeries:
 
     def thrust_on_steps(self, thrusters: ThrusterModel, n_steps: int, step_s: float, start_s: float = 0.0) -> np.ndarray:
         """(n_steps, 2) thrust command (N) held over engine step k (k·step_s to (k+1)·step_s): the step's
-        mean of `commanded_thrust` (`step_pieces`); with a thrust ramp, within the bounds and through the
-        slew limit (each step's mean of the ramp, settled at the first command: ThrusterModel.slewed)."""
-        cmd = StepPieces.of(self, thrusters, n_steps, step_s, start_s).mean()
+        mean of `commanded_thrust` (`StepPieces`); with a thrust ramp, the command at the step's start
+        within the bounds and through the slew limit (each step's mean of the ramp, settled at the first
+        command: ThrusterModel.slewed). A ramp is not fed the step's mean: an input that reverses
+        within a step would turn the ramp a whole step's slew the wrong way."""
+        pieces = StepPieces.of(self, thrusters, n_steps, step_s, start_s)
         if thrusters.ramping:
-            return thrusters.slewed(cmd, step_s)[0]
-        return cmd
+            return thrusters.slewed(pieces.first, step_s)[0]
+        return pieces.mean()
 
     def driven(self, thrusters: ThrusterModel) -> "InputSeries":
         """The series as the motors answer it: a PWM series through `ThrusterModel.as_driven` (a stopped

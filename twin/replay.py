@@ -68,8 +68,10 @@ def thrust_from_recorded_pwm(compiled: CompiledVessel, prep: Prepared) -> np.nda
         t = prep.t[sl]
         if not np.all(np.isfinite(prep.pwm[sl])):
             continue
-        command = logged_pwm(vessel, prep, sl).thrust_on_steps(
-            vessel.thrusters, len(t), prep.settings.grid_dt, float(t[0]))
+        # at each sample, what acts there: the PWM held delay_s before (not the mean over the next interval)
+        held = logged_pwm(vessel, prep, sl).commanded_thrust(
+            vessel.thrusters, np.arange(len(t)) * prep.settings.grid_dt, float(t[0]))
+        command = vessel.thrusters.slewed(held, prep.settings.grid_dt)[0] if vessel.thrusters.ramping else held
         nu = np.column_stack([prep.u[sl], prep.v[sl], prep.r[sl]])
         out[sl] = delivered_thrust(vessel, compiled.geometry.thruster_y_m, command, nu)
     return out

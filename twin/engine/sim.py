@@ -148,25 +148,27 @@ class _OpenLoop:
     """An input series: the thrust command of every step computed ahead, events where it changes.
     A step within which the input changes (a delay or stamps off the step grid) is taken in two
     parts, each with the command held over it (`split`: step → (share of the step, first command,
-    the rest's)); with a thrust ramp the slew limit's step means are held instead."""
+    the rest's)); with a thrust ramp, the slew limit's step means of the input at each step's start."""
 
     def __init__(self, series: InputSeries, thrusters, n_steps: int, n_sample: int, h: float, start_s: float,
                  thrust_on: bool):
         self.series = series
         pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
-        cmd_steps = thrusters.slewed(pieces.mean(), h)[0] if thrusters.ramping else pieces.mean()
+        cmd_steps = thrusters.slewed(pieces.first, h)[0] if thrusters.ramping else pieces.mean()
         split = pieces.split if thrust_on and not thrusters.ramping else np.zeros(0, int)
         split = split[split < n_steps]
         self.events = _event_steps(n_steps, n_sample, None, cmd_steps, np.concatenate([split, split + 1]))
         if not thrust_on:
             cmd_steps = np.zeros_like(cmd_steps)
         self._at = dict(zip(self.events.tolist(), map(tuple, cmd_steps[self.events].tolist())))
+        self._steps = cmd_steps  # for events that are not the inputs' own (a wind series' changes)
         self.split = {k: (float(pieces.share[k]), tuple(pieces.first[k].tolist()), tuple(pieces.rest[k].tolist()))
                       for k in split.tolist()}
         self.h = h
 
     def command(self, k: int, state: np.ndarray) -> Pair:
-        return self._at[k]
+        at = self._at.get(k)
+        return at if at is not None else tuple(self._steps[k].tolist())
 
     def held(self, steps: np.ndarray) -> np.ndarray:
         """PWM (µs) held at these steps, NaN when the series is in thrust."""
@@ -197,7 +199,7 @@ class _ClosedLoop:
     delay_s later, decayed by the recording time of each step: from step min(k + n_delay, n_steps)
     where the delay is a whole number of steps; otherwise within that step, which is taken in two
     parts (`split`, as _OpenLoop's: the share `late` of it under the command before). With a thrust
-    ramp, at the nearest step."""
+    ramp, from the first step at or after it (as an open-loop replay of `inputs()` holds it)."""
 
     def __init__(self, compiled: CompiledVessel, controller: Controller, layout: _Layout, *, n_steps: int,
                  n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool,
@@ -209,8 +211,8 @@ class _ClosedLoop:
         self.n_delay = int(math.floor(steps_late + SPLIT_EPS))
         # the share of the step the delay ends in that the command before still holds (0: none)
         self.late = steps_late - self.n_delay if steps_late - self.n_delay > SPLIT_EPS else 0.0
-        if thrusters.ramping:
-            self.n_delay, self.late = int(round(steps_late)), 0.0
+        if thrusters.ramping:  # from the first step at or after it, as a replay of its inputs holds them
+            self.n_delay, self.late = int(math.ceil(steps_late - SPLIT_EPS)), 0.0
         self.split: dict[int, tuple[float, Pair, Pair]] = {}
         self.thrust_on = thrust_on
         # the supply factor of every step (the voltage as each step starts), where the thrust follows it
@@ -293,7 +295,9 @@ class _ClosedLoop:
         if kind == "pwm" and self.map.thrusters.hysteretic:  # the motors answer the PWM as it comes
             self.motors, held = self.map.thrusters.driven_step(self.motors, held)
         if self.thrust_on:
-            self.pending.append((min(k + self.n_delay, self.n_steps), self.map.raw_thrust(kind, held)))
+            acts = k + self.n_delay
+            if acts < self.n_steps or (acts == self.n_steps and not self.late):  # else it arrives after the run
+                self.pending.append((acts, self.map.raw_thrust(kind, held)))
 
     def held(self, steps: np.ndarray) -> np.ndarray:
         """PWM (µs) held at these steps (the latest tick's), NaN where that tick gave thrust."""
@@ -460,12 +464,12 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
         ctrl[1] = right
         if wind is not None:
             ctrl[2], ctrl[3] = wind(k)
-        if sampled:
-            commands.append((left, right))
+        parts = split.get(k) if split else None
+        if sampled:  # what acts at the sample's instant: a split step's first part
+            commands.append((left, right) if parts is None else parts[1])
         if i == last:
             break
         nstep = events[i + 1] - k
-        parts = split.get(k) if split else None
         if parts is not None:
             _step_in_parts(model, data, parts)
             if _diverged(warnings, qvel):

@@ -80,8 +80,8 @@ def simulate_reference(
     steps_late = thrusters.delay_s / h
     n_delay = int(math.floor(steps_late + SPLIT_EPS))
     late = steps_late - n_delay if steps_late - n_delay > SPLIT_EPS else 0.0  # the step the delay ends in
-    if thrusters.ramping:
-        n_delay, late = int(round(steps_late)), 0.0
+    if thrusters.ramping:  # from the first step at or after the delayed time
+        n_delay, late = int(math.ceil(steps_late - SPLIT_EPS)), 0.0
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
     qpos, dof = callbacks._joint_indices(model)
@@ -92,7 +92,7 @@ def simulate_reference(
     if series is not None:
         # each step's mean input; a step within which it changes is taken in two parts (sim._OpenLoop)
         pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
-        cmd_steps = pieces.mean()
+        cmd_steps = pieces.first.copy() if thrusters.ramping else pieces.mean()  # a ramp follows the step's start
         if terms.thrust and not thrusters.ramping:
             split = {k: (pieces.share[k], pieces.first[k], pieces.rest[k]) for k in pieces.split if k < n_steps}
         held_steps = series.at(step_times)
@@ -130,14 +130,16 @@ def simulate_reference(
                 applied_t.append(t)
                 applied_v.append(held)
                 held_steps[k:] = held
-                act_at = min(k + n_delay, n_steps)
+                act_at = k + n_delay
                 if kind == "pwm":
                     motors, driven = thrusters.driven_step(motors, held)
                     held = np.asarray(driven)
-                cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:])
-                before = cmd_steps[act_at].copy()
-                cmd_steps[act_at:] = cmd if terms.thrust else 0.0
-                if late and terms.thrust and act_at < n_steps and act_at == k + n_delay \
+                arrives = act_at < n_steps or (act_at == n_steps and not late)  # else after the run
+                cmd = thrusters.command(kind, held[None, :], start_s + step_times[act_at:]) if arrives else None
+                before = cmd_steps[act_at].copy() if arrives else None
+                if arrives:
+                    cmd_steps[act_at:] = cmd if terms.thrust else 0.0
+                if arrives and late and terms.thrust and act_at < n_steps \
                         and not np.array_equal(before, cmd_steps[act_at]):
                     # the delay ends within step act_at: the command before holds for its first `late`
                     new_cmd = cmd_steps[act_at].copy()
@@ -157,7 +159,9 @@ def simulate_reference(
                 rows["eta"].append(eta)
                 rows["nu"].append(nu)
                 rows["held"].append(held_steps[k] if kind == "pwm" else (np.nan, np.nan))
-                rows["cmd"].append(data.act[:2].copy() if model.na else data.ctrl[:2].copy())
+                # what acts at the sample's instant: a split step's first part
+                rows["cmd"].append(data.act[:2].copy() if model.na else
+                                   np.array(split[k][1], float) if k in split else data.ctrl[:2].copy())
             if k == n_steps:
                 break
             mujoco.mj_getState(model, data, chunk_start, FULL)
