@@ -28,7 +28,7 @@ import pytest
 from twin.drive import InputSeries
 from twin.engine.mjcf import compile_vessel
 from twin.engine.native import installed_native, with_native_params
-from twin.engine.sim import delivered_thrust, initial_state, simulate
+from twin.engine.sim import _step_in_parts as step_in_parts, delivered_thrust, initial_state, simulate
 from twin.errors import TwinError
 from twin.formats import read_recording
 from twin.physics.hydrodynamics import Terms
@@ -242,12 +242,7 @@ def _step_in_parts(model, data, thrusters, series: InputSeries, t: float, h: flo
         mujoco.mj_step(model, data)
         return
     share = (stamps[later[0]] - start) / h
-    model.opt.timestep = share * h
-    mujoco.mj_step(model, data)
-    data.ctrl[:2] = rest
-    model.opt.timestep = h - share * h
-    mujoco.mj_step(model, data)
-    model.opt.timestep = h
+    step_in_parts(model, data, (share, tuple(data.ctrl[:2]), tuple(rest)))
 
 
 def arrays(replies: list[dict]) -> dict[str, np.ndarray]:

@@ -21,7 +21,7 @@ from ..run import Run
 from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
-from .sim import SPLIT_EPS, _event_steps, _steps, initial_state  # the loop differs, not its arithmetic
+from .sim import SPLIT_EPS, _event_steps, _step_in_parts, _steps, initial_state  # the loop differs, not its arithmetic
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -166,24 +166,13 @@ def simulate_reference(
                 break
             mujoco.mj_getState(model, data, chunk_start, FULL)
             if k in split:
-                share, first, rest = split[k]
-                data.ctrl[:2] = first
-                model.opt.timestep = share * h
-                mujoco.mj_step(model, data)
-                data.ctrl[:2] = rest
-                model.opt.timestep = h - share * h
-                mujoco.mj_step(model, data)
-                model.opt.timestep = h
+                parts = tuple(map(tuple, (np.asarray(x, float).tolist() for x in split[k][1:])))
+                parts = (float(split[k][0]), *parts)
+                _step_in_parts(model, data, parts)
                 if flagged(data) or not np.all(np.isfinite(data.qvel)):
                     mujoco.mj_setState(model, data, chunk_start, FULL)
                     clear(data)
-                    model.opt.timestep = share * h
-                    data.ctrl[:2] = first
-                    mujoco.mj_step(model, data)
-                    model.opt.timestep = h - share * h
-                    data.ctrl[:2] = rest
-                    mujoco.mj_step(model, data)
-                    model.opt.timestep = h
+                    _step_in_parts(model, data, parts)
                     raise TwinError(f"the twin diverged at t = {start_s + float(chunk_start[0]):.2f} s: MuJoCo "
                                     f"found its {what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} "
                                     "(unstable parameters, inputs or time step)")
