@@ -213,8 +213,20 @@ TENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directi
     Case("wind-gusty-6-40", "wind", 129, wind_speed_m_s=6.0, wind_from_deg=40.0, gust_sigma_m_s=1.2, gust_tau_s=12.0),
     Case("wind-steady-6.5-210", "wind", 130, wind_speed_m_s=6.5, wind_from_deg=210.0),
 ]
+ELEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-u", "null", 131),
+    Case("null-v", "null", 132),
+    Case("dead_zone-right-soft-45-105us", "dead_zone", 133, side="right", inner_us=45.0, outer_us=105.0),
+    Case("dead_zone-left-hard-85us", "dead_zone", 134, side="left", inner_us=85.0, outer_us=85.0),
+    Case("speed_loss-0.16u", "speed_loss", 135, k=0.16, power=1),
+    Case("speed_loss-0.16u2", "speed_loss", 136, k=0.16, power=2),
+    Case("sag-exp-260s", "sag_exp", 137, k=0.28, tau_s=260.0),
+    Case("sag-square-0.22", "sag_square", 138, k=0.22),
+    Case("wind-gusty-5.5-300", "wind", 139, wind_speed_m_s=5.5, wind_from_deg=300.0, gust_sigma_m_s=1.1, gust_tau_s=14.0),
+    Case("wind-steady-7-120", "wind", 140, wind_speed_m_s=7.0, wind_from_deg=120.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
-        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH}
+        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

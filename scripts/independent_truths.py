@@ -115,11 +115,22 @@ CASES_FIFTH = [  # fixed before it was run: other seeds, magnitudes, sides and d
     Case("wind_shape-5-200", "wind_shape", (5.0, 200.0), 59),
     Case("wind_shape-6-20", "wind_shape", (6.0, 20.0), 60),
 ]
-SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH}
+CASES_SIXTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-11", "null", (), 61), Case("null-12", "null", (), 62),
+    Case("one_dead_zone-left-75-40", "one_dead_zone", ("left", 75.0, 40.0), 63),
+    Case("one_dead_zone-right-90-30", "one_dead_zone", ("right", 90.0, 30.0), 64),
+    Case("speed_loss_u2-0.15", "speed_loss_u2", (0.15,), 65), Case("speed_loss_u2-0.26", "speed_loss_u2", (0.26,), 66),
+    Case("decay-0.045", "decay", (0.045,), 67), Case("decay-0.065", "decay", (0.065,), 68),
+    Case("wind_shape-5.5-250", "wind_shape", (5.5, 250.0), 69),
+    Case("wind_shape-6.5-140", "wind_shape", (6.5, 140.0), 70),
+]
+SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH,
+        "sixth": CASES_SIXTH}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
-         "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth"}
+         "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth", "sixth": "independent_truths_sixth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("fifth", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("sixth", "after"): "the diagnosis as it was when the set was fixed (no change judged on it)",
+                 ("fifth", "before"): "the diagnosis as it was when the set was fixed",
                  ("fifth", "after"): "each fold's scanned candidates (time shifts, dead zones) scanned afresh on that "
                                      "fold's training windows, not refined from a screening that saw its held-out blocks",
                  ("fourth", "before"): "the diagnosis as it was when the set was fixed",
