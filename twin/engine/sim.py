@@ -473,12 +473,7 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
         if parts is not None:
             _step_in_parts(model, data, parts)
             if _diverged(warnings, qvel):
-                mujoco.mj_setState(model, data, state, FULL)
-                clear(data)
-                _step_in_parts(model, data, parts)
-                raise TwinError(f"the twin diverged at t = {start_s + float(state[0]):.2f} s: MuJoCo found its "
-                                f"{what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} (unstable "
-                                "parameters, inputs or time step)")
+                raise TwinError(_divergence_in_parts(model, data, state, parts, start_s))
             if nstep == 1:
                 continue
             get_state(model, data, scratch, FULL)
@@ -489,6 +484,17 @@ def _step_events(model: mujoco.MjModel, data: mujoco.MjData, events: list[int], 
             controls = (left, right) if wind is None else (left, right, *wind(k))
             raise TwinError(_divergence(model, data, state, controls, nstep, start_s))
     return commands
+
+
+def _divergence_in_parts(model: mujoco.MjModel, data: mujoco.MjData, start: np.ndarray,
+                         parts: tuple[float, Pair, Pair], start_s: float) -> str:
+    """One line naming when a step taken in two parts diverged: the step replayed from its saved
+    start (MuJoCo reset the diverged state) and what MuJoCo found bad."""
+    mujoco.mj_setState(model, data, start, FULL)
+    clear(data)
+    _step_in_parts(model, data, parts)
+    return (f"the twin diverged at t = {start_s + float(start[0]):.2f} s: MuJoCo found its {what_diverged(data)} "
+            f"non-finite or beyond {mujoco.mjMAXVAL:g} (unstable parameters, inputs or time step)")
 
 
 def _step_in_parts(model: mujoco.MjModel, data: mujoco.MjData, parts: tuple[float, Pair, Pair]) -> None:

@@ -21,7 +21,7 @@ from ..run import Run
 from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
 from .mjcf import CompiledVessel
-from .sim import SPLIT_EPS, _event_steps, _step_in_parts, _steps, initial_state  # the loop differs, not its arithmetic
+from .sim import SPLIT_EPS, _divergence_in_parts, _event_steps, _step_in_parts, _steps, initial_state  # the loop differs, not its arithmetic
 
 Controller = Callable[[float, np.ndarray, np.ndarray], tuple[float, float]]
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -170,12 +170,7 @@ def simulate_reference(
                 parts = (float(split[k][0]), *parts)
                 _step_in_parts(model, data, parts)
                 if flagged(data) or not np.all(np.isfinite(data.qvel)):
-                    mujoco.mj_setState(model, data, chunk_start, FULL)
-                    clear(data)
-                    _step_in_parts(model, data, parts)
-                    raise TwinError(f"the twin diverged at t = {start_s + float(chunk_start[0]):.2f} s: MuJoCo "
-                                    f"found its {what_diverged(data)} non-finite or beyond {mujoco.mjMAXVAL:g} "
-                                    "(unstable parameters, inputs or time step)")
+                    raise TwinError(_divergence_in_parts(model, data, chunk_start, parts, start_s))
                 continue
             mujoco.mj_step(model, data, nstep=int(events[i + 1] - k))
             if flagged(data) or not np.all(np.isfinite(data.qvel)):
