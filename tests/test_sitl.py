@@ -411,6 +411,17 @@ def test_lock_step_with_a_thrust_ramp_is_the_offline_twin(full_vessel, fine_vess
     assert np.abs(arrays(replies)["pos"][-1, :2] - plain.eta[len(pairs), :2]).max() > 0.05
 
 
+def test_lock_step_with_a_thrust_ramp_and_a_delay_off_the_step_grid_is_the_offline_twin(full_vessel, fine_vessel):
+    """A delay of 20.52 steps: each input reaches the ramp within a step, which both take in two parts,
+    the ramp heading for the input held over each (the ramp used to take it from the next step)."""
+    ramped = {"ramp_s": 2.0, "delay_s": 0.0513}
+    full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, **ramped))
+    fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, **ramped))
+    frames, pairs = pwm_frames(1200, seed=6)
+    replies, _, _ = play(full, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert_matches_offline(replies, offline(fine, pairs, 1 / 400))
+
+
 def test_lock_step_at_50_hz_substeps_the_frame_and_reads_32_output_packets(full_vessel, fine_vessel):
     frames, pairs = pwm_frames(150, seed=2, outputs=32)
     replies, _, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)])

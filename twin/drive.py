@@ -79,13 +79,13 @@ class InputSeries:
 
     def thrust_on_steps(self, thrusters: ThrusterModel, n_steps: int, step_s: float, start_s: float = 0.0) -> np.ndarray:
         """(n_steps, 2) thrust command (N) held over engine step k (k·step_s to (k+1)·step_s): the step's
-        mean of `commanded_thrust` (`StepPieces`); with a thrust ramp, the command at the step's start
-        within the bounds and through the slew limit (each step's mean of the ramp, settled at the first
-        command: ThrusterModel.slewed). A ramp is not fed the step's mean: an input that reverses
-        within a step would turn the ramp a whole step's slew the wrong way."""
+        mean of `commanded_thrust` (`StepPieces`); with a thrust ramp, the step's mean of the ramp
+        heading for the input held over each part of the step (`StepPieces.through_ramp`). A ramp is
+        not fed the step's mean: an input that reverses within a step would turn the ramp a whole
+        step's slew the wrong way."""
         pieces = StepPieces.of(self, thrusters, n_steps, step_s, start_s)
         if thrusters.ramping:
-            return thrusters.slewed(pieces.first, step_s)[0]
+            pieces = pieces.through_ramp(thrusters, step_s)
         return pieces.mean()
 
     def driven(self, thrusters: ThrusterModel) -> "InputSeries":
@@ -153,6 +153,17 @@ class StepPieces:
     def split(self) -> np.ndarray:
         """The steps whose command changes within them."""
         return np.flatnonzero((self.share < 1.0) & np.any(self.first != self.rest, axis=1))
+
+    def through_ramp(self, thrusters: ThrusterModel, step_s: float) -> "StepPieces":
+        """The pieces as the thrusters' slew limit gives them (settled at the first command): on a
+        step within which the command changes (`split`), the ramp's mean over its share under the
+        first command, then over the rest under the rest's; elsewhere the step's mean of the ramp
+        (ThrusterModel.slewed_parts). Within the bounds; unchanged but bounded without a ramp."""
+        share = np.ones(len(self.share))
+        k = self.split
+        share[k] = self.share[k]
+        first, rest = thrusters.slewed_parts(self.first, share, self.rest, step_s)
+        return StepPieces(first, share, rest)
 
     def mean(self) -> np.ndarray:
         """(n, 2) each step's mean command."""

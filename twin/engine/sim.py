@@ -148,14 +148,16 @@ class _OpenLoop:
     """An input series: the thrust command of every step computed ahead, events where it changes.
     A step within which the input changes (a delay or stamps off the step grid) is taken in two
     parts, each with the command held over it (`split`: step → (share of the step, first command,
-    the rest's)); with a thrust ramp, the slew limit's step means of the input at each step's start."""
+    the rest's)); with a thrust ramp, each part's mean of the ramp heading for that command."""
 
     def __init__(self, series: InputSeries, thrusters, n_steps: int, n_sample: int, h: float, start_s: float,
                  thrust_on: bool):
         self.series = series
         pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
-        cmd_steps = thrusters.slewed(pieces.first, h)[0] if thrusters.ramping else pieces.mean()
-        split = pieces.split if thrust_on and not thrusters.ramping else np.zeros(0, int)
+        if thrusters.ramping:
+            pieces = pieces.through_ramp(thrusters, h)
+        cmd_steps = pieces.mean()
+        split = pieces.split if thrust_on else np.zeros(0, int)
         split = split[split < n_steps]
         self.events = _event_steps(n_steps, n_sample, None, cmd_steps, np.concatenate([split, split + 1]))
         if not thrust_on:
@@ -198,8 +200,8 @@ class _ClosedLoop:
     """A controller evaluated every n_control steps. Its output at step k reaches the thrusters
     delay_s later, decayed by the recording time of each step: from step min(k + n_delay, n_steps)
     where the delay is a whole number of steps; otherwise within that step, which is taken in two
-    parts (`split`, as _OpenLoop's: the share `late` of it under the command before). With a thrust
-    ramp, from the first step at or after it (as an open-loop replay of `inputs()` holds it)."""
+    parts (`split`, as _OpenLoop's: the share `late` of it under the command before; with a thrust
+    ramp, each part's mean of the ramp heading for that command)."""
 
     def __init__(self, compiled: CompiledVessel, controller: Controller, layout: _Layout, *, n_steps: int,
                  n_sample: int, n_control: int, h: float, start_s: float, thrust_on: bool,
@@ -211,8 +213,6 @@ class _ClosedLoop:
         self.n_delay = int(math.floor(steps_late + SPLIT_EPS))
         # the share of the step the delay ends in that the command before still holds (0: none)
         self.late = steps_late - self.n_delay if steps_late - self.n_delay > SPLIT_EPS else 0.0
-        if thrusters.ramping:  # from the first step at or after it, as a replay of its inputs holds them
-            self.n_delay, self.late = int(math.ceil(steps_late - SPLIT_EPS)), 0.0
         self.split: dict[int, tuple[float, Pair, Pair]] = {}
         self.thrust_on = thrust_on
         # the supply factor of every step (the voltage as each step starts), where the thrust follows it
@@ -261,21 +261,38 @@ class _ClosedLoop:
             command = (self.raw[0] * f, self.raw[1] * f)
         if arrived and self.late and self.raw != before and k < self.n_steps:
             old = (before[0] * f, before[1] * f) if self.decaying else before
+            if self.ramp is not None:
+                old, command = self._ramped_parts(old, command)
             self.split[k] = (self.late, old, command)
             w = self.late
             return (w * old[0] + (1.0 - w) * command[0], w * old[1] + (1.0 - w) * command[1])
         return command if self.ramp is None else self._ramped(command)
 
+    def _bounded(self, command: Pair) -> Pair:
+        lo, hi = self.bounds
+        return min(max(command[0], lo), hi), min(max(command[1], lo), hi)
+
     def _ramped(self, command: Pair) -> Pair:
         """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
-        lo, hi = self.bounds
-        left, right = min(max(command[0], lo), hi), min(max(command[1], lo), hi)
+        left, right = self._bounded(command)
         if self.ramped is None:
             self.ramped = (left, right)
         (mean_l, end_l), (mean_r, end_r) = (thrusters.slew_step(self.ramped[0], left, self.ramp),
                                             thrusters.slew_step(self.ramped[1], right, self.ramp))
         self.ramped = (end_l, end_r)
         return mean_l, mean_r
+
+    def _ramped_parts(self, old: Pair, command: Pair) -> tuple[Pair, Pair]:
+        """A step the delay ends in, through the slew limit: the ramp's mean over the share `late`
+        heading for the command before, and over the rest heading for the new one
+        (physics.thrusters.slew_parts)."""
+        old, command = self._bounded(old), self._bounded(command)
+        if self.ramped is None:
+            self.ramped = old
+        first_l, rest_l, end_l = thrusters.slew_parts(self.ramped[0], old[0], self.late, command[0], self.ramp)
+        first_r, rest_r, end_r = thrusters.slew_parts(self.ramped[1], old[1], self.late, command[1], self.ramp)
+        self.ramped = (end_l, end_r)
+        return (first_l, first_r), (rest_l, rest_r)
 
     def _tick(self, k: int, state: np.ndarray) -> None:
         t = np.float64(k * self.h)  # the type the controller always got (k·h on numpy steps)

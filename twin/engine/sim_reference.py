@@ -16,7 +16,7 @@ import numpy as np
 from ..drive import InputSeries, StepPieces, to_thruster_inputs
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
-from ..physics.thrusters import delivered, slew_step
+from ..physics.thrusters import delivered, slew_parts, slew_step
 from ..run import Run
 from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
@@ -80,8 +80,6 @@ def simulate_reference(
     steps_late = thrusters.delay_s / h
     n_delay = int(math.floor(steps_late + SPLIT_EPS))
     late = steps_late - n_delay if steps_late - n_delay > SPLIT_EPS else 0.0  # the step the delay ends in
-    if thrusters.ramping:  # from the first step at or after the delayed time
-        n_delay, late = int(math.ceil(steps_late - SPLIT_EPS)), 0.0
     data = mujoco.MjData(model)
     initial_state(model, data, eta0, nu0)
     qpos, dof = callbacks._joint_indices(model)
@@ -92,8 +90,9 @@ def simulate_reference(
     if series is not None:
         # each step's mean input; a step within which it changes is taken in two parts (sim._OpenLoop)
         pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
-        cmd_steps = pieces.first.copy() if thrusters.ramping else pieces.mean()  # a ramp follows the step's start
-        if terms.thrust and not thrusters.ramping:
+        # a ramp heads for the input held over each part of a step (taken in two parts below)
+        cmd_steps = pieces.first.copy() if thrusters.ramping else pieces.mean()
+        if terms.thrust:
             split = {k: (pieces.share[k], pieces.first[k], pieces.rest[k]) for k in pieces.split if k < n_steps}
         held_steps = series.at(step_times)
         kind = series.kind
@@ -113,7 +112,7 @@ def simulate_reference(
     if ramp is not None:
         marks = np.arange(n_steps + 1)  # a ramp's command changes at every step; its state is where it stands
     ramped = None
-    if split:
+    if split and ramp is None:
         marks = np.array([m for k in split for m in (k, k + 1)])
     events = _event_steps(n_steps, n_sample, None, cmd_steps if series is not None else None, marks)
     if not terms.thrust:
@@ -147,6 +146,14 @@ def simulate_reference(
                     cmd_steps[act_at] = late * before + (1.0 - late) * new_cmd
             if ramp is None:
                 data.ctrl[:2] = cmd_steps[k]
+            elif k in split:  # the ramp heads for the first command over its share, then for the rest's
+                share, first, rest = split[k]
+                first, rest = np.clip(first, *thrusters.bounds()), np.clip(rest, *thrusters.bounds())
+                ramped = first if ramped is None else ramped
+                parts = [slew_parts(a, b, share, c, ramp) for a, b, c in zip(ramped, first, rest)]
+                split[k] = (share, np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
+                data.ctrl[:2] = share * split[k][1] + (1.0 - share) * split[k][2]
+                ramped = np.array([p[2] for p in parts])
             else:
                 target = np.clip(cmd_steps[k], *thrusters.bounds())
                 ramped = target if ramped is None else ramped

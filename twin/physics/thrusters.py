@@ -22,7 +22,9 @@ what real thrusters add to a datasheet curve:
   seconds, whatever the PWM asks. Its state is the command the ramp has reached, so like the
   hysteresis it acts on a series (`slewed`), from the thrust it starts at. On a step grid the
   engine is given each step's mean of the continuous ramp (`slew_step`), so the impulse a
-  thruster delivers does not depend on the step size;
+  thruster delivers does not depend on the step size; a step within which the input changes (a
+  delay or stamps off the step grid) is taken in two parts, the ramp heading for the input held
+  over each (`slewed_parts`);
 - a motor that starts late (start/stop hysteresis of a sensorless ESC): a stopped motor starts
   only when the PWM passes a start edge beyond the dead-zone edge (`start_fwd`, `start_rev`),
   and a running one keeps its branch of the map until the PWM comes back inside the dead zone.
@@ -140,6 +142,20 @@ class ThrusterModel:
             return cmd, (cmd[-1] if len(cmd) else np.asarray(start_n, float))
         start = cmd[0] if start_n is None else np.asarray(start_n, float)
         return _slewed(cmd, self.slew_n_per_s * dt_s, np.array(start, float))
+
+    def slewed_parts(self, first_n, share, rest_n, dt_s: float, start_n=None) -> tuple[np.ndarray, np.ndarray]:
+        """Steps of dt_s taken in two parts through the slew limit: on step k the ramp heads for
+        `first_n[k]` (N) over the share `share[k]` of the step, then for `rest_n[k]` over the rest
+        (a step with share 1 is one part, as `slewed`). Returns each part's mean thrust command,
+        (n, 2) each, within the bounds: the first part's, the rest's (the first's where share is 1).
+        `start_n`: where the ramp stands before the first step (None: settled at the first command)."""
+        lo, hi = self.bounds()
+        first = np.clip(np.asarray(first_n, float), lo, hi)
+        rest = np.clip(np.asarray(rest_n, float), lo, hi)
+        if not self.ramping or not len(first):
+            return first, np.where(np.asarray(share)[:, None] < 1.0, rest, first)
+        start = first[0] if start_n is None else np.asarray(start_n, float)
+        return _slewed_parts(first, np.asarray(share, float), rest, self.slew_n_per_s * dt_s, np.array(start, float))
 
     @property
     def input_kind(self) -> str:
@@ -457,3 +473,32 @@ def _slewed(cmd: np.ndarray, max_change_n: float, start: np.ndarray) -> tuple[np
         for j in range(cmd.shape[1]):
             means[k, j], state[j] = slew_step(state[j], cmd[k, j], max_change_n)
     return means, state
+
+
+@njit(cache=True)
+def slew_parts(start_n: float, first_n: float, share: float, rest_n: float,
+               max_change_n: float) -> tuple[float, float, float]:
+    """One step of the slew limit in two parts: the ramp at `start_n` heads for `first_n` over the
+    share `share` of the step, then for `rest_n` over the rest (max_change_n: rate × the whole step).
+    (The first part's mean, the rest's mean, the end value.)"""
+    first_mean, middle = slew_step(start_n, first_n, max_change_n * share)
+    rest_mean, end = slew_step(middle, rest_n, max_change_n * (1.0 - share))
+    return first_mean, rest_mean, end
+
+
+@njit(cache=True)
+def _slewed_parts(first: np.ndarray, share: np.ndarray, rest: np.ndarray, max_change_n: float,
+                  start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`slewed_parts` over a series; a step with share 1 is `slew_step` itself (the same bits)."""
+    first_means = np.empty_like(first)
+    rest_means = np.empty_like(first)
+    state = start.copy()
+    for k in range(first.shape[0]):
+        for j in range(first.shape[1]):
+            if share[k] < 1.0:
+                first_means[k, j], rest_means[k, j], state[j] = slew_parts(state[j], first[k, j], share[k],
+                                                                           rest[k, j], max_change_n)
+            else:
+                first_means[k, j], state[j] = slew_step(state[j], first[k, j], max_change_n)
+                rest_means[k, j] = first_means[k, j]
+    return first_means, rest_means

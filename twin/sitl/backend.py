@@ -22,7 +22,8 @@ Choices, and why:
   history of the frames' inputs, neutral before the session started), through
   the PWM map ([Yellowfish-TR eq. 27] with its dead zone), times the thrust decay at the
   step's time, then a thrust ramp's slew limit (each step's mean of the ramp, from rest at
-  the start of the SITL session). The decay counts from the start of the twin's clock, which starts
+  the start of the SITL session); a step within which the delayed input changes is taken in two
+  parts, each under the input held over it (through the ramp where there is one). The decay counts from the start of the twin's clock, which starts
   again with ArduPilot (a restart is a new session). Gains, lag and the
   advance-speed loss act in MuJoCo as everywhere else. A twin whose thrust follows the
   supply voltage runs at its reference voltage: SITL sends no battery (ArduPilot simulates
@@ -86,7 +87,7 @@ from twin.engine.sixdof import SIX_JOINTS, compile_six
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
-from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_step
+from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_parts, slew_step
 from twin.physics.waves import Sea
 from twin.run import Run
 from twin.sitl.protocol import Reply
@@ -521,25 +522,33 @@ class SitlTwin:
             left, right = raw_of.get(held_left), raw_of.get(held_right)
             left = (raw(held_left) if left is None else left) * f
             right = (raw(held_right) if right is None else right) * f
+            start = t - delay_s
+            end = start + h
+            parts = None
+            if j < last and times[j + 1] <= end - _ZOH_TOL_S:
+                parts = self._pieces(j, start, end, f, left, right)
             if slew:
-                left, right = self._ramp(left, right)
+                if parts is None:
+                    left, right = self._ramp(left, right)
+                else:
+                    parts = self._ramp_parts(parts, left, right)
+                    left, right = parts[1]
             ctrl[il] = left
             ctrl[ir] = right
             if i == 0 and self.record:
                 self._record(t0_s, pl, pr)
-            start = t - delay_s
-            end = start + h
-            if not slew and j < last and times[j + 1] <= end - _ZOH_TOL_S:
-                self._step_in_parts(j, start, end, f, left, right)
-            else:
+            if parts is None:
                 _mj_step(m, d)
+            else:
+                self._step_in_parts(parts)
         self._hist_i = j
 
-    def _step_in_parts(self, j: int, start: float, end: float, f: float, left: float, right: float) -> None:
-        """A step within which a delayed input changes, in two parts as engine.sim takes it
-        (drive.StepPieces: the input held at the step's start over its share, then the mean of the
-        rest), the same operations in the same order."""
-        m, d, ctrl, (il, ir), h = self.model, self.data, self._ctrl, self._ctrl_ids, self._h
+    def _pieces(self, j: int, start: float, end: float, f: float, left: float,
+                right: float) -> tuple[float, tuple[float, float], tuple[float, float]] | None:
+        """A step within which a delayed input changes, as engine.sim takes it (drive.StepPieces: the
+        input held at the step's start over its share, then the mean of the rest), the same operations
+        in the same order: (share, first command, the rest's); None where the change changes nothing."""
+        h = self._h
         times, lefts, rights, last = self._hist_t, self._hist_l, self._hist_r, len(self._hist_t) - 1
         change = times[j + 1]
         total_l = total_r = 0.0
@@ -553,8 +562,14 @@ class SitlTwin:
         share = (change - start) / h
         rest_l, rest_r = total_l / (end - change), total_r / (end - change)
         if (rest_l, rest_r) == (left, right):  # the change changes nothing: one step, as engine.sim
-            _mj_step(m, d)
-            return
+            return None
+        return share, (left, right), (rest_l, rest_r)
+
+    def _step_in_parts(self, parts: tuple[float, tuple[float, float], tuple[float, float]]) -> None:
+        """One step in two (the first part's command already in the controls): the share of it, then
+        the rest under its command."""
+        m, d, ctrl, (il, ir), h = self.model, self.data, self._ctrl, self._ctrl_ids, self._h
+        share, _, (rest_l, rest_r) = parts
         try:
             m.opt.timestep = share * h
             _mj_step(m, d)
@@ -582,6 +597,19 @@ class SitlTwin:
         if i > 4096:
             del self._hist_t[:i], self._hist_l[:i], self._hist_r[:i]
             self._hist_i = 0
+
+    def _ramp_parts(self, parts, left: float, right: float):
+        """A step taken in two parts through the slew limit (physics.thrusters.slew_parts): (share, the
+        ramp's mean over the first part, over the rest)."""
+        lo, hi = self._bounds
+        share, _, (rest_l, rest_r) = parts
+        change = self._slew_n_per_s * self._h
+        first_l, mean_l, end_l = slew_parts(self._ramped[0], min(max(left, lo), hi), share,
+                                            min(max(rest_l, lo), hi), change)
+        first_r, mean_r, end_r = slew_parts(self._ramped[1], min(max(right, lo), hi), share,
+                                            min(max(rest_r, lo), hi), change)
+        self._ramped = (end_l, end_r)
+        return share, (first_l, first_r), (mean_l, mean_r)
 
     def _ramp(self, left: float, right: float) -> tuple[float, float]:
         """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
