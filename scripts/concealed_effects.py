@@ -912,9 +912,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "inputs two or three times, the rudder at about 2.3°/s (a ramp, not a step): an input log late has little "
          "to be seen by.",
          "The Esso's files give midship's positions (the pond's tracking, by the files' own account), not an "
-         "antenna's: a twin applies no lever arm to them, so its gnss_lever_arm moves nothing there, and an offset "
-         "concealed in them can be told only from the kinematics of spins on the spot, which its tests do not "
-         "have."],
+         "antenna's: no antenna site applies to them, and a point tracked off midship is gnss_lever_arm's offset "
+         "from it; the kinematics tell it only from spins on the spot, which its tests do not have."],
         {"stages": stages, "proof": [c.name for c in proof], **({"given": given} if given else {}),
          **({"boat_antenna": antenna} if antenna else {}),
          **({"boat_pwm_timing": timing} if timing else {}), **({"boat_idle_drift": drift} if drift else {})})

@@ -91,6 +91,24 @@ def test_an_antenna_the_twin_already_carries_is_read_against_it(blueboat):
     assert not got.told and abs(got.change["dx_m"]) < 0.05
 
 
+def test_a_track_given_as_the_body_origins_is_read_against_the_offset_alone_and_a_twin_run_is_left_out():
+    """The Yellowfish's antenna site is 0.38 m off its origin. A measured track the log gives as the
+    origin's (a model ship's pond tracking) is read against the sensors' offset, not the site: a point
+    tracked 0.3 m ahead is found 0.3 m ahead. A twin run's exact track has no antenna and is left out
+    (it read as 0.32 m off the site)."""
+    from twin.recording import EXACT_ORIGIN, TRACKED_ORIGIN
+
+    yellowfish = vessel_mod.load("yellowfish")
+    tracked = _spins((0.3, 0.0), seed=1)
+    tracked.meta["positions"] = TRACKED_ORIGIN
+    got = lever_arm([tracked], yellowfish)
+    assert got.told and got.values["dx_m"] == pytest.approx(0.3, abs=0.05) and abs(got.values["dy_m"]) < 0.05
+    exact = _spins((0.0, 0.0), seed=1)
+    exact.meta["positions"] = EXACT_ORIGIN
+    got = lever_arm([exact], yellowfish)
+    assert not got.told and not got.absent and got.basis.startswith("0 windows")
+
+
 def _answers(vessel, clock_s=0.0, heading_late_s=0.0, seed=0, gnss_late_s=0.0) -> Recording:
     """A hull answering its thrusters as a first-order surge (τ 1 s) and yaw (τ 0.3 s) model through the
     twin's thrust map, driven by PWM held between random steps; PWM logged clock_s late, heading

@@ -39,6 +39,12 @@ from .errors import TwinError
 GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
 DROPOUTS = f"dropouts > {GAP_S:g} s"  # the `dropped` reason (after "STREAM: ") that counts a stream's gaps
 STREAMS = ("gnss", "heading", "pwm", "imu", "battery", "prop_rudder", "wind")
+# meta["positions"]: the GNSS stream's north, east are a simulated run's exact track of the body origin
+# (no antenna), or a measured track the log gives as the body origin's (a model ship's tracking in a
+# pond), which no MJCF antenna site applies to but a sensor offset found later (a point tracked off
+# where the log says) does; without either, a receiver's fixes at the vessel's antenna.
+EXACT_ORIGIN = "body origin"
+TRACKED_ORIGIN = "tracked body origin"
 OPTIONAL_STREAMS = ("prop_rudder", "wind")  # summarised only when they have samples
 # values no sensor can report: a sample holding one is corrupt, dropped and counted
 PLAUSIBLE = {

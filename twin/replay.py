@@ -20,6 +20,7 @@ from .fit.windows import make_windows, measured, predict
 from .prepare import Prepared, prepare
 from .prepare.prepared import hold, wind_series
 from .prepare.smoother import model_smoothed
+from .recording import EXACT_ORIGIN
 from .run import Run
 from .vessel import Vessel
 
@@ -131,7 +132,7 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
         name = Path(rec.source).stem
         if compiled is None:
             prep = prepare(rec)
-        elif rec.meta.get("positions") == "body origin":  # no antenna; read with the vessel's yaw-rate settings
+        elif rec.meta.get("positions") == EXACT_ORIGIN:  # no antenna; read with the vessel's yaw-rate settings
             prep = prepare(rec, **rate_windows(vessel))
         else:
             prep = prepare_for(rec, compiled, **rate_windows(vessel))  # as identify and diagnose see it

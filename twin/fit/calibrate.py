@@ -20,7 +20,7 @@ from ..physics.hydrodynamics import relative_acceleration
 from ..errors import TwinError
 from ..physics.sensors import antenna_body_m, log_name, motor_throttle, true_heading
 from ..prepare import Prepared, prepare
-from ..recording import Recording, Stream
+from ..recording import TRACKED_ORIGIN, Recording, Stream
 from ..vessel import Vessel
 
 
@@ -37,9 +37,14 @@ def rate_windows(vessel: Vessel) -> dict:
             "yaw_rate_source": vessel.sensors.yaw_rate_source}
 
 
-def lever_arm_OP_m(compiled: CompiledVessel) -> tuple[float, float]:
+def lever_arm_OP_m(compiled: CompiledVessel, rec: Recording | None = None) -> tuple[float, float] | None:
     """OP = (dx, dy) from the real antenna to CO [Yellowfish-TR eq. 28]: minus the antenna's
-    body position, the MJCF gnss site plus the vessel's surveyed offset."""
+    body position, the MJCF gnss site plus the vessel's surveyed offset. For a recording whose
+    positions are a track it gives as the body origin's (TRACKED_ORIGIN), minus the offset alone
+    (None where there is none): the point tracked sits that far off what the log calls the origin."""
+    if rec is not None and rec.meta.get("positions") == TRACKED_ORIGIN:
+        dx, dy = map(float, compiled.vessel.sensors.antenna_offset_m)
+        return None if dx == 0.0 and dy == 0.0 else (-dx, -dy)
     a = antenna_body_m(compiled.geometry.gnss_pos_m, compiled.vessel.sensors)
     return float(-a[0]), float(-a[1])
 
@@ -74,7 +79,7 @@ def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
     corrected, lever arm from its antenna, each GNSS fix and heading read at the time it was taken. (The PWM
     clock offset acts where the PWM drives the twin: twin.fit.windows.)"""
     sensors = compiled.vessel.sensors.for_log(rec.source)
-    return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled),
+    return prepare(calibrated(rec, compiled.vessel), lever_arm_OP_m=lever_arm_OP_m(compiled, rec),
                    gnss_latency_s=sensors.gnss_latency_s, heading_latency_s=sensors.heading_latency_s,
                    logged_heading=rec.heading if len(rec.heading) else None, **kwargs)
 

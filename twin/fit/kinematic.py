@@ -70,7 +70,7 @@ from ..physics.sensors import antenna_body_m
 from ..prepare.prepared import local_ned
 from ..prepare.timing import STEP_S as GYRO_STEP_S
 from ..prepare.timing import heading_lag_behind_gyro
-from ..recording import Recording
+from ..recording import EXACT_ORIGIN, TRACKED_ORIGIN, Recording
 from ..vessel import Vessel
 from .calibrate import calibrated
 
@@ -186,12 +186,16 @@ def _spin_windows(rec: Recording, vessel: Vessel) -> list[tuple]:
 def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVessel | None = None
               ) -> KinematicFinding:
     """Where the GNSS antenna sits against where the twin has it (module docstring): the
-    `gnss_lever_arm` the twin lacks."""
+    `gnss_lever_arm` the twin lacks. A simulated run's exact track of the body origin has no antenna
+    and is left out; for tracks the logs give as the body origin's (TRACKED_ORIGIN) the twin has the
+    point tracked at its sensors' offset from the origin, not at its MJCF antenna site."""
     compiled = compiled or compile_vessel(vessel)
-    have = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
     offset = tuple(map(float, vessel.sensors.antenna_offset_m))
+    fixes = [rec for rec in recordings if rec.meta.get("positions") != EXACT_ORIGIN]
+    tracked = bool(fixes) and all(rec.meta.get("positions") == TRACKED_ORIGIN for rec in fixes)
+    have = np.array(offset) if tracked else antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
     windows = []
-    for k, rec in enumerate(recordings):
+    for k, rec in enumerate(fixes):
         if len(rec.gnss) and len(rec.heading):
             windows += [(k * 100_000 + g, hand, d, y) for g, hand, d, y in _spin_windows(rec, vessel)]
     hands = {h: sum(1 for _, hh, _, _ in windows if hh == h) for h in (-1.0, 1.0)}

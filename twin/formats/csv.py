@@ -42,7 +42,7 @@ import numpy as np
 from ..errors import TwinError
 from ..files import check_unique_columns, write_bytes_atomic
 from ..geodesy import ned_from_geodetic
-from ..recording import Recording, Stream, clean_stream, with_common_origin
+from ..recording import EXACT_ORIGIN, Recording, Stream, clean_stream, with_common_origin
 
 CSV_NEUTRAL_US = 1500.0
 
@@ -155,14 +155,14 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         gnss = {"north_m": c["north"], "east_m": c["east"]}
     elif {"x", "y"} <= set(header):
         gnss = {"north_m": c["x"], "east_m": c["y"]}
-        rec.meta["positions"] = "body origin"
+        rec.meta["positions"] = EXACT_ORIGIN
         rec.notes.append("positions x, y are north, east of the body origin (a twin run): no lever arm to apply")
     else:
         gnss = None
         rec.notes.append("no GNSS: no lat/lon, north/east or x/y columns")
     if gnss is not None:
         rec.gnss = stream("gnss", t, gnss, rec.dropped)
-        if rec.meta.get("positions") != "body origin":  # a receiver's, not a twin run's exact track
+        if rec.meta.get("positions") != EXACT_ORIGIN:  # a receiver's, not a twin run's exact track
             held = held_fix_note(rec.gnss)
             if held:
                 rec.notes.append(held)

@@ -10,7 +10,9 @@ Conventions, each checked on the data (docs/esso.md; /work/notes/esso.md §1.2):
   * x0, y0 are the twin's north, east without a sign change: ψ turns from x0 towards y0, and the
     body velocities differentiated from the positions with the twin's convention match the file's
     u_velo and vm_velo (v to starboard); r = +dψ/dt. So gnss = (north_m, east_m) = (x0, y0) of
-    MIDSHIP, which is this ship's body origin: no lever arm (meta "positions" = "body origin").
+    MIDSHIP, which is this ship's body origin: no antenna site applies (meta "positions" =
+    TRACKED_ORIGIN: a measured track, so a tracked point found off midship, the sensors'
+    antenna_offset_m, still does).
   * n > 0 drives the ship ahead; δ > 0 turns it to starboard (the MMG sign): every turning test's
     steady yaw rate has the sign of its rudder angle. They become the prop_rudder stream.
   * Both wind angles are directions the wind blows FROM, clockwise: the true one from x0 (the
@@ -26,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..recording import Recording, clean_stream
+from ..recording import TRACKED_ORIGIN, Recording, clean_stream
 
 TIME = "t [s]"
 NORTH, EAST = "x_position_mid [m]", "y_position_mid [m]"
@@ -49,7 +51,7 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
         rec.notes.append("--channels does not apply: the file logs the propeller speed and rudder angle")
     t = c[TIME]
     rec.gnss = clean_stream("gnss", t, {"north_m": c[NORTH], "east_m": c[EAST]}, rec.dropped)
-    rec.meta["positions"] = "body origin"
+    rec.meta["positions"] = TRACKED_ORIGIN
     rec.heading = clean_stream("heading", t, {"psi_rad": c[HEADING]}, rec.dropped)
     if YAW_RATE in c:
         rec.imu = clean_stream("imu", t, {"yaw_rate_rads": c[YAW_RATE]}, rec.dropped)

@@ -51,7 +51,7 @@ from ..errors import TwinError
 from ..files import commit, read_only, written_path
 from ..geodesy import geodetic_from_ned
 from ..physics.sensors import antenna_ned
-from ..recording import Recording, Stream, clean_stream, with_common_origin
+from ..recording import EXACT_ORIGIN, Recording, Stream, clean_stream, with_common_origin
 from ..run import Run
 from .telemetry import DEFAULT_ORIGIN
 
@@ -560,7 +560,7 @@ def _mcap_run(path: Path) -> Recording:
     if run.meta.get("engine") == "recording":  # prepared measurements (an older `twin convert`)
         rec.notes.append("positions are as measured (the GNSS antenna unless a lever arm was applied)")
     else:
-        rec.meta["positions"] = "body origin"
+        rec.meta["positions"] = EXACT_ORIGIN
         rec.notes.append("positions are the body origin (a simulated run): no GNSS lever arm is applied")
     if not len(rec.gnss) and not len(rec.heading):
         raise TwinError(f"{path.name}: the MCAP run has no finite states")

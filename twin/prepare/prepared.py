@@ -69,7 +69,7 @@ import numpy as np
 from ..errors import TwinError
 from ..formats.csv import NEEDED_COLUMNS
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
-from ..recording import Recording, Stream
+from ..recording import EXACT_ORIGIN, Recording, Stream
 from ..run import Run
 from ..threads import BoundedStore
 from .outliers import distinct_count, gnss_outliers, heading_spikes, held_fixes
@@ -169,8 +169,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
 
     lever_arm_OP_m: (dx, dy) m from the GNSS antenna to the body origin, body axes
     (the Yellowfish: (0.275, −0.2625)); None when the positions already are the
-    body origin's, and not applied to a recording that says they are (meta "positions"
-    = "body origin": a twin's run, an Esso file), whatever antenna the vessel has. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
+    body origin's, and not applied to a simulated run's exact track (meta "positions" =
+    EXACT_ORIGIN), whatever antenna the vessel has. window_s: Savitzky-Golay window (s) of the GNSS velocities, polyorder
     its degree; heading_window_s: the yaw rate's window (default window_s), which a
     fast AHRS can afford shorter. gnss_latency_s, heading_latency_s: step 8 of the module docstring.
     logged_heading: the heading as logged, where `rec`'s has been calibrated (same stamps): its
@@ -183,7 +183,7 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         if not np.isfinite(latency):
             raise TwinError(f"{what} must be a finite number of seconds, got {latency}")
     name = Path(rec.source).name
-    if rec.meta.get("positions") == "body origin":
+    if rec.meta.get("positions") == EXACT_ORIGIN:
         # moved by the antenna's arm, the track would turn every r into a sway of r·dx
         lever_arm_OP_m = None
     if not len(rec.gnss) or not len(rec.heading):
