@@ -129,6 +129,10 @@ def test_convert_keeps_inputs_and_wind_in_csv_and_mcap(esso_dir, tmp_path):
         np.testing.assert_allclose(back.wind["speed_m_s"], rec.wind["speed_m_s"], atol=1e-6)
         np.testing.assert_allclose(back.wind["relative_from_deg"], rec.wind["relative_from_deg"], atol=1e-6)
         assert prepare(back).input_kind == "propeller_rudder"
+    assert back.meta["positions"] == TRACKED_ORIGIN  # the MCAP keeps the track measured
+    conv.meta["positions"] = "body origin"  # as older files give it
+    write_recording(conv, tmp_path / "older.mcap")
+    assert read_recording(tmp_path / "older.mcap").meta["positions"] == TRACKED_ORIGIN
 
 
 def _write(path: Path, rows: list[str], header: str = HEADER) -> Path:

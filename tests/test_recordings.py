@@ -19,7 +19,7 @@ import pytest
 from twin.errors import TwinError
 from twin.recording import format_summary
 from twin.prepare import geodetic_to_ned, prepare
-from twin.formats import read_recording
+from twin.formats import read_recording, write_recording, write_run
 from twin.prepare.prepared import hold
 from twin.recording import increasing_subsequence
 
@@ -403,6 +403,24 @@ def test_a_body_origin_track_takes_no_lever_arm(tmp_path):
     p = prepare(read_recording(tmp_path / "run.csv"), lever_arm_OP_m=OP)
     assert p.settings.lever_arm_OP_m is None
     assert_recovers_circle(p)
+
+
+def test_a_twin_run_converted_to_the_generic_csv_stays_the_body_origins_track(tmp_path):
+    """Converted from its MCAP, a twin run's track is written as the run layout's x, y, so that it
+    comes back as the body origin's (written as north, east, it read as a receiver's fixes and took
+    the vessel's antenna arm)."""
+    from twin.recording import EXACT_ORIGIN
+    from twin.run import Run
+
+    t = grid_times()
+    n, e, psi = truth(t)
+    run = Run(t, np.column_stack([n, e, psi]), np.column_stack([np.full_like(t, U), 0 * t, np.full_like(t, R)]),
+              np.column_stack(pwm_truth(t)), np.zeros((len(t), 2)))
+    write_run(run, tmp_path / "run.mcap")
+    write_recording(read_recording(tmp_path / "run.mcap"), tmp_path / "run.csv")
+    back = read_recording(tmp_path / "run.csv")
+    assert back.meta["positions"] == EXACT_ORIGIN
+    assert_recovers_circle(prepare(back, lever_arm_OP_m=OP))
 
 
 def test_the_twins_own_run_evaluates_at_r2_one(tmp_path):

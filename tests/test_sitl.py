@@ -224,24 +224,34 @@ def stepped(vessel, segments) -> list[tuple[float, np.ndarray, np.ndarray]]:
 
 
 def _step_in_parts(model, data, thrusters, series: InputSeries, t: float, h: float) -> None:
-    """One step from t: whole, or in two parts where the input held delay_s before changes within it."""
+    """One step from t: whole, or in two parts where the input held delay_s before changes within it
+    (a stamp repeating the input held changes nothing; the rest's command is its one input's, or the
+    time-weighted mean of several)."""
     start = t - thrusters.delay_s
     end = start + h
-    stamps = series.t
+    stamps, values = series.t, series.values
+    held = values[max(i for i in range(len(stamps)) if stamps[i] <= start + 1e-9)]
     later = [i for i in range(len(stamps)) if start + 1e-9 < stamps[i] <= end - 1e-9]
-    if not later:
+    while later and np.array_equal(values[later[0]], held):
+        later = later[1:]
+    runs = [i for n, i in enumerate(later) if n == 0 or not np.array_equal(values[i], values[later[n - 1]])]
+    if not runs:
         mujoco.mj_step(model, data)
         return
     f = 1.0 - thrusters.decay_per_min * t / 60.0
-    total = np.zeros(2)
-    for i in later:
-        until = stamps[i + 1] if i + 1 in later else end
-        total += (until - stamps[i]) * (thrusters.thrust_from_pwm(series.values[i][None, :])[0] * f)
-    rest = total / (end - stamps[later[0]])
-    if np.array_equal(rest, data.ctrl[:2]):
+    commands = [thrusters.thrust_from_pwm(values[i][None, :])[0] * f for i in runs]
+    if all(np.array_equal(c, data.ctrl[:2]) for c in commands):
         mujoco.mj_step(model, data)
         return
-    share = (stamps[later[0]] - start) / h
+    if len(runs) == 1:
+        rest = commands[0]
+    else:
+        total = np.zeros(2)
+        for n, (i, c) in enumerate(zip(runs, commands)):
+            until = stamps[runs[n + 1]] if n + 1 < len(runs) else end
+            total += (until - stamps[i]) * c
+        rest = total / (end - stamps[runs[0]])
+    share = (stamps[runs[0]] - start) / h
     step_in_parts(model, data, (share, tuple(data.ctrl[:2]), tuple(rest)))
 
 

@@ -124,11 +124,15 @@ def test_a_ramp_heads_for_the_input_where_it_changes_within_a_step():
     the continuous ramp, which heads for the input held over each part of the step: the same as the
     ramp on a grid a thousand times finer, to 1e-9 N. The ramp followed the input at each step's start
     (a change acted up to a step late: 0.1 N off here); fed the step's mean instead, an input that
-    reverses within a step would turn it a whole step's slew the wrong way."""
+    reverses within a step would turn it a whole step's slew the wrong way. Several inputs within a
+    step: the ramp heads for each in turn (it headed for their mean: up to a step's slew off)."""
     base = vessel_mod.load("yellowfish")
     th = replace(base.thrusters, ramp_s=2.0, delay_s=0.013)
-    series = InputSeries(np.array([0.0, 2.0, 2.505]), np.array([[1800.0, 1800.0], [1200.0, 1600.0],
-                                                                [1750.0, 1450.0]]), "pwm")
+    # a reversal within a step; two changes within one step (2.500 and 2.503 s, acting at 2.513 and
+    # 2.516); a stamp repeating the input held (3.0 s)
+    series = InputSeries(np.array([0.0, 2.0, 2.5, 2.503, 3.0]),
+                         np.array([[1800.0, 1800.0], [1200.0, 1600.0], [1750.0, 1450.0], [1300.0, 1900.0],
+                                   [1300.0, 1900.0]]), "pwm")
     fine = 1000
     held = series.commanded_thrust(th, np.arange(200 * fine) * (0.02 / fine))
     continuous = th.slewed(held, 0.02 / fine)[0].reshape(200, fine, 2).mean(axis=1)
@@ -156,6 +160,19 @@ def test_a_ramped_vessel_with_a_delay_off_the_step_grid_meets_the_analytic_model
         ref = simulate_reference(cv, drive, 40.0)
         np.testing.assert_allclose(ref.eta, run.eta, rtol=0, atol=1e-9)
         np.testing.assert_allclose(ref.thrust_n, run.thrust_n, rtol=0, atol=1e-9)
+
+
+def test_a_ramped_closed_loop_run_is_replayed_by_its_inputs():
+    """The inputs repeat the held command at every tick; a repeated stamp changes nothing, so a replay
+    splits no step the run did not (a mean of equal commands rounds: the split steps' ramp parts took
+    the replay 0.057 m and 1.7 N off the run, BlueBoat, ramp 0.3 s, delay 0.41 s)."""
+    base = vessel_mod.load("blueboat")
+    v = replace(base, thrusters=replace(base.thrusters, ramp_s=0.3, delay_s=0.41))
+    cv = compile_vessel(v)
+    run = simulate(cv, ZigZag(surge=0.6, yaw=0.9, switch_deg=8.0, at_s=2.0), 30.0)
+    replay = simulate(cv, run.meta["inputs"], 30.0)
+    assert np.max(np.abs(replay.eta - run.eta)) < 1e-6
+    assert np.max(np.abs(replay.thrust_n - run.thrust_n)) < 1e-4
 
 
 def test_a_closed_loop_command_arriving_after_the_run_is_not_shown_at_its_end():

@@ -116,14 +116,18 @@ class StepPieces:
     first: np.ndarray  # (n, 2)
     share: np.ndarray  # (n,) in (0, 1]
     rest: np.ndarray  # (n, 2)
+    # steps whose rest holds two inputs or more, each in turn: (steps (m,), each input's share of the
+    # step (m, d), zero past its last, and its command (m, d, 2)); a ramp heads for each in turn
+    rest_parts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def of(cls, series: InputSeries, thrusters: ThrusterModel, n_steps: int, step_s: float,
            start_s: float = 0.0) -> "StepPieces":
         """The pieces of steps 0 … n_steps − 1 of step_s; start_s: the recording time of t = 0 (the
-        thrust decay's clock)."""
+        thrust decay's clock). A stamp that repeats the input held before it changes nothing."""
         driven = series.driven(thrusters)
-        t = np.asarray(driven.t, float)
+        changed = np.r_[True, np.any(np.diff(driven.values, axis=0) != 0, axis=1)]
+        t, values = np.asarray(driven.t, float)[changed], driven.values[changed]
         times = np.arange(n_steps) * step_s
         supply = series.supply_at(times) if thrusters.follows_supply else None
         start = times - thrusters.delay_s
@@ -131,23 +135,37 @@ class StepPieces:
         first_i = np.clip(np.searchsorted(t, start + _HOLD_EPS_S, side="right") - 1, 0, len(t) - 1)
         last_i = np.maximum(np.clip(np.searchsorted(t, end - _HOLD_EPS_S, side="right") - 1, 0, len(t) - 1),
                             first_i)
-        first = thrusters.command(series.kind, driven.values[first_i], times + start_s, supply)
+        first = thrusters.command(series.kind, values[first_i], times + start_s, supply)
         several = np.flatnonzero(last_i > first_i)
         share = np.ones(n_steps)
         rest = first.copy()
+        rest_parts = None
         if len(several):
             lo, hi = first_i[several], last_i[several]
             change = t[lo + 1]
             share[several] = (change - start[several]) / step_s
             total = np.zeros((len(several), first.shape[1]))
-            for d in range(1, int(np.max(hi - lo)) + 1):
+            depth = int(np.max(hi - lo))
+            held, commands = np.zeros((len(several), depth)), np.zeros((len(several), depth, first.shape[1]))
+            for d in range(1, depth + 1):
                 m = np.minimum(lo + d, hi)
                 until = np.where(lo + d < hi, t[np.minimum(lo + d + 1, len(t) - 1)], end[several])
                 held_s = np.where(lo + d <= hi, until - t[m], 0.0)
-                total += held_s[:, None] * thrusters.command(series.kind, driven.values[m], times[several] + start_s,
-                                                              None if supply is None else supply[several])
-            rest[several] = total / (end[several] - change)[:, None]
-        return cls(first, share, rest)
+                command = thrusters.command(series.kind, values[m], times[several] + start_s,
+                                            None if supply is None else supply[several])
+                total += held_s[:, None] * command
+                held[:, d - 1], commands[:, d - 1] = held_s / step_s, command
+            many = hi - lo > 1
+            # one input over the rest: its command itself (a mean of one rounds, and would split a step
+            # whose command does not change)
+            rest[several] = np.where(many[:, None], total / (end[several] - change)[:, None], commands[:, 0])
+            alike = np.all((commands == first[several][:, None, :]) | (held[:, :, None] == 0.0), axis=(1, 2))
+            share[several[alike]] = 1.0  # inputs that differ but command the same thrust (both at a bound)
+            rest[several[alike]] = first[several[alike]]
+            many &= ~alike
+            if np.any(many):
+                rest_parts = (several[many], held[many], commands[many])
+        return cls(first, share, rest, rest_parts)
 
     @property
     def split(self) -> np.ndarray:
@@ -157,12 +175,13 @@ class StepPieces:
     def through_ramp(self, thrusters: ThrusterModel, step_s: float) -> "StepPieces":
         """The pieces as the thrusters' slew limit gives them (settled at the first command): on a
         step within which the command changes (`split`), the ramp's mean over its share under the
-        first command, then over the rest under the rest's; elsewhere the step's mean of the ramp
-        (ThrusterModel.slewed_parts). Within the bounds; unchanged but bounded without a ramp."""
+        first command, then over the rest heading for each input held there in turn; elsewhere the
+        step's mean of the ramp (ThrusterModel.slewed_parts). Within the bounds; unchanged but bounded
+        without a ramp."""
         share = np.ones(len(self.share))
         k = self.split
         share[k] = self.share[k]
-        first, rest = thrusters.slewed_parts(self.first, share, self.rest, step_s)
+        first, rest = thrusters.slewed_parts(self.first, share, self.rest, step_s, parts=self.rest_parts)
         return StepPieces(first, share, rest)
 
     def mean(self) -> np.ndarray:

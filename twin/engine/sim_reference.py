@@ -16,7 +16,7 @@ import numpy as np
 from ..drive import InputSeries, StepPieces, to_thruster_inputs
 from ..errors import TwinError
 from ..physics.hydrodynamics import Terms
-from ..physics.thrusters import delivered, slew_parts, slew_step
+from ..physics.thrusters import delivered, slew_parts, slew_step, slew_through
 from ..run import Run
 from . import callbacks, native
 from .divergence import clear, flagged, quiet_log, what_diverged
@@ -87,6 +87,7 @@ def simulate_reference(
 
     series = drive if isinstance(drive, InputSeries) else None
     split: dict[int, tuple] = {}
+    several: dict[int, tuple] = {}
     if series is not None:
         # each step's mean input; a step within which it changes is taken in two parts (sim._OpenLoop)
         pieces = StepPieces.of(series, thrusters, n_steps + 1, h, start_s)
@@ -94,6 +95,8 @@ def simulate_reference(
         cmd_steps = pieces.first.copy() if thrusters.ramping else pieces.mean()
         if terms.thrust:
             split = {k: (pieces.share[k], pieces.first[k], pieces.rest[k]) for k in pieces.split if k < n_steps}
+            if pieces.rest_parts is not None:  # a ramp heads for each input of such a rest in turn
+                several = dict(zip(pieces.rest_parts[0].tolist(), zip(*pieces.rest_parts[1:])))
         held_steps = series.at(step_times)
         kind = series.kind
     else:
@@ -150,7 +153,14 @@ def simulate_reference(
                 share, first, rest = split[k]
                 first, rest = np.clip(first, *thrusters.bounds()), np.clip(rest, *thrusters.bounds())
                 ramped = first if ramped is None else ramped
-                parts = [slew_parts(a, b, share, c, ramp) for a, b, c in zip(ramped, first, rest)]
+                if k in several:
+                    held, commands = several[k]
+                    commands = np.clip(commands, *thrusters.bounds())
+                    heads = [slew_step(a, b, ramp * share) for a, b in zip(ramped, first)]
+                    tails = [slew_through(e, held, commands[:, j], ramp) for j, (_, e) in enumerate(heads)]
+                    parts = [(h[0], t[0], t[1]) for h, t in zip(heads, tails)]
+                else:
+                    parts = [slew_parts(a, b, share, c, ramp) for a, b, c in zip(ramped, first, rest)]
                 split[k] = (share, np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
                 data.ctrl[:2] = share * split[k][1] + (1.0 - share) * split[k][2]
                 ramped = np.array([p[2] for p in parts])

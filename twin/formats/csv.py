@@ -320,7 +320,10 @@ def _csv_cells(rec: Recording) -> list[tuple[str, str, np.ndarray]]:
         if "alt_m" in g.columns:
             out.append(("alt", "gnss", _fmt("%.4f", g["alt_m"])))
     elif len(g):
-        out += [("north", "gnss", _fmt("%.6f", g["north_m"])), ("east", "gnss", _fmt("%.6f", g["east_m"]))]
+        # a run's exact track of the body origin keeps the run layout's x, y, which say so when read back
+        exact = rec.meta.get("positions") == EXACT_ORIGIN
+        out += [("x" if exact else "north", "gnss", _fmt("%.6f", g["north_m"])),
+                ("y" if exact else "east", "gnss", _fmt("%.6f", g["east_m"]))]
     if len(h):
         out.append(("heading_deg", "heading", _fmt("%.7f", np.degrees(h["psi_rad"]) % 360.0)))
     if len(p):

@@ -66,7 +66,7 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
         rec.notes.append("no wind: the file has no wind_velo_true / wind_dir_true columns")
     rec.notes += [
         "positions: midship in the pond frame, x0 as north and y0 as east (the body origin of esso_osaka: "
-        "no lever arm)",
+        "no antenna site applies; a point tracked off it is the sensors' antenna offset)",
         "inputs: propeller speed n (rps, > 0 ahead) and rudder angle (> 0 turns to starboard)",
         *(["wind: measured (true: from x0 clockwise; relative: from the bow clockwise, both FROM); "
            "used only when asked"] if len(rec.wind) else []),

@@ -51,7 +51,7 @@ from ..errors import TwinError
 from ..files import commit, read_only, written_path
 from ..geodesy import geodetic_from_ned
 from ..physics.sensors import antenna_ned
-from ..recording import EXACT_ORIGIN, Recording, Stream, clean_stream, with_common_origin
+from ..recording import EXACT_ORIGIN, TRACKED_ORIGIN, Recording, Stream, clean_stream, with_common_origin
 from ..run import Run
 from .telemetry import DEFAULT_ORIGIN
 
@@ -505,6 +505,9 @@ def _recording_meta(record: dict[str, str]) -> dict:
         out["pwm_neutral_us"] = (float(left), float(right))
     meta = _loaded(record.get("meta", "{}"), "recording's")
     out["meta"] = meta if isinstance(meta, dict) else {}
+    if record.get("kind") == "esso-csv" and out["meta"].get("positions") == EXACT_ORIGIN:
+        # an older file gives an Esso test's track as "body origin": it is the pond's tracking, measured
+        out["meta"]["positions"] = TRACKED_ORIGIN
     params = _loaded(record.get("parameters", "{}"), "recording's")
     out["parameters"] = {str(k): float(v) for k, v in params.items()} if isinstance(params, dict) else {}
     return out

@@ -143,19 +143,29 @@ class ThrusterModel:
         start = cmd[0] if start_n is None else np.asarray(start_n, float)
         return _slewed(cmd, self.slew_n_per_s * dt_s, np.array(start, float))
 
-    def slewed_parts(self, first_n, share, rest_n, dt_s: float, start_n=None) -> tuple[np.ndarray, np.ndarray]:
+    def slewed_parts(self, first_n, share, rest_n, dt_s: float, start_n=None,
+                     parts=None) -> tuple[np.ndarray, np.ndarray]:
         """Steps of dt_s taken in two parts through the slew limit: on step k the ramp heads for
         `first_n[k]` (N) over the share `share[k]` of the step, then for `rest_n[k]` over the rest
-        (a step with share 1 is one part, as `slewed`). Returns each part's mean thrust command,
-        (n, 2) each, within the bounds: the first part's, the rest's (the first's where share is 1).
-        `start_n`: where the ramp stands before the first step (None: settled at the first command)."""
+        (a step with share 1 is one part, as `slewed`); `parts` (drive.StepPieces.rest_parts): steps
+        whose rest holds several commands, the ramp heading for each in turn over its share. Returns
+        each part's mean thrust command, (n, 2) each, within the bounds: the first part's, the
+        rest's (the first's where share is 1). `start_n`: where the ramp stands before the first
+        step (None: settled at the first command)."""
         lo, hi = self.bounds()
         first = np.clip(np.asarray(first_n, float), lo, hi)
         rest = np.clip(np.asarray(rest_n, float), lo, hi)
         if not self.ramping or not len(first):
             return first, np.where(np.asarray(share)[:, None] < 1.0, rest, first)
         start = first[0] if start_n is None else np.asarray(start_n, float)
-        return _slewed_parts(first, np.asarray(share, float), rest, self.slew_n_per_s * dt_s, np.array(start, float))
+        which = np.full(len(first), -1, np.int64)
+        held, commands = np.zeros((1, 1)), np.zeros((1, 1, first.shape[1]))
+        if parts is not None:
+            steps, held, commands = parts
+            which[steps] = np.arange(len(steps))
+            commands = np.clip(np.asarray(commands, float), lo, hi)
+        return _slewed_parts(first, np.asarray(share, float), rest, self.slew_n_per_s * dt_s, np.array(start, float),
+                             which, np.asarray(held, float), commands)
 
     @property
     def input_kind(self) -> str:
@@ -487,15 +497,33 @@ def slew_parts(start_n: float, first_n: float, share: float, rest_n: float,
 
 
 @njit(cache=True)
+def slew_through(start_n: float, held: np.ndarray, commands: np.ndarray, max_change_n: float) -> tuple[float, float]:
+    """The slew limit heading for each command in turn, each over its share `held` of the step (zero:
+    none): (the mean over their shares, the end value)."""
+    total, state, span = 0.0, start_n, 0.0
+    for i in range(len(held)):
+        if held[i] > 0.0:
+            mean, state = slew_step(state, commands[i], max_change_n * held[i])
+            total += held[i] * mean
+            span += held[i]
+    return total / span, state
+
+
+@njit(cache=True)
 def _slewed_parts(first: np.ndarray, share: np.ndarray, rest: np.ndarray, max_change_n: float,
-                  start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                  start: np.ndarray, which: np.ndarray, held: np.ndarray,
+                  commands: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`slewed_parts` over a series; a step with share 1 is `slew_step` itself (the same bits)."""
     first_means = np.empty_like(first)
     rest_means = np.empty_like(first)
     state = start.copy()
     for k in range(first.shape[0]):
         for j in range(first.shape[1]):
-            if share[k] < 1.0:
+            if share[k] < 1.0 and which[k] >= 0:
+                first_means[k, j], state[j] = slew_step(state[j], first[k, j], max_change_n * share[k])
+                rest_means[k, j], state[j] = slew_through(state[j], held[which[k]], commands[which[k], :, j],
+                                                          max_change_n)
+            elif share[k] < 1.0:
                 first_means[k, j], rest_means[k, j], state[j] = slew_parts(state[j], first[k, j], share[k],
                                                                            rest[k, j], max_change_n)
             else:

@@ -87,7 +87,7 @@ from twin.engine.sixdof import SIX_JOINTS, compile_six
 from twin.errors import TwinError
 from twin.physics.hydrodynamics import Terms
 from twin.physics.sensors import Sensors
-from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_parts, slew_step
+from twin.physics.thrusters import ThrusterModel, delivered, saturated, slew_parts, slew_step, slew_through
 from twin.physics.waves import Sea
 from twin.run import Run
 from twin.sitl.protocol import Reply
@@ -543,33 +543,46 @@ class SitlTwin:
                 self._step_in_parts(parts)
         self._hist_i = j
 
-    def _pieces(self, j: int, start: float, end: float, f: float, left: float,
-                right: float) -> tuple[float, tuple[float, float], tuple[float, float]] | None:
+    def _pieces(self, j: int, start: float, end: float, f: float, left: float, right: float):
         """A step within which a delayed input changes, as engine.sim takes it (drive.StepPieces: the
-        input held at the step's start over its share, then the mean of the rest), the same operations
-        in the same order: (share, first command, the rest's); None where the change changes nothing."""
+        input held at the step's start over its share, then the rest's: the one input held there, or
+        the mean of several), the same operations in the same order: (share, first command, the
+        rest's, [(share of the step, left, right) of each input of the rest]); None where nothing
+        changes (a stamp repeating the held input, or inputs that command the same thrust)."""
         h = self._h
         times, lefts, rights, last = self._hist_t, self._hist_l, self._hist_r, len(self._hist_t) - 1
-        change = times[j + 1]
-        total_l = total_r = 0.0
+        until = end - _ZOH_TOL_S
         k = j + 1
-        while k <= last and times[k] <= end - _ZOH_TOL_S:
-            until = times[k + 1] if k < last and times[k + 1] <= end - _ZOH_TOL_S else end
-            held_s = until - times[k]
-            total_l += held_s * (self._raw(lefts[k]) * f)
-            total_r += held_s * (self._raw(rights[k]) * f)
+        while k <= last and times[k] <= until and lefts[k] == lefts[j] and rights[k] == rights[j]:
             k += 1
-        share = (change - start) / h
-        rest_l, rest_r = total_l / (end - change), total_r / (end - change)
-        if (rest_l, rest_r) == (left, right):  # the change changes nothing: one step, as engine.sim
+        if k > last or times[k] > until:
             return None
-        return share, (left, right), (rest_l, rest_r)
+        change = times[k]
+        pieces = []
+        while k <= last and times[k] <= until:
+            n = k + 1
+            while n <= last and times[n] <= until and lefts[n] == lefts[k] and rights[n] == rights[k]:
+                n += 1
+            held_s = (times[n] if n <= last and times[n] <= until else end) - times[k]
+            pieces.append((held_s, self._raw(lefts[k]) * f, self._raw(rights[k]) * f))
+            k = n
+        if all((p[1], p[2]) == (left, right) for p in pieces):
+            return None
+        if len(pieces) == 1:
+            rest = (pieces[0][1], pieces[0][2])
+        else:
+            total_l = total_r = 0.0
+            for held_s, piece_l, piece_r in pieces:
+                total_l += held_s * piece_l
+                total_r += held_s * piece_r
+            rest = (total_l / (end - change), total_r / (end - change))
+        return (change - start) / h, (left, right), rest, [(p[0] / h, p[1], p[2]) for p in pieces]
 
     def _step_in_parts(self, parts: tuple[float, tuple[float, float], tuple[float, float]]) -> None:
         """One step in two (the first part's command already in the controls): the share of it, then
         the rest under its command."""
         m, d, ctrl, (il, ir), h = self.model, self.data, self._ctrl, self._ctrl_ids, self._h
-        share, _, (rest_l, rest_r) = parts
+        share, _, (rest_l, rest_r) = parts[:3]
         try:
             m.opt.timestep = share * h
             _mj_step(m, d)
@@ -599,17 +612,27 @@ class SitlTwin:
             self._hist_i = 0
 
     def _ramp_parts(self, parts, left: float, right: float):
-        """A step taken in two parts through the slew limit (physics.thrusters.slew_parts): (share, the
-        ramp's mean over the first part, over the rest)."""
+        """A step taken in two parts through the slew limit (physics.thrusters.slew_parts; heading for
+        each input of the rest in turn where it holds several: slew_through): (share, the ramp's mean
+        over the first part, over the rest)."""
         lo, hi = self._bounds
-        share, _, (rest_l, rest_r) = parts
+        share, _, (rest_l, rest_r), pieces = parts
         change = self._slew_n_per_s * self._h
-        first_l, mean_l, end_l = slew_parts(self._ramped[0], min(max(left, lo), hi), share,
-                                            min(max(rest_l, lo), hi), change)
-        first_r, mean_r, end_r = slew_parts(self._ramped[1], min(max(right, lo), hi), share,
-                                            min(max(rest_r, lo), hi), change)
+        if len(pieces) > 1:  # not with frames at least a step long: one stamp reaches each step
+            held = np.array([p[0] for p in pieces])
+            out = []
+            for side, (start, first) in enumerate(zip(self._ramped, (left, right))):
+                head, middle = slew_step(start, min(max(first, lo), hi), change * share)
+                tail, end = slew_through(middle, held, np.clip([p[1 + side] for p in pieces], lo, hi), change)
+                out.append((head, tail, end))
+            (first_l, mean_l, end_l), (first_r, mean_r, end_r) = out
+        else:
+            first_l, mean_l, end_l = slew_parts(self._ramped[0], min(max(left, lo), hi), share,
+                                                min(max(rest_l, lo), hi), change)
+            first_r, mean_r, end_r = slew_parts(self._ramped[1], min(max(right, lo), hi), share,
+                                                min(max(rest_r, lo), hi), change)
         self._ramped = (end_l, end_r)
-        return share, (first_l, first_r), (mean_l, mean_r)
+        return share, (first_l, first_r), (mean_l, mean_r), pieces
 
     def _ramp(self, left: float, right: float) -> tuple[float, float]:
         """The step's mean thrust command through the slew limit (physics.thrusters.slew_step)."""
