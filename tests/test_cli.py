@@ -190,6 +190,27 @@ def test_crosscheck_over_tolerance_exits_1(monkeypatch, capsys):
     assert "FAIL" in capsys.readouterr().out
 
 
+def test_a_ramped_vessel_failing_its_crosscheck_is_told_what_the_ramp_leaves(tmp_path, monkeypatch, capsys):
+    """A thrust ramp is held at its mean over each engine step: where that alone takes a case over the
+    tolerance (60 s of this vessel's thrust-alone case: 25 mm), the command says so beside the FAIL."""
+    import importlib
+
+    import twin.cli as cli
+
+    data = json.loads((MODEL / "yellowfish.json").read_text())
+    data["mjcf"] = str(MODEL / "yellowfish.xml")
+    data["thrusters"].update({"ramp_s": 2.0, "advance_loss": 1.5, "lag_s": 0.0})
+    (tmp_path / "ramped.json").write_text(json.dumps(data))
+    monkeypatch.setattr(sys, "argv", ["twin", "crosscheck", "--model", str(tmp_path / "ramped.json"), "--duration", "2"])
+    cli.main()
+    assert "thrust ramp" not in capsys.readouterr().out  # within tolerance: nothing to explain
+    monkeypatch.setattr(importlib.import_module("twin.verify.crosscheck"), "POSITION_TOL_M", 1e-9)
+    with pytest.raises(SystemExit) as exc:
+        cli.main()
+    out = capsys.readouterr().out
+    assert exc.value.code == 1 and "FAIL" in out and "holds a thrust ramp at its mean over each step" in out
+
+
 @pytest.mark.parametrize("argv,message", [(["nosuch"], "No such command 'nosuch'"),
                                           (["params", "--bogus"], "No such option: --bogus")])
 def test_usage_error_is_bad_input(monkeypatch, capsys, argv, message):

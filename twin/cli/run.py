@@ -220,6 +220,11 @@ def crosscheck(
     if idle:
         say(f"note: {', '.join(idle)}: the term moves this vessel less than the position tolerance over the run, so "
             "the case tests nothing here (no such load on it, or a run too short)")
+    if v.thrusters.ramping and not all(r.passed for r in results):
+        say("note: the engine holds a thrust ramp at its mean over each step (exact in impulse, not in its first "
+            "moment, nor through an advance loss without a lag): a case without damping, or a vessel with an "
+            "advance loss and no lag, ends off by more than the tolerance from that alone "
+            "(docs/method/physics.md, 'What a ramp leaves')")
     write_json(json_out, {"vessel": v.name, "duration_s": duration, "cases": [r.to_dict() for r in results]})
     if rrd is not None:
         full = results[0]
