@@ -94,14 +94,19 @@ def test_an_antenna_the_twin_already_carries_is_read_against_it(blueboat):
 def test_a_track_given_as_the_body_origins_is_read_against_the_offset_alone_and_a_twin_run_is_left_out():
     """The Yellowfish's antenna site is 0.38 m off its origin. A measured track the log gives as the
     origin's (a model ship's pond tracking) is read against the sensors' offset, not the site: a point
-    tracked 0.3 m ahead is found 0.3 m ahead. A twin run's exact track has no antenna and is left out
-    (it read as 0.32 m off the site)."""
+    tracked 0.3 m ahead is found 0.3 m ahead, alone or beside a receiver's log whose antenna sits 0.3 m
+    ahead of the site. A twin run's exact track has no antenna and is left out (it read as 0.32 m off
+    the site)."""
     from twin.recording import EXACT_ORIGIN, TRACKED_ORIGIN
 
     yellowfish = vessel_mod.load("yellowfish")
     tracked = _spins((0.3, 0.0), seed=1)
     tracked.meta["positions"] = TRACKED_ORIGIN
     got = lever_arm([tracked], yellowfish)
+    assert got.told and got.values["dx_m"] == pytest.approx(0.3, abs=0.05) and abs(got.values["dy_m"]) < 0.05
+    site = (-0.275, 0.2625)  # the Yellowfish's MJCF antenna: a receiver's log there, the point 0.3 m ahead of it
+    receiver = _spins((site[0] + 0.3, site[1]), seed=4)
+    got = lever_arm([tracked, receiver], yellowfish)
     assert got.told and got.values["dx_m"] == pytest.approx(0.3, abs=0.05) and abs(got.values["dy_m"]) < 0.05
     exact = _spins((0.0, 0.0), seed=1)
     exact.meta["positions"] = EXACT_ORIGIN

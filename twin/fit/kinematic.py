@@ -148,15 +148,20 @@ def _heading_at(rec: Recording, t: np.ndarray, latency_s: float) -> np.ndarray:
     return np.interp(t, np.asarray(rec.heading.t, float) - latency_s, psi)
 
 
-def _spin_windows(rec: Recording, vessel: Vessel) -> list[tuple]:
+def _spin_windows(rec: Recording, vessel: Vessel, site_m=None) -> list[tuple]:
     """(group, hand, design (2n, 3), observation (2n,)) of each window of a large heading change, the
-    quadratic track of the window projected out: columns R(ψ)·e_x, R(ψ)·e_y, R(ψ)·e_y·hand."""
+    quadratic track of the window projected out: columns R(ψ)·e_x, R(ψ)·e_y, R(ψ)·e_y·hand. site_m:
+    (x, y) m added to every fix as R(ψ)·site_m (a track given as the body origin's, read as if taken
+    at the antenna site, as a receiver's fixes are)."""
     s = vessel.sensors.for_log(rec.source)
     rec = calibrated(rec, vessel)
     t, n, e = _fresh_fixes(rec, s.gnss_latency_s)
     if len(t) < 8:
         return []
     psi = _heading_at(rec, t, s.heading_latency_s)
+    if site_m is not None:
+        c, sn = np.cos(psi), np.sin(psi)
+        n, e = n + c * site_m[0] - sn * site_m[1], e + sn * site_m[0] + c * site_m[1]
     period = float(np.median(np.diff(t)))
     out = []
     for a in np.arange(t[0], t[-1] - WINDOW_S, WINDOW_STEP_S):
@@ -187,17 +192,18 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
               ) -> KinematicFinding:
     """Where the GNSS antenna sits against where the twin has it (module docstring): the
     `gnss_lever_arm` the twin lacks. A simulated run's exact track of the body origin has no antenna
-    and is left out; for tracks the logs give as the body origin's (TRACKED_ORIGIN) the twin has the
-    point tracked at its sensors' offset from the origin, not at its MJCF antenna site."""
+    and is left out; a track a log gives as the body origin's (TRACKED_ORIGIN), where the twin has the
+    point tracked at its sensors' offset from the origin, is read as if taken at the MJCF antenna
+    site, so that every log tells the same site plus offset."""
     compiled = compiled or compile_vessel(vessel)
     offset = tuple(map(float, vessel.sensors.antenna_offset_m))
-    fixes = [rec for rec in recordings if rec.meta.get("positions") != EXACT_ORIGIN]
-    tracked = bool(fixes) and all(rec.meta.get("positions") == TRACKED_ORIGIN for rec in fixes)
-    have = np.array(offset) if tracked else antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
+    have = antenna_body_m(compiled.geometry.gnss_pos_m, vessel.sensors)
+    site = tuple(map(float, compiled.geometry.gnss_pos_m[:2]))
     windows = []
-    for k, rec in enumerate(fixes):
+    for k, rec in enumerate(r for r in recordings if r.meta.get("positions") != EXACT_ORIGIN):
         if len(rec.gnss) and len(rec.heading):
-            windows += [(k * 100_000 + g, hand, d, y) for g, hand, d, y in _spin_windows(rec, vessel)]
+            moved = site if rec.meta.get("positions") == TRACKED_ORIGIN else None
+            windows += [(k * 100_000 + g, hand, d, y) for g, hand, d, y in _spin_windows(rec, vessel, moved)]
     hands = {h: sum(1 for _, hh, _, _ in windows if hh == h) for h in (-1.0, 1.0)}
     groups = sorted({g for g, _, _, _ in windows})
     both = min(hands.values()) >= MIN_WINDOWS_EACH_HAND
