@@ -52,8 +52,8 @@ def test_a_point_tracked_off_midship_is_moved_back_by_the_sensors_offset(esso_di
     """The files' positions are midship's by their own account, so no antenna site applies; a tracked
     point found off it (the sensors' antenna_offset_m, as the diagnosis's gnss_lever_arm sets it) is
     moved back: the track moved by R(ψ)·(0.3, −0.2) m and read with that offset gives the velocities of
-    the file as it is to 0.3-0.5 mm/s rms (read without, 8-12 mm/s off; the offset used to change
-    nothing)."""
+    the file as it is to 0.3-0.5 mm/s rms (read without, 8-12 mm/s off). Guards against the offset being
+    ignored on a tracked track."""
     from dataclasses import replace
 
     import twin.vessel as vessel_mod

@@ -91,12 +91,12 @@ def test_an_antenna_the_twin_already_carries_is_read_against_it(blueboat):
     assert not got.told and abs(got.change["dx_m"]) < 0.05
 
 
-def test_a_track_given_as_the_body_origins_is_read_against_the_offset_alone_and_a_twin_run_is_left_out():
+def test_a_track_given_as_the_body_origins_is_read_for_its_offset_and_a_twin_run_is_left_out():
     """The Yellowfish's antenna site is 0.38 m off its origin. A measured track the log gives as the
-    origin's (a model ship's pond tracking) is read against the sensors' offset, not the site: a point
-    tracked 0.3 m ahead is found 0.3 m ahead, alone or beside a receiver's log whose antenna sits 0.3 m
-    ahead of the site. A twin run's exact track has no antenna and is left out (it read as 0.32 m off
-    the site)."""
+    origin's (a model ship's pond tracking) tells the sensors' offset from the origin, not from the
+    site: a point tracked 0.3 m ahead is found 0.3 m ahead, alone or beside a receiver's log whose
+    antenna sits 0.3 m ahead of the site. A twin run's exact track has no antenna and is left out
+    (guards against reading it as 0.32 m off the site)."""
     from twin.recording import EXACT_ORIGIN, TRACKED_ORIGIN
 
     yellowfish = vessel_mod.load("yellowfish")

@@ -407,8 +407,8 @@ def test_a_body_origin_track_takes_no_lever_arm(tmp_path):
 
 def test_a_twin_run_converted_to_the_generic_csv_stays_the_body_origins_track(tmp_path):
     """Converted from its MCAP, a twin run's track is written as the run layout's x, y, so that it
-    comes back as the body origin's (written as north, east, it read as a receiver's fixes and took
-    the vessel's antenna arm)."""
+    comes back as the body origin's (guards against writing it as north, east, which read as a
+    receiver's fixes and take the vessel's antenna arm)."""
     from twin.recording import EXACT_ORIGIN
     from twin.run import Run
 

@@ -423,7 +423,8 @@ def test_lock_step_with_a_thrust_ramp_is_the_offline_twin(full_vessel, fine_vess
 
 def test_lock_step_with_a_thrust_ramp_and_a_delay_off_the_step_grid_is_the_offline_twin(full_vessel, fine_vessel):
     """A delay of 20.52 steps: each input reaches the ramp within a step, which both take in two parts,
-    the ramp heading for the input held over each (the ramp used to take it from the next step)."""
+    the ramp heading for the input held over each (guards against a ramp that takes it from the next
+    step in one and not the other)."""
     ramped = {"ramp_s": 2.0, "delay_s": 0.0513}
     full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, **ramped))
     fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, **ramped))

@@ -122,10 +122,10 @@ def test_a_wind_series_changing_between_the_inputs_changes_runs_open_loop():
 def test_a_ramp_heads_for_the_input_where_it_changes_within_a_step():
     """With a slew limit and a delay off the step grid (0.013 s), each step's command is the mean of
     the continuous ramp, which heads for the input held over each part of the step: the same as the
-    ramp on a grid a thousand times finer, to 1e-9 N. The ramp followed the input at each step's start
-    (a change acted up to a step late: 0.1 N off here); fed the step's mean instead, an input that
-    reverses within a step would turn it a whole step's slew the wrong way. Several inputs within a
-    step: the ramp heads for each in turn (it headed for their mean: up to a step's slew off)."""
+    ramp on a grid a thousand times finer, to 1e-9 N. Guards against a ramp that follows the input at
+    each step's start (a change a step late: 0.1 N off here), one fed the step's mean (an input reversing
+    within a step turns it a whole step's slew the wrong way) and one heading for the mean of several
+    inputs within a step (up to a step's slew off)."""
     base = vessel_mod.load("yellowfish")
     th = replace(base.thrusters, ramp_s=2.0, delay_s=0.013)
     # a reversal within a step; two changes within one step (2.500 and 2.503 s, acting at 2.513 and
@@ -144,8 +144,8 @@ def test_a_ramp_heads_for_the_input_where_it_changes_within_a_step():
 
 def test_a_ramped_vessel_with_a_delay_off_the_step_grid_meets_the_analytic_model():
     """Yellowfish, ramp 2 s, delay 0.35 s (17.5 steps), over the zig-zag: the engine, its readable
-    reference loop and the analytic model agree, open and closed loop (0.014 m / 0.18° off when the
-    ramp followed the input at each step's start)."""
+    reference loop and the analytic model agree, open and closed loop (guards against a ramp that
+    follows the input at each step's start: 0.014 m / 0.18° off)."""
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, ramp_s=2.0, delay_s=0.35))
     cv = compile_vessel(v)
@@ -164,8 +164,9 @@ def test_a_ramped_vessel_with_a_delay_off_the_step_grid_meets_the_analytic_model
 
 def test_a_ramped_closed_loop_run_is_replayed_by_its_inputs():
     """The inputs repeat the held command at every tick; a repeated stamp changes nothing, so a replay
-    splits no step the run did not (a mean of equal commands rounds: the split steps' ramp parts took
-    the replay 0.057 m and 1.7 N off the run, BlueBoat, ramp 0.3 s, delay 0.41 s)."""
+    splits no step the run did not (guards against splitting where a mean of equal commands rounds:
+    the split steps' ramp parts take the replay 0.057 m and 1.7 N off the run, BlueBoat, ramp 0.3 s,
+    delay 0.41 s)."""
     base = vessel_mod.load("blueboat")
     v = replace(base, thrusters=replace(base.thrusters, ramp_s=0.3, delay_s=0.41))
     cv = compile_vessel(v)

@@ -25,7 +25,7 @@ import numpy as np
 
 from .errors import TwinError
 from .files import check_unique_columns
-from .physics.thrusters import ThrusterModel
+from .physics.thrusters import SeveralInputs, ThrusterModel
 
 PWM_COLUMNS = ("pwm_left", "pwm_right")
 THRUST_COLUMNS = ("thrust_left", "thrust_right")
@@ -116,9 +116,7 @@ class StepPieces:
     first: np.ndarray  # (n, 2)
     share: np.ndarray  # (n,) in (0, 1]
     rest: np.ndarray  # (n, 2)
-    # steps whose rest holds two inputs or more, each in turn: (steps (m,), each input's share of the
-    # step (m, d), zero past its last, and its command (m, d, 2)); a ramp heads for each in turn
-    rest_parts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    several: SeveralInputs | None = None  # the steps whose rest holds two inputs or more, each in turn
 
     @classmethod
     def of(cls, series: InputSeries, thrusters: ThrusterModel, n_steps: int, step_s: float,
@@ -139,7 +137,7 @@ class StepPieces:
         several = np.flatnonzero(last_i > first_i)
         share = np.ones(n_steps)
         rest = first.copy()
-        rest_parts = None
+        several_inputs = None
         if len(several):
             lo, hi = first_i[several], last_i[several]
             change = t[lo + 1]
@@ -164,8 +162,8 @@ class StepPieces:
             rest[several[alike]] = first[several[alike]]
             many &= ~alike
             if np.any(many):
-                rest_parts = (several[many], held[many], commands[many])
-        return cls(first, share, rest, rest_parts)
+                several_inputs = SeveralInputs(several[many], held[many], commands[many])
+        return cls(first, share, rest, several_inputs)
 
     @property
     def split(self) -> np.ndarray:
@@ -181,7 +179,7 @@ class StepPieces:
         share = np.ones(len(self.share))
         k = self.split
         share[k] = self.share[k]
-        first, rest = thrusters.slewed_parts(self.first, share, self.rest, step_s, parts=self.rest_parts)
+        first, rest = thrusters.slewed_parts(self.first, share, self.rest, step_s, self.several)
         return StepPieces(first, share, rest)
 
     def mean(self) -> np.ndarray:

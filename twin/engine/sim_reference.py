@@ -95,8 +95,8 @@ def simulate_reference(
         cmd_steps = pieces.first.copy() if thrusters.ramping else pieces.mean()
         if terms.thrust:
             split = {k: (pieces.share[k], pieces.first[k], pieces.rest[k]) for k in pieces.split if k < n_steps}
-            if pieces.rest_parts is not None:  # a ramp heads for each input of such a rest in turn
-                several = dict(zip(pieces.rest_parts[0].tolist(), zip(*pieces.rest_parts[1:])))
+            if pieces.several is not None:  # a ramp heads for each input of such a rest in turn
+                several = dict(zip(pieces.several.steps.tolist(), zip(pieces.several.held, pieces.several.commands)))
         held_steps = series.at(step_times)
         kind = series.kind
     else:
@@ -158,11 +158,16 @@ def simulate_reference(
                     commands = np.clip(commands, *thrusters.bounds())
                     heads = [slew_step(a, b, ramp * share) for a, b in zip(ramped, first)]
                     tails = [slew_through(e, held, commands[:, j], ramp) for j, (_, e) in enumerate(heads)]
-                    parts = [(h[0], t[0], t[1]) for h, t in zip(heads, tails)]
+                    parts = [(head[0], tail[0], tail[1]) for head, tail in zip(heads, tails)]
                 else:
                     parts = [slew_parts(a, b, share, c, ramp) for a, b, c in zip(ramped, first, rest)]
-                split[k] = (share, np.array([p[0] for p in parts]), np.array([p[1] for p in parts]))
-                data.ctrl[:2] = share * split[k][1] + (1.0 - share) * split[k][2]
+                first_means, rest_means = np.array([p[0] for p in parts]), np.array([p[1] for p in parts])
+                if np.array_equal(first_means, rest_means):  # commands that differ beyond a bound: one step
+                    del split[k]
+                    data.ctrl[:2] = first_means
+                else:
+                    split[k] = (share, first_means, rest_means)
+                    data.ctrl[:2] = share * first_means + (1.0 - share) * rest_means
                 ramped = np.array([p[2] for p in parts])
             else:
                 target = np.clip(cmd_steps[k], *thrusters.bounds())

@@ -66,7 +66,7 @@ from scipy.signal import lfilter
 
 from ..effects import apply_effects
 from ..engine.mjcf import CompiledVessel, compile_vessel
-from ..physics.sensors import antenna_body_m
+from ..physics.sensors import antenna_body_m, antenna_ned
 from ..prepare.prepared import local_ned
 from ..prepare.timing import STEP_S as GYRO_STEP_S
 from ..prepare.timing import heading_lag_behind_gyro
@@ -148,7 +148,7 @@ def _heading_at(rec: Recording, t: np.ndarray, latency_s: float) -> np.ndarray:
     return np.interp(t, np.asarray(rec.heading.t, float) - latency_s, psi)
 
 
-def _spin_windows(rec: Recording, vessel: Vessel, site_m=None) -> list[tuple]:
+def _spin_windows(rec: Recording, vessel: Vessel, site_m: tuple[float, float] | None = None) -> list[tuple]:
     """(group, hand, design (2n, 3), observation (2n,)) of each window of a large heading change, the
     quadratic track of the window projected out: columns R(ψ)·e_x, R(ψ)·e_y, R(ψ)·e_y·hand. site_m:
     (x, y) m added to every fix as R(ψ)·site_m (a track given as the body origin's, read as if taken
@@ -160,8 +160,7 @@ def _spin_windows(rec: Recording, vessel: Vessel, site_m=None) -> list[tuple]:
         return []
     psi = _heading_at(rec, t, s.heading_latency_s)
     if site_m is not None:
-        c, sn = np.cos(psi), np.sin(psi)
-        n, e = n + c * site_m[0] - sn * site_m[1], e + sn * site_m[0] + c * site_m[1]
+        n, e = antenna_ned(n, e, psi, site_m)
     period = float(np.median(np.diff(t)))
     out = []
     for a in np.arange(t[0], t[-1] - WINDOW_S, WINDOW_STEP_S):
@@ -202,8 +201,8 @@ def lever_arm(recordings: list[Recording], vessel: Vessel, compiled: CompiledVes
     windows = []
     for k, rec in enumerate(r for r in recordings if r.meta.get("positions") != EXACT_ORIGIN):
         if len(rec.gnss) and len(rec.heading):
-            moved = site if rec.meta.get("positions") == TRACKED_ORIGIN else None
-            windows += [(k * 100_000 + g, hand, d, y) for g, hand, d, y in _spin_windows(rec, vessel, moved)]
+            site_m = site if rec.meta.get("positions") == TRACKED_ORIGIN else None
+            windows += [(k * 100_000 + g, hand, d, y) for g, hand, d, y in _spin_windows(rec, vessel, site_m)]
     hands = {h: sum(1 for _, hh, _, _ in windows if hh == h) for h in (-1.0, 1.0)}
     groups = sorted({g for g, _, _, _ in windows})
     both = min(hands.values()) >= MIN_WINDOWS_EACH_HAND

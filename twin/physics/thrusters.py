@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -143,28 +144,25 @@ class ThrusterModel:
         start = cmd[0] if start_n is None else np.asarray(start_n, float)
         return _slewed(cmd, self.slew_n_per_s * dt_s, np.array(start, float))
 
-    def slewed_parts(self, first_n, share, rest_n, dt_s: float, start_n=None,
-                     parts=None) -> tuple[np.ndarray, np.ndarray]:
-        """Steps of dt_s taken in two parts through the slew limit: on step k the ramp heads for
-        `first_n[k]` (N) over the share `share[k]` of the step, then for `rest_n[k]` over the rest
-        (a step with share 1 is one part, as `slewed`); `parts` (drive.StepPieces.rest_parts): steps
-        whose rest holds several commands, the ramp heading for each in turn over its share. Returns
-        each part's mean thrust command, (n, 2) each, within the bounds: the first part's, the
-        rest's (the first's where share is 1). `start_n`: where the ramp stands before the first
-        step (None: settled at the first command)."""
+    def slewed_parts(self, first_n: np.ndarray, share: np.ndarray, rest_n: np.ndarray, dt_s: float,
+                     several: "SeveralInputs | None" = None) -> tuple[np.ndarray, np.ndarray]:
+        """Steps of dt_s taken in two parts through the slew limit, settled at the first command: on
+        step k the ramp heads for `first_n[k]` (N) over the share `share[k]` of the step, then for
+        `rest_n[k]` over the rest (a step with share 1 is one part, as `slewed`); `several`: the
+        steps whose rest holds several commands, the ramp heading for each in turn over its share.
+        Returns each part's mean thrust command, (n, 2) each, within the bounds: the first part's,
+        the rest's (the first's where share is 1)."""
         lo, hi = self.bounds()
         first = np.clip(np.asarray(first_n, float), lo, hi)
         rest = np.clip(np.asarray(rest_n, float), lo, hi)
         if not self.ramping or not len(first):
             return first, np.where(np.asarray(share)[:, None] < 1.0, rest, first)
-        start = first[0] if start_n is None else np.asarray(start_n, float)
         which = np.full(len(first), -1, np.int64)
         held, commands = np.zeros((1, 1)), np.zeros((1, 1, first.shape[1]))
-        if parts is not None:
-            steps, held, commands = parts
-            which[steps] = np.arange(len(steps))
-            commands = np.clip(np.asarray(commands, float), lo, hi)
-        return _slewed_parts(first, np.asarray(share, float), rest, self.slew_n_per_s * dt_s, np.array(start, float),
+        if several is not None:
+            which[several.steps] = np.arange(len(several.steps))
+            held, commands = several.held, np.clip(np.asarray(several.commands, float), lo, hi)
+        return _slewed_parts(first, np.asarray(share, float), rest, self.slew_n_per_s * dt_s, first[0].copy(),
                              which, np.asarray(held, float), commands)
 
     @property
@@ -458,6 +456,14 @@ def lag_time_constant_s(alpha: float, sample_s: float) -> float:
 def lag_alpha(time_constant_s: float, sample_s: float) -> float:
     """Inverse of `lag_time_constant_s`: the discrete pole α = exp(−h/τ)."""
     return float(np.exp(-sample_s / time_constant_s))
+
+
+class SeveralInputs(NamedTuple):
+    """Steps whose rest holds two inputs or more, each in turn: a ramp heads for each over its share."""
+
+    steps: np.ndarray  # (m,) the steps
+    held: np.ndarray  # (m, d) each input's share of its step, zero past the step's last
+    commands: np.ndarray  # (m, d, 2) each input's command
 
 
 @njit(cache=True)

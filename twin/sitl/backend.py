@@ -108,6 +108,9 @@ _TWO_PI = 2.0 * math.pi
 # NamedTuple's Python-level __new__
 _new_tuple, _cos, _sin, _remainder, _mj_step = tuple.__new__, math.cos, math.sin, math.remainder, mujoco.mj_step
 _ZOH_TOL_S = 1e-9  # as drive.InputSeries.at: an input switching at t holds from t on
+# a step in two parts: (share of the step, first command (L, R), the rest's, [(share of the step, L, R)
+# of each input held in the rest]), commands in N
+StepParts = tuple[float, tuple[float, float], tuple[float, float], list[tuple[float, float, float]]]
 
 
 @dataclass(frozen=True)
@@ -543,7 +546,7 @@ class SitlTwin:
                 self._step_in_parts(parts)
         self._hist_i = j
 
-    def _pieces(self, j: int, start: float, end: float, f: float, left: float, right: float):
+    def _pieces(self, j: int, start: float, end: float, f: float, left: float, right: float) -> StepParts | None:
         """A step within which a delayed input changes, as engine.sim takes it (drive.StepPieces: the
         input held at the step's start over its share, then the rest's: the one input held there, or
         the mean of several), the same operations in the same order: (share, first command, the
@@ -578,7 +581,7 @@ class SitlTwin:
             rest = (total_l / (end - change), total_r / (end - change))
         return (change - start) / h, (left, right), rest, [(p[0] / h, p[1], p[2]) for p in pieces]
 
-    def _step_in_parts(self, parts: tuple[float, tuple[float, float], tuple[float, float]]) -> None:
+    def _step_in_parts(self, parts: StepParts) -> None:
         """One step in two (the first part's command already in the controls): the share of it, then
         the rest under its command."""
         m, d, ctrl, (il, ir), h = self.model, self.data, self._ctrl, self._ctrl_ids, self._h
@@ -611,14 +614,14 @@ class SitlTwin:
             del self._hist_t[:i], self._hist_l[:i], self._hist_r[:i]
             self._hist_i = 0
 
-    def _ramp_parts(self, parts, left: float, right: float):
+    def _ramp_parts(self, parts: StepParts, left: float, right: float) -> StepParts:
         """A step taken in two parts through the slew limit (physics.thrusters.slew_parts; heading for
         each input of the rest in turn where it holds several: slew_through): (share, the ramp's mean
-        over the first part, over the rest)."""
+        over the first part, over the rest, the rest's inputs)."""
         lo, hi = self._bounds
         share, _, (rest_l, rest_r), pieces = parts
         change = self._slew_n_per_s * self._h
-        if len(pieces) > 1:  # not with frames at least a step long: one stamp reaches each step
+        if len(pieces) > 1:  # frames are at least a step apart, so only after a frame rate change
             held = np.array([p[0] for p in pieces])
             out = []
             for side, (start, first) in enumerate(zip(self._ramped, (left, right))):
