@@ -57,7 +57,9 @@ def dataset_command(
                                    show_default=False,  # the list is cut short in the help's column
                                    help="manoeuvres to cycle through, comma separated: rc, forward_constant, "
                                         "forward_varying, zigzag, circle_constant, circle_varying (these six by "
-                                        "default), autopilot, and astern_varying (backing)"),
+                                        "default), autopilot, astern_varying (backing), and the fixed trials from rest a "
+                                        "diagnosis proposes to settle a rival: full_ahead_coast, throttle_steps, spins, "
+                                        "turns, astern_stop"),
     effect: list[str] = typer.Option([], help="effect injected in the truth, NAME=V1,V2 (repeatable; "
                                               "`twin effects` lists them)"),
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),

@@ -59,6 +59,7 @@ from . import locate as loc
 from .noise import estimate_noise
 from .report import FOLLOWS_R, answer, excess_share
 from .search import BLOCK_WINDOWS, Z_MIN, Search, excess_shown
+from .separate import separations
 
 WINDOW_S = 10.0
 # the effects a recording's measured wind, given as a known input, takes the place of (their constant
@@ -183,8 +184,10 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     after = _residuals(amended, amended_preps, every, exact, wind)
     after_located, _, after_corr, after_overall = _locate(after, amended_preps, every, noise)
     held_before, held_after = _held_out_fits(search, prior, kept, data, exact, wind)
+    yardstick = {k: float(np.nanmax([after_overall[k]["rms"], noise.get(k, np.nan), 0.0])) for k in "uvr"}
     diagnosis = Diagnosis(
-        prior, amended, [_kinematic_effect(f) for f in findings if f.told] + _effects(kept, search), located,
+        prior, amended, [_kinematic_effect(f) for f in findings if f.told] + _effects(kept, search, yardstick, window_s),
+        located,
         growth, corr, held_before, held_after,
         _unexplained(after_located, after_corr, after_overall), noise, rounds,
         {"length_s": window_s, "windows": len(every), "folds": len(search.folds), "blocks": int(search.blocks.max()) + 1},
@@ -550,7 +553,12 @@ def _estimator_exact(preps: list[Prepared], time_in_window_s: np.ndarray, n: int
     return (time_in_window_s > lead_s + 1e-9) & (time_in_window_s <= n * s.grid_dt - tail_s + 1e-9)
 
 
-def _effects(kept, search: Search) -> list[dict]:
+SEPARATIONS_SHOWN = 2  # the trials that tell a kept effect from an unsettled rival best
+
+
+def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float) -> list[dict]:
+    """The kept effects as the answer gives them; `yardstick` (per velocity, what the amended twin still
+    misses, never below the noise) and `window_s` judge the trials that would settle a rival."""
     out = []
     for k in kept:
         cand, e = k.trial.candidate, k.trial.evidence
@@ -563,7 +571,10 @@ def _effects(kept, search: Search) -> list[dict]:
                                                        zip(cand.params, names)},
                     "improvement": {d: round(v, 4) for d, v in e.dof_rel.items()},
                     "held_out_gain": round(e.rel, 4), "excess_gain": excess_shown(e.rel_excess), "z": round(e.z, 2),
-                    "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals)})
+                    "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals),
+                    "separations": {name: [s.to_dict() for s in separations(k.trial.fits[0].vessel, twin, yardstick,
+                                                                             window_s)[:SEPARATIONS_SHOWN]]
+                                    for name, twin in k.unsettled.items()}})
     return out
 
 

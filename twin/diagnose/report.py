@@ -23,6 +23,7 @@ from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..outputs import write
 from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
+from .separate import TRIAL_WORDS
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
@@ -145,6 +146,8 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {z_text(r['z'], Z_MIN)})")
                 families |= {_family(d, r["name"]), _family(d, e["name"])}
+    settle = [_settling(e["name"], rival, seps[0]) for e in d.effects
+              for rival, seps in (e.get("separations") or {}).items() if seps]
     blocks = int(d.windows.get("blocks", (d.windows.get("windows") or 0) // BLOCK_WINDOWS))
     if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
         block_s = BLOCK_WINDOWS * float(d.windows.get("length_s") or 0.0)
@@ -191,8 +194,18 @@ def answer(d) -> dict:
     if not d.effects and out["form"]:
         families |= {_family(d, n) for n in candidates_tried}
     advice = NEXT | (NEXT_SHIP if d.prior.thrusters.kind == "propeller_rudder" else {})
-    out["next"] = [f"to settle {fam} effects: {advice[fam]}" for fam in sorted(families) if fam in advice]
+    out["next"] = settle + [f"to settle {fam} effects: {advice[fam]}" for fam in sorted(families) if fam in advice]
     return out
+
+
+def _settling(kept: str, rival: str, s: dict) -> str:
+    """The trial the two readings' twins part on most (separate.py), as the answer says it."""
+    dof = s["dof"]
+    much = (f"about {s['minutes']:.0f} min of it" if s["minutes"] is not None and s["minutes"] >= 1.5
+            else "a few repeats of it")
+    return (f"to tell {kept} from {rival}: {TRIAL_WORDS[s['trial']]} ({much}); there the two twins' 10-s free runs "
+            f"differ by {_shown(dof, s['difference']):.2g} {DOF_UNITS[dof]} in {dof}, {s['ratio']:.1f}× what the "
+            f"twin still misses (a prediction of the two twins, in {100 * s['share']:.0f} % of its windows)")
 
 
 def at_edge(d) -> list[dict]:

@@ -191,8 +191,12 @@ class Trial:
 
 @dataclass
 class Kept:
+    """An effect kept, the rivals judged beside it, and the twins of those the recording cannot tell
+    from it (each fitted on the first fold's training windows, as the kept one's `trial.fits[0]`)."""
+
     trial: Trial
     rivals: list[dict]
+    unsettled: dict[str, Vessel] = field(default_factory=dict)
 
 
 @dataclass
@@ -603,7 +607,9 @@ class Search:
             e = winner.evidence
             self.log(f"kept {winner.name}: held-out misfit −{100 * e.rel:.1f} % (−{100 * e.rel_excess:.1f} % of "
                      f"the excess over the noise), z = {e.z:.1f} over {e.blocks_for + e.blocks_against} blocks")
-            kept.append(Kept(winner, rivals))
+            by_name = {t.name: t for t in trials}
+            kept.append(Kept(winner, rivals, {r["name"]: by_name[r["name"]].fits[0].vessel
+                                              for r in rivals if not r["separable"] and by_name[r["name"]].fits}))
             kept, outdone = without_superseded(kept, winner)
             for name in sorted(outdone):
                 self.log(f"dropped {name}: {winner.name} supersedes it (it can do nothing more beside it)")

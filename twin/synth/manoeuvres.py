@@ -30,7 +30,46 @@ CLOSED_LOOP = ("zigzag", "autopilot")
 ALL = OPEN_LOOP + CLOSED_LOOP
 # by name only, not in a default dataset (which the proof and the benches keep as they were)
 ASTERN = ("astern_varying",)
-KNOWN = ALL + ASTERN
+# trials: fixed programs a diagnosis proposes to tell two readings of a log apart (diagnose/separate.py),
+# each from rest; a dataset segment longer than its program repeats it
+TRIALS = ("full_ahead_coast", "throttle_steps", "spins", "turns", "astern_stop")
+KNOWN = ALL + ASTERN + TRIALS
+
+
+def _program(steps: list[tuple[float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Sticks (δ̄, Δδ) held for each (seconds, δ̄, Δδ) in turn, sampled every PWM_DT_S."""
+    mean = np.concatenate([np.full(int(round(s / PWM_DT_S)), m) for s, m, _ in steps])
+    diff = np.concatenate([np.full(int(round(s / PWM_DT_S)), d) for s, _, d in steps])
+    return mean, diff
+
+
+def trial_program(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The sticks (δ̄, Δδ) of a trial (TRIALS), every PWM_DT_S from rest. Each isolates what one
+    family of effects changes: a thrust that falls with speed against a weaker thrust (full ahead from
+    rest: the same top speed, another acceleration), a drag against a thrust loss (the coast-down, where
+    no thrust acts), the thrust map's shape (throttle steps), a one-sided thruster (spins and turns
+    both ways), the astern thrust and drag."""
+    steps = {
+        "full_ahead_coast": [(3.0, 0.0, 0.0), (25.0, 1.0, 0.0), (17.0, 0.0, 0.0)],
+        "throttle_steps": [(3.0, 0.0, 0.0), (8.0, 0.25, 0.0), (8.0, 0.5, 0.0), (8.0, 0.75, 0.0), (8.0, 1.0, 0.0),
+                           (10.0, 0.0, 0.0)],
+        "spins": [(3.0, 0.0, 0.0), (12.0, 0.0, 1.6), (6.0, 0.0, 0.0), (12.0, 0.0, -1.6), (6.0, 0.0, 0.0)],
+        "turns": [(3.0, 0.0, 0.0), (15.0, 0.6, 0.6), (15.0, 0.6, -0.6), (8.0, 0.0, 0.0)],
+        "astern_stop": [(3.0, 0.0, 0.0), (15.0, -0.8, 0.0), (12.0, 0.0, 0.0)],
+    }
+    if name not in steps:
+        raise TwinError(f"unknown trial '{name}' (known: {', '.join(TRIALS)})")
+    return _program(steps[name])
+
+
+def trial(name: str, duration_s: float | None = None) -> InputSeries:
+    """A trial's PWM series from rest (trial_program), repeated to fill `duration_s` (its own length
+    when None)."""
+    mean, diff = trial_program(name)
+    if duration_s is not None:
+        n = max(1, int(round(duration_s / PWM_DT_S)))
+        mean, diff = np.resize(mean, n), np.resize(diff, n)
+    return _series(mean, diff)
 
 
 @dataclass
@@ -160,6 +199,8 @@ def make(name: str, rng: np.random.Generator, duration_s: float) -> Manoeuvre:
     """A manoeuvre by name (see KNOWN)."""
     if name in OPEN_LOOP + ASTERN:
         return Manoeuvre(name, duration_s, globals()[name](rng, duration_s))
+    if name in TRIALS:
+        return Manoeuvre(name, duration_s, trial(name, duration_s))
     if name == "zigzag":
         return Manoeuvre(name, duration_s, ZigZag(surge=float(rng.uniform(0.2, 0.6)), yaw=float(rng.uniform(0.3, 0.7)),
                                                   switch_deg=float(rng.uniform(10, 30)), at_s=2.0))

@@ -1,0 +1,85 @@
+"""The trials a diagnosis proposes to tell two readings of a log apart (twin/diagnose/separate.py)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import twin.vessel as vessel_mod
+from twin.diagnose.report import answer
+from twin.diagnose.separate import TRIAL_WORDS, separations
+from twin.effects import apply_effects
+from twin.errors import TwinError
+from twin.synth.dataset import generate
+from twin.synth.manoeuvres import TRIALS, trial, trial_program
+
+YARDSTICK = {"u": 0.05, "v": 0.03, "r": 0.01}  # m/s, m/s, rad/s: a twin's misfit on a log
+
+
+@pytest.fixture(scope="module")
+def blueboat():
+    return vessel_mod.load("blueboat")
+
+
+def test_one_twin_read_twice_is_separated_by_no_trial(blueboat):
+    """Identical readings must differ by nothing on any trial: a difference here would be the engine's
+    own, and every proposal would rest on it."""
+    seps = separations(blueboat, blueboat, YARDSTICK)
+    assert [s.trial for s in sorted(seps, key=lambda s: s.trial)] == sorted(TRIALS)
+    assert all(s.difference == 0.0 and s.share == 0.0 and s.minutes is None for s in seps)
+
+
+def test_a_weaker_thrust_and_a_loss_with_speed_part_on_spins(blueboat):
+    """Under way the two take the same thrust off; on the spot the loss with speed takes almost none
+    (only the thrusters' own speed r·y) while a weaker thrust takes 15 %: spins tell them apart in r."""
+    weaker = apply_effects(blueboat, [("thrust_gain", {"scale": 0.85})])
+    losing = apply_effects(blueboat, [("thrust_speed_loss", {"advance_loss": 3.0})])
+    seps = separations(weaker, losing, YARDSTICK)
+    best = seps[0]
+    assert (best.trial, best.dof) == ("spins", "r")
+    assert best.ratio > 5.0 and best.share == 1.0
+    assert best.minutes == pytest.approx(10 * 3 * 10.0 / 60.0)  # ten blocks of three 10-s windows
+    assert [s.ratio for s in seps] == sorted((s.ratio for s in seps), reverse=True)
+
+
+def test_a_drag_and_a_thrust_loss_part_where_no_thrust_acts(blueboat):
+    """More surge drag and a weaker thrust come to nearly one top speed; accelerating and coasting down
+    they part: full ahead and coast must move u by more than a twin's misfit in a good share of its
+    windows (the steady part's windows agree)."""
+    draggy = apply_effects(blueboat, [("surge_resistance", {"Xu": 1.0, "Xuu": 1.4})])
+    weaker = apply_effects(blueboat, [("thrust_gain", {"scale": 0.85})])
+    coast = next(s for s in separations(draggy, weaker, YARDSTICK) if s.trial == "full_ahead_coast")
+    assert coast.dof == "u" and 0.3 < coast.share < 1.0 and coast.difference > 0.02
+
+
+def test_a_ship_gets_no_pwm_trial():
+    ship = vessel_mod.load("esso_osaka")
+    assert separations(ship, ship, YARDSTICK) == []
+
+
+def test_trials_start_at_rest_and_a_dataset_repeats_them(blueboat):
+    for name in TRIALS:
+        mean, diff = trial_program(name)
+        assert mean[0] == 0.0 and diff[0] == 0.0, name
+        assert np.all(np.abs(trial(name).values - 1500.0) <= 400.0)
+    with pytest.raises(TwinError, match="unknown trial"):
+        trial_program("barrel_roll")
+    ds = generate(blueboat, n_segments=1, manoeuvres=["spins"], seed=1, segment_s=(80.0, 80.0))
+    pwm = ds.runs[0].pwm_us
+    # two programs of 39 s: both hands of spin, each twice
+    spins_right = np.sum((pwm[1:, 0] > 1600) & (pwm[:-1, 0] <= 1600))
+    spins_left = np.sum((pwm[1:, 1] > 1600) & (pwm[:-1, 1] <= 1600))
+    assert spins_right == 2 and spins_left == 2
+
+
+def test_the_answer_says_which_trial_settles_an_unsettled_rival():
+    sep = {"trial": "spins", "dof": "r", "difference": 0.2, "ratio": 17.0, "share": 1.0, "minutes": 5.0}
+    rival = {"name": "thrust_speed_loss", "z": 2.9, "separable": False, "held_out_gain": 0.2, "parameters": {}}
+    kept = {"name": "thrust_gain", "parameters": {"scale": 0.85}, "ci": {}, "z": 3.5, "excess_gain": 0.8,
+            "evidence": {"blocks_for": 12, "blocks_against": 0}, "rivals": [rival],
+            "separations": {"thrust_speed_loss": [sep]}}
+    fit = {k: {"r2": 0.5} for k in "uvr"}
+    d = SimpleNamespace(effects=[kept], rounds=[], unexplained=[], located=[], fit_before=fit, fit_after=fit,
+                        prior=vessel_mod.load("blueboat"), windows={"length_s": 10.0, "windows": 36})
+    first = answer(d)["next"][0]
+    assert first.startswith("to tell thrust_gain from thrust_speed_loss: " + TRIAL_WORDS["spins"])
+    assert "about 5 min of it" in first and "11 °/s in r" in first and "17.0×" in first
