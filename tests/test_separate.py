@@ -83,3 +83,19 @@ def test_the_answer_says_which_trial_settles_an_unsettled_rival():
     first = answer(d)["next"][0]
     assert first.startswith("to tell thrust_gain from thrust_speed_loss: " + TRIAL_WORDS["spins"])
     assert "about 5 min of it" in first and "11 °/s in r" in first and "17.0×" in first
+
+
+def test_a_rival_refitted_on_a_trial_keeps_only_what_it_cannot_take_up(blueboat):
+    """As fitted on a log, a weaker thrust and more yaw damping part widely in spins; recorded, the spins
+    would move the damping's own yaw scale, so the trial is judged with the rival refitted to it: what
+    is left must be far smaller than the unrefitted difference, and no refit may widen a separation."""
+    from twin.effects import candidates
+
+    weaker = apply_effects(blueboat, [("thrust_gain", {"scale": 0.85})])
+    damped = apply_effects(blueboat, [("quadratic_damping", {"Nrr": 1.6})])
+    plain = {s.trial: s for s in separations(weaker, damped, YARDSTICK)}
+    refit = {s.trial: s for s in separations(weaker, damped, YARDSTICK,
+                                             rival=candidates(blueboat, ["log"])["quadratic_damping"])}
+    assert plain["spins"].ratio > 5.0
+    assert refit["spins"].refitted and refit["spins"].ratio < 0.5 * plain["spins"].ratio
+    assert all(refit[t].ratio <= plain[t].ratio * (1 + 1e-6) for t in refit if refit[t].refitted)

@@ -68,6 +68,8 @@ BIBLIOGRAPHY = _bib(
            "Abraham Savitzky, Marcel J. E. Golay", "Analytical Chemistry 36(8), 1627-1639", 1964),
     Source("Wilcoxon-1945", "Individual comparisons by ranking methods", "Frank Wilcoxon",
            "Biometrics Bulletin 1(6), 80-83", 1945),
+    Source("Atkinson-Fedorov-1975", "The design of experiments for discriminating between two rival models",
+           "A. C. Atkinson, V. V. Fedorov", "Biometrika 62(1), 57-70", 1975),
     Source("BlueRobotics-T200", "T200 thruster: technical details and performance charts", "Blue Robotics",
            "bluerobotics.com, T200 product page and its performance data", None),
     Source("ArduPilot-SITL", "SITL JSON physics backend interface (libraries/SITL/SIM_JSON.h, SIM_JSON.cpp, "

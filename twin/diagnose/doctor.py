@@ -553,9 +553,6 @@ def _estimator_exact(preps: list[Prepared], time_in_window_s: np.ndarray, n: int
     return (time_in_window_s > lead_s + 1e-9) & (time_in_window_s <= n * s.grid_dt - tail_s + 1e-9)
 
 
-SEPARATIONS_SHOWN = 2  # the trials that tell a kept effect from an unsettled rival best
-
-
 def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float) -> list[dict]:
     """The kept effects as the answer gives them; `yardstick` (per velocity, what the amended twin still
     misses, never below the noise) and `window_s` judge the trials that would settle a rival."""
@@ -573,7 +570,7 @@ def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float)
                     "held_out_gain": round(e.rel, 4), "excess_gain": excess_shown(e.rel_excess), "z": round(e.z, 2),
                     "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals),
                     "separations": {name: [s.to_dict() for s in separations(k.trial.fits[0].vessel, twin, yardstick,
-                                                                             window_s)[:SEPARATIONS_SHOWN]]
+                                                                             window_s, search.library.get(name))]
                                     for name, twin in k.unsettled.items()}})
     return out
 

@@ -205,7 +205,8 @@ def _settling(kept: str, rival: str, s: dict) -> str:
             else "a few repeats of it")
     return (f"to tell {kept} from {rival}: {TRIAL_WORDS[s['trial']]} ({much}); there the two twins' 10-s free runs "
             f"differ by {_shown(dof, s['difference']):.2g} {DOF_UNITS[dof]} in {dof}, {s['ratio']:.1f}× what the "
-            f"twin still misses (a prediction of the two twins, in {100 * s['share']:.0f} % of its windows)")
+            f"twin still misses (a prediction of the two twins{', the rival refitted to the trial' if s.get('refitted') else ''}"
+            f", in {100 * s['share']:.0f} % of its windows)")
 
 
 def at_edge(d) -> list[dict]:

@@ -14,6 +14,17 @@ would not vote for either. The answer is a prediction of two twins, not a measur
 which trial to record, and roughly how much of it the held-out test needs (ten blocks of three
 windows in which the readings differ: search.py's least count for z ≥ 3).
 
+A rival recorded on a trial is refitted to it, so the trial must part the two readings however the
+rival's own numbers move: on each trial the rival's quantities are refitted to the first reading's
+free runs there, and the trial is judged by what is left (the T-optimal criterion of model
+discrimination [Atkinson-Fedorov-1975]: the least discrepancy the rival can reach). Refitted on the
+trial alone, the rival may take values the recorded log would refuse, so what is left is a lower
+bound of the separation a diagnosis of the log and the trial together would see. Unrefitted, a
+weaker thrust and more yaw damping part by 17× a twin's misfit in spins, and the BlueBoat's
+diagnosis still could not tell them apart with spins recorded: the damping's yaw scale took the
+spins up alone. A candidate that is scanned (a time shift, a dead zone: a staircase cost) is not
+refitted.
+
 A propeller-and-rudder ship is driven by shaft speed and rudder, not PWM: its trials are not in
 this library, and its rivals get the family's advice alone (report.py).
 """
@@ -22,15 +33,23 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from ..drive import InputSeries
+from ..effects import Candidate
 from ..engine.batch import simulate_many
 from ..engine.mjcf import compile_vessel
+from ..errors import TwinError
 from ..synth.manoeuvres import TRIALS, trial
 from ..vessel import Vessel
 from .search import BLOCK_WINDOWS
 
-EVERY_S = 2.0  # a window starts this often along a trial (overlapping, as the trial is short)
+EVERY_S = 4.0  # a window starts this often along a trial (overlapping, as the trial is short)
+TIMESTEP_S = 0.05  # RK4 step of the trials' runs: the diagnosis's own for its candidates (doctor.SEARCH_TIMESTEP_S)
+MIMIC_NFEV = 6  # the rival's refit on a trial: solver steps (a few quantities, a smooth cost)
+REFIT_TRIALS = 3  # trials whose rival is refitted, the most telling unrefitted first (each refit: a few seconds)
+MIMIC_DIFF_STEP = 1e-3  # its finite-difference step, relative
+DIVERGED_RESIDUAL = 1e3  # a window the refitted rival diverges in: far off, in yardstick units
 SETTLE_BLOCKS = 10  # blocks with every vote for one reading that z ≥ 3 needs (search.py)
 DOFS = ("u", "v", "r")
 TRIAL_WORDS = {
@@ -56,6 +75,7 @@ class Separation:
     ratio: float
     share: float
     minutes: float | None
+    refitted: bool = False  # the rival's quantities refitted to the first reading on this trial
 
     @property
     def words(self) -> str:
@@ -73,31 +93,91 @@ def _from(series: InputSeries, t0_s: float) -> InputSeries:
     return InputSeries(t, series.values[i0:], series.kind)
 
 
-def _window_differences(first, second, series: InputSeries, window_s: float) -> np.ndarray | None:
-    """(windows, 3) RMS difference of u, v, r between the two compiled readings' free runs, each window
-    started from the first reading's state along the trial; None when the first diverges."""
+@dataclass
+class _TrialWindows:
+    """A trial cut into free-run windows along the first reading's run: their inputs, where each starts,
+    and the first reading's velocities in each (None where it diverged)."""
+
+    pieces: list[InputSeries]
+    starts: dict
+    first_nu: list[np.ndarray | None]
+    window_s: float
+
+    def run(self, compiled) -> list[np.ndarray | None]:
+        runs = simulate_many(compiled, self.pieces, [self.window_s] * len(self.pieces), timestep_s=TIMESTEP_S,
+                             **self.starts)
+        return [None if r is None else r.nu for r in runs]
+
+    def differences(self, second_nu: list[np.ndarray | None]) -> np.ndarray | None:
+        """(windows, 3) RMS difference of u, v, r from the first reading (windows where both ran)."""
+        out = [np.sqrt(np.mean((b - a) ** 2, axis=0)) for a, b in zip(self.first_nu, second_nu)
+               if a is not None and b is not None]
+        return np.array(out) if out else None
+
+
+def _trial_windows(first, series: InputSeries, window_s: float) -> _TrialWindows | None:
+    """The trial's windows (_TrialWindows), None when the first reading diverges on it."""
     duration = float(series.t[-1]) + 0.1
-    whole = simulate_many(first, [series], [duration], sample_dt_s=0.1)[0]
+    whole = simulate_many(first, [series], [duration], sample_dt_s=0.1, timestep_s=TIMESTEP_S)[0]
     if whole is None:
         return None
     starts = np.arange(0.0, duration - window_s + 1e-9, EVERY_S)
     rows = [int(np.argmin(np.abs(whole.t - t0))) for t0 in starts]
-    pieces = [_from(series, t0) for t0 in starts]
     kwargs = dict(eta0=[tuple(whole.eta[i]) for i in rows], nu0=[tuple(whole.nu[i]) for i in rows],
                   start_s=list(starts), sample_dt_s=0.1)
-    a = simulate_many(first, pieces, [window_s] * len(pieces), **kwargs)
-    b = simulate_many(second, pieces, [window_s] * len(pieces), **kwargs)
-    out = [np.sqrt(np.mean((rb.nu - ra.nu) ** 2, axis=0)) for ra, rb in zip(a, b) if ra is not None and rb is not None]
-    return np.array(out) if out else None
+    tw = _TrialWindows([_from(series, t0) for t0 in starts], kwargs, [], window_s)
+    tw.first_nu = tw.run(first)
+    return tw
 
 
-def separations(first: Vessel, second: Vessel, yardstick: dict[str, float], window_s: float = 10.0) -> list[Separation]:
+def _mimicked(tw: _TrialWindows, second: Vessel, rival: Candidate, scale: np.ndarray) -> list[np.ndarray | None]:
+    """The second reading's windows with the rival's quantities refitted to the first reading's on
+    this trial (least squares in units of `scale`, the first reading's windows as the data)."""
+    params = rival.params
+    lo, hi = np.array([p.lo for p in params], float), np.array([p.hi for p in params], float)
+    typical = np.array([max(abs(p.typical), 1e-6) for p in params], float)
+    x0 = np.clip(np.array([p.get(second) for p in params], float), lo, hi)
+
+    def vessel_at(x: np.ndarray) -> Vessel:
+        v = second
+        for p, value in zip(params, x):
+            v = p.put(v, float(value))
+        return v
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        nu = tw.run(compile_vessel(vessel_at(x)))
+        parts = [((b - a) / scale).ravel() if b is not None else np.full(a.size, DIVERGED_RESIDUAL)
+                 for a, b in zip(tw.first_nu, nu) if a is not None]
+        return np.concatenate(parts)
+
+    try:
+        sol = least_squares(residuals, x0, bounds=(lo, hi), x_scale=typical, max_nfev=MIMIC_NFEV,
+                            diff_step=MIMIC_DIFF_STEP)
+        x = sol.x
+    except (TwinError, ValueError):  # a value the vessel's checks refuse: the rival as fitted on the log
+        x = x0
+    return tw.run(compile_vessel(vessel_at(x)))
+
+
+def _separation(name: str, diffs: np.ndarray, scale: np.ndarray, window_s: float, refitted: bool) -> Separation:
+    ratios = diffs / scale
+    k = int(np.argmax(np.median(ratios, axis=0)))
+    share = float(np.mean(np.max(ratios, axis=1) > 1.0))
+    minutes = SETTLE_BLOCKS * BLOCK_WINDOWS * window_s / share / 60.0 if share > 0 else None
+    return Separation(name, DOFS[k], float(np.median(diffs[:, k])), float(np.median(ratios[:, k])), share, minutes,
+                      refitted)
+
+
+def separations(first: Vessel, second: Vessel, yardstick: dict[str, float], window_s: float = 10.0,
+                rival: Candidate | None = None) -> list[Separation]:
     """Each PWM trial's separation of two readings (module docstring), the most telling first.
 
     Args:
         first, second: the two readings, each a twin with its effect fitted.
         yardstick: per velocity ("u", "v", "r"; m/s, rad/s), what the twin still misses on the log.
         window_s: the diagnosis's window length (s).
+        rival: the second reading's effect as the diagnosis fits it; given (and not scanned), its
+            quantities are refitted to the first reading on each trial that could still lead.
 
     Returns:
         Separations sorted by `ratio`, largest first; empty for a vessel not driven by PWM."""
@@ -105,15 +185,24 @@ def separations(first: Vessel, second: Vessel, yardstick: dict[str, float], wind
         return []
     scale = np.array([max(float(yardstick[k]), 1e-9) for k in DOFS])
     a, b = compile_vessel(first), compile_vessel(second)
-    out = []
-    for name in TRIALS:
-        diffs = _window_differences(a, b, trial(name), window_s)
-        if diffs is None:
+    windows = {name: _trial_windows(a, trial(name), window_s) for name in TRIALS}
+    as_fitted = {}
+    for name, tw in windows.items():
+        diffs = None if tw is None else tw.differences(tw.run(b))
+        if diffs is not None:
+            as_fitted[name] = _separation(name, diffs, scale, window_s, False)
+    if rival is None or rival.scan or not rival.params:
+        return sorted(as_fitted.values(), key=lambda s: -s.ratio)
+    # a refit only narrows a trial's separation: refit in the order of the unrefitted ones, and stop once
+    # the best refitted one is ahead of every trial not yet refitted
+    out, best = [], 0.0
+    for i, sep in enumerate(sorted(as_fitted.values(), key=lambda s: -s.ratio)):
+        if sep.ratio <= best or i >= REFIT_TRIALS:
+            out.append(sep)
             continue
-        ratios = diffs / scale
-        k = int(np.argmax(np.median(ratios, axis=0)))
-        share = float(np.mean(np.max(ratios, axis=1) > 1.0))
-        minutes = SETTLE_BLOCKS * BLOCK_WINDOWS * window_s / share / 60.0 if share > 0 else None
-        out.append(Separation(name, DOFS[k], float(np.median(diffs[:, k])), float(np.median(ratios[:, k])), share,
-                              minutes))
-    return sorted(out, key=lambda s: -s.ratio)
+        tw = windows[sep.trial]
+        diffs = tw.differences(_mimicked(tw, second, rival, scale))
+        sep = sep if diffs is None else _separation(sep.trial, diffs, scale, window_s, True)
+        best = max(best, sep.ratio if sep.refitted else 0.0)
+        out.append(sep)
+    return sorted(out, key=lambda s: (not s.refitted, -s.ratio))

@@ -261,16 +261,19 @@ class Runs(list):
 
 def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durations_s: Sequence[float], *,
                   eta0=None, nu0=None, start_s: Sequence[float] | None = None, sample_dt_s: float | None = None,
-                  nthread: int | None = None) -> Runs:
+                  nthread: int | None = None, timestep_s: float | None = None) -> Runs:
     """Open-loop runs of one vessel in one rollout, as `twin.run.Run`s like `sim.simulate` returns.
 
     inputs[i] drives run i for durations_s[i] from η0[i], ν0[i] (default: at rest at the
     origin), its clock starting at recording time start_s[i] (thrust decay). Samples
     every sample_dt_s (default: every engine step). A run that diverges does not cost
     the others: it is None in the returned list and reported in `.diverged` as
-    (index, time s) on its own clock (see `Runs`)."""
+    (index, time s) on its own clock (see `Runs`). `timestep_s` overrides the model's step (a coarser
+    RK4 step where many short runs are compared, as a diagnosis's candidates are)."""
     n = len(inputs)
     model = native.with_native_params(compiled)
+    if timestep_s is not None:
+        model.opt.timestep = timestep_s
     h = model.opt.timestep
     steps = [int(round(d / h)) for d in durations_s]
     every = 1 if sample_dt_s is None else int(round(sample_dt_s / h))
