@@ -32,6 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.separate import settling  # noqa: E402
 from twin.effects import as_effect  # noqa: E402
 from twin.synth.dataset import generate  # noqa: E402
 from twin.synth.manoeuvres import trial  # noqa: E402
@@ -45,12 +46,20 @@ SETS = {  # "tour": the README's own two logs (seeds 3 and 5), where the proposa
     # fixed before the rival's refit on each trial (separate.py) was run on any set: other seeds and values
     "second": [("thrust_gain=0.88", 121), ("thrust_speed_loss=2.6", 131), ("full_thrust=0.75", 141),
                ("surge_resistance=1.5", 151), ("thrust_decay=0.05", 161), ("thruster_gain_right=0.85", 171)],
+    # fixed before a trial was proposed only where it parts the readings (separate.settling) and before a
+    # second round of proposals was taken
+    "third": [("thrust_gain=0.83", 221), ("thrust_speed_loss=3.4", 231), ("full_thrust=0.78", 241),
+              ("surge_resistance=1.35", 251), ("thrust_decay=0.035", 261), ("thruster_gain_left=0.88", 271)],
 }
+# how each set took the advice: (rule, rounds) of _record_proposals
+PROTOCOL = {"first": ("first", 1), "second": ("each", 1), "third": ("settling", 2)}
 # what the diagnosis did with each set: a set's figures stand for the code it ran on, and no set is rerun
 METHODS = {"first": "the trial on which the two readings as fitted on the log part most (no refit); the first "
                     "unsettled rival's trial recorded",
            "second": "the rival refitted on each trial to the kept reading's free runs (the least discrepancy it can "
-                     "reach); every unsettled rival's best trial recorded, each as an outing of its own"}
+                     "reach); every unsettled rival's best trial recorded, each as an outing of its own",
+           "third": "as the second, but a trial proposed only where it parts the two readings by at least what the "
+                    "twin still misses, and the advice taken again where the recorded trials leave a new rival"}
 
 
 def _named(d) -> list[dict]:
@@ -69,29 +78,58 @@ def judge(truth: str, named: list[dict]) -> dict:
     return {"exact": exact, "settled": bool(exact and not hit["unsettled"]), "others": others}
 
 
-def run_case(truth: str, seed: int, prior) -> dict:
+def _record_proposals(d, truth: str, seed: int, prior, proposals: list[dict], rule: str) -> list:
+    """The outings of the trials the diagnosis `d` proposes for its first kept effect with an unsettled
+    rival (rule "first": its first rival's best trial; "each": every rival's best, or "settling": every
+    rival's trial that separate.settling proposes), each trial once; appended to `proposals`."""
+    kept = next((e for e in d.effects if any(e.get("separations", {}).values())), None)
+    extra = []
+    if kept is None:
+        return extra
+    for rival, seps in kept["separations"].items():
+        sep = settling(seps) if rule == "settling" else (seps[0] if seps else None)
+        if sep is None or any(p["trial"] == sep["trial"] for p in proposals):
+            continue
+        length_s = float(trial(sep["trial"]).t[-1]) + 0.1
+        minutes = sep["minutes"] if sep["minutes"] is not None else 5.0
+        segments = max(1, math.ceil(minutes * 60.0 / length_s))
+        proposals.append({"kept": kept["name"], "rival": rival, **sep, "segments": segments,
+                          "length_s": round(length_s, 1)})
+        extra.append(generate(prior, effects=[truth], n_segments=segments, manoeuvres=[sep["trial"]],
+                              seed=seed + 4 + 2 * len(proposals), segment_s=(length_s, length_s)).recording)
+        if rule == "first":
+            break
+    return extra
+
+
+def _pairs_left(proposals: list[dict], named: list[dict]) -> list[str]:
+    """The rivals of `proposals` still not told from the effect they were proposed against: either of the
+    two named with the other unsettled beside it."""
+    unsettled = {(e["name"], x) for e in named for x in e["unsettled"]}
+    return sorted({p["rival"] for p in proposals
+                   if (p["kept"], p["rival"]) in unsettled or (p["rival"], p["kept"]) in unsettled})
+
+
+def run_case(truth: str, seed: int, prior, rule: str, rounds: int) -> dict:
     started = time.time()
     logs = [generate(prior, effects=[truth], n_segments=n, seed=s).recording for n, s in ((4, seed), (2, seed + 2))]
-    first = diagnose(logs, prior)
-    row = {"truth": truth, "seed": seed, "before": _named(first), **{f"before_{k}": v for k, v in
-                                                                     judge(truth, _named(first)).items()}}
-    kept = next((e for e in first.effects if any(e.get("separations", {}).values())), None)
-    row["proposals"] = []
-    if kept is not None:
-        extra = []
-        for rival, seps in kept["separations"].items():
-            sep = seps[0] if seps else None
-            if sep is None or any(p["trial"] == sep["trial"] for p in row["proposals"]):
-                continue
-            length_s = float(trial(sep["trial"]).t[-1]) + 0.1
-            minutes = sep["minutes"] if sep["minutes"] is not None else 5.0
-            segments = max(1, math.ceil(minutes * 60.0 / length_s))
-            row["proposals"].append({"kept": kept["name"], "rival": rival, **sep, "segments": segments,
-                                     "length_s": round(length_s, 1)})
-            extra.append(generate(prior, effects=[truth], n_segments=segments, manoeuvres=[sep["trial"]],
-                                  seed=seed + 4 + 2 * len(extra), segment_s=(length_s, length_s)).recording)
-        second = diagnose(logs + extra, prior)
-        row["after"] = _named(second)
+    d = diagnose(logs, prior)
+    row = {"truth": truth, "seed": seed, "before": _named(d), "proposals": [], "rounds": [],
+           **{f"before_{k}": v for k, v in judge(truth, _named(d)).items()}}
+    for _ in range(rounds):
+        n_before = len(row["proposals"])
+        extra = _record_proposals(d, truth, seed, prior, row["proposals"], rule)
+        for p in row["proposals"][n_before:]:
+            p["round"] = len(row["rounds"]) + 1
+        if not extra:
+            break
+        logs = logs + extra
+        d = diagnose(logs, prior)
+        named = _named(d)
+        row["rounds"].append({"named": named, **judge(truth, named),
+                              "rivals_left": _pairs_left(row["proposals"][n_before:], named)})
+    if row["rounds"]:
+        row["after"] = row["rounds"][-1]["named"]
         row.update({f"after_{k}": v for k, v in judge(truth, row["after"]).items()})
     row["seconds"] = round(time.time() - started, 1)
     return row
@@ -107,20 +145,35 @@ def _text(named: list[dict]) -> str:
 def _proposals(r: dict) -> str:
     if not r["proposals"]:
         return "-"
-    return "; ".join(f"{p['trial']} ({p['segments']} × {p['length_s']:g} s; {p['dof']} {p['ratio']:.1f}× what the "
+    return "; ".join(f"{'round ' + str(p['round']) + ': ' if p.get('round', 1) > 1 else ''}{p['trial']} "
+                     f"({p['segments']} × {p['length_s']:g} s; {p['dof']} {p['ratio']:.1f}× what the "
                      f"twin still misses{'' if p.get('refitted') else ', not refitted'}) to tell {p['kept']} from "
                      f"{p['rival']}" for p in r["proposals"])
 
 
+def _rounds(r: dict) -> list[dict]:
+    """A row's rounds of recorded trials (a set run before rounds were kept: its one diagnosis after)."""
+    if "rounds" in r:
+        return r["rounds"]
+    return [] if "after" not in r else [{"named": r["after"], **judge(r["truth"], r["after"]),
+                                         "rivals_left": _pairs_left(r["proposals"], r["after"])}]
+
+
 def _set_summary(name: str, rows: list[dict]) -> str:
-    proposed = [r for r in rows if r["proposals"]]
-    settled = sum(r.get("after_settled", False) for r in proposed)
-    open_ = sum(r.get("after_exact", False) and not r.get("after_settled", False) for r in proposed)
-    wrong = sum(not r.get("after_exact", False) for r in proposed)
-    return (f"Set {name} ({METHODS[name]}): of {len(rows)} truths, the two outings named {sum(r['before_exact'] for r in rows)} "
-            f"exactly and left a rival unsettled in {len(proposed)}; with the proposed trials recorded, "
-            f"{settled} of those {len(proposed)} were settled (the truth named exactly, no rival left), {open_} were "
-            f"named exactly with a rival still unsettled, and {wrong} were named otherwise or beside another effect.")
+    proposed = [r for r in rows if _rounds(r)]
+    first = [_rounds(r)[0] for r in proposed]
+    last = [_rounds(r)[-1] for r in proposed]
+    targeted = sum(len({p["rival"] for p in r["proposals"] if p.get("round", 1) == 1}) for r in proposed)
+    told = targeted - sum(len(f["rivals_left"]) for f in first)
+    text = (f"Set {name} ({METHODS[name]}): of {len(rows)} truths, the two outings named "
+            f"{sum(r['before_exact'] for r in rows)} exactly and {sum(r['before_settled'] for r in rows)} with no rival "
+            f"left; in {len(proposed)} a trial was proposed and recorded. The rivals the first trials were proposed for "
+            f"were told apart in {told} of {targeted}; settled after them (the truth named exactly, no rival left): "
+            f"{sum(f['settled'] for f in first)} of {len(proposed)}")
+    if any(len(_rounds(r)) > 1 for r in proposed):
+        text += f"; after the advice taken again: {sum(x['settled'] for x in last)} of {len(proposed)}"
+    wrong = sum(not x["exact"] for x in last)
+    return text + f"; named otherwise or beside another effect at the end: {wrong}."
 
 
 def page(sets: dict) -> ResultPage:
@@ -133,9 +186,9 @@ def page(sets: dict) -> ResultPage:
             ["truth", "seed", "two outings: named", "exact", "proposed trials (outings; the twins' difference)",
              "with the trials: named", "exact", "settled", "s"],
             [[r["truth"], r["seed"], _text(r["before"]), "yes" if r["before_exact"] else "no", _proposals(r),
-              _text(r["after"]) if "after" in r else "-",
-              ("yes" if r["after_exact"] else "no") if "after" in r else "-",
-              ("yes" if r["after_settled"] else "no") if "after" in r else "-", r["seconds"]] for r in rows]))
+              " → ".join(_text(x["named"]) for x in _rounds(r)) or "-",
+              ("yes" if _rounds(r)[-1]["exact"] else "no") if _rounds(r) else "-",
+              ("yes" if _rounds(r)[-1]["settled"] else "no") if _rounds(r) else "-", r["seconds"]] for r in rows]))
     return ResultPage(
         name="separating_trials", title="Recording the trials a diagnosis proposes",
         ran="python scripts/separating_trials.py --set SET",
@@ -179,7 +232,7 @@ def main() -> int:
         prior, rows = vessel_mod.load("blueboat"), []
         sets[args.set] = {"commit": checkout_commit(ROOT), "rows": rows}
         for truth, seed in SETS[args.set]:
-            rows.append(run_case(truth, seed, prior))
+            rows.append(run_case(truth, seed, prior, *PROTOCOL[args.set]))
             r = rows[-1]
             print(f"{truth} seed {seed}: before {_text(r['before'])}; proposals {_proposals(r)}; "
                   f"after {_text(r['after']) if 'after' in r else '-'} ({r['seconds']} s)", flush=True)

@@ -99,3 +99,28 @@ def test_a_rival_refitted_on_a_trial_keeps_only_what_it_cannot_take_up(blueboat)
     assert plain["spins"].ratio > 5.0
     assert refit["spins"].refitted and refit["spins"].ratio < 0.5 * plain["spins"].ratio
     assert all(refit[t].ratio <= plain[t].ratio * (1 + 1e-6) for t in refit if refit[t].refitted)
+
+
+def test_no_trial_is_proposed_that_parts_the_readings_by_less_than_the_twin_misses():
+    """Two readings that share their quantity (surge_resistance's Xuu is quadratic_damping's) part on no
+    trial once refitted: proposing the best of them anyway sent a user to record minutes that settle
+    nothing. The answer must say no trial parts them."""
+    from twin.diagnose.separate import settling
+
+    weak = [{"trial": "full_ahead_coast", "dof": "u", "difference": 0.004, "ratio": 0.1, "share": 0.0,
+             "minutes": None, "refitted": True},
+            {"trial": "spins", "dof": "r", "difference": 0.2, "ratio": 9.0, "share": 1.0, "minutes": 5.0,
+             "refitted": False}]
+    assert settling(weak) is None  # the unrefitted 9× is an upper bound the refit did not confirm
+    good = [{**weak[0], "ratio": 2.5, "share": 0.8, "minutes": 6.25}] + weak[1:]
+    assert settling(good)["trial"] == "full_ahead_coast"
+    rival = {"name": "quadratic_damping", "z": 1.0, "separable": False, "held_out_gain": 0.2, "parameters": {}}
+    kept = {"name": "surge_resistance", "parameters": {"Xuu": 1.5}, "ci": {}, "z": 3.5, "excess_gain": 0.8,
+            "evidence": {"blocks_for": 12, "blocks_against": 0}, "rivals": [rival],
+            "separations": {"quadratic_damping": weak}}
+    fit = {k: {"r2": 0.5} for k in "uvr"}
+    d = SimpleNamespace(effects=[kept], rounds=[], unexplained=[], located=[], fit_before=fit, fit_after=fit,
+                        prior=vessel_mod.load("blueboat"), windows={"length_s": 10.0, "windows": 36})
+    first = answer(d)["next"][0]
+    assert first.startswith("to tell surge_resistance from quadratic_damping: none of the trials")
+    assert "at best 0.1×" in first

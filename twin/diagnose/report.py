@@ -23,7 +23,7 @@ from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..outputs import write
 from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
-from .separate import TRIAL_WORDS
+from .separate import TRIAL_WORDS, settling
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
@@ -146,7 +146,7 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {z_text(r['z'], Z_MIN)})")
                 families |= {_family(d, r["name"]), _family(d, e["name"])}
-    settle = [_settling(e["name"], rival, seps[0]) for e in d.effects
+    settle = [_settling(e["name"], rival, seps) for e in d.effects
               for rival, seps in (e.get("separations") or {}).items() if seps]
     blocks = int(d.windows.get("blocks", (d.windows.get("windows") or 0) // BLOCK_WINDOWS))
     if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
@@ -198,8 +198,16 @@ def answer(d) -> dict:
     return out
 
 
-def _settling(kept: str, rival: str, s: dict) -> str:
-    """The trial the two readings' twins part on most (separate.py), as the answer says it."""
+def _settling(kept: str, rival: str, seps: list[dict]) -> str:
+    """The trial the two readings' twins part on most (separate.py), as the answer says it; or that
+    none of the trials parts them."""
+    s = settling(seps)
+    if s is None:
+        best = seps[0]
+        return (f"to tell {kept} from {rival}: none of the trials ({', '.join(sorted(TRIAL_WORDS))}) parts their "
+                f"twins by what the twin still misses (at best {best['ratio']:.1f}× it, {best['trial']}"
+                f"{', the rival refitted to it' if best.get('refitted') else ''}): on this twin the two may be one "
+                "reading, and recording more of any kind may leave them so")
     dof = s["dof"]
     much = (f"about {s['minutes']:.0f} min of it" if s["minutes"] is not None and s["minutes"] >= 1.5
             else "a few repeats of it")

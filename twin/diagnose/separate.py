@@ -50,6 +50,7 @@ MIMIC_NFEV = 6  # the rival's refit on a trial: solver steps (a few quantities, 
 REFIT_TRIALS = 3  # trials whose rival is refitted, the most telling unrefitted first (each refit: a few seconds)
 MIMIC_DIFF_STEP = 1e-3  # its finite-difference step, relative
 DIVERGED_RESIDUAL = 1e3  # a window the refitted rival diverges in: far off, in yardstick units
+SETTLES_RATIO = 1.0  # a trial is proposed where the readings part by at least what the twin still misses
 SETTLE_BLOCKS = 10  # blocks with every vote for one reading that z ≥ 3 needs (search.py)
 DOFS = ("u", "v", "r")
 TRIAL_WORDS = {
@@ -157,6 +158,17 @@ def _mimicked(tw: _TrialWindows, second: Vessel, rival: Candidate, scale: np.nda
     except (TwinError, ValueError):  # a value the vessel's checks refuse: the rival as fitted on the log
         x = x0
     return tw.run(compile_vessel(vessel_at(x)))
+
+
+def settling(seps: list[dict]) -> dict | None:
+    """Of one rival's separations (as `Separation.to_dict`, best first), the trial to propose: the best
+    one that parts the two readings by at least SETTLES_RATIO of what the twin still misses, refitted
+    where the rival was; None when no trial does (the two readings may be one for these trials)."""
+    for s in seps:
+        if s["ratio"] >= SETTLES_RATIO and s["minutes"] is not None and (s.get("refitted") or
+                                                                            not any(x.get("refitted") for x in seps)):
+            return s
+    return None
 
 
 def _separation(name: str, diffs: np.ndarray, scale: np.ndarray, window_s: float, refitted: bool) -> Separation:
