@@ -154,7 +154,8 @@ def _report(result) -> None:
     sea = result.mission.sea
     say(f"{result.vessel.name}: {result.draws} draws of {result.mission.duration_s:g} s ({result.mission.source}"
         f"{'' if sea is None else '; in ' + sea.text() + ', each draw its own realisation'}) "
-        f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged, "
+        f"in {result.seconds:.1f} s on {result.executor}, {rate:.0f} simulated s/s; {len(result.diverged)} diverged "
+        "(left out of the band: a twin that runs away predicts nothing), "
         f"{result.rejected} draws redrawn as unphysical (damping that stops dissipating, or a mass matrix not "
         "positive-definite)")
     if result.rejected > result.draws:

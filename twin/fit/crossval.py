@@ -127,8 +127,9 @@ class CrossValidation:
                            if self.pooled.get(d, {}).get("r2") is not None)
         # fewer recordings than MIN_RUNS: the left-out groups are time blocks of them (held_out_groups)
         unit = "part" if self.runs and all(" part " in r.log for r in self.runs) else "run"
+        # a short part's own spread is small, so its R² runs below the pooled one and below a whole log's
         return (f"{self.label}: R² on left-out {unit}s, all together: {pooled}; {unit} by {unit}, median (range): "
-                + ", ".join(parts))
+                + ", ".join(parts) + f" (each {unit} against its own spread: lower than all together)")
 
 
 def jackknife_vessels(obj, x: np.ndarray, J: np.ndarray, r: np.ndarray, groups: np.ndarray,

@@ -435,6 +435,8 @@ def _announce(server: SitlServer, vessel: Vessel, log: Log) -> None:
         f"current {env.current_speed_m_s:g} m/s towards {env.current_dir_deg:g}°, "
         f"wind {env.wind_speed_m_s:g} m/s from {env.wind_dir_deg:g}°"
         + (f"; 6-DOF hull in {twin.sea.text()}" if twin.six_dof else ""))
+    log("waiting for ArduPilot's first servo packet (sim_vehicle.py -v Rover --model JSON, or ardurover "
+        "--model JSON:HOST); Ctrl-C ends the run")
     amended = sensor_amendments(vessel)
     if amended:
         log(f"note: the vessel file's sensor calibration ({', '.join(amended)}) is not applied: "
