@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import twin.vessel as vessel_mod
-from twin.diagnose.report import answer
-from twin.diagnose.separate import TRIAL_WORDS, separations
-from twin.effects import apply_effects
+from twin.diagnose.report import TRIAL_WORDS, answer
+from twin.diagnose.separate import comparable, separations, settling
+from twin.effects import apply_effects, candidates
 from twin.errors import TwinError
 from twin.synth.dataset import generate
 from twin.synth.manoeuvres import TRIALS, trial, trial_program
@@ -30,7 +30,8 @@ def test_one_twin_read_twice_is_separated_by_no_trial(blueboat):
 
 def test_a_weaker_thrust_and_a_loss_with_speed_part_on_spins(blueboat):
     """Under way the two take the same thrust off; on the spot the loss with speed takes almost none
-    (only the thrusters' own speed r·y) while a weaker thrust takes 15 %: spins tell them apart in r."""
+    (only the thrusters' own speed r·y) while a weaker thrust takes 15 %: spins tell them apart in r,
+    and still do with the loss's own coefficient refitted to the spins."""
     weaker = apply_effects(blueboat, [("thrust_gain", {"scale": 0.85})])
     losing = apply_effects(blueboat, [("thrust_speed_loss", {"advance_loss": 3.0})])
     seps = separations(weaker, losing, YARDSTICK)
@@ -39,6 +40,8 @@ def test_a_weaker_thrust_and_a_loss_with_speed_part_on_spins(blueboat):
     assert best.ratio > 5.0 and best.share == 1.0
     assert best.minutes == pytest.approx(10 * 3 * 10.0 / 60.0)  # ten blocks of three 10-s windows
     assert [s.ratio for s in seps] == sorted((s.ratio for s in seps), reverse=True)
+    refit = separations(weaker, losing, YARDSTICK, rival=candidates(blueboat, ["log"])["thrust_speed_loss"])
+    assert refit[0].refitted and refit[0].trial == "spins" and refit[0].ratio > 2.0
 
 
 def test_a_drag_and_a_thrust_loss_part_where_no_thrust_acts(blueboat):
@@ -89,8 +92,6 @@ def test_a_rival_refitted_on_a_trial_keeps_only_what_it_cannot_take_up(blueboat)
     """As fitted on a log, a weaker thrust and more yaw damping part widely in spins; recorded, the spins
     would move the damping's own yaw scale, so the trial is judged with the rival refitted to it: what
     is left must be far smaller than the unrefitted difference, and no refit may widen a separation."""
-    from twin.effects import candidates
-
     weaker = apply_effects(blueboat, [("thrust_gain", {"scale": 0.85})])
     damped = apply_effects(blueboat, [("quadratic_damping", {"Nrr": 1.6})])
     plain = {s.trial: s for s in separations(weaker, damped, YARDSTICK)}
@@ -105,8 +106,6 @@ def test_no_trial_is_proposed_that_parts_the_readings_by_less_than_the_twin_miss
     """Two readings that share their quantity (surge_resistance's Xuu is quadratic_damping's) part on no
     trial once refitted: proposing the best of them anyway sent a user to record minutes that settle
     nothing. The answer must say no trial parts them."""
-    from twin.diagnose.separate import settling
-
     weak = [{"trial": "full_ahead_coast", "dof": "u", "difference": 0.004, "ratio": 0.1, "share": 0.0,
              "minutes": None, "refitted": True},
             {"trial": "spins", "dof": "r", "difference": 0.2, "ratio": 9.0, "share": 1.0, "minutes": 5.0,
@@ -122,5 +121,24 @@ def test_no_trial_is_proposed_that_parts_the_readings_by_less_than_the_twin_miss
     d = SimpleNamespace(effects=[kept], rounds=[], unexplained=[], located=[], fit_before=fit, fit_after=fit,
                         prior=vessel_mod.load("blueboat"), windows={"length_s": 10.0, "windows": 36})
     first = answer(d)["next"][0]
-    assert first.startswith("to tell surge_resistance from quadratic_damping: none of the trials")
+    assert first.startswith("to tell surge_resistance from quadratic_damping: none of the trials tried")
     assert "at best 0.1×" in first
+
+
+def test_a_window_restarted_from_the_first_reading_is_its_own_run_for_the_same_twin(blueboat):
+    """A window of the second reading starts from the first's position and velocities with its own lag
+    state and its commands carried from the trial's start (a delay reaches back before the window): for
+    the same twin with a lag and a delay every window must be the continuous run, or a lag or delay
+    alone would read as a separation (a lag reset to zero at each start dipped r by 0.14 rad/s)."""
+    lagged = apply_effects(blueboat, [("thruster_lag", {"lag_s": 0.4}), ("input_delay", {"delay_s": 0.6})])
+    seps = separations(lagged, lagged, YARDSTICK)
+    assert len(seps) == len(TRIALS)
+    assert all(s.difference < 1e-9 and s.minutes is None for s in seps)
+
+
+def test_only_effects_a_trial_runs_are_compared():
+    """A sensor's effect does not change the velocities a trial runs, and a per-log one has no log there:
+    their rivals must get no trial (an answer that no trial parts them would be wrong)."""
+    assert comparable("thrust_gain") and comparable("quadratic_damping") and comparable("thruster_lag")
+    assert not comparable("heading_bias") and not comparable("gnss_latency") and not comparable("current")
+    assert not comparable("wind_per_log") and not comparable("heading_bias_per_log")

@@ -59,7 +59,7 @@ from . import locate as loc
 from .noise import estimate_noise
 from .report import FOLLOWS_R, answer, excess_share
 from .search import BLOCK_WINDOWS, Z_MIN, Search, excess_shown
-from .separate import separations
+from .separate import comparable, separations
 
 WINDOW_S = 10.0
 # the effects a recording's measured wind, given as a known input, takes the place of (their constant
@@ -184,7 +184,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     after = _residuals(amended, amended_preps, every, exact, wind)
     after_located, _, after_corr, after_overall = _locate(after, amended_preps, every, noise)
     held_before, held_after = _held_out_fits(search, prior, kept, data, exact, wind)
-    yardstick = {k: float(np.nanmax([after_overall[k]["rms"], noise.get(k, np.nan), 0.0])) for k in "uvr"}
+    yardstick = _yardstick(after_overall, noise)
     diagnosis = Diagnosis(
         prior, amended, [_kinematic_effect(f) for f in findings if f.told] + _effects(kept, search, yardstick, window_s),
         located,
@@ -569,10 +569,28 @@ def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float)
                     "improvement": {d: round(v, 4) for d, v in e.dof_rel.items()},
                     "held_out_gain": round(e.rel, 4), "excess_gain": excess_shown(e.rel_excess), "z": round(e.z, 2),
                     "evidence": e.to_dict(), "rivals": k.rivals, "separable": all(r["separable"] for r in k.rivals),
-                    "separations": {name: [s.to_dict() for s in separations(k.trial.fits[0].vessel, twin, yardstick,
-                                                                             window_s, search.library.get(name))]
-                                    for name, twin in k.unsettled.items()}})
+                    "separations": _separations(k, yardstick, window_s, search.log)})
     return out
+
+
+def _separations(k, yardstick: dict[str, float], window_s: float, log) -> dict[str, list[dict]]:
+    """For each rival the recording could not tell from the kept effect, the trials that would
+    (separate.py), where both act on what a trial runs (the hull, the thrusters)."""
+    if not comparable(k.trial.name):
+        return {}
+    out = {}
+    for name, rival in k.unsettled.items():
+        if comparable(name):
+            log(f"trials that would tell {k.trial.name} from {name}")
+            out[name] = [s.to_dict() for s in separations(k.trial.fits[0].vessel, rival.fits[0].vessel, yardstick,
+                                                         window_s, rival.candidate)]
+    return out
+
+
+def _yardstick(overall: dict, noise: dict) -> dict[str, float]:
+    """Per velocity, what the amended twin still misses on the recording: its RMS misfit, never below
+    the noise nor FORM_FLOOR (a noise-free log's estimated noise is zero)."""
+    return {k: float(np.nanmax([overall[k]["rms"], noise.get(k, np.nan), FORM_FLOOR[k]])) for k in "uvr"}
 
 
 def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:

@@ -23,7 +23,7 @@ from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..outputs import write
 from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
-from .separate import TRIAL_WORDS, settling
+from .separate import settling
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
@@ -146,7 +146,8 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {z_text(r['z'], Z_MIN)})")
                 families |= {_family(d, r["name"]), _family(d, e["name"])}
-    settle = [_settling(e["name"], rival, seps) for e in d.effects
+    window_s = float(d.windows.get("length_s") or 10.0)
+    settle = [_settling(e["name"], rival, seps, window_s) for e in d.effects
               for rival, seps in (e.get("separations") or {}).items() if seps]
     blocks = int(d.windows.get("blocks", (d.windows.get("windows") or 0) // BLOCK_WINDOWS))
     if not d.effects and blocks < MIN_UNANIMOUS_BLOCKS:
@@ -198,23 +199,35 @@ def answer(d) -> dict:
     return out
 
 
-def _settling(kept: str, rival: str, seps: list[dict]) -> str:
+# the trials (synth.manoeuvres.TRIALS) as the answer names them
+TRIAL_WORDS = {
+    "full_ahead_coast": "full ahead from rest for 25 s, then the thrusters at neutral to coast down",
+    "throttle_steps": "throttle steps from rest (a quarter, half, three quarters, full, 8 s each), then neutral",
+    "spins": "spins on the spot both ways (12 s each, 0.8 of full on each stick)",
+    "turns": "turns both ways at 0.6 throttle, 15 s each",
+    "astern_stop": "astern at 0.8 for 15 s, then neutral",
+}
+
+
+def _settling(kept: str, rival: str, seps: list[dict], window_s: float) -> str:
     """The trial the two readings' twins part on most (separate.py), as the answer says it; or that
-    none of the trials parts them."""
+    none of the trials tried parts them."""
     s = settling(seps)
     if s is None:
         best = seps[0]
-        return (f"to tell {kept} from {rival}: none of the trials ({', '.join(sorted(TRIAL_WORDS))}) parts their "
-                f"twins by what the twin still misses (at best {best['ratio']:.1f}× it, {best['trial']}"
-                f"{', the rival refitted to it' if best.get('refitted') else ''}): on this twin the two may be one "
+        tried = [x["trial"] for x in seps if x.get("refitted")] or [x["trial"] for x in seps]
+        return (f"to tell {kept} from {rival}: none of the trials tried ({', '.join(tried)}"
+                f"{', the rival refitted to each' if best.get('refitted') else ''}) parts their twins by what the twin "
+                f"still misses (at best {best['ratio']:.1f}× it, {best['trial']}): on this twin the two may be one "
                 "reading, and recording more of any kind may leave them so")
     dof = s["dof"]
     much = (f"about {s['minutes']:.0f} min of it" if s["minutes"] is not None and s["minutes"] >= 1.5
             else "a few repeats of it")
-    return (f"to tell {kept} from {rival}: {TRIAL_WORDS[s['trial']]} ({much}); there the two twins' 10-s free runs "
-            f"differ by {_shown(dof, s['difference']):.2g} {DOF_UNITS[dof]} in {dof}, {s['ratio']:.1f}× what the "
-            f"twin still misses (a prediction of the two twins{', the rival refitted to the trial' if s.get('refitted') else ''}"
-            f", in {100 * s['share']:.0f} % of its windows)")
+    return (f"to tell {kept} from {rival}: {TRIAL_WORDS[s['trial']]} ({much}); there the two twins' "
+            f"{window_s:g}-s free runs differ by {_shown(dof, s['difference']):.2g} {DOF_UNITS[dof]} in {dof}, "
+            f"{s['ratio']:.1f}× what the twin still misses (a prediction of the two twins"
+            f"{', the rival refitted to the trial' if s.get('refitted') else ''}, in {100 * s['share']:.0f} % of "
+            "its windows)")
 
 
 def at_edge(d) -> list[dict]:

@@ -191,12 +191,12 @@ class Trial:
 
 @dataclass
 class Kept:
-    """An effect kept, the rivals judged beside it, and the twins of those the recording cannot tell
-    from it (each fitted on the first fold's training windows, as the kept one's `trial.fits[0]`)."""
+    """An effect kept, the rivals judged beside it, and the trials of those the recording cannot tell
+    from it (their `fits[0]` fitted on the same fold's training windows as the kept one's)."""
 
     trial: Trial
     rivals: list[dict]
-    unsettled: dict[str, Vessel] = field(default_factory=dict)
+    unsettled: dict[str, Trial] = field(default_factory=dict)
 
 
 @dataclass
@@ -608,8 +608,8 @@ class Search:
             self.log(f"kept {winner.name}: held-out misfit −{100 * e.rel:.1f} % (−{100 * e.rel_excess:.1f} % of "
                      f"the excess over the noise), z = {e.z:.1f} over {e.blocks_for + e.blocks_against} blocks")
             by_name = {t.name: t for t in trials}
-            kept.append(Kept(winner, rivals, {r["name"]: by_name[r["name"]].fits[0].vessel
-                                              for r in rivals if not r["separable"] and by_name[r["name"]].fits}))
+            kept.append(Kept(winner, rivals, {r["name"]: by_name[r["name"]] for r in rivals
+                                              if not r["separable"] and by_name[r["name"]].fits}))
             kept, outdone = without_superseded(kept, winner)
             for name in sorted(outdone):
                 self.log(f"dropped {name}: {winner.name} supersedes it (it can do nothing more beside it)")

@@ -261,19 +261,16 @@ class Runs(list):
 
 def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durations_s: Sequence[float], *,
                   eta0=None, nu0=None, start_s: Sequence[float] | None = None, sample_dt_s: float | None = None,
-                  nthread: int | None = None, timestep_s: float | None = None) -> Runs:
+                  nthread: int | None = None) -> Runs:
     """Open-loop runs of one vessel in one rollout, as `twin.run.Run`s like `sim.simulate` returns.
 
     inputs[i] drives run i for durations_s[i] from η0[i], ν0[i] (default: at rest at the
     origin), its clock starting at recording time start_s[i] (thrust decay). Samples
     every sample_dt_s (default: every engine step). A run that diverges does not cost
     the others: it is None in the returned list and reported in `.diverged` as
-    (index, time s) on its own clock (see `Runs`). `timestep_s` overrides the model's step (a coarser
-    RK4 step where many short runs are compared, as a diagnosis's candidates are)."""
+    (index, time s) on its own clock (see `Runs`)."""
     n = len(inputs)
     model = native.with_native_params(compiled)
-    if timestep_s is not None:
-        model.opt.timestep = timestep_s
     h = model.opt.timestep
     steps = [int(round(d / h)) for d in durations_s]
     every = 1 if sample_dt_s is None else int(round(sample_dt_s / h))
@@ -288,22 +285,27 @@ def simulate_many(compiled: CompiledVessel, inputs: Sequence[InputSeries], durat
     # a run counts as diverged only if it blew up within its own duration (the rest is padding)
     diverged = [(i, starts[i] + t) for i, t in diverged if t <= steps[i] * h + 1e-9]
     bad = {i for i, _ in diverged}
-    qpos, dof = _joint_indices(model)
     runs = [None if i in bad else _run(compiled, model, series, states0[i], traj[i, : steps[i]],
-                                       controls[i, : steps[i]], every, starts[i], qpos, dof)
+                                       controls[i, : steps[i]], every, starts[i])
             for i, series in enumerate(inputs)]
     return Runs(runs, diverged)
 
 
+def poses_and_velocities(model: mujoco.MjModel, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """η (n, 3: N m, E m, ψ rad) and ν (n, 3: u, v m/s, r rad/s) of full-physics states (n, nstate)."""
+    qpos, dof = _joint_indices(model)
+    eta = states[:, [1 + q for q in qpos]]
+    w = states[:, [1 + model.nq + d for d in dof]]
+    c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
+    return eta, np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
+
+
 def _run(compiled: CompiledVessel, model: mujoco.MjModel, series: InputSeries, state0: np.ndarray,
-         traj: np.ndarray, controls: np.ndarray, every: int, start_s: float, qpos, dof):
+         traj: np.ndarray, controls: np.ndarray, every: int, start_s: float):
     """One rollout trajectory (full-physics states after each step) as a Run sampled every `every` steps."""
     h = model.opt.timestep
     full = np.vstack([state0, traj])[::every]
-    eta = full[:, [1 + q for q in qpos]]
-    w = full[:, [1 + model.nq + d for d in dof]]
-    c, s = np.cos(eta[:, 2]), np.sin(eta[:, 2])
-    nu = np.column_stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]])
+    eta, nu = poses_and_velocities(model, full)
     t_rel = np.arange(len(full)) * every * h
     act = full[:, 1 + model.nq + model.nv: 1 + model.nq + model.nv + model.na] if model.na else None
     cmd = act if act is not None else np.vstack([controls, controls[-1]])[::every]
