@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -58,7 +59,7 @@ from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
 from .report import FOLLOWS_R, answer, excess_share
-from .search import BLOCK_WINDOWS, Z_MIN, Search, excess_shown
+from .search import BLOCK_WINDOWS, Z_MIN, Kept, Search, excess_shown
 from .separate import comparable, separations
 
 WINDOW_S = 10.0
@@ -553,7 +554,7 @@ def _estimator_exact(preps: list[Prepared], time_in_window_s: np.ndarray, n: int
     return (time_in_window_s > lead_s + 1e-9) & (time_in_window_s <= n * s.grid_dt - tail_s + 1e-9)
 
 
-def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float) -> list[dict]:
+def _effects(kept: list[Kept], search: Search, yardstick: dict[str, float], window_s: float) -> list[dict]:
     """The kept effects as the answer gives them; `yardstick` (per velocity, what the amended twin still
     misses, never below the noise) and `window_s` judge the trials that would settle a rival."""
     out = []
@@ -573,7 +574,8 @@ def _effects(kept, search: Search, yardstick: dict[str, float], window_s: float)
     return out
 
 
-def _separations(k, yardstick: dict[str, float], window_s: float, log) -> dict[str, list[dict]]:
+def _separations(k: Kept, yardstick: dict[str, float], window_s: float, log: Callable[[str], None]
+                 ) -> dict[str, list[dict]]:
     """For each rival the recording could not tell from the kept effect, the trials that would
     (separate.py), where both act on what a trial runs (the hull, the thrusters)."""
     if not comparable(k.trial.name):
