@@ -51,7 +51,7 @@ SETS = {  # "tour": the README's own two logs (seeds 3 and 5), where the proposa
     "third": [("thrust_gain=0.83", 221), ("thrust_speed_loss=3.4", 231), ("full_thrust=0.78", 241),
               ("surge_resistance=1.35", 251), ("thrust_decay=0.035", 261), ("thruster_gain_left=0.88", 271)],
     # fixed once the trials' windows started from each reading's own lag state and its commands
-    # carried from the trial's start), refits past the cap while none settles, hull and thruster effects only
+    # carried from the trial's start, refits past the cap while none settles, hull and thruster effects only
     "fourth": [("thrust_gain=0.86", 321), ("thrust_speed_loss=2.8", 331), ("full_thrust=0.82", 341),
                ("surge_resistance=1.45", 351), ("thrust_decay=0.045", 361), ("thruster_gain_right=0.82", 371)],
 }
