@@ -225,8 +225,21 @@ ELEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides and dire
     Case("wind-gusty-5.5-300", "wind", 139, wind_speed_m_s=5.5, wind_from_deg=300.0, gust_sigma_m_s=1.1, gust_tau_s=14.0),
     Case("wind-steady-7-120", "wind", 140, wind_speed_m_s=7.0, wind_from_deg=120.0),
 ]
+TWELFTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-w", "null", 141),
+    Case("null-x", "null", 142),
+    Case("dead_zone-left-soft-50-100us", "dead_zone", 143, side="left", inner_us=50.0, outer_us=100.0),
+    Case("dead_zone-right-hard-85us", "dead_zone", 144, side="right", inner_us=85.0, outer_us=85.0),
+    Case("speed_loss-0.14u", "speed_loss", 145, k=0.14, power=1),
+    Case("speed_loss-0.12u2", "speed_loss", 146, k=0.12, power=2),
+    Case("sag-exp-320s", "sag_exp", 147, k=0.24, tau_s=320.0),
+    Case("sag-square-0.28", "sag_square", 148, k=0.28),
+    Case("wind-gusty-6.5-210", "wind", 149, wind_speed_m_s=6.5, wind_from_deg=210.0, gust_sigma_m_s=1.0, gust_tau_s=13.0),
+    Case("wind-steady-5-70", "wind", 150, wind_speed_m_s=5.0, wind_from_deg=70.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
-        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH}
+        "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
+        "twelfth": TWELFTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}
