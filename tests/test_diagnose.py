@@ -583,13 +583,43 @@ def test_the_rival_the_blocks_prefer_is_kept_when_it_earns_its_place_too():
     winner, stand_in, weak, leaning_more = (trial("thrust_speed_loss", 5.0, 0.30), trial("quadratic_damping", 4.8, 0.29),
                                             trial("linear_damping", 2.0, 0.29), trial("speed_damping", 4.0, 0.28))
     trials = [winner, stand_in, weak, leaning_more]
-    rivals = [{"name": "quadratic_damping", "z": -1.8}, {"name": "linear_damping", "z": -2.5},
-              {"name": "speed_damping", "z": -1.4}]
+    rivals = [{"name": "quadratic_damping", "z": -1.8, "separable": False},
+              {"name": "linear_damping", "z": -2.5, "separable": False},
+              {"name": "speed_damping", "z": -1.4, "separable": False}]
     assert Search._preferred(winner, trials, rivals) is stand_in  # linear_damping leans more but does not earn
     rivals[2]["z"] = -2.2
     assert Search._preferred(winner, trials, rivals) is leaning_more
-    assert Search._preferred(winner, trials, [{"name": "quadratic_damping", "z": -1.2}]) is winner
+    assert Search._preferred(winner, trials, [{"name": "quadratic_damping", "z": -1.2, "separable": False}]) is winner
     assert Search._preferred(winner, trials, []) is winner
+
+
+def test_where_the_blocks_lean_to_neither_the_rival_with_fewer_quantities_is_kept():
+    """A three-scale damping with the larger pooled gain against a one-quantity thrust scale the blocks
+    cannot tell from it (|z| < 1.5): the thrust scale is kept; not where the blocks lean to the damping
+    (z ≥ 1.5), nor where the thrust scale does not earn its place, nor where it is told apart."""
+    from twin.diagnose.search import Evidence, Search, Trial
+    from twin.effects.spec import Candidate
+
+    def trial(name, n, z, rel):
+        return Trial(Candidate(name, tuple(f"q{i}" for i in range(n)), ((0.0,) * n,), lambda p: None, "drag"), [],
+                     Evidence(z, rel, rel, {}, 10, 0, 10))
+
+    damping, scale, two = trial("linear_damping", 3, 5.7, 0.55), trial("thrust_gain", 1, 7.0, 0.42), \
+        trial("surge_resistance", 2, 6.0, 0.50)
+    trials = [damping, scale, two]
+
+    def rivals(z_scale, z_two=0.5, separable=False):
+        return [{"name": "thrust_gain", "z": z_scale, "separable": separable},
+                {"name": "surge_resistance", "z": z_two, "separable": False}]
+
+    assert Search._preferred(damping, trials, rivals(0.14)) is scale  # the fewest, not merely fewer
+    assert Search._preferred(damping, trials, rivals(-1.4)) is scale
+    assert Search._preferred(damping, trials, rivals(1.6)) is two  # the blocks lean away from the scale
+    assert Search._preferred(damping, trials, rivals(1.6, 1.6)) is damping
+    assert Search._preferred(damping, trials, rivals(3.5, 1.6, separable=True)) is damping
+    weak = [damping, trial("thrust_gain", 1, 2.5, 0.42)]
+    assert Search._preferred(damping, weak, rivals(0.1)[:1]) is damping
+    assert Search._preferred(scale, trials, [{"name": "linear_damping", "z": -0.3, "separable": False}]) is scale
 
 
 def test_a_window_votes_when_its_residuals_move_by_half_a_noise_sigma():
@@ -720,7 +750,7 @@ def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms(
     s = search.Search.__new__(search.Search)
     s.library = {name: SimpleNamespace(name=name) for name in order}
     s.screen = lambda base, cand: [SimpleNamespace(candidate=SimpleNamespace(name=cand.name, log_of_param=()),
-                                                   train_cost=order.index(cand.name))]
+                                                   train_cost=0.0, screen_cost=order.index(cand.name))]
     s.trial = lambda bases, costs, f: SimpleNamespace(
         name=f.candidate.name, evidence=SimpleNamespace(earns_its_place=lambda: False, rel_excess=0.0))
     s.log = lambda text: None
@@ -729,3 +759,21 @@ def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms(
     assert judged == {"speed_damping", "speed_coupling", "full_thrust", "current"}
     assert {t.name for t in s.round([None], None, set(), earth_slot=False)} == set(order[:3])
     assert {t.name for t in s.round([None], None, {"current"})} == set(order[:3]) | {"wind"}
+
+
+def test_screening_ranks_on_windows_its_step_did_not_fit(prior):
+    """On a recording with nothing in it, every candidate's one screening step lowers the cost of the
+    windows it fitted (it takes up noise); on the first
+    fold's held-out windows the same steps gain nothing: the ranking follows what carries to data
+    the step did not see."""
+    ds = generate(prior, effects=[], n_segments=3, seed=2, segment_s=(35, 40), manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    search = make_search(prior, [prepare_for(ds.recording, cv, **PREP)], [ds.recording], cv, candidates(prior))
+    assert not {id(w) for w in search.screening} & {id(w) for w in search.screening_held}
+    screened = [min(search.screen(prior, c), key=lambda f: f.train_cost) for c in search.library.values()
+                if not c.scan and not c.log_of_param and len(c.params) <= 2]
+    fitted = np.array([f.train_cost for f in screened])
+    held = np.array([f.screen_cost for f in screened])
+    assert np.median(fitted) < 0.998 and np.median(held) > 1.0
+    leader = screened[int(np.argmin(fitted))]
+    assert leader.train_cost < 0.9 and leader.screen_cost > 1.05  # a heading bias fitted to noise
