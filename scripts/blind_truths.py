@@ -237,9 +237,21 @@ TWELFTH = [  # fixed before it was run: other seeds, magnitudes, sides and direc
     Case("wind-gusty-6.5-210", "wind", 149, wind_speed_m_s=6.5, wind_from_deg=210.0, gust_sigma_m_s=1.0, gust_tau_s=13.0),
     Case("wind-steady-5-70", "wind", 150, wind_speed_m_s=5.0, wind_from_deg=70.0),
 ]
+THIRTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-y", "null", 151),
+    Case("null-z", "null", 152),
+    Case("dead_zone-right-soft-55-100us", "dead_zone", 153, side="right", inner_us=55.0, outer_us=100.0),
+    Case("dead_zone-left-hard-75us", "dead_zone", 154, side="left", inner_us=75.0, outer_us=75.0),
+    Case("speed_loss-0.11u", "speed_loss", 155, k=0.11, power=1),
+    Case("speed_loss-0.15u2", "speed_loss", 156, k=0.15, power=2),
+    Case("sag-exp-240s", "sag_exp", 157, k=0.26, tau_s=240.0),
+    Case("sag-square-0.24", "sag_square", 158, k=0.24),
+    Case("wind-gusty-5-280", "wind", 159, wind_speed_m_s=5.0, wind_from_deg=280.0, gust_sigma_m_s=0.9, gust_tau_s=11.0),
+    Case("wind-steady-6-160", "wind", 160, wind_speed_m_s=6.0, wind_from_deg=160.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
         "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
-        "twelfth": TWELFTH}
+        "twelfth": TWELFTH, "thirteenth": THIRTEENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentyfifth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentysixth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -488,6 +488,20 @@ PROOF_TWENTYFIFTH = [
     Case("esso", "T3", "input_late", (0.5,)), Case("esso", "T8", "input_late", (0.75,)),
     Case("esso", "T3", "heading_late", (0.5,)), Case("esso", "T8", "heading_late", (0.6,)),
 ]
+# the twenty-sixth set takes outings L and P and Esso tests T4 and T11 again, with other values
+PROOF_TWENTYSIXTH = [
+    Case("blueboat", "L", "null"), Case("blueboat", "P", "null"),
+    Case("blueboat", "L", "current", (0.14, 80.0)), Case("blueboat", "P", "current", (0.12, 340.0)),
+    Case("blueboat", "L", "antenna", (0.30, -0.35)), Case("blueboat", "P", "antenna", (-0.25, 0.30)),
+    Case("blueboat", "L", "input_late", (0.65,)), Case("blueboat", "P", "input_late", (0.5,)),
+    Case("blueboat", "L", "thruster_scaled", ("right", 0.75)), Case("blueboat", "P", "thruster_scaled", ("left", 0.7)),
+    Case("blueboat", "L", "heading_late", (0.5,)), Case("blueboat", "P", "heading_late", (0.4,)),
+    Case("esso", "T4", "null"), Case("esso", "T11", "null"),
+    Case("esso", "T4", "current", (0.12, 20.0)), Case("esso", "T11", "current", (0.10, 200.0)),
+    Case("esso", "T4", "antenna", (0.35, 0.30)), Case("esso", "T11", "antenna", (-0.30, -0.35)),
+    Case("esso", "T4", "input_late", (0.6,)), Case("esso", "T11", "input_late", (0.7,)),
+    Case("esso", "T4", "heading_late", (0.55,)), Case("esso", "T11", "heading_late", (0.45,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -497,7 +511,7 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
           "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
           "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD, "twentyfourth": PROOF_TWENTYFOURTH,
-          "twentyfifth": PROOF_TWENTYFIFTH}
+          "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -510,10 +524,13 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "eighteenth": "concealed_effects_eighteenth", "nineteenth": "concealed_effects_nineteenth",
          "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst",
          "twentysecond": "concealed_effects_twentysecond", "twentythird": "concealed_effects_twentythird",
-         "twentyfourth": "concealed_effects_twentyfourth", "twentyfifth": "concealed_effects_twentyfifth"}
+         "twentyfourth": "concealed_effects_twentyfourth", "twentyfifth": "concealed_effects_twentyfifth",
+         "twentysixth": "concealed_effects_twentysixth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentysixth", "before"): "the diagnosis as it was when the set was fixed",
+    ("twentysixth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), not one",
     ("twentyfifth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyfifth", "after"): "screening ranked on windows its one step did not fit; of rivals the blocks lean to "
                               "neither way (|z| < 1.5) that earn their place, the one with the fewest quantities kept",
@@ -547,7 +564,7 @@ STAGE_METHODS = {
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
                       "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird",
-                      "twentyfourth", "twentyfifth"}
+                      "twentyfourth", "twentyfifth", "twentysixth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}
