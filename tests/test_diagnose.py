@@ -777,3 +777,18 @@ def test_screening_ranks_on_windows_its_step_did_not_fit(prior):
     assert np.median(fitted) < 0.998 and np.median(held) > 1.0
     leader = screened[int(np.argmin(fitted))]
     assert leader.train_cost < 0.9 and leader.screen_cost > 1.05  # a heading bias fitted to noise
+
+
+def test_screening_reaches_a_large_thrust_loss_with_speed_and_ranks_it_first():
+    """A free run's answer to a thrust loss with speed of 3.2 is far from linear in it: screened by
+    two Gauss-Newton steps it leads the constant thrust scale and the drag terms that stand in for
+    it, on the windows the steps fitted and on those they did not."""
+    prior = vessel_mod.load("blueboat")
+    ds = generate(prior, effects=["thrust_speed_loss=3.2"], n_segments=4, seed=431, manoeuvres=MIXED)
+    cv = compile_vessel(prior)
+    search = make_search(prior, [prepare_for(ds.recording, cv, **PREP)], [ds.recording], cv, candidates(prior))
+    names = ("thrust_speed_loss", "thrust_gain", "quadratic_damping", "surge_resistance", "linear_damping")
+    screened = {n: min(search.screen(prior, search.library[n]), key=lambda f: f.train_cost) for n in names}
+    assert min(screened, key=lambda n: screened[n].screen_cost) == "thrust_speed_loss"
+    assert min(screened, key=lambda n: screened[n].train_cost) == "thrust_speed_loss"
+    assert screened["thrust_speed_loss"].values["advance_loss"] == pytest.approx(3.2, rel=0.3)
