@@ -530,7 +530,9 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
     ("twentysixth", "before"): "the diagnosis as it was when the set was fixed",
-    ("twentysixth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), not one",
+    ("twentysixth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), not one, "
+                               "on held-out windows spread within each log; a thrust scale kept for its fewer "
+                               "quantities checked for a loss with speed",
     ("twentyfifth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyfifth", "after"): "screening ranked on windows its one step did not fit; of rivals the blocks lean to "
                               "neither way (|z| < 1.5) that earn their place, the one with the fewest quantities kept",

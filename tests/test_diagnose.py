@@ -740,7 +740,8 @@ def test_a_misfit_below_any_sensors_resolution_is_not_the_twins_form():
 
 def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms():
     """Screening ranks hull and thrust terms first when they take up a twin's form error; the best
-    current or wind is judged beside the first three, until an earth-fixed effect is kept."""
+    current or wind is judged beside the first three, until an earth-fixed effect is kept. The rank
+    is the cost on held-out windows (screen_cost), here the reverse of the cost on those fitted."""
     from types import SimpleNamespace
 
     import twin.diagnose.search as search
@@ -750,7 +751,7 @@ def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms(
     s = search.Search.__new__(search.Search)
     s.library = {name: SimpleNamespace(name=name) for name in order}
     s.screen = lambda base, cand: [SimpleNamespace(candidate=SimpleNamespace(name=cand.name, log_of_param=()),
-                                                   train_cost=0.0, screen_cost=order.index(cand.name))]
+                                                   train_cost=-order.index(cand.name), screen_cost=order.index(cand.name))]
     s.trial = lambda bases, costs, f: SimpleNamespace(
         name=f.candidate.name, evidence=SimpleNamespace(earns_its_place=lambda: False, rel_excess=0.0))
     s.log = lambda text: None
@@ -762,7 +763,7 @@ def test_the_best_earth_fixed_candidate_is_judged_beside_the_leading_hull_terms(
 
 
 def test_screening_ranks_on_windows_its_step_did_not_fit(prior):
-    """On a recording with nothing in it, every candidate's one screening step lowers the cost of the
+    """On a recording with nothing in it, every candidate's screening steps lower the cost of the
     windows it fitted (it takes up noise); on the first
     fold's held-out windows the same steps gain nothing: the ranking follows what carries to data
     the step did not see."""
@@ -792,3 +793,41 @@ def test_screening_reaches_a_large_thrust_loss_with_speed_and_ranks_it_first():
     assert min(screened, key=lambda n: screened[n].screen_cost) == "thrust_speed_loss"
     assert min(screened, key=lambda n: screened[n].train_cost) == "thrust_speed_loss"
     assert screened["thrust_speed_loss"].values["advance_loss"] == pytest.approx(3.2, rel=0.3)
+
+
+def test_a_thrust_scale_kept_for_its_fewer_quantities_is_checked_for_a_loss_with_speed():
+    """A linear damping (three quantities) wins a round; a constant thrust scale the blocks cannot
+    tell from it is kept for its single quantity, and then, wanting less thrust the faster the boat
+    goes on every fold, gives way to the loss with speed as a round's winner would."""
+    from twin.diagnose.search import Evidence, Search, Trial
+    from twin.effects.spec import Candidate
+
+    def trial(name, n, rel):
+        return Trial(Candidate(name, tuple(f"q{i}" for i in range(n)), ((0.0,) * n,), lambda p: None, "drag"), [],
+                     Evidence(5.0, rel, rel, {}, 10, 0, 10))
+
+    damping, scale, loss = trial("linear_damping", 3, 0.55), trial("thrust_gain", 1, 0.42), trial("thrust_speed_loss", 1, 0.40)
+    z = {("linear_damping", "thrust_gain"): 0.14, ("linear_damping", "thrust_speed_loss"): 0.3,
+         ("thrust_gain", "linear_damping"): -0.14, ("thrust_gain", "thrust_speed_loss"): 0.5,
+         ("thrust_speed_loss", "linear_damping"): -0.3, ("thrust_speed_loss", "thrust_gain"): -0.5}
+    search = Search.__new__(Search)
+    search.log = lambda text: None
+    search._rivals = lambda winner, trials, costs: [{"name": t.name, "z": z[winner.name, t.name], "separable": False}
+                                                    for t in trials if t is not winner]
+    for falls, kept in ((True, "thrust_speed_loss"), (False, "thrust_gain")):
+        search.grows_with_speed = lambda t, bases, falls=falls: [(1.0, 0.7)] * 3 if falls else None
+        winner, rivals = search._choose(damping, [damping, scale, loss], [None] * 3, None)
+        assert winner.name == kept and {r["name"] for r in rivals} == {"linear_damping", "thrust_gain",
+                                                                        "thrust_speed_loss"} - {kept}
+
+
+def test_screening_judges_every_log_on_windows_of_its_own():
+    """A short log among long ones: a stride over all held-out windows together can step over it,
+    and a wind of that log's own would then be judged on none of its windows."""
+    from twin.diagnose.search import _spread, _spread_per_log
+
+    windows = [Window(rec, 10 * k, 100) for rec, n in enumerate((31, 1, 30, 1, 31)) for k in range(n)]
+    assert {w.rec for w in _spread(windows, 32)} != set(range(5))
+    spread = _spread_per_log(windows, 32)
+    assert {w.rec for w in spread} == set(range(5)) and len(spread) <= 36
+    assert all(len([w for w in spread if w.rec == r]) >= 10 for r in (0, 2, 4))

@@ -83,8 +83,9 @@ falls with speed is what such a scale stands in for, and the speed dependence is
 A candidate that does nearly as well as the one kept (the blocks' votes between the two: z <
 Z_SEPARABLE) is reported as not separable from it by this recording. Which of two such candidates
 is kept, of those that earn their place: the one the blocks lean to (z ≥ Z_PREFER between the
-two); where they lean to neither, the one with fewer quantities; at equal numbers, the larger
-pooled held-out gain. Two effects that explain the same misfit gain nearly the same over the
+two); where they lean to neither, the one with fewer quantities; at equal numbers, the round's
+winner (the larger share of the held-out excess). A constant thrust scale so chosen is checked for
+a loss with speed as a winner is. Two effects that explain the same misfit gain nearly the same over the
 pooled windows, and the pooled sum then decides on a few windows' worth, where a term of three
 quantities takes up more of the noise than one of one: a thrust scale of 0.83 lost to a linear
 damping that scaled Xu ×5.6, Yv and Nr ×1.6 (blocks between the two z 0.14). The blocks' vote is
@@ -149,8 +150,8 @@ class Fitted:
     values: dict[str, float]
     vessel: Vessel
     train_cost: float
-    fixed: tuple[str, ...] = ()
-    screen_cost: float = float("nan")  # cost on windows its fit did not see, relative to the base's (Search.screen)  # a separable candidate's quantities left at the base's value (_pinned_only)
+    fixed: tuple[str, ...] = ()  # a separable candidate's quantities left at the base's value (_pinned_only)
+    screen_cost: float = float("nan")  # cost on windows its fit did not see, relative to the base's (Search.screen)
 
 
 def excess_shown(share: float) -> float:
@@ -257,7 +258,7 @@ class Search:
         self.sigma = dof_scale(prior, Objective(prior, [], data, windows, cache, wind=wind), np.asarray(noise_sd, float))
         self.noise_var = (np.asarray(noise_sd, float) / self.sigma) ** 2
         self.screening = _spread(self.folds[0][0], SCREEN_WINDOWS)
-        self.screening_held = _spread(self.folds[0][1], SCREEN_WINDOWS)
+        self.screening_held = _spread_per_log(self.folds[0][1], SCREEN_WINDOWS)
         self._screen_costs: dict = {}
         self.values: dict[str, float] = {}
         self.sigma_values: dict[str, float | None] = {}
@@ -351,13 +352,13 @@ class Search:
             if len(starts) > 1:  # the steps from the start the data like best
                 residuals = obj.residuals_of([obj.vessel(x) for x in starts])
                 if cand.log_of_param:
-                    starts = [self._start_per_log(obj, cand, starts, residuals)]
+                    starts = [self._start_per_log(obj, cand, starts, residuals, base)]
                 else:
                     starts = [starts[int(np.argmin([float(np.sum(r * r)) for r in residuals]))]]
             for x0 in starts:
                 x, cost = self._steps(obj, x0)
                 out.append(self._fitted(cand, obj, x, cost))
-            if self.core:  # against the core's own step on these windows, not against the core held
+            if self.core:  # against the core's own steps on these windows, not against the core held
                 base_cost = self._screen_base(base, obj.cache, stepped=True)
         self.evaluations += obj.evaluations * len(self.screening)
         stepped = bool(self.core) and not cand.scan
@@ -375,10 +376,11 @@ class Search:
         """SCREEN_STEPS Gauss-Newton steps from x0, each with a short line search (a linearised step
         can overshoot), kept only while they lower the data's cost (the prior's rows only steer the
         steps): the point reached and that cost."""
-        x = x0
-        r = obj.residuals(x)
-        cost = float(np.sum(r[: obj.n_data] ** 2))
+        x, cost = x0, None
         for _ in range(SCREEN_STEPS):
+            r = obj.residuals(x)
+            if cost is None:
+                cost = float(np.sum(r[: obj.n_data] ** 2))
             step = np.linalg.lstsq(obj.jacobian(x), -r, rcond=None)[0]
             trials = [np.clip(x + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
             costs = [float(np.sum(t * t)) for t in obj.residuals_of([obj.vessel(t) for t in trials])]
@@ -386,21 +388,24 @@ class Search:
             if costs[best] >= cost:
                 break
             x, cost = trials[best], costs[best]
-            r = obj.residuals(x)
         return x, cost
 
     def _start_per_log(self, obj: Objective, cand: Candidate, starts: list[np.ndarray],
-                       residuals: list[np.ndarray]) -> np.ndarray:
-        """Each log's quantities from the start its own windows like best (costs summed per log)."""
+                       residuals: list[np.ndarray], base: Vessel) -> np.ndarray:
+        """Each log's quantities from the start its own windows like best (costs summed per log); a
+        log none of the windows screened keeps the base's values (no start would be its data's)."""
         idx = obj.window_index()
         logs = np.array([log_name(self.data.preps[w.rec].settings.source) for w in obj.windows])
         per_window = np.array([np.bincount(idx, r * r, minlength=len(obj.windows)) for r in residuals])
         owner = np.array(list(cand.log_of_param) + [""] * (len(starts[0]) - len(cand.log_of_param)))  # core: no log
         out = np.array(starts[0], float)
         for log in set(cand.log_of_param):
+            if not np.any(logs == log):
+                out[owner == log] = [q.get(base) / sc for q, sc, o in zip(obj.params, obj.scale, owner) if o == log]
+                continue
             best = int(np.argmin(per_window[:, logs == log].sum(axis=1)))
             out[owner == log] = np.asarray(starts[best])[owner == log]
-        return out
+        return np.clip(out, *obj.bounds())
 
     def _screen_base(self, base: Vessel, cache: ModelCache, stepped: bool = False, held: bool = False) -> float:
         """The base twin's cost on the screening windows at this cache's step (kept per round);
@@ -552,12 +557,12 @@ class Search:
             if name in skip:
                 continue
             try:
-                screened.append(min(self.screen(bases[0], cand), key=lambda f: f.train_cost))
+                screened.append(min(self.screen(bases[0], cand), key=lambda f: f.screen_cost))
             except TwinError as exc:
                 self.log(f"candidate {name} skipped: {exc}")
         screened.sort(key=lambda f: f.screen_cost)
         # a short library (a vessel few effects apply to, or --effects) is judged whole: screening is
-        # a one-step look, and it is only worth its risk of passing over an effect when it saves much
+        # a two-step look, and it is only worth its risk of passing over an effect when it saves much
         # (a wind of each log's own, offered when several logs are diagnosed, does not lengthen it)
         length = sum(not f.candidate.log_of_param for f in screened)
         shortlist = screened if length <= JUDGED_WHOLE else screened[:FULL_FITS]
@@ -566,7 +571,7 @@ class Search:
         shortlist += [f for f in screened if f.candidate.name not in names and
                       f.candidate.name in {SPEED_STAND_INS[n] for n in names if n in SPEED_STAND_INS}]
         # and the best earth-fixed effect beside whatever leads: a twin's form error moves with the hull,
-        # so hull and thrust terms take it up in a one-step screening and lead it, while a current or a
+        # so hull and thrust terms take it up in screening and lead it, while a current or a
         # wind, which acts by the heading, is what no such term stands in for
         if earth_slot and not any(_earth_fixed(f.candidate.name) for f in shortlist):
             shortlist += [f for f in screened if _earth_fixed(f.candidate.name)][:1]
@@ -630,16 +635,7 @@ class Search:
             winner = next((t for t in trials if t.evidence.earns_its_place()), None)
             if winner is None:
                 break
-            winner = self._speed_form(winner, trials, bases)
-            rivals = self._rivals(winner, trials, base_costs)
-            preferred = self._preferred(winner, trials, rivals)
-            if preferred is not winner:
-                z = -next(r['z'] for r in rivals if r['name'] == preferred.name)
-                self.log(f"the blocks prefer {preferred.name} to {winner.name} (z {z:.1f}): kept instead" if z >= Z_PREFER
-                         else f"{preferred.name} and {winner.name} cannot be told apart (z {z:.1f}): the one with "
-                         f"fewer quantities ({len(preferred.candidate.params)} against "
-                         f"{len(winner.candidate.params)}) kept")
-                winner, rivals = preferred, self._rivals(preferred, trials, base_costs)
+            winner, rivals = self._choose(winner, trials, bases, base_costs)
             e = winner.evidence
             self.log(f"kept {winner.name}: held-out misfit −{100 * e.rel:.1f} % (−{100 * e.rel_excess:.1f} % of "
                      f"the excess over the noise), z = {e.z:.1f} over {e.blocks_for + e.blocks_against} blocks")
@@ -660,6 +656,23 @@ class Search:
         amended, obj, x = self.joint(kept, self.windows, start=bases[0], max_nfev=20)
         self._covariance(kept, obj, x)
         return amended, kept, rounds
+
+    def _choose(self, winner: Trial, trials: list[Trial], bases: list[Vessel],
+                base_costs: _Costs) -> tuple[Trial, list[dict]]:
+        """The effect a round keeps and its rivals: the winner in its speed form (_speed_form), or
+        the rival _preferred puts in its place, in its own speed form (module docstring)."""
+        winner = self._speed_form(winner, trials, bases)
+        rivals = self._rivals(winner, trials, base_costs)
+        preferred = self._preferred(winner, trials, rivals)
+        if preferred is winner:
+            return winner, rivals
+        z = -next(r['z'] for r in rivals if r['name'] == preferred.name)
+        self.log(f"the blocks prefer {preferred.name} to {winner.name} (z {z:.1f}): kept instead" if z >= Z_PREFER
+                 else f"{preferred.name} and {winner.name} cannot be told apart (z {z:.1f}): the one with "
+                 f"fewer quantities ({len(preferred.candidate.params)} against "
+                 f"{len(winner.candidate.params)}) kept")
+        winner = self._speed_form(preferred, trials, bases)
+        return winner, self._rivals(winner, trials, base_costs)
 
     def _backward(self, kept: list[Kept], bases: list[Vessel], base_costs: _Costs):
         """Each kept effect put back to the prior in every fold's fit: dropped when the fit does not
@@ -889,6 +902,18 @@ def _signed_rank_z(votes: np.ndarray) -> float:
 def _spread(windows: list[Window], most: int) -> list[Window]:
     """At most `most` of the windows, evenly spread over the recording."""
     return windows[::max(1, int(np.ceil(len(windows) / most)))]
+
+
+def _spread_per_log(windows: list[Window], most: int) -> list[Window]:
+    """About `most` of the windows, evenly spread within each recording and every recording kept:
+    a log's own quantities (a wind of each log's own) are judged on that log's windows, and a
+    stride over all logs together can step over a short one."""
+    stride = max(1, int(np.ceil(len(windows) / most)))
+    out = []
+    for rec in dict.fromkeys(w.rec for w in windows):
+        mine = [w for w in windows if w.rec == rec]
+        out += mine[(len(mine) % stride) // 2::stride]
+    return out
 
 
 def _plateau_middle(costs: list[float]) -> int:

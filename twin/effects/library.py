@@ -143,7 +143,7 @@ def _wind_per_log_fit(prior: Vessel, logs) -> Candidate | None:
             winds[n] = (float(np.hypot(north, east)), float(np.degrees(np.arctan2(-east, -north))))
         return effect("wind_per_log", **winds)
     # calm, and a wind of 1, 2 or 5 m/s from each of eight directions: each log takes the start its own
-    # windows like best (a log's wind acts on no other log), and one Gauss-Newton step moves every
+    # windows like best (a log's wind acts on no other log), and the screening's Gauss-Newton steps move every
     # log's wind from there (from calm alone the step barely moves: the load grows with the square of
     # the relative wind)
     starts = ((0.0,) * len(params),) + tuple((speed * np.cos(a), speed * np.sin(a)) * len(logs)
