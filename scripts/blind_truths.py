@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|ninth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|fourteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -249,9 +249,21 @@ THIRTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and di
     Case("wind-gusty-5-280", "wind", 159, wind_speed_m_s=5.0, wind_from_deg=280.0, gust_sigma_m_s=0.9, gust_tau_s=11.0),
     Case("wind-steady-6-160", "wind", 160, wind_speed_m_s=6.0, wind_from_deg=160.0),
 ]
+FOURTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-aa", "null", 161),
+    Case("null-ab", "null", 162),
+    Case("dead_zone-left-soft-60-110us", "dead_zone", 163, side="left", inner_us=60.0, outer_us=110.0),
+    Case("dead_zone-right-hard-80us", "dead_zone", 164, side="right", inner_us=80.0, outer_us=80.0),
+    Case("speed_loss-0.13u", "speed_loss", 165, k=0.13, power=1),
+    Case("speed_loss-0.1u2", "speed_loss", 166, k=0.10, power=2),
+    Case("sag-exp-280s", "sag_exp", 167, k=0.22, tau_s=280.0),
+    Case("sag-square-0.3", "sag_square", 168, k=0.30),
+    Case("wind-gusty-6-30", "wind", 169, wind_speed_m_s=6.0, wind_from_deg=30.0, gust_sigma_m_s=1.2, gust_tau_s=12.0),
+    Case("wind-steady-5.5-230", "wind", 170, wind_speed_m_s=5.5, wind_from_deg=230.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
         "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
-        "twelfth": TWELFTH, "thirteenth": THIRTEENTH}
+        "twelfth": TWELFTH, "thirteenth": THIRTEENTH, "fourteenth": FOURTEENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

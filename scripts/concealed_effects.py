@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentysixth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentyseventh] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -502,6 +502,20 @@ PROOF_TWENTYSIXTH = [
     Case("esso", "T4", "input_late", (0.6,)), Case("esso", "T11", "input_late", (0.7,)),
     Case("esso", "T4", "heading_late", (0.55,)), Case("esso", "T11", "heading_late", (0.45,)),
 ]
+# the twenty-seventh set takes outings M and S (the least used) and Esso tests T7 and T12, with other values
+PROOF_TWENTYSEVENTH = [
+    Case("blueboat", "M", "null"), Case("blueboat", "S", "null"),
+    Case("blueboat", "M", "current", (0.13, 110.0)), Case("blueboat", "S", "current", (0.11, 290.0)),
+    Case("blueboat", "M", "antenna", (-0.30, -0.30)), Case("blueboat", "S", "antenna", (0.35, 0.25)),
+    Case("blueboat", "M", "input_late", (0.55,)), Case("blueboat", "S", "input_late", (0.6,)),
+    Case("blueboat", "M", "thruster_scaled", ("left", 0.75)), Case("blueboat", "S", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "M", "heading_late", (0.45,)), Case("blueboat", "S", "heading_late", (0.55,)),
+    Case("esso", "T7", "null"), Case("esso", "T12", "null"),
+    Case("esso", "T7", "current", (0.11, 250.0)), Case("esso", "T12", "current", (0.12, 70.0)),
+    Case("esso", "T7", "antenna", (0.30, -0.35)), Case("esso", "T12", "antenna", (-0.35, 0.30)),
+    Case("esso", "T7", "input_late", (0.65,)), Case("esso", "T12", "input_late", (0.55,)),
+    Case("esso", "T7", "heading_late", (0.5,)), Case("esso", "T12", "heading_late", (0.6,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -511,7 +525,8 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "seventeenth": PROOF_SEVENTEENTH, "eighteenth": PROOF_EIGHTEENTH, "nineteenth": PROOF_NINETEENTH,
           "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
           "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD, "twentyfourth": PROOF_TWENTYFOURTH,
-          "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH}
+          "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH,
+          "twentyseventh": PROOF_TWENTYSEVENTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -525,10 +540,12 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "twentieth": "concealed_effects_twentieth", "twentyfirst": "concealed_effects_twentyfirst",
          "twentysecond": "concealed_effects_twentysecond", "twentythird": "concealed_effects_twentythird",
          "twentyfourth": "concealed_effects_twentyfourth", "twentyfifth": "concealed_effects_twentyfifth",
-         "twentysixth": "concealed_effects_twentysixth"}
+         "twentysixth": "concealed_effects_twentysixth",
+         "twentyseventh": "concealed_effects_twentyseventh"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentyseventh", "before"): "the diagnosis as it was when the set was fixed",
     ("twentysixth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentysixth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), not one, "
                                "on held-out windows spread within each log; a thrust scale kept for its fewer "
@@ -566,7 +583,7 @@ STAGE_METHODS = {
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
                       "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird",
-                      "twentyfourth", "twentyfifth", "twentysixth"}
+                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,7 +1,7 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
     git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
-    python scripts/independent_truths.py [--set first|...|eighth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
+    python scripts/independent_truths.py [--set first|...|ninth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
                                          [--only CASE,...] [--work /tmp/independent_truths]
 
 Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
@@ -142,14 +142,25 @@ CASES_EIGHTH = [  # fixed before it was run: other seeds, magnitudes, sides and 
     Case("wind_shape-5.5-190", "wind_shape", (5.5, 190.0), 89),
     Case("wind_shape-6.5-350", "wind_shape", (6.5, 350.0), 90),
 ]
+CASES_NINTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-17", "null", (), 91), Case("null-18", "null", (), 92),
+    Case("one_dead_zone-right-85-35", "one_dead_zone", ("right", 85.0, 35.0), 93),
+    Case("one_dead_zone-left-80-30", "one_dead_zone", ("left", 80.0, 30.0), 94),
+    Case("speed_loss_u2-0.16", "speed_loss_u2", (0.16,), 95), Case("speed_loss_u2-0.2", "speed_loss_u2", (0.20,), 96),
+    Case("decay-0.035", "decay", (0.035,), 97), Case("decay-0.05", "decay", (0.05,), 98),
+    Case("wind_shape-6-100", "wind_shape", (6.0, 100.0), 99),
+    Case("wind_shape-5-260", "wind_shape", (5.0, 260.0), 100),
+]
 SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH,
         "sixth": CASES_SIXTH, "seventh": CASES_SEVENTH,
-        "eighth": CASES_EIGHTH}
+        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
          "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth", "sixth": "independent_truths_sixth",
-         "seventh": "independent_truths_seventh", "eighth": "independent_truths_eighth"}
+         "seventh": "independent_truths_seventh", "eighth": "independent_truths_eighth",
+         "ninth": "independent_truths_ninth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("eighth", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("ninth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("eighth", "before"): "the diagnosis as it was when the set was fixed",
                  ("eighth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), "
                                       "not one, on held-out windows spread within each log; a thrust scale kept for its "
                                       "fewer quantities checked for a loss with speed",
