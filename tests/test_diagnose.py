@@ -667,6 +667,24 @@ def test_fit_on_an_unphysical_edge_is_not_named():
     assert not strong.earns_its_place()
 
 
+def test_a_wind_shape_pushing_harder_than_a_flat_plate_is_not_named():
+    """A wind's side-force coefficient per lateral area ends on an unphysical edge at a 2-D flat
+    plate's 2.0 and at none (a current's drift read as a light wind on a superstructure pushing
+    several times harder than a plate, as fitted at c_y 4.5): such a fit says the form is off. A
+    c_y of 1.9, or the shipped 0.8, is a wind's."""
+    from twin.diagnose.search import Fitted, at_unphysical_edge
+    prior = vessel_mod.load("blueboat")
+    shape = candidates(prior)["wind_shape"]
+    cy = next(q for q in shape.params if q.name == "cy")
+    assert (cy.lo, cy.hi, cy.edges_unphysical) == (0.0, 2.0, True)
+    fitted = lambda cy_value: Fitted(shape, {"speed_m_s": 2.0, "dir_deg": 60.0, "cy": cy_value, "cn": -0.4},  # noqa: E731
+                                     prior, 0.0)
+    assert at_unphysical_edge(shape, [fitted(2.0)] * 3) == ["cy"]
+    assert at_unphysical_edge(shape, [fitted(0.0), fitted(1e-4), fitted(0.0)]) == ["cy"]
+    assert at_unphysical_edge(shape, [fitted(1.9)] * 3) == []
+    assert at_unphysical_edge(shape, [fitted(2.0), fitted(0.8), fitted(2.0)]) == []
+
+
 def test_a_recording_too_short_for_any_dynamic_finding_says_so():
     """Seven blocks, every one for a candidate, reach z 2.4 at best in the exact signed-rank test: the
     answer says that nothing can be named from the dynamics and how much more to record, not that

@@ -773,8 +773,9 @@ def at_unphysical_edge(candidate: Candidate, fits: list[Fitted]) -> list[str]:
     not measure the effect: the data want more of it than any real vessel has, which is what a
     term compensating for another form looks like (a slower thruster read as yaw inertia), so the
     candidate is not named; the report says the form is off where it acts."""
-    def on_edge(q, x: float) -> bool:  # these ranges are multiples (lo > 0): relative distance
-        return x >= q.hi * (1 - EDGE_TOLERANCE) or x <= q.lo * (1 + EDGE_TOLERANCE)
+    def on_edge(q, x: float) -> bool:  # these ranges are multiples (lo > 0) or start at zero: relative distance
+        low = q.lo * (1 + EDGE_TOLERANCE) if q.lo > 0 else q.lo + EDGE_TOLERANCE * q.hi
+        return x >= q.hi * (1 - EDGE_TOLERANCE) or x <= low
 
     return [p.name for p in candidate.params
             if p.edges_unphysical and fits and all(p.name in f.values and on_edge(p, f.values[p.name]) for f in fits)]

@@ -175,10 +175,17 @@ def _wind_load_shape_fit(prior: Vessel, logs) -> Candidate | None:
                      lambda p: effect("wind_load_shape", cy=p["cy"], cn=p["cn"]), "drift")
 
 
+CY_MAX = 2.0  # a two-dimensional flat plate's broadside drag coefficient [Hoerner-1965]; a superstructure, finite and rounded, has less
+
+
 def _load_coefficients(prior: Vessel) -> tuple:
-    """The wind load's c_y and c_n as fitted quantities, scaled by the prior's."""
-    return (member("wind_load", "cy", "-", -5.0, 5.0, max(abs(prior.wind_load.cy), 0.1)),
-            member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05)))
+    """The wind load's c_y and c_n as fitted quantities, scaled by the prior's. c_y is a side force per
+    lateral area: between none and a two-dimensional flat plate's broadside (CY_MAX; the shipped
+    vessels' 0.8). Both ends are unphysical edges: a fit that ends on one (a current's
+    drift read as a light wind on a superstructure pushing twice as hard as a flat plate) says the
+    form is off, not that the superstructure is so (diagnose/search.py: at_unphysical_edge)."""
+    cy = replace(member("wind_load", "cy", "-", 0.0, CY_MAX, max(abs(prior.wind_load.cy), 0.1)), edges_unphysical=True)
+    return (cy, member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05)))
 
 
 def wind_shape(vessel: Vessel, speed_m_s: float, dir_deg: float, cy: float, cn: float) -> Vessel:
