@@ -546,6 +546,7 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
     ("twentyseventh", "before"): "the diagnosis as it was when the set was fixed",
+    ("twentyseventh", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
     ("twentysixth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentysixth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), not one, "
                                "on held-out windows spread within each log; a thrust scale kept for its fewer "

@@ -160,6 +160,7 @@ PAGES = {"first": "independent_truths", "second": "independent_truths_second", "
          "ninth": "independent_truths_ninth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
 STAGE_METHODS = {("ninth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("ninth", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
                  ("eighth", "before"): "the diagnosis as it was when the set was fixed",
                  ("eighth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), "
                                       "not one, on held-out windows spread within each log; a thrust scale kept for its "
