@@ -306,15 +306,10 @@ def test_a_lag_filtered_ahead_of_the_engine_is_exact_and_stable_at_any_step():
     np.testing.assert_allclose(got[-1], commands[-1], atol=1e-9)
 
 
-def test_diagnose_finds_a_concealed_current_and_nothing_on_the_twins_own_data(prior):
-    ds = generate(prior, effects=["current=0.2,120"], n_segments=6, seed=5, noise=PROFILES["realistic"])
-    d = diagnose([ds.recording], prior)
-    assert [e["name"] for e in d.effects] == ["current"]
-    e = d.effects[0]
-    lo, hi = e["ci"]["speed_m_s"]
-    assert lo - 0.01 <= 0.2 <= hi + 0.01 and abs(e["parameters"]["dir_deg"] - 120) < 5
-    assert d.fit_after["v"]["r2"] > d.fit_before["v"]["r2"] + 0.3
-    assert d.amended.environment.current_speed_m_s == pytest.approx(e["parameters"]["speed_m_s"], rel=1e-6)
+def test_diagnose_names_nothing_on_the_twins_own_realistic_run(prior):
+    """The whole library on the twin's own run with realistic sensors: nothing named, the answer said in
+    notes. (A concealed current named with its interval and put into the amended twin: the tour
+    notebook's test, tests/test_docs.py.)"""
     null = diagnose([generate(prior, n_segments=6, seed=6, noise=PROFILES["realistic"]).recording], prior)
     assert null.effects == [] and null.notes
     json.dumps(null.to_dict(), allow_nan=True)
@@ -736,7 +731,7 @@ def test_a_twins_own_noise_free_run_is_not_read_as_the_twins_form():
     # velocities and the input log's 0.1-s sampling read as u, v, r 27-57× the noise off
     boat = vessel_mod.load("blueboat")
     ds = generate(boat, n_segments=6, seed=8, noise=PROFILES["none"])
-    d = diagnose([ds.recording], boat)
+    d = diagnose([ds.recording], boat, library=["current"])  # the replay and its floor: no search needed
     over = {dof: o["rms_over_noise"] for dof, o in d.overall["before"].items()}
     # the first second, where the run starts from the estimator's smoothed state, read as v 3.1×
     assert max(over.values()) < 2.0, over
