@@ -2,6 +2,7 @@
 injected in, the whole diagnosis on a concealed effect and on the twin's own data,
 and the command's outputs."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -158,7 +159,6 @@ def test_an_identified_twin_weighs_each_dof_by_its_own_misfit_there(prior):
     """A twin that carries its form error (identified on other runs) scales each DOF's residual by
     √(noise² + its RMS misfit on the recordings): every DOF then costs about as much per sample,
     however poorly the twin predicts it; a prior keeps the spread of the measured signal."""
-    from dataclasses import replace
 
     from twin.diagnose.search import dof_scale
     from twin.fit.objective import Objective
@@ -211,7 +211,6 @@ def test_a_logged_pack_voltage_reaches_the_windows_and_offers_the_supply_effect(
     """A recording with a battery stream: held on the grid (its first reading before it), its 99th
     percentile the reference, and the windows' thrust commands scaled by (V/V_ref)^k; a log without
     one, in the same diagnosis, withdraws the offer."""
-    from dataclasses import replace
     from twin.fit.windows import thrust_commands
 
     ds = generate(prior, effects=["supply_voltage=2,16"], n_segments=3, seed=2, noise=PROFILES["none"],
@@ -238,7 +237,6 @@ def test_a_delay_within_an_engine_step_moves_the_thrust_by_the_share_of_the_step
     """The engine holds each command over its 0.05-s step: the step's mean of the logged input, so
     a 0.02-s delay is 0.4 of the way from no delay to one whole step (held at the step's start,
     every delay within a step would give the same thrust and a fitted delay a plateau a step wide)."""
-    from dataclasses import replace
     from twin.fit.windows import thrust_commands
 
     ds = generate(prior, n_segments=1, seed=4, noise=PROFILES["none"], segment_s=(40, 41), manoeuvres=MIXED)
@@ -254,7 +252,6 @@ def test_a_lags_and_a_gains_trials_share_the_commands_and_each_lag_starts_from_i
     """The commands are the same for every lag, gain and advance loss, so the cache computes them
     once; a lag filters them from its state at the window's start, that lag's filter of the
     commands since the segment began, whichever lag was asked first; a delay is not shared."""
-    from dataclasses import replace
     from scipy.signal import lfilter
     from twin.fit.windows import thrust_commands
 
@@ -306,10 +303,22 @@ def test_a_lag_filtered_ahead_of_the_engine_is_exact_and_stable_at_any_step():
     np.testing.assert_allclose(got[-1], commands[-1], atol=1e-9)
 
 
+def test_a_concealed_current_is_named_with_an_interval_that_holds_it(prior):
+    """A current concealed in a run with realistic sensors, offered beside a thrust scale: named, its
+    95 % interval holding the truth, the amended twin carrying it and the sway's fit mended."""
+    ds = generate(prior, effects=["current=0.2,120"], n_segments=6, seed=5, noise=PROFILES["realistic"])
+    d = diagnose([ds.recording], prior, library=["current", "thrust_gain"])
+    assert [e["name"] for e in d.effects] == ["current"]
+    e = d.effects[0]
+    lo, hi = e["ci"]["speed_m_s"]
+    assert lo <= 0.2 <= hi and abs(e["parameters"]["dir_deg"] - 120) < 5
+    assert d.fit_after["v"]["r2"] > d.fit_before["v"]["r2"] + 0.3
+    assert d.amended.environment.current_speed_m_s == pytest.approx(e["parameters"]["speed_m_s"], rel=1e-6)
+
+
 def test_diagnose_names_nothing_on_the_twins_own_realistic_run(prior):
     """The whole library on the twin's own run with realistic sensors: nothing named, the answer said in
-    notes. (A concealed current named with its interval and put into the amended twin: the tour
-    notebook's test, tests/test_docs.py.)"""
+    notes."""
     null = diagnose([generate(prior, n_segments=6, seed=6, noise=PROFILES["realistic"]).recording], prior)
     assert null.effects == [] and null.notes
     json.dumps(null.to_dict(), allow_nan=True)
@@ -678,6 +687,11 @@ def test_a_wind_shape_pushing_harder_than_a_flat_plate_is_not_named():
     assert at_unphysical_edge(shape, [fitted(0.0), fitted(1e-4), fitted(0.0)]) == ["cy"]
     assert at_unphysical_edge(shape, [fitted(1.9)] * 3) == []
     assert at_unphysical_edge(shape, [fitted(2.0), fitted(0.8), fitted(2.0)]) == []
+    # a vessel file that gives its superstructure more keeps its own value inside the range
+    broad = replace(prior, wind_load=replace(prior.wind_load, cy=2.6))
+    assert next(q for q in candidates(broad)["wind_shape"].params if q.name == "cy").hi == 2.6
+    with pytest.raises(TwinError):
+        as_effect("wind_shape=3,90,-0.5,0.1")  # a side force against the wind's
 
 
 def test_a_recording_too_short_for_any_dynamic_finding_says_so():

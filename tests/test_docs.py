@@ -152,8 +152,8 @@ def test_the_tour_notebook_runs_and_names_the_current_it_conceals(tmp_path, monk
     assert list(named) == ["current"]
     values = {p.name: p.value for p in named["current"].parameters}
     assert values["speed_m_s"] == pytest.approx(0.15, rel=0.1) and values["dir_deg"] == pytest.approx(90.0, abs=10.0)
-    lo, hi = next(p.ci95 for p in named["current"].parameters if p.name == "speed_m_s")
-    assert lo - 0.01 <= 0.15 <= hi + 0.01
+    interval = next(p.ci95 for p in named["current"].parameters if p.name == "speed_m_s")
+    assert interval is not None and interval[0] - 0.01 <= 0.15 <= interval[1] + 0.01
     amended = space["found"].amended.environment
     assert amended.current_speed_m_s == pytest.approx(values["speed_m_s"], rel=1e-6)
     assert space["before"].score("v").r2 < 0.5 < 0.9 < space["after"].score("v").r2

@@ -45,7 +45,8 @@ def test_a_windy_turning_test_gives_the_anemometers_wind_without_reading_it(shar
     rec = read_recording(path)
     air = prepared([rec], prior)[0].wind_ned
     north, east = air[np.isfinite(air).all(axis=1)].mean(axis=0)  # the anemometer's mean true wind: 1.93 m/s from 143°
-    # the anemometer removed; a wind and a current offered (each judged whole, so each fold fits the wind)
+    # the anemometer removed; a wind and a current offered (each judged whole, so each fold fits the wind;
+    # the kinematic step's findings are then only of these two)
     d = diagnose([replace(rec, wind=Stream.empty("speed_m_s", "from_deg"))], prior, library=["wind", "current"])
     wind = next(c for c in d.to_dict()["rounds"][0]["candidates"] if c["name"] == "wind")
     n = float(np.median([f["wind_north"] for f in wind["fold_values"]]))  # each fold fitted without the anemometer

@@ -770,11 +770,11 @@ EDGE_TOLERANCE = 1e-3  # relative distance from a bound that counts as on it
 def at_unphysical_edge(candidate: Candidate, fits: list[Fitted]) -> list[str]:
     """The candidate's parameters whose fit ends on an unphysical edge of their range
     (Quantity.edges_unphysical: yaw added inertia ×20 of the prior) on every fold. Such a fit does
-    not measure the effect: the data want more of it than any real vessel has, which is what a
+    not measure the effect: the data want more (or less) of it than any real vessel has, which is what a
     term compensating for another form looks like (a slower thruster read as yaw inertia), so the
     candidate is not named; the report says the form is off where it acts."""
-    def on_edge(q, x: float) -> bool:  # these ranges are multiples (lo > 0) or start at zero: relative distance
-        low = q.lo * (1 + EDGE_TOLERANCE) if q.lo > 0 else q.lo + EDGE_TOLERANCE * q.hi
+    def on_edge(q, x: float) -> bool:  # these ranges are multiples (lo > 0) or start at none (lo 0): relative distance
+        low = q.lo * (1 + EDGE_TOLERANCE) if q.lo > 0 else EDGE_TOLERANCE * q.hi
         return x >= q.hi * (1 - EDGE_TOLERANCE) or x <= low
 
     return [p.name for p in candidate.params

@@ -180,11 +180,15 @@ CY_MAX = 2.0  # a two-dimensional flat plate's broadside drag coefficient [Hoern
 
 def _load_coefficients(prior: Vessel) -> tuple:
     """The wind load's c_y and c_n as fitted quantities, scaled by the prior's. c_y is a side force per
-    lateral area: between none and a two-dimensional flat plate's broadside (CY_MAX; the shipped
-    vessels' 0.8). Both ends are unphysical edges: a fit that ends on one (a current's
-    drift read as a light wind on a superstructure pushing twice as hard as a flat plate) says the
-    form is off, not that the superstructure is so (diagnose/search.py: at_unphysical_edge)."""
-    cy = replace(member("wind_load", "cy", "-", 0.0, CY_MAX, max(abs(prior.wind_load.cy), 0.1)), edges_unphysical=True)
+    lateral area: between none and a two-dimensional flat plate's broadside (CY_MAX, or the vessel
+    file's own where that is more; the shipped vessels' 0.8). Both ends are unphysical edges: a fit
+    that ends on one (a current's drift read as a light wind on a superstructure pushing twice as hard
+    as a flat plate) says the form is off, not that the superstructure is so (diagnose/search.py:
+    at_unphysical_edge). The fitted wind's speed sets the load's scale through the file's c_x and
+    frontal area, so c_y is read against those: a file whose lateral area is half the boat's reads a
+    real wind's c_y twice as large."""
+    hi = max(CY_MAX, prior.wind_load.cy)
+    cy = replace(member("wind_load", "cy", "-", 0.0, hi, max(abs(prior.wind_load.cy), 0.1)), edges_unphysical=True)
     return (cy, member("wind_load", "cn", "-", -2.0, 2.0, max(abs(prior.wind_load.cn), 0.05)))
 
 
@@ -567,11 +571,11 @@ _SPECS = [
     EffectSpec("wind_per_log", "environment", (_v("speed_m_s", "m/s", 0, MAX_WIND_M_S), _v("dir_deg", "deg", -360, 360)),
                wind_per_log, "each log's own wind (file name), from dir_deg: a wind that changed between logs",
                _wind_per_log_fit, per_key="LOG"),
-    EffectSpec("wind_load_shape", "environment", (_v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_load_shape,
+    EffectSpec("wind_load_shape", "environment", (_v("cy", "-", 0, 5), _v("cn", "-", -2, 2)), wind_load_shape,
                "the wind load's sway and yaw coefficients, for whatever wind acts (beside each log's own wind)",
                _wind_load_shape_fit),
     EffectSpec("wind_shape", "environment", (_v("speed_m_s", "m/s", 0, 40), _v("dir_deg", "deg", -360, 360),
-                                              _v("cy", "-", -5, 5), _v("cn", "-", -2, 2)), wind_shape,
+                                              _v("cy", "-", 0, 5), _v("cn", "-", -2, 2)), wind_shape,
                "wind from dir_deg with its sway and yaw load coefficients fitted (another superstructure)",
                _wind_shape_fit),
     EffectSpec("thruster_lag", "thrusters", (_v("lag_s", "s", 0, 10),), thruster_lag, "first-order thrust lag",

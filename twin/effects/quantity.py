@@ -22,7 +22,8 @@ class Quantity:
     """name, unit, get(vessel) → float, put(vessel, value) → vessel, bounds [lo, hi], typical
     size; fd_abs: an absolute finite-difference step (value units) where the cost is a staircase;
     edges_unphysical: the bounds are not physical limits but the end of any plausible value (a
-    coefficient ×20 or ×0.05 of a first-principles prior), so a fit that ends on one says the form is
+    coefficient ×20 or ×0.05 of a first-principles prior; a wind's side-force coefficient at none or
+    beyond a flat plate's), so a fit that ends on one says the form is
     off, not that the number is that large (diagnose/search.py)."""
 
     name: str
