@@ -18,7 +18,8 @@ estimated in the recording). Measured against the excess, not against the noise 
 twin's form is wrong, many candidates remove a little of that wrong form's misfit on held-out
 data too, and such small shares are what compensating terms look like. Nor does a candidate
 whose fit ends on an unphysical edge of its range on every fold (a coefficient ×20 or ×0.05 of the
-prior: at_unphysical_edge): the data then want more of it than any vessel has, which is how a term
+prior, a wind's side force beyond a flat plate's: at_unphysical_edge): the data then want more of it
+than any vessel has, which is how a term
 standing in for another form shows; the report says the form is off where it acts. The best
 candidate that earns its place is kept, every kept effect is refitted together (per fold), and each kept effect
 is checked again: put back to the prior, does the fit get significantly worse (z ≥ Z_MIN on the
