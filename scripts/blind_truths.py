@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|fourteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|fifteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -261,9 +261,22 @@ FOURTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and di
     Case("wind-gusty-6-30", "wind", 169, wind_speed_m_s=6.0, wind_from_deg=30.0, gust_sigma_m_s=1.2, gust_tau_s=12.0),
     Case("wind-steady-5.5-230", "wind", 170, wind_speed_m_s=5.5, wind_from_deg=230.0),
 ]
+FIFTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-ac", "null", 171),
+    Case("null-ad", "null", 172),
+    Case("dead_zone-right-soft-50-95us", "dead_zone", 173, side="right", inner_us=50.0, outer_us=95.0),
+    Case("dead_zone-left-hard-90us", "dead_zone", 174, side="left", inner_us=90.0, outer_us=90.0),
+    Case("speed_loss-0.16u", "speed_loss", 175, k=0.16, power=1),
+    Case("speed_loss-0.13u2", "speed_loss", 176, k=0.13, power=2),
+    Case("sag-exp-360s", "sag_exp", 177, k=0.2, tau_s=360.0),
+    Case("sag-square-0.26", "sag_square", 178, k=0.26),
+    Case("wind-gusty-5.5-120", "wind", 179, wind_speed_m_s=5.5, wind_from_deg=120.0, gust_sigma_m_s=1.0, gust_tau_s=10.0),
+    Case("wind-steady-6.5-320", "wind", 180, wind_speed_m_s=6.5, wind_from_deg=320.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
         "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
-        "twelfth": TWELFTH, "thirteenth": THIRTEENTH, "fourteenth": FOURTEENTH}
+        "twelfth": TWELFTH, "thirteenth": THIRTEENTH, "fourteenth": FOURTEENTH,
+        "fifteenth": FIFTEENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentyseventh] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentyeighth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -516,6 +516,20 @@ PROOF_TWENTYSEVENTH = [
     Case("esso", "T7", "input_late", (0.65,)), Case("esso", "T12", "input_late", (0.55,)),
     Case("esso", "T7", "heading_late", (0.5,)), Case("esso", "T12", "heading_late", (0.6,)),
 ]
+# the twenty-eighth set takes outings E and B (disjoint runs) and Esso tests T1 and T2, with other values
+PROOF_TWENTYEIGHTH = [
+    Case("blueboat", "E", "null"), Case("blueboat", "B", "null"),
+    Case("blueboat", "E", "current", (0.14, 230.0)), Case("blueboat", "B", "current", (0.12, 30.0)),
+    Case("blueboat", "E", "antenna", (0.30, 0.35)), Case("blueboat", "B", "antenna", (-0.35, -0.25)),
+    Case("blueboat", "E", "input_late", (0.5,)), Case("blueboat", "B", "input_late", (0.65,)),
+    Case("blueboat", "E", "thruster_scaled", ("right", 0.8)), Case("blueboat", "B", "thruster_scaled", ("left", 0.7)),
+    Case("blueboat", "E", "heading_late", (0.6,)), Case("blueboat", "B", "heading_late", (0.45,)),
+    Case("esso", "T1", "null"), Case("esso", "T2", "null"),
+    Case("esso", "T1", "current", (0.10, 300.0)), Case("esso", "T2", "current", (0.13, 150.0)),
+    Case("esso", "T1", "antenna", (-0.30, 0.35)), Case("esso", "T2", "antenna", (0.35, -0.30)),
+    Case("esso", "T1", "input_late", (0.7,)), Case("esso", "T2", "input_late", (0.5,)),
+    Case("esso", "T1", "heading_late", (0.45,)), Case("esso", "T2", "heading_late", (0.55,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -526,7 +540,7 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
           "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD, "twentyfourth": PROOF_TWENTYFOURTH,
           "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH,
-          "twentyseventh": PROOF_TWENTYSEVENTH}
+          "twentyseventh": PROOF_TWENTYSEVENTH, "twentyeighth": PROOF_TWENTYEIGHTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -541,10 +555,12 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "twentysecond": "concealed_effects_twentysecond", "twentythird": "concealed_effects_twentythird",
          "twentyfourth": "concealed_effects_twentyfourth", "twentyfifth": "concealed_effects_twentyfifth",
          "twentysixth": "concealed_effects_twentysixth",
-         "twentyseventh": "concealed_effects_twentyseventh"}
+         "twentyseventh": "concealed_effects_twentyseventh",
+         "twentyeighth": "concealed_effects_twentyeighth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentyeighth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyseventh", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyseventh", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
     ("twentysixth", "before"): "the diagnosis as it was when the set was fixed",
@@ -584,7 +600,7 @@ STAGE_METHODS = {
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
                       "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird",
-                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh"}
+                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh", "twentyeighth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,7 +1,7 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
     git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
-    python scripts/independent_truths.py [--set first|...|ninth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
+    python scripts/independent_truths.py [--set first|...|tenth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
                                          [--only CASE,...] [--work /tmp/independent_truths]
 
 Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
@@ -151,15 +151,25 @@ CASES_NINTH = [  # fixed before it was run: other seeds, magnitudes, sides and d
     Case("wind_shape-6-100", "wind_shape", (6.0, 100.0), 99),
     Case("wind_shape-5-260", "wind_shape", (5.0, 260.0), 100),
 ]
+CASES_TENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-19", "null", (), 101), Case("null-20", "null", (), 102),
+    Case("one_dead_zone-left-90-35", "one_dead_zone", ("left", 90.0, 35.0), 103),
+    Case("one_dead_zone-right-70-40", "one_dead_zone", ("right", 70.0, 40.0), 104),
+    Case("speed_loss_u2-0.17", "speed_loss_u2", (0.17,), 105), Case("speed_loss_u2-0.25", "speed_loss_u2", (0.25,), 106),
+    Case("decay-0.045", "decay", (0.045,), 107), Case("decay-0.06", "decay", (0.06,), 108),
+    Case("wind_shape-6.5-40", "wind_shape", (6.5, 40.0), 109),
+    Case("wind_shape-5.5-200", "wind_shape", (5.5, 200.0), 110),
+]
 SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH,
         "sixth": CASES_SIXTH, "seventh": CASES_SEVENTH,
-        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH}
+        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH, "tenth": CASES_TENTH}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
          "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth", "sixth": "independent_truths_sixth",
          "seventh": "independent_truths_seventh", "eighth": "independent_truths_eighth",
-         "ninth": "independent_truths_ninth"}
+         "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("ninth", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("tenth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("ninth", "before"): "the diagnosis as it was when the set was fixed",
                  ("ninth", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
                  ("eighth", "before"): "the diagnosis as it was when the set was fixed",
                  ("eighth", "after"): "each candidate screened by two Gauss-Newton steps (each with its line search), "
