@@ -169,6 +169,7 @@ PAGES = {"first": "independent_truths", "second": "independent_truths_second", "
          "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
 STAGE_METHODS = {("tenth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("tenth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right) offered as an effect",
                  ("ninth", "before"): "the diagnosis as it was when the set was fixed",
                  ("ninth", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
                  ("eighth", "before"): "the diagnosis as it was when the set was fixed",

@@ -23,8 +23,8 @@ def test_the_ship_is_offered_only_effects_its_model_has():
     boat = candidates(vessel_mod.load("yellowfish"))
     assert {"thruster_lag", "thrust_ramp", "dead_zone", "motor_start", "quadratic_damping", "surge_resistance", "wind_shape",
             "speed_coupling", "full_thrust", "astern_resistance", "compass_motor", "dead_zone_left",
-            "dead_zone_right"} <= set(boat)
-    assert len(boat) == 34
+            "dead_zone_right", "pwm_span_left", "pwm_span_right"} <= set(boat)
+    assert len(boat) == 36
 
 
 def test_wind_acts_through_the_ships_regression_and_is_refused_without_a_load_model():

@@ -29,7 +29,8 @@ def _both(vessel, duration=20.0, start_s=0.0):
 @pytest.mark.parametrize("change", [{"delay_s": 0.3}, {"decay_per_min": 0.2}, {"advance_loss": 1.5},
                                     {"advance_loss": 1.0, "lag_s": 0.4, "delay_s": 0.2}, {"ramp_s": 3.0},
                                     {"ramp_s": 2.0, "lag_s": 0.3, "delay_s": 0.2, "decay_per_min": 0.2},
-                                    {"full_share": 0.7}])
+                                    {"full_share": 0.7}, {"pwm_span_right": 1.4},
+                                    {"pwm_span_left": 0.8, "start_fwd": 0.15, "start_rev": -0.15}])
 def test_engine_matches_analytic_with_thruster_effects(change):
     base = vessel_mod.load("yellowfish")
     v = replace(base, thrusters=replace(base.thrusters, **change))
@@ -558,3 +559,41 @@ def test_a_gain_effect_is_read_as_a_multiple_of_the_twins_own(name, value):
     put = q.put(prior, value)
     assert (put.thrusters.gain_left, put.thrusters.gain_right) == pytest.approx(
         (truth.thrusters.gain_left, truth.thrusters.gain_right))
+
+
+def test_one_escs_pwm_span_is_a_pulse_scale_not_a_thrust_scale(tmp_path):
+    """An ESC that answers 4/3 of the logged pulse's deviation from neutral: its thrust is the map's
+    at that pulse (clipped to the PWM range), the other thruster's untouched; through the map's curve
+    that is a thrust ratio of 1.5-1.8 at part throttle ahead and 1 at full. The step-by-step path
+    (SITL, closed loops) gives the same thrust as the array path; a vessel file keeps the span, old
+    files stay as they were, and a span of 0 is refused."""
+    from twin.effects import apply_effects
+    from twin.engine.tick import TickMap
+    from twin.errors import TwinError
+
+    base = vessel_mod.load("blueboat")
+    spanned = apply_effects(base, ["pwm_span_right=1.3333"]).thrusters
+    t, n = base.thrusters, base.thrusters.neutral_us
+    pwm = np.column_stack([np.linspace(1100, 1900, 81), np.linspace(1100, 1900, 81)])
+    got = spanned.thrust_from_pwm(pwm)
+    np.testing.assert_array_equal(got[:, 0], t.thrust_from_pwm(pwm)[:, 0])
+    want = t.thrust_from_pwm(np.column_stack([pwm[:, 0], n + 1.3333 * (pwm[:, 1] - n)]))[:, 1]
+    np.testing.assert_allclose(got[:, 1], want, rtol=1e-12)
+    ahead = (pwm[:, 0] > n + 60) & (pwm[:, 0] < n + 280)
+    ratio = got[ahead, 1] / got[ahead, 0]
+    assert ratio.min() > 1.2 and ratio.max() < 2.0 and got[-1, 1] == got[-1, 0]  # full is full
+    assert spanned.bounds() == t.bounds()  # the ESC's range is the map's
+    tick = TickMap.of(spanned)
+    for left, right in ((1700.0, 1650.0), (1300.0, 1420.0), (1900.0, 1880.0)):
+        pair = tick.raw_thrust("pwm", (left, right))
+        np.testing.assert_allclose(pair, spanned.thrust_from_pwm(np.array([left, right])), rtol=1e-12)
+    v = replace(base, thrusters=spanned)
+    assert vessel_mod.load(str(vessel_mod.save(v, tmp_path / "v.json"))).thrusters == spanned
+    assert "pwm_span" not in vessel_mod.save(base, tmp_path / "plain.json").read_text()
+    import json
+
+    d = json.loads(vessel_mod.save(base, tmp_path / "zero.json").read_text())
+    d["thrusters"]["pwm_span_left"] = 0.0
+    (tmp_path / "zero.json").write_text(json.dumps(d))
+    with pytest.raises(TwinError, match="pwm_span_left"):
+        vessel_mod.load(str(tmp_path / "zero.json"))

@@ -147,6 +147,9 @@ def _thrusters_to_dict(t: ThrusterModel) -> dict[str, Any]:
         d.pop("supply_exponent"), d.pop("supply_ref_v")
     if d["full_share"] == 1.0:  # only where the forward curve saturates
         d.pop("full_share")
+    for key in ("pwm_span_left", "pwm_span_right"):  # only where an ESC answers another range
+        if d[key] == 1.0:
+            d.pop(key)
     return d
 
 
@@ -356,6 +359,10 @@ def _plausible(vessel: Vessel, path: Path) -> None:
         if getattr(t, name) > MOST_GAIN:
             raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g}, a factor on the thrust map: "
                             f"beyond {MOST_GAIN:g} it is no thruster's (a percentage?)")
+    for name in ("pwm_span_left", "pwm_span_right"):
+        if not 0.0 < getattr(t, name) <= MOST_GAIN:
+            raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g}, a factor on the PWM's "
+                            f"deviation from neutral: it must be above 0 and at most {MOST_GAIN:g}")
     for name in ("lag_s", "delay_s"):
         if getattr(t, name) > MOST_LAG_S:
             raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g} s, beyond {MOST_LAG_S:g} s "

@@ -269,6 +269,28 @@ def _one_gain_fit(side: str):
     return fit
 
 
+def pwm_span_left(vessel: Vessel, span: float) -> Vessel:
+    """The left thruster's ESC answers `span` times the logged PWM's deviation from neutral (its
+    calibrated range differs from the autopilot's output range): a pulse scale, not a thrust scale."""
+    return _thrusters(vessel, pwm_span_left=vessel.thrusters.pwm_span_left * span)
+
+
+def pwm_span_right(vessel: Vessel, span: float) -> Vessel:
+    """The right thruster's ESC answers `span` times the logged PWM's deviation from neutral."""
+    return _thrusters(vessel, pwm_span_right=vessel.thrusters.pwm_span_right * span)
+
+
+def _pwm_span_fit(side: str):
+    """One ESC's PWM span as a multiple of the prior's, for thrusters driven by PWM."""
+    def fit(prior: Vessel, logs) -> Candidate | None:
+        if prior.thrusters.kind != "t200":
+            return None
+        q = scale_of(prior, "thrusters", f"pwm_span_{side}", "span").renamed("span", lo=0.4, hi=2.5)
+        return Candidate(f"pwm_span_{side}", (q,), ((1.0,),), lambda p: effect(f"pwm_span_{side}", span=p["span"]),
+                         "thrust")
+    return fit
+
+
 def reverse_thrust(vessel: Vessel, scale: float) -> Vessel:
     """The reverse branch of the thrust map × scale: a propeller astern pushes its wash against the
     hull (or through a guard) and delivers less than the datasheet's bollard curve."""
@@ -597,6 +619,12 @@ _SPECS = [
                "the left thruster alone weaker or stronger", _one_gain_fit("left")),
     EffectSpec("thruster_gain_right", "thrusters", (_v(*_SCALE),), thruster_gain_right,
                "the right thruster alone weaker or stronger", _one_gain_fit("right")),
+    EffectSpec("pwm_span_left", "thrusters", (_v("span", "×", 0, 10, True),), pwm_span_left,
+               "the left ESC answers span × the logged PWM's deviation from neutral (another calibrated range)",
+               _pwm_span_fit("left")),
+    EffectSpec("pwm_span_right", "thrusters", (_v("span", "×", 0, 10, True),), pwm_span_right,
+               "the right ESC answers span × the logged PWM's deviation from neutral (another calibrated range)",
+               _pwm_span_fit("right")),
     EffectSpec("reverse_thrust", "thrusters", (_v(*_SCALE),), reverse_thrust,
                "thrust astern weaker or stronger than the map's", _reverse_fit),
     EffectSpec("full_thrust", "thrusters", (_v("share", "×", 0, 10, True),), full_thrust,

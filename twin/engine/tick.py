@@ -98,6 +98,8 @@ class TickMap:
             return left, right
         if isinstance(held, tuple) and (kind != "pwm" or self.thrusters.kind == "t200"):
             return (self._thrust(held[0], 0), self._thrust(held[1], 1)) if kind == "pwm" else held
+        if kind == "pwm" and self.thrusters.spanned:  # one pulse for both: each ESC's own range acts on it
+            held = np.broadcast_to(np.asarray(held, float), (2,))
         raw = self.thrusters.thrust_from_pwm(held) if kind == "pwm" else np.asarray(held, float)
         left, right = np.broadcast_to(raw, (2,)).tolist()  # shape (1,) drives both, as the array path did
         return left, right
@@ -105,6 +107,9 @@ class TickMap:
     def _thrust(self, pwm_us: float, side: int) -> float:
         """`ThrusterModel.thrust_from_pwm` for one pulse of thruster `side` (0 left, 1 right)."""
         t = self.thrusters
+        span = t.pwm_span_left if side == 0 else t.pwm_span_right
+        if span != 1.0:  # the ESC's own range (ThrusterModel.received)
+            pwm_us = t.neutral_us + span * (pwm_us - t.neutral_us)
         x = _clip(pwm_us, t.pwm_min_us, t.pwm_max_us) / t.pwm_scale_us - t.pwm_offset
         edge_fwd, edge_rev = t.edges_of(side)
         if x >= edge_fwd:

@@ -36,6 +36,11 @@ what real thrusters add to a datasheet curve:
   map becomes T/√(1 + k·(T/T_full)²), k = 1/s² − 1, with T_full the map's thrust at full PWM: s·T_full
   at full, rising with the PWM for any s > 0 (its slope (1 + k·(T/T_full)²)^(−3/2) > 0), bending
   over smoothly instead of at a knee; s > 1 steepens the top. Astern has its own scale (`reverse`);
+- one thruster's ESC answering another PWM range than the autopilot's output (`pwm_span_left`,
+  `pwm_span_right` s): that ESC takes neutral + s·(δ − neutral) for the logged pulse δ, clipped to the
+  PWM range, as an ESC calibrated to a narrower or wider throttle range than the one the autopilot
+  sends. Through the map's curve, its dead zone and its end at full PWM this is not a thrust scale:
+  a pulse scale of 1/0.75 is a thrust ratio of about 1.3-1.8 at part throttle and 1 at full;
 - thrust loss with advance speed: with K_T linear in the advance ratio J = u_a/(nD),
   K_T = K_T0(1 − J/J_0), a propeller turning at n gives T = ρD⁴K_T0·n|n| − ρD³(K_T0/J_0)·|n|·u_a.
   Its static thrust T0 = ρD⁴K_T0·n|n| fixes |n| = √(|T0|/(ρD⁴K_T0)), so
@@ -115,6 +120,9 @@ class ThrusterModel:
     # or a motor of its own; None: the shared edges (the start edges stay the shared ones)
     deadzone_left: tuple[float, float] | None = None
     deadzone_right: tuple[float, float] | None = None
+    # one thruster's ESC takes neutral + span·(logged − neutral) (module docstring); 1: the pulse as logged
+    pwm_span_left: float = 1.0
+    pwm_span_right: float = 1.0
 
     @property
     def ramping(self) -> bool:
@@ -212,15 +220,33 @@ class ThrusterModel:
         """The PWM of δ̃ = 0 (µs)."""
         return self.pwm_offset * self.pwm_scale_us
 
+    @property
+    def spanned(self) -> bool:
+        """One thruster's ESC answers another PWM range than the logged one (pwm_span_left/right)."""
+        return self.kind == "t200" and (self.pwm_span_left != 1.0 or self.pwm_span_right != 1.0)
+
+    def received(self, pwm_us):
+        """The pulses (µs) the ESCs answer for logged pulses with a last axis of two (left, right):
+        neutral + span·(logged − neutral) (module docstring; the map clips them to the PWM range).
+        Other shapes (one thruster's curve, the map's ends) are taken as they are."""
+        pwm = np.asarray(pwm_us, dtype=float)
+        if not self.spanned or not pwm.shape or pwm.shape[-1] != 2:
+            return pwm
+        neutral = self.neutral_us
+        return neutral + np.array([self.pwm_span_left, self.pwm_span_right]) * (pwm - neutral)
+
     def as_driven(self, pwm_us) -> np.ndarray:
         """(n, 2) PWM series (µs, in time order, motors stopped before it) as the motors answer it:
-        a stopped motor's pulse becomes neutral (module docstring). Unchanged without hysteresis."""
+        a stopped motor's pulse becomes neutral (module docstring). Unchanged without hysteresis.
+        The pulses stay the logged ones (the ESCs' own range acts in the map), the states are the
+        received pulses'."""
         pwm = np.array(pwm_us, dtype=float)
         if not self.hysteretic:
             return pwm
         start_f, start_r = self.start_edges
+        seen = self.received(pwm)
         for j in range(pwm.shape[1]):
-            running = motor_states(self.normalised(pwm[:, j]), start_f, self.deadzone_fwd, start_r, self.deadzone_rev)
+            running = motor_states(self.normalised(seen[:, j]), start_f, self.deadzone_fwd, start_r, self.deadzone_rev)
             pwm[(running == 0) & np.isfinite(pwm[:, j]), j] = self.neutral_us
         return pwm
 
@@ -230,15 +256,20 @@ class ThrusterModel:
         if not self.hysteretic:
             return states, (float(pwm_us[0]), float(pwm_us[1]))
         start_f, start_r = self.start_edges
+        seen = self.received(np.array([float(pwm_us[0]), float(pwm_us[1])]))
         new = tuple(motor_state_step(s, float(self.normalised(p)), start_f, self.deadzone_fwd, start_r,
-                                     self.deadzone_rev) for s, p in zip(states, pwm_us))
+                                     self.deadzone_rev) for s, p in zip(states, seen))
         return new, tuple(float(p) if s else self.neutral_us for s, p in zip(new, pwm_us))
 
     def thrust_from_pwm(self, pwm_us):
         """Commanded thrust T(δ) in N [Yellowfish-TR eq. 27], before gains and lag; a last axis of
-        two is (left, right), each with its own dead zone where it has one."""
+        two is (left, right), each with its own dead zone and PWM span where it has one."""
         if self.kind != "t200":
             raise ValueError("this vessel has no PWM model: give thrust in N")
+        return self._map(self.received(pwm_us))
+
+    def _map(self, pwm_us):
+        """thrust_from_pwm of pulses as the ESCs receive them."""
         x = self.normalised(pwm_us)
         fwd = np.polyval(self.forward, x)
         if self.full_share != 1.0:
@@ -275,7 +306,7 @@ class ThrusterModel:
     def bounds(self) -> tuple[float, float]:
         """(T_min, T_max) of one thruster in N; ±inf where no bound is given."""
         if self.kind == "t200":
-            ends = self.thrust_from_pwm(np.array([self.pwm_min_us, self.pwm_max_us]))
+            ends = self._map(np.array([self.pwm_min_us, self.pwm_max_us]))  # the map's ends, not a pair
             return float(ends[0]), float(ends[1])
         if self.kind == "propeller_rudder":
             return -np.inf, np.inf  # no thrust input: the inputs' own bounds are channel_bounds()
