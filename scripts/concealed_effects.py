@@ -754,6 +754,8 @@ def within(truth_name: str, truth: dict, found: dict, twin: vessel_mod.Vessel) -
         err = np.hypot(found["dx_m"] - truth["dx_m"], found["dy_m"] - truth["dy_m"])
         return bool(err <= TOLERANCE * np.hypot(*moved))
     key = next(iter(truth))
+    if truth_name.startswith("pwm_span"):  # a span's effect is its departure from 1
+        return abs(found[key] - truth[key]) <= TOLERANCE * abs(truth[key] - 1.0)
     if truth_name.startswith("thruster_gain"):
         return abs(found[key] - truth[key]) <= TOLERANCE * abs(truth[key] - 0.0)
     return abs(found[key] - truth[key]) <= TOLERANCE * abs(truth[key])
@@ -787,7 +789,7 @@ def run_case(case: Case, twins: dict, wind_measured: bool = False) -> dict:
               "parameters": dict(e["parameters"] if isinstance(e, dict) else e.parameters)} for e in d.effects]
     accepted = {truth_name: truth, **alternatives_of(case)} if truth_name is not None else {}
     hit = next((e for e in named if e["name"] in accepted), None)
-    others = [e for e in named if e["name"] not in accepted]
+    others = [e for e in named if e is not hit]  # a second name of the truth is one too many
     close = bool(hit is not None and within(hit["name"], accepted[hit["name"]], hit["parameters"], twin))
     return {"case": case.name, "vessel": case.vessel, "where": case.where, "kind": case.kind,
             "magnitude": case.magnitude(), "truth": truth_name, "truth_values": truth, "named": named,

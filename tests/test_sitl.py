@@ -433,6 +433,20 @@ def test_lock_step_with_a_thrust_ramp_and_a_delay_off_the_step_grid_is_the_offli
     assert_matches_offline(replies, offline(fine, pairs, 1 / 400))
 
 
+@pytest.mark.parametrize("change", [{"pwm_span_left": 0.8, "pwm_span_right": 1.25},
+                                    {"pwm_span_right": 1.3, "delay_s": 0.0513, "start_fwd": 0.16, "start_rev": -0.17}])
+def test_lock_step_with_an_escs_pwm_span_is_the_offline_twin(full_vessel, fine_vessel, change):
+    """Each ESC's own PWM span acts on the pulse it receives, in SITL as offline, on the direct path and
+    the delayed one (with the motors' start edges read on the received pulses)."""
+    full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, **change))
+    fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, **change))
+    frames, pairs = pwm_frames(1200, seed=7)
+    replies, _, _ = play(full, [(k, pwm, 400) for k, pwm in enumerate(frames)])
+    assert_matches_offline(replies, offline(fine, pairs, 1 / 400))
+    plain = offline(fine_vessel, pairs, 1 / 400)
+    assert np.abs(arrays(replies)["pos"][-1, :2] - plain.eta[len(pairs), :2]).max() > 0.01  # 3 s: centimetres
+
+
 def test_lock_step_at_50_hz_substeps_the_frame_and_reads_32_output_packets(full_vessel, fine_vessel):
     frames, pairs = pwm_frames(150, seed=2, outputs=32)
     replies, _, _ = play(full_vessel, [(k, pwm, 50) for k, pwm in enumerate(frames)])

@@ -564,9 +564,10 @@ def test_a_gain_effect_is_read_as_a_multiple_of_the_twins_own(name, value):
 def test_one_escs_pwm_span_is_a_pulse_scale_not_a_thrust_scale(tmp_path):
     """An ESC that answers 4/3 of the logged pulse's deviation from neutral: its thrust is the map's
     at that pulse (clipped to the PWM range), the other thruster's untouched; through the map's curve
-    that is a thrust ratio of 1.5-1.8 at part throttle ahead and 1 at full. The step-by-step path
-    (SITL, closed loops) gives the same thrust as the array path; a vessel file keeps the span, old
-    files stay as they were, and a span of 0 is refused."""
+    that is a thrust ratio of 1.5-1.8 at part throttle ahead and 1 at full. A log that reports 0.75 of
+    the pulse is its truth back at span 1/0.75; a motor's start edge is read on the received pulse; the
+    step-by-step path (closed loops) gives the same thrust as the array path (SITL: tests/test_sitl.py);
+    a vessel file keeps the span, old files stay as they were, and a span of 0 is refused."""
     from twin.effects import apply_effects
     from twin.engine.tick import TickMap
     from twin.errors import TwinError
@@ -583,6 +584,16 @@ def test_one_escs_pwm_span_is_a_pulse_scale_not_a_thrust_scale(tmp_path):
     ratio = got[ahead, 1] / got[ahead, 0]
     assert ratio.min() > 1.2 and ratio.max() < 2.0 and got[-1, 1] == got[-1, 0]  # full is full
     assert spanned.bounds() == t.bounds()  # the ESC's range is the map's
+    # a log whose right PWM reports 0.75 of the deviation the ESC received: span 1/0.75 gives the thrust back
+    true = np.column_stack([np.full(9, 1600.0), np.linspace(1150, 1850, 9)])
+    logged = np.column_stack([true[:, 0], n + 0.75 * (true[:, 1] - n)])
+    back = apply_effects(base, [f"pwm_span_right={1 / 0.75}"]).thrusters
+    np.testing.assert_allclose(back.thrust_from_pwm(logged), t.thrust_from_pwm(true), rtol=1e-9, atol=1e-9)
+    # a motor that starts late reads its start edge on the pulse its ESC receives: 1580 µs starts it as
+    # logged (δ̃ 0.17 ≥ 0.15), not at a span of 0.8 (1566 µs received, δ̃ 0.14)
+    late = replace(t, start_fwd=0.15, start_rev=-0.15)
+    assert late.as_driven(np.array([[1580.0, 1580.0]])).tolist() == [[1580.0, 1580.0]]
+    assert replace(late, pwm_span_left=0.8).as_driven(np.array([[1580.0, 1580.0]])).tolist() == [[n, 1580.0]]
     tick = TickMap.of(spanned)
     for left, right in ((1700.0, 1650.0), (1300.0, 1420.0), (1900.0, 1880.0)):
         pair = tick.raw_thrust("pwm", (left, right))

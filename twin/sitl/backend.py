@@ -137,6 +137,7 @@ class PwmMap:
     thrust_max_n: float
     full_forward_n: float = 0.0
     full_share: float = 1.0
+    spans: tuple[float, float] = (1.0, 1.0)  # each ESC's PWM span (ThrusterModel.received)
 
     @classmethod
     def of(cls, t: ThrusterModel) -> "PwmMap":
@@ -144,7 +145,7 @@ class PwmMap:
             t_min, t_max = t.bounds()
             return cls("pwm", t.pwm_offset * t.pwm_scale_us, t.pwm_min_us, t.pwm_max_us, t.pwm_scale_us,
                        t.pwm_offset, tuple(t.forward), tuple(t.reverse), t.deadzone_fwd, t.deadzone_rev, t_min, t_max,
-                       t.full_forward_n, t.full_share)
+                       t.full_forward_n, t.full_share, (t.pwm_span_left, t.pwm_span_right))
         try:  # full PWM asks what a full normalised command asks: the bounds, or ±command_scale_n
             t_min, t_max = t.command_range()
         except ValueError as exc:
@@ -152,6 +153,12 @@ class PwmMap:
         mid = 0.5 * (t.pwm_min_us + t.pwm_max_us)
         return cls("thrust", mid, t.pwm_min_us, t.pwm_max_us, 0.5 * (t.pwm_max_us - t.pwm_min_us), 0.0, (), (),
                    0.0, 0.0, t_min, t_max)
+
+    def received(self, pwm_us: float, side: int) -> float:
+        """The pulse thruster `side` (0 left, 1 right) answers for a logged one: its ESC's span about
+        neutral (ThrusterModel.received, the same operations in the same order)."""
+        span = self.spans[side]
+        return pwm_us if span == 1.0 else self.neutral_us + span * (pwm_us - self.neutral_us)
 
     def held(self, pwm_us: float) -> float:
         """The model input the PWM stands for: PWM (µs) itself, or thrust (N) for "direct"."""
@@ -440,7 +447,8 @@ class SitlTwin:
 
     def _drive(self, driven: tuple[float, float]) -> None:
         """Write the thrusters' controls for these (ESC-passed) inputs."""
-        left, right = self._thrust(driven[0]), self._thrust(driven[1])
+        mp = self.map
+        left, right = self._thrust(mp.received(driven[0], 0)), self._thrust(mp.received(driven[1], 1))
         ctrl, (il, ir) = self._ctrl, self._ctrl_ids
         ctrl[il] = left
         ctrl[ir] = right
@@ -488,7 +496,8 @@ class SitlTwin:
         return armed(0), armed(1)
 
     def _thrust(self, pwm_us: float) -> float:
-        """Raw thrust (N) of a PWM, cached: the map's polynomial once per distinct PWM value."""
+        """Raw thrust (N) of a PWM as its ESC receives it (PwmMap.received), cached: the map's
+        polynomial once per distinct PWM value."""
         thrust = self._thrust_of.get(pwm_us)
         if thrust is None:
             mp = self.map
@@ -508,7 +517,7 @@ class SitlTwin:
         physics step runs this loop, so the hold lookup (a moving index: lookups only go forward in
         time) and the map's cache are inlined."""
         mp, m, d, ctrl, (il, ir) = self.map, self.model, self.data, self._ctrl, self._ctrl_ids
-        self._hold(t0_s, mp.held(driven[0]), mp.held(driven[1]))
+        self._hold(t0_s, mp.held(mp.received(driven[0], 0)), mp.held(mp.received(driven[1], 1)))
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
         decay_per_min, slew = self._decay_per_min, self._slew_n_per_s is not None
         times, lefts, rights, j = self._hist_t, self._hist_l, self._hist_r, self._hist_i
