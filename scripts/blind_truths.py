@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|fifteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|sixteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -273,10 +273,22 @@ FIFTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and dir
     Case("wind-gusty-5.5-120", "wind", 179, wind_speed_m_s=5.5, wind_from_deg=120.0, gust_sigma_m_s=1.0, gust_tau_s=10.0),
     Case("wind-steady-6.5-320", "wind", 180, wind_speed_m_s=6.5, wind_from_deg=320.0),
 ]
+SIXTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-ae", "null", 181),
+    Case("null-af", "null", 182),
+    Case("dead_zone-left-soft-45-100us", "dead_zone", 183, side="left", inner_us=45.0, outer_us=100.0),
+    Case("dead_zone-right-hard-85us", "dead_zone", 184, side="right", inner_us=85.0, outer_us=85.0),
+    Case("speed_loss-0.14u", "speed_loss", 185, k=0.14, power=1),
+    Case("speed_loss-0.11u2", "speed_loss", 186, k=0.11, power=2),
+    Case("sag-exp-420s", "sag_exp", 187, k=0.22, tau_s=420.0),
+    Case("sag-square-0.24", "sag_square", 188, k=0.24),
+    Case("wind-gusty-6-250", "wind", 189, wind_speed_m_s=6.0, wind_from_deg=250.0, gust_sigma_m_s=1.1, gust_tau_s=11.0),
+    Case("wind-steady-5-70", "wind", 190, wind_speed_m_s=5.0, wind_from_deg=70.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
         "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
         "twelfth": TWELFTH, "thirteenth": THIRTEENTH, "fourteenth": FOURTEENTH,
-        "fifteenth": FIFTEENTH}
+        "fifteenth": FIFTEENTH, "sixteenth": SIXTEENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentyeighth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|twentyninth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -531,6 +531,20 @@ PROOF_TWENTYEIGHTH = [
     Case("esso", "T1", "input_late", (0.7,)), Case("esso", "T2", "input_late", (0.5,)),
     Case("esso", "T1", "heading_late", (0.45,)), Case("esso", "T2", "heading_late", (0.55,)),
 ]
+# the twenty-ninth set takes outings Q and I (disjoint runs) and Esso tests T5 and T10, with other values
+PROOF_TWENTYNINTH = [
+    Case("blueboat", "Q", "null"), Case("blueboat", "I", "null"),
+    Case("blueboat", "Q", "current", (0.13, 320.0)), Case("blueboat", "I", "current", (0.11, 200.0)),
+    Case("blueboat", "Q", "antenna", (0.35, -0.30)), Case("blueboat", "I", "antenna", (-0.30, 0.35)),
+    Case("blueboat", "Q", "input_late", (0.6,)), Case("blueboat", "I", "input_late", (0.55,)),
+    Case("blueboat", "Q", "thruster_scaled", ("left", 0.75)), Case("blueboat", "I", "thruster_scaled", ("right", 0.7)),
+    Case("blueboat", "Q", "heading_late", (0.5,)), Case("blueboat", "I", "heading_late", (0.6,)),
+    Case("esso", "T5", "null"), Case("esso", "T10", "null"),
+    Case("esso", "T5", "current", (0.12, 20.0)), Case("esso", "T10", "current", (0.10, 230.0)),
+    Case("esso", "T5", "antenna", (0.30, 0.30)), Case("esso", "T10", "antenna", (-0.35, -0.30)),
+    Case("esso", "T5", "input_late", (0.6,)), Case("esso", "T10", "input_late", (0.7,)),
+    Case("esso", "T5", "heading_late", (0.55,)), Case("esso", "T10", "heading_late", (0.5,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -541,7 +555,8 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "twentieth": PROOF_TWENTIETH, "twentyfirst": PROOF_TWENTYFIRST,
           "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD, "twentyfourth": PROOF_TWENTYFOURTH,
           "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH,
-          "twentyseventh": PROOF_TWENTYSEVENTH, "twentyeighth": PROOF_TWENTYEIGHTH}
+          "twentyseventh": PROOF_TWENTYSEVENTH, "twentyeighth": PROOF_TWENTYEIGHTH,
+          "twentyninth": PROOF_TWENTYNINTH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -557,10 +572,12 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "twentyfourth": "concealed_effects_twentyfourth", "twentyfifth": "concealed_effects_twentyfifth",
          "twentysixth": "concealed_effects_twentysixth",
          "twentyseventh": "concealed_effects_twentyseventh",
-         "twentyeighth": "concealed_effects_twentyeighth"}
+         "twentyeighth": "concealed_effects_twentyeighth",
+         "twentyninth": "concealed_effects_twentyninth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("twentyninth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right: the pulse it answers is neutral + "
                                "span × the logged deviation) offered as an effect",
@@ -603,7 +620,7 @@ STAGE_METHODS = {
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
                       "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird",
-                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh", "twentyeighth"}
+                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh", "twentyeighth", "twentyninth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,7 +1,7 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
     git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
-    python scripts/independent_truths.py [--set first|...|tenth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
+    python scripts/independent_truths.py [--set first|...|eleventh] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
                                          [--only CASE,...] [--work /tmp/independent_truths]
 
 Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
@@ -160,15 +160,25 @@ CASES_TENTH = [  # fixed before it was run: other seeds, magnitudes, sides and d
     Case("wind_shape-6.5-40", "wind_shape", (6.5, 40.0), 109),
     Case("wind_shape-5.5-200", "wind_shape", (5.5, 200.0), 110),
 ]
+CASES_ELEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-21", "null", (), 111), Case("null-22", "null", (), 112),
+    Case("one_dead_zone-right-80-45", "one_dead_zone", ("right", 80.0, 45.0), 113),
+    Case("one_dead_zone-left-75-35", "one_dead_zone", ("left", 75.0, 35.0), 114),
+    Case("speed_loss_u2-0.15", "speed_loss_u2", (0.15,), 115), Case("speed_loss_u2-0.23", "speed_loss_u2", (0.23,), 116),
+    Case("decay-0.04", "decay", (0.04,), 117), Case("decay-0.055", "decay", (0.055,), 118),
+    Case("wind_shape-6-300", "wind_shape", (6.0, 300.0), 119),
+    Case("wind_shape-5-150", "wind_shape", (5.0, 150.0), 120),
+]
 SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH,
         "sixth": CASES_SIXTH, "seventh": CASES_SEVENTH,
-        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH, "tenth": CASES_TENTH}
+        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH, "tenth": CASES_TENTH, "eleventh": CASES_ELEVENTH}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
          "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth", "sixth": "independent_truths_sixth",
          "seventh": "independent_truths_seventh", "eighth": "independent_truths_eighth",
-         "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth"}
+         "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth", "eleventh": "independent_truths_eleventh"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("tenth", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("eleventh", "before"): "the diagnosis as it was when the set was fixed",
+                 ("tenth", "before"): "the diagnosis as it was when the set was fixed",
                  ("tenth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right) offered as an effect",
                  ("ninth", "before"): "the diagnosis as it was when the set was fixed",
                  ("ninth", "after"): "a wind's side-force coefficient per lateral area fitted between none and a two-dimensional flat plate's 2.0, both ends unphysical edges",
