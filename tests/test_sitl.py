@@ -434,10 +434,13 @@ def test_lock_step_with_a_thrust_ramp_and_a_delay_off_the_step_grid_is_the_offli
 
 
 @pytest.mark.parametrize("change", [{"pwm_span_left": 0.8, "pwm_span_right": 1.25},
-                                    {"pwm_span_right": 1.3, "delay_s": 0.0513, "start_fwd": 0.16, "start_rev": -0.17}])
-def test_lock_step_with_an_escs_pwm_span_is_the_offline_twin(full_vessel, fine_vessel, change):
-    """Each ESC's own PWM span acts on the pulse it receives, in SITL as offline, on the direct path and
-    the delayed one (with the motors' start edges read on the received pulses)."""
+                                    {"pwm_span_right": 1.3, "delay_s": 0.0513, "start_fwd": 0.16, "start_rev": -0.17},
+                                    {"deadzone_left": (0.35, -0.35)},
+                                    {"deadzone_right": (0.15, -0.3), "delay_s": 0.0513}])
+def test_lock_step_with_an_escs_own_range_is_the_offline_twin(full_vessel, fine_vessel, change):
+    """Each ESC's own PWM span acts on the pulse it receives, and one thruster's own dead zone on its
+    pulses alone, in SITL as offline, on the direct path and the delayed one (with the motors' start
+    edges read on the received pulses)."""
     full = replace(full_vessel, thrusters=replace(full_vessel.thrusters, **change))
     fine = replace(fine_vessel, thrusters=replace(fine_vessel.thrusters, **change))
     frames, pairs = pwm_frames(1200, seed=7)

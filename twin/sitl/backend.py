@@ -138,6 +138,8 @@ class PwmMap:
     full_forward_n: float = 0.0
     full_share: float = 1.0
     spans: tuple[float, float] = (1.0, 1.0)  # each ESC's PWM span (ThrusterModel.received)
+    # each thruster's (forward, reverse) dead-zone edges where it has its own (ThrusterModel.edges_of)
+    edges: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     @classmethod
     def of(cls, t: ThrusterModel) -> "PwmMap":
@@ -145,7 +147,8 @@ class PwmMap:
             t_min, t_max = t.bounds()
             return cls("pwm", t.pwm_offset * t.pwm_scale_us, t.pwm_min_us, t.pwm_max_us, t.pwm_scale_us,
                        t.pwm_offset, tuple(t.forward), tuple(t.reverse), t.deadzone_fwd, t.deadzone_rev, t_min, t_max,
-                       t.full_forward_n, t.full_share, (t.pwm_span_left, t.pwm_span_right))
+                       t.full_forward_n, t.full_share, (t.pwm_span_left, t.pwm_span_right),
+                       None if t.deadzone_left is None and t.deadzone_right is None else (t.edges_of(0), t.edges_of(1)))
         try:  # full PWM asks what a full normalised command asks: the bounds, or ±command_scale_n
             t_min, t_max = t.command_range()
         except ValueError as exc:
@@ -167,14 +170,16 @@ class PwmMap:
         s = (min(max(pwm_us, self.pwm_min_us), self.pwm_max_us) - self.neutral_us) / self.scale_us
         return s * self.thrust_max_n if s >= 0.0 else -s * self.thrust_min_n
 
-    def raw(self, held: float) -> float:
-        """Thrust (N) before the decay: [Yellowfish-TR eq. 27] with its dead zone, or the thrust itself."""
+    def raw(self, held: float, side: int = 0) -> float:
+        """Thrust (N) before the decay: [Yellowfish-TR eq. 27] with thruster `side`'s dead zone (0 left,
+        1 right), or the thrust itself."""
         if self.kind != "pwm":
             return held
         x = min(max(held, self.pwm_min_us), self.pwm_max_us) / self.scale_us - self.offset
-        if x >= self.deadzone_fwd:
+        edge_fwd, edge_rev = (self.deadzone_fwd, self.deadzone_rev) if self.edges is None else self.edges[side]
+        if x >= edge_fwd:
             coefficients = self.forward
-        elif x <= self.deadzone_rev:
+        elif x <= edge_rev:
             coefficients = self.reverse
         else:
             return 0.0
@@ -221,8 +226,9 @@ class SitlTwin:
         self._neutral_us = self.map.neutral_us
         self._outputs = (self.channels[0] - 1, self.channels[1] - 1)  # 0-based indices into the packet
         self._hysteretic = vessel.thrusters.hysteretic
-        self._thrust_of: dict[float, float] = {}  # PWM (µs) → raw thrust (N): ArduPilot's PWM is whole µs
-        self._raw_of: dict[float, float] = {}  # held input → raw thrust (N), for the delayed path
+        # per thruster (a dead zone of its own): PWM (µs) → raw thrust (N), ArduPilot's PWM is whole µs
+        self._thrust_of: tuple[dict[float, float], dict[float, float]] = ({}, {})
+        self._raw_of: tuple[dict[float, float], dict[float, float]] = ({}, {})  # held input → raw thrust (N), delayed path
         self._delay_s = float(vessel.thrusters.delay_s)
         self._decay_per_min = float(vessel.thrusters.decay_per_min)
         t = vessel.thrusters
@@ -448,7 +454,7 @@ class SitlTwin:
     def _drive(self, driven: tuple[float, float]) -> None:
         """Write the thrusters' controls for these (ESC-passed) inputs."""
         mp = self.map
-        left, right = self._thrust(mp.received(driven[0], 0)), self._thrust(mp.received(driven[1], 1))
+        left, right = self._thrust(mp.received(driven[0], 0), 0), self._thrust(mp.received(driven[1], 1), 1)
         ctrl, (il, ir) = self._ctrl, self._ctrl_ids
         ctrl[il] = left
         ctrl[ir] = right
@@ -495,20 +501,20 @@ class SitlTwin:
 
         return armed(0), armed(1)
 
-    def _thrust(self, pwm_us: float) -> float:
-        """Raw thrust (N) of a PWM as its ESC receives it (PwmMap.received), cached: the map's
-        polynomial once per distinct PWM value."""
-        thrust = self._thrust_of.get(pwm_us)
+    def _thrust(self, pwm_us: float, side: int) -> float:
+        """Raw thrust (N) of a PWM as thruster `side`'s ESC receives it (PwmMap.received), cached: the
+        map's polynomial once per distinct PWM value."""
+        thrust = self._thrust_of[side].get(pwm_us)
         if thrust is None:
             mp = self.map
-            thrust = self._thrust_of[pwm_us] = mp.raw(mp.held(pwm_us))
+            thrust = self._thrust_of[side][pwm_us] = mp.raw(mp.held(pwm_us), side)
         return thrust
 
-    def _raw(self, held: float) -> float:
+    def _raw(self, held: float, side: int) -> float:
         """PwmMap.raw of a held input, cached like `_thrust` (the delayed path looks it up every step)."""
-        thrust = self._raw_of.get(held)
+        thrust = self._raw_of[side].get(held)
         if thrust is None:
-            thrust = self._raw_of[held] = self.map.raw(held)
+            thrust = self._raw_of[side][held] = self.map.raw(held, side)
         return thrust
 
     def _advance_delayed(self, t0_s: float, pl: float, pr: float, driven: tuple[float, float], n: int) -> None:
@@ -521,7 +527,7 @@ class SitlTwin:
         h, t_seg, k0, delay_s = self._h, self._seg_t0, self._seg_k, self._delay_s
         decay_per_min, slew = self._decay_per_min, self._slew_n_per_s is not None
         times, lefts, rights, j = self._hist_t, self._hist_l, self._hist_r, self._hist_i
-        last, raw_of, raw = len(times) - 1, self._raw_of, self._raw
+        last, (raw_left, raw_right), raw = len(times) - 1, self._raw_of, self._raw
         for i in range(n):
             t = t_seg + (k0 + i) * h
             x = t - delay_s + _ZOH_TOL_S  # the last frame that started at or before t − delay (InputSeries.at)
@@ -531,9 +537,9 @@ class SitlTwin:
             f = 1.0 - decay_per_min * t / 60.0  # ThrusterModel.decay_factor on a float (same operations, same bits)
             if f < 0.0:
                 f = 0.0
-            left, right = raw_of.get(held_left), raw_of.get(held_right)
-            left = (raw(held_left) if left is None else left) * f
-            right = (raw(held_right) if right is None else right) * f
+            left, right = raw_left.get(held_left), raw_right.get(held_right)
+            left = (raw(held_left, 0) if left is None else left) * f
+            right = (raw(held_right, 1) if right is None else right) * f
             start = t - delay_s
             end = start + h
             parts = None
@@ -576,7 +582,7 @@ class SitlTwin:
             while n <= last and times[n] <= until and lefts[n] == lefts[k] and rights[n] == rights[k]:
                 n += 1
             held_s = (times[n] if n <= last and times[n] <= until else end) - times[k]
-            pieces.append((held_s, self._raw(lefts[k]) * f, self._raw(rights[k]) * f))
+            pieces.append((held_s, self._raw(lefts[k], 0) * f, self._raw(rights[k], 1) * f))
             k = n
         if all((p[1], p[2]) == (left, right) for p in pieces):
             return None
