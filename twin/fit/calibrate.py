@@ -62,7 +62,8 @@ def calibrated(rec: Recording, vessel: Vessel) -> Recording:
 def throttle_at_heading(rec: Recording, vessel: Vessel) -> np.ndarray:
     """The motors' throttle τ (physics.sensors.motor_throttle) when each heading sample was taken (a
     late AHRS stamps it heading_latency_s after): the PWM logged last before then, on the PWM log's
-    clock (stamped pwm_clock_offset_s late)."""
+    clock (stamped pwm_clock_offset_s late), as each ESC receives it (its PWM span: the current the
+    motor draws follows what it is driven with)."""
     if not len(rec.pwm):
         raise TwinError(f"{rec.source}: the compass error that follows the throttle (sensors.compass_motor_deg) "
                         "needs the thrusters' PWM, and this recording has none")
@@ -71,7 +72,7 @@ def throttle_at_heading(rec: Recording, vessel: Vessel) -> np.ndarray:
     k = np.clip(np.searchsorted(rec.pwm.t, t, side="right") - 1, 0, len(rec.pwm.t) - 1)
     pwm = np.column_stack([np.asarray(rec.pwm["left_us"])[k], np.asarray(rec.pwm["right_us"])[k]])
     th = vessel.thrusters
-    return motor_throttle(pwm, rec.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+    return motor_throttle(th.received(pwm), rec.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
 
 
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
@@ -474,7 +475,7 @@ def _throttle_pieces(prep: Prepared, vessel: Vessel, drift, compiled: CompiledVe
         if np.median(prep.u[sl]) <= 0:  # ahead only: astern, the water meets another hull end
             continue
         vel, psi = _ground_velocity(prep, sl)
-        tau = motor_throttle(prep.pwm[sl], prep.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+        tau = motor_throttle(th.received(prep.pwm[sl]), prep.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
         for k in range(0, len(psi) - piece + 1, piece):
             w = vel[k:k + piece].mean(axis=0) - drift
             heading = float(np.angle(np.mean(np.exp(1j * psi[k:k + piece]))))
