@@ -9,7 +9,8 @@ that the bias absorbs).
 The thrusters' own currents add a field of their own at the magnetometer: a body-fixed vector
 that grows with what the motors draw, so a one-cycle deviation that comes and goes with the
 throttle: δψ_motor = τ·(B_m sin ψ + C_m cos ψ), τ the thrusters' mean throttle |pwm − neutral| /
-full range of the pulses each ESC receives (its PWM span applied) (0 at idle, 1 both at full, ahead or astern: a battery's current flows one way either
+full range of the pulses each ESC receives, its PWM span applied (0 at idle, 1 both at full, ahead or
+astern: a battery's current flows one way either
 way). ArduPilot calibrates this as COMPASS_MOT [ArduPilot-CompassMot] with COMPASS_MOT_TYPE = 1 (throttle; = 2 reads
 a current sensor instead, which these logs seldom have); the field's direction and size are the
 wiring's, so B_m and C_m are each boat's own.
