@@ -479,7 +479,7 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
     """Per compared sample: the context signals locate.py bins by, the window id, time in window."""
     cols = {k: [] for k in ("u_m_s", "v_m_s", "r_rad_s", "heading_deg", "region", "pwm_mean_us", "pwm_diff_us",
                             "since_input_step_s", "near_zero_pwm", "run_time_s", "time_in_window_s",
-                            "recording", "segment")}
+                            "recording", "recording_name", "segment")}
     win, tiw = [], []
     for j, w in enumerate(windows):
         p = preps[w.rec]
@@ -502,6 +502,7 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
         cols["run_time_s"].append(p.t[idx] - p.t[0])
         cols["time_in_window_s"].append(np.arange(1, n + 1) * h)
         cols["recording"].append(np.full(n, w.rec))
+        cols["recording_name"].append(np.full(n, log_name(p.settings.source) or f"recording {w.rec + 1}", dtype=object))
         cols["segment"].append(p.segment[idx])
         win.append(np.full(n, j))
         tiw.append(np.arange(1, n + 1) * h)

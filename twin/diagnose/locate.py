@@ -145,7 +145,8 @@ DIMENSIONS: dict[str, tuple[str, Callable[[dict], np.ndarray]]] = {
                                                ["<-100µs", "-100..-20µs", "|Δ|<20µs", "20..100µs", ">100µs"])),
     "run_third": ("run_time_s", _run_third),
     "time_block": ("run_time_s", _time_block),
-    "recording": ("recording", lambda c: _labels(c, "recording")),
+    # by the log's file name where the context has it (the index counts from 0, which a reader need not know)
+    "recording": ("recording", lambda c: _labels(c, "recording_name" if "recording_name" in c else "recording")),
 }
 
 

@@ -498,5 +498,6 @@ def write_html(d, path: Path) -> None:
     ]
     style = ("<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
              "margin:8px 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}img{max-width:100%}</style>")
-    write_text_atomic(Path(path), f"<!doctype html><html><head><meta charset='utf-8'>{style}</head><body>"
+    title = f"<title>twin diagnose: {html.escape(d.prior.name)}</title>"
+    write_text_atomic(Path(path), f"<!doctype html><html><head><meta charset='utf-8'>{title}{style}</head><body>"
                       + "\n".join(parts) + "</body></html>\n")
