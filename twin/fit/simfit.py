@@ -453,6 +453,12 @@ def _near_bound(obj: Objective, x: np.ndarray, cov) -> list[tuple[float, bool] |
     return out
 
 
+def _share(ratio: float) -> str:
+    """A ratio as a percentage, "< 1 %" where it rounds to none (a pinned coefficient's posterior is
+    not zero wide)."""
+    return "< 1%" if 0 <= ratio < 0.005 else f"{ratio:.0%}"
+
+
 def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray,
                    started_elsewhere: set[str] = frozenset()) -> list[Estimate]:
     out = []
@@ -464,15 +470,15 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
         sx = float(np.sqrt(max(cov[i, i], 0.0))) if cov is not None else float("nan")
         if free[i]:
             sigma = abs(value) * sx if c.log else sx  # the delta method through exp
-            note = f"pinned by the recordings (posterior {sx / c.belief.sigma:.0%} of the belief's σ)"
+            note = f"pinned by the recordings (posterior {_share(sx / c.belief.sigma)} of the belief's σ)"
             alone = held[i] if held is not None else float("inf")  # what the belief alone leaves at its weight
             disputed = sx > DISPUTED_RATIO * alone
             by_belief = not disputed and sx >= POSTERIOR_RATIO * alone  # the belief, as data, did the narrowing
             if by_belief:
-                note = (f"held by its belief (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
+                note = (f"held by its belief (posterior {_share(sx / c.belief.sigma)} of the belief's σ, "
                         f"{sx / alone:.0%} of what the belief alone leaves at its weight): the recordings add little")
             elif disputed:
-                note = (f"moved by recordings whose windows pull it different ways (posterior {sx / c.belief.sigma:.0%} "
+                note = (f"moved by recordings whose windows pull it different ways (posterior {_share(sx / c.belief.sigma)} "
                         f"of the belief's σ, {sx / alone:.1f} times what the belief alone leaves at its weight: the "
                         "σ is their scatter about the fit)")
             if edge[i] is not None:  # a curvature's σ at a wall says nothing of where the data would put it
