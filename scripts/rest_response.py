@@ -184,8 +184,8 @@ def page(raw: dict) -> ResultPage:
     if slow:
         best_kick = max((m for m in moved.values() if m["twin"] != "identified"), key=lambda m: m["kick_ratio"])
         summary += (f" No one coefficient mends either: with N_r × 0.25 the twin coasts at "
-                    f"{_median(slow['twin_tau_s']):.1f} s but predicts r at R² {slow['fitted']['r']:.2f} on the fitted "
-                    f"runs and {slow['judged']['r']:.2f} on the judged; the kicks come nearest with "
+                    f"{_median(slow['twin_tau_s']):.1f} s but predicts r at R² {slow['fitted']['r']:.3f} on the fitted "
+                    f"runs and {slow['judged']['r']:.3f} on the judged; the kicks come nearest with "
                     f"{best_kick['twin']}, at {best_kick['kick_ratio']:.2f} of the twin's (last table).")
     return ResultPage(
         name="rest_response", title="The BlueBoat answering its thrusters from rest",
