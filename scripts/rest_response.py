@@ -2,8 +2,8 @@
 
     python scripts/rest_response.py [--page-only]
 
-The ten shared BlueBoat runs [BlueBoat-SI] spend most of their time with both thrusters inside their
-dead band. Two things happen there that the twin's form decides and that a diagnosis of such runs
+The ten shared BlueBoat runs [BlueBoat-SI] spend most of their time with both thrusters at rest (within
+AT_REST_US of neutral, inside the BlueBoat's dead band of +31/−37 µs). Two things happen there that the twin's form decides and that a diagnosis of such runs
 meets in every block of idling:
 
 - kicks: a thruster driven outside its dead band for at most KICK_MAX_S, after REST_BEFORE_S or more
@@ -95,7 +95,9 @@ def coasts(prep, predictor, run: int) -> list[dict]:
     for a, b, at_rest in _runs(rest, prep.segment):
         start = a + int(round(COAST_SKIP_S / h))
         stop = min(b, start + int(round(COAST_MAX_S / h)))
-        if not at_rest or a == 0 or (stop - start) * h < COAST_MIN_S or abs(prep.r[start]) <= COAST_MIN_RATE_RAD_S:
+        # a stretch that opens a segment has no last thrust to count from
+        opens = a == 0 or prep.segment[a - 1] != prep.segment[a]
+        if not at_rest or opens or (stop - start - 1) * h < COAST_MIN_S or abs(prep.r[start]) <= COAST_MIN_RATE_RAD_S:
             continue
         r = prep.r[start:stop]
         if np.any(np.sign(r) != np.sign(r[0])) or np.any(np.abs(r) < 0.005):
@@ -159,6 +161,10 @@ def _median(values) -> float:
     return float(np.median(v)) if v else float("nan")
 
 
+def _tau(x) -> str:
+    return "-" if x is None else f"{x:.1f}"
+
+
 def page(raw: dict) -> ResultPage:
     kick_rows = [[k["group"], k["run"], k["t_s"], k["seconds"], " → ".join(f"{a}/{b}" for a, b in k["pwm_us"]),
                   round(k["measured_dr_rad_s"], 3), round(k["twin_dr_rad_s"], 3),
@@ -167,18 +173,17 @@ def page(raw: dict) -> ResultPage:
                    "-" if c["measured_tau_s"] is None else round(c["measured_tau_s"], 2),
                    "-" if c["twin_tau_s"] is None else round(c["twin_tau_s"], 2)] for c in raw["coasts"]]
     ratio = [k["measured_dr_rad_s"] / k["twin_dr_rad_s"] for k in raw["kicks"] if k["twin_dr_rad_s"] > 0]
-    measured_tau = _median(c["measured_tau_s"] for c in raw["coasts"])
-    twin_tau = _median(c["twin_tau_s"] for c in raw["coasts"])
+    pairs = ", ".join(f"{_tau(c['measured_tau_s'])} / {_tau(c['twin_tau_s'])}" for c in raw["coasts"])
     t = raw["twin"]
     summary = (f"{len(raw['kicks'])} kicks from rest ({sum(k['group'] == 'fitted' for k in raw['kicks'])} on the "
                f"fitted runs): the largest change of the yaw rate within {ANSWER_S:g} s is {_median(ratio):.2f} of "
-               f"the twin's at the median (the twin's map, gains {t['gain_left']:.2f}/{t['gain_right']:.2f} and "
-               f"thrust lag {t['lag_s']:.3f} s, gives a short pulse from rest its full thrust at once). "
+               f"the twin's at the median (its map, gains {t['gain_left']:.2f}/{t['gain_right']:.2f}, and thrust lag "
+               f"{t['lag_s']:.3f} s: no delay from rest). "
                f"{len(raw['coasts'])} coasting turns with both thrusters at rest: r decays with a time constant of "
-               f"{measured_tau:.2f} s measured, {twin_tau:.2f} s in the twin (identified N_r {t['Nr']:.2f} N m s, "
-               f"N_rr {t['Nrr']:.2f} N m s², N_ṙ {t['Nrdot']:.2f} kg m²): its yaw damping is one number at rest and "
-               "under thrust. Few events (the least active runs hold none of these kicks), but both the same way: "
-               "the twin's form at rest, which a diagnosis meets in every block of idling.")
+               f"{pairs} (measured / twin, s; identified N_r {t['Nr']:.2f} N m s, N_rr {t['Nrr']:.2f} N m s², N_ṙ "
+               f"{t['Nrdot']:.2f} kg m²): the twin's yaw dies away several times faster. Few events, all on the "
+               "judged runs (the least active runs hold none), but each the same way; a diagnosis of such runs meets "
+               "them in every block of idling.")
     moved = {m["twin"]: m for m in raw.get("sensitivities", [])}
     slow = moved.get("N_r × 0.25")
     if slow:

@@ -1,5 +1,7 @@
 """twin.diagnose.noise and twin.diagnose.locate on synthetic data with known structure."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -238,3 +240,16 @@ def test_a_noise_that_cannot_be_estimated_is_refused_in_one_sentence(monkeypatch
     monkeypatch.setattr(doctor, "estimate_noise", lambda rec, prep: {"u": float("nan"), "v": 0.01, "r": float("nan")})
     with pytest.raises(TwinError, match="the noise of u, r cannot be estimated from this recording"):
         doctor._noise([None], [None])
+
+
+def test_the_residual_table_names_recordings_by_file_and_numbers_twins_of_a_name():
+    """A recording's bin reads as its file name; two files of one name (other folders) keep apart by
+    their number from 1, and a recording without a source by its number alone."""
+    from twin.diagnose.doctor import _context
+    from twin.fit.windows import Window
+
+    preps = [prepare(replace(_recording(seed), source=src)) for seed, src in
+             ((1, "a/log.csv"), (2, "b/log.csv"), (3, "c/other.csv"), (4, ""))]
+    ctx, _, _ = _context(preps, [Window(i, 0, 5) for i in range(4)], 5)
+    assert list(dict.fromkeys(ctx["recording_name"])) == ["log.csv (1)", "log.csv (2)", "other.csv", "4"]
+    assert list(dict.fromkeys(ctx["recording"])) == [0, 1, 2, 3]

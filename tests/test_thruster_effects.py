@@ -532,10 +532,14 @@ def test_a_log_is_corrected_with_the_throttle_at_each_heading_sample(tmp_path):
     after = psi[t > 5.05]
     assert after == pytest.approx(np.full(len(after), -0.17196), abs=1e-4)
     np.testing.assert_allclose(measured_heading(v.sensors, after, 1.0), 0.0, atol=1e-6)
-    # an ESC answering half the logged PWM's range draws half the current: half the motors' deviation
-    half = calibrated(rec, replace(v, thrusters=replace(v.thrusters, pwm_span_left=0.5, pwm_span_right=0.5)))
-    np.testing.assert_allclose(measured_heading(v.sensors, half.heading["psi_rad"][t > 5.05], 0.5), 0.0, atol=1e-6)
-    assert abs(half.heading["psi_rad"][-1]) == pytest.approx(0.5 * abs(after[-1]), rel=0.02)
+    # an ESC answering half the logged PWM's range draws half the current: the left one here, so the
+    # mean throttle is 0.75 and the motors' deviation three quarters of it
+    part = calibrated(rec, replace(v, thrusters=replace(v.thrusters, pwm_span_left=0.5)))
+    np.testing.assert_allclose(measured_heading(v.sensors, part.heading["psi_rad"][t > 5.05], 0.75), 0.0, atol=1e-6)
+    assert abs(part.heading["psi_rad"][-1]) == pytest.approx(0.75 * abs(after[-1]), rel=0.02)
+    # a span past 1 drives no motor beyond full: the ESC clips its pulse
+    wide = calibrated(rec, replace(v, thrusters=replace(v.thrusters, pwm_span_left=1.5, pwm_span_right=1.5)))
+    np.testing.assert_allclose(wide.heading["psi_rad"], psi, atol=1e-12)
     with pytest.raises(TwinError, match="needs the thrusters' PWM"):
         calibrated(replace(rec, pwm=Stream.empty("left_us", "right_us")), v)
     esso = vessel_mod.load("esso_osaka")

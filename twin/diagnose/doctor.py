@@ -481,6 +481,10 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
                             "since_input_step_s", "near_zero_pwm", "run_time_s", "time_in_window_s",
                             "recording", "recording_name", "segment")}
     win, tiw = [], []
+    names = [log_name(p.settings.source) for p in preps]
+    # a file name where it tells the recording apart, else its number (from 1) beside it
+    labels = [name if name and names.count(name) == 1 else f"{name} ({i + 1})" if name else str(i + 1)
+              for i, name in enumerate(names)]
     for j, w in enumerate(windows):
         p = preps[w.rec]
         h = p.settings.grid_dt
@@ -502,7 +506,7 @@ def _context(preps: list[Prepared], windows: list[Window], n: int) -> tuple[dict
         cols["run_time_s"].append(p.t[idx] - p.t[0])
         cols["time_in_window_s"].append(np.arange(1, n + 1) * h)
         cols["recording"].append(np.full(n, w.rec))
-        cols["recording_name"].append(np.full(n, log_name(p.settings.source) or f"recording {w.rec + 1}", dtype=object))
+        cols["recording_name"].append(np.full(n, labels[w.rec], dtype=object))
         cols["segment"].append(p.segment[idx])
         win.append(np.full(n, j))
         tiw.append(np.arange(1, n + 1) * h)

@@ -72,7 +72,16 @@ def throttle_at_heading(rec: Recording, vessel: Vessel) -> np.ndarray:
     k = np.clip(np.searchsorted(rec.pwm.t, t, side="right") - 1, 0, len(rec.pwm.t) - 1)
     pwm = np.column_stack([np.asarray(rec.pwm["left_us"])[k], np.asarray(rec.pwm["right_us"])[k]])
     th = vessel.thrusters
-    return motor_throttle(th.received(pwm), rec.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+    return motor_throttle(_received(th, pwm), rec.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+
+
+def _received(thrusters, pwm_us) -> np.ndarray:
+    """The pulses the ESCs drive their motors with: each ESC's span applied and, where a span acts,
+    within the PWM range (an ESC clips what it receives; a log past full throttle without one stays
+    as logged, motor_throttle)."""
+    if not thrusters.spanned:
+        return np.asarray(pwm_us, float)
+    return thrusters.at_escs(thrusters.received(pwm_us))
 
 
 def prepare_for(rec: Recording, compiled: CompiledVessel, **kwargs) -> Prepared:
@@ -475,7 +484,7 @@ def _throttle_pieces(prep: Prepared, vessel: Vessel, drift, compiled: CompiledVe
         if np.median(prep.u[sl]) <= 0:  # ahead only: astern, the water meets another hull end
             continue
         vel, psi = _ground_velocity(prep, sl)
-        tau = motor_throttle(th.received(prep.pwm[sl]), prep.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
+        tau = motor_throttle(_received(th, prep.pwm[sl]), prep.pwm_neutral_us, th.pwm_min_us, th.pwm_max_us)
         for k in range(0, len(psi) - piece + 1, piece):
             w = vel[k:k + piece].mean(axis=0) - drift
             heading = float(np.angle(np.mean(np.exp(1j * psi[k:k + piece]))))

@@ -76,10 +76,10 @@ class Measurements:
     def _key(vessel: Vessel) -> tuple:
         """What preparing a recording reads of the vessel: its sensors, and where the compass follows
         the motors' throttle, what that is read from (the PWM at each heading sample, on the PWM log's
-        clock, over the thrusters' range: fit.calibrate.throttle_at_heading)."""
-        s = vessel.sensors
-        throttle = ((s.pwm_clock_offset_s, vessel.thrusters.pwm_min_us, vessel.thrusters.pwm_max_us)
-                    if s.follows_throttle else ())
+        clock, as each ESC receives it, over the thrusters' range: fit.calibrate.throttle_at_heading)."""
+        s, t = vessel.sensors, vessel.thrusters
+        throttle = ((s.pwm_clock_offset_s, t.pwm_min_us, t.pwm_max_us, t.pwm_span_left, t.pwm_span_right,
+                     t.neutral_us) if s.follows_throttle else ())
         return (s.heading_bias_deg, tuple(s.compass_deviation_deg), tuple(s.compass_motor_deg),
                 tuple(s.antenna_offset_m),
                 s.heading_bias_by_log_deg, s.gnss_latency_s, s.heading_latency_s) + throttle

@@ -454,9 +454,9 @@ def _near_bound(obj: Objective, x: np.ndarray, cov) -> list[tuple[float, bool] |
 
 
 def _share(ratio: float) -> str:
-    """A ratio as a percentage, "< 1 %" where it rounds to none (a pinned coefficient's posterior is
-    not zero wide)."""
-    return "< 1%" if 0 <= ratio < 0.005 else f"{ratio:.0%}"
+    """A ratio as a percentage, "< 1%" where it would round to none (a pinned coefficient's posterior
+    is not zero wide)."""
+    return "< 1%" if 0 <= ratio <= 0.005 else f"{ratio:.0%}"
 
 
 def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov, free: np.ndarray,
@@ -493,7 +493,7 @@ def _map_estimates(obj: Objective, coords: list[Coordinate], x: np.ndarray, cov,
                 lacks = "it stands in for something the twin's form lacks"
                 if by_belief and edge[i] is None:
                     note = (f"pulled {away:.1f} σ of its belief from its prior{ratio}, by recordings that narrow it "
-                            f"no more than its belief does (posterior {sx / c.belief.sigma:.0%} of the belief's σ, "
+                            f"no more than its belief does (posterior {_share(sx / c.belief.sigma)} of the belief's σ, "
                             f"{sx / alone:.0%} of what the belief alone leaves at its weight): {lacks}")
                 else:
                     note += f"; {away:.1f} σ of its belief from its prior{ratio}: {lacks}"

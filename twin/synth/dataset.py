@@ -227,8 +227,10 @@ def _throttle(vessel: Vessel, run: Run, times_s: np.ndarray) -> np.ndarray | flo
         raise TwinError("a compass error that follows the throttle (sensors.compass_motor_deg) needs PWM inputs; "
                         f"these runs are driven by {inputs.kind}")
     th = vessel.thrusters
-    return motor_throttle(th.received(inputs.at(times_s)), (man.NEUTRAL_US, man.NEUTRAL_US), th.pwm_min_us,
-                          th.pwm_max_us)
+    pwm = inputs.at(times_s)
+    if th.spanned:  # the pulses each ESC drives its motor with, within its range
+        pwm = th.at_escs(th.received(pwm))
+    return motor_throttle(pwm, (man.NEUTRAL_US, man.NEUTRAL_US), th.pwm_min_us, th.pwm_max_us)
 
 
 def _wander(rng: np.random.Generator, n: int, dt: float, sigma: float, scale_s: float) -> np.ndarray:
