@@ -860,3 +860,19 @@ def test_screening_judges_every_log_on_windows_of_its_own():
     spread = _spread_per_log(windows, 32)
     assert {w.rec for w in spread} == set(range(5)) and len(spread) <= 36
     assert all(len([w for w in spread if w.rec == r]) >= 10 for r in (0, 2, 4))
+
+
+def test_a_given_effect_every_block_votes_against_is_said_to_be_opposed_where_too_few_blocks_contradict_it():
+    """Seven blocks all against reach z −2.42 only (the exact test: p = 2⁻⁷): the answer says every block
+    votes against it and how many blocks calling it contradicted takes; a split vote keeps the plain words."""
+    from twin.diagnose.doctor import given_text
+    from twin.diagnose.search import Evidence, _signed_rank_z
+
+    votes = -np.linspace(0.1, 0.7, 7)
+    z = _signed_rank_z(votes)
+    assert z == pytest.approx(-2.418, abs=0.01)
+    opposed = Evidence(z, -6.7, -8.0, {"u": 0.2, "v": -7.6, "r": -0.01}, 0, 7, 70, votes)
+    text = given_text(["current=0.1,90"], opposed)
+    assert "every block votes against it" in text and "10 blocks or more" in text and "contradicted by" not in text
+    split = Evidence(-1.0, -0.1, -0.2, {"u": 0.0, "v": -0.1, "r": 0.0}, 2, 5, 70)
+    assert "cannot prove it at these values" in given_text(["current=0.1,90"], split)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
+from scipy.stats import norm
 
 from ..effects import EFFECTS, apply_effects, candidates, effect
 from ..effects.coefficients import fit_groups
@@ -355,6 +356,11 @@ def given_text(effects, e) -> str:
         return f"{what} earns its place as given: {blocks}; {change}"
     if e.z <= -Z_MIN:  # the blocks' vote, mirrored: as sure as a finding, the other way
         return f"{what} is contradicted by these recordings: {blocks}; {change}"
+    if e.blocks_for == 0 and e.blocks_against >= 2:  # as far as these blocks can say, the data oppose it
+        fewest = math.ceil(math.log2(1.0 / norm.sf(Z_MIN)))  # all of n blocks one way: p = 2^−n (exact test)
+        return (f"{what} does not earn its place as given ({blocks}; {change}): every block votes against it, as "
+                f"far against as {e.blocks_against} blocks can be (calling it contradicted takes z ≤ −{Z_MIN:g}, "
+                f"{fewest} blocks or more)")
     return (f"{what} does not earn its place as given ({blocks}; {change}): these recordings cannot prove it at "
             "these values (the rule: z ≥ 3 and 5 % of the misfit above the noise)")
 
