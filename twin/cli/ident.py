@@ -78,7 +78,7 @@ def dataset_command(
     truth = truth or out[0].with_name(out[0].stem + ".truth.json")
     check_outputs([truth], (".json",), truth_option)
     check_distinct({"--out": out, truth_option: truth}, [model], keep_data=False)  # check_new: any file there
-    check_new(out, force, "output", RUNS, truth=truth)
+    check_new(out, force, "--out", RUNS, truth=truth)
     check_new([truth], force, truth_option, ("dataset's truth",))
     check_truth_beside_logs(truth, out, truth_option)
     segments_fit(segments)
