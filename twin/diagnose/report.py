@@ -347,7 +347,10 @@ def format_text(d) -> str:
         lines.append(f"{name:14s}" + "".join(f"{_num(fit[k]['r2']):>9s}{_num(_shown(k, fit[k]['mae']), 4):>10s}"
                                              for k in "uvr"))
     growth = ", ".join(f"{k}: {v.get('verdict')}" for k, v in d.growth.items())
-    lines.append(f"along the free runs the residual is (dynamics: grows; measurement: there from the start): {growth}")
+    legend = {"dynamics": "grows", "measurement": "there from the start",
+              "unsettled": "grows, but too few windows to say it does", "none": "within the noise"}
+    said = [w for w in legend if w in {v.get("verdict") for v in d.growth.values()}] or ["dynamics", "measurement"]
+    lines.append(f"along the free runs the residual is ({'; '.join(f'{w}: {legend[w]}' for w in said)}): {growth}")
     lines += [f"note: {n}" for n in d.notes]
     return "\n".join(lines)
 
