@@ -410,6 +410,33 @@ def test_a_promising_candidate_short_of_blocks_is_a_hint_never_named():
     assert any(line.startswith("to settle timing effects") for line in a["next"])
 
 
+def test_what_the_kinematics_could_not_tell_gets_its_recording_advice():
+    """An antenna or a timing the kinematics neither named nor showed absent (too few spins or steps)
+    gets RECORD NEXT advice: spins in place for a boat, the drawings for a ship; a finding told, or
+    shown absent, gets none."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+    from twin.fit.kinematic import KinematicFinding
+
+    def finding(effect, told=False, absent=False, why="2 groups of large heading changes; 4 are needed"):
+        return KinematicFinding(effect, {}, {}, {}, told, absent, why)
+
+    def advice(vessel, kinematic):
+        d = SimpleNamespace(effects=[], rounds=[], unexplained=[], located=[], fit_before={}, fit_after={},
+                            prior=vessel_mod.load(vessel), windows={"length_s": 10.0, "windows": 90},
+                            kinematic=kinematic)
+        return answer(d)["next"]
+
+    boat = advice("blueboat", [finding("gnss_lever_arm"), finding("heading_latency", why="too few input steps")])
+    assert len(boat) == 2 and boat[0].startswith("to tell where the GNSS antenna sits (not told: 2 groups")
+    assert "spins in place both ways" in boat[0] and boat[1].startswith("to settle timing effects: steps of the sticks")
+    (ship,) = advice("esso_osaka", [finding("gnss_lever_arm")])
+    assert "ship's drawings" in ship and "sensors.antenna_offset_m" in ship
+    assert advice("blueboat", [finding("gnss_lever_arm", told=True), finding("clock_offset", absent=True)]) == []
+    assert advice("blueboat", []) == []
+
+
 def test_a_share_beyond_the_whole_excess_over_the_noise_is_not_printed_as_a_percentage():
     """A candidate that removes more than the misfit above the noise (the noise estimate is high) is
     said so in words, never as e.g. 16883373999 %; a share within it stays a percentage."""

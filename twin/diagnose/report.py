@@ -103,6 +103,14 @@ NEXT_SHIP = {
     "turning": "turns both ways at several rudder angles, and zig-zags",
     "drag": "coast-downs from full speed with the propeller stopped, and runs at several steady propeller speeds",
 }
+# what to record where the kinematics could not tell an effect (neither named nor shown absent: too few
+# spins or steps, or too loose a reading); the timing effects take the "timing" family's advice
+ANTENNA_NEXT = ("spins in place both ways, four or more each, each turning 30° or more within 3 s at under "
+                "0.5 m/s over ground with the hull held on the spot (ease the thruster ahead where it creeps): "
+                "only there do the fixes swing round the hull's middle whatever the twin's form")
+ANTENNA_NEXT_SHIP = ("the antenna's place from the ship's drawings, put in the vessel file (sensors.antenna_offset_m): "
+                     "the kinematics read it only from turns on the spot, which a propeller-and-rudder ship does not make")
+TIMING_EFFECTS = ("clock_offset", "heading_latency", "gnss_latency")
 MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment: the twin's form is off there
 FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates with beyond this
 
@@ -194,8 +202,14 @@ def answer(d) -> dict:
     candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
     if not d.effects and out["form"]:
         families |= {_family(d, n) for n in candidates_tried}
-    advice = NEXT | (NEXT_SHIP if d.prior.thrusters.kind == "propeller_rudder" else {})
-    out["next"] = settle + [f"to settle {fam} effects: {advice[fam]}" for fam in sorted(families) if fam in advice]
+    ship = d.prior.thrusters.kind == "propeller_rudder"
+    untold = [f for f in getattr(d, "kinematic", []) if not (f.told or f.absent)]
+    families |= {"timing" for f in untold if f.effect in TIMING_EFFECTS}
+    antenna = [f"to tell where the GNSS antenna sits (not told: {f.why}): {ANTENNA_NEXT_SHIP if ship else ANTENNA_NEXT}"
+               for f in untold if f.effect == "gnss_lever_arm"]
+    advice = NEXT | (NEXT_SHIP if ship else {})
+    out["next"] = settle + antenna + [f"to settle {fam} effects: {advice[fam]}" for fam in sorted(families)
+                                      if fam in advice]
     return out
 
 
