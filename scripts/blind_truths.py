@@ -1,6 +1,6 @@
 """Concealed effects written by a simulator of this script's own, diagnosed through `twin diagnose` as a user would.
 
-    python scripts/blind_truths.py [--set first|second|...|sixteenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
+    python scripts/blind_truths.py [--set first|second|...|seventeenth] [--work DIR] [--only CASE,...] [--page-only] [--truth-given]
 
 Ten recordings of ten minutes of the Yellowfish on a survey mission, each with one concealed effect of a
 form the effect library does not have (or none), are written by a three-degree-of-freedom simulator that
@@ -285,10 +285,22 @@ SIXTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and dir
     Case("wind-gusty-6-250", "wind", 189, wind_speed_m_s=6.0, wind_from_deg=250.0, gust_sigma_m_s=1.1, gust_tau_s=11.0),
     Case("wind-steady-5-70", "wind", 190, wind_speed_m_s=5.0, wind_from_deg=70.0),
 ]
+SEVENTEENTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-ag", "null", 191),
+    Case("null-ah", "null", 192),
+    Case("dead_zone-right-soft-40-95us", "dead_zone", 193, side="right", inner_us=40.0, outer_us=95.0),
+    Case("dead_zone-left-hard-80us", "dead_zone", 194, side="left", inner_us=80.0, outer_us=80.0),
+    Case("speed_loss-0.12u", "speed_loss", 195, k=0.12, power=1),
+    Case("speed_loss-0.12u2", "speed_loss", 196, k=0.12, power=2),
+    Case("sag-exp-380s", "sag_exp", 197, k=0.21, tau_s=380.0),
+    Case("sag-square-0.22", "sag_square", 198, k=0.22),
+    Case("wind-gusty-5-200", "wind", 199, wind_speed_m_s=5.0, wind_from_deg=200.0, gust_sigma_m_s=1.0, gust_tau_s=12.0),
+    Case("wind-steady-6-10", "wind", 200, wind_speed_m_s=6.0, wind_from_deg=10.0),
+]
 SETS = {"first": FIRST, "second": SECOND, "third": THIRD, "fourth": FOURTH, "fifth": FIFTH, "sixth": SIXTH,
         "seventh": SEVENTH, "eighth": EIGHTH, "ninth": NINTH, "tenth": TENTH, "eleventh": ELEVENTH,
         "twelfth": TWELFTH, "thirteenth": THIRTEENTH, "fourteenth": FOURTEENTH,
-        "fifteenth": FIFTEENTH, "sixteenth": SIXTEENTH}
+        "fifteenth": FIFTEENTH, "sixteenth": SIXTEENTH, "seventeenth": SEVENTEENTH}
 
 # the library's names an effect may be named by and still be the truth
 ACCEPTED = {"wind": ("wind", "wind_shape")}

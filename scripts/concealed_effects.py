@@ -1,7 +1,7 @@
 """Effects concealed in real logs, exactly and without a model, diagnosed with a twin identified on
 other runs of the same vessel.
 
-    python scripts/concealed_effects.py [--set first|...|twentyninth] [--stage before|after] [--only CASE,...]
+    python scripts/concealed_effects.py [--set first|...|thirtieth] [--stage before|after] [--only CASE,...]
                                         [--work /tmp/concealed_effects]
 
 Each proof set (PROOFS below) is fixed before the diagnosis is changed: which runs, which effects, at
@@ -545,6 +545,20 @@ PROOF_TWENTYNINTH = [
     Case("esso", "T5", "input_late", (0.6,)), Case("esso", "T10", "input_late", (0.7,)),
     Case("esso", "T5", "heading_late", (0.55,)), Case("esso", "T10", "heading_late", (0.5,)),
 ]
+# the thirtieth set takes outings G and L (disjoint runs) and Esso tests T3 and T8, with other values
+PROOF_THIRTIETH = [
+    Case("blueboat", "G", "null"), Case("blueboat", "L", "null"),
+    Case("blueboat", "G", "current", (0.12, 75.0)), Case("blueboat", "L", "current", (0.15, 260.0)),
+    Case("blueboat", "G", "antenna", (0.35, 0.25)), Case("blueboat", "L", "antenna", (-0.25, -0.35)),
+    Case("blueboat", "G", "input_late", (0.45,)), Case("blueboat", "L", "input_late", (0.6,)),
+    Case("blueboat", "G", "thruster_scaled", ("right", 0.75)), Case("blueboat", "L", "thruster_scaled", ("left", 0.8)),
+    Case("blueboat", "G", "heading_late", (0.55,)), Case("blueboat", "L", "heading_late", (0.4,)),
+    Case("esso", "T3", "null"), Case("esso", "T8", "null"),
+    Case("esso", "T3", "current", (0.11, 110.0)), Case("esso", "T8", "current", (0.09, 340.0)),
+    Case("esso", "T3", "antenna", (0.35, -0.25)), Case("esso", "T8", "antenna", (-0.30, 0.30)),
+    Case("esso", "T3", "input_late", (0.55,)), Case("esso", "T8", "input_late", (0.65,)),
+    Case("esso", "T3", "heading_late", (0.6,)), Case("esso", "T8", "heading_late", (0.5,)),
+]
 PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth": PROOF_FOURTH, "fifth": PROOF_FIFTH,
           "sixth": PROOF_SIXTH, "seventh": PROOF_SEVENTH,
           "eighth": PROOF_EIGHTH, "ninth": PROOF_NINTH, "tenth": PROOF_TENTH,
@@ -556,7 +570,7 @@ PROOFS = {"first": PROOF, "second": PROOF_SECOND, "third": PROOF_THIRD, "fourth"
           "twentysecond": PROOF_TWENTYSECOND, "twentythird": PROOF_TWENTYTHIRD, "twentyfourth": PROOF_TWENTYFOURTH,
           "twentyfifth": PROOF_TWENTYFIFTH, "twentysixth": PROOF_TWENTYSIXTH,
           "twentyseventh": PROOF_TWENTYSEVENTH, "twentyeighth": PROOF_TWENTYEIGHTH,
-          "twentyninth": PROOF_TWENTYNINTH}
+          "twentyninth": PROOF_TWENTYNINTH, "thirtieth": PROOF_THIRTIETH}
 PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "third": "concealed_effects_third",
          "fourth": "concealed_effects_fourth", "fifth": "concealed_effects_fifth",
          "sixth": "concealed_effects_sixth", "seventh": "concealed_effects_seventh",
@@ -573,10 +587,12 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
          "twentysixth": "concealed_effects_twentysixth",
          "twentyseventh": "concealed_effects_twentyseventh",
          "twentyeighth": "concealed_effects_twentyeighth",
-         "twentyninth": "concealed_effects_twentyninth"}
+         "twentyninth": "concealed_effects_twentyninth",
+         "thirtieth": "concealed_effects_thirtieth"}
 
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
+    ("thirtieth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyninth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right: the pulse it answers is neutral + "
@@ -620,7 +636,8 @@ STAGE_METHODS = {
 # --wind-measured`); the earlier ones gave each test's mean wind as a constant wind_per_log
 ESSO_WIND_MEASURED = {"eighth", "ninth", "tenth", "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth",
                       "sixteenth", "seventeenth", "eighteenth", "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird",
-                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh", "twentyeighth", "twentyninth"}
+                      "twentyfourth", "twentyfifth", "twentysixth", "twentyseventh", "twentyeighth", "twentyninth",
+                      "thirtieth"}
 
 EFFECT_OF = {"current": "current", "antenna": "gnss_lever_arm", "input_late": "clock_offset",
              "heading_late": "heading_latency"}

@@ -1,7 +1,7 @@
 """Effect truths written by a simulator of this script's own, fed to `twin diagnose` as recordings.
 
     git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
-    python scripts/independent_truths.py [--set first|...|eleventh] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
+    python scripts/independent_truths.py [--set first|...|twelfth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
                                          [--only CASE,...] [--work /tmp/independent_truths]
 
 Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
@@ -169,15 +169,27 @@ CASES_ELEVENTH = [  # fixed before it was run: other seeds, magnitudes, sides an
     Case("wind_shape-6-300", "wind_shape", (6.0, 300.0), 119),
     Case("wind_shape-5-150", "wind_shape", (5.0, 150.0), 120),
 ]
+CASES_TWELFTH = [  # fixed before it was run: other seeds, magnitudes, sides and directions of the same kinds
+    Case("null-23", "null", (), 121), Case("null-24", "null", (), 122),
+    Case("one_dead_zone-left-85-40", "one_dead_zone", ("left", 85.0, 40.0), 123),
+    Case("one_dead_zone-right-70-30", "one_dead_zone", ("right", 70.0, 30.0), 124),
+    Case("speed_loss_u2-0.19", "speed_loss_u2", (0.19,), 125), Case("speed_loss_u2-0.26", "speed_loss_u2", (0.26,), 126),
+    Case("decay-0.045", "decay", (0.045,), 127), Case("decay-0.06", "decay", (0.06,), 128),
+    Case("wind_shape-5.5-60", "wind_shape", (5.5, 60.0), 129),
+    Case("wind_shape-6.5-220", "wind_shape", (6.5, 220.0), 130),
+]
 SETS = {"first": CASES, "second": CASES_SECOND, "third": CASES_THIRD, "fourth": CASES_FOURTH, "fifth": CASES_FIFTH,
         "sixth": CASES_SIXTH, "seventh": CASES_SEVENTH,
-        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH, "tenth": CASES_TENTH, "eleventh": CASES_ELEVENTH}
+        "eighth": CASES_EIGHTH, "ninth": CASES_NINTH, "tenth": CASES_TENTH, "eleventh": CASES_ELEVENTH,
+        "twelfth": CASES_TWELFTH}
 PAGES = {"first": "independent_truths", "second": "independent_truths_second", "third": "independent_truths_third",
          "fourth": "independent_truths_fourth", "fifth": "independent_truths_fifth", "sixth": "independent_truths_sixth",
          "seventh": "independent_truths_seventh", "eighth": "independent_truths_eighth",
-         "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth", "eleventh": "independent_truths_eleventh"}
+         "ninth": "independent_truths_ninth", "tenth": "independent_truths_tenth", "eleventh": "independent_truths_eleventh",
+         "twelfth": "independent_truths_twelfth"}
 # what a stage of a set ran, where its stages differ in the diagnosis
-STAGE_METHODS = {("eleventh", "before"): "the diagnosis as it was when the set was fixed",
+STAGE_METHODS = {("twelfth", "before"): "the diagnosis as it was when the set was fixed",
+                 ("eleventh", "before"): "the diagnosis as it was when the set was fixed",
                  ("tenth", "before"): "the diagnosis as it was when the set was fixed",
                  ("tenth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right) offered as an effect",
                  ("ninth", "before"): "the diagnosis as it was when the set was fixed",

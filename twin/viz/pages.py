@@ -111,7 +111,9 @@ def write_index(folder: Path | str = "docs/results") -> Path:
 
 _ORDINALS = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth",
              "eleventh", "twelfth", "thirteenth", "fourteenth", "fifteenth", "sixteenth", "seventeenth", "eighteenth",
-             "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird")
+             "nineteenth", "twentieth", "twentyfirst", "twentysecond", "twentythird", "twentyfourth", "twentyfifth",
+             "twentysixth", "twentyseventh", "twentyeighth", "twentyninth", "thirtieth", "thirtyfirst", "thirtysecond",
+             "thirtythird", "thirtyfourth", "thirtyfifth")
 
 
 def _by_ordinal(page: Path) -> tuple:
