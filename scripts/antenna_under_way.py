@@ -23,8 +23,6 @@ Without ../shared/data the script says so and exits 0.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -40,7 +38,7 @@ from twin.fit.extrapolation import by_activity  # noqa: E402
 from twin.ident.identify import calibrate, prepared, read  # noqa: E402
 from twin.physics.sensors import antenna_body_m, log_name  # noqa: E402
 from twin.prepare.prepared import Prepared  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, study_main  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 # samples that count for x: turning at least this fast, where an antenna 0.1 m off (the smallest the
@@ -212,18 +210,7 @@ def page(raw: dict) -> ResultPage:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--page-only", action="store_true",
-                    help="rewrite the page from docs/results/data/antenna_under_way.json")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
-    args = ap.parse_args()
-    if not DATA.is_dir():
-        print(f"the BlueBoat recordings are not in {DATA}: nothing to do")
-        return 0
-    path = args.out / "data" / "antenna_under_way.json"
-    raw = json.loads(path.read_text()) if args.page_only else run_study()
-    print(f"wrote {page(raw).write(args.out)}")
-    return 0
+    return study_main(__doc__.splitlines()[0], "antenna_under_way", DATA, "BlueBoat recordings", run_study, page, ROOT / "docs" / "results")
 
 
 if __name__ == "__main__":

@@ -19,8 +19,6 @@ The definitions were set before the study was run. Without ../shared/data the sc
 """
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -33,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.fit.evaluate import TwinPredictor, evaluate  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, study_main  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
 FITTED = (218, 221, 222, 223, 226)  # the five least active (extrapolation.py's split)
@@ -227,17 +225,7 @@ def page(raw: dict) -> ResultPage:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--page-only", action="store_true", help="rewrite the page from docs/results/data/rest_response.json")
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
-    args = ap.parse_args()
-    if not DATA.is_dir():
-        print(f"the BlueBoat recordings are not in {DATA}: nothing to do")
-        return 0
-    path = args.out / "data" / "rest_response.json"
-    raw = json.loads(path.read_text()) if args.page_only else run_study()
-    print(f"wrote {page(raw).write(args.out)}")
-    return 0
+    return study_main(__doc__.splitlines()[0], "rest_response", DATA, "BlueBoat recordings", run_study, page, ROOT / "docs" / "results")
 
 
 if __name__ == "__main__":

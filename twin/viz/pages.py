@@ -5,11 +5,13 @@ A page is generated, never edited by hand: a study re-run rewrites it whole.
 """
 from __future__ import annotations
 
+import argparse
 import datetime as _dt
 import json
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from ..files import json_default, write_text_atomic
 
@@ -149,3 +151,20 @@ def checkout_commit(where: Path | str | None = None) -> str:
         return sha + ("+" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+
+
+def study_main(description: str, name: str, data: Path, what: str, run: Callable[[], dict],
+               page: Callable[[dict], ResultPage], out: Path) -> int:
+    """A study script's command line: run the study and write its page to --out (default `out`), or with
+    --page-only rewrite the page from the raw figures already there; without the study's `data` folder
+    (`what` names it) it says so and exits 0, as a checkout without ../shared must."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--page-only", action="store_true", help=f"rewrite the page from OUT/data/{name}.json")
+    ap.add_argument("--out", type=Path, default=out)
+    args = ap.parse_args()
+    if not data.is_dir():
+        print(f"the {what} are not in {data}: nothing to do")
+        return 0
+    raw = json.loads((args.out / "data" / f"{name}.json").read_text()) if args.page_only else run()
+    print(f"wrote {page(raw).write(args.out)}")
+    return 0
