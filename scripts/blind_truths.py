@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, given_cell  # noqa: E402
 
 VESSEL = "yellowfish"
 DURATION_S = 600.0
@@ -809,17 +809,6 @@ def case_text(case: Case) -> str:
     raise ValueError(case.kind)
 
 
-def given_cell(row: dict) -> str:
-    """Whether the recording can prove the truth as given: the diagnosis's verdict, z and blocks."""
-    g = row.get("given")
-    if g is None:
-        return "-"
-    if g["failed"]:
-        return "judgement failed"
-    verdict = "provable" if g["earns_its_place"] else "not provable"
-    return f"{verdict} (z {g['z']:.2f}, blocks {g['blocks_for']} for / {g['blocks_against']} against)"
-
-
 def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first", compared: dict | None = None) -> Path:
     """The set's page from its rows; `compared` ({"label", "commit", "rows"}), the same recordings diagnosed
     by another commit's diagnosis, is shown beside them."""
@@ -846,7 +835,7 @@ def write_page(rows: list[dict], commit: str, out: Path, proof_set: str = "first
                           "; ".join(f"{e['name']} ({_values_text(e['parameters'])})" for e in r["named"]) or "nothing",
                           "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
                           "not recorded" if "unsettled" not in r else ", ".join(r["unsettled"]) or "-",
-                          given_cell(r), r["seconds"]]
+                          given_cell(r.get("given")), r["seconds"]]
                          for r in rows])
     logs = ResultTable("The recordings",
                        ["case", "rows", "GNSS fixes", "top surge speed m/s", "top yaw rate °/s", "compass calibration"],
@@ -974,7 +963,7 @@ def main() -> int:
             row = json.loads(path.read_text()) if path.is_file() else kept[case.name]
             row = judge_truth(case, hull, row, args.work, commit)
             path.write_text(json.dumps(row, indent=1))
-            print(f"{case.name}: truth as given {given_cell(row)}", flush=True)
+            print(f"{case.name}: truth as given {given_cell(row.get('given'))}", flush=True)
         if not (args.work / "commit.txt").is_file() and published.is_file():
             (args.work / "commit.txt").write_text(json.loads(published.read_text())["commit"])
     elif not args.page_only:

@@ -76,7 +76,7 @@ from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from twin.ident.identify import identify, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
 from twin.recording import Recording, Stream  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit, staged  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, given_cell, given_record, staged  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 BLUEBOAT = SHARED / "blueboat"
@@ -841,20 +841,7 @@ def judge_truth(case: Case, twins: dict, wind_measured: bool, commit: str) -> di
     if truth_name is None:
         return None
     text = f"{truth_name}=" + ",".join(f"{v:.4g}" for v in truth.values())
-    e = given_evidence([conceal(r, case) for r in recs], twin, [text], known_wind=known)
-    return {"effect": text, "commit": commit, "earns_its_place": bool(e.earns_its_place()), "z": round(e.z, 2),
-            "blocks_for": e.blocks_for, "blocks_against": e.blocks_against, "affected_windows": e.affected,
-            "held_out_gain": round(e.rel, 4)}
-
-
-def given_cell(given: dict | None) -> str:
-    """Whether the logs can prove the truth as given: the verdict, z and blocks ("-" not judged)."""
-    if given is None:
-        return "-"
-    if given["affected_windows"] == 0:
-        return "changes no window"
-    verdict = "provable" if given["earns_its_place"] else "not provable"
-    return f"{verdict} (z {given['z']:.2f}, blocks {given['blocks_for']} for / {given['blocks_against']} against)"
+    return given_record(text, given_evidence([conceal(r, case) for r in recs], twin, [text], known_wind=known), commit)
 
 
 # ---------------------------------------------------------------- the page

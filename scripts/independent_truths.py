@@ -3,6 +3,7 @@
     git show a6f6976:twin/model/blueboat.json > /tmp/blueboat_a6f6976.json
     python scripts/independent_truths.py [--set first|...|twelfth] [--stage before|after] --prior /tmp/blueboat_a6f6976.json
                                          [--only CASE,...] [--work /tmp/independent_truths]
+    python scripts/independent_truths.py --set SET --truth-given --prior /tmp/blueboat_a6f6976.json
 
 Every set's stages start from that BlueBoat file (--prior), whose numbers this simulator reproduces:
 the shipped BlueBoat (the default) is another hull, so the nulls themselves would carry its form
@@ -33,6 +34,11 @@ direction) and nothing else is named; a heading bias the compass calibration app
 effect named. The library's terms of a form it does not have: the one-thruster dead zone's edge is
 the soft edge's middle; the u² loss's `thrust_speed_loss` coefficient is the least-squares match
 over the recording's own samples of k·T·u² by c·√|T|·u.
+
+With --truth-given, each truth in the library's terms is put into the prior at its own values,
+nothing fitted, and judged by the rule the diagnosis names an effect by on the blocks a diagnosis of
+that recording judges on (diagnose.doctor.given_evidence, `twin diagnose --given`): whether the
+recording can prove it at all. The page gains that column beside the stages already run.
 """
 from __future__ import annotations
 
@@ -51,10 +57,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
-from twin.diagnose.doctor import diagnose  # noqa: E402
+from twin.diagnose.doctor import diagnose, given_evidence  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
-from twin.viz.pages import ResultPage, ResultTable, checkout_commit, staged  # noqa: E402
+from twin.viz.pages import ResultPage, ResultTable, checkout_commit, given_cell, given_record, staged  # noqa: E402
 
 DT_S = 0.02
 RHO_AIR = 1.225
@@ -398,6 +404,28 @@ def run_case(case: Case, prior, hull: Hull, folder: Path) -> dict:
             "calibrations": [c.to_dict() for c in d.calibrations], "notes": list(d.notes), "seconds": round(seconds, 1)}
 
 
+def judge_truth(case: Case, prior, hull: Hull, folder: Path, commit: str) -> dict | None:
+    """The case's truth in the library's terms at its own values, nothing fitted, judged on the recording
+    written again from its seed (the simulator is deterministic); None for a null."""
+    path = folder / f"{case.name}.csv"
+    truth_name, truth = truth_of(case, recording_csv(case, hull, path), hull)
+    if truth_name is None:
+        return None
+    text = f"{truth_name}=" + ",".join(f"{v:.4g}" for v in truth.values())
+    return given_record(text, given_evidence([read_recording(path)], prior, [text]), commit)
+
+
+def given_summary(given: dict) -> str:
+    """One sentence: of the truths judged as given, how many the recordings prove, and the commit."""
+    judged = [g for g in given.values() if g is not None]
+    if not judged:
+        return ""
+    provable = sum(bool(g["earns_its_place"]) for g in judged)
+    commits = ", ".join(sorted({g["commit"] for g in judged}))
+    return (f" The truth itself, given at its own values in the library's terms and judged by the diagnosis's rule "
+            f"on the same blocks (commit {commits}): the recording can prove it in {provable} of {len(judged)}.")
+
+
 def summary_of(rows: list[dict]) -> dict:
     effects = [r for r in rows if r["truth"] is not None]
     nulls = [r for r in rows if r["truth"] is None]
@@ -410,8 +438,8 @@ def _text(values: dict) -> str:
     return ", ".join(f"{k} {v:.3g}" for k, v in values.items())
 
 
-def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
-    tables, lines = [], []
+def write_page(stages: dict, out: Path, proof_set: str = "first", given: dict | None = None) -> Path:
+    tables, lines, given = [], [], given or {}
     cases = SETS[proof_set]
     seeds = [c.seed for c in cases]
     for key, res in stages.items():
@@ -420,11 +448,13 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         lines.append(f"{stage} (commit {res['commit']}): {s['exact']} of {s['effects']} exact, {s['named']} named; "
                      f"{s['false_discoveries']} false {'discovery' if s['false_discoveries'] == 1 else 'discoveries'}; nulls clean {s['nulls_clean']} of {s['nulls']}")
         tables.append(ResultTable(f"{stage}: each truth (commit {res['commit']})",
-                                  ["case", "truth", "named (values)", "exact", "else named", "s"],
+                                  ["case", "truth", "named (values)", "exact", "else named",
+                                   *(["truth as given"] if given else []), "s"],
                                   [[r["case"], "nothing" if r["truth"] is None else
                                     f"{r['truth']} ({_text(r['truth_values'])})",
                                     "; ".join(f"{e['name']} ({_text(e['parameters'])})" for e in r["named"]) or "nothing",
-                                    "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-", r["seconds"]]
+                                    "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
+                                    *([given_cell(given.get(r["case"]))] if given else []), r["seconds"]]
                                    for r in res["rows"]]))
     page = ResultPage(
         PAGES[proof_set], "Effect truths from a simulator the library does not share"
@@ -436,7 +466,8 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
         "from the untuned BlueBoat prior the simulator reads its numbers from.",
         "Effects in forms the effect library does not have: a soft dead zone on one thruster only, a thrust loss "
         "growing with u², a thrust decay and a wind of another load shape; and nulls. Exact: the truth named "
-        "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines),
+        "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines)
+        + given_summary(given),
         tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
                  "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces"
                  + ("; the stage 'from the shipped first-principles prior' from the BlueBoat shipped at that stage's "
@@ -446,8 +477,13 @@ def write_page(stages: dict, out: Path, proof_set: str = "first") -> Path:
                  *[f"Stage '{k}': {STAGE_METHODS[(proof_set, k)]}." for k in stages if (proof_set, k) in STAGE_METHODS],
                  "A one-thruster dead zone's truth in the library's terms: its soft edge's middle as a hard edge of "
                  "that thruster (forward and astern alike); the u² loss's: the thrust_speed_loss coefficient that "
-                 "matches it over the log's own samples, added to the prior's."],
-        {"stages": stages, "cases": [c.__dict__ for c in cases]})
+                 "matches it over the log's own samples, added to the prior's.",
+                 *(["Truth as given: the truth column put into the prior at its values, nothing fitted, judged by the "
+                    "rule the diagnosis names an effect by (z ≥ 3 of the held-out blocks' votes and 5 % of the "
+                    "held-out misfit above the noise): whether the recording can prove it in the library's form at "
+                    "all. A miss where it cannot is the data's or the form's; a fitted form may still do better than "
+                    "the given one."] if given else [])],
+        {"stages": stages, "cases": [c.__dict__ for c in cases], "given": given})
     return page.write(out)
 
 
@@ -461,13 +497,26 @@ def main() -> int:
     ap.add_argument("--page-only", action="store_true", help="rewrite the page from the raw figures there are")
     ap.add_argument("--prior", default="blueboat", help="the vessel file the simulator reads its numbers from and the "
                     "diagnosis starts from (default: the shipped BlueBoat)")
+    ap.add_argument("--truth-given", action="store_true",
+                    help="judge each case's truth as given (twin diagnose --given) beside the stages already run, "
+                         "and rewrite the page")
     args = ap.parse_args()
+    raw_path = args.out / "data" / f"{PAGES[args.set]}.json"
     if args.page_only:
-        print(write_page(json.loads((args.out / "data" / f"{PAGES[args.set]}.json").read_text())["stages"], args.out,
-                         args.set))
+        raw = json.loads(raw_path.read_text())
+        print(write_page(raw["stages"], args.out, args.set, raw.get("given")))
         return 0
     prior = vessel_mod.load(args.prior)
     hull = Hull(prior)
+    if args.truth_given:
+        raw = json.loads(raw_path.read_text())
+        given, commit = raw.get("given") or {}, checkout_commit(ROOT)
+        with tempfile.TemporaryDirectory() as tmp:
+            for c in SETS[args.set]:
+                given[c.name] = judge_truth(c, prior, hull, Path(tmp), commit)
+                print(f"{c.name}: truth as given {given_cell(given[c.name])}", flush=True)
+        print(write_page(raw["stages"], args.out, args.set, given))
+        return 0
     only = {x for x in args.only.split(",") if x}
     cases = SETS[args.set]
     stage_dir = args.work / args.set / args.stage
@@ -482,7 +531,8 @@ def main() -> int:
                   f"({row['seconds']} s)", flush=True)
     stages = staged(args.out / "data" / f"{PAGES[args.set]}.json", args.stage, stage_dir, [c.name for c in cases],
                     summary_of, checkout_commit(ROOT))
-    print(write_page(stages, args.out, args.set))
+    print(write_page(stages, args.out, args.set, json.loads(raw_path.read_text()).get("given") if raw_path.is_file()
+                     else None))
     return 0
 
 

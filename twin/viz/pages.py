@@ -93,6 +93,28 @@ def staged(raw_path: Path, stage: str, stage_dir: Path, cases: list[str], summar
     return stages
 
 
+def given_record(effect: str, evidence, commit: str) -> dict:
+    """A truth judged as given (the Evidence of diagnose.doctor.given_evidence for the `twin effects`
+    text `effect`) as a page's raw figures: the verdict, z, the blocks' votes and the windows it changes."""
+    return {"effect": effect, "commit": commit, "failed": False, "earns_its_place": bool(evidence.earns_its_place()),
+            "z": round(float(evidence.z), 2), "blocks_for": int(evidence.blocks_for),
+            "blocks_against": int(evidence.blocks_against), "affected_windows": int(evidence.affected),
+            "held_out_gain": round(float(evidence.rel), 4)}
+
+
+def given_cell(given: dict | None) -> str:
+    """Whether the recordings can prove a truth as given (a given_record, or the same keys from
+    `twin diagnose --given --json`): the verdict, z and blocks; "-" when not judged."""
+    if given is None:
+        return "-"
+    if given.get("failed"):
+        return "judgement failed"
+    if given.get("affected_windows") == 0:
+        return "changes no window"
+    verdict = "provable" if given["earns_its_place"] else "not provable"
+    return f"{verdict} (z {given['z']:.2f}, blocks {given['blocks_for']} for / {given['blocks_against']} against)"
+
+
 def write_index(folder: Path | str = "docs/results") -> Path:
     """The folder's index.md: every page in it (but the index) by its title, in name order (a numbered
     set's ordinal by its number: the fifteenth after the fourteenth), so a page a study script writes is
