@@ -415,15 +415,19 @@ def judge_truth(case: Case, prior, hull: Hull, folder: Path, commit: str) -> dic
     return given_record(text, given_evidence([read_recording(path)], prior, [text]), commit)
 
 
-def given_summary(given: dict) -> str:
-    """One sentence: of the truths judged as given, how many the recordings prove, and the commit."""
-    judged = [g for g in given.values() if g is not None]
+def given_summary(given: dict, stages: dict) -> str:
+    """One sentence: of the truths judged as given, how many the recordings prove, the commit, and how
+    many of those each stage named exactly."""
+    judged = {k: g for k, g in given.items() if g is not None}
     if not judged:
         return ""
-    provable = sum(bool(g["earns_its_place"]) for g in judged)
-    commits = ", ".join(sorted({g["commit"] for g in judged}))
+    provable = {k for k, g in judged.items() if g["earns_its_place"]}
+    commits = ", ".join(sorted({g["commit"] for g in judged.values()}))
+    named = "; ".join(f"of those '{key}' named {sum(r['exact'] for r in res['rows'] if r['case'] in provable)} exactly"
+                      for key, res in stages.items())
     return (f" The truth itself, given at its own values in the library's terms and judged by the diagnosis's rule "
-            f"on the same blocks (commit {commits}): the recording can prove it in {provable} of {len(judged)}.")
+            f"on the same blocks (commit {commits}): the recording can prove it in {len(provable)} of {len(judged)}"
+            + (f"; {named}." if provable else "."))
 
 
 def summary_of(rows: list[dict]) -> dict:
@@ -467,7 +471,7 @@ def write_page(stages: dict, out: Path, proof_set: str = "first", given: dict | 
         "Effects in forms the effect library does not have: a soft dead zone on one thruster only, a thrust loss "
         "growing with u², a thrust decay and a wind of another load shape; and nulls. Exact: the truth named "
         "with its values within 30 % (30° for a direction) and nothing else. " + " ".join(f"{x}." for x in lines)
-        + given_summary(given),
+        + given_summary(given, stages),
         tables, ["The prior: the stages start from twin/model/blueboat.json of commit a6f6976 (`git show "
                  "a6f6976:twin/model/blueboat.json`, given with --prior), whose numbers this simulator reproduces"
                  + ("; the stage 'from the shipped first-principles prior' from the BlueBoat shipped at that stage's "
