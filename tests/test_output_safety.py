@@ -392,3 +392,24 @@ def test_files_land_together_at_the_end_of_a_block_and_never_over_a_device(tmp_p
     with pytest.raises(TwinError, match="is not a regular file"):
         write_text_atomic(link, "data")
     assert not pipe.is_file() and pipe.exists()
+
+
+def test_a_reader_that_leaves_early_loses_no_output(tmp_path):
+    """`twin identify LOG --out FIT | head -1`: identify prints before it writes; once the pipe's reader
+    has gone its prints go nowhere and the twin is still written, with exit code 0 and no error line."""
+    import os
+    import subprocess
+    import sys
+
+    log = tmp_path / "my_log.csv"
+    assert twin("dataset", "--vessel", "blueboat", "--segments", "2", "--seed", "3", "--out", log).returncode == 0
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader has gone before the first line
+    try:
+        done = subprocess.run([sys.executable, "-m", "twin", "identify", str(log), "--vessel", "blueboat", "--params",
+                               "thrust_gain", "--out", str(tmp_path / "fit.json")],
+                              stdout=write_end, stderr=write_end, cwd=tmp_path, timeout=300)
+    finally:
+        os.close(write_end)
+    assert done.returncode == 0
+    assert json.loads((tmp_path / "fit.json").read_text())["thrusters"]

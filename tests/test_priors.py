@@ -223,3 +223,20 @@ def test_first_principles_write_a_vessel_file_with_their_estimates_and_sources(t
     assert written.sources["Xu"].startswith("twin params --first-principles: ITTC-1957")
     again = twin("params", "--vessel", "blueboat", "--first-principles", "--write-model", out)
     assert again.returncode == 2 and "exists: it is kept" in again.stderr
+
+
+def test_params_write_a_shipped_vessel_to_start_ones_own_from(tmp_path):
+    """`twin params --vessel blueboat --write-model my_design.json` writes the shipped file as it is (no
+    checkout needed to copy it), which loads anywhere as the same twin and says what it wrote last."""
+    from twin_command import twin
+
+    out = tmp_path / "my_design.json"
+    done = twin("params", "--vessel", "blueboat", "--write-model", out)
+    assert done.returncode == 0 and done.stdout.strip().splitlines()[-1] == f"wrote {out}: blueboat as shipped"
+    shipped, written = vessel_mod.load("blueboat"), vessel_mod.load(str(out))
+    assert written.damping == shipped.damping and written.design == shipped.design
+    assert written.thrusters == shipped.thrusters and written.added_mass == shipped.added_mass
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    run = twin("simulate", "--model", out, "--duration", "2", "--out", elsewhere / "run.csv", cwd=elsewhere)
+    assert run.returncode == 0 and (elsewhere / "run.csv").is_file()

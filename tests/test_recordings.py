@@ -702,6 +702,14 @@ def test_a_csv_that_cannot_be_read_says_why(tmp_path, data, why):
         read_recording(path)
 
 
+def test_a_rerun_recording_given_as_a_log_is_sent_to_rerun(tmp_path):
+    path = tmp_path / "run.rrd"
+    path.write_bytes(b"RRF2\x00\x00\x00\x00")
+    with pytest.raises(TwinError, match=re.escape("run.rrd: not a recognised recording (a rerun recording is shown "
+                                                  "by rerun itself: `rerun run.rrd`)")):
+        read_recording(path)
+
+
 def test_a_dataset_layout_short_of_a_column_is_told_which(tmp_path):
     from twin.formats import read_recording
 

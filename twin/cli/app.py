@@ -613,9 +613,54 @@ def _os_error(exc: OSError) -> str:
     return f"cannot use{where}: {exc.strerror or exc}"
 
 
+class _ReaderMayLeave:
+    """sys.stdout or sys.stderr for one run of the command: once the reader of its pipe has gone (`twin identify
+    ... | head`), what it prints goes to the null device and the command goes on to write its files.
+    *Why:* otherwise the first print after the reader left raises BrokenPipeError, and a command that
+    prints its summary before it writes would end with its results unwritten."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def _reader_gone(self) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, self._stream.fileno())  # the stream's own descriptor: its buffer drains there
+            os.close(null)
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._reader_gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._reader_gone()
+            with contextlib.suppress(OSError, ValueError):
+                self._stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 def main() -> None:
     """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
     _settings["quiet"] = False  # each run's own: a caller may run the command more than once
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _ReaderMayLeave(sys.stdout), _ReaderMayLeave(sys.stderr)
+    try:
+        _run()
+    finally:
+        for guarded in (sys.stdout, sys.stderr):  # output still buffered when its reader has gone drains too
+            guarded.flush()
+        sys.stdout, sys.stderr = streams
+
+
+def _run() -> None:
     try:
         with warnings.catch_warnings():
             if not os.environ.get("TWIN_DEBUG"):

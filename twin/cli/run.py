@@ -250,22 +250,21 @@ def params(
                                           help="the hull and propulsor coefficients from the vessel's own geometry, "
                                                "each with its method (a vessel file with a design block: of the "
                                                "shipped ones, blueboat)"),
-    write_model: Optional[Path] = typer.Option(None, "--write-model", help="with --first-principles: write the "
-                                               "vessel file with these estimates (.json), each source saying so"),
+    write_model: Optional[Path] = typer.Option(None, "--write-model", help="write the vessel file (.json): with "
+                                               "--first-principles with these estimates, each source saying so; "
+                                               "without, as it is (a shipped vessel to start your own from)"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
-    """Print the effective 3-DOF parameters of a vessel."""
+    """Print the effective 3-DOF parameters of a vessel; --write-model writes its vessel file."""
     from ..engine.parameters import effective_parameters
+    from ..vessel import save as save_vessel
 
-    if write_model is not None and not first_principles:
-        raise TwinError("--write-model writes the first-principles estimates: give --first-principles too")
+    check_outputs([write_model], (".json",), "--write-model")
+    check_distinct({"--write-model": write_model}, [model], keep_data=False)
+    check_new([write_model], force, "--write-model", ("vessel file",))
     if first_principles:
-        from ..vessel import save as save_vessel
         from ..verify.priors import first_principles as estimate
 
-        check_outputs([write_model], (".json",), "--write-model")
-        check_distinct({"--write-model": write_model}, [model], keep_data=False)
-        check_new([write_model], force, "--write-model", ("vessel file",))
         v = vessel_from(vessel, model, case)
         fp = estimate(v)
         if write_model is not None:
@@ -278,7 +277,12 @@ def params(
         else:
             typer.echo(fp.table())
         return
-    p = effective_parameters(vessel_from(vessel, model, case))
+    v = vessel_from(vessel, model, case)
+    if write_model is not None:
+        save_vessel(v, write_model)
+        wrote = f"wrote {write_model}: {v.name} as {'given' if model is not None else 'shipped'}"
+        after_writes(lambda: typer.echo(wrote, err=as_json))
+    p = effective_parameters(v)
     if as_json:
         typer.echo(json.dumps(p, indent=2))
         return

@@ -119,7 +119,9 @@ def _read(path: Path, channels: dict | None) -> Recording:
     reader = READERS.get(kind)
     if reader is None:
         why = (_not_csv(head) if path.suffix.lower() == ".csv" else
-               "not an MCAP file: it does not begin with MCAP's magic bytes" if path.suffix.lower() == ".mcap" else "")
+               "not an MCAP file: it does not begin with MCAP's magic bytes" if path.suffix.lower() == ".mcap" else
+               f"a rerun recording is shown by rerun itself: `rerun {path.name}`" if path.suffix.lower() == ".rrd"
+               else "")
         raise TwinError(f"{path.name}: not a recognised recording ({why or 'expected .tlog, DataFlash .bin, .csv or .mcap'})")
     if kind in ("csv", "mcap") and isinstance(channels, dict) and {"left", "right"} & set(channels):
         raise TwinError(f"{path.name}: --channels LEFT,RIGHT does not apply to a{'n' if kind == 'mcap' else ''} "
