@@ -395,21 +395,20 @@ def test_files_land_together_at_the_end_of_a_block_and_never_over_a_device(tmp_p
 
 
 def test_a_reader_that_leaves_early_loses_no_output(tmp_path):
-    """`twin identify LOG --out FIT | head -1`: identify prints before it writes; once the pipe's reader
-    has gone its prints go nowhere and the twin is still written, with exit code 0 and no error line."""
+    """`twin params --vessel blueboat --write-model FILE | head -1`: params prints before its file lands;
+    once the pipe's reader has gone its prints go nowhere and the file is still written, with exit code
+    0 (as for identify and diagnose, which print before they write)."""
     import os
     import subprocess
     import sys
 
-    log = tmp_path / "my_log.csv"
-    assert twin("dataset", "--vessel", "blueboat", "--segments", "2", "--seed", "3", "--out", log).returncode == 0
     read_end, write_end = os.pipe()
     os.close(read_end)  # the reader has gone before the first line
     try:
-        done = subprocess.run([sys.executable, "-m", "twin", "identify", str(log), "--vessel", "blueboat", "--params",
-                               "thrust_gain", "--out", str(tmp_path / "fit.json")],
-                              stdout=write_end, stderr=write_end, cwd=tmp_path, timeout=300)
+        done = subprocess.run([sys.executable, "-m", "twin", "params", "--vessel", "blueboat", "--write-model",
+                               str(tmp_path / "mine.json")], stdout=write_end, stderr=write_end, cwd=tmp_path,
+                              timeout=300)
     finally:
         os.close(write_end)
     assert done.returncode == 0
-    assert json.loads((tmp_path / "fit.json").read_text())["thrusters"]
+    assert json.loads((tmp_path / "mine.json").read_text())["name"] == "blueboat"
