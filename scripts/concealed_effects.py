@@ -980,8 +980,9 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
         # the stages in the order they ran: the last one kept is the diagnosis of today
         last = next((s for s in reversed(list(stages)) if "(not kept)" not in s), list(stages)[-1])
         lines.append(
-            f"The truth itself, given at its own values and judged by the diagnosis's rule on the same blocks through "
-            f"the same twin (commit {', '.join(sorted({g['commit'] for g, _ in judged}))}): the logs can prove "
+            f"The truth itself, given at its own values and judged by the diagnosis's rule on the same blocks, through "
+            f"the twins identified from the same runs at the judging commit "
+            f"({', '.join(sorted({g['commit'] for g, _ in judged}))}): the logs can prove "
             f"{len(provable)} of {len(judged)} as given; of those '{last}' named "
             f"{sum(r['exact'] for r in provable)} exactly")
     proof = PROOFS[proof_set]
@@ -1012,7 +1013,9 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          "tell can be named.",
          *(["Truth as given: the concealed effect at its own values in the library's terms, nothing fitted, judged "
             "by the rule the diagnosis names an effect by (z ≥ 3 of the held-out blocks' votes and 5 % of the misfit "
-            "above the noise) through the same twin on the same blocks: whether the logs can prove it from the "
+            "above the noise) on the same blocks, through the twins identified from the same runs at the judging "
+            "commit (a stage run at an earlier commit had its own, alike up to what changed since): whether the logs "
+            "can prove it from the "
             "dynamics at all. The antenna, the clocks and the heading are named from the kinematics, which this "
             "column does not judge."] if given else []),
          "The Esso has one propeller: one thruster scaled does not apply to it. Its turning tests change the "
