@@ -725,8 +725,11 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     edges = percentile_edges(preps, STATE_NAMES[by], f"by={by!r}") if by else ()
     predictor, horizon = TwinPredictor(calibrated, ModelCache(), wind), manoeuvre_horizon_s(v, seen)
     bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s) if by else []
-    return Evaluation(v.name, _evaluate(calibrated, preps, stride_s=stride_s, wind=wind),
-                      _evaluate(v, prepared(recs, v), stride_s=stride_s, wind=wind), calibrations,
+    scored = _evaluate(calibrated, preps, stride_s=stride_s, wind=wind)
+    # no log's offset applied: the calibrated twin is the twin, and its scores are the ones as logged
+    as_logged = scored if calibrated.sensors == v.sensors else _evaluate(v, prepared(recs, v), stride_s=stride_s,
+                                                                         wind=wind)
+    return Evaluation(v.name, scored, as_logged, calibrations,
                       misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands,
                       list(v.uncertainty.get("stand_ins", [])))
 

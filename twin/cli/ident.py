@@ -380,8 +380,9 @@ def evaluate_command(
         out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride, wind=wind)
         progress("with each log's calibration", 1, steps)
         cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
-        out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated),
-                                  stride_s=stride) if calibration else out["metrics_uncalibrated"]
+        # no log's offset applied: the calibrated twin is the twin, and its scores are the ones as logged
+        out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated), stride_s=stride) \
+            if calibration and calibrated.sensors != v.sensors else out["metrics_uncalibrated"]
         progress("by manoeuvre", 2, steps)
         horizon = manoeuvre_horizon_s(v, fitted)
         out["by_manoeuvre"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), horizon,
