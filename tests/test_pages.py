@@ -1,7 +1,9 @@
 """Result pages: a study's stages kept side by side in its raw figures."""
 import json
 
-from twin.viz.pages import staged
+import numpy as np
+
+from twin.viz.pages import given_cell, given_record, staged
 
 
 def test_a_stage_takes_its_cases_rows_in_case_order_beside_the_stages_already_recorded(tmp_path):
@@ -25,3 +27,21 @@ def test_a_table_cell_with_bars_stays_one_cell():
     # an escaped bar is text, not a cell boundary: each row has its two cells
     assert all(line.replace("\\|", "").count("|") == 3 for line in lines[2:]), lines
     assert "yaw rate \\|r\\|" in lines[-1] and "mean \\|r\\| (rad/s)" in lines[2]
+
+
+def test_a_truth_judged_as_given_reads_as_the_diagnosis_judged_it():
+    """given_record keeps the Evidence's verdict, z and votes; given_cell says provable or not, a
+    judgement that failed, a truth that changes no window, and nothing for a case not judged."""
+    from twin.diagnose.search import Evidence
+
+    def evidence(z, rel, votes, affected=12):
+        return Evidence(z, rel, rel, {}, int(sum(v > 0 for v in votes)), int(sum(v < 0 for v in votes)), affected,
+                        np.asarray(votes))
+
+    strong = given_record("current=0.1,90", evidence(4.76, 0.2, [0.1] * 20), "c0ffee")
+    assert strong["earns_its_place"] and strong["blocks_for"] == 20 and strong["commit"] == "c0ffee"
+    assert given_cell(strong) == "provable (z 4.76, blocks 20 for / 0 against)"
+    weak = given_record("dead_zone_left=0.2,0.2", evidence(2.15, 0.01, [0.1] * 6), "c0ffee")
+    assert not weak["earns_its_place"] and given_cell(weak) == "not provable (z 2.15, blocks 6 for / 0 against)"
+    assert given_cell({**weak, "affected_windows": 0}) == "changes no window"
+    assert given_cell({"failed": True}) == "judgement failed" and given_cell(None) == "-"
