@@ -8,10 +8,12 @@ python -m pytest) are not run. A block whose first line is `# needs ../shared/..
 path is absent. The Guide's plain `twin ...` lines run in the test process (the same entry point,
 without a new interpreter's imports), the README's through the shell.
 """
+import json
 import os
 import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -137,17 +139,19 @@ def test_no_proof_run_folders_in_docs():
 def test_the_tour_notebook_runs_and_names_the_current_it_conceals(tmp_path, monkeypatch):
     """docs/guide/tour.ipynb, its code cells in order in one namespace (no Jupyter needed): the
     current of 0.15 m/s towards 90° it conceals is named within 10 % and 10°, and the amended twin's
-    sway fits where the prior's did not."""
-    import json
-
+    sway fits where the prior's did not; its scratch folder is gone once it has run."""
     nb = json.loads((DOCS / "guide" / "tour.ipynb").read_text())
     assert nb["nbformat"] == 4
     cells = [c for c in nb["cells"] if c["cell_type"] == "code"]
     assert all(not c["outputs"] and c["execution_count"] is None for c in cells), "commit the notebook cleared"
     monkeypatch.chdir(tmp_path)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     space: dict = {}
     for cell in cells:
         exec(compile("".join(cell["source"]), "tour.ipynb", "exec"), space)
+    assert not list(scratch.iterdir()), "the tour leaves its scratch folder behind"
     named = {e.name: e for e in space["found"].effects}
     assert list(named) == ["current"]
     values = {p.name: p.value for p in named["current"].parameters}

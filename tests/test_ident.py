@@ -364,6 +364,32 @@ def test_the_jacobian_reuses_the_runs_of_the_point_just_evaluated(yellowfish_ves
     np.testing.assert_allclose(used.residuals(x)[: used.n_data] * 2.0, fresh.residuals(x)[: fresh.n_data], atol=1e-5)
 
 
+def test_a_line_search_point_is_not_rolled_out_again(yellowfish_vessel):
+    # residuals_at's trials are kept: the residuals and the Jacobian at the point a line search settles
+    # on run only the Jacobian's neighbours, a scan's trial at its centre runs nothing, and each
+    # point's residuals are the same to the bit as those of the point alone
+    from twin.effects.coefficients import coefficients
+
+    ds = generate(yellowfish_vessel, n_segments=2, seed=3, noise=QUIET, segment_s=(25, 30))
+    preps = _truth_preps(ds)
+    wins = make_windows(preps, 5.0, 5.0)
+    table = coefficients(yellowfish_vessel)
+    params = [table["Nr"], table["Xu"]]
+    obj = Objective(yellowfish_vessel, params, preps, wins)
+    trials = [obj.x_prior * f for f in (1.0, 1.1, 1.2)]
+    kept = obj.residuals_at(trials)
+    assert obj.evaluations == 3
+    alone = Objective(yellowfish_vessel, params, preps, wins)
+    for x, r in zip(trials, kept):
+        np.testing.assert_array_equal(r, alone.residuals(x)[: alone.n_data])
+    np.testing.assert_array_equal(obj.residuals(trials[1])[: obj.n_data], kept[1])
+    obj.jacobian(trials[1])
+    assert obj.evaluations == 3 + len(params)
+    again = obj.residuals_at([trials[2], obj.x_prior * 1.3])
+    assert obj.evaluations == 3 + len(params) + 1
+    np.testing.assert_array_equal(again[0], kept[2])
+
+
 def test_a_parameter_the_data_cannot_excite_is_named_not_returned(yellowfish_vessel):
     # forward throttle only: nothing ever runs a thruster in reverse
     ds = generate(yellowfish_vessel, n_segments=2, seed=1, noise=QUIET, segment_s=(25, 30),

@@ -351,7 +351,7 @@ class Search:
             starts = [np.clip(np.r_[np.array(start, float), core_x] / obj.scale, *obj.bounds())
                       for start in cand.starts]
             if len(starts) > 1:  # the steps from the start the data like best
-                residuals = obj.residuals_of([obj.vessel(x) for x in starts])
+                residuals = obj.residuals_at(starts)
                 if cand.log_of_param:
                     starts = [self._start_per_log(obj, cand, starts, residuals, base)]
                 else:
@@ -384,7 +384,7 @@ class Search:
                 cost = float(np.sum(r[: obj.n_data] ** 2))
             step = np.linalg.lstsq(obj.jacobian(x), -r, rcond=None)[0]
             trials = [np.clip(x + f * step, *obj.bounds()) for f in (1.0, 0.5, 0.25)]
-            costs = [float(np.sum(t * t)) for t in obj.residuals_of([obj.vessel(t) for t in trials])]
+            costs = [float(np.sum(t * t)) for t in obj.residuals_at(trials)]
             best = int(np.argmin(costs))
             if costs[best] >= cost:
                 break
@@ -506,7 +506,7 @@ class Search:
         plateau of equal costs) and the lowest cost."""
         lo, hi = obj.bounds()
         xs = [np.clip(np.array(v, float) / obj.scale, lo, hi) for v in cand.scan]
-        costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(x) for x in xs])]
+        costs = [float(np.sum(r * r)) for r in obj.residuals_at(xs)]
         return xs[_plateau_middle(costs)], min(costs)
 
     @staticmethod
@@ -522,7 +522,7 @@ class Search:
                 values = x[i] + np.arange(-half, half + 1) * step / obj.scale[i]
                 values = values[(values >= lo[i] - 1e-12) & (values <= hi[i] + 1e-12)]
                 trials = [np.where(np.arange(len(x)) == i, v, x) for v in values]
-                costs = [float(np.sum(r * r)) for r in obj.residuals_of([obj.vessel(t) for t in trials])]
+                costs = [float(np.sum(r * r)) for r in obj.residuals_at(trials)]
                 k = _plateau_middle(costs)
                 x, cost = trials[k], costs[k]
         return x, cost

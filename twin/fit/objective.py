@@ -21,6 +21,7 @@ from .windows import ModelCache, Window, as_measured, measured, measured_side, p
 
 SETTLE_S = 1.0
 START_STEP = np.array([0.01, 0.01, 0.01])  # m/s, m/s, rad/s: finite differences of the initial velocities
+RUNS_KEPT = 4  # points whose runs an objective keeps: a line search's trials, then the point it settles on
 
 # a fitted coefficient this many of its belief's σ from its physical prior (a factor of 4 for a belief
 # of a factor of 2) lies where the physics behind the prior does not put it: the recordings pull it
@@ -133,7 +134,7 @@ class Objective:
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         self._sides: dict[tuple, tuple] = {}
-        self._runs_at: tuple[np.ndarray, list[np.ndarray]] | None = None
+        self._runs_at: list[tuple[np.ndarray, list[np.ndarray]]] = []  # the last RUNS_KEPT points' runs
         self._belief: tuple[np.ndarray, np.ndarray] | None = None  # (√w/σ, mean) per coordinate, value units
         self._given: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # seed(): key, data rows, their Jacobian
 
@@ -295,9 +296,35 @@ class Objective:
         least-squares solver asks for the Jacobian at the point whose residuals it has just had,
         and the Jacobian's neighbours need only their own runs beside these (the same numbers:
         each run is rolled out on its own)."""
-        if self._runs_at is None or not np.array_equal(self._runs_at[0], self._key(x)):
-            self._runs_at = (self._key(x), self._full([self.vessel(x)], with_start=self.free_start))
-        return self._runs_at[1]
+        key = self._key(x)
+        for held, runs in self._runs_at:
+            if np.array_equal(held, key):
+                return runs
+        runs = self._full([self.vessel(x)], with_start=self.free_start)
+        self._keep_runs(key, runs)
+        return runs
+
+    def _keep_runs(self, key: np.ndarray, runs: list[np.ndarray]) -> None:
+        self._runs_at = [*self._runs_at[-(RUNS_KEPT - 1):], (key, runs)]
+
+    def residuals_at(self, xs: list[np.ndarray]) -> list[np.ndarray]:
+        """residuals_of the vessels at the points xs (data rows only), those not kept run in one
+        batch; each point's runs are kept, so residuals() or jacobian() at the point a line search or
+        a scan settles on, or a scan's trial at its centre, runs nothing again. With free_start the
+        points after the first are linearised about it (residuals_of), not their own: all run, and
+        only the first's are kept."""
+        if self.free_start:
+            full = self._full([self.vessel(x) for x in xs], with_start=True)
+            self._keep_runs(self._key(xs[0]), full[:4])
+            return self._flat(full)
+        keys = [self._key(x) for x in xs]
+        found = [next((runs[0] for held, runs in self._runs_at if np.array_equal(held, k)), None) for k in keys]
+        missing = [i for i, f in enumerate(found) if f is None]
+        for i, run in zip(missing, self._full([self.vessel(xs[i]) for i in missing], with_start=False)):
+            found[i] = run
+        for i in missing[-RUNS_KEPT:]:
+            self._keep_runs(keys[i], [found[i]])
+        return self._flat(found)
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         if self._seeded(x):
