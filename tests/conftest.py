@@ -12,8 +12,9 @@ SHARED = Path(__file__).resolve().parent.parent.parent / "shared"
 # the files that take longest, first: xdist hands whole files to its workers in the order collected
 # (--no-loadscope-reorder), and a long file started last keeps one worker busy alone after the other
 # has finished
-LONGEST_FIRST = ("test_sitl_ardupilot.py", "test_diagnose.py", "test_docs.py", "test_esso_engine.py",
-                 "test_esso_diagnose.py", "test_wind_per_log.py")
+LONGEST_FIRST = ("test_sitl_ardupilot.py", "test_diagnose.py", "test_docs.py", "test_esso_engine.py", "test_sea.py",
+                 "test_ident.py", "test_cli_ident.py", "test_esso_diagnose.py", "test_wind_per_log.py", "test_scale.py",
+                 "test_kinematic.py", "test_esso_ident.py", "test_recordings.py", "test_scale_ray.py")
 
 
 def pytest_collection_modifyitems(items):

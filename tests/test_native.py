@@ -10,7 +10,7 @@ import pytest
 
 import twin.vessel as vessel_mod
 from twin.verify.crosscheck import TERM_ENV, cases
-from twin.engine import callbacks, native
+from twin.engine import callbacks, native, sixdof
 from twin.engine.mjcf import CompiledVessel, compile_vessel
 from twin.errors import TwinError
 from twin.physics.environment import Environment
@@ -109,6 +109,32 @@ def test_native_trajectory_equals_python(compiled, name, case):
         runs.append(np.array(out))
     np.testing.assert_allclose(runs[1], runs[0], rtol=0, atol=1e-9)
     assert np.ptp(runs[0][:, 0]) > 0.1  # the vessel did move
+
+
+def test_the_3dof_callback_moves_a_twin_as_the_full_one_and_gives_a_6dof_hull_nothing(compiled):
+    # compiled without the 6-DOF hull's terms (a quarter of the time), it steps a 3-DOF twin bit for bit
+    # as the full callback does; a 6-DOF hull under it gets no force at all, which no run could take
+    # for physics, and is told apart by is_six_dof (batch.rollout picks the full callback for one)
+    c = CASES["full_environment"]
+    model = native.with_native_params(_with_env(compiled["blueboat"], c.environment), c.terms)
+    controls = np.repeat(np.random.default_rng(3).uniform(-30.0, 60.0, (10, 2)), 50, axis=0)
+    runs = []
+    for six_dof in (True, False):
+        data = mujoco.MjData(model)
+        data.qvel[:] = c.nu0
+        with native.installed_native(six_dof=six_dof):
+            for u in controls:
+                data.ctrl[:] = u
+                mujoco.mj_step(model, data)
+        runs.append(np.concatenate([data.qpos, data.qvel]))
+    np.testing.assert_array_equal(runs[1], runs[0])
+    assert np.ptp(runs[0][:2]) != 0.0 and not native.is_six_dof(model)
+    hull = sixdof.compile_six(compiled["yellowfish"]).model
+    assert native.is_six_dof(hull)
+    data = mujoco.MjData(hull)
+    data.qvel[:3] = [1.0, 0.2, 0.3]
+    forces = {six_dof: _passive(hull, data, lambda: native.installed_native(six_dof=six_dof)) for six_dof in (True, False)}
+    assert np.abs(forces[True]).max() > 1.0 and not forces[False].any()
 
 
 def test_set_params_changes_the_physics_without_recompiling(compiled):

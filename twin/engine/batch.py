@@ -236,7 +236,7 @@ def rollout(twins: Twin | Sequence[Twin], initial_states, controls, nthread: int
     _check_inputs(models, initial, controls)
     nthread = nthread or default_threads()
     states = np.empty((len(models), controls.shape[1], initial.shape[1]))
-    with native.installed_native(), quiet_log():
+    with native.installed_native(six_dof=any(native.is_six_dof(m) for m in models)), quiet_log():
         for idx in _groups(models):
             states[idx] = _run_group([models[i] for i in idx], initial[idx], controls[idx], nthread)
     return states, _divergence(models, initial, states)

@@ -556,8 +556,10 @@ def _sea(mb, o_nsize, o_ndata, o_nadr, magic, header, nq, nv):
     return p
 
 
-def _build_callback():
-    """Compile the cfunc with the struct offsets baked in as constants."""
+def _build_callback(six_dof: bool = True):
+    """Compile the cfunc with the struct offsets baked in as constants; six_dof=False: without the
+    6-DOF hull's terms (its sea's load, its thrust levelled, its inertia on the horizontal joints),
+    which numba then never compiles (a quarter of the time), and a 6-DOF model gets no force from it."""
     off = offsets()
     _libmujoco()
     source = _source_key()
@@ -595,12 +597,14 @@ def _build_callback():
         # on the horizontal joints is put back to the level one the 3-DOF twin applies. A model
         # with a single numeric (the 3-DOF twin) reads and allocates nothing more per step
         six = _field(mb, o_nnum) >= 2
+        if six and not six_dof:  # a closed-over constant: numba drops every 6-DOF branch below
+            return
         level_n, level_e, level_y = fn, fe, fy
         # in waves the sea's load comes first: the horizontal model sees the water's orbital
         # velocity and accelerates its added mass with the sea's load
         uw, vw, s0, s1, s2 = 0.0, 0.0, 0.0, 0.0, 0.0
         in_sea = False
-        if six:
+        if six_dof and six:
             sp = _sea(mb, o_nsize, o_ndata, o_nadr, sea_magic, sea_header, nq, nv)
             if sp.shape[0] > 0:
                 ok, ln, le, ly = seakeeping.level_thrust(sp, psi, carray(_f64_ptr(_field(db, o_afrc)),
@@ -638,7 +642,7 @@ def _build_callback():
         qfrc[dx] += c * x0 - s * x1 + level_n - fn
         qfrc[dy] += s * x0 + c * x1 + level_e - fe
         qfrc[dpsi] += x2 + level_y - fy
-        if in_sea:
+        if six_dof and in_sea:
             # the horizontal joints keep the 3-DOF hull's rigid-body inertia: the 6-DOF body's own
             # on them (its centre of gravity moved fore or aft as it trims, the rates of heave, pitch
             # and roll) is taken off at the 3-DOF twin's own acceleration, a function of the state
@@ -666,29 +670,39 @@ def _build_callback():
         return cfunc(signature, nopython=True)(passive)
 
 
-@lru_cache(maxsize=1)
-def passive_cfunc():
-    """The compiled callback (numba CFunc; `.ctypes` is the function pointer MuJoCo takes).
+@lru_cache(maxsize=2)
+def passive_cfunc(six_dof: bool = True):
+    """The compiled callback (numba CFunc; `.ctypes` is the function pointer MuJoCo takes);
+    six_dof=False: the one for 3-DOF twins alone (_build_callback).
 
-    Compiled on first use (about 5 s), cached on disk beside this module by numba (later processes
-    load it in well under a second) and for the process.
+    Compiled on first use (on 2 cores about 5 s for 3-DOF twins alone, 18 s with the 6-DOF hull's
+    terms), cached on disk beside this module by numba (later processes load it in well under a
+    second) and for the process.
     """
-    return _build_callback()
+    return _build_callback(six_dof)
 
 
-def install() -> None:
-    """Install the native callback as MuJoCo's global mjcb_passive (no-op for non-twin models)."""
-    mujoco.set_mjcb_passive(passive_cfunc().ctypes)
+def install(six_dof: bool = True) -> None:
+    """Install the native callback as MuJoCo's global mjcb_passive (no-op for non-twin models);
+    six_dof=False: the one for 3-DOF twins alone."""
+    mujoco.set_mjcb_passive(passive_cfunc(six_dof).ctypes)
+
+
+def is_six_dof(model: mujoco.MjModel) -> bool:
+    """Whether the callback treats `model` as a 6-DOF hull (engine/sixdof.py: its sea is a second numeric)."""
+    return model.nnumeric >= 2
 
 
 @contextlib.contextmanager
-def installed_native():
+def installed_native(six_dof: bool = True):
     """Install the native callback for the block, restoring the previous callback after; another
     thread's block waits meanwhile (callbacks.HOOK_LOCK: the callback is one per process). A
-    rollout's own threads step inside the block and are not held."""
+    rollout's own threads step inside the block and are not held. six_dof=False, where every model
+    of the block is a 3-DOF twin: the callback without the 6-DOF hull's terms, so a process that
+    never steps a 6-DOF hull never compiles them."""
     with callbacks.HOOK_LOCK:
         previous = mujoco.get_mjcb_passive()
-        install()
+        install(six_dof)
         try:
             yield
         finally:

@@ -89,7 +89,7 @@ def _backend(compiled: CompiledVessel, terms: Terms, backend: str, wind: bool = 
     """The model to step and the context that installs its hydrodynamic callback (with the wind's
     two controls when `wind`)."""
     if backend == "native":
-        return native.with_native_params(compiled, terms, wind_inputs=wind), native.installed_native()
+        return native.with_native_params(compiled, terms, wind_inputs=wind), native.installed_native(six_dof=False)
     if backend == "python":
         if wind and not compiled.wind_inputs:
             compiled = CompiledVessel(compiled.vessel, compile_vessel(compiled.vessel, wind_inputs=True).model,

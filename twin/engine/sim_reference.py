@@ -38,7 +38,7 @@ def _state(data: mujoco.MjData, qpos, dof) -> tuple[np.ndarray, np.ndarray]:
 def _backend(compiled: CompiledVessel, terms: Terms, backend: str):
     """The model to step and the context that installs its hydrodynamic callback."""
     if backend == "native":
-        return native.with_native_params(compiled, terms), native.installed_native()
+        return native.with_native_params(compiled, terms), native.installed_native(six_dof=False)
     if backend == "python":
         return compiled.model, callbacks.installed(compiled.model, compiled.hydro(terms))
     raise TwinError(f"unknown backend '{backend}' (native or python)")

@@ -262,7 +262,7 @@ class SitlTwin:
     @contextlib.contextmanager
     def active(self) -> Iterator["SitlTwin"]:
         """The native callback installed and MuJoCo's console/file warnings off while stepping."""
-        with installed_native(), quiet_log():
+        with installed_native(six_dof=self._six is not None), quiet_log():
             self._active = True
             try:
                 yield self
