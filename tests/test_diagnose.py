@@ -327,7 +327,7 @@ def test_diagnose_names_nothing_on_the_twins_own_realistic_run(prior):
 
 
 def test_diagnose_command_writes_everything(tmp_path, prior):
-    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=8, seed=3, noise=PROFILES["realistic"],
+    ds = generate(prior, effects=["thruster_asymmetry=0.85"], n_segments=6, seed=3, noise=PROFILES["realistic"],
                   manoeuvres=MIXED)
     rec = tmp_path / "run.tlog"
     write_recording(ds.recording, rec)
