@@ -297,12 +297,14 @@ class Objective:
         and the Jacobian's neighbours need only their own runs beside these (the same numbers:
         each run is rolled out on its own)."""
         key = self._key(x)
-        for held, runs in self._runs_at:
-            if np.array_equal(held, key):
-                return runs
-        runs = self._full([self.vessel(x)], with_start=self.free_start)
-        self._keep_runs(key, runs)
+        runs = self._kept_runs(key)
+        if runs is None:
+            runs = self._full([self.vessel(x)], with_start=self.free_start)
+            self._keep_runs(key, runs)
         return runs
+
+    def _kept_runs(self, key: np.ndarray) -> list[np.ndarray] | None:
+        return next((runs for held, runs in self._runs_at if np.array_equal(held, key)), None)
 
     def _keep_runs(self, key: np.ndarray, runs: list[np.ndarray]) -> None:
         self._runs_at = [*self._runs_at[-(RUNS_KEPT - 1):], (key, runs)]
@@ -318,7 +320,7 @@ class Objective:
             self._keep_runs(self._key(xs[0]), full[:4])
             return self._flat(full)
         keys = [self._key(x) for x in xs]
-        found = [next((runs[0] for held, runs in self._runs_at if np.array_equal(held, k)), None) for k in keys]
+        found = [None if (runs := self._kept_runs(k)) is None else runs[0] for k in keys]
         missing = [i for i, f in enumerate(found) if f is None]
         for i, run in zip(missing, self._full([self.vessel(xs[i]) for i in missing], with_start=False)):
             found[i] = run
