@@ -27,6 +27,14 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
    the logged PWM, in forms of growing reach, fitted on the fitted runs and on the judged runs
    themselves: how much of the measured sway any sway equation of that form predicts over 10 s when
    surge and yaw are known, not predicted.
+7. The sway residual against the speed times the thrusts, u·ΔT and u·ΣT (ΔT left less right, ΣT
+   their sum: the form a heading error a·ΔT + b·ΣT takes in the measured v, which it lowers by u
+   times the error, as the motors' currents would give it at a magnetometer). The two
+   coefficients by least squares on the fitted runs' free-run residuals, added to the twin's v on
+   the judged runs; and fitted on each judged run alone (in-sample). Then the heading itself at
+   every step of the differential thrust from a steady one: a heading error that follows the
+   motors' current jumps with the step, where a hull's heading leaves its rate smoothly. The form
+   was looked at on these judged runs before this look was written: a check, not a proof.
 
 The recordings are read in place; without them the script says so and exits 0.
 """
@@ -63,6 +71,9 @@ SPEED_BANDS_M_S = ((-3.0, 0.0), (0.0, 0.3), (0.3, 0.8), (0.8, 1.5), (1.5, 3.0))
 LAGS_S = np.round(np.arange(-1.5, 1.51, 0.1), 1)
 COMPASS_ITERATIONS = 3
 PIVOT_TURNING_RAD_S = 0.08
+STEP_N = 15.0  # a step of the differential thrust (N) between two grid samples
+STEADY_N, STEADY_S = 3.0, 1.0  # ... from a differential steady within STEADY_N over STEADY_S before it
+STEP_SAMPLES = 5  # the heading read over this many grid samples after a step
 SWAY_FORMS = (("v", "|v|v", "ur", "r"), ("v", "|v|v", "|u|v", "ur", "r"), ("v", "|v|v", "ur", "r", "rdot"),
               ("v", "|v|v", "ur", "r", "dT"), sway_alone.TERMS)
 
@@ -78,7 +89,15 @@ def scores(seen, recordings) -> tuple[dict, float]:
 
 def free_run_samples(seen, recordings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(measured (n, 3), predicted (n, 3), recording index (n,)) of every sample of the 10-s free runs."""
+    m, p, rec, _ = free_run_thrust(seen, recordings)
+    return m, p, rec
+
+
+def free_run_thrust(seen, recordings) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """free_run_samples and the twin's thrust map of the logged PWM at each sample ((n, 2) N, left and
+    right, gains applied)."""
     preps = prepared(recordings, seen)
+    th = seen.thrusters
     windows = horizon_windows(preps, HORIZON_S, STRIDE_S)
     predictor = TwinPredictor(seen, ModelCache(), None)
     pred = np.full((len(windows), max(w.n for w in windows) + 1, 3), np.nan)
@@ -89,10 +108,66 @@ def free_run_samples(seen, recordings) -> tuple[np.ndarray, np.ndarray, np.ndarr
         got = predictor.predict_windows(preps[rec], np.array([windows[j].start for j in rows]), n)
         pred[rows, : n + 1] = got[:, : n + 1]
     _, meas = measured(preps, windows)
+    thrust = np.full(meas.shape[:2] + (2,), np.nan)
+    for j, w in enumerate(windows):
+        pwm = preps[w.rec].pwm[w.start: w.start + w.n + 1]
+        thrust[j, : w.n + 1] = th.thrust_from_pwm(pwm) * np.array([th.gain_left, th.gain_right])
     rec = np.broadcast_to(np.array([w.rec for w in windows])[:, None], meas.shape[:2])[:, 1:].ravel()
-    p, m = pred[:, 1:].reshape(-1, 3), meas[:, 1:].reshape(-1, 3)
-    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(m), axis=1)
-    return m[ok], p[ok], rec[ok]
+    p, m, t = pred[:, 1:].reshape(-1, 3), meas[:, 1:].reshape(-1, 3), thrust[:, 1:].reshape(-1, 2)
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(m), axis=1) & np.all(np.isfinite(t), axis=1)
+    return m[ok], p[ok], rec[ok], t[ok]
+
+
+def _r2(measured_v: np.ndarray, predicted_v: np.ndarray) -> float:
+    return float(1.0 - np.sum((measured_v - predicted_v) ** 2) / np.sum((measured_v - measured_v.mean()) ** 2))
+
+
+def _speed_thrust(m: np.ndarray, thrust: np.ndarray) -> np.ndarray:
+    """(n, 2): u·ΔT and u·ΣT (m/s N)."""
+    return np.column_stack([m[:, 0] * (thrust[:, 0] - thrust[:, 1]), m[:, 0] * (thrust[:, 0] + thrust[:, 1])])
+
+
+def sway_with_speed_thrust(on_fitted, fitted, on_judged, judged) -> tuple[list[list], dict]:
+    """Rows (the coefficients as a heading error in ° per 10 N of ΔT and of ΣT, R² v before and
+    after) of u·ΔT and u·ΣT fitted on the fitted runs' free-run sway residual and judged on the
+    judged runs, then fitted on each judged run alone; and the raw figures."""
+    mf, pf, _, tf = free_run_thrust(on_fitted, fitted)
+    mj, pj, rj, tj = free_run_thrust(on_judged, judged)
+    xf, xj = _speed_thrust(mf, tf), _speed_thrust(mj, tj)
+    coef = np.linalg.lstsq(xf, mf[:, 1] - pf[:, 1], rcond=None)[0]
+    deg_10n = lambda c: [float(-np.degrees(x) * 10.0) for x in c]  # v lowered by u·δ: δ = −coefficient·T
+    rows = [["fitted runs → judged runs", *deg_10n(coef), _r2(mj[:, 1], pj[:, 1]), _r2(mj[:, 1], pj[:, 1] + xj @ coef)]]
+    raw = {"fitted_on_fitted_deg_per_10n": deg_10n(coef), "judged_runs": []}
+    for k, rec in enumerate(judged):
+        s = rj == k
+        own = np.linalg.lstsq(xj[s], mj[s, 1] - pj[s, 1], rcond=None)[0]
+        rows.append([f"{log_name(rec.source)} alone", *deg_10n(own), _r2(mj[s, 1], pj[s, 1]),
+                     _r2(mj[s, 1], pj[s, 1] + xj[s] @ own)])
+        raw["judged_runs"].append({"log": log_name(rec.source), "deg_per_10n": deg_10n(own),
+                                   "spread_u_dT": float(np.std(xj[s, 0]))})
+    raw["r2_v_judged"] = rows[0][3:]
+    return rows, raw
+
+
+def heading_at_steps(seen, recordings) -> np.ndarray:
+    """(steps, STEP_SAMPLES): the heading after each step of the differential thrust ΔT (the twin's
+    map of the logged PWM) of at least STEP_N from a ΔT steady within STEADY_N over STEADY_S: its
+    change from the sample before the step less that sample's rate carried on, in ° per 10 N of the
+    step (signed with it), at each grid sample from the step's own."""
+    th = seen.thrusters
+    changes = []
+    for p in prepared(recordings, seen):
+        d_thrust = (th.thrust_from_pwm(p.pwm) * np.array([th.gain_left, th.gain_right])) @ np.array([1.0, -1.0])
+        before = int(round(STEADY_S / p.settings.grid_dt))
+        k = np.arange(STEP_SAMPLES)
+        for seg in p.segments:
+            for i in range(seg.start + before + 1, seg.stop - STEP_SAMPLES):
+                step = d_thrust[i] - d_thrust[i - 1]
+                if abs(step) < STEP_N or np.ptp(d_thrust[i - before: i]) > STEADY_N:
+                    continue
+                rate = (p.psi[i - 1] - p.psi[i - 6]) / 5.0  # rad per sample, over the half second before
+                changes.append(np.degrees(p.psi[i + k] - p.psi[i - 1] - rate * (k + 1)) * 10.0 / step)
+    return np.array(changes).reshape(-1, STEP_SAMPLES)
 
 
 def sway_residual(seen, recordings) -> list[list]:
@@ -253,6 +328,11 @@ def main() -> int:
         raw_alone.append({"terms": list(form), "fitted_on_fitted": on_fit.coefficients, "r2_fitted": on_fit.r2,
                           "r2_judged": beyond, "fitted_on_judged": on_own.coefficients, "r2_judged_own": on_own.r2})
         alone_rows.append([", ".join(form), on_fit.r2, beyond, on_own.r2])
+    thrust_rows, raw_thrust = sway_with_speed_thrust(on_fitted, fitted, on_judged, judged)
+    steps = np.vstack([heading_at_steps(on_fitted, fitted), heading_at_steps(on_judged, judged)])
+    grid_dt = prepared(fitted[:1], on_fitted)[0].settings.grid_dt
+    step_rows = [[f"{k * grid_dt:.1f}", float(steps[:, k].mean()), float(steps[:, k].std(ddof=1) / np.sqrt(len(steps)))]
+                 for k in range(STEP_SAMPLES)] if len(steps) > 1 else []
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
     refit_rows.insert(0, ["the twin's (its MJCF site)", "+0.00", "+0.00",
                           raw_antenna[ANTENNA_DX_M.index(0.0)]["v_spread_m_s"], base["u"][0], base["v"][0],
@@ -289,7 +369,14 @@ def main() -> int:
         "rate and thrust instead of the twin's predictions, reaches 10-s R² v "
         f"{max(x['r2_judged'] for x in raw_alone):.3f} at best on the judged runs when fitted on the fitted ones, "
         f"and {max(x['r2_judged_own'] for x in raw_alone):.3f} at best fitted on the judged runs themselves: no "
-        "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
+        "sway equation of these forms predicts much more of these runs' sway, even with u and r known. "
+        f"What is left follows the speed times the differential thrust: u·ΔT and u·ΣT fitted on the fitted runs' "
+        f"residual take the judged runs' v from R² {thrust_rows[0][3]:.3f} to {thrust_rows[0][4]:.3f} (the form "
+        "looked at on these runs first: a check, not a proof); it is the form a heading error that grows with "
+        f"the motors' currents takes, {thrust_rows[0][1]:+.2f}° per 10 N of ΔT, but the heading does not jump "
+        f"at a step of ΔT ({step_rows[1][1]:+.2f} ± {step_rows[1][2]:.2f}° per 10 N one sample after "
+        f"{len(steps)} steps, then growing as a turn's does), so it is not a compass that follows the current "
+        "at once." if step_rows else "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -328,7 +415,16 @@ def main() -> int:
                      "+ θ_r·r + θ_ṙ·ṙ + θ_ΔT·ΔT), driven by the measured u, r, ṙ and the twin's thrust map of the "
                      "logged PWM (ΔT left less right), 10-s free runs of v from measured starts every 2 s: R² v",
                      ["terms", "fitted on the fitted runs: R² there", "the same, R² on the judged runs",
-                      "fitted on the judged runs: R² there"], alone_rows)],
+                      "fitted on the judged runs: R² there"], alone_rows),
+         ResultTable("The sway residual against the speed times the thrusts (the twin's map of the logged PWM): "
+                     "u·ΔT and u·ΣT by least squares, as the heading error δ = a·ΔT + b·ΣT they would be (the "
+                     "measured v lowered by u·δ); 10-s R² v without and with them",
+                     ["fitted on", "a (° per 10 N of ΔT)", "b (° per 10 N of ΣT)", "R² v, the twin",
+                      "R² v, with u·ΔT and u·ΣT"], thrust_rows),
+         ResultTable(f"The heading at each step of ΔT of {STEP_N:g} N or more from a ΔT steady within {STEADY_N:g} N "
+                     f"over {STEADY_S:g} s ({len(steps)} steps, all ten runs): its change less the rate before "
+                     "carried on, ° per 10 N of the step; a heading error of a·ΔT would show a from the step's "
+                     "own sample on", ["s after the step", "mean (° per 10 N)", "standard error"], step_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
                "hull creeps while it spins)."],
@@ -336,6 +432,7 @@ def main() -> int:
              "residual_by_speed": residual_rows, "lead_of_v_over_ur": leads, "coupling": raw_coupling,
              "input_answer_s": list(answers), "compass": raw_compass, "pivot_by_speed": pivot_rows,
              "antenna_refit": raw_refit, "spins": spins.to_dict(), "sway_alone": raw_alone,
+             "speed_thrust": raw_thrust, "heading_at_steps": step_rows, "steps": len(steps),
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
