@@ -232,6 +232,9 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("diagnose", "LOG", "--window", "-5"), "--window must be a positive finite number"),
     (("diagnose", "LOG", "--window", "nan"), "--window must be a positive finite number"),
     (("diagnose", "LOG", "--effects", "bogus"), "unknown effect(s) bogus"),
+    (("diagnose", "LOG", "--effects", "current,thrust_gain=0.8"),
+     "--effects takes effect names, got thrust_gain=0.8: an effect at given values is judged by `twin diagnose LOG "
+     "--given thrust_gain=0.8`"),
     (("diagnose", "LOG", "--effects", " , "), "--effects is empty"),
     (("diagnose", "LOG", "--window", "0.05"), "--window must be at least 1 s"),
     (("identify", "LOG", "--window", "0.5"), "--window must be at least 1 s"),

@@ -158,6 +158,10 @@ def effect_names(text: Optional[str], option: str = "--effects") -> Optional[lis
     if not names:  # an empty list is not "every effect": that is leaving the option out
         raise TwinError(f"{option} is empty: name at least one effect (leave {option} out for the whole library)")
     unknown = [e for e in names if e not in EFFECTS]
+    valued = [e for e in unknown if "=" in e and e.split("=", 1)[0].strip() in EFFECTS]
+    if valued:  # a value belongs to a judgement, not to the list of effects searched
+        raise TwinError(f"{option} takes effect names, got {', '.join(valued)}: an effect at given values is "
+                        f"judged by `twin diagnose LOG --given {valued[0]}`")
     if unknown:
         raise TwinError(f"{option}: unknown effect(s) {', '.join(unknown)} (known: {', '.join(EFFECTS)})")
     return names

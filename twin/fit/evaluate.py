@@ -474,7 +474,8 @@ def format_metrics(metrics: dict, title: str = "") -> str:
     """Rows per horizon, R² and MAE per DOF, ≤ 100 columns; r's MAE in °/s, as the diagnosis and the
     Python API's tables print it (the metrics themselves are SI)."""
     head = f"{'horizon':14s}" + "".join(f"{'R2 ' + d:>9s}{'MAE ' + d:>10s}" for d in DOFS)
-    lines = ([title] if title else []) + [head + "   (MAE: u, v m/s; r °/s)", "-" * len(head)]
+    head += "   (MAE: u, v m/s; r °/s)"
+    lines = ([title] if title else []) + [head, "-" * len(head)]
     for name, m in metrics.items():
         cells = []
         for d in DOFS:
