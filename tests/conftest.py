@@ -11,10 +11,8 @@ from twin.engine.mjcf import compile_vessel
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared"
 # the files that take longest, first: xdist hands whole files to its workers in the order collected
 # (--no-loadscope-reorder), and a long file started last keeps one worker busy alone after the other
-# has finished. ArduPilot's file comes after the first two: its lockstep with the twin waits on
-# whatever CPU is left, and at the start both workers compile numba's callbacks into an empty cache
-# (its guide took 108 s first in a cold CI run, 45 s alone cold, 37 s warm)
-LONGEST_FIRST = ("test_diagnose.py", "test_docs.py", "test_sitl_ardupilot.py", "test_esso_engine.py", "test_sea.py",
+# has finished
+LONGEST_FIRST = ("test_sitl_ardupilot.py", "test_diagnose.py", "test_docs.py", "test_esso_engine.py", "test_sea.py",
                  "test_ident.py", "test_cli_ident.py", "test_esso_diagnose.py", "test_wind_per_log.py", "test_scale.py",
                  "test_kinematic.py", "test_esso_ident.py", "test_recordings.py", "test_scale_ray.py")
 
