@@ -9,14 +9,18 @@ import pytest
 
 import twin
 
+# each export called with small arguments, and a figure of what it gave: the same on every call
 FAST_CALLS = {
-    "load_vessel": lambda: twin.load_vessel("blueboat"),
-    "simulate": lambda: twin.simulate("blueboat", "step", duration_s=2.0),
-    "simulate_run": lambda: twin.simulate_run("blueboat", scenario="turn", duration_s=2.0),
-    "validate": lambda: twin.validate("cybership1"),
-    "effective_parameters": lambda: twin.effective_parameters("blueboat"),
-    "compile_vessel": lambda: twin.compile_vessel(twin.load_vessel("blueboat")),
+    "load_vessel": (lambda: twin.load_vessel("blueboat"), lambda v: v.name),
+    "simulate": (lambda: twin.simulate("blueboat", "step", duration_s=2.0), lambda r: (r.t[-1], *r.eta[-1])),
+    "simulate_run": (lambda: twin.simulate_run("blueboat", scenario="turn", duration_s=2.0),
+                     lambda s: (s.run.t[-1], *s.run.eta[-1])),
+    "validate": (lambda: twin.validate("cybership1"), lambda v: (len(v.quantities), len(v.flagged()))),
+    "effective_parameters": (lambda: twin.effective_parameters("blueboat"), lambda e: e["rigid_body"]["mass_kg"]),
+    "compile_vessel": (lambda: twin.compile_vessel(twin.load_vessel("blueboat")), lambda c: (c.model.nv, c.vessel.name)),
 }
+EXPECTED = {"load_vessel": "blueboat", "effective_parameters": 15.0, "compile_vessel": (3, "blueboat"),
+            "validate": (9, 0)}
 
 
 @pytest.fixture(scope="module")
@@ -44,16 +48,23 @@ def test_no_export_is_a_subpackage_or_module(everything_imported):
 
 @pytest.mark.parametrize("name", sorted(FAST_CALLS))
 def test_each_exported_function_works_twice_after_every_subpackage_is_imported(name, everything_imported):
-    for _ in range(2):
-        assert FAST_CALLS[name]() is not None
+    call, figure = FAST_CALLS[name]
+    first, second = figure(call()), figure(call())
+    assert first == second
+    if name in EXPECTED:
+        assert first == EXPECTED[name]
+    else:  # a run of 2 s that went ahead, and not sideways
+        assert first[0] == pytest.approx(2.0) and first[1] > 0.5 and abs(first[2]) < 1e-6
 
 
 def test_recording_functions_work_twice_after_every_subpackage_is_imported(everything_imported, log):
     for _ in range(2):
         rec = twin.read_recording(log)
-        assert twin.prepare_recording(rec, "blueboat") is not None
-        assert twin.prepare_recording(rec) is not None
-        assert isinstance(twin.calibrate([rec], "blueboat"), list)
+        prep = twin.prepare_recording(rec, "blueboat")
+        assert len(prep.t) == 401 and prep.t[-1] == pytest.approx(40.0)
+        assert np.array_equal(twin.prepare_recording(rec).u, prep.u)  # the vessel's own antenna is at CO
+        calibrations = twin.calibrate([rec], "blueboat")
+        assert len(calibrations) == 1 and calibrations[0].heading_bias_deg is None  # the twin's own run
         assert twin.evaluate("blueboat", [rec]).score("u").r2 > 0.9
 
 
@@ -106,8 +117,9 @@ def test_results_are_typed_with_short_rounded_reprs(log):
     table = ev.table()
     assert table.title and "horizon" in str(table).splitlines()[1] and table.to_dict()["rows"]
     # "calibrated" says whether a log's compass offset was applied, never merely that one was looked for
-    assert ev.applied or not any(r["calibrated"] for r in table.to_dict()["rows"])
-    assert ev.applied or "no log's compass offset was applied" in table.title
+    # the twin's own run: no offset to apply, and no row says otherwise
+    assert not ev.applied and not any(r["calibrated"] for r in table.to_dict()["rows"])
+    assert "no log's compass offset was applied" in table.title
     assert ev.to_dict()["vessel"] == "blueboat" and ev.by_state == [] and ev.stand_ins == []
     by_speed = twin.evaluate("blueboat", [log], by="speed")
     shares = sum(b.share["u"] for b in by_speed.by_state)
@@ -254,7 +266,8 @@ def test_wrong_arguments_found_by_calling_every_export_are_twin_errors(tmp_path,
         with pytest.raises(twin.TwinError, match=says):
             call()
     assert twin.compile_vessel("blueboat").vessel.name == "blueboat"  # a name, as every other export takes it
-    assert twin.prepare_recording([rec], "blueboat") is not None  # a list of one is still one recording
+    # a list of one is still one recording
+    assert np.array_equal(twin.prepare_recording([rec], "blueboat").u, twin.prepare_recording(rec, "blueboat").u)
 
 
 def test_a_flag_given_as_text_and_a_controller_returning_nonsense_are_twin_errors(log):

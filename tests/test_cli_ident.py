@@ -151,15 +151,12 @@ def run_in_process(monkeypatch, capsys, args) -> tuple[int, str]:
 
 def test_bad_input_is_one_line_and_exit_2(dataset, tmp_path, monkeypatch, capsys):
     cases = [
-        ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.tlog", "--effect", "current=fast"),
-        ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.txt"),
         ("dataset", "--vessel", "yellowfish", "--out", tmp_path / "x.tlog", "--manoeuvres", "loop"),
         ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json", "--params", "Xq"),
         ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json",
          "--params", "Xudot,thrust_gain"),
         ("identify", dataset / "train.tlog", "--vessel", "yellowfish", "--out", tmp_path / "m.json", "--start", "now"),
-        ("evaluate", "--vessel", "yellowfish", tmp_path / "missing.tlog"),
-    ]
+    ]  # a bad effect text, an unknown format and a missing log: test_cli_errors
     for args in cases:
         code, err = run_in_process(monkeypatch, capsys, args)
         assert code == 2, (args, err)

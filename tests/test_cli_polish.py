@@ -55,9 +55,11 @@ def test_vessel_and_model_together_are_refused(tmp_path):
 
 def test_a_copied_vessel_file_loads_with_its_mjcf_and_meshes(tmp_path):
     shutil.copy(ROOT / "twin" / "model" / "blueboat.json", tmp_path / "copy.json")
-    assert twin("params", "--model", tmp_path / "copy.json").returncode == 0
+    done = twin("params", "--model", tmp_path / "copy.json")
+    assert done.returncode == 0 and "m = 15.000 kg" in done.stdout, done.stderr
     shutil.copy(ROOT / "twin" / "model" / "blueboat.xml", tmp_path / "blueboat.xml")  # its meshes are not beside it
-    assert twin("params", "--model", tmp_path / "copy.json").returncode == 0
+    done = twin("params", "--model", tmp_path / "copy.json")
+    assert done.returncode == 0 and "m = 15.000 kg" in done.stdout, done.stderr
     data = json.loads((tmp_path / "copy.json").read_text())
     data["mjcf"] = "nowhere.xml"
     (tmp_path / "bad.json").write_text(json.dumps(data))

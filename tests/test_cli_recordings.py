@@ -49,6 +49,15 @@ def test_tlog_round_trip_recovers_the_twin_state(sim_tlog):
 def test_convert_and_view(sim_tlog, tmp_path):
     p = twin("convert", sim_tlog / "z.tlog", tmp_path / "z.mcap")
     assert p.returncode == 0, p.stderr
+    # synchronised on the 0.1-s grid (as it says): each 5-Hz fix held, the 50-Hz heading thinned, the PWM as logged
+    a, b = read_recording(sim_tlog / "z.tlog"), read_recording(tmp_path / "z.mcap")
+    np.testing.assert_allclose(b.pwm.t, a.pwm.t, atol=1e-6)
+    np.testing.assert_array_equal(b.pwm["left_us"], a.pwm["left_us"])
+    at_fix = np.searchsorted(b.gnss.t, a.gnss.t - 1e-6)
+    np.testing.assert_allclose(b.gnss.t[at_fix], a.gnss.t, atol=1e-6)
+    np.testing.assert_allclose(b.gnss["lat_deg"][at_fix], a.gnss["lat_deg"], rtol=0, atol=1e-7)
+    thinned = np.searchsorted(a.heading.t, b.heading.t - 1e-6)
+    np.testing.assert_allclose(b.heading["psi_rad"], a.heading["psi_rad"][thinned], atol=1e-6)
     p = twin("view", tmp_path / "z.mcap", "--sim", "--vessel", "yellowfish", "--out", tmp_path / "v.rrd",
              "--png", tmp_path / "v.png")
     assert p.returncode == 0, p.stderr

@@ -214,4 +214,5 @@ def test_iso_and_dp_refuse_a_duration_too_short_for_the_job_before_any_run(tmp_p
                         "one, or none for the settling time (10 s)\n")
     p = twin("dp", "--vessel", "blueboat", "--duration", "3.81", "--json", tmp_path / "dp.json")  # just past it
     assert p.returncode == 0, p.stderr
-    assert json.loads((tmp_path / "dp.json").read_text())["loops"][0]["iae_ratio"] is not None
+    # just past the 90 % point the twin's loop has followed the model's step closely (measured 0.942)
+    assert 0.8 < json.loads((tmp_path / "dp.json").read_text())["loops"][0]["iae_ratio"] < 1.1

@@ -686,8 +686,9 @@ def _run() -> None:
         sys.exit(2)
     except Exception as exc:  # usage errors and anything unexpected: one line, never a traceback
         if _is_usage_error(exc):
-            if exc.format_message():  # `twin` alone has printed the help and has nothing to add
-                typer.echo(f"error: {exc.format_message()}", err=True)
+            if not exc.format_message():  # `twin` alone: the help it asked for is printed, nothing failed
+                sys.exit(0)
+            typer.echo(f"error: {exc.format_message()}", err=True)
             sys.exit(2)
         if os.environ.get("TWIN_DEBUG"):
             raise
