@@ -512,6 +512,9 @@ def note(text: str) -> None:
         typer.echo(text, err=True)
 
 
+BAR_WIDTH = 16
+
+
 @contextlib.contextmanager
 def progress_bar(title: str) -> Iterator[Progress]:
     """A progress callable for package functions: a rich bar on stderr when it is a terminal
@@ -520,10 +523,16 @@ def progress_bar(title: str) -> Iterator[Progress]:
         yield lambda what, done=None, total=None: None
         return
     from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+    from rich.table import Column
 
-    with Bar(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[count]}"),
-             TextColumn("{task.fields[what]}"), TimeElapsedColumn(), console=Console(stderr=True),
-             transient=True) as bar:
+    console = Console(stderr=True)
+    # the step's text is what gives way on a narrow terminal (cut with an ellipsis), never the
+    # command's name, the bar, the count or the time
+    room = max(20, console.width - len(title) - BAR_WIDTH - 24)  # a count of 9 and the time of 7, with spaces
+    with Bar(TextColumn("{task.description}", table_column=Column(no_wrap=True, min_width=len(title))),
+             BarColumn(bar_width=BAR_WIDTH), TextColumn("{task.fields[count]}", table_column=Column(no_wrap=True)),
+             TextColumn("{task.fields[what]}", table_column=Column(no_wrap=True, overflow="ellipsis", max_width=room)),
+             TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task(title, total=None, what="", count="")
 
         def update(what: str, done: int | None = None, total: int | None = None) -> None:
