@@ -35,6 +35,13 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
    every step of the differential thrust from a steady one: a heading error that follows the
    motors' current jumps with the step, where a hull's heading leaves its rate smoothly. The form
    was looked at on these judged runs before this look was written: a check, not a proof.
+8. The heading against the runs' own yaw-rate column (the dataset's `yaw_rate`, which the reader
+   leaves out as the author's estimate: smoothed, and its integral drifts from the heading by
+   degrees a minute as a gyro's does). Every run's heading replaced by the column's integral at
+   periods shorter than τ and the compass's at longer ones (a zero-phase low-pass of their
+   difference), `twin identify` refitted on the fitted runs and judged as above: a compass error
+   that follows the motors' currents would leave with it. Then the sensors' timing: the
+   identified twin with its GNSS fixes or its heading stamped late or early (nothing refitted).
 
 The recordings are read in place; without them the script says so and exits 0.
 """
@@ -47,6 +54,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import butter, filtfilt
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -61,6 +69,8 @@ from twin.fit.kinematic import lever_arm  # noqa: E402
 from twin.fit.windows import ModelCache, measured  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
+from twin.prepare import heading_lag_behind_gyro  # noqa: E402
+from twin.recording import Recording, Stream  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "blueboat"
@@ -74,6 +84,8 @@ PIVOT_TURNING_RAD_S = 0.08
 STEP_N = 15.0  # a step of the differential thrust (N) between two grid samples
 STEADY_N, STEADY_S = 3.0, 1.0  # ... from a differential steady within STEADY_N over STEADY_S before it
 STEP_SAMPLES = 5  # the heading read over this many grid samples after a step
+FUSION_TAUS_S = (2.0, 5.0, 10.0, 30.0)  # the heading from the yaw-rate column below these periods
+LATENCIES_S = (-0.3, -0.15, 0.15, 0.3)
 SWAY_FORMS = (("v", "|v|v", "ur", "r"), ("v", "|v|v", "|u|v", "ur", "r"), ("v", "|v|v", "ur", "r", "rdot"),
               ("v", "|v|v", "ur", "r", "dT"), sway_alone.TERMS)
 
@@ -242,6 +254,46 @@ def lead_of_sway(seen, recordings, signal) -> tuple[float, float]:
     return best
 
 
+def yaw_rate_column(rec: Recording) -> Stream:
+    """The dataset's own `yaw_rate` column (rad/s) on the recording's clock (the reader leaves it out)."""
+    with open(rec.source) as fh:
+        header = fh.readline().strip().split(",")
+    data = np.genfromtxt(rec.source, delimiter=",", skip_header=1,
+                         usecols=(header.index("original_timestamp"), header.index("yaw_rate")))
+    ok = np.all(np.isfinite(data), axis=1)
+    return Stream(data[ok, 0] * 1e-3 - rec.origin_s, {"yaw_rate_rads": data[ok, 1]})
+
+
+def heading_on_rate(rec: Recording, tau_s: float) -> tuple[Recording, float]:
+    """`rec` with its heading the yaw-rate column's integral at periods under tau_s and the compass's
+    above (look 8), and the RMS change of the heading (°)."""
+    rate = yaw_rate_column(rec)
+    t = rec.heading.t
+    psi = np.unwrap(rec.heading["psi_rad"])
+    r = np.interp(t, rate.t, rate["yaw_rate_rads"])
+    turned = np.r_[0.0, np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(t))]
+    b, a = butter(2, 1.0 / (2 * np.pi * tau_s) / (0.5 / float(np.median(np.diff(t)))))
+    fused = turned + filtfilt(b, a, psi - turned)
+    out = replace(rec, heading=Stream(t, {**rec.heading.columns, "psi_rad": np.mod(fused, 2 * np.pi)}))
+    return out, float(np.degrees(np.sqrt(np.mean((psi - fused) ** 2))))
+
+
+def rate_column_checks(recordings: list[Recording]) -> list[list]:
+    """Per run: the heading against the column's integral (heading_lag_behind_gyro, the column taken
+    for a gyro) and the drift of the integral from the heading (°/min, least squares over the run)."""
+    rows = []
+    for rec in recordings:
+        rate = yaw_rate_column(rec)
+        lag = heading_lag_behind_gyro(replace(rec, imu=rate))
+        t = rec.heading.t
+        r = np.interp(t, rate.t, rate["yaw_rate_rads"])
+        turned = np.r_[0.0, np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(t))]
+        drift = np.polyfit(t, np.degrees(np.unwrap(rec.heading["psi_rad"]) - turned), 1)[0] * 60.0
+        rows.append([log_name(rec.source), "not told" if lag.lag_s is None else f"{lag.lag_s:+.2f} ± {lag.sigma_s:.2f}",
+                     float(drift)])
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
@@ -333,6 +385,24 @@ def main() -> int:
     grid_dt = prepared(fitted[:1], on_fitted)[0].settings.grid_dt
     step_rows = [[f"{k * grid_dt:.1f}", float(steps[:, k].mean()), float(steps[:, k].std(ddof=1) / np.sqrt(len(steps)))]
                  for k in range(STEP_SAMPLES)] if len(steps) > 1 else []
+    rate_rows = rate_column_checks(recordings)
+    fused_rows, raw_fused = [], []
+    for tau in FUSION_TAUS_S:
+        on_rate = {log_name(r.source): heading_on_rate(r, tau) for r in recordings}
+        fit_recs = [on_rate[log_name(r.source)][0] for r in fitted]
+        judged_recs = [on_rate[log_name(r.source)][0] for r in judged]
+        refit = identify(fit_recs, prior, sources=[r.source for r in fit_recs]).vessel
+        got, _ = scores(calibrate(judged_recs, refit)[0], judged_recs)
+        change = float(np.sqrt(np.mean([x[1] ** 2 for x in on_rate.values()])))
+        raw_fused.append({"tau_s": tau, "heading_rms_change_deg": change, "scores": got})
+        fused_rows.append([f"{tau:g}", change, *[got[d][0] for d in "uvr"]])
+    timing_rows, raw_timing = [], []
+    for what, label in (("gnss_latency_s", "GNSS"), ("heading_latency_s", "heading")):
+        for latency in LATENCIES_S:
+            late = replace(twin, sensors=replace(twin.sensors, **{what: latency}))
+            got, _ = scores(calibrate(judged, late)[0], judged)
+            raw_timing.append({"stream": what, "latency_s": latency, "scores": got})
+            timing_rows.append([label, f"{latency:+.2f}", *[got[d][0] for d in "uvr"]])
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
     refit_rows.insert(0, ["the twin's (its MJCF site)", "+0.00", "+0.00",
                           raw_antenna[ANTENNA_DX_M.index(0.0)]["v_spread_m_s"], base["u"][0], base["v"][0],
@@ -356,7 +426,7 @@ def main() -> int:
         "where a sway that answers the turn through its own lag would follow it; it follows the differential "
         f"thrust closely (correlation {leads['judged, against the differential thrust'][1]:.2f} at "
         f"{leads['judged, against the differential thrust'][0]:+.1f} s on the judged runs). With r the heading's slope "
-        "(these logs carry no gyro), a heading stamped that much late would read the same, but on the fitted runs "
+        "(the yaw-rate column of these logs is not read: see below), a heading stamped that much late would read the same, but on the fitted runs "
         f"the heading answers the input steps within {abs(answers[1] - answers[0]):.2f} s of the GNSS (the "
         f"twin's input answers: surge {answers[0]:+.2f} s, yaw {answers[1]:+.2f} s; fit/kinematic.py). An "
         "added-mass coupling set by hand buys v only with r. Each log's compass offset fitted to its own sway "
@@ -376,7 +446,13 @@ def main() -> int:
         f"the motors' currents takes, {thrust_rows[0][1]:+.2f}° per 10 N of ΔT, but the heading does not jump "
         f"at a step of ΔT ({step_rows[1][1]:+.2f} ± {step_rows[1][2]:.2f}° per 10 N one sample after "
         f"{len(steps)} steps, then growing as a turn's does), so it is not a compass that follows the current "
-        "at once." if step_rows else "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
+        "at once. Nor is it a slower compass error: with the heading taken from the runs' own yaw-rate column at "
+        f"periods under {FUSION_TAUS_S[0]:g} to {FUSION_TAUS_S[-1]:g} s (it changes the heading by "
+        f"{min(x['heading_rms_change_deg'] for x in raw_fused):.1f}-{max(x['heading_rms_change_deg'] for x in raw_fused):.1f}° "
+        "RMS) and the twin refitted, v on the judged runs reads "
+        f"{min(x['scores']['v'][0] for x in raw_fused):.3f} to {max(x['scores']['v'][0] for x in raw_fused):.3f}; with "
+        f"the GNSS or the heading stamped up to {max(LATENCIES_S):g} s late or early, "
+        f"{min(x['scores']['v'][0] for x in raw_timing):.3f} to {max(x['scores']['v'][0] for x in raw_timing):.3f}." if step_rows else "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -424,7 +500,17 @@ def main() -> int:
          ResultTable(f"The heading at each step of ΔT of {STEP_N:g} N or more from a ΔT steady within {STEADY_N:g} N "
                      f"over {STEADY_S:g} s ({len(steps)} steps, all ten runs): its change less the rate before "
                      "carried on, ° per 10 N of the step; a heading error of a·ΔT would show a from the step's "
-                     "own sample on", ["s after the step", "mean (° per 10 N)", "standard error"], step_rows)],
+                     "own sample on", ["s after the step", "mean (° per 10 N)", "standard error"], step_rows),
+         ResultTable("The runs' own yaw-rate column taken for a gyro: the heading's delay against it "
+                     "(prepare/timing.py; negative: the heading leads) and how fast its integral drifts from the "
+                     "heading over the run", ["log", "heading against the column (s)", "drift (° per minute)"],
+                     rate_rows),
+         ResultTable("The heading from the yaw-rate column at periods under τ and from the compass above, every run, "
+                     "`twin identify` refitted on the fitted runs: 10-s R² on the judged runs",
+                     ["τ (s)", "heading changed (° RMS)", "R² u", "R² v", "R² r"], fused_rows),
+         ResultTable("The identified twin with its GNSS fixes or its heading stamped late (negative: early), "
+                     "nothing refitted: 10-s R² on the judged runs", ["stream", "latency (s)", "R² u", "R² v", "R² r"],
+                     timing_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
                "hull creeps while it spins)."],
@@ -433,6 +519,7 @@ def main() -> int:
              "input_answer_s": list(answers), "compass": raw_compass, "pivot_by_speed": pivot_rows,
              "antenna_refit": raw_refit, "spins": spins.to_dict(), "sway_alone": raw_alone,
              "speed_thrust": raw_thrust, "heading_at_steps": step_rows, "steps": len(steps),
+             "rate_column": rate_rows, "heading_on_rate": raw_fused, "timing": raw_timing,
              "seconds": round(time.time() - started, 1)})
     print(page.write(args.out))
     return 0
