@@ -5,7 +5,7 @@ figure of merit does with where the antenna is taken to be.
 
 The twin is `twin identify` with its defaults on the five least active of the ten shared runs
 [BlueBoat-SI] (twin.fit.extrapolation.by_activity), judged on the five most active in 10-s free
-runs from measured states every 2 s, as on the extrapolation page. Three looks:
+runs from measured states every 2 s, as on the extrapolation page. Eight looks:
 
 1. Where the antenna is taken to be. The recordings' sway at the hull's reference point is the
    antenna's less x·r (prepare): moving the antenna along the hull by Δx adds −Δx·r to the
@@ -34,7 +34,7 @@ runs from measured states every 2 s, as on the extrapolation page. Three looks:
    the judged runs; and fitted on each judged run alone (in-sample). Then the heading itself at
    every step of the differential thrust from a steady one: a heading error that follows the
    motors' current jumps with the step, where a hull's heading leaves its rate smoothly. The form
-   was looked at on these judged runs before this look was written: a check, not a proof.
+   was chosen looking at these judged runs: a check, not a proof.
 8. The heading against the runs' own yaw-rate column (the dataset's `yaw_rate`, which the reader
    leaves out as the author's estimate: smoothed, and its integral drifts from the heading by
    degrees a minute as a gyro's does). Every run's heading replaced by the column's integral at

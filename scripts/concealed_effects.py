@@ -1014,7 +1014,7 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
          *(["Truth as given: the concealed effect at its own values in the library's terms, nothing fitted, judged "
             "by the rule the diagnosis names an effect by (z ≥ 3 of the held-out blocks' votes and 5 % of the misfit "
             "above the noise) on the same blocks, through the twins identified from the same runs at the judging "
-            "commit (a stage run at an earlier commit had its own, alike up to what changed since): whether the logs "
+            "commit (a stage run at another commit had its own): whether the logs "
             "can prove it from the "
             "dynamics at all. The antenna, the clocks and the heading are named from the kinematics, which this "
             "column does not judge."] if given else []),

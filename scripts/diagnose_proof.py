@@ -25,7 +25,8 @@ recordings made again; no diagnosis run).
 (`twin diagnose --refit`); their own effects (a damping scale, the thrust gain, ...) are then not
 candidates, so a truth of that kind cannot be named. Write those runs to another --out.
 
-Writes docs/diagnose/proof.json and proof.md: per case the effects injected, what
+Writes proof.json and proof.md in --out (out/diagnose; the results page is
+docs/results/diagnosis_proof.md): per case the effects injected, what
 the diagnosis found, the parameter error, and the held-out fit gain; for the world cases the
 share of true effects named and of recordings with spurious physics.
 """

@@ -3,7 +3,7 @@
     python scripts/esso_yaw_checks.py [--out docs]
 
 The untuned twin predicts the random tests' yaw rate poorly (30-s free runs, R² r about 0.56), and
-identification on any family of tests does not lift it above 0.65 (docs/esso_identification.md).
+identification on any family of tests does not lift it above 0.65 (docs/results/esso_identification.md).
 Each row puts one physical suspect into the untuned twin (or into the logged inputs) and scores the
 same 30-s free runs, so a suspect that matters shows as a clear change:
 
@@ -14,7 +14,7 @@ same 30-s free runs, so a suspect that matters shows as a clear change:
   damping N = −½ρ d C_D (L⁴/32) r|r| (a hull of constant section turning about midship, C_D 0.8)
   added as the vessel's N_{|r|r};
 - the rudder's inflow from the propeller race: the prior's κ 0.50 is KVLCC2's; NAOE's captive set
-  for this very model has k_x 0.288 with ε 1.42 (κ = k_x/ε = 0.203, docs/esso.md): that κ with the
+  for this very model has k_x 0.288 with ε 1.42 (κ = k_x/ε = 0.203, [NAOE-MMG-SIM]): that κ with the
   prior's ε 1.09, and NAOE's pair (ε, κ) together.
 
 The recordings (../shared/data/esso, CC BY-NC-SA) are read in place, never copied; without them
@@ -45,7 +45,7 @@ from twin.recording import Stream  # noqa: E402
 DATA = ROOT.parent / "shared" / "data" / "esso"
 FREE_RUN_30S = {"free_run_30s": 30.0}
 CROSS_FLOW_CD = 0.8
-NAOE_EPSILON = 1.42  # NAOE captive set for this model (docs/esso.md)
+NAOE_EPSILON = 1.42  # NAOE captive set for this model [NAOE-MMG-SIM]
 NAOE_KAPPA = 0.288 / NAOE_EPSILON  # its k_x 0.288 is ε·κ
 
 
@@ -130,7 +130,7 @@ def main() -> int:
     base_wind = rows["untuned twin, inputs as logged"]["r_measured_wind"]["r2"]
     lines = ["# The Esso twin's yaw on the random tests: suspects checked one at a time", "",
              f"Written by `python scripts/esso_yaw_checks.py` ({time.time() - started:.0f} s). The 9 random tests, "
-             "30-s free runs from measured states every 2 s, the untuned twin (docs/esso.md), each row one suspect "
+             "30-s free runs from measured states every 2 s, the untuned twin (twin/model/esso_osaka.json), each row one suspect "
              "put in (module docstring of the script). Pooled R²; the last two columns with the anemometer's wind as a known "
              "input:", "",
              "| twin | R² u | R² v | R² r | change of R² r | R² r, measured wind | change |",
@@ -146,8 +146,8 @@ def main() -> int:
     lines += ["", ("No suspect lifts R² r by 0.05 or more (the best by " + f"{best:+.3f}" + "): the yaw misfit of the "
               "random tests is neither the inputs' timing (at the rates tried) nor a low-speed yaw damping of this "
               "size, nor the rudder's race factor. What the twin cannot see remains: the model's bow and stern "
-              "thrusters, which the dataset's source says exist and these files do not log (docs/esso.md, Known "
-              "limits)." if best < 0.05 else "At least one suspect lifts R² r by 0.05 or more: see the table.")]
+              "thrusters, which the dataset's source says exist and these files do not log "
+              "[ESSO-FRT]." if best < 0.05 else "At least one suspect lifts R² r by 0.05 or more: see the table.")]
     if worst_change <= -0.05:
         lines += ["", f"The largest change is a loss: {worst_name}, {worst_label} {worst_change:+.3f}." + (
                   " The prior keeps KVLCC2's κ, and κ stays out of identification's groups "

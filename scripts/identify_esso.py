@@ -12,7 +12,7 @@ family: 30-s free runs from measured states every 10 s, R² of u, v, r pooled an
 (twin.fit.evaluate), beside the prior (the untuned KVLCC2-based twin) judged the same way. Within
 the training family, identify's own leave-one-test-out scores (30-s free runs of the twins refitted
 without each test, twin.fit.crossval) are reported too. Each part is saved as JSON in --work, so
-parts can run in separate processes; the report (docs/esso_identification.md and .json) is written
+parts can run in separate processes; the report (docs/results/esso_identification.md and .json) is written
 from whatever parts are there.
 
 The recordings (../shared/data/esso, CC BY-NC-SA 4.0) are read in place, never copied; without them
@@ -187,7 +187,7 @@ def report(parts: list[dict]) -> str:
              "Written by `python scripts/identify_esso.py`. `twin identify` "
              "(twin/ident/identify.py) on one family of free-running tests, judged on the other: 30-s free runs "
              "from measured states every 10 s, R² of u / v / r (twin/fit/evaluate.py). Targets: u ≥ 0.9, "
-             "v ≥ 0.6, r ≥ 0.9. Prior: the untuned KVLCC2-based twin (docs/esso.md). The duplicate "
+             "v ≥ 0.6, r ≥ 0.9. Prior: the untuned KVLCC2-based twin (twin/model/esso_osaka.json). The duplicate "
              f"`{DUPLICATE}` is left out. Fit: maximum a posteriori, the beliefs' weight (windows of data each) "
              "chosen by identify among "
              f"{', '.join(f'{b:g}' for b in BELIEFS)} on left-out tests, "
@@ -263,7 +263,7 @@ def reading(parts: list[dict]) -> list[str]:
             "absolute error (MAE, in the JSON) stays small; the pooled figures (all tests' samples together) "
             "are the ones the targets are read on.",
             "* The random tests run at low speed, stop, go astern and reverse the propeller: outside the MMG "
-            "standard's domain (docs/esso.md, Known limits). The fitted groups are the standard's own coefficients; "
+            "standard's domain [MMG-2015]. The fitted groups are the standard's own coefficients; "
             "the twin's extension of the standard to low speed and astern (U_nd floor, astern propeller, rudder "
             "inflow from astern) is not among them, so a shortfall there cannot be fitted away by these groups.",
             "* Published figures on this dataset: [Wakita-2022] identify a recurrent neural network on "

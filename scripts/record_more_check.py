@@ -5,7 +5,7 @@
 `twin diagnose` reports an effect that removes misfit on held-out blocks but acts in too few of them
 for z ≥ 3 as a hint, with how much more recording of the same kind would reach z 3 if the further
 blocks voted as these did (twin.diagnose.report.more_recording_factor). For each world case of the
-proof (scripts/diagnose_proof.py, docs/diagnose/proof.md) whose true effect was only a hint, this
+proof (scripts/diagnose_proof.py, docs/results/diagnosis_proof.md) whose true effect was only a hint, this
 script records the case again with the same seed for that many times the length (scripts/world_sim.py,
 --duration-s), diagnoses it, and reports whether the truth is then named, whether anything else is,
 and what became of the other hints of the first recording. The world's driving is random: the longer

@@ -324,7 +324,7 @@ def page(name: str) -> ResultPage:
     prov = provenance().get(name)
     path = DATA / f"{name}.json"
     if prov and hashlib.sha256(path.read_bytes()).hexdigest() == prov["sha256"]:
-        figures_of = (prov["date"], prov["commit"])  # figures of a run made before they were moved here
+        figures_of = (prov["date"], prov["commit"])  # the run's date and commit, as recorded beside its figures
     else:
         figures_of = _last_change(path)
     return ResultPage(name, title, f"{ran}; python scripts/results_pages.py {name}", data, summary, tables,

@@ -39,7 +39,7 @@ from twin.synth.manoeuvres import trial  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable, checkout_commit  # noqa: E402
 
 TOLERANCE = 0.30
-SETS = {  # "tour": the README's own two logs (seeds 3 and 5), where the proposal was first read
+SETS = {  # "tour": the README's own two logs (seeds 3 and 5)
     "tour": [("thrust_gain=0.85", 3)],
     "first": [("thrust_gain=0.85", 21), ("thrust_speed_loss=3.0", 31), ("full_thrust=0.8", 41),
               ("surge_resistance=1.4", 51), ("thrust_decay=0.04", 61), ("thruster_gain_left=0.85", 71)],
@@ -170,7 +170,7 @@ def _proposals(r: dict) -> str:
 
 
 def _rounds(r: dict) -> list[dict]:
-    """A row's rounds of recorded trials (a set run before rounds were kept: its one diagnosis after)."""
+    """A row's rounds of recorded trials (a row without them: its one diagnosis after the trial)."""
     if "rounds" in r:
         return r["rounds"]
     return [] if "after" not in r else [{"named": r["after"], **judge(r["truth"], r["after"]),

@@ -223,8 +223,8 @@ def test_validation_and_crosscheck_results_have_short_reprs():
     (lambda v: twin.load_vessel(None), "a vessel is a shipped vessel's name"),
 ])
 def test_the_api_says_what_a_wrong_argument_should_be(tmp_path, monkeypatch, call, said):
-    """Each of these failed deep inside numpy, MuJoCo or scipy (TypeError, IndexError, OverflowError),
-    or ran scipy's optimiser for minutes on 1.5 evaluations."""
+    """A wrong argument is a TwinError saying what it should be, never an error from inside numpy, MuJoCo
+    or scipy (TypeError, IndexError, OverflowError) nor a run of scipy's optimiser on 1.5 evaluations."""
     monkeypatch.chdir(tmp_path)
     twin.simulate_run("blueboat", scenario="random", duration_s=20).write("r.csv")
     with pytest.raises(twin.TwinError, match=said):
@@ -232,9 +232,9 @@ def test_the_api_says_what_a_wrong_argument_should_be(tmp_path, monkeypatch, cal
 
 
 def test_wrong_arguments_found_by_calling_every_export_are_twin_errors(tmp_path, log):
-    """Each of these was a TypeError, AttributeError, ValueError or OverflowError from deep inside, or
-    ran silently: a list of recordings prepared as its first, a crosscheck of no case or of one
-    sample passing, an empty `only` running every case, a stride of True or inf."""
+    """Each of these is a TwinError, not an error from deep inside nor a silent run: a list of
+    recordings given where one is expected, a crosscheck of no case or of one sample, an empty
+    `only` (not every case), a stride of True or inf."""
     rec = twin.read_recording(log)
     sim = twin.simulate_run("blueboat", duration_s=2.0)
     calls = [
@@ -271,8 +271,9 @@ def test_wrong_arguments_found_by_calling_every_export_are_twin_errors(tmp_path,
 
 
 def test_a_flag_given_as_text_and_a_controller_returning_nonsense_are_twin_errors(log):
-    """The text "no" is true to Python: calibrated="no" applied the calibration it meant to skip. A
-    controller returning text, one number or NaN failed inside the engine (TypeError) or ran on NaN."""
+    """A flag must be a bool: the text "no" is true to Python, and calibrated="no" would apply the
+    calibration it means to skip. A controller returning text, one number or NaN is refused before the
+    engine runs on it."""
     rec = twin.read_recording(log)
     flags = [
         (lambda: twin.prepare_recording(rec, "blueboat", calibrated="no"), "calibrated must be True or False"),

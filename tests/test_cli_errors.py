@@ -576,8 +576,9 @@ def test_a_wind_on_a_vessel_without_a_wind_load_is_refused_and_thrust_inputs_say
 
 
 def test_dp_dead_ahead_a_short_run_and_an_infinite_frequency_end_in_one_line(tmp_path):
-    """A point dead ahead asks the heading loop no step (its IAE ratio was a division by zero), a run
-    shorter than the turn before the surge had no surge samples, ω = inf divided by zero: exit 3."""
+    """A point dead ahead asks the heading loop no step (its IAE ratio would divide by zero), a run
+    shorter than the turn before the surge has no surge samples, ω = inf divides by zero: each is one
+    line, not exit 3."""
     twin = twin_command.twin
     done = twin("dp", "--vessel", "blueboat", "--run", "point", "--target", "10,0", "--json", tmp_path / "dp.json")
     assert done.returncode == 0 and "IAE ratio – (no step asked of it)" in done.stdout

@@ -327,8 +327,8 @@ def test_info_with_a_vessel_on_a_log_without_thruster_outputs_names_it(shared_di
 
 
 def test_an_inputs_csv_with_a_column_twice_is_refused_as_a_recordings_csv_is(tmp_path):
-    """A log's CSV with a column twice is refused (which one a reader took would be a guess); simulate
-    --inputs took the first `t` and ran. Both now say it the same way, before anything is written."""
+    """A CSV with a column twice is refused (which one a reader took would be a guess), as a log and as
+    simulate --inputs alike, in the same words, before anything is written."""
     for header, said in (("t,pwm_left,pwm_right,t", "column t appears"),
                          ("t,pwm_left,pwm_right,pwm_left,pwm_right", "columns pwm_left, pwm_right appear")):
         inputs = tmp_path / "in.csv"

@@ -272,7 +272,7 @@ def test_simulate_refuses_to_write_a_ships_run_where_its_inputs_would_be_lost(tm
 def test_a_faster_test_than_the_vessel_files_bound_is_replayed_as_logged(esso, tmp_path):
     """The shipped Esso's rps_max (10) is the shared tests' fastest; a run of the same twin at 17 rps,
     written as a log, is replayed by evaluate at its logged speed: the twin predicts its own run
-    exactly. Clipped to the bound, the 30-s free runs' R² u was 0.04."""
+    exactly, where clipped to the bound its 30-s free runs' R² u would be 0.04."""
     import twin
 
     fast = replace(esso.vessel, thrusters=replace(esso.vessel.thrusters, rps_max=20.0))

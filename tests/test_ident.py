@@ -143,8 +143,8 @@ def test_two_recordings_of_one_name_and_span_are_driven_each_by_its_own_pwm(yell
 
 
 def test_a_lag_of_hundredths_of_a_second_is_held_at_the_candidates_coarse_step(yellowfish_vessel):
-    """A thrust lag far below the candidate twins' coarse RK4 step ran away when RK4 integrated it
-    (|hλ| 5 for 0.01 s at 0.05 s) and the fit stopped at that edge: filtered ahead of the engine, it
+    """A thrust lag far below the candidate twins' coarse RK4 step would run away integrated by RK4
+    (|hλ| 5 for 0.01 s at 0.05 s) and stop the fit at that edge: filtered ahead of the engine, it
     needs no finer step, and the generating twin reproduces its own run at 0.05 and 0.1 s."""
     from twin.fit.windows import comfortable_timestep
 

@@ -78,7 +78,7 @@ def test_csv_with_half_a_column_pair_is_refused_by_name(tmp_path, kept, dropped)
     assert done.returncode == 2 and done.stderr.strip() == f"error: {path}: has {kept} but no {dropped} column"
 
 
-def test_csv_with_both_columns_of_each_pair_still_reads(tmp_path):
+def test_csv_with_both_columns_of_each_pair_reads(tmp_path):
     t, cols = straight()
     rec = read_recording(write_csv(tmp_path / "x.csv", cols, t))
     assert len(rec.pwm) == len(t) and len(rec.gnss) == len(t)
@@ -175,7 +175,7 @@ def test_info_says_one_gap_and_does_not_call_gaps_dropped(tmp_path):
     assert "2 gaps > 1 s" in format_summary(read_recording(gappy(tmp_path, 2)).summary())
 
 
-def test_a_gap_is_still_counted_in_the_recording_dropped_list(tmp_path):
+def test_a_gap_is_counted_in_the_recording_dropped_list(tmp_path):
     rec = read_recording(gappy(tmp_path, 2))
     assert dict(rec.dropped)["gnss: dropouts > 1 s"] == 2
 

@@ -264,7 +264,7 @@ def test_failed_rename_leaves_no_temporary(rec, tmp_path, monkeypatch):
     assert listing(tmp_path) == []
 
 
-def test_run_mcap_still_reads_as_states(tmp_path):
+def test_run_mcap_reads_as_states(tmp_path):
     from twin.run import Run
     from twin.formats.mcap import write_run_mcap
 

@@ -256,7 +256,7 @@ def test_lever_arm_matters(tlog):
     assert np.max(np.abs(p.v)) > 0.8 * R * OP[0]  # antenna velocity ≠ CO velocity: v ≈ r·dx
 
 
-def test_savgol_off_still_close(tlog):
+def test_savgol_off_stays_close(tlog):
     p = prepare(read_recording(tlog), lever_arm_OP_m=OP, smoother="none")
     assert_recovers_circle(p, vel_tol=0.08, r_tol=0.01)  # plain differences: more quantisation noise
 
@@ -440,7 +440,7 @@ def test_the_twins_own_run_evaluates_at_r2_one(tmp_path):
     "t,lat,lon,heading_deg,pwm_left,pwm_right\n0,37.1,-5.9,10,1500,1500\n",  # one row
 ])
 def test_nothing_usable_is_an_error_not_an_empty_summary(tmp_path, text):
-    """One sample per stream has no duration, rate or motion: `twin info` used to print 0.0 s at 0.00 Hz."""
+    """One sample per stream has no duration, rate or motion: `twin info` says so instead of a summary of 0.0 s at 0.00 Hz."""
     (tmp_path / "bad.csv").write_text(text)
     with pytest.raises(TwinError, match="bad.csv: nothing usable") as info:
         read_recording(tmp_path / "bad.csv")

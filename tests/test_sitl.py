@@ -921,8 +921,8 @@ def closing_console(heartbeat: bool):
 
 
 def test_mission_ends_at_once_with_one_line_when_ardupilot_closes_the_connection():
-    """pymavlink printed "EOF on TCP socket" on every read of the closed socket, some 150,000 lines a
-    second until --timeout: the closed connection is told once, at once, before a heartbeat or after one."""
+    """pymavlink prints "EOF on TCP socket" on every read of a closed socket, some 150,000 lines a second
+    until --timeout: the closed connection is told once, at once, before a heartbeat or after one."""
     for heartbeat, before in ((False, "before its first heartbeat"), (True, "before an EKF navigating on GPS")):
         with closing_console(heartbeat) as port:
             start = time.monotonic()

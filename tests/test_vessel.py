@@ -72,8 +72,8 @@ def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
     (lambda d: d.__setitem__("added_mass", None), "needs its added_mass section"),
 ])
 def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_path, edit, message):
-    """A misspelt or missing section would load as zeros or defaults (a twin with no damping ran with
-    exit 0 and R² r −573): refused in one line instead."""
+    """A misspelt or missing section would load as zeros or defaults (a twin with no damping, whose
+    free runs score R² r −573): refused in one line instead."""
     v = vessel_mod.load("blueboat")
     path = vessel_mod.save(v, tmp_path / "boat.json")
     data = json.loads(path.read_text())
@@ -94,8 +94,8 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     (lambda d: d.pop("name"), r"a vessel file needs 'name'$"),
 ])
 def test_a_vessel_file_value_only_a_slipped_unit_gives_is_refused_naming_its_field(tmp_path, edit, message):
-    """Each of these ran without a word as another boat (a gain in per mille reached 35 m/s, a
-    headwind on a negative area pushed the boat ahead)."""
+    """Each of these would run without a word as another boat (a gain in per mille reaches 35 m/s, a
+    headwind on a negative area pushes the boat ahead): refused, naming the field."""
     path = vessel_mod.save(vessel_mod.load("blueboat"), tmp_path / "boat.json")
     data = json.loads(path.read_text())
     edit(data)
@@ -177,8 +177,8 @@ def test_a_datasets_truth_file_loads_as_its_truth_vessel(tmp_path):
     (lambda m: m.__setitem__("friction_factor", -1.0), r"mmg.friction_factor .* got -1.0"),
 ])
 def test_a_ship_file_whose_hull_cannot_resist_is_refused(tmp_path, edit, message):
-    """A hull with no resistance (R'_0 ≤ 0, or its hull object null) ran away under any thrust; a twin's
-    approach speed then failed in scipy with exit code 3: refused in one line when the file is read."""
+    """A hull with no resistance (R'_0 ≤ 0, or its hull object null) runs away under any thrust and has
+    no approach speed: refused in one line when the file is read."""
     path = vessel_mod.save(vessel_mod.load("esso_osaka"), tmp_path / "ship.json")
     data = json.loads(path.read_text())
     edit(data["mmg"])
@@ -220,8 +220,8 @@ def test_an_uncertainty_block_naming_no_coefficient_is_refused_before_a_draw():
 
 
 def test_an_mjcf_that_is_no_xml_file_is_refused_in_one_line(tmp_path):
-    """MuJoCo picks its reader by the extension and, without one it knows, printed a warning of its
-    own before the error."""
+    """MuJoCo picks its reader by the extension and, without one it knows, prints a warning of its own:
+    the file is refused in one line before MuJoCo reads it."""
     (tmp_path / "hull.txt").write_text("hello")
     data = json.loads(vessel_mod.save(vessel_mod.load("blueboat"), tmp_path / "boat.json").read_text())
     data["mjcf"] = "hull.txt"

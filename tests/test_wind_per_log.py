@@ -89,7 +89,7 @@ def test_a_diagnosis_of_two_logs_fits_each_logs_own_wind(esso):
     """Two outings, the wind from opposite sides (no one constant wind fits both): every fold's fit of
     the per-log wind finds each log's speed and direction, and it removes far more of the held-out
     misfit than one wind for both. (Named or not is the blocks' call: two 4-min logs give too few
-    blocks for z ≥ 3, which the Esso's days of 3-7 tests show, docs/esso_wind_diagnosis.md.) Only the
+    blocks for z ≥ 3, which the Esso's days of 3-7 tests show, docs/results/esso_wind_diagnosis.md.) Only the
     two winds are offered: a first round's candidates are each fitted alone, so the others change
     nothing asserted here."""
     from twin.diagnose.doctor import diagnose

@@ -312,7 +312,7 @@ def read_recording(path, channels: dict | None = None):
             the file (LEFT,RIGHT for a CSV or MCAP recording).
     """
     for key, to in (("reversed", "True or False"), ("trim", "the PWM of zero thrust in µs")):
-        given = channels.get(key) if isinstance(channels, dict) else None  # a wrong shape failed inside the readers
+        given = channels.get(key) if isinstance(channels, dict) else None  # a wrong shape would fail inside the readers
         if given is not None and (not isinstance(given, dict) or set(given) - {"left", "right"} or key == "trim"
                                   and not all(_finite(x, positive=False) for x in given.values())):
             raise TwinError(f"channels[{key!r}] must be a dict of 'left' and/or 'right' to {to}, got {given!r:.60}")

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
+import inspect
 import json
 import math
 import os
 import sys
+import tempfile
 import warnings
 from importlib import resources
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Iterator, Optional
 
@@ -79,7 +83,6 @@ WORKFLOW = ("simulate", "view", "info", "convert", "validate", "crosscheck", "pa
 def package_version() -> str:
     """The installed distribution's version; the package's own where it is run from a checkout that was
     never installed."""
-    from importlib.metadata import PackageNotFoundError, version
 
     try:
         return version("asv-twin")
@@ -392,7 +395,6 @@ def recordings_in(paths: list[Path]) -> list[Path]:
 def check_recordings_distinct(recordings) -> None:
     """Refuse one recording given twice (the same file, or a copy with the same bytes): its windows would
     count twice, and a run judged "left out" would be a copy of one fitted on."""
-    import hashlib
 
     seen: dict[str, Path] = {}
     paths = [Path(p) for p in recordings]
@@ -413,7 +415,6 @@ def check_recordings_distinct(recordings) -> None:
 
 def _can_create(folder: Path) -> bool:
     """Whether a file can really be created in `folder` (permissions alone do not say: /proc)."""
-    import tempfile
 
     try:
         with tempfile.NamedTemporaryFile(dir=folder, prefix=".twin-probe-"):
@@ -548,7 +549,6 @@ def flow_help() -> None:
     `twin --help`, the rest its description (paragraphs kept, lines within one joined: rich prints
     a docstring's line breaks as they stand); commands in the order of the workflow; options
     shown with a plain word for their value (none for a flag) instead of type tags."""
-    import inspect
 
     for info in app.registered_commands:
         doc = info.help or inspect.getdoc(info.callback) or ""

@@ -1,6 +1,7 @@
 """`twin sitl`: the twin as ArduPilot SITL's physics backend (JSON interface)."""
 from __future__ import annotations
 
+import json
 import math
 import re
 import socket
@@ -119,7 +120,6 @@ def mission(
 ):
     """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
     time, mean speed and how far the boat strayed from the straight legs."""
-    import json
 
     from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission
 

@@ -85,7 +85,7 @@ def mmg_sway_added_mass() -> Quantity:
     same v·r. Only the sum m_y + ½ρL²d·X'_vr acts on surge, and a captive test measures that sum.
     A free run tells m_y from the sway row; moving it alone would also move the ship's speed loss in
     every turn by what the sway transients asked for, which on tests without fast turns nothing
-    checks (docs/esso_identification.md). So X'_vr moves by −Δm_y/(½ρL²d): the fitted sway inertia
+    checks (docs/results/esso_identification.md). So X'_vr moves by −Δm_y/(½ρL²d): the fitted sway inertia
     changes the sway row only, and the surge force of a turn stays the prior's."""
     base = added_mass("Yvdot")
 
@@ -255,7 +255,7 @@ def belief(name: str, prior: Vessel) -> Belief:
     raise KeyError(name)
 
 
-# Beliefs about the MMG prior (docs/esso.md): KVLCC2's captive-model derivatives applied to the
+# Beliefs about the MMG prior (twin/model/esso_osaka.json, its sources): KVLCC2's captive-model derivatives applied to the
 # Esso Osaka 3 m model, a full-form VLCC of similar proportions (C_b 0.83 against 0.81, L/B 6.1
 # against 5.5). Widths from how far the published full-form ships' derivatives scatter among
 # themselves (KVLCC1/2, Esso Osaka captive set, empirical formulas of [Kijima-1990]): the linear ones

@@ -6,7 +6,7 @@ earth-fixed frame O0-x0y0, converted from GNSS by the authors); u_velo, vm_velo 
 [rad]; r_angvelo [rad/s]; n_prop [rps]; delta_rudder [rad]; wind_velo_relative_mid [m/s],
 wind_dir_relative_mid [rad]; wind_velo_true [m/s], wind_dir_true [rad].
 
-Conventions, each checked on the data (docs/esso.md; /work/notes/esso.md §1.2):
+Conventions, each checked on the data (tests/test_esso_data.py):
   * x0, y0 are the twin's north, east without a sign change: ψ turns from x0 towards y0, and the
     body velocities differentiated from the positions with the twin's convention match the file's
     u_velo and vm_velo (v to starboard); r = +dψ/dt. So gnss = (north_m, east_m) = (x0, y0) of

@@ -8,7 +8,7 @@ is the twin's exact added-mass term (hydrodynamics.py, without the Munk moment: 
 N'_v, see `AddedMass.munk_moment`); this module gives X = X_H + X_P + X_R etc. (eq. 5).
 
 Equations, numbered as in the paper (the numbering follows the paper's published layout as far
-as this project could check it; the paper text itself was not available, docs/esso.md):
+as this project could check it; the paper text itself was not available: twin/model/esso_osaka.json, its sources):
   hull (eqs. 7-8)      X_H = ½ρL d U² (−R'_0 + X'_vv v'² + X'_vr v'r' + X'_rr r'² + X'_vvvv v'⁴)
                        Y_H = ½ρL d U² (Y'_v v' + Y'_r r' + Y'_vvv v'³ + Y'_vvr v'²r' + Y'_vrr v'r'² + Y'_rrr r'³)
                        N_H = ½ρL²d U² (N'_v v' + N'_r r' + N'_vvv v'³ + N'_vvr v'²r' + N'_vrr v'r'² + N'_rrr r'³)

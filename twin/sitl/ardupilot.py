@@ -130,6 +130,7 @@ class Rover:
     (−π, π] and `heading_rad` the same unwrapped (whole turns counted)."""
 
     def __init__(self, port: int, *, connect_timeout_s: float = 60.0, stream_hz: int = 10):
+        # late: importing pymavlink sets MAVLINK_DIALECT in os.environ (tests/test_layout.py LATE_IMPORTS)
         from pymavlink import mavutil
 
         self.mavutil = mavutil

@@ -58,7 +58,7 @@ class Case:
 
 def gusty_wind(duration_s: float = 600.0, seed: int = SHIP_GUST_SEED) -> WindSeries:
     """A measured-like wind for the checks: 10 Hz samples of a mean 1.7 m/s from 135° with gusts
-    (σ 0.6 m/s, a random walk in direction, σ 3° per s^½), as the Esso tests log (docs/esso.md)."""
+    (σ 0.6 m/s, a random walk in direction, σ 3° per s^½), as the Esso tests log [ESSO-FRT]."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration_s, 0.1)
     speed = np.abs(1.7 + 0.6 * np.convolve(rng.standard_normal(len(t)), np.ones(20) / np.sqrt(20), "same"))

@@ -68,7 +68,7 @@ HEADING_OMEGA_RAD_S = 1.4
 SURGE_OMEGA_RAD_S = 0.25
 # Binomial ω_n for the Esso Osaka ship (rudder, 10 rps): the paper's own 0.2 rad/s for its tanker model would ask
 # more than the rudder's moment for a 45° step; 0.15 rad/s needs about 80 % of it on the IS-O model (as the
-# Yellowfish's choice), so a 45° step stays inside and a 90° step saturates (docs/iso/esso_summary.md).
+# Yellowfish's choice), so a 45° step stays inside and a 90° step saturates (docs/results/esso_iso_yaw.md).
 SHIP_HEADING_OMEGA_RAD_S = 0.15
 SHIP_RPS = 10.0
 SHIP_RUDDER_MAX_DEG = 35.0  # the Esso model's rudder stops (dataset README: ±35°)
