@@ -290,7 +290,8 @@ def test_fleet_refuses_bad_options_and_keeps_earlier_reports(monkeypatch, capsys
     root, log, inputs, same = kept
     out = root / "fleet"
     out.mkdir()
-    earlier = {name: f'{{"earlier": "{name}"}}\n' for name in ("fleet.json", "fleet.md", "empty.json")}
+    earlier = {name: f'{{"earlier": "{name}"}}\n' for name in ("fleet.json", "fleet.md")}
+    earlier["empty.json"] = '{"index": 0, "log": "empty.csv", "vessel": "yellowfish", "ok": true, "seconds": 1.0}\n'
     for name, text in earlier.items():
         (out / name).write_text(text)
     empty = root / "empty.csv"

@@ -103,6 +103,17 @@ def test_csv_without_gnss_or_heading_names_the_columns_it_needs(tmp_path, droppe
     assert done.returncode == 2 and done.stderr.strip() == f"error: {message}"
 
 
+def test_a_csv_whose_every_fix_was_dropped_says_why_not_which_columns(tmp_path):
+    """The columns are there; every value in them was refused: the reason and count, not a column hint."""
+    t, cols = straight()
+    cols["lat"] = np.full(len(t), 91.0)
+    path = write_csv(tmp_path / "x.csv", cols, t)
+    with pytest.raises(TwinError) as err:
+        prepare(read_recording(path))
+    assert str(err.value) == ("x.csv: cannot prepare without GNSS samples (every sample read was dropped: "
+                              f"latitude outside ±90°: {len(t)})")
+
+
 # ---------------------------------------------------------------- 3. identify's compass calibration line
 
 

@@ -277,6 +277,33 @@ def test_a_fleet_report_never_lands_on_a_vessel_file_it_reads(logs, tmp_path):
         fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose)
     assert model.read_bytes() == kept and sorted(p.name for p in out.iterdir()) == ["log0.json"]
 
+def test_a_fleet_report_never_replaces_a_users_file_of_its_name_and_replaces_a_previous_fleets(logs, tmp_path):
+    """A JSON or HTML a user keeps in --out under a log's report name (notes beside a log) is refused
+    before any work; a previous fleet's reports are replaced and other files are not counted as reports."""
+    out = tmp_path / "out"
+    out.mkdir()
+    notes = out / "log0.json"
+    notes.write_text('{"operator": "anna", "weather": "calm"}\n')
+    (out / "other.json").write_text("not json")
+    entries = [fleet.Log(logs / "log0.mcap", "yellowfish", ""), fleet.Log(logs / "log1.mcap", "yellowfish", "")]
+    with pytest.raises(TwinError, match="'log0.json' is there and is not a report of `twin fleet`"):
+        fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose)
+    assert notes.read_text() == '{"operator": "anna", "weather": "calm"}\n'
+    assert sorted(p.name for p in out.iterdir()) == ["log0.json", "other.json"]
+    (out / "log1.html").write_text("<html>my page</html>")
+    notes.unlink()
+    with pytest.raises(TwinError, match="'log1.html' is there and is not a report"):
+        fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose, html=True)
+    (out / "log1.html").unlink()
+    fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose)
+    first = (out / "log0.json").read_bytes()
+    assert fleet.is_fleet_report(out / "log0.json") and not fleet.is_fleet_report(out / "other.json")
+    fleet.diagnose_fleet(entries, out, diagnose=fake_diagnose)  # a rerun replaces its own reports
+    assert json.loads(first)["ok"] and json.loads((out / "log0.json").read_text())["log"].endswith("log0.mcap")
+    from twin.cli.scale import other_reports
+    assert other_reports(out, {"log0.json", "log1.json", "fleet.json"}) == []  # other.json is not a report
+
+
 # ---------------------------------------------------------------- commands
 
 def test_montecarlo_command_writes_every_output(vessel, tmp_path):

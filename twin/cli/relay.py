@@ -79,7 +79,7 @@ def iso_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     dof: str = typer.Option("yaw", help="yaw (heading feedback, [Relay-ISO Fig. 4]) | surge (integrator of u, "
-                                        "Fig. 5) | sway (an error: no sway thruster)"),
+                                        "Fig. 5); the paper's sway is refused: these twins have no sway thruster"),
     xa: Optional[float] = typer.Option(None, help="relay hysteresis: switches at e = ±xa; degrees for yaw, metres "
                                                   "for surge (default 1° / 0.25 m)"),
     amplitudes: Optional[str] = typer.Option(None, help="relay outputs C, comma-separated, N·m for yaw, N for surge "

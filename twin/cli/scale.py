@@ -11,7 +11,7 @@ import typer
 
 from ..errors import TwinError
 from ..files import BAND
-from ..files import check_new, kept_data
+from ..files import check_new
 from .app import (all_or_nothing_outputs, listed, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, 
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
@@ -51,9 +51,10 @@ def montecarlo_command(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP + " (with --no-covariance and --vary/--effect)"),
     scenario: Optional[str] = typer.Option(None, help="step | turn | zigzag | spin | random (default zigzag): run "
                                                       "closed loop once by the nominal twin, its inputs replayed"),
-    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs) or thrust_left,"
-                                                     "thrust_right (N); each row held until the next, an empty "
-                                                     "cell holds its input's last value"),
+    inputs: Optional[Path] = typer.Option(None, help="CSV: t + pwm_left,pwm_right (µs), thrust_left,"
+                                                     "thrust_right (N) or, for a propeller-and-rudder ship, "
+                                                     "prop_rps,rudder_deg (rps, deg); each row held until the "
+                                                     "next, an empty cell holds its input's last value"),
     duration: Optional[float] = typer.Option(None, help="mission length, s (default 120, or the inputs' last time)"),
     draws: int = typer.Option(1000, help="number of twins drawn"),
     seed: int = typer.Option(0, help="root seed (batch i draws from its i-th child)"),
@@ -298,7 +299,7 @@ def fleet_command(
     typer.echo(format_summary(fleet.summary))
     failures = len(fleet.reports) - fleet.summary["diagnosed"]
     short = sum(1 for f in fleet.summary["failed"] if f.get("too_short"))
-    why = ", ".join(part for part in (counted(short, "too short") if short else "",
+    why = ", ".join(part for part in (f"{short} too short" if short else "",
                                       counted(failures - short, "failure record") if failures > short else "") if part)
     say(f"wrote {counted(len(fleet.reports), 'report')}"
         + (f" ({fleet.summary['diagnosed']} diagnosed, {why})" if failures > 0 else "")
@@ -316,6 +317,8 @@ def fleet_command(
 
 
 def other_reports(out: Path, written: set[str]) -> list[str]:
-    """The names of the reports in `out` this fleet did not write (an earlier fleet's): its JSON files
-    but those written and those that are data (a vessel file, a dataset's truth kept beside its log)."""
-    return sorted(q.name for q in out.glob("*.json") if q.name not in written and kept_data(q) is None)
+    """The names of the per-log reports in `out` this fleet did not write (another fleet's), not the
+    other JSON files a user keeps there."""
+    from ..scale.fleet import is_fleet_report
+
+    return sorted(q.name for q in out.glob("*.json") if q.name not in written and is_fleet_report(q))

@@ -152,8 +152,13 @@ class Prepared:
 
 
 def _csv_hint(rec: Recording, missing: list[str]) -> str:
-    """For a generic CSV, the columns that give the `missing` streams ("GNSS", "heading"): a
-    user who wrote the file can add them; other formats log them under names of their own."""
+    """Why the `missing` streams ("GNSS", "heading") have no samples: every sample read was dropped
+    (the reasons and counts the reader kept), else, for a generic CSV, the columns that give them (a
+    user who wrote the file can add them; other formats log them under names of their own)."""
+    lost = [f"{reason.split(': ', 1)[1]}: {n}" for reason, n in rec.dropped
+            if reason.split(":")[0] in {m.lower() for m in missing} and "dropouts" not in reason]
+    if lost:
+        return f" (every sample read was dropped: {'; '.join(lost)})"
     if rec.kind != "csv":
         return ""
     return f" (a CSV gives {' and '.join(NEEDED_COLUMNS[m] for m in missing)})"

@@ -124,6 +124,10 @@ class _Item:
     file_day: str
 
 
+REPORT_KEYS = frozenset({"index", "log", "vessel", "ok", "seconds"})  # every per-log report has them (_diagnosed)
+HTML_MARK = b"<title>twin diagnose:"  # diagnose/report.py's page title
+
+
 def run_logs(job: _Job, b: Batch, items: list[_Item]) -> list[dict]:
     """The diagnoses of a batch's logs (the task a worker runs)."""
     return [_diagnosed(job, item) for item in items]
@@ -300,9 +304,10 @@ def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Pat
     (a vessel file or a log kept in --out under a report's name) or on data a user keeps there
     (a twin `boat.json` beside `boat.csv`: files.kept_data)."""
     written = [out / "fleet.json", out / "fleet.md"]
+    per_log = []
     for n in names:
-        written += [out / f"{n}.json", out / f"{n}.failed.json"] + ([out / f"{n}.html"] if html else [])
-    for path in written:
+        per_log += [out / f"{n}.json", out / f"{n}.failed.json"] + ([out / f"{n}.html"] if html else [])
+    for path in written + per_log:
         for source in inputs:
             if same_file(path, source):
                 raise TwinError(f"--out '{out}': the report '{path.name}' would replace the input '{source}' "
@@ -311,6 +316,23 @@ def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Pat
         if kind:
             raise TwinError(f"--out '{out}': the report '{path.name}' would replace a {kind} kept there "
                             "(give another --out folder)")
+    for path in per_log:  # a previous fleet's report is replaced; any other file of that name is the user's
+        if path.exists() and not is_fleet_report(path):
+            raise TwinError(f"--out '{out}': '{path.name}' is there and is not a report of `twin fleet`: a log's "
+                            "report would replace it (give another --out folder)")
+
+
+def is_fleet_report(path: Path) -> bool:
+    """Whether `path` is a per-log report `twin fleet` writes: its JSON (a diagnosis or a failure record)
+    or its HTML page."""
+    try:
+        if path.suffix.lower() == ".html":
+            with open(path, "rb") as f:
+                return HTML_MARK in f.read(4096)
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and REPORT_KEYS <= set(data)
 
 
 def _report_names(logs: list[Log]) -> list[str]:
