@@ -109,13 +109,15 @@ def test_version_mass_cases_and_the_sitl_address_are_said_in_the_help():
 
 def test_a_fleet_counts_as_earlier_reports_neither_truths_nor_vessel_files(tmp_path):
     """A folder of `twin dataset` logs holds their truths: they are data beside the logs, not reports
-    of logs outside the fleet."""
+    of logs outside the fleet; nor is a user's JSON that no fleet wrote."""
     import json
 
     from twin.cli.scale import other_reports
 
     (tmp_path / "day.truth.json").write_text(json.dumps({"vessel": "yellowfish", "effects": [], "segments": []}))
     (tmp_path / "boat.json").write_text(json.dumps({"mjcf": "package:blueboat.xml", "thrusters": {}}))
-    (tmp_path / "old_log.json").write_text(json.dumps({"ok": True, "report": {}}))
-    (tmp_path / "log0.json").write_text(json.dumps({"ok": True, "report": {}}))
+    report = {"index": 0, "log": "old_log.csv", "vessel": "yellowfish", "ok": True, "report": {}, "seconds": 1.0}
+    (tmp_path / "old_log.json").write_text(json.dumps(report))
+    (tmp_path / "log0.json").write_text(json.dumps({**report, "log": "log0.csv"}))
+    (tmp_path / "notes.json").write_text(json.dumps({"ok": True, "operator": "anna"}))  # a user's, not a report
     assert other_reports(tmp_path, {"log0.json", "fleet.json"}) == ["old_log.json"]
