@@ -87,7 +87,7 @@ def test_fleet_refuses_a_file_that_is_no_recording_before_any_log_is_diagnosed(t
     (tmp_path / "pic.png").write_bytes(b"\x89PNG")
     (tmp_path / "a.csv").write_text("t,x,y,psi\n0,0,0,0\n")
     done = twin("fleet", tmp_path / "a.csv", tmp_path / "pic.png", "--vessel", "blueboat", "--out", tmp_path / "out")
-    assert done.returncode == 2 and "pic.png' is not a recording (.tlog, .bin, .csv, .mcap)" in done.stderr
+    assert done.returncode == 2 and "pic.png': not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
 
 

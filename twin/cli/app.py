@@ -386,7 +386,7 @@ def recordings_in(paths: list[Path]) -> list[Path]:
         elif not p.is_file():
             raise TwinError(f"{p}: no such file" + (" or folder" if not p.suffix else ""))
         elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
-            raise TwinError(f"'{p}' is not a recording ({', '.join(RECORDING_SUFFIXES)})")
+            raise TwinError(f"'{p}': not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
         else:
             out.append(p)
     return out
