@@ -41,7 +41,8 @@ runs from measured states every 2 s, as on the extrapolation page. Eight looks:
    periods shorter than τ and the compass's at longer ones (a zero-phase low-pass of their
    difference), `twin identify` refitted on the fitted runs and judged as above: a compass error
    that follows the motors' currents would leave with it. Then the sensors' timing: the
-   identified twin with its GNSS fixes or its heading stamped late or early (nothing refitted).
+   identified twin with its GNSS fixes or its heading stamped late or early, nothing refitted and
+   with `twin identify` run again on the fitted runs read with that latency.
 
 The recordings are read in place; without them the script says so and exits 0.
 """
@@ -85,7 +86,7 @@ STEP_N = 15.0  # a step of the differential thrust (N) between two grid samples
 STEADY_N, STEADY_S = 3.0, 1.0  # ... from a differential steady within STEADY_N over STEADY_S before it
 STEP_SAMPLES = 5  # the heading read over this many grid samples after a step
 FUSION_TAUS_S = (2.0, 5.0, 10.0, 30.0)  # the heading from the yaw-rate column below these periods
-LATENCIES_S = (-0.3, -0.15, 0.15, 0.3)
+LATENCIES_S = (-0.4, -0.3, -0.15, 0.15, 0.3, 0.4)
 SWAY_FORMS = (("v", "|v|v", "ur", "r"), ("v", "|v|v", "|u|v", "ur", "r"), ("v", "|v|v", "ur", "r", "rdot"),
               ("v", "|v|v", "ur", "r", "dT"), sway_alone.TERMS)
 
@@ -401,8 +402,16 @@ def main() -> int:
         for latency in LATENCIES_S:
             late = replace(twin, sensors=replace(twin.sensors, **{what: latency}))
             got, _ = scores(calibrate(judged, late)[0], judged)
-            raw_timing.append({"stream": what, "latency_s": latency, "scores": got})
-            timing_rows.append([label, f"{latency:+.2f}", *[got[d][0] for d in "uvr"]])
+            # the same latency in the prior, the twin identified with it: a twin that read the fitted runs
+            # through a late stream is not the one that read them on time
+            late_prior = replace(prior, sensors=replace(prior.sensors, **{what: latency}))
+            refit = identify(fitted, late_prior, sources=[r.source for r in fitted]).vessel
+            beyond, _ = scores(calibrate(judged, refit)[0], judged)
+            own, _ = scores(calibrate(fitted, refit)[0], fitted)
+            raw_timing.append({"stream": what, "latency_s": latency, "scores": got, "refit_scores": beyond,
+                               "refit_scores_fitted": own})
+            timing_rows.append([label, f"{latency:+.2f}", *[got[d][0] for d in "uvr"],
+                                *[beyond[d][0] for d in "uvr"], own["v"][0], own["r"][0]])
     base = raw_antenna[ANTENNA_DX_M.index(0.0)]["scores"]
     refit_rows.insert(0, ["the twin's (its MJCF site)", "+0.00", "+0.00",
                           raw_antenna[ANTENNA_DX_M.index(0.0)]["v_spread_m_s"], base["u"][0], base["v"][0],
@@ -410,6 +419,12 @@ def main() -> int:
     best_refit = max(raw_refit, key=lambda x: x["scores"]["v"][0])
     answers = twin.sensors.input_answer_s
     aft = raw_antenna[-1]
+    best_late = max(raw_timing, key=lambda x: x["refit_scores"]["v"][0])
+    at = LATENCIES_S.index(best_late["latency_s"])  # its neighbours: the latencies on either side, same stream
+    neighbours = " and ".join(f"{x['refit_scores']['v'][0]:.3f} at {x['latency_s']:+g} s" for x in raw_timing
+                              if x["stream"] == best_late["stream"]
+                              and x["latency_s"] in LATENCIES_S[max(at - 1, 0): at + 2]
+                              and x["latency_s"] != best_late["latency_s"])
     summary = (
         f"The identified twin predicts the most active runs' sway at R² {base['v'][0]:.3f} (MAE {base['v'][1]:.4f} m/s). "
         f"Taking the antenna {abs(ANTENNA_DX_M[-1]):g} m further aft raises that R² to {aft['scores']['v'][0]:.3f} "
@@ -452,7 +467,11 @@ def main() -> int:
         "RMS) and the twin refitted, v on the judged runs reads "
         f"{min(x['scores']['v'][0] for x in raw_fused):.3f} to {max(x['scores']['v'][0] for x in raw_fused):.3f}; with "
         f"the GNSS or the heading stamped up to {max(LATENCIES_S):g} s late or early, "
-        f"{min(x['scores']['v'][0] for x in raw_timing):.3f} to {max(x['scores']['v'][0] for x in raw_timing):.3f}." if step_rows else "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
+        f"{min(x['scores']['v'][0] for x in raw_timing):.3f} to {max(x['scores']['v'][0] for x in raw_timing):.3f}; "
+        f"identified again with that latency, {min(x['refit_scores']['v'][0] for x in raw_timing):.3f} to "
+        f"{best_late['refit_scores']['v'][0]:.3f}, the highest ({best_late['stream'].split('_')[0]} "
+        f"{best_late['latency_s']:+g} s) with r at {best_late['refit_scores']['r'][0]:.3f} and its neighbours "
+        f"{neighbours}: v bought with r, not a timing the runs agree on." if step_rows else "sway equation of these forms predicts much more of these runs' sway, even with u and r known.")
     page = ResultPage(
         "blueboat_sway", "The BlueBoat's sway beyond its fitted runs", "python scripts/blueboat_sway.py",
         f"The ten shared BlueBoat runs [BlueBoat-SI]; `twin identify` with its defaults on the five least active "
@@ -508,9 +527,11 @@ def main() -> int:
          ResultTable("The heading from the yaw-rate column at periods under τ and from the compass above, every run, "
                      "`twin identify` refitted on the fitted runs: 10-s R² on the judged runs",
                      ["τ (s)", "heading changed (° RMS)", "R² u", "R² v", "R² r"], fused_rows),
-         ResultTable("The identified twin with its GNSS fixes or its heading stamped late (negative: early), "
-                     "nothing refitted: 10-s R² on the judged runs", ["stream", "latency (s)", "R² u", "R² v", "R² r"],
-                     timing_rows)],
+         ResultTable("The identified twin with its GNSS fixes or its heading stamped late (negative: early): "
+                     "10-s R² on the judged runs with nothing refitted, and with `twin identify` run again on the "
+                     "fitted runs read with that latency (and that twin's R² v, r on the fitted runs themselves)",
+                     ["stream", "latency (s)", "R² u", "R² v", "R² r", "refitted: R² u", "R² v", "R² r",
+                      "on the fitted runs: R² v", "R² r"], timing_rows)],
         notes=["A lever arm moves the sway at the reference point by x·r exactly (prepare); where the real "
                "antenna sits is not settled by the kinematics of these runs' spins (kinematic.lever_arm: the "
                "hull creeps while it spins)."],
