@@ -210,6 +210,31 @@ def test_mmg_resistance_follows_the_friction_line_and_holds_at_its_reference_spe
     assert "friction_factor" not in saved["mmg"]  # a constant R'_0 writes the file it always did
 
 
+def test_a_resistance_below_its_friction_line_is_carried_in_proportion_to_it():
+    """An R'_0 under F·C_F(U_ref) would leave a negative rest of the resistance: the line then carries
+    it with F' = R'_0/C_F(U_ref), so the coefficient stays positive and above the additive line's at
+    speed; an R'_0 above the line keeps the file's F."""
+    v = vessel_mod.load("esso_osaka")
+    u_ref, lnu = v.mmg.reference_speed_m_s, v.mmg.lpp_m / 1e-6
+    cf_ref = ittc57_cf(u_ref * lnu)
+    assert v.mmg.hull.R0 >= v.mmg.friction_factor * cf_ref  # the shipped prior: its F as the file gives it
+    assert mmg.friction_line_factor(v.mmg) == v.mmg.friction_factor
+    low = replace(v.mmg, hull=replace(v.mmg.hull, R0=0.4 * v.mmg.hull.R0))
+    assert mmg.friction_line_factor(low) == pytest.approx(low.hull.R0 / cf_ref, rel=1e-12)
+
+    def surge(m, u):
+        return mmg.mmg_force(mmg.pack(m, -1.44, -1.5), u, 0.0, 0.0, 0.0, 0.0, True, False, False)[0]
+
+    constant = replace(low, friction_factor=0.0)
+    assert surge(low, u_ref) == pytest.approx(surge(constant, u_ref))
+    for u in (0.5 * u_ref, 3.0 * u_ref, 10.0 * u_ref):
+        proportional = ittc57_cf(u * lnu) / cf_ref  # R'_0(U)/R'_0 on a line through the origin
+        assert surge(low, u) / surge(constant, u) == pytest.approx(proportional, rel=1e-9)
+        additive = (low.hull.R0 + v.mmg.friction_factor * (ittc57_cf(u * lnu) - cf_ref)) / low.hull.R0
+        assert (proportional - additive) * (u - u_ref) > 0  # less drop with speed, less rise below
+    assert surge(low, 10.0 * u_ref) < 0.0  # still a resistance at ten times the reference speed
+
+
 def test_first_principles_write_a_vessel_file_with_their_estimates_and_sources(tmp_path):
     from twin_command import twin
 

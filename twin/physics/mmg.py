@@ -73,7 +73,11 @@ whose coefficient falls with the Reynolds number, so one R'_0 fitted at one spee
 faster run and under-resists a slower one. With `friction_factor` F = (1 + k)·S/(L·d) (form factor,
 wetted surface) > 0, R'_0(U) = R'_0 + F·[C_F(U_nd·L/ν) − C_F(U_ref·L/ν)], C_F the ITTC-1957 line
 [ITTC-1957]: R'_0 is the value at `reference_speed_m_s`, and the friction line carries it to other
-speeds. F = 0 keeps the standard's constant R'_0.
+speeds. F = 0 keeps the standard's constant R'_0. The friction part is at most the whole: where R'_0
+(an identified one, say) is less than F·C_F(U_ref), the rest of the resistance would be negative,
+which no hull has; the line's factor is then what is overstated (laminar flow over part of a model
+at these Reynolds numbers, or a smaller form factor), and the line carries R'_0 with F' = R'_0/C_F(U_ref),
+in proportion to C_F: a resistance below its friction line is not taken further below it with speed.
 
 Every function is a plain function of floats and one float array of parameters (layout FIELDS),
 so numba compiles the very same code for the native callback (engine/native.py).
@@ -221,11 +225,22 @@ def pack(model: MmgModel, propeller_x_m: float, rudder_x_m: float,
               "xH_m": r.xH * model.lpp_m, "xR_m": rudder_x_m, "gamma_minus": r.gamma_minus,
               "gamma_plus": r.gamma_plus, "lR_nd": r.lR, "epsilon": r.epsilon, "kappa": r.kappa,
               "n_min": n_bounds[0], "n_max": n_bounds[1], "delta_max": delta_max_rad,
-              "F_fric": model.friction_factor,
+              "F_fric": friction_line_factor(model),
               "cf_ref": ittc57_cf(model.reference_speed_m_s * model.lpp_m / NU_WATER_M2_S)
               if model.friction_factor > 0 else 0.0,
               "L_nu": model.lpp_m / NU_WATER_M2_S}
     return np.array([float(values[k]) for k in FIELDS])
+
+
+def friction_line_factor(model: MmgModel) -> float:
+    """The factor the friction line carries R'_0 with (module docstring): the vessel file's F, or
+    R'_0/C_F(U_ref) where R'_0 is less than F·C_F(U_ref) (a friction part larger than the whole); 0
+    without a friction line."""
+    f = float(model.friction_factor)
+    if f <= 0.0:
+        return 0.0
+    cf_ref = ittc57_cf(model.reference_speed_m_s * model.lpp_m / NU_WATER_M2_S)
+    return min(f, max(float(model.hull.R0), 0.0) / cf_ref)
 
 
 def ittc57_cf(reynolds: float) -> float:
