@@ -1,5 +1,6 @@
 """Identification of a propeller-and-rudder ship: its MMG fit groups and beliefs,
 simfit on (n, δ) inputs, the measured wind as a known input, and `twin identify --wind-measured`."""
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ from twin.effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS, belief, coeffi
 from twin.fit import simfit
 from twin.fit.objective import Objective
 from twin.fit.windows import make_windows
-from twin.ident.identify import prepared
+from twin.ident.identify import below_friction_line, prepared
 from twin.recording import Recording, clean_stream
 import twin_command
 
@@ -193,3 +194,17 @@ def test_evaluate_splits_a_slow_ships_free_runs_by_manoeuvre_at_its_own_window(e
 
     assert manoeuvre_horizon_s(esso) == 30.0 and manoeuvre_horizon_s(vessel_mod.load("blueboat")) == 10.0
     assert manoeuvre_horizon_s(esso, SimpleNamespace(horizon_s=20.0)) == 20.0
+
+
+def test_an_identified_resistance_below_its_friction_line_is_told_with_the_factor_it_is_carried_at(esso):
+    """identify's notes say when an MMG hull's R'_0 fell below its friction line (physics/mmg.py): a user
+    running faster reads that the line carries it in proportion, at the factor given."""
+    shipped = esso
+    assert below_friction_line(shipped) is None  # the prior sits on its line
+    low = replace(shipped, mmg=replace(shipped.mmg, hull=replace(shipped.mmg.hull, R0=0.01)))
+    told = below_friction_line(low)
+    assert told is not None and "R'_0 0.01 lies below its friction line at 0.35 m/s (0.0218)" in told
+    factor = float(told.split("(factor ")[1].split(",")[0])
+    assert factor == pytest.approx(0.01 / 0.0218 * shipped.mmg.friction_factor, rel=0.01)
+    assert below_friction_line(replace(low, mmg=replace(low.mmg, friction_factor=0.0))) is None
+    assert below_friction_line(vessel_mod.load("blueboat")) is None

@@ -58,6 +58,7 @@ from ..fit.kinematic import input_answers
 from ..fit.windows import ModelCache, comfortable_timestep, make_windows
 from ..formats import read_recording
 from ..geodesy import ned_from_geodetic
+from ..physics.mmg import NU_WATER_M2_S, friction_line_factor, ittc57_cf
 from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
 from ..recording import Recording, check_no_shared_stretch
@@ -356,6 +357,9 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
                             "twin's form lacks, and carries the twin beyond its runs only as far as that lack does "
                             "(`twin diagnose` looks for what)")
     result.vessel = _with_sources(fit_best, best, sources or [r.source for r in recordings], wind)
+    below = below_friction_line(result.vessel)
+    if below:
+        result.notes.append(below)
     if result.vessel.uncertainty:  # what the fit saw, so that evaluate can say where the twin extrapolates
         say("measuring the twin's error on left-out runs", 3, 4)
         folded = jackknife_vessels(fit_best.objective, fit_best.x, fit_best.jacobian,
@@ -382,6 +386,22 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     result.seconds = time.time() - started
     say("done", 4, 4)
     return result
+
+
+def below_friction_line(vessel: Vessel) -> str | None:
+    """What a user running faster should know of an MMG hull whose R'_0 lies below its friction line
+    at the reference speed (physics/mmg.py): the line carries it in proportion to C_F, at a smaller
+    factor than the vessel file's. None where it does not (or the hull has no friction line)."""
+    m = vessel.mmg
+    if m is None or m.friction_factor <= 0.0:
+        return None
+    carried = friction_line_factor(m)
+    if carried >= m.friction_factor:
+        return None
+    line = m.friction_factor * ittc57_cf(m.reference_speed_m_s * m.lpp_m / NU_WATER_M2_S)
+    return (f"R'_0 {m.hull.R0:.3g} lies below its friction line at {m.reference_speed_m_s:g} m/s ({line:.3g}): "
+            f"the line carries it in proportion to C_F (factor {carried:.3g}, the file's {m.friction_factor:.3g}), "
+            "so faster runs keep its share of friction and no negative rest of the resistance")
 
 
 def surge_time_constant_s(vessel: Vessel) -> float:
