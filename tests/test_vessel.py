@@ -70,6 +70,8 @@ def test_a_heading_sensors_yaw_rate_window_is_written_only_where_set(tmp_path):
     (lambda d: d.pop("thrusters"), "needs its thrusters section"),
     (lambda d: d.__setitem__("thrusters", None), "needs its thrusters section"),  # null loaded as defaults
     (lambda d: d.__setitem__("added_mass", None), "needs its added_mass section"),
+    (lambda d: d.__setitem__("added_mass", {}), "needs its added_mass section"),  # empty: all zeros
+    (lambda d: d.__setitem__("thrusters", {}), "needs its thrusters section"),  # empty: a generic thruster
 ])
 def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_path, edit, message):
     """A misspelt or missing section would load as zeros or defaults (a twin with no damping, whose

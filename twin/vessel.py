@@ -298,7 +298,9 @@ def from_dict(data: dict[str, Any], path: Path) -> Vessel:
     if unknown:  # a misspelt section would otherwise load as its defaults: a twin without that physics
         raise TwinError(f"{path.name}: unknown vessel file field(s) {', '.join(unknown)} "
                         f"(known: {', '.join(sorted(VESSEL_FILE_KEYS))})")
-    missing = [k for k in REQUIRED_SECTIONS if data.get(k) is None]  # null is as good as missing
+    # null is as good as missing, and so is an empty added mass or thrusters section (its defaults are
+    # zeros and a generic thruster); an empty damping is an MMG hull's, refused below for any other
+    missing = [k for k in REQUIRED_SECTIONS if data.get(k) is None or (k != "damping" and data.get(k) == {})]
     if missing:
         raise TwinError(f"{path.name}: a vessel file needs its {', '.join(missing)} section(s); "
                         "without them the twin would run with zero or default physics")
