@@ -11,11 +11,13 @@ import csv
 import math
 import re
 import struct
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import twin.cli as cli
 from twin.errors import TwinError
 from twin.recording import format_summary
 from twin.prepare import geodetic_to_ned, prepare
@@ -750,3 +752,28 @@ def test_a_conversion_says_which_streams_it_held_or_thinned_to_the_grid():
     assert "gnss recorded at 5 Hz, each sample held until the next" in timing
     assert "heading recorded at 50 Hz, thinned to the grid" in timing
     assert "pwm recorded" not in timing
+
+
+def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_using_it(tmp_path, monkeypatch, capsys):
+    """One backwards stamp in 401 rows costs one row, under LOST_SHARE: nothing said. Sixty rows
+    stamped 20 s back (15 % of the rows) are dropped from every stream, and `twin evaluate`, which
+    scores the rest, says so per stream, as `twin info` does."""
+    few = read_recording(write_generic_csv(tmp_path / "few.csv", latlon=False))
+    assert few.heavy_losses() == []
+    path = write_generic_csv(tmp_path / "many.csv", latlon=False)
+    lines = path.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows[200:260]:
+        row[0] = f"{float(row[0]) - 20.0:.3f}"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    losses = read_recording(path).heavy_losses()
+    assert [line.split(":")[0] for line in losses] == ["gnss", "heading", "pwm"]
+    # the one backwards stamp write_generic_csv puts in, and the sixty
+    assert all("samples with time going backwards 61" in line and " of 401 samples" in line for line in losses)
+    monkeypatch.setattr(sys, "argv", ["twin", "evaluate", str(path), "--vessel", "yellowfish"])
+    try:
+        cli.main()
+    except SystemExit as exit_info:
+        assert exit_info.code in (0, None)
+    err = capsys.readouterr().err
+    assert sum("many.csv: " in line and "samples dropped" in line for line in err.splitlines()) == 3

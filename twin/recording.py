@@ -38,6 +38,7 @@ from .errors import TwinError
 
 GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
 DROPOUTS = f"dropouts > {GAP_S:g} s"  # the `dropped` reason (after "STREAM: ") that counts a stream's gaps
+LOST_SHARE = 0.01  # a stream that lost this share of its samples on reading is named by the commands that use it
 STREAMS = ("gnss", "heading", "pwm", "imu", "battery", "prop_rudder", "wind")
 # meta["positions"]: the GNSS stream's north, east are a simulated run's exact track of the body origin
 # (no antenna), or a measured track the log gives as the body origin's (a model ship's tracking in a
@@ -137,6 +138,25 @@ class Recording:
     def __repr__(self) -> str:
         have = ", ".join(f"{n} {len(s)}" for n, s in self.streams().items() if len(s))
         return f"Recording({Path(self.source).name}, {self.kind}, {self.duration_s():.1f} s: {have})"
+
+    def heavy_losses(self, share: float = LOST_SHARE) -> list[str]:
+        """One line per stream that lost at least `share` of its samples on reading (dropouts, which are
+        gaps and not samples discarded, aside), e.g. "heading: 5000 of 11000 samples dropped (samples with
+        time going backwards 5000)": a command that fits or scores a log says so, as `twin info` does."""
+        lost: dict[str, list[tuple[str, int]]] = {}
+        for reason, n in self.dropped:
+            stream, _, why = reason.partition(": ")
+            if why and not why.endswith(DROPOUTS):
+                lost.setdefault(stream, []).append((why, n))
+        lines = []
+        for stream, reasons in lost.items():
+            kept = getattr(self, stream, None)
+            gone = sum(n for _, n in reasons)
+            total = gone + (len(kept) if isinstance(kept, Stream) else 0)
+            if total and gone >= share * total:
+                listed = "; ".join(f"{why} {n}" for why, n in reasons)
+                lines.append(f"{stream}: {gone} of {total} samples dropped ({listed})")
+        return lines
 
     def duration_s(self) -> float:
         """Time from the first to the last sample of any stream (s)."""

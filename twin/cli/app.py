@@ -476,11 +476,14 @@ def say_unlogged_supply(recordings, vessel) -> None:
 
 
 def warn_recordings(recordings) -> None:
-    """Each recording's warnings (Recording.warnings: data that may be misread), named by file, before
-    the work that would take the data as read."""
+    """Each recording's warnings (Recording.warnings: data that may be misread) and its streams that lost
+    a share of their samples on reading (Recording.heavy_losses), named by file, before the work that
+    would take the data as read."""
     for rec in recordings:
         for text in rec.warnings:
             note(f"warning: {Path(rec.source).name}: {text}")
+        for text in rec.heavy_losses():
+            note(f"note: {Path(rec.source).name}: {text}; the rest is used (`twin info` lists what was dropped)")
 
 
 def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: bool = True) -> None:
