@@ -328,6 +328,7 @@ def check_outputs(paths, formats: tuple[str, ...], option: str = "output") -> No
 
 
 FORCE_HELP = "replace an output that exists (never an input, nor data of another kind)"
+REPORT_HELP = "(a report: replaces a file of its name, never a log or a twin)"
 
 
 def check_truth_beside_logs(truth: Path, outputs, option: str = "--truth") -> None:

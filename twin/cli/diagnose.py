@@ -10,7 +10,7 @@ from rich.markup import escape
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import check_new
-from .app import (all_or_nothing_outputs, listed, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
+from .app import (REPORT_HELP, all_or_nothing_outputs, listed, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
 from .ident import calibration_line
@@ -24,8 +24,8 @@ def diagnose_command(
                                             help="recordings: .tlog, .bin, .csv, .mcap, or folders of them"),
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write the diagnosis as JSON"),
-    report: Optional[Path] = typer.Option(None, help="write an HTML report with plots"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the diagnosis as JSON {REPORT_HELP}"),
+    report: Optional[Path] = typer.Option(None, help=f"write an HTML report with plots {REPORT_HELP}"),
     rrd: Optional[Path] = typer.Option(None, help="write real, twin-before and twin-after to a rerun recording"),
     write_model: Optional[Path] = typer.Option(None, "--write-model", help="write the amended vessel description"),
     effects: Optional[str] = typer.Option(None, help="only these candidate effects (comma separated; "

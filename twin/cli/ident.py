@@ -12,7 +12,7 @@ from rich.markup import escape
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from ..files import RUNS, check_new
-from .app import (all_or_nothing_outputs, draws_fit, given_on_command_line, listed, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
+from .app import (REPORT_HELP, all_or_nothing_outputs, draws_fit, given_on_command_line, listed, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
                   channels_from, check_distinct, check_outputs, check_truth_beside_logs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
@@ -174,7 +174,7 @@ def identify_command(
     seed: int = typer.Option(0, help="random seed of the [Morel-2024] splits"),
     max_evaluations: int = typer.Option(20, help="cost evaluations of the first fit (later ones take a third)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write the full report as JSON"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the full report as JSON {REPORT_HELP}"),
     wind_measured: bool = typer.Option(False, "--wind-measured",
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
@@ -295,7 +295,7 @@ def evaluate_command(
     stride: float = typer.Option(2.0, help="free-run windows start every STRIDE s"),
     calibration: bool = typer.Option(True, "--calibration/--no-calibration",
                                      help="apply each log's compass offset estimated from its own GNSS track"),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write the metrics as JSON"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the metrics as JSON {REPORT_HELP}"),
     rrd: Optional[Path] = typer.Option(None, help="write the recording and the twin's 10-s free runs to rerun"),
     band: bool = typer.Option(False, "--band", help="also: how often the recording falls inside the Monte Carlo band "
                                                     "of the identified uncertainty (30-s free runs)"),

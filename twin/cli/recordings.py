@@ -10,7 +10,7 @@ import typer
 from ..drive import inputs_mismatch
 from ..errors import TwinError
 from ..files import RUNS, check_new
-from .app import (all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
+from .app import (REPORT_HELP, all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
@@ -234,7 +234,7 @@ def view(
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     out: Optional[Path] = typer.Option(None, help="rerun recording to write (default: ./STEM.view.rrd, STEM of the "
                                                   "first input, in the current folder)"),
-    png: Optional[Path] = typer.Option(None, help="also write a PNG of the comparison"),
+    png: Optional[Path] = typer.Option(None, help=f"also write a PNG of the comparison {REPORT_HELP}"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     smoother: str = typer.Option("savgol", help="velocities: savgol [Morel-2024] or model (EKF+RTS on the vessel model)"),
     wind_measured: bool = typer.Option(False, "--wind-measured",

@@ -14,7 +14,7 @@ from ..errors import TwinError
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
 from ..ident.relay.iso import CONTROL_DT_S, DEFAULT_DURATION_S, SHIP_CONTROL_DT_S, SHIP_DURATION_S
-from .app import (all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
+from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
                   positive, progress_bar, samples_fit, say, vessel_from, write_json)
 
 
@@ -91,8 +91,8 @@ def iso_command(
     duration: Optional[float] = typer.Option(None, help="length of each relay experiment, s "
                                                         "(default 30 yaw, 150 surge; 900 for a ship)"),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write the table, CVs and the twin's values as JSON"),
-    png: Optional[Path] = typer.Option(None, help="write α, β_ν, β_νν against C as PNG"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the table, CVs and the twin's values as JSON {REPORT_HELP}"),
+    png: Optional[Path] = typer.Option(None, help=f"write α, β_ν, β_νν against C as PNG {REPORT_HELP}"),
 ):
     """Identification by self-oscillations in the twin: a relay with hysteresis, Table I for the
     constant-drag and linear-drag models at several relay outputs, compared with the twin's own
@@ -190,8 +190,8 @@ def dp_command(
     duration: Optional[float] = typer.Option(None, help="length of the run, s (default: the model functions' "
                                                         "settling time; a point move, both loops')"),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write gains, IS-O models and IAE ratios as JSON"),
-    png: Optional[Path] = typer.Option(None, help="write the response against the model function as PNG"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write gains, IS-O models and IAE ratios as JSON {REPORT_HELP}"),
+    png: Optional[Path] = typer.Option(None, help=f"write the response against the model function as PNG {REPORT_HELP}"),
 ):
     """I-PD control [Relay-ISO eqs. 9-11] tuned from IS-O run in the twin first (`twin iso` defaults,
     constant-drag model), with anti-windup on the saturated thrust, run in the twin against the

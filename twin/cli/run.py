@@ -14,7 +14,7 @@ from rich.table import Table
 from ..errors import TwinError
 from ..files import after_writes
 from ..files import RUNS, check_new
-from .app import (all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs,
+from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs,
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
@@ -186,7 +186,7 @@ def crosscheck(
     duration: float = typer.Option(120.0, help="zig-zag duration, s"),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
     rrd: Optional[Path] = typer.Option(None, help="write engine and analytic trajectories to this .rrd"),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write the errors as JSON"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the errors as JSON {REPORT_HELP}"),
     six_dof: bool = typer.Option(False, "--six-dof", help="add the 6-DOF hull in calm water (a vessel with hull "
                                                          "meshes) against the 3-DOF model"),
 ):
@@ -333,8 +333,8 @@ def validate(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="write one object per quantity"),
-    report: Optional[Path] = typer.Option(None, help="write a report: .md (PNG beside it) or .html"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write one object per quantity {REPORT_HELP}"),
+    report: Optional[Path] = typer.Option(None, help=f"write a report: .md (PNG beside it) or .html {REPORT_HELP}"),
 ):
     """Analytic formulas, published tables, engine, meshes and independent values, side by side."""
     from ..files import write_text_atomic

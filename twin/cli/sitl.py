@@ -13,7 +13,7 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import RUNS, check_new
-from .app import (CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
+from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
@@ -116,7 +116,7 @@ def mission(
                                                    "(repeatable), e.g. --set ATC_STR_RAT_FF=0.5"),
     timeout: float = typer.Option(600.0, help="wall-clock seconds to wait for each step (for SITL's console to "
                                               "appear: at most 120)"),
-    json_out: Optional[Path] = typer.Option(None, "--json", help="also write the figures and the EKF track (.json)"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"also write the figures and the EKF track (.json) {REPORT_HELP}"),
 ):
     """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
     time, mean speed and how far the boat strayed from the straight legs."""
