@@ -138,9 +138,6 @@ LATE_IMPORTS = {
     "rerun": "0.3 s on top of twin.api, only for an .rrd output",
     "trimesh": "0.12 s on top of twin.verify.validate (0.05 s on twin.api), only where hull meshes are read",
     "scipy.signal": "0.3 s on top of twin.prepare, twin.fit.windows (twin montecarlo), only to smooth, filter a lag",
-    "scipy.integrate": "0.3 s on top of twin.physics.added_mass (twin.vessel), only for an ellipsoid's Lamb integrals",
-    "scipy.special": "0.12-0.2 s on top of twin.physics.added_mass, only for the same in closed form",
-    "mujoco": "0.11 s on top of twin.outputs, whose recording writers do not need it: only for an .rrd",
     "pymavlink.mavutil": "sets MAVLINK_DIALECT in os.environ on import, which a SITL started before would inherit",
     "pymavlink.DFReader": "imports pymavlink.mavutil (above), only to read a DataFlash .bin",
     "twin.api": "twin/__init__.py loads it on first use: `import twin` 0.03 s, not 1.6 s",
@@ -149,8 +146,6 @@ LATE_IMPORTS = {
     "twin.engine.mjcf": "as twin.engine.sim",
     "twin.viz.rerun_log": "rerun, 0.25 s on top of twin.outputs and twin.scale.views, only for an .rrd",
     "twin.outputs": "the recording writers, 0.1 s on top of twin.simulation, only for Simulation.write",
-    "twin.drive": "numba, 0.12-0.18 s on top of twin.run, twin.prepare, only for a ship's run CSV, a measured wind",
-    "twin.physics.waves": "numba, 0.12 s on top of twin.viz.rerun_log, only for a run in a sea",
     "twin.ident.identify": "0.44 s (the fitting stack) on top of twin.scale.montecarlo, only for evaluate --band",
 }
 

@@ -14,7 +14,7 @@ __all__ = ["Diagnosis", "Effect", "Evaluation", "Identification", "InputSeries",
 
 def __getattr__(name: str):
     if name in __all__:
-        from . import api
+        from . import api  # late (PEP 562): `import twin` takes 0.03 s, not the 1.2 s of twin.api
         return getattr(api, name)
     raise AttributeError(f"module 'twin' has no attribute {name!r}")
 

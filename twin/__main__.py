@@ -5,7 +5,7 @@ import sys
 
 def main() -> None:
     try:
-        from .cli import main as run
+        from .cli import main as run  # late: a Ctrl-C while it loads ends in one line (below), not a traceback
     except KeyboardInterrupt:
         sys.stderr.write("aborted\n")
         sys.exit(130)

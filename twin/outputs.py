@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
+
 from .errors import TwinError
 from .files import RRD_RUN, RRD_VIEW
 from .formats import RUN_FORMATS, write_run
@@ -15,8 +17,6 @@ FORMATS = RUN_FORMATS + (".rrd",)
 
 def mesh_placements(mjcf: Path) -> dict[Path, tuple[float, float, float]]:
     """Each mesh file of the MJCF with the body-frame offset of the geom that uses it."""
-    import mujoco
-
     spec = mujoco.MjSpec.from_file(str(mjcf))
     meshdir = mjcf.parent / (spec.meshdir or "")
     files = {m.name: meshdir / m.file for m in spec.meshes}
@@ -36,6 +36,7 @@ def write(runs: dict[str, Run], path: Path, *, geometry=None, vessel_name: str =
     report may then be written over the one but not over the other (`twin.cli.app.kept_data`)."""
     suffix = path.suffix.lower()
     if suffix == ".rrd":
+        # late: twin.viz.rerun_log brings rerun (0.23 s), only for an .rrd
         from .viz.rerun_log import write_runs_rrd
 
         write_runs_rrd(runs, path, geometry=geometry, hull_mesh_paths=mesh_placements(mjcf) if mjcf else None,

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .drive import InputSeries
 from .errors import TwinError
 
 CSV_COLUMNS = ("t", "x", "y", "psi", "u", "v", "r", "pwm_left", "pwm_right", "thrust_left", "thrust_right")
@@ -96,8 +97,6 @@ def read_csv(path: str | Path) -> Run:
     a = {c: np.array([float(r[c]) if r[c] != "" else np.nan for r in rows]) for c in names}
     meta = {}
     if set(PROPELLER_RUDDER_COLUMNS) <= set(a) and len(a["t"]):
-        from .drive import InputSeries
-
         start = float(a["t"][0])
         meta = {"start_s": start, "inputs": InputSeries(a["t"] - start, np.column_stack(
             [a["prop_rps"], np.radians(a["rudder_deg"])]), "propeller_rudder")}

@@ -253,7 +253,7 @@ class Simulation:
                 recording with a dataset's truth beside it (kept even with `force`, as the command
                 keeps them), or the format is unknown.
         """
-        from .outputs import write
+        from .outputs import write  # late: the run writers, 0.1 s on top of this module, only when a run is written
 
         _output_path(path)
         check_new([path], force, "path", RUNS, force_name="force=True")

@@ -25,12 +25,17 @@ from typing import Iterator, Optional
 
 import typer
 from rich.console import Console
+from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+from rich.table import Column
 
+from .. import __version__
+from ..effects import EFFECTS
 from ..errors import TwinError
 from ..files import (KEPT, after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
                      write_text_atomic)
 from ..progress import Progress
 from ..threads import limit_process_blas_threads
+from ..vessel import load
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
                   help="MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, "
@@ -87,8 +92,6 @@ def package_version() -> str:
     try:
         return version("asv-twin")
     except PackageNotFoundError:
-        from .. import __version__
-
         return __version__
 
 
@@ -113,8 +116,6 @@ def _options(quiet: bool = typer.Option(False, *QUIET, help="no progress bars or
 def vessel_from(vessel: Optional[str], model: Optional[Path], case: Optional[str] = None):
     """The vessel of --vessel NAME or --model FILE; both at once is refused (which one was meant
     cannot be known)."""
-    from ..vessel import load
-
     if model is not None and vessel is not None:
         raise TwinError(f"give --vessel NAME or --model FILE, not both (--vessel {vessel} --model {model})")
     if model is not None:
@@ -153,8 +154,6 @@ def channels_from(text: Optional[str]) -> Optional[dict]:
 def effect_names(text: Optional[str], option: str = "--effects") -> Optional[list[str]]:
     """--effects A,B: names of the effect library, refused before any work when one is no effect at
     all (which of them fit a given recording and vessel only the diagnosis can tell)."""
-    from ..effects import EFFECTS
-
     if text is None:
         return None
     names = listed(text, option)
@@ -200,7 +199,7 @@ MOST_GNSS_NOISE_M, MOST_HEADING_NOISE_DEG = 100.0, 90.0
 def sensor_noise(text: str):
     """--noise: a profile's name or GNSS_M,HEADING_DEG, finite levels ≥ 0 (a NaN level would only fail once
     the recording is being written, as NaN positions)."""
-    from ..synth.dataset import PROFILES, noise_profile
+    from ..synth.dataset import PROFILES, noise_profile  # late: twin.synth is 0.18 s more at every `twin --help`
 
     if text not in PROFILES:
         parts = text.split(",")
@@ -492,6 +491,7 @@ def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: 
     vessel's twin is run (`replayed`), that the logs hold its kind of inputs; then the notes: inputs
     beyond the vessel file's bounds (replayed as logged), the wind's gaps, and a twin identified with
     the wind that is run without it."""
+    # late: the fitting stack (twin.ident.identify) is 0.54 s more at every `twin --help`
     from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note,
                                   idle_inputs_under_way, unused_wind_note, wind_gaps)
 
@@ -527,9 +527,6 @@ def progress_bar(title: str) -> Iterator[Progress]:
     if _settings["quiet"] or not sys.stderr.isatty():
         yield lambda what, done=None, total=None: None
         return
-    from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
-    from rich.table import Column
-
     console = Console(stderr=True)
     # the step's text is what gives way on a narrow terminal (cut with an ellipsis), never the
     # command's name, the bar, the count or the time

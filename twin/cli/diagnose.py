@@ -7,9 +7,12 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
+from ..effects import apply_effects, as_effect
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import check_new
+from ..recording import check_no_shared_stretch
+from ..vessel import save
 from .app import (REPORT_HELP, all_or_nothing_outputs, listed, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
                   recordings_in, say, say_unlogged_supply, vessel_from, warn_recordings, window_s, write_json)
@@ -50,13 +53,12 @@ def diagnose_command(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
-    from ..diagnose.doctor import diagnose
+    # late: the command's stack (twin.diagnose, 0.6 s) would be paid at every `twin --help`
+    from ..diagnose.doctor import diagnose, given_evidence, given_text
     from ..diagnose.locate import format_located
-    from ..diagnose.report import format_text
+    from ..diagnose.report import format_text, write_html, write_rrd
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
-    from ..recording import check_no_shared_stretch
-    from ..vessel import save
 
     for path, formats, option in ((json_out, (".json",), "--json"), (report, (".html", ".htm"), "--report"),
                                   (rrd, (".rrd",), "--rrd"), (write_model, (".json",), "--write-model")):
@@ -82,8 +84,6 @@ def diagnose_command(
     if sea_line:
         say(sea_line)
     if given:
-        from ..effects import apply_effects, as_effect
-
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
         names = [as_effect(g).spec.name for g in given]
         twice = sorted({n for n in names if names.count(n) > 1})
@@ -95,8 +95,6 @@ def diagnose_command(
     wind = "measured" if wind_measured else None
     check_wind_and_inputs(recs, wind, prior)  # before any work
     if given:
-        from ..diagnose.doctor import given_evidence, given_text
-
         e = given_evidence(recs, prior, given, window_s=window, calibrated=calibration, known_wind=wind)
         typer.echo(given_text(given, e))
         write_json(json_out, {"given": list(given), "earns_its_place": bool(e.earns_its_place()), **e.to_dict()})
@@ -121,12 +119,8 @@ def diagnose_command(
         write_text_atomic(json_out, figures)
         say(f"wrote {json_out}")
     if report is not None:
-        from ..diagnose.report import write_html
-
         write_html(result, report)
         say(f"wrote {report}")
     if rrd is not None:
-        from ..diagnose.report import write_rrd
-
         write_rrd(result, rrd)
         say(f"wrote {rrd} (open with: rerun {rrd})")

@@ -9,18 +9,21 @@ from typing import TYPE_CHECKING, Optional
 import typer
 from rich.markup import escape
 
+from ..effects import describe
 from ..effects.coefficients import FIT_GROUPS, MMG_FIT_GROUPS
 from ..errors import TwinError
 from ..files import RUNS, check_new
+from ..fit.coverage import from_dict as envelope_from, span_text
+from ..fit.uncertainty import check_drawable
+from ..vessel import Vessel, save
 from .app import (REPORT_HELP, all_or_nothing_outputs, draws_fit, given_on_command_line, listed, CASE_HELP, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least,
                   channels_from, check_distinct, check_outputs, check_truth_beside_logs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
-from .run import KNOWN_SEA_HELP, known_sea
+from .run import KNOWN_SEA_HELP, known_sea, sea_from
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # for annotations only: twin.fit.calibrate is 0.2 s more at every `twin --help`
     from ..fit.calibrate import LogCalibration
-    from ..vessel import Vessel
 
 RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 MAX_REPEATS = 1000  # --greybox --repeats: a million would run for days before a word
@@ -70,6 +73,7 @@ def dataset_command(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Synthetic identification dataset from the twin, with its truth in a separate file."""
+    # late: the command's stack (twin.synth, 0.18 s; the writers) would be paid at every `twin --help`
     from ..synth.dataset import generate
     from ..formats import write_recording
 
@@ -88,8 +92,6 @@ def dataset_command(
     if not names:
         raise TwinError("--manoeuvres names none: give one or more of the manoeuvres its help lists")
     with progress_bar("dataset") as progress:
-        from .run import sea_from
-
         ds = generate(vessel_from(vessel, model, case), effects=effect, n_segments=segments, manoeuvres=names,
                       seed=seed, noise=profile, progress=progress, sea=sea_from(sea, seed))
         for k, path in enumerate(out):
@@ -108,8 +110,6 @@ def dataset_command(
 @app.command("effects")
 def effects_command():
     """The effects a dataset can inject and a diagnosis can name."""
-    from ..effects import describe
-
     typer.echo(describe())
 
 
@@ -183,11 +183,10 @@ def identify_command(
 ):
     """Identify a vessel from recordings: each log's compass calibration, a fit by simulation with the
     prior's beliefs, every choice judged on runs left out of the fit."""
+    # late: the command's stack (the fitting, 0.54 s) would be paid at every `twin --help`
     from ..engine.sixdof import without_known_sea
     from ..fit import simfit
-    from ..fit.coverage import span_text
     from ..ident import identify as ident
-    from ..vessel import save
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([out], (".json",), "--out")
@@ -321,7 +320,7 @@ def evaluate_command(
     was fitted on; with --by, by a measured state (each band's share of 1 − R², and the gain of the
     measured on the predicted value: above 1, the vessel moves more than the twin); with --band, the
     share of the recording inside the prediction band of the identified uncertainty."""
-    from ..fit.coverage import from_dict as envelope_from
+    # late: the command's stack (the fitting, 0.54 s) would be paid at every `twin --help`
     from ..fit.evaluate import (STATE_NAMES, TwinPredictor, evaluate, format_by_manoeuvre, format_by_state,
                                 format_metrics, misfit_by_manoeuvre, misfit_by_state, percentile_edges,
                                 state_display)
@@ -348,8 +347,7 @@ def evaluate_command(
     if band and (draws < 2 or not 0.0 < level < 1.0):
         raise TwinError("--band needs --draws of at least 2 and a --level between 0 and 1")
     if band:
-        from ..fit.uncertainty import check_drawable
-        from ..scale.batches import executor_from
+        from ..scale.batches import executor_from  # late: 0.16 s, only for --band
 
         check_drawable(v)
         executor = executor_from(ray)  # an unreachable --ray address is refused before the work
@@ -426,6 +424,7 @@ def evaluate_command(
                  "predicted; corr: their correlation)")
         typer.echo(format_by_state(bands, title))
     if rrd is not None:
+        # late: the writers and replay (0.3 s) only for --rrd
         from ..engine.mjcf import compile_vessel
         from ..outputs import write
         from ..replay import free_run_views
@@ -434,7 +433,7 @@ def evaluate_command(
               vessel_name=v.name, mjcf=v.mjcf, view=True)
         say(f"wrote {rrd} (open with: rerun {rrd})")
     if band:
-        from ..scale.montecarlo import band_coverage
+        from ..scale.montecarlo import band_coverage  # late: 0.3 s, only for --band
 
         with progress_bar("band") as progress:
             coverage = band_coverage(used, prepared(recs, used), draws=draws, seed=seed, level=level,

@@ -9,11 +9,14 @@ import typer
 
 from ..drive import inputs_mismatch
 from ..errors import TwinError
-from ..files import RUNS, check_new
+from ..files import RUNS, check_new, write_bytes_atomic
+from ..recording import DROPOUTS, check_no_shared_stretch, format_summary
+from ..viz.report import comparison_png
 from .app import (REPORT_HELP, all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
                   vessel_from)
+from .ident import calibration_line
 
 # a converted copy's grid is no finer than a tenth of the sample period of its fastest synchronised stream (finer
 # repeats each sample on more than ten rows: rows, not information) and holds at most MAX_GRID_ROWS rows (a day's
@@ -63,12 +66,12 @@ def info(
     is against the gyro (where the log has one); with --vessel or
     --model, each log's compass calibration from its kinematics (the logs read together, as identify,
     evaluate and diagnose read and apply it)."""
+    # late: the command's stack (readers, twin.prepare, twin.fit.kinematic: 0.5 s) would be paid at every `twin --help`
     from ..formats import read_recording
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
     from ..prepare.timing import MIN_TURNING_S, heading_lag_behind_gyro
     from ..fit.kinematic import GYRO_MIN_FIT, GYRO_PIECE_S, GYRO_TURNING_RAD_S
-    from ..recording import check_no_shared_stretch, format_summary
 
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
@@ -109,9 +112,9 @@ def info(
 
 def _calibrations(recordings: list, vessel) -> int:
     """Print each log's kinematic compass calibration (twin.fit.calibrate); 1 when it cannot be made."""
+    # late: the fitting stack (0.54 s) would be paid at every `twin --help`
     from ..ident.identify import calibrate, held_inputs
     from ..prepare import prepare
-    from .ident import calibration_line
 
     usable, failed = [], 0
     wanted = vessel.thrusters.input_kind
@@ -146,6 +149,7 @@ def _calibrations(recordings: list, vessel) -> int:
 
 def _throttle_line(recordings: list, vessel, calibrations) -> str:
     """Whether the compass error follows the throttle over these logs (twin.fit.calibrate.throttle_dependence)."""
+    # late: the fitting stack (0.54 s) would be paid at every `twin --help`
     from ..fit.calibrate import MIN_THROTTLE_STRETCHES, throttle_dependence
     from ..ident.identify import prepared
 
@@ -197,10 +201,10 @@ def convert(
 ):
     """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
     [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
+    # late: the command's stack (the readers and writers, twin.prepare: 0.1 s) would be paid at every `twin --help`
     from ..formats import read_recording, write_recording
     from ..formats.mcap import MCAP_DAMAGE
     from ..prepare.convert import for_conversion, not_kept
-    from ..recording import DROPOUTS
 
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
@@ -242,11 +246,10 @@ def view(
                                             "known input of the replay"),
 ):
     """Real track and the twin's replay on one timeline, in rerun (and a PNG)."""
-    from ..files import write_bytes_atomic
+    # late: the command's stack (the readers, writers and replay: 0.3 s) would be paid at every `twin --help`
     from ..formats import read_recording
     from ..outputs import write
     from ..replay import view_runs
-    from ..viz.report import comparison_png
 
     # the working folder, never beside the input (a shared data folder); .view.rrd, not the STEM.rrd that
     # `twin simulate --out STEM.csv --out STEM.rrd` may have written there

@@ -7,10 +7,10 @@ import inspect
 
 import typer
 
+from . import app as app_module
+
 
 def _commands():
-    from . import app as app_module
-
     group = typer.main.get_command(app_module.app)
     ctx = typer.Context(group, info_name="twin")
     return group, ctx, [(name, group.get_command(ctx, name)) for name in group.list_commands(ctx)]

@@ -11,9 +11,11 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import TwinError
+from ..files import write_bytes_atomic
+from ..ident.relay import ipd, iso
 from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SHIP_RPS,  # why these: that module
                                   SURGE_OMEGA_RAD_S)
-from ..ident.relay.iso import CONTROL_DT_S, DEFAULT_DURATION_S, SHIP_CONTROL_DT_S, SHIP_DURATION_S
+from ..ident.relay.iso import CONTROL_DT_S, DEFAULT_DURATION_S, SHIP_CONTROL_DT_S, SHIP_DURATION_S, UNITS
 from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
                   positive, progress_bar, samples_fit, say, vessel_from, write_json)
 
@@ -43,16 +45,12 @@ def check_iso_duration(duration_s: float, control_dt_s: float, default: str) -> 
 
 
 def _write_png(path: Optional[Path], data_fn) -> None:
-    from ..files import write_bytes_atomic
-
     if path is not None:
         write_bytes_atomic(path, data_fn())
         say(f"wrote {path}")
 
 
 def _sweep_table(result) -> Table:
-    from ..ident.relay.iso import UNITS
-
     u = UNITS[result.dof]
     ship = any(r.rudder_deg is not None for r in result.rows)
     table = Table(title=f"IS-O {result.vessel} {result.dof}{' with the rudder as the relay' if ship else ''} "
@@ -97,8 +95,7 @@ def iso_command(
     """Identification by self-oscillations in the twin: a relay with hysteresis, Table I for the
     constant-drag and linear-drag models at several relay outputs, compared with the twin's own
     uncoupled inertia and drag. The controller tuned from it runs with `twin dp`."""
-    from ..engine.mjcf import compile_vessel
-    from ..ident.relay import iso
+    from ..engine.mjcf import compile_vessel  # late: mujoco, 0.17 s more at every `twin --help`
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([png], (".png",), "--png")
@@ -154,8 +151,6 @@ def tuned_models(compiled, omega_heading: float, omega_surge: float | None, rps:
                  progress=None):
     """IS-O sweeps with the default settings → (yaw, surge) DofModels for the I-PD (surge None if not asked);
     a ship's yaw from its rudder relay at the propeller speed `rps`. `progress` hears each relay run."""
-    from ..ident.relay import ipd, iso
-
     for w in (omega_heading, omega_surge):
         if w is not None and not (w > 0 and math.isfinite(w)):
             raise TwinError(f"model-function frequencies must be positive and finite, got {w:g} rad/s")
@@ -198,8 +193,7 @@ def dp_command(
     binomial model function; prints the IAE ratio (twin / model function). Point moves turn to the
     bearing first, then surge along the line (the vessel has no sway thruster). A propeller-and-rudder ship
     steers its heading step with the rudder at a constant propeller speed (--rps); it has no point move."""
-    from ..engine.mjcf import compile_vessel
-    from ..ident.relay import ipd
+    from ..engine.mjcf import compile_vessel  # late: mujoco, 0.17 s more at every `twin --help`
 
     if run not in ("heading", "point"):
         raise TwinError(f"unknown run '{run}' (heading or point)")

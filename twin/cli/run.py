@@ -11,9 +11,15 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from ..drive import read_inputs_csv
+from ..effects.coefficients import DAMPING_UNITS
 from ..errors import TwinError
-from ..files import after_writes
+from ..files import after_writes, write_text_atomic
 from ..files import RUNS, check_new
+from ..physics.seakeeping import known_table
+from ..physics.waves import parse_sea
+from ..vessel import save as save_vessel
+from ..viz.report import report_figure, top_view_png, write_report
 from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs,
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
@@ -33,8 +39,7 @@ def known_sea(vessel, text: Optional[str]):
     line saying so or None); refused on one line for a vessel without hull meshes."""
     if text is None:
         return vessel, None
-    from ..engine.sixdof import check_sea_for, with_known_sea
-    from ..physics.seakeeping import known_table
+    from ..engine.sixdof import check_sea_for, with_known_sea  # late: mujoco, 0.16 s more at every `twin --help`
 
     sea = sea_from(text, 0)
     check_sea_for(vessel, sea)
@@ -52,8 +57,6 @@ def sea_from(text: Optional[str], seed: int):
     """--sea text → physics.waves.Sea (checked: positive, not breaking), None without it."""
     if text is None:
         return None
-    from ..physics.waves import parse_sea
-
     return parse_sea(text, seed)
 
 
@@ -107,7 +110,7 @@ def simulate(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Run the twin headless and write the run."""
-    from ..simulation import simulate_run
+    from ..simulation import simulate_run  # late: the engine, 0.17 s more at every `twin --help`
 
     check_outputs(out, RUN_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model], keep_data=False)
@@ -117,8 +120,6 @@ def simulate(
     scenario = scenario or "zigzag"
     inputs_end_s = None
     if inputs is not None:  # read here too: the run's default length is the inputs' own
-        from ..drive import read_inputs_csv
-
         inputs_end_s = float(read_inputs_csv(inputs).t[-1])
         if duration is None and not inputs_end_s > 0:
             raise TwinError(f"{inputs.name}: give --duration (the inputs end at t = {inputs_end_s:g} s)")
@@ -191,6 +192,7 @@ def crosscheck(
                                                          "meshes) against the 3-DOF model"),
 ):
     """Engine against the analytic 3-DOF model; exit 1 when over tolerance."""
+    # late: the command's stack (the engine, the writers: 0.25 s) would be paid at every `twin --help`
     from ..engine.mjcf import compile_vessel
     from ..outputs import write
     from ..verify.crosscheck import HEADING_TOL_DEG, POSITION_TOL_M
@@ -256,14 +258,13 @@ def params(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Print the effective 3-DOF parameters of a vessel; --write-model writes its vessel file."""
-    from ..engine.parameters import effective_parameters
-    from ..vessel import save as save_vessel
+    from ..engine.parameters import effective_parameters  # late: mujoco, 0.13 s more at every `twin --help`
 
     check_outputs([write_model], (".json",), "--write-model")
     check_distinct({"--write-model": write_model}, [model], keep_data=False)
     check_new([write_model], force, "--write-model", ("vessel file",))
     if first_principles:
-        from ..verify.priors import first_principles as estimate
+        from ..verify.priors import first_principles as estimate  # late: 0.14 s, only for --first-principles
 
         v = vessel_from(vessel, model, case)
         fp = estimate(v)
@@ -306,8 +307,6 @@ def params_lines(p: dict) -> list[str]:
     """The damping and propulsion of effective_parameters' dict as text, each value with its unit:
     Fossen's damping (N and N·m per the velocities' powers), a PWM thruster's map scales, or a ship's
     MMG coefficients (non-dimensional, [MMG-2015])."""
-    from ..effects.coefficients import DAMPING_UNITS
-
     lines = []
     damping = [f"{k} {val:g} {DAMPING_UNITS.get(k, '')}".rstrip() for k, val in p["damping"].items() if val]
     if damping:
@@ -337,10 +336,9 @@ def validate(
     report: Optional[Path] = typer.Option(None, help=f"write a report: .md (PNG beside it) or .html {REPORT_HELP}"),
 ):
     """Analytic formulas, published tables, engine, meshes and independent values, side by side."""
-    from ..files import write_text_atomic
+    # late: twin.verify.validate (mujoco) is 0.14 s more at every `twin --help`
     from ..verify.validate import format_table
     from ..verify.validate import validate as run_validation
-    from ..viz.report import report_figure, top_view_png, write_report
 
     check_outputs([json_out], (".json",), "--json")
     check_outputs([report], (".md", ".html", ".htm"), "--report")

@@ -9,9 +9,11 @@ from typing import Optional
 
 import typer
 
+from ..drive import read_inputs_csv
 from ..errors import TwinError
-from ..files import BAND
+from ..files import BAND, write_text_atomic
 from ..files import check_new
+from ..vessel import load
 from .app import (all_or_nothing_outputs, listed, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, 
                   check_outputs,
                   check_recordings_distinct, counted, draws_fit, effect_names, memory_bytes, memory_for, note, positive, progress_bar, recordings_in, samples_fit,
@@ -32,13 +34,13 @@ SEGMENT_FILE_BYTES, VESSEL_INDEX_BYTES = 1.5e5, 2.0e3
 
 
 def _executor(ray: Optional[str], cpus_per_task: int, retries: int):
-    from ..scale.batches import executor_from
+    from ..scale.batches import executor_from  # late: 0.16 s more at every `twin --help`
 
     return executor_from(ray, cpus_per_task=cpus_per_task, retries=retries)
 
 
 def _variation(vessel, vary: list[str], effect: list[str], covariance: bool, share: float = 1.0):
-    from ..scale.draws import Variation, parse_effect_range, parse_factor
+    from ..scale.draws import Variation, parse_effect_range, parse_factor  # late: 0.14 s more at every `twin --help`
 
     return Variation(covariance, tuple(parse_factor(v, vessel) for v in vary),
                      tuple(parse_effect_range(e) for e in effect), share)
@@ -74,8 +76,7 @@ def montecarlo_command(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Prediction bands of an identified twin: draws from its covariance through a mission."""
-    from ..drive import read_inputs_csv
-    from ..scale import montecarlo as mc
+    from ..scale import montecarlo as mc  # late: 0.3 s more at every `twin --help`
 
     check_outputs(out, MC_OUTPUTS, "--out")
     check_distinct({"--out": out}, [inputs, model], keep_data=False)
@@ -122,7 +123,7 @@ def _sea_for(vessel, text: Optional[str], seed: int):
     """--sea → physics.waves.Sea, refused on one line before any work when the vessel cannot run in it."""
     if text is None:
         return None
-    from ..engine.sixdof import check_sea_for
+    from ..engine.sixdof import check_sea_for  # late: mujoco, 0.16 s more at every `twin --help`
 
     sea = sea_from(text, seed)
     check_sea_for(vessel, sea)
@@ -130,8 +131,7 @@ def _sea_for(vessel, text: Optional[str], seed: int):
 
 
 def _write_band(result, path: Path) -> None:
-    from ..files import write_text_atomic
-    from ..scale import views
+    from ..scale import views  # late: 0.27 s more at every `twin --help`
 
     suffix = path.suffix.lower()
     if suffix == ".json":
@@ -147,7 +147,7 @@ def _write_band(result, path: Path) -> None:
 
 
 def _report(result) -> None:
-    from ..scale.montecarlo import level_percentiles
+    from ..scale.montecarlo import level_percentiles  # late: 0.3 s more at every `twin --help`
 
     b = result.band
     lo_p, hi_p = level_percentiles(b.level)
@@ -198,7 +198,7 @@ def dataset_shards_command(
     retries: int = typer.Option(3, help=RETRIES_HELP),
 ):
     """Synthetic identification datasets at scale: randomised vessels, sharded files, one truth index."""
-    from ..scale.datasets import Settings, generate_shards
+    from ..scale.datasets import Settings, generate_shards  # late: 0.26 s more at every `twin --help`
 
     seed_from(seed)
     if effect_share != 1.0 and not effect:  # it sets how often each --effect is drawn: without one it does nothing
@@ -262,9 +262,9 @@ def fleet_command(
                                                       "previous run left in --out"),
 ):
     """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
+    # late: the command's stack (twin.diagnose, 0.6 s) would be paid at every `twin --help`
     from ..ident.identify import fitted_wind_note
     from ..scale.fleet import Log, diagnose_fleet, format_summary, read_manifest
-    from ..vessel import load
 
     # every option checked before any log is read or report written: a rerun into the same --out
     # with a bad option must not replace its reports by failure records
@@ -319,6 +319,6 @@ def fleet_command(
 def other_reports(out: Path, written: set[str]) -> list[str]:
     """The names of the per-log reports in `out` this fleet did not write (another fleet's), not the
     other JSON files a user keeps there."""
-    from ..scale.fleet import is_fleet_report
+    from ..scale.fleet import is_fleet_report  # late: 0.6 s more at every `twin --help`
 
     return sorted(q.name for q in out.glob("*.json") if q.name not in written and is_fleet_report(q))

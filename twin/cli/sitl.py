@@ -13,6 +13,7 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import RUNS, check_new
+from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission
 from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
@@ -47,6 +48,7 @@ def sitl(
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """ArduPilot SITL physics backend (JSON interface): sim_vehicle.py -v Rover --model JSON."""
+    # late: the server (mujoco, 0.22 s) would be paid at every `twin --help`
     from ..sitl.backend import check_channels, check_rate
     from ..sitl.server import run_sitl
 
@@ -64,7 +66,7 @@ def sitl(
         check_channels((pair["left"], pair["right"]))
     v = vessel_from(vessel, model, case)
     if write_params is not None:
-        from ..sitl.params import boat_parameters
+        from ..sitl.params import boat_parameters  # late: 0.16 s, only for --write-params
 
         text = boat_parameters(v, (pair["left"], pair["right"]) if pair else (1, 3))
         write_text_atomic(write_params, text)
@@ -120,8 +122,6 @@ def mission(
 ):
     """Fly a waypoint mission with ArduPilot SITL over MAVLink (AUTO), then hold and disarm; print its
     time, mean speed and how far the boat strayed from the straight legs."""
-
-    from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission
 
     positive(timeout, "--timeout")
     if not 1 <= port <= 65535:

@@ -65,7 +65,7 @@ def write_rrd(d, path: Path) -> None:
 
 
 def _png(fig) -> str:
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # late: matplotlib (0.25 s) only for the HTML report's figures
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
@@ -386,6 +386,7 @@ def series_png(d, max_windows: int = 8) -> str:
     """u, v, r of the windows the amendment changed most: measured, twin before (red), twin after
     (green, dashed, drawn over it: where they agree the red shows through). With nothing amended:
     measured and twin on the windows where the twin misses most, no "after"."""
+    # late: matplotlib (0.25 s) only for the HTML report, not every `twin diagnose` (nor twin.api)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -422,6 +423,7 @@ def series_png(d, max_windows: int = 8) -> str:
 def track_png(d, max_windows: int = 8) -> str:
     """The real track and the twin's free runs before and after on the map (north up, east right),
     for the windows the amendment changed most."""
+    # late: matplotlib (0.25 s) only for the HTML report, not every `twin diagnose` (nor twin.api)
     import matplotlib
 
     matplotlib.use("Agg")

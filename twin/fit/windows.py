@@ -351,6 +351,7 @@ def lagged_thrust(commands_n: np.ndarray, start_n: np.ndarray, lag_s: float, tim
         timestep_s: engine step h (s).
     Returns:
         (steps, 2): c + (y₀ − c)·τ/h·(1 − e^(−h/τ)) per step, y₀ the lagged thrust at its start."""
+    # late: scipy.signal (0.25 s) only for a thrust lag; `twin view`, `twin montecarlo` load this module too
     from scipy.signal import lfilter
 
     a = math.exp(-timestep_s / lag_s)
@@ -372,6 +373,7 @@ def lagged_thrust_at_start(vessel: Vessel, prep: Prepared, window: Window, times
     sub = _substeps(prep.settings.grid_dt, timestep_s)
     cmd = np.clip(_segment_commands(vessel, prep, seg, window.rec, timestep_s)[: history.n * sub],
                   *vessel.thrusters.bounds())
+    # late: scipy.signal (0.25 s) only for a thrust lag; `twin view`, `twin montecarlo` load this module too
     from scipy.signal import lfilter
 
     a = np.exp(-timestep_s / vessel.thrusters.lag_s)
@@ -383,6 +385,7 @@ def _filtered_segment(vessel: Vessel, prep: Prepared, seg, rec: int, timestep_s:
                       bounds: tuple[float, float]) -> np.ndarray:
     """The lag's state (N) at the end of every engine step of a segment, as lagged_thrust_at_start
     filters a window's history (from the segment's first command)."""
+    # late: scipy.signal (0.25 s) only for a thrust lag; `twin view`, `twin montecarlo` load this module too
     from scipy.signal import lfilter
 
     cmd = np.clip(_segment_commands(vessel, prep, seg, rec, timestep_s), *bounds)

@@ -228,6 +228,7 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
     """The wanted messages by type, and what DFReader complained about. It prints
     its complaints (bad headers, skipped bytes; its Cython indexer straight to
     file descriptor 2): they are captured and counted instead."""
+    # late: DFReader imports pymavlink.mavutil, which sets MAVLINK_DIALECT in os.environ (twin.sitl.ardupilot)
     from pymavlink import DFReader
 
     rows: dict[str, list] = defaultdict(list)

@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import quad
+from scipy.special import elliprd
 
 
 @dataclass(frozen=True)
@@ -71,8 +73,6 @@ def ellipsoid_lamb_coefficients(a_m: float, b_m: float, c_m: float) -> tuple[flo
     α0 = abc ∫₀^∞ dλ / ((a²+λ)Δ),  Δ = √((a²+λ)(b²+λ)(c²+λ)); β0, γ0 alike.
     Their sum is 2 for any ellipsoid, which the tests use as a check.
     """
-    from scipy.integrate import quad
-
     def delta(lam):
         return np.sqrt((a_m**2 + lam) * (b_m**2 + lam) * (c_m**2 + lam))
 
@@ -85,8 +85,6 @@ def ellipsoid_lamb_coefficients(a_m: float, b_m: float, c_m: float) -> tuple[flo
 
 def ellipsoid_lamb_coefficients_closed_form(a_m: float, b_m: float, c_m: float) -> tuple[float, float, float]:
     """The same integrals in closed form with Carlson's R_D: α0 = ⅔abc·R_D(b², c², a²)."""
-    from scipy.special import elliprd
-
     abc = a_m * b_m * c_m
     a2, b2, c2 = a_m**2, b_m**2, c_m**2
     return (2 / 3 * abc * elliprd(b2, c2, a2), 2 / 3 * abc * elliprd(c2, a2, b2), 2 / 3 * abc * elliprd(a2, b2, c2))

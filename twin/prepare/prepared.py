@@ -66,6 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..drive import WindSeries
 from ..errors import TwinError
 from ..formats.csv import NEEDED_COLUMNS
 from ..geodesy import ned_from_geodetic as geodetic_to_ned
@@ -529,8 +530,6 @@ def _inputs(rec: Recording, t: np.ndarray, deadband_us) -> tuple[np.ndarray, np.
 def wind_series(prep: Prepared, sl: slice):
     """The measured wind of the grid samples `sl` as a drive.WindSeries on their own clock (t − t[0]),
     for sim.simulate(..., wind=...) and analytic.simulate; TwinError without a measured wind."""
-    from ..drive import WindSeries
-
     if prep.wind_ned is None:
         raise TwinError(f"{Path(prep.settings.source or 'the recording').name}: no measured wind")
     t, air = prep.t[sl], prep.wind_ned[sl]

@@ -182,7 +182,7 @@ class RayExecutor:
 def ray_module():
     """Ray, or a one-line error saying how to install it."""
     try:
-        import ray
+        import ray  # optional extra [cluster]: imported only when --ray is given
     except ImportError:
         raise TwinError("--ray needs Ray: pip install 'asv-twin[cluster]' (or pip install -e \".[cluster]\")") \
             from None

@@ -35,6 +35,7 @@ def band_edges(mc: MonteCarlo) -> tuple[np.ndarray, np.ndarray]:
 
 def png_bytes(mc: MonteCarlo, title: str = "") -> bytes:
     """The track panel and one panel per state over time, the band at its level shaded."""
+    # late: matplotlib (0.21 s) only for a PNG band
     import matplotlib
 
     matplotlib.use("Agg")
@@ -76,6 +77,7 @@ def write_png(mc: MonteCarlo, path: Path) -> None:
 
 def write_rrd(mc: MonteCarlo, path: Path) -> None:
     """The band as a rerun recording (module docstring), written atomically."""
+    # late: rerun (0.26 s, twin.viz.rerun_log with it) only for an .rrd band
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -93,7 +95,7 @@ def _xyz(ne: np.ndarray) -> np.ndarray:
 
 
 def _log_world(rr, rec, mc: MonteCarlo) -> None:
-    from ..viz.rerun_log import BOX_CENTER_M, BOX_SIZE_M
+    from ..viz.rerun_log import BOX_CENTER_M, BOX_SIZE_M  # late: rerun, as in write_rrd
 
     b = mc.band
     times = [rr.TimeColumn("time", duration=b.t_s)]

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import trimesh
 
 from .. import drive
 from ..engine import native, sixdof
@@ -69,8 +70,6 @@ _BARGE_XML = """<mujoco model="barge">
 def barge(folder: Path) -> Vessel:
     """A uniform box barge (BARGE) written into `folder`: CyberShip I's horizontal model on a box hull
     whose centre is the body origin, floating level at half its depth."""
-    import trimesh
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     b = BARGE

@@ -137,7 +137,7 @@ def load_meshes(vessel: Vessel) -> list[dict]:
     """Each mesh geom of the vessel as the engine compiles it (mass case and CG offset applied): name, body,
     geom id, file, mass (kg), whether the geom is its body's only mass, and the trimesh mesh in the vessel
     frame (m), placed by the compiled model's own kinematics."""
-    import trimesh
+    import trimesh  # late: 0.11 s, only where hull meshes are read (`twin params` loads this module too)
 
     spec = edited_spec(vessel)
     model = spec.compile()  # compile_vessel has compiled this spec already: no error here

@@ -16,6 +16,7 @@ def top_view_png(drawing: dict, title: str) -> bytes:
 
     Plotted with north/forward (x) up and starboard (y) to the right, as a chart.
     """
+    # late: matplotlib (0.26 s) only for a figure; `twin --help` loads this module
     import matplotlib
 
     matplotlib.use("Agg")
@@ -98,6 +99,7 @@ INPUT_KEYS = {"pwm": ("PWM (µs)", "left", "right"), "ship": ("rudder °, propel
 
 def comparison_png(runs: dict, title: str) -> bytes:
     """Track on the water (east vs north) and u, r against time, one colour per run."""
+    # late: matplotlib (0.26 s) only for a figure; `twin --help` loads this module
     import matplotlib
 
     matplotlib.use("Agg")

@@ -29,6 +29,7 @@ import rerun.blueprint as rrb
 from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..formats.mcap import check_run
+from ..physics.waves import elevation
 from ..recording import GAP_S
 from ..run import Run
 
@@ -92,7 +93,7 @@ def _load_meshes(hull_mesh_paths: HullMeshes | None) -> list[tuple[str, np.ndarr
     """(entity name, body offset in m, mesh) for each mesh file."""
     if not hull_mesh_paths:
         return []
-    import trimesh  # only needed when meshes are drawn
+    import trimesh  # late: 0.3 s, only needed when meshes are drawn
 
     if isinstance(hull_mesh_paths, Mapping):
         items = [(Path(p), np.asarray(off, dtype=float)) for p, off in hull_mesh_paths.items()]
@@ -177,8 +178,6 @@ def _quaternions(psi, theta, phi) -> np.ndarray:
 
 def _log_sea(rec: rr.RecordingStream, entity: str, run: Run, components) -> None:
     """The incident sea surface on a square around the vessel (NED, z = −ζ), every SEA_EVERY_S."""
-    from ..physics.waves import elevation
-
     u = np.linspace(-SEA_HALF_M, SEA_HALF_M, SEA_NODES)
     gx, gy = np.meshgrid(u, u)
     n = SEA_NODES

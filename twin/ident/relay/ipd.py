@@ -279,6 +279,7 @@ def ship_heading_step(compiled, yaw: DofModel, step_deg: float, n_rps: float = S
                       duration_s: float | None = None, anti_windup: bool = True) -> DpRun:
     """Heading step of `step_deg` at t = 0 steered by the rudder (module docstring), from straight running
     at the propeller speed n in calm water ([Relay-ISO Figs. 8-9] for the ship)."""
+    # late: twin.engine.sim (mujoco) is 0.13 s more at every `twin --help`, which loads this module
     from ...engine.sim import simulate
 
     u0 = straight_speed(compiled, n_rps)
@@ -401,6 +402,7 @@ def settle_s(model: ModelFunction) -> float:
 def heading_step(compiled, yaw: DofModel, step_deg: float, duration_s: float | None = None,
                  anti_windup: bool = True) -> DpRun:
     """Heading reference stepped by `step_deg` at t = 0 [Relay-ISO Figs. 8-9]."""
+    # late: twin.engine.sim (mujoco) is 0.13 s more at every `twin --help`, which loads this module
     from ...engine.sim import simulate
 
     duration_s = duration_s or settle_s(yaw.model)
@@ -415,6 +417,7 @@ def point_move(compiled, yaw: DofModel, surge: DofModel, target_ne_m: tuple[floa
                duration_s: float | None = None) -> DpRun:
     """Move to a point (north, east from the start, heading 0 at the start): heading step to the
     bearing plus surge I-PD on the along-track distance (module docstring)."""
+    # late: twin.engine.sim (mujoco) is 0.13 s more at every `twin --help`, which loads this module
     from ...engine.sim import simulate
 
     bearing = math.atan2(target_ne_m[1], target_ne_m[0])
@@ -430,6 +433,7 @@ def point_move(compiled, yaw: DofModel, surge: DofModel, target_ne_m: tuple[floa
 def response_png(dp: DpRun, title: str) -> bytes:
     """[Relay-ISO Fig. 8] layout per loop: response and model function, controller output, difference;
     for a point move also the path (Fig. 10)."""
+    # late: matplotlib (0.3 s) only for the PNG; `twin --help` loads this module
     import matplotlib
 
     matplotlib.use("Agg")

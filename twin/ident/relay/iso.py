@@ -314,6 +314,7 @@ class RudderRelayExperiment:
 def run_ship_experiment(compiled, n_rps: float, rudder_deg: float, xa: float, duration_s: float,
                         twin: TwinUncoupled | None = None) -> IsoRow:
     """One rudder-relay experiment from straight running at n (module docstring); the first third is transient."""
+    # late: twin.engine.sim (mujoco) is 0.13 s more at every `twin --help`, which loads this module
     from ...engine.sim import simulate
 
     u0 = straight_speed(compiled, n_rps)
@@ -329,6 +330,7 @@ def run_ship_experiment(compiled, n_rps: float, rudder_deg: float, xa: float, du
 
 def calm_water(compiled):
     """The compiled vessel in calm water (IS-O in [Relay-ISO] is run without disturbances)."""
+    # late: twin.engine.mjcf (mujoco) is 0.17 s more at every `twin --help`, which loads this module
     from ...engine.mjcf import CompiledVessel
 
     return CompiledVessel(replace(compiled.vessel, environment=type(compiled.vessel.environment)()), compiled.model,
@@ -367,6 +369,7 @@ def ship_sweep(compiled, rudder_deg: list[float] | None = None, rps: list[float]
 def run_experiment(compiled, dof: str, relay_c: float, xa: float, duration_s: float,
                    twin: TwinUncoupled | None = None) -> IsoRow:
     """One relay experiment in the twin ([Relay-ISO Fig. 4] or 5), from rest; the first third is transient."""
+    # late: twin.engine.sim (mujoco) is 0.13 s more at every `twin --help`, which loads this module
     from ...engine.sim import simulate
 
     controller = RelayExperiment(dof, relay_c, xa, compiled.geometry.thruster_y_m, compiled.vessel.thrusters.gains())
@@ -513,6 +516,7 @@ def sweep_png(result: IsoSweep) -> bytes:
     """α, β_ν, β_νν against the relay output, beside the twin's coefficients and their
     describing-function equivalents at each experiment's speed amplitude (a ship's: one line per
     propeller speed, the twin's −∂N/∂r at each speed's u₀)."""
+    # late: matplotlib (0.3 s) only for the PNG; `twin --help` loads this module
     import matplotlib
 
     matplotlib.use("Agg")
