@@ -1,6 +1,6 @@
 """Where the twins of the extrapolation study miss beyond their runs, by the measured state of each
-sample: the BlueBoat's sway (and its yaw's timing) on its five most active runs, the Esso Osaka's yaw on its random tests
-for a twin fitted on the turning tests.
+sample: the BlueBoat's sway and yaw on its five most active runs, the Esso Osaka's yaw and sway on its random
+tests for a twin fitted on the turning tests.
 
     python scripts/extrapolation_misfit.py [--work /tmp/extrapolation] [--out docs/results]
 
@@ -34,6 +34,8 @@ from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
 # (split, wind, the DOF the target misses, free-run length s, stride s)
 CASES = {"blueboat": ("blueboat_activity", None, "v", 10.0, 2.0),
          "esso": ("esso_turn_random", "measured", "r", 30.0, 10.0)}
+# the DOF whose gain and correlation are shown beside the missed one's: the one it is coupled with
+SECOND = {"blueboat": "r", "esso": "v"}
 BANDS = {"blueboat": [("speed √(u² + v²)", "speed_m_s", (0.2, 0.6, 1.2)),
                       ("yaw rate |r|", "yaw_rate_rad_s", (0.1, 0.3, 0.6))],
          "esso": [("propeller speed", "input_0", (-1.0, 1.0, 6.0)),
@@ -69,7 +71,9 @@ def _bands(vessel, recs, case: str) -> list[dict]:
     for title, state, edges in BANDS[case]:
         for b in misfit_by_state(calibrated, preps, horizon_s, state, edges, stride_s=stride_s, wind=wind):
             out.append({"by": title, "band": b.label, "samples": b.samples, "share": b.share,
-                        "rms": b.rms_error[dof], "gain": b.gain[dof], "correlation": b.correlation[dof]})
+                        "rms": b.rms_error[dof], "gain": b.gain[dof], "correlation": b.correlation[dof],
+                        "second": {"dof": SECOND[case], "gain": b.gain[SECOND[case]],
+                                   "correlation": b.correlation[SECOND[case]]}})
     return out
 
 
@@ -87,6 +91,9 @@ def sensitivities(case: str, vessel, prior, recs) -> list[dict]:
                   for k in (2, 4)]
         moves += [(f"thrust lag {lag:g} s (identified {t.lag_s:.2g})", replace(vessel, thrusters=replace(t, lag_s=lag)))
                   for lag in (0.2, 0.4)]
+        # the yaw damping that grows with the speed, which the least active runs (seldom fast) leave at its prior
+        moves += [(f"Nur × {k:g} (identified {d.Nur:.3g} N·m·s²/m, prior {prior.damping.Nur:.3g})",
+                   replace(vessel, damping=replace(d, Nur=k * d.Nur))) for k in (1.5, 2.0)]
     else:
         m = vessel.mmg
         moves = [("identified", vessel)] + [(f"U floor {u:g} m/s (identified {m.low_speed_m_s:g})",
@@ -102,16 +109,18 @@ def page(raw: dict) -> ResultPage:
     for case, part in raw["cases"].items():
         name, wind, dof, horizon_s, _ = CASES[case]
         r2 = part["sensitivity"][0]["r2"]
+        second = part["bands"][0].get("second", {}).get("dof") if part["bands"] else None
         tables.append(ResultTable(
             f"{part['tag']}: {horizon_s:g}-s free runs of the identified twin on the judged runs (R² u {r2['u']:.3f}, "
             f"v {r2['v']:.3f}, r {r2['r']:.3f}), by measured state: share of the samples, each DOF's share of 1 − R² "
             f"(the bands of one state add up to 1 − R²), {dof}'s RMS error, gain (measured on predicted) and "
             "correlation of measured and predicted (a gain away from 1 at a correlation near 1: the twin's shape at "
-            "the wrong size)",
+            "the wrong size)" + (f", and {second}'s gain and correlation" if second else ""),
             ["state", "band", "samples", "share u", "share v", "share r", f"RMS {dof}", f"gain {dof}",
-             f"correlation {dof}"],
+             f"correlation {dof}", *([f"gain {second}", f"correlation {second}"] if second else [])],
             [[row["by"], row["band"], row["samples"], row["share"]["u"], row["share"]["v"], row["share"]["r"],
-              row["rms"], row["gain"], row.get("correlation")] for row in part["bands"]]))
+              row["rms"], row["gain"], row.get("correlation"),
+              *([row["second"]["gain"], row["second"]["correlation"]] if second else [])] for row in part["bands"]]))
         tables.append(ResultTable(
             f"{part['tag']}: one coefficient moved, scored on the judged runs (a sensitivity; it fits and chooses "
             "nothing)", ["twin", "R² u", "R² v", "R² r"],
