@@ -757,7 +757,7 @@ def test_a_conversion_says_which_streams_it_held_or_thinned_to_the_grid():
 def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_using_it(tmp_path, monkeypatch, capsys):
     """One backwards stamp in 401 rows costs one row, under LOST_SHARE: nothing said. Sixty rows
     stamped 20 s back (15 % of the rows) are dropped from every stream, and `twin evaluate`, which
-    scores the rest, says so per stream, as `twin info` does."""
+    scores the rest, and `twin view` say so per stream, as `twin info` does."""
     few = read_recording(write_generic_csv(tmp_path / "few.csv", latlon=False))
     assert few.heavy_losses() == []
     path = write_generic_csv(tmp_path / "many.csv", latlon=False)
@@ -772,6 +772,13 @@ def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_usin
     assert all("samples with time going backwards 61" in line and " of 401 samples" in line for line in losses)
     monkeypatch.setattr(sys, "argv", ["twin", "evaluate", str(path), "--vessel", "yellowfish"])
     try:
+        cli.main()
+    except SystemExit as exit_info:
+        assert exit_info.code in (0, None)
+    err = capsys.readouterr().err
+    assert sum("many.csv: " in line and "samples dropped" in line for line in err.splitlines()) == 3
+    monkeypatch.setattr(sys, "argv", ["twin", "view", str(path), "--out", str(tmp_path / "many.rrd")])
+    try:  # the view of the log says it too
         cli.main()
     except SystemExit as exit_info:
         assert exit_info.code in (0, None)

@@ -15,7 +15,7 @@ from ..viz.report import comparison_png
 from .app import (REPORT_HELP, all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
                   check_wind_and_inputs, memory_for, note, positive, progress_bar, recordings_in, samples_fit, say,
-                  vessel_from)
+                  vessel_from, warn_recordings)
 from .ident import calibration_line
 
 # a converted copy's grid is no finer than a tenth of the sample period of its fastest synchronised stream (finer
@@ -271,6 +271,7 @@ def view(
         for k, path in enumerate(files):
             progress(f"reading {path.name}", k, len(files))
             recordings.append(read_recording(path, channels=mapping))
+        warn_recordings(recordings)
         wind = "measured" if wind_measured else None
         check_wind_and_inputs(recordings, wind, v, replayed=sim)
         progress("preparing" + (" and replaying the twin" if sim else ""), len(files), len(files))
