@@ -210,6 +210,7 @@ def run_reach(name: str, wind, work: Path) -> dict:
     out = {"split": name, "split_name": split.to_dict()["name"], "wind": wind or "none", "commit": checkout_commit(ROOT), "identify_seconds": round(seconds, 1),
            "chosen": ident.chosen.label if ident.chosen else None, "r2": {d: metrics[d]["r2"] for d in DOFS}}
     write_text_atomic(work / f"{name}_{wind or 'none'}.reach", json.dumps(out, indent=1, default=float) + "\n")
+    vessel_mod.save(ident.vessel, work / f"{name}_{wind or 'none'}.reach.vessel.json")  # for extrapolation_misfit
     return out
 
 

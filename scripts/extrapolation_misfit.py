@@ -5,7 +5,8 @@ tests for a twin fitted on the turning tests.
     python scripts/extrapolation_misfit.py [--work /tmp/extrapolation] [--out docs/results]
 
 Reads the twins scripts/extrapolation.py saved in --work (blueboat_activity_none.vessel.json,
-esso_turn_random_measured.vessel.json) and the judged runs of those splits; bands the free runs'
+esso_turn_random_measured.vessel.json, and where `--reach` saved it the twin identified on the judged
+runs themselves, TAG.reach.vessel.json) and the judged runs of those splits; bands the free runs'
 samples by speed, yaw rate, propeller speed and how long the propeller has been stopped
 (twin.fit.evaluate.misfit_by_state), and moves one coefficient at a time on the judged runs to show
 which part of the form the misfit answers to. That last table is read on the judged runs: it
@@ -77,6 +78,26 @@ def _bands(vessel, recs, case: str) -> list[dict]:
     return out
 
 
+MOVED_FACTOR = 1.5  # a coefficient the two twins hold this many times apart (or of other signs) is listed
+
+
+def moved(prior, fitted, reached) -> list[dict]:
+    """The hull and thruster coefficients the twin identified on the judged runs holds MOVED_FACTOR
+    or more times from the split's twin (or of the other sign), with the prior's value."""
+    out = []
+    for section in ("damping", "added_mass", "thrusters"):
+        for name, value in vars(getattr(reached, section)).items():
+            a, p = getattr(getattr(fitted, section), name), getattr(getattr(prior, section), name)
+            if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (value, a, p)):
+                continue
+            if a == value or (a == 0.0 and value == 0.0):
+                continue
+            far = (a * value < 0) or max(abs(a), abs(value)) >= MOVED_FACTOR * min(abs(a), abs(value))
+            if far:
+                out.append({"name": name, "prior": p, "split": a, "reach": value})
+    return out
+
+
 def sensitivities(case: str, vessel, prior, recs) -> list[dict]:
     """One coefficient moved at a time, scored on the judged runs."""
     _, wind, _, horizon_s, stride_s = CASES[case]
@@ -121,6 +142,22 @@ def page(raw: dict) -> ResultPage:
             [[row["by"], row["band"], row["samples"], row["share"]["u"], row["share"]["v"], row["share"]["r"],
               row["rms"], row["gain"], row.get("correlation"),
               *([row["second"]["gain"], row["second"]["correlation"]] if second else [])] for row in part["bands"]]))
+        if "reach" in part:
+            reach = part["reach"]
+            tables.append(ResultTable(
+                f"{part['tag']}: the same form identified on the judged runs themselves (the form's reach there: "
+                f"R² u {reach['r2']['u']:.3f}, v {reach['r2']['v']:.3f}, r {reach['r2']['r']:.3f}), by measured state "
+                f"as above: {dof}'s gain and correlation" + (f", and {second}'s" if second else ""),
+                ["state", "band", "samples", f"gain {dof}", f"correlation {dof}",
+                 *([f"gain {second}", f"correlation {second}"] if second else [])],
+                [[row["by"], row["band"], row["samples"], row["gain"], row.get("correlation"),
+                  *([row["second"]["gain"], row["second"]["correlation"]] if second else [])]
+                 for row in reach["bands"]]))
+            tables.append(ResultTable(
+                f"{part['tag']}: the coefficients the twin identified on the judged runs holds {MOVED_FACTOR:g} times "
+                "or more from the split's twin (or of the other sign)",
+                ["coefficient", "prior", "the split's twin", "identified on the judged runs"],
+                [[m["name"], m["prior"], m["split"], m["reach"]] for m in reach["moved"]]))
         tables.append(ResultTable(
             f"{part['tag']}: one coefficient moved, scored on the judged runs (a sensitivity; it fits and chooses "
             "nothing)", ["twin", "R² u", "R² v", "R² r"],
@@ -174,6 +211,13 @@ def main() -> int:
         identified_at = json.loads(split_file.read_text()).get("commit") if split_file.is_file() else None
         raw["cases"][case] = {"tag": tag, "identified_at": identified_at, "bands": _bands(vessel, recs, case),
                               "sensitivity": sensitivities(case, vessel, prior, recs)}
+        reach = args.work / f"{tag}.reach.vessel.json"
+        if reach.is_file():  # `extrapolation.py --reach` saved it: the same form identified on the judged runs
+            reached = vessel_mod.load(str(reach))
+            _, wind, _, horizon_s, stride_s = CASES[case]
+            raw["cases"][case]["reach"] = {"bands": _bands(reached, recs, case),
+                                           "r2": _scored(reached, recs, wind, horizon_s, stride_s),
+                                           "moved": moved(prior, vessel, reached)}
         print(f"{tag}: banded", flush=True)
     print(f"wrote {page(raw).write(args.out)}")
     return 0
