@@ -84,10 +84,17 @@ MOVED_FACTOR = 1.5  # a coefficient the two twins hold this many times apart (or
 def moved(prior, fitted, reached) -> list[dict]:
     """The hull and thruster coefficients the twin identified on the judged runs holds MOVED_FACTOR
     or more times from the split's twin (or of the other sign), with the prior's value."""
+    def blocks(v):
+        parts = {s: getattr(v, s) for s in ("damping", "added_mass", "thrusters")}
+        if v.mmg is not None:  # a propeller-and-rudder ship: its hull, propeller and rudder blocks and particulars
+            parts |= {"mmg": v.mmg, **{f"mmg.{k}": getattr(v.mmg, k) for k in ("hull", "propeller", "rudder")}}
+        return parts
+
     out = []
-    for section in ("damping", "added_mass", "thrusters"):
-        for name, value in vars(getattr(reached, section)).items():
-            a, p = getattr(getattr(fitted, section), name), getattr(getattr(prior, section), name)
+    ours, theirs, first = blocks(reached), blocks(fitted), blocks(prior)
+    for section, block in ours.items():
+        for name, value in vars(block).items():
+            a, p = getattr(theirs[section], name), getattr(first[section], name)
             if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (value, a, p)):
                 continue
             if a == value or (a == 0.0 and value == 0.0):
@@ -157,7 +164,7 @@ def page(raw: dict) -> ResultPage:
                 f"{part['tag']}: the coefficients the twin identified on the judged runs holds {MOVED_FACTOR:g} times "
                 "or more from the split's twin (or of the other sign)",
                 ["coefficient", "prior", "the split's twin", "identified on the judged runs"],
-                [[m["name"], m["prior"], m["split"], m["reach"]] for m in reach["moved"]]))
+                [[m["name"], m["prior"], m["split"], m["reach"]] for m in reach["moved"]] or [["none", "", "", ""]]))
         tables.append(ResultTable(
             f"{part['tag']}: one coefficient moved, scored on the judged runs (a sensitivity; it fits and chooses "
             "nothing)", ["twin", "R² u", "R² v", "R² r"],
