@@ -70,7 +70,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose, given_evidence  # noqa: E402
-from twin.diagnose.report import MIN_UNANIMOUS_BLOCKS as MIN_BLOCKS  # noqa: E402
+from twin.diagnose.verdict import MIN_UNANIMOUS_BLOCKS as MIN_BLOCKS  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.geodesy import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from twin.ident.identify import identify, read  # noqa: E402

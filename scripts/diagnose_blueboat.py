@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.diagnose.report import format_text, write_html  # noqa: E402
+from twin.diagnose.report import as_json, format_text, write_html  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.evaluate import evaluate  # noqa: E402
 from twin.fit.metrics import DOFS  # noqa: E402
@@ -65,7 +65,7 @@ def main() -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     write_html(d, args.out / "blueboat.html")
     write_text_atomic(args.out / "blueboat.json", json.dumps(
-        {"diagnosis": d.to_dict(), "refitted": refitted.to_dict(),
+        {"diagnosis": as_json(d), "refitted": as_json(refitted),
          "held_out_runs": {"untuned": before, "amended": after, "refitted and amended": after_refit},
          "seconds": seconds},
         indent=1, default=float) + "\n")

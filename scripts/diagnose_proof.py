@@ -47,6 +47,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose, given_evidence  # noqa: E402
+from twin.diagnose.report import answer, as_json  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
 from twin.synth.dataset import PROFILES, generate  # noqa: E402
 from twin.effects import as_effect, effect  # noqa: E402
@@ -181,7 +182,7 @@ def _score(name, effects, manoeuvres, seed, prior, recordings) -> dict:
     return {"case": name, "effects": effects, "manoeuvres": manoeuvres, "rows": rows, "extra": extra,
             "fit_before": d.fit_before, "fit_after": d.fit_after, "seconds": round(time.time() - started, 1),
             "unexplained": len(d.unexplained), "found_all": all(r["found"] for r in rows), "seed": seed,
-            "hints": [u.split(" may be missing")[0] for u in d.to_dict()["answer"]["unsettled"] if " may be missing" in u],
+            "hints": [u.split(" may be missing")[0] for u in answer(d)["unsettled"] if " may be missing" in u],
             "kept": [{"name": e["name"], "parameters": e["parameters"], "rivals": e["rivals"]} for e in d.effects]}
 
 
@@ -239,7 +240,7 @@ def run_world(case: str, seed: int, work: Path, params: Path) -> dict:
     started = time.time()
     prior = vessel_mod.load("yellowfish")
     d = diagnose(recordings, prior, **REFIT)
-    out = score_world(case, seed, truth, d.to_dict(), round(time.time() - started, 1))
+    out = score_world(case, seed, truth, as_json(d), round(time.time() - started, 1))
     for row, t in zip(out["rows"], truth["effects"]):
         row["given"] = given_truth(recordings, prior, t)
     return out

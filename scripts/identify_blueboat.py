@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.diagnose.report import answer  # noqa: E402
+from twin.diagnose.report import answer, as_json  # noqa: E402
 from twin.effects import apply_effects  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.fit.coverage import from_dict as envelope_from  # noqa: E402
@@ -198,10 +198,10 @@ def main() -> int:
 
 
 def summary(ctx: dict) -> dict:
-    return {"identify_first": ctx["first"].to_dict(), "diagnosis": ctx["found"].to_dict(),
+    return {"identify_first": ctx["first"].to_dict(), "diagnosis": as_json(ctx["found"]),
             "identify_second": ctx["second"].to_dict() if ctx["second"] else None,
             "held_out": ctx["held"], "all_ten_runs": ctx["everything"].to_dict(),
-            "held_out_residual": ctx["residual"].to_dict(),
+            "held_out_residual": as_json(ctx["residual"]),
             "held_out_calibrations": [c.to_dict() for c in ctx["held_calibrations"]],
             "held_out_by_manoeuvre": ctx["manoeuvres"]["held"], "train_by_manoeuvre": ctx["manoeuvres"]["train"],
             "seconds": ctx["seconds"], "targets": TARGETS,

@@ -4,7 +4,7 @@
 
 `twin diagnose` reports an effect that removes misfit on held-out blocks but acts in too few of them
 for z ≥ 3 as a hint, with how much more recording of the same kind would reach z 3 if the further
-blocks voted as these did (twin.diagnose.report.more_recording_factor). For each world case of the
+blocks voted as these did (twin.diagnose.verdict.more_recording_factor). For each world case of the
 proof (scripts/diagnose_proof.py, docs/results/diagnosis_proof.md) whose true effect was only a hint, this
 script records the case again with the same seed for that many times the length (scripts/world_sim.py,
 --duration-s), diagnoses it, and reports whether the truth is then named, whether anything else is,
@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
 from twin.diagnose.doctor import diagnose  # noqa: E402
-from twin.diagnose.report import more_recording_factor, promising  # noqa: E402
+from twin.diagnose.verdict import more_recording_factor, promising  # noqa: E402
 from twin.files import write_text_atomic  # noqa: E402
 from twin.formats import read_recording  # noqa: E402
 
@@ -48,7 +48,7 @@ def record(case: str, seed: int, folder: Path, params: Path, duration_s: float |
 
 
 def hints(d) -> dict[str, dict]:
-    """The candidates the answer reports as hints (twin.diagnose.report.promising), by name."""
+    """The candidates the answer reports as hints (twin.diagnose.verdict.promising), by name."""
     return {c["name"]: c for c in promising(d)}
 
 

@@ -363,7 +363,7 @@ def test_diagnose_given_judges_an_effect_as_given_without_a_search(tmp_path, pri
     g = json.loads((tmp_path / "g.json").read_text())
     assert g["earns_its_place"] and g["z"] >= 3 and g["excess_gain"] > 0.5 and g["given"] == ["thruster_asymmetry=0.85"]
     import twin
-    from twin.diagnose.doctor import given_text
+    from twin.diagnose.report import given_text
 
     wrong = twin.judge([ds.recording], prior, "thruster_asymmetry=1.15")  # in process: the same rule
     assert wrong.z <= -3 and "is contradicted by these recordings" in given_text(["thruster_asymmetry=1.15"], wrong)
@@ -506,7 +506,7 @@ def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable()
 
 
 def test_how_much_more_to_record_for_a_hint():
-    from twin.diagnose.report import more_recording_factor
+    from twin.diagnose.verdict import more_recording_factor
 
     def c(z, n_for, n_against):
         return {"z": z, "blocks_for": n_for, "blocks_against": n_against}
@@ -892,7 +892,7 @@ def test_screening_judges_every_log_on_windows_of_its_own():
 def test_a_given_effect_every_block_votes_against_is_said_to_be_opposed_where_too_few_blocks_contradict_it():
     """Seven blocks all against reach z −2.42 only (the exact test: p = 2⁻⁷): the answer says every block
     votes against it and how many blocks calling it contradicted takes; a split vote keeps the plain words."""
-    from twin.diagnose.doctor import given_text
+    from twin.diagnose.report import given_text
     from twin.diagnose.search import Evidence, _signed_rank_z
 
     votes = -np.linspace(0.1, 0.7, 7)

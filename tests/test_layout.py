@@ -72,6 +72,17 @@ def test_no_module_imports_from_a_floor_above():
     assert not wrong, "\n".join(wrong)
 
 
+
+# the modules that word results for a reader (text, HTML, plots); what computes them must not need them
+PRESENTATION = {"twin.diagnose.report"}
+
+
+def test_analysis_does_not_import_its_presentation():
+    graph = _graph()
+    wrong = [f"{m} imports {d}" for m, deps in graph.items() if m.startswith("twin.diagnose.")
+             and m not in PRESENTATION for d in deps & PRESENTATION]
+    assert not wrong, "\n".join(wrong)
+
 def test_no_import_cycle():
     graph = _graph()
     # a package's __init__ imports its own modules by design; a cycle through it is still a cycle

@@ -36,6 +36,8 @@ def test_ittc57_line_and_a_resistance_curve_that_holds_its_top_speed():
     assert np.max(np.abs(fitted - curve.resistance_n(u))) < 0.03 * 30.0
     # a top speed friction alone cannot hold leaves no negative residuary part
     assert resistance_curve(0.5, 1.0, 1.2, 3.0, 0.1).residuary_cr == 0.0
+    # at rest the line's floor keeps C_F finite: no resistance, not NaN (Re 0 below the line's domain)
+    assert curve.resistance_n(0.0) == 0.0 and np.isfinite(ittc57_cf(0.0))
 
 
 def test_slender_hull_derivatives_reduce_to_the_flat_plate_and_lose_their_ideal_fluid_parts():

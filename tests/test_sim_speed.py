@@ -1,4 +1,4 @@
-"""The fast single-run loop gives the bits of the loop it replaced (engine/sim_reference.py):
+"""The fast single-run loop gives the bits of the step-by-step reference loop (engine/sim_reference.py):
 open-loop series and closed-loop controllers, every thruster effect, both backends, the
 divergence message; its float arithmetic per tick equals the numpy maps; the vectorised CSV
 writer writes the text of csv.writer cell by cell. Correctness only: speed is measured by

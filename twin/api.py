@@ -28,7 +28,8 @@ from .engine.mjcf import CompiledVessel, compile_vessel as _compile_vessel
 from .engine.parameters import effective_parameters as _effective_parameters
 from .engine.sixdof import check_sea_for, with_known_sea, without_known_sea
 from .diagnose import doctor as _doctor
-from .diagnose.doctor import WINDOW_S, Diagnosis as _Found, given_evidence, given_text
+from .diagnose.doctor import WINDOW_S, Diagnosis as _Found, given_evidence
+from .diagnose.report import as_json, given_text
 from .diagnose.search import Z_MIN, excess_shown
 from .effects import EFFECTS, parse_effect
 from .errors import TwinError
@@ -825,8 +826,8 @@ class Effect(dict):
     """An effect a diagnosis named, with its values, their units and 95 % intervals, and its evidence.
 
     `name`, `parameters` (with units and 95 % intervals), `evidence` (a Judgement) and `text` (as
-    `twin effects` and `--given` take it). Still the dict of the diagnosis's JSON (`e["text"]`,
-    `to_dict()`), so code written against the JSON keeps working.
+    `twin effects` and `--given` take it). It is also the dict of the diagnosis's JSON (`e["text"]`,
+    `to_dict()`): what a script reads from a `--json` file it reads the same way here.
 
     Attributes:
         name (str): the effect's name in the library `twin effects` lists, e.g. "current".
@@ -909,6 +910,10 @@ class Diagnosis(_Found):
     def __repr__(self) -> str:
         named = "; ".join(repr(e) for e in self.effects) or "nothing named"
         return f"Diagnosis({self.prior.name}: {named}; {len(self.unexplained)} unexplained regions)"
+
+    def to_dict(self) -> dict:
+        """The JSON `twin diagnose --json` writes: the figures and the answer as the report words it."""
+        return as_json(self)
 
     def table(self) -> Table:
         """One row per parameter of every effect named (no rows when nothing is named)."""

@@ -47,6 +47,11 @@ class MassCase:
 
 @dataclass(frozen=True)
 class Vessel:
+    """A vessel as its vessel file describes it: its MJCF (hull meshes, masses, thruster and sensor
+    sites), added mass, damping, thrusters (or an MMG propeller and rudder), wind load, environment,
+    sensors, mass cases and each figure's source (`sources`); what identification left uncertain
+    (`uncertainty`). Frozen: `with_case`, `with_environment` and `dataclasses.replace` make new ones."""
+
     name: str
     mjcf: Path
     added_mass: AddedMass
@@ -74,12 +79,14 @@ class Vessel:
         return f"Vessel({self.name}{where}, case {self.case}, MJCF {self.mjcf.name})"
 
     def with_case(self, case: str) -> "Vessel":
+        """The same vessel loaded as its mass case `case` ("nominal" or one of `cases`)."""
         if case != "nominal" and case not in self.cases:
             known = ", ".join(sorted({"nominal", *self.cases}))
             raise TwinError(f"vessel '{self.name}' has no mass case '{case}' (known: {known})")
         return replace(self, case=case)
 
     def with_environment(self, environment: Environment) -> "Vessel":
+        """The same vessel in another environment (current, wind, sea)."""
         return replace(self, environment=environment)
 
     def feels_wind(self) -> bool:

@@ -54,9 +54,9 @@ def diagnose_command(
 ):
     """Where the twin and a recording disagree, which physics is missing, the amended twin."""
     # late: the command's stack (twin.diagnose, 0.6 s) would be paid at every `twin --help`
-    from ..diagnose.doctor import diagnose, given_evidence, given_text
+    from ..diagnose.doctor import diagnose, given_evidence
     from ..diagnose.locate import format_located
-    from ..diagnose.report import format_text, write_html, write_rrd
+    from ..diagnose.report import as_json, format_text, given_text, write_html, write_rrd
     from ..engine.sixdof import without_known_sea
     from ..formats import read_recording
 
@@ -111,7 +111,7 @@ def diagnose_command(
     typer.echo("\nwhere the residual concentrates (every window, twin before):")
     typer.echo(format_located(result.located[:12]))
     # every output's content first, so a result that cannot be written leaves no output half replaced
-    figures = json_text(result.to_dict()) if json_out is not None else None
+    figures = json_text(as_json(result)) if json_out is not None else None
     if write_model is not None:
         save(without_known_sea(result.amended), write_model)  # the twin, not the recordings' sea
         say(f"wrote {write_model}" + ("" if result.effects else " (nothing named: the twin unchanged)"))

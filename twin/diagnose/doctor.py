@@ -37,7 +37,6 @@ from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
-from scipy.stats import norm
 
 from ..effects import EFFECTS, apply_effects, candidates, effect
 from ..effects.coefficients import fit_groups
@@ -59,8 +58,8 @@ from ..ident.identify import check_wind
 from ..vessel import Vessel
 from . import locate as loc
 from .noise import estimate_noise
-from .report import FOLLOWS_R, answer, excess_share
-from .search import BLOCK_WINDOWS, Z_MIN, Kept, Search, excess_shown
+from .verdict import FOLLOWS_R
+from .search import BLOCK_WINDOWS, Kept, Search, excess_shown
 from .separate import comparable, separations
 
 WINDOW_S = 10.0
@@ -108,7 +107,7 @@ class Diagnosis:
                 "unexplained": self.unexplained, "overall": self.overall, "noise": self.noise, "rounds": self.rounds,
                 "windows": self.windows, "seconds": round(self.seconds, 1), "notes": self.notes,
                 "calibrations": [c.to_dict() for c in self.calibrations],
-                "kinematic": [k.to_dict() for k in self.kinematic], "answer": _answer(self),
+                "kinematic": [k.to_dict() for k in self.kinematic],
                 **({"refit": self.refit} if self.refit else {})}
 
 
@@ -335,36 +334,6 @@ def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wi
                            search.held_costs([given] * len(search.folds), wind=wind))
 
 
-def given_text(effects, e) -> str:
-    """One answer for given_evidence: whether the recordings prove the effects as given, how sure, what
-    they change."""
-    what = " + ".join(str(x) for x in effects) or "nothing"
-    if e.affected == 0:
-        return (f"{what} changes no window's prediction on these recordings: nothing to judge (a per-log effect "
-                "names its log by file name)")
-    blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
-    share = (f"removes {excess_share(e.rel_excess)}" if e.rel_excess >= 0
-             else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise" if e.rel_excess >= -1
-             else "adds more than all of the held-out misfit above the noise to it")
-    # said as what the effect does to the misfit: lowers (a gain) or raises it, each velocity alike
-    def moved(rel: float) -> str:
-        return f"{'lowers' if rel >= 0 else 'raises'} it {100 * abs(rel):.1f} %"
-
-    change = (f"held-out misfit: {moved(e.rel)} ({share}; "
-              + ", ".join(f"{k}: {moved(v)}" for k, v in e.dof_rel.items()) + ")")
-    if e.earns_its_place():
-        return f"{what} earns its place as given: {blocks}; {change}"
-    if e.z <= -Z_MIN:  # the blocks' vote, mirrored: as sure as a finding, the other way
-        return f"{what} is contradicted by these recordings: {blocks}; {change}"
-    if e.blocks_for == 0 and e.blocks_against >= 2:  # as far as these blocks can say, the data oppose it
-        fewest = math.ceil(math.log2(1.0 / norm.sf(Z_MIN)))  # all of n blocks one way: p = 2^−n (exact test)
-        return (f"{what} does not earn its place as given ({blocks}; {change}): every block votes against it, as "
-                f"far against as {e.blocks_against} blocks can be (calling it contradicted takes z ≤ −{Z_MIN:g}, "
-                f"{fewest} blocks or more)")
-    return (f"{what} does not earn its place as given ({blocks}; {change}): these recordings cannot prove it at "
-            "these values (the rule: z ≥ 3 and 5 % of the misfit above the noise)")
-
-
 def measured_wind_evidence(recordings: list[Recording], prior: Vessel, *, window_s: float = WINDOW_S):
     """The recordings' own measured wind (the anemometer through the vessel's wind load model, a known
     input: nothing fitted) judged by the diagnosis's rule against the twin without it, on the same
@@ -395,10 +364,6 @@ def _inert_constant_wind(diagnosis, logs: set[str]) -> None:
 def _calibrated(recordings: list[Recording], prior: Vessel):
     calibrations = kinematic_calibrations(recordings, compile_vessel(prior))
     return with_log_calibrations(prior, calibrations), calibrations
-
-
-def _answer(d) -> dict:
-    return answer(d)
 
 
 def _noise(recordings: list[Recording], preps: list[Prepared]) -> dict:

@@ -12,18 +12,22 @@ from __future__ import annotations
 import base64
 import html
 import io
+import math
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import norm
 
 from ..run import Run
 from ..files import write_text_atomic
 from ..replay import stitched_runs
-from ..effects import candidates
 from ..engine.mjcf import compile_vessel
 from ..outputs import write
+from .doctor import Diagnosis
 from .search import BLOCK_WINDOWS, REL_EXCESS, Z_MIN, Z_PREFER
 from .separate import settling
+from .verdict import FOLLOWS_R, MIN_UNANIMOUS_BLOCKS, MODEL_FORM_SIGMA, TIMING_EFFECTS, at_edge, family, \
+    more_recording_factor, promising
 
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
@@ -43,6 +47,42 @@ def z_text(z: float, bar: float = 3.0) -> str:
     judged against (2.98 is not 3.0: z 3 is needed)."""
     one = f"{z:.1f}"
     return f"{z:.2f}" if z != bar and float(one) == bar else one
+
+
+def given_text(effects, e) -> str:
+    """One answer for given_evidence: whether the recordings prove the effects as given, how sure, what
+    they change."""
+    what = " + ".join(str(x) for x in effects) or "nothing"
+    if e.affected == 0:
+        return (f"{what} changes no window's prediction on these recordings: nothing to judge (a per-log effect "
+                "names its log by file name)")
+    blocks = f"z {e.z:.2f} over {e.blocks_for + e.blocks_against} blocks ({e.blocks_for} for, {e.blocks_against} against)"
+    share = (f"removes {excess_share(e.rel_excess)}" if e.rel_excess >= 0
+             else f"adds {-100 * e.rel_excess:.1f} % to the held-out misfit above the noise" if e.rel_excess >= -1
+             else "adds more than all of the held-out misfit above the noise to it")
+    # said as what the effect does to the misfit: lowers (a gain) or raises it, each velocity alike
+    def moved(rel: float) -> str:
+        return f"{'lowers' if rel >= 0 else 'raises'} it {100 * abs(rel):.1f} %"
+
+    change = (f"held-out misfit: {moved(e.rel)} ({share}; "
+              + ", ".join(f"{k}: {moved(v)}" for k, v in e.dof_rel.items()) + ")")
+    if e.earns_its_place():
+        return f"{what} earns its place as given: {blocks}; {change}"
+    if e.z <= -Z_MIN:  # the blocks' vote, mirrored: as sure as a finding, the other way
+        return f"{what} is contradicted by these recordings: {blocks}; {change}"
+    if e.blocks_for == 0 and e.blocks_against >= 2:  # as far as these blocks can say, the data oppose it
+        fewest = math.ceil(math.log2(1.0 / norm.sf(Z_MIN)))  # all of n blocks one way: p = 2^−n (exact test)
+        return (f"{what} does not earn its place as given ({blocks}; {change}): every block votes against it, as "
+                f"far against as {e.blocks_against} blocks can be (calling it contradicted takes z ≤ −{Z_MIN:g}, "
+                f"{fewest} blocks or more)")
+    return (f"{what} does not earn its place as given ({blocks}; {change}): these recordings cannot prove it at "
+            "these values (the rule: z ≥ 3 and 5 % of the misfit above the noise)")
+
+
+def as_json(d) -> dict:
+    """A diagnosis as the JSON `twin diagnose --json` writes: its figures (doctor.Diagnosis.to_dict)
+    and the answer as the report words it (`answer`)."""
+    return {**Diagnosis.to_dict(d), "answer": answer(d)}
 
 
 def _shown(dof: str, value):
@@ -110,9 +150,6 @@ ANTENNA_NEXT = ("spins in place both ways, four or more each, each turning 30° 
                 "only there do the fixes swing round the hull's middle whatever the twin's form")
 ANTENNA_NEXT_SHIP = ("the antenna's place from the ship's drawings, put in the vessel file (sensors.antenna_offset_m): "
                      "the kinematics read it only from turns on the spot, which a propeller-and-rudder ship does not make")
-TIMING_EFFECTS = ("clock_offset", "heading_latency", "gnss_latency")
-MODEL_FORM_SIGMA = 3.0  # a DOF still this many noise σ off after the amendment: the twin's form is off there
-FOLLOWS_R = 0.3  # doctor._unexplained lists the signals a residual correlates with beyond this
 
 
 def _block_text(d) -> str:
@@ -149,11 +186,11 @@ def answer(d) -> dict:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: the blocks prefer {r['name']} (z "
                                         f"{-r['z']:.1f} between the two), but it does not earn its place by itself: "
                                         f"{e['name']} may stand in for it")
-                families |= {_family(d, r["name"]), _family(d, e["name"])}  # what settles either
+                families |= {family(d, r["name"]), family(d, e["name"])}  # what settles either
             elif not r["separable"]:
                 out["unsettled"].append(f"{e['name']} or {r['name']}: this recording cannot tell them apart "
                                         f"(blocks z {z_text(r['z'], Z_MIN)})")
-                families |= {_family(d, r["name"]), _family(d, e["name"])}
+                families |= {family(d, r["name"]), family(d, e["name"])}
     window_s = float(d.windows.get("length_s") or 10.0)
     settle = [_settling(e["name"], rival, seps, window_s) for e in d.effects
               for rival, seps in (e.get("separations") or {}).items() if seps]
@@ -198,10 +235,10 @@ def answer(d) -> dict:
             f"from the {c['blocks_for'] + c['blocks_against']} blocks in which "
             f"it changes the prediction ({c['blocks_for']} for, {c['blocks_against']} against; z {Z_MIN:g} needs more "
             f"such blocks{_more_to_record(d, c)})")
-        families.add(_family(d, c["name"]))
+        families.add(family(d, c["name"]))
     candidates_tried = {c["name"] for r in d.rounds for c in r.get("candidates", [])}
     if not d.effects and out["form"]:
-        families |= {_family(d, n) for n in candidates_tried}
+        families |= {family(d, n) for n in candidates_tried}
     ship = d.prior.thrusters.kind == "propeller_rudder"
     untold = [f for f in getattr(d, "kinematic", []) if not (f.told or f.absent)]
     families |= {"timing" for f in untold if f.effect in TIMING_EFFECTS}
@@ -244,30 +281,6 @@ def _settling(kept: str, rival: str, seps: list[dict], window_s: float) -> str:
             "its windows)")
 
 
-def at_edge(d) -> list[dict]:
-    """Candidates of the last round that would have earned their place but for a parameter fitted
-    to an unphysical edge of its range on every fold (search.at_unphysical_edge)."""
-    last = d.rounds[-1].get("candidates", []) if d.rounds else []
-    return [c for c in last if c.get("at_edge") and c["z"] >= Z_MIN and c["excess_gain"] >= REL_EXCESS]
-
-
-MIN_UNANIMOUS_BLOCKS = 10  # the fewest blocks whose votes, all for, reach z ≥ 3 in the exact test (z 3.1)
-
-
-def more_recording_factor(candidate: dict) -> float | None:
-    """How many times as long a recording of the same kind would take a candidate's z (a round's
-    record: z, blocks_for, blocks_against) to Z_MIN if the further blocks voted as these did: z grows
-    as √(blocks) at a fixed mix of votes, and no fewer than MIN_UNANIMOUS_BLOCKS blocks can reach it
-    (which, every block voting for, is exactly what it takes).
-    None where z ≤ 0 (no trend to extrapolate)."""
-    n = candidate["blocks_for"] + candidate["blocks_against"]
-    if candidate["z"] <= 0 or n == 0:
-        return None
-    if candidate["blocks_against"] == 0:  # every block for: the exact test needs just ten such blocks
-        return max(MIN_UNANIMOUS_BLOCKS / n, 1.0)
-    return max((Z_MIN / candidate["z"]) ** 2, MIN_UNANIMOUS_BLOCKS / n)
-
-
 def _more_to_record(d, c: dict) -> str:
     """`more_recording_factor` as the hint's closing words ("" where it has none)."""
     factor = more_recording_factor(c)
@@ -276,36 +289,6 @@ def _more_to_record(d, c: dict) -> str:
         return ""
     return (f"; if further blocks voted as these did, a recording of the same kind of driving about "
             f"{factor:.1f}× as long as these {minutes:.0f} min of windows would reach it")
-
-
-PROMISING_Z = 2.0  # below Z_MIN: worth recording more for, never named
-PROMISING_UNANIMOUS = 3  # or every one of at least this many affected blocks for it (4 of 4 is z 1.5 at best)
-
-
-def promising(d) -> list[dict]:
-    """Candidates of the last round (the one where nothing more earned its place) that remove at
-    least REL_EXCESS of the excess misfit with z ≥ PROMISING_Z or all of at least
-    PROMISING_UNANIMOUS affected blocks for them, but too few blocks for z ≥ Z_MIN: the recording
-    hints, it does not prove."""
-    if not d.rounds:
-        return []
-    kept = {e["name"] for e in d.effects}
-    best = []
-    for c in d.rounds[-1].get("candidates", []):
-        unanimous = c["blocks_against"] == 0 and c["blocks_for"] >= PROMISING_UNANIMOUS
-        if c["name"] in kept or c["z"] >= Z_MIN or c["excess_gain"] < REL_EXCESS or \
-                not (c["z"] >= PROMISING_Z or unanimous):
-            continue
-        if any(_family(d, c["name"]) == _family(d, b["name"]) for b in best):
-            continue  # its rivals of the same family tie with it: one hint per family
-        best.append(c)
-    return best
-
-
-def _family(d, name: str) -> str:
-    # two logs: the per-log effects have a family too; any reference voltage: the supply effect's family
-    cand = candidates(d.prior, ["log 1", "log 2"], supply_ref_v=1.0).get(name)
-    return cand.family if cand is not None else ""
 
 
 def _worst_bin(d, dof: str) -> str:

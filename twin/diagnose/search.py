@@ -92,7 +92,7 @@ quantities takes up more of the noise than one of one: a thrust scale of 0.83 lo
 damping that scaled Xu ×5.6, Yv and Nr ×1.6 (blocks between the two z 0.14). The blocks' vote is
 the test the rule trusts everywhere else, and the fewer quantities the reading that claims less
 where the recording cannot tell. The blocks' lean was chosen on the
-proof's recordings of random seeds 1-10: wherever the kept effect was the truth's, its rivals had
+diagnosis proof's library recordings (docs/results/diagnosis_proof.md): wherever the kept effect was the truth's, its rivals had
 z ≥ −0.7; the rivals at z ≤ −1.8 were the truth beside a stand-in (a u³ drag kept as
 thrust_speed_loss, z −1.8; a slew limit kept as input_delay, z −2.7) or nearer it (input_delay
 rather than added mass for a slew limit, z −2.0). Uncertainty: the
@@ -226,6 +226,10 @@ class _Costs:
 
 
 class Search:
+    """The diagnosis's search over one set of recordings (module docstring): the windows split into
+    blocks and folds, each candidate effect fitted on some folds and judged on the held-out blocks,
+    round after round until nothing more earns its place; `run` returns what was kept."""
+
     def __init__(self, prior: Vessel, data: Measurements, windows: list[Window], cache: ModelCache,
                  library: dict[str, Candidate], noise_sd: np.ndarray, log=None,
                  screen_cache: ModelCache | None = None, core: list | None = None, core_weight: float = 1.0,

@@ -63,11 +63,16 @@ class Geometry:
 
 @dataclass
 class CompiledVessel:
+    """A vessel with its MuJoCo model (compiled from its MJCF and vessel file: `compile_vessel`) and
+    the geometry read from that model (rigid-body mass, CG, yaw inertia, site positions)."""
+
     vessel: Vessel
     model: mujoco.MjModel
     geometry: Geometry
 
     def hydro(self, terms: Terms | None = None) -> HydroModel:
+        """The hydrodynamic model the callbacks evaluate (M_RB, M_A, damping, thrusters), with the
+        terms switched on or off by `terms` (default: every term)."""
         return hydro_model(self.vessel, self.geometry, terms)
 
     @property

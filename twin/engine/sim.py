@@ -9,7 +9,7 @@ divergence replay needs), two writes to ctrl, and at a controller tick the
 controller and its thrust command in float arithmetic (engine/tick.py). Open-loop
 commands are computed for every step ahead; η, ν, the held inputs and the delivered
 thrust come from the stored states afterwards, in whole-array operations. The
-results are the bits of the slower loop this replaced (engine/sim_reference.py,
+results are the bits of the step-by-step reference loop (engine/sim_reference.py,
 tests/test_sim_speed.py).
 
 A propeller-and-rudder ship's controls are its inputs (n rps, δ rad) themselves; its run's

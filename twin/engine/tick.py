@@ -3,8 +3,8 @@ thrusters (PWM µs or thrust N) → the thrust command (N), as `drive.to_thruste
 `ThrusterModel.command` compute them on arrays.
 
 Why a second version: numpy on 2-element arrays costs microseconds per call (clip, where,
-polyval, array creation), and a closed-loop run pays them at every control tick: that was
-most of `sim.simulate`'s time. The same IEEE-754 operations in the same order on Python
+polyval, array creation), and a closed-loop run pays them at every control tick, where they
+would be most of `sim.simulate`'s time. The same IEEE-754 operations in the same order on Python
 floats give the same bits (Horner's scheme started from 0 as `np.polyval` does; clip as
 max-then-min, which keeps NaN as np.clip does), which tests/test_sim_speed.py checks
 against the numpy versions. Anything that is not a pair of plain numbers (numpy float32,

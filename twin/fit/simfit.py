@@ -66,6 +66,11 @@ MAP_FTOL = 1e-4  # relative cost change at which a maximum a posteriori fit stop
 
 @dataclass
 class FitResult:
+    """What a fit returns: the fitted vessel, each coefficient's estimate (prior, value, 1-σ, whether
+    the data pin it), the cost before and after (½ Σ residual²), the windows and rollouts it took and
+    its time (s); `meta` the settings it ran with; the objective, coordinates, Jacobian and covariance
+    at the solution for the callers that continue from it (`start=`) or draw from it."""
+
     vessel: Vessel
     estimates: list[Estimate]
     cost_before: float

@@ -32,6 +32,10 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Damping:
+    """The hull's damping coefficients in Fossen's signs (module docstring: a dissipative hull has
+    Xu, Xuu, Yv, Nr ≤ 0), linear (N s/m, N m s/rad), quadratic (N s²/m², ...) and speed-grown
+    (Yuv, Yur, Nuv, Nur); `astern_excess` dimensionless."""
+
     Xu: float = 0.0
     Xuu: float = 0.0
     Yv: float = 0.0

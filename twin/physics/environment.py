@@ -36,6 +36,11 @@ MAX_WIND_M_S = 40.0
 
 @dataclass(frozen=True)
 class Environment:
+    """The water and air the vessel moves in (module docstring): a current and a wind, each a speed
+    (m/s, ≥ 0) and a direction (deg from north: where the current flows to, where the wind blows from);
+    a wind per log (name, speed m/s, direction deg) that replaces the constant one on that log; a
+    known sea's steady drift (m/s, NED) and mean load."""
+
     current_speed_m_s: float = 0.0
     current_dir_deg: float = 0.0
     wind_speed_m_s: float = 0.0

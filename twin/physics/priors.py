@@ -57,8 +57,9 @@ class Design:
 
 
 def ittc57_cf(reynolds) -> np.ndarray:
-    """C_F of the ITTC-1957 line at Reynolds number(s) Re = uL/ν (Re > 100)."""
-    re = np.maximum(np.asarray(reynolds, float), 100.0)
+    """C_F of the ITTC-1957 line at Reynolds number(s) Re = uL/ν, on arrays: physics.mmg.ittc57_cf's
+    line and floor (Re at least 1e3, where the line is finite; at 100 it divides by zero)."""
+    re = np.maximum(np.asarray(reynolds, float), 1e3)
     return 0.075 / (np.log10(re) - 2.0) ** 2
 
 

@@ -41,6 +41,10 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Sensors:
+    """How the vessel's sensors and logs depart from the truth (module docstring): compass bias and
+    deviation (deg), the GNSS antenna's offset from the MJCF site (m, body FRD), the PWM log's clock
+    offset and the GNSS and heading latencies (s), and where the yaw rate is read."""
+
     heading_bias_deg: float = 0.0
     compass_deviation_deg: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # B, C, D, E
     compass_motor_deg: tuple[float, float] = (0.0, 0.0)  # B_m, C_m: the motors' deviation at full throttle

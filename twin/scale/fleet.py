@@ -34,7 +34,7 @@ from typing import Callable
 import numpy as np
 
 from ..diagnose import doctor
-from ..diagnose.report import write_html
+from ..diagnose.report import as_json, write_html
 from ..errors import TooShort, TwinError
 from ..files import finite_json, json_default, kept_data, same_file, write_bytes_atomic, write_text_atomic
 from ..formats import read_recording
@@ -145,7 +145,7 @@ def _diagnosed(job: _Job, item: _Item) -> dict:
             out["measured_wind"] = bool(len(rec.wind))
             diagnose = job.diagnose or _default_diagnose()
             result = diagnose([rec], job.vessels[item.vessel], **job.options)
-            out.update(ok=True, report=_plain(result.to_dict()), effects=_plain(list(result.effects)))
+            out.update(ok=True, report=_plain(as_json(result) if isinstance(result, doctor.Diagnosis) else result.to_dict()), effects=_plain(list(result.effects)))
             if job.html:
                 page = Path(folder) / "report.html"
                 write_html(result, page)
