@@ -244,6 +244,8 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("dataset-shards", "--retries", "-5", "--out", "OUT"), "--retries must be at least 0"),
     (("convert", "LOG", "OUT.csv", "--grid-dt", "1e-9"), "samples, more than this machine's memory"),
     (("convert", "LOG", "OUT.csv", "--grid-dt", "0"), "--grid-dt must be a positive finite number"),
+    (("convert", "LOG", "OUT.csv", "--out", "OUT2.csv"), "give the output once: as DST after SRC, or as --out"),
+    (("convert", "LOG"), "give the output: twin convert SRC DST (or --out DST)"),
     (("dataset-shards", "--seed", "-1", "--out", "OUT"), "--seed must be a whole number ≥ 0"),
     (("montecarlo", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "1,1,30"), "steeper than breaking"),
     (("montecarlo", "--vessel", "cybership1", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "0.2,2.5,30"),

@@ -71,6 +71,10 @@ def test_identify_then_evaluate(dataset):
     assert seen["windows"] == {name: g["windows"] for name, g in split["groups"].items()}
     assert 0.0 < split["beyond_fit"]["share_of_samples"] <= 0.06 and "beyond that span" in done.stdout
     assert "of the 1 log the twin was fitted on" in done.stdout
+    # its own log is said to be the fit's own, and no run is asked for to reach where it already is
+    said = " ".join(done.stdout.split())  # the identified tlog judged as its CSV: the same log
+    assert seen["sources"] == ["train.tlog"] and "train.csv bears the name of a log the twin was fitted on" in said
+    assert "record runs that reach there" not in done.stdout
     # a vessel file whose record of the fit is damaged is refused in one line, before any work
     broken = json.loads(model.read_text())
     broken["uncertainty"]["fitted_on"] = {"ranges": {"u": [1.0, 0.0]}}

@@ -58,6 +58,10 @@ def test_convert_and_view(sim_tlog, tmp_path):
     np.testing.assert_allclose(b.gnss["lat_deg"][at_fix], a.gnss["lat_deg"], rtol=0, atol=1e-7)
     thinned = np.searchsorted(a.heading.t, b.heading.t - 1e-6)
     np.testing.assert_allclose(b.heading["psi_rad"], a.heading["psi_rad"][thinned], atol=1e-6)
+    # the output named as every other command names it: the same file
+    p = twin("convert", sim_tlog / "z.tlog", "--out", tmp_path / "z2.mcap")
+    assert p.returncode == 0, p.stderr
+    np.testing.assert_array_equal(read_recording(tmp_path / "z2.mcap").gnss["lat_deg"], b.gnss["lat_deg"])
     p = twin("view", tmp_path / "z.mcap", "--sim", "--vessel", "yellowfish", "--out", tmp_path / "v.rrd",
              "--png", tmp_path / "v.png")
     assert p.returncode == 0, p.stderr

@@ -481,6 +481,29 @@ def test_the_answer_states_a_yaw_rate_residual_in_degrees_per_second():
     assert "(RMS 5.73 °/s)" in answer(d)["form"][0]
 
 
+def test_the_answer_says_a_kinematic_finding_is_in_both_sides_of_what_it_changes():
+    """A heading latency told from the kinematics is read into the logs before any fit: the held-out
+    R² before and after are the same, and the answer says why rather than seeming to name a no-op."""
+    from types import SimpleNamespace
+
+    from twin.diagnose.report import answer
+
+    told = {"name": "heading_latency", "kind": "kinematic", "parameters": {"latency_s": 0.16}, "ci": {},
+            "rivals": [], "evidence": {"why": "the heading answers steps late", "basis": "input steps"}}
+    fit = {k: {"r2": 0.9, "mae": 0.1} for k in "uvr"}
+    d = SimpleNamespace(effects=[told], rounds=[], unexplained=[], located=[], fit_before=fit, fit_after=fit,
+                        prior=vessel_mod.load("blueboat"), windows={"length_s": 10.0, "windows": 90})
+    changes = answer(d)["changes"]
+    assert changes.startswith("held-out R² u 0.900 → 0.900") and "both sides carry it" in changes
+    assert "nothing of the dynamics was named" in changes
+    # a named effect that leaves one velocity worse on the held-out blocks is said so
+    worse = {**fit, "u": {"r2": 0.92, "mae": 0.1}}
+    before = {**fit, "u": {"r2": 0.955, "mae": 0.1}}
+    named = {**told, "kind": "dynamic", "name": "reverse_thrust", "z": 3.4, "excess_gain": 0.2}
+    changes = answer(SimpleNamespace(**{**vars(d), "effects": [named], "fit_before": before, "fit_after": worse}))
+    assert "u worse with it" in changes["changes"] and "both sides" not in changes["changes"]
+
+
 def test_a_rival_the_blocks_prefer_is_reported_as_preferred_not_as_inseparable():
     """Seed 23's tidal current: compass_deviation kept, current preferred by the blocks (z 4.3 between
     the two) but short of its own place; the answer must not say the two cannot be told apart."""

@@ -25,6 +25,8 @@ from twin.formats import read_recording, write_recording, write_run
 from twin.prepare.prepared import hold
 from twin.recording import increasing_subsequence
 
+import twin_command
+
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 OP = (0.275, -0.2625)  # Yellowfish lever arm, [Yellowfish-TR eq. 29]: antenna O → body origin CO
 LAT0, LON0, H0 = 37.3456, -5.9312, 12.0
@@ -471,10 +473,11 @@ def test_out_of_range_samples_are_dropped_and_counted(tmp_path):
     assert "latitude outside ±90°: 1" in format_summary(rec.summary())
 
 
-def test_an_absurd_heading_is_dropped_and_a_heading_in_radians_is_warned_of(tmp_path):
+def test_an_absurd_heading_is_dropped_and_a_heading_in_radians_is_refused_for_fits(tmp_path):
     """A heading of 1e308° is no compass reading: dropped and counted. A heading_deg column holding
     radians (it spans 2π while the circle's track turns through R·T_END = 8 rad) reads as a vessel
-    pointing one way: warned of, naming the column; the column in degrees is not."""
+    pointing one way: said by `twin info`, naming the column, and refused by the commands that fit or
+    score a log (a twin fitted on it would be of another boat); the column in degrees is not."""
     path = write_generic_csv(tmp_path / "run.csv")
     rec = read_recording(path)
     assert rec.warnings == []
@@ -487,9 +490,15 @@ def test_an_absurd_heading_is_dropped_and_a_heading_in_radians_is_warned_of(tmp_
         r[3] = f"{math.radians(float(r[3])) % (2 * math.pi):.6f}" if r[3] != "1e308" else "1.0"
     path.write_text("\n".join(",".join(r) for r in rows) + "\n")
     rec = read_recording(path)
-    assert len(rec.warnings) == 1 and rec.warnings[0].startswith("heading_deg spans only 6.2")
-    assert "the column looks like radians (name it psi for radians, or give degrees)" in rec.warnings[0]
-    assert f"warning: {rec.warnings[0]}" in format_summary(rec.summary())
+    assert rec.warnings == [] and len(rec.misread) == 1 and rec.misread[0].startswith("heading_deg spans only 6.2")
+    assert "the column looks like radians (name it psi for radians, or give degrees)" in rec.misread[0]
+    assert f"warning: {rec.misread[0]} (identify, evaluate and diagnose refuse" in format_summary(rec.summary())
+    for command in (["identify", "--params", "thrust_gain"], ["evaluate"], ["diagnose"]):
+        done = twin_command.twin(command[0], str(path), "--vessel", "yellowfish", *command[1:],
+                                 "--out" if command[0] == "identify" else "--json", str(tmp_path / "out.json"))
+        assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+            f"error: run.csv: {rec.misread[0]}"], (command, done.stderr)
+        assert not (tmp_path / "out.json").exists()
 
 
 def test_a_directory_is_not_a_missing_file(tmp_path):
@@ -673,7 +682,7 @@ def test_a_local_position_no_place_on_earth_can_have_is_dropped_and_counted(tmp_
 def test_a_column_twice_is_refused_and_columns_read_in_place_of_others_or_a_time_in_ms_are_warned_of(tmp_path):
     """Which of two heading_deg columns a reader took would be a guess: refused. Positions given as
     lat, lon and as north, east, or a heading as heading_deg and psi: the one read is named. A t in
-    milliseconds (10 Hz steps of 100 'seconds') is warned of."""
+    milliseconds (10 Hz steps of 100 'seconds') is said as read in the wrong unit (Recording.misread)."""
     path = write_generic_csv(tmp_path / "run.csv")
     rows = [r.split(",") for r in path.read_text().splitlines()]
     twice = tmp_path / "twice.csv"
@@ -689,7 +698,7 @@ def test_a_column_twice_is_refused_and_columns_read_in_place_of_others_or_a_time
     ms.write_text("\n".join(",".join([r[0] if i == 0 else f"{float(r[0]) * 1000:.0f}"] + r[1:])
                             for i, r in enumerate(rows)) + "\n")
     assert any(w.startswith("t steps by 100 s (median): the generic CSV's t is in seconds")
-               for w in read_recording(ms).warnings)
+               for w in read_recording(ms).misread)
 
 
 @pytest.mark.parametrize("data,why", [

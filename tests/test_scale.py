@@ -156,6 +156,10 @@ def test_band_against_a_recording(vessel, tmp_path):
     assert inside.inside["u"] > 0.9 and inside.inside["r"] > 0.8 and inside.inside["deviation"] > 0.9
     assert outside.inside["u"] < 0.3 and outside.inside["deviation"] < 0.5
     assert "share of the recording inside" in inside.text() and set(inside.to_dict()["inside"]) >= {"u", "v", "r"}
+    # draws left out of the band are said beside it, as `twin montecarlo` says them
+    lossy = replace(inside, draws=46, diverged=2, rejected=5).text().splitlines()[0]
+    assert lossy.startswith("band of 46 draws (2 more diverged on the recording and are left out) (5 redrawn as ")
+    assert "diverged" not in inside.text().splitlines()[0] or inside.diverged
 
 
 # ---------------------------------------------------------------- datasets

@@ -1,5 +1,6 @@
 """Vessel files a user writes and moves: identified and amended vessels keep working wherever they go."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -121,6 +122,36 @@ def test_masses_in_grams_are_refused_where_the_hull_meshes_say_what_floats(tmp_p
     with pytest.raises(TwinError, match=r"9006 kg cannot float: its hull meshes displace 98.2. kg"):
         compile_vessel(vessel_mod.load(str(tmp_path / "boat.json")))
     assert compile_vessel(vessel_mod.load("blueboat")).geometry.rigid.mass_kg == pytest.approx(15.0)
+
+
+def _own_copy(tmp_path, name: str, mjcf_edit=lambda x: x, file_edit=lambda d: None) -> Path:
+    """A shipped vessel copied beside its own MJCF, each edited."""
+    mjcf = mjcf_edit((vessel_mod.MODEL_DIR / f"{name}.xml").read_text()).replace(
+        'meshdir="../assets"', f'meshdir="{vessel_mod.MODEL_DIR.parent / "assets"}"')
+    (tmp_path / "boat.xml").write_text(mjcf)
+    data = json.loads((vessel_mod.MODEL_DIR / f"{name}.json").read_text()) | {"mjcf": "boat.xml"}
+    file_edit(data)
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    return tmp_path / "boat.json"
+
+
+def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_catches_them(tmp_path):
+    """A hull of boxes with its masses in grams (no mesh to say what floats), thrusters placed in a
+    forward-left-up frame (every differential thrust would turn the twin the other way) and an added
+    mass in grams: each would run as another boat, and each is refused naming what to fix; the shipped
+    vessels pass."""
+    grams = _own_copy(tmp_path, "cybership1", lambda x: x.replace('mass="23.8"', 'mass="23800"'))
+    with pytest.raises(TwinError, match=r"23800 kg cannot float: the box around its geoms \(1.19 x 0.3 x 0.16 m\)"):
+        compile_vessel(vessel_mod.load(str(grams)))
+    mirrored = _own_copy(tmp_path, "blueboat", lambda x: x.replace('pos="-0.52 -0.285 0.10"', 'pos="LEFT"').replace(
+        'pos="-0.52 0.285 0.10"', 'pos="-0.52 -0.285 0.10"').replace('pos="LEFT"', 'pos="-0.52 0.285 0.10"'))
+    with pytest.raises(TwinError, match=r"site 'thruster_left' at y = \+0.285 m lies to starboard of 'thruster_right'"):
+        compile_vessel(vessel_mod.load(str(mirrored)))
+    heavy = _own_copy(tmp_path, "blueboat", file_edit=lambda d: d["added_mass"].__setitem__("Xudot", -1486.0))
+    with pytest.raises(TwinError, match=r"added_mass.Xudot -1486 kg is 99 times the rigid body's 15 kg"):
+        compile_vessel(vessel_mod.load(str(heavy)))
+    for name in ("blueboat", "yellowfish", "cybership1", "esso_osaka"):
+        compile_vessel(vessel_mod.load(name))
 
 
 def test_a_thruster_site_in_millimetres_is_refused_before_the_twin_diverges(tmp_path):

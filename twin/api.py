@@ -41,7 +41,7 @@ from .fit.windows import ModelCache
 from .formats import read_recording as _read_recording
 from .physics.waves import Sea, parse_sea
 from .prepare import prepare as _prepare
-from .recording import Recording, check_no_shared_stretch
+from .recording import Recording, check_no_shared_stretch, check_not_misread
 from .run import Run
 from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
 from .verify.crosscheck import cases, crosscheck as _crosscheck
@@ -274,6 +274,7 @@ def _recordings(recordings, vessel: Vessel | None = None) -> list:
         if id(r) in seen:
             raise TwinError(f"recording {i} is recording {seen[id(r)]} again ('{r.source}'): give each recording once")
         seen[id(r)] = i
+    check_not_misread(recs)
     check_no_shared_stretch(recs)
     if vessel is not None:
         for r in recs:

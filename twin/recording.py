@@ -109,7 +109,9 @@ class Recording:
     `dropped` lists (reason, count) of what the reader skipped or found missing
     (bad-CRC packets, NaN rows, backwards time, GNSS without fix, dropouts > 1 s);
     `notes` are one-line remarks (no GNSS in this log, how the thrusters were mapped); `warnings`
-    say the data may be misread (a heading in degrees that looks like radians).
+    say the data may be misread (two columns of one quantity, one read); `misread` that they are read
+    in a unit they are not in (a heading_deg column in radians, a time in milliseconds): a command that
+    fits or scores a log refuses it (`check_not_misread`), `twin info` and `twin view` show it.
     `pwm_neutral_us` is the (left, right) PWM of zero thrust after mirroring.
     """
 
@@ -129,7 +131,8 @@ class Recording:
     origin_s: float = 0.0
     dropped: list[tuple[str, int]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)  # the data may be misread (a unit): every command says so
+    warnings: list[str] = field(default_factory=list)  # the data may be misread: every command says so
+    misread: list[str] = field(default_factory=list)  # read in a unit they are not in: fits and scores refuse
     meta: dict = field(default_factory=dict)
 
     def streams(self) -> dict[str, Stream]:
@@ -206,6 +209,7 @@ class Recording:
             "dropped": [[reason, int(n)] for reason, n in self.dropped],
             "notes": list(self.notes),
             "warnings": list(self.warnings),
+            "misread": list(self.misread),
             **({"sea": dict(self.meta["sea"])} if isinstance(self.meta.get("sea"), dict) else {}),
         }
 
@@ -232,6 +236,8 @@ def format_summary(summary: dict) -> str:
         lines.append(f"  sea      {sea_text(summary['sea'])}")
     lines += [f"  note: {note}" for note in summary["notes"]]
     lines += [f"  warning: {text}" for text in summary.get("warnings", [])]
+    lines += [f"  warning: {text} (identify, evaluate and diagnose refuse the log as it is)"
+              for text in summary.get("misread", [])]
     return "\n".join(lines)
 
 
@@ -355,7 +361,7 @@ def within(rec: Recording, t0_s: float, t1_s: float, source: str) -> Recording:
         cut[name] = Stream(s.t[keep], {k: v[keep] for k, v in s.columns.items()})
     return replace(rec, source=source, parameters=dict(rec.parameters), channels=dict(rec.channels),
                    dropped=list(rec.dropped), notes=list(rec.notes),
-                   warnings=list(rec.warnings), meta={**rec.meta, "stretch_of": rec.source,
+                   warnings=list(rec.warnings), misread=list(rec.misread), meta={**rec.meta, "stretch_of": rec.source,
                                                       "stretch_s": [float(t0_s), float(t1_s)]}, **cut)
 
 
@@ -404,6 +410,14 @@ def shared_stretch_s(a: Recording, b: Recording, fixes: int = SHARED_FIXES) -> f
         if np.array_equal(pa[j: j + fixes], pb[i: i + fixes]):
             covered[i: i + fixes] = True
     return float(np.sum(np.diff(tb)[covered[1:] & covered[:-1]])) if covered.any() else 0.0
+
+
+def check_not_misread(recordings: list[Recording]) -> None:
+    """TwinError (one line) for the first recording read in a unit its data are not in
+    (Recording.misread): a twin fitted or scored on it would be of other data."""
+    for rec in recordings:
+        if rec.misread:
+            raise TwinError(f"{Path(rec.source).name}: {rec.misread[0]}")
 
 
 def check_no_shared_stretch(recordings: list[Recording]) -> None:

@@ -480,7 +480,7 @@ def warn_recordings(recordings) -> None:
     a share of their samples on reading (Recording.heavy_losses), named by file, before the work that
     would take the data as read."""
     for rec in recordings:
-        for text in rec.warnings:
+        for text in [*rec.misread, *rec.warnings]:  # misread: only `twin view` gets this far with one
             note(f"warning: {Path(rec.source).name}: {text}")
         for text in rec.heavy_losses():
             note(f"note: {Path(rec.source).name}: {text}; the rest is used (`twin info` lists what was dropped)")

@@ -11,7 +11,7 @@ from ..effects import apply_effects, as_effect
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import check_new
-from ..recording import check_no_shared_stretch
+from ..recording import check_no_shared_stretch, check_not_misread
 from ..vessel import save
 from .app import (REPORT_HELP, all_or_nothing_outputs, listed, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, check_outputs,
                   check_recordings_distinct, check_wind_and_inputs, effect_names, json_text, positive, progress_bar,
@@ -90,6 +90,7 @@ def diagnose_command(
         if twice:  # the later value would replace the earlier, while the verdict named both
             raise TwinError(f"--given names {', '.join(twice)} twice: give each effect once, with its values")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
+    check_not_misread(recs)
     check_no_shared_stretch(recs)
     warn_recordings(recs)
     wind = "measured" if wind_measured else None

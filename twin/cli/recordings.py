@@ -193,7 +193,9 @@ def check_grid_rows(rec, grid_dt_s: float, name: str) -> None:
 @all_or_nothing_outputs
 def convert(
     src: Path = typer.Argument(..., metavar="SRC", help="input recording: .bin, .tlog, .csv, .mcap"),
-    dst: Path = typer.Argument(..., metavar="DST", help="output: .csv (generic layout), .mcap, .tlog or .bin"),
+    dst: Optional[Path] = typer.Argument(None, metavar="[DST]", help="output: .csv (generic layout), .mcap, .tlog or "
+                                                                     ".bin (or give it as --out)"),
+    out: Optional[Path] = typer.Option(None, "--out", help="the output, as every other command names it (or DST)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s (no finer "
                                             "than a tenth of the fastest one's own)"),
@@ -206,6 +208,10 @@ def convert(
     from ..formats.mcap import MCAP_DAMAGE
     from ..prepare.convert import for_conversion, not_kept
 
+    if (dst is None) == (out is None):
+        raise TwinError("give the output once: as DST after SRC, or as --out" if dst is not None else
+                        "give the output: twin convert SRC DST (or --out DST)")
+    dst = dst if dst is not None else out
     check_outputs([dst], (".csv", ".mcap", ".tlog", ".bin"), "output")
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
     check_regular(src)

@@ -29,6 +29,8 @@ from .separate import settling
 from .verdict import FOLLOWS_R, MIN_UNANIMOUS_BLOCKS, MODEL_FORM_SIGMA, TIMING_EFFECTS, at_edge, family, \
     more_recording_factor, promising
 
+WORSE_R2 = 0.01  # a held-out R² this much lower after the amendment is said as worse
+
 DOF_UNITS = {"u": "m/s", "v": "m/s", "r": "°/s"}  # the one unit system of the report: r in degrees per second
 DOF_SCALE = {"u": 1.0, "v": 1.0, "r": 180.0 / np.pi}  # from the diagnosis's SI values to DOF_UNITS
 
@@ -228,6 +230,16 @@ def answer(d) -> dict:
     if d.effects:
         b, a = d.fit_before, d.fit_after
         out["changes"] = "held-out R² " + ", ".join(f"{k} {_num(b[k]['r2'])} → {_num(a[k]['r2'])}" for k in "uvr")
+        worse = [k for k in "uvr" if isinstance(b[k]["r2"], float) and isinstance(a[k]["r2"], float)
+                 and a[k]["r2"] < b[k]["r2"] - WORSE_R2]
+        if worse:  # the rule weighs the velocities together (each by its noise): one may pay for the others
+            out["changes"] += (f"; {' and '.join(worse)} worse with it: what is named gains on the held-out blocks "
+                               "as a whole, not in every velocity (check the amended twin there before using it)")
+        if any(e.get("kind") == "kinematic" for e in d.effects):
+            # a kinematic finding is read into the logs before any fit: the twin is judged with it both ways
+            alone = all(e.get("kind") == "kinematic" for e in d.effects)
+            out["changes"] += (" (what the kinematics told is read into the logs before any fit, so both sides carry "
+                               "it" + ("; nothing of the dynamics was named" if alone else "") + ")")
     for c in promising(d):
         out["unsettled"].append(
             f"{c['name']} may be missing but is not proven: it removes {excess_share(c['excess_gain'])}, "

@@ -309,7 +309,10 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
         raise TwinError(f"{vessel.mjcf.name}: option timestep must lie between 0 and 1 s, got {model.opt.timestep:g}")
     geometry = read_geometry(model, vessel)
     _check_floats(vessel, model, geometry.rigid.mass_kg)
+    _check_fits_its_box(vessel, model, geometry.rigid.mass_kg)
     _check_sites(vessel, model, geometry)
+    _check_sides(vessel, geometry)
+    _check_added_mass_scale(vessel, geometry)
     compiled = CompiledVessel(vessel, model, geometry)
     M = compiled.hydro().M
     if not is_symmetric_positive_definite(M):
@@ -342,6 +345,60 @@ def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None
     if volume_m3 > 0 and mass_kg > SINKS_AT * RHO_FRESH_KG_M3 * volume_m3:
         raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: its hull meshes displace "
                         f"{RHO_FRESH_KG_M3 * volume_m3:.4g} kg fully submerged (the MJCF's masses are in kg)")
+
+
+def _check_fits_its_box(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
+    """Refuse masses in another unit by the box around the vessel's geoms: a floating vessel displaces
+    less water than that box holds, and SINKS_AT times as much leaves room for geoms drawn smaller than
+    the hull (a marker box beside an <inertial>) while grams for kilograms stay far beyond it."""
+    extent_m = _extent_m(model)
+    box_kg = RHO_FRESH_KG_M3 * float(np.prod(extent_m))
+    if box_kg > 0 and mass_kg > SINKS_AT * box_kg:
+        raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: the box around its geoms "
+                        f"({' x '.join(f'{x:.3g}' for x in extent_m)} m) holds {box_kg:.4g} kg of water (the MJCF's "
+                        "masses are in kg and its lengths in m)")
+
+
+def _extent_m(model: mujoco.MjModel) -> np.ndarray:
+    """(3,) the extent (m) along body x, y, z of every geom of the vessel's bodies at q = 0."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    points = []
+    for g in np.flatnonzero(model.geom_bodyid > 0):
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        corners = centre + half * np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        points.append(data.geom_xpos[g] + corners @ data.geom_xmat[g].reshape(3, 3).T)
+    return np.ptp(np.vstack(points), axis=0) if points else np.zeros(3)
+
+
+# an added mass this many times the rigid body's (or an added inertia as many times its inertia) is a
+# unit slip (grams, a yaw term in kg·cm²), not a hull: a floating hull's is of the order of its own
+ADDED_MASS_AT_MOST = 50.0
+
+
+def _check_added_mass_scale(vessel: Vessel, geometry: Geometry) -> None:
+    """Refuse an added mass or inertia in another unit (ADDED_MASS_AT_MOST times the rigid body's)."""
+    rigid, a = geometry.rigid, vessel.added_mass
+    for name, value, own, unit in (("Xudot", a.Xudot, rigid.mass_kg, "kg"), ("Yvdot", a.Yvdot, rigid.mass_kg, "kg"),
+                                   ("Nrdot", a.Nrdot, rigid.Iz_kgm2, "kg·m²")):
+        if own > 0 and abs(value) > ADDED_MASS_AT_MOST * own:
+            raise TwinError(f"vessel '{vessel.name}': added_mass.{name} {value:g} {unit} is {abs(value) / own:.0f} "
+                            f"times the rigid body's {own:.4g} {unit}: a hull's added mass is of the order of its "
+                            f"own (the vessel file's added mass is in {unit})")
+
+
+def _check_sides(vessel: Vessel, geometry: Geometry) -> None:
+    """Refuse a left thruster to starboard of the right one: body y points to starboard (FRD), and a
+    site written in a forward-left-up frame mirrors the boat, so every differential thrust turns the
+    twin the other way from the vessel."""
+    if vessel.thrusters.kind == "propeller_rudder" or len(geometry.thruster_pos_m) != 2:
+        return
+    left, right = (float(p[1]) for p in geometry.thruster_pos_m)
+    if left > right:
+        names = actuator_names(vessel)
+        raise TwinError(f"{vessel.mjcf.name}: site '{names[0]}' at y = {left:+.3g} m lies to starboard of "
+                        f"'{names[1]}' at y = {right:+.3g} m: body y points to starboard (x forward, y to starboard, "
+                        "z down), so the left thruster's y is the smaller; swap the two sites' y")
 
 
 def _check_sites(vessel: Vessel, model: mujoco.MjModel, geometry: Geometry) -> None:

@@ -10,7 +10,10 @@ counts a judged recording's, so the two compare). `twin identify`
 writes it into the vessel file's uncertainty block as "fitted_on"; `evaluate.misfit_by_manoeuvre`
 reads a judged recording against it: the share of its free-run samples outside that range (the
 samples R² is pooled over: overlapping windows count a sample once per window) and the share of
-1 − R² they carry.
+1 − R² they carry. By that definition the fitted recordings themselves leave OWN_TAIL of their
+samples beyond the range in each velocity: a judged recording is said to reach beyond what the fit
+saw in a velocity only where more than twice that share of its samples do. The envelope keeps the
+fitted logs' file names, so that a score on one of them is said to be in-sample.
 """
 from __future__ import annotations
 
@@ -23,6 +26,7 @@ from ..errors import TwinError
 from .metrics import DOFS
 
 RANGE_PERCENTILES = (1.0, 99.0)
+OWN_TAIL = (RANGE_PERCENTILES[0] + 100.0 - RANGE_PERCENTILES[1]) / 100.0  # the fitted samples' share beyond, per DOF
 DEFAULT_STRIDE_S = 2.0
 
 
@@ -30,13 +34,15 @@ DEFAULT_STRIDE_S = 2.0
 class Envelope:
     """ranges: {u, v, r: (low, high)} in m/s and rad/s; windows: the fitted logs' free-run windows
     per manoeuvre, counted as evaluate counts (horizon_s long, one every stride_s; not the fit's
-    own windows, whose length and spacing are the fit's choice); logs: how many recordings."""
+    own windows, whose length and spacing are the fit's choice); logs: how many recordings;
+    sources: their file names (empty for a record written without them)."""
 
     ranges: dict[str, tuple[float, float]]
     windows: dict[str, int]
     horizon_s: float
     logs: int
     stride_s: float = 2.0
+    sources: tuple[str, ...] = ()
 
     def outside(self, states: np.ndarray) -> np.ndarray:
         """Boolean per sample of `states` (..., 3: u, v, r): beyond the range in any DOF (NaN: not)."""
@@ -51,7 +57,8 @@ class Envelope:
     def to_dict(self) -> dict:
         return {"ranges": {d: [float(a), float(b)] for d, (a, b) in self.ranges.items()},
                 "windows": {k: int(n) for k, n in self.windows.items()}, "horizon_s": float(self.horizon_s),
-                "stride_s": float(self.stride_s), "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES)}
+                "stride_s": float(self.stride_s), "logs": int(self.logs), "percentiles": list(RANGE_PERCENTILES),
+                **({"sources": list(self.sources)} if self.sources else {})}
 
 
 # as printed: r in °/s, as every table of the CLI gives the yaw rate's error (the states are kept in rad/s)
@@ -84,11 +91,14 @@ def from_dict(data, where: str = "fitted_on") -> Envelope:
     try:
         ranges = {d: (number(data["ranges"][d][0]), number(data["ranges"][d][1])) for d in DOFS}
         windows = {str(k): count(n) for k, n in dict(data["windows"]).items()}
+        sources = data.get("sources", [])
+        if not isinstance(sources, list) or not all(isinstance(s, str) for s in sources):
+            raise TypeError
         env = Envelope(ranges, windows, number(data["horizon_s"]), count(data["logs"]),
-                       number(data.get("stride_s", DEFAULT_STRIDE_S)))
+                       number(data.get("stride_s", DEFAULT_STRIDE_S)), tuple(sources))
     except (KeyError, TypeError, ValueError, IndexError):
         raise TwinError(f"{where}: needs ranges of u, v, r (low, high numbers), windows per manoeuvre (counts), "
-                        "horizon_s, stride_s and logs") from None
+                        "horizon_s, stride_s and logs (and sources, if any, a list of file names)") from None
     if any(not (np.isfinite(a) and np.isfinite(b) and a <= b) for a, b in env.ranges.values()):
         raise TwinError(f"{where}: each range needs finite low ≤ high")
     if not (env.horizon_s > 0 and env.stride_s > 0 and env.logs >= 1):
@@ -113,9 +123,11 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
     """The judged samples outside `env` and their part of the misfit: meas (W, n, 3) the measured
     predicted samples, sq their squared errors (0 where none), total the pooled Σ(y − ȳ)² per DOF
     (evaluate._squares). {"samples", "outside", "share_of_samples", "share": {u, v, r} of 1 − R², "dofs":
-    {each DOF the judged samples leave the span in: "share_of_samples", and "low", "high": the judged
-    samples' own 1st and 99th percentiles}, "r2_beyond", "r2_within": {u, v, r} the score of the
-    samples beyond the span and within it, each about its own mean}."""
+    {each DOF the judged samples leave the span in: "share_of_samples", "below", "above": the farthest
+    judged sample beyond the span's low and high end (None where none lies beyond that end), and
+    "reaches": whether more than twice OWN_TAIL of the samples lie beyond (what the fitted samples
+    themselves leave beyond by the span's definition)}, "r2_beyond", "r2_within": {u, v, r} the score
+    of the samples beyond the span and within it, each about its own mean}."""
     paired = np.isfinite(meas).any(axis=-1)
     out_mask = env.outside(meas) & paired
     n, k = int(paired.sum()), int(out_mask.sum())
@@ -126,9 +138,12 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
         x = meas[..., i][paired]
         with np.errstate(invalid="ignore"):
             beyond_d = (x < lo) | (x > hi)
-        if beyond_d.any():  # the judged samples' own span, on the same percentiles (a spike does not set it)
-            low, high = np.nanpercentile(x, RANGE_PERCENTILES)
-            per_dof[d] = {"share_of_samples": float(beyond_d.sum() / n), "low": float(low), "high": float(high)}
+        if beyond_d.any():
+            with np.errstate(invalid="ignore"):
+                below, above = x[x < lo], x[x > hi]
+            share = float(beyond_d.sum() / n)
+            per_dof[d] = {"share_of_samples": share, "below": float(below.min()) if below.size else None,
+                          "above": float(above.max()) if above.size else None, "reaches": share > 2.0 * OWN_TAIL}
     return {"samples": n, "outside": k, "share_of_samples": k / n if n else None,
             "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)},
             "dofs": per_dof, "r2_beyond": _subset_r2(meas, sq, out_mask), "r2_within": _subset_r2(meas, sq, paired & ~out_mask)}

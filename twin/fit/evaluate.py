@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import textwrap
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -27,7 +28,7 @@ from ..errors import TwinError
 from ..prepare import Prepared
 from ..threads import one_blas_thread
 from ..vessel import Vessel
-from .coverage import SHOWN, UNITS, Envelope, beyond, sample_ranges, span_text
+from .coverage import OWN_TAIL, SHOWN, UNITS, Envelope, beyond, sample_ranges, span_text
 from .metrics import DOFS, r2_mae
 from .windows import ModelCache, Window, make_windows, measured, predict
 
@@ -175,7 +176,8 @@ def fitted_envelope(vessel: Vessel, preps: list[Prepared], horizon_s: float = 10
     wins = horizon_windows(preps, horizon_s, stride_s)
     kind = _window_manoeuvres(vessel, preps, wins) if wins else np.zeros(0, int)
     counts = {name: int(np.sum(kind == i)) for i, name in enumerate(MANOEUVRES) if np.any(kind == i)}
-    return Envelope(sample_ranges(states), counts, float(horizon_s), len(preps), float(stride_s))
+    sources = tuple(Path(p.settings.source).name for p in preps if p.settings.source)
+    return Envelope(sample_ranges(states), counts, float(horizon_s), len(preps), float(stride_s), sources)
 
 
 def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizon_s: float, stride_s: float = 2.0,
@@ -191,7 +193,9 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     model when it is a Vessel; for a grey-box predictor, the vessel whose thrusters drive it);
     `wind` applies to a Vessel given as the model (a Predictor carries its own). `fitted`: what the
     twin's fit saw (coverage.Envelope); then also "fitted_on" (its dict) and "beyond_fit": the
-    judged samples outside its range and the share of 1 − R² they carry (coverage.beyond)."""
+    judged samples outside its range and the share of 1 − R² they carry (coverage.beyond), with
+    "fitted_logs_judged": the judged logs named as one the fit was on, in any format (their score is
+    in-sample)."""
     if isinstance(model, Vessel):
         vessel = vessel or model
         model = TwinPredictor(model, ModelCache(), wind)
@@ -211,6 +215,11 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     if fitted is not None:
         out["fitted_on"] = fitted.to_dict()
         out["beyond_fit"] = beyond(fitted, np.where(finite[:, None, None], meas[:, 1:], np.nan), sq, total)
+        # by name less its suffix: a log converted to another format (`twin convert`) is the same log
+        fitted_stems = {Path(s).stem for s in fitted.sources}
+        judged = [Path(p.settings.source).name for p in preps]
+        out["beyond_fit"]["fitted_logs_judged"] = [n for n in judged if n and Path(n).stem in fitted_stems]
+        out["beyond_fit"]["logs_judged"] = len(judged)
     for i, name in enumerate(MANOEUVRES):
         if np.any(kind == i):
             sel = (kind == i) & finite
@@ -444,21 +453,34 @@ def beyond_sentence(split: dict) -> str:
     fit, b = split["fitted_on"], split.get("beyond_fit")
     spans = span_text(fit["ranges"])
     logs = f"{fit['logs']} log{'' if fit['logs'] == 1 else 's'}"
+    tail = 100 * OWN_TAIL / 2
     text = (f"in fit: {fit['horizon_s']:g}-s windows, one every {fit.get('stride_s', 2.0):g} s, of the {logs} the "
-            f"twin was fitted on, whose samples (1st-99th percentile) span {spans}")
+            f"twin was fitted on, whose samples span {spans} (the span leaves {tail:g} % of them out at each end)")
     if b and b["samples"]:
+        own = b.get("fitted_logs_judged") or []
+        all_own = len(own) >= b.get("logs_judged", len(own) + 1)  # the fit's own logs: nothing beyond is new
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
         text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
-                 "of 1 − R² (the twin extrapolates there)")
+                 "of 1 − R²" + ("" if all_own else " (the twin extrapolates there)"))
         scores = [f"{d} {b['r2_beyond'][d]:.2f} beyond, {b['r2_within'][d]:.2f} within" for d in DOFS
                   if (b.get("r2_beyond") or {}).get(d) is not None and (b.get("r2_within") or {}).get(d) is not None]
         if scores:
             text += "; R² " + ", ".join(scores)
-        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples; the judged span "
-                 f"{SHOWN[d] * x['low']:+.2f}..{SHOWN[d] * x['high']:+.2f} {UNITS[d]})" for d, x in b.get("dofs", {}).items()]
-        if reach:
-            text += "; beyond it in " + ", ".join(reach) + ": record runs that reach there to fit it"
+        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples, {_reached(d, x)})"
+                 for d, x in b.get("dofs", {}).items() if x.get("reaches", True)]
+        if reach and not all_own:
+            text += ("; the judged runs reach beyond what the fit saw in " + ", ".join(reach)
+                     + ": record runs that reach there to fit it")
+        if own:
+            text += (f"; {', '.join(own)} {'bears' if len(own) == 1 else 'bear'} the name of a log the twin was "
+                     "fitted on: its score there is in-sample")
     return text
+
+
+def _reached(dof: str, x: dict) -> str:
+    """How far a DOF's judged samples go beyond the fitted span, e.g. "to +0.19 m/s"."""
+    ends = [f"{SHOWN[dof] * x[k]:+.2f}" for k in ("below", "above") if x.get(k) is not None]
+    return f"to {' and '.join(ends)} {UNITS[dof]}" if ends else "beyond it"
 
 
 def _percent(share: float) -> str:

@@ -183,12 +183,12 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
             rec.warnings.append(f"both {used} and {also} columns: {used} read, {also} not")
     steps = np.diff(np.unique(t[np.isfinite(t)]))
     if len(steps) >= 100 and np.median(steps) > 5.0:
-        rec.warnings.append(f"t steps by {np.median(steps):g} s (median): the generic CSV's t is in seconds; "
-                            "milliseconds would read as this")
+        rec.misread.append(f"t steps by {np.median(steps):g} s (median): the generic CSV's t is in seconds; "
+                           "milliseconds would read as this")
     if "heading_deg" in c and len(rec.heading) and len(rec.gnss):
         looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss)
         if looks:
-            rec.warnings.append(looks)
+            rec.misread.append(looks)
     if {"pwm_left", "pwm_right"} <= set(header):
         neutral_us = tuple(neutral(c.get(f"pwm_neutral_{side}"), 1500.0, f"{path.name}: column pwm_neutral_{side}")
                            for side in ("left", "right"))

@@ -61,7 +61,7 @@ from ..geodesy import ned_from_geodetic
 from ..physics.mmg import NU_WATER_M2_S, friction_line_factor, ittc57_cf
 from ..prepare import Prepared, supply_reference
 from ..progress import Progress, steps
-from ..recording import Recording, check_no_shared_stretch
+from ..recording import Recording, check_no_shared_stretch, check_not_misread
 from ..threads import one_blas_thread
 from ..vessel import Vessel
 from .greybox.models import fit_dynamic, fit_static
@@ -92,7 +92,8 @@ FOLDS_LABEL = {"beyond": "each run predicted by the twin fitted on the runs that
 
 def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
     """The recordings, each with thruster PWM or a propeller's and rudder's inputs (TwinError naming
-    the one without), no two sharing a stretch (recording.check_no_shared_stretch)."""
+    the one without), none read in a unit it is not in (recording.check_not_misread), no two sharing a
+    stretch (recording.check_no_shared_stretch)."""
     out = []
     for path in paths:
         rec = read_recording(path, channels=channels)
@@ -105,6 +106,7 @@ def read(paths: list[Path], channels: dict | None = None) -> list[Recording]:
             raise TwinError(f"{Path(path).name}: no inputs (thruster PWM, or propeller and rudder): the twin cannot "
                             f"be run on it ({hint})")
         out.append(rec)
+    check_not_misread(out)
     check_no_shared_stretch(out)
     return out
 
@@ -747,7 +749,8 @@ def format_choices(ident: Identification) -> str:
     if ident.chosen is not None:
         by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
-                     ("; every group free (the rows without one are a report, not a choice)" if by_groups else "") +
+                     ("; every group free to move, and a coefficient the recordings do not pin kept at its prior (the rows "
+                      "without a * are a report, not a choice)" if by_groups else "") +
                      (f"; the prior is written, as it predicts the left-out runs better by {100 * DROP_GAIN:g} % or "
                       "more" if by_groups and not ident.chosen.free_groups else ""))
     costs = [cv.cost for _, cv in rows if np.isfinite(cv.cost)]
