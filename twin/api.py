@@ -677,7 +677,7 @@ class Evaluation:
 
 
 def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str | None = None,
-             sea=None, by: str | None = None) -> Evaluation:
+             sea=None, by: str | None = None, calibrated: bool = True, progress=None) -> Evaluation:
     """How the twin predicts recordings, and where its free runs miss, as `twin evaluate` finds.
 
     One step, 10-s and 30-s free runs and whole segments; where the free runs miss, by manoeuvre and
@@ -701,20 +701,28 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
             ground, m/s), "yaw_rate" (|r|, rad/s), "drift" (the drift angle |β|, rad), "input_0"
             or "input_1" (the logged inputs: PWM in µs, or propeller rps and rudder angle) or
             "rest" (how long input 0, a propeller, has been stopped, s).
+        calibrated: the splits by manoeuvre and by state with each log's compass calibration
+            applied (default); False: as logged (`--no-calibration`). The scores come both ways.
+        progress (Callable[[str, int, int], None] | None): told each stage (text, step, steps).
 
     Returns:
         The scores (`scores`, `score("u")`, `table()`), `by_manoeuvre`, `by_state`, `stand_ins`
         and the calibrations.
 
     Raises:
-        TwinError: `stride_s` not a positive, finite number of seconds; `by` not a known state; `wind` neither None nor
-            "measured", or "measured" for a recording without a wind stream or a vessel without a
-            wind load model; no recordings, one given twice, one that cannot be read or cannot
-            drive the vessel; a sea given wrongly or one the vessel cannot run in; or `vessel` is
-            neither a twin.Vessel nor the name of a shipped vessel or a readable vessel file.
+        TwinError: `stride_s` not a positive, finite number of seconds; `by` not a known state, or
+            "rest" on recordings of thruster PWM; `wind` neither None nor "measured", or "measured"
+            for a recording without a wind stream or a vessel without a wind load model; no
+            recordings, one given twice, one that cannot be read or cannot drive the vessel; a sea
+            given wrongly or one the vessel cannot run in; nothing to score (no horizon has a
+            velocity that varies); or `vessel` is neither a twin.Vessel nor the name of a shipped
+            vessel or a readable vessel file.
     """
     if not _finite(stride_s):
         raise TwinError(f"stride_s must be a positive finite number of seconds, got {stride_s!r}")
+    if progress is not None and not callable(progress):
+        raise TwinError(f"progress is a callable taking (text, step, steps) or None, got {progress!r:.60}")
+    told = progress or (lambda what, done=None, total=None: None)
     v = _in_sea(_vessel(vessel), sea)
     recs = _recordings(recordings, v)
     check_wind(recs, wind, v)
@@ -722,18 +730,39 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         if "fitted_on" in v.uncertainty else None
     if by is not None and by not in STATE_NAMES:
         raise TwinError(f"by={by!r}: unknown state (known: {', '.join(STATE_NAMES)})")
-    calibrated, calibrations = _calibrate(recs, v)
-    preps = prepared(recs, calibrated)
-    edges = percentile_edges(preps, STATE_NAMES[by], f"by={by!r}") if by else ()
-    predictor, horizon = TwinPredictor(calibrated, ModelCache(), wind), manoeuvre_horizon_s(v, seen)
-    bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s) if by else []
-    scored = _evaluate(calibrated, preps, stride_s=stride_s, wind=wind)
+    if by == "rest" and any(r.pwm.has("left_us") for r in recs):
+        raise TwinError("by rest bands by how long a propeller-and-rudder ship's propeller has been stopped; "
+                        "these recordings log thruster PWM (band a boat's by speed, yaw_rate, drift or input_0)")
+    with_offsets, calibrations = _calibrate(recs, v)
+    used = with_offsets if calibrated else v
+    preps = prepared(recs, used)
+    edges = percentile_edges(preps, STATE_NAMES[by], f"by {by}") if by else ()  # a flat state: before the work
+    steps = 4 if by else 3
+    told("without calibration", 0, steps)
+    as_logged = _evaluate(v, prepared(recs, v), stride_s=stride_s, wind=wind)
+    told("with each log's calibration", 1, steps)
+    cache = ModelCache()  # the compiled twin shared by the scores and the splits
     # no log's offset applied: the calibrated twin is the twin, and its scores are the ones as logged
-    as_logged = scored if calibrated.sensors == v.sensors else _evaluate(v, prepared(recs, v), stride_s=stride_s,
-                                                                         wind=wind)
-    return Evaluation(v.name, scored, as_logged, calibrations,
-                      misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=calibrated, fitted=seen), bands,
+    scored = as_logged if with_offsets.sensors == v.sensors else \
+        _evaluate(TwinPredictor(with_offsets, cache, wind), prepared(recs, with_offsets), stride_s=stride_s)
+    if not any(_scored(m) for m in as_logged.values()):
+        names = ", ".join(Path(r.source).name for r in recs)
+        raise TwinError(f"{names}: nothing to score: no horizon has a velocity that varies (the boat lies still, or "
+                        "every stretch without a dropout is shorter than a free run)")
+    told("by manoeuvre", 2, steps)
+    predictor, horizon = TwinPredictor(used, cache, wind), manoeuvre_horizon_s(v, seen)
+    split = misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=used, fitted=seen)
+    bands = []
+    if by:
+        told(f"by {by}", 3, steps)
+        bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s)
+    return Evaluation(v.name, scored, as_logged, calibrations, split, bands,
                       list(v.uncertainty.get("stand_ins", [])))
+
+
+def _scored(horizon: dict) -> bool:
+    """Whether a horizon's metrics hold an R² for some velocity (R² needs the velocity to vary)."""
+    return any(m.get("r2") is not None and math.isfinite(m["r2"]) for m in horizon.values())
 
 
 @dataclass(frozen=True)

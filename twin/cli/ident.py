@@ -1,7 +1,6 @@
 """`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
 from __future__ import annotations
 
-import math
 from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Optional
@@ -267,11 +266,6 @@ def identify_command(
     write_json(json_out, result.to_dict())
 
 
-def _scored(horizon: dict) -> bool:
-    """Whether a horizon's metrics hold an R² for some velocity (R² needs the velocity to vary)."""
-    return any(m.get("r2") is not None and math.isfinite(m["r2"]) for m in horizon.values())
-
-
 def stand_in_text(entries: list[dict] | None) -> str:
     """The uncertainty block's stand_ins (twin identify; vessel.py checks their shape) as "Nrdot ×7.8 of
     its prior, ..."; "" when there are none."""
@@ -321,11 +315,10 @@ def evaluate_command(
     measured on the predicted value: above 1, the vessel moves more than the twin); with --band, the
     share of the recording inside the prediction band of the identified uncertainty."""
     # late: the command's stack (the fitting, 0.54 s) would be paid at every `twin --help`
-    from ..fit.evaluate import (STATE_NAMES, TwinPredictor, evaluate, format_by_manoeuvre, format_by_state,
-                                format_metrics, misfit_by_manoeuvre, misfit_by_state, percentile_edges,
-                                state_display)
-    from ..fit.windows import ModelCache
-    from ..ident.identify import calibrate, manoeuvre_horizon_s, prepared, read
+    from ..api import evaluate
+    from ..fit.calibrate import with_log_calibrations
+    from ..fit.evaluate import STATE_NAMES, format_by_manoeuvre, format_by_state, format_metrics, state_display
+    from ..ident.identify import manoeuvre_horizon_s, prepared, read
 
     if by is not None and by not in STATE_NAMES:
         raise TwinError(f"--by {by}: unknown state (known: {', '.join(STATE_NAMES)})")
@@ -359,41 +352,24 @@ def evaluate_command(
     warn_recordings(recs)
     wind = "measured" if wind_measured else None
     check_wind_and_inputs(recs, wind, v)  # before any work
-    calibrated, calibrations = calibrate(recs, v)
+    if by == "rest" and any(r.pwm.has("left_us") for r in recs):  # said before the work, in the option's words
+        raise TwinError("--by rest bands by how long a propeller-and-rudder ship's propeller has been stopped; "
+                        "these recordings log thruster PWM (band a boat's by speed, yaw_rate, drift or input_0)")
+    with progress_bar("evaluate") as progress:
+        ev = evaluate(v, recs, stride_s=stride, wind=wind, by=by, calibrated=calibration, progress=progress)
+    calibrations = ev.calibrations
     out = {"vessel": v.name, "model": str(model) if model else None, "recordings": [str(p) for p in recordings],
            "calibrations": [c.to_dict() for c in calibrations], "wind": wind or "none",
-           "sea_drift_ned_m_s": list(v.environment.wave_drift_ned)}
+           "sea_drift_ned_m_s": list(v.environment.wave_drift_ned),
+           "metrics_uncalibrated": ev.metrics_uncalibrated,
+           # --no-calibration: the scores as logged, as the splits are
+           "metrics": ev.metrics if calibration else ev.metrics_uncalibrated, "by_manoeuvre": ev.by_manoeuvre}
+    if by:
+        out["by_state"] = {"state": STATE_NAMES[by], "bands": [asdict(b) for b in ev.by_state]}
     names = ", ".join(p.name for p in recordings) + (", with the measured wind" if wind else "")
     twin_name = f"{model.name} ({v.name})" if model is not None else v.name
-    used = calibrated if calibration else v
-    if by:  # a state that does not vary is refused before the work
-        state = STATE_NAMES[by]
-        if by == "rest" and any(r.pwm.has("left_us") for r in recs):
-            raise TwinError("--by rest bands by how long a propeller-and-rudder ship's propeller has been stopped; "
-                            "these recordings log thruster PWM (band a boat's by speed, yaw_rate, drift or input_0)")
-        edges = percentile_edges(prepared(recs, used), state, f"--by {by}")
-    steps = 4 if by else 3
-    with progress_bar("evaluate") as progress:
-        progress("without calibration", 0, steps)
-        out["metrics_uncalibrated"] = evaluate(v, prepared(recs, v), stride_s=stride, wind=wind)
-        progress("with each log's calibration", 1, steps)
-        cache = ModelCache()  # the compiled twin shared by the metrics and the split by manoeuvre
-        # no log's offset applied: the calibrated twin is the twin, and its scores are the ones as logged
-        out["metrics"] = evaluate(TwinPredictor(calibrated, cache, wind), prepared(recs, calibrated), stride_s=stride) \
-            if calibration and calibrated.sensors != v.sensors else out["metrics_uncalibrated"]
-        progress("by manoeuvre", 2, steps)
-        horizon = manoeuvre_horizon_s(v, fitted)
-        out["by_manoeuvre"] = misfit_by_manoeuvre(TwinPredictor(used, cache, wind), prepared(recs, used), horizon,
-                                                  stride, vessel=used, fitted=fitted)
-        if by:
-            progress(f"by {by}", 3, steps)
-            bands = misfit_by_state(TwinPredictor(used, cache, wind), prepared(recs, used), horizon, state, edges,
-                                    stride)
-            out["by_state"] = {"state": state, "bands": [asdict(b) for b in bands]}
-    if not any(_scored(m) for m in out["metrics_uncalibrated"].values()):
-        raise TwinError(f"{', '.join(p.name for p in recordings)}: nothing to score: no horizon has a velocity "
-                        "that varies (the boat lies still, or every stretch without a dropout is shorter than a "
-                        "free run)")
+    used = with_log_calibrations(v, calibrations) if calibration else v
+    horizon = manoeuvre_horizon_s(v, fitted)
     if sea_line:
         say(sea_line)
     for c in calibrations:
@@ -419,10 +395,10 @@ def evaluate_command(
         note(f"note: the longest stretch without a dropout lasts {longest:.1f} s: the {' and '.join(short)} free runs "
              "have nothing to score")
     if by:
-        what = state_display(state, "propeller_rudder" if used.thrusters.kind == "propeller_rudder" else "pwm")[0]
+        what = state_display(STATE_NAMES[by], "propeller_rudder" if used.thrusters.kind == "propeller_rudder" else "pwm")[0]
         title = (f"where the {horizon:g}-s free runs miss, by {what} (share of 1 − R²; gain: measured on "
                  "predicted; corr: their correlation)")
-        typer.echo(format_by_state(bands, title))
+        typer.echo(format_by_state(ev.by_state, title))
     if rrd is not None:
         # late: the writers and replay (0.3 s) only for --rrd
         from ..engine.mjcf import compile_vessel
