@@ -632,6 +632,10 @@ def _mjcf_changed(root, name: str, old: str, new: str) -> str:
     (("dp", "--vessel", "blueboat", "--run", "point", "--target", "1e9,1e9"), "0.5 to 1000 m away"),
     (("dp", "--vessel", "blueboat", "--omega-heading", "1e9"), "at most 25 rad/s"),
     (("mission", "--timeout", "1", "--home", "37,-5", "--waypoints", "nan,0"), "is not a waypoint within 50 km"),
+    (("mission", "--timeout", "1", "--home", "37,-5", "--waypoints", "nosuch.waypoints"),
+     "--waypoints nosuch.waypoints: no such mission file (give a QGC WPL 110 file"),
+    (("mission", "--timeout", "1", "--home", "37,-5", "--waypoints", "{log}"),
+     "not a mission file (its first line is not 'QGC WPL 110'"),
     (("dataset-shards", "--vessel", "blueboat", "--out", "{root}/shards", "--effect-share", "0.5"),
      "--effect-share applies only with --effect"),
 ])

@@ -195,7 +195,7 @@ def test_convert_a_log_without_gnss(tmp_path, suffix):
     write_recording(rec, tmp_path / "in.bin")
     p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}")
     assert p.returncode == 0, p.stderr
-    assert "streams at their own times (not synchronised: cannot prepare without GNSS samples)" in p.stdout
+    assert "streams at their own times (not synchronised: no GNSS samples, from which the track and the velocities are read)" in p.stdout
     back = read_recording(tmp_path / f"out{suffix}")
     assert len(back.gnss) == 0 and len(back.heading) == len(rec.heading) and len(back.pwm) == len(rec.pwm)
     np.testing.assert_allclose(back.pwm.t - back.pwm.t[0], rec.pwm.t - rec.pwm.t[0], atol=2e-6)

@@ -85,10 +85,10 @@ def test_csv_with_both_columns_of_each_pair_reads(tmp_path):
 
 
 @pytest.mark.parametrize("dropped, message", [
-    (("lat", "lon"), "x.csv: cannot prepare without GNSS samples (a CSV gives GNSS in columns lat,lon or north,east)"),
-    (("heading_deg",), "x.csv: cannot prepare without heading samples (a CSV gives the heading in a column "
+    (("lat", "lon"), "x.csv: no GNSS samples, from which the track and the velocities are read (a CSV gives GNSS in columns lat,lon or north,east)"),
+    (("heading_deg",), "x.csv: no heading samples, from which the track and the velocities are read (a CSV gives the heading in a column "
                        "heading_deg or psi)"),
-    (("lat", "lon", "heading_deg"), "x.csv: cannot prepare without GNSS and heading samples (a CSV gives GNSS in "
+    (("lat", "lon", "heading_deg"), "x.csv: no GNSS and heading samples, from which the track and the velocities are read (a CSV gives GNSS in "
                                     "columns lat,lon or north,east and the heading in a column heading_deg or psi)"),
 ])
 def test_csv_without_gnss_or_heading_names_the_columns_it_needs(tmp_path, dropped, message):
@@ -110,7 +110,7 @@ def test_a_csv_whose_every_fix_was_dropped_says_why_not_which_columns(tmp_path):
     path = write_csv(tmp_path / "x.csv", cols, t)
     with pytest.raises(TwinError) as err:
         prepare(read_recording(path))
-    assert str(err.value) == ("x.csv: cannot prepare without GNSS samples (every sample read was dropped: "
+    assert str(err.value) == ("x.csv: no GNSS samples, from which the track and the velocities are read (every sample read was dropped: "
                               f"latitude outside ±90°: {len(t)})")
 
 

@@ -272,6 +272,14 @@ def test_explicit_channels_override(tlog):
     assert np.allclose(rec.pwm["left_us"], right) and np.allclose(rec.pwm["right_us"], 3000 - left)
     with pytest.raises(TwinError):
         read_recording(tlog, channels={"left": 1})
+    # channels the log's own SERVOn_FUNCTION contradict are read as given, with a warning naming both;
+    # channels whose outputs are off throughout give no PWM, and say so
+    assert rec.warnings and "the log's parameters put the left throttle on output 1 and the right on 3" in \
+        rec.warnings[0]
+    assert read_recording(tlog).warnings == []
+    off = read_recording(tlog, channels={"left": 2, "right": 6})
+    assert not len(off.pwm) and any("outputs 2 and 6 (explicit) are off (0 µs) in every sample" in w
+                                    for w in off.warnings)
 
 
 def test_truncated_tlog_reads_what_is_there(tlog, tmp_path):
@@ -779,6 +787,10 @@ def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_usin
     assert [line.split(":")[0] for line in losses] == ["gnss", "heading", "pwm"]
     # the one backwards stamp write_generic_csv puts in, and the sixty
     assert all("samples with time going backwards 61" in line and " of 401 samples" in line for line in losses)
+    assert all(line.endswith("; the rest is used") for line in losses)
+    # a reader's own count (a tlog's bytes outside packets) is no stream's samples: not said as one
+    few.dropped.append(("tlog: bytes outside valid MAVLink packets", 5000))
+    assert few.heavy_losses() == []
     monkeypatch.setattr(sys, "argv", ["twin", "evaluate", str(path), "--vessel", "yellowfish"])
     try:
         cli.main()

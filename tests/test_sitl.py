@@ -937,6 +937,29 @@ def test_mission_ends_at_once_with_one_line_when_ardupilot_closes_the_connection
                                                       else "")), r.stderr
 
 
+def test_a_mission_file_gives_its_waypoints_in_metres_from_home(tmp_path):
+    """A QGC WPL 110 file as Mission Planner saves it: the home item and the non-waypoint items left
+    out (named), each waypoint (north, east) m from --home; a file of another kind is refused."""
+    from twin.geodesy import geodetic_from_ned
+    from twin.sitl.ardupilot import read_waypoint_file
+
+    home = (63.4366, 10.3991)
+    (lat1, lon1), (lat2, lon2) = [tuple(float(x) for x in geodetic_from_ned(n, e, *home)) for n, e in ((20, 0), (20, 15))]
+    rows = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{home[0]}\t{home[1]}\t0\t1",
+            f"1\t0\t3\t16\t0\t0\t0\t0\t{lat1:.8f}\t{lon1:.8f}\t0\t1",
+            "2\t0\t3\t178\t0\t1.5\t0\t0\t0\t0\t0\t1",  # DO_CHANGE_SPEED
+            f"3\t0\t3\t16\t0\t0\t0\t0\t{lat2:.8f}\t{lon2:.8f}\t0\t1", "4\t0\t3\t20\t0\t0\t0\t0\t0\t0\t0\t1"]
+    path = tmp_path / "lake.waypoints"
+    path.write_text("\n".join(rows) + "\n")
+    points, notes = read_waypoint_file(path, home)
+    assert np.allclose(points, [(20, 0), (20, 15)], atol=0.01)
+    assert notes == ["lake.waypoints: left out, as `twin mission` drives from waypoint to waypoint: item 2 "
+                     "(command 178), item 4 (command 20)"]
+    path.write_text("t,lat,lon\n0,1,2\n")
+    with pytest.raises(TwinError, match="not a mission file"):
+        read_waypoint_file(path, home)
+
+
 # ---------------------------------------------------------------- in a seaway
 
 def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:

@@ -154,11 +154,14 @@ class Recording:
         lines = []
         for stream, reasons in lost.items():
             kept = getattr(self, stream, None)
+            if not isinstance(kept, Stream):  # the reader's own count (a tlog's bad packets, bytes): no stream's samples
+                continue
             gone = sum(n for _, n in reasons)
-            total = gone + (len(kept) if isinstance(kept, Stream) else 0)
+            total = gone + len(kept)
             if total and gone >= share * total:
                 listed = "; ".join(f"{why} {n}" for why, n in reasons)
-                lines.append(f"{stream}: {gone} of {total} samples dropped ({listed})")
+                rest = "; the rest is used" if len(kept) else "; none is left"
+                lines.append(f"{stream}: {gone} of {total} samples dropped ({listed}){rest}")
         return lines
 
     def duration_s(self) -> float:
@@ -435,5 +438,7 @@ def check_no_shared_stretch(recordings: list[Recording]) -> None:
             shorter = min(float(np.ptp(fixes[i][0])), float(np.ptp(fixes[j][0])))
             if seconds >= SHARED_SHARE * shorter:
                 first, second = Path(a.source).name, Path(b.source).name
+                if first == second:  # two folders' logs of one name (ArduPilot names each session's first 00000001.BIN)
+                    first, second = str(a.source), str(b.source)
                 raise TwinError(f"'{second}' and '{first}' share {seconds:.0f} s of the same GNSS fixes (one cut "
                                 "from the other?): give each stretch of a recording once (leave one of them out)")

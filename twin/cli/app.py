@@ -483,7 +483,7 @@ def warn_recordings(recordings) -> None:
         for text in [*rec.misread, *rec.warnings]:  # misread: only `twin view` gets this far with one
             note(f"warning: {Path(rec.source).name}: {text}")
         for text in rec.heavy_losses():
-            note(f"note: {Path(rec.source).name}: {text}; the rest is used (`twin info` lists what was dropped)")
+            note(f"note: {Path(rec.source).name}: {text} (`twin info` lists what was dropped)")
 
 
 def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: bool = True) -> None:

@@ -219,6 +219,7 @@ def convert(
     check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
+    warn_recordings([rec])  # a copy made from data read wrongly carries the error on
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
     check_grid_rows(rec, grid_dt, src.name)
     with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):

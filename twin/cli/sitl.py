@@ -13,15 +13,16 @@ import typer
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import RUNS, check_new
-from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission
-from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
+from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission, read_waypoint_file
+from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, PWM_SHIPPED, app, channels_from, check_distinct, 
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
 
 @app.command()
 def sitl(
-    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    vessel: Optional[str] = typer.Option(None, help=f"vessel name (a twin-thruster one shipped with twin, as ArduPilot "
+                                                    f"Rover's SITL drives two throttles: {PWM_SHIPPED})"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
@@ -112,7 +113,9 @@ def param_settings(items: list[str]) -> dict[str, float]:
 @app.command()
 def mission(
     home: str = typer.Option(..., help="LAT,LON (deg) of SITL's --home: the waypoints are metres from it"),
-    waypoints: str = typer.Option(..., help='"N,E N,E ...": each waypoint in metres north and east of home'),
+    waypoints: str = typer.Option(..., help='"N,E N,E ...": each waypoint in metres north and east of home; or a '
+                                            'mission file (QGC WPL 110, as Mission Planner and QGroundControl save '
+                                            'one): its waypoints'),
     port: int = typer.Option(5760, help="SITL's MAVLink TCP port (its SERIAL0: 5760, +10 per -I instance)"),
     set_: list[str] = typer.Option([], "--set", help="NAME=VALUE: an ArduPilot parameter set before the mission "
                                                    "(repeatable), e.g. --set ATC_STR_RAT_FF=0.5"),
@@ -133,12 +136,7 @@ def mission(
         lat_lon = origin_from(home)
     except TwinError as exc:
         raise TwinError(str(exc).replace("--origin", "--home")) from None
-    try:
-        points = [tuple(float(x) for x in p.split(",")) for p in waypoints.split()]
-    except ValueError:
-        points = []
-    if not points or any(len(p) != 2 for p in points):
-        raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, got '{waypoints}'")
+    points = _waypoints(waypoints, lat_lon)
     far = [p for p in points if not (math.isfinite(p[0]) and math.isfinite(p[1]) and math.hypot(*p) <= MAX_LEG_M)]
     if far:  # NaN would be uploaded to the autopilot as it is; a waypoint 1000 km off is a unit (mm, or degrees)
         raise TwinError(f"--waypoints: {far[0][0]:g},{far[0][1]:g} is not a waypoint within {MAX_LEG_M / 1e3:g} km "
@@ -152,6 +150,26 @@ def mission(
     if json_out is not None:
         write_text_atomic(json_out, json.dumps(result.to_dict(), indent=1) + "\n")
         say(f"wrote {json_out}")
+
+
+def _waypoints(text: str, home: tuple[float, float]) -> list[tuple[float, float]]:
+    """--waypoints: NORTH,EAST pairs (m), or a mission file's waypoints from `home` (its notes said)."""
+    try:
+        points = [tuple(float(x) for x in p.split(",")) for p in text.split()]
+    except ValueError:
+        points = []
+    if points and all(len(p) == 2 for p in points):
+        return points
+    path = Path(text)
+    if path.is_file():
+        points, notes = read_waypoint_file(path, home)
+        for line in notes:
+            note(f"note: {line}")
+        return points
+    if "," not in text and " " not in text.strip():
+        raise TwinError(f"--waypoints {text}: no such mission file (give a QGC WPL 110 file, as Mission Planner saves, "
+                        "or NORTH,EAST pairs in m separated by spaces)")
+    raise TwinError(f"--waypoints expects NORTH,EAST pairs (m) separated by spaces, or a mission file, got '{text}'")
 
 
 def _listening(port: int) -> bool:

@@ -23,15 +23,23 @@ FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLef
 
 # ---------------------------------------------------------------- thrusters
 
-def thruster_mapping(params: dict[str, float], channels: dict | None, notes: list[str]) -> dict | None:
+def thruster_mapping(params: dict[str, float], channels: dict | None, notes: list[str],
+                     warnings: list[str] | None = None) -> dict | None:
     """{"left", "right" (1-based output channels), "reversed": {...}, "trim": {...},
     "from"} from an explicit `channels` dict or the SERVOn_FUNCTION parameters
-    (73 = throttle left, 74 = throttle right); None (with a note) if neither."""
+    (73 = throttle left, 74 = throttle right); None (with a note) if neither. Explicit channels the
+    log's own SERVOn_FUNCTION contradict are used, with a warning (appended to `warnings`): a swapped
+    pair turns the twin the other way from the boat."""
+    found = {side: n for n in range(1, 33) for side, fn in (("left", FUNCTION_LEFT), ("right", FUNCTION_RIGHT))
+             if params.get(f"SERVO{n}_FUNCTION") == fn}
     if channels is not None:
         mapping = _explicit(channels)
+        if len(found) == 2 and (found["left"], found["right"]) != (mapping["left"], mapping["right"]) \
+                and warnings is not None:
+            warnings.append(f"channels {mapping['left']},{mapping['right']} given, where the log's parameters put the "
+                            f"left throttle on output {found['left']} and the right on {found['right']} "
+                            f"(SERVOn_FUNCTION {FUNCTION_LEFT}, {FUNCTION_RIGHT}): the channels given are read")
     else:
-        found = {side: n for n in range(1, 33) for side, fn in (("left", FUNCTION_LEFT), ("right", FUNCTION_RIGHT))
-                 if params.get(f"SERVO{n}_FUNCTION") == fn}
         if len(found) < 2:
             notes.append("no thruster channels: the parameters have no SERVOn_FUNCTION = 73 and 74 "
                          "(throttle left/right); pass --channels LEFT,RIGHT (Python: channels={'left': n, 'right': m})")
@@ -75,6 +83,9 @@ def set_pwm(rec: Recording, t, raw: dict[int, list], mapping: dict) -> None:
     on = (raw_lr["left"] > 0) & (raw_lr["right"] > 0)  # 0 µs: output off or channel unused
     if not np.all(on):
         rec.dropped.append(("pwm: samples with the output off (0 µs)", int(np.sum(~on))))
+    if len(on) and not on.any():
+        rec.warnings.append(f"outputs {mapping['left']} and {mapping['right']} ({mapping['from']}) are off (0 µs) in "
+                            "every sample: no thruster PWM read (check --channels LEFT,RIGHT against the outputs the log drives)")
     cols = {}
     for side, pwm in raw_lr.items():
         trim = float(mapping["trim"][side])

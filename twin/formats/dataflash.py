@@ -323,7 +323,7 @@ def _df_gnss(rec: Recording, gps: list) -> None:
 
 
 def _df_pwm(rec: Recording, rcou: list, channels: dict | None) -> None:
-    mapping = thruster_mapping(rec.parameters, channels, rec.notes)
+    mapping = thruster_mapping(rec.parameters, channels, rec.notes, rec.warnings)
     if mapping is None or not rcou:
         if mapping is not None:
             rec.notes.append("no RCOU messages: no thruster PWM")

@@ -441,7 +441,7 @@ def _tlog_gnss(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> None
 
 def _tlog_pwm(rec: Recording, msgs: dict[str, list], clock: _BootClock, channels: dict | None) -> None:
     servo = [(t, m) for t, m in msgs["SERVO_OUTPUT_RAW"] if m.port == 0]
-    mapping = thruster_mapping(rec.parameters, channels, rec.notes)
+    mapping = thruster_mapping(rec.parameters, channels, rec.notes, rec.warnings)
     if mapping is None or not servo:
         if mapping is not None:
             rec.notes.append("no SERVO_OUTPUT_RAW messages: no thruster PWM")

@@ -194,7 +194,8 @@ def prepare(rec: Recording, *, lever_arm_OP_m: tuple[float, float] | None = None
         lever_arm_OP_m = None
     if not len(rec.gnss) or not len(rec.heading):
         missing = [s for s in ("GNSS", "heading") if not len(getattr(rec, s.lower()))]
-        raise TwinError(f"{name}: cannot prepare without {' and '.join(missing)} samples{_csv_hint(rec, missing)}")
+        raise TwinError(f"{name}: no {' and '.join(missing)} samples, from which the track and the velocities are "
+                        f"read{_csv_hint(rec, missing)}")
     north_o, east_o, origin = local_ned(rec.gnss)
     psi_h = np.unwrap(rec.heading["psi_rad"])
     off_track = _flagged(gnss_outliers, north_o, east_o, rec.gnss.t)

@@ -58,7 +58,8 @@ class GyroLag:
         if not self.sigma_s or abs(self.lag_s) < TOLD_SIGMAS * self.sigma_s:
             return f"{head}: not told from on time (within {TOLD_SIGMAS:g}σ)"
         if self.lag_s < 0:
-            return f"{head}: the heading leads its gyro, which no filter does (the gyro or its stamps are late)"
+            return (f"{head}: the heading leads its gyro, which no filter does, so the gyro's stamps trail the "
+                    "heading's (two messages of one log stamped apart); the heading's timing is taken as logged")
         return f"{head}: `heading_latency={self.lag_s:.2f}` describes it if the gyro is on time"
 
 

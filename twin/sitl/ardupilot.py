@@ -446,6 +446,55 @@ def unknown_params_text(unknown: list[str], known) -> str:
     return f"--set: ArduPilot has no parameter {'; '.join(parts)}: nothing was set"
 
 
+WAYPOINT_FILE_HEADER = "QGC WPL 110"  # the plain-text mission file Mission Planner and QGroundControl save
+MAV_CMD_NAV_WAYPOINT = 16
+
+
+def read_waypoint_file(path: Path, home: tuple[float, float]) -> tuple[list[tuple[float, float]], list[str]]:
+    """The NAV_WAYPOINT items of a QGC WPL 110 mission file as (north, east) m from `home` (lat, lon
+    deg), in the file's order, and notes on what was left out.
+
+    A line is: index, current, frame, command, four parameters, latitude, longitude, altitude,
+    autocontinue, separated by tabs [MAVLink mission file format]. Item 0 is the home a ground
+    station wrote, not a waypoint; items of other commands (loiter, return to launch, jumps, speed
+    changes) are left out and named in the notes: `twin mission` drives the legs between waypoints.
+
+    Raises:
+        TwinError: the file cannot be read, is not a QGC WPL 110 file, or holds no waypoint.
+    """
+    try:
+        lines = Path(path).read_text(errors="replace").splitlines()
+    except OSError as exc:
+        raise TwinError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not lines or not lines[0].startswith(WAYPOINT_FILE_HEADER):
+        raise TwinError(f"{Path(path).name}: not a mission file (its first line is not '{WAYPOINT_FILE_HEADER}', as "
+                        "Mission Planner and QGroundControl save one)")
+    points, other = [], []
+    for number, line in enumerate(lines[1:], start=2):
+        cells = line.split()
+        if not cells:
+            continue
+        try:
+            index, command, lat, lon = int(cells[0]), int(cells[3]), float(cells[8]), float(cells[9])
+        except (IndexError, ValueError):
+            raise TwinError(f"{Path(path).name}: line {number} is not a mission item (index, current, frame, command, "
+                            "4 parameters, latitude, longitude, altitude, autocontinue)") from None
+        if index == 0:
+            continue
+        if command != MAV_CMD_NAV_WAYPOINT:
+            other.append(f"item {index} (command {command})")
+            continue
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0) or (lat == 0.0 and lon == 0.0):
+            raise TwinError(f"{Path(path).name}: item {index} has no position (latitude {lat:g}, longitude {lon:g})")
+        north, east = ned_from_geodetic(lat, lon, home[0], home[1])
+        points.append((float(north), float(east)))
+    if not points:
+        raise TwinError(f"{Path(path).name}: no waypoint (command {MAV_CMD_NAV_WAYPOINT}) to drive to")
+    notes = [f"{Path(path).name}: left out, as `twin mission` drives from waypoint to waypoint: {', '.join(other)}"] \
+        if other else []
+    return points, notes
+
+
 def fly_mission(port: int, home: tuple[float, float], waypoints_ne_m: Sequence[tuple[float, float]], *,
                 settings: dict | None = None, timeout_s: float = 600.0) -> MissionResult:
     """Connect to SITL's MAVLink console on tcp:127.0.0.1:port, wait until its EKF navigates on GPS,

@@ -468,5 +468,8 @@ def write_recording(twin: SitlTwin, paths: Sequence[Path], origin: tuple[float, 
     v = twin.vessel
     for path in paths:
         write({"sitl": run}, path, geometry=twin.compiled.geometry, vessel_name=v.name, mjcf=v.mjcf, origin=origin)
-        log(f"wrote {path} ({len(run.t)} twin states, one per physics step, {run.t[-1] - run.t[0]:.2f} s)")
+        # an autopilot log keeps what its sensors would have logged (formats/telemetry.py), not every state
+        kept = ("as an ArduPilot boat's sensors log them: GNSS every 200 ms, heading every 20 ms, PWM every 100 ms"
+                if Path(path).suffix.lower() in (".tlog", ".bin") else "one per physics step")
+        log(f"wrote {path} (the session's {len(run.t)} twin states, {kept}; {run.t[-1] - run.t[0]:.2f} s)")
     return tuple(paths)
