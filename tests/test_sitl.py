@@ -960,6 +960,25 @@ def test_a_mission_file_gives_its_waypoints_in_metres_from_home(tmp_path):
         read_waypoint_file(path, home)
 
 
+def test_a_wait_whose_autopilot_clock_stood_still_says_the_physics_stopped():
+    """ArduPilot's SITL steps in lockstep with its physics: when `twin sitl` stops answering, its clock
+    stands still, and a wait that times out says so rather than only that the mission did not come."""
+    from twin.sitl.ardupilot import Rover
+
+    rover = object.__new__(Rover)
+    rover.boot_s, rover.texts = 12.0, []
+    rover.pump = lambda: None
+    with pytest.raises(TwinError, match=r"clock stood at 12.0 s all that time: its physics \(twin sitl\) stopped"):
+        rover.wait(lambda: False, "the mission", 0.01)
+
+    def ticking():
+        rover.boot_s += 0.1
+
+    rover.pump = ticking
+    with pytest.raises(TwinError, match=r"the mission not within 0.01 s; last messages"):
+        rover.wait(lambda: False, "the mission", 0.01)
+
+
 # ---------------------------------------------------------------- in a seaway
 
 def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:

@@ -228,8 +228,13 @@ class Rover:
     def wait(self, condition, what: str, timeout_s: float, every=None) -> None:
         """Pump messages until condition() holds; `every` is called on each pass (e.g. to resend)."""
         deadline = time.monotonic() + timeout_s
+        clock_s = self.boot_s
         while not condition():
             if time.monotonic() > deadline:
+                if clock_s > 0 and self.boot_s == clock_s:
+                    # SITL steps in lockstep with its physics: a clock that stood still had no physics to step
+                    raise TwinError(f"ArduPilot: {what} not within {timeout_s:g} s, and its clock stood at "
+                                    f"{clock_s:.1f} s all that time: its physics (twin sitl) stopped answering")
                 raise TwinError(f"ArduPilot: {what} not within {timeout_s:g} s; last messages: {self.texts[-5:]}")
             try:
                 if every is not None:
