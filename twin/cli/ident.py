@@ -250,8 +250,8 @@ def identify_command(
     seen = result.vessel.uncertainty.get("fitted_on")
     if seen:  # where that expectation holds: beyond this span the twin extrapolates
         windows = ", ".join(f"{k} {n}" for k, n in seen["windows"].items())
-        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples); "
-            f"{seen['horizon_s']:g}-s windows, one every {seen.get('stride_s', 2.0):g} s, {windows}: "
+        say(f"fitted on: {span_text(seen['ranges'])} (1st-99th percentile of the samples of its "
+            f"{seen['horizon_s']:g}-s windows, one every {seen.get('stride_s', 2.0):g} s: {windows}): "
             "beyond these the twin extrapolates")
     for text in result.notes:
         note(f"note: {text}")

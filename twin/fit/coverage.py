@@ -4,8 +4,8 @@ A twin identified on some runs is pinned by the states and manoeuvres those runs
 new run goes further (faster, turning harder, a manoeuvre the fit saw only a few times) the twin
 extrapolates, and a poor score there says less about missing physics than about missing data.
 `Envelope` is what the fitted recordings held: the range of u, v and r between the 1st and 99th
-percentiles of their samples (a spike at either end does not widen it) and their free-run
-windows per manoeuvre (evaluate.MANOEUVRES, counted by `evaluate.fitted_envelope` as evaluate
+percentiles of the samples of their free-run windows (a spike at either end does not widen it) and
+those windows per manoeuvre (evaluate.MANOEUVRES, counted by `evaluate.fitted_envelope` as evaluate
 counts a judged recording's, so the two compare). `twin identify`
 writes it into the vessel file's uncertainty block as "fitted_on"; `evaluate.misfit_by_manoeuvre`
 reads a judged recording against it: the share of its free-run samples outside that range (the

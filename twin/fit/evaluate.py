@@ -171,9 +171,14 @@ def _manoeuvre_codes(vessel: Vessel, inputs: np.ndarray, scale: float | None) ->
 
 def fitted_envelope(vessel: Vessel, preps: list[Prepared], horizon_s: float = 10.0, stride_s: float = 2.0) -> Envelope:
     """What the recordings `preps` give a fit (coverage.Envelope): the range of their measured u, v,
-    r and their free-run windows of `horizon_s` per manoeuvre."""
-    states = np.vstack([np.column_stack([p.u, p.v, p.r]) for p in preps])
+    r over the samples of their free-run windows of `horizon_s`, counted as `misfit_by_manoeuvre`
+    counts a judged recording's (so the fit's own logs, judged, leave coverage.OWN_TAIL beyond in
+    each velocity), and those windows per manoeuvre; every sample where no window fits."""
     wins = horizon_windows(preps, horizon_s, stride_s)
+    if wins:
+        states = measured(preps, wins)[1][:, 1:].reshape(-1, 3)
+    else:
+        states = np.vstack([np.column_stack([p.u, p.v, p.r]) for p in preps])
     kind = _window_manoeuvres(vessel, preps, wins) if wins else np.zeros(0, int)
     counts = {name: int(np.sum(kind == i)) for i, name in enumerate(MANOEUVRES) if np.any(kind == i)}
     sources = tuple(Path(p.settings.source).name for p in preps if p.settings.source)
