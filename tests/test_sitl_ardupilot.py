@@ -194,7 +194,7 @@ def test_ardupilot_flies_the_twin_manual_guided_and_a_mission(tmp_path):
     assert abs(offset_s) < 0.2 and worst_m < 0.5, (offset_s, median_m, worst_m)
 
 
-GUIDE = ROOT / "docs" / "guide" / "autopilot.md"
+GUIDE = ROOT / "docs" / "guide" / "10-autopilot.md"
 FENCE = re.compile(r"^```(bash|text)\n(.*?)^```", re.S | re.M)
 
 
@@ -208,7 +208,7 @@ def _port_free(kind: int, port: int) -> bool:
 
 
 def test_the_autopilot_guide_runs_as_written(tmp_path):
-    """docs/guide/autopilot.md, block by block in one folder: ```bash lines run in turn; ```text blocks
+    """docs/guide/10-autopilot.md, block by block in one folder: ```bash lines run in turn; ```text blocks
     headed `# terminal 1` / `# terminal 2` start in the background as a user's terminals would,
     `# terminal 3` blocks run in the foreground, and the block headed `# after Ctrl-C in terminals
     1 and 2` runs after a SIGINT to each (ArduPilot first). Other ```text blocks are output or build

@@ -92,6 +92,8 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     (lambda d: d["thrusters"].__setitem__("gain_left", 1605.0), r"thrusters.gain_left is 1605"),
     (lambda d: d["thrusters"].__setitem__("gain_right", -1.0), r"thrusters.gain_right must be > 0, got -1"),
     (lambda d: d["thrusters"].__setitem__("lag_s", 200.0), r"thrusters.lag_s is 200 s"),
+    (lambda d: d["thrusters"].__setitem__("reversed_channels", ["left"]),
+     r"thrusters.reversed_channels \['left'\]: a channel wired in reverse is mirrored where the log is read"),
     (lambda d: d.__setitem__("cg_offset_m", [100.0, 0.0]), r"cg_offset_m \[100.0, 0.0\]"),
     (lambda d: d["wind_load"].__setitem__("frontal_area_m2", -0.3), r"wind_load.frontal_area_m2 must be ≥ 0"),
     (lambda d: d.pop("name"), r"a vessel file needs 'name'$"),

@@ -368,6 +368,11 @@ def _plausible(vessel: Vessel, path: Path) -> None:
         if getattr(t, name) > MOST_GAIN:
             raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g}, a factor on the thrust map: "
                             f"beyond {MOST_GAIN:g} it is no thruster's (a percentage?)")
+    if t.reversed_channels:
+        # the twin maps each thruster's PWM as logged: a reversed channel is mirrored where the log is read
+        raise TwinError(f"{path.name}: thrusters.reversed_channels {list(t.reversed_channels)}: a channel wired in "
+                        "reverse is mirrored where the log is read (an ArduPilot log's SERVOn_REVERSED does it; in a "
+                        "CSV give the column mirrored about its neutral, 2·neutral − pwm), not in the vessel file")
     for name in ("pwm_span_left", "pwm_span_right"):
         if not 0.0 < getattr(t, name) <= MOST_GAIN:
             raise TwinError(f"{path.name}: thrusters.{name} is {getattr(t, name):g}, a factor on the PWM's "

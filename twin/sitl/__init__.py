@@ -6,5 +6,5 @@ server.py    the UDP loop (lock-step or real time) and `run_sitl`, which the CLI
 params.py    the ArduPilot parameter file for a vessel (`twin sitl --write-params`)
 ardupilot.py ArduPilot Rover SITL started and flown over MAVLink (`twin mission`, the tests)
 
-docs/method/sitl.md states what crosses the link; docs/guide/autopilot.md flies a mission.
+docs/method/sitl.md states what crosses the link; docs/guide/10-autopilot.md flies a mission.
 """
