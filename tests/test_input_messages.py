@@ -131,6 +131,10 @@ def test_calibration_line_says_whether_applied_with_info_caveat():
     apart = LogCalibration("x.csv", 7.0, 0.6, 2, 31.0, None, "", stretch_sigma_deg=4.4)
     assert "± 0.6° from 2 straight stretches (31 s under way); its stretches alone give ± 4.4°" in apart.text()
     assert "alone" not in LogCalibration("x.csv", 7.0, 0.6, 2, 31.0, None, "", stretch_sigma_deg=0.3).text()
+    # an offset only a turned mount or a misread track gives: said with both
+    swapped = calibration_line(LogCalibration("x.csv", 72.4, 2.3, 1, 10.0, None, ""), applied=True)
+    assert swapped.endswith("offset applied (an offset this large is a compass mounted turned, or a track read "
+                            "wrongly: lat and lon swapped, or a heading in another convention)")
 
 
 def test_calibration_line_names_the_offset_a_twin_was_identified_under():

@@ -28,6 +28,9 @@ RECORDING_FORMATS = (".tlog", ".bin", ".mcap", ".csv")
 MAX_REPEATS = 1000  # --greybox --repeats: a million would run for days before a word
 
 
+LARGE_OFFSET_DEG = 30.0  # a compass offset at least this large is said with what else gives one
+
+
 def calibration_line(c: LogCalibration, applied: bool | None = None, twin: Vessel | None = None) -> str:
     """A log's compass calibration (twin.fit.calibrate.LogCalibration) as the commands print it, its
     caveat in brackets (one straight leg: an offset a current may share). `applied`: whether this
@@ -43,6 +46,9 @@ def calibration_line(c: LogCalibration, applied: bool | None = None, twin: Vesse
         return line
     if applied is not None:
         line += "; offset applied" if applied else "; offset not applied (--no-calibration)"
+    if abs(c.heading_bias_deg) >= LARGE_OFFSET_DEG:  # a compass error of a magnetometer mounted as meant is degrees
+        line += (" (an offset this large is a compass mounted turned, or a track read wrongly: lat and lon "
+                 "swapped, or a heading in another convention)")
     return line + (f" [{c.note}]" if c.note else "")
 
 
