@@ -438,7 +438,7 @@ def check_no_shared_stretch(recordings: list[Recording]) -> None:
             shorter = min(float(np.ptp(fixes[i][0])), float(np.ptp(fixes[j][0])))
             if seconds >= SHARED_SHARE * shorter:
                 first, second = Path(a.source).name, Path(b.source).name
-                if first == second:  # two folders' logs of one name (ArduPilot names each session's first 00000001.BIN)
+                if first == second:  # two folders' logs of one name (an ArduPilot boot's first is 00000001.BIN)
                     first, second = str(a.source), str(b.source)
                 raise TwinError(f"'{second}' and '{first}' share {seconds:.0f} s of the same GNSS fixes (one cut "
                                 "from the other?): give each stretch of a recording once (leave one of them out)")

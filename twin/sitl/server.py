@@ -471,5 +471,5 @@ def write_recording(twin: SitlTwin, paths: Sequence[Path], origin: tuple[float, 
         # an autopilot log keeps what its sensors would have logged (formats/telemetry.py), not every state
         kept = ("as an ArduPilot boat's sensors log them: GNSS every 200 ms, heading every 20 ms, PWM every 100 ms"
                 if Path(path).suffix.lower() in (".tlog", ".bin") else "one per physics step")
-        log(f"wrote {path} (the session's {len(run.t)} twin states, {kept}; {run.t[-1] - run.t[0]:.2f} s)")
+        log(f"wrote {path} (the run's {len(run.t)} twin states, {kept}; {run.t[-1] - run.t[0]:.2f} s)")
     return tuple(paths)
