@@ -478,7 +478,10 @@ def test_the_answer_states_a_yaw_rate_residual_in_degrees_per_second():
     off = {"dimension": "all", "dof": "r", "rms": 0.1, "rms_over_noise": 40.0, "correlates_with": []}
     d = SimpleNamespace(effects=[], rounds=[], unexplained=[off], located=[], fit_before={}, fit_after={},
                         prior=vessel_mod.load("yellowfish"), windows={"length_s": 10.0, "windows": 90})
-    assert "(RMS 5.73 °/s)" in answer(d)["form"][0]
+    assert "(RMS 5.73 °/s)" in answer(d)["form"][0] and "explains it on held-out blocks" in answer(d)["form"][0]
+    # too few blocks for any effect to earn its place: the line does not say one was tested and failed
+    few = SimpleNamespace(**{**vars(d), "windows": {"length_s": 10.0, "windows": 10}})
+    assert "no effect of the library can be shown to explain it" in answer(few)["form"][0]
 
 
 def test_the_answer_says_a_kinematic_finding_is_in_both_sides_of_what_it_changes():

@@ -251,6 +251,8 @@ def test_the_api_evaluation_says_where_the_twin_misses_and_beyond_what_its_fit_s
         assert sum(g["share"][d] for g in split["groups"].values()) == pytest.approx(1.0 - pooled[d]["r2"], rel=1e-6)
     assert split["beyond_fit"]["share_of_samples"] > 0.1 and ev.to_dict()["by_manoeuvre"] is split
     assert "beyond_fit" not in twin.evaluate(wrong, [ds.recording]).by_manoeuvre  # no record of a fit: none
+    logged = twin.evaluate(wrong, [ds.recording], calibrated=False)  # as logged: no offset applied, none shown
+    assert logged.metrics == logged.metrics_uncalibrated and not logged.applied and not logged.calibrated
     rows = ev.table()  # a list for code, aligned columns for a person at the prompt
     with_samples = [s for s in ev.scores if s.n]
     assert rows[0]["dof"] == "u" and all(r["n"] for r in rows)  # a horizon longer than the runs has no row

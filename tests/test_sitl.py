@@ -955,6 +955,8 @@ def test_a_mission_file_gives_its_waypoints_in_metres_from_home(tmp_path):
     assert np.allclose(points, [(20, 0), (20, 15)], atol=0.01)
     assert notes == ["lake.waypoints: left out, as `twin mission` drives from waypoint to waypoint: item 2 "
                      "(command 178), item 4 (command 20)"]
+    path.write_text("\ufeff" + "\n".join(rows) + "\n", encoding="utf-8")  # a BOM before the header
+    assert np.allclose(read_waypoint_file(path, home)[0], [(20, 0), (20, 15)], atol=0.01)
     path.write_text("t,lat,lon\n0,1,2\n")
     with pytest.raises(TwinError, match="not a mission file"):
         read_waypoint_file(path, home)

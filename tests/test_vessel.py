@@ -150,7 +150,7 @@ def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_ca
     with pytest.raises(TwinError, match=r"site 'thruster_left' at y = \+0.285 m lies to starboard of 'thruster_right'"):
         compile_vessel(vessel_mod.load(str(mirrored)))
     heavy = _own_copy(tmp_path, "blueboat", file_edit=lambda d: d["added_mass"].__setitem__("Xudot", -1486.0))
-    with pytest.raises(TwinError, match=r"added_mass.Xudot -1486 kg is 99 times the rigid body's 15 kg"):
+    with pytest.raises(TwinError, match=r"boat.json: added_mass.Xudot -1486 kg is 99 times the rigid body's 15 kg"):
         compile_vessel(vessel_mod.load(str(heavy)))
     for name in ("blueboat", "yellowfish", "cybership1", "esso_osaka"):
         compile_vessel(vessel_mod.load(name))

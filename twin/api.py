@@ -610,6 +610,9 @@ class Evaluation:
         stand_ins (list[dict]): the coefficients the twin's fit moved beyond what their beliefs
             allow (name, unit, value, prior, from_prior_sigmas), which hold beyond the fitted runs
             only as far as what they stand in for.
+        calibrated (bool): whether each log's compass offset was asked for (`calibrated=` of
+            `evaluate`); False: `metrics` are the scores as logged, and the offsets found are
+            reported, not applied.
     """
 
     vessel: str
@@ -619,11 +622,12 @@ class Evaluation:
     by_manoeuvre: dict = field(default_factory=dict)
     by_state: list = field(default_factory=list)
     stand_ins: list = field(default_factory=list)
+    calibrated: bool = True  # False: asked as logged (`--no-calibration`), the offsets found reported, not applied
 
     @property
     def applied(self) -> bool:
         """Whether any log's compass offset was applied (else the scores are the log's as logged)."""
-        return any(c.heading_bias_deg is not None for c in self.calibrations)
+        return self.calibrated and any(c.heading_bias_deg is not None for c in self.calibrations)
 
     @property
     def scores(self) -> list[Score]:
@@ -734,16 +738,18 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         raise TwinError("by rest bands by how long a propeller-and-rudder ship's propeller has been stopped; "
                         "these recordings log thruster PWM (band a boat's by speed, yaw_rate, drift or input_0)")
     with_offsets, calibrations = _calibrate(recs, v)
-    used = with_offsets if calibrated else v
+    # as logged: no log's compass offset, neither one read now nor one the twin holds for a log of that name
+    logged = replace(v, sensors=replace(v.sensors, heading_bias_by_log_deg=()))
+    used = with_offsets if calibrated else logged
     preps = prepared(recs, used)
     edges = percentile_edges(preps, STATE_NAMES[by], f"by {by}") if by else ()  # a flat state: before the work
     steps = 4 if by else 3
     told("without calibration", 0, steps)
-    as_logged = _evaluate(v, prepared(recs, v), stride_s=stride_s, wind=wind)
+    as_logged = _evaluate(logged, prepared(recs, logged), stride_s=stride_s, wind=wind)
     told("with each log's calibration", 1, steps)
     cache = ModelCache()  # the compiled twin shared by the scores and the splits
     # no log's offset applied: the calibrated twin is the twin, and its scores are the ones as logged
-    scored = as_logged if with_offsets.sensors == v.sensors else \
+    scored = as_logged if with_offsets.sensors == logged.sensors else \
         _evaluate(TwinPredictor(with_offsets, cache, wind), prepared(recs, with_offsets), stride_s=stride_s)
     if not any(_scored(m) for m in as_logged.values()):
         names = ", ".join(Path(r.source).name for r in recs)
@@ -756,8 +762,9 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     if by:
         told(f"by {by}", 3, steps)
         bands = misfit_by_state(predictor, preps, horizon, STATE_NAMES[by], edges, stride_s)
-    return Evaluation(v.name, scored, as_logged, calibrations, split, bands,
-                      list(v.uncertainty.get("stand_ins", [])))
+    told("done", steps, steps)
+    return Evaluation(v.name, scored if calibrated else as_logged, as_logged, calibrations, split, bands,
+                      list(v.uncertainty.get("stand_ins", [])), calibrated)
 
 
 def _scored(horizon: dict) -> bool:

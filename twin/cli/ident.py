@@ -1,7 +1,7 @@
 """`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Optional
 
@@ -369,12 +369,14 @@ def evaluate_command(
            "sea_drift_ned_m_s": list(v.environment.wave_drift_ned),
            "metrics_uncalibrated": ev.metrics_uncalibrated,
            # --no-calibration: the scores as logged, as the splits are
-           "metrics": ev.metrics if calibration else ev.metrics_uncalibrated, "by_manoeuvre": ev.by_manoeuvre}
+           "metrics": ev.metrics, "by_manoeuvre": ev.by_manoeuvre}  # --no-calibration: as logged
     if by:
         out["by_state"] = {"state": STATE_NAMES[by], "bands": [asdict(b) for b in ev.by_state]}
     names = ", ".join(p.name for p in recordings) + (", with the measured wind" if wind else "")
     twin_name = f"{model.name} ({v.name})" if model is not None else v.name
-    used = with_log_calibrations(v, calibrations) if calibration else v
+    # as logged: without the offsets the twin holds for logs of these names either (twin.evaluate)
+    used = with_log_calibrations(v, calibrations) if calibration else \
+        replace(v, sensors=replace(v.sensors, heading_bias_by_log_deg=()))
     horizon = manoeuvre_horizon_s(v, fitted)
     if sea_line:
         say(sea_line)

@@ -10,7 +10,7 @@ import typer
 from ..drive import inputs_mismatch
 from ..errors import TwinError
 from ..files import RUNS, check_new, write_bytes_atomic
-from ..recording import DROPOUTS, check_no_shared_stretch, format_summary
+from ..recording import DROPOUTS, check_no_shared_stretch, check_not_misread, format_summary
 from ..viz.report import comparison_png
 from .app import (REPORT_HELP, all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
@@ -219,7 +219,8 @@ def convert(
     check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
     positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
-    warn_recordings([rec])  # a copy made from data read wrongly carries the error on
+    check_not_misread([rec])  # a copy in another format would carry the error on without the word of it
+    warn_recordings([rec])
     samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
     check_grid_rows(rec, grid_dt, src.name)
     with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):

@@ -163,6 +163,7 @@ def _waypoints(text: str, home: tuple[float, float]) -> list[tuple[float, float]
     path = Path(text)
     if path.is_file():
         points, notes = read_waypoint_file(path, home)
+        say(f"{path.name}: {len(points)} waypoint{'' if len(points) == 1 else 's'} read")
         for line in notes:
             note(f"note: {line}")
         return points

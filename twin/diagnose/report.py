@@ -221,7 +221,9 @@ def answer(d) -> dict:
             out["form"].append(f"{u['dof']} is still {u['rms_over_noise']:.0f}× the noise off (RMS "
                                f"{_shown(u['dof'], u['rms']):.3g} {DOF_UNITS[u['dof']]})" + (f", most in {where}" if where else "")
                                + (f", and follows {follows}" if follows else "")
-                               + f": {cause}, and no effect of the library explains it on held-out blocks")
+                               + f": {cause}, and " + (f"with {blocks} blocks no effect of the library can be shown "
+                                                       "to explain it" if blocks < MIN_UNANIMOUS_BLOCKS else
+                                                       "no effect of the library explains it on held-out blocks"))
     for c in at_edge(d):
         edges = ", ".join(f"{k} {np.median([f[k] for f in c['fold_values']]):.3g}" for k in c["at_edge"])
         out["form"].append(f"{c['name']} would remove {excess_share(c['excess_gain'])} (z {z_text(c['z'], Z_MIN)}), "

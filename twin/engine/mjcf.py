@@ -382,7 +382,8 @@ def _check_added_mass_scale(vessel: Vessel, geometry: Geometry) -> None:
     for name, value, own, unit in (("Xudot", a.Xudot, rigid.mass_kg, "kg"), ("Yvdot", a.Yvdot, rigid.mass_kg, "kg"),
                                    ("Nrdot", a.Nrdot, rigid.Iz_kgm2, "kg·m²")):
         if own > 0 and abs(value) > ADDED_MASS_AT_MOST * own:
-            raise TwinError(f"vessel '{vessel.name}': added_mass.{name} {value:g} {unit} is {abs(value) / own:.0f} "
+            where = vessel.path.name if vessel.path is not None else f"vessel '{vessel.name}'"
+            raise TwinError(f"{where}: added_mass.{name} {value:g} {unit} is {abs(value) / own:.0f} "
                             f"times the rigid body's {own:.4g} {unit}: a hull's added mass is of the order of its "
                             f"own (the vessel file's added mass is in {unit})")
 

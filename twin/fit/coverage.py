@@ -12,7 +12,8 @@ reads a judged recording against it: the share of its free-run samples outside t
 samples R² is pooled over: overlapping windows count a sample once per window) and the share of
 1 − R² they carry. By that definition the fitted recordings themselves leave OWN_TAIL of their
 samples beyond the range in each velocity: a judged recording is said to reach beyond what the fit
-saw in a velocity only where more than twice that share of its samples do. The envelope keeps the
+saw in a velocity where more than twice that share of its samples do, or where its farthest sample
+lies half the span's width past the span. The envelope keeps the
 fitted logs' file names, so that a score on one of them is said to be in-sample.
 """
 from __future__ import annotations
@@ -27,6 +28,7 @@ from .metrics import DOFS
 
 RANGE_PERCENTILES = (1.0, 99.0)
 OWN_TAIL = (RANGE_PERCENTILES[0] + 100.0 - RANGE_PERCENTILES[1]) / 100.0  # the fitted samples' share beyond, per DOF
+FAR_SPANS = 0.5  # judged samples this many of the span's widths past its end reach beyond it, however few
 DEFAULT_STRIDE_S = 2.0
 
 
@@ -126,7 +128,8 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
     {each DOF the judged samples leave the span in: "share_of_samples", "below", "above": the farthest
     judged sample beyond the span's low and high end (None where none lies beyond that end), and
     "reaches": whether more than twice OWN_TAIL of the samples lie beyond (what the fitted samples
-    themselves leave beyond by the span's definition)}, "r2_beyond", "r2_within": {u, v, r} the score
+    themselves leave beyond by the span's definition), or the farthest lies FAR_SPANS of the span's
+    width past its end}, "r2_beyond", "r2_within": {u, v, r} the score
     of the samples beyond the span and within it, each about its own mean}."""
     paired = np.isfinite(meas).any(axis=-1)
     out_mask = env.outside(meas) & paired
@@ -142,8 +145,13 @@ def beyond(env: Envelope, meas: np.ndarray, sq: np.ndarray, total: np.ndarray) -
             with np.errstate(invalid="ignore"):
                 below, above = x[x < lo], x[x > hi]
             share = float(beyond_d.sum() / n)
+            # how far past the span the farthest judged sample goes, in spans: a few samples well beyond it
+            # are new ground as much as many just past its ends
+            past = max(lo - float(below.min()) if below.size else 0.0, float(above.max()) - hi if above.size else 0.0)
+            far = past > FAR_SPANS * (hi - lo)
             per_dof[d] = {"share_of_samples": share, "below": float(below.min()) if below.size else None,
-                          "above": float(above.max()) if above.size else None, "reaches": share > 2.0 * OWN_TAIL}
+                          "above": float(above.max()) if above.size else None,
+                          "reaches": share > 2.0 * OWN_TAIL or far}
     return {"samples": n, "outside": k, "share_of_samples": k / n if n else None,
             "share": {d: float(sse[i] / total[i]) if total[i] > 0 else None for i, d in enumerate(DOFS)},
             "dofs": per_dof, "r2_beyond": _subset_r2(meas, sq, out_mask), "r2_within": _subset_r2(meas, sq, paired & ~out_mask)}

@@ -471,14 +471,16 @@ def beyond_sentence(split: dict) -> str:
                   if (b.get("r2_beyond") or {}).get(d) is not None and (b.get("r2_within") or {}).get(d) is not None]
         if scores:
             text += "; R² " + ", ".join(scores)
-        reach = [f"{d} ({_percent(x['share_of_samples'])} of the samples, {_reached(d, x)})"
-                 for d, x in b.get("dofs", {}).items() if x.get("reaches", True)]
-        if reach and not all_own:
-            text += ("; the judged runs reach beyond what the fit saw in " + ", ".join(reach)
-                     + ": record runs that reach there to fit it")
+        dofs = b.get("dofs", {})
+        beyond_in = [f"{d} ({_percent(x['share_of_samples'])} of the samples, {_reached(d, x)})" for d, x in dofs.items()]
+        if beyond_in and not all_own:
+            far = [d for d, x in dofs.items() if x.get("reaches", True)]
+            text += ("; the judged runs go beyond it in " + ", ".join(beyond_in)
+                     + (f": record runs that reach there in {', '.join(far)} to fit it" if far else
+                        f" (near its ends, and at most twice the {100 * OWN_TAIL:g} % the fit's own runs leave beyond)"))
         if own:
-            text += (f"; {', '.join(own)} {'bears' if len(own) == 1 else 'bear'} the name of a log the twin was "
-                     "fitted on: its score there is in-sample")
+            text += (f"; {', '.join(own)} {'bears the name of a log' if len(own) == 1 else 'bear the names of logs'} "
+                     f"the twin was fitted on: {'its score is' if len(own) == 1 else 'their scores are'} in-sample")
     return text
 
 

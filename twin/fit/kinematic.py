@@ -486,6 +486,9 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
     s = vessel.sensors
     basis = (f"surge: {surge.events} of {surge.steps} input steps answered clearly; yaw ({'gyro' if gyro else 'heading'}): "
              f"{yaw.events} of {yaw.steps}")
+    if zero_surge or zero_yaw:  # a twin identify wrote: its own runs' answers are the zero (module docstring)
+        basis += (f"; read against the twin's answers on the runs it was fitted on (surge {zero_surge:+.2f} s, "
+                  f"yaw {zero_yaw:+.2f} s)")
     detail = {"surge": surge.to_dict(), "yaw": yaw.to_dict(), "gyro": gyro, "floor_s": floor}
 
     def finding(effect, key, now, change, sigma, told, absent, why):

@@ -519,7 +519,8 @@ class RecordingCoverage:
     def text(self) -> str:
         """One line per quantity: how often the recording is inside the band (should be ≈ level)."""
         widened = bool(self.inside_parameters_only)
-        dropped = (f" ({self.diverged} more diverged on the recording and are left out)" if self.diverged else "") + \
+        dropped = (f" ({self.diverged} more diverged on the recording and "
+                   f"{'is' if self.diverged == 1 else 'are'} left out)" if self.diverged else "") + \
             (f" ({self.rejected} redrawn as unphysical: damping that stops dissipating, or a mass matrix not "
              "positive-definite)" if self.rejected else "")
         lines = [f"band of {self.draws} draws{dropped}, {self.windows} free runs of {self.window_s:g} s from measured "

@@ -468,7 +468,7 @@ def read_waypoint_file(path: Path, home: tuple[float, float]) -> tuple[list[tupl
         TwinError: the file cannot be read, is not a QGC WPL 110 file, or holds no waypoint.
     """
     try:
-        lines = Path(path).read_text(errors="replace").splitlines()
+        lines = Path(path).read_text(encoding="utf-8-sig", errors="replace").splitlines()  # a BOM, as some editors write
     except OSError as exc:
         raise TwinError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if not lines or not lines[0].startswith(WAYPOINT_FILE_HEADER):
