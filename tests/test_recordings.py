@@ -507,6 +507,8 @@ def test_an_absurd_heading_is_dropped_and_a_heading_in_radians_is_refused_for_fi
         assert done.returncode == 2 and done.stderr.strip().splitlines() == [
             f"error: run.csv: {rec.misread[0]}"], (command, done.stderr)
         assert not (tmp_path / "out.json").exists()
+    info = twin_command.twin("info", str(path), "--vessel", "yellowfish")
+    assert "calibration: run.csv: none, as the log is read in a unit it is not in" in info.stdout
     # nor converted: a copy in another format would carry the error on without the word of it
     done = twin_command.twin("convert", str(path), str(tmp_path / "copy.mcap"))
     assert done.returncode == 2 and done.stderr.strip() == f"error: run.csv: {rec.misread[0]}"

@@ -123,6 +123,8 @@ def _calibrations(recordings: list, vessel) -> int:
         held = held_inputs(r)
         if not (len(r.gnss) and len(r.heading)):
             typer.echo(f"calibration: {name}: no compass calibration (it needs GNSS and heading)")
+        elif r.misread:  # identify, evaluate and diagnose refuse it: a calibration of it would apply to nothing
+            typer.echo(f"calibration: {name}: none, as the log is read in a unit it is not in (its warning above)")
         elif held is not None and held != wanted:  # another kind of vessel's log: identify would refuse it too
             typer.echo(f"error: calibration: {name}: {inputs_mismatch(vessel.name, wanted, held)}", err=True)
             failed = 1
