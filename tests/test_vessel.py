@@ -149,6 +149,9 @@ def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_ca
         'pos="-0.52 0.285 0.10"', 'pos="-0.52 -0.285 0.10"').replace('pos="LEFT"', 'pos="-0.52 0.285 0.10"'))
     with pytest.raises(TwinError, match=r"site 'thruster_left' at y = \+0.285 m lies to starboard of 'thruster_right'"):
         compile_vessel(vessel_mod.load(str(mirrored)))
+    one_side = _own_copy(tmp_path, "blueboat", lambda x: x.replace('pos="-0.52 -0.285 0.10"', 'pos="-0.52 0.285 0.10"'))
+    with pytest.raises(TwinError, match=r"sites 'thruster_left' and 'thruster_right' both at y = \+0.285 m"):
+        compile_vessel(vessel_mod.load(str(one_side)))
     heavy = _own_copy(tmp_path, "blueboat", file_edit=lambda d: d["added_mass"].__setitem__("Xudot", -1486.0))
     with pytest.raises(TwinError, match=r"boat.json: added_mass.Xudot -1486 kg is 99 times the rigid body's 15 kg"):
         compile_vessel(vessel_mod.load(str(heavy)))

@@ -388,6 +388,9 @@ def _check_added_mass_scale(vessel: Vessel, geometry: Geometry) -> None:
                             f"own (the vessel file's added mass is in {unit})")
 
 
+SIDES_APART_M = 0.01  # two thrusters closer athwartships than this give no moment to turn by: one site written twice
+
+
 def _check_sides(vessel: Vessel, geometry: Geometry) -> None:
     """Refuse a left thruster to starboard of the right one: body y points to starboard (FRD), and a
     site written in a forward-left-up frame mirrors the boat, so every differential thrust turns the
@@ -395,6 +398,11 @@ def _check_sides(vessel: Vessel, geometry: Geometry) -> None:
     if vessel.thrusters.kind == "propeller_rudder" or len(geometry.thruster_pos_m) != 2:
         return
     left, right = (float(p[1]) for p in geometry.thruster_pos_m)
+    if abs(left - right) < SIDES_APART_M:
+        names = actuator_names(vessel)
+        raise TwinError(f"{vessel.mjcf.name}: sites '{names[0]}' and '{names[1]}' both at y = {left:+.3g} m: a "
+                        "twin-thruster vessel turns by the difference of their thrusts, which needs them apart "
+                        "(the left one at the smaller y: body y points to starboard)")
     if left > right:
         names = actuator_names(vessel)
         raise TwinError(f"{vessel.mjcf.name}: site '{names[0]}' at y = {left:+.3g} m lies to starboard of "
