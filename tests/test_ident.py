@@ -228,6 +228,13 @@ def test_the_misfit_beyond_what_the_fit_saw(yellowfish_vessel):
     on_own = misfit_by_manoeuvre(wrong, preps, 10.0, fitted=own)["beyond_fit"]
     assert on_own["share_of_samples"] <= 0.06 and not any(x["reaches"] for x in on_own["dofs"].values())
     assert own.sources == (Path(ds.recording.source).name,) or not ds.recording.source
+    # judged beside a run the fit did not see, the fit's own windows are left out of what lies beyond
+    other = prepare_for(generate(yellowfish_vessel, n_segments=2, seed=6, segment_s=(30, 40)).recording,
+                        compile_vessel(yellowfish_vessel))
+    mixed = misfit_by_manoeuvre(wrong, preps + [other], 10.0, fitted=own)["beyond_fit"]
+    alone = misfit_by_manoeuvre(wrong, [other], 10.0, fitted=own)["beyond_fit"]
+    assert mixed["of_new_logs_only"] and mixed["fitted_logs_judged"] == [Path(ds.recording.source).name]
+    assert (mixed["samples"], mixed["outside"]) == (alone["samples"], alone["outside"]) and not alone["of_new_logs_only"]
     with pytest.raises(TwinError, match="fitted_on"):
         from_dict({"ranges": {"u": [0.0, 1.0]}})
     with pytest.raises(TwinError, match="counts"):

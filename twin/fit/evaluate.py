@@ -219,12 +219,18 @@ def misfit_by_manoeuvre(model: Predictor | Vessel, preps: list[Prepared], horizo
     out["r2"] = {d: (1.0 - float(sq[:, :, k].sum() / total[k])) if total[k] > 0 else None for k, d in enumerate(DOFS)}
     if fitted is not None:
         out["fitted_on"] = fitted.to_dict()
-        out["beyond_fit"] = beyond(fitted, np.where(finite[:, None, None], meas[:, 1:], np.nan), sq, total)
         # by name less its suffix: a log converted to another format (`twin convert`) is the same log
         fitted_stems = {Path(s).stem for s in fitted.sources}
         judged = [Path(p.settings.source).name for p in preps]
-        out["beyond_fit"]["fitted_logs_judged"] = [n for n in judged if n and Path(n).stem in fitted_stems]
+        own = [n for n in judged if n and Path(n).stem in fitted_stems]
+        # judged beside runs the fit did not see, the fit's own windows are left out of what lies beyond
+        new = np.array([not (judged[w.rec] and Path(judged[w.rec]).stem in fitted_stems) for w in wins])
+        keep = new if own and new.any() else np.ones(len(wins), bool)
+        sq_b, total_b = (sq, total) if keep.all() else _squares(pred[keep, 1:], meas[keep, 1:], finite[keep])
+        out["beyond_fit"] = beyond(fitted, np.where(finite[keep, None, None], meas[keep, 1:], np.nan), sq_b, total_b)
+        out["beyond_fit"]["fitted_logs_judged"] = own
         out["beyond_fit"]["logs_judged"] = len(judged)
+        out["beyond_fit"]["of_new_logs_only"] = not keep.all()
     for i, name in enumerate(MANOEUVRES):
         if np.any(kind == i):
             sel = (kind == i) & finite
@@ -465,8 +471,10 @@ def beyond_sentence(split: dict) -> str:
         own = b.get("fitted_logs_judged") or []
         all_own = len(own) >= b.get("logs_judged", len(own) + 1)  # the fit's own logs: nothing beyond is new
         shares = ", ".join(f"{d} {b['share'][d]:.3f}" for d in DOFS if b["share"][d] is not None)
-        text += (f"; beyond that span: {b['share_of_samples']:.0%} of the judged free-run samples, holding {shares} "
-                 "of 1 − R²" + ("" if all_own else " (the twin extrapolates there)"))
+        which = "the free-run samples of the judged runs the fit did not see" if b.get("of_new_logs_only") else \
+            "the judged free-run samples"
+        text += (f"; beyond that span: {b['share_of_samples']:.0%} of {which}, holding {shares} of their 1 − R²"
+                 + ("" if all_own else " (the twin extrapolates there)"))
         scores = [f"{d} {b['r2_beyond'][d]:.2f} beyond, {b['r2_within'][d]:.2f} within" for d in DOFS
                   if (b.get("r2_beyond") or {}).get(d) is not None and (b.get("r2_within") or {}).get(d) is not None]
         if scores:
