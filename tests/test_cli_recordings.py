@@ -343,3 +343,17 @@ def test_an_inputs_csv_with_a_column_twice_is_refused_as_a_recordings_csv_is(tmp
         assert not (tmp_path / "o.csv").exists()
         p = twin("info", inputs)  # the same file read as a recording: the same words
         assert p.returncode == 2 and f"in.csv: {said} more than once in the header" in p.stderr
+
+
+def test_a_conversion_says_what_a_log_format_resamples():
+    """A .bin or .tlog carries roll and pitch in the heading's message: a conversion says it reads
+    them at the heading's times; .mcap, which keeps every stream, says nothing of it."""
+    from twin.prepare.convert import not_kept
+    from twin.recording import Recording, Stream
+
+    rec = Recording("x.csv", "csv")
+    rec.heading = Stream(np.arange(0.0, 10.0, 0.1), {"psi_rad": np.zeros(100)})
+    rec.attitude = Stream(np.arange(0.0, 10.0, 0.02), {"roll_rad": np.zeros(500), "pitch_rad": np.zeros(500)})
+    assert not_kept(rec, ".bin") == ["a .bin carries roll and pitch with the heading (ATT, ATTITUDE): the 500 attitude "
+                                      "samples are read at the heading's 100 times (.mcap keeps them all)"]
+    assert not_kept(rec, ".mcap") == []

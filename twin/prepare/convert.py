@@ -83,4 +83,7 @@ def not_kept(rec: Recording, suffix: str) -> list[str]:
         out.append(f"the CSV layout has no place for the {len(rec.parameters)} parameters (use .mcap, .tlog or .bin)")
     if suffix == ".tlog" and len(rec.imu) and not len(rec.heading):
         out.append("a .tlog carries the yaw rate in ATTITUDE with the heading: without heading the imu stream is lost")
+    if suffix in (".tlog", ".bin") and len(rec.attitude) > len(rec.heading) > 0:
+        out.append(f"a {suffix} carries roll and pitch with the heading (ATT, ATTITUDE): the {len(rec.attitude)} "
+                   f"attitude samples are read at the heading's {len(rec.heading)} times (.mcap keeps them all)")
     return out
