@@ -398,3 +398,84 @@ def test_mcap_message_that_is_not_json_is_left_out_and_said(tmp_path, monkeypatc
     assert any("1 messages whose bytes are not JSON left out" in n for n in back.notes), back.notes
     total = sum(len(getattr(rec, s)) for s in ("gnss", "heading", "pwm", "imu"))
     assert sum(len(getattr(back, s)) for s in ("gnss", "heading", "pwm", "imu")) == total - 1
+
+
+def test_a_two_pole_low_pass_delays_a_boats_turns_by_its_group_delay():
+    """ArduPilot's gyro low-pass (a two-pole Butterworth at INS_GYRO_FILTER, sampled at 1 kHz here)
+    lays a boat's turning (0.2 and 0.5 Hz) √2/(2π·f_c) late, what the readers take back (±2 ms)."""
+    from scipy.signal import butter, lfilter
+
+    from twin.formats.ardupilot import gyro_filter_delay_s
+
+    fs = 1000.0
+    t = np.arange(0.0, 60.0, 1 / fs)
+    rate = 0.3 * np.sin(2 * np.pi * 0.2 * t) + 0.1 * np.sin(2 * np.pi * 0.5 * t + 1.0)
+    for cutoff_hz in (4.0, 10.0, 20.0):
+        filtered = lfilter(*butter(2, cutoff_hz, fs=fs), rate)
+        shifts = np.arange(0.0, 0.12, 0.001)
+        keep = t > 5.0
+        cost = [np.mean((filtered[keep] - np.interp(t[keep] - s, t, rate)) ** 2) for s in shifts]
+        assert shifts[int(np.argmin(cost))] == pytest.approx(gyro_filter_delay_s({"INS_GYRO_FILTER": cutoff_hz}),
+                                                             abs=0.002), cutoff_hz
+    assert gyro_filter_delay_s({"INS_GYRO_FILTER": 4.0}) == pytest.approx(0.0563, abs=1e-4)
+    assert gyro_filter_delay_s({"INS_GYRO_FILTER": 0.0}) == gyro_filter_delay_s({}) == 0.0
+
+
+@pytest.mark.parametrize("ext", [".bin", ".tlog"])
+def test_an_ardupilot_gyro_is_read_when_it_turned_and_written_back_as_logged(tmp_path, ext):
+    """A log whose parameters state INS_GYRO_FILTER 4 holds its gyro 0.056 s after the turn: the
+    reader reads it that much earlier and says so; written back to the format, the delay is put
+    back, so the conversion reads again the same; a log with the filter off is read as stamped."""
+    from pymavlink import DFReader
+
+    th = np.arange(0, 3000) * 0.02
+    rate = 0.3 * np.sin(2 * np.pi * 0.05 * th)
+    delay = np.sqrt(2) / (2 * np.pi * 4.0)
+    for cutoff_hz, late in ((4.0, delay), (0.0, 0.0)):
+        rec = Recording(source="g", kind="synthetic", heading=Stream(th, {"psi_rad": wrapped(np.cumsum(rate) * 0.02)}),
+                        imu=Stream(th.copy(), {"yaw_rate_rads": rate}), parameters={"INS_GYRO_FILTER": cutoff_hz})
+        out = tmp_path / f"g{cutoff_hz:g}{ext}"
+        write_recording(rec, out)
+        if ext == ".bin":  # the file holds the gyro where ArduPilot stamps it
+            log = DFReader.DFReader_binary(str(out), zero_time_base=False)
+            stamps = []
+            while (m := log.recv_match(type=["IMU"])) is not None:
+                stamps.append(m.TimeUS * 1e-6)
+            np.testing.assert_allclose(stamps, th + late, atol=1.5e-6)
+        back = read_recording(out)
+        said = [n for n in back.notes if n.startswith("gyro: logged after")]
+        assert len(said) == (1 if late else 0) and (not late or "read 0.056 s earlier" in said[0])
+        inside = (back.imu.t > 1.0) & (back.imu.t < th[-1] - 1.0)
+        np.testing.assert_allclose(back.imu["yaw_rate_rads"][inside],
+                                   np.interp(back.imu.t[inside], th, rate), atol=2e-4 if ext == ".tlog" else 1e-6)
+        if ext == ".bin":
+            np.testing.assert_allclose(back.imu.t, th, atol=1.5e-6)
+
+
+@pytest.mark.parametrize("params, delay_s, said", [
+    ({"SIM_GPS1_LAG_MS": 100.0, "GPS_DELAY_MS": 0.0, "GPS_TYPE": 1.0}, 0.100, "as the log's SIM_GPS1_LAG_MS says"),
+    ({"GPS1_DELAY_MS": 120.0, "GPS1_TYPE": 2.0}, 0.120, "as the log's GPS1_DELAY_MS says"),
+    ({"GPS_DELAY_MS": 0.0, "GPS_TYPE": 1.0}, 0.0, "by an amount this log does not state"),
+    ({}, 0.0, None),
+])
+def test_a_dataflash_gps_fix_is_read_when_the_log_says_it_was_taken(tmp_path, params, delay_s, said):
+    """A GPS message is stamped when the fix was logged: where the log states the receiver's delay
+    (SITL's lag, or the delay the autopilot compensates for) the fix is read that much earlier and
+    the note says which parameter; an autopilot's log that states none says so; a recording with
+    no autopilot parameters (a simulated run) is read as stamped, in silence. Written back, the
+    file holds the stamps ArduPilot gave."""
+    from pymavlink import DFReader
+
+    rec = synthetic(5)
+    rec.parameters = dict(params)
+    out = tmp_path / "fixes.bin"
+    write_recording(rec, out)
+    log = DFReader.DFReader_binary(str(out), zero_time_base=False)
+    stamps = []
+    while (m := log.recv_match(type=["GPS"])) is not None:
+        stamps.append(m.TimeUS * 1e-6)
+    np.testing.assert_allclose(stamps, rec.gnss.t - rec.gnss.t[0] + delay_s, atol=1.5e-6)
+    back = read_recording(out)
+    np.testing.assert_allclose(back.gnss.t - back.heading.t[0], rec.gnss.t - rec.heading.t[0], atol=1.5e-6)
+    notes = [n for n in back.notes if n.startswith("gnss:")]
+    assert (notes == []) if said is None else (len(notes) == 1 and said in notes[0]), notes

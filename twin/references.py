@@ -90,6 +90,14 @@ BIBLIOGRAPHY = _bib(
            "Journal of the Society of Naval Architects of Japan 168, 141-148", 1990),
     Source("Blendermann-1994", "Parameter identification of wind loads on ships", "Werner Blendermann",
            "Journal of Wind Engineering and Industrial Aerodynamics 51(3), 339-351", 1994),
+    Source("ArduPilot-INS", "The inertial sensor library (libraries/AP_InertialSensor: the gyro the IMU log message "
+           "and the AHRS's rates give is get_gyro(), after the two-pole low-pass LowPassFilter2p at INS_GYRO_FILTER "
+           "Hz, and an optional harmonic notch, INS_HNTCH_ENABLE)", "ArduPilot development team",
+           "github.com/ArduPilot/ardupilot; ardupilot.org, IMU notch and low-pass filtering", None),
+    Source("ArduPilot-GPS", "The GPS library (libraries/AP_GPS: GPS_DELAY_MS, GPS1_DELAY_MS, the delay the EKF "
+           "compensates for; 0 takes the driver's, AP_GPS_UBLOX::get_lag, 0.12 s for a u-blox 7, M8, M9, M10 or F9 "
+           "and 0.22 s for older ones; SITL's SIM_GPS1_LAG_MS)", "ArduPilot development team",
+           "github.com/ArduPilot/ardupilot", None),
     Source("ArduPilot-CompassMot", "Compass motor interference compensation (COMPASS_MOT_TYPE, COMPASS_MOT_X/Y/Z)",
            "ArduPilot development team", "ArduPilot documentation, ardupilot.org", None),
     Source("ArduPilot-Rover", "Rover parameters (FRAME_CLASS, SERVOn_FUNCTION, CRUISE_SPEED, CRUISE_THROTTLE, "

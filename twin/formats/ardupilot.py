@@ -8,9 +8,19 @@ RCn_TRIM (default 1500 µs); or an explicit mapping
 A reversed channel is mirrored around its trim (pwm' = 2·trim − pwm), so the
 Recording always holds "forward thrust = higher PWM". A PWM of 0 (output off) is
 treated as missing.
+
+The gyro: ArduPilot logs it (DataFlash IMU's GyrZ, MAVLink ATTITUDE's yawspeed) after its
+two-pole Butterworth low-pass at INS_GYRO_FILTER Hz [ArduPilot-INS]. Well below its cut-off such a
+filter passes a signal unchanged but late by its group delay at zero frequency, √2/(2π·f_c):
+0.056 s at Rover's default 4 Hz, where a boat turns at well under 1 Hz. A log that states its
+filter has its gyro read that much earlier, with a note; writing it back to an ArduPilot format
+with the same parameter puts the delay back, so a log converted and read again holds the same
+stream. A harmonic notch (INS_HNTCH_ENABLE) delays the gyro further, by an amount its tuning
+sets: named, not counted.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +29,33 @@ from ..errors import TwinError
 from ..recording import Recording, clean_stream, with_common_origin
 
 FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLeft, ThrottleRight
+GYRO_FILTER = "INS_GYRO_FILTER"  # Hz; 0 turns the low-pass off
+NOTCH = "INS_HNTCH_ENABLE"
+
+
+# ---------------------------------------------------------------- the gyro's filter
+
+def gyro_filter_delay_s(params: dict[str, float]) -> float:
+    """How late the gyro of a log with these parameters is on the turn it measures (s): the group
+    delay √2/(2π·f_c) of the two-pole low-pass at f_c = INS_GYRO_FILTER (module docstring); 0 where
+    the parameter is missing, not a number or turns the filter off."""
+    cutoff_hz = params.get(GYRO_FILTER)
+    if cutoff_hz is None or not math.isfinite(cutoff_hz) or cutoff_hz <= 0.0:
+        return 0.0
+    return math.sqrt(2.0) / (2.0 * math.pi * cutoff_hz)
+
+
+def read_gyro_on_time(rec: Recording) -> None:
+    """Move the imu stream of an ArduPilot log to when the turns it measures happened (earlier by
+    gyro_filter_delay_s of its parameters), saying so in the notes."""
+    delay = gyro_filter_delay_s(rec.parameters)
+    if not (delay and len(rec.imu)):
+        return
+    rec.imu = rec.imu.shifted(delay)
+    notch = (f"; its harmonic notch ({NOTCH} 1) delays it further, by an amount not counted"
+             if rec.parameters.get(NOTCH, 0.0) > 0.0 else "")
+    rec.notes.append(f"gyro: logged after ArduPilot's {rec.parameters[GYRO_FILTER]:g}-Hz low-pass ({GYRO_FILTER}), "
+                     f"which delays a turn by {delay:.3f} s: read {delay:.3f} s earlier{notch}")
 
 
 # ---------------------------------------------------------------- thrusters

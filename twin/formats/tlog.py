@@ -43,7 +43,7 @@ from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..recording import Recording, Stream, clean_stream
 from ..run import Run
-from .ardupilot import finish, read_bytes, set_pwm, text, thruster_mapping
+from .ardupilot import finish, gyro_filter_delay_s, read_bytes, read_gyro_on_time, set_pwm, text, thruster_mapping
 from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, Telemetry, log_parameters,
                         sample)
 
@@ -208,7 +208,9 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     if len(imu) and not len(h):
         raise TwinError(f"{Path(rec.source).name}: a .tlog carries the gyro in ATTITUDE beside the heading, and this "
                         "recording has a gyro but no heading (write a .csv, .bin or .mcap)")
-    r = _covered(h.t, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
+    # ArduPilot's gyro is stamped its filter's delay after the turn (formats.ardupilot): put it back
+    late_s = gyro_filter_delay_s(rec.parameters)
+    r = _covered(h.t - late_s, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
     att = rec.attitude
     roll = _covered(h.t, att.t, att["roll_rad"]) if len(att) else None
     pitch = _covered(h.t, att.t, att["pitch_rad"]) if len(att) else None
@@ -360,6 +362,7 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     _tlog_battery(rec, msgs, clock)
     _tlog_named(rec, msgs["NAMED_VALUE_FLOAT"], clock)
     rec.meta["clock"] = "vehicle boot time" if len(clock.recv) else "tlog receive time"
+    read_gyro_on_time(rec)
     return finish(rec)
 
 

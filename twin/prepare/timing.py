@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from ..formats.ardupilot import GYRO_FILTER, gyro_filter_delay_s
 from ..recording import Recording
 from .outliers import heading_spikes
 
@@ -46,6 +47,7 @@ class GyroLag:
     turning_s: float = 0.0
     note: str = ""
     sigma_s: float | None = None  # the lag's 1-σ: each piece left out in turn (jackknife)
+    cause: str = ""  # what can stamp the gyro late in this kind of log, said where the heading leads it
 
     def text(self) -> str:
         if self.lag_s is None:
@@ -59,7 +61,8 @@ class GyroLag:
             return f"{head}: not told from on time (within {TOLD_SIGMAS:g}σ)"
         if self.lag_s < 0:
             return (f"{head}: the heading leads its gyro, which no filter does, so the gyro's stamps trail the "
-                    "heading's (two messages of one log stamped apart); the heading's timing is taken as logged")
+                    "heading's (two messages of one log stamped apart); the heading's timing is taken as logged"
+                    + (f"; {self.cause}" if self.cause else ""))
         return f"{head}: `heading_latency={self.lag_s:.2f}` describes it if the gyro is on time"
 
 
@@ -115,7 +118,17 @@ def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turni
                                               "is expected)")
     if k in (0, len(lags) - 1):
         return GyroLag(None, fit, turning_s, f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
-    return GyroLag(float(lags[k]), fit, turning_s, sigma_s=_jackknife(lags, per_piece))
+    return GyroLag(float(lags[k]), fit, turning_s, sigma_s=_jackknife(lags, per_piece), cause=_unstated_filter(rec))
+
+
+def _unstated_filter(rec: Recording) -> str:
+    """An ArduPilot log that does not state its gyro's low-pass, which its reader reads back by
+    (formats.ardupilot): the filter's delay at the vehicles' default cut-offs."""
+    if rec.kind not in ("dataflash", "tlog") or GYRO_FILTER in rec.parameters:
+        return ""
+    return (f"ArduPilot logs its gyro after its {GYRO_FILTER} low-pass, which this log's parameters do not state "
+            f"(Rover's default 4 Hz delays it {gyro_filter_delay_s({GYRO_FILTER: 4.0}):.3f} s, Copter's and Sub's "
+            f"20 Hz {gyro_filter_delay_s({GYRO_FILTER: 20.0}):.3f} s)")
 
 
 def _jackknife(lags: np.ndarray, per_piece: list[np.ndarray]) -> float | None:
