@@ -45,8 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 import twin  # noqa: E402
 from twin.effects.coefficients import coefficients  # noqa: E402
-from twin.formats.ardupilot import gyro_filter_delay_s  # noqa: E402
-from twin.formats.dataflash import gnss_delay_s  # noqa: E402
+from twin.formats.ardupilot import gnss_delay_s, gyro_filter_delay_s  # noqa: E402
 from twin.geodesy import ned_from_geodetic  # noqa: E402
 from twin.run import read_csv  # noqa: E402
 from twin.sitl.ardupilot import Rover, start_ardurover  # noqa: E402

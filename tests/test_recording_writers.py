@@ -452,30 +452,59 @@ def test_an_ardupilot_gyro_is_read_when_it_turned_and_written_back_as_logged(tmp
             np.testing.assert_allclose(back.imu.t, th, atol=1.5e-6)
 
 
-@pytest.mark.parametrize("params, delay_s, said", [
+GPS_CASES = [
     ({"SIM_GPS1_LAG_MS": 100.0, "GPS_DELAY_MS": 0.0, "GPS_TYPE": 1.0}, 0.100, "as the log's SIM_GPS1_LAG_MS says"),
+    ({"SIM_GPS1_LAG_MS": 0.0, "GPS_TYPE": 1.0}, 0.0, None),  # a simulation stating no lag: on time, nothing to say
     ({"GPS1_DELAY_MS": 120.0, "GPS1_TYPE": 2.0}, 0.120, "as the log's GPS1_DELAY_MS says"),
-    ({"GPS_DELAY_MS": 0.0, "GPS_TYPE": 1.0}, 0.0, "by an amount this log does not state"),
+    ({"GPS_DELAY_MS": 0.0, "GPS_TYPE": 1.0}, 0.0, "(GPS_DELAY_MS 0 leaves it to the receiver's driver; ArduPilot's for "
+                                                  "a u-blox 7 or later is 0.12 s)"),
+    ({"GPS1_TYPE": 14.0}, 0.0, "(no GPS delay set leaves it to the receiver's driver)"),  # a MAVLink GPS: no u-blox
+    ({"GPS_DELAY_MS": 5000.0, "GPS_TYPE": 1.0}, 0.0, "GPS_DELAY_MS 5000 ms is outside what ArduPilot takes"),
     ({}, 0.0, None),
-])
-def test_a_dataflash_gps_fix_is_read_when_the_log_says_it_was_taken(tmp_path, params, delay_s, said):
-    """A GPS message is stamped when the fix was logged: where the log states the receiver's delay
-    (SITL's lag, or the delay the autopilot compensates for) the fix is read that much earlier and
-    the note says which parameter; an autopilot's log that states none says so; a recording with
-    no autopilot parameters (a simulated run) is read as stamped, in silence. Written back, the
-    file holds the stamps ArduPilot gave."""
+]
+
+
+@pytest.mark.parametrize("ext", [".bin", ".tlog"])
+@pytest.mark.parametrize("params, delay_s, said", GPS_CASES)
+def test_an_ardupilot_gps_fix_is_read_when_the_log_says_it_was_taken(tmp_path, ext, params, delay_s, said):
+    """A GPS fix is stamped when the autopilot received it: where the log states the receiver's
+    delay (SITL's lag, or the delay the autopilot compensates for, within ArduPilot's range) the fix
+    is read that much earlier and the note says which parameter; an autopilot's log that states none
+    says so (naming ArduPilot's u-blox figure only for a u-blox), one out of range is warned of and
+    read as stamped; a recording with no autopilot parameters (a simulated run) is read as
+    stamped, in silence. Written back, the file holds the stamps ArduPilot gave."""
     from pymavlink import DFReader
 
     rec = synthetic(5)
     rec.parameters = dict(params)
-    out = tmp_path / "fixes.bin"
+    out = tmp_path / f"fixes{ext}"
     write_recording(rec, out)
-    log = DFReader.DFReader_binary(str(out), zero_time_base=False)
-    stamps = []
-    while (m := log.recv_match(type=["GPS"])) is not None:
-        stamps.append(m.TimeUS * 1e-6)
-    np.testing.assert_allclose(stamps, rec.gnss.t - rec.gnss.t[0] + delay_s, atol=1.5e-6)
+    if ext == ".bin":
+        log = DFReader.DFReader_binary(str(out), zero_time_base=False)
+        stamps = []
+        while (m := log.recv_match(type=["GPS"])) is not None:
+            stamps.append(m.TimeUS * 1e-6)
+    else:
+        stamps = [m.time_usec * 1e-6 for _, m in iter_tlog(out.read_bytes(), ("GPS_RAW_INT",), Counter())]
+    np.testing.assert_allclose(stamps, rec.gnss.t + delay_s, atol=1.5e-6)
     back = read_recording(out)
     np.testing.assert_allclose(back.gnss.t - back.heading.t[0], rec.gnss.t - rec.heading.t[0], atol=1.5e-6)
-    notes = [n for n in back.notes if n.startswith("gnss:")]
-    assert (notes == []) if said is None else (len(notes) == 1 and said in notes[0]), notes
+    said_of_gnss = [n for n in back.notes + back.warnings if n.startswith("gnss:")]
+    assert (said_of_gnss == []) if said is None else (len(said_of_gnss) == 1 and said in said_of_gnss[0]), said_of_gnss
+    assert ("outside" in (said or "")) == any(w.startswith("gnss:") for w in back.warnings)
+
+
+def test_a_gyro_filter_no_ardupilot_runs_is_warned_of_and_the_gyro_read_as_stamped(tmp_path):
+    """INS_GYRO_FILTER NaN, negative or under 1 Hz (a 0.001-Hz one would move the gyro 225 s) is no
+    filter's: warned of, the gyro read as stamped; 0 (the filter off) is read as stamped in silence."""
+    th = np.arange(0, 1500) * 0.02
+    for cutoff, warned in ((float("nan"), True), (-4.0, True), (0.001, True), (0.0, False)):
+        rec = Recording(source="g", kind="synthetic", heading=Stream(th, {"psi_rad": 0.1 * th}),
+                        imu=Stream(th.copy(), {"yaw_rate_rads": np.full(len(th), 0.1)}),
+                        parameters={"INS_GYRO_FILTER": cutoff})
+        write_recording(rec, tmp_path / "g.bin")
+        back = read_recording(tmp_path / "g.bin")
+        np.testing.assert_allclose(back.imu.t, th, atol=1.5e-6)
+        assert any(w.startswith(f"gyro: INS_GYRO_FILTER {cutoff:g} is no low-pass") for w in back.warnings) == warned
+        assert not any(n.startswith("gyro:") for n in back.notes)
+        (tmp_path / "g.bin").unlink()

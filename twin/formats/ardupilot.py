@@ -17,6 +17,12 @@ filter has its gyro read that much earlier, with a note; writing it back to an A
 with the same parameter puts the delay back, so a log converted and read again holds the same
 stream. A harmonic notch (INS_HNTCH_ENABLE) delays the gyro further, by an amount its tuning
 sets: named, not counted.
+
+The GPS: a DataFlash GPS message and a telemetry GPS_RAW_INT are stamped when the autopilot
+received the fix, which the receiver computed earlier. Where the log states how much earlier
+(SITL's lag, or the GPS delay the autopilot compensates for: GPS_DELAY below), the fixes are read
+at that time, and put back on writing, as the gyro is; a delay the log does not state is not
+assumed. (A fused GLOBAL_POSITION_INT, read where a telemetry log has no fix, is left as stamped.)
 """
 from __future__ import annotations
 
@@ -30,32 +36,95 @@ from ..recording import Recording, clean_stream, with_common_origin
 
 FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLeft, ThrottleRight
 GYRO_FILTER = "INS_GYRO_FILTER"  # Hz; 0 turns the low-pass off
+MIN_CUTOFF_HZ = 1.0  # lower, the filter would hold a boat's turns back by over 0.2 s: a typo, not a tuning
 NOTCH = "INS_HNTCH_ENABLE"
+# how long before its stamp a GPS fix was taken, as an ArduPilot log states it, with the largest value
+# taken: SITL's own lag (SIM_GPS1_LAG_MS; SIM_GPS_LAG_MS before ArduPilot 4.5), then the delay the
+# autopilot compensates for (GPS1_DELAY_MS; GPS_DELAY_MS before 4.5; ArduPilot's range 0-250 ms, and
+# 0 leaves it to the receiver's driver, which the log does not state) [ArduPilot-GPS]
+SIM_GPS_LAG = (("SIM_GPS1_LAG_MS", 1000.0), ("SIM_GPS_LAG_MS", 1000.0))
+GPS_DELAY = (("GPS1_DELAY_MS", 250.0), ("GPS_DELAY_MS", 250.0))
+GPS_KIND = ("GPS1_TYPE", "GPS_TYPE")  # listed by every ArduPilot with a GPS
+UBLOX_KINDS = (1.0, 2.0)  # auto-detected (a u-blox on most boards) and u-blox
 
 
-# ---------------------------------------------------------------- the gyro's filter
+# ---------------------------------------------------------------- the gyro's filter and the GPS's lag
+
+def _valid_cutoff_hz(params: dict[str, float]) -> float | None:
+    cutoff = params.get(GYRO_FILTER)
+    return cutoff if cutoff is not None and math.isfinite(cutoff) and cutoff >= MIN_CUTOFF_HZ else None
+
 
 def gyro_filter_delay_s(params: dict[str, float]) -> float:
     """How late the gyro of a log with these parameters is on the turn it measures (s): the group
     delay √2/(2π·f_c) of the two-pole low-pass at f_c = INS_GYRO_FILTER (module docstring); 0 where
-    the parameter is missing, not a number or turns the filter off."""
-    cutoff_hz = params.get(GYRO_FILTER)
-    if cutoff_hz is None or not math.isfinite(cutoff_hz) or cutoff_hz <= 0.0:
-        return 0.0
-    return math.sqrt(2.0) / (2.0 * math.pi * cutoff_hz)
+    the parameter is missing, turns the filter off or is no cut-off ArduPilot runs (below 1 Hz)."""
+    cutoff = _valid_cutoff_hz(params)
+    return 0.0 if cutoff is None else math.sqrt(2.0) / (2.0 * math.pi * cutoff)
 
 
 def read_gyro_on_time(rec: Recording) -> None:
     """Move the imu stream of an ArduPilot log to when the turns it measures happened (earlier by
-    gyro_filter_delay_s of its parameters), saying so in the notes."""
+    gyro_filter_delay_s of its parameters), saying so in the notes; a cut-off that is no filter's
+    is warned of and the gyro read as stamped."""
+    cutoff = rec.parameters.get(GYRO_FILTER)
+    if cutoff is None or cutoff == 0.0 or not len(rec.imu):
+        return
     delay = gyro_filter_delay_s(rec.parameters)
-    if not (delay and len(rec.imu)):
+    if not delay:
+        rec.warnings.append(f"gyro: {GYRO_FILTER} {cutoff:g} is no low-pass ArduPilot runs (0 turns it off, else "
+                            f"{MIN_CUTOFF_HZ:g} Hz or more): the gyro is read as stamped")
         return
     rec.imu = rec.imu.shifted(delay)
     notch = (f"; its harmonic notch ({NOTCH} 1) delays it further, by an amount not counted"
              if rec.parameters.get(NOTCH, 0.0) > 0.0 else "")
-    rec.notes.append(f"gyro: logged after ArduPilot's {rec.parameters[GYRO_FILTER]:g}-Hz low-pass ({GYRO_FILTER}), "
-                     f"which delays a turn by {delay:.3f} s: read {delay:.3f} s earlier{notch}")
+    rec.notes.append(f"gyro: logged after ArduPilot's {cutoff:g}-Hz low-pass ({GYRO_FILTER}), which delays a turn "
+                     f"by {delay:.3f} s: read {delay:.3f} s earlier{notch}")
+
+
+def _out_of_range(params: dict[str, float]) -> list[str]:
+    return [f"{name} {params[name]:g} ms" for name, top in SIM_GPS_LAG + GPS_DELAY
+            if name in params and not (math.isfinite(params[name]) and 0.0 <= params[name] <= top)]
+
+
+def gnss_delay_s(params: dict[str, float]) -> tuple[float, str | None]:
+    """How long before its stamp a GPS fix of a log with these parameters was taken (s), and the
+    parameter that says so: SITL's lag where the log has it (0 included: a simulation's truth),
+    else a GPS delay above 0; (0, None) where none says it or one is out of its range."""
+    if _out_of_range(params):
+        return 0.0, None
+    for name, _ in SIM_GPS_LAG:
+        if name in params:
+            return params[name] * 1e-3, name
+    for name, _ in GPS_DELAY:
+        if params.get(name, 0.0) > 0.0:
+            return params[name] * 1e-3, name
+    return 0.0, None
+
+
+def read_fixes_when_taken(rec: Recording) -> None:
+    """The GNSS stream of an ArduPilot log, whose fixes are stamped when the autopilot received
+    them, at the times they were taken (gnss_delay_s), said in the notes; a delay out of its range
+    is warned of, and an autopilot's log that states none is told so."""
+    if not len(rec.gnss):
+        return
+    params = rec.parameters
+    bad = _out_of_range(params)
+    if bad:
+        rec.warnings.append(f"gnss: {', '.join(bad)} is outside what ArduPilot takes (SITL's lag 0-1000 ms, the GPS "
+                            "delay 0-250 ms): the fixes are read when logged")
+        return
+    delay, name = gnss_delay_s(params)
+    if delay:
+        rec.gnss = rec.gnss.shifted(delay)
+        rec.notes.append(f"gnss: each fix read {delay:.3f} s before it was logged, as the log's {name} says")
+    elif name is None and any(k in params for k in GPS_KIND):
+        stated = next((n for n, _ in GPS_DELAY if n in params), None)
+        kind = next(params[k] for k in GPS_KIND if k in params)
+        ublox = "; ArduPilot's for a u-blox 7 or later is 0.12 s" if kind in UBLOX_KINDS else ""
+        rec.notes.append("gnss: fixes read when logged; the receiver took each earlier, by an amount this log does "
+                         f"not state ({f'{stated} 0' if stated else 'no GPS delay set'} leaves it to the receiver's "
+                         f"driver{ublox}); the vessel's sensors.gnss_latency_s describes it")
 
 
 # ---------------------------------------------------------------- thrusters

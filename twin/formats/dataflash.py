@@ -12,8 +12,8 @@ one, as WNDR at the same times), float32, each message at its own sample time (T
 A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
 the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
 Read back, a log that states its gyro's low-pass (formats.ardupilot) or its GPS delay (below) has
-that stream at the times it measured, and a recording with those parameters is written with the
-delays put back.
+that stream at the times it measured (formats.ardupilot), and a recording with those parameters is
+written with the delays put back.
 """
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..recording import Recording, clean_stream
 from ..run import Run
-from .ardupilot import finish, gyro_filter_delay_s, read_gyro_on_time, set_pwm, thruster_mapping
+from .ardupilot import (finish, gnss_delay_s, gyro_filter_delay_s, read_fixes_when_taken, read_gyro_on_time,
+                        set_pwm, thruster_mapping)
 from .telemetry import DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, log_parameters, sample
 
 HEAD = b"\xa3\x95"
@@ -102,7 +103,7 @@ def recording_bytes(rec: Recording, start_unix_s: float | None = None) -> bytes:
     timed = _parameters(log_parameters(rec.parameters, rec.pwm_neutral_us, with_pwm=len(p) > 0))
     if len(g):
         alt = g["alt_m"] if g.has("alt_m") else np.zeros(len(g))
-        # logged when received (gnss_delay_s): the delay put back
+        # logged when received (formats.ardupilot): the delay put back
         timed += _gps(g.t + gnss_delay_s(rec.parameters)[0], g["lat_deg"], g["lon_deg"], alt, np.zeros(len(g)),
                       start_unix_s)
     if len(h):
@@ -227,7 +228,7 @@ def read_dataflash(path: Path, channels: dict | None) -> Recording:
             cols |= {"relative_speed_m_s": [m.Spd for m in relative], "relative_from_deg": [m.From for m in relative]}
         rec.wind = clean_stream("wind", [m._timestamp for m in wind], cols, rec.dropped)
     read_gyro_on_time(rec)
-    _df_fixes_when_taken(rec)
+    read_fixes_when_taken(rec)
     return finish(rec)
 
 
@@ -314,41 +315,6 @@ def _instance(m) -> int:
         if name in m.get_fieldnames():
             return int(getattr(m, name))
     return 0
-
-
-# A GPS message is stamped when the autopilot logged the fix (its TimeUS: the log's clock on receipt),
-# which the receiver computed earlier. Where the log states how much earlier, the fixes are read at
-# that time: SITL's own lag (SIM_GPS1_LAG_MS; SIM_GPS_LAG_MS before ArduPilot 4.5), else the delay the
-# autopilot compensates for (GPS1_DELAY_MS; GPS_DELAY_MS before 4.5; 0 leaves it to the receiver's
-# driver, which the log does not state: 0.12 s for a u-blox 7 or later, 0.22 s for older ones
-# [ArduPilot-GPS]). A .tlog's GPS_RAW_INT carries the fix's own GPS time instead; its reader maps it.
-GPS_DELAY_MS = ("SIM_GPS1_LAG_MS", "SIM_GPS_LAG_MS", "GPS1_DELAY_MS", "GPS_DELAY_MS")
-GPS_KIND = ("GPS1_TYPE", "GPS_TYPE")  # listed by every ArduPilot with a GPS
-
-
-def gnss_delay_s(params: dict[str, float]) -> tuple[float, str | None]:
-    """How long before its stamp a DataFlash log's GPS fix was taken (s), and the parameter that
-    says so (the first of GPS_DELAY_MS above zero); (0, None) where none does."""
-    for name in GPS_DELAY_MS:
-        value = params.get(name)
-        if value is not None and np.isfinite(value) and value > 0.0:
-            return float(value) * 1e-3, name
-    return 0.0, None
-
-
-def _df_fixes_when_taken(rec: Recording) -> None:
-    """The GNSS stream at the times its fixes were taken (gnss_delay_s), said in the notes; an
-    ArduPilot's log that does not state it is told so."""
-    if not len(rec.gnss):
-        return
-    delay, name = gnss_delay_s(rec.parameters)
-    if delay:
-        rec.gnss = rec.gnss.shifted(delay)
-        rec.notes.append(f"gnss: each fix read {delay:.3f} s before it was logged, as the log's {name} says")
-    elif any(k in rec.parameters for k in GPS_KIND):
-        rec.notes.append("gnss: fixes read when logged; the receiver took each earlier, by an amount this log does "
-                         "not state (GPS_DELAY_MS 0: ArduPilot assumes 0.12 s for a u-blox 7 or later); the vessel's "
-                         "sensors.gnss_latency_s describes it")
 
 
 def _df_gnss(rec: Recording, gps: list) -> None:

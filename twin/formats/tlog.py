@@ -43,7 +43,8 @@ from ..errors import TwinError
 from ..files import write_bytes_atomic
 from ..recording import Recording, Stream, clean_stream
 from ..run import Run
-from .ardupilot import finish, gyro_filter_delay_s, read_bytes, read_gyro_on_time, set_pwm, text, thruster_mapping
+from .ardupilot import (finish, gnss_delay_s, gyro_filter_delay_s, read_bytes, read_fixes_when_taken,
+                        read_gyro_on_time, set_pwm, text, thruster_mapping)
 from .telemetry import (DEFAULT_ORIGIN, LEFT_CHANNEL, RIGHT_CHANNEL, THRUSTER_PARAMS, Telemetry, log_parameters,
                         sample)
 
@@ -218,7 +219,8 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     _check_range("heading time (ms)", np.round(h.t * 1e3), 0, MAX_BOOT_MS)
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
     _check_range("battery voltage (mV)", np.round(bat["voltage_v"] * 1e3) if len(bat) else np.zeros(0), 1, 65534)
-    return Telemetry(g.t, g["lat_deg"] if len(g) else np.zeros(0), g["lon_deg"] if len(g) else np.zeros(0),
+    # a fix's GPS_RAW_INT time is when it came in, which a delay the log states puts after it was taken
+    return Telemetry(g.t + gnss_delay_s(rec.parameters)[0], g["lat_deg"] if len(g) else np.zeros(0), g["lon_deg"] if len(g) else np.zeros(0),
                      np.full(len(g), np.nan), h.t, h["psi_rad"] if len(h) else np.zeros(0), r, p.t, pwm,
                      alt_m=g["alt_m"] if g.has("alt_m") else None,
                      battery_t=bat.t, voltage_v=bat["voltage_v"] if len(bat) else np.zeros(0),
@@ -346,7 +348,7 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     msgs = _vehicle_only(msgs)
     clock = _BootClock(msgs)
     rec.parameters = {text(m.param_id): float(m.param_value) for _, m in msgs["PARAM_VALUE"]}
-    _tlog_gnss(rec, msgs, clock)
+    fixes = _tlog_gnss(rec, msgs, clock)
     att = msgs["ATTITUDE"]
     t_att = clock.stamp(att, [m.time_boot_ms * 1e-3 for _, m in att])
     rec.heading = clean_stream("heading", t_att, {"psi_rad": [m.yaw for _, m in att]}, rec.dropped)
@@ -363,6 +365,8 @@ def read_tlog(path: Path, channels: dict | None) -> Recording:
     _tlog_named(rec, msgs["NAMED_VALUE_FLOAT"], clock)
     rec.meta["clock"] = "vehicle boot time" if len(clock.recv) else "tlog receive time"
     read_gyro_on_time(rec)
+    if fixes:  # GPS_RAW_INT's time is when the fix came in, as a DataFlash GPS message's (formats.ardupilot)
+        read_fixes_when_taken(rec)
     return finish(rec)
 
 
@@ -419,7 +423,8 @@ class _BootClock:
         return np.where(np.abs(boot - est) <= _CLOCK_TOLERANCE_S, boot, est)
 
 
-def _tlog_gnss(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> None:
+def _tlog_gnss(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> bool:
+    """The GNSS stream from GPS_RAW_INT's fixes (True), else from the autopilot's fused position (False)."""
     raw = msgs["GPS_RAW_INT"]
     fixed = [(t, m) for t, m in raw if m.fix_type >= 3 and (m.lat or m.lon)]
     if raw and len(fixed) < len(raw):
@@ -429,7 +434,7 @@ def _tlog_gnss(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> None
         cols = {"lat_deg": [m.lat * 1e-7 for _, m in fixed], "lon_deg": [m.lon * 1e-7 for _, m in fixed],
                 "alt_m": [m.alt * 1e-3 for _, m in fixed]}
         rec.gnss = clean_stream("gnss", t, cols, rec.dropped)
-        return
+        return True
     gpi = [(t, m) for t, m in msgs["GLOBAL_POSITION_INT"] if m.lat or m.lon]
     if gpi:
         t = clock.stamp(gpi, [m.time_boot_ms * 1e-3 for _, m in gpi])
@@ -440,6 +445,7 @@ def _tlog_gnss(rec: Recording, msgs: dict[str, list], clock: _BootClock) -> None
     else:
         rec.notes.append("no GNSS: no GPS_RAW_INT with a 3-D fix and no GLOBAL_POSITION_INT position"
                          if raw or msgs["GLOBAL_POSITION_INT"] else "no GNSS: the log has no GPS messages")
+    return False
 
 
 def _tlog_pwm(rec: Recording, msgs: dict[str, list], clock: _BootClock, channels: dict | None) -> None:

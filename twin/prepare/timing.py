@@ -60,8 +60,8 @@ class GyroLag:
         if not self.sigma_s or abs(self.lag_s) < TOLD_SIGMAS * self.sigma_s:
             return f"{head}: not told from on time (within {TOLD_SIGMAS:g}σ)"
         if self.lag_s < 0:
-            return (f"{head}: the heading leads its gyro, which no filter does, so the gyro's stamps trail the "
-                    "heading's (two messages of one log stamped apart); the heading's timing is taken as logged"
+            return (f"{head}: the heading leads its gyro, which no heading filter does, so the gyro's stamps trail "
+                    "the heading's (two messages of one log stamped apart); the heading's timing is taken as logged"
                     + (f"; {self.cause}" if self.cause else ""))
         return f"{head}: `heading_latency={self.lag_s:.2f}` describes it if the gyro is on time"
 
@@ -124,9 +124,9 @@ def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turni
 def _unstated_filter(rec: Recording) -> str:
     """An ArduPilot log that does not state its gyro's low-pass, which its reader reads back by
     (formats.ardupilot): the filter's delay at the vehicles' default cut-offs."""
-    if rec.kind not in ("dataflash", "tlog") or GYRO_FILTER in rec.parameters:
+    if rec.kind not in ("dataflash", "tlog") or gyro_filter_delay_s(rec.parameters) or rec.parameters.get(GYRO_FILTER) == 0:
         return ""
-    return (f"ArduPilot logs its gyro after its {GYRO_FILTER} low-pass, which this log's parameters do not state "
+    return (f"an ArduPilot gyro's stamps trail so where its {GYRO_FILTER} low-pass is not read from the log's parameters "
             f"(Rover's default 4 Hz delays it {gyro_filter_delay_s({GYRO_FILTER: 4.0}):.3f} s, Copter's and Sub's "
             f"20 Hz {gyro_filter_delay_s({GYRO_FILTER: 20.0}):.3f} s)")
 
