@@ -272,8 +272,9 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
         f"{100 * mean_off['identified_twin_csv']['thrust_gain']:.0f} %. The thrust lag comes out short of its "
         f"truth ({TRUTH_LAG_S:g} s) from every source, the twin's own recording included: the MAP fit holds it "
         "towards its prior (0 s) as far as the sessions' steps leave it free. The .tlog (10-Hz telemetry, as a "
-        "ground station records it; GPS_RAW_INT at its receive time, whose delay the telemetry does not state) "
-        f"gives Xuu {100 * mean_off['identified_tlog']['Xuu']:.0f} % off.")
+        "ground station records it, read the same way) gives Xuu "
+        f"{100 * mean_off['identified_tlog']['Xuu']:.0f} % off and the thrust gain "
+        f"{100 * mean_off['identified_tlog']['thrust_gain']:.0f} %.")
     tables = [
         ResultTable("Each stream against the twin's truth: how much later than the truth the log stamps a value "
                     "(s, relative to RCOU's PWM; the shift that lays the two together), and the GPS position's "
