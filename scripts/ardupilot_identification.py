@@ -295,9 +295,8 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
               f"untuned BlueBoat's, thrust lag {TRUTH_LAG_S:g} s), armed in MANUAL and driven by stick steps held "
               f"2-7 s each (seeds {seeds}) for {args.drive_s:g} s each. Per session: ArduRover's own .BIN, the "
               "MAVLink telemetry at 10 Hz a ground station records (.tlog), and the twin's recording of every "
-              "physics frame (the truth). Fixed before the sessions were flown: the truth and the free "
-              "coefficients; before their figures were read: the readers' use of the delays the logs state "
-              "(formats.ardupilot)."),
+              "physics frame (the truth). Fixed before the sessions were flown: the truth, the free "
+              "coefficients and the readers' use of the delays the logs state (formats.ardupilot)."),
         summary=summary,
         tables=tables,
         notes=["RCOU and SERVO_OUTPUT_RAW are logged at 10 Hz: an input step is known to 0.1 s, which the "
