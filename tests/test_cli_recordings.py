@@ -49,15 +49,24 @@ def test_tlog_round_trip_recovers_the_twin_state(sim_tlog):
 def test_convert_and_view(sim_tlog, tmp_path):
     p = twin("convert", sim_tlog / "z.tlog", tmp_path / "z.mcap")
     assert p.returncode == 0, p.stderr
-    # synchronised on the 0.1-s grid (as it says): each 5-Hz fix held, the 50-Hz heading thinned, the PWM as logged
+    assert "every stream at its own times, as read" in p.stdout
+    # every sample where the reader put it: no fix held on a grid (each a row up to 0.3 s late), no heading thinned
     a, b = read_recording(sim_tlog / "z.tlog"), read_recording(tmp_path / "z.mcap")
-    np.testing.assert_allclose(b.pwm.t, a.pwm.t, atol=1e-6)
+    for name in ("gnss", "heading", "pwm", "imu"):
+        np.testing.assert_allclose(getattr(b, name).t, getattr(a, name).t, atol=1e-6, err_msg=name)
     np.testing.assert_array_equal(b.pwm["left_us"], a.pwm["left_us"])
-    at_fix = np.searchsorted(b.gnss.t, a.gnss.t - 1e-6)
-    np.testing.assert_allclose(b.gnss.t[at_fix], a.gnss.t, atol=1e-6)
-    np.testing.assert_allclose(b.gnss["lat_deg"][at_fix], a.gnss["lat_deg"], rtol=0, atol=1e-7)
-    thinned = np.searchsorted(a.heading.t, b.heading.t - 1e-6)
-    np.testing.assert_allclose(b.heading["psi_rad"], a.heading["psi_rad"][thinned], atol=1e-6)
+    np.testing.assert_allclose(b.gnss["lat_deg"], a.gnss["lat_deg"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.heading["psi_rad"], a.heading["psi_rad"], atol=1e-9)
+    # synchronised on request (as it says): each 5-Hz fix held on the 0.1-s grid, the 50-Hz heading thinned
+    p = twin("convert", sim_tlog / "z.tlog", tmp_path / "g.mcap", "--grid-dt", "0.1")
+    assert p.returncode == 0, p.stderr
+    assert "gnss recorded at 5 Hz, each sample held until the next (rows up to 0.3 s after it was taken)" in p.stdout
+    g = read_recording(tmp_path / "g.mcap")
+    at_fix = np.searchsorted(g.gnss.t, a.gnss.t - 1e-6)
+    np.testing.assert_allclose(g.gnss.t[at_fix], a.gnss.t, atol=1e-6)
+    np.testing.assert_allclose(g.gnss["lat_deg"][at_fix], a.gnss["lat_deg"], rtol=0, atol=1e-7)
+    thinned = np.searchsorted(a.heading.t, g.heading.t - 1e-6)
+    np.testing.assert_allclose(g.heading["psi_rad"], a.heading["psi_rad"][thinned], atol=1e-6)
     # the output named as every other command names it: the same file
     p = twin("convert", sim_tlog / "z.tlog", "--out", tmp_path / "z2.mcap")
     assert p.returncode == 0, p.stderr
@@ -193,7 +202,7 @@ def test_convert_a_log_without_gnss(tmp_path, suffix):
 
     rec = _no_gnss_recording()
     write_recording(rec, tmp_path / "in.bin")
-    p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}")
+    p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}", "--grid-dt", "0.1")
     assert p.returncode == 0, p.stderr
     assert "streams at their own times (not synchronised: no GNSS samples, from which the track and the velocities are read)" in p.stdout
     back = read_recording(tmp_path / f"out{suffix}")
@@ -211,7 +220,7 @@ def test_convert_a_log_without_gnss(tmp_path, suffix):
 
 def test_a_converted_real_recording_is_not_called_simulated(sim_tlog, tmp_path):
     """A tlog converted to MCAP read back with "positions are the body origin (simulated)"."""
-    p = twin("convert", sim_tlog / "z.tlog", tmp_path / "real.mcap")
+    p = twin("convert", sim_tlog / "z.tlog", tmp_path / "real.mcap", "--grid-dt", "0.1")
     assert p.returncode == 0, p.stderr
     assert "gnss, heading, pwm synchronised on a 0.1 s grid" in p.stdout
     real = read_recording(tmp_path / "real.mcap")

@@ -627,7 +627,7 @@ def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
 
     for path in _shared("ardupilot"):
         rec = read_recording(path)
-        conversion = for_conversion(rec)
+        conversion = for_conversion(rec, 0.1)
         assert conversion.synchronised == (len(rec.gnss) > 0), path.name
         write_recording(conversion.recording, tmp_path / f"{path.stem}{suffix}")
         back = read_recording(tmp_path / f"{path.stem}{suffix}")

@@ -199,12 +199,14 @@ def convert(
                                                                      ".bin (or give it as --out)"),
     out: Optional[Path] = typer.Option(None, "--out", help="the output, as every other command names it (or DST)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
-    grid_dt: float = typer.Option(0.1, help="sample period of the synchronised GNSS, heading and PWM, s (no finer "
-                                            "than a tenth of the fastest one's own)"),
+    grid_dt: Optional[float] = typer.Option(None, help="put GNSS, heading and PWM on one grid of this period, s "
+                                                       "[Morel-2024 §5.1], each sample held until the next (no finer "
+                                                       "than a tenth of the fastest one's own); without it every "
+                                                       "stream keeps its own times"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
-    """Convert a recording to another format: GNSS, heading and PWM synchronised on one grid
-    [Morel-2024 §5.1] when it has GNSS and heading, else every stream at its own times."""
+    """Convert a recording to another format, every stream at its own times; with --grid-dt, GNSS,
+    heading and PWM synchronised on one grid [Morel-2024 §5.1] when it has GNSS and heading."""
     # late: the command's stack (the readers and writers, twin.prepare: 0.1 s) would be paid at every `twin --help`
     from ..formats import read_recording, write_recording
     from ..formats.mcap import MCAP_DAMAGE
@@ -219,14 +221,18 @@ def convert(
     check_regular(src)
     recordings_in([src])  # an input that is no recording is the first thing to fix, before the output's
     check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
-    positive(grid_dt, "--grid-dt")
+    if grid_dt is not None:
+        positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
     check_not_misread([rec])  # a copy in another format would carry the error on without the word of it
     warn_recordings([rec])
-    samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
-    check_grid_rows(rec, grid_dt, src.name)
-    with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):
-        conversion = for_conversion(rec, grid_dt)
+    if grid_dt is None:
+        conversion = for_conversion(rec)
+    else:
+        samples_fit(rec.duration_s(), grid_dt, f"--grid-dt on {src.name}")
+        check_grid_rows(rec, grid_dt, src.name)
+        with memory_for(f"--grid-dt {grid_dt:g} on {src.name}"):
+            conversion = for_conversion(rec, grid_dt)
     write_recording(conversion.recording, dst)
     say(f"wrote {dst}: {conversion.recording.duration_s():.1f} s, {conversion.timing}")
     for reason, count in rec.dropped:  # what `twin info` lists as dropped is not in the copy either

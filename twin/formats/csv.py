@@ -124,7 +124,7 @@ HELD_SHARE = 0.10  # a receiver's fixes differ by its noise even at rest: this m
 
 def held_fix_note(gnss: Stream) -> str:
     """A note when many rows repeat the previous fix exactly (a slower receiver's fixes held on a
-    faster grid, as `twin convert` writes them), else ""."""
+    faster grid, as `twin convert --grid-dt` writes them), else ""."""
     names = [n for n in ("lat_deg", "lon_deg", "north_m", "east_m") if n in gnss.columns]
     if len(gnss) < 3 or not names:
         return ""

@@ -1,14 +1,16 @@
-"""What `twin convert` writes: the recording as read, its navigation streams
-synchronised onto one grid where that is possible.
+"""What `twin convert` writes: the recording as read, every stream at its own times; on request
+(a grid period), its navigation streams synchronised onto one grid.
 
-Where the recording has GNSS and heading, GNSS (as recorded: lat/lon/alt or
-north/east, no lever arm), heading and PWM are held onto the grid of [Morel-2024 §5.1] (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a
-CSV holds all three. A log without GNSS or heading (an ROV, a bench test, a
-broken receiver) cannot be prepared: its streams are written at their own times
-instead. IMU and battery always keep their own times, parameters and PWM neutral
-are carried, and the writer keeps what its format can hold (twin.formats.write_recording).
-A propeller-and-rudder ship's inputs (prop_rudder) are held on the grid like the PWM; a
-measured wind keeps its own times.
+A copy keeps each sample at the time the reader gave it: holding a 5-Hz GNSS fix onto a 0.1-s grid
+puts it in two rows, 0-0.2 s after it was taken, which a fit then reads as a receiver about 0.1 s
+late. Synchronised on request: where the recording has GNSS and heading, GNSS (as recorded:
+lat/lon/alt or north/east, no lever arm), heading and PWM are held onto the grid of [Morel-2024
+§5.1] (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a CSV holds all
+three. A log without GNSS or heading (an ROV, a bench test, a broken receiver) cannot be prepared:
+its streams are written at their own times instead. IMU and battery always keep their own times,
+parameters and PWM neutral are carried, and the writer keeps what its format can hold
+(twin.formats.write_recording). A propeller-and-rudder ship's inputs (prop_rudder) are held on the
+grid like the PWM; a measured wind keeps its own times.
 """
 from __future__ import annotations
 
@@ -30,8 +32,11 @@ class Conversion:
     synchronised: bool
 
 
-def for_conversion(rec: Recording, grid_dt: float = 0.1) -> Conversion:
-    """GNSS, heading and PWM on one grid of grid_dt s where possible, else every stream as recorded."""
+def for_conversion(rec: Recording, grid_dt: float | None = None) -> Conversion:
+    """Every stream as read (grid_dt None), or GNSS, heading and PWM on one grid of grid_dt s where
+    possible, else every stream as read."""
+    if grid_dt is None:
+        return Conversion(rec, "every stream at its own times, as read", False)
     if not (np.isfinite(grid_dt) and grid_dt > 0):
         raise TwinError(f"--grid-dt must be a positive finite number of seconds, got {grid_dt}")
     if grid_dt * 2 > rec.duration_s() > 0:  # the grid asked for cannot be given: a file without it would not be it
@@ -72,7 +77,8 @@ def _rate_change(name: str, stream: Stream, grid_dt: float) -> str:
     if not period > 0 or abs(period - grid_dt) <= 0.05 * grid_dt:
         return ""
     if period > grid_dt:
-        return f"{name} recorded at {1 / period:.3g} Hz, each sample held until the next"
+        return (f"{name} recorded at {1 / period:.3g} Hz, each sample held until the next (rows up to "
+                f"{period + grid_dt:.2g} s after it was taken)")
     return f"{name} recorded at {1 / period:.3g} Hz, thinned to the grid"
 
 
