@@ -54,9 +54,12 @@ def test_the_diagnosis_notes_each_logs_heading_against_its_gyro():
 
     late, plain = _log(heading_delay_s=0.25), _log(turn_rad_s=0.01)
     notes = _gyro_timing([late, Recording("still.csv", "csv", heading=plain.heading, imu=plain.imu)])
-    assert len(notes) == 1 and notes[0].startswith("weave.csv: heading against the gyro: +")
+    assert len(notes) == 2 and notes[0].startswith("weave.csv: heading against the gyro: +")
     assert float(notes[0].split(": +")[1].split(" s late")[0]) == pytest.approx(0.25, abs=0.02)
     assert "`heading_latency=0.2" in notes[0]  # told: well beyond its σ
+    # turning too slowly for 10-s pieces: read on a ship's 60-s pieces, as `twin info` reads it, and on time
+    assert notes[1].startswith("still.csv: heading against the gyro:") and notes[1].endswith("not told from on time "
+                                                                                               "(within 3σ)")
 
 
 def test_a_gyro_of_the_other_sign_is_not_read_as_a_lag():
@@ -102,3 +105,17 @@ def test_a_lag_within_three_sigma_of_zero_is_not_said_to_describe_the_heading():
     assert "leads its gyro" in early and "heading_latency=" not in early
     late = GyroLag(0.40, 0.97, 300.0, sigma_s=0.05).text()
     assert "`heading_latency=0.40` describes it" in late
+
+
+def test_the_diagnosis_reads_a_boats_late_heading_as_twin_info_does():
+    """A boat's 160-s log with a heading 0.3 s late: too short for three of a ship's 60-s pieces
+    (no spread, so the diagnosis could not tell it), told from 10-s pieces as `twin info` tells it."""
+    from twin.fit.kinematic import _gyro_heading
+    from twin.recording import within
+    from twin.vessel import load
+
+    rec = within(_log(heading_delay_s=0.3), 0.0, 160.0, "weave.csv")
+    found = _gyro_heading([rec], load("blueboat"), floor=0.15)
+    assert found.told and found.values["heading_latency_s"] == pytest.approx(0.3, abs=0.02), found.why
+    on_time = _gyro_heading([within(_log(), 0.0, 160.0, "weave.csv")], load("blueboat"), floor=0.15)
+    assert not on_time.told and on_time.absent, on_time.why

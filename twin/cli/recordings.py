@@ -70,8 +70,7 @@ def info(
     from ..formats import read_recording
     from ..prepare.outliers import describe
     from ..prepare.prepared import outlier_counts as counted
-    from ..prepare.timing import MIN_TURNING_S, heading_lag_behind_gyro
-    from ..fit.kinematic import GYRO_MIN_FIT, GYRO_PIECE_S, GYRO_TURNING_RAD_S
+    from ..prepare.timing import heading_lag
 
     v = vessel_from(vessel, model) if vessel is not None or model is not None else None  # before any work
     mapping = channels_from(channels)
@@ -93,12 +92,7 @@ def info(
         for line in describe(counted(rec)):
             typer.echo(f"  {line}")
         if len(rec.imu) and len(rec.heading):
-            lag = heading_lag_behind_gyro(rec)
-            if lag.lag_s is None and (len(rec.prop_rudder) or lag.turning_s < MIN_TURNING_S):
-                # a ship turns at 1-3°/s: read on longer pieces and slower turning, as the diagnosis reads it
-                lag = heading_lag_behind_gyro(rec, window_s=GYRO_PIECE_S, turning_rad_s=GYRO_TURNING_RAD_S,
-                                              min_fit=GYRO_MIN_FIT)
-            typer.echo(f"  {lag.text()}")
+            typer.echo(f"  {heading_lag(rec).text()}")
         read.append(rec)
     try:  # info describes each log; identify, evaluate and diagnose refuse a stretch given twice
         check_no_shared_stretch(read)

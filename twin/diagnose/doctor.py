@@ -48,7 +48,7 @@ from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, as_measured, comfortable_timestep, make_windows, measured, predict
 from ..prepare import Prepared, supply_reference
 from ..prepare.prepared import supply_voltage
-from ..prepare.timing import heading_lag_behind_gyro
+from ..prepare.timing import heading_lag
 from ..recording import Recording
 from ..threads import one_blas_thread
 from ..fit.calibrate import kinematic_calibrations, prepare_for, rate_windows, with_log_calibrations
@@ -491,7 +491,7 @@ def _gyro_timing(recordings: list[Recording]) -> list[str]:
     out = []
     for r in recordings:
         if len(r.imu) and len(r.heading):
-            lag = heading_lag_behind_gyro(r)
+            lag = heading_lag(r)
             if lag.lag_s is not None:
                 out.append(f"{log_name(r.source)}: {lag.text()}")
     return out

@@ -69,7 +69,7 @@ from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..physics.sensors import antenna_body_m, antenna_ned
 from ..prepare.prepared import local_ned
 from ..prepare.timing import STEP_S as GYRO_STEP_S
-from ..prepare.timing import heading_lag_behind_gyro
+from ..prepare.timing import heading_lag
 from ..recording import EXACT_ORIGIN, TRACKED_ORIGIN, Recording
 from ..vessel import Vessel
 from .calibrate import calibrated
@@ -92,9 +92,6 @@ TIME_CONSTANTS_S = tuple(round(0.05 * 2 ** (k / 2), 3) for k in range(13)) + (ma
 STEP_SHARE = 0.15  # an input step: a change of this share of the input's largest force in one sample
 MIN_EVENT_GAIN = 0.8
 MIN_EVENTS = 5
-# a slow ship's heading within 10 s is nearly a straight line: the heading against the gyro is read
-# on longer pieces and slower turning
-GYRO_PIECE_S, GYRO_TURNING_RAD_S, GYRO_MIN_FIT = 60.0, 0.01, 0.5
 
 
 @dataclass(frozen=True)
@@ -563,12 +560,11 @@ def input_timing(recordings: list[Recording], vessel: Vessel) -> tuple[Kinematic
 def _gyro_heading(recordings: list[Recording], vessel: Vessel, floor: float) -> KinematicFinding:
     """heading_latency from each log's heading against its gyro, pooled (inverse variance)."""
     s = vessel.sensors
-    lags = [heading_lag_behind_gyro(r, window_s=GYRO_PIECE_S, turning_rad_s=GYRO_TURNING_RAD_S, min_fit=GYRO_MIN_FIT)
-            for r in recordings]
+    lags = [heading_lag(r) for r in recordings]
     got = [g for g in lags if g.lag_s is not None and g.sigma_s]
     basis = f"heading against the gyro in {len(got)} of {len(recordings)} logs"
     if not got:
-        why = "; ".join(sorted({g.note for g in lags if g.note})) or "not told"
+        why = "; ".join(sorted({g.note or "too few pieces of the log to give the lag's spread" for g in lags}))
         return KinematicFinding("heading_latency", {"heading_latency_s": s.heading_latency_s},
                                 {"heading_latency_s": 0.0}, {"heading_latency_s": None}, False, False, why, basis)
     w = np.array([1 / g.sigma_s ** 2 for g in got])

@@ -33,6 +33,8 @@ TURNING_RAD_S = 0.05
 # lag is theirs (a ship model turning at 1-3°/s: 24-56 %, lags of either sign)
 MIN_FIT = 0.9
 TOLD_SIGMAS = 3.0  # a lag within this many σ of zero is not told from on time
+# a slow ship's heading within 10 s is nearly a straight line: read on longer pieces and slower turning
+SHIP_PIECE_S, SHIP_TURNING_RAD_S, SHIP_MIN_FIT = 60.0, 0.01, 0.5
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,17 @@ def heading_lag_behind_gyro(rec: Recording, *, window_s: float = WINDOW_S, turni
     if k in (0, len(lags) - 1):
         return GyroLag(None, fit, turning_s, f"the best alignment is at the scan's edge (±{MAX_LAG_S:g} s)")
     return GyroLag(float(lags[k]), fit, turning_s, sigma_s=_jackknife(lags, per_piece), cause=_unstated_filter(rec))
+
+
+def heading_lag(rec: Recording) -> GyroLag:
+    """The heading's delay against the gyro as `twin info` and the diagnosis read it: a boat's on
+    WINDOW_S pieces (its turns are quick), or, where those leave it untold for want of turning, on a
+    ship's longer pieces and slower turning, which a propeller-and-rudder ship's is always read on."""
+    if not len(rec.prop_rudder):
+        lag = heading_lag_behind_gyro(rec)
+        if lag.lag_s is not None or lag.turning_s >= MIN_TURNING_S:
+            return lag
+    return heading_lag_behind_gyro(rec, window_s=SHIP_PIECE_S, turning_rad_s=SHIP_TURNING_RAD_S, min_fit=SHIP_MIN_FIT)
 
 
 def _unstated_filter(rec: Recording) -> str:
