@@ -1,4 +1,4 @@
-"""What `twin identify` recovers from ArduPilot's own logs, where the truth is known: the BlueBoat
+"""What `twin identify` and `twin diagnose` recover from ArduPilot's own logs, where the truth is known: the BlueBoat
 twin with known coefficients flown by the real ArduRover SITL (../shared/tools/ardupilot-sitl), its
 .BIN identified from the untuned BlueBoat.
 
@@ -20,7 +20,9 @@ Two things are measured on each session:
   the GPS lag the log's parameters state taken out) and as stamped;
 - **identification**: `twin identify` (thrust gain, surge drag, yaw damping and thrust lag free,
   the untuned BlueBoat as prior) on the twin's own recording of the session, on the .BIN as
-  stamped and as read, and on the .tlog, against the truth's coefficients.
+  stamped and as read, and on the .tlog, against the truth's coefficients;
+- **diagnosis**: `twin diagnose` with the truth twin on the .BIN as read, nothing concealed, the
+  heading's stamps moved 0.3 s later and the PWM's 0.4 s later.
 
 Without the SITL binary the script says so and exits 0.
 """
@@ -191,6 +193,33 @@ def as_stamped(rec):
                    gnss=rec.gnss.shifted(-gnss_delay_s(rec.parameters)[0]), notes=[])
 
 
+# timing effects put into each .BIN exactly, by moving a stream's stamps, and diagnosed with the truth twin
+CONCEALED = (("nothing", None, 0.0), ("heading late", "heading_latency", 0.3), ("PWM late", "clock_offset", 0.4))
+
+
+def concealed(rec, stream: str | None, late_s: float):
+    """The recording with one stream's stamps `late_s` later (the heading with its attitude)."""
+    if stream == "heading_latency":
+        return replace(rec, heading=rec.heading.shifted(-late_s), attitude=rec.attitude.shifted(-late_s))
+    if stream == "clock_offset":
+        return replace(rec, pwm=rec.pwm.shifted(-late_s))
+    return rec
+
+
+def diagnosed(rec, truth) -> list[dict]:
+    """`twin diagnose` with the truth twin on each of CONCEALED: what it named, and whether exactly
+    (the effect alone, its value within 30 %)."""
+    out = []
+    for label, effect, late_s in CONCEALED:
+        found = twin.diagnose_recordings([concealed(rec, effect, late_s)], truth)
+        named = [(e.name, {p.name: p.value for p in e.parameters}) for e in found.effects]
+        values = [v for name, params in named if name == effect for v in params.values()]
+        exact = (not named) if effect is None else (
+            len(named) == 1 and len(values) == 1 and abs(values[0] - late_s) <= 0.3 * late_s)
+        out.append({"case": label, "effect": effect, "late_s": late_s, "named": named, "exact": exact})
+    return out
+
+
 def identified(recording, prior, quantities) -> dict:
     """`twin identify` with FREE as the only free coefficients: each one's value and 1-σ."""
     result = twin.identify([recording], prior, params=FREE)
@@ -199,7 +228,7 @@ def identified(recording, prior, quantities) -> dict:
     return {name: fit.get(name, (float(quantities[name].get(result.vessel)), None)) for name in FREE}
 
 
-def session(k: int, base: Path, model: Path, params: Path, drive_s: float, prior, quantities) -> dict:
+def session(k: int, base: Path, model: Path, params: Path, drive_s: float, truth, prior, quantities) -> dict:
     """One session flown (or its files read again where a kept folder already holds them)."""
     folder = base / f"session{k}"
     logs = sorted((folder / "ardupilot" / "logs").glob("*.BIN"))
@@ -215,6 +244,7 @@ def session(k: int, base: Path, model: Path, params: Path, drive_s: float, prior
            "log_s": float(rec.pwm.t[-1] - rec.pwm.t[0]), "notes": list(rec.notes), "warnings": list(rec.warnings),
            "stamps": stamps(rec, truth_run)}
     out["identified_bin"] = identified(rec, prior, quantities)
+    out["diagnosed_bin"] = diagnosed(rec, truth)
     logged = as_stamped(rec)
     out["stamps_as_logged"] = stamps(logged, truth_run)
     out["identified_bin_as_logged"] = identified(logged, prior, quantities)
@@ -284,10 +314,24 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
                     "the prior): one value per session, and the mean's distance from the truth",
                     ["coefficient", "prior", "truth", *[label for _, label in SOURCES]], ident_rows),
     ]
+    diagnosis_rows = []
+    for r in results:
+        for d in r["diagnosed_bin"]:
+            named = "; ".join(f"{name} ({', '.join(f'{k} {v:.3g}' for k, v in params.items())})"
+                              for name, params in d["named"]) or "nothing"
+            truth_text = f"{d['effect']} {d['late_s']:g} s" if d["effect"] else "nothing"
+            diagnosis_rows.append([r["seed"], d["case"], truth_text, named, "yes" if d["exact"] else "no"])
+    tables.append(ResultTable("`twin diagnose` with the truth twin on each .BIN as read, a stream's stamps moved later "
+                              "to conceal a timing effect (the heading with its attitude, or the PWM)",
+                              ["seed", "concealed", "truth", "named", "exact"], diagnosis_rows))
+    exact = sum(d["exact"] for r in results for d in r["diagnosed_bin"])
+    total = sum(len(r["diagnosed_bin"]) for r in results)
+    summary += (f" Diagnosed with the truth twin, with a stream's stamps moved later: {exact} of {total} cases "
+                "exact (the effect alone, within 30 %; a null: nothing named).")
     seeds = ",".join(str(r["seed"]) for r in results)
     return ResultPage(
         name="ardupilot_identification",
-        title="What `twin identify` recovers from ArduPilot's own logs",
+        title="What `twin identify` and `twin diagnose` recover from ArduPilot's own logs",
         ran=f"python scripts/ardupilot_identification.py --seeds {seeds} --drive-s {args.drive_s:g}",
         data=(f"{len(results)} sessions of ArduRover SITL ({BINARY.relative_to(ROOT.parent)}, 1200-Hz frames, "
               "Rover's default parameters and `twin sitl --write-params`'s) flying through `twin sitl` the BlueBoat "
@@ -296,7 +340,9 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
               f"2-7 s each (seeds {seeds}) for {args.drive_s:g} s each. Per session: ArduRover's own .BIN, the "
               "MAVLink telemetry at 10 Hz a ground station records (.tlog), and the twin's recording of every "
               "physics frame (the truth). Fixed before the sessions were flown: the truth, the free "
-              "coefficients and the readers' use of the delays the logs state (formats.ardupilot)."),
+              "coefficients and the readers' use of the delays the logs state (formats.ardupilot); before they "
+              "were diagnosed: the effects concealed (" + ", ".join(
+                  f"{label} {late:g} s" if effect else label for label, effect, late in CONCEALED) + ")."),
         summary=summary,
         tables=tables,
         notes=["RCOU and SERVO_OUTPUT_RAW are logged at 10 Hz: an input step is known to 0.1 s, which the "
@@ -332,7 +378,7 @@ def main() -> None:
         params.write_text(boat_parameters(truth))
         results = []
         for seed in seeds:
-            results.append(session(seed, base, model, params, args.drive_s, prior, quantities))
+            results.append(session(seed, base, model, params, args.drive_s, truth, prior, quantities))
             print(json.dumps(results[-1], default=float), flush=True)
     result_page = page(results, truth, prior, quantities, args)
     if not args.no_page:
