@@ -4,14 +4,14 @@ twin with known coefficients flown by the real ArduRover SITL (../shared/tools/a
 
     python scripts/ardupilot_identification.py [--seeds 1,2,3] [--drive-s 150] [--keep DIR] [--no-page]
 
-Each session: `twin sitl --model truth.json --record twin.csv` (the truth, every physics frame on
+Each flight: `twin sitl --model truth.json --record twin.csv` (the truth, every physics frame on
 the twin's clock) and ArduRover with Rover's defaults and `twin sitl --write-params`'s file, armed
 in MANUAL and driven by stick steps (throttle and steering held 2-7 s each, from a generator seeded
-by --seeds, one session each) for --drive-s of ArduPilot's time, then disarmed; the MAVLink link the
+by --seeds, one flight each) for --drive-s of ArduPilot's time, then disarmed; the MAVLink link the
 script drives it by is recorded as a ground station records it (.tlog, 10-Hz streams). ArduRover's
 .BIN and the .tlog are then read as a user's logs are (twin.read_recording).
 
-Two things are measured on each session:
+Three things are measured on each flight:
 
 - **the stamps**: each stream's values against the twin's truth at the same instant, as a shift
   (s) that brings them together (RCOU's PWM against the PWM the twin applied, ATT's heading, IMU's
@@ -19,7 +19,7 @@ Two things are measured on each session:
   and the motion are logged on; for the .BIN as the reader reads it (the gyro's filter delay and
   the GPS lag the log's parameters state taken out) and as stamped;
 - **identification**: `twin identify` (thrust gain, surge drag, yaw damping and thrust lag free,
-  the untuned BlueBoat as prior) on the twin's own recording of the session, on the .BIN as
+  the untuned BlueBoat as prior) on the twin's own recording of the flight, on the .BIN as
   stamped and as read, and on the .tlog, against the truth's coefficients;
 - **diagnosis**: `twin diagnose` with the truth twin on the .BIN as read, nothing concealed, the
   heading's stamps moved 0.3 s later and the PWM's 0.4 s later.
@@ -78,7 +78,7 @@ def truth_vessel():
 @contextlib.contextmanager
 def serve_twin(model: Path, record: Path):
     """`twin sitl --model` as a user runs it, on a free UDP port; yields the port, ends it with SIGTERM
-    (the session writes its recording)."""
+    (`twin sitl` writes its recording as it ends)."""
     proc = subprocess.Popen([sys.executable, "-m", "twin", "sitl", "--model", str(model), "--port", "0",
                              "--host", "127.0.0.1", "--record", str(record)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL)
@@ -109,7 +109,7 @@ def stick_plan(seed: int, drive_s: float) -> list[tuple[float, int, int]]:
 
 
 def fly(folder: Path, model: Path, params: Path, plan) -> tuple[Path, Path]:
-    """One SITL session driven by `plan`; returns (ArduRover's .BIN, the twin's recording); the
+    """One SITL flight driven by `plan`; returns (ArduRover's .BIN, the twin's recording); the
     MAVLink telemetry at 10 Hz, as a ground station records it, in folder/telemetry.tlog."""
     folder.mkdir(parents=True, exist_ok=True)
     record = folder / "twin.csv"
@@ -160,7 +160,7 @@ def stamps(rec, truth) -> dict:
     is laid by RCOU (whose PWM the twin applied)."""
     inside = (rec.pwm.t > truth.t[0] + 1.0) & (rec.pwm.t < truth.t[-1] - 1.0)
     t_pwm = rec.pwm.t[inside]
-    # ArduPilot's clock against the twin's: coarse from the PWM over the whole session, then fine
+    # ArduPilot's clock against the twin's: coarse from the PWM over the whole flight, then fine
     coarse = np.arange(-truth.t[-1], truth.t[-1], 0.01)
     left = rec.pwm["left_us"][inside]
     costs = [np.nanmean(np.abs(left - np.interp(t_pwm - c, truth.t, truth.pwm_us[:, 0]))) for c in coarse]
@@ -228,9 +228,9 @@ def identified(recording, prior, quantities) -> dict:
     return {name: fit.get(name, (float(quantities[name].get(result.vessel)), None)) for name in FREE}
 
 
-def session(k: int, base: Path, model: Path, params: Path, drive_s: float, truth, prior, quantities) -> dict:
-    """One session flown (or its files read again where a kept folder already holds them)."""
-    folder = base / f"session{k}"
+def flight(k: int, base: Path, model: Path, params: Path, drive_s: float, truth, prior, quantities) -> dict:
+    """One flight flown (or its files read again where a kept folder already holds them)."""
+    folder = base / f"flight{k}"
     logs = sorted((folder / "ardupilot" / "logs").glob("*.BIN"))
     started = time.monotonic()
     if logs and (folder / "twin.csv").is_file():
@@ -288,7 +288,7 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
     read = {k: [r["stamps"][k]["shift_s"] for r in results] for k in ("heading", "gyro", "gnss")}
     summary = (
         f"Against the truth, ArduRover's .BIN stamps the gyro {np.mean(late['gyro']):.3f} s and the GPS fixes "
-        f"{np.mean(late['gnss']):.3f} s after what they measured (means of the {len(results)} sessions, relative "
+        f"{np.mean(late['gnss']):.3f} s after what they measured (means of the {len(results)} flights, relative "
         "to RCOU's PWM, which the twin applied as stamped). Read as the log's parameters state (the gyro's "
         "4-Hz low-pass, SITL's GPS lag), they are "
         f"{np.mean(read['gyro']):+.3f} s and {np.mean(read['gnss']):+.3f} s late, the heading "
@@ -297,11 +297,11 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
         f"{100 * mean_off['identified_bin_as_logged']['Xuu']:.0f} % off the truth and the thrust gain "
         f"{100 * mean_off['identified_bin_as_logged']['thrust_gain']:.0f} %; as read, "
         f"{100 * mean_off['identified_bin']['Xuu']:.0f} % and {100 * mean_off['identified_bin']['thrust_gain']:.0f} %; "
-        f"from the twin's own recording of the same sessions (every state on time, 1200 a second), "
+        f"from the twin's own recording of the same flights (every state on time, 1200 a second), "
         f"{100 * mean_off['identified_twin_csv']['Xuu']:.0f} % and "
         f"{100 * mean_off['identified_twin_csv']['thrust_gain']:.0f} %. The thrust lag comes out short of its "
         f"truth ({TRUTH_LAG_S:g} s) from every source, the twin's own recording included: the MAP fit holds it "
-        "towards its prior (0 s) as far as the sessions' steps leave it free. The .tlog (10-Hz telemetry, as a "
+        "towards its prior (0 s) as far as the flights' steps leave it free. The .tlog (10-Hz telemetry, as a "
         "ground station records it, read the same way) gives Xuu "
         f"{100 * mean_off['identified_tlog']['Xuu']:.0f} % off and the thrust gain "
         f"{100 * mean_off['identified_tlog']['thrust_gain']:.0f} %.")
@@ -310,8 +310,8 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
                     "(s, relative to RCOU's PWM; the shift that lays the two together), and the GPS position's "
                     "RMS error after it",
                     ["seed", "log", *[label + " (s)" for _, label in STREAMS], "GPS RMS (m)"], stamp_rows),
-        ResultTable("`twin identify` on each session (thrust_gain, Xuu, Nr, lag_s free; the untuned BlueBoat as "
-                    "the prior): one value per session, and the mean's distance from the truth",
+        ResultTable("`twin identify` on each flight (thrust_gain, Xuu, Nr, lag_s free; the untuned BlueBoat as "
+                    "the prior): one value per flight, and the mean's distance from the truth",
                     ["coefficient", "prior", "truth", *[label for _, label in SOURCES]], ident_rows),
     ]
     diagnosis_rows = []
@@ -324,22 +324,23 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
     tables.append(ResultTable("`twin diagnose` with the truth twin on each .BIN as read, a stream's stamps moved later "
                               "to conceal a timing effect (the heading with its attitude, or the PWM)",
                               ["seed", "concealed", "truth", "named", "exact"], diagnosis_rows))
-    exact = sum(d["exact"] for r in results for d in r["diagnosed_bin"])
-    total = sum(len(r["diagnosed_bin"]) for r in results)
-    summary += (f" Diagnosed with the truth twin, with a stream's stamps moved later: {exact} of {total} cases "
-                "exact (the effect alone, within 30 %; a null: nothing named).")
+    cases = [d for r in results for d in r["diagnosed_bin"]]
+    effects, nulls = [d for d in cases if d["effect"]], [d for d in cases if not d["effect"]]
+    summary += (f" Diagnosed with the truth twin (its form right), a stream's stamps moved later: "
+                f"{sum(d['exact'] for d in effects)} of {len(effects)} named exactly (the effect alone, within 30 %), "
+                f"nulls clean {sum(d['exact'] for d in nulls)} of {len(nulls)}.")
     seeds = ",".join(str(r["seed"]) for r in results)
     return ResultPage(
         name="ardupilot_identification",
         title="What `twin identify` and `twin diagnose` recover from ArduPilot's own logs",
         ran=f"python scripts/ardupilot_identification.py --seeds {seeds} --drive-s {args.drive_s:g}",
-        data=(f"{len(results)} sessions of ArduRover SITL ({BINARY.relative_to(ROOT.parent)}, 1200-Hz frames, "
+        data=(f"{len(results)} flights of ArduRover SITL ({BINARY.relative_to(ROOT.parent)}, 1200-Hz frames, "
               "Rover's default parameters and `twin sitl --write-params`'s) flying through `twin sitl` the BlueBoat "
               f"with known coefficients ({', '.join(f'{n} ×{s:g}' for n, s in TRUTH_SCALES.items())} of the "
               f"untuned BlueBoat's, thrust lag {TRUTH_LAG_S:g} s), armed in MANUAL and driven by stick steps held "
-              f"2-7 s each (seeds {seeds}) for {args.drive_s:g} s each. Per session: ArduRover's own .BIN, the "
+              f"2-7 s each (seeds {seeds}) for {args.drive_s:g} s each. Per flight: ArduRover's own .BIN, the "
               "MAVLink telemetry at 10 Hz a ground station records (.tlog), and the twin's recording of every "
-              "physics frame (the truth). Fixed before the sessions were flown: the truth, the free "
+              "physics frame (the truth). Fixed before the flights were flown: the truth, the free "
               "coefficients and the readers' use of the delays the logs state (formats.ardupilot); before they "
               "were diagnosed: the effects concealed (" + ", ".join(
                   f"{label} {late:g} s" if effect else label for label, effect, late in CONCEALED) + ")."),
@@ -352,17 +353,17 @@ def page(results: list[dict], truth, prior, quantities, args) -> ResultPage:
                "(sensors.yaw_rate_source).",
                "A real receiver's delay is stated by GPS_DELAY_MS (GPS1_DELAY_MS) only where the user set it; "
                "left at 0 the log does not say it, and a note says so."],
-        raw={"truth": truth_values, "prior": prior_values, "free": list(FREE), "sessions": results},
+        raw={"truth": truth_values, "prior": prior_values, "free": list(FREE), "flights": results},
     )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1,2,3", help="one session per seed of its stick steps")
+    ap.add_argument("--seeds", default="1,2,3", help="one flight per seed of its stick steps")
     ap.add_argument("--drive-s", type=float, default=150.0)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     ap.add_argument("--keep", type=Path, default=None,
-                    help="keep the sessions' files in this folder (and read them again from it when they are there)")
+                    help="keep the flights' files in this folder (and read them again from it when they are there)")
     ap.add_argument("--no-page", action="store_true")
     args = ap.parse_args()
     seeds = [int(x) for x in args.seeds.split(",")]
@@ -378,7 +379,7 @@ def main() -> None:
         params.write_text(boat_parameters(truth))
         results = []
         for seed in seeds:
-            results.append(session(seed, base, model, params, args.drive_s, truth, prior, quantities))
+            results.append(flight(seed, base, model, params, args.drive_s, truth, prior, quantities))
             print(json.dumps(results[-1], default=float), flush=True)
     result_page = page(results, truth, prior, quantities, args)
     if not args.no_page:

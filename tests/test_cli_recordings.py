@@ -50,7 +50,7 @@ def test_convert_and_view(sim_tlog, tmp_path):
     p = twin("convert", sim_tlog / "z.tlog", tmp_path / "z.mcap")
     assert p.returncode == 0, p.stderr
     assert "every stream at its own times, as read" in p.stdout
-    # every sample where the reader put it: no fix held on a grid (each a row up to 0.3 s late), no heading thinned
+    # every sample where the reader put it: no fix held on a grid (its rows up to 0.2 s late), no heading thinned
     a, b = read_recording(sim_tlog / "z.tlog"), read_recording(tmp_path / "z.mcap")
     for name in ("gnss", "heading", "pwm", "imu"):
         np.testing.assert_allclose(getattr(b, name).t, getattr(a, name).t, atol=1e-6, err_msg=name)
@@ -60,7 +60,7 @@ def test_convert_and_view(sim_tlog, tmp_path):
     # synchronised on request (as it says): each 5-Hz fix held on the 0.1-s grid, the 50-Hz heading thinned
     p = twin("convert", sim_tlog / "z.tlog", tmp_path / "g.mcap", "--grid-dt", "0.1")
     assert p.returncode == 0, p.stderr
-    assert "gnss recorded at 5 Hz, each sample held until the next (rows up to 0.3 s after it was taken)" in p.stdout
+    assert "gnss recorded at 5 Hz, each sample held until the next (rows up to 0.2 s after it was taken)" in p.stdout
     g = read_recording(tmp_path / "g.mcap")
     at_fix = np.searchsorted(g.gnss.t, a.gnss.t - 1e-6)
     np.testing.assert_allclose(g.gnss.t[at_fix], a.gnss.t, atol=1e-6)
@@ -366,3 +366,32 @@ def test_a_conversion_says_what_a_log_format_resamples():
     assert not_kept(rec, ".bin") == ["a .bin carries roll and pitch with the heading (ATT, ATTITUDE): the 500 attitude "
                                       "samples are read at the heading's 100 times (.mcap keeps them all)"]
     assert not_kept(rec, ".mcap") == []
+
+
+def test_a_copy_without_parameters_says_which_streams_it_holds_read_earlier(tmp_path):
+    """An ArduPilot log stating its gyro filter and GPS lag, converted to .csv (which has no place
+    for them): the copy holds both streams as read, and the conversion says so; to .bin, where the
+    parameters go too, it reads back the same and says nothing of it."""
+    from twin.formats import write_recording
+    from twin.recording import Recording, Stream
+
+    t = np.arange(0, 1000) * 0.02
+    tg = np.arange(0, 100) * 0.2
+    rec = Recording(source="ap", kind="synthetic", heading=Stream(t, {"psi_rad": 0.1 * t}),
+                    imu=Stream(t.copy(), {"yaw_rate_rads": np.full(len(t), 0.1)}),
+                    gnss=Stream(tg, {"lat_deg": 63.4 + 1e-6 * tg, "lon_deg": np.full(len(tg), 10.3),
+                                     "alt_m": np.zeros(len(tg))}),
+                    parameters={"INS_GYRO_FILTER": 4.0, "SIM_GPS1_LAG_MS": 100.0})
+    write_recording(rec, tmp_path / "ap.bin")
+    p = twin("convert", tmp_path / "ap.bin", tmp_path / "ap.csv")
+    assert p.returncode == 0, p.stderr
+    said = [line for line in p.stderr.splitlines() if line.startswith("note: in the copy as read, without the delay")]
+    assert len(said) == 2 and "gyro: logged after ArduPilot's 4-Hz low-pass" in said[0] and "SIM_GPS1_LAG_MS" in said[1]
+    a, b = read_recording(tmp_path / "ap.bin"), read_recording(tmp_path / "ap.csv")
+    for name in ("gnss", "imu", "heading"):
+        np.testing.assert_allclose(getattr(b, name).t, getattr(a, name).t, atol=1e-6, err_msg=name)
+    p = twin("convert", tmp_path / "ap.bin", tmp_path / "again.bin")
+    assert p.returncode == 0 and "in the copy as read" not in p.stderr, p.stderr
+    c = read_recording(tmp_path / "again.bin")
+    for name in ("gnss", "imu", "heading"):
+        np.testing.assert_allclose(getattr(c, name).t, getattr(a, name).t, atol=1.5e-6, err_msg=name)

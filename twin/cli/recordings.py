@@ -194,7 +194,8 @@ def convert(
     out: Optional[Path] = typer.Option(None, "--out", help="the output, as every other command names it (or DST)"),
     channels: Optional[str] = typer.Option(None, help=CHANNELS_HELP),
     grid_dt: Optional[float] = typer.Option(None, help="put GNSS, heading and PWM on one grid of this period, s "
-                                                       "[Morel-2024 §5.1], each sample held until the next (no finer "
+                                                       "[Morel-2024 §5.1], GNSS and PWM held until their next sample, "
+                                                       "the heading interpolated (no finer "
                                                        "than a tenth of the fastest one's own); without it every "
                                                        "stream keeps its own times"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -203,6 +204,7 @@ def convert(
     heading and PWM synchronised on one grid [Morel-2024 §5.1] when it has GNSS and heading."""
     # late: the command's stack (the readers and writers, twin.prepare: 0.1 s) would be paid at every `twin --help`
     from ..formats import read_recording, write_recording
+    from ..formats.ardupilot import MOVED
     from ..formats.mcap import MCAP_DAMAGE
     from ..prepare.convert import for_conversion, not_kept
 
@@ -214,7 +216,7 @@ def convert(
     check_distinct({"output": dst}, [src], keep_data=False)  # even with --force: the input is never replaced
     check_regular(src)
     recordings_in([src])  # an input that is no recording is the first thing to fix, before the output's
-    check_new([dst], force, "output", RUNS)  # a converted copy (resampled on the grid) must not silently replace a log
+    check_new([dst], force, "output", RUNS)  # a converted copy must not silently replace a log
     if grid_dt is not None:
         positive(grid_dt, "--grid-dt")
     rec = read_recording(src, channels=channels_from(channels))
@@ -237,6 +239,10 @@ def convert(
             note(f"note: not in the copy: {line}")
     for line in not_kept(conversion.recording, dst.suffix.lower()):
         note(f"note: {line}")
+    if dst.suffix.lower() in (".csv", ".mcap"):  # no parameters to say it by: the copy holds these as read
+        for line in rec.notes:
+            if line.startswith(MOVED):
+                note(f"note: in the copy as read, without the delay: {line}")
 
 
 @app.command()

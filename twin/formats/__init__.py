@@ -39,15 +39,17 @@ What a round trip keeps (sample times / values):
   .csv   1 µs / lat, lon 1e-10 deg, heading 1e-7 deg, PWM as written; no parameters
   .tlog  GNSS and PWM 1 µs, heading 1 ms / lat, lon 1e-7 deg, alt 1 mm, heading float32
          (~1e-7 rad), PWM integer µs (rounded), voltage 1 mV, parameters float32; the imu
-         stream comes back at the heading times (ATTITUDE carries both) and, without one,
-         as zeros
+         stream comes back at the heading times (ATTITUDE carries both; earlier by the
+         gyro filter's delay where the parameters state one) and, without one, as none
   .bin   1 µs / lat, lon 1e-7 deg, alt 1 cm, heading 0.01 deg, PWM integer µs (rounded),
          yaw rate and voltage float32, parameters float32
   .mcap  1 ns / every value exactly (JSON), plus the origin, PWM neutral and parameters
   (prop_rudder and wind: .csv 10 significant digits, 1e-6 m/s and deg; .tlog 1 ms, .bin 1 µs /
   float32)
 
-Times: a stream's t (s from the recording's origin) is written as it is, unless some
+Times: a stream's t (s from the recording's origin) is written as it is (in .tlog and .bin,
+an ArduPilot gyro and GPS fix later by the delays the parameters state, as ArduPilot stamps
+them: formats.ardupilot), unless some
 sample is before the origin: then every stream is shifted by the same amount so that
 the earliest sample is at 0 (MCAP and MAVLink times cannot be negative); offsets
 between streams are always kept. The readers put the earliest sample at t = 0.

@@ -46,6 +46,7 @@ SIM_GPS_LAG = (("SIM_GPS1_LAG_MS", 1000.0), ("SIM_GPS_LAG_MS", 1000.0))
 GPS_DELAY = (("GPS1_DELAY_MS", 250.0), ("GPS_DELAY_MS", 250.0))
 GPS_KIND = ("GPS1_TYPE", "GPS_TYPE")  # listed by every ArduPilot with a GPS
 UBLOX_KINDS = (1.0, 2.0)  # auto-detected (a u-blox on most boards) and u-blox
+MOVED = ("gyro: logged after", "gnss: each fix read")  # how the notes of a stream read earlier begin
 
 
 # ---------------------------------------------------------------- the gyro's filter and the GPS's lag
@@ -78,7 +79,7 @@ def read_gyro_on_time(rec: Recording) -> None:
     rec.imu = rec.imu.shifted(delay)
     notch = (f"; its harmonic notch ({NOTCH} 1) delays it further, by an amount not counted"
              if rec.parameters.get(NOTCH, 0.0) > 0.0 else "")
-    rec.notes.append(f"gyro: logged after ArduPilot's {cutoff:g}-Hz low-pass ({GYRO_FILTER}), which delays a turn "
+    rec.notes.append(f"{MOVED[0]} ArduPilot's {cutoff:g}-Hz low-pass ({GYRO_FILTER}), which delays a turn "
                      f"by {delay:.3f} s: read {delay:.3f} s earlier{notch}")
 
 
@@ -117,7 +118,7 @@ def read_fixes_when_taken(rec: Recording) -> None:
     delay, name = gnss_delay_s(params)
     if delay:
         rec.gnss = rec.gnss.shifted(delay)
-        rec.notes.append(f"gnss: each fix read {delay:.3f} s before it was logged, as the log's {name} says")
+        rec.notes.append(f"{MOVED[1]} {delay:.3f} s before it was logged, as the log's {name} says")
     elif name is None and any(k in params for k in GPS_KIND):
         stated = next((n for n, _ in GPS_DELAY if n in params), None)
         kind = next(params[k] for k in GPS_KIND if k in params)

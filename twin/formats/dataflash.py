@@ -11,9 +11,9 @@ BAT (Volt), and for a propeller-and-rudder ship and a measured wind the log's ow
 one, as WNDR at the same times), float32, each message at its own sample time (TimeUS, µs).
 A run is sampled as a boat's sensors would log it: GPS at the antenna (5 Hz, with
 the lever arm), ATT and IMU 50 Hz, RCOU 10 Hz (telemetry.sample).
-Read back, a log that states its gyro's low-pass (formats.ardupilot) or its GPS delay (below) has
-that stream at the times it measured (formats.ardupilot), and a recording with those parameters is
-written with the delays put back.
+Read back, a log that states its gyro's low-pass or its GPS delay has that stream at the times it
+measured (formats.ardupilot), and a recording with those parameters is written with the delays put
+back.
 """
 from __future__ import annotations
 

@@ -9,11 +9,13 @@ One packet builder (`telemetry_packets`) serves both sources:
                      (throttle right), SERVOn_REVERSED = 0, as an ArduRover skid-steer
                      boat; a recording adds its own parameters and SERVOn_TRIM = its PWM
                      neutral (telemetry.log_parameters)
-  GPS_RAW_INT        3-D fix, lat/lon 1e-7 deg, alt mm, time_usec = log time (µs), ground speed
+  GPS_RAW_INT        3-D fix, lat/lon 1e-7 deg, alt mm, time_usec = log time (µs; later by the GPS
+                     delay a recording's parameters state, formats.ardupilot), ground speed
                      and course over ground (cog, 65535 when unknown or below 5 cm/s)
   GLOBAL_POSITION_INT  (a simulated run) position, NED velocity and heading at the GNSS times:
                      what ground stations draw the vehicle from
-  ATTITUDE           yaw (rad, float32), yawspeed, time_boot_ms = log time (ms); roll and pitch
+  ATTITUDE           yaw (rad, float32), yawspeed (the gyro as of its filter's delay before, where
+                     the parameters state one), time_boot_ms = log time (ms); roll and pitch
                      (rad, float32) of a 6-DOF hull or a recording's attitude stream, else 0
   SERVO_OUTPUT_RAW   port 0, PWM (integer µs) on channels 1 and 3, time_usec (32-bit µs)
   SYS_STATUS         battery voltage (mV), only where the source has a battery stream
@@ -21,8 +23,9 @@ One packet builder (`telemetry_packets`) serves both sources:
                      and measured wind (WIND_SPD m/s, WIND_FROM deg; on board, where measured,
                      WIND_RSPD, WIND_RFROM), float32, time_boot_ms:
                      MAVLink has no message of its own for them
-Every message is stamped with its own sample time; the Unix stamp is a fixed start
-plus that time, so the log's boot clock and receive clock agree.
+Every message is stamped with its own sample time (the GPS fixes and the gyro as ArduPilot
+stamps them, formats.ardupilot); the Unix stamp is a fixed start plus that time, so the log's boot
+clock and receive clock agree.
 
 A run is sampled at the rates of [Morel-2024 §3] (telemetry.sample): GNSS at
 the antenna every 200 ms, AHRS heading every 20 ms, PWM every 100 ms.
@@ -220,7 +223,8 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)
     _check_range("battery voltage (mV)", np.round(bat["voltage_v"] * 1e3) if len(bat) else np.zeros(0), 1, 65534)
     # a fix's GPS_RAW_INT time is when it came in, which a delay the log states puts after it was taken
-    return Telemetry(g.t + gnss_delay_s(rec.parameters)[0], g["lat_deg"] if len(g) else np.zeros(0), g["lon_deg"] if len(g) else np.zeros(0),
+    gnss_t = g.t + gnss_delay_s(rec.parameters)[0]
+    return Telemetry(gnss_t, g["lat_deg"] if len(g) else np.zeros(0), g["lon_deg"] if len(g) else np.zeros(0),
                      np.full(len(g), np.nan), h.t, h["psi_rad"] if len(h) else np.zeros(0), r, p.t, pwm,
                      alt_m=g["alt_m"] if g.has("alt_m") else None,
                      battery_t=bat.t, voltage_v=bat["voltage_v"] if len(bat) else np.zeros(0),

@@ -78,7 +78,7 @@ def _rate_change(name: str, stream: Stream, grid_dt: float) -> str:
         return ""
     if period > grid_dt:
         return (f"{name} recorded at {1 / period:.3g} Hz, each sample held until the next (rows up to "
-                f"{period + grid_dt:.2g} s after it was taken)")
+                f"{period:.2g} s after it was taken)")
     return f"{name} recorded at {1 / period:.3g} Hz, thinned to the grid"
 
 

@@ -137,11 +137,12 @@ def heading_lag(rec: Recording) -> GyroLag:
 def _unstated_filter(rec: Recording) -> str:
     """An ArduPilot log that does not state its gyro's low-pass, which its reader reads back by
     (formats.ardupilot): the filter's delay at the vehicles' default cut-offs."""
-    if rec.kind not in ("dataflash", "tlog") or gyro_filter_delay_s(rec.parameters) or rec.parameters.get(GYRO_FILTER) == 0:
+    stated = gyro_filter_delay_s(rec.parameters) or rec.parameters.get(GYRO_FILTER) == 0
+    if rec.kind not in ("dataflash", "tlog") or stated:
         return ""
-    return (f"an ArduPilot gyro's stamps trail so where its {GYRO_FILTER} low-pass is not read from the log's parameters "
-            f"(Rover's default 4 Hz delays it {gyro_filter_delay_s({GYRO_FILTER: 4.0}):.3f} s, Copter's and Sub's "
-            f"20 Hz {gyro_filter_delay_s({GYRO_FILTER: 20.0}):.3f} s)")
+    rover, copter = gyro_filter_delay_s({GYRO_FILTER: 4.0}), gyro_filter_delay_s({GYRO_FILTER: 20.0})
+    return (f"ArduPilot logs its gyro after a low-pass ({GYRO_FILTER}) whose delay this log's parameters do not "
+            f"give (Rover's default 4 Hz: {rover:.3f} s; Copter's and Sub's 20 Hz: {copter:.3f} s)")
 
 
 def _jackknife(lags: np.ndarray, per_piece: list[np.ndarray]) -> float | None:
