@@ -811,3 +811,28 @@ def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_usin
         assert exit_info.code in (0, None)
     err = capsys.readouterr().err
     assert sum("many.csv: " in line and "samples dropped" in line for line in err.splitlines()) == 3
+
+
+def test_a_dataflash_log_with_a_damaged_format_is_read_without_that_messages_type(tmp_path):
+    """A card's damage in one FMT record (a format character no DataFlash field type has) made
+    pymavlink refuse the whole log: the other types are read, the damaged one is left out and counted."""
+    from twin.recording import Recording, Stream
+
+    th = np.arange(0, 500) * 0.02
+    tg = th[::10]
+    rec = Recording(source="x", kind="synthetic", heading=Stream(th, {"psi_rad": 0.1 * th}),
+                    gnss=Stream(tg, {"lat_deg": 63.4 + 1e-6 * tg, "lon_deg": np.full(len(tg), 10.3),
+                                     "alt_m": np.zeros(len(tg))}), parameters={"FRAME_CLASS": 2.0})
+    write_recording(rec, tmp_path / "ok.bin")
+    data = bytearray((tmp_path / "ok.bin").read_bytes())
+    parm = data.find(b"\xa3\x95\x80\x40")  # the FMT record of type 64, PARM
+    assert parm >= 0 and bytes(data[parm + 5:parm + 9]) == b"PARM"
+    data[parm + 9] = ord("?")
+    (tmp_path / "damaged.bin").write_bytes(bytes(data))
+    back = read_recording(tmp_path / "damaged.bin")
+    assert len(back.heading) == len(th) and len(back.gnss) == len(tg) and back.parameters == {}
+    assert ("dataflash: a damaged FMT record, its PARM messages left out", 1) in back.dropped
+    data[:3] = b"xyz"  # beyond its formats: still refused in one line
+    (tmp_path / "worse.bin").write_bytes(bytes(data[:200]))
+    with pytest.raises(TwinError, match="worse.bin"):
+        read_recording(tmp_path / "worse.bin")

@@ -241,24 +241,33 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
 
     rows: dict[str, list] = defaultdict(list)
     stopped = 0
-    with _captured_output() as out:
+    with _captured_output() as out, tempfile.TemporaryDirectory() as spare:
         try:
             log = DFReader.DFReader_binary(str(path), zero_time_base=False)
+            unread = []
         except Exception as exc:  # empty, truncated header, not DataFlash: pymavlink raises anything
             why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise TwinError(f"{path.name}: not a readable DataFlash log (pymavlink: {why[:120]})") from None
+            log, unread = _without_damaged_formats(path, Path(spare), DFReader)
+            if log is None:
+                raise TwinError(f"{path.name}: not a readable DataFlash log (pymavlink: {why[:120]})") from None
+        # DFReader's index of the types stops at a message whose FMT is gone: such a log is read
+        # message by message
+        wanted = None if unread else DF_WANTED
         while True:
             try:
-                m = log.recv_match(type=DF_WANTED)
+                m = log.recv_match(type=wanted)
             except Exception:
                 stopped = 1
                 break
             if m is None:
                 break
-            rows[m.get_type()].append(m)
+            if m.get_type() in DF_WANTED:
+                rows[m.get_type()].append(m)
     text = out.getvalue()
     try:
-        dropped = [(reason, n) for reason, n in (
+        dropped = [(f"dataflash: a damaged FMT record, its {', '.join(unread)} messages left out", len(unread))
+                   ] if unread else []
+        dropped += [(reason, n) for reason, n in (
             ("dataflash: bad message headers skipped", text.count("bad header")),
             ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
             ("dataflash: unreadable rest of the log", stopped),
@@ -266,6 +275,35 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
     finally:
         _close(log)
     return rows, dropped
+
+
+FMT_HEAD = b"\xa3\x95\x80"  # a FMT record: head, type, length, name[4], format[16], columns[64]
+FMT_SIZE = 89
+FIELD_TYPES = frozenset(b"abBhHiIfdnNZcCeELMqQ")  # the DataFlash field types a format is written in
+
+
+def _without_damaged_formats(path: Path, spare: Path, reader) -> tuple[object | None, list[str]]:
+    """A log whose FMT records DFReader refuses (a format character no field type has: a damaged
+    card's bytes) read without those records, their messages then skipped as unknown: (the reader
+    on a copy in `spare`, the names of the types left out); (None, []) where no FMT record is damaged
+    so, or the copy cannot be read either."""
+    data = bytearray(path.read_bytes())
+    unread = []
+    at = data.find(FMT_HEAD)
+    while 0 <= at <= len(data) - FMT_SIZE:
+        fields = bytes(data[at + 9:at + 25]).rstrip(b"\0")
+        if not fields or any(c not in FIELD_TYPES for c in fields):
+            unread.append(bytes(data[at + 5:at + 9]).rstrip(b"\0").decode("ascii", "replace") or f"type {data[at + 3]}")
+            data[at:at + 3] = bytes(3)  # no longer a record: the reader steps over it as junk
+        at = data.find(FMT_HEAD, at + 3)
+    if not unread:
+        return None, []
+    copy = spare / path.name
+    copy.write_bytes(data)
+    try:
+        return reader.DFReader_binary(str(copy), zero_time_base=False), unread
+    except Exception:  # damaged beyond its formats
+        return None, []
 
 
 def _close(log) -> None:
