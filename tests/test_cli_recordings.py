@@ -203,8 +203,12 @@ def test_convert_a_log_without_gnss(tmp_path, suffix):
     rec = _no_gnss_recording()
     write_recording(rec, tmp_path / "in.bin")
     p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}", "--grid-dt", "0.1")
+    assert p.returncode == 2 and not (tmp_path / f"out{suffix}").exists()
+    assert p.stderr == ("error: --grid-dt 0.1: in.bin cannot be put on a grid (no GNSS samples, from which the track "
+                        "and the velocities are read); without --grid-dt every stream keeps its own times\n")
+    p = twin("convert", tmp_path / "in.bin", tmp_path / f"out{suffix}")
     assert p.returncode == 0, p.stderr
-    assert "streams at their own times (not synchronised: no GNSS samples, from which the track and the velocities are read)" in p.stdout
+    assert "every stream at its own times, as read" in p.stdout
     back = read_recording(tmp_path / f"out{suffix}")
     assert len(back.gnss) == 0 and len(back.heading) == len(rec.heading) and len(back.pwm) == len(rec.pwm)
     np.testing.assert_allclose(back.pwm.t - back.pwm.t[0], rec.pwm.t - rec.pwm.t[0], atol=2e-6)

@@ -627,7 +627,10 @@ def test_shared_ardupilot_logs_all_convert(tmp_path, suffix):
 
     for path in _shared("ardupilot"):
         rec = read_recording(path)
-        conversion = for_conversion(rec, 0.1)
+        if not len(rec.gnss):  # a grid asked for, where none can be had, is refused, not skipped
+            with pytest.raises(TwinError, match=r"cannot be put on a grid \(no GNSS samples"):
+                for_conversion(rec, 0.1)
+        conversion = for_conversion(rec, 0.1) if len(rec.gnss) else for_conversion(rec)
         assert conversion.synchronised == (len(rec.gnss) > 0), path.name
         write_recording(conversion.recording, tmp_path / f"{path.stem}{suffix}")
         back = read_recording(tmp_path / f"{path.stem}{suffix}")
@@ -772,9 +775,13 @@ def test_a_conversion_says_which_streams_it_held_or_thinned_to_the_grid():
     pwm_t = t[::5]  # 10 Hz, the grid's
     rec.pwm = Stream(pwm_t, {"left_us": np.full(len(pwm_t), 1600.0), "right_us": np.full(len(pwm_t), 1600.0)})
     timing = for_conversion(rec, 0.1).timing
-    assert "gnss recorded at 5 Hz, each sample held until the next" in timing
-    assert "heading recorded at 50 Hz, thinned to the grid" in timing
-    assert "pwm recorded" not in timing
+    assert "gnss recorded at 5 Hz, each sample held until the next (rows up to 0.2 s after it was taken)" in timing
+    assert "heading recorded at 50 Hz, interpolated at the grid's times" in timing
+    assert "pwm recorded" not in timing and "the grid covers" not in timing
+    # a heading that starts 5 s before the GNSS: the grid's span, and what lies outside it, are said
+    rec.heading = Stream(np.r_[np.arange(-5.0, 0.0, 0.02), t], {"psi_rad": np.zeros(len(t) + 250)})
+    timing = for_conversion(rec, 0.1).timing
+    assert "the grid covers 29.8 s where the GNSS and the heading both run, of the recording's 35.0 s" in timing
 
 
 def test_a_stream_that_lost_a_share_of_its_samples_is_named_by_the_commands_using_it(tmp_path, monkeypatch, capsys):
@@ -836,3 +843,22 @@ def test_a_dataflash_log_with_a_damaged_format_is_read_without_that_messages_typ
     (tmp_path / "worse.bin").write_bytes(bytes(data[:200]))
     with pytest.raises(TwinError, match="worse.bin"):
         read_recording(tmp_path / "worse.bin")
+
+
+def test_a_conversion_says_what_its_format_reads_at_other_times_or_leaves_out():
+    """A .tlog carries the gyro in ATTITUDE: a 25-Hz gyro beside a 10-Hz heading is read at the
+    heading's times, and said; one at the heading's times less its filter's stated delay is written
+    back as ArduPilot stamped it, so nothing is said. A .csv has no roll and pitch: said."""
+    from twin.prepare.convert import not_kept
+    from twin.recording import Recording, Stream
+
+    th, tg = np.arange(0, 100) * 0.1, np.arange(0, 250) * 0.04
+    rec = Recording(source="g", kind="csv", heading=Stream(th, {"psi_rad": 0.1 * th}),
+                    imu=Stream(tg, {"yaw_rate_rads": np.full(len(tg), 0.1)}),
+                    attitude=Stream(th, {"roll_rad": 0 * th, "pitch_rad": 0 * th}))
+    said = not_kept(rec, ".tlog")
+    assert any("the 250 gyro samples are read at the heading's 100 times" in line for line in said), said
+    delay = np.sqrt(2) / (2 * np.pi * 4.0)
+    rec.imu, rec.parameters = Stream(th - delay, {"yaw_rate_rads": 0.1 + 0 * th}), {"INS_GYRO_FILTER": 4.0}
+    assert not any("gyro samples" in line for line in not_kept(rec, ".tlog"))
+    assert any("the 100 attitude samples are left out" in line for line in not_kept(rec, ".csv"))
