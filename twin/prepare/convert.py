@@ -4,7 +4,7 @@
 A copy keeps each sample at the time the reader gave it: holding a 5-Hz GNSS fix onto a 0.1-s grid
 puts it in two rows, 0-0.2 s after it was taken, which a fit then reads as a receiver about 0.1 s
 late. Synchronised on request: where the recording has GNSS and heading, GNSS (as recorded:
-lat/lon/alt or north/east, no lever arm), heading and PWM are held onto the grid of [Morel-2024
+lat/lon/alt or north/east, no lever arm), heading and PWM are put onto the grid of [Morel-2024
 §5.1] (twin.prepare: causal zero-order hold, dropouts cut out), so every row of a CSV holds all
 three (the heading interpolated, GNSS and PWM held). A log without GNSS or heading (an ROV, a
 bench test, a broken receiver) cannot be put on a grid: asked for one, it is refused, and
