@@ -389,13 +389,16 @@ def test_a_copy_without_parameters_says_which_streams_it_holds_read_earlier(tmp_
     write_recording(rec, tmp_path / "ap.bin")
     p = twin("convert", tmp_path / "ap.bin", tmp_path / "ap.csv")
     assert p.returncode == 0, p.stderr
-    said = [line for line in p.stderr.splitlines() if line.startswith("note: in the copy as read, without the delay")]
-    assert len(said) == 2 and "gyro: logged after ArduPilot's 4-Hz low-pass" in said[0] and "SIM_GPS1_LAG_MS" in said[1]
+    lines = p.stderr.splitlines()
+    assert "note: ap.bin: gyro: logged after ArduPilot's 4-Hz low-pass (INS_GYRO_FILTER), which delays a turn by " \
+           "0.056 s: read 0.056 s earlier" in lines, lines
+    assert "note: ap.bin: gnss: each fix read 0.100 s before it was logged, as the log's SIM_GPS1_LAG_MS says" in lines
+    assert "note: the copy holds the gyro and gnss as read (above), at the times they measured" in lines
     a, b = read_recording(tmp_path / "ap.bin"), read_recording(tmp_path / "ap.csv")
     for name in ("gnss", "imu", "heading"):
         np.testing.assert_allclose(getattr(b, name).t, getattr(a, name).t, atol=1e-6, err_msg=name)
     p = twin("convert", tmp_path / "ap.bin", tmp_path / "again.bin")
-    assert p.returncode == 0 and "in the copy as read" not in p.stderr, p.stderr
+    assert p.returncode == 0 and "the copy holds" not in p.stderr, p.stderr
     c = read_recording(tmp_path / "again.bin")
     for name in ("gnss", "imu", "heading"):
         np.testing.assert_allclose(getattr(c, name).t, getattr(a, name).t, atol=1.5e-6, err_msg=name)

@@ -40,6 +40,9 @@ GAP_S = 1.0  # a silence longer than this in a stream is reported as a dropout
 DROPOUTS = f"dropouts > {GAP_S:g} s"  # the `dropped` reason (after "STREAM: ") that counts a stream's gaps
 LOST_SHARE = 0.01  # a stream that lost this share of its samples on reading is named by the commands that use it
 STREAMS = ("gnss", "heading", "pwm", "imu", "battery", "prop_rudder", "wind")
+# how the notes of a reader that read a stream earlier than stamped begin (formats.ardupilot): every
+# command that uses the log says them
+MOVED = ("gyro: logged after", "gnss: each fix read")
 # meta["positions"]: the GNSS stream's north, east are a simulated run's exact track of the body origin
 # (no antenna), or a measured track the log gives as the body origin's (a model ship's tracking in a
 # pond), which no MJCF antenna site applies to but a sensor offset found later (a point tracked off

@@ -34,6 +34,7 @@ from ..errors import TwinError
 from ..files import (KEPT, after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
                      write_text_atomic)
 from ..progress import Progress
+from ..recording import MOVED
 from ..threads import limit_process_blas_threads
 from ..vessel import load
 
@@ -476,12 +477,15 @@ def say_unlogged_supply(recordings, vessel) -> None:
 
 
 def warn_recordings(recordings) -> None:
-    """Each recording's warnings (Recording.warnings: data that may be misread) and its streams that lost
-    a share of their samples on reading (Recording.heavy_losses), named by file, before the work that
-    would take the data as read."""
+    """Each recording's warnings (Recording.warnings: data that may be misread), its streams read
+    earlier than stamped (an ArduPilot log's gyro and GPS) and those that lost a share of their samples
+    on reading (Recording.heavy_losses), named by file, before the work that would take the data as read."""
     for rec in recordings:
         for text in [*rec.misread, *rec.warnings]:  # misread: only `twin view` gets this far with one
             note(f"warning: {Path(rec.source).name}: {text}")
+        for text in rec.notes:  # a stream read earlier than its stamps: the work takes it so
+            if text.startswith(MOVED):
+                note(f"note: {Path(rec.source).name}: {text}")
         for text in rec.heavy_losses():
             note(f"note: {Path(rec.source).name}: {text} (`twin info` lists what was dropped)")
 

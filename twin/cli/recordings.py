@@ -10,7 +10,7 @@ import typer
 from ..drive import inputs_mismatch
 from ..errors import TwinError
 from ..files import RUNS, check_new, write_bytes_atomic
-from ..recording import DROPOUTS, check_no_shared_stretch, check_not_misread, format_summary
+from ..recording import DROPOUTS, MOVED, check_no_shared_stretch, check_not_misread, format_summary
 from ..viz.report import comparison_png
 from .app import (REPORT_HELP, all_or_nothing_outputs, CHANNELS_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, channels_from, check_distinct, 
                   check_outputs, check_recordings_distinct,
@@ -204,7 +204,6 @@ def convert(
     heading and PWM synchronised on one grid [Morel-2024 §5.1] when it has GNSS and heading."""
     # late: the command's stack (the readers and writers, twin.prepare: 0.1 s) would be paid at every `twin --help`
     from ..formats import read_recording, write_recording
-    from ..formats.ardupilot import MOVED
     from ..formats.mcap import MCAP_DAMAGE
     from ..prepare.convert import for_conversion, not_kept
 
@@ -239,10 +238,9 @@ def convert(
             note(f"note: not in the copy: {line}")
     for line in not_kept(conversion.recording, dst.suffix.lower()):
         note(f"note: {line}")
-    if dst.suffix.lower() in (".csv", ".mcap"):  # no parameters to say it by: the copy holds these as read
-        for line in rec.notes:
-            if line.startswith(MOVED):
-                note(f"note: in the copy as read, without the delay: {line}")
+    moved = [line.split(":")[0] for line in rec.notes if line.startswith(MOVED)]
+    if moved and dst.suffix.lower() in (".csv", ".mcap"):  # no parameters there to put the delays back by
+        note(f"note: the copy holds the {' and '.join(moved)} as read (above), at the times they measured")
 
 
 @app.command()

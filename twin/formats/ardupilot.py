@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import TwinError
-from ..recording import Recording, clean_stream, with_common_origin
+from ..recording import MOVED, Recording, clean_stream, with_common_origin
 
 FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLeft, ThrottleRight
 GYRO_FILTER = "INS_GYRO_FILTER"  # Hz; 0 turns the low-pass off
@@ -46,7 +46,6 @@ SIM_GPS_LAG = (("SIM_GPS1_LAG_MS", 1000.0), ("SIM_GPS_LAG_MS", 1000.0))
 GPS_DELAY = (("GPS1_DELAY_MS", 250.0), ("GPS_DELAY_MS", 250.0))
 GPS_KIND = ("GPS1_TYPE", "GPS_TYPE")  # listed by every ArduPilot with a GPS
 UBLOX_KINDS = (1.0, 2.0)  # auto-detected (a u-blox on most boards) and u-blox
-MOVED = ("gyro: logged after", "gnss: each fix read")  # how the notes of a stream read earlier begin
 
 
 # ---------------------------------------------------------------- the gyro's filter and the GPS's lag
