@@ -17,6 +17,7 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -281,3 +282,33 @@ def test_the_autopilot_guide_runs_as_written(tmp_path):
     for name in ("tune.tlog", "tune.png", "tune.rrd", "tune_default.json", "tune_b.json", "boat.parm"):
         assert (tmp_path / name).stat().st_size > 0, name
     print("\n".join(m.group(0) for m in missions))
+
+
+def test_ardurovers_own_log_is_read_with_its_gyro_and_gps_at_the_times_they_measured(tmp_path):
+    """The BlueBoat driven by the real ArduRover in MANUAL, weaving, then ArduRover's own .BIN read as
+    a user's log: its gyro, logged after Rover's 4-Hz INS_GYRO_FILTER, is read 0.056 s earlier and its
+    GPS fixes by SITL's SIM_GPS1_LAG_MS, each said; so read, the heading and the gyro agree to 0.02 s,
+    where as stamped the heading led the gyro by the filter's delay."""
+    from twin.formats import read_recording
+    from twin.prepare.timing import heading_lag
+
+    with twin_sitl("blueboat", tmp_path) as (port, box):
+        with ardupilot(port, box["params"], tmp_path) as rover:
+            rover.wait_ekf(timeout_s=180)
+            rover.set_mode("MANUAL")
+            rover.arm()
+            for k in range(12):  # weave: 6-s turns either way at part throttle, over a minute
+                rover.wait_sim(6.0, every=lambda s=1200 + 600 * (k % 2): rover.sticks(s, 1750))
+            rover.sticks(1500, 1500)
+            rover.disarm()
+    logs = sorted((tmp_path / "ardupilot" / "logs").glob("*.BIN"))
+    assert logs, "ArduRover wrote no .BIN"
+    rec = read_recording(logs[-1])
+    assert rec.parameters["INS_GYRO_FILTER"] == 4.0 and rec.parameters["SIM_GPS1_LAG_MS"] == 100.0
+    assert any(n.startswith("gyro: logged after ArduPilot's 4-Hz low-pass") and "read 0.056 s earlier" in n
+               for n in rec.notes), rec.notes
+    assert any(n.startswith("gnss: each fix read 0.100 s before it was logged") for n in rec.notes), rec.notes
+    lag = heading_lag(rec)
+    assert lag.lag_s is not None and abs(lag.lag_s) <= 0.02, lag.text()
+    stamped = heading_lag(replace(rec, imu=rec.imu.shifted(-0.0563)))
+    assert stamped.lag_s == pytest.approx(-0.06, abs=0.02), stamped.text()
