@@ -84,7 +84,7 @@ def _vessel_file(tmp_path, **changes):
      "added_mass.Nrdot is 30"),
     (lambda tmp: ["--model", _vessel_file(tmp, added_mass={"Xudot": -1, "Yvdot": -10, "Nrdot": -1, "Yrdot": 300,
                                                            "Nvdot": 300})], "positive-definite"),
-    (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left\n0,1500\n")], "missing columns"),
+    (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left\n0,1500\n")], "has pwm_left but no pwm_right column"),
     (lambda tmp: ["--vessel", "yellowfish", "--inputs", _inputs(tmp, "t,pwm_left,pwm_right\n0,1500,1500\n"
                                                               "2,1600,1600\n1,1500,1500\n")], "backwards"),
     (lambda tmp: ["--vessel", "yellowfish", "--current", "fast"], "SPEED,DIR_DEG"),
@@ -134,6 +134,9 @@ def test_malformed_mjcf_says_where_and_why(tmp_path, xml, where):
     ("t,pwm_left,pwm_right,thrust_left\n0,1600,1600,10\n", "both PWM and thrust"),
     ("t,pwm_left,pwm_right\n0.5,1600,1600\n", "first row is at t = 0.5 s"),
     ("t,pwm_left,pwm_right\n\n", "at least one row"),
+    ("t,pwm_left\n0,1600\n", "has pwm_left but no pwm_right column"),
+    ("t,rudder_deg\n0,5\n", "has rudder_deg but no prop_rps column"),
+    ("t,lat\n0,5\n", "missing columns: need pwm_left,pwm_right"),
 ])
 def test_inputs_csv_refuses_what_it_would_apply_silently(tmp_path, text, message):
     with pytest.raises(TwinError, match=message):

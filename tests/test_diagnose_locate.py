@@ -189,6 +189,11 @@ def test_format_located_fits_100_columns():
     assert "90-135°" in text and "u>1.2" in text
     assert max(len(line) for line in text.splitlines()) <= 100
     assert "no bin" in format_located([])
+    assert "region:" not in text  # a legend only where the table has a region's row
+    row = {"dimension": "region", "bin": "rf", "dof": "r", "kind": "bias", "n": 40, "rms": 0.1, "bias": 0.05,
+           "rms_over_noise": 4.0, "share_of_residual": 0.2, "share_of_samples": 0.1, "z": 5.0}
+    legend = format_located([row]).splitlines()[-1]
+    assert legend.startswith("region:") and "rf: the left astern, the right ahead" in legend and len(legend) <= 100
 
 
 def test_a_z_short_of_the_bar_is_not_shown_on_it():

@@ -241,23 +241,32 @@ def test_force_does_not_replace_a_log_under_the_dataset_truth_that_describes_it(
     log = write_csv(tmp_path / "my_log.csv", cols, t)
     truth = tmp_path / "my_log.truth.json"
     truth.write_text(json.dumps({"vessel": {}, "effects": [], "segments": []}))
-    with pytest.raises(TwinError, match="has a dataset's truth beside it"):
+    with pytest.raises(TwinError, match="is described by a dataset.s truth"):
         check_new([log], True, "--out", RUNS)
     check_new([log], True, "output", RUNS, truth=truth)  # the dataset's own run rewrites both
     link = tmp_path / "link.csv"
     link.symlink_to(log.name)
-    with pytest.raises(TwinError, match="has a dataset's truth beside it"):  # a link writes the log it names
+    with pytest.raises(TwinError, match="is described by a dataset.s truth"):  # a link writes the log it names
         check_new([link], True, "--out", RUNS)
     import twin
 
     kept = log.read_text()
     sim = twin.simulate_run("blueboat", scenario="turn", duration_s=3)
     for path in (log, link):  # the API keeps it as the command does
-        with pytest.raises(TwinError, match="has a dataset's truth beside it"):
+        with pytest.raises(TwinError, match="is described by a dataset.s truth"):
             sim.write(path, force=True)
     assert log.read_text() == kept
     truth.unlink()
     check_new([log], True, "--out", RUNS)  # no truth: --force replaces the log
+    named = tmp_path / "answers.json"  # `twin dataset --truth answers.json`: the truth names its logs
+    named.write_text(json.dumps({"logs": ["my_log.csv"], "vessel": {}, "effects": [], "segments": []}))
+    with pytest.raises(TwinError, match="described by a dataset's truth .*answers.json"):
+        check_new([log], True, "--out", RUNS)
+    check_new([log], True, "output", RUNS, truth=named)
+    other = tmp_path / "other.json"  # a truth of another log in the folder does not hold this one
+    named.rename(other)
+    other.write_text(json.dumps({"logs": ["my_log.csv.bak"], "vessel": {}, "effects": [], "segments": []}))
+    check_new([log], True, "--out", RUNS)
 
 
 def test_a_column_named_in_another_case_is_said_to_be_unread(tmp_path):
@@ -269,3 +278,23 @@ def test_a_column_named_in_another_case_is_said_to_be_unread(tmp_path):
     notes = read_recording(path).notes
     assert "columns not read, names being case-sensitive: Heading_Deg (read as heading_deg only when named so)" in notes
     assert not any("Notes" in n for n in notes)  # a column of the user's own is no mistake
+
+
+def test_a_named_file_is_read_by_its_content_and_a_folder_by_its_names(tmp_path):
+    """One rule for every command: a CSV log saved as .txt is a recording wherever it is named, as the
+    readers read it; a folder gives only its files named as recordings; a named file that is none is
+    refused before any work."""
+    from twin.cli.app import recordings_in
+
+    t, cols = straight(20)
+    log = write_csv(tmp_path / "run.csv", cols, t)
+    as_text = tmp_path / "run.txt"
+    as_text.write_bytes(log.read_bytes())
+    folder = tmp_path / "day"
+    folder.mkdir()
+    (folder / "a.csv").write_bytes(log.read_bytes())
+    (folder / "notes.txt").write_bytes(log.read_bytes())
+    assert recordings_in([as_text, folder]) == [as_text, folder / "a.csv"]
+    (tmp_path / "notes.txt").write_text("rode out at ten and back at noon\n")
+    with pytest.raises(TwinError, match="notes.txt': not a recognised recording"):
+        recordings_in([folder, tmp_path / "notes.txt"])

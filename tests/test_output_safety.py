@@ -107,11 +107,17 @@ def test_force_replaces_a_table_or_a_band_only_with_its_own_kind(tmp_path):
     truth = (tmp_path / "d.truth.json").read_text()
     done = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--seed", "1", "--out", tmp_path / "d.mcap",
                 "--force")
-    assert done.returncode == 2 and f"describes the recording '{tmp_path / 'd.csv'}' beside it" in done.stderr
+    assert done.returncode == 2 and f"describes the recording '{tmp_path / 'd.csv'}'" in done.stderr
     assert (tmp_path / "d.truth.json").read_text() == truth and not (tmp_path / "d.mcap").exists()
     again = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--seed", "1", "--out", tmp_path / "d.csv",
                  "--force")  # the log and its truth anew, together
     assert again.returncode == 0 and (tmp_path / "d.truth.json").read_text() != truth, again.stderr
+    named = twin("dataset", "--vessel", "blueboat", "--segments", "1", "--out", tmp_path / "q.csv", "--truth",
+                 tmp_path / "answers.json")  # a truth of the user's name lists its logs
+    assert named.returncode == 0 and json.loads((tmp_path / "answers.json").read_text())["logs"] == ["q.csv"]
+    log = (tmp_path / "q.csv").read_bytes()
+    over = twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", tmp_path / "q.csv", "--force")
+    assert over.returncode == 2 and "answers.json" in over.stderr and (tmp_path / "q.csv").read_bytes() == log
 
 
 def test_dataset_refuses_to_replace_its_log_or_its_truth_without_force(tmp_path):

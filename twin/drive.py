@@ -317,6 +317,10 @@ def _input_columns(header: list[str], path: Path) -> tuple[str, tuple[str, str]]
     for kind, cols in kinds.items():
         if set(cols) <= set(header):
             return kind, cols
+    if present:  # one of a pair: name the other
+        cols = kinds[present[0]]
+        has, lacks = (cols[0], cols[1]) if cols[0] in header else (cols[1], cols[0])
+        raise TwinError(f"{path.name}: has {has} but no {lacks} column (both of {','.join(cols)} are needed)")
     raise TwinError(f"{path.name}: missing columns: need pwm_left,pwm_right, thrust_left,thrust_right or "
                     "prop_rps,rudder_deg")
 

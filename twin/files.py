@@ -270,13 +270,52 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
             # a table or a rerun file whose content is none of what this output writes is someone's
             # other data (notes, a manifest, a view): force replaces data with data of its kind only
             raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)}: {kept}")
-        target = link_target(Path(p))
-        beside = target.with_name(target.stem + ".truth.json")
-        if kind == "recording" and kept_data(beside) == "dataset's truth" and not (
-                truth is not None and same_file(Path(truth), beside)):
-            # the recording would change under its truth, which would then describe another log
-            raise TwinError(f"{option} '{p}' has a dataset's truth beside it ('{beside}') that would no longer "
-                            "describe it: move or remove the truth first, or write elsewhere")
+        if kind != "recording":
+            continue
+        for described_by in truths_of(Path(p)):
+            if truth is None or not same_file(Path(truth), described_by):
+                # the recording would change under its truth, which would then describe another log
+                raise TwinError(f"{option} '{p}' is described by a dataset's truth ('{described_by}') that would no "
+                                "longer describe it: move or remove the truth first, or write elsewhere")
+
+
+TRUTH_HEAD_BYTES = 4096  # a truth lists its logs first (synth.dataset.Dataset.truth): its folder is read this far
+
+
+def truth_logs(truth: Path, data: dict | None = None) -> list[Path]:
+    """The recordings a dataset's truth says it describes (its "logs", relative to its folder; a truth
+    written before truths named their logs: none)."""
+    if data is None:
+        data = json.loads(Path(truth).read_text(encoding="utf-8"))
+    logs = data.get("logs") if isinstance(data, dict) else None
+    return [Path(truth).parent / str(name) for name in logs] if isinstance(logs, list) else []
+
+
+def truths_of(log: Path) -> list[Path]:
+    """The dataset truths that describe the recording `log`: LOG.truth.json beside it, and any truth in
+    its folder that names it among its logs (`twin dataset --truth` names the truth as the user likes).
+    A truth kept in another folder than its log is not looked for."""
+    target = link_target(log)
+    beside = target.with_name(target.stem + ".truth.json")
+    found = [beside] if kept_data(beside) == "dataset's truth" else []
+    try:
+        candidates = sorted(target.parent.glob("*.json"))
+    except OSError:
+        return found
+    quoted = json.dumps(target.name)
+    for path in candidates:
+        if path == beside:
+            continue
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                head = f.read(TRUTH_HEAD_BYTES)
+            if '"logs"' not in head or quoted not in head or kept_data(path) != "dataset's truth":
+                continue
+            if any(same_file(named, target) for named in truth_logs(path) if named.exists()):
+                found.append(path)
+        except (OSError, ValueError):
+            continue
+    return found
 
 
 def check_unique_columns(header: list[str], name: str) -> None:

@@ -32,7 +32,7 @@ from .. import __version__
 from ..effects import EFFECTS
 from ..errors import TwinError
 from ..files import (KEPT, after_writes, all_or_nothing, finite_json, kept_data, link_target, read_only, same_file,
-                     write_text_atomic)
+                     truth_logs, write_text_atomic)
 from ..progress import Progress
 from ..recording import MOVED
 from ..threads import limit_process_blas_threads
@@ -332,15 +332,16 @@ REPORT_HELP = "(a report: replaces a file of its name, never a log or a twin)"
 
 
 def check_truth_beside_logs(truth: Path, outputs, option: str = "--truth") -> None:
-    """Refuse to replace a dataset's truth that describes a recording beside it which this run does not
-    write (its name's stem with a recording's suffix): the log would stay under a truth of another."""
+    """Refuse to replace a dataset's truth that describes a recording which this run does not write
+    (beside it under its name's stem with a recording's suffix, or among the logs it names): the log
+    would stay under a truth of another."""
     if kept_data(Path(truth)) != "dataset's truth":
         return
     stem = Path(truth).name.removesuffix(".truth.json")
-    for suffix in RECORDING_SUFFIXES:
-        log = Path(truth).with_name(stem + suffix)
+    named = [Path(truth).with_name(stem + suffix) for suffix in RECORDING_SUFFIXES]
+    for log in named + truth_logs(Path(truth)):
         if log.is_file() and not any(same_file(log, Path(o)) for o in outputs):
-            raise TwinError(f"{option} '{truth}' describes the recording '{log}' beside it, which this run does not "
+            raise TwinError(f"{option} '{truth}' describes the recording '{log}', which this run does not "
                             "write: replaced, it would describe another log (move or remove the two first, or "
                             "write elsewhere)")
 
@@ -386,11 +387,25 @@ def recordings_in(paths: list[Path]) -> list[Path]:
             out += found
         elif not p.is_file():
             raise TwinError(f"{p}: no such file" + (" or folder" if not p.suffix else ""))
-        elif p.suffix.lower() not in RECORDING_SUFFIXES:  # refused before any log is diagnosed
+        elif p.suffix.lower() not in RECORDING_SUFFIXES and not _reads_as_recording(p):  # before any log is diagnosed
             raise TwinError(f"'{p}': not a recognised recording (expected .tlog, DataFlash .bin, .csv or .mcap)")
         else:
             out.append(p)
     return out
+
+
+def _reads_as_recording(path: Path) -> bool:
+    """Whether a file named otherwise than a recording is one by its content, as the readers tell it (a
+    CSV log saved as .txt): a file named on the command line is read by what it holds, as every command
+    reads it; a folder's files by their names."""
+    # late: twin.formats costs 0.08 s more at every `twin --help`, and only an oddly named file needs it
+    from ..formats import sniff
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return True  # the reader says why it cannot be read
+    return bool(head) and sniff(head, path.suffix.lower()) != ""
 
 
 def check_recordings_distinct(recordings) -> None:

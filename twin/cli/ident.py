@@ -104,7 +104,7 @@ def dataset_command(
             write_recording(ds.recording, path)
     for path in out:
         say(f"wrote {path}")
-    write_json(truth, ds.truth(truth))
+    write_json(truth, ds.truth(truth, logs=out))
     total = sum(r.t[-1] - r.t[0] for r in ds.runs)
     span = ds.recording.duration_s()  # what `twin info` reports: the segments and the silent gaps between them
     made = ", ".join(m.name for m in ds.manoeuvres)

@@ -376,4 +376,6 @@ def format_located(entries: list[dict]) -> str:
                      f"{100 * e['share_of_residual']:5.1f} {100 * e['share_of_samples']:5.1f} "
                      f"{min(e['z'], 999.0):6.1f}")
     lines.append("u, v in m/s, r in °/s; z: cluster-robust, Bonferroni-adjusted over the table's tests")
+    if any(e["dimension"] == "region" for e in entries):
+        lines.append("region: the thrusters left, right: f ahead, r astern (rf: the left astern, the right ahead)")
     return "\n".join(lines)

@@ -20,6 +20,7 @@ ones (zig-zag, autopilot) step the engine with their controller.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -88,11 +89,16 @@ class Dataset:
     manoeuvres: list[man.Manoeuvre]
     runs: list[Run] = field(default_factory=list)  # noise-free states of each segment
 
-    def truth(self, written_to: Path | None = None) -> dict:
+    def truth(self, written_to: Path | None = None, logs=()) -> dict:
         """Everything identification must not see, as plain data; `written_to`: the file it goes to,
-        against which the truth vessel's MJCF path is written (so the truth loads as a vessel file)."""
+        against which the truth vessel's MJCF path is written (so the truth loads as a vessel file);
+        `logs`: the recordings it describes, listed first (relative to `written_to`'s folder), so that
+        a command about to replace one finds its truth whatever the truth is called (files.truths_of)."""
         vessel = self.truth_vessel if written_to is None else replace(self.truth_vessel, path=Path(written_to).resolve())
+        folder = Path(written_to).resolve().parent if written_to is not None else Path.cwd()
+        named = {"logs": [Path(os.path.relpath(Path(p).resolve(), folder)).as_posix() for p in logs]} if logs else {}
         return {
+            **named,
             "vessel": vessel.to_dict(),
             "effects": [as_effect(e).to_dict() for e in self.effects],
             "noise": asdict(self.noise),
