@@ -421,6 +421,40 @@ def test_a_two_pole_low_pass_delays_a_boats_turns_by_its_group_delay():
     assert gyro_filter_delay_s({"INS_GYRO_FILTER": 0.0}) == gyro_filter_delay_s({}) == 0.0
 
 
+def test_a_harmonic_notch_delays_a_boats_turning_by_what_its_shape_gives():
+    """ArduPilot's notch biquads (NotchFilter: b0 = 1 + αA², a0 = 1 + α, α = sin Ω/2Q) at 1 kHz, at two
+    harmonics of 80 Hz, delay a boat's turning by what notch_delay_s gives from the logged shape (within
+    a tenth: the digital filter's delay is a little under the analog one's); a shape not stated: None."""
+    from scipy.signal import lfilter
+
+    from twin.formats.ardupilot import notch_delay_s, read_gyro_on_time
+
+    shape = {"INS_HNTCH_FREQ": 80.0, "INS_HNTCH_BW": 40.0, "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 3}
+    fs = 1000.0
+    t = np.arange(0.0, 20.0, 1 / fs)
+    rate = 0.3 * np.sin(2 * np.pi * 0.2 * t)
+    octaves = 2 * np.log2(80.0 / 60.0)
+    q, a_sq = np.sqrt(2 ** octaves) / (2 ** octaves - 1), 10 ** (-40.0 / 20)
+    out = rate
+    for centre in (80.0, 160.0):
+        omega = 2 * np.pi * centre / fs
+        alpha = np.sin(omega) / (2 * q)
+        out = lfilter([1 + alpha * a_sq, -2 * np.cos(omega), 1 - alpha * a_sq], [1 + alpha, -2 * np.cos(omega), 1 - alpha],
+                      out)
+    keep = t > 2.0
+    shifts = np.arange(0.0, 0.004, 0.00005)
+    cost = [np.mean((out[keep] - np.interp(t[keep] - s, t, rate)) ** 2) for s in shifts]
+    delay = notch_delay_s(shape)
+    assert 1.5e-3 < delay < 2.0e-3 and shifts[int(np.argmin(cost))] == pytest.approx(delay, rel=0.1)
+    assert notch_delay_s({**shape, "INS_HNTCH_HMNCS": 1}) == pytest.approx(delay * 2 / 3)
+    assert notch_delay_s({k: v for k, v in shape.items() if k != "INS_HNTCH_BW"}) is None
+    assert notch_delay_s({**shape, "INS_HNTCH_BW": 200.0}) is None  # no notch has a bandwidth over twice its centre
+    rec = Recording(source="g", kind="dataflash", imu=Stream(t[:100].copy(), {"yaw_rate_rads": rate[:100]}),
+                    parameters={"INS_GYRO_FILTER": 4.0, "INS_HNTCH_ENABLE": 1.0, **shape})
+    read_gyro_on_time(rec)  # the notch is said with its size, the low-pass alone read back
+    assert "by 1.7 ms at its 80-Hz base" in rec.notes[-1] and rec.imu.t[0] == pytest.approx(-0.0563, abs=1e-4)
+
+
 @pytest.mark.parametrize("ext", [".bin", ".tlog"])
 def test_an_ardupilot_gyro_is_read_when_it_turned_and_written_back_as_logged(tmp_path, ext):
     """A log whose parameters state INS_GYRO_FILTER 4 holds its gyro 0.056 s after the turn: the
