@@ -283,6 +283,13 @@ def test_a_flag_given_as_text_and_a_controller_returning_nonsense_are_twin_error
         (lambda: twin.diagnose_recordings(rec, "blueboat", kinematic="off"), "kinematic must be True or False"),
         (lambda: twin.identify(rec, "blueboat", calibrated="no"), "identify: calibrated must be True or False"),
         (lambda: twin.judge(rec, "blueboat", "current=0.1,90", calibrated=0), "calibrated must be True or False"),
+        (lambda: twin.simulate_run("blueboat", duration_s=2.0, six_dof="no"), "six_dof must be True or False"),
+        (lambda: twin.evaluate("blueboat", rec, calibrated="no"), "evaluate: calibrated must be True or False"),
+        (lambda: twin.simulate("blueboat", "zigzag", duration_s=2.0, terms="all"), "terms is a .*Terms"),
+        (lambda: twin.simulate_run("blueboat", duration_s=2.0, start_speed_m_s=float("nan")),
+         "start speed must be a finite number, got nan"),
+        (lambda: twin.judge(rec, "blueboat", ["thrust_gain=0.8", "thrust_gain=0.9"]),  # the gains would multiply
+         "effects name thrust_gain twice"),
     ]
     for call, says in flags:
         with pytest.raises(twin.TwinError, match=says):

@@ -260,6 +260,11 @@ def test_the_api_keeps_a_file_its_outputs_would_replace_and_refuses_one_log_give
     with pytest.raises(TwinError, match="exists: it is kept"):
         twin.save_vessel("yellowfish", boat)
     assert twin.load_vessel(str(twin.save_vessel("yellowfish", boat, force=True))).name == "yellowfish"
+    truth = tmp_path / "answers.json"  # data of another kind is kept even with force, as the command keeps it
+    truth.write_text(json.dumps({"vessel": {}, "effects": [], "segments": []}))
+    with pytest.raises(TwinError, match="exists and is a dataset's truth: it is kept, force=True or not"):
+        twin.save_vessel("blueboat", truth, force=True)
+    assert json.loads(truth.read_text()) == {"vessel": {}, "effects": [], "segments": []}
     sim.write(log, force=True)
     with pytest.raises(TwinError, match="is given twice: give each recording once"):
         twin.evaluate("blueboat", [log, tmp_path / "." / "my_log.csv"])

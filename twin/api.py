@@ -31,9 +31,9 @@ from .diagnose import doctor as _doctor
 from .diagnose.doctor import WINDOW_S, Diagnosis as _Found, given_evidence
 from .diagnose.report import as_json, given_text
 from .diagnose.search import Z_MIN, excess_shown
-from .effects import EFFECTS, parse_effect
+from .effects import EFFECTS, named_twice, parse_effect
 from .errors import TwinError
-from .files import same_file
+from .files import check_new, same_file
 from .fit.coverage import from_dict
 from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as _evaluate, misfit_by_manoeuvre, misfit_by_state, \
     percentile_edges
@@ -73,24 +73,25 @@ def save_vessel(vessel: Vessel | str, path, *, force: bool = False) -> Path:
 
     Raises:
         TwinError: `path` is not a file path or does not end in .json; a file is there and `force`
-            is False; or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
+            is False, or it is data of another kind (a dataset's truth, a Monte Carlo band: kept even
+            with `force`, as the command keeps them); or `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
             readable vessel file.
     """
     check_flags("save_vessel", force=force)
-    _new_output(path, (".json",), force)
+    _new_output(path, (".json",), force, ("vessel file",))
     return _save(_vessel(vessel), path)
 
 
-def _new_output(path, formats: tuple[str, ...], force: bool) -> None:
+def _new_output(path, formats: tuple[str, ...], force: bool, writes: tuple[str, ...]) -> None:
     """An output path the API writes, checked as the commands check theirs: its format, and a file
-    already there kept unless `force` (it may be a log or a twin the user made)."""
+    already there kept unless `force` (it may be a log or a twin the user made), and data of another
+    kind than `writes` (files.kept_data: a log, a dataset's truth, a band) kept even with `force`."""
     if not isinstance(path, (str, Path)) or not str(path):
         raise TwinError(f"an output is written to a file path (str or Path), got {path!r:.60}")
     p = Path(path)
     if p.suffix.lower() not in formats:
         raise TwinError(f"'{p}': unknown format '{p.suffix or '(none)'}' (use {', '.join(formats)})")
-    if p.exists() and not force:
-        raise TwinError(f"'{p}' exists: it is kept (force=True replaces it)")
+    check_new([p], force, "path", writes, force_name="force=True")
 
 
 class Validation(_Validation):
@@ -724,6 +725,7 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
     """
     if not _finite(stride_s):
         raise TwinError(f"stride_s must be a positive finite number of seconds, got {stride_s!r}")
+    check_flags("evaluate", calibrated=calibrated)
     if progress is not None and not callable(progress):
         raise TwinError(f"progress is a callable taking (text, step, steps) or None, got {progress!r:.60}")
     told = progress or (lambda what, done=None, total=None: None)
@@ -928,7 +930,9 @@ class Diagnosis(_Found):
         growth (dict): whether the residual grows along a free run (dynamics) or is there from
             the start (measurement).
         correlations (dict): what the residual follows, per DOF.
-        fit_before (dict): R² and MAE per DOF on the held-out blocks, the twin as given.
+        fit_before (dict): R² and MAE per DOF on the held-out blocks, the twin as given
+            ({"u": {"r2", "mae"}, ...}; the MAE in SI units: u, v in m/s, r in rad/s, where `table()`
+            and the report show r in °/s).
         fit_after (dict): the same with the effects named, each fitted without those blocks.
         unexplained (list[dict]): what stays well above the noise after the amendment: where it
             is, how big, and which signals it follows.
@@ -1053,8 +1057,8 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
         in a sentence).
 
     Raises:
-        TwinError: `effects` not texts, or one that is unknown or malformed (told before the
-            recordings are read); an option `given_evidence` does not take, or `window_s` not a
+        TwinError: `effects` not texts, or one that is unknown, malformed or named twice (told before
+            the recordings are read); an option `given_evidence` does not take, or `window_s` not a
             positive number of seconds; no recordings, one
             given twice, one that cannot be read or cannot drive the vessel, or recordings too
             short to fit on one part and judge on another; or `vessel` is neither a twin.Vessel nor
@@ -1067,6 +1071,9 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
     for text in effects:  # an unknown effect is told before the recordings are read
         if isinstance(text, str):
             parse_effect(text)
+    twice = named_twice(effects)
+    if twice:
+        raise TwinError(f"effects name {', '.join(twice)} twice: give each effect once, with its values")
     v = _vessel(vessel)
     e = given_evidence(_recordings(recordings, v), v, effects, **options)
     verdict = ("earns its place" if e.earns_its_place() else "contradicted" if e.z <= -Z_MIN

@@ -5,6 +5,7 @@ a second of CPU saved on every `twin simulate`."""
 from __future__ import annotations
 
 import inspect
+import math
 import numbers
 import os
 from dataclasses import dataclass, field, replace
@@ -20,6 +21,7 @@ from .engine.sim import simulate as _simulate
 from .errors import TwinError
 from .files import RUNS, check_new
 from .physics.environment import MAX_CURRENT_M_S, MAX_WIND_M_S
+from .physics.hydrodynamics import Terms
 from .physics.waves import Sea, parse_sea
 from .run import Run
 from .vessel import Vessel, load as load_vessel
@@ -82,6 +84,9 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
     known_options(_simulate, kwargs, "simulate", also=("seed",))
     if "control_dt_s" in kwargs:
         _number(kwargs["control_dt_s"], "the control period")
+    if kwargs.get("terms") is not None and not isinstance(kwargs["terms"], Terms):
+        raise TwinError(f"terms is a twin.physics.hydrodynamics.Terms (which force terms act) or None, "
+                        f"got {kwargs['terms']!r:.60}")
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
     compiled = compile_vessel(vessel)
     if isinstance(drive, str):
@@ -119,10 +124,13 @@ def _approach(compiled: CompiledVessel, scenario: str, seed: int) -> np.ndarray 
     return np.array([straight_speed(compiled, n_rps), 0.0, 0.0])
 
 
-def _number(value, what: str) -> float:
-    """A real number given as an argument (not text, not a flag), else TwinError naming it."""
+def _number(value, what: str, finite: bool = True) -> float:
+    """A real number given as an argument (not text, not a flag; finite unless not `finite`, for a
+    caller that says what range it takes), else TwinError naming it."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise TwinError(f"{what} must be a number, got {value!r}")
+    if finite and not math.isfinite(value):
+        raise TwinError(f"{what} must be a finite number, got {value!r}")
     return float(value)
 
 
@@ -159,7 +167,7 @@ def _seed(seed) -> int:
 
 def _check_run(duration_s: float, sample_dt_s: float) -> None:
     """The checks `twin simulate` makes on a run's length and sample step."""
-    duration_s, sample_dt_s = _number(duration_s, "the duration"), _number(sample_dt_s, "the sample step")
+    duration_s, sample_dt_s = _number(duration_s, "the duration", False), _number(sample_dt_s, "the sample step", False)
     if not (duration_s > 0 and np.isfinite(duration_s)):
         raise TwinError(f"the duration must be a positive, finite number of seconds, got {duration_s:g}")
     if not sample_dt_s > 0:
@@ -316,6 +324,7 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
         raise TwinError(f"expected a vessel (a twin.Vessel, a shipped vessel's name or a vessel file), "
                         f"got {type(vessel).__name__}")
     _check_run(duration_s, sample_dt_s)
+    check_flags("simulate_run", six_dof=six_dof)
     current, wind, seed = _flow(current, "current"), _flow(wind, "wind"), _seed(seed)
     env = vessel.environment
     if current is not None:

@@ -666,7 +666,8 @@ def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
     """Load a vessel by name (one shipped with the package) or from a parameter file's path.
 
     A shipped vessel is twin/model/NAME.json; a parameter file is a vessel file such as
-    `twin identify --out` writes.
+    `twin identify --out` writes, or a dataset's truth (`twin dataset --truth`), which loads as the
+    truth vessel it holds (what `twin evaluate --model` of a truth scores).
 
     Args:
         name_or_path: a shipped vessel's name ("blueboat", "cybership1", "esso_osaka",

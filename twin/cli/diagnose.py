@@ -7,7 +7,7 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
-from ..effects import apply_effects, as_effect
+from ..effects import apply_effects, named_twice
 from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import check_new
@@ -85,9 +85,8 @@ def diagnose_command(
         say(sea_line)
     if given:
         apply_effects(prior, given)  # a bad effect text is refused before the recordings are read
-        names = [as_effect(g).spec.name for g in given]
-        twice = sorted({n for n in names if names.count(n) > 1})
-        if twice:  # the later value would replace the earlier, while the verdict named both
+        twice = named_twice(given)
+        if twice:
             raise TwinError(f"--given names {', '.join(twice)} twice: give each effect once, with its values")
     recs = [read_recording(p, channels=channels_from(channels)) for p in recordings]
     check_not_misread(recs)

@@ -17,7 +17,7 @@ from .spec import ALL, Candidate, Effect, EffectSpec, Value, parse
 
 __all__ = ["ADDED_MASS", "ALL", "DAMPING_UNITS", "EFFECTS", "LINEAR_DAMPING", "QUADRATIC_DAMPING", "Candidate",
            "Effect", "EffectSpec", "Quantity", "Value", "apply_effects", "as_effect", "candidates", "coefficients",
-           "describe", "effect", "parse_effect", "spec"]
+           "describe", "effect", "named_twice", "parse_effect", "spec"]
 
 
 def parse_effect(text: str) -> Effect:
@@ -41,6 +41,13 @@ def as_effect(item) -> Effect:
     if isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], dict):
         return effect(item[0], **item[1])
     raise TwinError(f"not an effect: {item!r} (give NAME=VALUES text or (name, params))")
+
+
+def named_twice(effects) -> list[str]:
+    """The effect names given more than once among `effects` (as_effect items), sorted: judged as given,
+    the later would act on top of the earlier (two thrust gains multiply) while the verdict names both."""
+    names = [as_effect(e).spec.name for e in effects]
+    return sorted({n for n in names if names.count(n) > 1})
 
 
 def apply_effects(vessel: Vessel, effects=()) -> Vessel:
