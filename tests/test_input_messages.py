@@ -263,6 +263,17 @@ def test_force_does_not_replace_a_log_under_the_dataset_truth_that_describes_it(
     with pytest.raises(TwinError, match="described by a dataset's truth .*answers.json"):
         check_new([log], True, "--out", RUNS)
     check_new([log], True, "output", RUNS, truth=named)
+    import os
+
+    os.mkfifo(tmp_path / "pipe.json")  # not opened (it would block): only files are read
+    elsewhere = tmp_path / "day"
+    elsewhere.mkdir()
+    (elsewhere / "q.csv").symlink_to(log)  # a link's truth, in the link's folder, names the file it wrote
+    (elsewhere / "answers.json").write_text(json.dumps({"logs": ["../my_log.csv"], "vessel": {}, "effects": [],
+                                                        "segments": []}))
+    with pytest.raises(TwinError, match="described by a dataset's truth .*day/answers.json"):
+        check_new([elsewhere / "q.csv"], True, "--out", RUNS, truth=named)
+    (elsewhere / "answers.json").unlink()
     other = tmp_path / "other.json"  # a truth of another log in the folder does not hold this one
     named.rename(other)
     other.write_text(json.dumps({"logs": ["my_log.csv.bak"], "vessel": {}, "effects": [], "segments": []}))
@@ -295,6 +306,7 @@ def test_a_named_file_is_read_by_its_content_and_a_folder_by_its_names(tmp_path)
     (folder / "a.csv").write_bytes(log.read_bytes())
     (folder / "notes.txt").write_bytes(log.read_bytes())
     assert recordings_in([as_text, folder]) == [as_text, folder / "a.csv"]
-    (tmp_path / "notes.txt").write_text("rode out at ten and back at noon\n")
-    with pytest.raises(TwinError, match="notes.txt': not a recognised recording"):
-        recordings_in([folder, tmp_path / "notes.txt"])
+    for text in ("rode out at ten and back at noon\n", "# Notes, day one\n"):  # a comma is no log yet
+        (tmp_path / "notes.txt").write_text(text)
+        with pytest.raises(TwinError, match="notes.txt': not a recognised recording"):
+            recordings_in([folder, tmp_path / "notes.txt"])

@@ -449,10 +449,17 @@ def test_a_harmonic_notch_delays_a_boats_turning_by_what_its_shape_gives():
     assert notch_delay_s({**shape, "INS_HNTCH_HMNCS": 1}) == pytest.approx(delay * 2 / 3)
     assert notch_delay_s({k: v for k, v in shape.items() if k != "INS_HNTCH_BW"}) is None
     assert notch_delay_s({**shape, "INS_HNTCH_BW": 200.0}) is None  # no notch has a bandwidth over twice its centre
+    assert notch_delay_s({**shape, "INS_HNTCH_HMNCS": 256}) == pytest.approx(delay * 2 / 3 / 9)  # the 9th harmonic
     rec = Recording(source="g", kind="dataflash", imu=Stream(t[:100].copy(), {"yaw_rate_rads": rate[:100]}),
                     parameters={"INS_GYRO_FILTER": 4.0, "INS_HNTCH_ENABLE": 1.0, **shape})
     read_gyro_on_time(rec)  # the notch is said with its size, the low-pass alone read back
     assert "by 1.7 ms at its 80-Hz base" in rec.notes[-1] and rec.imu.t[0] == pytest.approx(-0.0563, abs=1e-4)
+    second = {k.replace("HNTCH", "HNT2"): v for k, v in shape.items()}  # a second notch adds its own
+    rec = Recording(source="g", kind="dataflash", imu=Stream(t[:100].copy(), {"yaw_rate_rads": rate[:100]}),
+                    parameters={"INS_GYRO_FILTER": 4.0, "INS_HNTCH_ENABLE": 1.0, "INS_HNT2_ENABLE": 1.0, **shape,
+                                **second})
+    read_gyro_on_time(rec)
+    assert "(INS_HNTCH_ENABLE 1 and INS_HNT2_ENABLE 1) delays it further, by 3.4 ms" in rec.notes[-1]
 
 
 @pytest.mark.parametrize("ext", [".bin", ".tlog"])

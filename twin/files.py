@@ -239,7 +239,7 @@ def kept_data(path: Path) -> str | None:
             return ("vessel file" if {"mjcf", "thrusters"} <= keys
                     else "dataset's truth" if {"vessel", "effects", "segments"} <= keys
                     else BAND if {"draws", "percentiles", "nominal", "band"} <= keys else None)
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # a JSON nested beyond the parser's depth is no kept data
         return None
     return None
 
@@ -283,25 +283,43 @@ TRUTH_HEAD_BYTES = 4096  # a truth lists its logs first (synth.dataset.Dataset.t
 
 
 def truth_logs(truth: Path, data: dict | None = None) -> list[Path]:
-    """The recordings a dataset's truth says it describes (its "logs", relative to its folder; a truth
-    written before truths named their logs: none)."""
+    """The recordings a dataset's truth says it describes (its "logs", relative to its folder as the
+    truth was written there, links followed; a truth written before truths named their logs: none)."""
     if data is None:
         data = json.loads(Path(truth).read_text(encoding="utf-8"))
     logs = data.get("logs") if isinstance(data, dict) else None
-    return [Path(truth).parent / str(name) for name in logs] if isinstance(logs, list) else []
+    folder = Path(os.path.realpath(truth)).parent
+    return [folder / str(name) for name in logs if isinstance(name, str) and name] if isinstance(logs, list) else []
 
 
 def truths_of(log: Path) -> list[Path]:
     """The dataset truths that describe the recording `log`: LOG.truth.json beside it, and any truth in
-    its folder that names it among its logs (`twin dataset --truth` names the truth as the user likes).
-    A truth kept in another folder than its log is not looked for."""
+    its folder (the link's and the file's, for a link) that names it among its logs (`twin dataset
+    --truth` names the truth as the user likes). A truth kept in another folder is not looked for."""
     target = link_target(log)
     beside = target.with_name(target.stem + ".truth.json")
     found = [beside] if kept_data(beside) == "dataset's truth" else []
+    folders = list(dict.fromkeys((Path(log).parent, target.parent)))
     try:
-        candidates = sorted(target.parent.glob("*.json"))
+        candidates = sorted({p for folder in folders for p in folder.glob("*.json")})
     except OSError:
         return found
+    # a truth names a log relative to its folder: by itself ("q.csv") or after a folder (".../q.csv")
+    names = {Path(log).name, target.name}
+    marks = [m for n in names for m in (json.dumps(n), json.dumps("/" + n)[1:])]
+    for path in candidates:
+        if path == beside or not path.is_file():  # a pipe named .json would block the open
+            continue
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                head = f.read(TRUTH_HEAD_BYTES)
+            if '"logs"' not in head or not any(m in head for m in marks) or kept_data(path) != "dataset's truth":
+                continue
+            if any(same_file(named, target) for named in truth_logs(path) if named.exists()):
+                found.append(path)
+        except (OSError, ValueError, RecursionError):
+            continue
+    return found
     quoted = json.dumps(target.name)
     for path in candidates:
         if path == beside:

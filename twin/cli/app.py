@@ -339,7 +339,8 @@ def check_truth_beside_logs(truth: Path, outputs, option: str = "--truth") -> No
         return
     stem = Path(truth).name.removesuffix(".truth.json")
     named = [Path(truth).with_name(stem + suffix) for suffix in RECORDING_SUFFIXES]
-    for log in named + truth_logs(Path(truth)):
+    listed = [log for log in truth_logs(Path(truth)) if kept_data(log) == "recording"]
+    for log in named + listed:
         if log.is_file() and not any(same_file(log, Path(o)) for o in outputs):
             raise TwinError(f"{option} '{truth}' describes the recording '{log}', which this run does not "
                             "write: replaced, it would describe another log (move or remove the two first, or "
@@ -395,17 +396,16 @@ def recordings_in(paths: list[Path]) -> list[Path]:
 
 
 def _reads_as_recording(path: Path) -> bool:
-    """Whether a file named otherwise than a recording is one by its content, as the readers tell it (a
-    CSV log saved as .txt): a file named on the command line is read by what it holds, as every command
-    reads it; a folder's files by their names."""
+    """Whether a file named otherwise than a recording is one by its content (a CSV log saved as .txt):
+    a file named on the command line is read by what it holds, as every command reads it; a folder's
+    files by their names. Read whole: a first line with a comma in it is no log yet."""
     # late: twin.formats costs 0.08 s more at every `twin --help`, and only an oddly named file needs it
-    from ..formats import sniff
+    from ..formats import read_recording
     try:
-        with open(path, "rb") as f:
-            head = f.read(4096)
-    except OSError:
-        return True  # the reader says why it cannot be read
-    return bool(head) and sniff(head, path.suffix.lower()) != ""
+        read_recording(path)
+    except TwinError:
+        return False
+    return True
 
 
 def check_recordings_distinct(recordings) -> None:

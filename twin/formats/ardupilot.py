@@ -15,8 +15,9 @@ filter passes a signal unchanged but late by its group delay at zero frequency, 
 0.056 s at Rover's default 4 Hz, where a boat turns at well under 1 Hz. A log that states its
 filter has its gyro read that much earlier, with a note; writing it back to an ArduPilot format
 with the same parameter puts the delay back, so a log converted and read again holds the same
-stream. A harmonic notch (INS_HNTCH_ENABLE) delays the gyro further, by an amount its tuning
-sets: named, not counted.
+stream. A harmonic notch (INS_HNTCH_ENABLE, INS_HNT2_ENABLE) delays the gyro further, by about
+(1 − A²)/(Q·ω) per harmonic ω of its base (notch_delay_s: 1 to 2 ms at 80 Hz): said with its
+size, not counted.
 
 The GPS: a DataFlash GPS message and a telemetry GPS_RAW_INT are stamped when the autopilot
 received the fix, which the receiver computed earlier. Where the log states how much earlier
@@ -37,9 +38,9 @@ from ..recording import MOVED, Recording, clean_stream, with_common_origin
 FUNCTION_LEFT, FUNCTION_RIGHT = 73, 74  # ArduPilot SERVOn_FUNCTION: ThrottleLeft, ThrottleRight
 GYRO_FILTER = "INS_GYRO_FILTER"  # Hz; 0 turns the low-pass off
 MIN_CUTOFF_HZ = 1.0  # lower, the filter would hold a boat's turns back by over 0.2 s: a typo, not a tuning
-NOTCH = "INS_HNTCH_ENABLE"
-# the harmonic notch's base centre (Hz), bandwidth (Hz), attenuation (dB) and harmonics (a bitmask)
-NOTCH_SHAPE = ("INS_HNTCH_FREQ", "INS_HNTCH_BW", "INS_HNTCH_ATT", "INS_HNTCH_HMNCS")
+NOTCHES = ("INS_HNTCH_", "INS_HNT2_")  # the first harmonic notch and the second, each with its own shape
+# a harmonic notch's base centre (Hz), bandwidth (Hz), attenuation (dB) and harmonics (a bitmask)
+NOTCH_SHAPE = ("FREQ", "BW", "ATT", "HMNCS")
 # how long before its stamp a GPS fix was taken, as an ArduPilot log states it, with the largest value
 # taken: SITL's own lag (SIM_GPS1_LAG_MS; SIM_GPS_LAG_MS before ArduPilot 4.5), then the delay the
 # autopilot compensates for (GPS1_DELAY_MS; GPS_DELAY_MS before 4.5; ArduPilot's range 0-250 ms, and
@@ -65,23 +66,40 @@ def gyro_filter_delay_s(params: dict[str, float]) -> float:
     return 0.0 if cutoff is None else math.sqrt(2.0) / (2.0 * math.pi * cutoff)
 
 
-def notch_delay_s(params: dict[str, float]) -> float | None:
-    """How much a harmonic notch adds to a turn's delay (s): each notch of ArduPilot's design
-    [ArduPilot-INS] (NotchFilter: A = 10^(−att/40), Q from the centre and the bandwidth, the same A and Q at
-    every harmonic) delays slow signals by (1 − A²)/(Q·ω_k), ω_k the harmonic's centre (rad/s), summed
-    over the harmonics set. At the base frequency the log states; a notch that follows the motors moves
-    up from it and delays less, and a digital notch at its sample rate a little less again (0.38 ms
-    against 0.44 at 80 Hz sampled at 400 Hz). None where the log does not state its shape."""
-    if any(name not in params or not math.isfinite(params[name]) for name in NOTCH_SHAPE):
+def notch_delay_s(params: dict[str, float], prefix: str = NOTCHES[0]) -> float | None:
+    """How much a harmonic notch (parameters `prefix`FREQ, BW, ATT, HMNCS) adds to a turn's delay (s):
+    each notch of ArduPilot's design [ArduPilot-INS] (NotchFilter: A = 10^(−att/40), Q from the centre and
+    the bandwidth, the same A and Q at every harmonic) delays slow signals by (1 − A²)/(Q·ω_k), ω_k the
+    harmonic's centre (rad/s), summed over the harmonics set. At the base frequency the log states; a
+    notch that follows the motors moves up from it and delays less, and a digital notch a little less
+    again (1.0 ms against 1.15 at 80 Hz, 40 Hz wide, 40 dB, sampled at 400 Hz). One notch per harmonic: a
+    notch per motor (INS_HNTCH_OPTS) delays more. None where the log does not state its shape."""
+    names = [prefix + field for field in NOTCH_SHAPE]
+    if any(name not in params or not math.isfinite(params[name]) for name in names):
         return None
-    f0, bandwidth, attenuation, harmonics = (params[name] for name in NOTCH_SHAPE)
+    f0, bandwidth, attenuation, harmonics = (params[name] for name in names)
     if not (f0 > bandwidth / 2.0 > 0.0 and attenuation >= 0.0 and harmonics >= 1):
         return None
     octaves = 2.0 * math.log2(f0 / (f0 - bandwidth / 2.0))
     q = math.sqrt(2.0 ** octaves) / (2.0 ** octaves - 1.0)
     a_sq = 10.0 ** (-attenuation / 20.0)
     bits = int(harmonics)
-    return sum((1.0 - a_sq) / (q * 2.0 * math.pi * f0 * (k + 1)) for k in range(8) if bits >> k & 1)
+    return sum((1.0 - a_sq) / (q * 2.0 * math.pi * f0 * (k + 1)) for k in range(bits.bit_length()) if bits >> k & 1)
+
+
+def _notch_words(params: dict[str, float]) -> str:
+    """The harmonic notches a log runs and the delay their stated shapes add (not counted), or ""."""
+    on = [prefix for prefix in NOTCHES if params.get(prefix + "ENABLE", 0.0) > 0.0]
+    if not on:
+        return ""
+    delays = [notch_delay_s(params, prefix) for prefix in on]
+    which = " and ".join(f"{prefix}ENABLE 1" for prefix in on)
+    if any(d is None for d in delays):
+        return (f"; its harmonic notch ({which}) delays it further, by an amount this log's parameters do not give, "
+                "not counted")
+    base = ", ".join(f"{params[prefix + NOTCH_SHAPE[0]]:g}" for prefix in on)
+    return (f"; its harmonic notch ({which}) delays it further, by {1e3 * sum(delays):.1f} ms at its {base}-Hz base "
+            "(less where it follows the motors up), not counted")
 
 
 def read_gyro_on_time(rec: Recording) -> None:
@@ -97,13 +115,7 @@ def read_gyro_on_time(rec: Recording) -> None:
                             f"{MIN_CUTOFF_HZ:g} Hz or more): the gyro is read as stamped")
         return
     rec.imu = rec.imu.shifted(delay)
-    notch = ""
-    if rec.parameters.get(NOTCH, 0.0) > 0.0:
-        more = notch_delay_s(rec.parameters)
-        notch = (f"; its harmonic notch ({NOTCH} 1) delays it further, by {1e3 * more:.1f} ms at its "
-                 f"{rec.parameters[NOTCH_SHAPE[0]]:g}-Hz base (less where it follows the motors up), not counted"
-                 if more is not None else f"; its harmonic notch ({NOTCH} 1) delays it further, by an amount "
-                 "this log's parameters do not give, not counted")
+    notch = _notch_words(rec.parameters)
     rec.notes.append(f"{MOVED[0]} ArduPilot's {cutoff:g}-Hz low-pass ({GYRO_FILTER}), which delays a turn "
                      f"by {delay:.3f} s: read {delay:.3f} s earlier{notch}")
 

@@ -96,7 +96,7 @@ class Dataset:
         a command about to replace one finds its truth whatever the truth is called (files.truths_of)."""
         vessel = self.truth_vessel if written_to is None else replace(self.truth_vessel, path=Path(written_to).resolve())
         folder = Path(written_to).resolve().parent if written_to is not None else Path.cwd()
-        named = {"logs": [Path(os.path.relpath(Path(p).resolve(), folder)).as_posix() for p in logs]} if logs else {}
+        named = {"logs": [_relative(Path(p).resolve(), folder) for p in logs]} if logs else {}
         return {
             **named,
             "vessel": vessel.to_dict(),
@@ -110,6 +110,14 @@ class Dataset:
                         "r": _rounded(r.nu[:, 2]), "thrust_left": _rounded(r.thrust_n[:, 0]),
                         "thrust_right": _rounded(r.thrust_n[:, 1])} for r in self.runs],
         }
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """`path` from `folder` ('/'-separated), or whole where no relative path joins them (two drives)."""
+    try:
+        return Path(os.path.relpath(path, folder)).as_posix()
+    except ValueError:
+        return path.as_posix()
 
 
 def _rounded(a: np.ndarray, digits: int = 6) -> list[float]:

@@ -139,9 +139,9 @@ def comparison_png(runs: dict, title: str) -> bytes:
     track.set_ylabel("north (m)")
     track.set_aspect("equal", adjustable="datalim")
     track.legend(fontsize=8)
-    # above the panel, in a row: inside, a key covers the curves where they run (a run's steady speed)
-    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(runs), frameon=False,
-                   borderaxespad=0.2)
+    # where it covers the fewest samples: a fixed corner covered a run's steady speed (its labels can be
+    # long, and a row of them above the panel squeezed the figure)
+    axes[0].legend(fontsize=7, loc="best", framealpha=0.8)
     for ax in (track, *axes):
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=10)
