@@ -172,7 +172,7 @@ def test_simulate_takes_a_sea_as_its_text_as_simulate_run_does():
     calm = twin.simulate("blueboat", "zigzag", duration_s=3.0)
     waves = twin.simulate("blueboat", "zigzag", duration_s=3.0, sea="0.3,2.5,30")
     assert len(waves.t) == len(calm.t) and not np.allclose(waves.eta[:, :2], calm.eta[:, :2], atol=1e-3)
-    with pytest.raises(twin.TwinError, match="--sea expects HS,TP,DIR"):
+    with pytest.raises(twin.TwinError, match="^sea expects HS,TP,DIR"):
         twin.simulate("blueboat", "zigzag", duration_s=3.0, sea="0.3,2.5")
 
 

@@ -250,7 +250,7 @@ def test_json_figures_write_a_non_finite_number_as_null():
     (("montecarlo", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "1,1,30"), "steeper than breaking"),
     (("montecarlo", "--vessel", "cybership1", "--no-covariance", "--vary", "Xu=0.9..1.1", "--sea", "0.2,2.5,30"),
      "has no hull meshes"),
-    (("dataset-shards", "--sea", "0.3,2.5", "--out", "OUT"), "--sea expects HS,TP,DIR"),
+    (("dataset-shards", "--sea", "0.3,2.5", "--out", "OUT"), "sea expects HS,TP,DIR"),
     (("sitl", "--vessel", "esso_osaka"), "propeller-and-rudder ship"),
     (("params", "--model", "."), "is a folder, not a vessel file"),
     (("simulate", "--out", "."), "is a folder: give a file name"),

@@ -263,7 +263,7 @@ def sea_components(hull: HullModel, sea: waves.Sea, timestep_s: float) -> waves.
     t_min = shortest_period(hull, timestep_s)
     waves.check_sea(sea, t_min if sea.regular else None, "the twin resolves (time step and wave grid)")
     if not sea.regular and sea.tp_s < t_min:
-        raise TwinError(f"--sea: a peak period of {sea.tp_s:g} s is shorter than the {t_min:.2f} s the twin "
+        raise TwinError(f"sea: a peak period of {sea.tp_s:g} s is shorter than the {t_min:.2f} s the twin "
                         "resolves (time step and wave grid)")
     return waves.components(sea, omega_max=2 * math.pi / t_min)
 

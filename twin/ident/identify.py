@@ -285,7 +285,7 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
     if not every:
         longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps for seg in p.segments), default=0.0)
         raise TwinError(f"no stretch of {window_s:g} s to fit on: the longest without a dropout lasts {longest:.0f} s "
-                        "(a shorter --window, or longer recordings)")
+                        "(a shorter window, or longer recordings)")
     unused = sorted(set(range(len(preps))) - {w.rec for w in every})
     if unused:
         names = ", ".join(Path(recordings[i].source).name for i in unused)
@@ -450,13 +450,13 @@ def _check_counts(window_s, *, params, groups, **counts) -> None:
 
 def _check(start: str, thruster: str, split: str, train: float, prior_weights) -> None:
     if start not in ("free", "measured"):
-        raise TwinError(f"--start must be free or measured, got '{start}'")
+        raise TwinError(f"start must be free or measured, got '{start}'")
     if thruster not in ("static", "dynamic"):
-        raise TwinError(f"--thruster must be static or dynamic, got '{thruster}'")
+        raise TwinError(f"thruster must be static or dynamic, got '{thruster}'")
     if split not in ("segments", "points"):
-        raise TwinError(f"--split must be segments or points, got '{split}'")
+        raise TwinError(f"split must be segments or points, got '{split}'")
     if not 0.1 <= train <= 0.9:
-        raise TwinError(f"--train must lie in [0.1, 0.9], got {train}")
+        raise TwinError(f"train must lie in [0.1, 0.9], got {train}")
     if not prior_weights or any(not w > 0 for w in prior_weights):
         raise TwinError("the beliefs' weights must be positive numbers")
     shown = [f"{w:g}" for w in prior_weights]

@@ -103,13 +103,13 @@ def parse_sea(text: str, seed: int = 0) -> Sea:
     numbers = parts[1:] if regular else parts
     want = "regular,H,T,DIR" if regular else "HS,TP,DIR[,SPREAD] (or regular,H,T,DIR)"
     if len(numbers) not in ((3,) if regular else (3, 4)):
-        raise TwinError(f"--sea expects {want}, got '{text}'")
+        raise TwinError(f"sea expects {want}, got '{text}'")
     try:
         values = [float(x) for x in numbers]
     except ValueError:
-        raise TwinError(f"--sea expects {want} as numbers, got '{text}'") from None
+        raise TwinError(f"sea expects {want} as numbers, got '{text}'") from None
     if not all(math.isfinite(x) for x in values):
-        raise TwinError(f"--sea {text}: every value must be finite")
+        raise TwinError(f"sea {text}: every value must be finite")
     sea = Sea(values[0], values[1], values[2] % 360.0, values[3] if len(values) == 4 else None, regular=regular,
               seed=seed)
     check_sea(sea)
@@ -127,16 +127,16 @@ def check_sea(sea: Sea, min_period_s: float | None = None, what: str = "") -> No
     than `min_period_s` (what the engine's time step and wave grid resolve)."""
     name = "H" if sea.regular else "Hs"
     if not sea.hs_m > 0 or not sea.tp_s > 0:
-        raise TwinError(f"--sea: the wave height and period must be positive, got {name} {sea.hs_m:g} m, "
+        raise TwinError(f"sea: the wave height and period must be positive, got {name} {sea.hs_m:g} m, "
                         f"T {sea.tp_s:g} s")
     if sea.spread is not None and not sea.spread >= 1:
-        raise TwinError(f"--sea: the spreading power must be at least 1 (cos^n, n ≥ 1), got {sea.spread:g}")
+        raise TwinError(f"sea: the spreading power must be at least 1 (cos^n, n ≥ 1), got {sea.spread:g}")
     lam = wavelength_m(sea.tp_s)
     if sea.hs_m / lam > BREAKING_STEEPNESS:
-        raise TwinError(f"--sea: {name} {sea.hs_m:g} m at a period of {sea.tp_s:g} s (wavelength {lam:.2f} m) is "
+        raise TwinError(f"sea: {name} {sea.hs_m:g} m at a period of {sea.tp_s:g} s (wavelength {lam:.2f} m) is "
                         f"steeper than breaking (H/λ = {sea.hs_m / lam:.3f} > 1/7)")
     if min_period_s is not None and sea.tp_s < min_period_s:
-        raise TwinError(f"--sea: a {'' if sea.regular else 'peak '}period of {sea.tp_s:g} s is shorter than the "
+        raise TwinError(f"sea: a {'' if sea.regular else 'peak '}period of {sea.tp_s:g} s is shorter than the "
                         f"{min_period_s:.2f} s {what or 'the simulation resolves'}")
 
 
@@ -195,7 +195,7 @@ def components(sea: Sea, n: int = N_COMPONENTS, omega_max: float | None = None) 
     keep = np.ones(n, bool) if omega_max is None else omega <= omega_max
     total = float(np.sum(s))
     if np.sum(s[keep]) < 0.9 * total:
-        raise TwinError(f"--sea: Tp {sea.tp_s:g} s puts more than a tenth of the sea's energy at periods shorter "
+        raise TwinError(f"sea: Tp {sea.tp_s:g} s puts more than a tenth of the sea's energy at periods shorter "
                         f"than the {2 * np.pi / omega_max:.2f} s the simulation resolves")
     amp = np.sqrt(2.0 * s * d_omega)[keep]
     amp *= (sea.hs_m / 4.0) / np.sqrt(0.5 * np.sum(amp ** 2))
