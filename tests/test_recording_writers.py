@@ -459,7 +459,8 @@ def test_a_harmonic_notch_delays_a_boats_turning_by_what_its_shape_gives():
                     parameters={"INS_GYRO_FILTER": 4.0, "INS_HNTCH_ENABLE": 1.0, "INS_HNT2_ENABLE": 1.0, **shape,
                                 **second})
     read_gyro_on_time(rec)
-    assert "(INS_HNTCH_ENABLE 1 and INS_HNT2_ENABLE 1) delays it further, by 3.4 ms" in rec.notes[-1]
+    assert "(INS_HNTCH_ENABLE 1 and INS_HNT2_ENABLE 1) delays it further, by 3.4 ms at its 80, 80-Hz bases" \
+        in rec.notes[-1]
 
 
 @pytest.mark.parametrize("ext", [".bin", ".tlog"])

@@ -320,20 +320,6 @@ def truths_of(log: Path) -> list[Path]:
         except (OSError, ValueError, RecursionError):
             continue
     return found
-    quoted = json.dumps(target.name)
-    for path in candidates:
-        if path == beside:
-            continue
-        try:
-            with open(path, encoding="utf-8", errors="replace") as f:
-                head = f.read(TRUTH_HEAD_BYTES)
-            if '"logs"' not in head or quoted not in head or kept_data(path) != "dataset's truth":
-                continue
-            if any(same_file(named, target) for named in truth_logs(path) if named.exists()):
-                found.append(path)
-        except (OSError, ValueError):
-            continue
-    return found
 
 
 def check_unique_columns(header: list[str], name: str) -> None:

@@ -98,8 +98,8 @@ def _notch_words(params: dict[str, float]) -> str:
         return (f"; its harmonic notch ({which}) delays it further, by an amount this log's parameters do not give, "
                 "not counted")
     base = ", ".join(f"{params[prefix + NOTCH_SHAPE[0]]:g}" for prefix in on)
-    return (f"; its harmonic notch ({which}) delays it further, by {1e3 * sum(delays):.1f} ms at its {base}-Hz base "
-            "(less where it follows the motors up), not counted")
+    return (f"; its harmonic notch ({which}) delays it further, by {1e3 * sum(delays):.1f} ms at its {base}-Hz "
+            f"base{'s' if len(on) > 1 else ''} (less where it follows the motors up), not counted")
 
 
 def read_gyro_on_time(rec: Recording) -> None:
