@@ -553,8 +553,12 @@ def test_16_and_32_output_packets_mix_and_the_channels_can_be_chosen(full_vessel
         moved.append((k, out, 400))
     replies_moved, _, _ = play(full_vessel, moved, channels=(20, 17))
     assert replies_moved == replies_16
-    sixteen_only, _, _ = play(full_vessel, only16[:50], channels=(20, 17), current=(0, 0), wind=(0, 0))
+    said: list[str] = []
+    sixteen_only, _, _ = play(full_vessel, only16[:50], channels=(20, 17), current=(0, 0), wind=(0, 0),
+                              log=said.append)
     assert all(r["position"] == [0.0, 0.0, 0.0] for r in sixteen_only)  # outputs 17+ absent: neutral
+    assert any(line.startswith("warning: --channels 20,17: ArduPilot sends 16 servo outputs, so outputs 20 and 17 never")
+               for line in said), said
 
 
 def test_garbage_and_short_datagrams_are_counted_and_ignored(full_vessel):
@@ -849,6 +853,18 @@ def test_sigterm_and_sigint_in_the_background_end_twin_sitl_cleanly_with_its_rec
         assert f"{sig.name}: ending the session" in err
         assert out.count("50 frames") == 1 and "frames" not in err.split("ending the session")[-1], (out, err)
         assert len(read_csv(path).t) == 51
+    empty = tmp_path / "empty.csv"  # ended before ArduPilot sent a frame: no file, and a script is told
+    proc = subprocess.Popen([sys.executable, "-m", "twin", "sitl", "--vessel", "yellowfish", "--port", "0",
+                             "--host", "127.0.0.1", "--record", str(empty)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        proc.stderr.readline()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode != 0 and "error: --record: nothing written" in err and not empty.exists(), err
 
 
 def test_the_deviation_from_a_mission_is_the_distance_to_the_nearest_leg():

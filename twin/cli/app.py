@@ -50,6 +50,10 @@ VESSEL_HELP = f"vessel name (one shipped with twin: {SHIPPED})"
 PWM_SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
                                if p.name.endswith(".json")
                                and json.loads(p.read_text()).get("thrusters", {}).get("kind") == "t200"))
+# the shipped vessels ArduPilot Rover's two throttle outputs can drive: any but a propeller and rudder
+TWIN_THRUSTER_SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
+                                         if p.name.endswith(".json") and json.loads(p.read_text()).get(
+                                             "thrusters", {}).get("kind") != "propeller_rudder"))
 PWM_VESSEL_HELP = f"vessel name (one shipped with twin whose thrusters take PWM, as a dataset logs it: {PWM_SHIPPED})"
 MODEL_HELP = "vessel description file (e.g. written by `twin identify`), instead of --vessel"
 CASE_HELP = ("mass case: min | nominal | max (min and max where the vessel file has them, e.g. yellowfish; default: "

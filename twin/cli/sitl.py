@@ -14,7 +14,7 @@ from ..errors import TwinError
 from ..files import write_text_atomic
 from ..files import RUNS, check_new
 from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission, read_waypoint_file
-from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, PWM_SHIPPED, app, channels_from, check_distinct, 
+from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, TWIN_THRUSTER_SHIPPED, app, channels_from, check_distinct, 
                   check_outputs, note, positive, say, seed_from, speed_direction, vessel_from)
 from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
@@ -22,7 +22,7 @@ from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 @app.command()
 def sitl(
     vessel: Optional[str] = typer.Option(None, help=f"vessel name (a twin-thruster one shipped with twin, as ArduPilot "
-                                                    f"Rover's SITL drives two throttles: {PWM_SHIPPED})"),
+                                                    f"Rover's SITL drives two throttles: {TWIN_THRUSTER_SHIPPED})"),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
     port: int = typer.Option(9002, help="UDP port ArduPilot sends its servo packets to"),
@@ -84,6 +84,9 @@ def sitl(
         heading_deg=heading, origin=origin_from(origin), log=note, esc_arm_s=esc_arm, sea=sea_state,
     )
     say(summary.text())
+    if record and not summary.written:  # a script must not read the session as recorded
+        raise TwinError(f"--record: nothing written ({', '.join(str(p) for p in record)}): no frame came from ArduPilot "
+                        "before the session ended")
 
 
 MAX_LEG_M = 50_000.0  # a small vessel's mission stays within tens of kilometres of home
@@ -144,7 +147,8 @@ def mission(
     settings = param_settings(set_)
     if not _listening(port):  # SITL may be starting: say what is awaited rather than wait in silence
         note(f"note: waiting up to {min(timeout, CONSOLE_WAIT_S):g} s for SITL's MAVLink console on "
-             f"tcp:127.0.0.1:{port}; start it first (twin sitl, or ArduPilot's own SITL)")
+             f"tcp:127.0.0.1:{port}; start ArduPilot's SITL first (ardurover --model JSON, with `twin sitl` serving "
+             "its physics): the console is ArduPilot's, not the twin's")
     result = fly_mission(port, lat_lon, points, settings=settings, timeout_s=timeout)
     say(result.text())
     if json_out is not None:

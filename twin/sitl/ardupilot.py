@@ -428,7 +428,7 @@ class MissionResult:
         return self.path_m / self.mission_s
 
     def text(self) -> str:
-        return (f"mission: {self.waypoints} waypoints, {self.path_m:.0f} m in {self.mission_s:.1f} s (ArduPilot's "
+        return (f"mission: {self.waypoints} waypoint{'' if self.waypoints == 1 else 's'}, {self.path_m:.0f} m in {self.mission_s:.1f} s (ArduPilot's "
                 f"clock), mean speed {self.mean_speed_m_s:.2f} m/s; off the straight legs: largest "
                 f"{self.deviation_max_m:.2f} m, mean {self.deviation_mean_m:.2f} m")
 

@@ -296,6 +296,14 @@ class SitlServer:
         self._peer = peer
         self._wall0 = time.perf_counter() - self.twin.time_s
         self.log(f"ArduPilot connected from {peer[0]}:{peer[1]} ({n_outputs} servo outputs)")
+        missing = [c for c in self.twin.channels if c > n_outputs]
+        if missing:  # a thruster on an output the frames do not carry would sit at neutral all session
+            several = len(missing) > 1
+            self.log(f"warning: --channels {self.twin.channels[0]},{self.twin.channels[1]}: ArduPilot sends "
+                     f"{n_outputs} servo outputs, so output{'s' if several else ''} "
+                     f"{' and '.join(map(str, missing))} never arrive{'' if several else 's'} and "
+                     f"{'their thrusters stay' if several else 'its thruster stays'} at neutral (give outputs it "
+                     "sends, and the same in its SERVOn_FUNCTION)")
 
     def _new_rate(self, rate: int) -> None:
         if self._rate_hz is not None:
