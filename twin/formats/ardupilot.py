@@ -228,8 +228,12 @@ def set_pwm(rec: Recording, t, raw: dict[int, list], mapping: dict) -> None:
     if not np.all(on):
         rec.dropped.append(("pwm: samples with the output off (0 µs)", int(np.sum(~on))))
     if len(on) and not on.any():
-        rec.warnings.append(f"outputs {mapping['left']} and {mapping['right']} ({mapping['from']}) are off (0 µs) in "
-                            "every sample: no thruster PWM read (check --channels LEFT,RIGHT against the outputs the log drives)")
+        off = [mapping[side] for side in ("left", "right") if not np.any(raw_lr[side] > 0)]
+        outputs = (f"outputs {off[0]} and {off[1]} are off (0 µs) in every sample" if len(off) == 2 else
+                   f"output {off[0]} is off (0 µs) in every sample" if off else
+                   f"outputs {mapping['left']} and {mapping['right']} are never on (above 0 µs) at once")
+        rec.warnings.append(f"{outputs} ({mapping['from']} channels {mapping['left']},{mapping['right']}): no thruster "
+                            "PWM read (check --channels LEFT,RIGHT against the outputs the log drives)")
     cols = {}
     for side, pwm in raw_lr.items():
         trim = float(mapping["trim"][side])
