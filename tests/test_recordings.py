@@ -599,6 +599,17 @@ def test_shared_ardupilot_logs_summaries():
     assert len(prepare(rec).t) > 2000
 
 
+def test_a_log_is_read_by_what_it_holds_whatever_it_is_named(tmp_path):
+    """A telemetry log renamed .bin (its first records no MAVLink packets) and a DataFlash log renamed .tlog
+    read as what they are, as the same logs under their own names."""
+    files = {p.name: p for p in _shared("ardupilot")}
+    for name, other in (("sitl_motorboat.tlog", "copy.bin"), ("ardusub_small.BIN", "copy.tlog")):
+        copy = tmp_path / other
+        copy.write_bytes(files[name].read_bytes())
+        as_named, renamed = read_recording(files[name]), read_recording(copy)
+        assert renamed.kind == as_named.kind and np.array_equal(renamed.heading.t, as_named.heading.t), name
+
+
 def blueboat_correlations(path: Path) -> tuple[float, float]:
     """corr(u, surge), corr(r, yaw_rate) of the prepared file against its own columns."""
     rec = read_recording(path)

@@ -140,13 +140,27 @@ def sniff(head: bytes, suffix: str) -> str:
         return "mcap"
     if head.startswith(DATAFLASH_MAGIC):
         return "dataflash"
-    if suffix == ".tlog" or (len(head) > 8 and head[8] in (0xFD, 0xFE)):
+    if suffix == ".tlog" or (len(head) > 8 and head[8] in (0xFD, 0xFE)) or _stamped_mavlink(head):
         return "tlog"
     if _is_text(head) and b"," in head.split(b"\n", 1)[0]:
         return "csv"
     if suffix in (".bin", ".log"):
         return "dataflash"  # a damaged start: let the DataFlash reader try and say why not
     return ""
+
+
+def _stamped_mavlink(head: bytes, needed: int = 3) -> bool:
+    """A telemetry log whose first record is not a MAVLink packet (a link's noise at its start): its records
+    are an 8-byte µs stamp, whose high 4 bytes stay the same for 71 minutes, then a packet's start byte
+    (0xFE MAVLink 1, 0xFD MAVLink 2); `needed` such records in the head say so."""
+    stamp = head[:4]
+    found = 0
+    for i in range(8, len(head)):
+        if head[i] in (0xFD, 0xFE) and head[i - 8:i - 4] == stamp:
+            found += 1
+            if found >= needed:
+                return True
+    return False
 
 
 def _head(path: Path, n: int = 4096) -> bytes:
