@@ -373,7 +373,7 @@ def test_blueboat_like_csv(tmp_path):
     assert any("swapped" in n for n in rec.notes)
 
 
-def test_mcap_run_roundtrip(tmp_path):
+def test_mcap_run_roundtrip(tmp_path, monkeypatch):
     from twin.run import Run
     from twin.formats.mcap import write_run_mcap
 
@@ -386,6 +386,12 @@ def test_mcap_run_roundtrip(tmp_path):
     rec = read_recording(tmp_path / "run.mcap")
     assert rec.kind == "mcap" and rec.gnss.has("north_m", "east_m")
     assert_recovers_circle(prepare(rec, lever_arm_OP_m=None))
+    # written a block of samples at a time (a long SITL session): the same file byte for byte
+    monkeypatch.setattr("twin.formats.mcap.MESSAGE_BLOCK", 7)
+    write_run_mcap(run, tmp_path / "blocks.mcap")
+    assert (tmp_path / "blocks.mcap").read_bytes() == (tmp_path / "run.mcap").read_bytes()
+    # and the run's CSV too
+    assert "".join(run.csv_blocks(rows=7)) == run.to_csv_text() and run.to_csv_text().count("\n") == len(t) + 1
 
 
 def test_twin_run_csv_reads_as_a_recording(tmp_path):

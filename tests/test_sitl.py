@@ -1080,3 +1080,39 @@ def test_a_6dof_reply_is_read_exactly_by_ardupilots_parser():
         np.testing.assert_allclose(quaternion_rotation(w, x, y, z), rotation(r.roll_rad, r.pitch_rad, r.yaw_rad),
                                    atol=1e-12)
         assert r.as_dict() == decode(line.encode())
+
+
+def test_a_long_recording_waits_on_disk_not_in_memory_and_reads_back_row_for_row(tmp_path):
+    """Past the rows held in memory, the recording goes to an unnamed file in the spool folder; what
+    `recording()` gives is the same run, row for row, as one held whole in memory, and the session's
+    memory holds no more than a block of rows."""
+    vessel = load("yellowfish")
+    rng = np.random.default_rng(5)
+    frames = [[int(p) for p in rng.integers(1300, 1700, 2)] for _ in range(700)]
+    runs = []
+    for spool_at in (None, 64):
+        twin = SitlTwin(vessel, esc_arm_s=0.0, spool_dir=tmp_path)
+        if spool_at:
+            twin._spool_at = spool_at * twin._row
+        with twin.active():
+            for k, (left, right) in enumerate(frames):
+                twin.step([left, 0, right] + [0] * 13, 400)
+                assert len(twin._rows) < (spool_at or len(frames) + 1) * twin._row
+                if k == 350:  # read mid-session: the session then goes on recording
+                    assert len(twin.recording().t) == 352
+        runs.append(twin.recording())
+        assert twin.frames_recorded == len(frames) and twin._spooled == (640 if spool_at else 0)
+    held, spooled = runs
+    assert len(spooled.t) == len(frames) + 1
+    for a, b in zip(held.columns().values(), spooled.columns().values()):
+        np.testing.assert_array_equal(a, b)
+    assert list(tmp_path.iterdir()) == []  # the spool has no name in the folder
+
+
+def test_a_spool_that_cannot_be_written_is_one_line_and_keeps_the_rows_held(tmp_path):
+    twin = SitlTwin(load("yellowfish"), esc_arm_s=0.0, spool_dir=tmp_path / "gone")
+    twin._spool_at = 8 * twin._row
+    with twin.active(), pytest.raises(TwinError, match=f"cannot hold the recording in '{tmp_path / 'gone'}': "):
+        for _ in range(20):
+            twin.step([1600, 0, 1600] + [0] * 13, 400)
+    assert twin.frames_recorded == 8 and len(twin.recording().t) == 9

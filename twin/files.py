@@ -9,7 +9,7 @@ import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import IO, Callable, Iterator
 
 import numpy as np
 
@@ -124,6 +124,13 @@ def write_bytes_atomic(path, data: bytes, make_folder: bool = False) -> None:
     """`data` to `path` (through a link: written_path) atomically, with the usual permissions (umask).
     A read-only file there is refused (TwinError), not replaced: the rename would need only the
     folder's permission. A failed write (a full disk) names the file and leaves the old one whole."""
+    write_stream_atomic(path, lambda fh: fh.write(data), make_folder)
+
+
+def write_stream_atomic(path, fill: Callable[[IO[bytes]], object], make_folder: bool = False) -> None:
+    """fill(file) writes the content to a temporary file beside `path`, which then replaces it as
+    write_bytes_atomic does: for a content written piece by piece, never whole in memory (a long
+    recording)."""
     if read_only(path):
         raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
     target = written_path(path, make_folder)
@@ -133,7 +140,7 @@ def write_bytes_atomic(path, data: bytes, make_folder: bool = False) -> None:
         raise TwinError(f"cannot write '{path}': {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            fill(fh)
             fh.flush()
             # on disk before the rename: a crash leaves the old file or the new one, never an empty one
             os.fsync(fh.fileno())

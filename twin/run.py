@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -56,9 +57,13 @@ class Run:
         """The run layout: a header of CSV_COLUMNS (then PROPELLER_RUDDER_COLUMNS, rps and degrees, for
         a propeller-and-rudder ship: its pwm columns are empty and its thrust columns hold the
         propeller thrust and the rudder normal force, so without them nothing could replay the
-        run; and SIX_DOF_COLUMNS for a 6-DOF run), then one row per sample, each value '{:.9g}' and an empty cell for NaN (or infinity).
-        Formatted a column at a time, not a cell at a time through csv.writer (a 1-h run has 400 000
-        cells); the cells need no quoting."""
+        run; and SIX_DOF_COLUMNS for a 6-DOF run), then one row per sample, each value '{:.9g}' and an empty cell for NaN (or infinity)."""
+        return "".join(self.csv_blocks())
+
+    def csv_blocks(self, rows: int = 65536) -> Iterator[str]:
+        """to_csv_text in pieces of `rows` samples (the header first): a long run's text is never whole
+        in memory. Formatted a column at a time, not a cell at a time through csv.writer (a 1-h run
+        has 400 000 cells); the cells need no quoting."""
         cols = self.columns()
         names = list(CSV_COLUMNS)
         held = self.propeller_rudder()
@@ -69,8 +74,10 @@ class Run:
         if six is not None:
             cols.update({"down": six["down_m"], "roll": six["roll_rad"], "pitch": six["pitch_rad"]})
             names += list(SIX_DOF_COLUMNS)
-        cells = [_cells(cols[c]) for c in names]
-        return "".join([",".join(names), "\n", *(",".join(row) + "\n" for row in zip(*cells))])
+        yield ",".join(names) + "\n"
+        for first in range(0, len(self.t), rows):
+            cells = [_cells(cols[c][first:first + rows]) for c in names]
+            yield "".join([",".join(row) + "\n" for row in zip(*cells)])
 
 
 def _cells(values) -> list[str]:

@@ -40,7 +40,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import TwinError
-from ..files import check_unique_columns, write_bytes_atomic
+from ..files import check_unique_columns, write_bytes_atomic, write_stream_atomic
 from ..geodesy import ned_from_geodetic
 from ..recording import EXACT_ORIGIN, Recording, Stream, clean_stream, with_common_origin
 
@@ -359,4 +359,7 @@ def write_recording_csv(rec: Recording, path: Path) -> None:
 
 def write_run_csv(run, path: Path) -> None:
     """A twin run (twin.run.Run) in the run layout t,x,y,psi,u,v,r,pwm_*,thrust_*, atomically."""
-    write_bytes_atomic(path, run.to_csv_text().encode())
+    def fill(fh) -> None:
+        for block in run.csv_blocks():
+            fh.write(block.encode())
+    write_stream_atomic(path, fill)

@@ -35,10 +35,9 @@ from __future__ import annotations
 import json
 import math
 import struct
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Callable, Iterator
+from typing import Iterator
 
 import numpy as np
 from mcap.exceptions import McapError
@@ -48,7 +47,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from ..errors import TwinError
-from ..files import commit, read_only, written_path
+from ..files import write_stream_atomic
 from ..geodesy import geodetic_from_ned
 from ..physics.sensors import antenna_ned
 from ..recording import EXACT_ORIGIN, TRACKED_ORIGIN, Recording, Stream, clean_stream, with_common_origin
@@ -115,33 +114,10 @@ def write_run_mcap(run: Run, path: str | Path, vessel_name: str = "", *, origin:
     if len(run.t) and np.min(run.t) < 0:
         raise TwinError("MCAP log times cannot be negative: the run starts at t < 0")
     # a lambda, so that _write is looked up at call time (tests replace it)
-    write_atomic(Path(path), lambda fh: _write(fh, run, vessel_name, origin, antenna_body_m))
+    write_stream_atomic(path, lambda fh: _write(fh, run, vessel_name, origin, antenna_body_m))
 
 
-def write_atomic(path: Path, fill: Callable[[IO[bytes]], None]) -> None:
-    """fill(file) into a temporary file next to `path` (through a link: files.written_path), then
-    rename it to `path`; a failed write (a full disk) names the file and leaves the old one whole."""
-    if read_only(path):
-        raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
-    target = written_path(path)
-    tmp = temp_path(target)
-    try:
-        with open(tmp, "xb") as fh:
-            fill(fh)
-        commit(tmp, target)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def temp_path(path: Path) -> Path:
-    """A fresh hidden name next to `path` (same file system, so os.replace is atomic).
-
-    Unlike mkstemp, the file is created later with the usual permissions (umask)."""
-    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+MESSAGE_BLOCK = 65536  # samples turned into messages at a time
 
 
 def _write(fh, run: Run, vessel_name: str, origin: tuple[float, float] = DEFAULT_ORIGIN,
@@ -157,21 +133,26 @@ def _write(fh, run: Run, vessel_name: str, origin: tuple[float, float] = DEFAULT
         sid = w.register_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
         channels[topic] = w.register_channel(topic, "json", sid)
     cols = run.columns()
-    rows = {k: v.tolist() for k, v in cols.items()}  # Python floats: exact repr in JSON
     north, east = antenna_ned(run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], antenna_body_m)
-    lat, lon = (a.tolist() for a in geodetic_from_ned(north, east, *origin))
-    for i in range(len(run.t)):
-        ns = int(round(rows["t"][i] * 1e9))
-        msgs = {
-            TOPIC_POSE: _pose_msg(ns, rows["x"][i], rows["y"][i], rows["psi"][i]),
-            TOPIC_STATE: {k: _num(rows[k][i]) for k in STATE_FIELDS},
-            TOPIC_INPUTS: {k: _num(rows[k][i]) for k in INPUT_FIELDS},
-        }
-        if math.isfinite(lat[i]) and math.isfinite(lon[i]):
-            msgs[TOPIC_FIX] = _location_fix(ns, lat[i], lon[i], 0.0)
-        for topic, msg in msgs.items():
-            data = json.dumps(msg, allow_nan=False).encode()
-            w.add_message(channels[topic], log_time=ns, data=data, publish_time=ns, sequence=i)
+    lat_deg, lon_deg = geodetic_from_ned(north, east, *origin)
+    # a block at a time: Python floats (exact repr in JSON) take 32 bytes each, a whole SITL session's
+    # columns as lists several gigabytes
+    for first in range(0, len(run.t), MESSAGE_BLOCK):
+        block = slice(first, first + MESSAGE_BLOCK)
+        rows = {k: v[block].tolist() for k, v in cols.items()}
+        lat, lon = lat_deg[block].tolist(), lon_deg[block].tolist()
+        for j, t in enumerate(rows["t"]):
+            ns = int(round(t * 1e9))
+            msgs = {
+                TOPIC_POSE: _pose_msg(ns, rows["x"][j], rows["y"][j], rows["psi"][j]),
+                TOPIC_STATE: {k: _num(rows[k][j]) for k in STATE_FIELDS},
+                TOPIC_INPUTS: {k: _num(rows[k][j]) for k in INPUT_FIELDS},
+            }
+            if math.isfinite(lat[j]) and math.isfinite(lon[j]):
+                msgs[TOPIC_FIX] = _location_fix(ns, lat[j], lon[j], 0.0)
+            for topic, msg in msgs.items():
+                data = json.dumps(msg, allow_nan=False).encode()
+                w.add_message(channels[topic], log_time=ns, data=data, publish_time=ns, sequence=first + j)
     w.finish()
 
 
@@ -388,7 +369,7 @@ SENSORS = {
 def write_recording_mcap(rec: Recording, path: str | Path) -> None:
     """Write a recording whose times are ≥ 0, whose gnss stream has lat_deg/lon_deg
     and whose psi_rad is wrapped (twin.formats.write_recording prepares it) atomically."""
-    write_atomic(Path(path), lambda fh: _write_sensors(fh, rec))
+    write_stream_atomic(path, lambda fh: _write_sensors(fh, rec))
 
 
 def _write_sensors(fh, rec: Recording) -> None:

@@ -72,9 +72,12 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import tempfile
 from array import array
 from dataclasses import dataclass, fields, replace
-from typing import Iterator, Sequence
+from pathlib import Path
+from typing import IO, Iterator, Sequence
 
 import mujoco
 import numpy as np
@@ -101,6 +104,7 @@ ESC_ARM_S = 2.0  # [BlueRobotics-BasicESC]: "a stopped signal ... for a few seco
 # 1e9 Hz (833334 steps a frame) ran 165 times slower than it, with ArduPilot waiting on every frame
 MAX_RATE_HZ = 10_000.0
 ESC_DEADBAND_US = 25.0  # [BlueRobotics-BasicESC]: signal deadband ±25 µs around the stopped signal
+SPOOL_ROWS = 65536  # recorded rows held in memory before they go to the spool file
 ROW = 11  # recorded values per frame: t, x, y, ψ, u, v, r, pwm L/R, thrust command L/R
 SIX_NAMES = ("down_m", "pitch_rad", "roll_rad", "down_rate_m_s", "pitch_rate_rad_s", "roll_rate_rad_s")  # and in a sea
 _TWO_PI = 2.0 * math.pi
@@ -204,7 +208,7 @@ class SitlTwin:
 
     def __init__(self, vessel: Vessel, *, min_rate_hz: float = 400.0,
                  channels: tuple[int, int] = DEFAULT_CHANNELS, heading_deg: float = 0.0, record: bool = True,
-                 esc_arm_s: float = ESC_ARM_S, sea: Sea | None = None) -> None:
+                 esc_arm_s: float = ESC_ARM_S, sea: Sea | None = None, spool_dir: str | Path | None = None) -> None:
         check_channels(channels)
         check_rate(min_rate_hz)
         check_esc_arm(esc_arm_s)
@@ -253,6 +257,12 @@ class SitlTwin:
         self._az = -GRAVITY_M_S2  # the specific force down of a hull that stays level: gravity's reaction
         self._active = False
         self._rows = array("d")
+        # rows past SPOOL_ROWS go to an unnamed file in spool_dir (the system's temporary folder if
+        # None): a session's memory stays the same however long it runs
+        self._spool_dir = spool_dir
+        self._spool: IO[bytes] | None = None
+        self._spooled = 0
+        self._spool_at = SPOOL_ROWS * self._row
         self._record_offset_s = 0.0
         self.restarts_s: list[float] = []
         self.reset()
@@ -673,6 +683,20 @@ class SitlTwin:
                            pwm_left, pwm_right, cl, cr))
         if self._six is not None:  # then heave, pitch and roll and their rates
             self._rows.extend(self._state_six)
+        if len(self._rows) >= self._spool_at:
+            self._flush()
+
+    def _flush(self) -> None:
+        """The rows held in memory to the spool file."""
+        try:
+            if self._spool is None:
+                self._spool = tempfile.TemporaryFile(dir=self._spool_dir, prefix=".twin-sitl-", suffix=".rows")
+            self._rows.tofile(self._spool)
+        except OSError as exc:
+            raise TwinError(f"cannot hold the recording in '{self._spool_dir or tempfile.gettempdir()}': "
+                            f"{exc.strerror or exc}") from None
+        self._spooled += len(self._rows) // self._row
+        del self._rows[:]
 
     def _command_now(self) -> tuple[float, float]:
         if self.model.na:
@@ -683,22 +707,32 @@ class SitlTwin:
 
     @property
     def frames_recorded(self) -> int:
-        return len(self._rows) // self._row
+        return self._spooled + len(self._rows) // self._row
+
+    def _recorded_rows(self, extra: int) -> np.ndarray:
+        """Every recorded row in one array, with `extra` rows more left to fill (the spool read back)."""
+        held = len(self._rows) // self._row
+        rows = np.empty((self._spooled + held + extra, self._row))
+        if self._spooled:
+            self._spool.seek(0)
+            self._spool.readinto(memoryview(rows[:self._spooled]).cast("B"))
+            self._spool.seek(0, os.SEEK_END)
+        if held:
+            rows[self._spooled:self._spooled + held] = np.frombuffer(self._rows, dtype=float).reshape(held, self._row)
+        return rows
 
     def recording(self, meta: dict | None = None) -> Run:
         """Everything recorded as a twin Run (one row per frame at its start time, and the state
         after the last frame), times on the record clock that runs on across restarts; in a sea the
         heave, pitch, roll and their rates in meta["six_dof"], as engine.sim.simulate gives them."""
-        width = self._row
-        rows = (np.frombuffer(self._rows, dtype=float).reshape(-1, width).copy() if self._rows
-                else np.zeros((0, width)))
-        if len(rows) and self.time_s > 0:
+        ended = self.frames_recorded > 0 and self.time_s > 0
+        rows = self._recorded_rows(1 if ended else 0)  # one copy: a session's rows can run to gigabytes
+        if ended:
             x, y, psi, vx, vy, r = self._state
             c, s = math.cos(psi), math.sin(psi)
-            end = [self._record_offset_s + self.time_s, x, y, psi, c * vx + s * vy, -s * vx + c * vy, r,
-                   *self._pwm_last, *self._command_now(),
-                   *(self._state_six if self._six is not None else ())]
-            rows = np.vstack([rows, end])
+            rows[-1] = [self._record_offset_s + self.time_s, x, y, psi, c * vx + s * vy, -s * vx + c * vy, r,
+                        *self._pwm_last, *self._command_now(),
+                        *(self._state_six if self._six is not None else ())]
         nu = rows[:, 4:7]
         thrust = delivered_thrust_n(self.vessel.thrusters, self.compiled.geometry.thruster_y_m, rows[:, 9:11], nu)
         info = {"vessel": self.vessel.name, "case": self.vessel.case, "engine": "mujoco", "source": "ardupilot-sitl",
