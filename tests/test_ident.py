@@ -127,6 +127,34 @@ def test_a_kept_cache_predicts_to_the_bit_what_a_fresh_one_does(yellowfish_vesse
     assert np.nanmax(np.abs(again[2].nu[:, 1:] - again[0].nu[:, 1:])) > 1e-3  # the offset's start was its own
 
 
+def test_a_window_rolled_out_before_by_the_same_twin_is_not_rolled_out_again(yellowfish_vessel, monkeypatch):
+    """The cache keeps each window's states by the model, the initial state and the controls: the
+    same twin over the same windows runs nothing again (the same numbers), a twin one coefficient
+    apart runs all its windows, and one twin asked twice in one batch runs once."""
+    import twin.fit.windows as windows_mod
+
+    ds = generate(yellowfish_vessel, n_segments=2, seed=4, noise=QUIET, segment_s=(25, 30))
+    preps = _truth_preps(ds)
+    wins = make_windows(preps, 5.0, 2.5)
+    rolled = []
+    real = windows_mod.batch.rollout
+
+    def counted(models, states, controls, nthread=None):
+        rolled.append(len(states))
+        return real(models, states, controls, nthread=nthread)
+
+    monkeypatch.setattr(windows_mod.batch, "rollout", counted)
+    kept = ModelCache()
+    first = predict(yellowfish_vessel, preps, wins, kept)[0]
+    again = predict([yellowfish_vessel, yellowfish_vessel], preps, wins, kept)
+    draggier = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Xu=1.1 * yellowfish_vessel.damping.Xu - 0.1))
+    other = predict([draggier, draggier], preps, wins, kept)[0]
+    assert rolled == [len(wins), len(wins)]  # the first twin once; the draggier twin once for both
+    for a in again:
+        np.testing.assert_array_equal(a.nu, first.nu)
+    assert np.nanmax(np.abs(other.nu[:, 1:] - first.nu[:, 1:])) > 1e-4
+
+
 def test_two_recordings_of_one_name_and_span_are_driven_each_by_its_own_pwm(yellowfish_vessel):
     """The cache keys a window's commands by what the recording logged, not by its name: two runs
     that share a source name, a start and a length but not their PWM are each driven by their own."""

@@ -74,5 +74,10 @@ class BoundedStore(Generic[V]):
                 self._bytes -= getattr(self._values.pop(next(iter(self._values))), "nbytes", 0)
         return value
 
+    def peek(self, key: Hashable) -> V | None:
+        """The value stored under `key`, or None (nothing is made or stored)."""
+        with self._lock:
+            return self._values.get(key)
+
     def __len__(self) -> int:
         return len(self._values)

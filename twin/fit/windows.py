@@ -89,6 +89,7 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 # a segment's lag states per lag tried: a few tens of kB each, as many as a diagnosis's candidate
 # lags over one outing's segments need
 SEGMENT_LAGS_KEPT = 512
+ROLLOUTS_KEPT_BYTES = 128 * 2 ** 20  # of windows' states: some thousands of windows, the most a search repeats within
 KEPT = 20000  # windows' inputs and initial states: a diagnosis's outing of windows times its lags and offsets
 
 
@@ -119,6 +120,7 @@ class ModelCache:
         self._states: BoundedStore[np.ndarray] = BoundedStore(KEPT)
         self._thrust_bounds: BoundedStore[tuple[float, float]] = BoundedStore()
         self._segment_lag: BoundedStore[np.ndarray] = BoundedStore(SEGMENT_LAGS_KEPT)
+        self._rollouts: BoundedStore[np.ndarray] = BoundedStore(max_bytes=ROLLOUTS_KEPT_BYTES)
 
     def initial_state(self, model: mujoco.MjModel, data: Callable[[], mujoco.MjData], layout: tuple, prep: Prepared,
                       window: Window, nu_offset: tuple) -> np.ndarray:
@@ -191,6 +193,29 @@ class ModelCache:
     def model(self, vessel: Vessel, wind: bool = False) -> mujoco.MjModel:
         """A native-parameterised model of `vessel` (same dynamics as compiling it afresh);
         `wind`: with the measured wind as controls 2 and 3."""
+        return self.keyed_model(vessel, wind)[0]
+
+    def keyed_model(self, vessel: Vessel, wind: bool = False) -> tuple[mujoco.MjModel, tuple]:
+        """model(), and a key that is the same for two models exactly when their dynamics are: the
+        compiled structure (the base model copied), its time step, and what is set on the copy."""
+        m = self._model(vessel, wind)
+        key = (_structure_key(vessel, wind), m.opt.timestep, m.numeric_data.tobytes(),
+               m.actuator_ctrlrange.tobytes(), m.actuator_gainprm.tobytes(), m.actuator_dynprm.tobytes())
+        return m, key
+
+    def rolled_out(self, key: tuple) -> np.ndarray | None:
+        """A window's states kept by `key` (the model's, the initial state's and the controls'), or
+        None: a diagnosis's fits roll out the same twin over the same window again and again (every
+        candidate starts from the prior; a search's Jacobian repeats a point), 28 % of its steps."""
+        return self._rollouts.peek(key)
+
+    def keep_rolled_out(self, key: tuple, states: np.ndarray) -> np.ndarray:
+        """Keep a window's states (read-only: every later caller shares them) under `key`."""
+        kept = states.copy()  # not a view: it would hold the whole batch's array
+        kept.setflags(write=False)
+        return self._rollouts.get(key, lambda: kept)
+
+    def _model(self, vessel: Vessel, wind: bool) -> mujoco.MjModel:
         cv, base = self._base(vessel, wind)
         m = copy.copy(base)
         native.set_params(m, CompiledVessel(vessel.as_logged(), cv.model, cv.geometry).hydro())
@@ -448,7 +473,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         raise TwinError("no window to predict: the recording has no segment long enough")
     cache = cache or ModelCache()
     n_max = max(w.n for w in windows)
-    models, states, controls, owners = [], [], [], []
+    models, states, controls, owners, keys = [], [], [], [], []
     offsets = nu_offsets or [None] * len(vessels)
     for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
         offset = (0.0, 0.0, 0.0) if offsets[iv] is None else tuple(offsets[iv])
@@ -459,15 +484,16 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             other = sorted(kinds - {vessel.thrusters.input_kind})
             raise TwinError(inputs_mismatch(vessel.name, vessel.thrusters.input_kind, ", ".join(other) or None))
         engine_vessel = without_lag(vessel) if lag_outside_engine(vessel) else vessel
-        model = cache.model(engine_vessel, wind=wind is not None)
+        model, model_key = cache.keyed_model(engine_vessel, wind=wind is not None)
         h = model.opt.timestep
         data = _WorkData(model)
-        model_of_log = _per_log_models(engine_vessel, model, cache) if wind is None else (lambda source, m=model: m)
+        model_of_log = (_per_log_models(engine_vessel, (model, model_key), cache) if wind is None else
+                        (lambda source, m=(model, model_key): m))
         command_key = cache.command_key(vessel)
         layouts: dict[int, tuple] = {}
         for w in windows:
             prep = vpreps[w.rec]
-            model = model_of_log(prep.settings.source)
+            model, model_key = model_of_log(prep.settings.source)
             layout = layouts.get(id(model))
             if layout is None:  # what fixes a state vector besides the window: sizes, joints, unset qpos
                 layout = layouts[id(model)] = (batch._signature(model), _joint_columns(model), model.qpos0.tobytes())
@@ -483,7 +509,8 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             states.append(cache.initial_state(model, data, layout, prep, w, offset))
             controls.append(padded)
             owners.append(iv)
-    traj, diverged = _rollout(models, states, controls, nthread)
+            keys.append(model_key)
+    traj, diverged = _rollout(models, states, controls, nthread, cache, keys)
     return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
                      per_vessel[iv])
             for iv in range(len(vessels))]
@@ -503,34 +530,50 @@ class _WorkData:
         return self._data
 
 
-def _per_log_models(vessel: Vessel, own: mujoco.MjModel, cache: ModelCache):
-    """source → the model of that log's environment (its own wind where `wind_by_log` names it),
-    each made once; `own`: the vessel's model, for every log without an entry."""
+def _per_log_models(vessel: Vessel, own: tuple[mujoco.MjModel, tuple], cache: ModelCache):
+    """source → (model, key) of that log's environment (its own wind where `wind_by_log` names it),
+    each made once; `own`: the vessel's, for every log without an entry."""
     if not vessel.environment.wind_by_log:
         return lambda source: own
     models: dict = {}
 
-    def model_of(source: str) -> mujoco.MjModel:
+    def model_of(source: str) -> tuple[mujoco.MjModel, tuple]:
         env = vessel.environment.for_log(source)
         if env not in models:
-            models[env] = cache.model(replace(vessel, environment=env))
+            models[env] = cache.keyed_model(replace(vessel, environment=env))
         return models[env]
     return model_of
 
 
-def _rollout(models, states, controls, nthread) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
-    """One rollout per state size (a lagged twin carries actuator states, a plain one does not)."""
+def _rollout(models, states, controls, nthread, cache: ModelCache, model_keys: list[tuple]
+             ) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
+    """Each window's states: those kept from an earlier rollout of the same model, initial state and
+    controls as they were (each run is rolled out on its own: the same numbers), the others in one
+    rollout per state size (a lagged twin carries actuator states, a plain one does not). A run that
+    diverged is not kept; a window asked twice in one batch is rolled out once."""
+    keys = [(mk, s.tobytes(), hashlib.blake2b(c, digest_size=16).digest())
+            for mk, s, c in zip(model_keys, states, controls)]
+    traj: list[np.ndarray | None] = [cache.rolled_out(k) for k in keys]
+    first: dict[tuple, int] = {}
+    for i, k in enumerate(keys):
+        if traj[i] is None:
+            first.setdefault(k, i)
     sizes: dict[int, list[int]] = {}
-    for i, s in enumerate(states):
-        sizes.setdefault(len(s), []).append(i)
-    traj: list[np.ndarray | None] = [None] * len(models)
-    diverged = []
+    for i in first.values():
+        sizes.setdefault(len(states[i]), []).append(i)
+    failed: dict[int, float] = {}
     for rows in sizes.values():
         out, bad = batch.rollout([models[i] for i in rows], np.array([states[i] for i in rows]),
                                  np.array([controls[i] for i in rows]), nthread=nthread)
+        failed.update((rows[j], t) for j, t in bad)
         for j, i in enumerate(rows):
-            traj[i] = out[j]
-        diverged += [(rows[j], t) for j, t in bad]
+            traj[i] = out[j] if i in failed else cache.keep_rolled_out(keys[i], out[j])
+    diverged = []
+    for i, k in enumerate(keys):
+        if traj[i] is None:  # the batch's first of its key ran it
+            traj[i] = traj[first[k]]
+        if k in first and first[k] in failed:
+            diverged.append((i, failed[first[k]]))
     return traj, diverged
 
 
