@@ -233,6 +233,8 @@ def test_metrics():
     assert r2_score(y, y) == 1.0 and mae(y, y + 0.5) == 0.5
     assert r2_score(y, np.array([0.0, 1.0, np.nan, 3.0])) == 1.0  # gaps are not scored
     assert r2_score(y, np.array([0.0, 1.0, np.inf, 3.0])) == -np.inf  # divergence is
+    wobble = 1e-9 * y  # a spread of round-off: no variance to explain
+    assert np.isnan(r2_score(wobble, 0 * y + 1e-6, no_spread=1e-6)) and r2_score(wobble, 0 * y + 1e-6) < -1e5
 
 
 # ---------------------------------------------------------------- bad input

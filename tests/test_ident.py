@@ -144,12 +144,15 @@ def test_a_window_rolled_out_before_by_the_same_twin_is_not_rolled_out_again(yel
         return real(models, states, controls, nthread=nthread)
 
     monkeypatch.setattr(windows_mod.batch, "rollout", counted)
-    kept = ModelCache()
+    kept = ModelCache(keep_runs=True)
     first = predict(yellowfish_vessel, preps, wins, kept)[0]
     again = predict([yellowfish_vessel, yellowfish_vessel], preps, wins, kept)
     draggier = replace(yellowfish_vessel, damping=replace(yellowfish_vessel.damping, Xu=1.1 * yellowfish_vessel.damping.Xu - 0.1))
     other = predict([draggier, draggier], preps, wins, kept)[0]
     assert rolled == [len(wins), len(wins)]  # the first twin once; the draggier twin once for both
+    plain = ModelCache()  # keeps no runs (a Monte Carlo draw's twin runs once)
+    predict(yellowfish_vessel, preps, wins, plain), predict(yellowfish_vessel, preps, wins, plain)
+    assert rolled == [len(wins)] * 4
     for a in again:
         np.testing.assert_array_equal(a.nu, first.nu)
     assert np.nanmax(np.abs(other.nu[:, 1:] - first.nu[:, 1:])) > 1e-4

@@ -457,6 +457,22 @@ def test_the_twins_own_run_evaluates_at_r2_one(tmp_path):
     assert all(metrics[dof]["r2"] > 0.99 for dof in ("u", "v", "r")), metrics
 
 
+def test_a_straight_run_scores_no_r2_for_the_sway_and_yaw_it_never_has(tmp_path, capsys):
+    """Straight ahead, v and r vary by round-off only: no R² is given for them (one of −1.6e15 was), the
+    table says why, and u is scored as ever."""
+    from twin import api
+    from twin.fit.evaluate import format_metrics
+    from twin.simulation import simulate_run
+
+    path = tmp_path / "step.csv"
+    simulate_run("blueboat", scenario="step", duration_s=60.0).write(path)
+    found = api.evaluate("blueboat", [path])
+    for horizon in ("one_step", "free_run_10s", "full"):
+        m = found.metrics[horizon]
+        assert m["u"]["r2"] > 0.99 and m["v"]["r2"] is None and m["r"]["r2"] is None, m
+    assert "R2 -: the measured v and r do not vary beyond" in format_metrics(found.metrics)
+
+
 @pytest.mark.parametrize("text", [
     "t,lat,lon,heading_deg\n3,37.1,-5.9,10\n2,37.1,-5.9,11\n1,37.1,-5.9,12\n0,37.1,-5.9,13\n",  # time reversed
     "t,lat,lon,heading_deg,pwm_left,pwm_right\n0,37.1,-5.9,10,1500,1500\n",  # one row

@@ -103,7 +103,9 @@ class Stream:
         typical = float(np.median(d))
         if not typical > 0:  # most samples stamped twice: no rate to tell
             return 0.0
-        return float(1.0 / np.mean(d[np.abs(d - typical) <= 0.01 * abs(typical)]))
+        near = d[np.abs(d - typical) <= 0.01 * typical]
+        # an even count of intervals of two kinds has its median between them, near none
+        return float(1.0 / (np.mean(near) if near.size else typical))
 
     def gaps(self, threshold_s: float = GAP_S) -> np.ndarray:
         """Lengths (s) of the intervals between samples longer than threshold_s."""

@@ -42,7 +42,7 @@ from ..effects import EFFECTS, apply_effects, candidates, effect
 from ..effects.coefficients import fit_groups
 from ..engine.mjcf import compile_vessel
 from ..errors import TooShort, TwinError
-from ..fit.metrics import r2_mae
+from ..fit.metrics import RESOLUTION, r2_mae
 from ..physics.sensors import log_name
 from ..fit.objective import Measurements
 from ..fit.windows import ModelCache, Window, as_measured, comfortable_timestep, make_windows, measured, predict
@@ -160,7 +160,7 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     if kinematic:
         prior, findings = _kinematic(recordings, prior, calibrated, library, log)
     prior, calibrations, compiled, preps, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
-    exact = ModelCache()
+    exact = ModelCache(keep_runs=True)
     before = _residuals(prior, preps, every, exact, wind)  # locating fits nothing: every window may speak
     noise = noise | _replay_floor(prior, recordings, preps, every, exact, wind)
     located, growth, corr, overall = _locate(before, preps, every, noise)
@@ -174,8 +174,9 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
     lib = {k: v for k, v in lib.items() if k not in settled and k not in replaced}
     noise_sd = np.array([noise.get(k, np.nan) for k in "uvr"])
     core, core_names, search_prior = _core(prior, refit)
-    search = Search(search_prior, data, every, ModelCache(SEARCH_TIMESTEP_S), lib, noise_sd, log,
-                    screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S)),
+    search = Search(search_prior, data, every, ModelCache(SEARCH_TIMESTEP_S, keep_runs=True), lib, noise_sd, log,
+                    screen_cache=ModelCache(comfortable_timestep(compiled, preps, SCREEN_H_LAMBDA, SEARCH_TIMESTEP_S),
+                                            keep_runs=True),
                     core=core, core_weight=refit_weight, wind=wind)
     if core and not search.library:
         raise TwinError(f"with {', '.join(refit)} refitted no candidate is left to judge (each one moves a refitted "
@@ -327,7 +328,7 @@ def given_evidence(recordings: list[Recording], prior: Vessel, effects=(), *, wi
     An Evidence (search.py)."""
     check_wind(recordings, known_wind)
     prior, _, _, _, data, every, noise = _prepared(recordings, prior, window_s, calibrated)
-    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S), {}, np.array([noise.get(k, np.nan) for k in "uvr"]),
+    search = Search(prior, data, every, ModelCache(SEARCH_TIMESTEP_S, keep_runs=True), {}, np.array([noise.get(k, np.nan) for k in "uvr"]),
                     wind=known_wind)
     given = apply_effects(prior, effects)
     return search.evidence(search.held_costs([prior] * len(search.folds)),
@@ -598,9 +599,9 @@ def _effect_ci(cand, values: dict, names: list[str], search: Search) -> dict:
             for key, v, row in zip(keys, var, J) if np.any(row)}
 
 
-# a misfit under this (m/s, m/s, rad/s) is below any GNSS's or compass's resolution: the replay's own
-# arithmetic on a noise-free log, whose estimated noise is zero and any ratio to it large
-FORM_FLOOR = {"u": 1e-3, "v": 1e-3, "r": 1e-4}
+# a misfit under the sensors' resolution is the replay's own arithmetic on a noise-free log, whose
+# estimated noise is zero and any ratio to it large
+FORM_FLOOR = RESOLUTION
 
 
 def _unexplained(located: list[dict], corr: dict, overall: dict) -> list[dict]:

@@ -29,7 +29,7 @@ from ..prepare import Prepared
 from ..threads import one_blas_thread
 from ..vessel import Vessel
 from .coverage import OWN_TAIL, SHOWN, UNITS, Envelope, beyond, sample_ranges, span_text
-from .metrics import DOFS, r2_mae
+from .metrics import DOFS, RESOLUTION, r2_mae
 from .windows import ModelCache, Window, make_windows, measured, predict
 
 HORIZONS = {"one_step": None, "free_run_10s": 10.0, "free_run_30s": 30.0, "full": "segment"}
@@ -409,13 +409,15 @@ def format_by_state(bands: list[StateBand], title: str = "") -> str:
 
 def _squares(pred: np.ndarray, meas: np.ndarray, finite: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Squared errors per sample (0 where no pair or the window diverged) and the pooled Σ(y − ȳ)²
-    per DOF of the measured samples paired in the finite windows."""
+    per DOF of the measured samples paired in the finite windows (0, no share to give, where their
+    spread is under metrics.RESOLUTION)."""
     pairs = np.isfinite(meas) & ~np.isnan(pred) & finite[:, None, None]
     sq = np.where(pairs, (pred - meas) ** 2, 0.0)
     total = np.zeros(3)
-    for k in range(3):
+    for k, dof in enumerate(DOFS):
         y = meas[..., k][pairs[..., k]]
-        total[k] = float(np.sum((y - y.mean()) ** 2)) if y.size else 0.0
+        spread = float(np.sum((y - y.mean()) ** 2)) if y.size else 0.0
+        total[k] = spread if y.size and np.sqrt(spread / y.size) > RESOLUTION[dof] else 0.0
     return sq, total
 
 
@@ -524,4 +526,9 @@ def format_metrics(metrics: dict, title: str = "") -> str:
     if empty:  # a dash with no reason reads as a failure of the twin
         lines.append(f"-: no window of {', '.join(empty)} fits in the recording: every stretch without a dropout "
                      "(or the whole log) is shorter")
+    still = [d for d in DOFS if any(m[d]["r2"] is None and m[d].get("n") and not m[d].get("diverged")
+                                    and m[d]["mae"] is not None for m in metrics.values())]
+    if still:
+        lines.append(f"R2 -: the measured {' and '.join(still)} do{'es' if len(still) == 1 else ''} not vary beyond "
+                     "what a GNSS or compass resolves (a straight run's sway): no variance to explain")
     return "\n".join(lines)

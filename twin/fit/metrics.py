@@ -9,14 +9,21 @@ import numpy as np
 DOFS = ("u", "v", "r")
 
 
-def r2_score(truth: np.ndarray, predicted: np.ndarray) -> float:
-    """Eq. 40 over the finite pairs; NaN with fewer than two or no variance."""
+# what no GNSS or compass resolves (m/s, m/s, rad/s): a velocity whose whole spread (standard
+# deviation) is under it has no variance for an R² to explain (a straight run's sway, varying by
+# round-off, gave R² −1.6e15), and a misfit under it is the replay's own arithmetic
+RESOLUTION = {"u": 1e-3, "v": 1e-3, "r": 1e-4}
+
+
+def r2_score(truth: np.ndarray, predicted: np.ndarray, no_spread: float = 0.0) -> float:
+    """Eq. 40 over the finite pairs; NaN with fewer than two, or where the truth's standard deviation is
+    not above `no_spread` (no variance to explain)."""
     ok = np.isfinite(truth) & ~np.isnan(predicted)
     y, p = truth[ok], predicted[ok]
     if len(y) < 2:
         return math.nan
     total = float(np.sum((y - y.mean()) ** 2))
-    if total == 0.0:
+    if total == 0.0 or math.sqrt(total / len(y)) <= no_spread:
         return math.nan
     with np.errstate(over="ignore", invalid="ignore"):
         resid = float(np.sum((y - p) ** 2))
@@ -34,7 +41,7 @@ def scores(truth: np.ndarray, predicted: np.ndarray) -> dict[str, dict[str, floa
     out = {}
     for j, dof in enumerate(DOFS):
         ok = np.isfinite(truth[:, j]) & ~np.isnan(predicted[:, j])
-        out[dof] = {"r2": r2_score(truth[:, j], predicted[:, j]), "mae": mae(truth[:, j], predicted[:, j]),
+        out[dof] = {"r2": r2_score(truth[:, j], predicted[:, j], RESOLUTION[dof]), "mae": mae(truth[:, j], predicted[:, j]),
                     "n": int(ok.sum())}
     return out
 

@@ -107,10 +107,11 @@ class ModelCache:
     recordings, so a propeller and rudder's inputs are taken as logged (Vessel.as_logged).
 
     timestep_s overrides the MJCF's time step (a coarser RK4 step for the many
-    candidate runs of a diagnosis; it must divide the recordings' grid). One cache may serve
-    fits running in several threads (its stores are twin.threads.BoundedStore)."""
+    candidate runs of a diagnosis; it must divide the recordings' grid). keep_runs: free runs are
+    kept and not rolled out again (rolled_out). One cache may serve fits running in several threads
+    (its stores are twin.threads.BoundedStore)."""
 
-    def __init__(self, timestep_s: float | None = None) -> None:
+    def __init__(self, timestep_s: float | None = None, keep_runs: bool = False) -> None:
         self._compiled: BoundedStore[tuple[CompiledVessel, mujoco.MjModel]] = BoundedStore()
         self.timestep_s = timestep_s
         self._inputs: BoundedStore[np.ndarray] = BoundedStore(KEPT)
@@ -120,7 +121,9 @@ class ModelCache:
         self._states: BoundedStore[np.ndarray] = BoundedStore(KEPT)
         self._thrust_bounds: BoundedStore[tuple[float, float]] = BoundedStore()
         self._segment_lag: BoundedStore[np.ndarray] = BoundedStore(SEGMENT_LAGS_KEPT)
-        self._rollouts: BoundedStore[np.ndarray] = BoundedStore(max_bytes=ROLLOUTS_KEPT_BYTES)
+        # free runs kept only where they are asked for again (a diagnosis's, an identification's fits):
+        # a Monte Carlo draw's twin runs once
+        self._rollouts: BoundedStore[np.ndarray] | None = BoundedStore(max_bytes=ROLLOUTS_KEPT_BYTES) if keep_runs else None
 
     def initial_state(self, model: mujoco.MjModel, data: Callable[[], mujoco.MjData], layout: tuple, prep: Prepared,
                       window: Window, nu_offset: tuple) -> np.ndarray:
@@ -207,10 +210,13 @@ class ModelCache:
         """A window's states kept by `key` (the model's, the initial state's and the controls'), or
         None: a diagnosis's fits roll out the same twin over the same window again and again (every
         candidate starts from the prior; a search's Jacobian repeats a point), 28 % of its steps."""
-        return self._rollouts.peek(key)
+        return None if self._rollouts is None else self._rollouts.peek(key)
 
     def keep_rolled_out(self, key: tuple, states: np.ndarray) -> np.ndarray:
-        """Keep a window's states (read-only: every later caller shares them) under `key`."""
+        """Keep a window's states (read-only: every later caller shares them) under `key`, where this
+        cache keeps runs."""
+        if self._rollouts is None:
+            return states
         kept = states.copy()  # not a view: it would hold the whole batch's array
         kept.setflags(write=False)
         return self._rollouts.get(key, lambda: kept)

@@ -280,7 +280,8 @@ def identify(recordings: list[Recording], prior: Vessel, *, groups: tuple[str, .
         say("[Morel-2024] grey-box tables", 1, 4)
         result.greybox, notes = greybox_stage(preps, vessel, thruster, split, train, repeats, seed)
         result.notes += notes
-    cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S))
+    cache = ModelCache(comfortable_timestep(compile_vessel(vessel), preps, FIT_H_LAMBDA, FIT_TIMESTEP_S),
+                       keep_runs=True)
     every = make_windows(preps, window_s, window_s, min_length_s=window_s)
     if not every:
         longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps for seg in p.segments), default=0.0)

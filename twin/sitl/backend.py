@@ -72,7 +72,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import tempfile
 from array import array
 from dataclasses import dataclass, fields, replace
@@ -676,6 +675,8 @@ class SitlTwin:
     def _record(self, t_s: float, pwm_left: float, pwm_right: float) -> None:
         """One row at the frame's start: the state then, the PWM held over the frame and the thrust
         command in force (the lagged thrust when there is a lag), as engine.sim records a sample."""
+        if len(self._rows) >= self._spool_at:  # first: a spool that fails leaves no row of a frame not run
+            self._flush()
         x, y, psi, vx, vy, r = self._state
         c, s = math.cos(psi), math.sin(psi)
         cl, cr = self._command_now()
@@ -683,14 +684,15 @@ class SitlTwin:
                            pwm_left, pwm_right, cl, cr))
         if self._six is not None:  # then heave, pitch and roll and their rates
             self._rows.extend(self._state_six)
-        if len(self._rows) >= self._spool_at:
-            self._flush()
 
     def _flush(self) -> None:
         """The rows held in memory to the spool file."""
         try:
             if self._spool is None:
                 self._spool = tempfile.TemporaryFile(dir=self._spool_dir, prefix=".twin-sitl-", suffix=".rows")
+            # from the end of the rows it holds: a write that failed part way leaves nothing counted
+            self._spool.seek(self._spooled * self._row * 8)
+            self._spool.truncate()
             self._rows.tofile(self._spool)
         except OSError as exc:
             raise TwinError(f"cannot hold the recording in '{self._spool_dir or tempfile.gettempdir()}': "
@@ -716,7 +718,6 @@ class SitlTwin:
         if self._spooled:
             self._spool.seek(0)
             self._spool.readinto(memoryview(rows[:self._spooled]).cast("B"))
-            self._spool.seek(0, os.SEEK_END)
         if held:
             rows[self._spooled:self._spooled + held] = np.frombuffer(self._rows, dtype=float).reshape(held, self._row)
         return rows
