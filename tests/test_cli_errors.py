@@ -670,3 +670,14 @@ def test_inputs_and_logs_cut_short_or_stamped_in_another_unit_are_refused(monkey
                                             for r in rows[1:]]) + "\n")
     assert "are the time stamps in another unit" in refused(
         monkeypatch, capsys, ["evaluate", nanos, "--vessel", "yellowfish"], [log, same])
+
+
+def test_an_option_of_one_value_given_twice_is_refused_not_taken_at_its_last(monkeypatch, capsys, tmp_path):
+    """`--png a.png --png b.png` wrote b.png alone without a word; a repeatable option still repeats."""
+    out = tmp_path / "run.csv"
+    err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1", "--duration", "2",
+                                        "--out", out], [])
+    assert err == "error: --duration given 2 times: it takes one value\n" and not out.exists()
+    err = refused(monkeypatch, capsys, ["view", out, "--png", tmp_path / "a.png", f"--png={tmp_path / 'b.png'}"], [])
+    assert err == "error: --png given 2 times: it takes one value\n"
+    assert list(tmp_path.iterdir()) == []

@@ -92,7 +92,8 @@ def test_force_replaces_a_table_or_a_band_only_with_its_own_kind(tmp_path):
                 "--duration", "2", "--out", band, "--out", tmp_path / "band.rrd")
     assert made.returncode == 0, made.stderr
     kept = {p: p.read_bytes() for p in (notes, inputs, band, tmp_path / "band.rrd")}
-    for path, said in ((notes, "is not a recording or rerun recording of runs"), (inputs, "is a table of inputs"),
+    own = "is not a recording or rerun recording of runs in twin's own layout (a log in another's, a table, a view)"
+    for path, said in ((notes, own), (inputs, "is a table of inputs"),
                        (band, "is a Monte Carlo band"), (tmp_path / "band.rrd", "is a Monte Carlo band")):
         done = twin("simulate", "--vessel", "blueboat", "--duration", "2", "--out", path, "--force")
         assert done.returncode == 2 and done.stderr.strip() == (

@@ -367,6 +367,42 @@ def test_bad_input_is_one_line_and_exit_2(args, message, tmp_path, monkeypatch, 
     assert not out.exists()
 
 
+def _server(answer: bytes):
+    """A one-connection TCP server on a free local port that sends `answer` to what it is sent."""
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+
+    def serve():
+        conn, _ = listener.accept()
+        with conn:
+            conn.recv(64)
+            conn.sendall(answer)
+        listener.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"127.0.0.1:{listener.getsockname()[1]}"
+
+
+def test_a_ray_address_that_answers_but_not_as_ray_is_refused_at_once():
+    """Ray retries a head that is not one for minutes, printing its own log lines: a server that does not
+    answer HTTP/2's preface with a SETTINGS frame, as every gRPC server does, is refused before."""
+    with pytest.raises(TwinError, match="something answers there, but not Ray"):
+        batches.check_reachable(_server(b"HTTP/1.0 400 Bad Request\r\n\r\n"))
+    batches.check_reachable(_server(bytes([0, 0, 6, 4, 0, 0, 0, 0, 0]) + bytes(6)))  # a gRPC server's SETTINGS
+
+
+def test_ray_auto_without_a_cluster_is_refused_before_any_work(tmp_path, monkeypatch):
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path))
+    with pytest.raises(TwinError, match=f"--ray auto: no Ray cluster runs on this machine .*{tmp_path}/ray/ray_current"):
+        batches.executor_from("auto")
+    (tmp_path / "ray").mkdir()
+    (tmp_path / "ray" / "ray_current_cluster").write_text(_server(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])) + "\n")
+    assert batches.executor_from("auto").address == "auto"  # the head `ray start` recorded answers as Ray
+
+
 def test_dataset_shards_and_fleet_commands(logs, tmp_path):
     done = twin("dataset-shards", "--vessel", "yellowfish", "--out", tmp_path / "ds", "--vessels", "3",
                 "--per-shard", "2", "--segments", "1", "--manoeuvres", "rc", "--vary", "Nr=0.8..1.25",

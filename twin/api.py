@@ -755,8 +755,9 @@ def evaluate(vessel: Vessel | str, recordings, stride_s: float = 2.0, wind: str 
         _evaluate(TwinPredictor(with_offsets, cache, wind), prepared(recs, with_offsets), stride_s=stride_s)
     if not any(_scored(m) for m in as_logged.values()):
         names = ", ".join(Path(r.source).name for r in recs)
-        raise TwinError(f"{names}: nothing to score: no horizon has a velocity that varies (the boat lies still, or "
-                        "every stretch without a dropout is shorter than a free run)")
+        raise TwinError(f"{names}: nothing to score: no horizon has a velocity that varies beyond what a sensor "
+                        "resolves (the boat lies still or holds one speed and turn, or every stretch without a "
+                        "dropout is shorter than a free run)")
     told("by manoeuvre", 2, steps)
     predictor, horizon = TwinPredictor(used, cache, wind), manoeuvre_horizon_s(v, seen)
     split = misfit_by_manoeuvre(predictor, preps, horizon, stride_s, vessel=used, fitted=seen)

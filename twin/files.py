@@ -276,7 +276,8 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
         if writes and kind is None and Path(p).suffix.lower() in (".csv", ".rrd"):
             # a table or a rerun file whose content is none of what this output writes is someone's
             # other data (notes, a manifest, a view): force replaces data with data of its kind only
-            raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)}: {kept}")
+            raise TwinError(f"{option} '{p}' exists and is not a {' or '.join(writes)} in twin's own layout (a log "
+                            f"in another's, a table, a view): {kept}")
         if kind != "recording":
             continue
         for described_by in truths_of(Path(p)):

@@ -74,6 +74,11 @@ BIBLIOGRAPHY = _bib(
            "bluerobotics.com, T200 product page and its performance data", None),
     Source("ArduPilot-SITL", "SITL JSON physics backend interface (libraries/SITL/SIM_JSON.h, SIM_JSON.cpp, "
            "examples/JSON/readme.md)", "ArduPilot development team", "github.com/ArduPilot/ardupilot", None),
+    Source("Ray-init", "ray.init: the address argument (\"auto\": RAY_ADDRESS, else the cluster `ray start` "
+           "recorded in /tmp/ray/ray_current_cluster); ray._private.services.get_ray_address_from_environment",
+           "Ray developers (Anyscale)", "docs.ray.io and github.com/ray-project/ray", None),
+    Source("RFC-7540", "Hypertext Transfer Protocol Version 2 (HTTP/2), RFC 7540", "M. Belshe, R. Peon, "
+           "M. Thomson (ed.)", "IETF", 2015),
     Source("CyberShip-I", "CyberShip I, a 1:70 model of a supply ship (Marine Cybernetics Laboratory, NTNU): total "
            "inertia and linear damping as used by [Bertoni-2024]", None, "Norwegian University of Science and "
            "Technology; no primary publication of these parameter values was located, so they are cited through "

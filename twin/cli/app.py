@@ -635,6 +635,26 @@ def quiet_anywhere(argv: list[str]) -> list[str]:
     return out
 
 
+def refuse_repeated_options(argv: list[str]) -> None:
+    """TwinError for an option of one value given twice (`--png a.png --png b.png`): the command line
+    parser would take the last without a word, where a repeatable one (`--out`) takes each."""
+    command = getattr(typer.main.get_command(app), "commands", {}).get(argv[0]) if argv else None
+    if command is None:
+        return
+    counts: dict[str, int] = {}
+    for arg in argv[1:]:
+        if arg == "--":
+            break
+        name = arg.split("=", 1)[0] if arg.startswith("--") else arg
+        counts[name] = counts.get(name, 0) + 1
+    for param in command.params:
+        if getattr(param, "param_type_name", "") != "option" or param.multiple or param.is_flag:
+            continue
+        given = sum(counts.get(name, 0) for name in param.opts)
+        if given > 1:
+            raise TwinError(f"{param.opts[0]} given {given} times: it takes one value")
+
+
 # ---------------------------------------------------------------- errors
 
 def _is_usage_error(exc: Exception) -> bool:
@@ -705,7 +725,9 @@ def _run() -> None:
                 # of arrays, not of the log: the outlier rules and the notes say what was wrong
                 warnings.simplefilter("ignore", RuntimeWarning)
             # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
-            code = app(args=quiet_anywhere(sys.argv[1:]), prog_name="twin", standalone_mode=False)
+            args = quiet_anywhere(sys.argv[1:])
+            refuse_repeated_options(args)
+            code = app(args=args, prog_name="twin", standalone_mode=False)
     except TwinError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)

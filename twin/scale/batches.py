@@ -22,6 +22,7 @@ import math
 import os
 import socket
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol, Sequence
 
 import numpy as np
@@ -221,10 +222,49 @@ def check_reachable(address: str, timeout_s: float = 5.0) -> None:
     if not sep or not host or not port.isdigit():
         raise TwinError(f"--ray {address}: expected auto, local, ray://HOST:PORT or HOST:PORT")
     try:
-        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as sock:
+            grpc = _answers_http2(sock)
     except OSError as exc:
         raise TwinError(f"--ray {address}: nothing answers there ({exc.strerror or exc}); is the head running "
                         "(`ray start --head`) and its port open?") from None
+    if not grpc:  # Ray would retry it for minutes, its own log lines on the terminal
+        raise TwinError(f"--ray {address}: something answers there, but not Ray (no gRPC: a Ray head's port, "
+                        "6379 by default, or its client's, ray://HOST:10001, speaks it)")
+
+
+# a client's connection preface and an empty SETTINGS frame [RFC-7540 §3.5, §6.5]
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+
+
+def _answers_http2(sock: socket.socket) -> bool:
+    """Whether the server on `sock` answers an HTTP/2 preface with its own, a SETTINGS frame (type 4)
+    first [RFC-7540 §3.5]: Ray's head (GCS) and Ray Client are gRPC servers, which do."""
+    sock.sendall(HTTP2_PREFACE)
+    head = b""
+    while len(head) < 9:
+        part = sock.recv(9 - len(head))
+        if not part:
+            break
+        head += part
+    return len(head) == 9 and head[3] == 4
+
+
+def check_auto_cluster() -> None:
+    """TwinError unless --ray auto has a cluster to join, as Ray finds it [Ray-init]: the address in
+    RAY_ADDRESS, else the one `ray start --head` leaves in ray_current_cluster under Ray's temporary
+    folder (RAY_TMPDIR, TMPDIR, /tmp); checked before any work, which a command would otherwise do
+    in full before Ray says there is none."""
+    address = os.environ.get("RAY_ADDRESS", "").strip()
+    if not address:
+        folder = Path(os.environ.get("RAY_TMPDIR") or os.environ.get("TMPDIR") or "/tmp") / "ray"
+        try:
+            address = (folder / "ray_current_cluster").read_text().strip()
+        except OSError:
+            raise TwinError(f"--ray auto: no Ray cluster runs on this machine (no RAY_ADDRESS, no "
+                            f"{folder / 'ray_current_cluster'}); start one with `ray start --head`, or use "
+                            "--ray local") from None
+    if address not in ("auto", "local"):
+        check_reachable(address)
 
 
 def cluster_cpus(ray) -> int:
@@ -245,5 +285,7 @@ def executor_from(ray: str | None, *, cpus_per_task: int = 1, retries: int = 3,
         raise TwinError("--ray needs auto, local or an address (ray://HOST:10001 or HOST:6379)")
     if ray.strip() not in ("auto", "local"):
         check_reachable(ray.strip())  # before any work is done
+    if ray.strip() == "auto":
+        check_auto_cluster()
     return RayExecutor(ray.strip(), cpus_per_task=cpus_per_task, max_retries=retries)
 
