@@ -217,9 +217,8 @@ class ModelCache:
         cache keeps runs."""
         if self._rollouts is None:
             return states
-        kept = states.copy()  # not a view: it would hold the whole batch's array
-        kept.setflags(write=False)
-        return self._rollouts.get(key, lambda: kept)
+        states.setflags(write=False)
+        return self._rollouts.get(key, lambda: states)
 
     def _model(self, vessel: Vessel, wind: bool) -> mujoco.MjModel:
         cv, base = self._base(vessel, wind)
@@ -479,7 +478,7 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
         raise TwinError("no window to predict: the recording has no segment long enough")
     cache = cache or ModelCache()
     n_max = max(w.n for w in windows)
-    models, states, controls, owners, keys = [], [], [], [], []
+    models, states, controls, owners, keys, picks = [], [], [], [], [], []
     offsets = nu_offsets or [None] * len(vessels)
     for iv, (vessel, vpreps) in enumerate(zip(vessels, per_vessel)):
         offset = (0.0, 0.0, 0.0) if offsets[iv] is None else tuple(offsets[iv])
@@ -504,7 +503,8 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             if layout is None:  # what fixes a state vector besides the window: sizes, joints, unset qpos
                 layout = layouts[id(model)] = (batch._signature(model), _joint_columns(model), model.qpos0.tobytes())
             cmd = cache.inputs(vessel, prep, w, h, command_key)
-            steps = _substeps(prep.settings.grid_dt, h) * n_max
+            sub = _substeps(prep.settings.grid_dt, h)
+            steps = sub * n_max
             padded = np.zeros((steps, model.nu))
             padded[: len(cmd), :2] = cmd
             if wind is not None:
@@ -516,9 +516,9 @@ def predict(vessels: Vessel | list[Vessel], preps: list[Prepared], windows: list
             controls.append(padded)
             owners.append(iv)
             keys.append(model_key)
-    traj, diverged = _rollout(models, states, controls, nthread, cache, keys)
-    return [_collect(vessels[iv], [i for i, o in enumerate(owners) if o == iv], models, traj, diverged, windows,
-                     per_vessel[iv])
+            picks.append((sub, layout[1]))
+    traj, diverged = _rollout(models, states, controls, nthread, cache, keys, picks)
+    return [_collect([i for i, o in enumerate(owners) if o == iv], traj, diverged, windows, per_vessel[iv])
             for iv in range(len(vessels))]
 
 
@@ -551,14 +551,16 @@ def _per_log_models(vessel: Vessel, own: tuple[mujoco.MjModel, tuple], cache: Mo
     return model_of
 
 
-def _rollout(models, states, controls, nthread, cache: ModelCache, model_keys: list[tuple]
-             ) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
-    """Each window's states: those kept from an earlier rollout of the same model, initial state and
-    controls as they were (each run is rolled out on its own: the same numbers), the others in one
+def _rollout(models, states, controls, nthread, cache: ModelCache, model_keys: list[tuple],
+             picks: list[tuple[int, tuple]]) -> tuple[list[np.ndarray], list[tuple[int, float]]]:
+    """Each window's (n_max, 6) positions and velocities (qpos, qvel of the planar joints) at the
+    recording's samples, `picks` (substeps a sample, joint columns) choosing them from the engine's
+    steps: those kept from an earlier rollout of the same model, initial state, controls and
+    sampling as they were (each run is rolled out on its own: the same numbers), the others in one
     rollout per state size (a lagged twin carries actuator states, a plain one does not). A run that
     diverged is not kept; a window asked twice in one batch is rolled out once."""
-    keys = [(mk, s.tobytes(), hashlib.blake2b(c, digest_size=16).digest())
-            for mk, s, c in zip(model_keys, states, controls)]
+    keys = [(mk, pick[0], s.tobytes(), hashlib.blake2b(c, digest_size=16).digest())
+            for mk, pick, s, c in zip(model_keys, picks, states, controls)]
     traj: list[np.ndarray | None] = [cache.rolled_out(k) for k in keys]
     first: dict[tuple, int] = {}
     for i, k in enumerate(keys):
@@ -573,7 +575,10 @@ def _rollout(models, states, controls, nthread, cache: ModelCache, model_keys: l
                                  np.array([controls[i] for i in rows]), nthread=nthread)
         failed.update((rows[j], t) for j, t in bad)
         for j, i in enumerate(rows):
-            traj[i] = out[j] if i in failed else cache.keep_rolled_out(keys[i], out[j])
+            model, (sub, (qpos, dof)) = models[i], picks[i]
+            columns = [1 + q for q in qpos] + [1 + model.nq + d for d in dof]
+            sampled = out[j][sub - 1::sub][:, columns]  # a copy: the batch's array is not held
+            traj[i] = sampled if i in failed else cache.keep_rolled_out(keys[i], sampled)
     diverged = []
     for i, k in enumerate(keys):
         if traj[i] is None:  # the batch's first of its key ran it
@@ -583,16 +588,14 @@ def _rollout(models, states, controls, nthread, cache: ModelCache, model_keys: l
     return traj, diverged
 
 
-def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction:
-    model = models[rows[0]]
-    nq = model.nq
-    qpos, dof = _joint_columns(model)
+def _collect(rows, traj, diverged, windows, preps) -> Prediction:
+    """One vessel's Prediction from its rows' sampled runs (_rollout)."""
     n_max = max(w.n for w in windows)
     eta = np.full((len(windows), n_max + 1, 3), np.nan)
     nu = np.full_like(eta, np.nan)
     bad = {i: t for i, t in diverged}
     lost = [(j, bad[row]) for j, row in enumerate(rows) if row in bad]
-    groups: dict[tuple[int, int], list[int]] = {}  # windows of one length on one grid: sliced all at once
+    groups: dict[int, list[int]] = {}  # windows of one length: sliced all at once
     recs = np.array([w.rec for w in windows])
     starts = np.array([w.start for w in windows])
     lengths = np.array([w.n for w in windows])
@@ -601,12 +604,10 @@ def _collect(vessel, rows, models, traj, diverged, windows, preps) -> Prediction
         prep, k = preps[rec], starts[js]
         eta[js, 0] = np.column_stack([prep.north[k], prep.east[k], prep.psi[k]])
         nu[js, 0] = np.column_stack([prep.u[k], prep.v[k], prep.r[k]])
-        sub = _substeps(prep.settings.grid_dt, model.opt.timestep)
         for n in np.unique(lengths[js]):
-            groups.setdefault((sub, int(n)), []).extend(js[lengths[js] == n].tolist())
-    columns = [1 + q for q in qpos] + [1 + nq + d for d in dof]
-    for (sub, n), js in groups.items():
-        picks = np.stack([traj[rows[j]][sub - 1: n * sub: sub][:, columns] for j in js])  # (G, n, 6)
+            groups.setdefault(int(n), []).extend(js[lengths[js] == n].tolist())
+    for n, js in groups.items():
+        picks = np.stack([traj[rows[j]][:n] for j in js])  # (G, n, 6)
         e, qv = picks[..., :3], picks[..., 3:]
         c, s = np.cos(e[..., 2]), np.sin(e[..., 2])
         eta[js, 1: n + 1] = e
