@@ -135,7 +135,7 @@ def _write(fh, run: Run, vessel_name: str, origin: tuple[float, float] = DEFAULT
     cols = run.columns()
     north, east = antenna_ned(run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], antenna_body_m)
     lat_deg, lon_deg = geodetic_from_ned(north, east, *origin)
-    # a block at a time: Python floats (exact repr in JSON) take 32 bytes each, a whole SITL session's
+    # a block at a time: Python floats (exact repr in JSON) take 32 bytes each, a whole SITL recording's
     # columns as lists several gigabytes
     for first in range(0, len(run.t), MESSAGE_BLOCK):
         block = slice(first, first + MESSAGE_BLOCK)

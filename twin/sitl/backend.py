@@ -257,7 +257,7 @@ class SitlTwin:
         self._active = False
         self._rows = array("d")
         # rows past SPOOL_ROWS go to an unnamed file in spool_dir (the system's temporary folder if
-        # None): a session's memory stays the same however long it runs
+        # None): the memory held stays the same however long ArduPilot flies
         self._spool_dir = spool_dir
         self._spool: IO[bytes] | None = None
         self._spooled = 0
@@ -727,7 +727,7 @@ class SitlTwin:
         after the last frame), times on the record clock that runs on across restarts; in a sea the
         heave, pitch, roll and their rates in meta["six_dof"], as engine.sim.simulate gives them."""
         ended = self.frames_recorded > 0 and self.time_s > 0
-        rows = self._recorded_rows(1 if ended else 0)  # one copy: a session's rows can run to gigabytes
+        rows = self._recorded_rows(1 if ended else 0)  # one copy: hours of frames run to gigabytes
         if ended:
             x, y, psi, vx, vy, r = self._state
             c, s = math.cos(psi), math.sin(psi)
