@@ -89,7 +89,7 @@ def make_windows(preps: list[Prepared], length_s: float | None, stride_s: float 
 # a segment's lag states per lag tried: a few tens of kB each, as many as a diagnosis's candidate
 # lags over one outing's segments need
 SEGMENT_LAGS_KEPT = 512
-ROLLOUTS_KEPT_BYTES = 128 * 2 ** 20  # of windows' states: some thousands of windows, the most a search repeats within
+ROLLOUTS_KEPT_BYTES = 128 * 2 ** 20  # of windows' runs at their samples: tens of thousands of windows
 KEPT = 20000  # windows' inputs and initial states: a diagnosis's outing of windows times its lags and offsets
 
 
@@ -207,18 +207,18 @@ class ModelCache:
         return m, key
 
     def rolled_out(self, key: tuple) -> np.ndarray | None:
-        """A window's states kept by `key` (the model's, the initial state's and the controls'), or
-        None: a diagnosis's fits roll out the same twin over the same window again and again (every
+        """A window's run at its samples (_rollout) kept by `key` (the model's, the sampling's, the
+        initial state's and the controls'), or None: a diagnosis's fits roll out the same twin over the same window again and again (every
         candidate starts from the prior; a search's Jacobian repeats a point), 28 % of its steps."""
         return None if self._rollouts is None else self._rollouts.peek(key)
 
-    def keep_rolled_out(self, key: tuple, states: np.ndarray) -> np.ndarray:
-        """Keep a window's states (read-only: every later caller shares them) under `key`, where this
-        cache keeps runs."""
+    def keep_rolled_out(self, key: tuple, run: np.ndarray) -> np.ndarray:
+        """Keep a window's run at its samples (read-only: every later caller shares it) under `key`,
+        where this cache keeps runs."""
         if self._rollouts is None:
-            return states
-        states.setflags(write=False)
-        return self._rollouts.get(key, lambda: states)
+            return run
+        run.setflags(write=False)
+        return self._rollouts.get(key, lambda: run)
 
     def _model(self, vessel: Vessel, wind: bool) -> mujoco.MjModel:
         cv, base = self._base(vessel, wind)
