@@ -681,3 +681,15 @@ def test_an_option_of_one_value_given_twice_is_refused_not_taken_at_its_last(mon
     err = refused(monkeypatch, capsys, ["view", out, "--png", tmp_path / "a.png", f"--png={tmp_path / 'b.png'}"], [])
     assert err == "error: --png given 2 times: it takes one value\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_file_named_with_a_trailing_slash_is_refused_not_written_without_it(monkeypatch, capsys, tmp_path):
+    """`--out run.csv/` wrote a file run.csv (the path parser drops the slash); a folder of such a name
+    that exists is still taken as the folder it is."""
+    err = refused(monkeypatch, capsys, ["simulate", "--vessel", "yellowfish", "--duration", "1",
+                                        "--out", f"{tmp_path / 'run.csv'}/"], [])
+    assert err == f"error: '{tmp_path / 'run.csv'}/' ends with a slash, as a folder does: give the file's name without it\n"
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "logs.csv").mkdir()
+    err = refused(monkeypatch, capsys, ["info", f"{tmp_path / 'logs.csv'}/"], [])
+    assert "ends with a slash" not in err

@@ -655,6 +655,21 @@ def refuse_repeated_options(argv: list[str]) -> None:
             raise TwinError(f"{param.opts[0]} given {given} times: it takes one value")
 
 
+FILE_SUFFIXES = (".csv", ".mcap", ".rrd", ".tlog", ".bin", ".json", ".png", ".md", ".html", ".txt", ".waypoints")
+
+
+def refuse_files_named_as_folders(argv: list[str]) -> None:
+    """TwinError for a file's name ending in a slash (`--out run.csv/`): the path parser drops the
+    slash and the file would be written where a folder was meant."""
+    for arg in argv:
+        if arg == "--":
+            break
+        value = arg.split("=", 1)[1] if arg.startswith("--") and "=" in arg else arg
+        if (value.endswith(("/", os.sep)) and Path(value.rstrip("/" + os.sep)).suffix.lower() in FILE_SUFFIXES
+                and not Path(value).is_dir()):  # a folder of that name is one
+            raise TwinError(f"'{value}' ends with a slash, as a folder does: give the file's name without it")
+
+
 # ---------------------------------------------------------------- errors
 
 def _is_usage_error(exc: Exception) -> bool:
@@ -727,6 +742,7 @@ def _run() -> None:
             # without standalone mode typer returns the code of typer.Exit(code) instead of raising it
             args = quiet_anywhere(sys.argv[1:])
             refuse_repeated_options(args)
+            refuse_files_named_as_folders(args)
             code = app(args=args, prog_name="twin", standalone_mode=False)
     except TwinError as exc:
         typer.echo(f"error: {exc}", err=True)
