@@ -1,6 +1,7 @@
 """twin/scale on this machine: seeded batches, the Monte Carlo band and its coverage, sharded
 datasets, fleet diagnoses, and their commands (the Ray executor: test_scale_ray.py)."""
 import json
+import logging
 import re
 import sys
 from dataclasses import replace
@@ -391,6 +392,17 @@ def test_a_ray_address_that_answers_but_not_as_ray_is_refused_at_once():
     with pytest.raises(TwinError, match="something answers there, but not Ray"):
         batches.check_reachable(_server(b"HTTP/1.0 400 Bad Request\r\n\r\n"))
     batches.check_reachable(_server(bytes([0, 0, 6, 4, 0, 0, 0, 0, 0]) + bytes(6)))  # a gRPC server's SETTINGS
+
+
+def test_a_private_ray_says_nothing_of_its_default_authentication_but_passes_other_warnings(caplog):
+    def init(**_):
+        logging.getLogger(batches.RAY_AUTH_LOGGER).warning("Token authentication is enabled for this Ray cluster.")
+        logging.getLogger(batches.RAY_AUTH_LOGGER).warning("Token authentication is disabled for this Ray cluster.")
+
+    assert batches.connect(SimpleNamespace(is_initialized=lambda: False, init=init), "local")
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "is disabled" in said and "is enabled" not in said
+    assert not logging.getLogger(batches.RAY_AUTH_LOGGER).filters
 
 
 def test_ray_auto_without_a_cluster_is_refused_before_any_work(tmp_path, monkeypatch):

@@ -193,6 +193,17 @@ def ray_module():
     return ray
 
 
+RAY_AUTH_LOGGER = "ray._private.authentication.authentication_token_setup"
+
+
+class _DefaultAuthNotice(logging.Filter):
+    """Drops Ray's notice that a private instance runs with token authentication: its default,
+    which it would print on every `--ray local` command; its other warnings pass."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Token authentication is enabled for this Ray cluster")
+
+
 def connect(ray, address: str, init_options: dict | None = None) -> bool:
     """Connect this process to Ray at `address` unless it already is; True if it connected (and
     so should disconnect, or stop the private instance of "local", when done)."""
@@ -204,7 +215,13 @@ def connect(ray, address: str, init_options: dict | None = None) -> bool:
         check_reachable(address)
     try:
         if address == "local":
-            ray.init(num_cpus=options.pop("num_cpus", os.cpu_count() or 1), **options)
+            notice = logging.getLogger(RAY_AUTH_LOGGER)
+            quiet = _DefaultAuthNotice()
+            notice.addFilter(quiet)
+            try:
+                ray.init(num_cpus=options.pop("num_cpus", os.cpu_count() or 1), **options)
+            finally:
+                notice.removeFilter(quiet)
         else:
             options.pop("include_dashboard")  # a setting of the cluster's head, not of a driver
             ray.init(address=address, **options)
