@@ -3,7 +3,7 @@ import json
 
 import numpy as np
 
-from twin.viz.pages import given_cell, given_record, staged
+from twin.viz.pages import given_cell, given_record, staged, write_index
 
 
 def test_a_stage_takes_its_cases_rows_in_case_order_beside_the_stages_already_recorded(tmp_path):
@@ -45,3 +45,18 @@ def test_a_truth_judged_as_given_reads_as_the_diagnosis_judged_it():
     assert not weak["earns_its_place"] and given_cell(weak) == "not provable (z 2.15, blocks 6 for / 0 against)"
     assert given_cell({**weak, "affected_windows": 0}) == "changes no window"
     assert given_cell({"failed": True}) == "judgement failed" and given_cell(None) == "-"
+
+
+def test_the_results_index_lists_a_series_by_its_latest_set_and_every_page_once(tmp_path):
+    for stem, title in [("concealed_effects", "Concealed"), ("concealed_effects_second", "Concealed (second)"),
+                        ("concealed_effects_tenth", "Concealed (tenth)"), ("bench_engine", "Engine"),
+                        ("a_study_of_its_own", "Own")]:
+        (tmp_path / f"{stem}.md").write_text(f"# {title}\n\ntext\n")
+    text = write_index(tmp_path).read_text()
+    line = next(ln for ln in text.splitlines() if "Concealed" in ln)
+    # the tenth after the second (ordinal, not name order), the latest first
+    assert line.startswith("- [Concealed (tenth)](concealed_effects_tenth.md)")
+    assert line.index("[first](concealed_effects.md)") < line.index("[second](concealed_effects_second.md)")
+    assert text.index("## Benchmarks") < text.index("[Engine](bench_engine.md)") < text.index("## Other studies")
+    assert text.index("## Other studies") < text.index("[Own](a_study_of_its_own.md)")
+    assert sum(text.count(f"({p.name})") for p in tmp_path.glob("*.md") if p.name != "index.md") == 5

@@ -115,22 +115,72 @@ def given_cell(given: dict | None) -> str:
     return f"{verdict} (z {given['z']:.2f}, blocks {given['blocks_for']} for / {given['blocks_against']} against)"
 
 
+# The index's sections, each page in the first whose stem begins with one of its prefixes; a page
+# of none is listed under "Other studies", so a study script's new page needs no edit here
+SECTIONS = (
+    ("Prediction beyond the fitted runs", ("extrapolation", "esso_beyond_rps", "blueboat_sway",
+                                           "blueboat_identification", "blueboat_heldout_band")),
+    ("Diagnosis: effects concealed in real logs", ("concealed_effects",)),
+    ("Diagnosis: truths from simulators the library does not share", ("blind_truths", "independent_truths",
+                                                                      "gnss_latency_world")),
+    ("Diagnosis: other proofs and studies", ("diagnosis_proof", "separating_trials", "record_more", "sea_known_input",
+                                             "blueboat_diagnosis", "esso_wind", "esso_yaw", "esso_astern",
+                                             "gyro_lag", "antenna_under_way", "compass_", "calibration_")),
+    ("Control tuned on the twin", ("dp", "esso_dp", "iso_", "esso_iso")),
+    ("Identification", ("synthetic_identification", "esso_identification", "rest_response", "smoother_validation")),
+    ("ArduPilot", ("ardupilot_",)),
+    ("Verification of the physics", ("validation_", "crosscheck_", "sea_verification")),
+    ("Benchmarks", ("bench_",)),
+)
+
+
 def write_index(folder: Path | str = "docs/results") -> Path:
-    """The folder's index.md: every page in it (but the index) by its title, in name order (a numbered
-    set's ordinal by its number: the fifteenth after the fourteenth), so a page a study script writes is
-    listed without an edit here."""
+    """The folder's index.md: every page in it (but the index) by its title, in sections (SECTIONS);
+    a numbered series of proof sets (concealed_effects, concealed_effects_second, ...) as its latest
+    set, the earlier ones on its line, so a page a study script writes is listed without an edit here."""
     folder = Path(folder)
-    rows = []
+    series: dict[str, list[Path]] = {}
     for page in sorted(folder.glob("*.md"), key=_by_ordinal):
-        if page.name == "index.md":
-            continue
-        title = next((line[2:].strip() for line in page.read_text().splitlines() if line.startswith("# ")), page.stem)
-        rows.append(f"- [{title}]({page.name})")
+        if page.name != "index.md":
+            series.setdefault(_series(page), []).append(page)
+    sections: dict[str, list[str]] = {}
+    for base, pages in series.items():
+        latest = pages[-1]
+        line = f"- [{_title(latest)}]({latest.name})"
+        if len(pages) > 1:
+            earlier = ", ".join(f"[{_set_name(p)}]({p.name})" for p in pages[:-1])
+            line += f"; the earlier sets, each fixed before it was run and run once: {earlier}"
+        name, rank = _section(base)
+        sections.setdefault(name, []).append((rank, line))
+    body = []
+    for name in [name for name, _ in SECTIONS] + ["Other studies"]:
+        if name in sections:
+            body += ["", f"## {name}", "", *(line for _, line in sorted(sections[name], key=lambda e: e[0]))]
     text = "\n".join(["# Results", "", "One page per study, each written by its script with its data, command, date and "
-                      "commit; nothing here is edited by hand.", "", *rows]) + "\n"
+                      "commit; nothing here is edited by hand.", *body]) + "\n"
     index = folder / "index.md"
     write_text_atomic(index, text)
     return index
+
+
+def _title(page: Path) -> str:
+    return next((line[2:].strip() for line in page.read_text().splitlines() if line.startswith("# ")), page.stem)
+
+
+def _series(page: Path) -> str:
+    """A page's series: its stem without its ordinal word (concealed_effects_fourteenth: concealed_effects)."""
+    return "_".join(w for w in page.stem.split("_") if w not in _ORDINALS)
+
+
+def _set_name(page: Path) -> str:
+    """A page's set within its series: its ordinal word, "first" where it has none."""
+    return next((w for w in page.stem.split("_") if w in _ORDINALS), "first")
+
+
+def _section(stem: str) -> tuple[str, int]:
+    """The section a series goes in, and its place there (its prefix's, in SECTIONS' order)."""
+    return next(((name, prefixes.index(next(p for p in prefixes if stem.startswith(p))))
+                 for name, prefixes in SECTIONS if stem.startswith(prefixes)), ("Other studies", 0))
 
 
 _ORDINALS = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth",
