@@ -82,6 +82,35 @@ def test_every_export_is_covered_by_a_call():
     assert functions <= called, functions - called
 
 
+_HELD = np.full((2, 2), 1600.0)
+
+
+@pytest.mark.parametrize("series, says", [
+    (twin.InputSeries(np.array([]), np.zeros((0, 2)), "pwm"), "at least one time"),
+    (twin.InputSeries(np.arange(3.0), _HELD, "pwm"), r"shape \(3, 2\), got \(2, 2\)"),
+    (twin.InputSeries(np.array([0.0, 1.0]), np.array([1500.0, 1600.0]), "pwm"), r"got \(2,\)"),
+    (twin.InputSeries(np.array([0.0, 1.0]), _HELD, "volts"), "kind is one of"),
+    (twin.InputSeries(np.array([0.0, 1.0]), np.array([[1500.0, np.nan], [1600.0, 1600.0]]), "pwm"), "values: NaN"),
+    (twin.InputSeries(np.array([0.0, np.inf]), _HELD, "pwm"), "t: NaN"),
+    (twin.InputSeries(np.array([1.0, 0.0]), _HELD, "pwm"), "backwards"),
+    (twin.InputSeries(np.array([0.0, 1.0]), _HELD, "pwm", supply_v=np.array([16.0])), "one voltage per time"),
+    (twin.InputSeries(np.array([0.0, 1.0]), np.full((2, 2), "a"), "pwm"), "arrays of numbers"),
+    (twin.InputSeries(np.array([0.0, 1.0]), _HELD, "propeller_rudder"), "is driven by"),
+])
+def test_an_input_series_built_by_hand_is_checked_before_it_drives_a_run(series, says):
+    for call in (lambda: twin.simulate("blueboat", series, 5.0),
+                 lambda: twin.simulate_run("blueboat", inputs=series, duration_s=5.0)):
+        with pytest.raises(twin.TwinError, match=says):
+            call()
+
+
+def test_an_input_series_of_lists_runs_as_its_arrays():
+    given = twin.simulate("blueboat", twin.InputSeries([0.0, 1.0], [[1500, 1500], [1600, 1600]], "pwm"), 3.0)
+    arrays = twin.simulate("blueboat", twin.InputSeries(np.array([0.0, 1.0]), np.array([[1500.0] * 2, [1600.0] * 2]),
+                                                        "pwm"), 3.0)
+    assert np.array_equal(given.nu, arrays.nu) and given.nu[-1, 0] > 0.3
+
+
 @pytest.mark.parametrize("call, says", [
     (lambda: twin.evaluate("blueboat", []), "no recordings"),
     (lambda: twin.identify([], "blueboat"), "no recordings"),
@@ -92,9 +121,12 @@ def test_every_export_is_covered_by_a_call():
     (lambda: twin.simulate("blueboat", duration_s=-1.0), "positive"),
     (lambda: twin.evaluate(42, []), "expected a vessel"),
     (lambda: twin.effective_parameters("titanic"), "unknown vessel 'titanic'"),
+    (lambda: twin.load_vessel(""), "got an empty name"),
     (lambda: twin.crosscheck("titanic"), "unknown vessel 'titanic'"),
     (lambda: twin.crosscheck("blueboat", duration_s=0.0), "positive"),
     (lambda: twin.identify([], "blueboat", params="thrust_gain"), "no recordings"),
+    (lambda: twin.diagnose_recordings(["a.csv"], "blueboat", effects="thrust_gain,current"),
+     r"as a list, \['thrust_gain', 'current'\]"),
 ])
 def test_bad_input_is_a_twin_error_saying_so(call, says):
     with pytest.raises(twin.TwinError, match=says):

@@ -316,13 +316,16 @@ def test_a_concealed_current_is_named_with_an_interval_that_holds_it(prior):
     assert lo <= 0.2 <= hi and abs(e["parameters"]["dir_deg"] - 120) < 5
     assert d.fit_after["v"]["r2"] > d.fit_before["v"]["r2"] + 0.3
     assert d.amended.environment.current_speed_m_s == pytest.approx(e["parameters"]["speed_m_s"], rel=1e-6)
+    # the amended twin says what amended it, and that it is not the prior's file
+    assert "diagnosis" not in d.prior.sources and e["text"] in d.amended.sources["diagnosis"]
+    assert "amended by a diagnosis (not saved)" in repr(d.amended)
 
 
 def test_diagnose_names_nothing_on_the_twins_own_realistic_run(prior):
     """The whole library on the twin's own run with realistic sensors: nothing named, the answer said in
     notes."""
     null = diagnose([generate(prior, n_segments=6, seed=6, noise=PROFILES["realistic"]).recording], prior)
-    assert null.effects == [] and null.notes
+    assert null.effects == [] and null.notes and "diagnosis" not in null.amended.sources
     json.dumps(null.to_dict(), allow_nan=True)
 
 

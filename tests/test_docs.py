@@ -99,6 +99,11 @@ def test_the_site_builds_strictly(tmp_path):
                           env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
     assert done.returncode == 0, done.stderr[-3000:]
     assert "twin identify" in (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
+    # a Returns paragraph that wraps is one return value, not a row per line
+    api = (tmp_path / "site" / "reference" / "api" / "index.html").read_text()
+    simulate = api[api.index('id="twin.api.simulate"'):api.index('id="twin.api.simulate_run"')]
+    returns = simulate[simulate.index("Returns"):simulate.index("Raises")]
+    assert returns.count("<tr") == 2, returns  # its heading and one value
 
 
 def test_the_readme_examples_run(tmp_path):

@@ -287,7 +287,9 @@ def test_an_identified_twin_says_so_and_its_coefficients_are_a_table(tmp_path):
     sim = twin.simulate_run("blueboat", scenario="random", duration_s=60, seed=3)
     sim.write(tmp_path / "run.csv")
     found = twin.identify([tmp_path / "run.csv"], "blueboat", params="thrust_gain", max_evaluations=1, window_s=5.0)
-    assert "identified (prior from blueboat.json)" in repr(found.vessel)
+    assert "blueboat, identified (not saved)" in repr(found.vessel)
+    twin.save_vessel(found.vessel, tmp_path / "mine.json")
+    assert "blueboat, identified from mine.json" in repr(twin.load_vessel(tmp_path / "mine.json"))
     rows = found.table()
     assert [r["coefficient"] for r in rows] == ["thrust_gain"] and rows[0]["prior"] == pytest.approx(1.605, abs=1e-3)
 

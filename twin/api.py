@@ -236,8 +236,12 @@ def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] 
     return _crosscheck(v, duration_s, only, six_dof=six_dof)
 
 
-def _names(given, what: str, which: str) -> tuple[str, ...]:
-    """One name or a non-empty list of names (a name alone is a name, not its letters)."""
+def _names(given, what: str, which: str, texts: bool = False) -> tuple[str, ...]:
+    """One name or a non-empty list of names (a name alone is a name, not its letters); `texts`: each
+    may hold commas (an effect with its values), else a comma says several names in one text."""
+    if isinstance(given, str) and "," in given and not texts:
+        raise TwinError(f"{what}: give several names as a list, {[n.strip() for n in given.split(',')]!r:.80}, "
+                        f"not one text {given!r:.60}")
     names = (given,) if isinstance(given, str) else given
     if not isinstance(names, (list, tuple)) or not names or not all(isinstance(n, str) for n in names):
         raise TwinError(f"{what}: give one or more names ({which}), got {given!r:.60}")
@@ -421,8 +425,9 @@ def identify(recordings, vessel: Vessel | str, sea=None, **options):
             these coefficients instead; `--params`), `window_s` (the free-run window, s;
             `--window`), `start` ("free" or "measured"), `calibrated` (False: `--no-calibration`),
             `greybox` (also the [Morel-2024] grey-box tables; `--greybox`), `wind` ("measured":
-            `--wind-measured`), `judged_on` ("beyond" or "each"), `max_evaluations` and
-            `progress`.
+            `--wind-measured`), `prior_weights` (the beliefs' weights in windows to choose among, a
+            list of positive numbers; `--beliefs`), `judged_on` ("beyond" or "each"),
+            `max_evaluations` and `progress`.
 
     Returns:
         (Identification): `.vessel` is the identified twin (what `--out` writes), with the fit, the
@@ -1065,7 +1070,7 @@ def judge(recordings, vessel: Vessel | str, effects, **options) -> Judgement:
             short to fit on one part and judge on another; or `vessel` is neither a twin.Vessel nor
             the name of a shipped vessel or a readable vessel file.
     """
-    effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them"))
+    effects = list(_names(effects, "effects", "texts such as 'current=0.1,90'; `twin effects` lists them", texts=True))
     known_options(given_evidence, options, "judge")
     if "window_s" in options and not _finite(options["window_s"]):
         raise TwinError(f"window_s must be a positive finite number of seconds, got {options['window_s']!r}")

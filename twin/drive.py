@@ -101,6 +101,31 @@ class InputSeries:
         return np.full((len(np.atleast_1d(times)), 2), np.nan)
 
 
+def checked_series(series: InputSeries) -> InputSeries:
+    """A series a user built (Python API), its arrays as float arrays, else TwinError in one sentence:
+    a kind of KINDS, times finite and increasing, one row of two finite values per time (and one
+    finite voltage per time, where given); the reader of an inputs CSV checks the same of a file."""
+    if series.kind not in KINDS:
+        raise TwinError(f"InputSeries kind is one of {', '.join(KINDS)}, got {series.kind!r:.40}")
+    try:
+        t, values = np.asarray(series.t, float), np.asarray(series.values, float)
+        supply = None if series.supply_v is None else np.asarray(series.supply_v, float)
+    except (TypeError, ValueError):
+        raise TwinError("InputSeries t, values and supply_v are arrays of numbers") from None
+    if t.ndim != 1 or len(t) == 0:
+        raise TwinError(f"InputSeries t is a 1-D array of at least one time (s), got shape {t.shape}")
+    if values.shape != (len(t), 2):
+        raise TwinError(f"InputSeries values are one row of two per time, shape ({len(t)}, 2), got {values.shape}")
+    if supply is not None and supply.shape != t.shape:
+        raise TwinError(f"InputSeries supply_v is one voltage per time, shape ({len(t)},), got {supply.shape}")
+    for name, a in (("t", t), ("values", values), ("supply_v", supply)):
+        if a is not None and not np.all(np.isfinite(a)):
+            raise TwinError(f"InputSeries {name}: NaN or infinite values")
+    if np.any(np.diff(t) <= 0):
+        raise TwinError(f"InputSeries t goes backwards or repeats at index {int(np.argmax(np.diff(t) <= 0)) + 1}")
+    return InputSeries(t, values, series.kind, supply)
+
+
 @dataclass(frozen=True)
 class StepPieces:
     """An input series over the engine's steps: on step k the command `first[k]` (N, or a propeller

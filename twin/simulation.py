@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .analytic import straight_speed
-from .drive import InputSeries, get as get_scenario, read_inputs_csv, to_thruster_inputs
+from .drive import InputSeries, checked_series, get as get_scenario, read_inputs_csv, to_thruster_inputs
 from .engine.limits import Limited, beyond_bounds
 from .engine.mjcf import CompiledVessel, compile_vessel
 from .engine.sim import simulate as _simulate
@@ -39,7 +39,8 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
         vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
         drive (str | InputSeries | Callable): a scenario's name ("step", "turn", "zigzag", "spin" or
             "random", as `twin simulate --scenario`), an InputSeries, or a controller: a callable (t s,
-            η, ν) → (surge, yaw) commands in [−1, 1].
+            η, ν) → (surge, yaw) commands in [−1, 1] (a command beyond is held at ±1, the thrusters'
+            saturation, as an autopilot's mixer holds it).
         duration_s: simulated time, s (default 120).
         **kwargs (Any): the keywords of twin.engine.sim.simulate, documented there: among them `nu0`
             and `eta0`, the start (3 numbers each: u, v in m/s and r in rad/s; north, east in m
@@ -56,7 +57,8 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
     Raises:
         TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a
             readable vessel file; `drive` is none of the three, names an unknown scenario or one
-            the vessel's thrusters cannot sail ("spin" for a propeller-and-rudder ship); `nu0` or
+            the vessel's thrusters cannot sail ("spin" for a propeller-and-rudder ship), or is an
+            InputSeries the vessel cannot take or one malformed (twin.drive.checked_series); `nu0` or
             `eta0` is not 3 finite numbers; the duration or sample step is not a positive number
             of seconds, the step is longer than the run or not a multiple of the physics time
             step, or the run would hold more than half of the machine's memory; the seed is not a
@@ -88,6 +90,9 @@ def simulate(vessel: Vessel | str, drive="zigzag", duration_s: float = 120.0, **
         raise TwinError(f"terms is a twin.physics.hydrodynamics.Terms (which force terms act) or None, "
                         f"got {kwargs['terms']!r:.60}")
     _check_run(duration_s, kwargs.get("sample_dt_s", 0.1))
+    if isinstance(drive, InputSeries):
+        drive = checked_series(drive)
+        _check_inputs(vessel, drive.kind)
     compiled = compile_vessel(vessel)
     if isinstance(drive, str):
         seed = _seed(kwargs.pop("seed", 0))
@@ -337,8 +342,8 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
     vessel = vessel.with_environment(env)
     if inputs is not None and not isinstance(inputs, (str, Path, InputSeries)):
         raise TwinError(f"inputs is an inputs CSV's path or a twin.InputSeries, got {type(inputs).__name__}")
-    if inputs is not None and not isinstance(inputs, InputSeries):
-        inputs = read_inputs_csv(inputs)
+    if inputs is not None:
+        inputs = checked_series(inputs) if isinstance(inputs, InputSeries) else read_inputs_csv(inputs)
     drive = inputs if inputs is not None else get_scenario(scenario, seed, vessel.thrusters.kind, vessel.name)
     if isinstance(drive, InputSeries):
         _check_inputs(vessel, drive.kind)

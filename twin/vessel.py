@@ -73,10 +73,11 @@ class Vessel:
     path: Path | None = None
 
     def __repr__(self) -> str:
-        where = f" from {self.path.name}" if self.path else ""
-        if "identification" in self.sources:  # a fit's twin, not the file its prior came from
-            where = " identified" + (f" (prior from {self.path.name})" if self.path else "")
-        return f"Vessel({self.name}{where}, case {self.case}, MJCF {self.mjcf.name})"
+        made = [w for k, w in (("identification", "identified"), ("diagnosis", "amended by a diagnosis"))
+                if k in self.sources]
+        # a twin identify or a diagnosis made in memory has no file of its own until it is saved
+        where = f" from {self.path.name}" if self.path else " (not saved)" if made else ""
+        return f"Vessel({self.name}{', ' + ', '.join(made) if made else ''}{where}, case {self.case}, MJCF {self.mjcf.name})"
 
     def with_case(self, case: str) -> "Vessel":
         """The same vessel loaded as its mass case `case` ("nominal" or one of `cases`)."""
@@ -689,6 +690,9 @@ def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
         raise TwinError(f"a vessel is a shipped vessel's name ({', '.join(available())}) or a vessel file's path, "
                         f"got {name_or_path!r:.60}")
     text = str(name_or_path)
+    if not text.strip():  # Path("") is the folder one is in
+        raise TwinError(f"a vessel is a shipped vessel's name ({', '.join(available())}) or a vessel file's path, "
+                        "got an empty name")
     path = Path(text)
     if path.is_dir():
         raise TwinError(f"'{text}' is a folder: give a vessel file (.json) or a shipped vessel's name")

@@ -19,7 +19,7 @@ from .app import (REPORT_HELP, all_or_nothing_outputs, draws_fit, given_on_comma
                   channels_from, check_distinct, check_outputs, check_truth_beside_logs, memory_bytes, check_recordings_distinct, check_wind_and_inputs, console, counted,
                   floats, note, positive, progress_bar, recordings_in, say, say_unlogged_supply, seed_from, sensor_noise,
                   vessel_from, warn_recordings, window_s, write_json)
-from .run import KNOWN_SEA_HELP, known_sea, sea_from
+from .run import KNOWN_SEA_HELP, SEA_TEXT, known_sea, sea_from
 
 if TYPE_CHECKING:  # for annotations only: twin.fit.calibrate is 0.2 s more at every `twin --help`
     from ..fit.calibrate import LogCalibration
@@ -73,8 +73,7 @@ def dataset_command(
     noise: str = typer.Option("realistic", help="sensor noise: realistic | rtk | noisy | none | GNSS_M,HEADING_DEG"),
     seed: int = typer.Option(0, help="random seed (manoeuvres, start states, noise)"),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
-    sea: Optional[str] = typer.Option(None, help="sea state HS,TP,DIR[,SPREAD] (or regular,H,T,DIR): every segment "
-                                                 "runs the 6-DOF hull in it"),
+    sea: Optional[str] = typer.Option(None, help=f"sea state {SEA_TEXT}: every segment runs the 6-DOF hull in it"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Synthetic identification dataset from the twin, with its truth in a separate file."""

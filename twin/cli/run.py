@@ -24,12 +24,13 @@ from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MO
                   console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
-SEA_HELP = ("sea state HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come "
-            "from (deg), cosine-power spreading n (none: long-crested); or regular,H,T,DIR (one wave); runs the "
-            "6-DOF hull")
+SEA_TEXT = ("HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come from "
+            "(deg), cosine-power spreading n (none: long-crested); or regular,H,T,DIR (one wave: height m, period s, "
+            "direction deg)")
+SEA_HELP = f"sea state {SEA_TEXT}; runs the 6-DOF hull"
 
 
-KNOWN_SEA_HELP = ("the sea the recordings were made in, HS,TP,DIR[,SPREAD] (JONSWAP) or regular,H,T,DIR: its steady "
+KNOWN_SEA_HELP = (f"the sea the recordings were made in, {SEA_TEXT}: its steady "
                   "drift at the hull (the waves' Stokes drift) is a known flow of every free run, so that a current "
                   "is only what lies beyond it")
 

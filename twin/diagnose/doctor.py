@@ -31,6 +31,7 @@ how much of it, and the amended twin, judged on data it did not fit.
 """
 from __future__ import annotations
 
+import datetime as _dt
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -225,6 +226,12 @@ def diagnose(recordings: list[Recording], prior: Vessel, *, window_s: float = WI
             + (f"; not offered, as they move those coefficients themselves: {', '.join(search.overlapping)}"
                if search.overlapping else ""))
     _inert_constant_wind(diagnosis, {log_name(r.source) for r in recordings})
+    if diagnosis.effects:  # the amended twin says what amended it, as an identified one says how it was fitted
+        named = "; ".join(e["text"] for e in diagnosis.effects)
+        files = ", ".join(log_name(r.source) for r in recordings)
+        diagnosis.amended = replace(diagnosis.amended, path=None, sources={
+            **diagnosis.amended.sources,
+            "diagnosis": f"amended by `twin diagnose` on {_dt.date.today().isoformat()} from {files}: {named}"})
     return diagnosis
 
 

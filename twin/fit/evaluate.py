@@ -265,6 +265,16 @@ class StateBand:
     gain: dict[str, float | None]
     correlation: dict[str, float | None] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        def each(values: dict, units: bool = False) -> str:
+            return ", ".join(f"{d} " + ("-" if values.get(d) is None else
+                                        f"{values[d]:.3g}" + (f" {RMS_UNITS[d]}" if units else "")) for d in DOFS)
+        return (f"StateBand({self.label}: {100 * self.samples:.0f} % of the samples; RMS error {each(self.rms_error, True)}; "
+                f"share of 1 − R² {each(self.share)}; gain {each(self.gain)})")
+
+
+RMS_UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s"}  # StateBand.rms_error's
+
 
 # the measured states `misfit_by_state` bands the samples by (each on the recording's grid)
 STATES = ("speed_m_s", "yaw_rate_rad_s", "drift_rad", "input_0", "input_1", "input_0_rest_s")

@@ -685,7 +685,7 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
     expected = choice.cv.summary()
     wind_text = ", each recording's measured wind a known input" if wind == "measured" else ""
     if not choice.free_groups:
-        return replace(v, sources={**v.sources, "identification": (
+        return replace(v, path=None, sources={**v.sources, "identification": (
             f"kept by `twin identify` on {when} from {files}{wind_text}: {fit.meta['kept_prior']}. {expected}")})
     text = (f"identified by `twin identify` on {when} from {files}{wind_text}: maximum a posteriori fit by free-run "
             f"windows of {fit.meta.get('window_s')} s, beliefs worth {choice.prior_weight:g} windows, free groups "
@@ -697,7 +697,7 @@ def _with_sources(fit: simfit.FitResult, choice: Choice, sources: list[str], win
             + (f"; on or within their σ of a bound of their physical range: {walled}"
                if walled else "")
             + (f"; kept at the prior with its uncertainty: {kept}" if kept else "") + f". {expected}")
-    return replace(v, sources={**v.sources, "identification": text})
+    return replace(v, path=None, sources={**v.sources, "identification": text})
 
 
 def format_estimates(result: simfit.FitResult) -> str:
@@ -751,7 +751,9 @@ def format_choices(ident: Identification) -> str:
         by_groups = ident.chosen.free_groups != ("chosen",)  # --params: the coefficients given, no groups
         lines.append("* the twin written: the belief scale of lowest left-out cost" +
                      ("; every group free to move, and a coefficient the recordings do not pin kept at its prior (the rows "
-                      "without a * are a report, not a choice)" if by_groups else "") +
+                      "without a * are a report, not a choice: a group is not dropped where the left-out runs score "
+                      "lower without it, as such scores differ within the scatter of the judging and did not carry "
+                      "beyond the fitted runs; docs/method/identification.md)" if by_groups else "") +
                      (f"; the prior is written, as it predicts the left-out runs better by {100 * DROP_GAIN:g} % or "
                       "more" if by_groups and not ident.chosen.free_groups else ""))
     costs = [cv.cost for _, cv in rows if np.isfinite(cv.cost)]
