@@ -97,6 +97,12 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     (lambda d: d.__setitem__("cg_offset_m", [100.0, 0.0]), r"cg_offset_m \[100.0, 0.0\]"),
     (lambda d: d["wind_load"].__setitem__("frontal_area_m2", -0.3), r"wind_load.frontal_area_m2 must be ≥ 0"),
     (lambda d: d.pop("name"), r"a vessel file needs 'name'$"),
+    (lambda d: d["thrusters"].update(deadzone_fwd=-0.09, deadzone_rev=0.08),
+     r"deadzone_fwd, deadzone_rev \(-0.09, 0.08\) must be a forward edge ≥ 0 and an astern edge ≤ 0"),
+    (lambda d: d["thrusters"].__setitem__("deadzone_left", [0.05, 0.02]), r"thrusters.deadzone_left \(0.05, 0.02\)"),
+    (lambda d: d["thrusters"].__setitem__("reverse", [12.8, -9.5, 0.3595]),
+     r"the reverse thrust map \[12.8, -9.5, 0.3595\] gives \+1.35 N at its dead-zone edge"),
+    (lambda d: d["thrusters"].__setitem__("reverse", [30.0, 9.5, -0.3]), r"does not push harder astern"),
 ])
 def test_a_vessel_file_value_only_a_slipped_unit_gives_is_refused_naming_its_field(tmp_path, edit, message):
     """Each of these would run without a word as another boat (a gain in per mille reaches 35 m/s, a
@@ -157,6 +163,34 @@ def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_ca
         compile_vessel(vessel_mod.load(str(heavy)))
     for name in ("blueboat", "yellowfish", "cybership1", "esso_osaka"):
         compile_vessel(vessel_mod.load(name))
+
+
+@pytest.mark.parametrize("mjcf_edit, file_edit, message", [
+    (lambda x: x.replace('axis="0 0 1"', 'axis="0 0 -1"'), None, r"joint 'yaw' must be a hinge with axis=\"0 0 1\""),
+    (lambda x: x.replace('name="north" type="slide" axis="1 0 0"', 'name="north" type="slide" axis="0 1 0"'), None,
+     r"joint 'north' must be a slide with axis=\"1 0 0\", got a slide with axis=\"0 1 0\""),
+    (lambda x: x.replace('<joint name="north" type="slide" axis="1 0 0"/>', 'NORTH').replace(
+        '<joint name="east" type="slide" axis="0 1 0"/>', '<joint name="north" type="slide" axis="1 0 0"/>').replace(
+        'NORTH', '<joint name="east" type="slide" axis="0 1 0"/>'), None, r"joint 'north' is degree of freedom 2"),
+    (lambda x: x.replace('gear="1 0 0 0 0 0"', 'gear="0 1 0 0 0 0"', 1), None,
+     r"actuator 'thruster_left' has gear=\"0 1 0 0 0 0\""),
+    (lambda x: x.replace('<site name="imu" pos="0 0 0"', '<site name="imu" pos="10 0 0"'), None,
+     r"site 'imu' at \(10, 0, 0\) m lies far beyond the hull"),
+    (lambda x: x, lambda d: d.__setitem__("sensors", {"antenna_offset_m": [275.0, -262.5]}),
+     r"boat.json: sensors.antenna_offset_m \[275.0, -262.5\] puts the GNSS antenna at"),
+    (lambda x: x, lambda d: d.__setitem__("cases", {"max": {"geom_mass_kg": {"batery": 9.0}}}),
+     r"boat.json: cases.max.geom_mass_kg names geom 'batery', which boat.xml does not have"),
+    (lambda x: x.replace('mass="4.5"', 'mass="150"', 1), None,
+     r"boat.json: the vessel's 160.5 kg cannot float: its hull meshes displace 98.2. kg fully submerged$"),
+])
+@pytest.mark.filterwarnings("ignore:Inertia matrix is too close to singular")  # MuJoCo's, of a swapped slide
+def test_an_mjcf_that_would_mirror_steer_or_sink_the_boat_is_refused(tmp_path, mjcf_edit, file_edit, message):
+    """A reversed or swapped planar joint mirrors the twin, a thruster's gear off body x steers it with its
+    forward thrust, a sensor or antenna in mm, a mass case naming no geom (found only the day it is used)
+    and a vessel its hulls cannot float: each refused, at whichever case the file is loaded in."""
+    path = _own_copy(tmp_path, "blueboat", mjcf_edit, file_edit or (lambda d: None))
+    with pytest.raises(TwinError, match=message):
+        compile_vessel(vessel_mod.load(str(path)))
 
 
 def test_a_thruster_site_in_millimetres_is_refused_before_the_twin_diverges(tmp_path):

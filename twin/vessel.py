@@ -574,6 +574,8 @@ def check(vessel: Vessel) -> None:
         raise TwinError(f"vessel '{vessel.name}': thrusters.pwm_min_us {t.pwm_min_us:g} and pwm_max_us "
                         f"{t.pwm_max_us:g} must be pulse widths in µs between 500 and 2500 (an ESC's range, 1100-1900 "
                         "for a T200)")
+    if t.kind == "t200":
+        _check_dead_zones_and_astern(vessel)
     if t.kind == "t200" and not t.forward_rises():
         raise TwinError(f"vessel '{vessel.name}': the forward thrust map {list(t.forward)} falls with the PWM "
                         "somewhere between its dead-zone edge and full PWM")
@@ -605,6 +607,26 @@ def check(vessel: Vessel) -> None:
         for geom, mass in case.geom_mass_kg.items():
             if not mass > 0:
                 raise TwinError(f"vessel '{vessel.name}': mass of '{geom}' must be positive, got {mass}")
+
+
+def _check_dead_zones_and_astern(vessel: Vessel) -> None:
+    """Dead-zone edges on their sides of neutral (δ̃: forward ≥ 0 ≥ astern, shared and per thruster), and
+    an astern branch that pushes astern, harder as the PWM falls: a file's sign slip would drive the boat
+    with its sticks centred, or ahead on an astern command."""
+    t, name = vessel.thrusters, vessel.name
+    for what, edges in (("deadzone_fwd, deadzone_rev", (t.deadzone_fwd, t.deadzone_rev)),
+                        ("deadzone_left", t.deadzone_left), ("deadzone_right", t.deadzone_right)):
+        if edges is not None and not (edges[0] >= 0 >= edges[1]):
+            raise TwinError(f"vessel '{name}': thrusters.{what} ({edges[0]:g}, {edges[1]:g}) must be a forward edge ≥ 0 "
+                            "and an astern edge ≤ 0 (δ̃, no thrust between them)")
+    fwd_n, rev_n = t.edge_thrusts_n()
+    if fwd_n < 0 or rev_n > 0:
+        side, value = ("forward", fwd_n) if fwd_n < 0 else ("reverse", rev_n)
+        raise TwinError(f"vessel '{name}': the {side} thrust map {list(getattr(t, side))} gives {value:+.3g} N at its "
+                        f"dead-zone edge, thrust the other way (a sign slip?)")
+    if not t.reverse_falls():
+        raise TwinError(f"vessel '{name}': the reverse thrust map {list(t.reverse)} does not push harder astern as the "
+                        "PWM falls from its dead-zone edge to full astern")
 
 
 def _check_thruster_kind_and_pwm(vessel: Vessel) -> None:
@@ -706,9 +728,12 @@ def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         recording = path.suffix.lower() in (".csv", ".tlog", ".bin", ".mcap")
+        mjcf = path.suffix.lower() == ".xml"
         raise TwinError(f"{path.name}: not valid JSON ({exc})"
                         + ("; a vessel file is the JSON `twin identify` writes, and this looks like a recording"
-                           if recording else "")) from None
+                           if recording else "")
+                        + ("; a vessel file is JSON and names its MJCF (.xml) in its \"mjcf\" field "
+                           "(docs/reference/vessel-file.md)" if mjcf else "")) from None
     vessel = from_dict(data, path.resolve())
     return vessel if case is None else vessel.with_case(case)
 

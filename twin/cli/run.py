@@ -324,6 +324,15 @@ def params_lines(p: dict) -> list[str]:
                      f"lag {t['lag_s']:g} s, delay {t['delay_s']:g} s; advance loss {t['advance_loss']:g} √N s/m; "
                      f"dead zone {t['deadzone_fwd']:g} / {t['deadzone_rev']:g} (of the PWM scale, "
                      f"{t['pwm_scale_us']:g} µs)")
+    if "positions_m" in t:
+        at = "; ".join(f"{side} ({', '.join(f'{x:+.3f}' for x in pos)})" for side, pos in t["positions_m"].items())
+        lines.append(f"{'propulsor' if t['kind'] == 'propeller_rudder' else 'thruster'} sites (x fwd, y stbd, z down, m): {at}"
+                     + (f"; thrust {t['Fu_min_n']:.4g} to {t['Fu_max_n']:.4g} N, yaw moment ±{t['tau_r_max_nm']:.4g} N m"
+                        if t.get("tau_r_max_nm") is not None else ""))
+    sites = [f"{what} ({', '.join(f'{x:+.3f}' for x in p[key])})" for what, key in
+             (("GNSS", "gnss_antenna_m"), ("IMU", "imu_m")) if p.get(key) is not None]
+    if sites:
+        lines.append("sensor sites of the MJCF (m): " + "; ".join(sites))
     return lines
 
 

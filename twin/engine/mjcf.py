@@ -305,6 +305,9 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
             raise TwinError(f"{vessel.mjcf.name}: missing planar joint '{j}' (north, east, yaw)")
     if model.nv != 3:
         raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
+    _check_joints(vessel, model)
+    _check_gears(vessel, model)
+    _check_case_names(vessel, spec)
     if not 0 < model.opt.timestep < 1:  # MuJoCo takes 0 (and a step of a second misses every lag)
         raise TwinError(f"{vessel.mjcf.name}: option timestep must lie between 0 and 1 s, got {model.opt.timestep:g}")
     geometry = read_geometry(model, vessel)
@@ -340,11 +343,13 @@ def mesh_volume_m3(model: mujoco.MjModel) -> float:
 
 
 def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
-    """Refuse masses in another unit where the vessel's meshes say how much water its hulls hold."""
-    volume_m3 = mesh_volume_m3(model)
-    if volume_m3 > 0 and mass_kg > SINKS_AT * RHO_FRESH_KG_M3 * volume_m3:
-        raise TwinError(f"{vessel.mjcf.name}: the vessel's {mass_kg:.6g} kg cannot float: its hull meshes displace "
-                        f"{RHO_FRESH_KG_M3 * volume_m3:.4g} kg fully submerged (the MJCF's masses are in kg)")
+    """Refuse a vessel its hull meshes cannot float, fully submerged (masses in another unit, past
+    SINKS_AT times, said so); a vessel without meshes is not judged here."""
+    displaced_kg = RHO_FRESH_KG_M3 * mesh_volume_m3(model)
+    if displaced_kg > 0 and mass_kg > displaced_kg:
+        unit = f" ({vessel.mjcf.name}'s masses are in kg)" if mass_kg > SINKS_AT * displaced_kg else ""
+        raise TwinError(f"{_file_of(vessel) or vessel.mjcf.name + ': '}the vessel's {mass_kg:.6g} kg cannot float: its "
+                        f"hull meshes displace {displaced_kg:.4g} kg fully submerged{unit}")
 
 
 def _check_fits_its_box(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None:
@@ -417,11 +422,67 @@ def _check_sites(vessel: Vessel, model: mujoco.MjModel, geometry: Geometry) -> N
     mujoco.mj_kinematics(model, data)
     # the hull's own reach from the origin (its geoms; MuJoCo's stat.extent counts the sites too)
     hull_m = float(np.max(np.linalg.norm(data.geom_xpos[:, :2], axis=1) + model.geom_rbound)) if model.ngeom else 1.0
-    named = list(zip(actuator_names(vessel), geometry.thruster_pos_m)) + [("gnss", geometry.gnss_pos_m)]
+    named = list(zip(actuator_names(vessel), geometry.thruster_pos_m)) + [("gnss", geometry.gnss_pos_m),
+                                                                          ("imu", geometry.imu_pos_m)]
     for name, pos in named:
         if float(np.linalg.norm(np.asarray(pos)[:2])) > 2.0 * hull_m + 1.0:
             raise TwinError(f"{vessel.mjcf.name}: site '{name}' at ({', '.join(f'{x:g}' for x in pos)}) m lies "
                             f"far beyond the hull, which reaches {hull_m:.3g} m from the origin (positions are in m)")
+    antenna = np.asarray(geometry.gnss_pos_m)[:2] + np.asarray(vessel.sensors.antenna_offset_m, float)
+    if float(np.linalg.norm(antenna)) > 2.0 * hull_m + 1.0:
+        raise TwinError(f"{_file_of(vessel)}sensors.antenna_offset_m {list(vessel.sensors.antenna_offset_m)} puts the "
+                        f"GNSS antenna at ({antenna[0]:g}, {antenna[1]:g}) m, far beyond the hull, which reaches "
+                        f"{hull_m:.3g} m from the origin (the offset is in m)")
+
+
+# what each planar joint must be, in this order: the twin reads qpos/qvel as (north, east, ψ)
+_JOINT_FORM = {"north": (mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
+               "east": (mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 1.0, 0.0)),
+               "yaw": (mujoco.mjtJoint.mjJNT_HINGE, (0.0, 0.0, 1.0))}
+
+
+def _check_joints(vessel: Vessel, model: mujoco.MjModel) -> None:
+    """The planar joints in order north, east, yaw: slides along world x (north) and y (east) and a hinge
+    about z (down, FRD), each axis as given (a reversed or swapped one mirrors the boat)."""
+    for k, name in enumerate(JOINTS):
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        kind, axis = _JOINT_FORM[name]
+        if model.jnt_dofadr[j] != k:
+            raise TwinError(f"{vessel.mjcf.name}: joint '{name}' is degree of freedom {model.jnt_dofadr[j] + 1}; the "
+                            f"planar joints go in the order {', '.join(JOINTS)}")
+        if model.jnt_type[j] != kind or not np.allclose(model.jnt_axis[j], axis, atol=1e-9):
+            want = "a slide" if kind == mujoco.mjtJoint.mjJNT_SLIDE else "a hinge"
+            raise TwinError(f"{vessel.mjcf.name}: joint '{name}' must be {want} with axis=\"{' '.join(f'{a:g}' for a in axis)}\""
+                            f", got a {'slide' if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE else 'hinge' if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE else 'joint of another kind'} "
+                            f"with axis=\"{' '.join(f'{a:g}' for a in model.jnt_axis[j])}\"")
+
+
+def _check_gears(vessel: Vessel, model: mujoco.MjModel) -> None:
+    """A thruster pushes along body x, ahead for a positive thrust (gear="1 0 0 0 0 0"); a gear that
+    turns or reverses it would steer the boat with its forward thrust."""
+    if vessel.thrusters.kind == "propeller_rudder":
+        return
+    for name in THRUSTERS:
+        a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        gear = model.actuator_gear[a]
+        if not np.allclose(gear, (1.0, 0, 0, 0, 0, 0), atol=1e-9):
+            raise TwinError(f"{vessel.mjcf.name}: actuator '{name}' has gear=\"{' '.join(f'{g:g}' for g in gear)}\"; a "
+                            "thruster pushes along body x, gear=\"1 0 0 0 0 0\" (its thrust map gives the sign)")
+
+
+def _check_case_names(vessel: Vessel, spec: mujoco.MjSpec) -> None:
+    """Every mass case names geoms and bodies the MJCF has, checked whichever case is loaded (a typo
+    would otherwise wait for the day that case is used)."""
+    geoms, bodies = {g.name for g in spec.geoms}, {b.name for b in spec.bodies}
+    for case, mass_case in vessel.cases.items():
+        for name in mass_case.geom_mass_kg:
+            if name not in geoms:
+                raise TwinError(f"{_file_of(vessel)}cases.{case}.geom_mass_kg names geom '{name}', which "
+                                f"{vessel.mjcf.name} does not have")
+        for name in mass_case.body_x_m:
+            if name not in bodies:
+                raise TwinError(f"{_file_of(vessel)}cases.{case}.body_x_m names body '{name}', which "
+                                f"{vessel.mjcf.name} does not have")
 
 
 def _check_masses(vessel: Vessel, spec: mujoco.MjSpec) -> None:

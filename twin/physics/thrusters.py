@@ -303,6 +303,17 @@ class ThrusterModel:
         ends = (self.deadzone_fwd, float(self.normalised(self.pwm_max_us)))
         return all(2 * a * x + b > 0 for x in ends)
 
+    def reverse_falls(self) -> bool:
+        """The astern branch's thrust grows astern as the PWM falls from its edge to full astern."""
+        a, b, _ = self.reverse
+        ends = (self.deadzone_rev, float(self.normalised(self.pwm_min_us)))
+        return all(2 * a * x + b > 0 for x in ends)
+
+    def edge_thrusts_n(self) -> tuple[float, float]:
+        """(forward, astern) thrust (N) of the map at its dead-zone edges: ≥ 0 and ≤ 0 for a map whose
+        branches push the way their PWM asks."""
+        return float(np.polyval(self.forward, self.deadzone_fwd)), float(np.polyval(self.reverse, self.deadzone_rev))
+
     def bounds(self) -> tuple[float, float]:
         """(T_min, T_max) of one thruster in N; ±inf where no bound is given."""
         if self.kind == "t200":

@@ -143,7 +143,7 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
            Estimate("Xu", curve.xu, "N s/m", f"ITTC-1957 friction × (1 + k) {d.form_factor:g} on {wetted:.3f} m² "
                     f"wetted, residuary C_R {curve.residuary_cr:.4f} holding {d.top_speed_m_s:g} m/s at "
                     f"{thrust_top:.1f} N ({d.top_speed_source or 'stated top speed'}; full thrust less the file's advance loss "
-                    f"{t.advance_loss:g}: {2 * loss:.1f} N); least squares to "
+                    f"{t.advance_loss:g}: {abs(2 * loss):.1f} N less); least squares to "
                     "Xu·u + Xuu·u|u| [ITTC-1957]"),
            Estimate("Xuu", curve.xuu, "N s2/m2", "the same curve")]
     lift = SpeedDerivatives(0.0, 0.0, 0.0, 0.0)

@@ -532,7 +532,22 @@ def _generic(compiled: CompiledVessel) -> list[Quantity]:
     r = compiled.geometry.rigid
     return [Quantity("m", "kg", engine=r.mass_kg, reference="engine"),
             Quantity("xg", "mm", engine=1e3 * r.xg_m, reference="engine"),
-            Quantity("Iz about CO", "kg m2", engine=r.Iz_kgm2, reference="engine")]
+            Quantity("Iz about CO", "kg m2", engine=r.Iz_kgm2, reference="engine")] + _thruster_bounds(compiled)
+
+
+def _thruster_bounds(compiled: CompiledVessel) -> list[Quantity]:
+    """A twin-thruster vessel's spacing and force and moment bounds: the allocation's hand formula
+    [Yellowfish-TR eq. 27] on its own sites against the engine's actuators (none where a thrust has no
+    bound, or for a propeller and rudder)."""
+    t, g = compiled.vessel.thrusters, compiled.geometry
+    if t.kind == "propeller_rudder" or not t.bounded:
+        return []
+    analytic = force_torque_bounds(t, g.thruster_y_m)
+    engine = _engine_bounds(compiled)
+    return [Quantity("thruster spacing d", "m", engine=g.thruster_y_m[1] - g.thruster_y_m[0], reference="engine"),
+            Quantity("Fu max", "N", analytic=analytic["Fu_max_n"], engine=engine["Fu_max_n"], reference="analytic"),
+            Quantity("Fu min", "N", analytic=analytic["Fu_min_n"], engine=engine["Fu_min_n"], reference="analytic"),
+            Quantity("tau_r max", "N m", analytic=analytic["tau_r_max_nm"], engine=engine["tau_r_max_nm"], reference="analytic")]
 
 
 # ---------------------------------------------------------------- entry point
