@@ -350,6 +350,22 @@ def test_a_gyro_with_gaps_and_the_wind_on_board_come_back_as_written(tmp_path, e
     np.testing.assert_allclose(back.wind["relative_from_deg"], 20.0)
 
 
+@pytest.mark.parametrize("ext", [".tlog", ".bin"])
+def test_a_log_without_roll_and_pitch_is_not_written_as_a_level_one(rec, tmp_path, ext):
+    """ATTITUDE and ATT carry roll and pitch beside the heading: a recording without them comes back
+    without them, not level throughout; one with them keeps them."""
+    write_recording(rec, tmp_path / f"a{ext}")
+    back = read_recording(tmp_path / f"a{ext}")
+    assert len(back.heading) == len(rec.heading) and not len(back.attitude)
+    th = rec.heading.t
+    tilted = Recording(source="b", kind="synthetic", heading=rec.heading,
+                       attitude=Stream(th, {"roll_rad": np.full(len(th), 0.2), "pitch_rad": np.full(len(th), -0.1)}))
+    write_recording(tilted, tmp_path / f"b{ext}")
+    back = read_recording(tmp_path / f"b{ext}")
+    np.testing.assert_allclose(back.attitude["roll_rad"], 0.2, atol=1e-4)
+    np.testing.assert_allclose(back.attitude["pitch_rad"], -0.1, atol=1e-4)
+
+
 def test_a_tlog_refuses_a_gyro_without_a_heading_to_carry_it(tmp_path):
     t = np.arange(0, 100) * 0.1
     rec = Recording(source="y", kind="synthetic", imu=Stream(t, {"yaw_rate_rads": np.full(100, 0.1)}),

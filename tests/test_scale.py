@@ -353,6 +353,8 @@ def test_montecarlo_says_when_most_draws_fall_outside_physics(vessel, tmp_path):
      "expected auto"),
     (["dataset-shards", "--vessel", "yellowfish", "--vary", "mass=0..2"], "factors must be > 0"),
     (["dataset-shards", "--vessel", "yellowfish", "--manoeuvres", "loop"], "unknown manoeuvre"),
+    (["dataset-shards", "--vessel", "yellowfish", "--vary", "Xu=0.5..0.6", "--vary", "Xu=1..1.1"],
+     "--vary Xu given twice"),
     (["fleet", "--vessel", "yellowfish", "missing.tlog"], "no such file"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message, tmp_path, monkeypatch, capsys):

@@ -355,6 +355,11 @@ def simulate_run(vessel: Vessel | str, *, scenario: str = "zigzag", inputs=None,
         nu0 = None if inputs is not None else _approach(compiled, scenario, seed)
     run = _simulate(compiled, drive, duration_s, sample_dt_s=sample_dt_s, sea=sea, six_dof=six_dof, nu0=nu0)
     run.meta["scenario"] = "inputs" if inputs is not None else scenario
+    # the water and air the run was made in, which an .mcap keeps in its metadata (plain entries)
+    for key, value in (("current_speed_m_s", env.current_speed_m_s), ("current_towards_deg", env.current_dir_deg),
+                       ("wind_speed_m_s", env.wind_speed_m_s), ("wind_from_deg", env.wind_dir_deg)):
+        if (current if key.startswith("current") else wind) is not None:
+            run.meta[key] = float(value)
     if nu0 is not None:
         run.meta["approach_speed_m_s"] = float(nu0[0])
     limits = beyond_bounds(vessel, run.meta["inputs"], duration_s)

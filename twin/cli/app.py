@@ -25,6 +25,7 @@ from typing import Iterator, Optional
 
 import typer
 from rich.console import Console
+from rich.measure import Measurement
 from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
 from rich.table import Column
 
@@ -453,6 +454,20 @@ def write_json(path: Optional[Path], data: dict) -> None:
     if path is not None:
         write_text_atomic(path, json_text(data))
         say(f"wrote {path}")
+
+
+def print_table(table) -> None:
+    """A rich table whole: on a terminal at its width; piped or in a file, as wide as its columns need
+    (a cell cut to the page's 100 columns would hide a number's exponent)."""
+    if sys.stdout.isatty():
+        console.print(table)
+        return
+    page = console.width
+    console.width = max(page, Measurement.get(console, console.options.update(width=10_000), table).maximum)
+    try:
+        console.print(table)
+    finally:
+        console.width = page
 
 
 def say(text: str) -> None:

@@ -17,7 +17,7 @@ from ..ident.relay.ipd import (HEADING_OMEGA_RAD_S, SHIP_HEADING_OMEGA_RAD_S, SH
                                   SURGE_OMEGA_RAD_S)
 from ..ident.relay.iso import CONTROL_DT_S, DEFAULT_DURATION_S, SHIP_CONTROL_DT_S, SHIP_DURATION_S, UNITS
 from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs, console, floats, note,
-                  positive, progress_bar, samples_fit, say, vessel_from, write_json)
+                  positive, print_table, progress_bar, samples_fit, say, vessel_from, write_json)
 
 
 # IS-O reads Table I from whole relay periods after the run's first third, its transient: three at least
@@ -119,7 +119,7 @@ def iso_command(
         else:
             result = iso.sweep(compile_vessel(v), dof, floats(amplitudes, "amplitudes"), xa_si, duration,
                                progress=progress)
-    console.print(_sweep_table(result))
+    print_table(_sweep_table(result))
     s = result.spreads()
     console.print(f"α: {s['alpha'].mean:.4g} vs the twin's {result.twin.alpha:.4g} "
                   f"({result.alpha_error_percent():+.1f} %), "
@@ -253,6 +253,13 @@ def dp_command(
         if m is not None and m.gains.kd != m.gains.kd_eq11:
             note(f"note: {name} K_D {m.gains.kd:.3g}, the hull's linear drag at rest, where [Relay-ISO eq. 11] gives "
                  f"{m.gains.kd_eq11:.3g}: below it the loop has negative damping at rest and swings about the target")
+    for name, m in (("heading", yaw), ("surge", surge)):
+        if m is not None:  # the gains are what a user carries to the autopilot
+            unit = "N·m" if name == "heading" else "N"
+            per = "rad" if name == "heading" else "m"
+            console.print(f"{name} I-PD from IS-O: α {m.alpha:.4g}, β {m.beta:.4g}, ω_n {m.model.omega_n_rad_s:.3g} rad/s; "
+                          f"K_I {m.gains.ki:.4g} {unit}/({per}·s), K_P {m.gains.kp:.4g} {unit}/{per}, "
+                          f"K_D {m.gains.kd:.4g} {unit}·s/{per}")
     for lp in summary["loops"]:
         paper = " ([Relay-ISO]: ~1.02 for a 45° heading step)" if lp["dof"] == "yaw" else ""
         ratio = "– (no step asked of it)" if lp["iae_ratio"] is None else f"{lp['iae_ratio']:.3f}{paper}"

@@ -21,7 +21,7 @@ from ..physics.waves import parse_sea
 from ..vessel import save as save_vessel
 from ..viz.report import report_figure, top_view_png, write_report
 from .app import (REPORT_HELP, all_or_nothing_outputs, CASE_HELP, FORCE_HELP, MODEL_HELP, VESSEL_HELP, app, check_distinct, check_outputs,
-                  console, memory_for, note, positive, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
+                  memory_for, note, positive, print_table, progress_bar, samples_fit, say, seed_from, speed_direction, vessel_from, write_json)
 
 RUN_OUTPUTS = (".csv", ".mcap", ".rrd", ".tlog", ".bin")
 SEA_TEXT = ("HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, direction the waves come from "
@@ -156,6 +156,11 @@ def simulate(
             say(f"wrote {path}")
     for limit in result.limits:
         note(f"note: {limit.text()}")
+    flowing = [what for what, flow in (("current", flows[0]), ("wind", flows[1])) if flow is not None and flow[0] > 0]
+    lost = [p.name for p in written if p.suffix.lower() in (".csv", ".tlog", ".bin")]
+    if flowing and lost:
+        note(f"note: {', '.join(lost)} {'does' if len(lost) == 1 else 'do'} not hold the run's {' and '.join(flowing)} "
+             "(an .mcap keeps them in its metadata): a replay of it (`twin view --sim`) runs in still water and air")
     gains = v.thrusters.gains()
     if result.run.meta["inputs"].kind == "thrust" and inputs is not None and not np.allclose(gains, 1.0):
         note(f"note: thrust inputs are commands, which this vessel's thruster gains ({gains[0]:g}, {gains[1]:g}) "
@@ -218,7 +223,7 @@ def crosscheck(
         table.add_row(r.case, f"{r.position_err_m:.2e}", f"{r.heading_err_deg:.2e}", effect,
                       "[green]pass[/]" if r.passed and not untested else "[grey50]no effect[/]" if r.passed
                       else "[red]FAIL[/]")
-    console.print(table)
+    print_table(table)
     say(f"tolerance: position < {POSITION_TOL_M} m, heading < {HEADING_TOL_DEG}°")
     if idle:
         say(f"note: {', '.join(idle)}: the term moves this vessel less than the position tolerance over the run, so "

@@ -157,6 +157,10 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         gnss = {"north_m": c["x"], "east_m": c["y"]}
         rec.meta["positions"] = EXACT_ORIGIN
         rec.notes.append("positions x, y are north, east of the body origin (a twin run): no lever arm to apply")
+        states = [c for c in ("u", "v", "thrust_left", "thrust_right") if c in header]
+        if states:  # what a recording's sensors would not give: a copy of the run as a log leaves them out
+            rec.notes.append(f"the run's own {', '.join(states)} (the twin's states and thrusts, which no sensor "
+                             "logs) are not read")
     else:
         gnss = None
         rec.notes.append("no GNSS: no lat/lon, north/east or x/y columns")

@@ -108,9 +108,9 @@ def recording_bytes(rec: Recording, start_unix_s: float | None = None) -> bytes:
                       start_unix_s)
     if len(h):
         att = rec.attitude  # roll and pitch where the recording has them, at the heading's times
-        level = np.zeros(len(h))
-        timed += _attitude(h.t, h["psi_rad"], np.interp(h.t, att.t, att["roll_rad"]) if len(att) else level,
-                           np.interp(h.t, att.t, att["pitch_rad"]) if len(att) else level)
+        unknown = np.full(len(h), np.nan)  # a log without them is not a level one (UNKNOWN_CDEG)
+        timed += _attitude(h.t, h["psi_rad"], np.interp(h.t, att.t, att["roll_rad"]) if len(att) else unknown,
+                           np.interp(h.t, att.t, att["pitch_rad"]) if len(att) else unknown)
     if len(imu):  # ArduPilot's gyro is stamped its filter's delay after the turn (formats.ardupilot): put it back
         timed += _imu(imu.t + gyro_filter_delay_s(rec.parameters), imu["yaw_rate_rads"])
     if len(bat):
@@ -161,9 +161,19 @@ def _attitude(t_s, psi_rad, roll_rad, pitch_rad) -> list[tuple[int, bytes]]:
             for t, psi, phi, theta in zip(t_s, psi_rad, roll_rad, pitch_rad)]
 
 
+# ATT's int16 centidegrees for a roll or pitch not measured: −327.68°, beyond any attitude, which the
+# reader takes as none
+UNKNOWN_CDEG = -32768
+
+
 def _cdeg(angle_rad: float) -> int:
-    """An angle in ATT's int16 centidegrees."""
-    return int(round(np.degrees(angle_rad) * 100))
+    """An angle in ATT's int16 centidegrees (UNKNOWN_CDEG for NaN: not measured)."""
+    return int(round(np.degrees(angle_rad) * 100)) if np.isfinite(angle_rad) else UNKNOWN_CDEG
+
+
+def _angle_rad(deg: float) -> float:
+    """An ATT roll or pitch (deg) in rad; NaN beyond ±180° (UNKNOWN_CDEG: not measured)."""
+    return float(np.radians(deg)) if abs(deg) <= 180.0 else float("nan")
 
 
 def _imu(t_s, yaw_rate_rads) -> list[tuple[int, bytes]]:
@@ -212,7 +222,7 @@ def read_dataflash(path: Path, channels: dict | None) -> Recording:
                                {"psi_rad": [np.radians(m.Yaw) for m in att]}, rec.dropped)
     if att and hasattr(att[0], "Roll") and hasattr(att[0], "Pitch"):
         rec.attitude = clean_stream("attitude", [m._timestamp for m in att], {
-            "roll_rad": [np.radians(m.Roll) for m in att], "pitch_rad": [np.radians(m.Pitch) for m in att]}, [])
+            "roll_rad": [_angle_rad(m.Roll) for m in att], "pitch_rad": [_angle_rad(m.Pitch) for m in att]}, [])
     imu = [m for m in rows["IMU"] if _instance(m) == 0 and hasattr(m, "GyrZ")]
     rec.imu = clean_stream("imu", [m._timestamp for m in imu], {"yaw_rate_rads": [m.GyrZ for m in imu]}, rec.dropped)
     _df_pwm(rec, rows["RCOU"], channels)

@@ -546,6 +546,7 @@ def _mcap_run(path: Path) -> Recording:
     else:
         rec.meta["positions"] = EXACT_ORIGIN
         rec.notes.append("positions are the body origin (a simulated run): no GNSS lever arm is applied")
+        rec.notes.append("the run's own u, v and thrusts (the twin's states, which no sensor logs) are not read")
     if not len(rec.gnss) and not len(rec.heading):
         raise TwinError(f"{path.name}: the MCAP run has no finite states")
     return with_common_origin(rec)

@@ -216,8 +216,9 @@ def recording_telemetry(rec: Recording) -> Telemetry:
     late_s = gyro_filter_delay_s(rec.parameters)
     r = _covered(h.t - late_s, imu.t, imu["yaw_rate_rads"]) if len(imu) else np.full(len(h), np.nan)
     att = rec.attitude
-    roll = _covered(h.t, att.t, att["roll_rad"]) if len(att) else None
-    pitch = _covered(h.t, att.t, att["pitch_rad"]) if len(att) else None
+    # a log without roll and pitch is not a level one: NaN, which the readers take as not measured
+    roll = _covered(h.t, att.t, att["roll_rad"]) if len(att) else np.full(len(h), np.nan)
+    pitch = _covered(h.t, att.t, att["pitch_rad"]) if len(att) else np.full(len(h), np.nan)
     pwm = np.column_stack([p["left_us"], p["right_us"]]) if len(p) else np.zeros((0, 2))
     _check_range("heading time (ms)", np.round(h.t * 1e3), 0, MAX_BOOT_MS)
     _check_range("PWM (µs)", np.round(pwm), 1, 65535)

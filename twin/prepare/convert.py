@@ -22,8 +22,9 @@ import numpy as np
 
 from ..errors import TwinError
 from ..formats.ardupilot import gyro_filter_delay_s
+from ..formats.tlog import recording_telemetry
 from .prepared import hold, prepare
-from ..recording import Recording, Stream
+from ..recording import EXACT_ORIGIN, Recording, Stream
 
 
 @dataclasses.dataclass
@@ -106,8 +107,15 @@ def not_kept(rec: Recording, suffix: str) -> list[str]:
     gyro_t = rec.imu.t + gyro_filter_delay_s(rec.parameters)
     if suffix == ".tlog" and len(rec.imu) and len(rec.heading) and not (
             len(rec.imu) == len(rec.heading) and np.allclose(gyro_t, rec.heading.t, rtol=0.0, atol=5e-4)):
+        carried = int(np.sum(np.isfinite(recording_telemetry(rec).r_rad_s)))
+        gaps = (f", {carried} of them where the gyro covers them (none in its gaps or beyond its ends)"
+                if carried < len(rec.heading) else "")
         out.append(f"a .tlog carries the yaw rate in ATTITUDE with the heading: the {len(rec.imu)} gyro samples are "
-                   f"read at the heading's {len(rec.heading)} times (.bin and .mcap keep them at their own)")
+                   f"read at the heading's {len(rec.heading)} times{gaps} (.bin and .mcap keep them at their own)")
+    if suffix in (".tlog", ".bin") and len(rec.gnss) and rec.meta.get("positions") == EXACT_ORIGIN:
+        out.append(f"the positions are a twin run's track of the body origin; a {suffix} has no place to say so and "
+                   "gives them as GNSS fixes, which a reader takes for the antenna's (read them with a vessel "
+                   "whose antenna is at the origin, or keep the run as .csv or .mcap)")
     if suffix == ".csv" and len(rec.attitude):
         out.append(f"the CSV layout has no columns for roll and pitch: the {len(rec.attitude)} attitude samples are "
                    "left out (use .mcap, .tlog or .bin)")

@@ -148,6 +148,10 @@ class Variation:
     def __post_init__(self):
         if not 0.0 <= self.effect_share <= 1.0:
             raise TwinError(f"effect share must lie in [0, 1], got {self.effect_share}")
+        names = [f.name for f in self.factors]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:  # the later range would replace the earlier one, which the index would still list
+            raise TwinError(f"--vary {twice[0]} given twice: give each coefficient one range")
 
     @property
     def varies(self) -> bool:
