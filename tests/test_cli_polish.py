@@ -121,3 +121,31 @@ def test_a_fleet_counts_as_earlier_reports_neither_truths_nor_vessel_files(tmp_p
     (tmp_path / "log0.json").write_text(json.dumps({**report, "log": "log0.csv"}))
     (tmp_path / "notes.json").write_text(json.dumps({"ok": True, "operator": "anna"}))  # a user's, not a report
     assert other_reports(tmp_path, {"log0.json", "fleet.json"}) == ["old_log.json"]
+
+
+def test_a_table_piped_to_a_file_is_printed_whole(capsys, monkeypatch):
+    from rich.table import Table
+
+    from twin.cli.app import console, print_table
+
+    table = Table(title="wide")
+    for k in range(10):
+        table.add_column(f"β_νν [N·m·s²/rad²] {k}", justify="right")
+    table.add_row(*["+1.4e-03"] * 10)
+    monkeypatch.setattr("sys.stdout.isatty", lambda: False)
+    page = console.width
+    print_table(table)
+    out = capsys.readouterr().out
+    assert out.count("+1.4e-03") == 10 and "…" not in out and console.width == page
+
+
+def test_a_run_made_in_a_current_and_a_wind_keeps_them_in_its_mcap_and_says_what_a_csv_loses(tmp_path):
+    import twin
+
+    done = twin_command.twin("simulate", "--vessel", "blueboat", "--scenario", "turn", "--duration", "5",
+                             "--current", "0.2,90", "--wind", "5,45", "--out", tmp_path / "cw.mcap",
+                             "--out", tmp_path / "cw.csv")
+    assert done.returncode == 0 and "cw.csv does not hold the run's current and wind" in done.stderr, done.stderr
+    meta = twin.read_recording(tmp_path / "cw.mcap").meta
+    assert (meta["current_speed_m_s"], meta["current_towards_deg"], meta["wind_speed_m_s"], meta["wind_from_deg"]) \
+        == (0.2, 90.0, 5.0, 45.0)

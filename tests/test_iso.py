@@ -189,6 +189,8 @@ def test_dp_runs_its_default_heading_step_and_writes_its_json(tmp_path):
     got = json.loads(out.read_text())
     assert got["run"] and got["loops"] and "final_distance_to_target_m" not in got
     assert 0.8 < got["loops"][0]["iae_ratio"] < 1.3
+    kp = got["tuning"]["yaw"]["kp"]  # the gains a user carries to the autopilot are printed too, as written
+    assert f"K_P {kp:.4g} N·m/rad" in " ".join(p.stdout.split()), p.stdout
 
 
 def test_iso_and_dp_refuse_a_duration_too_short_for_the_job_before_any_run(tmp_path):
