@@ -197,6 +197,10 @@ def test_shards_with_one_truth_index_and_resume(tmp_path):
     again = datasets.generate_shards(v, settings, tmp_path / "a", resume=True)
     assert (again.made, again.reused) == (1, 2) and (shard / "vessel-000002.mcap").read_bytes() == before
     assert json.loads((tmp_path / "a" / "index.json").read_text()) == index
+    # a recording cut short by hand since: its shard is made again, not kept as complete
+    (shard / "vessel-000002.mcap").write_bytes(before[:1000])
+    third = datasets.generate_shards(v, settings, tmp_path / "a", resume=True)
+    assert (third.made, third.reused) == (1, 2) and (shard / "vessel-000002.mcap").read_bytes() == before
     with pytest.raises(TwinError, match="not empty"):
         datasets.generate_shards(v, settings, tmp_path / "a")
     with pytest.raises(TwinError, match="other settings"):

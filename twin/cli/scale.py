@@ -190,7 +190,8 @@ def dataset_shards_command(
     fmt: str = typer.Option("mcap", "--format", help="recording format: mcap | tlog | bin | csv"),
     seed: int = typer.Option(0, help="root seed (shard i draws from its i-th child)"),
     resume: bool = typer.Option(False, "--resume", help="keep the shards a cut-short run with the same settings "
-                                                        "completed in --out"),
+                                                        "completed in --out (a shard whose files changed since is "
+                                                        "made again)"),
     sea: Optional[str] = typer.Option(None, help=SEA_HELP + "; every vessel in its own realisation of the sea "
                                                  "(seeded by its recording's seed)"),
     ray: Optional[str] = typer.Option(None, help=RAY_HELP),

@@ -17,8 +17,9 @@ seed); the index and the truth carry the sea each vessel saw.
 
 A shard is one batch: its vessels are drawn from the batch's own seed, so a shard is the same
 file whoever made it. Shards are written (recordings first, the truth last, each atomically) as
-they come back; a shard whose truth file exists with the same settings is complete, which is
-what `resume` relies on to finish a job that was cut short. Workers return bytes and never
+they come back; a shard whose truth file exists with the same settings, and whose files still
+have the digests it lists, is complete, which is what `resume` relies on to finish a job that was
+cut short. Workers return bytes and never
 write, so a cluster needs no shared file system.
 """
 from __future__ import annotations
@@ -136,8 +137,15 @@ def run_shard(job: _Job, b: Batch, extra=None) -> ShardResult:
                  "labels": _labels(labels, ds.truth_vessel), **({} if sea is None else {"sea": sea.to_dict()})}
         entries.append(entry)
         truths.append({"vessel_index": i, "file": name, **ds.truth()})
-    truth = {"fingerprint": job.fingerprint, "shard": b.index, "entries": entries, "truths": truths}
+    # each file's digest: a shard is complete (resume) only where every file is still what was written
+    digests = {name: _digest(data) for name, data in files}
+    truth = {"fingerprint": job.fingerprint, "shard": b.index, "entries": entries, "truths": truths,
+             "digests": digests}
     return ShardResult(tuple(files), truth, tuple(entries))
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.blake2b(data, digest_size=16).hexdigest()
 
 
 def _labels(quantities: dict, vessel: Vessel) -> dict:
@@ -240,6 +248,9 @@ def _complete_shard(folder: Path, index: int, fp: str) -> list[dict] | None:
                         f"this job {fp}): use another folder")
     if not all((folder / e["file"]).is_file() for e in data.get("entries", [])):
         return None
+    digests = data.get("digests", {})
+    if any(_digest((folder / e["file"]).read_bytes()) != digests.get(e["file"]) for e in data["entries"]):
+        return None  # a file cut short or changed since it was written: the shard is made again
     return list(data["entries"])
 
 
