@@ -5,6 +5,7 @@ import os
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import twin_command
 
@@ -149,3 +150,12 @@ def test_a_run_made_in_a_current_and_a_wind_keeps_them_in_its_mcap_and_says_what
     meta = twin.read_recording(tmp_path / "cw.mcap").meta
     assert (meta["current_speed_m_s"], meta["current_towards_deg"], meta["wind_speed_m_s"], meta["wind_from_deg"]) \
         == (0.2, 90.0, 5.0, 45.0)
+    # its replay runs in them: the twin ends near where the run did (0.21 m off: its start read from the
+    # track), where in still water it ends 1.9 m away
+    from twin.replay import view_runs
+
+    def miss_m(name):
+        runs = view_runs([twin.read_recording(tmp_path / name)], twin.load_vessel("blueboat"), sim=True)
+        return float(np.hypot(*(runs["twin"].eta[-1, :2] - runs["recorded"].eta[-1, :2])))
+
+    assert miss_m("cw.mcap") < 0.4 and miss_m("cw.csv") > 1.5

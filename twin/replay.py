@@ -156,8 +156,27 @@ def view_runs(recordings: list, vessel: Vessel | None = None, *, sim: bool = Fal
             runs[label].meta["series_labels"] |= {q: f"{label} ({vessel.name} thrust map on the recorded PWM)"
                                                   for q in ("thrust_left", "thrust_right")}
         if sim:
-            runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(vessel, prep, wind)
+            runs[f"twin {name}" if len(recordings) > 1 else "twin"] = replay(in_its_environment(vessel, rec), prep, wind)
     return runs
+
+
+def in_its_environment(vessel: Vessel, rec) -> Vessel:
+    """The vessel in the current and wind a twin run was made in, where its file keeps them (an .mcap
+    of `twin simulate`: meta current_speed_m_s, current_towards_deg, wind_speed_m_s, wind_from_deg); as
+    it is for any other recording."""
+    m = rec.meta
+    if m.get("positions") != EXACT_ORIGIN or not any(k in m for k in RUN_ENVIRONMENT):
+        return vessel
+    env = vessel.environment
+    if "current_speed_m_s" in m:
+        env = replace(env, current_speed_m_s=float(m["current_speed_m_s"]),
+                      current_dir_deg=float(m.get("current_towards_deg", 0.0)))
+    if "wind_speed_m_s" in m:
+        env = replace(env, wind_speed_m_s=float(m["wind_speed_m_s"]), wind_dir_deg=float(m.get("wind_from_deg", 0.0)))
+    return vessel.with_environment(env)
+
+
+RUN_ENVIRONMENT = ("current_speed_m_s", "current_towards_deg", "wind_speed_m_s", "wind_from_deg")
 
 
 def stitched_runs(windows, series: dict) -> dict[str, Run]:

@@ -263,7 +263,7 @@ def view(
     # late: the command's stack (the readers, writers and replay: 0.3 s) would be paid at every `twin --help`
     from ..formats import read_recording
     from ..outputs import write
-    from ..replay import view_runs
+    from ..replay import RUN_ENVIRONMENT, in_its_environment, view_runs
 
     # the working folder, never beside the input (a shared data folder); .view.rrd, not the STEM.rrd that
     # `twin simulate --out STEM.csv --out STEM.rrd` may have written there
@@ -293,6 +293,12 @@ def view(
         progress(f"writing {out.name}")
         write(runs, out, vessel_name=v.name if v else "", mjcf=v.mjcf if v else None, view=True)
     say(f"wrote {out} (open with: rerun {out})")
+    for rec in recordings if sim else []:
+        kept = {k: rec.meta[k] for k in RUN_ENVIRONMENT if k in rec.meta}
+        if kept and in_its_environment(v, rec) is not v:
+            note(f"note: {Path(rec.source).name}: the twin replayed in the run's own "
+                 + " and ".join(w for w, k in (("current", "current_speed_m_s"), ("wind", "wind_speed_m_s")) if k in kept)
+                 + f" ({', '.join(f'{k} {x:g}' for k, x in kept.items())}, from its metadata)")
     if png is not None:
         write_bytes_atomic(png, comparison_png(runs, f"{', '.join(p.name for p in files)}"
                                                      + (f": recorded vs twin ({v.name}"

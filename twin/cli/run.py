@@ -160,7 +160,8 @@ def simulate(
     lost = [p.name for p in written if p.suffix.lower() in (".csv", ".tlog", ".bin")]
     if flowing and lost:
         note(f"note: {', '.join(lost)} {'does' if len(lost) == 1 else 'do'} not hold the run's {' and '.join(flowing)} "
-             "(an .mcap keeps them in its metadata): a replay of it (`twin view --sim`) runs in still water and air")
+             "(an .mcap keeps them in its metadata, and `twin view --sim` replays it in them): a replay of it runs in "
+             "still water and air")
     gains = v.thrusters.gains()
     if result.run.meta["inputs"].kind == "thrust" and inputs is not None and not np.allclose(gains, 1.0):
         note(f"note: thrust inputs are commands, which this vessel's thruster gains ({gains[0]:g}, {gains[1]:g}) "
