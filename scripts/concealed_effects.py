@@ -43,7 +43,7 @@ as the twin was identified with it. The Esso has one propeller: one thruster sca
 A case is exact when the concealed effect is named with its parameters within 30 % (a vector's
 error within 30 % of its length; a direction within 30°) and nothing else is named; a null is
 clean when nothing is named. One thruster's PWM scaled by s is that thruster's ESC span 1/s
-(pwm_span_left/right, in the library from the twenty-eighth set on); named as a thrust scale
+(pwm_span_left/right); named as a thrust scale
 instead, its truth is the thrust scale of that thruster that best matches, in least squares over
 the outing's samples, the thrust the twin's map gives for the true PWM to the one it gives for the
 logged PWM.
@@ -1005,8 +1005,8 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
         "thruster's PWM is scaled about its neutral. Exact: the effect named with its values within 30 % (30° for "
         "a direction) and nothing else named. " + " ".join(f"{x}." for x in lines),
         tables,
-        ["One thruster's PWM scaled by s is that thruster's ESC span 1/s (pwm_span_left/right, in the library from the "
-         "twenty-eighth set on); named as a thrust scale, its truth is the thrust scale of that thruster that best "
+        ["One thruster's PWM scaled by s is that thruster's ESC span 1/s (pwm_span_left/right); named as a thrust "
+         "scale, its truth is the thrust scale of that thruster that best "
          "matches, over the outing's samples, the twin's thrust for the true PWM to its thrust for the logged one.",
          "Blocks: the 30-s blocks of windows the diagnosis judges on. With fewer than ten, no effect can earn its "
          "place from the dynamics (z 3 needs ten blocks or more, every one for it): there only what the kinematics "

@@ -89,7 +89,7 @@ winner (the larger share of the held-out excess). A constant thrust scale so cho
 a loss with speed as a winner is. Two effects that explain the same misfit gain nearly the same over the
 pooled windows, and the pooled sum then decides on a few windows' worth, where a term of three
 quantities takes up more of the noise than one of one: a thrust scale of 0.83 lost to a linear
-damping that scaled Xu ×5.6, Yv and Nr ×1.6 (blocks between the two z 0.14). The blocks' vote is
+damping that scaled Xu ×5.6, Yv ×1.5 and Nr ×1.6 (blocks between the two z 0.14). The blocks' vote is
 the test the rule trusts everywhere else, and the fewer quantities the reading that claims less
 where the recording cannot tell. The blocks' lean was chosen on the
 diagnosis proof's library recordings (docs/results/diagnosis_proof.md): wherever the kept effect was the truth's, its rivals had
