@@ -347,7 +347,8 @@ def _check_floats(vessel: Vessel, model: mujoco.MjModel, mass_kg: float) -> None
     SINKS_AT times, said so); a vessel without meshes is not judged here."""
     displaced_kg = RHO_FRESH_KG_M3 * mesh_volume_m3(model)
     if displaced_kg > 0 and mass_kg > displaced_kg:
-        unit = f" ({vessel.mjcf.name}'s masses are in kg)" if mass_kg > SINKS_AT * displaced_kg else ""
+        unit = (f" ({vessel.mjcf.name}'s masses are in kg)" if mass_kg > SINKS_AT * displaced_kg else
+                " (every mesh geom counts as hull: docs/reference/vessel-file.md)")
         raise TwinError(f"{_file_of(vessel) or vessel.mjcf.name + ': '}the vessel's {mass_kg:.6g} kg cannot float: its "
                         f"hull meshes displace {displaced_kg:.4g} kg fully submerged{unit}")
 
