@@ -452,10 +452,15 @@ def _check_joints(vessel: Vessel, model: mujoco.MjModel) -> None:
             raise TwinError(f"{vessel.mjcf.name}: joint '{name}' is degree of freedom {model.jnt_dofadr[j] + 1}; the "
                             f"planar joints go in the order {', '.join(JOINTS)}")
         if model.jnt_type[j] != kind or not np.allclose(model.jnt_axis[j], axis, atol=1e-9):
-            want = "a slide" if kind == mujoco.mjtJoint.mjJNT_SLIDE else "a hinge"
-            raise TwinError(f"{vessel.mjcf.name}: joint '{name}' must be {want} with axis=\"{' '.join(f'{a:g}' for a in axis)}\""
-                            f", got a {'slide' if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE else 'hinge' if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE else 'joint of another kind'} "
-                            f"with axis=\"{' '.join(f'{a:g}' for a in model.jnt_axis[j])}\"")
+            raise TwinError(f"{vessel.mjcf.name}: joint '{name}' must be {_joint_text(kind, axis)}, got "
+                            f"{_joint_text(model.jnt_type[j], model.jnt_axis[j])}")
+
+
+def _joint_text(kind, axis) -> str:
+    """'a slide with axis="1 0 0"': a joint as its MJCF says it."""
+    word = {mujoco.mjtJoint.mjJNT_SLIDE: "a slide", mujoco.mjtJoint.mjJNT_HINGE: "a hinge"}.get(int(kind),
+                                                                                             "a joint of another kind")
+    return f"{word} with axis=\"{' '.join(f'{a:g}' for a in axis)}\""
 
 
 def _check_gears(vessel: Vessel, model: mujoco.MjModel) -> None:
