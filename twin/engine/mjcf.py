@@ -163,19 +163,11 @@ def _file_of(vessel: Vessel) -> str:
 def _apply_case(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     if vessel.case == "nominal":
         return
-    case = vessel.cases[vessel.case]
+    case = vessel.cases[vessel.case]  # its names checked (_check_case_names)
     for name, mass in case.geom_mass_kg.items():
-        geom = spec.geom(name)
-        if geom is None:
-            raise TwinError(f"{_file_of(vessel)}cases.{vessel.case}.geom_mass_kg names geom '{name}', which "
-                            f"{vessel.mjcf.name} does not have")
-        geom.mass = mass
+        spec.geom(name).mass = mass
     for name, x in case.body_x_m.items():
-        body = spec.body(name)
-        if body is None:
-            raise TwinError(f"{_file_of(vessel)}cases.{vessel.case}.body_x_m names body '{name}', which "
-                            f"{vessel.mjcf.name} does not have")
-        body.pos[0] = x
+        spec.body(name).pos[0] = x
 
 
 def _apply_propeller_rudder(vessel: Vessel, spec: mujoco.MjSpec) -> None:
@@ -250,6 +242,7 @@ def edited_spec(vessel: Vessel, wind_inputs: bool = False) -> mujoco.MjSpec:
     """The vessel's MJCF with the vessel file's mass case, CG offset and thruster settings applied
     (and the wind's two controls when `wind_inputs`)."""
     spec = _spec(vessel)
+    _check_case_names(vessel, spec)
     _apply_case(vessel, spec)
     _apply_cg_offset(vessel, spec)
     _apply_thrusters(vessel, spec)
@@ -307,7 +300,6 @@ def compile_vessel(vessel: Vessel, wind_inputs: bool = False) -> CompiledVessel:
         raise TwinError(f"{vessel.mjcf.name}: expected 3 degrees of freedom (north, east, yaw), got {model.nv}")
     _check_joints(vessel, model)
     _check_gears(vessel, model)
-    _check_case_names(vessel, spec)
     if not 0 < model.opt.timestep < 1:  # MuJoCo takes 0 (and a step of a second misses every lag)
         raise TwinError(f"{vessel.mjcf.name}: option timestep must lie between 0 and 1 s, got {model.opt.timestep:g}")
     geometry = read_geometry(model, vessel)
@@ -478,7 +470,7 @@ def _check_gears(vessel: Vessel, model: mujoco.MjModel) -> None:
 
 def _check_case_names(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     """Every mass case names geoms and bodies the MJCF has, checked whichever case is loaded (a typo
-    would otherwise wait for the day that case is used)."""
+    would otherwise wait for the day that case is used), before any case is applied."""
     geoms, bodies = {g.name for g in spec.geoms}, {b.name for b in spec.bodies}
     for case, mass_case in vessel.cases.items():
         for name in mass_case.geom_mass_kg:
