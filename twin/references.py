@@ -127,7 +127,8 @@ BIBLIOGRAPHY = _bib(
     Source("Glauert-1935", "Airplane propellers (momentum and blade-element theory of a propeller, including its "
            "normal force in oblique flow)", "Hermann Glauert", "in W. F. Durand (ed.), Aerodynamic Theory, vol. IV, "
            "Division L, Springer, Berlin", 1935),
-    Source("Newman-1977", "Marine Hydrodynamics (chapter 7: slender-body theory of lifting bodies)",
+    Source("Newman-1977", "Marine Hydrodynamics (chapter 4: added mass of sections; chapter 6: wave loads and the Haskind "
+           "relations; chapter 7: slender-body theory of lifting bodies)",
            "J. N. Newman", "MIT Press, Cambridge MA", 1977),
     Source("Hoerner-1965", "Fluid-Dynamic Drag (two-dimensional drag of bluff sections)", "Sighard F. Hoerner",
            "published by the author, Midland Park NJ", 1965),
