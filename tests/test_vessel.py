@@ -2,6 +2,7 @@
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -174,6 +175,14 @@ def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_ca
         'NORTH', '<joint name="east" type="slide" axis="0 1 0"/>'), None, r"joint 'north' is degree of freedom 2"),
     (lambda x: x.replace('gear="1 0 0 0 0 0"', 'gear="0 1 0 0 0 0"', 1), None,
      r"actuator 'thruster_left' has gear=\"0 1 0 0 0 0\""),
+    (lambda x: x.replace('pos="-0.52 -0.285 0.10"/>', 'pos="-0.52 -0.285 0.10" euler="0 0 0.35"/>'), None,
+     r"site 'thruster_left' of actuator 'thruster_left' pushes 20.1° off body x"),
+    (lambda x: x.replace('pos="-0.52 0.285 0.10"/>', 'pos="-0.52 0.285 0.10" euler="0 0.5 0"/>'), None,
+     r"site 'thruster_right' of actuator 'thruster_right' pushes 28.6° off body x"),
+    (lambda x: x.replace('pos="-0.52 -0.285 0.10"', 'pos="-0.52 -0.285 -0.30"'), None,
+     r"site 'thruster_left' at z = -0.3 m lies above the hulls' top \(z = -0.18 m; body z points down\)"),
+    (lambda x: x.replace('<general name="thruster_right" site="thruster_right" gear="1 0 0 0 0 0"/>', ''), None,
+     r"no actuator 'thruster_right' \(a t200 vessel has two thrusters.*a one-propeller ship is a propeller_rudder"),
     (lambda x: x.replace('<site name="imu" pos="0 0 0"', '<site name="imu" pos="10 0 0"'), None,
      r"site 'imu' at \(10, 0, 0\) m lies far beyond the hull"),
     (lambda x: x, lambda d: d.__setitem__("sensors", {"antenna_offset_m": [275.0, -262.5]}),
@@ -185,12 +194,29 @@ def test_unit_slips_and_mirrored_thrusters_are_refused_where_no_mesh_or_range_ca
 ])
 @pytest.mark.filterwarnings("ignore:Inertia matrix is too close to singular")  # MuJoCo's, of a swapped slide
 def test_an_mjcf_that_would_mirror_steer_or_sink_the_boat_is_refused(tmp_path, mjcf_edit, file_edit, message):
-    """A reversed or swapped planar joint mirrors the twin, a thruster's gear off body x steers it with its
-    forward thrust, a sensor or antenna in mm, a mass case naming no geom (found only the day it is used)
+    """A reversed or swapped planar joint mirrors the twin, a thruster's gear or site turned off body x
+    steers it with its forward thrust (the allocation and the analytic model push along x), a thruster
+    above the hulls pushes from the air, a one-thruster boat is pointed to the propeller-and-rudder kind, a sensor or antenna in mm, a mass case naming no geom (found only the day it is used)
     and a vessel its hulls cannot float: each refused, at whichever case the file is loaded in."""
     path = _own_copy(tmp_path, "blueboat", mjcf_edit, file_edit or (lambda d: None))
     with pytest.raises(TwinError, match=message):
         compile_vessel(vessel_mod.load(str(path)))
+
+
+def test_a_thruster_site_rolled_about_its_own_thrust_axis_is_accepted_and_pushes_ahead(tmp_path):
+    """Only the site's x axis carries thrust: a site rolled about it (a thruster mounted at an angle about
+    its shaft) pushes as the shipped one does."""
+    path = _own_copy(tmp_path, "blueboat", lambda x: x.replace('pos="-0.52 -0.285 0.10"/>',
+                                                               'pos="-0.52 -0.285 0.10" euler="0.4 0 0"/>'))
+    forces = []
+    for vessel in (vessel_mod.load(str(path)), vessel_mod.load("blueboat")):
+        model = compile_vessel(vessel).model
+        data = mujoco.MjData(model)
+        data.ctrl[:] = 10.0
+        mujoco.mj_forward(model, data)
+        forces.append(data.qfrc_actuator.copy())
+    assert forces[1][0] > 15.0 and abs(forces[1][2]) < 1e-9
+    np.testing.assert_allclose(forces[0], forces[1], atol=1e-9)
 
 
 def test_a_thruster_site_in_millimetres_is_refused_before_the_twin_diverges(tmp_path):

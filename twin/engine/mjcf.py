@@ -211,7 +211,9 @@ def _apply_thrusters(vessel: Vessel, spec: mujoco.MjSpec) -> None:
     for name, gain in zip(THRUSTERS, t.gains()):
         act = spec.actuator(name)
         if act is None:
-            raise TwinError(f"{vessel.mjcf.name}: no actuator '{name}'")
+            raise TwinError(f"{vessel.mjcf.name}: no actuator '{name}' (a {t.kind} vessel has two thrusters, actuators "
+                            f"'{THRUSTERS[0]}' and '{THRUSTERS[1]}'; a one-propeller ship is a propeller_rudder "
+                            "vessel: docs/reference/vessel-file.md)")
         if t.bounded:  # an unbounded thruster (no bound in its source) is not limited
             act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.ctrlrange = [t_min, t_max]
@@ -456,16 +458,48 @@ def _joint_text(kind, axis) -> str:
 
 
 def _check_gears(vessel: Vessel, model: mujoco.MjModel) -> None:
-    """A thruster pushes along body x, ahead for a positive thrust (gear="1 0 0 0 0 0"); a gear that
-    turns or reverses it would steer the boat with its forward thrust."""
+    """A thruster pushes along body x, ahead for a positive thrust: gear="1 0 0 0 0 0" on a site whose
+    x axis is the hull's. A gear or a site turned off body x (toe-in, a tilt) would steer the boat with its
+    forward thrust, while the allocation, the force bounds and the analytic 3-DOF model push along x;
+    a site above the hulls' top would push from the air."""
     if vessel.thrusters.kind == "propeller_rudder":
         return
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    top_m = _hull_top_m(model, data)
     for name in THRUSTERS:
         a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
         gear = model.actuator_gear[a]
         if not np.allclose(gear, (1.0, 0, 0, 0, 0, 0), atol=1e-9):
             raise TwinError(f"{vessel.mjcf.name}: actuator '{name}' has gear=\"{' '.join(f'{g:g}' for g in gear)}\"; a "
                             "thruster pushes along body x, gear=\"1 0 0 0 0 0\" (its thrust map gives the sign)")
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_SITE:
+            raise TwinError(f"{vessel.mjcf.name}: actuator '{name}' acts on a joint or body; a thruster acts at its "
+                            f"site (site=\"{name}\")")
+        site = int(model.actuator_trnid[a, 0])
+        site_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, site)
+        # the thrust acts along the site's x axis; at q = 0 the world frame is the body frame
+        thrust_axis = data.site_xmat[site].reshape(3, 3)[:, 0]
+        if not np.allclose(thrust_axis, (1.0, 0.0, 0.0), atol=1e-6):
+            angle_deg = np.degrees(np.arccos(np.clip(thrust_axis[0], -1.0, 1.0)))
+            raise TwinError(f"{vessel.mjcf.name}: site '{site_name}' of actuator '{name}' pushes {angle_deg:.3g}° off "
+                            "body x (its euler, quat, axisangle, xyaxes or zaxis, or its body's, turns it); a thruster "
+                            "pushes along body x: give the site no yaw or pitch")
+        z_m = float(data.site_xpos[site, 2])
+        if top_m is not None and z_m < top_m:
+            raise TwinError(f"{vessel.mjcf.name}: site '{site_name}' at z = {z_m:+.3g} m lies above the hulls' top "
+                            f"(z = {top_m:+.3g} m; body z points down): a thruster in the air gives no thrust")
+
+
+def _hull_top_m(model: mujoco.MjModel, data: mujoco.MjData) -> float | None:
+    """The highest point (smallest z, body FRD at q = 0) of the vessel's mesh geoms; None without meshes."""
+    tops = []
+    for g in np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_MESH):
+        mid = model.geom_dataid[g]
+        v0, nv = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
+        verts = model.mesh_vert[v0:v0 + nv] @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        tops.append(float(verts[:, 2].min()))
+    return min(tops) if tops else None
 
 
 def _check_case_names(vessel: Vessel, spec: mujoco.MjSpec) -> None:
