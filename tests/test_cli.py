@@ -1,6 +1,7 @@
 """The `twin` command end to end, including bad input."""
 import json
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,7 +9,9 @@ import pytest
 import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
+from twin.cli.run import params_lines
 from twin.drive import read_inputs_csv
+from twin.engine.parameters import effective_parameters
 from twin.run import read_csv
 import twin_command
 
@@ -44,9 +47,16 @@ def test_params_text_gives_every_value_its_unit():
     boat = twin("params", "--vessel", "blueboat")
     assert boat.returncode == 0, boat.stderr
     assert "(kg, kg·m, kg·m²)" in boat.stdout and "Xuu -3.0288 N s2/m2" in boat.stdout
-    assert "thrusters (t200): gains left 1.605" in boat.stdout
+    assert "thrusters (t200): gains left 1.605" in boat.stdout and "dead zone 0.0775 / -0.0925" in boat.stdout
     ship = twin("params", "--vessel", "esso_osaka")
     assert "MMG hull (non-dimensional): R0 0.022" in ship.stdout and "MMG rudder: area_m2 0.01063" in ship.stdout
+
+
+def test_params_text_gives_a_thrusters_own_dead_zone():
+    boat = vessel_mod.load("blueboat")
+    own = replace(boat, thrusters=replace(boat.thrusters, deadzone_left=(0.2, -0.2)))
+    text = "\n".join(params_lines(effective_parameters(own)))
+    assert "dead zone left 0.2 / -0.2, right 0.0775 / -0.0925" in text
 
 
 def test_params_json():

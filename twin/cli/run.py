@@ -310,6 +310,16 @@ def _unsigned_zero(x: float, decimals: int) -> float:
     return 0.0 if round(float(x), decimals) == 0 else float(x)
 
 
+def _dead_zones(t: dict) -> str:
+    """'dead zone 0.0775 / -0.0925', or each thruster's where one has edges of its own."""
+    shared = (t["deadzone_fwd"], t["deadzone_rev"])
+    own = [t.get(f"deadzone_{side}") for side in ("left", "right")]
+    if own == [None, None]:
+        return f"dead zone {shared[0]:g} / {shared[1]:g}"
+    left, right = (shared if edges is None else edges for edges in own)
+    return f"dead zone left {left[0]:g} / {left[1]:g}, right {right[0]:g} / {right[1]:g}"
+
+
 def params_lines(p: dict) -> list[str]:
     """The damping and propulsion of effective_parameters' dict as text, each value with its unit:
     Fossen's damping (N and N·m per the velocities' powers), a PWM thruster's map scales, or a ship's
@@ -328,8 +338,7 @@ def params_lines(p: dict) -> list[str]:
     else:
         lines.append(f"thrusters ({t['kind']}): gains left {t['gain_left']:g}, right {t['gain_right']:g} (× the map); "
                      f"lag {t['lag_s']:g} s, delay {t['delay_s']:g} s; advance loss {t['advance_loss']:g} √N s/m; "
-                     f"dead zone {t['deadzone_fwd']:g} / {t['deadzone_rev']:g} (of the PWM scale, "
-                     f"{t['pwm_scale_us']:g} µs)")
+                     f"{_dead_zones(t)} (of the PWM scale, {t['pwm_scale_us']:g} µs)")
     if "positions_m" in t:
         at = "; ".join(f"{side} ({', '.join(f'{x:+.3f}' for x in pos)})" for side, pos in t["positions_m"].items())
         lines.append(f"{'propulsor' if t['kind'] == 'propeller_rudder' else 'thruster'} sites (x fwd, y stbd, z down, m): {at}"
