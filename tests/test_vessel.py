@@ -104,6 +104,8 @@ def test_a_vessel_file_missing_or_misspelling_a_physics_section_is_refused(tmp_p
     (lambda d: d["thrusters"].__setitem__("reverse", [12.8, -9.5, 0.3595]),
      r"the reverse thrust map \[12.8, -9.5, 0.3595\] gives \+1.35 N at its dead-zone edge"),
     (lambda d: d["thrusters"].__setitem__("reverse", [30.0, 9.5, -0.3]), r"does not push harder astern"),
+    (lambda d: d["thrusters"].update(pwm_min_us=1000.0, pwm_max_us=2000.0),
+     r"thrusters.pwm_min_us 1000 µs reads the thrust map at δ̃ -1.28, past its full-thrust end ±1"),
 ])
 def test_a_vessel_file_value_only_a_slipped_unit_gives_is_refused_naming_its_field(tmp_path, edit, message):
     """Each of these would run without a word as another boat (a gain in per mille reaches 35 m/s, a

@@ -576,6 +576,7 @@ def check(vessel: Vessel) -> None:
                         "for a T200)")
     if t.kind == "t200":
         _check_dead_zones_and_astern(vessel)
+        _check_pwm_within_map(vessel)
     if t.kind == "t200" and not t.forward_rises():
         raise TwinError(f"vessel '{vessel.name}': the forward thrust map {list(t.forward)} falls with the PWM "
                         "somewhere between its dead-zone edge and full PWM")
@@ -627,6 +628,25 @@ def _check_dead_zones_and_astern(vessel: Vessel) -> None:
     if not t.reverse_falls():
         raise TwinError(f"vessel '{name}': the reverse thrust map {list(t.reverse)} does not push harder astern as the "
                         "PWM falls from its dead-zone edge to full astern")
+
+
+# the T200 map runs from δ̃ = −1 to 1 (full astern to full ahead, pwm_scale_us from neutral); a PWM range
+# this far past its ends reads the curve beyond its data (the BlueBoat's 1100 µs, 411 µs below its 1511 µs
+# neutral, is δ̃ −1.03)
+MAP_END_SLACK = 0.1
+
+
+def _check_pwm_within_map(vessel: Vessel) -> None:
+    """A PWM range within the thrust map's full-scale ends, δ̃ = ±1 (MAP_END_SLACK past them): a range
+    wider than pwm_scale_us from neutral would extrapolate the map past full thrust."""
+    t = vessel.thrusters
+    for what, pwm_us in (("pwm_min_us", t.pwm_min_us), ("pwm_max_us", t.pwm_max_us)):
+        x = float(t.normalised(pwm_us))
+        if abs(x) > 1.0 + MAP_END_SLACK:
+            raise TwinError(f"vessel '{vessel.name}': thrusters.{what} {pwm_us:g} µs reads the thrust map at δ̃ "
+                            f"{x:+.3g}, past its full-thrust end ±1 (pwm_scale_us {t.pwm_scale_us:g} µs from neutral "
+                            f"{t.neutral_us:g} µs): set pwm_scale_us to the PWM from neutral your ESC gives full "
+                            "thrust at")
 
 
 def _check_thruster_kind_and_pwm(vessel: Vessel) -> None:
