@@ -48,6 +48,7 @@ def test_params_text_gives_every_value_its_unit():
     assert boat.returncode == 0, boat.stderr
     assert "(kg, kg·m, kg·m²)" in boat.stdout and "Xuu -3.0288 N s2/m2" in boat.stdout
     assert "thrusters (t200): gains left 1.605" in boat.stdout and "dead zone 0.0775 / -0.0925" in boat.stdout
+    assert "straight run at full ahead, calm water: u 3 m/s" in boat.stdout and "holds its course" in boat.stdout
     ship = twin("params", "--vessel", "esso_osaka")
     assert "MMG hull (non-dimensional): R0 0.022" in ship.stdout and "MMG rudder: area_m2 0.01063" in ship.stdout
 

@@ -17,6 +17,9 @@ changes are break points of the piecewise integration.
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
@@ -187,3 +190,97 @@ def straight_speed(compiled, n_rps: float) -> float:
                         "its resistance never balances the propeller's thrust (check mmg.hull.R0 and the propeller's "
                         "k0, k1, k2 and diameter)")
     return float(brentq(surge, 0.0, hi, xtol=1e-10))
+
+
+@dataclass(frozen=True)
+class StraightRun:
+    """A straight run in calm water and the sway-yaw motion linearised about it: course stability.
+
+    Attributes:
+        throttle: the share of full ahead it runs at (both thrusters' bound, or a ship's rps_max).
+        speed_m_s: the surge speed u₀ (m/s) at which the resistance balances the thrust.
+        roots_per_s: the two roots (1/s) of ν̇ = J ν in sway and yaw about (u₀, 0, 0): a root with a
+            positive real part makes a small deviation grow, and the straight run turns on its own.
+    """
+
+    throttle: float
+    speed_m_s: float
+    roots_per_s: tuple[complex, complex]
+
+    @property
+    def stable(self) -> bool:
+        """Whether the straight run holds (both roots in the left half-plane)."""
+        return max(r.real for r in self.roots_per_s) < 0.0
+
+    @property
+    def doubling_s(self) -> float | None:
+        """Time (s) in which an unstable run doubles a small deviation; None when it holds."""
+        growth = max(r.real for r in self.roots_per_s)
+        return math.log(2.0) / growth if growth > 0 else None
+
+    def __str__(self) -> str:
+        roots = ", ".join(f"{r.real:+.3g}" + (f"{r.imag:+.3g}j" if abs(r.imag) > 1e-12 else "") for r in self.roots_per_s)
+        verdict = "holds a straight course" if self.stable else (
+            f"course-unstable: turns on its own, a deviation doubling every {self.doubling_s:.3g} s")
+        return f"straight run at {100 * self.throttle:.0f} % (u {self.speed_m_s:.3g} m/s): {verdict} (roots {roots} 1/s)"
+
+
+def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun | None:
+    """Course stability of the vessel running straight at `throttle` (0-1] of full ahead, in calm water:
+    the speed where its surge forces balance, and the roots of its sway and yaw linearised there by
+    central differences of the analytic model's accelerations (straight-line stability, [Fossen-2021]).
+
+    Args:
+        compiled: the compiled vessel.
+        throttle: the share of full ahead (each thruster's upper bound, or a ship's rps_max).
+        static_n: the two thrusters' thrusts (N, after their gains) in place of the throttle's.
+
+    Returns:
+        The run, its speed and roots; both thrusters give their mean, so a gain asymmetry does not bend
+        it. None where full ahead has no bound (thrusters without one, a ship without rps_max).
+    """
+    vessel = compiled.vessel
+    hydro = compiled.hydro().with_environment(type(vessel.environment)())
+    t = vessel.thrusters
+    if t.kind == "propeller_rudder":
+        n_max = t.channel_bounds()[0][1]
+        if not np.isfinite(n_max):
+            return None
+        drive = {"tau": np.zeros(3), "controls": (throttle * n_max, 0.0), "static": None}
+    else:
+        full_n = t.bounds()[1]
+        if static_n is None and not np.isfinite(full_n):
+            return None
+        each = (float(np.mean(t.gains())) * throttle * full_n if static_n is None
+                else float(np.mean(np.asarray(static_n, float))))
+        static = np.array([each, each])
+        drive = {"tau": allocation_matrix(compiled.geometry.thruster_y_m) @ static, "controls": None, "static": static}
+
+    def acc(nu: np.ndarray) -> np.ndarray:
+        return acceleration(hydro, 0.0, nu, drive["tau"], drive["controls"], None, drive["static"])
+
+    hi = 0.1
+    while acc(np.array([hi, 0.0, 0.0]))[0] > 0 and hi < 50:
+        hi *= 2
+    if not acc(np.array([hi, 0.0, 0.0]))[0] <= 0:
+        raise TwinError(f"vessel '{vessel.name}': no straight-running speed under {hi:g} m/s at full ahead: its "
+                        "resistance never balances its thrust")
+    u0 = float(brentq(lambda u: acc(np.array([u, 0.0, 0.0]))[0], 0.0, hi, xtol=1e-10))
+    J = np.empty((2, 2))
+    for j, h in ((1, 1e-5 * max(1.0, u0)), (2, 1e-5)):
+        step = np.zeros(3)
+        step[j] = h
+        base = np.array([u0, 0.0, 0.0])
+        J[:, j - 1] = (acc(base + step)[1:] - acc(base - step)[1:]) / (2 * h)
+    roots = np.linalg.eigvals(J)
+    return StraightRun(float(throttle), u0, tuple(complex(r) for r in sorted(roots, key=lambda r: r.real)))
+
+
+def course_unstable_from_m_s(compiled) -> float | None:
+    """The lowest speed (m/s) of the straight runs at 10, 20, … 100 % of full ahead at which the vessel
+    is course-unstable (`straight_run`); None where every one holds, or full ahead has no bound."""
+    for pct in range(10, 101, 10):
+        run = straight_run(compiled, pct / 100.0)
+        if run is not None and not run.stable:
+            return run.speed_m_s
+    return None

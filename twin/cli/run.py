@@ -320,6 +320,16 @@ def _dead_zones(t: dict) -> str:
     return f"dead zone left {left[0]:g} / {left[1]:g}, right {right[0]:g} / {right[1]:g}"
 
 
+def _course_line(run: dict) -> str:
+    """The calm-water straight run at full ahead and whether it holds its course."""
+    roots = ", ".join(f"{re:+.3g}" + (f"{im:+.3g}j" if abs(im) > 1e-12 else "") for re, im in run["roots_per_s"])
+    head = f"straight run at full ahead, calm water: u {run['speed_m_s']:.3g} m/s, sway-yaw roots {roots} 1/s: "
+    if run["stable"]:
+        return head + "holds its course"
+    return head + (f"COURSE-UNSTABLE from {run['course_unstable_from_m_s']:.3g} m/s: it turns on its own (at full "
+                   f"ahead a deviation doubles every {run['doubling_s']:.3g} s) unless steered")
+
+
 def params_lines(p: dict) -> list[str]:
     """The damping and propulsion of effective_parameters' dict as text, each value with its unit:
     Fossen's damping (N and N·m per the velocities' powers), a PWM thruster's map scales, or a ship's
@@ -344,6 +354,8 @@ def params_lines(p: dict) -> list[str]:
         lines.append(f"{'propulsor' if t['kind'] == 'propeller_rudder' else 'thruster'} sites (x fwd, y stbd, z down, m): {at}"
                      + (f"; thrust {t['Fu_min_n']:.4g} to {t['Fu_max_n']:.4g} N, yaw moment ±{t['tau_r_max_nm']:.4g} N m"
                         if t.get("tau_r_max_nm") is not None else ""))
+    if p.get("straight_run"):
+        lines.append(_course_line(p["straight_run"]))
     sites = [f"{what} ({', '.join(f'{x:+.3f}' for x in p[key])})" for what, key in
              (("GNSS", "gnss_antenna_m"), ("IMU", "imu_m")) if p.get(key) is not None]
     if sites:

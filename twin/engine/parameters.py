@@ -5,6 +5,7 @@ from dataclasses import asdict
 
 import numpy as np
 
+from ..analytic import course_unstable_from_m_s, straight_run
 from ..physics import mmg
 from ..physics.thrusters import allocation_matrix, force_torque_bounds
 from ..vessel import Vessel, environment_to_dict
@@ -34,6 +35,12 @@ def effective_parameters(vessel: Vessel) -> dict:
         extra["mmg_packed"] = {k: x if np.isfinite(x) else None for k, x in zip(mmg.FIELDS, hydro.mmg.tolist())}
     if vessel.wind_regression is not None:
         extra["wind_regression"] = asdict(vessel.wind_regression)
+    full_ahead = straight_run(cv, 1.0)
+    if full_ahead is not None:
+        extra["straight_run"] = {"throttle": 1.0, "speed_m_s": full_ahead.speed_m_s,
+                                 "roots_per_s": [[r.real, r.imag] for r in full_ahead.roots_per_s],
+                                 "stable": full_ahead.stable, "doubling_s": full_ahead.doubling_s,
+                                 "course_unstable_from_m_s": course_unstable_from_m_s(cv)}
     return {
         "vessel": vessel.name,
         "case": vessel.case,

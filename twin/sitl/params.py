@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analytic import course_unstable_from_m_s, straight_run
 from ..drive import InputSeries
 from ..engine.mjcf import compile_vessel
 from ..engine.sim import simulate
@@ -30,7 +31,8 @@ SETTLE_S = 90.0  # a 1-m boat settles to its cruise speed within a few tens of s
 
 def _steady(vessel: Vessel, left_pct: float, right_pct: float) -> np.ndarray:
     """Steady (u, v, r) of the twin in calm water with each thruster at a % of its PWM span from
-    neutral (+ ahead, − astern), the mean over the last 10 s of SETTLE_S."""
+    neutral (+ ahead, − astern), the mean over the last 10 s of SETTLE_S; with both alike on a twin
+    that is course-unstable there (it would turn on its own), the straight run Rover's steering holds."""
     calm = vessel.with_environment(Environment())
     m = PwmMap.of(calm.thrusters)
 
@@ -39,12 +41,22 @@ def _steady(vessel: Vessel, left_pct: float, right_pct: float) -> np.ndarray:
         return m.neutral_us + abs(pct) / 100.0 * (end - m.neutral_us)
 
     pair = [pwm(left_pct), pwm(right_pct)]
+    if left_pct == right_pct > 0:
+        straight = _straight(calm, m, pair)
+        if straight is not None and not straight.stable:
+            return np.array([straight.speed_m_s, 0.0, 0.0])
     if m.kind == "pwm":
         drive = InputSeries(np.array([0.0]), np.array([pair]), "pwm")
     else:
         drive = InputSeries(np.array([0.0]), np.array([[m.raw(m.held(p)) for p in pair]]), "thrust")
     run = simulate(compile_vessel(calm), drive, SETTLE_S, sample_dt_s=0.5)
     return np.mean(run.nu[run.t >= SETTLE_S - 10.0], axis=0)
+
+
+def _straight(vessel: Vessel, m: PwmMap, pair: list[float]):
+    """analytic.straight_run of the twin with its two thrusters at these PWMs (µs)."""
+    static = vessel.thrusters.gains() * np.array([m.raw(m.held(p), side) for side, p in enumerate(pair)])
+    return straight_run(compile_vessel(vessel), static_n=static)
 
 
 def cruise_speed_m_s(vessel: Vessel, throttle_pct: float = CRUISE_THROTTLE_PCT) -> float:
@@ -69,6 +81,7 @@ def boat_parameters(vessel: Vessel, channels: tuple[int, int] = (1, 3)) -> str:
     speed = cruise_speed_m_s(vessel)
     top = cruise_speed_m_s(vessel, 100.0)
     turn = pivot_rate_deg_s(vessel)
+    unstable_m_s = course_unstable_from_m_s(compile_vessel(vessel.with_environment(Environment())))
     lines = [f"# ArduPilot Rover parameters for a SITL session with the twin of '{vessel.name}'",
              "# written by `twin sitl --write-params`: give it after Rover's own defaults",
              "# (ardurover --defaults rover.parm,rover-skid.parm,THIS, or sim_vehicle.py --add-param-file THIS)",
@@ -88,4 +101,7 @@ def boat_parameters(vessel: Vessel, channels: tuple[int, int] = (1, 3)) -> str:
               f"WP_SPEED        {speed:.2f}   # AUTO and GUIDED at cruise: its top speed is {top:.2f} m/s at full "
               "throttle, the rest is for steering",
               f"ATC_STR_RAT_MAX {turn:.0f}     # deg/s: the twin's steady turn rate at full differential thrust"]
+    if unstable_m_s is not None:
+        lines.append(f"# the twin is course-unstable from {unstable_m_s:.2f} m/s (it turns on its own: twin params): "
+                     "its speeds above are of the straight runs Rover's steering holds")
     return "\n".join(lines) + "\n"
