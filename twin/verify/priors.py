@@ -171,11 +171,12 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
                  f"{props.Yur:.2f}"),
         Estimate("Nuv", total.Nuv, "N s2/m", f"hulls {hull_lift.Nuv:.2f} (C_A's Munk moment taken out) + thrusters "
                  f"{props.Nuv:.2f}"),
-        Estimate("Nur", total.Nur + dnur, "N m s2/m", f"hulls {hull_lift.Nur:.2f} + thrusters {props.Nur:.2f} + "
-                 f"the two hulls' resistance at u ∓ r·s, s {s:.3f} m: {dnur:.2f}"),
+        Estimate("Nur", total.Nur + dnur, "N m s2/m", f"hulls {hull_lift.Nur:.2f} + thrusters {props.Nur:.2f}"
+                 + (f" + the two hulls' resistance at u ∓ r·s, s {s:.3f} m: {dnur:.2f}" if len(hs) == 2 else
+                    " (one hull: no resistance at u ∓ r·s)")),
         Estimate("Nr", rest[3] + dnr, "N m s", f"the thrusters' own flow at half thrust ({0.5 * full:.1f} N each) "
-                 f"turning lateral momentum [Glauert-1935]: {rest[3]:.2f}, + the two hulls' resistance at u ∓ r·s "
-                 f"(its linear part) {dnr:.2f}"),
+                 f"turning lateral momentum [Glauert-1935]: {rest[3]:.2f}"
+                 + (f", + the two hulls' resistance at u ∓ r·s (its linear part) {dnr:.2f}" if len(hs) == 2 else "")),
         Estimate("Yv", rest[0], "N s/m", "the thrusters' own flow at half thrust; the hulls' sway damping at rest "
                  "is quadratic (Yvv) and their lift grows with the speed (Yuv)"),
         Estimate("Yvv", yvv, "N s2/m2", f"cross-flow drag, C_D {d.cross_flow_cd:g} on the hulls' lateral profiles "
