@@ -233,7 +233,8 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
     Args:
         compiled: the compiled vessel.
         throttle: the share of full ahead (each thruster's upper bound, or a ship's rps_max).
-        static_n: the two thrusters' thrusts (N, after their gains) in place of the throttle's.
+        static_n: the two thrusters' thrusts (N, after their gains) in place of the throttle's (the
+            run's throttle is then their mean's share of full ahead).
 
     Returns:
         The run, its speed and roots; both thrusters give their mean, so a gain asymmetry does not bend
@@ -253,6 +254,8 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
             return None
         each = (float(np.mean(t.gains())) * throttle * full_n if static_n is None
                 else float(np.mean(np.asarray(static_n, float))))
+        if static_n is not None and np.isfinite(full_n):
+            throttle = each / (float(np.mean(t.gains())) * full_n)
         static = np.array([each, each])
         drive = {"tau": allocation_matrix(compiled.geometry.thruster_y_m) @ static, "controls": None, "static": static}
 

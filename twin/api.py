@@ -45,6 +45,7 @@ from .recording import Recording, check_no_shared_stretch, check_not_misread
 from .run import Run
 from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
 from .verify.crosscheck import cases, crosscheck as _crosscheck
+from .verify.manoeuvres import Manoeuvres, manoeuvres as _manoeuvres
 from .ident.identify import Identification as _Identification, calibrate as _calibrate, check_wind, \
     identify as _identify, manoeuvre_horizon_s, prepared
 from .verify.validate import Validation as _Validation, validate as _validate
@@ -53,7 +54,7 @@ from .vessel import Vessel, load as load_vessel, save as _save
 __all__ = ["Run", "Vessel", "InputSeries", "Validation", "Identification", "Simulation", "Evaluation", "Score", "Effect",
            "Parameter", "Judgement", "Diagnosis", "Table", "TwinError", "load_vessel", "save_vessel", "simulate",
            "simulate_run",
-           "crosscheck", "effective_parameters", "compile_vessel", "validate", "read_recording",
+           "crosscheck", "manoeuvres", "Manoeuvres", "effective_parameters", "compile_vessel", "validate", "read_recording",
            "prepare_recording", "calibrate", "identify", "evaluate", "diagnose_recordings", "judge"]
 
 
@@ -179,13 +180,40 @@ def effective_parameters(vessel: Vessel | str) -> dict:
         and "damping" (the [Morel-2024 eq. 7] names, Fossen signs), "thrusters" (positions in m,
         input and force bounds, a twin-thruster boat's allocation matrix), "gnss_antenna_m" and
         "gnss_lever_arm_OP_m" (the GNSS lever arm), "imu_m", "wind_load", "environment",
-        "frames", "sources"; and a propeller-and-rudder ship's "mmg" coefficients.
+        "frames", "sources"; a propeller-and-rudder ship's "mmg" coefficients; and, where full ahead
+        has a bound, "straight_run": the calm-water straight run at full ahead (speed, sway-yaw
+        roots, whether it holds its course, from which speed it does not).
 
     Raises:
         TwinError: `vessel` is neither a twin.Vessel nor the name of a shipped vessel or a readable
             vessel file.
     """
     return _effective_parameters(_vessel(vessel))
+
+
+def manoeuvres(vessel: Vessel | str, surge: float = 0.5, turn_yaw: float = 1.0, zigzag_yaw: float | None = None,
+               zigzag_switch_deg: float = 10.0) -> Manoeuvres:
+    """The twin's turning circles, zig-zag and crash stop in calm water, as `twin manoeuvres` runs them:
+    the measures of manoeuvring trials [IMO-MSC137] from a steady straight approach.
+
+    Args:
+        vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
+        surge: the approach command, (0, 1] of full ahead (a ship: of rps_max; `--surge`).
+        turn_yaw: the turning circles' yaw command, (0, 1] (a ship: of rudder_max; `--turn-yaw`).
+        zigzag_yaw: the zig-zag's yaw command, (0, 1]; None: a ship's 10° of rudder, a boat's 0.2.
+        zigzag_switch_deg: the heading change (°) at which the zig-zag reverses (default 10).
+
+    Returns:
+        twin.verify.manoeuvres.Manoeuvres: `length_m` (L), `approach_speed_m_s`, `straight` (the
+        straight run's course stability), `turns` (starboard, port: advance, transfer, tactical and
+        steady diameters in m, steady speed m/s, rate °/s, drift angle °), `zigzag` (first and second
+        overshoot °) and `crash_stop` (track and head reach, lateral deviation in m, time in s).
+
+    Raises:
+        TwinError: a command outside (0, 1], a switch angle outside (0, 90)°, or a vessel that is not
+            one or does not get under way at the approach command.
+    """
+    return _manoeuvres(_vessel(vessel), surge, turn_yaw, zigzag_yaw, zigzag_switch_deg)
 
 
 def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] | None = None,

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import asdict
 import textwrap
 from pathlib import Path
 from typing import Optional
@@ -246,6 +247,70 @@ def crosscheck(
         say(f"wrote {rrd}")
     if not all(r.passed for r in results):
         raise typer.Exit(1)
+
+
+@app.command()
+@all_or_nothing_outputs
+def manoeuvres(
+    vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
+    model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
+    case: Optional[str] = typer.Option(None, help=CASE_HELP),
+    surge: float = typer.Option(0.5, help="the approach command, (0, 1] of full ahead (a ship: of rps_max)"),
+    turn_yaw: float = typer.Option(1.0, help="the turning circles' yaw command, (0, 1] (a ship: of rudder_max; a "
+                                             "twin-thruster boat: differential, each thruster held within full)"),
+    zigzag_yaw: Optional[float] = typer.Option(None, help="the zig-zag's yaw command, (0, 1] (default: a ship's 10° "
+                                                          "of rudder, a boat's 0.2)"),
+    zigzag_switch: float = typer.Option(10.0, help="the heading change at which the zig-zag reverses, °"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the measures as JSON {REPORT_HELP}"),
+):
+    """The twin's turning circles, zig-zag and crash stop in calm water, as manoeuvring trials measure them."""
+    from ..verify.manoeuvres import manoeuvres as run_manoeuvres  # late: the engine, 0.25 s at every --help
+
+    check_outputs([json_out], (".json",), "--json")
+    check_distinct({"--json": json_out}, [model])
+    v = vessel_from(vessel, model, case)
+    m = run_manoeuvres(v, surge, turn_yaw, zigzag_yaw, zigzag_switch)
+    for line in manoeuvre_lines(m):
+        say(line)
+    write_json(json_out, asdict(m) | {"straight": None if m.straight is None else {
+        "throttle": m.straight.throttle, "speed_m_s": m.straight.speed_m_s, "stable": m.straight.stable,
+        "roots_per_s": [[r.real, r.imag] for r in m.straight.roots_per_s]}})
+
+
+def manoeuvre_lines(m) -> list[str]:
+    """The manoeuvres (verify.manoeuvres.Manoeuvres) as text: each length in m and in L."""
+    L = m.length_m
+
+    def length(x):
+        return "not reached" if x is None else f"{x:.2f} m ({x / L:.2f} L)"
+
+    def value(x, unit, fmt=".3g"):
+        return "not reached" if x is None else f"{x:{fmt}}{'' if unit == '°' else ' '}{unit}"
+
+    lines = [f"[bold]{m.vessel}[/]: L {L:.3g} m; approach at surge {m.surge:g}: u {m.approach_speed_m_s:.3g} m/s"]
+    if m.straight is not None:
+        lines.append("  " + ("holds a straight course" if m.straight.stable else
+                             f"COURSE-UNSTABLE: a deviation doubles every {m.straight.doubling_s:.3g} s") +
+                     f" (sway-yaw roots {', '.join(f'{r.real:+.3g}' for r in m.straight.roots_per_s)} 1/s)")
+    lines.append(f"turning circle, yaw {m.turn_yaw:g} (starboard | port; transfer + to starboard):")
+    for label, key, kind in (("advance", "advance_m", "L"), ("transfer", "transfer_m", "L"),
+                             ("tactical diameter", "tactical_diameter_m", "L"),
+                             ("steady diameter", "steady_diameter_m", "L"), ("steady speed", "steady_speed_m_s", "m/s"),
+                             ("steady rate", "steady_rate_deg_s", "°/s"), ("drift angle", "drift_deg", "°")):
+        cells = [length(getattr(c, key)) if kind == "L" else value(getattr(c, key), kind, ".3g" if kind == "m/s" else ".1f")
+                 for c in m.turns]
+        lines.append(f"  {label:<18} {cells[0]:<22} | {cells[1]}")
+    z = m.zigzag
+    lines.append(f"zig-zag, yaw {z.yaw:g} switched at {z.switch_deg:g}°: first overshoot "
+                 f"{value(z.first_overshoot_deg, '°', '.1f')}, second {value(z.second_overshoot_deg, '°', '.1f')}; first "
+                 f"reversal after {value(z.time_to_first_switch_s, 's', '.1f')}")
+    c = m.crash_stop
+    if c is None:
+        lines.append("crash stop: none (the thrusters have no astern)")
+    else:
+        lines.append(f"crash stop, full astern: track reach {length(c.track_reach_m)}, head reach "
+                     f"{length(c.head_reach_m)}, lateral {length(c.lateral_m)}, in {value(c.time_s, 's', '.1f')}")
+    return lines
 
 
 @app.command()

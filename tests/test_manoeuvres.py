@@ -1,0 +1,83 @@
+"""The standard manoeuvres (turning circle, zig-zag, crash stop) read from the twin's runs: their
+geometry against the track itself, their symmetry, and how they move with the boat and the command."""
+import numpy as np
+import pytest
+
+import twin
+import twin.vessel as vessel_mod
+from twin.engine.mjcf import compile_vessel
+from twin.errors import TwinError
+from twin.verify.manoeuvres import APPROACH_S, _after_execute, _run, manoeuvres
+
+
+@pytest.fixture(scope="module")
+def blueboat():
+    return manoeuvres(vessel_mod.load("blueboat"))
+
+
+def test_a_symmetric_boat_turns_the_same_circle_to_either_side(blueboat):
+    starboard, port = blueboat.turns
+    assert starboard.side == 1 and port.side == -1
+    assert starboard.advance_m == pytest.approx(port.advance_m, rel=1e-6)
+    assert starboard.transfer_m == pytest.approx(-port.transfer_m, rel=1e-6) and starboard.transfer_m > 0
+    assert starboard.steady_rate_deg_s == pytest.approx(-port.steady_rate_deg_s, rel=1e-6)
+    assert starboard.steady_rate_deg_s > 0
+    assert blueboat.approach_speed_m_s == pytest.approx(blueboat.straight.speed_m_s, rel=0.01)
+    assert blueboat.straight.stable
+
+
+def test_the_steady_diameter_is_the_circle_the_track_draws():
+    """2U/|r| of the steady turn against a circle fitted to the track after 360° (least squares)."""
+    compiled = compile_vessel(vessel_mod.load("yellowfish"))
+    m = manoeuvres(compiled.vessel)
+    u0 = m.approach_speed_m_s
+    run = _run(compiled, lambda t, eta, nu: (0.5, 1.0 if t >= 0 else 0.0), 60.0, u0)
+    _, x, y, heading = _after_execute(run)
+    steady = heading >= np.radians(360.0)
+    A = np.column_stack([2 * x[steady], 2 * y[steady], np.ones(steady.sum())])
+    cx, cy, c = np.linalg.lstsq(A, x[steady] ** 2 + y[steady] ** 2, rcond=None)[0]
+    diameter = 2 * np.sqrt(c + cx ** 2 + cy ** 2)
+    assert m.turns[0].steady_diameter_m == pytest.approx(diameter, rel=0.01)
+    # the tactical diameter is where the heading has turned 180°: at least the steady circle's, the boat
+    # running wider while it slows into the turn
+    assert m.turns[0].tactical_diameter_m >= 0.99 * diameter
+    assert 0 < m.turns[0].steady_speed_m_s < u0
+
+
+def test_a_harder_zig_zag_overshoots_more_and_a_heavier_boat_stops_later():
+    soft = manoeuvres(vessel_mod.load("blueboat"), zigzag_yaw=0.2)
+    hard = manoeuvres(vessel_mod.load("blueboat"), zigzag_yaw=0.6)
+    assert 0 < soft.zigzag.first_overshoot_deg < hard.zigzag.first_overshoot_deg
+    assert hard.zigzag.time_to_first_switch_s < soft.zigzag.time_to_first_switch_s
+    light = manoeuvres(vessel_mod.load("yellowfish", case="min")).crash_stop
+    heavy = manoeuvres(vessel_mod.load("yellowfish", case="max")).crash_stop
+    assert 0 < light.head_reach_m < heavy.head_reach_m and light.time_s < heavy.time_s
+    assert abs(heavy.lateral_m) < 1e-6 and heavy.track_reach_m == pytest.approx(heavy.head_reach_m, rel=1e-6)
+
+
+def test_a_ship_turns_within_its_length_scale_and_stops_on_its_propeller():
+    """The Esso Osaka twin at full propeller speed: the turning circle and crash stop of its MMG forces,
+    in lengths Lpp (a tanker turns in a few lengths and runs several before it stops)."""
+    m = twin.manoeuvres("esso_osaka", surge=1.0, turn_yaw=35.0 / 40.0)
+    L = m.length_m
+    assert L == pytest.approx(3.0)
+    starboard = m.turns[0]
+    assert 2.0 < starboard.advance_m / L < 4.5 and 2.0 < starboard.tactical_diameter_m / L < 5.0
+    assert starboard.steady_diameter_m < starboard.tactical_diameter_m
+    assert starboard.steady_speed_m_s < 0.5 * m.approach_speed_m_s  # a full ship loses half its speed in a turn
+    assert m.zigzag.yaw == pytest.approx(0.25) and 0 < m.zigzag.first_overshoot_deg < m.zigzag.second_overshoot_deg
+    assert 2.0 < m.crash_stop.head_reach_m / L < 6.0
+
+
+@pytest.mark.parametrize("kwargs, says", [
+    ({"surge": 0.0}, r"approach \(surge\) command lies in \(0, 1\]"),
+    ({"turn_yaw": 1.5}, "turning yaw command"),
+    ({"zigzag_switch_deg": 95.0}, "switch angle lies between 0 and 90"),
+])
+def test_a_command_outside_its_range_is_refused(kwargs, says):
+    with pytest.raises(TwinError, match=says):
+        manoeuvres(vessel_mod.load("blueboat"), **kwargs)
+
+
+def test_the_approach_runs_before_the_execute():
+    assert APPROACH_S >= 5.0  # a thrust lag of the shipped boats (≤ 1 s) settles within it

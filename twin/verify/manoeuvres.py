@@ -1,0 +1,287 @@
+"""The twin's standard manoeuvres, from a steady straight approach in calm water: the turning circle to
+each side, a zig-zag and a crash stop, with the measures of full-scale manoeuvring trials [IMO-MSC137],
+in metres and in lengths L:
+
+- turning circle: the turning command held from the execute; advance and transfer where the heading
+  has changed 90°, the tactical diameter where it has changed 180°, and the steady turn (its diameter
+  2U/|r|, speed, rate and drift angle) once the heading has changed 360°;
+- zig-zag: the yaw command reversed each time the heading passes the switch angle from the approach
+  heading; the first and second overshoot angles (how far the heading runs past the switch angle after
+  the first and second reversal) and the time to the first reversal;
+- crash stop: full astern from the approach; the track reach (the path run until the surge speed is
+  zero), the head reach (along the approach heading), the lateral deviation and the time it takes.
+
+Positions are those of the body origin (the MJCF's CO), where the standards take the midship point.
+
+A command is the twin's normalised (surge, yaw) pair, as `twin simulate`'s scenarios give it: a
+propeller and rudder's n = surge·rps_max and δ = yaw·rudder_max; a twin-thruster boat's per-thruster
+command surge ± yaw, each held within full ahead and astern (full yaw at half throttle puts one
+thruster full ahead and the other at half astern). The approach starts at the straight run's speed
+(`analytic.straight_run`) and runs APPROACH_S before the execute, so a thrust lag has settled. A
+course-unstable twin would turn on its own during the approach; nothing holds it straight, and
+its straight run says so (`stable`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..analytic import StraightRun, straight_run, straight_speed
+from ..drive import to_thruster_inputs
+from ..engine.mjcf import CompiledVessel, compile_vessel
+from ..engine.sim import simulate
+from ..errors import TwinError
+from ..physics.environment import Environment
+from ..run import Run
+from ..vessel import Vessel
+
+APPROACH_S = 10.0
+TURN_TO_DEG = 400.0  # a steady turn is read after 360°: a little beyond, for its mean over the last 40°
+LONGEST_S = 1800.0  # a turn that never gets round (too little yaw for the speed) stops here
+
+
+@dataclass(frozen=True)
+class TurningCircle:
+    """One turning circle (side +1 to starboard, −1 to port). Lengths in m; None where the heading
+    never changed that much within LONGEST_S."""
+
+    side: int
+    advance_m: float | None
+    transfer_m: float | None
+    tactical_diameter_m: float | None
+    steady_diameter_m: float | None
+    steady_speed_m_s: float | None
+    steady_rate_deg_s: float | None
+    drift_deg: float | None
+
+
+@dataclass(frozen=True)
+class ZigZagTest:
+    """A zig-zag of yaw command `yaw` (normalised; a ship's rudder angle δ = yaw·rudder_max) switched at
+    `switch_deg` from the approach heading. Angles in °, times in s; None where not reached."""
+
+    yaw: float
+    switch_deg: float
+    first_overshoot_deg: float | None
+    second_overshoot_deg: float | None
+    time_to_first_switch_s: float | None
+
+
+@dataclass(frozen=True)
+class CrashStop:
+    """Full astern from the approach until the surge speed is zero (None: it never stopped)."""
+
+    track_reach_m: float | None
+    head_reach_m: float | None
+    lateral_m: float | None
+    time_s: float | None
+
+
+@dataclass(frozen=True)
+class Manoeuvres:
+    """The standard manoeuvres of one twin at one approach command.
+
+    Attributes:
+        vessel: the vessel's name.
+        length_m: L, the ship's Lpp or, for a boat, its hull meshes' length overall (m).
+        surge: the approach command (normalised).
+        turn_yaw: the turning circles' yaw command (normalised).
+        approach_speed_m_s: the surge speed at the execute (m/s).
+        straight: the straight run's course stability at the approach thrust (None: unbounded thrusters).
+        turns: the turning circles to starboard and to port, at the full turning command.
+        zigzag: the zig-zag.
+        crash_stop: the crash stop (None where the vessel has no astern: thrust bounds of zero).
+    """
+
+    vessel: str
+    length_m: float
+    surge: float
+    turn_yaw: float
+    approach_speed_m_s: float
+    straight: StraightRun | None
+    turns: tuple[TurningCircle, TurningCircle]
+    zigzag: ZigZagTest
+    crash_stop: CrashStop | None
+
+
+def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag_yaw: float | None = None,
+               zigzag_switch_deg: float = 10.0) -> Manoeuvres:
+    """The turning circles, zig-zag and crash stop of the twin in calm water.
+
+    Args:
+        vessel: the twin (its current and wind are removed: calm water).
+        surge: the approach command, (0, 1] of full ahead (normalised, as the scenarios give it).
+        turn_yaw: the turning circles' yaw command (0, 1] (default 1: full rudder, or full differential).
+        zigzag_yaw: the zig-zag's yaw command (0, 1]; default a ship's 10° of rudder, a boat's 0.2.
+        zigzag_switch_deg: the heading change (°) at which the zig-zag reverses (default 10).
+
+    Returns:
+        The Manoeuvres, lengths in m and angles in °.
+
+    Raises:
+        TwinError: a command outside (0, 1], a switch angle outside (0, 90), or a vessel that does not
+            get under way at the approach command.
+    """
+    for what, command in (("approach (surge)", surge), ("turning yaw", turn_yaw), ("zig-zag yaw", zigzag_yaw)):
+        if command is not None and not 0 < command <= 1:
+            raise TwinError(f"the {what} command lies in (0, 1] of full, got {command:g}")
+    if not 0 < zigzag_switch_deg < 90:
+        raise TwinError(f"the zig-zag's switch angle lies between 0 and 90°, got {zigzag_switch_deg:g}")
+    calm = vessel.with_environment(Environment())
+    compiled = compile_vessel(calm)
+    ship = calm.thrusters.kind == "propeller_rudder"
+    if zigzag_yaw is None:
+        zigzag_yaw = min(1.0, 10.0 / calm.thrusters.rudder_max_deg) if ship and calm.thrusters.rudder_max_deg else 0.2
+    u0, straight = _approach(compiled, surge)
+    if not u0 > 0:
+        raise TwinError(f"vessel '{vessel.name}' does not get under way at an approach command of {surge:g}")
+    length_m = _length_m(compiled)
+    (starboard, u_execute), (port, _) = (_turning_circle(compiled, surge, side * turn_yaw, u0, length_m)
+                                         for side in (1, -1))
+    return Manoeuvres(vessel.name, length_m, surge, turn_yaw, u_execute, straight, (starboard, port),
+                      _zigzag(compiled, surge, zigzag_yaw, zigzag_switch_deg, u0, length_m),
+                      _crash_stop(compiled, surge, u0, length_m))
+
+
+def _approach(compiled: CompiledVessel, surge: float) -> tuple[float, StraightRun | None]:
+    """The straight run's speed (m/s) at the approach command, and its course stability."""
+    t = compiled.vessel.thrusters
+    kind, held = to_thruster_inputs(t, surge, 0.0)
+    if kind == "propeller_rudder":
+        return straight_speed(compiled, float(held[0])), straight_run(compiled, surge)
+    raw = t.thrust_from_pwm(held) if kind == "pwm" else held
+    run = straight_run(compiled, static_n=t.gains() * np.asarray(raw, float))
+    return run.speed_m_s, run
+
+
+def _length_m(compiled: CompiledVessel) -> float:
+    """L: a ship's Lpp, else the length overall of the hull meshes (of every geom without meshes)."""
+    mmg = compiled.vessel.mmg
+    if mmg is not None and mmg.lpp_m > 0:
+        return float(mmg.lpp_m)
+    model = compiled.model
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    meshes = np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+    xs = []
+    for g in meshes if len(meshes) else np.flatnonzero(model.geom_bodyid > 0):
+        centre, half = data.geom_xpos[g], model.geom_rbound[g]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+            mid = model.geom_dataid[g]
+            v0, nv = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
+            x = (model.mesh_vert[v0:v0 + nv] @ data.geom_xmat[g].reshape(3, 3).T + centre)[:, 0]
+            xs += [float(x.min()), float(x.max())]
+        else:
+            xs += [float(centre[0] - half), float(centre[0] + half)]
+    return max(xs) - min(xs)
+
+
+def _run(compiled: CompiledVessel, controller, duration_s: float, u0: float) -> Run:
+    """A run from the straight approach at u0; the controller sees the time since the execute."""
+    return simulate(compiled, lambda t, eta, nu: controller(t - APPROACH_S, eta, nu), APPROACH_S + duration_s,
+                    nu0=np.array([u0, 0.0, 0.0]), sample_dt_s=0.1)
+
+
+def _after_execute(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t s, x m along the approach heading, y m to its starboard, heading change rad) from the execute."""
+    i0 = int(np.searchsorted(run.t, run.t[0] + APPROACH_S - 1e-9))
+    psi0 = run.eta[i0, 2]
+    c, s = np.cos(psi0), np.sin(psi0)
+    dn, de = run.eta[i0:, 0] - run.eta[i0, 0], run.eta[i0:, 1] - run.eta[i0, 1]
+    heading = np.unwrap(run.eta[i0:, 2]) - np.unwrap(run.eta[i0:, 2])[0]
+    return run.t[i0:] - run.t[i0], c * dn + s * de, -s * dn + c * de, heading
+
+
+def _first(mask: np.ndarray) -> int | None:
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if len(hits) else None
+
+
+def _turning_circle(compiled: CompiledVessel, surge: float, yaw: float, u0: float,
+                    length_m: float) -> tuple[TurningCircle, float]:
+    """The turning circle under yaw command `yaw` (> 0 to starboard), and the surge speed (m/s) at its
+    execute."""
+    side = 1 if yaw > 0 else -1
+    # long enough for 400° at a tenth of the approach speed round a circle of 5 L, within LONGEST_S
+    duration_s = min(LONGEST_S, TURN_TO_DEG / 360.0 * np.pi * 5.0 * length_m / (0.1 * u0))
+    run = _run(compiled, lambda t, eta, nu: (surge, yaw if t >= 0 else 0.0), duration_s, u0)
+    _, x, y, heading = _after_execute(run)
+    turned = side * heading
+    at90, at180, at360 = (_first(turned >= np.radians(a)) for a in (90.0, 180.0, 360.0))
+    steady = dict(steady_diameter_m=None, steady_speed_m_s=None, steady_rate_deg_s=None, drift_deg=None)
+    if at360 is not None:
+        i0 = len(run.t) - len(x)
+        tail = run.nu[i0 + at360:]
+        u, v, r = (float(np.mean(tail[:, k])) for k in range(3))
+        speed = float(np.hypot(u, v))
+        steady = dict(steady_diameter_m=2.0 * speed / abs(r), steady_speed_m_s=speed,
+                      steady_rate_deg_s=float(np.degrees(r)), drift_deg=float(np.degrees(np.arctan2(-v, u))))
+    circle = TurningCircle(side, None if at90 is None else float(x[at90]), None if at90 is None else float(y[at90]),
+                           None if at180 is None else float(abs(y[at180])), **steady)
+    return circle, float(run.nu[len(run.t) - len(x), 0])
+
+
+def _zigzag(compiled: CompiledVessel, surge: float, yaw: float, switch_deg: float, u0: float,
+            length_m: float) -> ZigZagTest:
+    state = {"sign": 1.0}
+
+    def controller(t, eta, nu):
+        if t < 0:
+            return surge, 0.0
+        if "psi0" not in state:
+            state["psi0"] = float(eta[2])
+        if state["sign"] * np.degrees(eta[2] - state["psi0"]) >= switch_deg:
+            state["sign"] = -state["sign"]
+        return surge, state["sign"] * yaw
+
+    duration_s = min(LONGEST_S, 40.0 * length_m / u0)
+    run = _run(compiled, controller, duration_s, u0)
+    t, _, _, heading = _after_execute(run)
+    change_deg = np.degrees(heading)
+    switches = _switch_indices(change_deg, switch_deg)
+    overshoots = []
+    for k, i in enumerate(switches[:2]):
+        end = switches[k + 1] if k + 1 < len(switches) else None
+        if end is None:
+            break
+        sign = 1.0 if k % 2 == 0 else -1.0
+        overshoots.append(float(np.max(sign * change_deg[i:end]) - switch_deg))
+    overshoots += [None] * (2 - len(overshoots))
+    return ZigZagTest(yaw, switch_deg, overshoots[0], overshoots[1],
+                      float(t[switches[0]]) if switches else None)
+
+
+def _switch_indices(change_deg: np.ndarray, switch_deg: float) -> list[int]:
+    """Where the heading first passes +switch, then −switch, then + … (the reversals), in samples."""
+    out, sign, i = [], 1.0, 0
+    while True:
+        hit = _first(sign * change_deg[i:] >= switch_deg)
+        if hit is None:
+            return out
+        i += hit
+        out.append(i)
+        sign = -sign
+
+
+def _crash_stop(compiled: CompiledVessel, surge: float, u0: float, length_m: float) -> CrashStop | None:
+    t_min = compiled.vessel.thrusters.bounds()[0]
+    if compiled.vessel.thrusters.kind != "propeller_rudder" and not t_min < 0:
+        return None
+    duration_s = min(LONGEST_S, 40.0 * length_m / u0)
+    run = _run(compiled, lambda t, eta, nu: (surge if t < 0 else -1.0, 0.0), duration_s, u0)
+    t, x, y, _ = _after_execute(run)
+    i0 = len(run.t) - len(x)
+    u = run.nu[i0:, 0]
+    stop = _first(u <= 0.0)
+    if stop is None:
+        return CrashStop(None, None, None, None)
+    # the stop lies between two samples: where u, linear between them, is zero
+    share = u[stop - 1] / (u[stop - 1] - u[stop]) if stop > 0 else 0.0
+    path = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+
+    def at(series):
+        return float(series[stop - 1] + share * (series[stop] - series[stop - 1])) if stop > 0 else float(series[0])
+
+    return CrashStop(at(path), at(x), at(y), at(t))
