@@ -187,11 +187,43 @@ def _run(compiled: CompiledVessel, controller, duration_s: float, u0: float) -> 
 def _after_execute(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(t s, x m along the approach heading, y m to its starboard, heading change rad) from the execute."""
     i0 = int(np.searchsorted(run.t, run.t[0] + APPROACH_S - 1e-9))
-    psi0 = run.eta[i0, 2]
-    c, s = np.cos(psi0), np.sin(psi0)
-    dn, de = run.eta[i0:, 0] - run.eta[i0, 0], run.eta[i0:, 1] - run.eta[i0, 1]
-    heading = np.unwrap(run.eta[i0:, 2]) - np.unwrap(run.eta[i0:, 2])[0]
-    return run.t[i0:] - run.t[i0], c * dn + s * de, -s * dn + c * de, heading
+    return in_execute_frame(run.t[i0:], run.eta[i0:, 0], run.eta[i0:, 1], run.eta[i0:, 2])
+
+
+def in_execute_frame(t_s, north_m, east_m, psi_rad) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A track from its first sample (the execute) in that sample's heading frame: (t s from the
+    execute, x m along the heading then, y m to its starboard, heading change rad, unwrapped)."""
+    psi = np.unwrap(np.asarray(psi_rad, float))
+    c, s = np.cos(psi[0]), np.sin(psi[0])
+    dn, de = np.asarray(north_m, float) - north_m[0], np.asarray(east_m, float) - east_m[0]
+    return np.asarray(t_s, float) - t_s[0], c * dn + s * de, -s * dn + c * de, psi - psi[0]
+
+
+def turning_measures(t_s, north_m, east_m, psi_rad, nu, side: int) -> TurningCircle:
+    """A turning circle's measures read from a track that starts at its execute: a twin's run, or a
+    recorded turning test (its midship or body-origin track, heading and body velocities).
+
+    Args:
+        t_s, north_m, east_m, psi_rad: the track from the execute (s, m, m, rad).
+        nu: (n, 3) u, v (m/s) and r (rad/s) at the same samples.
+        side: +1 for a turn to starboard, −1 to port.
+
+    Returns:
+        The TurningCircle: advance and transfer at 90° of heading change, the tactical diameter at
+        180°, the steady turn (2U/|r|, U, r, drift angle) as the mean after 360°; None where the
+        heading never turned that far.
+    """
+    _, x, y, heading = in_execute_frame(t_s, north_m, east_m, psi_rad)
+    turned = side * heading
+    at90, at180, at360 = (_first(turned >= np.radians(a)) for a in (90.0, 180.0, 360.0))
+    steady = dict(steady_diameter_m=None, steady_speed_m_s=None, steady_rate_deg_s=None, drift_deg=None)
+    if at360 is not None:
+        u, v, r = (float(np.mean(np.asarray(nu, float)[at360:, k])) for k in range(3))
+        speed = float(np.hypot(u, v))
+        steady = dict(steady_diameter_m=2.0 * speed / abs(r), steady_speed_m_s=speed,
+                      steady_rate_deg_s=float(np.degrees(r)), drift_deg=float(np.degrees(np.arctan2(-v, u))))
+    return TurningCircle(side, None if at90 is None else float(x[at90]), None if at90 is None else float(y[at90]),
+                         None if at180 is None else float(abs(y[at180])), **steady)
 
 
 def _first(mask: np.ndarray) -> int | None:
@@ -207,20 +239,9 @@ def _turning_circle(compiled: CompiledVessel, surge: float, yaw: float, u0: floa
     # long enough for 400° at a tenth of the approach speed round a circle of 5 L, within LONGEST_S
     duration_s = min(LONGEST_S, TURN_TO_DEG / 360.0 * np.pi * 5.0 * length_m / (0.1 * u0))
     run = _run(compiled, lambda t, eta, nu: (surge, yaw if t >= 0 else 0.0), duration_s, u0)
-    _, x, y, heading = _after_execute(run)
-    turned = side * heading
-    at90, at180, at360 = (_first(turned >= np.radians(a)) for a in (90.0, 180.0, 360.0))
-    steady = dict(steady_diameter_m=None, steady_speed_m_s=None, steady_rate_deg_s=None, drift_deg=None)
-    if at360 is not None:
-        i0 = len(run.t) - len(x)
-        tail = run.nu[i0 + at360:]
-        u, v, r = (float(np.mean(tail[:, k])) for k in range(3))
-        speed = float(np.hypot(u, v))
-        steady = dict(steady_diameter_m=2.0 * speed / abs(r), steady_speed_m_s=speed,
-                      steady_rate_deg_s=float(np.degrees(r)), drift_deg=float(np.degrees(np.arctan2(-v, u))))
-    circle = TurningCircle(side, None if at90 is None else float(x[at90]), None if at90 is None else float(y[at90]),
-                           None if at180 is None else float(abs(y[at180])), **steady)
-    return circle, float(run.nu[len(run.t) - len(x), 0])
+    i0 = int(np.searchsorted(run.t, run.t[0] + APPROACH_S - 1e-9))
+    circle = turning_measures(run.t[i0:], run.eta[i0:, 0], run.eta[i0:, 1], run.eta[i0:, 2], run.nu[i0:], side)
+    return circle, float(run.nu[i0, 0])
 
 
 def _zigzag(compiled: CompiledVessel, surge: float, yaw: float, switch_deg: float, u0: float,
