@@ -81,3 +81,27 @@ def test_a_command_outside_its_range_is_refused(kwargs, says):
 
 def test_the_approach_runs_before_the_execute():
     assert APPROACH_S >= 5.0  # a thrust lag of the shipped boats (≤ 1 s) settles within it
+
+
+def test_a_twin_drawn_over_its_yaw_damping_spreads_its_steady_turn_and_nothing_without_it():
+    """A BlueBoat whose Nr is uncertain (log-normal, σ 20 %): the steady turn rate's 90 % band brackets
+    the nominal twin's and widens with σ; the crash stop, which no yaw term moves, keeps one value."""
+    from dataclasses import replace
+
+    from twin.verify.manoeuvres import manoeuvre_bands
+
+    boat = vessel_mod.load("blueboat")
+    nominal = manoeuvres(boat).turns[0].steady_rate_deg_s
+    widths = []
+    for sigma in (0.1, 0.2):
+        uncertain = replace(boat, uncertainty={"coordinates": [{"name": "Nr", "log": True, "sign": -1.0}],
+                                               "mean": [float(np.log(-boat.damping.Nr))],
+                                               "covariance": [[sigma ** 2]]})
+        bands, rejected = manoeuvre_bands(uncertain, 12, seed=1)
+        band = {b.name: b for b in bands}
+        rate = band["turn_starboard.steady_rate_deg_s"]
+        assert rejected == 0 and rate.reached == 1.0 and rate.low < nominal < rate.high
+        stop = band["crash_stop.head_reach_m"]
+        assert stop.high - stop.low < 1e-9
+        widths.append(rate.high - rate.low)
+    assert widths[1] > 1.5 * widths[0]

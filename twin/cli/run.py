@@ -261,20 +261,40 @@ def manoeuvres(
     zigzag_yaw: Optional[float] = typer.Option(None, help="the zig-zag's yaw command, (0, 1] (default: a ship's 10° "
                                                           "of rudder, a boat's 0.2)"),
     zigzag_switch: float = typer.Option(10.0, help="the heading change at which the zig-zag reverses, °"),
+    draws: int = typer.Option(0, help="with an identified twin (its uncertainty block): each measure's 90 % range "
+                                      "over this many draws of its parameters (its form error is not in it)"),
+    seed: int = typer.Option(0, help="the draws' random seed"),
     json_out: Optional[Path] = typer.Option(None, "--json", help=f"write the measures as JSON {REPORT_HELP}"),
 ):
     """The twin's turning circles, zig-zag and crash stop in calm water, as manoeuvring trials measure them."""
-    from ..verify.manoeuvres import manoeuvres as run_manoeuvres  # late: the engine, 0.25 s at every --help
+    # late: the engine, 0.25 s at every --help
+    from ..fit.uncertainty import check_drawable
+    from ..verify.manoeuvres import manoeuvre_bands, manoeuvres as run_manoeuvres
 
     check_outputs([json_out], (".json",), "--json")
     check_distinct({"--json": json_out}, [model])
+    if draws < 0 or draws == 1:
+        raise TwinError(f"--draws is 0 (no band) or at least 2, got {draws}")
     v = vessel_from(vessel, model, case)
-    m = run_manoeuvres(v, surge, turn_yaw, zigzag_yaw, zigzag_switch)
+    if draws:
+        check_drawable(v)  # before the runs: a vessel without an uncertainty block has no band to draw
+    options = dict(surge=surge, turn_yaw=turn_yaw, zigzag_yaw=zigzag_yaw, zigzag_switch_deg=zigzag_switch)
+    m = run_manoeuvres(v, **options)
     for line in manoeuvre_lines(m):
         say(line)
+    bands, rejected = manoeuvre_bands(v, draws, seed, **options) if draws else ([], 0)
+    if bands:
+        say(f"90 % of {draws} draws of its parameters (its form error is not in it"
+            + (f"; {rejected} unphysical draws redrawn" if rejected else "") + "):")
+        for b in bands:
+            fmt = ".2f" if b.name.endswith("_m") else ".3g"
+            say(f"  {b.name:<36} " + ("reached by fewer than half the draws" if b.low is None else
+                                      f"{b.low:{fmt}} to {b.high:{fmt}}") + (f" (reached by {100 * b.reached:.0f} %)"
+                                                                              if b.reached < 1 else ""))
     write_json(json_out, asdict(m) | {"straight": None if m.straight is None else {
         "throttle": m.straight.throttle, "speed_m_s": m.straight.speed_m_s, "stable": m.straight.stable,
-        "roots_per_s": [[r.real, r.imag] for r in m.straight.roots_per_s]}})
+        "roots_per_s": [[r.real, r.imag] for r in m.straight.roots_per_s]},
+        "bands": [asdict(b) for b in bands], "draws": draws, "seed": seed})
 
 
 def manoeuvre_lines(m) -> list[str]:

@@ -33,6 +33,7 @@ from ..drive import to_thruster_inputs
 from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..engine.sim import simulate
 from ..errors import TwinError
+from ..fit.uncertainty import draw
 from ..physics.environment import Environment
 from ..run import Run
 from ..vessel import Vessel
@@ -306,3 +307,57 @@ def _crash_stop(compiled: CompiledVessel, surge: float, u0: float, length_m: flo
         return float(series[stop - 1] + share * (series[stop] - series[stop - 1])) if stop > 0 else float(series[0])
 
     return CrashStop(at(path), at(x), at(y), at(t))
+
+
+@dataclass(frozen=True)
+class MeasureBand:
+    """One measure over the draws of an identified twin's parameters: its `level` central range
+    (None where fewer than half the draws reached it) and the share of draws that reached it."""
+
+    name: str
+    low: float | None
+    high: float | None
+    reached: float
+
+
+def manoeuvre_bands(vessel: Vessel, draws: int, seed: int = 0, level: float = 0.9,
+                    **options) -> tuple[list[MeasureBand], int]:
+    """The measures of `manoeuvres` over `draws` twins drawn from the vessel's uncertainty block (an
+    identified twin's): each measure's central `level` range. Parameters only: the form error a
+    recording shows is not in it.
+
+    Args:
+        vessel: an identified twin (a vessel file with an uncertainty block).
+        draws: how many twins to draw (≥ 2).
+        seed: the draws' random seed.
+        level: the central share each range holds (default 0.9).
+        **options: manoeuvres' own (surge, turn_yaw, zigzag_yaw, zigzag_switch_deg).
+
+    Returns:
+        (the bands, named as `manoeuvre_measures` names them; how many draws were redrawn as unphysical).
+    """
+    if draws < 2:
+        raise TwinError(f"a band needs at least 2 draws, got {draws}")
+    twins, rejected = draw(vessel, draws, np.random.default_rng(seed))
+    values = [manoeuvre_measures(manoeuvres(t, **options)) for t in twins]
+    bands = []
+    for name in values[0]:
+        got = np.array([v[name] for v in values if v[name] is not None], float)
+        enough = len(got) >= 0.5 * draws
+        q = (np.quantile(got, [(1 - level) / 2, (1 + level) / 2]) if enough else (None, None))
+        bands.append(MeasureBand(name, None if q[0] is None else float(q[0]), None if q[1] is None else float(q[1]),
+                                 len(got) / draws))
+    return bands, rejected
+
+
+def manoeuvre_measures(m: Manoeuvres) -> dict[str, float | None]:
+    """Every measure of the manoeuvres by one name each (turn_starboard.advance_m, zigzag.first_overshoot_deg,
+    crash_stop.track_reach_m, …)."""
+    out = {}
+    for circle in m.turns:
+        side = "starboard" if circle.side > 0 else "port"
+        out |= {f"turn_{side}.{k}": v for k, v in circle.__dict__.items() if k != "side"}
+    out |= {f"zigzag.{k}": v for k, v in m.zigzag.__dict__.items() if k not in ("yaw", "switch_deg")}
+    if m.crash_stop is not None:
+        out |= {f"crash_stop.{k}": v for k, v in m.crash_stop.__dict__.items()}
+    return out
