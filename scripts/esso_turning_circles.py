@@ -152,7 +152,9 @@ def main() -> int:
         f"{100 * med[fitted]['advance_m']:.0f} % ({100 * med['prior']['advance_m']:.0f} %, "
         f"{100 * med[labels[2]]['advance_m']:.0f} %) and the steady turning rate within "
         f"{100 * med[fitted]['steady_rate_deg_s']:.0f} % ({100 * med['prior']['steady_rate_deg_s']:.0f} %, "
-        f"{100 * med[labels[2]]['steady_rate_deg_s']:.0f} %); each test's figures and the signed errors are below.")
+        f"{100 * med[labels[2]]['steady_rate_deg_s']:.0f} %); each test's figures and the signed errors are below. The "
+        "prior's figures are no prediction: its hull coefficients were chosen among published sets by how its steady "
+        "turns matched these tests (below).")
     measure_names = ["advance", "transfer", "tactical diameter", "steady diameter", "steady speed", "steady rate"]
     page = ResultPage(
         "esso_turning_circles", "The Esso Osaka's turning circles: recorded against predicted",
@@ -173,7 +175,11 @@ def main() -> int:
                      "measured then each twin's; – where the heading never turned 360°",
                      ["log", "rate", "prior", "random", "all", "speed", "prior", "random", "all",
                       "diameter", "prior", "random", "all"], steady)],
-        notes=[f"Each twin is `twin identify` with its defaults and `--wind-measured`; its free run of each held "
+        notes=["The prior's hull derivatives are the KVLCC2 set of [MMG-2015] on the model's own geometry, chosen over "
+               "the one published set for this model because its steady turns matched these tests (the vessel file's "
+               "sources, 'choice'): on the turning tests it is a fit, not a prediction. The twin identified on the "
+               "random tests starts from it; it saw no turning circle, but its prior did.",
+               f"Each twin is `twin identify` with its defaults and `--wind-measured`; its free run of each held "
                "turn starts at the measured state, never corrected, and carries the measured wind, so the turn "
                "drifts with the wind as the recorded one does.",
                "Positions are the body origin's as the log's preparation reads them (the antenna through its lever "
