@@ -45,8 +45,9 @@ LONGEST_S = 1800.0  # a turn that never gets round (too little yaw for the speed
 
 @dataclass(frozen=True)
 class TurningCircle:
-    """One turning circle (side +1 to starboard, −1 to port). Lengths in m; None where the heading
-    never changed that much within LONGEST_S."""
+    """One turning circle (side +1 to starboard, −1 to port). Lengths in m, transfer + to starboard
+    of the approach track; the drift angle atan2(−v, u) in ° (+: the bow inside a starboard turn's
+    circle). None where the heading never changed that much within LONGEST_S."""
 
     side: int
     advance_m: float | None
@@ -126,10 +127,10 @@ def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag
             get under way at the approach command.
     """
     for what, command in (("approach (surge)", surge), ("turning yaw", turn_yaw), ("zig-zag yaw", zigzag_yaw)):
-        if command is not None and not 0 < command <= 1:
-            raise TwinError(f"the {what} command lies in (0, 1] of full, got {command:g}")
-    if not 0 < zigzag_switch_deg < 90:
-        raise TwinError(f"the zig-zag's switch angle lies between 0 and 90°, got {zigzag_switch_deg:g}")
+        if command is not None and not (_number(command) and 0 < command <= 1):
+            raise TwinError(f"the {what} command lies in (0, 1] of full, got {command!r}")
+    if not (_number(zigzag_switch_deg) and 0 < zigzag_switch_deg < 90):
+        raise TwinError(f"the zig-zag's switch angle lies between 0 and 90°, got {zigzag_switch_deg!r}")
     calm = vessel.with_environment(Environment())
     compiled = compile_vessel(calm)
     ship = calm.thrusters.kind == "propeller_rudder"
@@ -144,6 +145,11 @@ def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag
     return Manoeuvres(vessel.name, length_m, surge, turn_yaw, u_execute, straight, (starboard, port),
                       _zigzag(compiled, surge, zigzag_yaw, zigzag_switch_deg, u0, length_m),
                       _crash_stop(compiled, surge, u0, length_m))
+
+
+def _number(x) -> bool:
+    """A real number (not a bool, a text or NaN)."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool) and bool(np.isfinite(x))
 
 
 def _approach(compiled: CompiledVessel, surge: float) -> tuple[float, StraightRun | None]:
