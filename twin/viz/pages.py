@@ -118,8 +118,8 @@ def given_cell(given: dict | None) -> str:
 # The index's sections, each page in the first whose stem begins with one of its prefixes; a page
 # of none is listed under "Other studies", so a study script's new page needs no edit here
 SECTIONS = (
-    ("Prediction beyond the fitted runs", ("extrapolation", "esso_beyond_rps", "blueboat_sway",
-                                           "blueboat_identification", "blueboat_heldout_band")),
+    ("Prediction beyond the fitted runs", ("extrapolation", "esso_beyond_rps", "esso_turning_circles",
+                                           "blueboat_sway", "blueboat_identification", "blueboat_heldout_band")),
     ("Diagnosis: effects concealed in real logs", ("concealed_effects",)),
     ("Diagnosis: truths from simulators the library does not share", ("blind_truths", "independent_truths",
                                                                       "gnss_latency_world")),
