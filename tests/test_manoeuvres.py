@@ -71,6 +71,9 @@ def test_a_ship_turns_within_its_length_scale_and_stops_on_its_propeller():
 
 @pytest.mark.parametrize("kwargs, says", [
     ({"surge": 0.0}, r"approach \(surge\) command lies in \(0, 1\]"),
+    ({"surge": None}, r"approach \(surge\) command lies in \(0, 1\] of full, got None"),
+    ({"surge": "0.5"}, r"got '0.5'"),
+    ({"surge": True}, r"got True"),
     ({"turn_yaw": 1.5}, "turning yaw command"),
     ({"zigzag_switch_deg": 95.0}, "switch angle lies between 0 and 90"),
 ])
@@ -97,10 +100,10 @@ def test_a_twin_drawn_over_its_yaw_damping_spreads_its_steady_turn_and_nothing_w
         uncertain = replace(boat, uncertainty={"coordinates": [{"name": "Nr", "log": True, "sign": -1.0}],
                                                "mean": [float(np.log(-boat.damping.Nr))],
                                                "covariance": [[sigma ** 2]]})
-        bands, rejected = manoeuvre_bands(uncertain, 12, seed=1)
-        band = {b.name: b for b in bands}
+        drawn = manoeuvre_bands(uncertain, 12, seed=1)
+        band = {b.name: b for b in drawn.bands}
         rate = band["turn_starboard.steady_rate_deg_s"]
-        assert rejected == 0 and rate.reached == 1.0 and rate.low < nominal < rate.high
+        assert drawn.redrawn == 0 and drawn.diverged == 0 and rate.reached == 1.0 and rate.low < nominal < rate.high
         stop = band["crash_stop.head_reach_m"]
         assert stop.high - stop.low < 1e-9
         widths.append(rate.high - rate.low)

@@ -6,9 +6,9 @@ starts without the fitting, diagnosis and engine libraries (scipy.optimize, numb
 cost each command about a second of CPU before it reads its first argument."""
 __version__ = "0.2.0"
 
-__all__ = ["Diagnosis", "Effect", "Evaluation", "Identification", "InputSeries", "Judgement", "Manoeuvres", "Parameter", "Run", "Score",
+__all__ = ["Diagnosis", "Effect", "Evaluation", "Identification", "InputSeries", "Judgement", "ManoeuvreBands", "Manoeuvres", "Parameter", "Run", "Score",
            "Simulation", "Table", "TwinError", "Validation", "Vessel", "calibrate", "compile_vessel", "crosscheck",
-           "diagnose_recordings", "effective_parameters", "evaluate", "identify", "judge", "load_vessel", "manoeuvres",
+           "diagnose_recordings", "effective_parameters", "evaluate", "identify", "judge", "load_vessel", "manoeuvre_bands", "manoeuvres",
            "prepare_recording", "read_recording", "save_vessel", "simulate", "simulate_run", "validate"]
 
 

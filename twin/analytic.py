@@ -232,7 +232,8 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
 
     Args:
         compiled: the compiled vessel.
-        throttle: the share of full ahead (each thruster's upper bound, or a ship's rps_max).
+        throttle: the share of full ahead (each thruster's upper bound, else its command_scale_n; a
+            ship's rps_max).
         static_n: the two thrusters' thrusts (N, after their gains) in place of the throttle's (the
             run's throttle is then their mean's share of full ahead).
 
@@ -250,6 +251,8 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
         drive = {"tau": np.zeros(3), "controls": (throttle * n_max, 0.0), "static": None}
     else:
         full_n = t.bounds()[1]
+        if not np.isfinite(full_n) and t.kind != "t200" and t.command_scale_n is not None:
+            full_n = t.command_range()[1]  # what a full command stands for, as the scenarios drive it
         if static_n is None and not np.isfinite(full_n):
             return None
         each = (float(np.mean(t.gains())) * throttle * full_n if static_n is None
@@ -280,10 +283,20 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
 
 
 def course_unstable_from_m_s(compiled) -> float | None:
-    """The lowest speed (m/s) of the straight runs at 10, 20, … 100 % of full ahead at which the vessel
-    is course-unstable (`straight_run`); None where every one holds, or full ahead has no bound."""
+    """The lowest straight-run speed (m/s) at which the vessel is course-unstable (`straight_run`):
+    the first of 10, 20, … 100 % of full ahead that is, then the onset bisected between it and the
+    last that holds (to 0.1 % of full ahead); None where every one holds, or full ahead has no bound."""
+    held = 0.0
     for pct in range(10, 101, 10):
         run = straight_run(compiled, pct / 100.0)
-        if run is not None and not run.stable:
-            return run.speed_m_s
+        if run is None:
+            return None
+        if run.stable:
+            held = pct / 100.0
+            continue
+        lost, onset = pct / 100.0, run
+        while lost - held > 1e-3:
+            mid = straight_run(compiled, 0.5 * (held + lost))
+            held, lost, onset = (held, mid.throttle, mid) if not mid.stable else (mid.throttle, lost, onset)
+        return onset.speed_m_s
     return None

@@ -45,7 +45,8 @@ from .recording import Recording, check_no_shared_stretch, check_not_misread
 from .run import Run
 from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
 from .verify.crosscheck import cases, crosscheck as _crosscheck
-from .verify.manoeuvres import Manoeuvres, manoeuvres as _manoeuvres
+from .verify.manoeuvres import ManoeuvreBands, Manoeuvres, manoeuvre_bands as _manoeuvre_bands, \
+    manoeuvres as _manoeuvres
 from .ident.identify import Identification as _Identification, calibrate as _calibrate, check_wind, \
     identify as _identify, manoeuvre_horizon_s, prepared
 from .verify.validate import Validation as _Validation, validate as _validate
@@ -54,7 +55,7 @@ from .vessel import Vessel, load as load_vessel, save as _save
 __all__ = ["Run", "Vessel", "InputSeries", "Validation", "Identification", "Simulation", "Evaluation", "Score", "Effect",
            "Parameter", "Judgement", "Diagnosis", "Table", "TwinError", "load_vessel", "save_vessel", "simulate",
            "simulate_run",
-           "crosscheck", "manoeuvres", "Manoeuvres", "effective_parameters", "compile_vessel", "validate", "read_recording",
+           "crosscheck", "manoeuvres", "Manoeuvres", "manoeuvre_bands", "ManoeuvreBands", "effective_parameters", "compile_vessel", "validate", "read_recording",
            "prepare_recording", "calibrate", "identify", "evaluate", "diagnose_recordings", "judge"]
 
 
@@ -205,7 +206,9 @@ def manoeuvres(vessel: Vessel | str, surge: float = 0.5, turn_yaw: float = 1.0, 
 
     Returns:
         twin.verify.manoeuvres.Manoeuvres: `length_m` (L), `approach_speed_m_s`, `straight` (the
-        straight run's course stability), `turns` (starboard, port: advance, transfer, tactical and
+        straight run's course stability: `throttle`, its mean thrust's share of full ahead, `speed_m_s`,
+        `roots_per_s`, `stable`, `doubling_s`), `inputs` (what the approach, turn and zig-zag ask of
+        the thrusters or propeller and rudder), `turns` (starboard, port: advance, transfer, tactical and
         steady diameters in m, steady speed m/s, rate °/s, drift angle °), `zigzag` (first and second
         overshoot °) and `crash_stop` (track and head reach, lateral deviation in m, time in s).
 
@@ -214,6 +217,29 @@ def manoeuvres(vessel: Vessel | str, surge: float = 0.5, turn_yaw: float = 1.0, 
             one or does not get under way at the approach command.
     """
     return _manoeuvres(_vessel(vessel), surge, turn_yaw, zigzag_yaw, zigzag_switch_deg)
+
+
+def manoeuvre_bands(vessel: Vessel | str, draws: int = 50, seed: int = 0, surge: float = 0.5, turn_yaw: float = 1.0,
+                    zigzag_yaw: float | None = None, zigzag_switch_deg: float = 10.0) -> ManoeuvreBands:
+    """Each measure of `manoeuvres` as its 90 % range over draws of an identified twin's parameters, as
+    `twin manoeuvres --draws` prints them (parameters only: the form error is not in them).
+
+    Args:
+        vessel: an identified twin (a twin.Vessel or a vessel file with an uncertainty block).
+        draws: how many twins to draw (≥ 2; `--draws`).
+        seed: the draws' random seed (≥ 0; `--seed`).
+        surge, turn_yaw, zigzag_yaw, zigzag_switch_deg: as `manoeuvres` takes them.
+
+    Returns:
+        twin.verify.manoeuvres.ManoeuvreBands: `bands` (per measure `name`, `low`, `high`, `reached`),
+        `draws`, `redrawn` (unphysical draws drawn again), `diverged` (left out), `level`.
+
+    Raises:
+        TwinError: as `manoeuvres`; fewer than 2 draws or a negative seed; a vessel without an
+            uncertainty block; more than half the draws diverging.
+    """
+    return _manoeuvre_bands(_vessel(vessel), draws, seed, surge=surge, turn_yaw=turn_yaw, zigzag_yaw=zigzag_yaw,
+                            zigzag_switch_deg=zigzag_switch_deg)
 
 
 def crosscheck(vessel: Vessel | str, duration_s: float = 120.0, only: list[str] | None = None,

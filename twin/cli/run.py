@@ -259,8 +259,10 @@ def manoeuvres(
     turn_yaw: float = typer.Option(1.0, help="the turning circles' yaw command, (0, 1] (a ship: of rudder_max; a "
                                              "twin-thruster boat: differential, each thruster held within full)"),
     zigzag_yaw: Optional[float] = typer.Option(None, help="the zig-zag's yaw command, (0, 1] (default: a ship's 10° "
-                                                          "of rudder, a boat's 0.2)"),
-    zigzag_switch: float = typer.Option(10.0, help="the heading change at which the zig-zag reverses, °"),
+                                                          "of rudder, a boat's 0.2; a ship's 20°/20° test: 20° over "
+                                                          "its rudder_max)"),
+    zigzag_switch: float = typer.Option(10.0, help="the heading change at which the zig-zag reverses, between 0 and "
+                                                   "90°"),
     draws: int = typer.Option(0, help="with an identified twin (its uncertainty block): each measure's 90 % range "
                                       "over this many draws of its parameters (its form error is not in it)"),
     seed: int = typer.Option(0, help="the draws' random seed"),
@@ -275,6 +277,8 @@ def manoeuvres(
     check_distinct({"--json": json_out}, [model])
     if draws < 0 or draws == 1:
         raise TwinError(f"--draws is 0 (no band) or at least 2, got {draws}")
+    if seed < 0:
+        raise TwinError(f"--seed is a whole number ≥ 0, got {seed}")
     v = vessel_from(vessel, model, case)
     if draws:
         check_drawable(v)  # before the runs: a vessel without an uncertainty block has no band to draw
@@ -282,11 +286,13 @@ def manoeuvres(
     m = run_manoeuvres(v, **options)
     for line in manoeuvre_lines(m):
         say(line)
-    bands, rejected = manoeuvre_bands(v, draws, seed, **options) if draws else ([], 0)
-    if bands:
-        say(f"90 % of {draws} draws of its parameters (its form error is not in it"
-            + (f"; {rejected} unphysical draws redrawn" if rejected else "") + "):")
-        for b in bands:
+    band = manoeuvre_bands(v, draws, seed, **options) if draws else None
+    if band is not None:
+        say(f"{100 * band.level:.0f} % of {band.draws} draws of its parameters (its form error is not in it"
+            + (f"; {band.redrawn} unphysical draws redrawn, which narrows and shifts the band" if band.redrawn else "")
+            + (f"; {band.diverged} diverged, left out" if band.diverged else "") + "):"
+            + (" fewer than 20 draws say little of a 90 % range" if band.draws < 20 else ""))
+        for b in band.bands:
             fmt = ".2f" if b.name.endswith("_m") else ".3g"
             say(f"  {b.name:<36} " + ("reached by fewer than half the draws" if b.low is None else
                                       f"{b.low:{fmt}} to {b.high:{fmt}}") + (f" (reached by {100 * b.reached:.0f} %)"
@@ -294,7 +300,7 @@ def manoeuvres(
     write_json(json_out, asdict(m) | {"straight": None if m.straight is None else {
         "throttle": m.straight.throttle, "speed_m_s": m.straight.speed_m_s, "stable": m.straight.stable,
         "roots_per_s": [[r.real, r.imag] for r in m.straight.roots_per_s]},
-        "bands": [asdict(b) for b in bands], "draws": draws, "seed": seed})
+        "bands": None if band is None else asdict(band), "seed": seed})
 
 
 def manoeuvre_lines(m) -> list[str]:
@@ -307,12 +313,19 @@ def manoeuvre_lines(m) -> list[str]:
     def value(x, unit, fmt=".3g"):
         return "not reached" if x is None else f"{x:{fmt}}{'' if unit == '°' else ' '}{unit}"
 
-    lines = [f"[bold]{m.vessel}[/]: L {L:.3g} m; approach at surge {m.surge:g}: u {m.approach_speed_m_s:.3g} m/s"]
+    def asked(name):
+        kind, (a, b) = m.inputs[name]
+        return {"pwm": f"PWM {a:.0f} | {b:.0f} µs", "thrust": f"thrust {a:.3g} | {b:.3g} N"}.get(
+            kind, f"{a:.3g} rps, rudder {math.degrees(b):+.1f}°")
+
+    lines = [f"[bold]{m.vessel}[/]: L {L:.3g} m; approach at surge {m.surge:g} ({asked('approach')}): "
+             f"u {m.approach_speed_m_s:.3g} m/s"]
     if m.straight is not None:
         lines.append("  " + ("holds a straight course" if m.straight.stable else
                              f"COURSE-UNSTABLE: a deviation doubles every {m.straight.doubling_s:.3g} s") +
                      f" (sway-yaw roots {', '.join(f'{r.real:+.3g}' for r in m.straight.roots_per_s)} 1/s)")
-    lines.append(f"turning circle, yaw {m.turn_yaw:g} (starboard | port; transfer + to starboard):")
+    lines.append(f"turning circle, yaw {m.turn_yaw:g} (to starboard {asked('turn')}; starboard | port, transfer + to "
+                 "starboard, drift + with the bow inside the circle):")
     for label, key, kind in (("advance", "advance_m", "L"), ("transfer", "transfer_m", "L"),
                              ("tactical diameter", "tactical_diameter_m", "L"),
                              ("steady diameter", "steady_diameter_m", "L"), ("steady speed", "steady_speed_m_s", "m/s"),
@@ -321,9 +334,15 @@ def manoeuvre_lines(m) -> list[str]:
                  for c in m.turns]
         lines.append(f"  {label:<18} {cells[0]:<22} | {cells[1]}")
     z = m.zigzag
-    lines.append(f"zig-zag, yaw {z.yaw:g} switched at {z.switch_deg:g}°: first overshoot "
-                 f"{value(z.first_overshoot_deg, '°', '.1f')}, second {value(z.second_overshoot_deg, '°', '.1f')}; first "
-                 f"reversal after {value(z.time_to_first_switch_s, 's', '.1f')}")
+    head = f"zig-zag, yaw {z.yaw:g} ({asked('zigzag')}) switched at {z.switch_deg:g}°: "
+    if z.time_to_first_switch_s is None:
+        lines.append(head + f"the heading never reached {z.switch_deg:g}°")
+    elif z.first_overshoot_deg is None:
+        lines.append(head + f"reversed after {z.time_to_first_switch_s:.1f} s, the turn is never checked (the heading "
+                     f"never came back past −{z.switch_deg:g}°)")
+    else:
+        lines.append(head + f"first overshoot {z.first_overshoot_deg:.1f}°, second "
+                     f"{value(z.second_overshoot_deg, '°', '.1f')}; first reversal after {z.time_to_first_switch_s:.1f} s")
     c = m.crash_stop
     if c is None:
         lines.append("crash stop: none (the thrusters have no astern)")

@@ -95,6 +95,9 @@ class Manoeuvres:
         turns: the turning circles to starboard and to port, at the full turning command.
         zigzag: the zig-zag.
         crash_stop: the crash stop (None where the vessel has no astern: thrust bounds of zero).
+        inputs: what the approach, the starboard turn and the zig-zag's first leg ask of the vessel:
+            each (kind, (left, right)) as `drive.to_thruster_inputs` gives it ("pwm" µs, "thrust" N,
+            or "propeller_rudder" n rps and δ rad).
     """
 
     vessel: str
@@ -106,6 +109,7 @@ class Manoeuvres:
     turns: tuple[TurningCircle, TurningCircle]
     zigzag: ZigZagTest
     crash_stop: CrashStop | None
+    inputs: dict[str, tuple[str, tuple[float, float]]]
 
 
 def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag_yaw: float | None = None,
@@ -127,7 +131,7 @@ def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag
             get under way at the approach command.
     """
     for what, command in (("approach (surge)", surge), ("turning yaw", turn_yaw), ("zig-zag yaw", zigzag_yaw)):
-        if command is not None and not (_number(command) and 0 < command <= 1):
+        if (command is not None or what != "zig-zag yaw") and not (_number(command) and 0 < command <= 1):
             raise TwinError(f"the {what} command lies in (0, 1] of full, got {command!r}")
     if not (_number(zigzag_switch_deg) and 0 < zigzag_switch_deg < 90):
         raise TwinError(f"the zig-zag's switch angle lies between 0 and 90°, got {zigzag_switch_deg!r}")
@@ -142,9 +146,16 @@ def manoeuvres(vessel: Vessel, surge: float = 0.5, turn_yaw: float = 1.0, zigzag
     length_m = _length_m(compiled)
     (starboard, u_execute), (port, _) = (_turning_circle(compiled, surge, side * turn_yaw, u0, length_m)
                                          for side in (1, -1))
+    inputs = {name: _as_tuple(to_thruster_inputs(calm.thrusters, surge, yaw))
+              for name, yaw in (("approach", 0.0), ("turn", turn_yaw), ("zigzag", zigzag_yaw))}
     return Manoeuvres(vessel.name, length_m, surge, turn_yaw, u_execute, straight, (starboard, port),
                       _zigzag(compiled, surge, zigzag_yaw, zigzag_switch_deg, u0, length_m),
-                      _crash_stop(compiled, surge, u0, length_m))
+                      _crash_stop(compiled, surge, u0, length_m), inputs)
+
+
+def _as_tuple(kind_values) -> tuple[str, tuple[float, float]]:
+    kind, values = kind_values
+    return kind, (float(values[0]), float(values[1]))
 
 
 def _number(x) -> bool:
@@ -223,14 +234,26 @@ def turning_measures(t_s, north_m, east_m, psi_rad, nu, side: int) -> TurningCir
     _, x, y, heading = in_execute_frame(t_s, north_m, east_m, psi_rad)
     turned = side * heading
     at90, at180, at360 = (_first(turned >= np.radians(a)) for a in (90.0, 180.0, 360.0))
+    advance, transfer = _crossing(turned, np.radians(90.0), at90, x), _crossing(turned, np.radians(90.0), at90, y)
+    tactical = _crossing(turned, np.radians(180.0), at180, y)
     steady = dict(steady_diameter_m=None, steady_speed_m_s=None, steady_rate_deg_s=None, drift_deg=None)
     if at360 is not None:
         u, v, r = (float(np.mean(np.asarray(nu, float)[at360:, k])) for k in range(3))
         speed = float(np.hypot(u, v))
         steady = dict(steady_diameter_m=2.0 * speed / abs(r), steady_speed_m_s=speed,
                       steady_rate_deg_s=float(np.degrees(r)), drift_deg=float(np.degrees(np.arctan2(-v, u))))
-    return TurningCircle(side, None if at90 is None else float(x[at90]), None if at90 is None else float(y[at90]),
-                         None if at180 is None else float(abs(y[at180])), **steady)
+    return TurningCircle(side, advance, transfer, None if tactical is None else abs(tactical), **steady)
+
+
+def _crossing(turned: np.ndarray, angle_rad: float, at: int | None, series: np.ndarray) -> float | None:
+    """`series` where the heading change `turned` crosses `angle_rad`, linear between the samples
+    about the first sample `at` past it (None: never crossed)."""
+    if at is None:
+        return None
+    if at == 0:
+        return float(series[0])
+    share = (angle_rad - turned[at - 1]) / (turned[at] - turned[at - 1])
+    return float(series[at - 1] + share * (series[at] - series[at - 1]))
 
 
 def _first(mask: np.ndarray) -> int | None:
@@ -326,8 +349,28 @@ class MeasureBand:
     reached: float
 
 
-def manoeuvre_bands(vessel: Vessel, draws: int, seed: int = 0, level: float = 0.9,
-                    **options) -> tuple[list[MeasureBand], int]:
+@dataclass(frozen=True)
+class ManoeuvreBands:
+    """The measures' ranges over draws of an identified twin's parameters (parameters only: the form
+    error a recording shows is not in them).
+
+    Attributes:
+        bands: one MeasureBand per measure (`manoeuvre_measures` names).
+        draws: the draws asked for; `redrawn` of them were unphysical (the vessel checks refuse them,
+            e.g. a non-dissipative damping) and drawn again, which narrows and shifts the band
+            toward the accepted region; `diverged` ran unstably (a thrust lag far below the physics
+            step) and are left out.
+        level: the central share each range holds.
+    """
+
+    bands: list[MeasureBand]
+    draws: int
+    redrawn: int
+    diverged: int
+    level: float
+
+
+def manoeuvre_bands(vessel: Vessel, draws: int, seed: int = 0, level: float = 0.9, **options) -> ManoeuvreBands:
     """The measures of `manoeuvres` over `draws` twins drawn from the vessel's uncertainty block (an
     identified twin's): each measure's central `level` range. Parameters only: the form error a
     recording shows is not in it.
@@ -335,25 +378,41 @@ def manoeuvre_bands(vessel: Vessel, draws: int, seed: int = 0, level: float = 0.
     Args:
         vessel: an identified twin (a vessel file with an uncertainty block).
         draws: how many twins to draw (≥ 2).
-        seed: the draws' random seed.
+        seed: the draws' random seed (≥ 0).
         level: the central share each range holds (default 0.9).
         **options: manoeuvres' own (surge, turn_yaw, zigzag_yaw, zigzag_switch_deg).
 
     Returns:
-        (the bands, named as `manoeuvre_measures` names them; how many draws were redrawn as unphysical).
+        The ManoeuvreBands.
+
+    Raises:
+        TwinError: fewer than 2 draws, a negative seed, a vessel without an uncertainty block, or more
+            than half the draws diverging.
     """
-    if draws < 2:
-        raise TwinError(f"a band needs at least 2 draws, got {draws}")
-    twins, rejected = draw(vessel, draws, np.random.default_rng(seed))
-    values = [manoeuvre_measures(manoeuvres(t, **options)) for t in twins]
+    if not (_number(draws) and int(draws) == draws and draws >= 2):
+        raise TwinError(f"a band needs a whole number of at least 2 draws, got {draws!r}")
+    if not (_number(seed) and int(seed) == seed and seed >= 0):
+        raise TwinError(f"the draws' seed is a whole number ≥ 0, got {seed!r}")
+    twins, redrawn = draw(vessel, int(draws), np.random.default_rng(int(seed)))
+    values, diverged = [], 0
+    for t in twins:
+        try:
+            values.append(manoeuvre_measures(manoeuvres(t, **options)))
+        except TwinError as exc:
+            if "diverged" not in str(exc):
+                raise
+            diverged += 1
+    if len(values) < 0.5 * draws:
+        raise TwinError(f"{diverged} of {draws} drawn twins diverged: its uncertainty spans unstable twins (a "
+                        "thrust lag far below the physics step); no band")
     bands = []
     for name in values[0]:
         got = np.array([v[name] for v in values if v[name] is not None], float)
-        enough = len(got) >= 0.5 * draws
-        q = (np.quantile(got, [(1 - level) / 2, (1 + level) / 2]) if enough else (None, None))
+        enough = len(got) >= 0.5 * len(values)
+        q = np.quantile(got, [(1 - level) / 2, (1 + level) / 2]) if enough else (None, None)
         bands.append(MeasureBand(name, None if q[0] is None else float(q[0]), None if q[1] is None else float(q[1]),
-                                 len(got) / draws))
-    return bands, rejected
+                                 len(got) / len(values)))
+    return ManoeuvreBands(bands, int(draws), redrawn, diverged, level)
 
 
 def manoeuvre_measures(m: Manoeuvres) -> dict[str, float | None]:
