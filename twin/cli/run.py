@@ -293,9 +293,9 @@ def manoeuvres(
             + (f"; {band.diverged} diverged, left out" if band.diverged else "") + "):"
             + (" fewer than 20 draws say little of a 90 % range" if band.draws < 20 else ""))
         for b in band.bands:
-            fmt = ".2f" if b.name.endswith("_m") else ".3g"
+            fmt, digits = (".2f", 2) if b.name.endswith("_m") else (".3g", 6)
             say(f"  {b.name:<36} " + ("reached by fewer than half the draws" if b.low is None else
-                                      f"{b.low:{fmt}} to {b.high:{fmt}}") + (f" (reached by {100 * b.reached:.0f} %)"
+                                      f"{_unsigned_zero(b.low, digits):{fmt}} to {_unsigned_zero(b.high, digits):{fmt}}") + (f" (reached by {100 * b.reached:.0f} %)"
                                                                               if b.reached < 1 else ""))
     write_json(json_out, asdict(m) | {"straight": None if m.straight is None else {
         "throttle": m.straight.throttle, "speed_m_s": m.straight.speed_m_s, "stable": m.straight.stable,
@@ -308,7 +308,10 @@ def manoeuvre_lines(m) -> list[str]:
     L = m.length_m
 
     def length(x):
-        return "not reached" if x is None else f"{x:.2f} m ({x / L:.2f} L)"
+        if x is None:
+            return "not reached"
+        x = _unsigned_zero(x, 2)
+        return f"{x:.2f} m ({_unsigned_zero(x / L, 2):.2f} L)"
 
     def value(x, unit, fmt=".3g"):
         return "not reached" if x is None else f"{x:{fmt}}{'' if unit == '°' else ' '}{unit}"
