@@ -179,7 +179,7 @@ def main() -> int:
                "the one published set for this model because its steady turns matched these tests (the vessel file's "
                "sources, 'choice'): on the turning tests it is a fit, not a prediction. The twin identified on the "
                "random tests starts from it; it saw no turning circle, but its prior did.",
-               f"Each twin is `twin identify` with its defaults and `--wind-measured`; its free run of each held "
+               "Each twin is `twin identify` with its defaults and `--wind-measured`; its free run of each held "
                "turn starts at the measured state, never corrected, and carries the measured wind, so the turn "
                "drifts with the wind as the recorded one does.",
                "Positions are the body origin's as the log's preparation reads them (the antenna through its lever "
