@@ -158,8 +158,8 @@ def main() -> int:
     errors = {label: {m: relative_errors(rows, label, m) for m in MEASURES} for label in labels}
     summary_rows = [[label] + [f"{np.median(np.abs(errors[label][m])):.2f} ({len(errors[label][m])})"
                                if len(errors[label][m]) else "–" for m in MEASURES] for label in labels]
-    bias_rows = [[label] + [f"{np.median(errors[label][m]):+.2f}" if len(errors[label][m]) else "–" for m in MEASURES]
-                 for label in labels]
+    bias_rows = [[label] + [f"{np.median(errors[label][m]) + 0.0:+.2f}".replace("-0.00", "+0.00")
+                            if len(errors[label][m]) else "–" for m in MEASURES] for label in labels]
     med = {label: {m: float(np.median(np.abs(errors[label][m]))) if len(errors[label][m]) else None
                    for m in MEASURES} for label in labels}
     fitted = labels[1]
@@ -176,9 +176,10 @@ def main() -> int:
         "turns matched these tests (below). "
         f"Fitted on the random tests, the twin's yaw added inertia grows from {-prior.added_mass.Nrdot:.0f} to "
         f"{-twins[fitted].added_mass.Nrdot:.0f} kg·m² (the rigid body's {rigid_iz:.0f}) and its yaw damping N'_r by "
-        f"{100 * (twins[fitted].mmg.hull.Nr / prior.mmg.hull.Nr - 1):+.0f} %: its yaw rate builds more slowly, and "
-        "the first 180° of the turn run wider, while its steady turn runs faster and comes closer (X'_vr, the surge "
-        "force of sway and yaw together, moved most).")
+        f"{100 * (twins[fitted].mmg.hull.Nr / prior.mmg.hull.Nr - 1):+.0f} % (the twin fitted on every test moves "
+        "them alike); more inertia and damping in yaw slow a turn's start, and the first 180° of its turns run "
+        "wider, while its steady turn runs faster and comes closer (X'_vr, the surge force of sway and yaw "
+        "together, moved most). Which coefficient widens the turn's start is not separated here.")
     measure_names = ["advance", "transfer", "tactical diameter", "steady diameter", "steady speed", "steady rate"]
     page = ResultPage(
         "esso_turning_circles", "The Esso Osaka's turning circles: recorded against predicted",
