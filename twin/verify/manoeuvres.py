@@ -276,6 +276,8 @@ def _turning_circle(compiled: CompiledVessel, surge: float, yaw: float, u0: floa
 
 def _zigzag(compiled: CompiledVessel, surge: float, yaw: float, switch_deg: float, u0: float,
             length_m: float) -> ZigZagTest:
+    """The zig-zag: the yaw command reversed each time the heading passes ±switch_deg from the heading at
+    the execute (the controller's own reversals, read back from the track at the same samples)."""
     state = {"sign": 1.0}
 
     def controller(t, eta, nu):
@@ -317,6 +319,8 @@ def _switch_indices(change_deg: np.ndarray, switch_deg: float) -> list[int]:
 
 
 def _crash_stop(compiled: CompiledVessel, surge: float, u0: float, length_m: float) -> CrashStop | None:
+    """Full astern from the approach, the stop where the surge speed first reaches zero (None: a vessel
+    with no astern thrust)."""
     t_min = compiled.vessel.thrusters.bounds()[0]
     if compiled.vessel.thrusters.kind != "propeller_rudder" and not t_min < 0:
         return None
