@@ -9,8 +9,8 @@ velocities, each log's compass calibration from its own kinematics): advance and
 heading has turned 90°, the tactical diameter at 180°, and the steady turn (rate, speed and diameter
 2U/|r|, the mean after 360°). Each twin makes one free run per test from the measured state at the
 execute (the first sample of the held rudder), driven by the logged propeller speed and rudder angle
-with the measured wind as a known input, and the same measures are read from its track
-(twin.verify.manoeuvres.turning_measures). Three twins: the prior (twin/model/esso_osaka.json),
+with the measured wind as a known input, as `twin evaluate` runs its free runs, and the same measures
+are read from its track (twin.verify.manoeuvres.recorded_turns, `twin evaluate --turns`). Three twins: the prior (twin/model/esso_osaka.json),
 `twin identify` with its defaults and the measured wind on the random-manoeuvre tests alone (the
 extrapolation page's family split: no turning circle among them), and on every test (the turning
 circles among them: what the twin's form reaches when the manoeuvre is in its data).
@@ -31,72 +31,35 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import twin.vessel as vessel_mod  # noqa: E402
-from twin.drive import InputSeries, WindSeries  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
-from twin.engine.sim import simulate  # noqa: E402
 from twin.fit.extrapolation import by_family  # noqa: E402
 from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
 from twin.physics.sensors import log_name  # noqa: E402
-from twin.verify.manoeuvres import turning_measures  # noqa: E402
+from twin.verify.manoeuvres import recorded_turns  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "esso"
 DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"  # the first 287 s of turn_14-Sep-2020_15_58_08
-HELD_RUDDER_DEG, RUDDER_TOL_DEG, RPS_TOL = 15.0, 1.0, 0.3  # a turn: |δ| this or more, held within these
-SHORTEST_TURN_S = 60.0
 MEASURES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_diameter_m", "steady_speed_m_s",
             "steady_rate_deg_s")
 
 
-def held_turn(prep) -> tuple[int, int] | None:
-    """(first, last) sample of the longest stretch within one segment where the rudder stays at
-    HELD_RUDDER_DEG or more to one side, within RUDDER_TOL_DEG, and the propeller within RPS_TOL."""
-    n, delta = prep.pwm[:, 0], np.degrees(prep.pwm[:, 1])
-    best, i = None, 0
-    while i < len(prep.t):
-        j = i
-        while (j + 1 < len(prep.t) and prep.segment[j + 1] == prep.segment[i]
-               and abs(delta[j + 1] - delta[i]) < RUDDER_TOL_DEG and abs(n[j + 1] - n[i]) < RPS_TOL):
-            j += 1
-        if abs(delta[i]) >= HELD_RUDDER_DEG and prep.t[j] - prep.t[i] >= SHORTEST_TURN_S and (
-                best is None or j - i > best[1] - best[0]):
-            best = (i, j)
-        i = j + 1
-    return best
-
-
-def predicted_turn(twin, prep, i0: int, i1: int, side: int):
-    """The twin's free run from the measured state at sample i0 to i1 (logged inputs, measured wind)
-    and its turning measures."""
-    t = prep.t[i0:i1 + 1] - prep.t[i0]
-    drive = InputSeries(t, prep.pwm[i0:i1 + 1], "propeller_rudder")
-    wind = None if prep.wind_ned is None else WindSeries(t, prep.wind_ned[i0:i1 + 1])
-    run = simulate(compile_vessel(twin.as_logged()), drive, float(t[-1]), eta0=np.array(
-        [prep.north[i0], prep.east[i0], prep.psi[i0]]), nu0=np.array([prep.u[i0], prep.v[i0], prep.r[i0]]),
-        wind=wind)
-    return turning_measures(run.t, run.eta[:, 0], run.eta[:, 1], run.eta[:, 2], run.nu, side)
-
-
 def turns_of(twins: dict, recs) -> list[dict]:
-    """Each turning test's held turn: its inputs, the measured measures and each twin's."""
+    """Each turning test's held turn (twin.verify.manoeuvres.recorded_turns): its inputs, the measured
+    measures (as the last twin's calibration reads the log) and each twin's."""
+    held = {}
+    for label, twin in twins.items():
+        seen = calibrate(recs, twin)[0]
+        held[label] = recorded_turns(seen, prepared(recs, seen), wind="measured")
+    last = held[list(twins)[-1]]
     rows = []
-    seen = {label: calibrate(recs, t)[0] for label, t in twins.items()}
-    preps = {label: prepared(recs, v) for label, v in seen.items()}
-    for k, rec in enumerate(recs):
-        prep = preps[list(twins)[-1]][k]  # the measured track as the best-fitted calibration reads it
-        stretch = held_turn(prep)
-        if stretch is None:
-            continue
-        i0, i1 = stretch
-        side = 1 if np.median(prep.r[i0:i1]) > 0 else -1
-        nu = np.column_stack([prep.u, prep.v, prep.r])[i0:i1 + 1]
-        measured = turning_measures(prep.t[i0:i1 + 1], prep.north[i0:i1 + 1], prep.east[i0:i1 + 1],
-                                    prep.psi[i0:i1 + 1], nu, side)
-        predicted = {label: predicted_turn(seen[label], preps[label][k], i0, i1, side) for label in twins}
-        rows.append({"log": log_name(rec.source), "rudder_deg": float(np.degrees(np.median(prep.pwm[i0:i1, 1]))),
-                     "n_rps": float(np.median(prep.pwm[i0:i1, 0])), "u0_m_s": float(prep.u[i0]),
-                     "held_s": float(prep.t[i1] - prep.t[i0]), "side": side,
-                     "measured": measured.__dict__, "twins": {label: p.__dict__ for label, p in predicted.items()}})
+    for k, turn in enumerate(last):
+        assert all((held[label][k].log, held[label][k].start_s) == (turn.log, turn.start_s) for label in twins)
+        _, (n_rps, delta_rad) = turn.inputs
+        rows.append({"log": turn.log, "rudder_deg": float(np.degrees(delta_rad)), "n_rps": n_rps,
+                     "u0_m_s": turn.speed_m_s, "held_s": turn.held_s, "side": turn.measured.side,
+                     "measured": asdict(turn.measured),
+                     "twins": {label: asdict(held[label][k].predicted) for label in twins}})
     return rows
 
 

@@ -1,6 +1,8 @@
 """`twin dataset`, `twin identify`, `twin evaluate`: registered on the main CLI app."""
 from __future__ import annotations
 
+import math
+
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Optional
@@ -282,6 +284,34 @@ def stand_in_text(entries: list[dict] | None) -> str:
     return ", ".join(parts)
 
 
+def recorded_turn_lines(held) -> list[str]:
+    """Each recorded turn (verify.manoeuvres.RecordedTurn), recorded against predicted, as text."""
+    if not held:
+        return ["turns: none held (the inputs never held while the heading turned 90° or more)"]
+    lines = ["turns held in the recordings, recorded | predicted (m, m/s, °/s; – where the heading never turned "
+             "90°, 180° or 360°):"]
+
+    def pair(a, b, fmt):
+        return " | ".join("–" if x is None else format(x, fmt) for x in (a, b))
+
+    for t in held:
+        kind, (a, b) = t.inputs
+        asked = f"PWM {a:.0f}, {b:.0f} µs" if kind == "pwm" else f"{a:.3g} rps, rudder {math.degrees(b):+.1f}°"
+        p = t.predicted
+        lines.append(f"  {t.log} at {t.start_s:.1f} s for {t.held_s:.0f} s ({asked}, u {t.speed_m_s:.3g} m/s)"
+                     + ("" if p is not None else ": the twin's run diverged"))
+        if p is None:
+            continue
+        m = t.measured
+        lines.append(f"    advance {pair(m.advance_m, p.advance_m, '.2f')}, transfer "
+                     f"{pair(m.transfer_m, p.transfer_m, '.2f')}, tactical diameter "
+                     f"{pair(m.tactical_diameter_m, p.tactical_diameter_m, '.2f')}; steady diameter "
+                     f"{pair(m.steady_diameter_m, p.steady_diameter_m, '.2f')}, speed "
+                     f"{pair(m.steady_speed_m_s, p.steady_speed_m_s, '.3g')}, rate "
+                     f"{pair(m.steady_rate_deg_s, p.steady_rate_deg_s, '+.2f')}")
+    return lines
+
+
 @app.command("evaluate")
 @all_or_nothing_outputs
 def evaluate_command(
@@ -306,6 +336,10 @@ def evaluate_command(
                                        help="take each recording's measured wind (its anemometer stream) as a known "
                                             "input of every free run"),
     sea: Optional[str] = typer.Option(None, help=KNOWN_SEA_HELP),
+    turns: bool = typer.Option(False, "--turns", help="also: each turn the recordings hold (inputs held while the "
+                                                      "heading turns 90° or more) measured as a manoeuvring trial "
+                                                      "measures it, recorded against the twin's free run of it "
+                                                      "(advance, transfer, tactical diameter, steady turn)"),
     by: Optional[str] = typer.Option(None, "--by", help="also: where the free runs miss by a state measured at each "
                                                         "sample, in bands of the samples (the lower half, the next "
                                                         "quarter, the next 15 %, the top 10 %): speed, yaw_rate, "
@@ -396,6 +430,13 @@ def evaluate_command(
              "each stands in for something its form lacks, and holds beyond the runs it was fitted on only as far "
              "as that lack does")
     preps_used = prepared(recs, used)
+    if turns:
+        from ..verify.manoeuvres import recorded_turns  # late: only for --turns
+
+        held = recorded_turns(used, preps_used, wind)
+        out["turns"] = [asdict(t) for t in held]
+        for line in recorded_turn_lines(held):
+            say(line)
     longest = max((p.t[seg.stop - 1] - p.t[seg.start] for p in preps_used for seg in p.segments), default=0.0)
     short = [f"{h:g}-s" for h in (10.0, 30.0) if longest < h]
     if short:  # said, not left to a table of dashes

@@ -24,6 +24,7 @@ its straight run says so (`stable`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -34,6 +35,7 @@ from ..engine.mjcf import CompiledVessel, compile_vessel
 from ..engine.sim import simulate
 from ..errors import TwinError
 from ..fit.uncertainty import draw
+from ..fit.windows import Window, predict
 from ..physics.environment import Environment
 from ..run import Run
 from ..vessel import Vessel
@@ -429,4 +431,86 @@ def manoeuvre_measures(m: Manoeuvres) -> dict[str, float | None]:
     out |= {f"zigzag.{k}": v for k, v in m.zigzag.__dict__.items() if k not in ("yaw", "switch_deg")}
     if m.crash_stop is not None:
         out |= {f"crash_stop.{k}": v for k, v in m.crash_stop.__dict__.items()}
+    return out
+
+
+# a held input: PWM within this of the stretch's first sample (an RC log's jitter is a few µs), or the
+# propeller within HELD_RPS and the rudder within HELD_RUDDER_DEG; a turn: the rudder off amidships by
+# TURNING_RUDDER_DEG or the two PWMs apart by TURNING_PWM_US, the heading turning TURNED_DEG over it
+HELD_PWM_US, HELD_RPS, HELD_RUDDER_DEG = 10.0, 0.3, 1.0
+TURNING_PWM_US, TURNING_RUDDER_DEG, TURNED_DEG = 20.0, 5.0, 90.0
+
+
+@dataclass(frozen=True)
+class RecordedTurn:
+    """A turn a recording holds, measured from the log and from the twin's free run of it.
+
+    Attributes:
+        log: the recording's name.
+        start_s: the execute (s, the recording's clock): the first sample of the held inputs.
+        held_s: how long the inputs hold (s).
+        inputs: the held pair at the execute: (kind, (left, right)), PWM µs or n rps and δ rad.
+        speed_m_s: the measured surge speed at the execute (m/s).
+        measured: the TurningCircle read from the prepared recording.
+        predicted: the TurningCircle of the twin's free run from the measured state at the execute,
+            driven by the logged inputs (None: the run diverged).
+    """
+
+    log: str
+    start_s: float
+    held_s: float
+    inputs: tuple[str, tuple[float, float]]
+    speed_m_s: float
+    measured: TurningCircle
+    predicted: TurningCircle | None
+
+
+def held_turns(prep, turned_deg: float = TURNED_DEG) -> list[tuple[int, int]]:
+    """(first, last) grid samples of each stretch, within one segment, over which the inputs hold
+    (HELD_PWM_US, or HELD_RPS and HELD_RUDDER_DEG), asking for a turn (TURNING_PWM_US apart, or the
+    rudder TURNING_RUDDER_DEG off amidships), while the heading turns `turned_deg` or more."""
+    x = np.asarray(prep.pwm, float)
+    ship = prep.input_kind == "propeller_rudder"
+    tol = np.array([HELD_RPS, np.radians(HELD_RUDDER_DEG)] if ship else [HELD_PWM_US, HELD_PWM_US])
+    out, i, n = [], 0, len(prep.t)
+    while i < n:
+        j = i
+        while j + 1 < n and prep.segment[j + 1] == prep.segment[i] and np.all(np.abs(x[j + 1] - x[i]) < tol):
+            j += 1
+        turning = (abs(x[i, 1]) >= np.radians(TURNING_RUDDER_DEG) if ship
+                   else abs(x[i, 0] - x[i, 1]) >= TURNING_PWM_US)
+        if turning and np.all(np.isfinite(x[i])) and abs(prep.psi[j] - prep.psi[i]) >= np.radians(turned_deg):
+            out.append((i, j))
+        i = j + 1
+    return out
+
+
+def recorded_turns(vessel: Vessel, preps: list, wind: str | None = None,
+                   turned_deg: float = TURNED_DEG) -> list[RecordedTurn]:
+    """Every held turn of the prepared recordings (`held_turns`), measured from the log and from the
+    twin's free run of it: from the measured state at the execute, never corrected, driven by the
+    logged inputs as `twin evaluate` drives its free runs (fit.windows.predict).
+
+    Args:
+        vessel: the twin, calibrated to the recordings (ident.identify.calibrate).
+        preps: the recordings prepared for it (ident.identify.prepared).
+        wind: None, or "measured": each recording's measured wind a known input.
+        turned_deg: how far the heading must turn over a held stretch for it to count (°).
+
+    Returns:
+        One RecordedTurn per held turn, in the recordings' order.
+    """
+    out = []
+    for prep in preps:
+        for i0, i1 in held_turns(prep, turned_deg):
+            side = 1 if prep.psi[i1] > prep.psi[i0] else -1
+            nu = np.column_stack([prep.u, prep.v, prep.r])
+            measured = turning_measures(prep.t[i0:i1 + 1], prep.north[i0:i1 + 1], prep.east[i0:i1 + 1],
+                                        prep.psi[i0:i1 + 1], nu[i0:i1 + 1], side)
+            run = predict(vessel, [prep], [Window(0, i0, i1 - i0)], wind=wind)[0]
+            predicted = None if run.diverged else turning_measures(
+                prep.t[i0:i1 + 1], run.eta[0, :, 0], run.eta[0, :, 1], run.eta[0, :, 2], run.nu[0], side)
+            held = (prep.input_kind, (float(prep.pwm[i0, 0]), float(prep.pwm[i0, 1])))
+            out.append(RecordedTurn(Path(prep.settings.source).name, float(prep.t[i0]),
+                                    float(prep.t[i1] - prep.t[i0]), held, float(prep.u[i0]), measured, predicted))
     return out
