@@ -108,3 +108,47 @@ def test_a_twin_drawn_over_its_yaw_damping_spreads_its_steady_turn_and_nothing_w
         assert stop.high - stop.low < 1e-9
         widths.append(rate.high - rate.low)
     assert widths[1] > 1.5 * widths[0]
+
+
+@pytest.fixture(scope="module")
+def held_turn_log(tmp_path_factory):
+    """A BlueBoat run: 10 s straight at 1700 µs, then 1900 | 1500 µs held for 50 s (more than a full
+    turn), then straight again."""
+    series = twin.InputSeries(np.array([0.0, 10.0, 60.0]), np.array([[1700.0, 1700.0], [1900.0, 1500.0],
+                                                                     [1700.0, 1700.0]]), "pwm")
+    path = tmp_path_factory.mktemp("turns") / "turn.csv"
+    twin.simulate_run("blueboat", inputs=series, duration_s=70.0).write(path)
+    return path
+
+
+def test_a_recorded_turn_is_found_its_own_twin_predicts_it_and_a_weaker_one_turns_slower(held_turn_log):
+    from dataclasses import replace
+
+    from twin.ident.identify import calibrate, prepared, read
+    from twin.verify.manoeuvres import recorded_turns
+
+    recs = read([held_turn_log])
+    boat = calibrate(recs, vessel_mod.load("blueboat"))[0]
+    (turn,) = recorded_turns(boat, prepared(recs, boat))
+    assert turn.inputs == ("pwm", (1900.0, 1500.0))
+    assert turn.start_s == pytest.approx(10.0, abs=0.15) and turn.held_s == pytest.approx(50.0, abs=0.3)
+    m, p = turn.measured, turn.predicted
+    assert m.side == 1 and m.tactical_diameter_m > 0 and m.steady_rate_deg_s > 0
+    for key in ("advance_m", "transfer_m", "tactical_diameter_m", "steady_diameter_m", "steady_rate_deg_s"):
+        assert getattr(p, key) == pytest.approx(getattr(m, key), rel=0.03), key
+    weak = replace(boat, thrusters=replace(boat.thrusters, gain_left=0.8 * boat.thrusters.gain_left))
+    (slow,) = recorded_turns(weak, prepared(recs, weak))
+    # less thrust on the outer side: a slower turn, at a lower speed (the diameter, their ratio, stays near)
+    assert slow.predicted.steady_rate_deg_s < 0.95 * m.steady_rate_deg_s
+    assert slow.predicted.steady_speed_m_s < 0.95 * m.steady_speed_m_s
+
+
+def test_evaluate_turns_prints_the_recorded_turn_beside_the_twins(held_turn_log):
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "twin", "evaluate", "--vessel", "blueboat", str(held_turn_log),
+                        "--turns"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert "turns held in the recordings, recorded | predicted" in p.stdout
+    assert "turn.csv at 10.0 s for 50 s (PWM 1900, 1500 µs" in p.stdout
