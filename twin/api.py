@@ -199,8 +199,10 @@ def manoeuvres(vessel: Vessel | str, surge: float = 0.5, turn_yaw: float = 1.0, 
 
     Args:
         vessel: a twin.Vessel, a shipped vessel's name or a vessel file's path.
-        surge: the approach command, (0, 1] of full ahead (a ship: of rps_max; `--surge`).
-        turn_yaw: the turning circles' yaw command, (0, 1] (a ship: of rudder_max; `--turn-yaw`).
+        surge: the approach command, (0, 1] (`--surge`): a ship's share of rps_max; a twin-thruster
+            boat's share of the PWM span from 1500 µs (0.5: 1700 µs).
+        turn_yaw: the turning circles' yaw command, (0, 1] (`--turn-yaw`): a ship's share of
+            rudder_max; a twin-thruster boat's thrusters get surge ± yaw, each held within full.
         zigzag_yaw: the zig-zag's yaw command, (0, 1]; None: a ship's 10° of rudder, a boat's 0.2.
         zigzag_switch_deg: the heading change (°) at which the zig-zag reverses (default 10).
 
@@ -208,9 +210,10 @@ def manoeuvres(vessel: Vessel | str, surge: float = 0.5, turn_yaw: float = 1.0, 
         twin.verify.manoeuvres.Manoeuvres: `length_m` (L), `approach_speed_m_s`, `straight` (the
         straight run's course stability: `throttle`, its mean thrust's share of full ahead, `speed_m_s`,
         `roots_per_s`, `stable`, `doubling_s`), `inputs` (what the approach, turn and zig-zag ask of
-        the thrusters or propeller and rudder), `turns` (starboard, port: advance, transfer, tactical and
-        steady diameters in m, steady speed m/s, rate °/s, drift angle °), `zigzag` (first and second
-        overshoot °) and `crash_stop` (track and head reach, lateral deviation in m, time in s).
+        the thrusters or propeller and rudder), `turns` (starboard, port: advance, transfer + to starboard,
+        tactical and steady diameters in m, steady speed m/s, rate °/s + to starboard, drift angle
+        atan2(−v, u) in °), `zigzag` (first and second overshoot °, time to the first reversal s) and
+        `crash_stop` (track and head reach, lateral deviation in m, time in s).
 
     Raises:
         TwinError: a command outside (0, 1], a switch angle outside (0, 90)°, or a vessel that is not

@@ -255,9 +255,11 @@ def manoeuvres(
     vessel: Optional[str] = typer.Option(None, help=VESSEL_HELP),
     model: Optional[Path] = typer.Option(None, help=MODEL_HELP),
     case: Optional[str] = typer.Option(None, help=CASE_HELP),
-    surge: float = typer.Option(0.5, help="the approach command, (0, 1] of full ahead (a ship: of rps_max)"),
+    surge: float = typer.Option(0.5, help="the approach command, (0, 1]: a ship's share of rps_max; a twin-thruster "
+                                          "boat's share of the PWM span from 1500 µs (0.5: 1700 µs; a share inside the "
+                                          "dead zone, the BlueBoat's below about 0.1, does not get under way)"),
     turn_yaw: float = typer.Option(1.0, help="the turning circles' yaw command, (0, 1] (a ship: of rudder_max; a "
-                                             "twin-thruster boat: differential, each thruster held within full)"),
+                                             "twin-thruster boat's thrusters get surge ± yaw, each held within full)"),
     zigzag_yaw: Optional[float] = typer.Option(None, help="the zig-zag's yaw command, (0, 1] (default: a ship's 10° "
                                                           "of rudder, a boat's 0.2; a ship's 20°/20° test: 20° over "
                                                           "its rudder_max)"),
@@ -328,7 +330,7 @@ def manoeuvre_lines(m) -> list[str]:
                              f"COURSE-UNSTABLE: a deviation doubles every {m.straight.doubling_s:.3g} s") +
                      f" (sway-yaw roots {', '.join(f'{r.real:+.3g}' for r in m.straight.roots_per_s)} 1/s)")
     lines.append(f"turning circle, yaw {m.turn_yaw:g} (to starboard {asked('turn')}; starboard | port, transfer + to "
-                 "starboard, drift + with the bow inside the circle):")
+                 "starboard, drift atan2(−v, u): + with the bow to starboard of the track):")
     for label, key, kind in (("advance", "advance_m", "L"), ("transfer", "transfer_m", "L"),
                              ("tactical diameter", "tactical_diameter_m", "L"),
                              ("steady diameter", "steady_diameter_m", "L"), ("steady speed", "steady_speed_m_s", "m/s"),

@@ -41,15 +41,16 @@ from ..run import Run
 from ..vessel import Vessel
 
 APPROACH_S = 10.0
-TURN_TO_DEG = 400.0  # a steady turn is read after 360°: a little beyond, for its mean over the last 40°
+TURN_TO_DEG = 400.0  # a steady turn is read after 360° (its mean from there to the run's end): run past it
 LONGEST_S = 1800.0  # a turn that never gets round (too little yaw for the speed) stops here
 
 
 @dataclass(frozen=True)
 class TurningCircle:
     """One turning circle (side +1 to starboard, −1 to port). Lengths in m, transfer + to starboard
-    of the approach track; the drift angle atan2(−v, u) in ° (+: the bow inside a starboard turn's
-    circle). None where the heading never changed that much within LONGEST_S."""
+    of the approach track, rate + to starboard; the drift angle atan2(−v, u) in ° (+: the bow to
+    starboard of the track, inside a starboard turn's circle). None where the heading never changed
+    that much within LONGEST_S."""
 
     side: int
     advance_m: float | None
@@ -93,7 +94,8 @@ class Manoeuvres:
         surge: the approach command (normalised).
         turn_yaw: the turning circles' yaw command (normalised).
         approach_speed_m_s: the surge speed at the execute (m/s).
-        straight: the straight run's course stability at the approach thrust (None: unbounded thrusters).
+        straight: the straight run's course stability at the approach thrust (None: a ship without
+            rps_max).
         turns: the turning circles to starboard and to port, at the full turning command.
         zigzag: the zig-zag.
         crash_stop: the crash stop (None where the vessel has no astern: thrust bounds of zero).
