@@ -1,5 +1,9 @@
 """The standard manoeuvres (turning circle, zig-zag, crash stop) read from the twin's runs: their
 geometry against the track itself, their symmetry, and how they move with the boat and the command."""
+import subprocess
+import sys
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -7,7 +11,8 @@ import twin
 import twin.vessel as vessel_mod
 from twin.engine.mjcf import compile_vessel
 from twin.errors import TwinError
-from twin.verify.manoeuvres import APPROACH_S, _after_execute, _run, manoeuvres
+from twin.ident.identify import calibrate, prepared, read
+from twin.verify.manoeuvres import APPROACH_S, _after_execute, _run, manoeuvre_bands, manoeuvres, recorded_turns
 
 
 @pytest.fixture(scope="module")
@@ -82,17 +87,19 @@ def test_a_command_outside_its_range_is_refused(kwargs, says):
         manoeuvres(vessel_mod.load("blueboat"), **kwargs)
 
 
-def test_the_approach_runs_before_the_execute():
-    assert APPROACH_S >= 5.0  # a thrust lag of the shipped boats (≤ 1 s) settles within it
+def test_a_lagged_thrust_has_settled_by_the_execute():
+    """The approach starts at the straight run's speed with the thrust lag's state at zero: after
+    APPROACH_S a 1-s lag has settled, and the execute finds the straight run's speed again."""
+    boat = vessel_mod.load("yellowfish")
+    lagged = replace(boat, thrusters=replace(boat.thrusters, lag_s=1.0))
+    m = manoeuvres(lagged)
+    assert APPROACH_S >= 5.0
+    assert m.approach_speed_m_s == pytest.approx(m.straight.speed_m_s, rel=0.01)
 
 
 def test_a_twin_drawn_over_its_yaw_damping_spreads_its_steady_turn_and_nothing_without_it():
     """A BlueBoat whose Nr is uncertain (log-normal, σ 20 %): the steady turn rate's 90 % band brackets
     the nominal twin's and widens with σ; the crash stop, which no yaw term moves, keeps one value."""
-    from dataclasses import replace
-
-    from twin.verify.manoeuvres import manoeuvre_bands
-
     boat = vessel_mod.load("blueboat")
     nominal = manoeuvres(boat).turns[0].steady_rate_deg_s
     widths = []
@@ -122,11 +129,6 @@ def held_turn_log(tmp_path_factory):
 
 
 def test_a_recorded_turn_is_found_its_own_twin_predicts_it_and_a_weaker_one_turns_slower(held_turn_log):
-    from dataclasses import replace
-
-    from twin.ident.identify import calibrate, prepared, read
-    from twin.verify.manoeuvres import recorded_turns
-
     recs = read([held_turn_log])
     boat = calibrate(recs, vessel_mod.load("blueboat"))[0]
     (turn,) = recorded_turns(boat, prepared(recs, boat))
@@ -144,9 +146,6 @@ def test_a_recorded_turn_is_found_its_own_twin_predicts_it_and_a_weaker_one_turn
 
 
 def test_evaluate_turns_prints_the_recorded_turn_beside_the_twins(held_turn_log):
-    import subprocess
-    import sys
-
     p = subprocess.run([sys.executable, "-m", "twin", "evaluate", "--vessel", "blueboat", str(held_turn_log),
                         "--turns"], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
