@@ -269,9 +269,12 @@ def straight_run(compiled, throttle: float = 1.0, static_n=None) -> StraightRun 
     while acc(np.array([hi, 0.0, 0.0]))[0] > 0 and hi < 50:
         hi *= 2
     if not acc(np.array([hi, 0.0, 0.0]))[0] <= 0:
-        raise TwinError(f"vessel '{vessel.name}': no straight-running speed under {hi:g} m/s at full ahead: its "
-                        "resistance never balances its thrust")
-    u0 = float(brentq(lambda u: acc(np.array([u, 0.0, 0.0]))[0], 0.0, hi, xtol=1e-10))
+        raise TwinError(f"vessel '{vessel.name}': no straight-running speed under {hi:g} m/s at {100 * throttle:.0f} % "
+                        "of full ahead: its resistance never balances its thrust")
+    def surge(u: float) -> float:
+        return float(acc(np.array([u, 0.0, 0.0]))[0])
+
+    u0 = 0.0 if not surge(0.0) > 0 else float(brentq(surge, 0.0, hi, xtol=1e-10))  # no thrust ahead: at rest
     J = np.empty((2, 2))
     for j, h in ((1, 1e-5 * max(1.0, u0)), (2, 1e-5)):
         step = np.zeros(3)
