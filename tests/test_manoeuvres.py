@@ -150,4 +150,4 @@ def test_evaluate_turns_prints_the_recorded_turn_beside_the_twins(held_turn_log)
                         "--turns"], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     assert "turns held in the recordings, recorded | predicted" in p.stdout
-    assert "turn.csv at 10.0 s for 50 s (PWM 1900, 1500 µs" in p.stdout
+    assert "turn.csv at 10.0 s for 49.9 s (PWM left 1900, right 1500 µs as the twin reads them" in p.stdout

@@ -288,17 +288,18 @@ def recorded_turn_lines(held) -> list[str]:
     """Each recorded turn (verify.manoeuvres.RecordedTurn), recorded against predicted, as text."""
     if not held:
         return ["turns: none held (the inputs never held while the heading turned 90° or more)"]
-    lines = ["turns held in the recordings, recorded | predicted (m, m/s, °/s; – where the heading never turned "
-             "90°, 180° or 360°):"]
+    lines = ["turns held in the recordings, recorded | predicted (m, m/s, °/s, °; the recorded u, v from the log's "
+             "prepared velocities; – where the heading never turned 90°, 180° or 360°):"]
 
     def pair(a, b, fmt):
         return " | ".join("–" if x is None else format(x, fmt) for x in (a, b))
 
     for t in held:
         kind, (a, b) = t.inputs
-        asked = f"PWM {a:.0f}, {b:.0f} µs" if kind == "pwm" else f"{a:.3g} rps, rudder {math.degrees(b):+.1f}°"
+        asked = (f"PWM left {a:.0f}, right {b:.0f} µs as the twin reads them" if kind == "pwm"
+                 else f"{a:.3g} rps, rudder {math.degrees(b):+.1f}°")
         p = t.predicted
-        lines.append(f"  {t.log} at {t.start_s:.1f} s for {t.held_s:.0f} s ({asked}, u {t.speed_m_s:.3g} m/s)"
+        lines.append(f"  {t.log} at {t.start_s:.1f} s for {t.held_s:.1f} s ({asked}, u {t.speed_m_s:.3g} m/s)"
                      + ("" if p is not None else ": the twin's run diverged"))
         if p is None:
             continue
@@ -308,7 +309,8 @@ def recorded_turn_lines(held) -> list[str]:
                      f"{pair(m.tactical_diameter_m, p.tactical_diameter_m, '.2f')}; steady diameter "
                      f"{pair(m.steady_diameter_m, p.steady_diameter_m, '.2f')}, speed "
                      f"{pair(m.steady_speed_m_s, p.steady_speed_m_s, '.3g')}, rate "
-                     f"{pair(m.steady_rate_deg_s, p.steady_rate_deg_s, '+.2f')}")
+                     f"{pair(m.steady_rate_deg_s, p.steady_rate_deg_s, '+.2f')}, drift "
+                     f"{pair(m.drift_deg, p.drift_deg, '+.1f')}")
     return lines
 
 
