@@ -89,8 +89,8 @@ def _vessel_with_mjcf(tmp_path, body_xml, asset_xml=""):
     (tmp_path / "v.xml").write_text(f"""<mujoco><asset>{asset_xml}</asset><worldbody><body name="vessel">
       <joint name="north" type="slide" axis="1 0 0"/><joint name="east" type="slide" axis="0 1 0"/>
       <joint name="yaw" type="hinge" axis="0 0 1"/>{body_xml}
-      <site name="imu"/><site name="gnss"/><site name="thruster_left" pos="0 -0.2 0"/>
-      <site name="thruster_right" pos="0 0.2 0"/></body></worldbody><actuator>
+      <site name="imu"/><site name="gnss"/><site name="thruster_left" pos="0 -0.2 0.18"/>
+      <site name="thruster_right" pos="0 0.2 0.18"/></body></worldbody><actuator>
       <general name="thruster_left" site="thruster_left" gear="1 0 0 0 0 0"/>
       <general name="thruster_right" site="thruster_right" gear="1 0 0 0 0 0"/></actuator></mujoco>""")
     data = json.loads((MODEL / "cybership1.json").read_text())
@@ -234,3 +234,18 @@ def test_simulate_refuses_a_massless_hull(tmp_path):
                           "--out", str(out))
     assert p.returncode == 2 and "geom 'hull_port' has mass 0" in p.stderr and not out.exists(), p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+def test_a_thruster_above_the_waterline_but_below_the_hulls_top_is_refused_by_validate(tmp_path):
+    """The BlueBoat floats its 15 kg with its waterline 3 mm below the MJCF's z = 0: a thruster at
+    z = −0.05 m lies within the hulls' height (the engine accepts it) but in the air, which validate says."""
+    mjcf = (vessel_mod.MODEL_DIR / "blueboat.xml").read_text().replace(
+        'meshdir="../assets"', f'meshdir="{vessel_mod.MODEL_DIR.parent / "assets"}"').replace(
+        'pos="-0.52 -0.285 0.10"', 'pos="-0.52 -0.285 -0.05"')
+    (tmp_path / "boat.xml").write_text(mjcf)
+    data = json.loads((vessel_mod.MODEL_DIR / "blueboat.json").read_text()) | {"mjcf": "boat.xml"}
+    (tmp_path / "boat.json").write_text(json.dumps(data))
+    boat = vessel_mod.load(str(tmp_path / "boat.json"))
+    compile_vessel(boat)
+    with pytest.raises(TwinError, match=r"site 'thruster_left' at z = -0.05 m lies 53 mm above the waterline"):
+        validate(boat)

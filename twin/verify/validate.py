@@ -16,7 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..engine.mjcf import CompiledVessel, compile_vessel, edited_spec
+from ..engine.mjcf import CompiledVessel, actuator_names, compile_vessel, edited_spec
 from ..errors import TwinError
 from ..physics import added_mass as am
 from ..physics.hydrostatics import (RHO_FRESH_KG_M3, equilibrium, submerged_volume, waterline_for_mass,
@@ -462,6 +462,21 @@ def _hydrostatics(compiled: CompiledVessel, case: str, meshes: list[dict]) -> tu
     return out, fl
 
 
+def _check_propulsors_wet(compiled: CompiledVessel, flotation: dict) -> None:
+    """Refuse a thruster, propeller or rudder site above the waterline the hull meshes float the vessel
+    at (body z down): it would push from the air. The engine refuses one above the hulls' top at every
+    compile; the waterline (a flotation's bisection) is found here."""
+    if not flotation:
+        return
+    z_w = flotation["waterline_z_m"]
+    for name, pos in zip(actuator_names(compiled.vessel), compiled.geometry.thruster_pos_m):
+        if pos[2] < z_w:
+            raise TwinError(f"{compiled.vessel.mjcf.name}: site '{name}' at z = {pos[2]:+.3g} m lies "
+                            f"{1e3 * (z_w - pos[2]):.0f} mm above the waterline the hull meshes float "
+                            f"{compiled.geometry.rigid.mass_kg:.4g} kg at (z = {z_w:+.3g} m; body z points down): it "
+                            "would push from the air")
+
+
 def _floating_free(compiled: CompiledVessel, meshes: list[dict]) -> list[Quantity]:
     """Where the hull meshes float the vessel free in heave, trim and heel (centre of buoyancy under
     the centre of gravity): the rest of the 6-DOF twin (engine/sixdof.py), from the full meshes."""
@@ -568,6 +583,7 @@ def validate(vessel: Vessel) -> Validation:
         qs = _generic(compiled) + _ship_particulars(compiled, meshes)
     qs += _mesh_quantities(compiled, meshes)
     hydro_qs, flotation = _hydrostatics(compiled, case, meshes)
+    _check_propulsors_wet(compiled, flotation)
     qs += hydro_qs + _floating_free(compiled, meshes)
     g = compiled.geometry
     drawing = {
