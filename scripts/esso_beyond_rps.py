@@ -89,18 +89,26 @@ def resistance_row(label: str, twin) -> list:
     return [label, m.hull.R0, m.propeller.wP0, m.friction_factor, friction_line_factor(m)]
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def esso_study(doc: str):
+    """An Esso Osaka study's --out and its tests: (args, the prior, the recordings, their names), or None
+    (said) when the recordings are not beside the project."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
     args = ap.parse_args()
     paths = sorted(p for p in DATA.glob("*.csv") if p.name != DUPLICATE)
     if not paths:
         print(f"the Esso Osaka recordings are not in {DATA}: nothing to do")
-        return 0
-    started = time.time()
-    prior = vessel_mod.load("esso_osaka")
+        return None
     recs = read(paths)
-    names = [log_name(r.source) for r in recs]
+    return args, vessel_mod.load("esso_osaka"), recs, [log_name(r.source) for r in recs]
+
+
+def main() -> int:
+    started = time.time()
+    study = esso_study(__doc__)
+    if study is None:
+        return 0
+    args, prior, recs, names = study
     split = by_input_level(prepared(recs, calibrate(recs, prior)[0]), FITTED_RPS)
     slow, _ = split.pick(recs, names)
     twins = {"prior": prior,

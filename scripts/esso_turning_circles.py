@@ -19,7 +19,6 @@ The recordings are read in place; without them the script says so and exits 0.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from dataclasses import asdict
@@ -30,16 +29,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import twin.vessel as vessel_mod  # noqa: E402
 from twin.engine.mjcf import compile_vessel  # noqa: E402
 from twin.fit.extrapolation import by_family  # noqa: E402
-from twin.ident.identify import calibrate, identify, prepared, read  # noqa: E402
-from twin.physics.sensors import log_name  # noqa: E402
+from twin.ident.identify import calibrate, identify, prepared  # noqa: E402
 from twin.verify.manoeuvres import recorded_turns  # noqa: E402
 from twin.viz.pages import ResultPage, ResultTable  # noqa: E402
+from esso_beyond_rps import DUPLICATE, esso_study  # noqa: E402  (scripts/ is on the path)
 
-DATA = ROOT.parent / "shared" / "data" / "esso"
-DUPLICATE = "turn_cut_14-Sep-2020_15_58_08.csv"  # the first 287 s of turn_14-Sep-2020_15_58_08
 MEASURES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_diameter_m", "steady_speed_m_s",
             "steady_rate_deg_s")
 
@@ -89,17 +85,11 @@ def relative_errors(rows: list[dict], label: str, measure: str) -> np.ndarray:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results")
-    args = ap.parse_args()
-    paths = sorted(p for p in DATA.glob("*.csv") if p.name != DUPLICATE)
-    if not paths:
-        print(f"the Esso Osaka recordings are not in {DATA}: nothing to do")
-        return 0
     started = time.time()
-    prior = vessel_mod.load("esso_osaka")
-    recs = read(paths)
-    names = [log_name(r.source) for r in recs]
+    study = esso_study(__doc__)
+    if study is None:
+        return 0
+    args, prior, recs, names = study
     split = by_family(names, "random")
     random_recs, turn_recs = split.pick(recs, names)
     twins = {"prior": prior,
