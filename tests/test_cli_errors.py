@@ -428,7 +428,7 @@ def test_info_calibrates_every_log_it_can_and_refuses_another_vessels_log(monkey
     out, err = capsys.readouterr()
     assert code in (0, None) and "error" not in err
     assert "calibration: cut.csv: no compass calibration (" in out
-    assert "calibration: fixed_00000225.csv: compass offset +7.0°" in out
+    assert "calibration: fixed_00000225.csv: compass offset +6.9°" in out
     code, err = run(monkeypatch, capsys, ["info", good, "--vessel", "esso_osaka"])
     assert code == 2 and "is driven by propeller speed and rudder angle; the recording holds PWM" in err
 

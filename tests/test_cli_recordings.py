@@ -314,7 +314,7 @@ def test_view_sim_plots_the_logged_thrust_from_the_recorded_pwm(sim_tlog, tmp_pa
 
 def test_info_with_a_vessel_reports_each_logs_compass_calibration(shared_dir, tmp_path):
     """The kinematic calibration identify, evaluate and diagnose apply, shown by `twin info` (README:
-    run 225 +7.0° ± 0.6° from its own legs; run 226 spins in place and has no straight running), and
+    run 225 +6.9° ± 0.6° from its own legs; run 226 spins in place and has no straight running), and
     whether the compass error follows the throttle (fit/calibrate.throttle_dependence); a log
     without GNSS is named, not fatal; an unknown vessel is refused before any work."""
     runs = shared_dir / "data" / "blueboat"
@@ -322,7 +322,7 @@ def test_info_with_a_vessel_reports_each_logs_compass_calibration(shared_dir, tm
     assert p.returncode == 0, p.stderr
     lines = [ln for ln in p.stdout.splitlines() if ln.startswith("calibration:")]
     assert len(lines) == 3
-    assert "fixed_00000225.csv: compass offset +7.0° ± 0.6°" in lines[0]
+    assert "fixed_00000225.csv: compass offset +6.9° ± 0.6°" in lines[0]
     assert "fixed_00000226.csv: compass offset not applied" in lines[1] and "straight running" in lines[1]
     # two straight stretches ahead: too few to tell whether the compass error follows the throttle
     assert lines[2].startswith("calibration: compass error following the throttle: not told (fewer than 10")

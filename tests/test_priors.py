@@ -77,8 +77,8 @@ def test_the_shipped_blueboat_prior_is_its_first_principles_estimate():
     v = vessel_mod.load("blueboat")
     fp = first_principles(v)
     for name, value in fp.values().items():
-        if name.endswith("dot"):  # the file's from the same ellipsoids, their semi-axes read to the millimetre
-            assert getattr(v.added_mass, name) == pytest.approx(value, rel=0.02), name
+        if name.endswith("dot"):
+            assert getattr(v.added_mass, name) == pytest.approx(value, rel=1e-3), name
             continue
         held = getattr(v.thrusters if name.startswith("gain") else v.damping, name)
         assert held == pytest.approx(value, rel=1e-3, abs=1e-3), name
@@ -245,7 +245,7 @@ def test_first_principles_write_a_vessel_file_with_their_estimates_and_sources(t
     assert done.returncode == 0 and json.loads(done.stdout)["vessel"] == "blueboat"
     written = vessel_mod.load(str(out))
     estimates = first_principles(vessel_mod.load("blueboat")).values()
-    assert written.added_mass.Yvdot == pytest.approx(estimates["Yvdot"]) == pytest.approx(-15.8, abs=0.1)
+    assert written.added_mass.Yvdot == pytest.approx(estimates["Yvdot"]) == pytest.approx(-7.9, abs=0.05)
     assert written.damping.Nur == pytest.approx(estimates["Nur"])
     assert written.sources["Xu"].startswith("twin params --first-principles: ITTC-1957")
     again = twin("params", "--vessel", "blueboat", "--first-principles", "--write-model", out)

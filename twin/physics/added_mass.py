@@ -107,6 +107,20 @@ def ellipsoid_added_mass(a_m: float, b_m: float, c_m: float, rho_kg_m3: float) -
     }
 
 
+def half_body_added_mass(a_m: float, b_m: float, draft_m: float, rho_kg_m3: float) -> dict[str, float]:
+    """Xu̇, Yv̇, Nṙ of a hull piercing the free surface, taken as the lower half of an ellipsoid
+    of semi-axes a, b (half its waterline length and breadth) and c = its draft.
+
+    At the low frequencies of manoeuvring the free surface acts as a rigid wall (the potential's
+    vertical derivative vanishes on it), so the flow about the half-body in the surface is the
+    flow about the double body (the whole ellipsoid, mirrored in the surface) cut in two, and it
+    carries half the double body's added mass [Newman-1977 ch. 4]. The half-ellipsoid displaces
+    ⅔πabc, the hull's own volume when its block coefficient is near π/6. [Yellowfish-TR eq. 21]
+    (ellipsoid_added_mass) takes the whole ellipsoid as submerged, which doubles it."""
+    whole = ellipsoid_added_mass(a_m, b_m, draft_m, rho_kg_m3)
+    return {**whole, **{k: 0.5 * whole[k] for k in ("Xudot", "Yvdot", "Nrdot")}}
+
+
 def catamaran_added_mass_as_printed(single: dict[str, float], hull_mass_kg: float, hull_spacing_m: float) -> dict:
     """[Yellowfish-TR eq. 25] as printed: Xu̇ = 2Xu̇|e, Yv̇ = 2Yv̇|e, Nṙ = Nṙ|e − m_hull·y_m²."""
     return {"Xudot": 2 * single["Xudot"], "Yvdot": 2 * single["Yvdot"],

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..engine.mjcf import compile_vessel
 from ..errors import TwinError
-from ..physics.added_mass import ellipsoid_added_mass
+from ..physics.added_mass import half_body_added_mass
 from ..physics.hydrostatics import (RHO_FRESH_KG_M3, clip_triangle, submerged_volume, waterline_for_mass,
                                     waterplane_extent)
 from ..physics.priors import (SpeedDerivatives, cross_flow_drag, lateral_profile, propulsor_at_rest,
@@ -152,7 +152,10 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
         lift = lift + slender_hull_derivatives(h.length_m, h.beam_m, h.draft_m, h.block_coefficient, rho)
         a, b = cross_flow_drag(*h.profile, d.cross_flow_cd, rho)
         yvv, nrr = yvv + a, nrr + b
-    hull_lift = without_added_mass_coriolis(lift, vessel.added_mass.Xudot, vessel.added_mass.Yvdot)
+    # the estimate's own added mass, which a file it writes carries, not the file's it started from
+    inertia = _added_mass(hs, rho)
+    am = {e.name: e.value for e in inertia}
+    hull_lift = without_added_mass_coriolis(lift, am["Xudot"], am["Yvdot"])
     props = SpeedDerivatives(0.0, 0.0, 0.0, 0.0)
     for x_t in g.thruster_pos_m[:, 0]:
         props = props + propulsor_lateral(float(x_t), d.duct_diameter_m, d.propeller_diameter_m, rho)
@@ -186,22 +189,24 @@ def first_principles(vessel: Vessel) -> FirstPrinciples:
                  "is symmetric about the centre)"),
         Estimate("Nv", rest[2], "N s", "the same"),
     ]
-    est += _added_mass(hs, rho)
+    est += inertia
     return FirstPrinciples(vessel.name, hs, est)
 
 
 def _added_mass(hs: list[Hull], rho: float) -> list[Estimate]:
-    """Xu̇, Yv̇, Nṙ: each hull an ellipsoid of its waterline half-length and half-breadth and its draft
-    (mirrored in the free surface) [Yellowfish-TR eq. 21], the hulls summed about the origin by the
+    """Xu̇, Yv̇, Nṙ: each hull the lower half of an ellipsoid of its waterline half-length and
+    half-breadth and its draft, half the added mass of the whole ellipsoid [Yellowfish-TR eq. 21]
+    (physics.added_mass.half_body_added_mass), the hulls summed about the origin by the
     parallel-axis theorem for added mass (physics.added_mass.catamaran_added_mass_consistent)."""
     xu = yv = nr = 0.0
     for h in hs:
-        e = ellipsoid_added_mass(h.length_m / 2, h.beam_m / 2, h.draft_m, rho)
+        e = half_body_added_mass(h.length_m / 2, h.beam_m / 2, h.draft_m, rho)
         xu, yv = xu + e["Xudot"], yv + e["Yvdot"]
         nr += e["Nrdot"] + e["Xudot"] * h.y_m ** 2 + e["Yvdot"] * h.x_m ** 2
     h = hs[0]
-    text = (f"{len(hs)} ellipsoid{'s' if len(hs) > 1 else ''} of semi-axes {h.length_m / 2:.3f}, {h.beam_m / 2:.3f}, "
-            f"{h.draft_m:.3f} m (half waterline length and breadth, draft) [Yellowfish-TR eq. 21]")
+    text = (f"{len(hs)} half-ellipsoid{'s' if len(hs) > 1 else ''} of semi-axes {h.length_m / 2:.3f}, "
+            f"{h.beam_m / 2:.3f}, {h.draft_m:.3f} m (half waterline length and breadth, draft): half the whole "
+            "ellipsoid's added mass [Yellowfish-TR eq. 21], the free surface a rigid wall [Newman-1977 ch. 4]")
     return [Estimate("Xudot", xu, "kg", text), Estimate("Yvdot", yv, "kg", "the same"),
             Estimate("Nrdot", nr, "kg m2", "the same, each hull's added mass carried about the origin "
                      "(parallel axes)")]
