@@ -593,6 +593,9 @@ PAGES = {"first": "concealed_effects", "second": "concealed_effects_second", "th
 # what a stage of the fifth and sixth sets ran (the earlier sets' stages say it on their pages' notes)
 STAGE_METHODS = {
     ("thirtieth", "before"): "the diagnosis as it was when the set was fixed",
+    ("thirtieth", "half-body prior"): "the diagnosis unchanged, the BlueBoat's cases alone, its twin identified from the "
+                                      "prior whose added mass is the half-body's (physics.added_mass.half_body_added_mass: "
+                                      "half the whole ellipsoid's the 'before' stage's prior carried)",
     ("twentyninth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "before"): "the diagnosis as it was when the set was fixed",
     ("twentyeighth", "after"): "one ESC's PWM span (pwm_span_left, pwm_span_right: the pulse it answers is neutral + "
@@ -974,17 +977,21 @@ def write_page(stages: dict, out: Path, antenna: dict | None = None, proof_set: 
               "yes" if r["exact"] else "no", ", ".join(r["others"]) or "-",
               limited_by({**r, "blocks": r.get("blocks") or blocks.get((r["vessel"], r["where"]))}),
               *([given_cell(given.get(r["case"]))] if given else []), r["seconds"]] for r in rows]))
-    judged = [(g, next((r for r in rows if r["case"] == name), None)) for name, g in given.items() if g is not None]
+    # the stages in the order they ran: a case's row from the last kept stage that ran it (a stage may run
+    # some cases only) is the diagnosis of today for that case
+    kept = [st for st in stages if "(not kept)" not in st] or list(stages)[-1:]
+    latest = {r["case"]: (st, r) for st in kept for r in stages[st]["rows"]}
+    judged = [(g, latest.get(name, (None, None))) for name, g in given.items() if g is not None]
     if judged:
-        provable = [r for g, r in judged if g["earns_its_place"] and r is not None]
-        # the stages in the order they ran: the last one kept is the diagnosis of today
-        last = next((s for s in reversed(list(stages)) if "(not kept)" not in s), list(stages)[-1])
+        provable = [(st, r) for g, (st, r) in judged if g["earns_its_place"]]
+        named_by = sorted({st for st, r in provable if r is not None}, key=list(stages).index)
         lines.append(
             f"The truth itself, given at its own values and judged by the diagnosis's rule on the same blocks, through "
             f"the twins identified from the same runs at the judging commit "
             f"({', '.join(sorted({g['commit'] for g, _ in judged}))}): the logs can prove "
-            f"{len(provable)} of {len(judged)} as given; of those '{last}' named "
-            f"{sum(r['exact'] for r in provable)} exactly")
+            f"{len(provable)} of {len(judged)} as given; of those "
+            + (" and ".join(f"'{st}'" for st in named_by) or "no stage")
+            + f" named {sum(bool(r and r['exact']) for _, r in provable)} exactly")
     proof = PROOFS[proof_set]
     page = ResultPage(
         PAGES[proof_set], "Effects concealed in real logs, found by `twin diagnose` with an identified twin"

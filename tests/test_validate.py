@@ -44,6 +44,20 @@ def test_lamb_integrals_three_ways():
     assert -sphere["Xudot"] == pytest.approx(0.5 * 1000 * 4 / 3 * np.pi * 0.001)
 
 
+def test_a_hull_in_the_surface_carries_half_its_double_bodys_added_mass():
+    """A hemisphere floating in the surface moves as half a sphere does in open water (the surface a
+    rigid wall): its added mass is half the hemisphere's own displaced mass, in surge and sway alike,
+    where the whole ellipsoid of [Yellowfish-TR eq. 21] gives twice that."""
+    r, rho = 0.1, 1000.0
+    half = am.half_body_added_mass(r, r, r, rho)
+    hemisphere_kg = rho * 2 / 3 * np.pi * r**3
+    assert -half["Xudot"] == pytest.approx(0.5 * hemisphere_kg) == pytest.approx(-half["Yvdot"])
+    slender = am.half_body_added_mass(0.48, 0.11, 0.066, rho)
+    whole = am.ellipsoid_added_mass(0.48, 0.11, 0.066, rho)
+    assert all(slender[k] == pytest.approx(0.5 * whole[k]) for k in ("Xudot", "Yvdot", "Nrdot"))
+    assert slender["Yvdot"] < slender["Xudot"] < 0  # a slender hull: far more added mass across than along
+
+
 def test_engine_values_follow_the_mjcf(nominal):
     assert nominal["m"].engine == pytest.approx(24.39)
     assert nominal["xg (eq. 17)"].engine == pytest.approx(-19.63, abs=0.01)
