@@ -2,11 +2,15 @@
 a temporary name in the same folder (same file system), then an atomic rename."""
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import os
+import re
+import signal
 import stat
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Callable, Iterator
@@ -25,39 +29,151 @@ RRD_RUN, RRD_VIEW = "twin-run", "twin-view"
 _STAGES: list[dict] = []
 
 
+# the paths an open command found free when it checked them (check_new), each with the option and the
+# name it was given by: the write there makes a new file and replaces none, so that a file which
+# appears at the path during the run (a copy, another run writing there) is kept (_put). Held while
+# an output_scope is open (a command; all_or_nothing opens one), forgotten when the outermost ends.
+_FRESH: dict[str, tuple[str, str]] = {}
+_SCOPE_DEPTH = [0]
+
+
+@contextmanager
+def output_scope() -> Iterator[None]:
+    """A command's span for its outputs: a path check_new finds free in it is written as a new file
+    (never replacing one that appeared there since the check); outside any scope paths are not held."""
+    _SCOPE_DEPTH[0] += 1
+    try:
+        yield
+    finally:
+        _SCOPE_DEPTH[0] -= 1
+        if not _SCOPE_DEPTH[0]:
+            _FRESH.clear()
+
+
+def _key(path) -> str:
+    return os.path.realpath(str(path))
+
+
+def _appeared(path) -> TwinError:
+    option, shown = _FRESH.get(_key(path), ("output", str(path)))
+    return TwinError(f"{option} '{shown}' appeared during the run and was kept: this run's output was not written "
+                     "(give another name, or run again)")
+
+
+def _put(tmp, target) -> None:
+    """Put the finished temporary `tmp` at `target`: over a file there (os.replace), or, where the
+    command found `target` free (_FRESH), as a new file only, a file that appeared there since being
+    kept (TwinError; the temporary removed)."""
+    key = _key(target)
+    if key not in _FRESH:
+        os.replace(tmp, target)
+        return
+    try:
+        try:
+            os.link(tmp, target)  # fails, whatever the timing, where a file is there
+        except FileExistsError:
+            raise _appeared(target) from None
+        except OSError:  # a file system without hard links (FAT, some network shares): claim the name first
+            try:
+                fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            except FileExistsError:
+                raise _appeared(target) from None
+            os.close(fd)
+            try:
+                os.replace(tmp, target)
+            except OSError:
+                Path(target).unlink(missing_ok=True)  # the empty file claimed above is this run's own
+                raise
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    Path(tmp).unlink(missing_ok=True)
+    _FRESH.pop(key, None)
+
+
+class _Terminated(SystemExit):
+    """SIGTERM while temporaries are open: raised, as Ctrl-C raises KeyboardInterrupt, so that they are
+    removed on the way out; the process then ends with 128 + 15, as a shell reports the signal."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated(128 + signum)
+
+
+_TERM = {"depth": 0, "previous": None}
+
+
+def _hold_sigterm() -> None:
+    """From now until _release_sigterm, SIGTERM removes the temporaries as Ctrl-C does; only where
+    SIGTERM would kill the process outright (its default handler, in the main thread): a handler set
+    by the command (SITL's, which writes the session) is left alone."""
+    if _TERM["depth"] == 0:
+        _TERM["previous"] = None
+        if threading.current_thread() is threading.main_thread():
+            try:
+                if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+                    _TERM["previous"] = signal.signal(signal.SIGTERM, _on_sigterm)
+            except (ValueError, OSError, AttributeError):
+                pass
+    _TERM["depth"] += 1
+
+
+def _release_sigterm() -> None:
+    _TERM["depth"] -= 1
+    if _TERM["depth"] == 0 and _TERM["previous"] is not None:
+        try:
+            if signal.getsignal(signal.SIGTERM) is _on_sigterm:
+                signal.signal(signal.SIGTERM, _TERM["previous"])
+        except (ValueError, OSError):
+            pass
+        _TERM["previous"] = None
+
+
 @contextmanager
 def all_or_nothing(keep_on: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
     """Every atomic write in the block (write_bytes_atomic, commit) lands only when the block ends:
     a command that writes several files and fails at the third leaves none of them written or
     replaced, and the files already there whole. An exception of a `keep_on` class (a command's
-    chosen exit code) ends the block as a success does; any other removes the temporaries. What was
-    deferred with after_writes runs once the files are in place."""
-    stage: dict = {"writes": [], "after": []}
-    _STAGES.append(stage)
-    try:
-        yield
-    except keep_on:
-        _STAGES.remove(stage)
-        _land(stage)
-        raise
-    except BaseException:
-        _STAGES.remove(stage)
-        for tmp, _ in stage["writes"]:
-            Path(tmp).unlink(missing_ok=True)
-        raise
-    _STAGES.remove(stage)
-    _land(stage)
+    chosen exit code) ends the block as a success does; any other removes the temporaries (SIGTERM
+    too, once one is written). What was deferred with after_writes runs once the files are in place.
+    The block is an output_scope: a path check_new found free is written as a new file only."""
+    stage: dict = {"writes": [], "after": [], "term": False}
+    with output_scope():
+        _STAGES.append(stage)
+        try:
+            try:
+                yield
+            except keep_on:
+                _STAGES.remove(stage)
+                _land(stage)
+                raise
+            except BaseException:
+                _STAGES.remove(stage)
+                for tmp, _ in stage["writes"]:
+                    Path(tmp).unlink(missing_ok=True)
+                raise
+            _STAGES.remove(stage)
+            _land(stage)
+        finally:
+            if stage["term"]:
+                _release_sigterm()
 
 
 def _land(stage: dict) -> None:
     writes, landed = stage["writes"], []
     try:
+        for tmp, target in writes:  # a file that appeared where one was to be new: none is written
+            if _key(target) in _FRESH and (target.exists() or target.is_symlink()):
+                raise _appeared(target)
         for tmp, target in writes:
-            os.replace(tmp, target)
+            _put(tmp, target)
             landed.append(target)
     except OSError as exc:  # a rename in the file's own folder: it fails only with the folder gone
         done = f" ({', '.join(map(str, landed))} written before it)" if landed else ""
         raise TwinError(f"cannot write '{writes[len(landed)][1]}': {exc.strerror or exc}{done}") from None
+    except TwinError as exc:
+        done = f" ({', '.join(map(str, landed))} written before it)" if landed else ""
+        raise TwinError(f"{exc}{done}") from None
     finally:  # an interrupt or a failed rename leaves no temporary behind
         for tmp, _ in writes[len(landed):]:
             Path(tmp).unlink(missing_ok=True)
@@ -75,12 +191,16 @@ def after_writes(fn: Callable[[], None]) -> None:
 
 
 def commit(tmp, target) -> None:
-    """Put the finished temporary `tmp` in place of `target` (os.replace), or hold it for the open
-    all_or_nothing block."""
+    """Put the finished temporary `tmp` in place of `target` (os.replace; a new file only where the
+    command found `target` free: _put), or hold it for the open all_or_nothing block."""
     if _STAGES:
-        _STAGES[-1]["writes"].append((Path(tmp), Path(target)))
+        stage = _STAGES[-1]
+        stage["writes"].append((Path(tmp), Path(target)))
+        if not stage["term"]:  # a temporary waits for the block's end: SIGTERM meanwhile removes it
+            stage["term"] = True
+            _hold_sigterm()
     else:
-        os.replace(tmp, target)
+        _put(tmp, target)
 
 
 def read_only(path) -> bool:
@@ -134,24 +254,28 @@ def write_stream_atomic(path, fill: Callable[[IO[bytes]], object], make_folder: 
     if read_only(path):
         raise TwinError(f"'{path}' is read-only: it is kept (give another output name)")
     target = written_path(path, make_folder)
+    _hold_sigterm()  # SIGTERM while the temporary is written removes it, as Ctrl-C does
     try:
-        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    except OSError as exc:
-        raise TwinError(f"cannot write '{path}': {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fill(fh)
-            fh.flush()
-            # on disk before the rename: a crash leaves the old file or the new one, never an empty one
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
-        commit(tmp, target)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        try:
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+        except OSError as exc:
+            raise TwinError(f"cannot write '{path}': {exc.strerror or exc}") from None
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fill(fh)
+                fh.flush()
+                # on disk before the rename: a crash leaves the old file or the new one, never an empty one
+                os.fsync(fh.fileno())
+            os.chmod(tmp, 0o666 & ~_umask())
+            commit(tmp, target)
+        except OSError as exc:
+            Path(tmp).unlink(missing_ok=True)
+            raise TwinError(f"cannot write '{path}': {exc.strerror or exc} (the file there, if any, is kept)") from None
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    finally:
+        _release_sigterm()
 
 
 def write_text_atomic(path, text: str, make_folder: bool = False) -> None:
@@ -215,11 +339,104 @@ INPUTS = "table of inputs"  # kept_data's name for a CSV of inputs alone (`twin 
 RRD_BAND = "twin-montecarlo"  # the rerun application id of a band
 
 
+# how far into a JSON file kept_data reads to say what it is: a bound on the time it takes (a report's
+# tens of MB are not read to their end); a file's kind is told by its first members, which is where
+# the writers put what marks it (a dataset's truth of any size: its states come last)
+JSON_HEAD_LIMIT = 50_000_000
+JSON_READ_CHUNK = 1 << 16
+_WS = re.compile(r"[ \t\n\r]*")
+_PENDING = object()  # json_head's value of a member whose key is read and its value not yet
+
+
+def json_kind(keys) -> str | None:
+    """What a JSON object with these top-level keys is as kept data (kept_data), or None."""
+    keys = set(keys)
+    return ("vessel file" if {"mjcf", "thrusters"} <= keys
+            else "dataset's truth" if {"vessel", "effects", "segments"} <= keys
+            else BAND if {"draws", "percentiles", "nominal", "band"} <= keys else None)
+
+
+def json_head(path, enough: Callable[[dict], bool] | None = None, limit: int | None = None) -> dict:
+    """The top-level members of the JSON object in `path`, in their order, read from its start only as
+    far as needed: up to the member at which enough(members) is true (asked as each key is read, that
+    key's value still unread: `_PENDING`), the object's end, a flaw in the text (what came before it is
+    returned), or `limit` bytes (JSON_HEAD_LIMIT). Not an object: {}. OSError as the read raises it;
+    RecursionError for a value nested beyond the parser's depth."""
+    limit = JSON_HEAD_LIMIT if limit is None else limit
+    decoder = json.JSONDecoder()
+    members: dict = {}
+    with open(path, "rb") as f:
+        utf8 = codecs.getincrementaldecoder("utf-8")(errors="replace")
+        state = {"text": "", "read": 0, "end": False}
+
+        def more() -> bool:  # read on: a head, 16 times as much, then the rest (a value cut short is decoded again twice at most)
+            if state["end"] or state["read"] >= limit:
+                return False
+            step = (JSON_READ_CHUNK if not state["read"] else 15 * state["read"] if state["read"] <= JSON_READ_CHUNK
+                    else limit)
+            chunk = f.read(min(step, limit - state["read"]))
+            state["read"] += len(chunk)
+            state["end"] = not chunk or state["read"] >= limit
+            state["text"] += utf8.decode(chunk, final=state["end"])
+            return bool(chunk)
+
+        def at(i: int) -> int:  # past the white space from i, with a character there to read if the file has one
+            while True:
+                j = _WS.match(state["text"], i).end()
+                if j < len(state["text"]) or not more():
+                    return j
+
+        def value(i: int, follow: str):  # (the value at i, where it ends), read on until what must follow it is
+            # read too: a value cut by the read's end (a number 1e+300 read as 1) is read again whole
+            while True:
+                text = state["text"]
+                try:
+                    v, end = decoder.raw_decode(text, i)
+                except ValueError:
+                    v, end = _PENDING, None
+                if end is not None:
+                    j = _WS.match(text, end).end()
+                    if j < len(text) and text[j] in follow:
+                        return v, end
+                if not more():
+                    if end is None or state["read"] >= limit:  # not JSON, or cut by the limit: not read
+                        raise ValueError("not JSON")
+                    return v, end
+
+        i = at(0)
+        if state["text"][i:i + 1] == "\ufeff":  # a byte-order mark
+            i = at(i + 1)
+        if state["text"][i:i + 1] != "{":
+            return {}
+        i = at(i + 1)
+        if state["text"][i:i + 1] == "}":
+            return members
+        try:
+            while True:
+                key, i = value(i, ":")
+                if not isinstance(key, str):
+                    return members
+                i = at(i)
+                if state["text"][i:i + 1] != ":":
+                    return members
+                members[key] = _PENDING
+                if enough is not None and enough(members):
+                    return members
+                members[key], i = value(at(i + 1), ",}")
+                i = at(i)
+                sep = state["text"][i:i + 1]
+                if sep != ",":
+                    return members  # "}": the end; anything else: a flaw, what came before it stands
+                i = at(i + 1)
+        except ValueError:
+            return members
+
+
 def kept_data(path: Path) -> str | None:
     """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
     (a simulation, a SITL session), a vessel file, a dataset's truth, a Monte Carlo band or a table
     of inputs (by its content, whatever command wrote it), else None (a report, a view, another
-    table, no file)."""
+    table, no file). A JSON file is told by its first members (json_head), whatever its size."""
     if not path.is_file():
         return None
     suffix = path.suffix.lower()
@@ -240,12 +457,8 @@ def kept_data(path: Path) -> str | None:
             if head[:1] != ["t"] or not RECORDING_HEADS & set(head):
                 return None
             return "recording" if POSITION_HEADS & set(head) else INPUTS if INPUT_HEADS & set(head) else None
-        if suffix == ".json" and path.stat().st_size < 50_000_000:
-            data = json.loads(path.read_text(encoding="utf-8"))
-            keys = set(data) if isinstance(data, dict) else set()
-            return ("vessel file" if {"mjcf", "thrusters"} <= keys
-                    else "dataset's truth" if {"vessel", "effects", "segments"} <= keys
-                    else BAND if {"draws", "percentiles", "nominal", "band"} <= keys else None)
+        if suffix == ".json":
+            return json_kind(json_head(path, lambda members: json_kind(members) is not None))
     except (OSError, ValueError, RecursionError):  # a JSON nested beyond the parser's depth is no kept data
         return None
     return None
@@ -263,11 +476,19 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
     (a log where a band would go, a twin where a truth would) is kept even with `force`; a recording
     is not replaced under a dataset's truth that stays beside it (`truth`: the truth the run writes).
     A symbolic link is judged by the file it names, which the write replaces. `force_name`: how the
-    caller's user says force (the command's --force, the API's force=True)."""
+    caller's user says force (the command's --force, the API's force=True). In an output_scope (a
+    command) a path found free is written as a new file only: one that appears there during the run is
+    kept (a check again, as the run's own writer makes, names the first check's option)."""
     kept = KEPT.format(force=force_name)
     for p in paths:
-        if p is None or not Path(p).exists():
+        if p is None:
             continue
+        if not Path(p).exists():
+            if _SCOPE_DEPTH[0]:  # free now: the write makes a new file, and keeps one that appears meanwhile
+                _FRESH.setdefault(_key(p), (option, str(p)))
+            continue
+        if _key(p) in _FRESH:  # found free by this command's first check, and a file is there now
+            raise _appeared(p)
         kind = kept_data(Path(p))
         if kind and kind not in writes:
             raise TwinError(f"{option} '{p}' exists and is a {kind}: {kept}")
@@ -293,8 +514,9 @@ TRUTH_HEAD_BYTES = 4096  # a truth lists its logs first (synth.dataset.Dataset.t
 def truth_logs(truth: Path, data: dict | None = None) -> list[Path]:
     """The recordings a dataset's truth says it describes (its "logs", relative to its folder as the
     truth was written there, links followed; a truth written before truths named their logs: none)."""
-    if data is None:
-        data = json.loads(Path(truth).read_text(encoding="utf-8"))
+    if data is None:  # the logs come first: a truth's states (tens of MB) are not read
+        data = json_head(truth, lambda members: members.get("logs", _PENDING) is not _PENDING)
+        data = {k: v for k, v in data.items() if v is not _PENDING}
     logs = data.get("logs") if isinstance(data, dict) else None
     folder = Path(os.path.realpath(truth)).parent
     return [folder / str(name) for name in logs if isinstance(name, str) and name] if isinstance(logs, list) else []

@@ -746,6 +746,9 @@ def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
         raise TwinError(f"vessel file '{text}' not found")
     try:
         data = json.loads(path.read_text())
+    except RecursionError:  # Python's parser gives up on arrays or objects nested a thousand deep
+        raise TwinError(f"{path.name}: not a vessel file: its JSON is nested too deeply to read (a vessel file is "
+                        "an object a few levels deep)") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         recording = path.suffix.lower() in (".csv", ".tlog", ".bin", ".mcap")
         mjcf = path.suffix.lower() == ".xml"
@@ -754,7 +757,11 @@ def load(name_or_path: str | os.PathLike, case: str | None = None) -> Vessel:
                            if recording else "")
                         + ("; a vessel file is JSON and names its MJCF (.xml) in its \"mjcf\" field "
                            "(docs/reference/vessel-file.md)" if mjcf else "")) from None
-    vessel = from_dict(data, path.resolve())
+    try:
+        vessel = from_dict(data, path.resolve())
+    except RecursionError:  # nested within the parser's depth but past what reading it takes
+        raise TwinError(f"{path.name}: not a vessel file: its JSON is nested too deeply to read (a vessel file is "
+                        "an object a few levels deep)") from None
     return vessel if case is None else vessel.with_case(case)
 
 

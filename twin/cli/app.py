@@ -9,6 +9,7 @@ unreadable or unwritable path, a bad file, an inconsistent vessel); 3 an unexpec
 from __future__ import annotations
 
 import contextlib
+import csv
 import functools
 import hashlib
 import inspect
@@ -42,7 +43,8 @@ from ..vessel import load
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, no_args_is_help=True,
                   help="MuJoCo digital twin of small surface vessels: simulate, identify from logs, evaluate, "
                        "diagnose.")
-console = Console(width=None if sys.stdout.isatty() else 100)
+# stdout is None where the command was started with it closed (`twin info x.csv >&-`): main() refuses that
+console = Console(width=None if sys.stdout is not None and sys.stdout.isatty() else 100)
 # listed from the package's model folder so that a vessel added there is offered without an edit here
 SHIPPED = ", ".join(sorted(p.name[:-5] for p in resources.files("twin").joinpath("model").iterdir()
                            if p.name.endswith(".json")))
@@ -530,12 +532,21 @@ def check_wind_and_inputs(recordings: list, wind: str | None, vessel, replayed: 
     beyond the vessel file's bounds (replayed as logged), the wind's gaps, and a twin identified with
     the wind that is run without it."""
     # late: the fitting stack (twin.ident.identify) is 0.54 s more at every `twin --help`
-    from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note,
+    from ..drive import inputs_mismatch
+    from ..ident.identify import (beyond_command_bounds, check_inputs, check_wind, fitted_wind_note, held_inputs,
                                   idle_inputs_under_way, unused_wind_note, wind_gaps)
 
     check_wind(recordings, wind, vessel)
     if replayed:
         check_inputs(recordings, vessel)
+        wanted = vessel.thrusters.input_kind
+        for rec in recordings:  # check_inputs passes a log of none: the twin would have nothing to be run with
+            if held_inputs(rec) is None:
+                words = {"pwm": "thruster PWM", "propeller_rudder": "propeller speed and rudder angle"}.get(wanted, wanted)
+                hint = ("; --channels LEFT,RIGHT maps a log's servo outputs" if wanted == "pwm" else
+                        f"; {inputs_mismatch(vessel.name, wanted, None)}" if wanted == "thrust" else "")
+                raise TwinError(f"{Path(rec.source).name}: the recording has no {words} to replay (`twin info` says "
+                                f"why{hint})")
         for line in beyond_command_bounds(recordings, vessel):
             note(f"note: {line}")
         for line in idle_inputs_under_way(recordings):
@@ -700,14 +711,19 @@ def _os_error(exc: OSError) -> str:
     return f"cannot use{where}: {exc.strerror or exc}"
 
 
+class _OutputFailed(Exception):
+    """A write to stdout or stderr failed for a reason other than its reader leaving (a full disk, /dev/full)."""
+
+
 class _ReaderMayLeave:
     """sys.stdout or sys.stderr for one run of the command: once the reader of its pipe has gone (`twin identify
     ... | head`), what it prints goes to the null device and the command goes on to write its files.
     *Why:* otherwise the first print after the reader left raises BrokenPipeError, and a command that
     prints its summary before it writes would end with its results unwritten."""
 
-    def __init__(self, stream) -> None:
+    def __init__(self, stream, name: str = "standard output") -> None:
         self._stream = stream
+        self._name = name
 
     def _reader_gone(self) -> None:
         with contextlib.suppress(OSError, ValueError):
@@ -721,6 +737,8 @@ class _ReaderMayLeave:
         except BrokenPipeError:
             self._reader_gone()
             return len(text)
+        except OSError as exc:
+            raise _OutputFailed(f"cannot write to {self._name}: {exc.strerror or exc}") from None
 
     def flush(self) -> None:
         try:
@@ -729,6 +747,8 @@ class _ReaderMayLeave:
             self._reader_gone()
             with contextlib.suppress(OSError, ValueError):
                 self._stream.flush()
+        except OSError as exc:
+            raise _OutputFailed(f"cannot write to {self._name}: {exc.strerror or exc}") from None
 
     def __getattr__(self, name: str):
         return getattr(self._stream, name)
@@ -737,14 +757,37 @@ class _ReaderMayLeave:
 def main() -> None:
     """Run the app; every failure ends in one line on stderr and an exit code (module docstring)."""
     _settings["quiet"] = False  # each run's own: a caller may run the command more than once
+    if sys.stdout is None or sys.stderr is None:  # started with it closed (`>&-`): where would its results go?
+        closed = "standard output" if sys.stdout is None else "standard error"
+        if sys.stderr is not None:
+            sys.stderr.write(f"error: {closed} is closed: the command prints there (redirect it, e.g. to "
+                             "/dev/null, instead of closing it)\n")
+            sys.stderr.flush()
+        sys.exit(2)
     streams = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = _ReaderMayLeave(sys.stdout), _ReaderMayLeave(sys.stderr)
+    sys.stdout, sys.stderr = _ReaderMayLeave(sys.stdout), _ReaderMayLeave(sys.stderr, "standard error")
+    failed = None
     try:
         _run()
+    except _OutputFailed as exc:  # stderr itself failing while the command said what went wrong
+        failed = exc
     finally:
         for guarded in (sys.stdout, sys.stderr):  # output still buffered when its reader has gone drains too
-            guarded.flush()
+            try:
+                guarded.flush()
+            except _OutputFailed as exc:
+                failed = failed or exc
         sys.stdout, sys.stderr = streams
+        if failed is not None:  # the command's last lines could not be written: it did not say what it did
+            _say_failed(failed)
+            sys.exit(2)
+
+
+def _say_failed(exc: Exception) -> None:
+    """One line on stderr for output that could not be written (itself, where stderr cannot take it, unsaid)."""
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.write(f"error: {exc}\n")
+        sys.stderr.flush()
 
 
 def _run() -> None:
@@ -769,6 +812,13 @@ def _run() -> None:
         sys.exit(130)
     except OSError as exc:
         typer.echo(f"error: {_os_error(exc)}", err=True)
+        sys.exit(2)
+    except _OutputFailed as exc:
+        _say_failed(exc)
+        sys.exit(2)
+    except csv.Error as exc:  # a CSV read with the csv module: a quoted field run on past its 128 kB limit
+        typer.echo(f"error: a CSV file cannot be read ({exc}): a stray quote character, or a field that large?",
+                   err=True)
         sys.exit(2)
     except Exception as exc:  # usage errors and anything unexpected: one line, never a traceback
         if _is_usage_error(exc):

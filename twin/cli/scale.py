@@ -11,7 +11,7 @@ import typer
 
 from ..drive import read_inputs_csv
 from ..errors import TwinError
-from ..files import BAND, write_text_atomic
+from ..files import BAND, output_scope, write_text_atomic
 from ..files import check_new
 from ..vessel import load
 from .app import (all_or_nothing_outputs, listed, FORCE_HELP, MODEL_HELP, PWM_VESSEL_HELP, VESSEL_HELP, app, at_least, check_distinct, 
@@ -242,6 +242,7 @@ def _shards_fit(vessels: int, per_shard: int, segments: int, out: Path) -> None:
 
 
 @app.command("fleet")
+@output_scope()  # its reports land as they come: a summary's file that appears meanwhile is kept (files._put)
 def fleet_command(
     recordings: list[Path] = typer.Argument(None, metavar="RECORDINGS", help="recordings: .tlog, .bin, .csv, .mcap, "
                                                                             "or folders of them (or --manifest)"),
@@ -265,7 +266,7 @@ def fleet_command(
     """`twin diagnose` over many logs: one report per log and a fleet summary of the effects found."""
     # late: the command's stack (twin.diagnose, 0.6 s) would be paid at every `twin --help`
     from ..ident.identify import fitted_wind_note
-    from ..scale.fleet import Log, diagnose_fleet, format_summary, read_manifest
+    from ..scale.fleet import SUMMARY_FILES, Log, diagnose_fleet, format_summary, read_manifest
 
     # every option checked before any log is read or report written: a rerun into the same --out
     # with a bad option must not replace its reports by failure records
@@ -293,7 +294,9 @@ def fleet_command(
         wind_note = fitted_wind_note(load(name), wind)
         if wind_note:
             note(f"note: {Path(name).name}: {wind_note}")
-    check_new([out / "fleet.json"], force, "--out's summary")  # the last check: every bad option comes first
+    # the last check: every bad option comes first. Each file the summary writes: a user's own fleet.md is
+    # not replaced because no fleet.json is beside it (the per-log reports: diagnose_fleet, before any work)
+    check_new([out / name for name in SUMMARY_FILES], force, "--out's summary")
     with progress_bar("fleet") as progress:
         fleet = diagnose_fleet(logs, out, window_s=window, library=library, html=html, batch_size=batch_size,
                                executor=executor, progress=progress, wind=wind)

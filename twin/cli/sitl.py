@@ -11,7 +11,7 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from ..files import write_text_atomic
+from ..files import output_scope, write_text_atomic
 from ..files import RUNS, check_new
 from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission, read_waypoint_file
 from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, TWIN_THRUSTER_SHIPPED, app, channels_from, check_distinct, 
@@ -20,6 +20,7 @@ from .run import RUN_OUTPUTS, SEA_HELP, origin_from, sea_from
 
 
 @app.command()
+@output_scope()  # a recording that appears during the session at a path found free is kept (files._put)
 def sitl(
     vessel: Optional[str] = typer.Option(None, help=f"vessel name (a twin-thruster one shipped with twin, as ArduPilot "
                                                     f"Rover's SITL drives two throttles: {TWIN_THRUSTER_SHIPPED})"),
@@ -61,6 +62,10 @@ def sitl(
     # a SITL run ends with Ctrl-C: a recording already at that path would be found replaced only after it
     check_new(record, force, "--record", RUNS)
     check_new([write_params], force, "--write-params")
+    if write_params is not None and force and _is_recording(write_params):
+        # by its content, as every command reads a file named on the command line (a CSV log saved as .txt)
+        raise TwinError(f"--write-params '{write_params}' exists and is a recording: it is kept, --force or not "
+                        "(give another name, or remove it first)")
     check_rate(rate)
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
@@ -87,6 +92,20 @@ def sitl(
     if record and not summary.written:  # a script must not read the session as recorded
         raise TwinError(f"--record: nothing written ({', '.join(str(p) for p in record)}): no frame came from ArduPilot "
                         "before the session ended")
+
+
+def _is_recording(path: Path) -> bool:
+    """Whether the file at `path` reads as a recording (twin.formats.read_recording, as `twin info` reads
+    it), whatever its name says."""
+    if not Path(path).is_file():
+        return False
+    from ..formats import read_recording  # late: 0.08 s, only for a file there
+
+    try:
+        read_recording(Path(path))
+    except Exception:  # any failure to read it as one: not a recording
+        return False
+    return True
 
 
 MAX_LEG_M = 50_000.0  # a small vessel's mission stays within tens of kilometres of home

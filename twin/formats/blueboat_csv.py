@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..recording import Recording, clean_stream
-from .csv import csv_pwm, held_fix_note, neutral
+from .csv import csv_pwm, held_fix_note, neutral, radians_as_degrees
 
 COLUMNS = {"original_timestamp", "lat", "lon", "yaw", "thr_left", "thr_right"}
 NEUTRAL_US = 1500.0 + 11.0  # the recordings' neutral, about 1511 µs
@@ -36,6 +36,10 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
         gnss["alt_m"] = c["alt"]
     rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
     rec.heading = clean_stream("heading", t, {"psi_rad": np.radians(c["yaw"])}, rec.dropped)
+    if len(rec.heading) and len(rec.gnss):
+        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss, "yaw", "the layout's yaw is in degrees",
+                                   t=rec.heading.t)
+        rec.misread += [looks] if looks else []
     neutral_us = tuple(neutral(c.get(f"thr_{s}_pwm_zero_point"), NEUTRAL_US, f"{path.name}: column thr_{s}_pwm_zero_point")
                        for s in ("right", "left"))
     csv_pwm(rec, t, c["thr_right"], c["thr_left"], neutral_us, {"left": False, "right": True}, channels)

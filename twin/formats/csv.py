@@ -33,7 +33,7 @@ The PWM neutral columns are written on the PWM rows only when it is not 1500 µs
 from __future__ import annotations
 
 import csv
-import io
+import re
 from pathlib import Path
 from typing import Callable
 
@@ -97,12 +97,15 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str,
         text = path.read_text(encoding="utf-8-sig", errors="replace")  # -sig: a spreadsheet's BOM
     except OSError as exc:
         raise TwinError(f"{path.name}: cannot read ({exc.strerror or exc})") from None
-    rows = list(csv.reader(io.StringIO(text)))
+    rows, quoted = _rows(text)
     if not rows:
         raise TwinError(f"{path.name}: empty CSV file")
+    if rows[0] is None:
+        raise TwinError(f"{path.name}: the header line cannot be read as CSV (a quote character that does not "
+                        f"close on it, or a field over {csv.field_size_limit() // 1024} kB)")
     header = [h.strip() for h in rows[0]]
     check_unique_columns(header, path.name)
-    good = [r for r in rows[1:] if len(r) == len(header)]
+    good = [r for r in rows[1:] if r is not None and len(r) == len(header)]
     malformed = sum(1 for r in rows[1:] if r and len(r) != len(header))
     named = [i for i, name in enumerate(header) if name]
     cells = np.array([[_float(r[i]) for i in named] for r in good], dtype=float).reshape(len(good), len(named))
@@ -113,10 +116,41 @@ def table(path: Path) -> tuple[list[str], dict[str, np.ndarray], list[tuple[str,
     empty_rows = int(np.sum(blank.all(axis=1))) if len(named) else 0
     cells[np.isinf(cells)] = np.nan
     cols = {header[i]: cells[:, j] for j, i in enumerate(named)}
-    return header, cols, [("csv: rows with the wrong number of fields", malformed),
+    return header, cols, [*quoted, ("csv: rows with the wrong number of fields", malformed),
                           ("csv: rows with no value in any column", empty_rows),
                           ("csv: cells that are not numbers (text), read as missing", text_cells),
                           ("csv: infinite cells, read as missing", infinite)]
+
+
+LINE_END = re.compile(r"\r\n|\r|\n")  # where the csv module ends a row
+
+
+def _rows(text: str) -> tuple[list[list[str] | None], list[tuple[str, int]]]:
+    """The rows of a CSV text, one per line ([] for a blank line, None for a line the csv module cannot
+    read), and (what, count) of those unread lines. A row never runs on past its line: a stray quote
+    (a logger's cut line, a damaged byte) would otherwise take every row after it into one field, which
+    these logs never hold. A line with a quote is read by the csv module on its own (quoted fields are
+    unquoted); one whose quote does not close on it, or whose field is over the module's limit (128 kB),
+    is left out and counted."""
+    lines = LINE_END.split(text)
+    if lines and lines[-1] == "":  # the last line's own end
+        lines.pop()
+    rows: list[list[str] | None] = []
+    unclosed = oversized = 0
+    for line in lines:
+        if '"' not in line:
+            rows.append(line.split(",") if line else [])
+            continue
+        try:
+            rows.append(next(csv.reader([line], strict=True), []))
+        except csv.Error as exc:
+            rows.append(None)
+            if "field larger" in str(exc):
+                oversized += 1
+            else:
+                unclosed += 1
+    return rows, [("csv: rows with a stray quote character (one that does not close a field on its line), left out", unclosed),
+                  (f"csv: rows with a quoted field over {csv.field_size_limit() // 1024} kB, left out", oversized)]
 
 
 HELD_SHARE = 0.10  # a receiver's fixes differ by its noise even at rest: this many exact repeats are held ones
@@ -190,7 +224,7 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.misread.append(f"t steps by {np.median(steps):g} s (median): the generic CSV's t is in seconds; "
                            "milliseconds would read as this")
     if "heading_deg" in c and len(rec.heading) and len(rec.gnss):
-        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss)
+        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss, t=rec.heading.t)
         if looks:
             rec.misread.append(looks)
     if {"pwm_left", "pwm_right"} <= set(header):
@@ -200,6 +234,11 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
     yaw_rate = c.get("yaw_rate", c.get("r"))
     if yaw_rate is not None:
         rec.imu = stream("imu", t, {"yaw_rate_rads": yaw_rate}, rec.dropped)
+    if "psi" in c and "heading_deg" not in c:
+        looks = degrees_as_radians("psi", rec.heading, rec.imu,
+                                   f"the yaw rate column {'yaw_rate' if 'yaw_rate' in c else 'r'}", gnss=rec.gnss)
+        if looks:
+            rec.misread.append(looks)
     if "voltage" in c:
         rec.battery = stream("battery", t, {"voltage_v": c["voltage"]}, rec.dropped)
     if {"prop_rps", "rudder_deg"} <= set(header):
@@ -218,18 +257,118 @@ TRACK_TURN_DEG = 90.0  # a track turning through more than this shows a turning 
 TRACK_STEP_M = 2.0  # course over ground from fixes this far apart: closer ones are the receiver's noise
 
 
-def radians_as_degrees(heading_deg: np.ndarray, gnss) -> str | None:
-    """A warning when a heading_deg column looks like radians: its values span less than RADIANS_SPAN
-    while the GNSS track turns through more than TRACK_TURN_DEG (a heading in degrees that turns
-    with it spans as much); None when nothing suggests it."""
-    span = float(np.ptp(heading_deg))
+def radians_as_degrees(heading_deg: np.ndarray, gnss, column: str = "heading_deg",
+                       advice: str = "name it psi for radians, or give degrees", t=None) -> str | None:
+    """A warning when a heading column in degrees (`column`) looks like radians: its values span less than
+    RADIANS_SPAN while the GNSS track turns through more than TRACK_TURN_DEG (a heading in degrees that
+    turns with it spans as much), or (with the sample times `t`) while they step by 2π where they wrap, or
+    the course over ground follows them read as radians and not as degrees (course_misfit_deg); None when
+    nothing suggests it."""
+    heading_deg = np.asarray(heading_deg, float)
+    span = float(np.ptp(heading_deg)) if len(heading_deg) else 0.0
     if span >= RADIANS_SPAN:
         return None
+    looks = f": the column looks like radians ({advice})"
     turned = track_turn_deg(gnss)
-    if turned <= TRACK_TURN_DEG:
+    if turned > TRACK_TURN_DEG:
+        return f"{column} spans only {span:.2f} while the GNSS track turns through {turned:.0f}°{looks}"
+    if t is None:
         return None
-    return (f"heading_deg spans only {span:.2f} while the GNSS track turns through {turned:.0f}°: the column looks "
-            "like radians (name it psi for radians, or give degrees)")
+    step = np.diff(heading_deg)
+    wrap = (np.abs(step) >= RADIAN_WRAP[0]) & (np.abs(step) <= RADIAN_WRAP[1])
+    back = np.zeros(len(step), bool)  # a spike out and back is not a wrap: a wrap goes on from the other end
+    back[:-1] = wrap[:-1] & wrap[1:] & (np.sign(step[1:]) != np.sign(step[:-1]))
+    back[1:] |= back[:-1] & wrap[1:]
+    wraps = int(np.sum(wrap & ~back))
+    if wraps:
+        return f"{column} spans only {span:.2f} and steps by about 2π where it wraps ({wraps} time{'s' * (wraps != 1)}){looks}"
+    as_read, as_radians = (course_misfit_deg(np.radians(heading_deg) * k, t, gnss) for k in (1.0, np.degrees(1.0)))
+    if as_read > COURSE_MISFIT_DEG[1] and as_radians < COURSE_MISFIT_DEG[0]:
+        return (f"the course over ground lies {as_read:.0f}° from {column} (median) and {as_radians:.0f}° from it read as "
+                f"radians{looks}")
+    return None
+
+
+RADIAN_WRAP = (5.5, 7.0)  # a heading in radians read as degrees wraps by 2π "degrees", where one in degrees wraps by 360
+# the course over ground lies within a few degrees of a hull's heading under way (the shared logs: 1-9°, median):
+# a heading that lies further than the second from it as read, and within the first in another unit, is in that unit
+COURSE_MISFIT_DEG = (30.0, 60.0)
+COURSE_SPEED_M_S = 0.2  # under way: slower fixes' course is the receiver's noise or a drift
+COURSE_SAMPLES = 10
+
+
+def course_misfit_deg(psi_rad: np.ndarray, t: np.ndarray, gnss) -> float:
+    """The median angle (deg) between the course over ground (fixes TRACK_STEP_M apart, under way at over
+    COURSE_SPEED_M_S) and the heading `psi_rad` at times `t` between them; NaN with fewer than
+    COURSE_SAMPLES such courses."""
+    if len(gnss) < 3 or len(t) < 2:
+        return float("nan")
+    if gnss.has("lat_deg", "lon_deg"):
+        north, east = ned_from_geodetic(gnss["lat_deg"], gnss["lon_deg"], float(gnss["lat_deg"][0]),
+                                        float(gnss["lon_deg"][0]))
+    elif gnss.has("north_m", "east_m"):
+        north, east = gnss["north_m"], gnss["east_m"]
+    else:
+        return float("nan")
+    keep = [0]
+    for k in range(1, len(north)):
+        if np.hypot(north[k] - north[keep[-1]], east[k] - east[keep[-1]]) >= TRACK_STEP_M:
+            keep.append(k)
+    if len(keep) < COURSE_SAMPLES + 1:
+        return float("nan")
+    at = np.asarray(gnss.t, float)[keep]
+    dn, de, dt = np.diff(np.asarray(north)[keep]), np.diff(np.asarray(east)[keep]), np.diff(at)
+    moving = np.hypot(dn, de) / dt > COURSE_SPEED_M_S
+    mid = ((at[1:] + at[:-1]) / 2)[moving]
+    inside = (mid >= t[0]) & (mid <= t[-1])
+    if inside.sum() < COURSE_SAMPLES:
+        return float("nan")
+    heading = np.interp(mid[inside], t, np.unwrap(np.asarray(psi_rad, float)))
+    return float(np.degrees(np.median(np.abs(np.angle(np.exp(1j * (np.arctan2(de, dn)[moving][inside] - heading)))))))
+
+
+# a heading in degrees read as radians: it wraps by 360 (a heading in radians never steps by hundreds of
+# radians, unwrapped or not), turns 57 times as fast as it does, faster than any hull turns
+DEGREE_WRAP = (300.0, 420.0)
+FASTEST_TURN_RAD_S = 4 * np.pi  # 2 rev/s: no vessel's heading turns so fast (the shared logs' reach 1.5 rad/s)
+GYRO_RATIO = 15.0  # the heading's turn over the gyro's: about 1 in radians (at most 4 in the shared logs), 57 in degrees
+GYRO_TURNING_RADS = 0.005  # the gyro's rms rate that shows some turning to compare with (0.3 °/s)
+GYRO_SAMPLES = 20
+
+
+def degrees_as_radians(column: str, heading: Stream, imu: Stream | None = None, imu_column: str = "the gyro",
+                       advice: str = "name it heading_deg for degrees, or give radians", gnss=None) -> str | None:
+    """Why a heading column in radians (`column`, read into `heading`) looks like degrees, or None: it steps
+    by about 360 where it wraps; it turns (its 99th-percentile rate, its steps taken within ±π) faster than
+    FASTEST_TURN_RAD_S; it turns GYRO_RATIO times as fast as the yaw rate `imu` measures; or the course over
+    ground follows it read as degrees and not as radians (course_misfit_deg)."""
+    psi, t = np.asarray(heading["psi_rad"], float) if len(heading) else np.zeros(0), np.asarray(heading.t, float)
+    if len(psi) < 3:
+        return None
+    looks = f": the column looks like degrees ({advice})"
+    step = np.diff(psi)
+    wraps = int(np.sum((np.abs(step) >= DEGREE_WRAP[0]) & (np.abs(step) <= DEGREE_WRAP[1])))
+    if wraps and np.ptp(psi) <= DEGREE_WRAP[1]:
+        return f"{column} steps by about 360 where it wraps ({wraps} time{'s' if wraps != 1 else ''}){looks}"
+    rate = np.angle(np.exp(1j * step)) / np.diff(t)  # a heading in radians wrapping at 2π: no turn
+    fastest = float(np.percentile(np.abs(rate), 99))
+    if fastest > FASTEST_TURN_RAD_S:
+        return (f"{column} read as radians turns at {np.degrees(fastest):.0f}°/s (99th percentile of its rate), "
+                f"faster than any vessel{looks}")
+    if imu is not None and len(imu) >= GYRO_SAMPLES:
+        mid = (t[1:] + t[:-1]) / 2
+        inside = (mid >= imu.t[0]) & (mid <= imu.t[-1])
+        gyro = np.interp(mid[inside], imu.t, imu["yaw_rate_rads"])
+        if inside.sum() >= GYRO_SAMPLES and np.sqrt(np.mean(gyro ** 2)) >= GYRO_TURNING_RADS:
+            ratio = float(np.sum(rate[inside] * gyro) / np.sum(gyro ** 2))
+            if ratio > GYRO_RATIO:
+                return f"{column} read as radians turns {ratio:.0f} times as fast as {imu_column} measures{looks}"
+    if gnss is not None:
+        as_read, as_degrees = (course_misfit_deg(psi * k, t, gnss) for k in (1.0, np.radians(1.0)))
+        if as_read > COURSE_MISFIT_DEG[1] and as_degrees < COURSE_MISFIT_DEG[0]:
+            return (f"the course over ground lies {as_read:.0f}° from {column} (median) and {as_degrees:.0f}° from it "
+                    f"read as degrees{looks}")
+    return None
 
 
 def track_turn_deg(gnss) -> float:

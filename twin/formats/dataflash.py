@@ -260,6 +260,15 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
             log, unread = _without_damaged_formats(path, Path(spare), DFReader)
             if log is None:
                 raise TwinError(f"{path.name}: not a readable DataFlash log (pymavlink: {why[:120]})") from None
+        # DFReader's index stops at the first message of a type no FMT defines (one damaged type byte would
+        # cut the log there, silently): such a log is read on from the next valid header past each of them
+        # (a log read without its damaged FMT records is read message by message, which steps over them)
+        resynced = (0, 0)
+        if not unread and _index_stops_early(log, out.getvalue()):
+            again, resynced = _resynchronised(path, Path(spare), DFReader)
+            if again is not None:
+                _close(log)
+                log = again
         # DFReader's index of the types stops at a message whose FMT is gone: such a log is read
         # message by message
         wanted = None if unread else DF_WANTED
@@ -278,7 +287,11 @@ def _df_messages(path: Path) -> tuple[dict[str, list], list[tuple[str, int]]]:
         dropped = [(f"dataflash: a damaged FMT record, its {', '.join(unread)} messages left out", len(unread))
                    ] if unread else []
         dropped += [(reason, n) for reason, n in (
-            ("dataflash: bad message headers skipped", text.count("bad header")),
+            ("dataflash: messages of a type no FMT defines (a damaged byte?) skipped, read on from the next "
+             "valid header", resynced[0]),
+            ("dataflash: bytes skipped to resynchronise after them", resynced[1]),
+            # DFReader says "bad header" at every byte it steps over, those after a skipped message's too
+            ("dataflash: bad message headers skipped", max(0, text.count("bad header") - resynced[1])),
             ("dataflash: unparseable messages", text.count("Failed to parse") + text.count("bad msg")),
             ("dataflash: unreadable rest of the log", stopped),
             ("dataflash: last message cut short (the log is truncated)", int(_ends_inside_a_message(log)))) if n]
@@ -314,6 +327,68 @@ def _without_damaged_formats(path: Path, spare: Path, reader) -> tuple[object | 
         return reader.DFReader_binary(str(copy), zero_time_base=False), unread
     except Exception:  # damaged beyond its formats
         return None, []
+
+
+TAIL = 528  # DFReader ignores what cannot be read in the last 528 bytes (a card's block padding)
+
+
+def _index_stops_early(log, said: str) -> bool:
+    """True when DFReader's index of the messages ended well before the end of the file: it stops at a
+    message of a type no FMT record defines (and says "unknown msg type")."""
+    if "unknown msg type" in said:
+        return True
+    ends = [offsets[-1] + log.formats[mtype].len for mtype, offsets in enumerate(getattr(log, "offsets", None) or [])
+            if offsets and mtype in log.formats]
+    return bool(ends) and log.data_len - max(ends) >= TAIL
+
+
+def _undefined_headers(data: bytearray) -> tuple[list[int], int]:
+    """Where `data` holds the header of a message whose type no FMT record (up to there) defines, read as
+    DFReader indexes a log (a known type steps by its length, anything else byte by byte to the next
+    header 0xA3 0x95), and how many bytes lie from each such header to the next valid one; the last
+    TAIL bytes aside, as DFReader leaves them."""
+    lengths = {FMT_HEAD[2]: FMT_SIZE}
+    found, skipped = [], 0
+    n, at, since = len(data), 0, None
+    while at + 3 <= n:
+        if data[at] == HEAD[0] and data[at + 1] == HEAD[1]:
+            size = lengths.get(data[at + 2], 0)
+            if size >= 3:
+                if since is not None:
+                    skipped += at - since
+                    since = None
+                if data[at + 2] == FMT_HEAD[2] and at + 5 <= n:
+                    lengths[data[at + 3]] = data[at + 4]
+                at += size
+                continue
+            if n - at < TAIL:
+                break
+            found.append(at)
+            if since is None:
+                since = at
+        nxt = data.find(HEAD, at + 1)
+        if nxt < 0:
+            break
+        at = nxt
+    return found, skipped
+
+
+def _resynchronised(source: Path, spare: Path, reader) -> tuple[object | None, tuple[int, int]]:
+    """A log whose messages of undefined types (_undefined_headers) are made junk bytes, which DFReader
+    steps over to the next valid header: (the reader on a copy in `spare`, (messages skipped, bytes
+    skipped)); (None, (0, 0)) when there are none or the copy cannot be read."""
+    data = bytearray(source.read_bytes())
+    found, skipped = _undefined_headers(data)
+    if not found:
+        return None, (0, 0)
+    for at in found:
+        data[at:at + 3] = bytes(3)
+    copy = spare / f"resynchronised-{source.name}"
+    copy.write_bytes(data)
+    try:
+        return reader.DFReader_binary(str(copy), zero_time_base=False), (len(found), skipped)
+    except Exception:  # damaged beyond its types
+        return None, (0, 0)
 
 
 def _close(log) -> None:

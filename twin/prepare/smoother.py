@@ -12,10 +12,13 @@ unmodelled acceleration, m/s² and rad/s²) says how far it is trusted.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
+from ..drive import INPUT_WORDS
 from ..engine.mjcf import CompiledVessel
+from ..errors import TwinError
 from ..physics.hydrodynamics import acceleration
 from ..physics.kinematics import eta_dot
 from ..physics.thrusters import allocation_matrix
@@ -92,9 +95,17 @@ def smooth_segment(compiled: CompiledVessel, prep: Prepared, sl: slice, *, sigma
 
 def model_smoothed(compiled: CompiledVessel, prep: Prepared, **kwargs) -> Prepared:
     """A copy of `prep` with position, heading, u, v, r from the model-based smoother."""
+    vessel = compiled.vessel
+    if vessel.thrusters.input_kind != "pwm":  # its model turns PWM into thrust: a thruster map of PWM
+        raise TwinError(f"the model-based smoother (--smoother model) drives the vessel model with the recorded "
+                        f"thruster PWM, and vessel '{vessel.name}' is driven by "
+                        f"{INPUT_WORDS.get(vessel.thrusters.input_kind, vessel.thrusters.input_kind)}: use "
+                        "--smoother savgol")
+    if prep.input_kind != "pwm" or not len(prep.pwm) or not np.all(np.isfinite(prep.pwm)):
+        source = Path(str(prep.settings.source or "the recording")).name
+        raise TwinError(f"{source}: the model-based smoother (--smoother model) drives the vessel model with the "
+                        "recorded thruster PWM, and the recording holds none: use --smoother savgol")
     out = {k: getattr(prep, k).copy() for k in ("north", "east", "psi", "u", "v", "r")}
-    if not np.all(np.isfinite(prep.pwm)):
-        raise ValueError("the model-based smoother needs the thruster PWM")
     for seg in prep.segments:
         if seg.stop - seg.start < 3:
             continue

@@ -126,6 +126,7 @@ class _Item:
 
 REPORT_KEYS = frozenset({"index", "log", "vessel", "ok", "seconds"})  # every per-log report has them (_diagnosed)
 HTML_MARK = b"<title>twin diagnose:"  # diagnose/report.py's page title
+SUMMARY_FILES = ("fleet.json", "fleet.md")  # the fleet summary's files in --out, beside the per-log reports
 
 
 def run_logs(job: _Job, b: Batch, items: list[_Item]) -> list[dict]:
@@ -270,8 +271,9 @@ def diagnose_fleet(logs: list[Log], out: Path, *, window_s: float | None = None,
             out.rmdir()
         raise _all_failed([r for r in results if r is not None], out)
     summary = {**summarise([r for r in results if r is not None]), "wind": wind or "none"}
-    write_text_atomic(out / "fleet.json", json.dumps(finite_json(summary), indent=1, allow_nan=False) + "\n")
-    write_text_atomic(out / "fleet.md", format_summary(summary) + "\n")
+    summary_json, summary_md = (out / name for name in SUMMARY_FILES)
+    write_text_atomic(summary_json, json.dumps(finite_json(summary), indent=1, allow_nan=False) + "\n")
+    write_text_atomic(summary_md, format_summary(summary) + "\n")
     return Fleet(results, summary, reports)
 
 
@@ -303,7 +305,7 @@ def _check_inputs_kept(out: Path, names: list[str], html: bool, inputs: list[Pat
     """Refuse, before anything is written, a report that would land on a file the run reads
     (a vessel file or a log kept in --out under a report's name) or on data a user keeps there
     (a twin `boat.json` beside `boat.csv`: files.kept_data)."""
-    written = [out / "fleet.json", out / "fleet.md"]
+    written = [out / name for name in SUMMARY_FILES]
     per_log = []
     for n in names:
         per_log += [out / f"{n}.json", out / f"{n}.failed.json"] + ([out / f"{n}.html"] if html else [])
@@ -335,20 +337,29 @@ def is_fleet_report(path: Path) -> bool:
     return isinstance(data, dict) and REPORT_KEYS <= set(data)
 
 
+def _report_files(name: str) -> set[str]:
+    """The files a log's report named `name` may take in --out, case folded (a case-blind file system)."""
+    return {f"{name}.json".casefold(), f"{name}.failed.json".casefold(), f"{name}.html".casefold()}
+
+
 def _report_names(logs: list[Log]) -> list[str]:
     """A report name per log: its file's stem, numbered where two logs share one (run, run-2), the
-    number passed over where another log's own stem is that name (run-2.csv beside two run.csv)."""
+    number passed over where another log's own stem is that name (run-2.csv beside two run.csv), and
+    where the name's files would be another's: the summary's (a log fleet.csv: its report fleet-2.json,
+    not the summary fleet.json) or another log's (a.failed.csv beside a.csv). Compared without case,
+    as a case-blind file system (macOS, Windows) names files."""
     stems = [log.path.stem for log in logs]
-    taken, out = set(stems), []
-    for k, stem in enumerate(stems):
-        if stem not in stems[:k]:
-            out.append(stem)
-            continue
-        n = 2
-        while f"{stem}-{n}" in taken:
+    taken = {stem.casefold() for stem in stems}
+    used = {name.casefold() for name in SUMMARY_FILES}
+    out = []
+    for stem in stems:
+        name, n = stem, 1
+        while _report_files(name) & used or (n > 1 and name.casefold() in taken):
             n += 1
-        taken.add(f"{stem}-{n}")
-        out.append(f"{stem}-{n}")
+            name = f"{stem}-{n}"
+        taken.add(name.casefold())
+        used |= _report_files(name)
+        out.append(name)
     return out
 
 
