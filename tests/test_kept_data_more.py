@@ -4,7 +4,6 @@ during a run, a recording given as SITL's parameter file, and SIGTERM during a w
 from __future__ import annotations
 
 import json
-import os
 import random
 import signal
 import subprocess
