@@ -167,6 +167,10 @@ def test_model_smoother_on_a_vessel_without_a_pwm_model_is_refused(tmp_path):
     line = one_error(twin("view", run, "--vessel", "cybership1", "--smoother", "model", "--out", tmp_path / "c.rrd"))
     assert "--smoother model" in line and "cybership1" in line
     assert not (tmp_path / "v.rrd").exists() and not (tmp_path / "c.rrd").exists()
+    garbage = tmp_path / "garbage.csv"  # refused before any log is read: the vessel alone decides
+    garbage.write_bytes(bytes(range(256)) * 4)
+    line = one_error(twin("view", garbage, "--vessel", "esso_osaka", "--smoother", "model", "--out", tmp_path / "g.rrd"))
+    assert "--smoother model" in line and "esso_osaka" in line
 
 
 def test_model_smoother_on_a_log_without_pwm_is_refused(tmp_path):
@@ -329,3 +333,17 @@ def test_esso_inputs_in_their_units_are_read():
     for name in ("turn_14-Oct-2020_15_06_53.csv", "random_03-Aug-2020_11_04_37.csv"):  # rudder to 0.70 rad, 10 rps
         rec = read_recording(shared("esso", name))
         assert len(rec.prop_rudder) and rec.misread == []
+
+
+def test_manoeuvre_draws_past_hours_of_trials_are_refused_before_any_run(tmp_path):
+    line = one_error(twin("manoeuvres", "--vessel", "blueboat", "--draws", "100000000"))
+    assert "--draws is at most 100000" in line
+
+
+def test_sitl_write_params_refuses_a_sessions_options_it_would_drop(tmp_path):
+    for extra in (["--port", "99999"], ["--esc-arm", "-1"], ["--heading", "nan"], ["--record", str(tmp_path / "r.csv")]):
+        line = one_error(twin("sitl", "--vessel", "blueboat", "--write-params", tmp_path / "b.parm", *extra))
+        assert "--write-params writes ArduPilot's parameter file and exits" in line and extra[0] in line
+    assert not (tmp_path / "b.parm").exists() and not (tmp_path / "r.csv").exists()
+    done = twin("sitl", "--vessel", "blueboat", "--write-params", tmp_path / "b.parm", "--channels", "1,3")
+    assert done.returncode == 0 and (tmp_path / "b.parm").is_file()

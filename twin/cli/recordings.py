@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from ..drive import inputs_mismatch
+from ..drive import INPUT_WORDS, inputs_mismatch
 from ..errors import TwinError
 from ..files import RUNS, check_new, write_bytes_atomic
 from ..recording import DROPOUTS, MOVED, check_no_shared_stretch, check_not_misread, format_summary
@@ -277,6 +277,10 @@ def view(
     v = vessel_from(vessel, model) if (vessel or model) else None
     if (sim or smoother == "model") and v is None:
         raise TwinError("--sim and --smoother model need --vessel NAME or --model FILE")
+    if smoother == "model" and v.thrusters.input_kind != "pwm":  # before reading: the smoother's own check is late
+        raise TwinError(f"the model-based smoother (--smoother model) drives the vessel model with the recorded "
+                        f"thruster PWM, and vessel '{v.name}' is driven by "
+                        f"{INPUT_WORDS.get(v.thrusters.input_kind, v.thrusters.input_kind)}: use --smoother savgol")
     if wind_measured and not sim:
         raise TwinError("--wind-measured is a known input of the twin's replay: give it with --sim")
     mapping = channels_from(channels)

@@ -31,6 +31,8 @@ SEA_TEXT = ("HS,TP,DIR[,SPREAD]: JONSWAP significant height m, peak period s, di
             "direction deg)")
 SEA_HELP = f"sea state {SEA_TEXT}; runs the 6-DOF hull"
 
+MAX_MANOEUVRE_DRAWS = 100_000  # about three hours of trials on 2 cores
+
 
 KNOWN_SEA_HELP = (f"the sea the recordings were made in, {SEA_TEXT}: its steady "
                   "drift at the hull (the waves' Stokes drift) is a known flow of every free run, so that a current "
@@ -284,6 +286,10 @@ def manoeuvres(
     check_distinct({"--json": json_out}, [model])
     if draws < 0 or draws == 1:
         raise TwinError(f"--draws is 0 (no band) or at least 2, got {draws}")
+    if draws > MAX_MANOEUVRE_DRAWS:  # kept measures are a few numbers a draw: the bound is the time, not memory
+        raise TwinError(f"--draws is at most {MAX_MANOEUVRE_DRAWS}, got {draws}: each draw runs the turning circles, "
+                        "zig-zag and crash stop (about 0.1 s on 2 cores), and a 90 % band settles within a few "
+                        "hundred draws")
     if seed < 0:
         raise TwinError(f"--seed is a whole number ≥ 0, got {seed}")
     v = vessel_from(vessel, model, case)

@@ -66,6 +66,16 @@ def sitl(
         # by its content, as every command reads a file named on the command line (a CSV log saved as .txt)
         raise TwinError(f"--write-params '{write_params}' exists and is a recording: it is kept, --force or not "
                         "(give another name, or remove it first)")
+    if write_params is not None:  # it writes the file and exits: a session's options would be dropped unsaid
+        session = {"--port": port != 9002, "--host": host != "127.0.0.1", "--rate": rate != 400.0,
+                   "--esc-arm": esc_arm != 2.0, "--current": current is not None, "--wind": wind is not None,
+                   "--heading": heading != 0.0, "--sea": sea is not None, "--seed": seed != 0,
+                   "--origin": origin is not None, "--record": bool(record), "--realtime": realtime}
+        given = [name for name, on in session.items() if on]
+        if given:
+            raise TwinError(f"--write-params writes ArduPilot's parameter file and exits: {', '.join(given)} "
+                            f"{'applies' if len(given) == 1 else 'apply'} to a SITL session (give "
+                            f"{'it' if len(given) == 1 else 'them'} without --write-params)")
     check_rate(rate)
     pair = channels_from(channels)
     if pair:  # the parameter file and the server alike: two different servo outputs
