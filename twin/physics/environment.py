@@ -1,6 +1,6 @@
 """Environment: an earth-fixed water current acting through the relative
-velocity ν_r = ν − ν_c [Fossen-2011 §10.3], and a simple wind load
-([Fossen-2011 §10.1], the cosine/sine coefficient form). Both off by default.
+velocity ν_r = ν − ν_c [Fossen-2021 §10.3], and a simple wind load
+([Fossen-2021 §10.1], the cosine/sine coefficient form). Both off by default.
 
 Direction conventions, as in each field: the current's direction is where the
 water flows *to* (oceanographic); the wind's is where it blows *from*

@@ -4,7 +4,7 @@
     ν̇ = ν̇_r + ν̇_c,  η̇ = R(ψ)ν                     ([Yellowfish-TR eq. 12; Morel-2024 eq. 3-7])
 
 with M = M_RB + M_A and C = C_RB + C_A. For an irrotational earth-fixed
-current, M_RB ν̇ + C_RB(ν)ν = M_RB ν̇_r + C_RB(ν_r)ν_r [Fossen-2011 Prop. 10.1],
+current, M_RB ν̇ + C_RB(ν)ν = M_RB ν̇_r + C_RB(ν_r)ν_r [Fossen-2021 Prop. 10.1],
 which is what lets the engine keep integrating the true ν while the
 hydrodynamic terms see ν_r.
 
