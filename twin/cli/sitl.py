@@ -66,7 +66,7 @@ def sitl(
         # by its content, as every command reads a file named on the command line (a CSV log saved as .txt)
         raise TwinError(f"--write-params '{write_params}' exists and is a recording: it is kept, --force or not "
                         "(give another name, or remove it first)")
-    if write_params is not None:  # it writes the file and exits: a session's options would be dropped unsaid
+    if write_params is not None:  # it writes the file and exits: options of a SITL run would be dropped unsaid
         session = {"--port": port != 9002, "--host": host != "127.0.0.1", "--rate": rate != 400.0,
                    "--esc-arm": esc_arm != 2.0, "--current": current is not None, "--wind": wind is not None,
                    "--heading": heading != 0.0, "--sea": sea is not None, "--seed": seed != 0,
