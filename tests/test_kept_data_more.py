@@ -59,6 +59,14 @@ def test_a_truth_over_the_size_guard_is_still_a_truth_and_its_logs_are_read_from
     assert files.kept_data(named) == "dataset's truth"
 
 
+def test_a_truth_named_in_capitals_describes_its_log(tmp_path):
+    big_truth(tmp_path / "A.JSON", logs=("a.csv",), size=4096)
+    (tmp_path / "a.csv").write_text(RECORDING_CSV)
+    assert files.truths_of(tmp_path / "a.csv") == [tmp_path / "A.JSON"]
+    with pytest.raises(TwinError, match="described by a dataset's truth"):
+        files.check_new([tmp_path / "a.csv"], True, "--out", writes=files.RUNS)
+
+
 def test_the_commands_keep_a_big_truth_and_the_log_it_describes(tmp_path):
     folder = tmp_path / "big"
     folder.mkdir()
@@ -175,6 +183,26 @@ def test_a_file_that_appears_during_a_write_is_kept(tmp_path):
     assert (tmp_path / "new.csv").read_text() == "a report\n"
 
 
+def test_a_link_that_appears_during_a_write_is_kept_and_so_is_what_it_names(tmp_path):
+    out, theirs = tmp_path / "same.csv", tmp_path / "theirs.csv"
+    theirs.write_text("someone's\n")
+    for started in (False, True):  # the link there before the write begins, and while it writes
+        out.unlink(missing_ok=True)
+        with files.output_scope():
+            files.check_new([out], False, "--out")
+
+            def fill(fh):
+                fh.write(b"the run's\n")
+                if started:
+                    out.symlink_to(theirs)
+
+            if not started:
+                out.symlink_to(theirs)
+            with pytest.raises(TwinError, match=r"^--out '.*same.csv' appeared during the run and was kept"):
+                files.write_stream_atomic(out, fill)
+        assert theirs.read_text() == "someone's\n" and out.is_symlink() and no_temporaries(tmp_path)
+
+
 def test_a_file_that_appears_before_an_all_or_nothing_block_lands_is_kept_and_none_lands(tmp_path):
     first, second = tmp_path / "a.csv", tmp_path / "b.csv"
     with pytest.raises(TwinError, match="'.*b.csv' appeared during the run and was kept"):
@@ -242,6 +270,13 @@ def test_sitl_write_params_force_keeps_a_recording_under_a_parameter_files_name(
     done = twin("sitl", "--vessel", "blueboat", "--write-params", log, "--force")
     assert done.returncode == 2 and "exists and is a recording: it is kept, --force or not" in done.stderr, done.stderr
     assert log.read_text() == RECORDING_CSV
+    twin_file = tmp_path / "v.parm"  # a vessel file saved under a parameter file's name is data too
+    done = twin("params", "--vessel", "blueboat", "--write-model", tmp_path / "v.json")
+    assert done.returncode == 0, done.stderr
+    twin_file.write_bytes((tmp_path / "v.json").read_bytes())
+    done = twin("sitl", "--vessel", "blueboat", "--write-params", twin_file, "--force")
+    assert done.returncode == 2 and "exists and is a vessel file" in done.stderr, done.stderr
+    assert twin_file.read_bytes() == (tmp_path / "v.json").read_bytes()
     params = tmp_path / "boat.parm"
     params.write_text("OLD 1\n")
     done = twin("sitl", "--vessel", "blueboat", "--write-params", params, "--force")

@@ -51,7 +51,10 @@ def output_scope() -> Iterator[None]:
 
 
 def _key(path) -> str:
-    return os.path.realpath(str(path))
+    """The path with its folder resolved but not its own name: a symbolic link that appears at a path
+    found free is a file that appeared there (written through, it would replace what it names)."""
+    path = os.path.abspath(str(path))
+    return os.path.join(os.path.realpath(os.path.dirname(path)), os.path.basename(path))
 
 
 def _appeared(path) -> TwinError:
@@ -226,6 +229,8 @@ def written_path(path, make_folder: bool = False) -> Path:
     that the rename replaces the file the link names and the link stays. Its folder must exist
     (TwinError naming it) unless `make_folder`: an output into a mistyped folder is refused, not
     written into a new one nobody looks in; a writer filling its own folder tree makes its subfolders."""
+    if _key(path) in _FRESH and (Path(path).exists() or Path(path).is_symlink()):
+        raise _appeared(path)  # found free, and a file or a link is there now: it is kept
     target = link_target(path)
     if target.exists() and not target.is_file():  # a device, a pipe or a folder is not replaced by a file
         raise TwinError(f"'{path}' is not a regular file" + (f" ('{target}')" if target != Path(path) else "")
@@ -432,14 +437,15 @@ def json_head(path, enough: Callable[[dict], bool] | None = None, limit: int | N
             return members
 
 
-def kept_data(path: Path) -> str | None:
+def kept_data(path: Path, suffix: str | None = None) -> str | None:
     """What a file at `path` is when it is data a user keeps, a recording, runs recorded in rerun
     (a simulation, a SITL session), a vessel file, a dataset's truth, a Monte Carlo band or a table
     of inputs (by its content, whatever command wrote it), else None (a report, a view, another
-    table, no file). A JSON file is told by its first members (json_head), whatever its size."""
+    table, no file). A JSON file is told by its first members (json_head), whatever its size.
+    `suffix`: read the file as one of that kind whatever its own name (kept_data_by_content)."""
     if not path.is_file():
         return None
-    suffix = path.suffix.lower()
+    suffix = (suffix or path.suffix).lower()
     if suffix in (".tlog", ".bin", ".mcap"):
         return "recording"
     try:
@@ -464,6 +470,17 @@ def kept_data(path: Path) -> str | None:
     return None
 
 
+def kept_data_by_content(path: Path) -> str | None:
+    """kept_data read as a JSON, a rerun file and a CSV whatever the file's name: for an output of
+    a name of its own (a parameter file, .parm), where a vessel file or a truth saved under another
+    name is still someone's data."""
+    for suffix in (".json", ".rrd", ".csv"):
+        kind = kept_data(path, suffix)
+        if kind:
+            return kind
+    return None
+
+
 KEPT = "it is kept, {force} or not (give another name, or remove it first)"
 RUNS = ("recording", "rerun recording of runs")  # the kinds of kept data a run's or a recording's outputs are
 
@@ -485,7 +502,8 @@ def check_new(paths, force: bool, option: str = "output", writes: tuple[str, ...
             continue
         if not Path(p).exists():
             if _SCOPE_DEPTH[0]:  # free now: the write makes a new file, and keeps one that appears meanwhile
-                _FRESH.setdefault(_key(p), (option, str(p)))
+                # (a dangling link is the user's way to name where the file goes: its target is held)
+                _FRESH.setdefault(_key(link_target(p)), (option, str(p)))
             continue
         if _key(p) in _FRESH:  # found free by this command's first check, and a file is there now
             raise _appeared(p)
@@ -531,7 +549,8 @@ def truths_of(log: Path) -> list[Path]:
     found = [beside] if kept_data(beside) == "dataset's truth" else []
     folders = list(dict.fromkeys((Path(log).parent, target.parent)))
     try:
-        candidates = sorted({p for folder in folders for p in folder.glob("*.json")})
+        # a truth's name as the user gave it: A.JSON is a truth as a.json is
+        candidates = sorted({p for folder in folders for p in folder.iterdir() if p.suffix.lower() == ".json"})
     except OSError:
         return found
     # a truth names a log relative to its folder: by itself ("q.csv") or after a folder (".../q.csv")

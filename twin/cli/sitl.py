@@ -11,7 +11,7 @@ from typing import Optional
 import typer
 
 from ..errors import TwinError
-from ..files import output_scope, write_text_atomic
+from ..files import kept_data_by_content, output_scope, write_text_atomic
 from ..files import RUNS, check_new
 from ..sitl.ardupilot import CONSOLE_WAIT_S, fly_mission, read_waypoint_file
 from .app import (REPORT_HELP, CASE_HELP, FORCE_HELP, MODEL_HELP, TWIN_THRUSTER_SHIPPED, app, channels_from, check_distinct, 
@@ -62,10 +62,12 @@ def sitl(
     # a SITL run ends with Ctrl-C: a recording already at that path would be found replaced only after it
     check_new(record, force, "--record", RUNS)
     check_new([write_params], force, "--write-params")
-    if write_params is not None and force and _is_recording(write_params):
+    if write_params is not None and force:
         # by its content, as every command reads a file named on the command line (a CSV log saved as .txt)
-        raise TwinError(f"--write-params '{write_params}' exists and is a recording: it is kept, --force or not "
-                        "(give another name, or remove it first)")
+        kind = "recording" if _is_recording(write_params) else kept_data_by_content(write_params)
+        if kind:
+            raise TwinError(f"--write-params '{write_params}' exists and is a {kind}: it is kept, --force or not "
+                            "(give another name, or remove it first)")
     if write_params is not None:  # it writes the file and exits: options of a SITL run would be dropped unsaid
         session = {"--port": port != 9002, "--host": host != "127.0.0.1", "--rate": rate != 400.0,
                    "--esc-arm": esc_arm != 2.0, "--current": current is not None, "--wind": wind is not None,
