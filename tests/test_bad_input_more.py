@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from twin_command import twin
 
+from twin.errors import TwinError
 from twin.formats import read_recording
 from twin.recording import format_summary
 
@@ -153,7 +154,7 @@ def test_inputs_and_manifest_with_a_field_over_128_kb_are_one_line(tmp_path):
     manifest = tmp_path / "m.csv"
     manifest.write_text("recording,vessel\n\"" + "x" * 200_000 + "\",blueboat\n")
     line = one_error(twin("fleet", "--manifest", manifest, "--out", tmp_path / "fleet"))
-    assert "cannot be read" in line
+    assert "m.csv" in line and "cannot read" in line
 
 
 # ------------------------------------------------------------------ 4. --smoother model and --sim without inputs
@@ -347,3 +348,24 @@ def test_sitl_write_params_refuses_a_sessions_options_it_would_drop(tmp_path):
     assert not (tmp_path / "b.parm").exists() and not (tmp_path / "r.csv").exists()
     done = twin("sitl", "--vessel", "blueboat", "--write-params", tmp_path / "b.parm", "--channels", "1,3")
     assert done.returncode == 0 and (tmp_path / "b.parm").is_file()
+
+
+def test_an_inputs_file_or_a_manifest_with_a_stray_quote_is_named_with_its_line(tmp_path):
+    inputs = tmp_path / "inputs.csv"
+    inputs.write_text("t,pwm_left,pwm_right\n0,1500,1500\n1,\"1600,1600\n2,1600,1600\n3,1500,1500\n")
+    line = one_error(twin("simulate", "--vessel", "blueboat", "--inputs", inputs, "--duration", "3",
+                          "--out", tmp_path / "r.csv"))
+    assert "inputs.csv: line 3 holds a quote character" in line
+    manifest = tmp_path / "fleet.csv"
+    manifest.write_text("recording,vessel\n\"a.csv,blueboat\nb.csv," + "x" * 200_000 + "\n")
+    line = one_error(twin("fleet", "--manifest", manifest, "--out", tmp_path / "out"))
+    assert "fleet.csv" in line
+
+
+def test_a_pipe_given_as_a_recording_is_named_as_one(tmp_path):
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no named pipes on this system")
+    pipe = tmp_path / "log.csv"
+    os.mkfifo(pipe)
+    with pytest.raises(TwinError, match="not a regular file"):
+        read_recording(pipe)

@@ -274,9 +274,13 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     if not path.is_file():
         raise TwinError(f"inputs file '{path}' not found")
     try:
-        rows = list(csv.reader(path.read_text(encoding="utf-8-sig").splitlines()))
+        # line by line: a stray quote must not join the lines after it into one cell
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
+        rows = [next(csv.reader([text]), []) for text in lines]
     except UnicodeDecodeError:
         raise TwinError(f"{path.name}: not a text CSV file") from None
+    except csv.Error as exc:  # a cell past the csv module's 128 kB
+        raise TwinError(f"inputs file '{path}': not readable as CSV ({exc})") from None
     if len(rows) < 2:
         raise TwinError(f"{path.name}: needs a header and at least one row")
     header = [h.strip() for h in rows[0]]
@@ -291,6 +295,9 @@ def read_inputs_csv(path: str | Path) -> InputSeries:
     for line, row in enumerate(rows[1:], start=2):
         if not row:
             continue
+        if len(row) != len(header) and '"' in lines[line - 1]:
+            raise TwinError(f"{path.name}: line {line} holds a quote character, which leaves {len(row)} cells under a "
+                            f"header of {len(header)} columns: an inputs file holds numbers only")
         if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
             raise TwinError(f"{path.name}: line {line} has {len(row)} cells under a header of {len(header)} columns")
         if len(row) < len(header):  # a row cut short (a file cut off mid-line): its last number is partial

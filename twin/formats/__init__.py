@@ -113,7 +113,8 @@ def _read(path: Path, channels: dict | None) -> Recording:
     if path.is_dir():
         raise TwinError(f"{path}: is a directory, not a recording file")
     if not path.is_file():
-        raise TwinError(f"{path}: no such file")
+        raise TwinError(f"{path}: not a regular file (a device, a pipe or a socket): give a recording file"
+                        if path.exists() else f"{path}: no such file")
     head = _head(path)
     if not head:
         raise TwinError(f"{path.name}: empty file")

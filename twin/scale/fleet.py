@@ -67,11 +67,19 @@ def read_manifest(path: Path, default_vessel: str | None = None) -> list[Log]:
     """The logs of a manifest CSV (module docstring)."""
     path = Path(path)
     try:
-        rows = list(csv.DictReader(path.read_text(encoding="utf-8-sig").splitlines()))
-    except (OSError, UnicodeDecodeError) as exc:
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
+        # line by line: a stray quote must not join the lines after it into one cell
+        parsed = [next(csv.reader([text]), []) for text in lines]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise TwinError(f"manifest '{path}': cannot read ({exc})") from None
+    header = [h.strip() for h in parsed[0]] if parsed else []
+    rows = [dict(zip(header, cells)) for cells in parsed[1:] if cells]
     if not rows or "recording" not in rows[0]:
         raise TwinError(f"manifest '{path.name}': needs a header with a 'recording' column (and optional vessel, day)")
+    for line, (text, cells) in enumerate(zip(lines[1:], parsed[1:]), start=2):
+        if cells and len(cells) != len(header) and '"' in text:
+            raise TwinError(f"manifest '{path.name}': line {line} holds a quote character, which leaves {len(cells)} "
+                            f"cells under a header of {len(header)} columns")
     out = []
     for line, row in enumerate(rows, start=2):
         rec = (row.get("recording") or "").strip()
