@@ -287,8 +287,9 @@ def test_shared_esso_heading_in_degrees_is_refused_even_without_a_wrap(tmp_path)
     assert rec.misread and "psi_hat [rad]" in rec.misread[0] and "degrees" in rec.misread[0]
 
 
-@pytest.mark.parametrize("name", ["fixed_00000220.csv", "fixed_00000222.csv", "fixed_00000226.csv"])
+@pytest.mark.parametrize("name", [f"fixed_00000{n}.csv" for n in (216, 218, 220, 221, 222, 223, 224, 225, 226, 228)])
 def test_shared_blueboat_yaw_in_radians_is_refused(tmp_path, name):
+    # four of the ten never wrap nor turn their track far: the file's own yaw_rate estimate tells the unit
     original = shared("blueboat", name)
     rec = read_recording(_with_column(original, tmp_path / name, "yaw", np.radians))
     assert len(rec.misread) == 1 and "yaw" in rec.misread[0] and "looks like radians" in rec.misread[0]
@@ -369,3 +370,19 @@ def test_a_pipe_given_as_a_recording_is_named_as_one(tmp_path):
     os.mkfifo(pipe)
     with pytest.raises(TwinError, match="not a regular file"):
         read_recording(pipe)
+
+
+def test_generic_heading_in_radians_told_by_its_yaw_rate_column(tmp_path):
+    # a slow sway of the heading (±0.5 rad), no wrap, the track nearly straight: only the yaw rate tells
+    t = np.arange(0.0, 120.0, 0.1)
+    psi = 0.5 * np.sin(2 * np.pi * t / 30.0)
+    rate = np.gradient(psi, t)
+    north, east = 0.5 * t, 0.02 * np.sin(t)
+    def write(path, heading):
+        rows = ["t,north,east,heading_deg,yaw_rate"] + [f"{a:.1f},{n:.4f},{e:.4f},{h:.6f},{r:.6f}" for a, n, e, h, r
+                                                          in zip(t, north, east, heading, rate)]
+        path.write_text("\n".join(rows) + "\n")
+        return read_recording(path).misread
+    assert write(tmp_path / "deg.csv", np.degrees(psi)) == []
+    (reason,) = write(tmp_path / "rad.csv", psi)
+    assert "the yaw rate column yaw_rate turns 57 times as fast" in reason and "looks like radians" in reason

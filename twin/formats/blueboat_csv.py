@@ -37,8 +37,10 @@ def read(path: Path, header: list[str], c: dict[str, np.ndarray], channels: dict
     rec.gnss = clean_stream("gnss", t, gnss, rec.dropped)
     rec.heading = clean_stream("heading", t, {"psi_rad": np.radians(c["yaw"])}, rec.dropped)
     if len(rec.heading) and len(rec.gnss):
+        # the author's yaw_rate estimate is not read as data, but it tells the yaw column's unit
+        rate = (t, c["yaw_rate"], "the yaw_rate column") if "yaw_rate" in c else None
         looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss, "yaw", "the layout's yaw is in degrees",
-                                   t=rec.heading.t)
+                                   t=rec.heading.t, yaw_rate=rate)
         rec.misread += [looks] if looks else []
     neutral_us = tuple(neutral(c.get(f"thr_{s}_pwm_zero_point"), NEUTRAL_US, f"{path.name}: column thr_{s}_pwm_zero_point")
                        for s in ("right", "left"))

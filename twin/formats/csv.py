@@ -224,7 +224,10 @@ def _generic(path: Path, header: list[str], c: dict[str, np.ndarray], channels: 
         rec.misread.append(f"t steps by {np.median(steps):g} s (median): the generic CSV's t is in seconds; "
                            "milliseconds would read as this")
     if "heading_deg" in c and len(rec.heading) and len(rec.gnss):
-        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss, t=rec.heading.t)
+        rate_column = "yaw_rate" if "yaw_rate" in c else ("r" if "r" in c else None)
+        looks = radians_as_degrees(np.degrees(rec.heading["psi_rad"]), rec.gnss, t=rec.heading.t,
+                                   yaw_rate=(t, c[rate_column], f"the yaw rate column {rate_column}") if rate_column
+                                   else None)
         if looks:
             rec.misread.append(looks)
     if {"pwm_left", "pwm_right"} <= set(header):
@@ -258,12 +261,15 @@ TRACK_STEP_M = 2.0  # course over ground from fixes this far apart: closer ones 
 
 
 def radians_as_degrees(heading_deg: np.ndarray, gnss, column: str = "heading_deg",
-                       advice: str = "name it psi for radians, or give degrees", t=None) -> str | None:
+                       advice: str = "name it psi for radians, or give degrees", t=None,
+                       yaw_rate: tuple[np.ndarray, np.ndarray, str] | None = None) -> str | None:
     """A warning when a heading column in degrees (`column`) looks like radians: its values span less than
     RADIANS_SPAN while the GNSS track turns through more than TRACK_TURN_DEG (a heading in degrees that
     turns with it spans as much), or (with the sample times `t`) while they step by 2π where they wrap, or
-    the course over ground follows them read as radians and not as degrees (course_misfit_deg); None when
-    nothing suggests it."""
+    a yaw rate the log holds (`yaw_rate`: its times s, its rad/s and its column's name; a gyro or an
+    estimate, read for this check only) turns GYRO_RATIO times as fast as the heading, or the course over
+    ground follows them read as radians and not as degrees (course_misfit_deg); None when nothing
+    suggests it."""
     heading_deg = np.asarray(heading_deg, float)
     span = float(np.ptp(heading_deg)) if len(heading_deg) else 0.0
     if span >= RADIANS_SPAN:
@@ -282,6 +288,11 @@ def radians_as_degrees(heading_deg: np.ndarray, gnss, column: str = "heading_deg
     wraps = int(np.sum(wrap & ~back))
     if wraps:
         return f"{column} spans only {span:.2f} and steps by about 2π where it wraps ({wraps} time{'s' * (wraps != 1)}){looks}"
+    if yaw_rate is not None:
+        ratio = _turn_ratio(np.radians(heading_deg), np.asarray(t, float), *yaw_rate[:2])
+        if ratio is not None and ratio < 1.0 / GYRO_RATIO:
+            return (f"{yaw_rate[2]} turns {1.0 / max(ratio, 1e-9):.0f} times as fast as {column} read as degrees "
+                    f"(spanning only {span:.2f}){looks}")
     as_read, as_radians = (course_misfit_deg(np.radians(heading_deg) * k, t, gnss) for k in (1.0, np.degrees(1.0)))
     if as_read > COURSE_MISFIT_DEG[1] and as_radians < COURSE_MISFIT_DEG[0]:
         return (f"the course over ground lies {as_read:.0f}° from {column} (median) and {as_radians:.0f}° from it read as "
@@ -355,20 +366,34 @@ def degrees_as_radians(column: str, heading: Stream, imu: Stream | None = None, 
     if fastest > FASTEST_TURN_RAD_S:
         return (f"{column} read as radians turns at {np.degrees(fastest):.0f}°/s (99th percentile of its rate), "
                 f"faster than any vessel{looks}")
-    if imu is not None and len(imu) >= GYRO_SAMPLES:
-        mid = (t[1:] + t[:-1]) / 2
-        inside = (mid >= imu.t[0]) & (mid <= imu.t[-1])
-        gyro = np.interp(mid[inside], imu.t, imu["yaw_rate_rads"])
-        if inside.sum() >= GYRO_SAMPLES and np.sqrt(np.mean(gyro ** 2)) >= GYRO_TURNING_RADS:
-            ratio = float(np.sum(rate[inside] * gyro) / np.sum(gyro ** 2))
-            if ratio > GYRO_RATIO:
-                return f"{column} read as radians turns {ratio:.0f} times as fast as {imu_column} measures{looks}"
+    if imu is not None:
+        ratio = _turn_ratio(psi, t, imu.t, imu["yaw_rate_rads"])
+        if ratio is not None and ratio > GYRO_RATIO:
+            return f"{column} read as radians turns {ratio:.0f} times as fast as {imu_column} measures{looks}"
     if gnss is not None:
         as_read, as_degrees = (course_misfit_deg(psi * k, t, gnss) for k in (1.0, np.radians(1.0)))
         if as_read > COURSE_MISFIT_DEG[1] and as_degrees < COURSE_MISFIT_DEG[0]:
             return (f"the course over ground lies {as_read:.0f}° from {column} (median) and {as_degrees:.0f}° from it "
                     f"read as degrees{looks}")
     return None
+
+
+def _turn_ratio(psi_rad: np.ndarray, t_s: np.ndarray, rate_t_s, rate_rad_s) -> float | None:
+    """How fast the heading psi_rad (at t_s) turns against a yaw rate (rad/s at rate_t_s), least squares over
+    the heading's steps taken within ±π (about 1 in matching units); None where the rate shows too little
+    turning or too few samples to compare with."""
+    rate_t_s, rate_rad_s = np.asarray(rate_t_s, float), np.asarray(rate_rad_s, float)
+    ok = np.isfinite(rate_t_s) & np.isfinite(rate_rad_s)
+    rate_t_s, rate_rad_s = rate_t_s[ok], rate_rad_s[ok]
+    if len(rate_t_s) < GYRO_SAMPLES or len(t_s) < 3:
+        return None
+    turn = np.angle(np.exp(1j * np.diff(psi_rad))) / np.diff(t_s)
+    mid = (t_s[1:] + t_s[:-1]) / 2
+    inside = (mid >= rate_t_s[0]) & (mid <= rate_t_s[-1]) & np.isfinite(turn)
+    gyro = np.interp(mid[inside], rate_t_s, rate_rad_s)
+    if inside.sum() < GYRO_SAMPLES or np.sqrt(np.mean(gyro ** 2)) < GYRO_TURNING_RADS:
+        return None
+    return float(np.sum(turn[inside] * gyro) / np.sum(gyro ** 2))
 
 
 def track_turn_deg(gnss) -> float:
