@@ -104,6 +104,37 @@ def test_the_band_is_the_same_numbers_on_any_number_of_threads(vessel, mission):
     assert abs(np.mean(one.coordinates[:, 0]) - xu) < 0.15 and 0.1 < np.std(one.coordinates[:, 0]) < 0.3
 
 
+def test_a_twin_with_its_form_error_widens_the_band_in_quadrature_and_keeps_the_median(vessel, mission):
+    # a form-error block by hand: |error| of u 0.1 m/s at every level and horizon, of the position 0.5 m per
+    # 10 s of horizon (north, east, deviation) at every level; psi, v and r absent (their bands stay as drawn)
+    horizons = [0.0, 10.0, 20.0, 30.0]
+    levels = [0.5, 0.68, 0.8, 0.9, 0.95, 0.99]
+    grow = [[0.05 * h] * len(levels) for h in horizons]
+    block = {"horizon_s": horizons, "levels": levels, "windows": 1000,
+             "quantiles": {"u": [[0.1] * len(levels)] * len(horizons), "north": grow, "east": grow, "deviation": grow}}
+    widened_vessel = replace(vessel, uncertainty={**vessel.uncertainty, "form_error": block})
+    drawn = mc.run(vessel, mission, 40, seed=5, batch_size=20)
+    widened = mc.run(widened_vessel, mission, 40, seed=5, batch_size=20)
+    alone = mc.run(widened_vessel, mission, 40, seed=5, batch_size=20, form_error=False)
+    assert drawn.band.parameters_only is None and alone.band.parameters_only is None
+    assert all(np.array_equal(alone.band.values[q], drawn.band.values[q]) for q in mc.QUANTITIES)
+    b, d = widened.band, drawn.band
+    assert all(np.array_equal(b.parameters_only[q], d.values[q]) for q in mc.QUANTITIES)
+    i5, i50, i95 = (b.percentiles.index(p) for p in (5.0, 50.0, 95.0))
+    assert np.array_equal(b.values["u"][i50], d.values["u"][i50])  # the median stays the draws'
+    hi, nom = d.values["u"][i95], d.nominal["u"]
+    assert b.values["u"][i95] == pytest.approx(nom + np.sqrt(np.clip(hi - nom, 0, None) ** 2 + 0.1 ** 2))
+    assert np.all(b.values["u"][i5] < d.values["u"][i5]) and b.values["u"][i5][0] == pytest.approx(nom[0] - 0.1)
+    for q in ("psi", "v", "r"):
+        assert np.array_equal(b.values[q], d.values[q])
+    # the distance off the nominal track at 20 s: 1 m of form error in quadrature; along and cross take it too
+    i90, k = b.percentiles.index(90.0), int(np.argmin(np.abs(b.t_s - 20.0)))
+    assert b.values["deviation"][i90, k] == pytest.approx(np.hypot(d.values["deviation"][i90, k], 1.0))
+    assert b.values["cross"][i95, k] - b.nominal["cross"][k] >= 1.0
+    d_json = widened.to_dict()
+    assert d_json["widened_by_form_error"] and d_json["final_parameters_only"]["u"]["p95"] == pytest.approx(hi[-1])
+
+
 def test_band_outputs_and_their_columns(band_run, tmp_path):
     from twin.scale import views
 

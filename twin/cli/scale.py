@@ -73,6 +73,10 @@ def montecarlo_command(
     retries: int = typer.Option(3, help=RETRIES_HELP),
     sea: Optional[str] = typer.Option(None, help=SEA_HELP + "; every draw in its own realisation of the sea "
                                                  "(seeded from --seed)"),
+    form_error: bool = typer.Option(True, "--form-error/--no-form-error",
+                                    help="widen the band by the twin's error on runs left out of its fit, where "
+                                         "the vessel file carries it (`twin identify` writes it); without it the "
+                                         "band is the coefficients' spread alone"),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ):
     """Prediction bands of an identified twin: draws from its covariance through a mission."""
@@ -113,7 +117,7 @@ def montecarlo_command(
     draws_fit(draws, mission.duration_s / sample_dt + 1, 18, "--draws at --duration and --sample-dt")
     with progress_bar("montecarlo") as progress, memory_for("--draws at --duration and --sample-dt"):
         result = mc.run(v, mission, draws, seed=seed, variation=variation, level=level, batch_size=batch_size,
-                        executor=executor, progress=progress)
+                        executor=executor, progress=progress, form_error=form_error)
     for path in out:
         _write_band(result, path)
     _report(result)
@@ -169,6 +173,13 @@ def _report(result) -> None:
         f"{100 * b.level:g} % within {b.interval('deviation')[1][-1]:.2f} m; heading "
         f"[{k * b.at('psi', lo_p)[-1]:.1f}, {k * b.at('psi', hi_p)[-1]:.1f}]° (nominal {k * psi:.1f}°), "
         f"u [{b.at('u', lo_p)[-1]:.3f}, {b.at('u', hi_p)[-1]:.3f}] m/s ({100 * b.level:g} % band)")
+    if b.parameters_only is not None:
+        alone = b.parameters_only["deviation"][b.percentiles.index(level_percentiles(b.level, True)[1]), -1]
+        say(f"the band holds the twin's error on runs left out of its fit beside its coefficients' spread "
+            f"(the coefficients' alone: {100 * b.level:g} % within {alone:.2f} m; --no-form-error for that band)")
+    elif result.vessel.uncertainty and "form_error" not in result.vessel.uncertainty:
+        say("the band is the coefficients' spread alone: the vessel file carries no error on left-out runs "
+            "(`twin identify` writes one), and a twin is wrong in its form as well as in its numbers")
 
 
 @app.command("dataset-shards")

@@ -306,6 +306,8 @@ class Band:
     values: dict[str, np.ndarray]
     nominal: dict[str, np.ndarray]
     level: float
+    # the draws' own percentiles where `values` were widened by the twin's form error (widen_band); None if not
+    parameters_only: dict[str, np.ndarray] | None = None
 
     def at(self, q: str, p: float) -> np.ndarray:
         return self.values[q][self.percentiles.index(p)]
@@ -355,6 +357,46 @@ def band_of(tracks: np.ndarray, nominal: np.ndarray, t_s: np.ndarray, level: flo
     nom = relative(nominal[None], nominal)
     return Band(np.asarray(t_s, float), pcts, {q: np.percentile(rel[q], pcts, axis=0) for q in QUANTITIES},
                 {q: nom[q][0] for q in QUANTITIES}, level)
+
+
+# the form error's quantity that bounds a band's quantity where they differ: a distance off the track bounds
+# each of its components
+FORM_QUANTITY = {"along": "deviation", "cross": "deviation"}
+
+
+def widen_band(band: Band, block: dict) -> Band:
+    """The band widened by the twin's form error (`block`: uncertainty["form_error"], written by identify:
+    crossval.form_error), in quadrature with the draws' spread at each percentile's own level, at the
+    mission's time as the horizon (crossval.form_error_at: a velocity's error holds beyond the measured
+    horizons, a position's grows on). The median stays the draws'.
+
+    Args:
+        band: the draws' band (its `parameters_only` None).
+        block: the form-error block; quantities it lacks stay as drawn.
+
+    Returns:
+        A Band whose `values` are widened and whose `parameters_only` keeps the draws' own percentiles.
+    """
+    values = {}
+    for q in QUANTITIES:
+        fq = FORM_QUANTITY.get(q, q)
+        drawn, nom = band.values[q], band.nominal[q]
+        if fq not in block.get("quantiles", {}):
+            values[q] = drawn
+            continue
+        out = drawn.copy()
+        for i, p in enumerate(band.percentiles):
+            if q in ONE_SIDED:  # a distance: its percentile p holds the form error's |error| at level p
+                if p > 0.0:
+                    out[i] = np.sqrt(drawn[i] ** 2 + form_error_at(block, fq, p / 100.0, band.t_s) ** 2)
+                continue
+            level, side = abs(2.0 * p / 100.0 - 1.0), np.sign(p - 50.0)
+            if level == 0.0:
+                continue
+            half = form_error_at(block, fq, level, band.t_s)
+            out[i] = nom + side * np.sqrt(np.clip(side * (drawn[i] - nom), 0.0, None) ** 2 + half ** 2)
+        values[q] = out
+    return replace(band, values=values, parameters_only=dict(band.values))
 
 
 def coverage(band: Band, tracks: np.ndarray, level: float | None = None) -> dict[str, float]:
@@ -412,6 +454,10 @@ class MonteCarlo:
             "band": {q: {_tag(p): b.values[q][i] for i, p in enumerate(b.percentiles)} for q in QUANTITIES},
             "final": {q: {_tag(p): float(b.values[q][i, -1]) for i, p in enumerate(b.percentiles)}
                       for q in QUANTITIES},
+            "widened_by_form_error": b.parameters_only is not None,
+            **({"final_parameters_only": {q: {_tag(p): float(b.parameters_only[q][i, -1])
+                                              for i, p in enumerate(b.percentiles)} for q in QUANTITIES}}
+               if b.parameters_only is not None else {}),
             "coordinates": {"names": names,
                             "mean": np.mean(self.coordinates[ok], axis=0) if ok.any() and names else [],
                             "sd": np.std(self.coordinates[ok], axis=0) if ok.any() and names else []},
@@ -450,10 +496,13 @@ def check_variation(vessel: Vessel, variation: Variation) -> None:
 
 def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variation: Variation | None = None,
         level: float = 0.9, batch_size: int = 64, executor: Executor | None = None, keep_tracks: int = 50,
-        progress: Progress | None = None) -> MonteCarlo:
+        progress: Progress | None = None, form_error: bool = True) -> MonteCarlo:
     """`draws` twins of `vessel` through `mission` (module docstring), in batches of batch_size
     seeded from `seed`; the same numbers whichever executor runs them. Default variation: the
-    vessel file's covariance (TwinError without one)."""
+    vessel file's covariance (TwinError without one). Where the vessel file carries the twin's error
+    on runs left out of its fit (uncertainty["form_error"]), the band is widened by it (widen_band)
+    unless `form_error` is False: the draws spread the coefficients only, and a twin is wrong in its
+    form as well as in its numbers."""
     variation = variation or Variation(covariance=True)
     check_variation(vessel, variation)
     level_percentiles(level)
@@ -469,6 +518,9 @@ def run(vessel: Vessel, mission: Mission, draws: int, *, seed: int = 0, variatio
         raise TwinError(f"the nominal twin of '{vessel.name}' diverges on this mission")
     t_s = np.arange(tracks.shape[1]) * mission.sample_dt_s
     band = band_of(tracks, nominal[0], t_s, level)
+    block = vessel.uncertainty.get("form_error") if form_error else None
+    if block and block.get("quantiles"):
+        band = widen_band(band, block)
     coords = np.concatenate([r.coordinates for r in results])
     return MonteCarlo(vessel, mission, band, nominal[0], tracks[:keep_tracks], coords, draws, diverged,
                       sum(r.rejected for r in results), seed, batch_size, variation, executor.name,
