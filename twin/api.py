@@ -231,7 +231,10 @@ def manoeuvre_bands(vessel: Vessel | str, draws: int = 50, seed: int = 0, surge:
         vessel: an identified twin (a twin.Vessel or a vessel file with an uncertainty block).
         draws: how many twins to draw (≥ 2; `--draws`).
         seed: the draws' random seed (≥ 0; `--seed`).
-        surge, turn_yaw, zigzag_yaw, zigzag_switch_deg: as `manoeuvres` takes them.
+        surge: the approach command, as `manoeuvres` takes it.
+        turn_yaw: the turning circles' yaw command, as `manoeuvres` takes it.
+        zigzag_yaw: the zig-zag's yaw command, as `manoeuvres` takes it.
+        zigzag_switch_deg: the zig-zag's switch angle (°), as `manoeuvres` takes it.
 
     Returns:
         twin.verify.manoeuvres.ManoeuvreBands: `bands` (per measure `name`, `low`, `high`, `reached`),
