@@ -46,13 +46,13 @@ DOF_WORD = {"u": "surge", "v": "sway", "r": "yaw"}
 class GreyboxOptions:
     """How the regressions are built (regressors module docstring).
 
-    thrust_form: "seed" (eqs. 21, 28) or "thruster" (eqs. 13-14 per thruster).
+    thrust_form: "paper" (the columns of [Morel-2024], eqs. 21, 28) or "thruster" (eqs. 13-14 per thruster).
     regions: operating regions used per DOF, e.g. {"u": ("ff",)}; missing DOFs
-    take the form's default (seed: surge (f,f), sway/yaw (f,f), (f,r), (r,f)).
+    take the form's default (paper: surge (f,f), sway/yaw (f,f), (f,r), (r,f)).
     deadband_as_zero: δ = 0 for a thruster inside Prepared.in_deadband.
     """
 
-    thrust_form: str = "seed"
+    thrust_form: str = "paper"
     regions: dict[str, tuple[str, ...]] = field(default_factory=dict)
     deadband_as_zero: bool = True
     max_condition: float = MAX_CONDITION

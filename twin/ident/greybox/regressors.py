@@ -14,7 +14,7 @@ Conventions shared by the grey-box models and the baseline:
   this, a 1512/1510 µs idle around a 1511 µs neutral reads as (f,r) and every
   coast-down (where surge damping shows) is lost to the surge regression.
 - Two input parametrisations ("thrust forms"):
-  "seed": the columns of [Morel-2024]. Surge: δ̄² + Δδ²/4 and δ̄, valid in (f,f) only
+  "paper": the columns of [Morel-2024]. Surge: δ̄² + Δδ²/4 and δ̄, valid in (f,f) only
   (eq. 21). Sway/yaw: s·(δ̄² + Δδ²/4), δ̄Δδ, s·δ̄, Δδ/2 with s = +1 in (f,r),
   −1 in (r,f), 0 in (f,f) (eq. 28), valid in (f,f), (f,r), (r,f). One
   coefficient is shared between (f,f), where it is 2a_f, and (f,r)/(r,f),
@@ -39,7 +39,7 @@ from ...prepare.prepared import Prepared
 PWM_HALF_RANGE_US = 400.0
 DOFS = ("u", "v", "r")
 REGIONS = ("ff", "fr", "rf", "rr")
-THRUST_FORMS = ("seed", "thruster")
+THRUST_FORMS = ("paper", "thruster")
 
 # Terms of the lumped disturbance σ_j of eq. 12 that survive the P, Q, R patterns,
 # in the order of the regressors of [Morel-2024] A_u (eq. 21) and A_v, A_r (Appendix A).
@@ -66,14 +66,14 @@ _TERM: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
 }
 
 INPUT_TERMS: dict[str, dict[str, tuple[str, ...]]] = {
-    "seed": {"u": ("δ̄²+Δδ²/4", "δ̄"),
+    "paper": {"u": ("δ̄²+Δδ²/4", "δ̄"),
              "v": ("s(δ̄²+Δδ²/4)", "δ̄Δδ", "sδ̄", "Δδ/2"),
              "r": ("s(δ̄²+Δδ²/4)", "δ̄Δδ", "sδ̄", "Δδ/2")},
     "thruster": {dof: ("Σf δ²", "Σf δ", "Σr δ²", "Σr δ") for dof in DOFS},
 }
 
 DEFAULT_REGIONS: dict[str, dict[str, tuple[str, ...]]] = {
-    "seed": {"u": ("ff",), "v": ("ff", "fr", "rf"), "r": ("ff", "fr", "rf")},
+    "paper": {"u": ("ff",), "v": ("ff", "fr", "rf"), "r": ("ff", "fr", "rf")},
     "thruster": {dof: REGIONS for dof in DOFS},
 }
 
@@ -122,7 +122,7 @@ def state_columns(nu: np.ndarray, dof: str) -> np.ndarray:
 
 def input_columns(inputs: Inputs, dof: str, form: str) -> np.ndarray:
     """Input-gain regressors (n, p) in INPUT_TERMS[form][dof] order (module docstring)."""
-    if form == "seed":
+    if form == "paper":
         return _paper_input_columns(inputs, dof)
     if form == "thruster":
         return _thruster_input_columns(inputs, dof)
