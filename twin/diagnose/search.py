@@ -43,10 +43,9 @@ heading is one the form error cannot stand in for. A library of at most JUDGED_W
 judged whole. A fold's fit starts from the screened point, but for a scanned candidate (a time shift, a
 dead zone) its coarse grid is scanned again on the fold's own training windows: its fine scans reach a
 step or so around their start, and the screening windows are the other folds' held-out ones, whose
-blocks would then have chosen the value they judge. (Judging also the screening leader's near ties, up
-to the sixth, is not done: judging more near-equal stand-ins gives one of them more chances to be
-preferred by chance, and on recordings it had not been chosen on it changed one verdict, for the
-worse.)
+blocks would then have chosen the value they judge. The screening leader's near ties are not judged
+as well: more near-equal stand-ins give one of them more chances to be preferred by chance (the
+evidence: docs/method/decisions.md).
 
 Every cost is a sum of squared residuals, each DOF's in units of a scale of its own (dof_scale). For
 a twin identified on other runs (it carries its form error), the scale is what its residual on the
