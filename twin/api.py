@@ -40,7 +40,7 @@ from .fit.evaluate import STATE_NAMES, TwinPredictor, evaluate as _evaluate, mis
 from .fit.windows import ModelCache
 from .formats import read_recording as _read_recording
 from .physics.waves import Sea, parse_sea
-from .prepare import prepare as _prepare
+from .prepare import Prepared, prepare as _prepare
 from .recording import Recording, check_no_shared_stretch, check_not_misread
 from .run import Run
 from .simulation import Simulation, check_flags, known_options, simulate, simulate_run
@@ -357,7 +357,7 @@ def _drivable(rec, vessel: Vessel) -> None:
                         f"{inputs_mismatch(vessel.name, wants, kind)}")
 
 
-def read_recording(path, channels: dict | None = None):
+def read_recording(path, channels: dict | None = None) -> Recording:
     """Read a recording from a file, as `twin info` reads it.
 
     Args:
@@ -392,7 +392,7 @@ def _finite(value, positive: bool = True) -> bool:
             and (value > 0 or not positive))
 
 
-def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated: bool = True):
+def prepare_recording(recording, vessel: Vessel | str | None = None, calibrated: bool = True) -> Prepared:
     """A recording made ready for fitting [Morel-2024 §5.1]: on one time grid, with body velocities.
 
     The samples are synchronised on one time grid, with the body velocities and yaw rate. With a
@@ -466,7 +466,7 @@ def _in_sea(vessel: Vessel, sea) -> Vessel:
     return with_known_sea(vessel, sea)
 
 
-def identify(recordings, vessel: Vessel | str, sea=None, **options):
+def identify(recordings, vessel: Vessel | str, sea=None, **options) -> Identification:
     """Identify a vessel from recordings, as `twin identify` does.
 
     Each log's compass calibration, a fit by simulation with the prior's beliefs, and every choice
@@ -1032,7 +1032,7 @@ class Diagnosis(_Found):
 
 def diagnose_recordings(recordings, vessel: Vessel | str, sea=None, *, effects=None, window_s: float | None = None,
                         wind: str | None = None, calibrated: bool = True, kinematic: bool = True,
-                        refit=None, refit_weight: float = 1.0, log=None):
+                        refit=None, refit_weight: float = 1.0, log=None) -> Diagnosis:
     """Which physics the twin lacks, how much of it, and the amended twin, as `twin diagnose` finds.
 
     The twin is replayed over free-run windows; each candidate effect is fitted on some blocks of
